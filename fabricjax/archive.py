@@ -1,0 +1,362 @@
+"""The trial archive: the one contract between acquisition / simulator and everything downstream.
+
+One `.npz` per trial, loadable with `allow_pickle=False`:
+
+==============  =====================  ======================================================
+key             dtype, shape           meaning
+==============  =====================  ======================================================
+meta            0-d unicode            JSON object, see `REQUIRED_META`
+timestamps      float64 (T,)           capture time of each step (Minsight frame), seconds
+window_end      int64 (T, 2)           exclusive end index, in each raw mic stream, of the
+                                       2048-sample window that belongs to the step
+joints          float32 (T, 6, 3)      6 joints x (angle rad, velocity rad/s, current A)
+force           float32 (T,)           estimated normal force at the Minsight tip, N
+audio           int32 (2, S)           raw SPH0645 I2S words, 48 kHz; row 0 = Minsound
+                                       (internal), row 1 = palm (external)
+images          uint8 (T, H, W, 3)     Minsight frames; absent when not recorded
+==============  =====================  ======================================================
+
+`write_archive` is atomic (temporary name in the same folder, fsync, rename); `read_archive`
+validates every field and raises `ArchiveError` naming the file, the field and the problem.
+A dataset is a folder of archives plus `index.json` (see `build_index`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+FORMAT_VERSION = 1
+INDEX_NAME = "index.json"
+WINDOW = 2048
+N_JOINTS = 6
+JOINT_FIELDS = ("angle", "velocity", "current")
+JOINT_NAMES = ("thumb_base", "thumb_mid", "thumb_tip", "middle_base", "middle_tip", "palm")
+MIC_NAMES = ("internal", "external")
+UNITS = {
+    "timestamps": "s",
+    "joints": ["rad", "rad/s", "A"],
+    "force": "N",
+    "audio": "SPH0645 I2S word (int32; 18 valid bits in bits 31..14)",
+}
+REQUIRED_META = {
+    "format_version": int,
+    "fabric_id": int,
+    "label": int,
+    "properties": dict,
+    "day": int,
+    "trial": int,
+    "condition": str,
+    "source": dict,
+    "sample_rates": dict,
+    "image_size": (list, type(None)),
+    "joint_names": list,
+    "units": dict,
+    "complete": bool,
+}
+CONDITIONS = ("lab", "cafe")
+PROPERTY_NAMES = ("stretchiness", "roughness", "thickness")
+
+
+class ArchiveError(ValueError):
+    """A trial archive or dataset index is unreadable or invalid."""
+
+    def __init__(self, path: os.PathLike | str, field: str, problem: str):
+        self.path, self.field, self.problem = str(path), field, problem
+        super().__init__(f"{path}: field '{field}': {problem}")
+
+
+@dataclasses.dataclass(frozen=True)
+class TrialArchive:
+    """One recorded or simulated trial, validated."""
+
+    meta: dict[str, Any]
+    timestamps: np.ndarray
+    window_end: np.ndarray
+    joints: np.ndarray
+    force: np.ndarray
+    audio: np.ndarray
+    images: np.ndarray | None = None
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.timestamps.shape[0])
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        out = {k: getattr(self, k) for k in ("timestamps", "window_end", "joints", "force", "audio")}
+        if self.images is not None:
+            out["images"] = self.images
+        return out
+
+
+_SPEC = {  # field -> (dtype, shape with None for free dims, 'T' for the step count)
+    "timestamps": (np.float64, ("T",)),
+    "window_end": (np.int64, ("T", 2)),
+    "joints": (np.float32, ("T", N_JOINTS, 3)),
+    "force": (np.float32, ("T",)),
+    "audio": (np.int32, (2, None)),
+    "images": (np.uint8, ("T", None, None, 3)),
+}
+
+
+def make_meta(
+    *,
+    fabric_id: int,
+    properties: dict[str, int | None],
+    day: int,
+    trial: int,
+    condition: str,
+    source: dict[str, Any],
+    image_size: tuple[int, int] | None,
+    complete: bool = True,
+    label: int | None = None,
+    **extra: Any,
+) -> dict[str, Any]:
+    """Meta with every required field filled in the canonical way."""
+    return {
+        "format_version": FORMAT_VERSION,
+        "fabric_id": int(fabric_id),
+        "label": int(fabric_id if label is None else label),
+        "properties": {k: (None if properties.get(k) is None else int(properties[k])) for k in PROPERTY_NAMES},
+        "day": int(day),
+        "trial": int(trial),
+        "condition": condition,
+        "source": source,
+        "sample_rates": {"audio": 48000, "steps": 50},
+        "image_size": None if image_size is None else [int(image_size[0]), int(image_size[1])],
+        "joint_names": list(JOINT_NAMES),
+        "joint_fields": list(JOINT_FIELDS),
+        "mic_names": list(MIC_NAMES),
+        "units": UNITS,
+        "complete": bool(complete),
+        **extra,
+    }
+
+
+def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
+    if not isinstance(meta, dict):
+        raise ArchiveError(path, "meta", f"expected a JSON object, got {type(meta).__name__}")
+    if "format_version" not in meta:
+        raise ArchiveError(path, "meta.format_version", "missing")
+    if meta["format_version"] != FORMAT_VERSION:
+        raise ArchiveError(
+            path, "meta.format_version", f"unknown format version {meta['format_version']!r} (this code reads {FORMAT_VERSION})"
+        )
+    for key, typ in REQUIRED_META.items():
+        if key not in meta:
+            raise ArchiveError(path, f"meta.{key}", "missing")
+        if not isinstance(meta[key], typ) or (typ is int and isinstance(meta[key], bool)):
+            raise ArchiveError(path, f"meta.{key}", f"wrong type {type(meta[key]).__name__}")
+    if meta["condition"] not in CONDITIONS:
+        raise ArchiveError(path, "meta.condition", f"must be one of {CONDITIONS}, got {meta['condition']!r}")
+    if meta["fabric_id"] < 0:
+        raise ArchiveError(path, "meta.fabric_id", f"must be >= 0, got {meta['fabric_id']}")
+    for name in PROPERTY_NAMES:
+        level = meta["properties"].get(name, "missing")
+        if level == "missing":
+            raise ArchiveError(path, f"meta.properties.{name}", "missing (use null when unknown)")
+        if level is not None and (not isinstance(level, int) or level < 0):
+            raise ArchiveError(path, f"meta.properties.{name}", f"must be a level >= 0 or null, got {level!r}")
+    if meta["sample_rates"].get("audio") != 48000:
+        raise ArchiveError(path, "meta.sample_rates.audio", f"must be 48000, got {meta['sample_rates'].get('audio')!r}")
+    if len(meta["joint_names"]) != N_JOINTS:
+        raise ArchiveError(path, "meta.joint_names", f"expected {N_JOINTS} names, got {len(meta['joint_names'])}")
+    return meta
+
+
+def _check_array(path, name: str, arr: np.ndarray, n_steps: int | None) -> None:
+    dtype, shape = _SPEC[name]
+    if arr.dtype != dtype:
+        raise ArchiveError(path, name, f"dtype {arr.dtype}, expected {np.dtype(dtype)}")
+    if arr.ndim != len(shape):
+        raise ArchiveError(path, name, f"shape {arr.shape}, expected {len(shape)} dimensions {shape}")
+    for size, want in zip(arr.shape, shape):
+        if want == "T" and n_steps is not None and size != n_steps:
+            raise ArchiveError(path, name, f"shape {arr.shape}: {size} steps, but timestamps has {n_steps}")
+        if isinstance(want, int) and size != want:
+            raise ArchiveError(path, name, f"shape {arr.shape}, expected {shape}")
+    if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
+        bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
+        raise ArchiveError(path, name, f"{bad} non-finite values (NaN or Inf)")
+
+
+def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> TrialArchive:
+    """Raise `ArchiveError` unless every field is well-formed and consistent."""
+    validate_meta(archive.meta, path)
+    _check_array(path, "timestamps", archive.timestamps, None)
+    n = archive.n_steps
+    if n < 1:
+        raise ArchiveError(path, "timestamps", "trial has no steps")
+    for name in ("window_end", "joints", "force", "audio"):
+        _check_array(path, name, getattr(archive, name), n)
+    if np.any(np.diff(archive.timestamps) < 0):
+        raise ArchiveError(path, "timestamps", "not non-decreasing")
+    n_samples = archive.audio.shape[1]
+    we = archive.window_end
+    if we.size and (we.min() < 0 or we.max() > n_samples):
+        raise ArchiveError(
+            path, "window_end", f"indices must lie in [0, {n_samples}] (audio length), found [{we.min()}, {we.max()}]"
+        )
+    if np.any(np.diff(we, axis=0) < 0):
+        raise ArchiveError(path, "window_end", "indices decrease between steps")
+    if archive.images is not None:
+        _check_array(path, "images", archive.images, n)
+        size = archive.meta["image_size"]
+        if size is None or list(archive.images.shape[1:3]) != list(size):
+            raise ArchiveError(path, "images", f"shape {archive.images.shape} disagrees with meta.image_size {size}")
+    return archive
+
+
+def write_archive(path: os.PathLike | str, archive: TrialArchive) -> Path:
+    """Validate, then write atomically: a reader never sees a half-written archive."""
+    path = Path(path)
+    validate(archive, path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, meta=np.array(json.dumps(archive.meta)), **archive.arrays())
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _open(path: Path):
+    if not path.is_file():
+        raise ArchiveError(path, "<file>", "no such file")
+    try:
+        return np.load(path, allow_pickle=False)
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as e:
+        raise ArchiveError(path, "<file>", f"not a readable .npz archive (corrupt or truncated): {e}") from None
+
+
+def _load_field(path: Path, npz, name: str) -> np.ndarray:
+    try:
+        return npz[name]
+    except KeyError:
+        raise ArchiveError(path, name, "missing") from None
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError, RuntimeError) as e:
+        raise ArchiveError(path, name, f"unreadable (corrupt or truncated): {e}") from None
+
+
+def _parse_meta(path: Path, npz) -> dict[str, Any]:
+    raw = _load_field(path, npz, "meta")
+    try:
+        meta = json.loads(str(raw[()]))
+    except (json.JSONDecodeError, TypeError, IndexError) as e:
+        raise ArchiveError(path, "meta", f"not valid JSON: {e}") from None
+    return validate_meta(meta, path)
+
+
+def read_meta(path: os.PathLike | str) -> tuple[dict[str, Any], int]:
+    """Meta and step count without loading the streams (cheap, for indexing)."""
+    path = Path(path)
+    with _open(path) as npz:
+        meta = _parse_meta(path, npz)
+        ts = _load_field(path, npz, "timestamps")
+    return meta, int(ts.shape[0]) if ts.ndim == 1 else -1
+
+
+def read_archive(path: os.PathLike | str, *, images: bool = True) -> TrialArchive:
+    """Load and fully validate one archive. `images=False` skips the (large) image stream."""
+    path = Path(path)
+    with _open(path) as npz:
+        meta = _parse_meta(path, npz)
+        fields = {k: _load_field(path, npz, k) for k in ("timestamps", "window_end", "joints", "force", "audio")}
+        imgs = _load_field(path, npz, "images") if images and "images" in npz.files else None
+    return validate(TrialArchive(meta=meta, images=imgs, **fields), path)
+
+
+def trial_filename(meta: dict[str, Any]) -> str:
+    return f"fabric{meta['fabric_id']:02d}_day{meta['day']}_trial{meta['trial']:02d}_{meta['condition']}.npz"
+
+
+@dataclasses.dataclass(frozen=True)
+class IndexEntry:
+    file: str
+    meta: dict[str, Any]
+    n_steps: int
+    size: int
+    mtime_ns: int
+
+    @property
+    def fingerprint(self) -> str:
+        """Identifies the archive's contents for caches (changes whenever the file is rewritten)."""
+        return f"{self.file}:{self.size}:{self.mtime_ns}"
+
+
+@dataclasses.dataclass(frozen=True)
+class DatasetIndex:
+    root: Path
+    entries: tuple[IndexEntry, ...]
+
+    def path(self, entry: IndexEntry) -> Path:
+        return self.root / entry.file
+
+    def select(self, **where: Any) -> list[IndexEntry]:
+        return [e for e in self.entries if all(e.meta.get(k) == v for k, v in where.items())]
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def build_index(folder: os.PathLike | str) -> DatasetIndex:
+    """Scan a folder of archives (hardware or simulated) and write its `index.json`."""
+    root = Path(folder)
+    if not root.is_dir():
+        raise ArchiveError(root, "<folder>", "dataset folder does not exist")
+    entries = []
+    for p in sorted(root.glob("*.npz")):
+        meta, n = read_meta(p)
+        st = p.stat()
+        entries.append(IndexEntry(p.name, meta, n, st.st_size, st.st_mtime_ns))
+    doc = {"format_version": FORMAT_VERSION, "trials": [dataclasses.asdict(e) for e in entries]}
+    _atomic_write_text(root / INDEX_NAME, json.dumps(doc, indent=1))
+    return DatasetIndex(root, tuple(entries))
+
+
+def load_index(folder: os.PathLike | str) -> DatasetIndex:
+    """Read `index.json`, building it on first use and rebuilding it when archives were added or
+    rewritten. An archive the index lists but the folder lacks is an error: data went missing."""
+    root = Path(folder)
+    ipath = root / INDEX_NAME
+    if not ipath.exists():
+        return build_index(root)
+    try:
+        doc = json.loads(ipath.read_text())
+        if doc.get("format_version") != FORMAT_VERSION:
+            raise ArchiveError(ipath, "format_version", f"unknown index version {doc.get('format_version')!r}")
+        entries = tuple(IndexEntry(**t) for t in doc["trials"])
+    except (json.JSONDecodeError, KeyError, TypeError) as e:
+        raise ArchiveError(ipath, "trials", f"malformed index: {e}") from None
+    on_disk = {p.name: p.stat() for p in root.glob("*.npz")}
+    for e in entries:
+        if e.file not in on_disk:
+            raise ArchiveError(
+                ipath, f"trials[{e.file}]", "listed archive is missing from the folder (restore it, or delete index.json to re-index)"
+            )
+    stale = len(on_disk) != len(entries) or any(
+        on_disk[e.file].st_size != e.size or on_disk[e.file].st_mtime_ns != e.mtime_ns for e in entries
+    )
+    return build_index(root) if stale else DatasetIndex(root, entries)

@@ -1,0 +1,29 @@
+"""Small builders shared by tests (not fixtures: plain functions tests call explicitly)."""
+
+import numpy as np
+
+from fabricjax import archive, catalog
+
+
+def tiny_archive(n_steps=30, fabric_id=4, day=1, trial=0, condition="lab", images=(12, 16), seed=0):
+    rng = np.random.default_rng(seed)
+    n_samples = archive.WINDOW + 960 * n_steps
+    window_end = np.stack([archive.WINDOW + 960 * np.arange(n_steps)] * 2, axis=1).astype(np.int64)
+    meta = archive.make_meta(
+        fabric_id=fabric_id,
+        properties=catalog.fabric(fabric_id).properties,
+        day=day,
+        trial=trial,
+        condition=condition,
+        source={"kind": "test"},
+        image_size=images,
+    )
+    return archive.TrialArchive(
+        meta=meta,
+        timestamps=np.arange(n_steps) * 0.02,
+        window_end=window_end,
+        joints=rng.normal(size=(n_steps, 6, 3)).astype(np.float32),
+        force=np.full(n_steps, 0.1, np.float32),
+        audio=(rng.integers(-(2**17), 2**17, size=(2, n_samples)) << 14).astype(np.int32),
+        images=None if images is None else rng.integers(0, 255, size=(n_steps, *images, 3), dtype=np.uint8),
+    )
