@@ -117,6 +117,7 @@ def plot_pareto(path, points: Sequence[dict], x_keys: Sequence[tuple[str, str]],
             if mark:
                 ax.scatter([x], [y], s=160, facecolors="none", edgecolors="tab:red", linewidths=1.5)
         ax.set(xlabel=label, ylabel="test accuracy [%]")
+        ax.margins(x=0.18, y=0.08)
         if np.all(xs > 0) and xs.max() / xs.min() > 20:
             ax.set_xscale("log")
         ax.grid(alpha=0.3)
