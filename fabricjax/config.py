@@ -37,6 +37,7 @@ class Config:
     ffn: int = 128
     audio_hidden: tuple[int, int] = (128, 64)
     proprio_hidden: tuple[int, int] = (64, 64)
+    cnn_features: tuple[int, ...] = (16, 32, 64)  # image / flow CNN channels per strided conv
     dropout: float = 0.1
     fabric_head: bool = True
     property_heads: bool = False

@@ -1,0 +1,215 @@
+"""The paper's classifier (Fig. method_overview) in Flax NNX.
+
+Per-step encoders (one MLP shared by both microphones, an MLP for the joints, small CNNs for
+Minsight images and optical flow) → concatenate → rescale every feature dimension to [0, 1] over
+the sequence's time axis → Dense + learned position embedding → 3 pre-LayerNorm self-attention
+blocks or a TCN → mean over time → two linear layers (fabric class) whose last layer is replaced
+by one per property when property heads are on.
+
+Inputs are a dict keyed by modality, every array with leading (batch, steps):
+    internal / external  float (B, N, F)      log-PSD bins (same F: the encoder is shared)
+    proprio              float (B, N, 18)
+    image                uint8 (B, N, H, W, 3)
+    flow                 float (B, N, 2, h, w)
+The CNNs end in a global mean pool, so any image/flow resolution works with the same weights.
+Only the encoders named in `config.modalities` are built.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Mapping
+
+import jax
+import jax.numpy as jnp
+from flax import nnx
+
+from fabricjax import catalog
+from fabricjax.config import AUDIO_MODALITIES, MODALITIES, Config
+
+RESCALE_EPS = 1e-6
+
+
+def head_sizes(config: Config) -> dict[str, int]:
+    """Output heads and their class counts: fabric (21) and/or the three properties."""
+    heads = {"fabric": catalog.N_CLASSES} if config.fabric_head else {}
+    if config.property_heads:
+        heads.update(catalog.PROPERTY_LEVELS)
+    return heads
+
+
+def feature_shapes(inputs: Mapping[str, jax.Array]) -> dict[str, tuple[int, ...]]:
+    """Per-step shapes of a batch (drop the leading batch and step axes): what the model is built for."""
+    return {k: tuple(v.shape[2:]) for k, v in inputs.items()}
+
+
+def rescale_unit(x: jax.Array, axis: int = 1) -> jax.Array:
+    """(x - min) / (max - min) over `axis`; a constant dimension maps to 0 instead of 0/0."""
+    x = x.astype(jnp.float32)
+    lo = x.min(axis=axis, keepdims=True)
+    hi = x.max(axis=axis, keepdims=True)
+    return (x - lo) / jnp.maximum(hi - lo, RESCALE_EPS)
+
+
+class MLP(nnx.Module):
+    """Linear layers with GELU between them and after the last (features feed the backbone)."""
+
+    def __init__(self, sizes: tuple[int, ...], *, dtype, rngs: nnx.Rngs):
+        self.layers = nnx.List(
+            [nnx.Linear(a, b, dtype=dtype, rngs=rngs) for a, b in zip(sizes[:-1], sizes[1:])]
+        )
+
+    def __call__(self, x):
+        for layer in self.layers:
+            x = jax.nn.gelu(layer(x))
+        return x
+
+
+class ConvEncoder(nnx.Module):
+    """Strided 2-D convolutions then a global mean pool: resolution-independent per-frame features."""
+
+    def __init__(self, in_channels: int, features: tuple[int, ...], *, dtype, rngs: nnx.Rngs):
+        sizes = (in_channels, *features)
+        # The first layer strides by 4: frames come 200 per sequence, so early downsampling pays.
+        self.convs = nnx.List(
+            [
+                nnx.Conv(a, b, (5, 5) if i == 0 else (3, 3), 4 if i == 0 else 2, dtype=dtype, rngs=rngs)
+                for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:]))
+            ]
+        )
+
+    def __call__(self, x):  # (M, H, W, C)
+        for conv in self.convs:
+            x = jax.nn.relu(conv(x))
+        return x.mean(axis=(1, 2))
+
+
+class AttentionBlock(nnx.Module):
+    """Pre-LayerNorm multi-head self-attention + FFN; one fused QKV projection."""
+
+    def __init__(self, width: int, n_heads: int, ffn: int, dropout: float, *, dtype, rngs: nnx.Rngs):
+        if width % n_heads:
+            raise ValueError(f"width {width} is not divisible by n_heads {n_heads}")
+        self.n_heads = n_heads
+        self.norm1 = nnx.LayerNorm(width, rngs=rngs)
+        self.qkv = nnx.Linear(width, 3 * width, dtype=dtype, rngs=rngs)
+        self.proj = nnx.Linear(width, width, dtype=dtype, rngs=rngs)
+        self.norm2 = nnx.LayerNorm(width, rngs=rngs)
+        self.ff1 = nnx.Linear(width, ffn, dtype=dtype, rngs=rngs)
+        self.ff2 = nnx.Linear(ffn, width, dtype=dtype, rngs=rngs)
+        self.dropout = nnx.Dropout(dropout)
+
+    def __call__(self, x, rngs):
+        b, t, w = x.shape
+        qkv = self.qkv(self.norm1(x)).reshape(b, t, 3, self.n_heads, w // self.n_heads)
+        a = jax.nn.dot_product_attention(qkv[:, :, 0], qkv[:, :, 1], qkv[:, :, 2])
+        x = x + self.dropout(self.proj(a.reshape(b, t, w)), deterministic=rngs is None, rngs=rngs)
+        h = self.ff2(jax.nn.gelu(self.ff1(self.norm2(x))))
+        return x + self.dropout(h, deterministic=rngs is None, rngs=rngs)
+
+
+class TCNBlock(nnx.Module):
+    """Two dilated causal 1-D convolutions (kernel 3) with a residual connection (Bai et al. 2018)."""
+
+    def __init__(self, width: int, dilation: int, dropout: float, *, dtype, rngs: nnx.Rngs):
+        conv = lambda: nnx.Conv(  # noqa: E731
+            width, width, (3,), kernel_dilation=dilation, padding="CAUSAL", dtype=dtype, rngs=rngs
+        )
+        self.conv1, self.conv2 = conv(), conv()
+        self.dropout = nnx.Dropout(dropout)
+
+    def __call__(self, x, rngs):
+        h = self.dropout(jax.nn.relu(self.conv1(x)), deterministic=rngs is None, rngs=rngs)
+        h = self.dropout(jax.nn.relu(self.conv2(h)), deterministic=rngs is None, rngs=rngs)
+        return jax.nn.relu(x + h)
+
+
+class FabricNet(nnx.Module):
+    """The classifier. `shapes` are the per-step input shapes (see `feature_shapes`)."""
+
+    def __init__(self, config: Config, shapes: Mapping[str, tuple[int, ...]], *, rngs: nnx.Rngs):
+        missing = [m for m in config.modalities if m not in shapes]
+        if missing:
+            raise ValueError(f"inputs lack the configured modalities {missing}; got {sorted(shapes)}")
+        dtype = jnp.dtype(config.compute_dtype)
+        self.modalities = tuple(m for m in MODALITIES if m in config.modalities)
+        self.dtype = dtype
+        width = config.width
+        audio = [m for m in self.modalities if m in AUDIO_MODALITIES]
+        bins = {shapes[m][-1] for m in audio}
+        if len(bins) > 1:
+            raise ValueError(f"the shared audio encoder needs equal PSD bins for {audio}, got {bins}")
+        cnn = config.cnn_features
+        self.audio = MLP((*bins, *config.audio_hidden), dtype=dtype, rngs=rngs) if audio else None
+        self.proprio = (
+            MLP((shapes["proprio"][-1], *config.proprio_hidden), dtype=dtype, rngs=rngs)
+            if "proprio" in self.modalities
+            else None
+        )
+        self.image = ConvEncoder(3, cnn, dtype=dtype, rngs=rngs) if "image" in self.modalities else None
+        self.flow = ConvEncoder(2, cnn, dtype=dtype, rngs=rngs) if "flow" in self.modalities else None
+        out = {"proprio": config.proprio_hidden[-1], "image": cnn[-1], "flow": cnn[-1]}
+        dims = sum(out.get(m, config.audio_hidden[-1]) for m in self.modalities)
+        self.embed = nnx.Linear(dims, width, dtype=dtype, rngs=rngs)
+        self.position = nnx.Param(nnx.initializers.normal(0.02)(rngs.params(), (config.sequence_length, width)))
+        if config.backbone == "attention":
+            blocks = [
+                AttentionBlock(width, config.n_heads, config.ffn, config.dropout, dtype=dtype, rngs=rngs)
+                for _ in range(config.n_layers)
+            ]
+        else:
+            blocks = [TCNBlock(width, 2**i, config.dropout, dtype=dtype, rngs=rngs) for i in range(config.n_layers)]
+        self.blocks = nnx.List(blocks)
+        self.norm = nnx.LayerNorm(width, rngs=rngs)
+        self.hidden = nnx.Linear(width, width, dtype=dtype, rngs=rngs)
+        self.heads = nnx.Dict({k: nnx.Linear(width, n, rngs=rngs) for k, n in head_sizes(config).items()})
+        self.dropout = nnx.Dropout(config.dropout)
+
+    def features(self, inputs: Mapping[str, jax.Array]) -> jax.Array:
+        """Per-step concatenated encoder outputs, rescaled to [0, 1] over time: (B, N, D)."""
+        parts = []
+        for m in self.modalities:
+            x = inputs[m]
+            b, n = x.shape[:2]
+            x = x.reshape(b * n, *x.shape[2:])
+            if m == "image":
+                x = self.image(x.astype(self.dtype) / 255.0)
+            elif m == "flow":
+                x = self.flow(jnp.moveaxis(x.astype(self.dtype), 1, -1))
+            elif m == "proprio":
+                x = self.proprio(x.astype(self.dtype))
+            else:
+                x = self.audio(x.astype(self.dtype))
+            parts.append(x.reshape(b, n, -1))
+        return rescale_unit(jnp.concatenate(parts, axis=-1))
+
+    def latents(self, inputs: Mapping[str, jax.Array], rngs: nnx.Rngs | None = None) -> jax.Array:
+        """Backbone output per step (B, N, width): the representation the t-SNE analysis plots."""
+        x = self.features(inputs)
+        n = x.shape[1]
+        if n > self.position.shape[0]:
+            raise ValueError(f"sequence of {n} steps exceeds the model's {self.position.shape[0]}")
+        x = self.embed(x.astype(self.dtype)) + self.position[:n].astype(self.dtype)
+        x = self.dropout(x, deterministic=rngs is None, rngs=rngs)
+        for block in self.blocks:
+            x = block(x, rngs)
+        return self.norm(x)
+
+    def __call__(self, inputs: Mapping[str, jax.Array], rngs: nnx.Rngs | None = None) -> dict[str, jax.Array]:
+        """Logits per head (float32). Dropout is on exactly when `rngs` is given (training)."""
+        h = jax.nn.relu(self.hidden(self.latents(inputs, rngs).mean(axis=1)))
+        h = self.dropout(h, deterministic=rngs is None, rngs=rngs)
+        return {k: head(h).astype(jnp.float32) for k, head in self.heads.items()}
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def predict(graphdef: nnx.GraphDef, params, inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
+    """Logits per head for a batch (B, N, ...) of sequences; `params` a plain pytree (`nnx.to_pure_dict`)."""
+    return nnx.merge(graphdef, params)(inputs)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def predict_one(graphdef: nnx.GraphDef, params, inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
+    """Logits per head for one sequence (N, ...), e.g. live on the robot."""
+    logits = nnx.merge(graphdef, params)(jax.tree.map(lambda a: a[None], inputs))
+    return jax.tree.map(lambda a: a[0], logits)

@@ -1,0 +1,321 @@
+"""Pure, jitted multi-seed training (purejaxrl style): `train(key) -> (state, metrics)`.
+
+The data lives on the device; one epoch is a `lax.scan` over shuffled minibatches and the epoch
+loop is a `lax.scan` too, so a whole run is one compiled program with no host round trips. Seeds
+are `jax.vmap`ped and the seed axis is sharded over all devices (`fabricjax.sharding`). Parameters
+are plain pytrees (`nnx.to_pure_dict`); the module is rebuilt with `nnx.merge` inside the loss.
+
+Optimiser: AdamW (decoupled weight decay on weight matrices only, not on biases, LayerNorm scales)
+after a global-norm clip at 1.0, constant learning rate. Best-validation selection keeps the
+parameters of the epoch with the highest validation accuracy (the earliest on ties) inside the
+scan with a tree select, so it costs no host sync.
+
+A data set is a mapping {"inputs": {modality: (n, N, ...)}, "labels": {head: int (n,)}} (objects
+with `.inputs` / `.labels` work too); label -1 means unknown and is masked out of losses and
+accuracies. Checkpointing (`train_and_evaluate(..., workdir=...)`) splits the epoch scan into
+chunks between saves; every epoch's randomness is `fold_in(key, epoch)`, so a resumed run is the
+uninterrupted run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import os
+from typing import Any, Callable, Mapping, Sequence
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import nnx
+
+from fabricjax import checkpoint, sharding
+from fabricjax.config import Config
+from fabricjax.model import FabricNet, feature_shapes, head_sizes
+
+Augment = Callable[[jax.Array, dict[str, jax.Array]], dict[str, jax.Array]]
+
+
+def select(config: Config, ds) -> dict[str, dict[str, jax.Array]]:
+    """The arrays of `ds` this config uses: its modalities and its heads' labels."""
+    inputs = ds["inputs"] if isinstance(ds, Mapping) else ds.inputs
+    labels = ds["labels"] if isinstance(ds, Mapping) else ds.labels
+    missing = [m for m in config.modalities if m not in inputs] + [h for h in head_sizes(config) if h not in labels]
+    if missing:
+        raise ValueError(f"data set lacks {missing} (has inputs {sorted(inputs)}, labels {sorted(labels)})")
+    return {
+        "inputs": {m: jnp.asarray(inputs[m]) for m in config.modalities},
+        "labels": {h: jnp.asarray(labels[h], jnp.int32) for h in head_sizes(config)},
+    }
+
+
+def make_optimizer(config: Config) -> optax.GradientTransformation:
+    decay_mask = lambda params: jax.tree.map(lambda p: p.ndim > 1, params)  # noqa: E731
+    return optax.chain(
+        optax.clip_by_global_norm(1.0),
+        optax.adamw(config.learning_rate, weight_decay=config.weight_decay, mask=decay_mask),
+    )
+
+
+def rotation_augment(config: Config) -> Augment | None:
+    """The paper's image augmentation (one rotation in [-90°, 90°] per sequence), when it applies.
+
+    The rotation itself lives with the image features (`fabricjax.features.images.rotate_sequence`,
+    a pure function of a key and one sequence of frames); it is imported only by image configs.
+    """
+    if "image" not in config.modalities or not config.augment_rotation:
+        return None
+    from fabricjax.features import images
+
+    def augment(key, inputs):
+        keys = jax.random.split(key, inputs["image"].shape[0])
+        return {**inputs, "image": jax.vmap(images.rotate_sequence)(keys, inputs["image"])}
+
+    return augment
+
+
+def masked_cross_entropy(logits: jax.Array, labels: jax.Array) -> jax.Array:
+    valid = labels >= 0
+    ce = optax.softmax_cross_entropy_with_integer_labels(logits, jnp.maximum(labels, 0))
+    return jnp.where(valid, ce, 0.0).sum() / jnp.maximum(valid.sum(), 1)
+
+
+def masked_accuracy(predictions: jax.Array, labels: jax.Array) -> jax.Array:
+    valid = labels >= 0
+    return ((predictions == labels) & valid).sum() / jnp.maximum(valid.sum(), 1)
+
+
+@dataclasses.dataclass(frozen=True)
+class Trainer:
+    """The pure pieces of a run, each a function of one seed's state (vmap them over seeds)."""
+
+    config: Config
+    shapes: dict[str, tuple[int, ...]]
+    graphdef: Any
+    tx: optax.GradientTransformation
+    augment: Augment | None
+
+    def init(self, key: jax.Array) -> dict[str, Any]:
+        k_params, k_run = jax.random.split(key)
+        params = nnx.to_pure_dict(nnx.state(FabricNet(self.config, self.shapes, rngs=nnx.Rngs(k_params))))
+        zeros = jnp.zeros(self.config.epochs, jnp.float32)
+        return {
+            "params": params,
+            "opt_state": self.tx.init(params),
+            "best_params": params,
+            "best_val": jnp.float32(-1.0),
+            "best_epoch": jnp.int32(-1),
+            "epoch": jnp.int32(0),
+            "key": k_run,
+            "history": {"train_loss": zeros, "val_acc": zeros},
+        }
+
+    def logits(self, params, inputs, key=None) -> dict[str, jax.Array]:
+        model = nnx.merge(self.graphdef, params)
+        return model(inputs, rngs=None if key is None else nnx.Rngs(dropout=key))
+
+    def loss(self, params, batch, key) -> jax.Array:
+        logits = self.logits(params, batch["inputs"], key)
+        return sum(masked_cross_entropy(logits[h], batch["labels"][h]) for h in logits)
+
+    def train_epoch(self, params, opt_state, key, train):
+        """One pass over shuffled minibatches (remainder dropped) in a scan: (params, opt_state, mean loss)."""
+        n = jax.tree.leaves(train)[0].shape[0]
+        batch = min(self.config.batch_size, n)
+        steps = n // batch
+        k_perm, k_steps = jax.random.split(key)
+        order = jax.random.permutation(k_perm, n)[: steps * batch].reshape(steps, batch)
+
+        def step(carry, xs):
+            params, opt_state = carry
+            idx, k = xs
+            mb = jax.tree.map(lambda a: a[idx], train)
+            k_aug, k_drop = jax.random.split(k)
+            if self.augment is not None:
+                mb = {**mb, "inputs": self.augment(k_aug, mb["inputs"])}
+            loss, grads = jax.value_and_grad(self.loss)(params, mb, k_drop)
+            updates, opt_state = self.tx.update(grads, opt_state, params)
+            return (optax.apply_updates(params, updates), opt_state), loss
+
+        (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), (order, jax.random.split(k_steps, steps)))
+        return params, opt_state, losses.mean()
+
+    def predict(self, params, inputs) -> dict[str, jax.Array]:
+        """Logits of a whole data set, evaluated in minibatches to bound memory."""
+        model = nnx.merge(self.graphdef, params)
+        one = lambda x: jax.tree.map(lambda a: a[0], model(jax.tree.map(lambda a: a[None], x)))  # noqa: E731
+        return jax.lax.map(one, inputs, batch_size=self.config.batch_size)
+
+    def evaluate(self, params, ds) -> dict[str, dict[str, jax.Array]]:
+        preds = {h: jnp.argmax(v, -1).astype(jnp.int32) for h, v in self.predict(params, ds["inputs"]).items()}
+        acc = {h: masked_accuracy(p, ds["labels"][h]) for h, p in preds.items()}
+        return {"accuracy": acc, "predictions": preds}
+
+    def selection_metric(self, accuracy: dict[str, jax.Array]) -> jax.Array:
+        """Validation accuracy used to pick the best epoch: fabric if trained, else mean over properties."""
+        if "fabric" in accuracy:
+            return accuracy["fabric"]
+        return sum(accuracy.values()) / len(accuracy)
+
+    def run(self, state, data, n_epochs: int):
+        """`n_epochs` more epochs in one scan, with best-validation selection."""
+
+        def epoch(state, _):
+            e = state["epoch"]
+            params, opt_state, loss = self.train_epoch(
+                state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), data["train"]
+            )
+            val = self.selection_metric(self.evaluate(params, data["val"])["accuracy"])
+            better = val > state["best_val"]
+            hist = state["history"]
+            return {
+                "params": params,
+                "opt_state": opt_state,
+                "best_params": jax.tree.map(lambda a, b: jnp.where(better, a, b), params, state["best_params"]),
+                "best_val": jnp.where(better, val, state["best_val"]),
+                "best_epoch": jnp.where(better, e, state["best_epoch"]),
+                "epoch": e + 1,
+                "key": state["key"],
+                "history": {"train_loss": hist["train_loss"].at[e].set(loss), "val_acc": hist["val_acc"].at[e].set(val)},
+            }, None
+
+        return jax.lax.scan(epoch, state, length=n_epochs)[0]
+
+    def finish(self, state, data) -> dict[str, Any]:
+        """Metrics of a finished run: learning curves and the best-validation model on every set."""
+        sets = {"val": data["val"], **data["eval"]}
+        return {
+            **state["history"],
+            "best_epoch": state["best_epoch"],
+            "best_val_acc": state["best_val"],
+            "eval": {name: self.evaluate(state["best_params"], ds) for name, ds in sets.items()},
+        }
+
+
+def make_trainer(config: Config, shapes: Mapping[str, tuple[int, ...]], augment: Augment | None = None) -> Trainer:
+    shapes = {m: tuple(shapes[m]) for m in config.modalities}
+    graphdef = nnx.split(nnx.eval_shape(lambda: FabricNet(config, shapes, rngs=nnx.Rngs(0))))[0]
+    return Trainer(config, shapes, graphdef, make_optimizer(config), augment)
+
+
+def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    return {
+        "train": select(config, train_set),
+        "val": select(config, val_set),
+        "eval": {k: select(config, v) for k, v in (eval_sets or {}).items()},
+    }
+
+
+def make_train(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None = None, augment: Augment | None = None):
+    """A pure `train(key) -> (state, metrics)` over data closed over on the device.
+
+    `augment` defaults to the paper's rotation for image configs (`rotation_augment`).
+    Use as `jax.jit(jax.vmap(train))(jax.random.split(key, n_seeds))`.
+    """
+    data = prepare(config, train_set, val_set, eval_sets)
+    trainer = make_trainer(config, feature_shapes(data["train"]["inputs"]), augment or rotation_augment(config))
+
+    def train(key):
+        state = trainer.run(trainer.init(key), data, config.epochs)
+        return state, trainer.finish(state, data)
+
+    return train
+
+
+@dataclasses.dataclass
+class Results:
+    """A multi-seed run: stacked final state (leading seed axis) and metrics as NumPy arrays."""
+
+    config: Config
+    seeds: tuple[int, ...]
+    graphdef: Any
+    state: dict[str, Any]
+    metrics: dict[str, Any]
+
+    def params(self, index: int):
+        """Best-validation parameters of the `index`-th seed."""
+        return checkpoint.select_seed(self.state["best_params"], index)
+
+    def model(self, index: int) -> FabricNet:
+        return nnx.merge(self.graphdef, self.params(index))
+
+
+def seed_keys(seeds: Sequence[int]) -> jax.Array:
+    return jnp.stack([jax.random.PRNGKey(int(s)) for s in seeds])
+
+
+def train_and_evaluate(
+    config: Config,
+    data_sets: Mapping[str, Any],
+    seeds: Sequence[int],
+    workdir: str | os.PathLike | None = None,
+    save_every: int | None = None,
+    on_save: Callable[[int], None] | None = None,
+    augment: Augment | None = None,
+) -> Results:
+    """Train one model per seed in a single program and evaluate it on every set.
+
+    `data_sets` holds "train", "val" and any number of evaluation sets ("test", "cafe", ...).
+    With `workdir` (this run's checkpoint directory) the state is saved every `save_every`
+    epochs (default: at the end) and a rerun resumes from the latest checkpoint; `on_save(epoch)`
+    is called after each durable save.
+    """
+    seeds = tuple(int(s) for s in seeds)
+    evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
+    data = prepare(config, data_sets["train"], data_sets["val"], evals)
+    trainer = make_trainer(config, feature_shapes(data["train"]["inputs"]), augment or rotation_augment(config))
+    mesh = sharding.seed_mesh(len(seeds))
+    per_seed = sharding.by_seed(mesh)
+    data = jax.device_put(data, sharding.replicated(mesh))
+    keys = jax.device_put(seed_keys(seeds), per_seed)
+
+    init = jax.jit(jax.vmap(trainer.init), out_shardings=per_seed)
+    finish = jax.jit(jax.vmap(trainer.finish, in_axes=(0, None)), out_shardings=per_seed)
+    run = functools.lru_cache(
+        lambda n: jax.jit(
+            jax.vmap(functools.partial(trainer.run, n_epochs=n), in_axes=(0, None)),
+            donate_argnums=0,
+            out_shardings=per_seed,
+        )
+    )
+
+    mngr = checkpoint.manager(workdir) if workdir is not None else None
+    run_meta = checkpoint.meta(config, seeds, trainer.shapes)
+    if mngr is not None and mngr.latest_step() is not None:
+        abstract = jax.tree.map(
+            lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=per_seed), jax.eval_shape(init, keys)
+        )
+        state, done = checkpoint.restore(mngr, abstract, run_meta)
+    else:
+        state, done = init(keys), 0
+    every = save_every or config.epochs
+    while done < config.epochs:
+        n = min(every, config.epochs - done)
+        state = run(n)(state, data)
+        done += n
+        if mngr is not None:
+            checkpoint.save(mngr, done, state, run_meta)
+            if on_save is not None:
+                on_save(done)
+    metrics = jax.device_get(finish(state, data))
+    return Results(config, seeds, trainer.graphdef, state, metrics)
+
+
+def restore(directory: str | os.PathLike, config: Config, seed: int | None = None):
+    """(graphdef, state) saved by `train_and_evaluate`: all seeds stacked, or the one `seed` (a seed value)."""
+    mngr = checkpoint.manager(directory)
+    if mngr.latest_step() is None:
+        raise FileNotFoundError(f"no checkpoint in {os.path.abspath(directory)}")
+    saved = checkpoint.read_meta(mngr)
+    shapes = {k: tuple(v) for k, v in saved["shapes"].items()}
+    expected = checkpoint.meta(config, saved["seeds"], shapes)
+    checkpoint.check_meta(mngr.directory, saved, expected)
+    trainer = make_trainer(config, shapes)
+    abstract = jax.eval_shape(jax.vmap(trainer.init), jax.ShapeDtypeStruct((len(saved["seeds"]), 2), jnp.uint32))
+    state, _ = checkpoint.restore(mngr, abstract, expected)
+    if seed is None:
+        return trainer.graphdef, state
+    if seed not in saved["seeds"]:
+        raise KeyError(f"seed {seed} is not in the checkpoint in {mngr.directory} (seeds {saved['seeds']})")
+    return trainer.graphdef, checkpoint.select_seed(state, saved["seeds"].index(seed))
+
