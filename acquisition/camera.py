@@ -1,0 +1,98 @@
+"""Minsight's camera through OpenCV, preprocessed as the Minsight sensor code does, and the force proxy.
+
+Minsight streams 1280x960 frames (V4L2, 60 fps); its software keeps columns 160..1120, flips both
+axes and resizes to 410x308 (W x H). The closing of the grasp needs a contact force: Minsight's own
+force network (reference-difference and gradient images -> 3x40x40 force map) is not available
+here, so `ForceProxy` is a calibrated proxy for its scalar normal force: the mean absolute
+difference to a no-contact reference image, mapped linearly to newtons. It is only meant to detect
+the 0.1 N grasp threshold, not to replace the network.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+
+RAW_SIZE = (1280, 960)  # W, H
+CROP_COLUMNS = (160, 1120)
+IMAGE_SIZE = (308, 410)  # H, W (archive order)
+
+
+class CameraError(RuntimeError):
+    """The camera could not be opened or stopped delivering frames."""
+
+
+def preprocess(raw: np.ndarray) -> np.ndarray:
+    """1280x960 BGR -> 308x410 RGB, exactly Minsight's crop, double flip and resize."""
+    crop = raw[:, CROP_COLUMNS[0] : CROP_COLUMNS[1]]
+    small = cv2.resize(cv2.flip(crop, -1), (IMAGE_SIZE[1], IMAGE_SIZE[0]), interpolation=cv2.INTER_AREA)
+    return cv2.cvtColor(small, cv2.COLOR_BGR2RGB)
+
+
+class Camera:
+    """A `cv2.VideoCapture` on a device index or a path. A frame identical to the previous one is a
+    repeated buffer, i.e. the sensor dropped a frame: it is counted, and kept so the step has an image."""
+
+    def __init__(self, source: int | str, *, retries: int = 3):
+        self.source, self.retries, self.dropped = source, retries, 0
+        self.cap = cv2.VideoCapture(source)
+        if not self.cap.isOpened():
+            raise CameraError(f"camera {source!r}: cannot open")
+        if isinstance(source, int):
+            self.cap.set(cv2.CAP_PROP_FRAME_WIDTH, RAW_SIZE[0])
+            self.cap.set(cv2.CAP_PROP_FRAME_HEIGHT, RAW_SIZE[1])
+            self.cap.set(cv2.CAP_PROP_FPS, 60)
+            self.cap.set(cv2.CAP_PROP_BUFFERSIZE, 1)  # the newest frame, not a queued one
+        self._last: np.ndarray | None = None
+
+    def read(self) -> np.ndarray:
+        """The next frame, preprocessed to 308x410x3 RGB uint8."""
+        for _ in range(self.retries + 1):
+            ok, raw = self.cap.read()
+            if ok:
+                break
+        else:
+            raise CameraError(f"camera {self.source!r}: no frame after {self.retries + 1} reads (stream ended or unplugged)")
+        if raw.shape[:2] != (RAW_SIZE[1], RAW_SIZE[0]):
+            raise CameraError(f"camera {self.source!r}: frame {raw.shape[1]}x{raw.shape[0]}, expected {RAW_SIZE[0]}x{RAW_SIZE[1]}")
+        image = preprocess(raw)
+        if self._last is not None and np.array_equal(image, self._last):
+            self.dropped += 1
+        self._last = image
+        return image
+
+    def close(self) -> None:
+        self.cap.release()
+
+
+@dataclasses.dataclass
+class ForceProxy:
+    """force = gain * max(0, mean|image - reference| - deadband), in newtons.
+
+    `deadband` absorbs sensor noise; `gain` comes from `calibrate` against known forces (a load
+    cell on hardware, the simulator's force for simulated devices)."""
+
+    reference: np.ndarray
+    gain: float = 0.05
+    deadband: float = 0.5
+
+    def difference(self, image: np.ndarray) -> float:
+        return float(cv2.absdiff(image, self.reference).mean())
+
+    def __call__(self, image: np.ndarray) -> float:
+        return self.gain * max(0.0, self.difference(image) - self.deadband)
+
+    @classmethod
+    def calibrate(cls, reference: np.ndarray, images, forces) -> "ForceProxy":
+        """Least-squares line force = gain * (difference - deadband) over frames in contact."""
+        d = np.array([float(cv2.absdiff(im, reference).mean()) for im in images])
+        f = np.asarray(forces, float)
+        touching = f > 0
+        if touching.sum() < 2:
+            raise ValueError("calibration needs at least two frames with a known positive force")
+        slope, intercept = np.polyfit(d[touching], f[touching], 1)
+        if slope <= 0:
+            raise ValueError(f"calibration failed: force does not grow with the image difference (slope {slope:.3g})")
+        return cls(reference=reference, gain=float(slope), deadband=float(-intercept / slope))

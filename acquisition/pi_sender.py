@@ -1,0 +1,32 @@
+"""Raspberry Pi side: stream the two SPH0645 microphones to the laptop over TCP (format in `wire`).
+
+    python -m acquisition.pi_sender --port=5005 --device=hw:CARD=sndrpii2scard
+    python -m acquisition.pi_sender --port=5005 --simulate --fabric=12     # simulated words
+"""
+
+from absl import app, flags
+
+from acquisition import wire
+
+FLAGS = flags.FLAGS
+flags.DEFINE_string("host", "0.0.0.0", "Address to listen on.")
+flags.DEFINE_integer("port", 5005, "TCP port to listen on.")
+flags.DEFINE_string("device", "hw:CARD=sndrpii2scard", "ALSA capture device of the I2S microphones.")
+flags.DEFINE_bool("simulate", False, "Stream simulated SPH0645 words instead of arecord.")
+flags.DEFINE_integer("fabric", 12, "Fabric of the simulated trial (with --simulate).")
+flags.DEFINE_integer("seconds", 60, "Length of the simulated stream (with --simulate).")
+
+
+def main(argv):
+    del argv
+    if FLAGS.simulate:
+        from acquisition import simulated
+
+        periods = simulated.paced_periods(simulated.scene_audio(FLAGS.fabric, FLAGS.seconds))
+    else:
+        periods = wire.arecord_periods(FLAGS.device)
+    print(wire.serve(periods, FLAGS.host, FLAGS.port))
+
+
+if __name__ == "__main__":
+    app.run(main)
