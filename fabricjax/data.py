@@ -1,0 +1,133 @@
+"""Sequences for training and evaluation: trial archives -> cached features -> split sets.
+
+    sets = load_sequences(config, data_dir, workdir=None)     # dict[str, SequenceSet]
+
+Keys of `sets` are always `SPLITS` = ("train", "val", "test", "cafe", "holdout"); a split with no
+trials is a `SequenceSet` of 0 sequences with the same trailing shapes. Splits come from the
+archives' meta (`splits.assign_roles` with the preset's `Splits`), so a folder of real
+recordings works the same as a simulated one:
+
+    train, val   lab trials of the training days (val: whole trials, the last of each fabric and
+                 day), minus `config.exclude_fabrics`
+    test, cafe   test-day lab trials / cafe-condition trials, minus `config.exclude_fabrics` and
+                 minus fabrics outside the 21-class label space (new fabrics 21-23)
+    holdout      test-day lab trials of the fabrics in `config.exclude_fabrics` (the property
+                 experiment sets exclude_fabrics=catalog.PROPERTY_HOLDOUTS); empty otherwise
+
+Each trial of T steps gives T // N non-overlapping sequences of N = `config.sequence_length`
+steps, starting at steps 0, N, 2N, ...; the remainder is dropped, as in the paper. A selected
+trial shorter than N raises `archive.ArchiveError` naming the file.
+
+`SequenceSet` (S sequences; arrays are NumPy, sequences ordered by trial file name, then start):
+
+    inputs   one array per `config.modalities` entry:
+      "internal", "external"  float32 (S, N, F)        log10 PSD (welch.py), F = welch.n_bins(
+                                                       config.bandwidth_khz): 320 at 15 kHz
+      "proprio"               float32 (S, N, 18)       6 joints x (angle, velocity, current)
+      "flow"                  float16 (S, N, 2, h, w)  sparse flow, 3x3 patch means (flow.py);
+                                                       102x137 for 308x410 frames
+      "image"                 uint8   (S, N, H, W, 3)  60x80 ("down") or the archive's size ("full")
+    labels   int32 (S,): "fabric" (meta label, 0-20 for the 21 classes), "stretchiness",
+             "roughness", "thickness" (property levels, -1 when unknown, e.g. class 0)
+    info     (S,): "fabric_id" int32, "day" int32, "trial" int32, "start" int32 (first step),
+             "condition" str ("lab"/"cafe"), "trial_key" str (archive file name)
+
+Features are computed once per trial and cached (features/cache.py); only the modalities the
+config asks for are computed, and frames are never read for an audio / proprioception config.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+import numpy as np
+
+from fabricjax import archive, catalog, splits, workspace
+from fabricjax.config import Config
+from fabricjax.features import cache, welch
+from fabricjax.features.extract import feature_for
+
+SPLITS = ("train", "val", "test", "cafe", "holdout")
+LABELS = ("fabric", *archive.PROPERTY_NAMES)
+
+
+@dataclasses.dataclass(frozen=True)
+class SequenceSet:
+    inputs: dict[str, np.ndarray]
+    labels: dict[str, np.ndarray]
+    info: dict[str, np.ndarray]
+
+    def __len__(self) -> int:
+        return len(self.info["trial_key"])
+
+
+def split_of(meta: dict, role: str | None, exclude: tuple[int, ...]) -> str | None:
+    """The `SPLITS` entry a trial belongs to under a config's exclusions (None: unused)."""
+    fid = meta["fabric_id"]
+    if role == "test" and fid in exclude:
+        return "holdout"
+    if role is None or fid in exclude or (role in ("test", "cafe") and meta["label"] >= catalog.N_CLASSES):
+        return None
+    return role
+
+
+def _per_trial(entry: archive.IndexEntry, feats: dict[str, np.ndarray], config: Config, n: int) -> SequenceSet:
+    """`feats`: modality -> the trial's (T, ...) feature array."""
+    n_seq = entry.n_steps // n
+    inputs = {}
+    for modality, x in feats.items():
+        x = x[: n_seq * n]
+        if modality in archive.MIC_NAMES:
+            x = x[:, : welch.n_bins(config.bandwidth_khz)]
+        inputs[modality] = x.reshape(n_seq, n, *x.shape[1:])
+    meta = entry.meta
+    levels = {k: -1 if meta["properties"][k] is None else meta["properties"][k] for k in archive.PROPERTY_NAMES}
+    labels = {k: np.full(n_seq, v, np.int32) for k, v in {"fabric": meta["label"], **levels}.items()}
+    info = {k: np.full(n_seq, meta[k], np.int32) for k in ("fabric_id", "day", "trial")}
+    info["start"] = (np.arange(n_seq) * n).astype(np.int32)
+    info["condition"] = np.full(n_seq, meta["condition"])
+    info["trial_key"] = np.full(n_seq, entry.file)
+    return SequenceSet(inputs, labels, info)
+
+
+def _concat(parts: list[SequenceSet]) -> SequenceSet:
+    def cat(field: str) -> dict[str, np.ndarray]:
+        return {k: np.concatenate([getattr(p, field)[k] for p in parts]) for k in getattr(parts[0], field)}
+
+    return SequenceSet(cat("inputs"), cat("labels"), cat("info"))
+
+
+def load_sequences(
+    config: Config,
+    data_dir: str | os.PathLike,
+    *,
+    workdir: str | os.PathLike | None = None,
+    workers: int | None = None,
+    progress: bool = True,
+) -> dict[str, SequenceSet]:
+    """Every split of the dataset in `data_dir` as sequences of the config's modalities."""
+    index = archive.load_index(data_dir)
+    metas = [e.meta for e in index.entries]
+    roles = splits.assign_roles(metas, splits.preset(config.preset).splits)
+    chosen = [(e, s) for e, r in zip(index.entries, roles) if (s := split_of(e.meta, r, config.exclude_fabrics))]
+    if not chosen:
+        raise archive.ArchiveError(index.root, "<folder>", "no trial belongs to any split (check days and conditions)")
+    n = config.sequence_length
+    for e, _ in chosen:
+        if e.n_steps < n:
+            raise archive.ArchiveError(
+                index.path(e), "timestamps", f"{e.n_steps} steps, shorter than one sequence of N={n} steps"
+            )
+    features = {m: feature_for(m, config.image_resolution) for m in config.modalities}
+    feats = cache.trial_features(
+        index, [e for e, _ in chosen], list(features.values()), workspace.features_dir(workdir), workers=workers,
+        progress=progress,
+    )
+    parts = {s: [] for s in SPLITS}
+    for (e, s), f in zip(chosen, feats):
+        parts[s].append(_per_trial(e, {m: f[feat.name] for m, feat in features.items()}, config, n))
+    some = next(p[0] for p in parts.values() if p)
+    empty = SequenceSet(*({k: v[:0] for k, v in getattr(some, field).items()} for field in ("inputs", "labels", "info")))
+    return {s: _concat(p) if p else empty for s, p in parts.items()}

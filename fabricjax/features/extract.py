@@ -1,0 +1,79 @@
+"""Per-trial feature arrays, one `Feature` per model input, computed from a `TrialArchive`.
+
+Each feature names the parameters that determine its numbers (`params`), which is what the
+cache keys on; a parameter that only selects part of a cached array (the PSD bandwidth) is
+applied when sequences are built and is not part of the key. Arrays, per trial of T steps:
+
+    psd_internal, psd_external  float32 (T, 512)         log10 PSD, full 0-24 kHz (welch.py)
+    proprio                     float32 (T, 18)          joints (T, 6, 3) flattened joint-major:
+                                                         [j0 angle, j0 velocity, j0 current, j1 ...]
+    flow                        float16 (T, 2, h, w)     patch-pooled sparse flow (flow.py)
+    image_60x80                 uint8   (T, 60, 80, 3)   area-downsampled frames (images.py)
+    image_full                  uint8   (T, H, W, 3)     the archive's frames (not cached)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable
+
+import numpy as np
+
+from fabricjax import archive
+from fabricjax.features import flow, images, welch
+
+PSD_CHUNK = 256  # windows per welch call: one compiled shape for every trial length
+
+
+@dataclasses.dataclass(frozen=True)
+class Feature:
+    name: str
+    params: dict[str, Any]
+    needs_images: bool
+    cached: bool
+    compute: Callable[[archive.TrialArchive], np.ndarray]
+
+
+def mic_windows(trial: archive.TrialArchive, mic: int) -> np.ndarray:
+    """(T, 2048) int32: each step's window of raw words from microphone `mic`.
+
+    A window that would start before the first sample (window_end < 2048, only possible at the
+    very start of a recording) is zero-padded on the left.
+    """
+    pad = np.concatenate([np.zeros(archive.WINDOW, np.int32), trial.audio[mic]])
+    idx = trial.window_end[:, mic, None] + np.arange(archive.WINDOW)  # shifted by the padding
+    return pad[idx]
+
+
+def log_psd(windows: np.ndarray) -> np.ndarray:
+    """(T, 2048) raw windows -> (T, 512) float32 log10 PSD over the full band."""
+    n = len(windows)
+    padded = np.pad(windows, ((0, -n % PSD_CHUNK), (0, 0)))
+    out = [np.asarray(welch.welch_psd(c, bandwidth_khz=24.0)) for c in np.split(padded, len(padded) // PSD_CHUNK)]
+    return np.concatenate(out)[:n] if out else np.zeros((0, welch.N_BINS), np.float32)
+
+
+def _psd(mic: int) -> Feature:
+    params = {"mic": archive.MIC_NAMES[mic], **welch.SCIPY_KWARGS, "log10_floor": welch.LOG_FLOOR, "version": 1}
+    return Feature(f"psd_{archive.MIC_NAMES[mic]}", params, False, True, lambda t: log_psd(mic_windows(t, mic)))
+
+
+def _proprio(trial: archive.TrialArchive) -> np.ndarray:
+    return trial.joints.reshape(trial.n_steps, -1).astype(np.float32)
+
+
+def feature_for(modality: str, image_resolution: str = "down") -> Feature:
+    """The feature behind a model input (a `config.MODALITIES` name)."""
+    if modality in archive.MIC_NAMES:
+        return _psd(archive.MIC_NAMES.index(modality))
+    if modality == "proprio":
+        return Feature("proprio", {"version": 1}, False, True, _proprio)
+    if modality == "flow":
+        params = {"farneback": flow.FARNEBACK, "top_fraction": flow.TOP_FRACTION, "patch": flow.PATCH, "version": 1}
+        return Feature("flow", params, True, True, lambda t: flow.trial_flow(t.images))
+    if modality == "image" and image_resolution == "down":
+        params = {"size": images.DOWN_SIZE, "interpolation": "area", "version": 1}
+        return Feature("image_60x80", params, True, True, lambda t: images.downsample(t.images))
+    if modality == "image" and image_resolution == "full":
+        return Feature("image_full", {}, True, False, lambda t: t.images)
+    raise ValueError(f"no feature for modality {modality!r} at image resolution {image_resolution!r}")
