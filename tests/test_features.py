@@ -1,0 +1,170 @@
+import jax
+import numpy as np
+import pytest
+import scipy.signal
+
+from fabricjax.features import extract, flow, images, welch
+from tests.helpers import tiny_archive
+
+
+def _words(samples):
+    """Full-scale samples -> SPH0645 words (18 bits in 31..14, junk in the low bits)."""
+    q = np.clip(np.round(samples * 2**17), -(2**17), 2**17 - 1).astype(np.int64)
+    return ((q << 14) | 0x1234).astype(np.int32)
+
+
+def _signal(kind, n_windows, rng):
+    t = np.arange(welch.WINDOW) / welch.FS
+    noise = rng.normal(size=(n_windows, welch.WINDOW))
+    if kind == "noise":
+        x = 0.05 * noise
+    elif kind == "dc_offset":  # the SPH0645's large DC offset on top of a quiet signal
+        x = 0.4 + 0.002 * noise
+    elif kind == "clipped":  # a loud tone plus noise, saturating the converter
+        x = 3.0 * np.sin(2 * np.pi * 1000 * t + rng.uniform(0, 6, (n_windows, 1))) + 0.1 * noise
+    return _words(x)
+
+
+def _reference(words):
+    x = (words >> 14).astype(np.float64) / 2**17
+    return scipy.signal.welch(x, **welch.SCIPY_KWARGS)[1]
+
+
+@pytest.mark.parametrize("n_windows", [1, 7, 64])
+@pytest.mark.parametrize("kind", ["noise", "dc_offset", "clipped"])
+def test_welch_matches_scipy_float32(kind, n_windows):
+    """FFT rounding is relative to the window's energy, not to each bin, so in float32 "above the
+    floor" means bins holding at least 1e-4 of the window's power (all but a few bins of noise,
+    the harmonics of a clipped tone). The reference is scipy in float64."""
+    words = _signal(kind, n_windows, np.random.default_rng(n_windows))
+    ref = _reference(words)
+    got = np.asarray(welch.welch_psd(words, bandwidth_khz=24.0, log=False))
+    assert got.dtype == np.float32 and got.shape == (n_windows, 512)
+    above = ref >= 1e-4 * ref.sum(axis=-1, keepdims=True)
+    assert above.sum(axis=-1).min() >= 8
+    assert np.max(np.abs(got - ref)[above] / ref[above]) <= 1e-5
+
+
+@pytest.mark.parametrize("n_windows", [1, 7, 64])
+@pytest.mark.parametrize("kind", ["noise", "dc_offset", "clipped"])
+def test_welch_matches_scipy_x64(kind, n_windows):
+    words = _signal(kind, n_windows, np.random.default_rng(n_windows))
+    ref = _reference(words)
+    with jax.enable_x64(True):
+        got = np.asarray(welch.welch_psd(words, bandwidth_khz=24.0, log=False))
+    assert got.dtype == np.float64
+    above = ref > 1e-25  # everything but exact numerical zeros
+    assert np.max(np.abs(got - ref)[above] / ref[above]) <= 1e-10
+
+
+def test_log_psd_of_silence_is_the_floor():
+    for words in (np.zeros((3, 2048), np.int32), np.full((3, 2048), 5 << 14, np.int32)):
+        got = np.asarray(welch.welch_psd(words))
+        assert np.all(np.isfinite(got))
+        assert np.all(got <= np.log10(1e-18))  # at or near the floor, far below quantisation noise
+    np.testing.assert_array_equal(np.asarray(welch.welch_psd(np.zeros((1, 2048), np.int32))), np.log10(welch.LOG_FLOOR))
+
+
+def test_bandwidth_truncation_keeps_bins_up_to_the_bandwidth():
+    assert [welch.n_bins(b) for b in (2.5, 10.0, 15.0, 24.0)] == [54, 213, 320, 512]
+    assert welch.frequencies(15.0)[-1] <= 15000 < welch.frequencies(24.0)[320]
+    words = _signal("noise", 4, np.random.default_rng(0))
+    full = np.asarray(welch.welch_psd(words, bandwidth_khz=24.0))
+    np.testing.assert_array_equal(np.asarray(welch.welch_psd(words)), full[:, :320])
+
+
+def test_sph0645_words_to_full_scale():
+    words = np.array([(-(2**17)) << 14, ((2**17 - 1) << 14) | 0x3FFF, 1 << 14, 0x3FFF], np.int32)
+    np.testing.assert_array_equal(np.asarray(welch.to_full_scale(words)), [-1.0, 1 - 2**-17, 2**-17, 0.0])
+
+
+def test_mic_windows_end_at_window_end_and_pad_the_start():
+    a = tiny_archive(n_steps=5)
+    we = a.window_end.copy()
+    we[0] = 100  # a window that starts before the recording
+    a = type(a)(**{**a.__dict__, "window_end": we})
+    w = extract.mic_windows(a, 1)
+    np.testing.assert_array_equal(w[3], a.audio[1, we[3, 1] - 2048 : we[3, 1]])
+    np.testing.assert_array_equal(w[0, -100:], a.audio[1, :100])
+    assert not w[0, :-100].any()
+
+
+def test_proprio_is_joint_major():
+    a = tiny_archive(n_steps=4)
+    p = extract.feature_for("proprio").compute(a)
+    assert p.shape == (4, 18) and p.dtype == np.float32
+    np.testing.assert_array_equal(p[2, 3:6], a.joints[2, 1])
+
+
+def _numpy_pool(dense):
+    """Plain reference: top ceil(0.1 %) magnitudes per frame, then means of 3x3 patches (rows
+    floor(H / 3), columns ceil(W / 3), the last column patch over the pixels it has)."""
+    t, h, w, _ = dense.shape
+    ph, pw = h // 3, -(-w // 3)
+    out = np.zeros((t, 2, ph, pw))
+    for f in range(t):
+        mag = np.hypot(dense[f, ..., 0], dense[f, ..., 1])
+        kth = np.sort(mag.ravel())[-int(np.ceil(0.001 * h * w))]
+        kept = np.where((mag >= kth)[..., None], dense[f], 0.0)
+        for i in range(ph):
+            for j in range(pw):
+                out[f, :, i, j] = kept[3 * i : 3 * i + 3, 3 * j : 3 * j + 3].reshape(-1, 2).mean(axis=0)
+    return out
+
+
+@pytest.mark.parametrize("shape", [(20, 26), (77, 103), (31, 45)])
+def test_flow_pooling_matches_numpy(shape):
+    dense = np.random.default_rng(1).normal(size=(3, *shape, 2)).astype(np.float32)
+    dense[1] = 0.0  # no motion: nothing survives but zeros
+    got = np.asarray(flow.sparsify_and_pool(dense))
+    assert got.shape == (3, 2, *flow.pooled_shape(*shape))
+    np.testing.assert_allclose(got, _numpy_pool(dense), rtol=1e-6, atol=1e-7)
+    assert (got[0] != 0).sum() <= 2 * np.ceil(0.001 * shape[0] * shape[1])
+
+
+def test_flow_shape_at_paper_and_preset_sizes():
+    assert flow.pooled_shape(308, 410) == (102, 137)
+    assert flow.pooled_shape(154, 205) == (51, 69)
+    assert np.asarray(flow.sparsify_and_pool(np.zeros((1, 308, 410, 2), np.float32))).shape == (1, 2, 102, 137)
+
+
+def test_trial_flow_sees_motion_and_chunks_agree():
+    import cv2
+
+    rng = np.random.default_rng(0)
+    scene = cv2.GaussianBlur(rng.integers(0, 255, (60, 80, 3), dtype=np.uint8), (0, 0), 2)
+    frames = np.stack([scene[10:40, 10 - s : 50 - s] for s in range(0, 10, 2)])  # moves +2 px/step in x
+    a = flow.trial_flow(frames, chunk=2)
+    b = flow.trial_flow(frames, chunk=8)
+    assert a.shape == (5, 2, 10, 14) and a.dtype == np.float16
+    np.testing.assert_array_equal(a, b)
+    assert not a[0].any()  # step 0 has no predecessor
+    moving = a[1:, 0] != 0
+    assert moving.any() and np.all(a[1:, 0][moving] > 0)  # x-flow points along the motion
+    assert np.abs(a[1:, 1]).sum() < 0.2 * np.abs(a[1:, 0]).sum()
+
+
+def test_rotation_is_one_angle_per_sequence():
+    frames = np.random.default_rng(0).integers(0, 255, (4, 12, 16, 3), dtype=np.uint8)
+    key = jax.random.key(3)
+    seq = np.asarray(images.rotate_sequence(key, frames))
+    for i in range(len(frames)):  # each frame turned exactly as it would be alone with this key
+        np.testing.assert_allclose(seq[i], np.asarray(images.rotate_sequence(key, frames[i : i + 1]))[0], atol=1e-4)
+    assert not np.allclose(seq, np.asarray(images.rotate_sequence(jax.random.key(4), frames)))
+    same = np.repeat(frames[:1], 3, axis=0)
+    batch = np.asarray(images.rotate_batch(jax.random.key(0), np.stack([same, same])))
+    assert np.allclose(batch[:, 0:1], batch[:, 1:])  # consistent inside each sequence
+    assert not np.allclose(batch[0], batch[1])  # independent across sequences
+
+
+def test_rotation_geometry():
+    f = np.random.default_rng(0).integers(0, 255, (1, 9, 9, 1)).astype(np.float32)
+    np.testing.assert_allclose(np.asarray(images.rotate(f, 0.0)), f)
+    np.testing.assert_allclose(np.asarray(images.rotate(f, 90.0)), np.rot90(f, -1, axes=(1, 2)), atol=1e-3)
+
+
+def test_downsample_to_60x80():
+    frames = np.full((2, 308, 410, 3), 77, np.uint8)
+    small = images.downsample(frames)
+    assert small.shape == (2, 60, 80, 3) and small.dtype == np.uint8
+    assert np.all(small == 77)
