@@ -27,6 +27,7 @@ Goal positions are sent with one GroupSyncWrite to register 42 (2 bytes) per ste
 from __future__ import annotations
 
 import math
+import select
 import time
 
 import numpy as np
@@ -81,6 +82,17 @@ def decode_state(data: list[int]) -> tuple[float, float, float]:
     return angle, velocity, current
 
 
+class PortHandler(scs.PortHandler):
+    """The SDK's port, except that waiting for a reply sleeps in `select` instead of spinning: the
+    SDK polls a non-blocking port in a busy loop, which on a small laptop starves the camera and
+    the servo replies themselves of CPU."""
+
+    def readPort(self, length):
+        if not self.ser.in_waiting:
+            select.select([self.ser.fileno()], [], [], 0.0005)
+        return self.ser.read(length)
+
+
 class ServoBus:
     """Six joints on one half-duplex bus. Not thread-safe (neither is the SDK): one loop owns it."""
 
@@ -88,7 +100,7 @@ class ServoBus:
         if len(ids) != archive.N_JOINTS:
             raise ValueError(f"need {archive.N_JOINTS} servo ids ({', '.join(archive.JOINT_NAMES)}), got {ids}")
         self.ids, self.retries, self.retried = tuple(ids), retries, 0
-        self.port = scs.PortHandler(port)
+        self.port = PortHandler(port)
         self.packet = scs.PacketHandler(0)  # 0: little-endian words (STS/SMS series)
         if not self.port.openPort():
             raise ServoError(0, "bus", ADDR_MODEL, f"cannot open {port} at {baudrate} baud")

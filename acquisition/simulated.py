@@ -37,7 +37,6 @@ from acquisition import camera as camera_mod
 from acquisition import servos, wire
 from acquisition.camera import Camera, ForceProxy
 from acquisition.mics import MicReceiver
-from acquisition.procedure import ExploratoryProcedure
 from acquisition.recorder import Rig
 
 
@@ -281,8 +280,9 @@ def simulated_rig(signals: SimulatedSignals, faults: Faults = Faults(), *, servo
             if not parent.poll(30):
                 raise RuntimeError("simulated devices did not start within 30 s")
             pty_path, port = parent.recv()
-            contact = signals.force > 0
-            force = ForceProxy.calibrate(signals.reference, signals.images[contact], signals.force[contact])
+            ramp = np.arange(len(signals.force)) <= np.argmax(signals.force >= 0.1 - 1e-6)  # closing only: no shear
+            calib = ramp & (signals.force > 0)
+            force = ForceProxy.calibrate(signals.reference, signals.images[calib], signals.force[calib])
             bus = servos.ServoBus(pty_path, retries=servo_retries)
             bus.ping_all()
             bus.set_torque(True)
@@ -308,7 +308,3 @@ def simulated_rig(signals: SimulatedSignals, faults: Faults = Faults(), *, servo
             proc.join(timeout=3)
             if proc.is_alive():
                 proc.terminate()
-
-
-def default_procedure(n_cycles: int = 50) -> ExploratoryProcedure:
-    return ExploratoryProcedure(n_cycles=n_cycles)
