@@ -1,0 +1,18 @@
+"""The scene simulator: physically grounded trial archives (see DESIGN.md, "The scene simulator").
+
+    scene = Scene(fabric_id=12, day=1, trial=0, condition="lab",
+                  effects=EFFECTS, streams=("audio", "proprio"), cycles=50, seed=0)
+    arch = simulate(scene)                 # fabricjax.archive.TrialArchive, images=None here
+    path = ensure_dataset("default")       # every trial of a preset, resumable, indexed
+
+Only what a scene calls for is computed: an effect missing from `scene.effects` is never
+evaluated, and images are rendered only when "images" is in `scene.streams`. Constants live in
+`fabricjax.sim.calibration`.
+"""
+
+from fabricjax.sim.bench import bench_throughput
+from fabricjax.sim.dataset import ensure_dataset, scene_for
+from fabricjax.sim.scene import EFFECTS, REQUIRED_STREAMS, STREAMS, Scene
+from fabricjax.sim.simulate import simulate
+
+__all__ = ["EFFECTS", "REQUIRED_STREAMS", "STREAMS", "Scene", "bench_throughput", "ensure_dataset", "scene_for", "simulate"]

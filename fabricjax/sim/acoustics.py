@@ -1,0 +1,99 @@
+"""Acoustic units and frequency-domain plumbing shared by the sound effects.
+
+Every microphone signal is built as one spectrum (rfft of the whole trial) and inverted once:
+filters are products, sources are sums, so no effect loops over samples. Pressures are in Pa.
+Levels follow IEC 61672: SPL re 20 uPa with A-weighting, as a sound meter (the paper's Sauter
+SU 130) reports them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import scipy.fft
+
+from fabricjax.sim import calibration as cal
+
+P_REF = 20e-6
+
+
+@dataclasses.dataclass(frozen=True)
+class Grid:
+    """Time and frequency grids of one trial's audio (lead-in included)."""
+
+    n: int  # samples
+    nfft: int  # FFT length (>= n, fast)
+
+    @classmethod
+    def for_samples(cls, n: int) -> "Grid":
+        return cls(n, scipy.fft.next_fast_len(n, real=True))
+
+    @property
+    def f(self) -> np.ndarray:
+        return np.fft.rfftfreq(self.nfft, 1.0 / cal.FS)
+
+    @property
+    def t(self) -> np.ndarray:
+        """Seconds from the start of the procedure (negative during the lead-in)."""
+        return (np.arange(self.n) - cal.LEAD_IN) / cal.FS
+
+    def rfft(self, x: np.ndarray) -> np.ndarray:
+        return scipy.fft.rfft(x, self.nfft)
+
+    def irfft(self, spectrum: np.ndarray) -> np.ndarray:
+        return scipy.fft.irfft(spectrum, self.nfft)[: self.n]
+
+
+def db_to_pa(db: float) -> float:
+    return P_REF * 10 ** (db / 20)
+
+
+def a_weighting(f: np.ndarray) -> np.ndarray:
+    """IEC 61672 A-weighting as an amplitude factor (1 at 1 kHz)."""
+    f2 = np.asarray(f, float) ** 2
+    ra = 12194.0**2 * f2**2 / ((f2 + 20.6**2) * np.sqrt((f2 + 107.7**2) * (f2 + 737.9**2)) * (f2 + 12194.0**2))
+    return ra * 10 ** (2.0 / 20)
+
+
+def rms_of_spectrum(spectrum: np.ndarray, grid: Grid, weight: np.ndarray | None = None) -> float:
+    """RMS over the grid's n samples of the signal whose rfft is `spectrum` (Parseval)."""
+    p = np.abs(spectrum if weight is None else spectrum * weight) ** 2
+    total = 2.0 * p.sum() - p[0] - (p[-1] if grid.nfft % 2 == 0 else 0.0)
+    return float(np.sqrt(total / grid.nfft / grid.n))
+
+
+def scale_to_db_a(spectrum: np.ndarray, grid: Grid, db_a: float) -> np.ndarray:
+    """Scale `spectrum` so that its A-weighted level is `db_a` dB SPL."""
+    level = rms_of_spectrum(spectrum, grid, a_weighting(grid.f))
+    return spectrum * (db_to_pa(db_a) / max(level, 1e-30))
+
+
+def noise_spectrum(rng: np.random.Generator, grid: Grid, shape: np.ndarray) -> np.ndarray:
+    """Spectrum of stationary Gaussian noise with amplitude response `shape` (any scale)."""
+    z = rng.standard_normal((2, len(shape)), dtype=np.float32)
+    return (z[0] + 1j * z[1]) * shape
+
+
+def resonance(f: np.ndarray, f0: float, q: float) -> np.ndarray:
+    """Second-order low-pass with a resonance (mass-spring-damper), unity at DC."""
+    s = 1j * f / f0
+    return 1.0 / (1.0 + s / q + s * s)
+
+
+def highpass2(f: np.ndarray, fc: float) -> np.ndarray:
+    s = 1j * f / fc
+    return s * s / (1.0 + np.sqrt(2) * s + s * s)
+
+
+def lowpass2(f: np.ndarray, fc: float) -> np.ndarray:
+    s = 1j * f / fc
+    return 1.0 / (1.0 + np.sqrt(2) * s + s * s)
+
+
+def ringing_kernel_spectrum(f: np.ndarray, ring_hz: float, decay_s: float) -> np.ndarray:
+    """Spectrum of a unit-amplitude damped sine sin(2 pi f0 t) exp(-t / tau), t >= 0."""
+    a = 1.0 / decay_s
+    w0 = 2 * np.pi * ring_hz
+    s = 2j * np.pi * f
+    return w0 / ((s + a) ** 2 + w0**2) * cal.FS

@@ -1,0 +1,154 @@
+"""Every physical constant of the scene simulator, in one place, with where it comes from.
+
+Calibration is by physical parameters only: levels, SNRs and bands from the paper and the
+SPH0645 datasheet, geometry and material constants as textbook-order estimates. Nothing here was
+tuned to a classification accuracy. Sources are marked:
+
+    [paper]  stated in the paper (arxiv_main.tex, Method / Experiments)
+    [ds]     SPH0645LM4H datasheet (Knowles): -26 dBFS at 94 dB SPL, 65 dB(A) SNR, AOP 120 dB SPL,
+             18 valid bits of a 24-bit word in a 32-bit I2S slot, usable band 50 Hz-15 kHz
+    [phys]   a physical law or a material/geometry estimate (order of magnitude, stated)
+    [hw]     STS3215 servo / robot-hand estimates (resolution of the registers, lever lengths)
+"""
+
+from __future__ import annotations
+
+import math
+
+# --- time base --------------------------------------------------------------------------------
+FS = 48_000  # [paper] audio sample rate, Hz
+STEP_HZ = 50  # [paper] one step per Minsight frame
+WINDOW = 2048  # [paper] audio samples per step
+LEAD_IN = 4096  # samples recorded before the procedure starts (>= WINDOW so every window is full)
+FRAME_JITTER_S = 0.0008  # [phys] USB camera frame-time jitter (frames come "approximately every 20 ms")
+CONTROL_HZ = 2000  # grid on which the finger motion is integrated (then interpolated to 48 kHz)
+
+# --- finger motion [paper: force-controlled closing until 0.1 N, then rubbing cycles] ---------
+GRASP_FORCE_N = 0.1  # [paper] closing stops when Minsight's force estimate reaches this
+OPEN_GAP_MM = 14.0  # [hw] fingertip gap of the open pose
+CLOSING_SPEED_MM_S = 20.0  # [hw] relative fingertip closing speed (same for every fabric [paper])
+SHELL_NORMAL_STIFFNESS_N_MM = 0.25  # [phys] two soft silicone shells in series, normal direction
+SHELL_SHEAR_STIFFNESS_N_MM = 0.30  # [phys] shear stiffness of one shell at the contact
+SETTLE_S = 0.1  # pause between the grasp and the first rubbing stroke
+STOP_S = 0.1  # recording continues briefly after the last stroke
+RUB_AMPLITUDE_MM = 3.0  # [hw] each fingertip moves +-3 mm laterally, the two in opposite phase
+CYCLE_HZ = 2.0  # [hw] commanded rubbing frequency: 50 cycles ~ 25 s before the load droop
+ARC_MM = 0.15  # [phys] extra indentation at the stroke ends (the fingertips move on arcs)
+FINGER_LEVER_MM = 60.0  # [hw] joint axis to fingertip contact
+# [paper: "the fingers move more slowly when finger-fabric friction is high"] Position-controlled
+# hobby servos lose speed under load: speed = commanded / (1 + SPEED_DROOP_PER_N * mu * F_n).
+# 2 / N gives ~6 % (mu = 0.25) to ~22 % (mu = 0.95) slower cycles at 0.1-0.15 N: trials of ~1300-1550 steps.
+SPEED_DROOP_PER_N = 2.0
+SPEED_JITTER = 0.02  # per-trial spread of the servo speed (supply voltage, temperature)
+CYCLE_PHASE_JITTER = 0.01  # slow wander of the instantaneous stroke rate
+CLOTH_CREEP_MM_PER_CYCLE = 0.05  # [phys] the hanging cloth creeps between strokes (random walk)
+
+# --- fabric surface [FACTS: f = v / lambda; roughness spectrum 1/f^s; fuzz] -----------------------
+PROFILE_DX_MM = 0.001  # 1 um grid: resolves content to > 20 kHz at the fastest slide speed
+PROFILE_LEN_MM = 65.536  # one cloth strip per fabric (2**16 samples); grasps land anywhere on it
+GRASP_RANGE_MM = (12.0, 52.0)  # [paper: the hanger is moved between trials] grasp position on the strip
+ROUGHNESS_K_MIN = 0.5  # cycles/mm: below (2 mm wavelengths) the fabric drapes rather than vibrates
+WEAVE_SHARE = 0.5  # fraction of the RMS height in the periodic weave (the rest: random roughness)
+WEAVE_HARMONICS = 8
+WEAVE_IRREGULARITY = 0.03  # yarn spacing varies by ~3 % of the period
+LOCAL_ROUGHNESS_SPREAD = 0.2  # local roughness varies +-20 % along the strip (10 mm correlation)
+FUZZ_FIBRES_PER_MM = 6.0  # loose fibre ends per mm of path at fuzz = 1
+FUZZ_FIBRE_WIDTH_MM = 0.008  # [phys] fibre diameter ~10-20 um
+FUZZ_HEIGHT = 0.6  # fibre bump height relative to the fabric's RMS roughness
+SHELL_ROUGHNESS_UM = 0.5  # [phys] the silicone skin's own micro-texture: all class 0 rubs against
+SHELL_SPECTRAL_SLOPE = 2.0
+
+# --- contact sound in the Minsound cavity ---------------------------------------------------------
+# [phys] Adiabatic cavity: p = gamma * P0 * dV / V. The fabric profile displaces the outer skin;
+# a fraction of that reaches the inner wall through ~3 mm of silicone over the contact patch.
+GAMMA_P0_PA = 1.4 * 101_325.0
+CONTACT_AREA_M2 = 20e-6  # ~5 mm x 4 mm contact patch at 0.1 N
+WALL_COUPLING = 0.01  # inner-wall displacement per outer-surface displacement
+CAVITY_VOLUME_M3 = 8e-6  # ~8 cm^3 of air inside the shell
+TEXTURE_PA_PER_UM = GAMMA_P0_PA * CONTACT_AREA_M2 * WALL_COUPLING * 1e-6 / CAVITY_VOLUME_M3  # ~3.5e-3
+# Shell wall: mass-spring wall mode with viscoelastic losses (silicone damping rises with f).
+SHELL_MODE_HZ = 2500.0
+SHELL_MODE_Q = 1.5
+SHELL_LOSS_HZ = 9000.0  # exp(-f / SHELL_LOSS_HZ) extra viscoelastic loss
+# Stick-slip: micro-slips per mm slid grow with friction; each releases energy at asperity scale
+# (amplitude ~ mu * F_n * asperity height), plus one larger release at every stroke reversal
+# (elastic energy 1/2 k delta^2 stored in the stuck shell and stretched cloth).
+SLIPS_PER_MM = 6.0  # at mu = 1
+SLIP_PA = 0.06  # click peak pressure at mu * F_n = 0.05 N and 20 um asperities
+SLIP_REF_FORCE_N = 0.05
+SLIP_REF_ROUGHNESS_UM = 20.0
+RELEASE_PA = 0.15  # reversal release at delta = 0.1 mm, mu * F_n = 0.05 N, 20 um asperities
+SLIP_RING_HZ = (900.0, 3500.0)  # contact/skin ring of a slip click
+SLIP_DECAY_S = 0.0006
+SLIP_SPREAD = 0.5  # log-normal sigma of click amplitudes
+
+# --- air paths --------------------------------------------------------------------------------
+# [phys] The palm microphone (~8 cm away, in free air) hears what the fabric and fingertips radiate:
+# a monopole radiator is ~f^1 below its radiation corner; the cavity pressure is far larger than
+# the free-field pressure a few cm away.
+AIR_PATH_GAIN_DB = -38.0  # palm pressure relative to cavity pressure, above the corner
+AIR_PATH_CORNER_HZ = 1000.0
+# [phys] Mass law for the shell wall: TL = 20 log10(f * m'') - 47 dB, m'' = 1100 kg/m^3 * 4 mm.
+SHELL_SURFACE_MASS_KG_M2 = 4.4
+SHELL_TL_MIN_DB = 8.0  # leaks and the stiffness-controlled region at low frequency
+SHELL_TL_MAX_DB = 40.0  # flanking through the aluminium skeleton
+
+# --- servo noise (heard by both microphones, also in class 0) ---------------------------------------
+GEAR_RATIO = 345.0  # [hw] STS3215
+GEAR_TEETH = 10  # first-stage pinion: mesh frequency = motor rev/s * teeth
+SERVO_TONE_PA = 0.02  # gear-mesh tone at 1 rad/s joint speed, as heard inside the shell (~60 dB)
+SERVO_BROADBAND_PA = 0.012  # motor/gear broadband noise at 1 rad/s
+SERVO_HOLD_PA = 0.002  # holding servos' PWM hum (always present, ~40 dB)
+SERVO_LOAD_REF_NM = 0.01  # torque at which the gear noise doubles
+SERVO_STRUCTURE_BAND_HZ = (150.0, 6000.0)  # structure-borne band into the Minsound cavity
+SERVO_PALM_GAIN_DB = -6.0  # airborne at the palm (the servos sit in the palm) vs structure-borne
+
+# --- ambient sound [paper: lab 29-31 dB, cafe 47-55 dB at the external mic; FACTS: babble] --------
+LAB_DB_A = (29.0, 31.0)
+CAFE_DB_A = (47.0, 55.0)
+CAFE_DAY_SPREAD_DB = 2.0  # a cafe day sits at U(48, 54), each trial +-1 dB, all within 47-55
+BABBLE_PEAK_HZ = 180.0  # long-term speech spectrum of many talkers peaks near 125-250 Hz
+BABBLE_MODULATION = 0.25  # residual syllabic modulation of many overlapping talkers
+CLATTER_PER_S = 1.5  # cups, plates, cutlery
+CLATTER_RING_HZ = (2000.0, 7000.0)
+CLATTER_DECAY_S = 0.015
+CLATTER_PEAK_DB = 12.0  # clatter peaks above the babble RMS
+
+# --- SPH0645 [ds] -------------------------------------------------------------------------------
+SENSITIVITY_DBFS = -26.0  # at 94 dB SPL (1 Pa)
+VALID_BITS = 18
+FULL_SCALE = 2 ** (VALID_BITS - 1)
+COUNTS_PER_PA = 10 ** (SENSITIVITY_DBFS / 20) * FULL_SCALE / math.sqrt(2)  # RMS counts per Pa RMS
+SELF_NOISE_DB_A = 94.0 - 65.0  # 65 dB(A) SNR re 94 dB SPL -> 29 dB(A) SPL equivalent input noise
+BAND_HZ = (50.0, 15_000.0)  # [ds] usable band: 2nd-order roll-offs at both ends
+DECIMATION_HZ = 21_000.0  # steep digital low-pass of the sigma-delta decimator
+DC_OFFSET_COUNTS = -3000.0  # [ds/FACTS] large DC offset (of 2**17), drifting from day to day
+DC_DRIFT_COUNTS = 400.0
+GAIN_DRIFT_DB = 0.5  # per-day sensitivity drift (temperature)
+JUNK_BITS = 6  # bits 13..8 of the 24-bit word carry no information; bits 7..0 are zero
+
+# --- proprioception [hw] ----------------------------------------------------------------------
+ANGLE_LSB_RAD = 2 * math.pi / 4096  # STS3215 position register
+VELOCITY_NOISE_RAD_S = 0.02
+CURRENT_LSB_A = 0.0065  # STS3215 present-current unit
+CURRENT_NOISE_A = 0.006  # PWM ripple
+IDLE_CURRENT_A = 0.04
+TORQUE_PER_AMP_NM = 0.7  # ~1.9 N m stall at ~2.7 A
+VISCOUS_NM_PER_RAD_S = 0.01  # gear-train drag of a moving joint
+ANGLE_DRIFT_RAD = 0.003  # per-day calibration offset
+CURRENT_DRIFT_A = 0.004
+FORCE_NOISE_N = 0.004  # Minsight force proxy
+FORCE_BIAS_N = 0.004
+FOLD_SPREAD = 0.1  # the folded stack's thickness varies +-10 % with the grasp
+
+# --- Minsight images --------------------------------------------------------------------------
+SHELL_WIDTH_MM = 30.0  # the 410-pixel image spans ~30 mm of shell interior
+INDENT_PX_PER_N = 40.0  # radial bulge at full resolution per N of normal force
+SHEAR_PX_PER_N = 90.0  # lateral shift at full resolution per N of tangential force
+CONTACT_SIGMA_PX = 55.0  # contact patch radius at full resolution, 0.1 N, thin fabric
+SHADING_PER_N = 1.2  # darkening of the indented region per N
+CAMERA_NOISE = 1.5  # grey levels
+OPEN_POSE_RAD = (0.30, 0.20, 0.10, 0.00, 0.20, 0.50)  # [hw] joint angles of the open hand
+CLOSING_SHARE = (0.0, 0.6, 0.4, 0.0, 1.0, 0.0)  # how each finger's closing travel splits over joints
+SERVO_STIFFNESS_NM_RAD = 4.0  # [hw] position-loop stiffness: loaded joints lag their command
+READ_LATENCY_S = 0.002  # joints are read just before the frame is captured

@@ -1,0 +1,128 @@
+"""Finger motion: the paper's exploratory procedure, as kinematics and contact mechanics.
+
+[paper, Finger Movement] Force-controlled closing of thumb and middle finger until Minsight's
+force estimate reaches 0.1 N, then a preprogrammed rubbing motion of `cycles` back-and-forth
+strokes with the same commanded speed for every fabric; "the fingers move more slowly when
+finger-fabric friction is high", so trial length varies with friction.
+
+Mechanics, all per fingertip:
+* Closing: the gap shrinks at constant speed; after contact the folded two-layer stack and the two
+  shells compress in series. The force is checked once per camera frame, so the grasp overshoots
+  0.1 N by a random amount. The closing angle therefore encodes thickness and compressibility.
+* Rubbing: the fingertips follow opposite sinusoids (fabric between them stays put; with no fabric
+  the thumb slides over the moving middle finger, twice the relative travel). The skin sticks to
+  the cloth until the tangential load reaches mu * F_n: Coulomb friction through an elastic
+  element (shell shear in series with the cloth's stretch) is a play (backlash) operator of width
+  delta = mu * F_n / k. The slide position drives the texture, the elastic load drives the joints.
+* Speed droop: a position-controlled servo slows under load, speed / (1 + c * mu * F_n).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from fabricjax import catalog
+from fabricjax.sim import calibration as cal
+from fabricjax.sim.scene import Nuisance
+
+
+@dataclasses.dataclass(frozen=True)
+class Motion:
+    t: np.ndarray  # control grid, s from the start of closing
+    finger_mm: np.ndarray  # lateral thumb displacement (the middle finger mirrors it)
+    slide_mm: np.ndarray  # thumb skin position on the counter-surface (cloth or middle finger)
+    normal_n: np.ndarray  # normal force (0 before contact)
+    shear_n: np.ndarray  # signed tangential load through the elastic contact
+    closing_mm: np.ndarray  # fingertip closing travel (both fingers together)
+    duration_s: float
+    rubbing_start_s: float
+    slip_width_mm: float  # mean delta of the play operator (stick length at each reversal)
+    contact_stiffness_n_mm: float  # normal stiffness of shells + stack
+
+    @property
+    def speed_mm_s(self) -> np.ndarray:
+        return np.gradient(self.slide_mm, self.t)
+
+
+def stack_stiffness(fabric: catalog.Fabric, thickness_mm: float) -> float:
+    """Normal stiffness of the shells in series with the fabric stack (linearised at 0.1 N)."""
+    if not fabric.is_fabric:
+        return cal.SHELL_NORMAL_STIFFNESS_N_MM
+    k_stack = cal.GRASP_FORCE_N / max(fabric.compressibility * thickness_mm, 1e-3)
+    return 1.0 / (1.0 / cal.SHELL_NORMAL_STIFFNESS_N_MM + 1.0 / k_stack)
+
+
+def shear_stiffness(fabric: catalog.Fabric) -> float:
+    """Tangential stiffness between finger bone and sliding interface: shell shear, cloth stretch."""
+    if not fabric.is_fabric:
+        return cal.SHELL_SHEAR_STIFFNESS_N_MM / 2  # two shells
+    return 1.0 / (1.0 / cal.SHELL_SHEAR_STIFFNESS_N_MM + 1.0 / fabric.stretch_stiffness)
+
+
+def play(x: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """Play operator: the stuck contact follows x only once |x - out| exceeds delta (Coulomb stick-slip
+    through a spring). Exact for piecewise-monotone input; loops over monotone segments only."""
+    v = np.diff(x, prepend=x[0])
+    sign = np.sign(v)
+    sign[sign == 0] = 1.0
+    cuts = np.flatnonzero(np.diff(sign) != 0) + 1
+    out = np.empty_like(x)
+    prev = x[0]
+    for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(x)]):
+        if sign[a] > 0:
+            seg = np.maximum.accumulate(np.maximum(prev, x[a:b] - delta[a:b]))
+        else:
+            seg = np.minimum.accumulate(np.minimum(prev, x[a:b] + delta[a:b]))
+        out[a:b] = seg
+        prev = seg[-1]
+    return out
+
+
+def finger_motion(fabric: catalog.Fabric, cycles: int, nz: Nuisance, rng: np.random.Generator) -> Motion:
+    dt = 1.0 / cal.CONTROL_HZ
+    thickness = 2.0 * fabric.thickness_mm * nz.fold  # folded: the hand grips two layers
+    k_n = stack_stiffness(fabric, thickness)
+    # closing, checked once per camera frame
+    t_contact = (cal.OPEN_GAP_MM - thickness) / cal.CLOSING_SPEED_MM_S
+    t_reach = t_contact + cal.GRASP_FORCE_N / (k_n * cal.CLOSING_SPEED_MM_S)
+    frame = 1.0 / cal.STEP_HZ
+    t_stop = nz.frame_phase_s + frame * np.ceil((t_reach - nz.frame_phase_s) / frame)
+    grasp_force = k_n * cal.CLOSING_SPEED_MM_S * (t_stop - t_contact)
+    # rubbing
+    mu = fabric.friction
+    rate = cal.CYCLE_HZ * nz.speed / (1.0 + cal.SPEED_DROOP_PER_N * mu * grasp_force)
+    t_rub = t_stop + cal.SETTLE_S
+    n_rub = int(np.ceil(cycles / rate * 1.1 * cal.CONTROL_HZ))
+    wander = np.cumsum(rng.normal(0.0, 1.0, n_rub // 200 + 2))
+    wander = np.interp(np.arange(n_rub) / 200, np.arange(len(wander)), wander)
+    wander = cal.CYCLE_PHASE_JITTER * (wander - wander.mean()) / max(wander.std(), 1e-9)
+    phase = np.cumsum(rate * (1.0 + wander) * dt)
+    n_rub = int(np.searchsorted(phase, cycles)) + 1
+    phase = np.minimum(phase[:n_rub], cycles)
+    n_pre = int(np.ceil(t_rub * cal.CONTROL_HZ))
+    n_post = int(cal.STOP_S * cal.CONTROL_HZ)
+    t = np.arange(n_pre + n_rub + n_post) * dt
+    finger = np.zeros_like(t)
+    ramp = np.minimum(1.0, phase * 4.0)  # the first quarter stroke accelerates
+    finger[n_pre : n_pre + n_rub] = cal.RUB_AMPLITUDE_MM * ramp * np.sin(2 * np.pi * phase)
+    closing = np.clip(t, 0.0, t_stop) * cal.CLOSING_SPEED_MM_S
+    compression = np.clip(closing - (cal.OPEN_GAP_MM - thickness), 0.0, None)
+    normal = k_n * compression + k_n * cal.ARC_MM * (finger / cal.RUB_AMPLITUDE_MM) ** 2 * (t >= t_rub)
+    relative = finger * (1.0 if fabric.is_fabric else 2.0)
+    k_t = shear_stiffness(fabric)
+    delta = mu * normal / k_t
+    slide = play(relative, delta)
+    return Motion(
+        t=t,
+        finger_mm=finger,
+        slide_mm=slide,
+        normal_n=normal,
+        shear_n=k_t * (relative - slide),
+        closing_mm=closing,
+        duration_s=float(t[-1]),
+        rubbing_start_s=float(t_rub),
+        slip_width_mm=float(mu * grasp_force / k_t),
+        contact_stiffness_n_mm=float(k_n),
+    )

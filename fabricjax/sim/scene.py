@@ -1,0 +1,125 @@
+"""A scene: which trial to simulate, which effects it calls for, which streams it wants.
+
+Randomness is derived, never shared: every effect draws from its own generator, seeded by
+`numpy.random.SeedSequence` from the scene's seed, the effect's name and the scope the draw
+belongs to. Scopes fix what varies together:
+
+    hardware  the same robot every day (shell texture, servo signature)
+    fabric    the same cloth every day (its surface profile)
+    day       one recording day: ambient level, microphone DC offset and gain, joint calibration
+    trial     one trial: grasp position, fold, speed, jitter
+
+So leaving an effect out never changes another effect's draws, and two trials of one day share
+that day's drift (the nuisance the paper's day-based splits are meant to expose).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import zlib
+from typing import Any
+
+import numpy as np
+
+from fabricjax import archive, catalog
+from fabricjax.sim import calibration as cal
+
+EFFECTS = ("texture", "stick_slip", "shell", "air_path", "servo_noise", "ambient", "sph0645", "proprioception")
+"""Optional physics. The finger motion (the procedure itself) always runs."""
+STREAMS = ("audio", "proprio", "images")
+REQUIRED_STREAMS = ("audio", "proprio")  # the archive format requires audio, joints and force
+SCOPES = ("hardware", "fabric", "day", "trial")
+
+
+@dataclasses.dataclass(frozen=True)
+class Scene:
+    fabric_id: int
+    day: int = 1
+    trial: int = 0
+    condition: str = "lab"
+    effects: tuple[str, ...] = EFFECTS
+    streams: tuple[str, ...] = REQUIRED_STREAMS
+    image_size: tuple[int, int] = (308, 410)
+    cycles: int = 50
+    seed: int = 0
+
+    def __post_init__(self):
+        catalog.fabric(self.fabric_id)
+        if self.condition not in archive.CONDITIONS:
+            raise ValueError(f"condition must be one of {archive.CONDITIONS}, got {self.condition!r}")
+        bad = [e for e in self.effects if e not in EFFECTS]
+        if bad:
+            raise ValueError(f"unknown effects {bad}; known: {EFFECTS}")
+        bad = [s for s in self.streams if s not in STREAMS]
+        if bad:
+            raise ValueError(f"unknown streams {bad}; known: {STREAMS}")
+        missing = [s for s in REQUIRED_STREAMS if s not in self.streams]
+        if missing:
+            raise ValueError(f"streams {missing} are required by the archive format (audio, joints, force)")
+        if self.cycles < 1 or min(self.image_size) < 8:
+            raise ValueError(f"need cycles >= 1 and images of at least 8x8, got {self.cycles}, {self.image_size}")
+
+    @property
+    def fabric(self) -> catalog.Fabric:
+        return catalog.fabric(self.fabric_id)
+
+    def wants(self, name: str) -> bool:
+        """True when the scene calls for effect or stream `name`."""
+        return name in self.effects or name in self.streams
+
+    def to_json(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
+
+    def rng(self, name: str, scope: str) -> np.random.Generator:
+        """The generator of draw `name` at `scope` (see the module docstring)."""
+        keys = {
+            "hardware": (),
+            "fabric": (self.fabric_id,),
+            "day": (self.day, archive.CONDITIONS.index(self.condition)),
+            "trial": (self.fabric_id, self.day, self.trial, archive.CONDITIONS.index(self.condition)),
+        }[scope]
+        entropy = [self.seed, SCOPES.index(scope), zlib.crc32(name.encode()), *keys]
+        return np.random.default_rng(np.random.SeedSequence(entropy))
+
+
+@dataclasses.dataclass(frozen=True)
+class Nuisance:
+    """What changes between days and trials without changing the fabric."""
+
+    ambient_db_a: float  # at the palm microphone
+    mic_gain_db: np.ndarray  # (2,)
+    mic_dc_counts: np.ndarray  # (2,)
+    angle_offset_rad: np.ndarray  # (6,)
+    current_offset_a: np.ndarray  # (6,)
+    force_bias_n: float
+    grasp_mm: float  # where on the cloth strip the fingertips land
+    fold: float  # thickness factor of the folded stack
+    speed: float  # servo speed factor
+    frame_phase_s: float  # when the first camera frame falls relative to the procedure start
+    contact_offset_mm: np.ndarray  # (2,) offset of the contact centre on the Minsight shell
+
+
+def nuisance(scene: Scene) -> Nuisance:
+    day = scene.rng("nuisance", "day")
+    trial = scene.rng("nuisance", "trial")
+    if scene.condition == "lab":
+        level = day.uniform(*cal.LAB_DB_A)
+        level = float(np.clip(level + trial.uniform(-0.3, 0.3), *cal.LAB_DB_A))
+    else:
+        lo, hi = cal.CAFE_DB_A
+        level = day.uniform(lo + cal.CAFE_DAY_SPREAD_DB / 2, hi - cal.CAFE_DAY_SPREAD_DB / 2)
+        level = float(np.clip(level + trial.uniform(-1.0, 1.0), lo, hi))
+    return Nuisance(
+        ambient_db_a=level,
+        mic_gain_db=day.normal(0.0, cal.GAIN_DRIFT_DB, 2),
+        mic_dc_counts=cal.DC_OFFSET_COUNTS + day.normal(0.0, cal.DC_DRIFT_COUNTS, 2),
+        angle_offset_rad=day.normal(0.0, cal.ANGLE_DRIFT_RAD, 6),
+        current_offset_a=day.normal(0.0, cal.CURRENT_DRIFT_A, 6),
+        force_bias_n=float(day.normal(0.0, cal.FORCE_BIAS_N)),
+        grasp_mm=float(trial.uniform(*cal.GRASP_RANGE_MM)),
+        fold=float(1.0 + trial.uniform(-cal.FOLD_SPREAD, cal.FOLD_SPREAD)),
+        speed=float(1.0 + trial.normal(0.0, cal.SPEED_JITTER)),
+        frame_phase_s=float(trial.uniform(0.0, 1.0 / cal.STEP_HZ)),
+        contact_offset_mm=trial.normal(0.0, 1.5, 2),
+    )
