@@ -86,13 +86,13 @@ class ForceProxy:
 
     @classmethod
     def calibrate(cls, reference: np.ndarray, images, forces) -> "ForceProxy":
-        """Least-squares line force = gain * (difference - deadband) over frames in contact."""
+        """Least-squares line force = gain * (difference - deadband) through frames of known force,
+        e.g. no-contact frames (0 N) and frames of the closing ramp up to the grasp."""
         d = np.array([float(cv2.absdiff(im, reference).mean()) for im in images])
         f = np.asarray(forces, float)
-        touching = f > 0
-        if touching.sum() < 2:
-            raise ValueError("calibration needs at least two frames with a known positive force")
-        slope, intercept = np.polyfit(d[touching], f[touching], 1)
+        if len(np.unique(f)) < 2:
+            raise ValueError("calibration needs frames of at least two different known forces")
+        slope, intercept = np.polyfit(d, f, 1)
         if slope <= 0:
             raise ValueError(f"calibration failed: force does not grow with the image difference (slope {slope:.3g})")
         return cls(reference=reference, gain=float(slope), deadband=float(-intercept / slope))

@@ -2,7 +2,7 @@
 
 The paper closes thumb and middle finger until Minsight's force estimate reaches 0.1 N, then runs
 a preprogrammed rubbing motion with the same commanded speed for every fabric; 50 cycles give the
-~1500 steps of a trial at 50 Hz (~1 s of closing + 50 x 0.58 s of rubbing). Angles are goal
+~1500 steps of a trial at 50 Hz (~1 s of closing + 50 strokes of 0.5 s commanded, slower under friction). Angles are goal
 positions in rad around each servo's mid-range, in `archive.JOINT_NAMES` order.
 """
 
@@ -27,7 +27,7 @@ class ProcedureError(RuntimeError):
 class ExploratoryProcedure:
     force_threshold: float = 0.1  # N, Minsight force estimate that ends the closing
     n_cycles: int = 50
-    cycle_s: float = 0.58
+    cycle_s: float = 0.5  # 2 Hz commanded; friction slows the real stroke
     close_rate: float = 0.5  # rad/s along CLOSE_DIRECTION
     max_close_s: float = 4.0
     rub_amplitude: float = 1.0  # scales RUB_DIRECTION

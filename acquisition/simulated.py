@@ -280,9 +280,8 @@ def simulated_rig(signals: SimulatedSignals, faults: Faults = Faults(), *, servo
             if not parent.poll(30):
                 raise RuntimeError("simulated devices did not start within 30 s")
             pty_path, port = parent.recv()
-            ramp = np.arange(len(signals.force)) <= np.argmax(signals.force >= 0.1 - 1e-6)  # closing only: no shear
-            calib = ramp & (signals.force > 0)
-            force = ForceProxy.calibrate(signals.reference, signals.images[calib], signals.force[calib])
+            closing = slice(0, int(np.argmax(signals.force >= 0.1)) + 1)  # no contact .. grasp: no shear yet
+            force = ForceProxy.calibrate(signals.reference, signals.images[closing], signals.force[closing])
             bus = servos.ServoBus(pty_path, retries=servo_retries)
             bus.ping_all()
             bus.set_torque(True)
