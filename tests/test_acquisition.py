@@ -1,0 +1,179 @@
+"""Acquisition against simulated devices: the real scservo_sdk over a pty, cv2.VideoCapture over a
+video file, TCP on 127.0.0.1. Trials are short (2-3 rubbing cycles)."""
+
+import os
+import random
+import re
+import signal
+import threading
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from acquisition import mics, recorder, servos, sim_signals, simulated, wire
+from fabricjax import archive
+
+
+@pytest.fixture(scope="module")
+def signals():
+    return sim_signals.trial_signals(12, day=1, trial=0, n_cycles=2)
+
+
+def test_sign_magnitude_round_trip():
+    for v, bit in [(0, 15), (1234, 15), (-1234, 15), (-1, 10), (1023, 10)]:
+        assert servos.sign_magnitude(servos.encode_sign_magnitude(v, bit), bit) == v
+    assert servos.angle_to_counts(0.0) == 2048
+    assert servos.sign_magnitude(0x8000 | 5, 15) == -5
+
+
+def test_sdk_round_trip_over_pty(signals):
+    sim = simulated.SimServoBus(signals.joints).start()
+    bus = servos.ServoBus(sim.path)
+    try:
+        assert bus.ping_all() == {i: servos.STS3215_MODEL for i in servos.DEFAULT_IDS}
+        bus.set_torque(True)
+        assert all(sim.memory[i][servos.ADDR_TORQUE_ENABLE] == 1 for i in servos.DEFAULT_IDS)
+        for k in range(3):
+            state = bus.read_state()
+            want = signals.joints[k]
+            np.testing.assert_allclose(state[:, 0], want[:, 0], atol=servos.RAD_PER_COUNT)
+            np.testing.assert_allclose(state[:, 1], want[:, 1], atol=servos.RAD_PER_COUNT)
+            np.testing.assert_allclose(state[:, 2], want[:, 2], atol=servos.AMP_PER_COUNT)
+        goals = np.linspace(-0.5, 0.5, 6)
+        bus.write_goals(goals)
+        bus.ping_all()  # a reply after the broadcast: the goals have been processed
+        got = [int.from_bytes(sim.memory[i][42:44], "little") for i in servos.DEFAULT_IDS]
+        assert got == [servos.angle_to_counts(g) for g in goals]
+    finally:
+        bus.close()
+        assert sim.stop() == {"sync_reads": 3, "goal_writes": 1}
+
+
+def test_silent_servo_is_a_clear_error(signals):
+    sim = simulated.SimServoBus(signals.joints, faults=simulated.Faults(silent_servo=(5, 1))).start()
+    bus = servos.ServoBus(sim.path, retries=1)
+    try:
+        bus.read_state()
+        with pytest.raises(servos.ServoError, match=r"servo 5 \(middle_tip\), register present position..current \(56..70\)"):
+            bus.read_state()
+    finally:
+        bus.close()
+        sim.stop()
+
+
+def test_corrupt_checksums_are_retried_then_reported(signals):
+    sim = simulated.SimServoBus(signals.joints, faults=simulated.Faults(corrupt_servo=(3, 2, 3))).start()
+    bus = servos.ServoBus(sim.path, retries=2)
+    try:
+        for _ in range(8):  # every third sync read is garbled: each one is retried successfully
+            bus.read_state()
+        assert bus.retried >= 2
+    finally:
+        bus.close()
+        sim.stop()
+    sim = simulated.SimServoBus(signals.joints, faults=simulated.Faults(corrupt_servo=(3, 1, 1))).start()
+    bus = servos.ServoBus(sim.path, retries=2)
+    try:
+        with pytest.raises(servos.ServoError, match=r"servo 3 \(thumb_tip\).*Incorrect status packet.*3 tries"):
+            bus.read_state()
+    finally:
+        bus.close()
+        sim.stop()
+
+
+def _packets(frames: np.ndarray, sizes) -> tuple[bytes, int]:
+    out, start, seq = b"", 0, 0
+    for n in sizes:
+        chunk = frames[start : start + n]
+        out += wire.HEADER.pack(wire.MAGIC, seq, start, len(chunk)) + chunk.astype("<i4").tobytes()
+        start, seq = start + len(chunk), seq + 1
+    return out, start
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.integers(1, 700), min_size=1, max_size=12), st.integers(0, 2**31 - 1))
+def test_reframing_whatever_the_chunking(sizes, seed):
+    rng = np.random.default_rng(seed)
+    frames = rng.integers(-(2**31), 2**31 - 1, size=(sum(sizes), 2), dtype=np.int64).astype(np.int32)
+    stream, total = _packets(frames, sizes)
+    cuts = sorted(random.Random(seed).sample(range(1, len(stream)), min(len(stream) - 1, 20)))
+    assembler, ring, got = mics.FrameAssembler(), mics.RingBuffer(capacity=1024), []
+    for a, b in zip([0, *cuts], [*cuts, len(stream)]):  # chunks end mid-header and mid-sample
+        for _, first, part in assembler.feed(stream[a:b]):
+            assert first == sum(len(g) for g in got)
+            got.append(part)
+            ring.write(part)
+    np.testing.assert_array_equal(np.concatenate(got), frames)
+    assert ring.end == total
+    n = min(total, 700)
+    np.testing.assert_array_equal(ring.latest(n), frames[-n:].T)
+
+
+def test_bad_magic_is_a_clear_error():
+    with pytest.raises(mics.MicError, match="out of sync"):
+        mics.FrameAssembler().feed(b"\x00" * 40)
+
+
+def _record(signals, faults, tmp_path, cycles=2):
+    with simulated.simulated_rig(signals, faults) as rig:
+        rec = recorder.record_trial(rig, sim_signals.procedure(cycles), fabric_id=12, day=1, trial=0, out_dir=tmp_path)
+    return rec, archive.read_archive(rec.path), rig.source["device_stats"]
+
+
+def test_simulated_trial_through_sdk_opencv_and_tcp(signals, tmp_path):
+    rec, arch, stats = _record(signals, simulated.Faults(tcp_chunks=True, seed=3), tmp_path)
+    meta = arch.meta
+    assert rec.failure is None and meta["complete"] is True
+    assert 0 < meta["closing_steps"] < arch.n_steps
+    assert stats["servos"]["sync_reads"] == arch.n_steps + 1  # + the step that found the procedure done
+    assert stats["servos"]["goal_writes"] == arch.n_steps
+    # the raw stream arrives bit-exact through random TCP chunking, at its absolute position
+    start = meta["mic_stream"]["start_index"]
+    np.testing.assert_array_equal(arch.audio, signals.audio[:, start : start + arch.audio.shape[1]])
+    assert arch.window_end.min() >= mics.WINDOW
+    np.testing.assert_allclose(arch.joints, signals.joints[: arch.n_steps], atol=servos.RAD_PER_COUNT)
+    assert arch.images.shape[1:] == (308, 410, 3)
+    assert np.abs(arch.images.astype(float) - signals.images[: arch.n_steps]).mean() < 3  # JPEG round trip
+    assert arch.force[meta["closing_steps"]] >= 0.1 > arch.force[0]  # the step that stopped the closing
+    assert {"p50_ms", "p99_ms", "missed_deadlines"} <= set(meta["step_time"])
+
+
+@pytest.mark.parametrize(
+    "faults, failure",
+    [
+        (simulated.Faults(drop_connection_after=70), "MicError: Pi sender .* closed the connection"),
+        (simulated.Faults(camera_stops_after=40), "CameraError: camera .* no frame after"),
+        (simulated.Faults(silent_servo=(2, 45)), r"ServoError: servo 2 \(thumb_mid\)"),
+    ],
+)
+def test_device_failure_keeps_an_incomplete_archive(signals, tmp_path, faults, failure):
+    rec, arch, _ = _record(signals, faults, tmp_path)
+    assert arch.meta["complete"] is False and arch.n_steps > 10
+    assert re.search(failure, arch.meta["failure"])
+    assert rec.failure == arch.meta["failure"]
+
+
+def test_recoverable_faults_are_counted(signals, tmp_path):
+    _, arch, _ = _record(signals, simulated.Faults(repeat_frames_every=10, drop_periods_every=25, corrupt_servo=(4, 5, 20)), tmp_path)
+    meta = arch.meta
+    assert meta["complete"] is True
+    assert meta["camera_dropped_frames"] > 0
+    assert meta["mic_stream"]["dropped_frames"] >= wire.PERIOD
+    assert meta["servo_retries"] > 0
+
+
+def test_ctrl_c_keeps_an_incomplete_archive(signals, tmp_path):
+    with simulated.simulated_rig(signals) as rig:
+        timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
+        timer.start()
+        try:
+            with pytest.raises(KeyboardInterrupt, match="complete=False"):
+                recorder.record_trial(rig, sim_signals.procedure(2), fabric_id=12, day=1, trial=4, out_dir=tmp_path)
+        finally:
+            timer.cancel()
+    (path,) = tmp_path.glob("*.npz")
+    arch = archive.read_archive(path)
+    assert arch.meta["complete"] is False and arch.meta["failure"] == "interrupted (Ctrl-C)"
+    assert not list(tmp_path.glob(".*partial"))
