@@ -29,6 +29,20 @@ def babble_shape(f: np.ndarray) -> np.ndarray:
     return (g + 0.15 * np.abs(acoustics.lowpass2(f, 500.0)) * (f > 200) * np.sqrt(500.0 / np.maximum(f, 500.0))).astype(np.float32)
 
 
+def clatter(n: int, rng: np.random.Generator) -> np.ndarray:
+    """Sparse impacts (relative to a unit-RMS babble), each three inharmonic partials at 2-7 kHz."""
+    out = np.zeros(n)
+    tau = cal.CLATTER_DECAY_S
+    t = np.arange(int(5 * tau * cal.FS)) / cal.FS
+    for start in rng.integers(0, n, rng.poisson(cal.CLATTER_PER_S * n / cal.FS)):
+        partials = rng.uniform(*cal.CLATTER_RING_HZ, 3)
+        hit = sum(np.sin(2 * np.pi * fp * t + rng.uniform(0, 2 * np.pi)) for fp in partials) / 3
+        hit *= np.exp(-t / (tau * rng.uniform(0.5, 1.5))) * rng.lognormal(0.0, 0.5)
+        stop = min(n, start + len(t))
+        out[start:stop] += hit[: stop - start]
+    return out
+
+
 def spectrum(condition: str, level_db_a: float, grid: acoustics.Grid, rng: np.random.Generator) -> np.ndarray:
     """Spectrum (Pa) of the ambient sound at the palm microphone over the whole trial."""
     f = grid.f
@@ -39,11 +53,6 @@ def spectrum(condition: str, level_db_a: float, grid: acoustics.Grid, rng: np.ra
     n_env = int(grid.n / cal.FS * 8) + 2  # syllable-rate envelope, 8 knots per second
     env = np.interp(np.linspace(0, n_env - 1, grid.n), np.arange(n_env), rng.standard_normal(n_env))
     x = babble * (1.0 + cal.BABBLE_MODULATION * env)
+    x += clatter(grid.n, rng) * 10 ** (cal.CLATTER_PEAK_DB / 20)
     spec = grid.rfft(x)
-    for ring in np.geomspace(*cal.CLATTER_RING_HZ, 3):  # three kinds of object
-        count = rng.poisson(cal.CLATTER_PER_S / 3 * grid.n / cal.FS)
-        train = np.zeros(grid.n)
-        np.add.at(train, rng.integers(0, grid.n, count), rng.choice([-1.0, 1.0], count) * rng.lognormal(0.0, 0.5, count))
-        kernel = acoustics.ringing_kernel_spectrum(f, ring, cal.CLATTER_DECAY_S)
-        spec += grid.rfft(train) * kernel * 10 ** (cal.CLATTER_PEAK_DB / 20)
     return acoustics.scale_to_db_a(spec, grid, level_db_a)

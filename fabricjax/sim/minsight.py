@@ -53,17 +53,17 @@ def render(scene: Scene, motion: Motion, frame_t: np.ndarray, nz: Nuisance, rng:
     sigma = cal.CONTACT_SIGMA_PX * scale * conform
     y, x = np.mgrid[0:h, 0:w].astype(np.float32)
     g = np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * sigma**2)).astype(np.float32)
-    radial_x, radial_y = (x - cx) / sigma * g, (y - cy) / sigma * g
-    shear_x, shear_y = np.cos(RUB_DIRECTION_RAD) * g, np.sin(RUB_DIRECTION_RAD) * g
+    radial_x, radial_y = ((x - cx) / sigma * g).astype(np.float32), ((y - cy) / sigma * g).astype(np.float32)
+    shear_x, shear_y = np.float32(np.cos(RUB_DIRECTION_RAD)) * g, np.float32(np.sin(RUB_DIRECTION_RAD)) * g
     normal = np.interp(frame_t, motion.t, motion.normal_n)
     shear = np.interp(frame_t, motion.t, motion.shear_n)
     frames = np.empty((len(frame_t), h, w, 3), np.uint8)
     for k, (fn, ft) in enumerate(zip(normal, shear)):
-        a, s = cal.INDENT_PX_PER_N * scale * fn / conform, -cal.SHEAR_PX_PER_N * scale * ft
+        a, s = float(cal.INDENT_PX_PER_N * scale * fn / conform), float(-cal.SHEAR_PX_PER_N * scale * ft)
         map_x = x - a * radial_x - s * shear_x
         map_y = y - a * radial_y - s * shear_y
         img = cv2.remap(base, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-        img *= (1.0 - cal.SHADING_PER_N * fn * g)[..., None]
+        img *= (1.0 - float(cal.SHADING_PER_N * fn) * g)[..., None]
         img += rng.standard_normal(img.shape, dtype=np.float32) * cal.CAMERA_NOISE
         frames[k] = np.clip(img, 0, 255)
     return frames
