@@ -14,15 +14,15 @@ flags.DEFINE_integer("port", 5005, "TCP port to listen on.")
 flags.DEFINE_string("device", "hw:CARD=sndrpii2scard", "ALSA capture device of the I2S microphones.")
 flags.DEFINE_bool("simulate", False, "Stream simulated SPH0645 words instead of arecord.")
 flags.DEFINE_integer("fabric", 12, "Fabric of the simulated trial (with --simulate).")
-flags.DEFINE_integer("seconds", 60, "Length of the simulated stream (with --simulate).")
+flags.DEFINE_integer("cycles", 50, "Rubbing cycles of the simulated trial (with --simulate).")
 
 
 def main(argv):
     del argv
     if FLAGS.simulate:
-        from acquisition import simulated
+        from acquisition import sim_signals, simulated
 
-        periods = simulated.paced_periods(simulated.scene_audio(FLAGS.fabric, FLAGS.seconds))
+        periods = simulated.paced_periods(sim_signals.trial_signals(FLAGS.fabric, n_cycles=FLAGS.cycles).audio)
     else:
         periods = wire.arecord_periods(FLAGS.device)
     print(wire.serve(periods, FLAGS.host, FLAGS.port))
