@@ -140,14 +140,13 @@ class Trainer:
         (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), (order, jax.random.split(k_steps, steps)))
         return params, opt_state, losses.mean()
 
-    def predict(self, params, inputs) -> dict[str, jax.Array]:
-        """Logits of a whole data set, evaluated in minibatches to bound memory."""
-        model = nnx.merge(self.graphdef, params)
-        one = lambda x: jax.tree.map(lambda a: a[0], model(jax.tree.map(lambda a: a[None], x)))  # noqa: E731
-        return jax.lax.map(one, inputs, batch_size=self.config.batch_size)
-
     def evaluate(self, params, ds) -> dict[str, dict[str, jax.Array]]:
-        preds = {h: jnp.argmax(v, -1).astype(jnp.int32) for h, v in self.predict(params, ds["inputs"]).items()}
+        """Predictions and accuracy per head over a set padded to whole minibatches (see `pad`)."""
+        model = nnx.merge(self.graphdef, params)
+        batch = self.config.batch_size
+        chunks = jax.tree.map(lambda a: a.reshape(-1, batch, *a.shape[1:]), ds["inputs"])
+        logits = jax.lax.map(model, chunks)
+        preds = {h: jnp.argmax(v, -1).reshape(-1).astype(jnp.int32) for h, v in logits.items()}
         acc = {h: masked_accuracy(p, ds["labels"][h]) for h, p in preds.items()}
         return {"accuracy": acc, "predictions": preds}
 
@@ -198,11 +197,34 @@ def make_trainer(config: Config, shapes: Mapping[str, tuple[int, ...]], augment:
     return Trainer(config, shapes, graphdef, make_optimizer(config), augment)
 
 
-def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def pad(ds, multiple: int):
+    """Pad a set to whole minibatches with zero inputs and unknown (-1) labels, which every metric ignores."""
+    n = jax.tree.leaves(ds["labels"])[0].shape[0]
+    extra = -n % multiple
+    widths = lambda a: [(0, extra)] + [(0, 0)] * (a.ndim - 1)  # noqa: E731
     return {
-        "train": select(config, train_set),
-        "val": select(config, val_set),
-        "eval": {k: select(config, v) for k, v in (eval_sets or {}).items()},
+        "inputs": jax.tree.map(lambda a: jnp.pad(a, widths(a)), ds["inputs"]),
+        "labels": jax.tree.map(lambda a: jnp.pad(a, widths(a), constant_values=-1), ds["labels"]),
+    }
+
+
+def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None = None):
+    """(device-ready data, evaluation set sizes): evaluation sets are padded to whole minibatches."""
+    evals = {"val": val_set, **(eval_sets or {})}
+    evals = {k: select(config, v) for k, v in evals.items()}
+    sizes = {k: int(jax.tree.leaves(v["labels"])[0].shape[0]) for k, v in evals.items()}
+    evals = {k: pad(v, config.batch_size) for k, v in evals.items()}
+    return {"train": select(config, train_set), "val": evals.pop("val"), "eval": evals}, sizes
+
+
+def unpad(metrics, sizes: Mapping[str, int]):
+    """Cut per-sample predictions (last axis) back to each set's real size."""
+    return {
+        **metrics,
+        "eval": {
+            k: {**v, "predictions": jax.tree.map(lambda p: p[..., : sizes[k]], v["predictions"])}
+            for k, v in metrics["eval"].items()
+        },
     }
 
 
@@ -212,12 +234,12 @@ def make_train(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] 
     `augment` defaults to the paper's rotation for image configs (`rotation_augment`).
     Use as `jax.jit(jax.vmap(train))(jax.random.split(key, n_seeds))`.
     """
-    data = prepare(config, train_set, val_set, eval_sets)
+    data, sizes = prepare(config, train_set, val_set, eval_sets)
     trainer = make_trainer(config, feature_shapes(data["train"]["inputs"]), augment or rotation_augment(config))
 
     def train(key):
         state = trainer.run(trainer.init(key), data, config.epochs)
-        return state, trainer.finish(state, data)
+        return state, unpad(trainer.finish(state, data), sizes)
 
     return train
 
@@ -262,7 +284,7 @@ def train_and_evaluate(
     """
     seeds = tuple(int(s) for s in seeds)
     evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
-    data = prepare(config, data_sets["train"], data_sets["val"], evals)
+    data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals)
     trainer = make_trainer(config, feature_shapes(data["train"]["inputs"]), augment or rotation_augment(config))
     mesh = sharding.seed_mesh(len(seeds))
     per_seed = sharding.by_seed(mesh)
@@ -297,7 +319,7 @@ def train_and_evaluate(
             checkpoint.save(mngr, done, state, run_meta)
             if on_save is not None:
                 on_save(done)
-    metrics = jax.device_get(finish(state, data))
+    metrics = unpad(jax.device_get(finish(state, data)), sizes)
     return Results(config, seeds, trainer.graphdef, state, metrics)
 
 

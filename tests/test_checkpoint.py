@@ -1,0 +1,82 @@
+import dataclasses
+
+import jax
+import numpy as np
+import pytest
+
+from fabricjax import checkpoint, synthetic
+from fabricjax.config import Config
+from fabricjax.model import predict
+from fabricjax.train import restore, train_and_evaluate
+
+TINY = Config(
+    preset="smoke", modalities=("internal",), width=16, n_layers=1, ffn=32,
+    audio_hidden=(16, 8), seq_len=8, epochs=4, batch_size=8,
+)
+SEEDS = [0, 7]
+
+
+def data_sets():
+    return {
+        "train": synthetic.data_set(TINY, 16, seed=0),
+        "val": synthetic.data_set(TINY, 8, seed=1),
+        "test": synthetic.data_set(TINY, 8, seed=2),
+    }
+
+
+class Killed(Exception):
+    pass
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    workdir = tmp_path_factory.mktemp("full")
+    return workdir, train_and_evaluate(TINY, data_sets(), SEEDS, workdir=workdir, save_every=2)
+
+
+def test_restore_one_seed_gives_identical_predictions(uninterrupted):
+    workdir, res = uninterrupted
+    graphdef, state = restore(workdir, TINY, seed=7)
+    test = data_sets()["test"]["inputs"]
+    restored = predict(graphdef, state["best_params"], test)["fabric"]
+    trained = predict(res.graphdef, res.params(1), test)["fabric"]
+    np.testing.assert_array_equal(restored, trained)
+    np.testing.assert_array_equal(np.argmax(restored, -1), res.metrics["eval"]["test"]["predictions"]["fabric"][1])
+
+
+def test_restore_the_whole_stack(uninterrupted):
+    workdir, res = uninterrupted
+    _, state = restore(workdir, TINY)
+    for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(res.state)):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(KeyError, match="seed 3"):
+        restore(workdir, TINY, seed=3)
+
+
+def test_resume_after_a_kill_reaches_the_uninterrupted_result(uninterrupted, tmp_path):
+    _, full = uninterrupted
+    saved = []
+
+    def kill_after_first_save(epoch):
+        saved.append(epoch)
+        raise Killed
+
+    with pytest.raises(Killed):
+        train_and_evaluate(TINY, data_sets(), SEEDS, workdir=tmp_path, save_every=2, on_save=kill_after_first_save)
+    assert saved == [2]
+    resumed = train_and_evaluate(TINY, data_sets(), SEEDS, workdir=tmp_path, save_every=2, on_save=saved.append)
+    assert saved == [2, 4]  # continued from epoch 2, did not start over
+    for a, b in zip(jax.tree.leaves(resumed.metrics), jax.tree.leaves(full.metrics)):
+        np.testing.assert_array_equal(a, b)
+    for a, b in zip(jax.tree.leaves(resumed.state), jax.tree.leaves(full.state)):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_a_different_config_is_a_clear_error(uninterrupted):
+    workdir, _ = uninterrupted
+    other = dataclasses.replace(TINY, learning_rate=0.5, width=32)
+    with pytest.raises(checkpoint.CheckpointMismatch, match=r"learning_rate.*width") as err:
+        restore(workdir, other)
+    assert str(workdir) in str(err.value)
+    with pytest.raises(checkpoint.CheckpointMismatch, match="seeds"):
+        train_and_evaluate(TINY, data_sets(), [0, 1], workdir=workdir)

@@ -1,0 +1,102 @@
+import itertools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from flax import nnx
+
+from fabricjax import catalog, synthetic
+from fabricjax.config import MODALITIES, Config
+from fabricjax.model import FabricNet, feature_shapes, predict, predict_one, rescale_unit
+
+TINY = dict(preset="smoke", width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(4, 8), seq_len=10)
+COMBOS = [c for r in range(1, len(MODALITIES) + 1) for c in itertools.combinations(MODALITIES, r)]
+
+
+def build(cfg, inputs, seed=0):
+    return FabricNet(cfg, feature_shapes(inputs), rngs=nnx.Rngs(seed))
+
+
+@pytest.mark.parametrize("backbone", ["attention", "tcn"])
+@pytest.mark.parametrize("modalities", COMBOS, ids="+".join)
+def test_output_shapes_every_modality_combination(modalities, backbone):
+    cfg = Config(modalities=modalities, backbone=backbone, property_heads=True, **TINY)
+    inputs = synthetic.data_set(cfg, 3, seq_len=7)["inputs"]  # shorter than the model's N
+    logits = jax.eval_shape(lambda: build(cfg, inputs)(inputs))
+    assert {k: v.shape for k, v in logits.items()} == {
+        "fabric": (3, catalog.N_CLASSES),
+        **{k: (3, n) for k, n in catalog.PROPERTY_LEVELS.items()},
+    }
+    assert jax.eval_shape(lambda: build(cfg, inputs).latents(inputs)).shape == (3, 7, cfg.width)
+    model = nnx.eval_shape(lambda: build(cfg, inputs))
+    built = {k for k in ("audio", "proprio", "image", "flow") if getattr(model, k) is not None}
+    expected = {"audio" if m in ("internal", "external") else m for m in modalities}
+    assert built == expected  # a model builds only the encoders it uses
+
+
+@pytest.mark.parametrize("backbone", ["attention", "tcn"])
+def test_all_modalities_forward_is_finite_at_any_flow_resolution(backbone):
+    for flow_hw in [(25, 34), (51, 68)]:
+        cfg = Config(modalities=MODALITIES, backbone=backbone, **TINY)
+        inputs = synthetic.data_set(cfg, 2, flow_hw=flow_hw, image_hw=(30, 40))["inputs"]
+        inputs["flow"] = inputs["flow"].astype(np.float16)
+        graphdef, params = nnx.split(build(cfg, inputs))
+        logits = jax.jit(lambda p, x: nnx.merge(graphdef, p)(x, rngs=nnx.Rngs(dropout=1)))(params, inputs)
+        assert logits["fabric"].shape == (2, catalog.N_CLASSES)
+        assert np.isfinite(logits["fabric"]).all()
+
+
+def test_shared_audio_encoder_is_one_set_of_weights():
+    one = Config(modalities=("internal",), **TINY)
+    two = Config(modalities=("internal", "external"), **TINY)
+    m1 = build(one, synthetic.data_set(one, 1)["inputs"])
+    m2 = build(two, synthetic.data_set(two, 1)["inputs"])
+    count = lambda tree: sum(x.size for x in jax.tree.leaves(tree))  # noqa: E731
+    s1, s2 = nnx.state(m1), nnx.state(m2)
+    assert count(s1["audio"]) == count(s2["audio"])
+    # The second microphone adds only its 8 features to the embedding's input.
+    assert count(s2) - count(s1) == two.audio_hidden[-1] * two.width
+    # The same weights encode both streams: equal inputs give equal features.
+    x = np.random.default_rng(0).normal(size=(1, 10, 24)).astype(np.float32)
+    feats = m2.features({"internal": x, "external": x})
+    np.testing.assert_array_equal(feats[..., :8], feats[..., 8:])
+
+
+def test_rescale_is_unit_range_and_finite_on_constant_input():
+    x = jnp.asarray(np.random.default_rng(0).normal(size=(2, 9, 5)) * 1e3, jnp.float32)
+    y = rescale_unit(x)
+    np.testing.assert_allclose(y.min(axis=1), 0)
+    np.testing.assert_allclose(y.max(axis=1), 1, rtol=1e-6)
+    const = jnp.full((2, 9, 5), 3.0)
+    assert (rescale_unit(const) == 0).all()
+    g = jax.grad(lambda c: rescale_unit(c).sum())(const)
+    assert np.isfinite(g).all()
+
+
+def test_constant_inputs_give_finite_logits_and_gradients():
+    cfg = Config(modalities=("internal", "proprio"), **TINY)
+    inputs = {"internal": jnp.zeros((2, 10, 24)), "proprio": jnp.ones((2, 10, 18))}
+    graphdef, params = nnx.split(build(cfg, inputs))
+    loss = lambda p: nnx.merge(graphdef, p)(inputs)["fabric"].sum()  # noqa: E731
+    value, grads = jax.jit(jax.value_and_grad(loss))(params)
+    assert np.isfinite(value)
+    assert all(np.isfinite(g).all() for g in jax.tree.leaves(grads))
+
+
+def test_predict_one_matches_batch():
+    cfg = Config(modalities=("internal", "proprio"), **TINY)
+    inputs = synthetic.data_set(cfg, 3)["inputs"]
+    graphdef, params = nnx.split(build(cfg, inputs))
+    params = nnx.to_pure_dict(params)
+    batch = predict(graphdef, params, inputs)
+    one = predict_one(graphdef, params, {k: v[1] for k, v in inputs.items()})
+    np.testing.assert_allclose(one["fabric"], batch["fabric"][1], rtol=1e-5, atol=1e-6)
+
+
+def test_mismatched_audio_bins_and_missing_modalities_are_clear_errors():
+    cfg = Config(modalities=("internal", "external"), **TINY)
+    with pytest.raises(ValueError, match="shared audio encoder"):
+        FabricNet(cfg, {"internal": (24,), "external": (32,)}, rngs=nnx.Rngs(0))
+    with pytest.raises(ValueError, match="external"):
+        FabricNet(cfg, {"internal": (24,)}, rngs=nnx.Rngs(0))

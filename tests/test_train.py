@@ -1,0 +1,107 @@
+import json
+import os
+import subprocess
+import sys
+
+import jax
+import numpy as np
+import pytest
+
+from fabricjax import synthetic
+from fabricjax.config import Config
+from fabricjax.train import make_train, masked_accuracy, masked_cross_entropy, seed_keys, train_and_evaluate
+
+TINY = Config(
+    preset="smoke", modalities=("internal", "proprio"), width=16, n_layers=1, ffn=32,
+    audio_hidden=(16, 8), proprio_hidden=(16, 8), seq_len=8, epochs=3, batch_size=8,
+)
+
+
+def data_sets(cfg, n_train=24):
+    return {
+        "train": synthetic.data_set(cfg, n_train, seed=0),
+        "val": synthetic.data_set(cfg, 10, seed=1),
+        "test": synthetic.data_set(cfg, 12, seed=2),
+    }
+
+
+@pytest.fixture(scope="module")
+def three_seeds():
+    """Seeds 3, 4, 3 in one vmapped program: a leading seed axis, distinct and repeated seeds."""
+    return train_and_evaluate(TINY, data_sets(TINY), seeds=[3, 4, 3])
+
+
+def test_metrics_have_a_leading_seed_axis(three_seeds):
+    m = three_seeds.metrics
+    assert m["train_loss"].shape == m["val_acc"].shape == (3, TINY.epochs)
+    assert m["best_epoch"].shape == m["best_val_acc"].shape == (3,)
+    assert m["eval"]["test"]["accuracy"]["fabric"].shape == (3,)
+    assert m["eval"]["test"]["predictions"]["fabric"].shape == (3, 12)
+    assert m["eval"]["val"]["predictions"]["fabric"].shape == (3, 10)
+    assert np.isfinite(m["train_loss"]).all()
+
+
+def test_different_seeds_differ_and_the_same_seed_repeats(three_seeds):
+    loss = three_seeds.metrics["train_loss"]
+    assert not np.allclose(loss[0], loss[1])
+    np.testing.assert_array_equal(loss[0], loss[2])
+    for a, c in zip(jax.tree.leaves(three_seeds.params(0)), jax.tree.leaves(three_seeds.params(2))):
+        np.testing.assert_array_equal(a, c)
+
+
+def test_best_validation_epoch_is_selected(three_seeds):
+    m = three_seeds.metrics
+    np.testing.assert_array_equal(m["best_epoch"], np.argmax(m["val_acc"], axis=1))
+    np.testing.assert_array_equal(m["best_val_acc"], m["val_acc"].max(axis=1))
+    # The returned model is the best epoch's: its validation accuracy is the recorded best.
+    np.testing.assert_allclose(m["eval"]["val"]["accuracy"]["fabric"], m["best_val_acc"], atol=1e-6)
+
+
+def test_pure_train_function_under_jit_vmap_matches_the_library_entry(three_seeds):
+    sets = data_sets(TINY)
+    train = make_train(TINY, sets["train"], sets["val"], {"test": sets["test"]})
+    _, metrics = jax.jit(jax.vmap(train))(seed_keys([3, 4]))
+    np.testing.assert_allclose(metrics["train_loss"], three_seeds.metrics["train_loss"][:2], rtol=1e-5)
+
+
+def test_property_heads_train_jointly_with_unknown_labels_masked():
+    cfg = Config(**{**TINY.to_json(), "property_heads": True, "fabric_head": False, "epochs": 2})
+    sets = data_sets(cfg)
+    sets["train"]["labels"]["roughness"][:5] = -1
+    res = train_and_evaluate(cfg, sets, seeds=[0])
+    assert set(res.metrics["eval"]["test"]["accuracy"]) == {"stretchiness", "roughness", "thickness"}
+    assert np.isfinite(res.metrics["train_loss"]).all()
+
+
+def test_masked_loss_and_accuracy_ignore_unknown_labels():
+    logits = np.zeros((3, 4), np.float32)
+    assert float(masked_cross_entropy(logits, np.array([-1, -1, -1]))) == 0.0
+    assert float(masked_accuracy(np.array([1, 2, 3]), np.array([1, -1, 0]))) == 0.5
+
+
+SHARDED = """
+import json, sys
+import jax, numpy as np
+sys.path.insert(0, {tests!r})
+from test_train import TINY, data_sets
+from fabricjax.train import train_and_evaluate
+assert jax.device_count() == 4
+res = train_and_evaluate(TINY, data_sets(TINY), seeds=[3, 4, 3, 5])
+print(json.dumps({{"devices": len(res.state["epoch"].sharding.device_set),
+                  "train_loss": res.metrics["train_loss"].tolist(),
+                  "pred": res.metrics["eval"]["test"]["predictions"]["fabric"].tolist()}}))
+"""
+
+
+def test_four_host_devices_give_the_same_results_as_one():
+    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=4", "JAX_PLATFORMS": "cpu"}
+    code = "import jax; jax.config.update('jax_disable_most_optimizations', True)\n"
+    code += SHARDED.format(tests=os.path.dirname(__file__))
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    sharded = json.loads(out.stdout.strip().splitlines()[-1])
+    assert sharded["devices"] == 4
+    single = train_and_evaluate(TINY, data_sets(TINY), seeds=[3, 4, 3, 5])
+    assert len(single.state["epoch"].sharding.device_set) == 1
+    np.testing.assert_allclose(sharded["train_loss"], single.metrics["train_loss"], rtol=1e-5)
+    np.testing.assert_array_equal(sharded["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"])
