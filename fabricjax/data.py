@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from pathlib import Path
 
 import numpy as np
 
@@ -50,7 +49,6 @@ from fabricjax.features import cache, welch
 from fabricjax.features.extract import feature_for
 
 SPLITS = ("train", "val", "test", "cafe", "holdout")
-LABELS = ("fabric", *archive.PROPERTY_NAMES)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,30 +71,29 @@ def split_of(meta: dict, role: str | None, exclude: tuple[int, ...]) -> str | No
     return role
 
 
-def _per_trial(entry: archive.IndexEntry, feats: dict[str, np.ndarray], config: Config, n: int) -> SequenceSet:
-    """`feats`: modality -> the trial's (T, ...) feature array."""
-    n_seq = entry.n_steps // n
-    inputs = {}
-    for modality, x in feats.items():
-        x = x[: n_seq * n]
-        if modality in archive.MIC_NAMES:
-            x = x[:, : welch.n_bins(config.bandwidth_khz)]
-        inputs[modality] = x.reshape(n_seq, n, *x.shape[1:])
-    meta = entry.meta
-    levels = {k: -1 if meta["properties"][k] is None else meta["properties"][k] for k in archive.PROPERTY_NAMES}
-    labels = {k: np.full(n_seq, v, np.int32) for k, v in {"fabric": meta["label"], **levels}.items()}
-    info = {k: np.full(n_seq, meta[k], np.int32) for k in ("fabric_id", "day", "trial")}
-    info["start"] = (np.arange(n_seq) * n).astype(np.int32)
-    info["condition"] = np.full(n_seq, meta["condition"])
-    info["trial_key"] = np.full(n_seq, entry.file)
-    return SequenceSet(inputs, labels, info)
+def _describe(entries: list[archive.IndexEntry], n: int) -> tuple[dict, dict]:
+    """Labels and info of every sequence the entries give, in order."""
+    rows = [(e.meta, e.file, k * n) for e in entries for k in range(e.n_steps // n)]
+
+    def column(get, dtype) -> np.ndarray:
+        return np.array([get(*r) for r in rows], dtype)
+
+    labels = {"fabric": column(lambda m, f, s: m["label"], np.int32)}
+    for p in archive.PROPERTY_NAMES:
+        labels[p] = column(lambda m, f, s: -1 if m["properties"][p] is None else m["properties"][p], np.int32)
+    info = {k: column(lambda m, f, s: m[k], np.int32) for k in ("fabric_id", "day", "trial")}
+    info["start"] = column(lambda m, f, s: s, np.int32)
+    info["condition"] = column(lambda m, f, s: m["condition"], str)
+    info["trial_key"] = column(lambda m, f, s: f, str)
+    return labels, info
 
 
-def _concat(parts: list[SequenceSet]) -> SequenceSet:
-    def cat(field: str) -> dict[str, np.ndarray]:
-        return {k: np.concatenate([getattr(p, field)[k] for p in parts]) for k in getattr(parts[0], field)}
-
-    return SequenceSet(cat("inputs"), cat("labels"), cat("info"))
+def _sequences(feature: np.ndarray, modality: str, n_seq: int, n: int, config: Config) -> np.ndarray:
+    """A trial's (T, ...) feature -> (n_seq, n, ...) view, the remainder dropped."""
+    x = feature[: n_seq * n]
+    if modality in archive.MIC_NAMES:
+        x = x[:, : welch.n_bins(config.bandwidth_khz)]
+    return x.reshape(n_seq, n, *x.shape[1:])
 
 
 def load_sequences(
@@ -109,8 +106,7 @@ def load_sequences(
 ) -> dict[str, SequenceSet]:
     """Every split of the dataset in `data_dir` as sequences of the config's modalities."""
     index = archive.load_index(data_dir)
-    metas = [e.meta for e in index.entries]
-    roles = splits.assign_roles(metas, splits.preset(config.preset).splits)
+    roles = splits.assign_roles([e.meta for e in index.entries], splits.preset(config.preset).splits)
     chosen = [(e, s) for e, r in zip(index.entries, roles) if (s := split_of(e.meta, r, config.exclude_fabrics))]
     if not chosen:
         raise archive.ArchiveError(index.root, "<folder>", "no trial belongs to any split (check days and conditions)")
@@ -120,14 +116,23 @@ def load_sequences(
             raise archive.ArchiveError(
                 index.path(e), "timestamps", f"{e.n_steps} steps, shorter than one sequence of N={n} steps"
             )
+    members = {s: [e for e, t in chosen if t == s] for s in SPLITS}
     features = {m: feature_for(m, config.image_resolution) for m in config.modalities}
     feats = cache.trial_features(
-        index, [e for e, _ in chosen], list(features.values()), workspace.features_dir(workdir), workers=workers,
-        progress=progress,
+        index, [e for e, _ in chosen], list(features.values()), workspace.features_dir(workdir),
+        workers=workers, progress=progress,
     )
-    parts = {s: [] for s in SPLITS}
+    # Each trial's sequences are copied into arrays preallocated from the index's step counts,
+    # so the dataset is held once (not per trial and again concatenated).
+    inputs: dict[str, dict[str, np.ndarray]] = {}
+    filled = dict.fromkeys(SPLITS, 0)
     for (e, s), f in zip(chosen, feats):
-        parts[s].append(_per_trial(e, {m: f[feat.name] for m, feat in features.items()}, config, n))
-    some = next(p[0] for p in parts.values() if p)
-    empty = SequenceSet(*({k: v[:0] for k, v in getattr(some, field).items()} for field in ("inputs", "labels", "info")))
-    return {s: _concat(p) if p else empty for s, p in parts.items()}
+        n_seq = e.n_steps // n
+        trial = {m: _sequences(f[feat.name], m, n_seq, n, config) for m, feat in features.items()}
+        if not inputs:
+            sizes = {t: sum(x.n_steps // n for x in members[t]) for t in SPLITS}
+            inputs = {t: {m: np.empty((sizes[t], *a.shape[1:]), a.dtype) for m, a in trial.items()} for t in SPLITS}
+        for m, a in trial.items():
+            inputs[s][m][filled[s] : filled[s] + n_seq] = a
+        filled[s] += n_seq
+    return {s: SequenceSet(inputs[s], *_describe(members[s], n)) for s in SPLITS}

@@ -22,6 +22,7 @@ import os
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 from tqdm import tqdm
@@ -72,8 +73,9 @@ def trial_features(
     *,
     workers: int | None = None,
     progress: bool = True,
-) -> list[dict[str, np.ndarray]]:
-    """For each entry, {feature name: array}, from the cache where valid, else computed and cached."""
+) -> Iterator[dict[str, np.ndarray]]:
+    """For each entry in order, {feature name: array}, from the cache where valid, else computed
+    and cached. A generator, so the caller can keep only what it needs of each trial."""
     folders = {f.name: folder(features_root, index.root, f) for f in features if f.cached}
 
     def one(entry: archive.IndexEntry) -> dict[str, np.ndarray]:
@@ -93,5 +95,4 @@ def trial_features(
         return out
 
     with ThreadPoolExecutor(workers or os.cpu_count() or 1) as pool:
-        results = pool.map(one, entries)
-        return list(tqdm(results, total=len(entries), desc="features", unit="trial", disable=not progress))
+        yield from tqdm(pool.map(one, entries), total=len(entries), desc="features", unit="trial", disable=not progress)

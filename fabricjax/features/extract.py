@@ -49,8 +49,9 @@ def log_psd(windows: np.ndarray) -> np.ndarray:
     """(T, 2048) raw windows -> (T, 512) float32 log10 PSD over the full band."""
     n = len(windows)
     padded = np.pad(windows, ((0, -n % PSD_CHUNK), (0, 0)))
-    out = [np.asarray(welch.welch_psd(c, bandwidth_khz=24.0)) for c in np.split(padded, len(padded) // PSD_CHUNK)]
-    return np.concatenate(out)[:n] if out else np.zeros((0, welch.N_BINS), np.float32)
+    chunks = np.split(padded, len(padded) // PSD_CHUNK)
+    out = [np.asarray(welch.welch_psd(c, bandwidth_khz=24.0, floor=welch.LOG_FLOOR)) for c in chunks]
+    return np.concatenate(out)[:n]
 
 
 def _psd(mic: int) -> Feature:

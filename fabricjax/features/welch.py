@@ -82,7 +82,9 @@ _SCALE = np.where((np.arange(N_BINS) == 0) | (np.arange(N_BINS) == N_BINS - 1), 
 
 
 @partial(jax.jit, static_argnames=("bandwidth_khz", "log", "floor"))
-def welch_psd(windows: jax.Array, *, bandwidth_khz: float = 15.0, log: bool = True, floor: float = LOG_FLOOR) -> jax.Array:
+def welch_psd(
+    windows: jax.Array, *, bandwidth_khz: float = 15.0, log: bool = True, floor: float = LOG_FLOOR
+) -> jax.Array:
     """(..., 2048) microphone windows -> (..., n_bins(bandwidth_khz)) PSD, or log10 of it.
 
     Integer input is converted from SPH0645 words; float input is in full-scale units. Computes

@@ -1,0 +1,132 @@
+import dataclasses
+import os
+
+import numpy as np
+import pytest
+
+from fabricjax import archive, data
+from fabricjax.config import Config
+from fabricjax.features import welch
+from tests.helpers import tiny_archive, tiny_dataset
+
+# fabric 4 and class 0: two trials on each training day, one test trial, one cafe trial;
+# fabric 1 (a property holdout) the same; fabric 21 (new) a test trial only.
+TRIALS = [
+    (fid, day, t, "lab") for fid in (0, 4, 1) for day in (1, 2) for t in (0, 1)
+] + [(fid, 3, 0, "lab") for fid in (0, 4, 1, 21)] + [(fid, 4, 0, "cafe") for fid in (0, 4, 1)]
+LENGTHS = {(4, 1, 0, "lab"): 61, (4, 3, 0, "lab"): 20, (0, 2, 1, "lab"): 39}
+N = 20
+
+
+def _config(**kw):
+    return Config(preset="smoke", seq_len=N, **{"modalities": ("internal", "proprio"), **kw})
+
+
+@pytest.fixture
+def dataset(tmp_path):
+    return tiny_dataset(tmp_path / "ds", TRIALS, n_steps=LENGTHS)
+
+
+@pytest.fixture
+def reads(monkeypatch):
+    """Records every archive read: (file name, images flag)."""
+    calls = []
+    real = archive.read_archive
+
+    def counting(path, *, images=True):
+        calls.append((os.path.basename(path), images))
+        return real(path, images=images)
+
+    monkeypatch.setattr(archive, "read_archive", counting)
+    return calls
+
+
+def test_sequences_cover_each_trial_without_overlap(dataset, tmp_path):
+    sets = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws", progress=False)
+    assert set(sets) == set(data.SPLITS)
+    index = archive.load_index(dataset)
+    for s in sets.values():
+        for entry in index.entries:
+            mine = s.info["trial_key"] == entry.file
+            if mine.any():  # T // N sequences at steps 0, N, 2N, ...; the remainder dropped
+                assert list(s.info["start"][mine]) == list(range(0, entry.n_steps // N * N, N))
+                joints = archive.read_archive(index.path(entry)).joints
+                np.testing.assert_array_equal(s.inputs["proprio"][mine], joints[: mine.sum() * N].reshape(-1, N, 18))
+    train = sets["train"]
+    assert train.inputs["internal"].shape == (len(train), N, 320) and train.inputs["internal"].dtype == np.float32
+    assert train.inputs["proprio"].dtype == np.float32
+    per_trial = {k: (train.info["trial_key"] == k).sum() for k in set(train.info["trial_key"])}
+    assert per_trial["fabric04_day1_trial00_lab.npz"] == 3  # 61 steps
+    assert sets["test"].info["trial_key"].tolist().count("fabric04_day3_trial00_lab.npz") == 1  # exactly N
+
+
+def test_splits_labels_and_holdout(dataset, tmp_path):
+    sets = data.load_sequences(_config(exclude_fabrics=(1,)), dataset, workdir=tmp_path / "ws", progress=False)
+    trials = {s: set(v.info["trial_key"]) for s, v in sets.items()}
+    assert trials["val"] == {f"fabric{f:02d}_day{d}_trial01_lab.npz" for f in (0, 4) for d in (1, 2)}
+    assert all(set(v.info["fabric_id"]) <= {0, 4} for s, v in sets.items() if s != "holdout")
+    assert trials["holdout"] == {"fabric01_day3_trial00_lab.npz"}  # 21 has no label in 21 classes
+    assert set(sets["cafe"].info["condition"]) == {"cafe"} and set(sets["test"].info["day"]) == {3}
+    assert not set().union(*(trials[s] for s in ("train", "val"))) & trials["test"]
+    zero = sets["train"].labels["roughness"][sets["train"].info["fabric_id"] == 0]
+    assert zero.size and np.all(zero == -1)  # class 0 has no properties
+    assert np.all(sets["train"].labels["fabric"] == sets["train"].info["fabric_id"])
+    assert all(v.dtype == np.int32 for v in sets["train"].labels.values())
+    plain = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws", progress=False)
+    assert len(plain["holdout"]) == 0 and plain["holdout"].inputs["internal"].shape == (0, N, 320)
+    assert 1 in set(plain["train"].info["fabric_id"]) and 21 not in set(plain["test"].info["fabric_id"])
+
+
+def test_second_load_does_no_feature_work(dataset, tmp_path, reads):
+    ws = tmp_path / "ws"
+    first = data.load_sequences(_config(), dataset, workdir=ws, progress=False)
+    assert reads and all(images is False for _, images in reads)  # audio + proprio never reads frames
+    reads.clear()
+    second = data.load_sequences(_config(bandwidth_khz=2.5), dataset, workdir=ws, progress=False)
+    assert reads == []  # the bandwidth only truncates cached spectra
+    np.testing.assert_array_equal(second["train"].inputs["internal"], first["train"].inputs["internal"][..., :54])
+
+
+def test_cache_invalidation(dataset, tmp_path, reads, monkeypatch):
+    ws = tmp_path / "ws"
+    before = data.load_sequences(_config(), dataset, workdir=ws, progress=False)
+    reads.clear()
+    # rewriting one archive recomputes that trial only
+    a = tiny_archive(45, fabric_id=0, day=1, trial=0, seed=99)
+    archive.write_archive(dataset / "fabric00_day1_trial00_lab.npz", a)
+    after = data.load_sequences(_config(), dataset, workdir=ws, progress=False)
+    assert reads == [("fabric00_day1_trial00_lab.npz", False)]
+    mine = after["train"].info["trial_key"] == "fabric00_day1_trial00_lab.npz"
+    assert not np.array_equal(after["train"].inputs["proprio"][mine], before["train"].inputs["proprio"][mine])
+    np.testing.assert_array_equal(after["train"].inputs["proprio"][mine], a.joints[:40].reshape(2, N, 18))
+    # a changed feature parameter recomputes that feature everywhere
+    reads.clear()
+    monkeypatch.setattr(welch, "LOG_FLOOR", 1e-12)
+    data.load_sequences(_config(), dataset, workdir=ws, progress=False)
+    assert len(reads) == len(archive.load_index(dataset).entries) - 1  # all but fabric 21
+
+
+def test_image_and_flow_features(tmp_path, reads):
+    trials = [(4, 1, 0, "lab"), (4, 1, 1, "lab"), (4, 3, 0, "lab")]
+    ds = tiny_dataset(tmp_path / "ds", trials, n_steps=41, images=(20, 26))
+    cfg = _config(modalities=("image", "flow"))
+    sets = data.load_sequences(cfg, ds, workdir=tmp_path / "ws", progress=False)
+    assert sets["train"].inputs["image"].shape == (2, N, 60, 80, 3) and sets["train"].inputs["image"].dtype == np.uint8
+    assert sets["train"].inputs["flow"].shape == (2, N, 2, 6, 9) and sets["train"].inputs["flow"].dtype == np.float16
+    assert not sets["train"].inputs["flow"][0, 0].any()  # step 0 of a trial has no flow
+    full_cfg = dataclasses.replace(cfg, image_resolution="full")
+    full = data.load_sequences(full_cfg, ds, workdir=tmp_path / "ws", progress=False)
+    frames = archive.read_archive(ds / "fabric04_day3_trial00_lab.npz").images
+    np.testing.assert_array_equal(full["test"].inputs["image"][1], frames[N : 2 * N])
+
+
+def test_missing_images_is_a_clear_error(tmp_path):
+    ds = tiny_dataset(tmp_path / "ds", [(4, 1, 0, "lab"), (4, 3, 0, "lab")], images=None)
+    with pytest.raises(archive.ArchiveError, match=r"fabric04_day1_trial00_lab\.npz: field 'images'"):
+        data.load_sequences(_config(modalities=("flow",)), ds, workdir=tmp_path / "ws", progress=False)
+
+
+def test_trial_shorter_than_a_sequence_names_the_file(tmp_path):
+    ds = tiny_dataset(tmp_path / "ds", [(4, 1, 0, "lab"), (4, 3, 0, "lab")], n_steps={(4, 3, 0, "lab"): 19})
+    with pytest.raises(archive.ArchiveError, match=r"fabric04_day3_trial00_lab\.npz: field 'timestamps': 19 steps"):
+        data.load_sequences(_config(), ds, workdir=tmp_path / "ws", progress=False)
