@@ -235,6 +235,9 @@ def _devices_main(pipe, signals_path: str, faults: Faults) -> None:
     """Child process: servo bus on a pty and the Pi sender on 127.0.0.1, until told to stop."""
     with np.load(signals_path) as signals:
         joints, audio = signals["joints"], signals["audio"]
+    # A Pi keeps streaming after the trial: a recorder that fell behind must not run out of audio
+    # (steps are served per read, audio per wall-clock second). Repeat the last second for 5 s.
+    audio = np.concatenate([audio, np.tile(audio[:, -wire.RATE :], 5)], axis=1)
     bus = SimServoBus(joints, faults=faults).start()
     listener = socket.create_server(("127.0.0.1", 0))
     result: dict = {}

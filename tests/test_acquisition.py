@@ -131,7 +131,8 @@ def test_simulated_trial_through_sdk_opencv_and_tcp(signals, tmp_path):
     assert stats["servos"]["goal_writes"] == arch.n_steps
     # the raw stream arrives bit-exact through random TCP chunking, at its absolute position
     start = meta["mic_stream"]["start_index"]
-    np.testing.assert_array_equal(arch.audio, signals.audio[:, start : start + arch.audio.shape[1]])
+    sent = signals.audio[:, start : start + arch.audio.shape[1]]  # a slow loop may run into the Pi's tail
+    np.testing.assert_array_equal(arch.audio[:, : sent.shape[1]], sent)
     assert arch.window_end.min() >= mics.WINDOW
     np.testing.assert_allclose(arch.joints, signals.joints[: arch.n_steps], atol=servos.RAD_PER_COUNT)
     assert arch.images.shape[1:] == (308, 410, 3)
@@ -144,8 +145,8 @@ def test_simulated_trial_through_sdk_opencv_and_tcp(signals, tmp_path):
     "faults, failure",
     [
         (simulated.Faults(drop_connection_after=70), "MicError: Pi sender .* closed the connection"),
-        (simulated.Faults(camera_stops_after=40), "CameraError: camera .* no frame after"),
-        (simulated.Faults(silent_servo=(2, 45)), r"ServoError: servo 2 \(thumb_mid\)"),
+        (simulated.Faults(camera_stops_after=20), "CameraError: camera .* no frame after"),
+        (simulated.Faults(silent_servo=(2, 20)), r"ServoError: servo 2 \(thumb_mid\)"),
     ],
 )
 def test_device_failure_keeps_an_incomplete_archive(signals, tmp_path, faults, failure):
