@@ -27,8 +27,9 @@ trial shorter than N raises `archive.ArchiveError` naming the file.
       "flow"                  float16 (S, N, 2, h, w)  sparse flow, 3x3 patch means (flow.py);
                                                        102x137 for 308x410 frames
       "image"                 uint8   (S, N, H, W, 3)  60x80 ("down") or the archive's size ("full")
-    labels   int32 (S,): "fabric" (meta label, 0-20 for the 21 classes), "stretchiness",
-             "roughness", "thickness" (property levels, -1 when unknown, e.g. class 0)
+    labels   int32 (S,): "fabric" (meta label: 0-20, the 21 classes; in "holdout" up to 23),
+             "stretchiness", "roughness", "thickness" (property levels, -1 when unknown, e.g.
+             class 0)
     info     (S,): "fabric_id" int32, "day" int32, "trial" int32, "start" int32 (first step),
              "condition" str ("lab"/"cafe"), "trial_key" str (archive file name)
 
