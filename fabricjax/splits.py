@@ -14,7 +14,7 @@ Presets (`PRESETS`), chosen with `--preset`:
     smoke    seconds; 6 classes, 3 rubbing cycles per trial, N=20. For tests.
     default  the README's main command on a 2-core laptop CPU: all 24 fabrics, 3 training trials
              per day, 10 rubbing cycles per trial (~6 s), N=50 (1 s), Minsight at half
-             resolution 154x205 so images fit in memory (the flow map pools to 51x68).
+             resolution 154x205 so images fit in memory (the flow map pools to 51x69).
     paper    the paper's scale: 6 trials per day, 50 cycles (~30 s, ~1500 steps), N=200,
              Minsight at 308x410 (flow 102x137).
 """
