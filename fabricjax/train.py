@@ -244,6 +244,24 @@ def make_train(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] 
     return train
 
 
+@functools.lru_cache(maxsize=8)
+def _programs(config: Config, shapes: tuple, augment: Augment | None, mesh):
+    """Jitted, seed-vmapped, seed-sharded init / run(n epochs) / finish, cached so that reruns of
+    a config (a resume, another data set of the same shapes) reuse the compiled programs."""
+    trainer = make_trainer(config, dict(shapes), augment)
+    per_seed = sharding.by_seed(mesh)
+    init = jax.jit(jax.vmap(trainer.init), out_shardings=per_seed)
+    finish = jax.jit(jax.vmap(trainer.finish, in_axes=(0, None)), out_shardings=per_seed)
+    run = functools.lru_cache(
+        lambda n: jax.jit(
+            jax.vmap(functools.partial(trainer.run, n_epochs=n), in_axes=(0, None)),
+            donate_argnums=0,
+            out_shardings=per_seed,
+        )
+    )
+    return trainer, init, run, finish
+
+
 @dataclasses.dataclass
 class Results:
     """A multi-seed run: stacked final state (leading seed axis) and metrics as NumPy arrays."""
@@ -285,21 +303,12 @@ def train_and_evaluate(
     seeds = tuple(int(s) for s in seeds)
     evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
     data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals)
-    trainer = make_trainer(config, feature_shapes(data["train"]["inputs"]), augment or rotation_augment(config))
     mesh = sharding.seed_mesh(len(seeds))
+    shapes = tuple(sorted(feature_shapes(data["train"]["inputs"]).items()))
+    trainer, init, run, finish = _programs(config, shapes, augment or rotation_augment(config), mesh)
     per_seed = sharding.by_seed(mesh)
     data = jax.device_put(data, sharding.replicated(mesh))
     keys = jax.device_put(seed_keys(seeds), per_seed)
-
-    init = jax.jit(jax.vmap(trainer.init), out_shardings=per_seed)
-    finish = jax.jit(jax.vmap(trainer.finish, in_axes=(0, None)), out_shardings=per_seed)
-    run = functools.lru_cache(
-        lambda n: jax.jit(
-            jax.vmap(functools.partial(trainer.run, n_epochs=n), in_axes=(0, None)),
-            donate_argnums=0,
-            out_shardings=per_seed,
-        )
-    )
 
     mngr = checkpoint.manager(workdir) if workdir is not None else None
     run_meta = checkpoint.meta(config, seeds, trainer.shapes)

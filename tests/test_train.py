@@ -9,74 +9,75 @@ import pytest
 
 from fabricjax import synthetic
 from fabricjax.config import Config
-from fabricjax.train import make_train, masked_accuracy, masked_cross_entropy, seed_keys, train_and_evaluate
+from fabricjax.train import make_train, make_trainer, masked_accuracy, masked_cross_entropy, seed_keys, train_and_evaluate
 
 TINY = Config(
     preset="smoke", modalities=("internal", "proprio"), width=16, n_layers=1, ffn=32,
-    audio_hidden=(16, 8), proprio_hidden=(16, 8), seq_len=8, epochs=3, batch_size=8,
+    audio_hidden=(16, 8), proprio_hidden=(16, 8), seq_len=8, epochs=3, batch_size=8, property_heads=True,
 )
 
 
 def data_sets(cfg, n_train=24):
+    train = synthetic.data_set(cfg, n_train, seed=0)
+    train["labels"]["roughness"][:5] = -1  # unknown labels are masked out of the loss
     return {
-        "train": synthetic.data_set(cfg, n_train, seed=0),
+        "train": train,
         "val": synthetic.data_set(cfg, 10, seed=1),
         "test": synthetic.data_set(cfg, 12, seed=2),
     }
 
 
 @pytest.fixture(scope="module")
-def three_seeds():
-    """Seeds 3, 4, 3 in one vmapped program: a leading seed axis, distinct and repeated seeds."""
-    return train_and_evaluate(TINY, data_sets(TINY), seeds=[3, 4, 3])
+def four_seeds():
+    """Seeds 3, 4, 3, 5 in one vmapped program: a leading seed axis, distinct and repeated seeds."""
+    return train_and_evaluate(TINY, data_sets(TINY), seeds=[3, 4, 3, 5])
 
 
-def test_metrics_have_a_leading_seed_axis(three_seeds):
-    m = three_seeds.metrics
-    assert m["train_loss"].shape == m["val_acc"].shape == (3, TINY.epochs)
-    assert m["best_epoch"].shape == m["best_val_acc"].shape == (3,)
-    assert m["eval"]["test"]["accuracy"]["fabric"].shape == (3,)
-    assert m["eval"]["test"]["predictions"]["fabric"].shape == (3, 12)
-    assert m["eval"]["val"]["predictions"]["fabric"].shape == (3, 10)
+def test_metrics_have_a_leading_seed_axis(four_seeds):
+    m = four_seeds.metrics
+    assert m["train_loss"].shape == m["val_acc"].shape == (4, TINY.epochs)
+    assert m["best_epoch"].shape == m["best_val_acc"].shape == (4,)
+    for head in ("fabric", "stretchiness", "roughness", "thickness"):
+        assert m["eval"]["test"]["accuracy"][head].shape == (4,)
+        assert m["eval"]["test"]["predictions"][head].shape == (4, 12)
+    assert m["eval"]["val"]["predictions"]["fabric"].shape == (4, 10)
     assert np.isfinite(m["train_loss"]).all()
 
 
-def test_different_seeds_differ_and_the_same_seed_repeats(three_seeds):
-    loss = three_seeds.metrics["train_loss"]
+def test_different_seeds_differ_and_the_same_seed_repeats(four_seeds):
+    loss = four_seeds.metrics["train_loss"]
     assert not np.allclose(loss[0], loss[1])
     np.testing.assert_array_equal(loss[0], loss[2])
-    for a, c in zip(jax.tree.leaves(three_seeds.params(0)), jax.tree.leaves(three_seeds.params(2))):
+    for a, c in zip(jax.tree.leaves(four_seeds.params(0)), jax.tree.leaves(four_seeds.params(2))):
         np.testing.assert_array_equal(a, c)
 
 
-def test_best_validation_epoch_is_selected(three_seeds):
-    m = three_seeds.metrics
+def test_best_validation_epoch_is_selected(four_seeds):
+    m = four_seeds.metrics
     np.testing.assert_array_equal(m["best_epoch"], np.argmax(m["val_acc"], axis=1))
     np.testing.assert_array_equal(m["best_val_acc"], m["val_acc"].max(axis=1))
     # The returned model is the best epoch's: its validation accuracy is the recorded best.
     np.testing.assert_allclose(m["eval"]["val"]["accuracy"]["fabric"], m["best_val_acc"], atol=1e-6)
 
 
-def test_pure_train_function_under_jit_vmap_matches_the_library_entry(three_seeds):
+def test_pure_train_function_under_jit_vmap_matches_the_library_entry(four_seeds):
     sets = data_sets(TINY)
     train = make_train(TINY, sets["train"], sets["val"], {"test": sets["test"]})
     _, metrics = jax.jit(jax.vmap(train))(seed_keys([3, 4]))
-    np.testing.assert_allclose(metrics["train_loss"], three_seeds.metrics["train_loss"][:2], rtol=1e-5)
-
-
-def test_property_heads_train_jointly_with_unknown_labels_masked():
-    cfg = Config(**{**TINY.to_json(), "property_heads": True, "fabric_head": False, "epochs": 2})
-    sets = data_sets(cfg)
-    sets["train"]["labels"]["roughness"][:5] = -1
-    res = train_and_evaluate(cfg, sets, seeds=[0])
-    assert set(res.metrics["eval"]["test"]["accuracy"]) == {"stretchiness", "roughness", "thickness"}
-    assert np.isfinite(res.metrics["train_loss"]).all()
+    np.testing.assert_allclose(metrics["train_loss"], four_seeds.metrics["train_loss"][:2], rtol=1e-5)
+    assert metrics["eval"]["test"]["predictions"]["fabric"].shape == (2, 12)
 
 
 def test_masked_loss_and_accuracy_ignore_unknown_labels():
     logits = np.zeros((3, 4), np.float32)
     assert float(masked_cross_entropy(logits, np.array([-1, -1, -1]))) == 0.0
     assert float(masked_accuracy(np.array([1, 2, 3]), np.array([1, -1, 0]))) == 0.5
+
+
+def test_without_a_fabric_head_the_best_epoch_follows_mean_property_accuracy():
+    cfg = Config(**{**TINY.to_json(), "fabric_head": False})
+    trainer = make_trainer(cfg, {"internal": (24,), "proprio": (18,)})
+    assert float(trainer.selection_metric({"stretchiness": 1.0, "roughness": 0.2, "thickness": 0.3})) == pytest.approx(0.5)
 
 
 SHARDED = """
@@ -93,7 +94,7 @@ print(json.dumps({{"devices": len(res.state["epoch"].sharding.device_set),
 """
 
 
-def test_four_host_devices_give_the_same_results_as_one():
+def test_four_host_devices_give_the_same_results_as_one(four_seeds):
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=4", "JAX_PLATFORMS": "cpu"}
     code = "import jax; jax.config.update('jax_disable_most_optimizations', True)\n"
     code += SHARDED.format(tests=os.path.dirname(__file__))
@@ -101,7 +102,7 @@ def test_four_host_devices_give_the_same_results_as_one():
     assert out.returncode == 0, out.stderr[-3000:]
     sharded = json.loads(out.stdout.strip().splitlines()[-1])
     assert sharded["devices"] == 4
-    single = train_and_evaluate(TINY, data_sets(TINY), seeds=[3, 4, 3, 5])
+    single = four_seeds
     assert len(single.state["epoch"].sharding.device_set) == 1
     np.testing.assert_allclose(sharded["train_loss"], single.metrics["train_loss"], rtol=1e-5)
     np.testing.assert_array_equal(sharded["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"])
