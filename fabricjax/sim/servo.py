@@ -31,7 +31,8 @@ def source(motion: Motion, grid: acoustics.Grid, rng: np.random.Generator) -> np
     load = 1.0 + torque / cal.SERVO_LOAD_REF_NM
     mesh_hz = speed * cal.GEAR_RATIO / (2 * np.pi) * cal.GEAR_TEETH
     phase = 2 * np.pi * np.cumsum(mesh_hz) / cal.FS + rng.uniform(0, 2 * np.pi)
-    tone = np.sin(phase) + 0.5 * np.sin(2 * phase + 1.0) + 0.25 * np.sin(3 * phase + 2.0)
+    sin, cos = np.sin(phase), np.cos(phase)
+    tone = sin + sin * cos + 0.25 * sin * (3.0 - 4.0 * sin * sin)  # harmonics 1, 2 (x 0.5), 3 (x 0.25)
     x = cal.SERVO_TONE_PA * speed * load * tone
     x += (cal.SERVO_BROADBAND_PA * speed * load) * rng.standard_normal(grid.n, dtype=np.float32)
     spec = grid.rfft(x)

@@ -1,0 +1,201 @@
+"""Scene simulator: determinism, streams and effects on demand, valid archives, physics, no shortcut."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from fabricjax import archive, catalog, splits
+from fabricjax.sim import EFFECTS, Scene, ensure_dataset, simulate
+from fabricjax.sim import air_path, ambient, minsight, motion, servo, shell, sph0645, stick_slip, texture
+from fabricjax.sim import calibration as cal
+from fabricjax.sim.scene import nuisance
+
+SHORT = dict(cycles=2)
+
+
+def band_power_db(words: np.ndarray, lo=50.0, hi=15_000.0) -> float:
+    """In-band power of one raw microphone stream, dB re full scale."""
+    x = (words >> 14).astype(np.float64)
+    f, p = scipy.signal.welch(x, fs=cal.FS, nperseg=2048)
+    band = (f >= lo) & (f <= hi)
+    return float(10 * np.log10(p[band].sum() * (f[1] - f[0])))
+
+
+def test_same_scene_same_bits_other_trial_other_bits():
+    scene = Scene(12, streams=("audio", "proprio", "images"), image_size=(24, 32), **SHORT)
+    a, b = simulate(scene), simulate(scene)
+    assert a.meta == b.meta
+    for k, v in a.arrays().items():
+        assert np.array_equal(v, b.arrays()[k]), k
+    c = simulate(Scene(12, trial=1, **SHORT))
+    assert not np.array_equal(a.audio[:, :10_000], c.audio[:, :10_000])
+
+
+def test_archive_layout_follows_the_sph0645_and_the_paper():
+    arch = simulate(Scene(5, **SHORT))
+    assert arch.meta["source"]["kind"] == "simulated" and arch.meta["source"]["effects"] == list(EFFECTS)
+    assert arch.images is None and arch.meta["image_size"] is None
+    assert np.all(arch.audio & 0xFF == 0)  # bits 7..0 of the 24-bit word are zero
+    assert np.array_equal(arch.window_end[:, 0], arch.window_end[:, 1])
+    assert arch.window_end[0, 0] >= archive.WINDOW
+    assert np.allclose(np.diff(arch.timestamps).mean(), 1 / 50, rtol=0.02)
+    steps = np.diff(arch.window_end[:, 0])
+    assert abs(steps.mean() - 960) < 20  # 48 kHz / 50 Hz: successive windows overlap ~50 %
+    assert 0.1 <= np.median(arch.force[-10:]) < 0.25  # closed to 0.1 N, then rubbing
+
+
+EFFECT_CALLS = {  # effect -> (module, function that only that effect calls)
+    "texture": (texture, "vibration"),
+    "stick_slip": (stick_slip, "spectrum"),
+    "shell": (shell, "contact_transfer"),
+    "air_path": (air_path, "contact_transfer"),
+    "servo_noise": (servo, "source"),
+    "ambient": (ambient, "spectrum"),
+    "sph0645": (sph0645, "self_noise"),
+}
+
+
+def _count_calls(monkeypatch):
+    calls = {}
+    targets = dict(EFFECT_CALLS, images=(minsight, "render"))
+    for name, (module, fn) in targets.items():
+        original = getattr(module, fn)
+
+        def counted(*args, _name=name, _original=original, **kwargs):
+            calls[_name] = calls.get(_name, 0) + 1
+            return _original(*args, **kwargs)
+
+        monkeypatch.setattr(module, fn, counted)
+    return calls
+
+
+@pytest.mark.parametrize("left_out", sorted(EFFECT_CALLS))
+def test_an_effect_not_called_for_is_never_computed(monkeypatch, left_out):
+    calls = _count_calls(monkeypatch)
+    effects = tuple(e for e in EFFECTS if e != left_out)
+    simulate(Scene(1, effects=effects, cycles=1))
+    assert left_out not in calls
+    assert all(calls.get(e, 0) >= 1 for e in EFFECT_CALLS if e != left_out), calls
+
+
+def test_images_are_rendered_only_when_streamed(monkeypatch):
+    calls = _count_calls(monkeypatch)
+    assert simulate(Scene(1, cycles=1)).images is None
+    assert "images" not in calls
+    arch = simulate(Scene(1, cycles=1, streams=("audio", "proprio", "images"), image_size=(30, 40)))
+    assert calls["images"] == 1 and arch.images.shape == (arch.n_steps, 30, 40, 3)
+    with pytest.raises(ValueError, match="required"):
+        Scene(1, streams=("images",))
+
+
+def test_without_proprioception_joints_are_ideal_kinematics():
+    ideal = simulate(Scene(1, effects=("texture",), cycles=1))
+    assert np.all(ideal.joints[:, :, 2] == np.float32(cal.IDLE_CURRENT_A))
+    real = simulate(Scene(1, cycles=1))
+    assert np.std(real.joints[:, :, 2]) > 0
+
+
+def test_texture_frequency_follows_speed_over_weave_period():
+    """f = v / lambda: read the satin's weave at two constant speeds."""
+    scene = Scene(2)
+    lam = scene.fabric.weave_period_mm
+    t = np.arange(4 * cal.FS) / cal.FS
+    peaks = []
+    for v in (20.0, 40.0):
+        p = texture.vibration(scene, v * t, np.full_like(t, cal.GRASP_FORCE_N), 15.0, np.random.default_rng(0))
+        f, psd = scipy.signal.welch(p, fs=cal.FS, nperseg=16384)
+        band = f > 0.5 * v / lam
+        peaks.append(f[band][np.argmax(psd[band])])
+    assert peaks[0] == pytest.approx(20.0 / lam, rel=0.05)
+    assert peaks[1] / peaks[0] == pytest.approx(2.0, rel=0.05)
+
+
+def test_trials_last_longer_on_high_friction_fabrics():
+    def steps(fid):
+        scene = Scene(fid)
+        mot = motion.finger_motion(scene.fabric, 50, nuisance(scene), scene.rng("motion", "trial"))
+        return mot.duration_s * 50
+
+    slippery, grippy = steps(4), steps(19)  # friction 0.25 vs 0.85
+    assert 1250 < slippery < grippy < 1650 and grippy / slippery > 1.08
+
+
+def test_cafe_raises_palm_power_far_more_than_internal_power():
+    lab, cafe = (simulate(Scene(1, day=4, condition=c, **SHORT)) for c in ("lab", "cafe"))
+    d_int = band_power_db(cafe.audio[0]) - band_power_db(lab.audio[0])
+    d_palm = band_power_db(cafe.audio[1]) - band_power_db(lab.audio[1])
+    assert d_palm > 10.0 and d_int < 3.0 and d_palm > d_int + 10.0
+
+
+def test_no_fabric_gives_the_weakest_contact_signal():
+    for effects in (EFFECTS, ("texture", "stick_slip", "shell")):  # as recorded; contact sound alone
+        power = {f.id: band_power_db(simulate(Scene(f.id, effects=effects, **SHORT)).audio[0]) for f in catalog.FABRICS}
+        assert min(power, key=power.get) == 0, (effects, power)
+
+
+def _nearest_centroid_accuracy(train_x, train_y, test_x, test_y) -> float:
+    classes = np.unique(train_y)
+    centroids = np.stack([train_x[train_y == c].mean(axis=0) for c in classes])
+    pred = classes[np.argmin(((test_x[:, None, :] - centroids[None]) ** 2).sum(-1), axis=1)]
+    return float(np.mean(pred == test_y))
+
+
+def test_a_trivial_level_statistic_does_not_identify_the_fabric():
+    """Trained on days 1-2, tested on day 3, as the paper splits. The mean raw word (the DC offset)
+    is at chance; the RMS level carries some roughness information but far less than the PSD shape."""
+    rows = []
+    for fid in range(catalog.N_CLASSES):
+        for day, trials in ((1, 2), (2, 2), (3, 2)):
+            for trial in range(trials):
+                a = simulate(Scene(fid, day=day, trial=trial, cycles=2))
+                x = (a.audio[0] >> 14).astype(np.float64)
+                f, psd = scipy.signal.welch(x, fs=cal.FS, nperseg=1022)
+                shape = np.log(psd[(f >= 50) & (f <= 15_000)])
+                rows.append((fid, day, x.mean(), 10 * np.log10(x.var()), shape - shape.mean()))
+    y = np.array([r[0] for r in rows])
+    train = np.array([r[1] != 3 for r in rows])
+    feats = {
+        "mean": np.array([[r[2]] for r in rows]),
+        "rms": np.array([[r[3]] for r in rows]),
+        "shape": np.stack([r[4] for r in rows]),
+    }
+    acc = {k: _nearest_centroid_accuracy(v[train], y[train], v[~train], y[~train]) for k, v in feats.items()}
+    chance = 1 / catalog.N_CLASSES
+    assert acc["mean"] <= 3 * chance, acc
+    assert acc["shape"] >= 0.6, acc
+    assert acc["rms"] <= 0.6 * acc["shape"], acc
+
+
+def test_generation_killed_midway_resumes_and_keeps_finished_archives(tmp_path):
+    code = "from fabricjax.sim import ensure_dataset; ensure_dataset('smoke', workdir=%r, streams=('audio', 'proprio'), progress=False, workers=1)"
+    proc = subprocess.Popen([sys.executable, "-c", code % str(tmp_path)], start_new_session=True)
+    folder = tmp_path / "datasets" / "smoke"
+    deadline = time.time() + 60
+    while time.time() < deadline and len(list(folder.glob("*.npz"))) < 4:
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    finished = {p.name: p.stat().st_mtime_ns for p in folder.glob("*.npz")}
+    n_total = len(splits.preset("smoke").trials())
+    assert 4 <= len(finished) < n_total
+    for name in finished:  # atomic writes: whatever exists is complete
+        archive.read_archive(folder / name)
+    ensure_dataset("smoke", workdir=tmp_path, streams=("audio", "proprio"), progress=False, workers=1)
+    after = {p.name: p.stat().st_mtime_ns for p in folder.glob("*.npz")}
+    assert len(after) == n_total and not list(folder.glob(".*.partial"))
+    assert all(after[name] == mtime for name, mtime in finished.items())
+    index = archive.load_index(folder)
+    assert len(index.entries) == n_total
+    for entry in index.entries:
+        arch = archive.read_archive(index.path(entry))
+        assert arch.images is None and arch.meta["source"]["kind"] == "simulated"
+    # asking for images regenerates the archives that lack them, at the preset's image size
+    ensure_dataset("smoke", workdir=tmp_path, streams=("audio", "proprio", "images"), progress=False, workers=1)
+    arch = archive.read_archive(folder / sorted(after)[0])
+    assert arch.images is not None and list(arch.images.shape[1:3]) == list(splits.preset("smoke").image_size)
