@@ -60,18 +60,15 @@ def make_optimizer(config: Config) -> optax.GradientTransformation:
 def rotation_augment(config: Config) -> Augment | None:
     """The paper's image augmentation (one rotation in [-90°, 90°] per sequence), when it applies.
 
-    The rotation itself lives with the image features (`fabricjax.features.images.rotate_sequence`,
-    a pure function of a key and one sequence of frames); it is imported only by image configs.
+    The rotation lives with the image features (`fabricjax.features.images.rotate_batch`, a pure
+    function of a key; it returns float frames on the 0-255 scale, which the image encoder takes
+    like uint8); it is imported only by image configs.
     """
     if "image" not in config.modalities or not config.augment_rotation:
         return None
-    from fabricjax.features import images
+    from fabricjax.features.images import rotate_batch
 
-    def augment(key, inputs):
-        keys = jax.random.split(key, inputs["image"].shape[0])
-        return {**inputs, "image": jax.vmap(images.rotate_sequence)(keys, inputs["image"])}
-
-    return augment
+    return lambda key, inputs: {**inputs, "image": rotate_batch(key, inputs["image"])}
 
 
 def masked_cross_entropy(logits: jax.Array, labels: jax.Array) -> jax.Array:

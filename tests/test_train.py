@@ -9,7 +9,7 @@ import pytest
 
 from fabricjax import synthetic
 from fabricjax.config import Config
-from fabricjax.train import make_train, make_trainer, masked_accuracy, masked_cross_entropy, seed_keys, train_and_evaluate
+from fabricjax.train import make_train, make_trainer, rotation_augment, masked_accuracy, masked_cross_entropy, seed_keys, train_and_evaluate
 
 TINY = Config(
     preset="smoke", modalities=("internal", "proprio"), width=16, n_layers=1, ffn=32,
@@ -106,3 +106,17 @@ def test_four_host_devices_give_the_same_results_as_one(four_seeds):
     assert len(single.state["epoch"].sharding.device_set) == 1
     np.testing.assert_allclose(sharded["train_loss"], single.metrics["train_loss"], rtol=1e-5)
     np.testing.assert_array_equal(sharded["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"])
+
+
+def test_image_training_applies_the_rotation_augmentation():
+    cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "epochs": 1, "property_heads": False})
+    calls, rotate = [], rotation_augment(cfg)
+
+    def augment(key, inputs):
+        calls.append(inputs["image"].shape)
+        return rotate(key, inputs)
+
+    sets = {k: synthetic.data_set(cfg, 8, image_hw=(12, 16), seed=i) for i, k in enumerate(["train", "val"])}
+    res = train_and_evaluate(cfg, sets, seeds=[0], augment=augment)
+    assert calls == [(8, 8, 12, 16, 3)]  # traced once, inside the training step, on each minibatch
+    assert np.isfinite(res.metrics["train_loss"]).all()
