@@ -1,0 +1,20 @@
+"""The paper's modality ablation, all 13 rows (see fabricjax/studies/ablation.py).
+
+    python -m experiments.ablation --seeds=5     # README main command: default preset, ~15 min on 2 CPU cores
+"""
+
+from absl import app
+
+from experiments import flags
+from fabricjax.studies import ablation
+
+flags.define_sweep()
+
+
+def main(argv):
+    del argv
+    ablation.run(**flags.sweep_kwargs())
+
+
+if __name__ == "__main__":
+    app.run(main)

@@ -1,0 +1,20 @@
+"""Validation and test accuracy for PSD bandwidths 2.5 / 10 / 15 / 24 kHz, Minsound only (see fabricjax/studies/bandwidth.py).
+
+    python -m experiments.bandwidth --seeds=5
+"""
+
+from absl import app
+
+from experiments import flags
+from fabricjax.studies import bandwidth
+
+flags.define_sweep()
+
+
+def main(argv):
+    del argv
+    bandwidth.run(**flags.sweep_kwargs())
+
+
+if __name__ == "__main__":
+    app.run(main)

@@ -1,0 +1,20 @@
+"""Property perception on training and holdout fabrics, checkpointed (see fabricjax/studies/properties.py).
+
+    python -m experiments.properties --seeds=5
+"""
+
+from absl import app
+
+from experiments import flags
+from fabricjax.studies import properties
+
+flags.define_sweep()
+
+
+def main(argv):
+    del argv
+    properties.run(**flags.sweep_kwargs())
+
+
+if __name__ == "__main__":
+    app.run(main)

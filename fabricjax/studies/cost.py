@@ -1,0 +1,282 @@
+"""What accuracy costs in time: touch time, training time and inference latency per configuration.
+
+    python -m experiments.cost --seeds=5                  # default preset, <= 20 min on 2 CPU cores
+    python -m experiments.cost --seq_lens=25,50 --backbones=attention --widths= --bandwidths= \
+        --modality_sets=internal+external                 # any subset of the sweep by flag
+
+Time means two things to a robot: how long the hand must rub before it can decide (touch time,
+N steps / 50 Hz) and what the decision costs in compute (training, inference). The sweep is one
+factor at a time around a base point, so it grows with the sum of the dimensions, not the product:
+
+    N x backbone     every sequence length with every backbone, at the base width, bandwidth and
+                     modality set: accuracy against touch time for both backbones
+    width            each width alone (FFN = 2 x width, as in the paper's 64 / 128)
+    bandwidth        each PSD bandwidth alone
+    modalities       each modality set alone
+    paper            the paper's configuration (N=200, attention, width 64, 15 kHz, internal +
+                     palm microphone) with N capped at the preset's shortest trial; marked in
+                     the table and the plot
+
+Everything not swept (the base width, layers, epochs, ...) is the preset's study config
+(`common.PRESET_TRAINING`); the base N is the preset's, the base backbone and modality set are
+the first of their flags. Lengths longer than the shortest trial are skipped and reported.
+
+Per point: test accuracy (mean ± SD over seeds; all seeds train in one vmapped program), training
+wall time of that program (compilation included, no checkpoints, so a rerun measures afresh),
+inference latency of one test sequence (jitted `predict_one` after warm-up, result on the host,
+p50 / p99), parameter count. Sequences do not overlap, so a longer N also means fewer training
+sequences (T // N per trial): the accuracy-versus-N curve shows both effects, as in the paper's
+protocol.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Any, Sequence
+
+import jax
+import numpy as np
+from absl import logging
+
+from fabricjax import archive, data, plots, report, splits, stats
+from fabricjax.config import AUDIO_MODALITIES, Config
+from fabricjax.features import welch
+from fabricjax.model import predict_one
+from fabricjax.studies import common
+
+STEP_HZ = 50.0  # Minsight frame rate: one step per frame
+PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
+SHORT = {"internal": "int", "external": "ext", "proprio": "prop", "flow": "flow", "image": "img"}
+X_AXES = (
+    ("touch_s", "touch time to a decision [s] (N steps / 50 Hz)"),
+    ("latency_p50_ms", "inference latency of one sequence, p50 [ms]"),
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class Point:
+    name: str
+    group: str
+    config: Config
+
+
+def _with_width(config: Config, width: int) -> Config:
+    return dataclasses.replace(config, width=width, ffn=2 * width)
+
+
+def point_name(config: Config, base: Config) -> str:
+    """A short plot label: backbone and N, then whatever differs from the base point."""
+    name = f"{'att' if config.backbone == 'attention' else 'tcn'} N{config.sequence_length}"
+    if config.width != base.width:
+        name += f" w{config.width}"
+    if config.bandwidth_khz != base.bandwidth_khz:
+        name += f" {config.bandwidth_khz:g}kHz"
+    if config.modalities != base.modalities:
+        name += " " + "+".join(SHORT[m] for m in config.modalities)
+    return name
+
+
+def sweep_points(
+    base: Config,
+    seq_lens: Sequence[int],
+    backbones: Sequence[str],
+    widths: Sequence[int],
+    bandwidths: Sequence[float],
+    modality_sets: Sequence[tuple[str, ...]],
+    paper: bool = True,
+    max_len: int | None = None,
+) -> tuple[list[Point], str | None]:
+    """The sweep's points (duplicates dropped, first occurrence kept) and the paper point's name."""
+    candidates = [("N x backbone", dataclasses.replace(base, seq_len=n, backbone=b)) for b in backbones for n in seq_lens]
+    candidates += [("width", _with_width(base, w)) for w in widths]
+    candidates += [("bandwidth", dataclasses.replace(base, bandwidth_khz=bw)) for bw in bandwidths]
+    candidates += [("modalities", dataclasses.replace(base, modalities=tuple(ms))) for ms in modality_sets]
+    paper_config = None
+    if paper:
+        n = min(PAPER["seq_len"], max_len or PAPER["seq_len"])
+        fields = {k: v for k, v in PAPER.items() if k not in ("seq_len", "width")}
+        paper_config = _with_width(dataclasses.replace(base, seq_len=n, **fields), PAPER["width"])
+        candidates.append(("paper", paper_config))
+    points: dict[Config, Point] = {}
+    for group, config in candidates:
+        if max_len is not None and config.sequence_length > max_len:
+            logging.warning("cost: skipping %s: N=%d exceeds the shortest trial (%d steps)", group, config.sequence_length, max_len)
+            continue
+        points.setdefault(config, Point(point_name(config, base), group, config))
+    paper_name = points[paper_config].name if paper_config is not None else None
+    return list(points.values()), paper_name
+
+
+def _narrow(sets: dict[str, data.SequenceSet], config: Config) -> dict[str, data.SequenceSet]:
+    """Sets loaded at a wider bandwidth cut to the config's bins (the PSD's first bins)."""
+    k = welch.n_bins(config.bandwidth_khz)
+    return {
+        s: dataclasses.replace(
+            ss, inputs={m: a[..., :k] if m in AUDIO_MODALITIES else a for m, a in ss.inputs.items() if m in config.modalities}
+        )
+        for s, ss in sets.items()
+    }
+
+
+def inference_latency(graphdef, params, inputs: dict[str, np.ndarray], repeats: int, warmup: int = 5) -> dict[str, float]:
+    """p50 / p99 ms of jitted `predict_one` on one sequence, result fetched to the host."""
+    one = {m: jax.device_put(a) for m, a in inputs.items()}
+    for _ in range(warmup):
+        jax.device_get(predict_one(graphdef, params, one))
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        jax.device_get(predict_one(graphdef, params, one))
+        times.append(time.perf_counter() - t)
+    ms = 1e3 * np.asarray(times)
+    return {"latency_p50_ms": float(np.percentile(ms, 50)), "latency_p99_ms": float(np.percentile(ms, 99))}
+
+
+def pareto_front(points: Sequence[dict], key: str) -> list[str]:
+    """Names of the points no other point beats on both `key` (lower) and accuracy (higher)."""
+    order = sorted(points, key=lambda p: (p[key], -p["accuracy_mean"]))
+    front, best = [], -np.inf
+    for p in order:
+        if p["accuracy_mean"] > best:
+            front.append(p["name"])
+            best = p["accuracy_mean"]
+    return front
+
+
+def _shortest_trial(folder) -> int:
+    return min(e.n_steps for e in archive.load_index(folder).entries)
+
+
+def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int) -> dict[str, Any]:
+    """Train all seeds of one point and measure what it costs."""
+    row = common.train_row(point.name, point.config, _narrow(sets, point.config), seeds, ["test"])
+    acc = 100 * row.accuracy("test")
+    mean, sd = stats.mean_sd(acc)
+    params = row.results.params(0)
+    test = _narrow(sets, point.config)["test"]
+    latency = inference_latency(row.results.graphdef, params, {m: a[0] for m, a in test.inputs.items()}, latency_repeats)
+    c = point.config
+    return {
+        "name": point.name,
+        "group": point.group,
+        "seq_len": c.sequence_length,
+        "touch_s": c.sequence_length / STEP_HZ,
+        "backbone": c.backbone,
+        "width": c.width,
+        "bandwidth_khz": c.bandwidth_khz,
+        "modalities": list(c.modalities),
+        "params": int(sum(np.size(x) for x in jax.tree.leaves(params))),
+        "train_sequences": len(sets["train"]),
+        "accuracy": acc.tolist(),
+        "accuracy_mean": mean,
+        "accuracy_sd": sd,
+        "train_s": row.seconds,
+        **latency,
+        "config": c.to_json(),
+    }
+
+
+def run(
+    *,
+    n_seeds: int = 5,
+    preset: str = "default",
+    seq_lens: Sequence[int] = (25, 50, 100, 200),
+    backbones: Sequence[str] = ("attention", "tcn"),
+    widths: Sequence[int] = (16, 64),
+    bandwidths: Sequence[float] = (2.5, 24.0),
+    modality_sets: Sequence[Sequence[str]] = (("internal", "external"), ("internal",), ("internal", "external", "proprio")),
+    base_seq_len: int | None = None,
+    paper: bool = True,
+    epochs: int | None = None,
+    latency_repeats: int = 100,
+    workdir=None,
+    data_dir=None,
+    results="results",
+    command: str | None = None,
+) -> dict[str, Any]:
+    """Train every point of the sweep; write results/cost.{md,json} and cost_pareto.png; return the JSON."""
+    if not backbones or not modality_sets:
+        raise ValueError("need at least one backbone and one modality set (the base point's)")
+    seeds = common.seed_list(n_seeds)
+    overrides = {"epochs": epochs} if epochs is not None else {}
+    base = common.study_config(
+        preset, backbone=backbones[0], modalities=tuple(modality_sets[0]), seq_len=base_seq_len or splits.preset(preset).seq_len, **overrides
+    )
+    first = common.load_dataset(base, data_dir=data_dir, workdir=workdir)
+    max_len = _shortest_trial(first.folder)
+    points, paper_name = sweep_points(
+        base, seq_lens, backbones, widths, bandwidths, [tuple(m) for m in modality_sets], paper=paper, max_len=max_len
+    )
+    skipped = sorted({n for n in seq_lens if n > max_len} | ({PAPER["seq_len"]} if paper and PAPER["seq_len"] > max_len else set()))
+    union = common.union_modalities([p.config for p in points])
+    widest = max(p.config.bandwidth_khz for p in points)
+    progress = common.Progress("cost", len(points))
+    rows, sets, loaded_n = [], None, None
+    t_all = time.perf_counter()
+    for p in sorted(points, key=lambda p: p.config.sequence_length):
+        n = p.config.sequence_length
+        if n != loaded_n:  # every point of one N shares the sequences, loaded once at the widest band
+            load = dataclasses.replace(base, seq_len=n, modalities=union, bandwidth_khz=widest)
+            sets, loaded_n = common.load_dataset(load, data_dir=data_dir, workdir=workdir).sets, n
+        progress.start(p.name)
+        r = measure(p, sets, seeds, latency_repeats)
+        rows.append(r)
+        progress.finish(p.name, r["train_s"], f"test {r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f} %, p50 {r['latency_p50_ms']:.2f} ms")
+    order = {p.name: i for i, p in enumerate(points)}
+    rows.sort(key=lambda r: order[r["name"]])
+    fronts = {key: pareto_front(rows, key) for key, _ in X_AXES}
+    doc = {
+        "command": command,
+        "preset": preset,
+        "seeds": list(seeds),
+        "machine": report.machine(),
+        "dataset": {"folder": str(first.folder), "source": first.source, "shortest_trial_steps": max_len},
+        "base": base.to_json(),
+        "paper_point": paper_name,
+        "skipped_seq_lens": skipped,
+        "pareto_front": fronts,
+        "total_s": time.perf_counter() - t_all,
+        "points": rows,
+    }
+    out = common.results_path(results)
+    plot = plots.plot_pareto(out / "cost_pareto.png", rows, X_AXES, highlight=paper_name)
+    doc["figure"] = plot.name
+    common.write_outputs(results, "cost", markdown(doc), doc)
+    return doc
+
+
+def markdown(doc: dict[str, Any]) -> str:
+    m, base = doc["machine"], doc["base"]
+    seeds = doc["seeds"]
+    lines = [
+        "# What accuracy costs in time",
+        "",
+        f"- command: `{doc['command']}`",
+        f"- preset: {doc['preset']}; {doc['dataset']['source']} dataset `{doc['dataset']['folder']}` "
+        f"(shortest trial {doc['dataset']['shortest_trial_steps']} steps"
+        + (f"; N = {', '.join(map(str, doc['skipped_seq_lens']))} skipped as longer" if doc["skipped_seq_lens"] else "")
+        + ")",
+        f"- base point: {base['backbone']}, N={base['seq_len']}, width {base['width']}, {base['bandwidth_khz']:g} kHz, "
+        f"{'+'.join(base['modalities'])}, {base['n_layers']} layers, {base['epochs']} epochs; one factor varied at a time",
+        f"- seeds: {len(seeds)}, test accuracy mean ± SD (sample SD) over seeds; all seeds train in one vmapped program",
+        f"- machine: {m['cpu']}, {m['cores']} cores, JAX {m['jax']} on {m['jax_backend']}; sweep took {doc['total_s'] / 60:.1f} min",
+        "- touch time: N steps at 50 Hz; train: wall time of the multi-seed program incl. compilation; "
+        "latency: jitted `predict_one` on one test sequence after warm-up (p50 / p99 of repeated calls)",
+        f"- Pareto front (marked T for touch time, L for latency): "
+        f"{', '.join(doc['pareto_front']['touch_s'])} | {', '.join(doc['pareto_front']['latency_p50_ms'])}",
+        f"- figure: `{doc['figure']}`; **bold**: the paper's configuration on this preset",
+        "",
+    ]
+    header = ["point", "N", "touch [s]", "backbone", "width", "band [kHz]", "modalities", "params",
+              "test acc [%]", "train [s]", "p50 [ms]", "p99 [ms]", "front"]
+    rows = []
+    for r in doc["points"]:
+        front = "".join(t for t, k in (("T", "touch_s"), ("L", "latency_p50_ms")) if r["name"] in doc["pareto_front"][k])
+        name = f"**{r['name']}**" if r["name"] == doc["paper_point"] else r["name"]
+        rows.append([
+            name, r["seq_len"], f"{r['touch_s']:.2f}", r["backbone"], r["width"], f"{r['bandwidth_khz']:g}",
+            "+".join(r["modalities"]), f"{r['params']:,}", f"{r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f}",
+            f"{r['train_s']:.0f}", f"{r['latency_p50_ms']:.2f}", f"{r['latency_p99_ms']:.2f}", front,
+        ])
+    return "\n".join(lines) + report.markdown_table(header, rows)

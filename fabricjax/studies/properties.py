@@ -1,0 +1,119 @@
+"""Property perception (the paper's Table property_perception): stretchiness, roughness, thickness.
+
+    python -m experiments.properties --seeds=5
+
+Three property heads replace the fabric head (`property_heads=True, fabric_head=False`) and are
+trained jointly. Fabrics 1 and 10 and the new fabrics 21-23 (`catalog.PROPERTY_HOLDOUTS`) are
+never trained on; accuracies are reported on the test day's training fabrics (class 0 has no
+properties: its labels are unknown and ignored) and on the five holdouts. Rows: Minsound
+(internal audio + proprioception) and Minsound + Minsight (+ 60x80 images); proprioception is
+always on, as in the paper. Chance is the paper's 1 / levels; the majority-level rate of each
+evaluated split is reported too, since the levels are not balanced.
+
+The trained models (all seeds) are saved as an orbax checkpoint per row; `experiments.latents
+--checkpoint=DIR` restores one for the t-SNE figure.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Sequence
+
+import numpy as np
+
+from fabricjax import catalog, paper_tables, report, stats
+from fabricjax.studies import common
+
+PROPERTIES = tuple(catalog.PROPERTY_LEVELS)
+ROWS = (("minsound", ("internal", "proprio")), ("minsound+minsight", ("internal", "proprio", "image")))
+SPLITS = {"test": "training fabrics", "holdout": "holdout fabrics"}
+SETTINGS = dict(property_heads=True, fabric_head=False, exclude_fabrics=catalog.PROPERTY_HOLDOUTS, image_resolution="down")
+
+
+def run(
+    *,
+    n_seeds: int = 5,
+    preset: str = "default",
+    rows: Sequence[str] | None = None,
+    overrides: dict[str, Any] | None = None,
+    workdir=None,
+    data_dir=None,
+    results="results",
+    command: str | None = None,
+) -> dict[str, Any]:
+    """Train both rows (checkpointed), evaluate on training and holdout fabrics, write results/properties.{md,json}."""
+    overrides = dict(overrides or {})
+    chosen = common.select_rows(ROWS, rows, name=lambda r: r[0])
+    seeds = common.seed_list(n_seeds)
+    configs = [common.study_config(preset, **{**overrides, **SETTINGS, "modalities": mods}) for _, mods in chosen]
+    ds = common.load_dataset(
+        dataclasses.replace(configs[0], modalities=common.union_modalities(configs)), data_dir=data_dir, workdir=workdir
+    )
+    progress = common.Progress("properties", len(chosen))
+    out_rows = []
+    for (name, mods), config in zip(chosen, configs):
+        progress.start(name)
+        ckpt = common.checkpoint_dir("properties", name, config, seeds, workdir)
+        row = common.train_row(name, config, ds.sets, seeds, list(SPLITS), checkpoint_dir=ckpt)
+        progress.finish(name, row.seconds, ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES))
+        out_rows.append({"name": name, "modalities": list(mods), "checkpoint": str(ckpt), **common.row_doc(row, list(SPLITS))})
+    doc = {
+        "study": "properties",
+        "command": command or common.command_line(),
+        "preset": preset,
+        "seeds": list(seeds),
+        "machine": report.machine(),
+        "dataset": common.dataset_doc(ds),
+        "train_s": sum(r["wall_s"] for r in out_rows),
+        "chance": {p: 100.0 / n for p, n in catalog.PROPERTY_LEVELS.items()},
+        "majority": {s: {p: majority_rate(ds.sets[s].labels[p]) for p in PROPERTIES} for s in SPLITS},
+        "fabrics": {s: sorted(set(ds.sets[s].info["fabric_id"].tolist())) for s in SPLITS},
+        "paper": {p: dict(zip(("chance", "train_minsound", "train_minsound+minsight", "holdout_minsound", "holdout_minsound+minsight"), v)) for p, v in paper_tables.PROPERTIES.items()},
+        "rows": out_rows,
+        "samples": {s: common.samples_doc(ds.sets[s]) for s in SPLITS},
+    }
+    common.write_outputs(results, "properties", markdown(doc), doc)
+    return doc
+
+
+def majority_rate(labels: np.ndarray) -> float | None:
+    """Accuracy [%] of always answering the most frequent known level (None without known labels)."""
+    known = np.asarray(labels)[np.asarray(labels) >= 0]
+    return None if known.size == 0 else 100.0 * np.bincount(known).max() / known.size
+
+
+def table(doc: dict[str, Any]) -> str:
+    """One line per property: chance, then ours and the paper's per split and row."""
+    header = ["Property", "Chance [%]"]
+    for split, title in SPLITS.items():
+        header.append(f"Majority level, {title} [%]")
+        header += [f"{title}: {r['name']} [%] (ours / paper)" for r in doc["rows"]]
+    body = []
+    for p in PROPERTIES:
+        line = [p, f"{doc['chance'][p]:.2f}"]
+        for split in SPLITS:
+            maj = doc["majority"][split][p]
+            line.append("–" if maj is None else f"{maj:.2f}")
+            for r in doc["rows"]:
+                ours = stats.mean_sd(100 * np.asarray(r["accuracy"][split][p]))
+                paper = doc["paper"][p][f"{'train' if split == 'test' else 'holdout'}_{r['name']}"]
+                line.append(f"{ours[0]:.2f} ± {ours[1]:.2f} / {paper:.2f}")
+        body.append(line)
+    return report.markdown_table(header, body)
+
+
+def markdown(doc: dict[str, Any]) -> str:
+    lines = [
+        "# Property perception (the paper's Table property_perception)",
+        "",
+        common.header_markdown(doc),
+        f"Training fabrics on the test day: {doc['fabrics']['test']} (class 0 has no properties and is ignored); "
+        f"holdout fabrics: {doc['fabrics']['holdout']}. The paper reports means only.",
+        "",
+        table(doc),
+        "| Row | Train wall time [s] | Checkpoint (all seeds) |",
+        "|---|---|---|",
+        *[f"| {r['name']} | {r['wall_s']:.1f} | `{r['checkpoint']}` |" for r in doc["rows"]],
+        "",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,198 @@
+"""The paper's studies on the smoke preset: outputs, tables, statistics, checkpoint -> t-SNE."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats as sps
+
+from fabricjax import data, paper_tables, sim, train
+from fabricjax.studies import ablation, bandwidth, common, latents, noise, properties
+
+# Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
+TINY = dict(epochs=1, width=16, n_layers=1)
+
+
+@pytest.fixture(scope="session")
+def workdir(tmp_path_factory):
+    """The smoke dataset with camera frames, generated once for every test here."""
+    root = tmp_path_factory.mktemp("studies")
+    sim.ensure_dataset("smoke", root, streams=("audio", "proprio", "images"), progress=False)
+    return root
+
+
+def run_kwargs(workdir, results, **kw):
+    return dict(preset="smoke", overrides=TINY, workdir=workdir, results=results, command="test", **kw)
+
+
+def test_ablation_writes_table_statistics_and_confusions(workdir, tmp_path):
+    rows = ["internal", "proprio", "internal+external"]
+    doc = ablation.run(n_seeds=2, rows=rows, **run_kwargs(workdir, tmp_path))
+    assert [r["name"] for r in doc["rows"]] == rows  # the table's order
+    n_test = len(doc["test_samples"]["labels"]["fabric"])
+    for r in doc["rows"]:
+        assert len(r["accuracy"]["test"]["fabric"]) == 2
+        assert np.asarray(r["predictions"]["test"]["fabric"]).shape == (2, n_test)
+        assert r["wall_s"] > 0 and r["config"]["epochs"] == 1
+    w = doc["wilcoxon"]
+    assert w["per_seed"]["pairing"].startswith("per seed") and w["per_seed"]["n_pairs"] == 2
+    assert w["per_sample"]["n_pairs"] == 2 * n_test
+    assert (tmp_path / "ablation_confusion.png").stat().st_size > 0
+    md = (tmp_path / "ablation.md").read_text()
+    assert "95.06 ± 1.85" in md and "smallest attainable p" in md and "command: `test`" in md
+    assert json.loads((tmp_path / "ablation.json").read_text())["preset"] == "smoke"
+
+
+def test_bandwidth_truncates_the_psd_per_row(workdir, tmp_path):
+    doc = bandwidth.run(n_seeds=1, rows=["2.5"], **run_kwargs(workdir, tmp_path))
+    (row,) = doc["rows"]
+    assert row["psd_bins"] == 54 and row["config"]["bandwidth_khz"] == 2.5
+    assert "89.87 ± 3.31" in (tmp_path / "bandwidth.md").read_text()
+    full = {"s": data.SequenceSet({"internal": np.zeros((2, 3, 512)), "proprio": np.zeros((2, 3, 18))}, {}, {})}
+    cut = bandwidth.truncate(full, 15.0)["s"].inputs
+    assert cut["internal"].shape == (2, 3, 320) and cut["proprio"].shape == (2, 3, 18)
+    with pytest.raises(ValueError, match="sweeps the bandwidth"):
+        bandwidth.run(**run_kwargs(workdir, tmp_path) | {"overrides": {"bandwidth_khz": 10.0}})
+
+
+def test_noise_tests_each_row_against_the_preceding_one(workdir, tmp_path):
+    doc = noise.run(n_seeds=2, rows=["internal", "internal+proprio"], **run_kwargs(workdir, tmp_path))
+    first, second = doc["rows"]
+    assert first["wilcoxon"] is None and second["against"] == "internal"
+    assert second["wilcoxon"]["per_seed"]["n_pairs"] == 2
+    assert len(second["accuracy"]["cafe"]["fabric"]) == 2 and "test" in second["accuracy"]
+    md = (tmp_path / "noise.md").read_text()
+    assert "67.51 ± 5.05" in md and "< 0.0001" in md
+
+
+@pytest.fixture(scope="module")
+def property_run(workdir, tmp_path_factory):
+    results = tmp_path_factory.mktemp("properties")
+    return properties.run(n_seeds=2, rows=["minsound"], **run_kwargs(workdir, results)), results
+
+
+def test_properties_report_training_and_holdout_fabrics_and_checkpoint(property_run):
+    doc, results = property_run
+    assert doc["fabrics"]["holdout"] == [1, 10, 21]  # the smoke preset's holdouts
+    assert 0 in doc["fabrics"]["test"] and not {1, 10, 21} & set(doc["fabrics"]["test"])
+    (row,) = doc["rows"]
+    for split in ("test", "holdout"):
+        assert set(row["accuracy"][split]) == {"stretchiness", "roughness", "thickness"}
+    assert doc["chance"]["roughness"] == pytest.approx(20.0)
+    assert Path(row["checkpoint"]).is_dir()
+    md = (results / "properties.md").read_text()
+    assert "97.40" in md and "76.15" in md and row["checkpoint"] in md
+
+
+def test_latents_from_the_property_checkpoint(property_run, workdir, tmp_path):
+    doc, _ = property_run
+    out = latents.run(doc["rows"][0]["checkpoint"], workdir=workdir, results=tmp_path, command="test")
+    assert [p["fabric_id"] for p in out["points"]] == [1, 4, 10, 12, 21]  # fabrics of the smoke preset but 0
+    assert out["seed"] == out["seeds"][int(np.argmax(out["best_val_per_seed"]))]
+    assert np.isfinite([p["xy"] for p in out["points"]]).all()
+    assert (tmp_path / "latents.png").stat().st_size > 0
+    with pytest.raises(KeyError, match="seed 7"):
+        latents.run(doc["rows"][0]["checkpoint"], seed=7, workdir=workdir, results=tmp_path)
+
+
+def test_tsne_is_finite_for_identical_and_few_points():
+    xy, perplexity = latents.tsne(np.ones((6, 8)))
+    assert perplexity is None and np.array_equal(xy, np.zeros((6, 2)))
+    xy, perplexity = latents.tsne(np.random.default_rng(0).normal(size=(5, 8)))
+    assert perplexity == pytest.approx(4 / 3) and xy.shape == (5, 2) and np.isfinite(xy).all()
+    assert latents.tsne(np.ones((2, 3)))[0].shape == (2, 2)
+
+
+def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
+    rows = [
+        {"name": "internal", "backbone": "attention", "modalities": ["internal"], "paper_mean": 95.06, "paper_sd": 1.85,
+         "seeds": [0, 1, 2], "wall_s": 12.34, "accuracy": {"test": {"fabric": [0.9, 0.95, 1.0]}}},
+        {"name": "tcn", "backbone": "tcn", "modalities": ["internal", "external", "proprio"], "paper_mean": 75.41,
+         "paper_sd": 11.2, "seeds": [0, 1, 2], "wall_s": 5.0, "accuracy": {"test": {"fabric": [0.5, 0.5, 0.5]}}},
+    ]
+    lines = ablation.table(rows).splitlines()
+    assert lines[0].startswith("| Backbone | Modalities | Test accuracy [%] (ours, 3 seeds) | Paper [%] | Ours − paper [pp]")
+    assert lines[2] == "| Transformer | Minsound | 95.00 ± 5.00 | 95.06 ± 1.85 | -0.06 | 12.3 |"
+    assert lines[3] == "| TCN | Minsound + palm mic + proprioception | 50.00 ± 0.00 | 75.41 ± 11.20 | -25.41 | 5.0 |"
+
+
+def test_noise_and_bandwidth_tables():
+    w = {"p_value": 0.001953125, "min_attainable_p": 0.001953125, "method": "exact"}
+    rows = [
+        {"modalities": ["internal"], "paper": {"mean": 67.51, "sd": 5.05, "p": None}, "wilcoxon": None, "wall_s": 1.0,
+         "accuracy": {"cafe": {"fabric": [0.7, 0.7]}, "test": {"fabric": [0.9, 0.9]}}},
+        {"modalities": ["internal", "proprio"], "paper": {"mean": 87.51, "sd": 2.66, "p": "< 0.0001"}, "wall_s": 2.0,
+         "wilcoxon": {"per_seed": w, "per_sample": {**w, "method": "approx"}},
+         "accuracy": {"cafe": {"fabric": [0.9, 0.8]}, "test": {"fabric": [1.0, 1.0]}}},
+    ]
+    lines = noise.table(rows).splitlines()
+    assert lines[2] == "| internal | 70.00 ± 0.00 | 67.51 ± 5.05 | +2.49 | – | – | – | 90.00 ± 0.00 | 1.0 |"
+    assert "0.001953 (floor 0.002, exact)" in lines[3] and "< 0.0001" in lines[3]
+    bw = [{"bandwidth_khz": 2.5, "psd_bins": 54, "paper": {"val_mean": 92.43, "val_sd": 1.13, "test_mean": 89.87, "test_sd": 3.31},
+           "wall_s": 3.0, "accuracy": {"val": {"fabric": [0.9]}, "test": {"fabric": [0.8]}}}]
+    assert bandwidth.table(bw).splitlines()[2] == "| 2.5 | 54 | 90.00 ± 0.00 | 92.43 ± 1.13 | -2.43 | 80.00 ± 0.00 | 89.87 ± 3.31 | -9.87 | 3.0 |"
+
+
+def fake_row(name, accuracy, predictions, seeds):
+    metrics = {"eval": {"test": {"accuracy": {"fabric": np.asarray(accuracy)}, "predictions": {"fabric": np.asarray(predictions)}}}}
+    return common.Row(name, None, train.Results(None, tuple(seeds), None, None, metrics), 1.0)
+
+
+def test_paired_tests_pair_per_seed_and_per_sample_like_scipy():
+    rng = np.random.default_rng(0)
+    labels = rng.integers(0, 21, 40)
+    labels[:3] = -1  # unknown labels are not samples
+    pa = np.where(rng.random((5, 40)) < 0.6, labels, (labels + 1) % 21)
+    pb = np.where(rng.random((5, 40)) < 0.8, labels, (labels + 1) % 21)
+    acc_a = np.array([0.50, 0.55, 0.61, 0.58, 0.52])
+    acc_b = acc_a + np.array([0.03, -0.01, 0.05, 0.07, 0.02])
+    a, b = fake_row("a", acc_a, pa, range(5)), fake_row("b", acc_b, pb, range(5))
+    res = common.paired_tests(a, b, "test", labels)
+    assert res["per_seed"].p_value == pytest.approx(sps.wilcoxon(acc_b, acc_a, method="exact").pvalue)
+    assert res["per_seed"].method == "exact" and res["per_seed"].min_attainable_p == pytest.approx(0.0625)
+    cb, ca = ((pb == labels)[:, 3:]).ravel().astype(float), ((pa == labels)[:, 3:]).ravel().astype(float)
+    expected = sps.wilcoxon(cb, ca, zero_method="wilcox", method="approx")
+    assert res["per_sample"].n_pairs == 5 * 37 and res["per_sample"].method == "approx"
+    assert res["per_sample"].p_value == pytest.approx(expected.pvalue)
+    same = common.paired_tests(a, a, "test", labels)
+    assert same["per_seed"].p_value == 1.0 and same["per_sample"].n_nonzero == 0
+    with pytest.raises(ValueError, match="different seeds"):
+        common.paired_tests(a, fake_row("c", acc_b, pb, range(1, 6)), "test", labels)
+
+
+def test_ten_seed_floor_and_row_selection():
+    a = fake_row("a", np.linspace(0.5, 0.6, 10), np.zeros((10, 4), int), range(10))
+    b = fake_row("b", np.linspace(0.5, 0.6, 10) + np.arange(1, 11) / 100, np.zeros((10, 4), int), range(10))
+    res = common.paired_tests(a, b, "test", np.zeros(4, int))["per_seed"]
+    assert res.p_value == pytest.approx(2 / 2**10) and res.min_attainable_p == pytest.approx(0.001953125)
+    assert [r.name for r in common.select_rows(paper_tables.ABLATION, None)] == [r.name for r in paper_tables.ABLATION]
+    with pytest.raises(ValueError, match="unknown rows"):
+        common.select_rows(paper_tables.ABLATION, ["audio"])
+
+
+def test_ablation_command_end_to_end(workdir, tmp_path):
+    env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_DISABLE_MOST_OPTIMIZATIONS": "1"}
+    cmd = [
+        sys.executable, "-m", "experiments.ablation", "--preset=smoke", "--seeds=1", "--epochs=1", "--rows=internal",
+        f"--workdir={workdir}", f"--results={tmp_path}",
+    ]
+    subprocess.run(cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, timeout=300)
+    doc = json.loads((tmp_path / "ablation.json").read_text())
+    assert [r["name"] for r in doc["rows"]] == ["internal"] and doc["seeds"] == [0]
+    assert doc["command"].startswith("python -m experiments.ablation --preset=smoke")
+    assert "| Transformer | Minsound |" in (tmp_path / "ablation.md").read_text()
+
+
+@pytest.mark.slow
+def test_camera_rows(workdir, tmp_path):
+    """Image and optical-flow rows (CNN encoders, rotation augmentation) end to end."""
+    doc = ablation.run(n_seeds=2, rows=["image+internal", "flow", "proprio"], **run_kwargs(workdir, tmp_path))
+    assert [r["name"] for r in doc["rows"]] == ["image+internal", "flow", "proprio"] and doc["wilcoxon"] is None
+    assert (tmp_path / "ablation_confusion.png").stat().st_size > 0
+    doc = properties.run(n_seeds=1, rows=["minsound+minsight"], **run_kwargs(workdir, tmp_path))
+    out = latents.run(doc["rows"][0]["checkpoint"], workdir=workdir, results=tmp_path)
+    assert np.isfinite([p["xy"] for p in out["points"]]).all()
