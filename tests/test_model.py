@@ -8,7 +8,7 @@ from flax import nnx
 
 from fabricjax import catalog, synthetic
 from fabricjax.config import MODALITIES, Config
-from fabricjax.model import FabricNet, feature_shapes, predict, predict_one, rescale_unit
+from fabricjax.model import FabricNet, feature_shapes, predict, predict_one, rescale_unit, self_attention
 
 TINY = dict(preset="smoke", width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(4, 8), seq_len=10)
 COMBOS = [c for r in range(1, len(MODALITIES) + 1) for c in itertools.combinations(MODALITIES, r)]
@@ -100,3 +100,9 @@ def test_mismatched_audio_bins_and_missing_modalities_are_clear_errors():
         FabricNet(cfg, {"internal": (24,), "external": (32,)}, rngs=nnx.Rngs(0))
     with pytest.raises(ValueError, match="external"):
         FabricNet(cfg, {"internal": (24,)}, rngs=nnx.Rngs(0))
+
+
+def test_self_attention_matches_jax_reference():
+    qkv = jax.random.normal(jax.random.PRNGKey(0), (2, 7, 3, 4, 8))
+    ref = jax.nn.dot_product_attention(qkv[:, :, 0], qkv[:, :, 1], qkv[:, :, 2])
+    np.testing.assert_allclose(self_attention(qkv), ref, rtol=1e-5, atol=1e-5)
