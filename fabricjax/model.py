@@ -87,14 +87,17 @@ class ConvEncoder(nnx.Module):
 def self_attention(qkv: jax.Array) -> jax.Array:
     """Softmax attention of fused (B, T, 3, H, D) projections -> (B, T, H, D).
 
-    Written as two head-major einsums rather than `jax.nn.dot_product_attention`: on XLA's CPU
-    backend the latter batches badly under the seed `vmap` (a 5-seed block step cost 1.6-2x per
-    seed what one seed costs; the head-major form 0.8-1.0x; see `fabricjax.benchmark`).
+    Layout and formulation are chosen for XLA's CPU backend (measured with `fabricjax.benchmark`
+    and per-block micro-benchmarks): head-major einsums batch well under the seed `vmap`, where
+    `jax.nn.dot_product_attention` cost 1.6-2x per seed at 5 seeds; and normalising after the
+    value product (divide the (B, H, T, D) output, not the (B, H, T, T) weights, with the max
+    shift outside the gradient: softmax is shift-invariant) halves a block's training step.
     """
     q, k, v = jnp.moveaxis(qkv, (2, 3), (0, 2))  # each (B, H, T, D)
-    scores = jnp.einsum("bhtd,bhsd->bhts", q * q.shape[-1] ** -0.5, k)
-    weights = jax.nn.softmax(scores.astype(jnp.float32), axis=-1).astype(v.dtype)
-    return jnp.swapaxes(jnp.einsum("bhts,bhsd->bhtd", weights, v), 1, 2)
+    scores = jnp.einsum("bhtd,bhsd->bhts", q * q.shape[-1] ** -0.5, k).astype(jnp.float32)
+    e = jnp.exp(scores - jax.lax.stop_gradient(scores.max(axis=-1, keepdims=True)))
+    out = jnp.einsum("bhts,bhsd->bhtd", e.astype(v.dtype), v) / e.sum(axis=-1, keepdims=True).astype(v.dtype)
+    return jnp.swapaxes(out, 1, 2)
 
 
 class AttentionBlock(nnx.Module):

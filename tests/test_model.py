@@ -102,7 +102,10 @@ def test_mismatched_audio_bins_and_missing_modalities_are_clear_errors():
         FabricNet(cfg, {"internal": (24,)}, rngs=nnx.Rngs(0))
 
 
-def test_self_attention_matches_jax_reference():
-    qkv = jax.random.normal(jax.random.PRNGKey(0), (2, 7, 3, 4, 8))
-    ref = jax.nn.dot_product_attention(qkv[:, :, 0], qkv[:, :, 1], qkv[:, :, 2])
-    np.testing.assert_allclose(self_attention(qkv), ref, rtol=1e-5, atol=1e-5)
+def test_self_attention_and_its_gradient_match_jax_reference():
+    qkv = 4 * jax.random.normal(jax.random.PRNGKey(0), (2, 7, 3, 4, 8))
+    w = jax.random.normal(jax.random.PRNGKey(1), (2, 7, 4, 8))
+    ref = lambda x: jax.nn.dot_product_attention(x[:, :, 0], x[:, :, 1], x[:, :, 2])  # noqa: E731
+    np.testing.assert_allclose(self_attention(qkv), ref(qkv), rtol=1e-5, atol=1e-5)
+    grad = lambda f: jax.grad(lambda x: (f(x) * w).sum())(qkv)  # noqa: E731
+    np.testing.assert_allclose(grad(self_attention), grad(ref), rtol=1e-4, atol=1e-4)
