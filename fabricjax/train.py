@@ -72,7 +72,8 @@ def rotation_augment(config: Config) -> Augment | None:
 
 
 def masked_cross_entropy(logits: jax.Array, labels: jax.Array) -> jax.Array:
-    valid = labels >= 0
+    """Mean cross-entropy over known labels; -1 (unknown) and labels beyond the head are ignored."""
+    valid = (labels >= 0) & (labels < logits.shape[-1])
     ce = optax.softmax_cross_entropy_with_integer_labels(logits, jnp.maximum(labels, 0))
     return jnp.where(valid, ce, 0.0).sum() / jnp.maximum(valid.sum(), 1)
 

@@ -71,6 +71,7 @@ def test_pure_train_function_under_jit_vmap_matches_the_library_entry(four_seeds
 def test_masked_loss_and_accuracy_ignore_unknown_labels():
     logits = np.zeros((3, 4), np.float32)
     assert float(masked_cross_entropy(logits, np.array([-1, -1, -1]))) == 0.0
+    assert float(masked_cross_entropy(logits, np.array([-1, 4, 0]))) == pytest.approx(np.log(4))
     assert float(masked_accuracy(np.array([1, 2, 3]), np.array([1, -1, 0]))) == 0.5
 
 
