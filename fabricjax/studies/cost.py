@@ -267,6 +267,7 @@ def markdown(doc: dict[str, Any]) -> str:
         f"{', '.join(doc['pareto_front']['touch_s'])} | {', '.join(doc['pareto_front']['latency_p50_ms'])}",
         f"- figure: `{doc['figure']}`; **bold**: the paper's configuration on this preset",
         "",
+        "",
     ]
     header = ["point", "N", "touch [s]", "backbone", "width", "band [kHz]", "modalities", "params",
               "test acc [%]", "train [s]", "p50 [ms]", "p99 [ms]", "front"]

@@ -1,0 +1,42 @@
+"""Live classification of one trial at 50 Hz (see fabricjax/stream.py).
+
+    python -m experiments.stream                                  # quick default-preset model, first test trial
+    python -m experiments.stream --archive=PATH --checkpoint=DIR  # any trial, any streamable checkpoint
+    python -m experiments.stream --realtime=false                 # as fast as possible
+
+Without --checkpoint a one-seed model of --preset is trained on first use (about a minute on the
+default preset) and checkpointed under the workspace; later runs restore it.
+"""
+
+from absl import app, flags as absl_flags
+
+from experiments import flags
+from fabricjax import splits, stream
+
+FLAGS = absl_flags.FLAGS
+absl_flags.DEFINE_string("archive", None, "trial archive to replay (default: the first test-day trial of the model's dataset)")
+absl_flags.DEFINE_string("checkpoint", None, "checkpoint directory of a train_and_evaluate run (default: a quick model of --preset)")
+absl_flags.DEFINE_enum("preset", "default", sorted(splits.PRESETS), "preset of the quick model and its dataset")
+absl_flags.DEFINE_list("modalities", ["internal", "external"], "modalities of the quick model (internal, external, proprio)")
+absl_flags.DEFINE_integer("epochs", None, "epochs of the quick model (default: the preset's)")
+absl_flags.DEFINE_bool("realtime", True, "replay at 50 Hz; false: as fast as possible")
+absl_flags.DEFINE_integer("print_every", 1, "print every k-th step (0: summary only)")
+
+
+def main(argv):
+    del argv
+    loc = flags.location_kwargs()
+    stream.run(
+        archive_path=FLAGS.archive,
+        checkpoint_dir=FLAGS.checkpoint,
+        preset=FLAGS.preset,
+        modalities=tuple(FLAGS.modalities),
+        epochs=FLAGS.epochs,
+        realtime=FLAGS.realtime,
+        print_every=FLAGS.print_every,
+        **loc,
+    )
+
+
+if __name__ == "__main__":
+    app.run(main)

@@ -1,0 +1,269 @@
+"""Live classification: a rolling window of features, updated for the newest step only.
+
+    streamer = Streamer(graphdef, params, config)     # a trained model and its config
+    report = replay(streamer, trial, realtime=True)   # a TrialArchive, step by step at 50 Hz
+
+Every step brings one 2048-sample window per microphone and the 18 joint values. One jitted
+update computes the Welch PSD of just those windows (`welch_psd` on a (mics, 2048) batch, at the
+config's bandwidth), shifts the (N, F) windows by one step on the device (the oldest step drops
+out, buffers donated), and runs the model over the window. Nothing of the window is recomputed:
+the PSD of a step is computed once, when it arrives, and equals the batch feature of
+`features.extract.log_psd` for that step. The model itself does run over the whole window each
+step: its per-sequence [0, 1] rescale and attention see every step.
+
+A decision needs a full window (N steps, N / 50 Hz seconds of touch): the model's position
+embedding has exactly N entries and one compiled shape keeps the update fast. The first N - 1
+steps only fill the window (the same update runs, its prediction is not reported).
+
+Per-step latency is host-to-host: from the step's raw data in hand (slicing its windows out of
+the recording, as a live reader would out of its ring buffer) to the class probabilities on the
+host. Only audio and proprioception stream; image and flow models are rejected.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import time
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import nnx
+
+from fabricjax import archive, catalog
+from fabricjax.config import Config
+from fabricjax.features import welch
+
+STREAMABLE = ("internal", "external", "proprio")
+STEP_S = 0.02  # 50 Hz
+
+
+@dataclasses.dataclass(frozen=True)
+class StepResult:
+    step: int
+    time_s: float  # since the trial's first step
+    probs: np.ndarray | None  # None while the window fills
+    latency_ms: float
+
+
+class Streamer:
+    """A model and its rolling window; `update` consumes one step."""
+
+    def __init__(self, graphdef: nnx.GraphDef, params, config: Config):
+        bad = [m for m in config.modalities if m not in STREAMABLE]
+        if bad:
+            raise ValueError(f"streaming supports the modalities {STREAMABLE}; the model uses {bad}")
+        self.config = config
+        self.n = config.sequence_length
+        self.mics = [archive.MIC_NAMES.index(m) for m in config.modalities if m in archive.MIC_NAMES]
+        self.params = params
+        bins = welch.n_bins(config.bandwidth_khz)
+        self.window = {
+            m: jnp.zeros((self.n, 18 if m == "proprio" else bins), jnp.float32) for m in config.modalities
+        }
+        self._update = jax.jit(functools.partial(_update, graphdef, config), donate_argnums=1)
+        self.steps = 0
+        self._empty = jax.tree.map(jnp.copy, self.window)
+
+    def warmup(self) -> None:
+        """Compile the update and run it once, then empty the window again."""
+        self.update(np.zeros((len(self.mics), archive.WINDOW), np.int32), np.zeros((archive.N_JOINTS, 3), np.float32))
+        self.window, self.steps = jax.tree.map(jnp.copy, self._empty), 0
+
+    def update(self, mic_windows: np.ndarray, joints: np.ndarray) -> np.ndarray | None:
+        """Push one step ((mics, 2048) int32 raw words of the model's microphones, (6, 3) joints);
+        returns the class probabilities once the window is full, else None."""
+        self.window, probs = self._update(self.params, self.window, mic_windows, joints)
+        self.steps += 1
+        probs = np.asarray(probs)  # waits for the step, full window or not
+        return probs if self.steps >= self.n else None
+
+
+def _update(graphdef, config: Config, params, window, mic_windows, joints):
+    """(new window, class probabilities of the model over it)."""
+    psd = welch.welch_psd(mic_windows, bandwidth_khz=config.bandwidth_khz) if mic_windows.shape[0] else None
+    mic = 0
+    new = {}
+    for m in config.modalities:
+        if m == "proprio":
+            x = joints.reshape(-1).astype(jnp.float32)
+        else:
+            x, mic = psd[mic], mic + 1
+        new[m] = jnp.concatenate([window[m][1:], x[None]])
+    logits = nnx.merge(graphdef, params)({m: w[None] for m, w in new.items()})["fabric"][0]
+    return new, jax.nn.softmax(logits)
+
+
+def step_windows(trial: archive.TrialArchive, step: int, mics: list[int]) -> np.ndarray:
+    """(len(mics), 2048) int32: the step's raw window of each microphone, zero-padded on the left
+    at the very start of a recording (as `features.extract.mic_windows`)."""
+    out = np.zeros((len(mics), archive.WINDOW), np.int32)
+    for i, mic in enumerate(mics):
+        end = int(trial.window_end[step, mic])
+        part = trial.audio[mic, max(0, end - archive.WINDOW) : end]
+        out[i, archive.WINDOW - len(part) :] = part
+    return out
+
+
+def class_name(label: int) -> str:
+    return catalog.fabric(label).name if 0 <= label < catalog.N_CLASSES else f"class {label}"
+
+
+def replay(
+    streamer: Streamer,
+    trial: archive.TrialArchive,
+    *,
+    realtime: bool = True,
+    on_step: Callable[[StepResult], None] | None = None,
+    max_steps: int | None = None,
+) -> dict:
+    """Feed a recorded trial to `streamer` step by step (at 50 Hz when `realtime`, else as fast as
+    possible) after one warm-up update, and summarise: time to the first correct decision,
+    accuracy over decided steps, per-step latency p50 / p99 and, in real time, the steps whose
+    result came after the end of their 20 ms slot (which also counts the OS waking the sleeping
+    loop late)."""
+    label = int(trial.meta["label"])
+    n_steps = min(trial.n_steps, max_steps or trial.n_steps)
+    stamps = trial.timestamps - trial.timestamps[0]
+    latencies, correct, first_correct, overruns = [], [], None, 0
+    streamer.warmup()
+    start = time.perf_counter()
+    for t in range(n_steps):
+        if realtime:
+            wait = start + t * STEP_S - time.perf_counter()
+            if wait > 0:
+                time.sleep(wait)
+        t0 = time.perf_counter()
+        probs = streamer.update(step_windows(trial, t, streamer.mics), trial.joints[t])
+        done = time.perf_counter()
+        ms = 1e3 * (done - t0)
+        if realtime and done > start + (t + 1) * STEP_S:
+            overruns += 1
+        if probs is not None:
+            latencies.append(ms)
+            ok = int(np.argmax(probs)) == label
+            correct.append(ok)
+            if ok and first_correct is None:
+                first_correct = t
+        if on_step is not None:
+            on_step(StepResult(t, float(stamps[t]), probs, ms))
+    lat = np.asarray(latencies)
+    return {
+        "label": label,
+        "fabric": class_name(label),
+        "steps": n_steps,
+        "window_steps": streamer.n,
+        "decided_steps": len(correct),
+        "accuracy_over_decided_steps": float(np.mean(correct)) if correct else None,
+        "first_correct_step": first_correct,
+        "time_to_first_correct_s": None if first_correct is None else float(stamps[first_correct] + STEP_S),
+        "latency_p50_ms": float(np.percentile(lat, 50)) if lat.size else None,
+        "latency_p99_ms": float(np.percentile(lat, 99)) if lat.size else None,
+        "latency_max_ms": float(lat.max()) if lat.size else None,
+        "realtime": realtime,
+        "late_steps": overruns if realtime else None,
+    }
+
+
+def format_step(r: StepResult, label: int) -> str:
+    """One line of the live printout: running prediction, confidence and latency."""
+    if r.probs is None:
+        return f"step {r.step:5d}  {r.time_s:6.2f} s  filling window  {r.latency_ms:6.2f} ms"
+    k = int(np.argmax(r.probs))
+    mark = "correct" if k == label else "wrong"
+    return f"step {r.step:5d}  {r.time_s:6.2f} s  {class_name(k):<28s} p={r.probs[k]:.2f}  {mark:<7s} {r.latency_ms:6.2f} ms"
+
+
+def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config]:
+    """(graphdef, best-validation params of the first seed, config) of a `train_and_evaluate` checkpoint."""
+    from fabricjax import checkpoint, train
+
+    config = Config.from_json(checkpoint.read_meta(checkpoint.manager(directory))["config"])
+    graphdef, state = train.restore(directory, config)
+    return graphdef, checkpoint.select_seed(state["best_params"], 0), config
+
+
+def quick_model(preset: str, modalities: tuple[str, ...], *, epochs: int | None = None, workdir=None, data_dir=None):
+    """(graphdef, params, config, checkpoint dir): one seed of the preset's study config, trained on
+    its dataset and checkpointed, so a rerun restores it instead of training again."""
+    from fabricjax.studies import common
+
+    config = common.study_config(preset, modalities=tuple(modalities), **({"epochs": epochs} if epochs else {}))
+    ds = common.load_dataset(config, data_dir=data_dir, workdir=workdir)
+    directory = common.checkpoint_dir("stream", "quick", config, [0], workdir)
+    row = common.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
+    return row.results.graphdef, row.results.params(0), config, directory
+
+
+def first_test_trial(folder) -> str:
+    """Path of the first test-day trial of a dataset folder (a class the model knows)."""
+    from fabricjax import splits
+
+    index = archive.load_index(folder)
+    roles = splits.assign_roles([e.meta for e in index.entries])
+    for e, role in zip(index.entries, roles):
+        if role == "test" and e.meta["label"] < catalog.N_CLASSES:
+            return str(index.path(e))
+    raise archive.ArchiveError(index.root, "<folder>", "no test-day trial of a known class")
+
+
+def run(
+    *,
+    archive_path=None,
+    checkpoint_dir=None,
+    preset: str = "default",
+    modalities: tuple[str, ...] = ("internal", "external"),
+    epochs: int | None = None,
+    realtime: bool = True,
+    print_every: int = 1,
+    workdir=None,
+    data_dir=None,
+    results="results",
+    command: str | None = None,
+    out: Callable[[str], None] = print,
+) -> dict:
+    """Classify one trial live and write results/stream.json; returns its document.
+
+    The model is `checkpoint_dir`'s (any `train_and_evaluate` checkpoint of a streamable config),
+    else a quick one-seed model of `preset` (trained once, then restored from its checkpoint).
+    The trial is `archive_path`, else the first test-day trial of the model's dataset.
+    """
+    from fabricjax import report, sim, workspace
+
+    if checkpoint_dir is not None:
+        graphdef, params, config = restore_model(checkpoint_dir)
+    else:
+        graphdef, params, config, checkpoint_dir = quick_model(preset, modalities, epochs=epochs, workdir=workdir, data_dir=data_dir)
+    if archive_path is None:
+        folder = data_dir or sim.ensure_dataset(config.preset, workdir, streams=("audio", "proprio"), progress=False)
+        archive_path = first_test_trial(folder)
+    trial = archive.read_archive(archive_path, images=False)
+    streamer = Streamer(graphdef, params, config)
+    label = int(trial.meta["label"])
+    out(f"{archive_path}: {class_name(label)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
+        f"N={streamer.n} steps ({streamer.n * STEP_S:.2f} s), {'+'.join(config.modalities)}")
+
+    def show(r: StepResult) -> None:
+        if print_every and (r.step % print_every == 0 or r.step == trial.n_steps - 1):
+            out(format_step(r, label))
+
+    summary = replay(streamer, trial, realtime=realtime, on_step=show)
+    first, step = summary["time_to_first_correct_s"], summary["first_correct_step"]
+    out(
+        f"first correct decision: {'never' if first is None else f'{first:.2f} s (step {step})'}; "
+        f"accuracy over {summary['decided_steps']} decided steps {100 * (summary['accuracy_over_decided_steps'] or 0):.1f} %; "
+        f"per-step latency p50 {summary['latency_p50_ms']:.2f} ms, p99 {summary['latency_p99_ms']:.2f} ms"
+        + (f"; {summary['late_steps']} of {summary['steps']} results came after their 20 ms slot" if realtime else "")
+    )
+    doc = {
+        "command": command,
+        "machine": report.machine(),
+        "archive": str(archive_path),
+        "checkpoint": str(checkpoint_dir),
+        "config": config.to_json(),
+        **summary,
+    }
+    report.write_json(workspace.results_dir(results) / "stream.json", doc)
+    return doc
