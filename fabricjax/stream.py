@@ -127,7 +127,7 @@ def replay(
     label = int(trial.meta["label"])
     n_steps = min(trial.n_steps, max_steps or trial.n_steps)
     stamps = trial.timestamps - trial.timestamps[0]
-    latencies, correct, first_correct, overruns = [], [], None, 0
+    latencies, correct, first_correct, late = [], [], None, 0
     streamer.warmup()
     start = time.perf_counter()
     for t in range(n_steps):
@@ -140,7 +140,7 @@ def replay(
         done = time.perf_counter()
         ms = 1e3 * (done - t0)
         if realtime and done > start + (t + 1) * STEP_S:
-            overruns += 1
+            late += 1
         if probs is not None:
             latencies.append(ms)
             ok = int(np.argmax(probs)) == label
@@ -163,7 +163,7 @@ def replay(
         "latency_p99_ms": float(np.percentile(lat, 99)) if lat.size else None,
         "latency_max_ms": float(lat.max()) if lat.size else None,
         "realtime": realtime,
-        "late_steps": overruns if realtime else None,
+        "late_steps": late if realtime else None,
     }
 
 

@@ -1,0 +1,244 @@
+"""Every speed benchmark in one command, side by side in one process; writes results/bench.json.
+
+    python -m experiments.bench                       # everything (a few minutes on 2 CPU cores)
+    python -m experiments.bench --quick               # smaller sizes, for a smoke check
+    python -m experiments.bench --only=training,inference
+
+Benchmarks (names for --only):
+    simulator    simulated seconds per wall second (audio + proprioception)
+    welch        `welch_psd` against `scipy.signal.welch` on 4096 windows x 2048 (float32 samples)
+    extraction   cold feature extraction (audio PSDs + proprioception) of the smoke dataset and the
+                 peak memory of a fresh process doing it; paper scale extrapolated linearly in steps
+    training     training step of the audio + proprioception model (batch 32, N=200, 320 bins,
+                 the paper's width 64 / 3 layers): ours for 1 and 5 vmapped seeds, the PyTorch
+                 twin's for 1 seed and 5 seeds one after another
+    inference    one 200-step sequence, p50 / p99: ours (jitted `predict_one`) and the twin's
+    streaming    per-step update of `fabricjax.stream` (newest PSDs + model over N=200 steps)
+                 on a simulated trial replayed as fast as possible
+    acquisition  the 50 Hz recording loop against the simulated devices: step times, deadline misses
+
+Ratios are ours / theirs for times (below 1: we are faster) and theirs / ours for the Welch
+speed-up. The PyTorch twin (`experiments.torch_twin`, `pip install -e ".[compare]"`) is optional:
+without torch the comparison is skipped with a note. Nothing here asserts a time.
+"""
+
+from __future__ import annotations
+
+import importlib
+import multiprocessing
+import time
+from typing import Any, Callable, Sequence
+
+import jax
+from absl import app, flags as absl_flags, logging
+
+from experiments import flags
+from fabricjax import archive, benchmark, report, sim, splits, stream, train, workspace
+from fabricjax.config import Config
+from fabricjax.features import bench as feature_bench
+
+BENCHMARKS = ("simulator", "welch", "extraction", "training", "inference", "streaming", "acquisition")
+# The issue's comparison shapes: the paper's model on two microphones (320 bins) + joints.
+MODEL = Config(preset="paper", modalities=("internal", "external", "proprio"), seq_len=200)
+BATCH, BINS = 32, 320
+PAPER_STEPS_PER_TRIAL = 1500  # ~50 rubbing cycles at 50 Hz (DESIGN.md)
+
+
+def _torch_twin():
+    """The twin module, or the reason it cannot be used."""
+    try:
+        return importlib.import_module("experiments.torch_twin"), None
+    except ImportError as e:
+        return None, f"PyTorch comparison skipped: {e} (install with pip install -e \".[compare]\")"
+
+
+def bench_simulator(quick: bool) -> dict:
+    return sim.bench_throughput(seconds=5.0 if quick else 30.0)
+
+
+def bench_welch(quick: bool) -> dict:
+    return feature_bench.bench_welch(n_windows=512 if quick else 4096, repeats=3 if quick else 5)
+
+
+def bench_extraction(quick: bool, workdir) -> dict:
+    """In a spawned process, so its peak memory is the extraction's alone."""
+    folder = sim.ensure_dataset("smoke", workdir, streams=("audio", "proprio"), progress=False)
+    config = Config(preset="smoke", modalities=("internal", "external", "proprio"))
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        out = pool.apply(feature_bench.bench_extraction, (config, folder))
+    steps = sum(e.n_steps for e in archive.load_index(folder).entries)
+    paper_steps = len(splits.preset("paper").trials()) * PAPER_STEPS_PER_TRIAL
+    return {
+        **out,
+        "dataset": "smoke",
+        "steps": steps,
+        "ms_per_step": 1e3 * out["cold_s"] / steps,
+        "paper_scale_extrapolated_s": out["cold_s"] / steps * paper_steps,
+        "paper_scale_note": f"extrapolated linearly in steps to {paper_steps} steps "
+        f"({len(splits.preset('paper').trials())} trials x ~{PAPER_STEPS_PER_TRIAL}), audio + proprioception only; not measured",
+    }
+
+
+def bench_training(quick: bool, twin) -> dict:
+    steps = 2 if quick else 4
+    out = {"shapes": {"batch": BATCH, "seq_len": MODEL.sequence_length, "psd_bins": BINS, "modalities": list(MODEL.modalities)}}
+    for n in (1, 5):
+        ours = benchmark.bench_train_step(MODEL, n, batch=BATCH, seq_len=MODEL.sequence_length, psd_bins=BINS, steps=steps, repeats=2 if quick else 3)
+        out[f"ours_{n}_seed"] = ours
+        if twin is not None:
+            theirs = twin.bench_train_step(MODEL, n_seeds=n, batch=BATCH, n_bins=BINS, steps=3 if quick else 10)
+            out[f"torch_{n}_seed"] = theirs
+            out[f"ratio_{n}_seed"] = ours["seconds_per_step"] / theirs["seconds_per_step"]
+    out["ours_5_over_1_per_seed"] = out["ours_5_seed"]["seconds_per_step"] / (5 * out["ours_1_seed"]["seconds_per_step"])
+    return out
+
+
+def bench_inference(quick: bool, twin) -> dict:
+    repeats = 30 if quick else 200
+    out = {"ours": benchmark.bench_inference(MODEL, seq_len=MODEL.sequence_length, psd_bins=BINS, repeats=repeats)}
+    if twin is not None:
+        out["torch"] = twin.bench_inference(MODEL, n_bins=BINS, repeats=repeats)
+        out["ratio_p50"] = out["ours"]["p50_ms"] / out["torch"]["p50_ms"]
+    return out
+
+
+def bench_streaming(quick: bool) -> dict:
+    """Untrained weights (latency does not depend on them) on a simulated trial longer than N."""
+    cycles = 6 if quick else 15
+    trial = sim.simulate(sim.Scene(12, cycles=cycles, streams=("audio", "proprio")))
+    trainer = train.make_trainer(MODEL, {"internal": (BINS,), "external": (BINS,), "proprio": (18,)})
+    params = jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"]
+    out = stream.replay(stream.Streamer(trainer.graphdef, params, MODEL), trial, realtime=False)
+    keep = ("steps", "window_steps", "decided_steps", "latency_p50_ms", "latency_p99_ms", "latency_max_ms")
+    return {k: out[k] for k in keep} | {"target_p99_ms": 20.0, "meets_target": out["latency_p99_ms"] <= 20.0}
+
+
+def bench_acquisition(quick: bool) -> dict:
+    from acquisition.recorder import bench_acquisition as run
+
+    return run(seconds=3.0 if quick else 10.0)
+
+
+def run(
+    *,
+    only: Sequence[str] | None = None,
+    quick: bool = False,
+    workdir=None,
+    results="results",
+    command: str | None = None,
+    out: Callable[[str], None] = print,
+) -> dict[str, Any]:
+    """Run the chosen benchmarks (all by default) in order; write results/bench.json and bench.md."""
+    chosen = list(only) if only else list(BENCHMARKS)
+    unknown = [b for b in chosen if b not in BENCHMARKS]
+    if unknown:
+        raise ValueError(f"unknown benchmarks {unknown}; choose from {BENCHMARKS}")
+    twin, note = (None, None)
+    if {"training", "inference"} & set(chosen):
+        twin, note = _torch_twin()
+        if note:
+            out(note)
+    jobs = {
+        "simulator": lambda: bench_simulator(quick),
+        "welch": lambda: bench_welch(quick),
+        "extraction": lambda: bench_extraction(quick, workdir),
+        "training": lambda: bench_training(quick, twin),
+        "inference": lambda: bench_inference(quick, twin),
+        "streaming": lambda: bench_streaming(quick),
+        "acquisition": lambda: bench_acquisition(quick),
+    }
+    doc: dict[str, Any] = {"command": command, "machine": report.machine(), "quick": quick, "torch": _torch_version(twin), "benchmarks": {}}
+    if note:
+        doc["torch_note"] = note
+    for name in (b for b in BENCHMARKS if b in chosen):
+        logging.info("bench: %s ...", name)
+        t = time.perf_counter()
+        doc["benchmarks"][name] = jobs[name]()
+        logging.info("bench: %s done in %.1f s", name, time.perf_counter() - t)
+    table = markdown(doc)
+    out(table)
+    folder = workspace.results_dir(results)
+    report.write_json(folder / "bench.json", doc)
+    report.write_text(folder / "bench.md", table)
+    return doc
+
+
+def _torch_version(twin) -> str | None:
+    return None if twin is None else twin.torch.__version__
+
+
+def markdown(doc: dict[str, Any]) -> str:
+    """The README table: one row per measurement, ours beside the reference where there is one."""
+    b, m = doc["benchmarks"], doc["machine"]
+    rows = []
+    if "training" in b:
+        t = b["training"]
+        for n in (1, 5):
+            ours = t[f"ours_{n}_seed"]["seconds_per_step"] * 1e3
+            theirs = t.get(f"torch_{n}_seed", {}).get("seconds_per_step")
+            how = "vmapped" if n > 1 else ""
+            rows.append([
+                f"training step, {n} seed{'s' if n > 1 else ''} {how}".strip() + " (batch 32, N=200)",
+                f"{ours:.0f} ms", _ms(theirs and theirs * 1e3, 0) + (" (in sequence)" if n > 1 and theirs else ""),
+                _ratio(t.get(f"ratio_{n}_seed")),
+            ])
+    if "inference" in b:
+        i = b["inference"]
+        theirs = i.get("torch")
+        rows.append([
+            "inference, one 200-step sequence, p50 / p99",
+            f"{i['ours']['p50_ms']:.2f} / {i['ours']['p99_ms']:.2f} ms",
+            f"{theirs['p50_ms']:.2f} / {theirs['p99_ms']:.2f} ms" if theirs else "n/a",
+            _ratio(i.get("ratio_p50")),
+        ])
+    if "streaming" in b:
+        s = b["streaming"]
+        rows.append(["streaming update per step (N=200), p50 / p99", f"{s['latency_p50_ms']:.2f} / {s['latency_p99_ms']:.2f} ms", "target p99 <= 20 ms", ""])
+    if "welch" in b:
+        w = b["welch"]
+        rows.append([
+            f"Welch PSD, {w['n_windows']} windows x 2048", f"{w['welch_psd_s'] * 1e3:.1f} ms",
+            f"scipy {w['scipy_welch_s'] * 1e3:.1f} ms", f"{w['speedup_vs_scipy']:.1f}x faster",
+        ])
+    if "simulator" in b:
+        s = b["simulator"]
+        rows.append(["scene simulator (audio + joints)", f"{s['realtime_factor']:.1f}x real time", "", ""])
+    if "extraction" in b:
+        e = b["extraction"]
+        rows.append([
+            f"feature extraction, {e['dataset']} dataset ({e['steps']} steps)",
+            f"{e['cold_s']:.1f} s, peak {e['peak_rss_mb']:.0f} MB", f"paper scale ~{e['paper_scale_extrapolated_s'] / 60:.0f} min (extrapolated)", "",
+        ])
+    if "acquisition" in b:
+        a = b["acquisition"]
+        rows.append([
+            "acquisition loop, 50 Hz step p50 / p99", f"{a['p50_ms']:.1f} / {a['p99_ms']:.1f} ms",
+            f"{a['missed_deadlines']} of {a['steps']} deadlines missed", "",
+        ])
+    head = f"Measured by `{doc['command']}` on {m['cpu']} ({m['cores']} cores), JAX {m['jax']}" + (
+        f", PyTorch {doc['torch']}" if doc["torch"] else ""
+    ) + (" (--quick sizes)" if doc["quick"] else "") + ". Ratio: ours / PyTorch time.\n\n"
+    return head + report.markdown_table(["benchmark", "fabricjax", "reference", "ratio"], rows)
+
+
+def _ms(x, digits: int) -> str:
+    return "n/a" if x is None else f"{x:.{digits}f} ms"
+
+
+def _ratio(r) -> str:
+    return "" if r is None else f"{r:.2f}"
+
+
+FLAGS = absl_flags.FLAGS
+absl_flags.DEFINE_list("only", None, f"benchmarks to run (default all): {','.join(BENCHMARKS)}")
+absl_flags.DEFINE_bool("quick", False, "smaller sizes and fewer repeats")
+
+
+def main(argv):
+    del argv
+    loc = flags.location_kwargs()
+    run(only=FLAGS.only, quick=FLAGS.quick, workdir=loc["workdir"], results=loc["results"], command=loc["command"])
+
+
+if __name__ == "__main__":
+    app.run(main)
