@@ -1,0 +1,137 @@
+"""The cost study, live streaming and the benchmark suite on the smoke preset, with tiny settings.
+
+Outputs are checked for shape and content; no time is asserted (timings are the benchmarks' job).
+"""
+
+import json
+
+import jax
+import numpy as np
+import pytest
+
+from experiments import bench
+from fabricjax import archive, sim, stream, train
+from fabricjax.config import Config
+from fabricjax.features import welch
+from fabricjax.features.extract import log_psd, mic_windows
+from fabricjax.studies import common, cost
+
+PNG = b"\x89PNG\r\n\x1a\n"
+TINY = dict(width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16))
+
+
+@pytest.fixture(scope="session")
+def smoke_workdir(tmp_path_factory):
+    """The smoke dataset (audio + joints), generated once for every test here."""
+    root = tmp_path_factory.mktemp("cost_stream_bench")
+    sim.ensure_dataset("smoke", root, streams=("audio", "proprio"), progress=False)
+    return root
+
+
+def test_sweep_is_one_factor_at_a_time_with_the_paper_point_capped():
+    base = common.study_config("smoke", modalities=("internal", "external"), seq_len=20)
+    points, paper = cost.sweep_points(
+        base, seq_lens=(10, 20, 200), backbones=("attention", "tcn"), widths=(8, 16), bandwidths=(2.5, 15.0),
+        modality_sets=[("internal", "external"), ("internal",)], max_len=120,
+    )
+    names = [p.name for p in points]
+    assert len(names) == len(set(names))
+    assert all(p.config.sequence_length <= 120 for p in points)  # N=200 skipped
+    grid = [p for p in points if p.group == "N x backbone"]
+    assert {(p.config.backbone, p.config.sequence_length) for p in grid} == {(b, n) for b in ("attention", "tcn") for n in (10, 20)}
+    # width 16 and 15 kHz and the first modality set are the base: no duplicate points
+    assert sorted(p.group for p in points if p.group not in ("N x backbone",)) == ["bandwidth", "modalities", "paper", "width"]
+    paper_cfg = next(p.config for p in points if p.name == paper)
+    assert (paper_cfg.sequence_length, paper_cfg.width, paper_cfg.ffn, paper_cfg.backbone) == (120, 64, 128, "attention")
+    assert paper_cfg.modalities == ("internal", "external") and paper_cfg.bandwidth_khz == 15.0
+
+
+def test_pareto_front_keeps_only_undominated_points():
+    pts = [
+        {"name": "a", "touch_s": 0.5, "accuracy_mean": 60.0},
+        {"name": "b", "touch_s": 1.0, "accuracy_mean": 55.0},  # slower and worse than a
+        {"name": "c", "touch_s": 2.0, "accuracy_mean": 80.0},
+        {"name": "d", "touch_s": 0.5, "accuracy_mean": 50.0},  # as fast as a, worse
+    ]
+    assert cost.pareto_front(pts, "touch_s") == ["a", "c"]
+
+
+def test_cost_run_writes_table_json_and_pareto_png(smoke_workdir, tmp_path):
+    doc = cost.run(
+        n_seeds=2, preset="smoke", seq_lens=(20,), backbones=("attention",), widths=(), bandwidths=(),
+        modality_sets=[("internal", "external")], latency_repeats=3, workdir=smoke_workdir, results=tmp_path,
+        command="test",
+    )
+    assert [p["group"] for p in doc["points"]] == ["N x backbone", "paper"]
+    assert doc["paper_point"] == doc["points"][1]["name"]
+    saved = json.loads((tmp_path / "cost.json").read_text())
+    for p in saved["points"]:
+        assert {"accuracy", "accuracy_mean", "accuracy_sd", "touch_s", "train_s", "latency_p50_ms", "latency_p99_ms", "params"} <= set(p)
+        assert len(p["accuracy"]) == 2 and p["params"] > 0 and p["latency_p99_ms"] >= p["latency_p50_ms"] > 0
+        assert p["touch_s"] == p["seq_len"] / 50
+    assert set(saved["pareto_front"]) == {"touch_s", "latency_p50_ms"} and "machine" in saved
+    md = (tmp_path / "cost.md").read_text()
+    assert f"**{doc['paper_point']}**" in md and "| point |" in md
+    assert (tmp_path / "cost_pareto.png").read_bytes()[:8] == PNG
+
+
+def _tiny_streamer(config):
+    shapes = {m: (18,) if m == "proprio" else (welch.n_bins(config.bandwidth_khz),) for m in config.modalities}
+    trainer = train.make_trainer(config, shapes)
+    return stream.Streamer(trainer.graphdef, jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"], config)
+
+
+def test_streaming_psd_of_the_newest_step_equals_the_batch_feature(smoke_workdir):
+    folder = smoke_workdir / "datasets" / "smoke"
+    trial = archive.read_archive(stream.first_test_trial(folder), images=False)
+    config = Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=8, bandwidth_khz=10.0, **TINY)
+    s = _tiny_streamer(config)
+    extra = 3
+    probs = [s.update(stream.step_windows(trial, t, s.mics), trial.joints[t]) for t in range(config.sequence_length + extra)]
+    assert all(p is None for p in probs[: config.sequence_length - 1])
+    assert all(p.shape == (21,) and np.isclose(p.sum(), 1, atol=1e-5) for p in probs[config.sequence_length - 1 :])
+    k = welch.n_bins(10.0)
+    steps = slice(extra, extra + config.sequence_length)
+    for m, mic in (("internal", 0), ("external", 1)):
+        batch = log_psd(mic_windows(trial, mic))[steps, :k]
+        np.testing.assert_allclose(np.asarray(s.window[m]), batch, rtol=0, atol=1e-5)
+    np.testing.assert_array_equal(np.asarray(s.window["proprio"]), trial.joints[steps].reshape(config.sequence_length, 18))
+
+
+def test_streamer_rejects_camera_models():
+    with pytest.raises(ValueError, match="streaming supports"):
+        stream.Streamer(None, None, Config(preset="smoke", modalities=("internal", "flow")))
+
+
+def test_stream_run_trains_a_quick_model_then_restores_it(smoke_workdir, tmp_path):
+    lines = []
+    doc = stream.run(preset="smoke", realtime=False, print_every=5, workdir=smoke_workdir, results=tmp_path, out=lines.append)
+    assert doc["decided_steps"] == doc["steps"] - doc["window_steps"] + 1 > 0
+    assert doc["latency_p99_ms"] >= doc["latency_p50_ms"] > 0 and doc["late_steps"] is None
+    assert any("p=" in line and "ms" in line for line in lines) and lines[-1].startswith("first correct decision")
+    assert json.loads((tmp_path / "stream.json").read_text())["archive"] == doc["archive"]
+    again = stream.run(checkpoint_dir=doc["checkpoint"], realtime=False, print_every=0, workdir=smoke_workdir, results=tmp_path, out=lines.append)
+    assert again["config"] == doc["config"]
+    assert again["accuracy_over_decided_steps"] == doc["accuracy_over_decided_steps"]
+
+
+def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
+    workload = bench.Workload(Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=12, **TINY), batch=8, bins=24)
+    lines = []
+    doc = bench.run(quick=True, workload=workload, workdir=smoke_workdir, results=tmp_path, command="test", out=lines.append)
+    saved = json.loads((tmp_path / "bench.json").read_text())
+    assert set(saved["benchmarks"]) == set(bench.BENCHMARKS) and saved["machine"]["cores"] > 0
+    b = saved["benchmarks"]
+    assert b["training"]["ours_5_seed"]["n_seeds"] == 5 and b["welch"]["speedup_vs_scipy"] > 0
+    assert b["streaming"]["decided_steps"] > 0 and b["extraction"]["peak_rss_mb"] > 0
+    assert "missed_deadlines" in b["acquisition"] and b["simulator"]["realtime_factor"] > 0
+    if doc["torch"] is not None:
+        assert {"ratio_1_seed", "ratio_5_seed"} <= set(b["training"]) and "ratio_p50" in b["inference"]
+    else:
+        assert "skipped" in doc["torch_note"]
+    assert "| benchmark |" in lines[-1] and (tmp_path / "bench.md").exists()
+
+
+def test_bench_rejects_unknown_names(tmp_path):
+    with pytest.raises(ValueError, match="unknown benchmarks"):
+        bench.run(only=["nope"], results=tmp_path)
