@@ -94,7 +94,8 @@ def self_attention(qkv: jax.Array) -> jax.Array:
     shift outside the gradient: softmax is shift-invariant) halves a block's training step.
     """
     q, k, v = jnp.moveaxis(qkv, (2, 3), (0, 2))  # each (B, H, T, D)
-    scores = jnp.einsum("bhtd,bhsd->bhts", q * q.shape[-1] ** -0.5, k).astype(jnp.float32)
+    # float32 scores even under float16 compute: a float16 product overflows to inf above 65504
+    scores = jnp.einsum("bhtd,bhsd->bhts", q * q.shape[-1] ** -0.5, k, preferred_element_type=jnp.float32)
     e = jnp.exp(scores - jax.lax.stop_gradient(scores.max(axis=-1, keepdims=True)))
     out = jnp.einsum("bhts,bhsd->bhtd", e.astype(v.dtype), v) / e.sum(axis=-1, keepdims=True).astype(v.dtype)
     return jnp.swapaxes(out, 1, 2)
