@@ -1,0 +1,61 @@
+"""The PyTorch twin (experiments/torch_twin.py) computes our model's function: equal weights, equal logits.
+
+Skipped where torch is not installed (it is an optional extra used only by the benchmarks).
+"""
+
+import jax
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from experiments import torch_twin  # noqa: E402
+from fabricjax import catalog, synthetic  # noqa: E402
+from fabricjax.config import Config  # noqa: E402
+from fabricjax.model import feature_shapes, predict  # noqa: E402
+from fabricjax.train import make_trainer, select  # noqa: E402
+
+SMALL = dict(preset="smoke", width=32, n_heads=4, n_layers=2, ffn=48, audio_hidden=(40, 24), proprio_hidden=(24, 16), seq_len=30)
+
+
+@pytest.mark.parametrize("modalities", [("internal", "external", "proprio"), ("proprio", "internal")])
+def test_twin_logits_equal_ours_with_the_same_weights(modalities):
+    cfg = Config(modalities=modalities, **SMALL)
+    data = select(cfg, synthetic.data_set(cfg, 5, psd_bins=20))
+    inputs = data["inputs"]
+    # Huge inputs: the rescale maps them to [0, 1]; scaled positions give large attention logits.
+    inputs = {k: v * 1e3 for k, v in inputs.items()}
+    trainer = make_trainer(cfg, feature_shapes(inputs))
+    params = trainer.init(jax.random.PRNGKey(3))["params"]
+    params["position"] = params["position"] * 50.0
+    ours = np.asarray(predict(trainer.graphdef, params, inputs)["fabric"])
+
+    twin = torch_twin.TorchFabricNet(cfg, n_bins=20).eval()
+    missing, unexpected = twin.load_state_dict(torch_twin.state_dict_from_params(params), strict=True)
+    assert not missing and not unexpected
+    with torch.inference_mode():
+        theirs = twin({k: torch.from_numpy(np.array(v)) for k, v in inputs.items()}).numpy()
+    assert theirs.shape == ours.shape == (5, catalog.N_CLASSES)
+    np.testing.assert_allclose(ours, theirs, rtol=1e-4, atol=1e-4)
+
+
+def test_twin_initialisation_matches_ours_in_scale():
+    cfg = Config(modalities=("internal", "proprio"), **SMALL)
+    twin = torch_twin.TorchFabricNet(cfg, n_bins=20)
+    trainer = make_trainer(cfg, {"internal": (20,), "proprio": (18,)})
+    ours = torch_twin.state_dict_from_params(trainer.init(jax.random.PRNGKey(0))["params"])
+    theirs = twin.state_dict()
+    assert set(ours) == set(theirs)
+    for name, value in ours.items():
+        assert value.shape == theirs[name].shape, name
+        # Same initialiser family: standard deviations agree within sampling noise.
+        if value.numel() >= 256:
+            np.testing.assert_allclose(float(theirs[name].std()), float(value.std()), rtol=0.25, err_msg=name)
+        elif name.endswith("bias"):
+            assert float(theirs[name].abs().max()) == float(value.abs().max()) == 0.0, name
+
+
+def test_twin_training_step_runs():
+    cfg = Config(modalities=("internal", "proprio"), **SMALL)
+    run = torch_twin.train_step_runner(cfg, n_seeds=2, batch=4, n_bins=20, steps=1)
+    assert run() > 0
