@@ -58,19 +58,24 @@ class Streamer:
         self.config = config
         self.n = config.sequence_length
         self.mics = [archive.MIC_NAMES.index(m) for m in config.modalities if m in archive.MIC_NAMES]
-        self.params = params
+        # Everything on one device: restored parameters may carry the training mesh's sharding, and
+        # a sharding that changed between steps would recompile the update mid-stream.
+        self.device = jax.devices()[0]
+        self.params = jax.device_put(params, self.device)
         bins = welch.n_bins(config.bandwidth_khz)
-        self.window = {
-            m: jnp.zeros((self.n, 18 if m == "proprio" else bins), jnp.float32) for m in config.modalities
-        }
+        self._empty = {m: np.zeros((self.n, 18 if m == "proprio" else bins), np.float32) for m in config.modalities}
         self._update = jax.jit(functools.partial(_update, graphdef, config), donate_argnums=1)
-        self.steps = 0
-        self._empty = jax.tree.map(jnp.copy, self.window)
+        self.reset()
+
+    def reset(self) -> None:
+        """An empty window."""
+        self.window, self.steps = jax.device_put(self._empty, self.device), 0
 
     def warmup(self) -> None:
-        """Compile the update and run it once, then empty the window again."""
-        self.update(np.zeros((len(self.mics), archive.WINDOW), np.int32), np.zeros((archive.N_JOINTS, 3), np.float32))
-        self.window, self.steps = jax.tree.map(jnp.copy, self._empty), 0
+        """Compile the update and run it twice (first window and steady state), then reset."""
+        for _ in range(2):
+            self.update(np.zeros((len(self.mics), archive.WINDOW), np.int32), np.zeros((archive.N_JOINTS, 3), np.float32))
+        self.reset()
 
     def update(self, mic_windows: np.ndarray, joints: np.ndarray) -> np.ndarray | None:
         """Push one step ((mics, 2048) int32 raw words of the model's microphones, (6, 3) joints);
