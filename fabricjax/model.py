@@ -48,7 +48,9 @@ def rescale_unit(x: jax.Array, axis: int = 1) -> jax.Array:
     x = x.astype(jnp.float32)
     lo = x.min(axis=axis, keepdims=True)
     hi = x.max(axis=axis, keepdims=True)
-    return (x - lo) / jnp.maximum(hi - lo, RESCALE_EPS)
+    # A constant dimension also gets a zero gradient: through the eps alone its cotangent is 1/eps
+    # times the upstream one, cancelling only in exact arithmetic (garbage in bfloat16, inf in float16).
+    return jnp.where(hi > lo, (x - lo) / jnp.maximum(hi - lo, RESCALE_EPS), 0.0)
 
 
 class MLP(nnx.Module):
