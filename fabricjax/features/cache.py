@@ -20,6 +20,7 @@ import hashlib
 import json
 import os
 import tempfile
+import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Iterator
@@ -57,7 +58,7 @@ def load(path: Path, fingerprint: str) -> np.ndarray | None:
     try:
         with np.load(path, allow_pickle=False) as z:
             return z["data"] if str(z["fingerprint"]) == fingerprint else None
-    except (OSError, ValueError, KeyError, EOFError):
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):  # a damaged file is recomputed
         return None
 
 
