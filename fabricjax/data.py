@@ -50,6 +50,7 @@ from fabricjax.features import cache, welch
 from fabricjax.features.extract import feature_for
 
 SPLITS = ("train", "val", "test", "cafe", "holdout")
+_SOURCE_FIELD = {"image": "images", "flow": "images", "proprio": "joints"}  # archive field behind a modality
 
 
 @dataclasses.dataclass(frozen=True)
@@ -134,6 +135,11 @@ def load_sequences(
             sizes = {t: sum(x.n_steps // n for x in members[t]) for t in SPLITS}
             inputs = {t: {m: np.empty((sizes[t], *a.shape[1:]), a.dtype) for m, a in trial.items()} for t in SPLITS}
         for m, a in trial.items():
+            if a.shape[1:] != inputs[s][m].shape[1:]:
+                raise archive.ArchiveError(
+                    index.path(e), _SOURCE_FIELD.get(m, "audio"),
+                    f"{m} sequences of shape {a.shape[1:]}, but the dataset's first trial gives {inputs[s][m].shape[1:]}",
+                )
             inputs[s][m][filled[s] : filled[s] + n_seq] = a
         filled[s] += n_seq
     return {s: SequenceSet(inputs[s], *_describe(members[s], n)) for s in SPLITS}
