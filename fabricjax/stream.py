@@ -55,6 +55,8 @@ class Streamer:
         bad = [m for m in config.modalities if m not in STREAMABLE]
         if bad:
             raise ValueError(f"streaming supports the modalities {STREAMABLE}; the model uses {bad}")
+        if not config.fabric_head:
+            raise ValueError("streaming classifies fabrics: the model needs its fabric head")
         self.config = config
         self.n = config.sequence_length
         self.mics = [archive.MIC_NAMES.index(m) for m in config.modalities if m in archive.MIC_NAMES]
