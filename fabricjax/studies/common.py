@@ -39,7 +39,7 @@ PRESET_TRAINING: dict[str, dict[str, Any]] = {
     ),
     "default": dict(
         width=32, n_heads=4, n_layers=2, ffn=64, audio_hidden=(64, 32), proprio_hidden=(32, 32),
-        cnn_features=(8, 16), epochs=15, batch_size=32, learning_rate=2e-3,
+        cnn_features=(4, 8), epochs=20, batch_size=16, learning_rate=2e-3,
     ),
     "paper": dict(),
 }
