@@ -3,12 +3,15 @@
 They time the real programs: `Trainer.train_epoch` (a scan over minibatches, vmapped over seeds,
 buffers donated) and the jitted `predict_one`, on synthetic data of the paper's shapes (320 PSD
 bins = 15 kHz of 512, N=200 steps). Compilation is excluded; nothing here asserts a time.
+`compare_with_torch` times ours and the optional PyTorch twin (`experiments.torch_twin`)
+interleaved in one process and reports the ratios.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
+from typing import Any, Callable, Sequence
 
 import jax
 import numpy as np
@@ -19,43 +22,150 @@ from fabricjax.model import feature_shapes, predict_one
 from fabricjax.train import make_trainer, seed_keys, select
 
 
-def bench_train_step(
-    config: Config, n_seeds: int, batch: int = 32, seq_len: int = 200, psd_bins: int = 320, steps: int = 4, repeats: int = 3
-) -> dict[str, float]:
-    """Best-of-`repeats` time of `steps` vmapped training steps: seconds per step and sequences/s per seed."""
+def train_step_runner(
+    config: Config, n_seeds: int, batch: int = 32, seq_len: int = 200, psd_bins: int = 320, steps: int = 4
+) -> Callable[[], float]:
+    """A compiled, warmed-up callable that runs one epoch of `steps` vmapped training steps (the real
+    `Trainer.train_epoch` scan, parameters and optimiser state donated) and returns seconds per step."""
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
     train = select(cfg, synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins))
     trainer = make_trainer(cfg, feature_shapes(train["inputs"]))
     states = jax.jit(jax.vmap(trainer.init))(seed_keys(range(n_seeds)))
-    carry = (states["params"], states["opt_state"])
     epoch = jax.jit(
         jax.vmap(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0
     )
     keys = states["key"]
-    params, opt_state, loss = epoch(carry, keys, train)  # compile and warm up
-    jax.block_until_ready(loss)
-    best = np.inf
-    for _ in range(repeats):
+    carry = [(states["params"], states["opt_state"])]
+    del states
+
+    def run() -> float:
         t = time.perf_counter()
-        params, opt_state, loss = epoch((params, opt_state), keys, train)
+        params, opt_state, loss = epoch(carry[0], keys, train)
         jax.block_until_ready(loss)
-        best = min(best, time.perf_counter() - t)
-    per_step = best / steps
+        seconds = time.perf_counter() - t
+        carry[0] = (params, opt_state)
+        return seconds / steps
+
+    run()  # compile and warm up
+    return run
+
+
+def bench_train_step(
+    config: Config, n_seeds: int, batch: int = 32, seq_len: int = 200, psd_bins: int = 320, steps: int = 4, repeats: int = 3
+) -> dict[str, float]:
+    """Best-of-`repeats` time of `steps` vmapped training steps: seconds per step and sequences/s per seed."""
+    run = train_step_runner(config, n_seeds, batch=batch, seq_len=seq_len, psd_bins=psd_bins, steps=steps)
+    per_step = min(run() for _ in range(repeats))
     return {"n_seeds": n_seeds, "seconds_per_step": per_step, "sequences_per_s_per_seed": batch / per_step}
 
 
-def bench_inference(config: Config, seq_len: int = 200, psd_bins: int = 320, repeats: int = 200) -> dict[str, float]:
-    """p50 / p99 latency in ms of `predict_one` on one sequence (dropout off, result on the host)."""
+def inference_runner(config: Config, seq_len: int = 200, psd_bins: int = 320) -> Callable[[], float]:
+    """A compiled, warmed-up callable returning the seconds of one `predict_one` call on one sequence
+    (dropout off, result ready)."""
     cfg = dataclasses.replace(config, seq_len=seq_len)
     inputs = select(cfg, synthetic.data_set(cfg, 1, psd_bins=psd_bins))["inputs"]
     trainer = make_trainer(cfg, feature_shapes(inputs))
     params = jax.jit(trainer.init)(seed_keys([0])[0])["params"]
     one = {k: v[0] for k, v in inputs.items()}
-    jax.block_until_ready(predict_one(trainer.graphdef, params, one))
-    times = []
-    for _ in range(repeats):
+
+    def run() -> float:
         t = time.perf_counter()
         jax.block_until_ready(predict_one(trainer.graphdef, params, one))
-        times.append(time.perf_counter() - t)
-    ms = 1e3 * np.asarray(times)
+        return time.perf_counter() - t
+
+    for _ in range(3):
+        run()
+    return run
+
+
+def bench_inference(config: Config, seq_len: int = 200, psd_bins: int = 320, repeats: int = 200) -> dict[str, float]:
+    """p50 / p99 latency in ms of `predict_one` on one sequence (dropout off, result on the host)."""
+    run = inference_runner(config, seq_len=seq_len, psd_bins=psd_bins)
+    ms = 1e3 * np.asarray([run() for _ in range(repeats)])
     return {"p50_ms": float(np.percentile(ms, 50)), "p99_ms": float(np.percentile(ms, 99))}
+
+
+# The issue's comparison workload: the paper's model on two microphones (320 bins) + joints.
+COMPARE_CONFIG = Config(preset="paper", modalities=("internal", "external", "proprio"), seq_len=200)
+
+
+def compare_with_torch(
+    config: Config | None = None,
+    *,
+    seeds: Sequence[int] = (1, 5),
+    batch: int = 32,
+    seq_len: int = 200,
+    psd_bins: int = 320,
+    steps: int = 4,
+    rounds: int = 5,
+    inference_rounds: int = 10,
+    inference_calls: int = 20,
+    pause_s: float = 0.05,
+) -> dict[str, Any]:
+    """Our training step and inference against the PyTorch twin's, interleaved in one process.
+
+    Every program is built and warmed up first; then each round times ours and the twin's
+    back to back for every seed count (who goes first alternates between rounds), so machine load
+    hits both alike. Ours trains `n` seeds in one vmapped program, the twin `n` models one after
+    another. Ratios are ours / twin (below 1: we are faster): `ratio` is the median of the
+    per-round ratios, `ratio_of_medians` the ratio of the median times. Inference alternates
+    blocks of `inference_calls` single-sequence calls. `pause_s` lets each side's worker threads
+    go idle before the other side runs. Needs torch (`pip install -e ".[compare]"`): the twin
+    (`experiments.torch_twin`) is imported here, never at module import.
+    """
+    import importlib
+
+    twin = importlib.import_module("experiments.torch_twin")
+    config = config or COMPARE_CONFIG
+    cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
+    ours = {n: train_step_runner(cfg, n, batch=batch, seq_len=seq_len, psd_bins=psd_bins, steps=steps) for n in seeds}
+    theirs = {n: twin.train_step_runner(cfg, n_seeds=n, batch=batch, n_bins=psd_bins, steps=steps) for n in seeds}
+    times: dict[str, dict[int, list[float]]] = {"ours": {n: [] for n in seeds}, "torch": {n: [] for n in seeds}}
+    for r in range(rounds):
+        for n in seeds:
+            order = (("ours", ours[n]), ("torch", theirs[n]))
+            for side, run in order if r % 2 == 0 else order[::-1]:
+                time.sleep(pause_s)
+                times[side][n].append(run())
+    training: dict[str, Any] = {}
+    for n in seeds:
+        o, t = np.asarray(times["ours"][n]), np.asarray(times["torch"][n])
+        training[f"{n}_seed"] = {
+            "ours_s_per_step": float(np.median(o)),
+            "torch_s_per_step": float(np.median(t)),
+            "ours_min_s": float(o.min()),
+            "torch_min_s": float(t.min()),
+            "ratio": float(np.median(o / t)),
+            "ratio_of_medians": float(np.median(o) / np.median(t)),
+            "ratio_of_mins": float(o.min() / t.min()),
+            "rounds": {"ours": o.tolist(), "torch": t.tolist()},
+        }
+    if 1 in seeds:
+        for n in seeds:
+            if n > 1:
+                # Our vmapped n seeds against n times one seed of ours (1.0: vmapping is free).
+                ratio = np.asarray(times["ours"][n]) / (n * np.asarray(times["ours"][1]))
+                training[f"{n}_seed"]["ours_per_seed_vs_1_seed"] = float(np.median(ratio))
+    del ours, theirs
+    run_ours = inference_runner(cfg, seq_len=seq_len, psd_bins=psd_bins)
+    run_theirs = twin.inference_runner(cfg, n_bins=psd_bins)
+    lat: dict[str, list[float]] = {"ours": [], "torch": []}
+    for r in range(inference_rounds):
+        order = (("ours", run_ours), ("torch", run_theirs))
+        for side, run in order if r % 2 == 0 else order[::-1]:
+            time.sleep(pause_s)
+            lat[side].extend(run() for _ in range(inference_calls))
+    ms = {k: 1e3 * np.asarray(v) for k, v in lat.items()}
+    inference = {
+        **{f"{k}_p50_ms": float(np.percentile(v, 50)) for k, v in ms.items()},
+        **{f"{k}_p99_ms": float(np.percentile(v, 99)) for k, v in ms.items()},
+        "ratio_p50": float(np.percentile(ms["ours"], 50) / np.percentile(ms["torch"], 50)),
+    }
+    return {
+        "shapes": {"batch": batch, "seq_len": seq_len, "psd_bins": psd_bins, "modalities": list(cfg.modalities)},
+        "steps_per_timing": steps,
+        "rounds": rounds,
+        "torch_threads": twin.torch.get_num_threads(),
+        "training": training,
+        "inference": inference,
+    }
