@@ -423,6 +423,7 @@ train_and_evaluate(RESUME, resume_sets(), [0, 1], workdir={workdir!r}, save_ever
 """
 
 
+@pytest.mark.slow  # a fresh process compiles the run: ~15-35 s; the on_save interruption in test_checkpoint.py runs always
 def test_training_killed_mid_epoch_resumes_from_its_last_checkpoint(tmp_path):
     workdir = tmp_path / "ckpt"
     code = _KILLED_TRAINER.format(root=str(ROOT), workdir=str(workdir))
