@@ -1,6 +1,6 @@
 """The paper's modality ablation, all 13 rows (see fabricjax/studies/ablation.py).
 
-    python -m experiments.ablation --seeds=5     # README main command: default preset, ~15 min on 2 CPU cores
+    python -m experiments.ablation --seeds=5     # README main command: default preset, wall time per row in results/ablation.md
 """
 
 from absl import app

@@ -27,10 +27,11 @@ from fabricjax.config import Config
 
 # Training settings per preset (configs are code). The model and optimiser fields not named here
 # keep `Config`'s defaults, which follow the paper.
-#   smoke    seconds per row: tests only, the numbers mean nothing.
-#   default  the README's main command: the 13-row ablation x 5 seeds trains in about 15 minutes
-#            on a 2-core CPU (measured numbers: results/ablation.md). Narrower than the paper's
-#            model and fewer epochs; best-validation selection picks the epoch.
+#   smoke    a tiny model for tests (XLA compilation dominates): the numbers mean nothing.
+#   default  the README's main command (13-row ablation x 5 seeds; target: training within 15
+#            minutes on a 2-core CPU, measured time in results/ablation.md). Narrower than the
+#            paper's model, few epochs, small CNNs: the camera rows (a CNN over every frame, plus
+#            the rotation augmentation for images) cost several times an audio row.
 #   paper    `Config`'s defaults at the paper's sequence length (N=200): a GPU job.
 PRESET_TRAINING: dict[str, dict[str, Any]] = {
     "smoke": dict(
