@@ -17,9 +17,11 @@ Benchmarks (names for --only):
                  on a simulated trial replayed as fast as possible
     acquisition  the 50 Hz recording loop against the simulated devices: step times, deadline misses
 
-Ratios are ours / theirs for times (below 1: we are faster) and theirs / ours for the Welch
-speed-up. The PyTorch twin (`experiments.torch_twin`, `pip install -e ".[compare]"`) is optional:
-without torch the comparison is skipped with a note. Nothing here asserts a time.
+Ours and the twin are timed in alternating rounds in this process (`benchmark.compare_with_torch`),
+so machine load hits both alike; ratios are ours / theirs for times (below 1: we are faster, the
+median of the per-round ratios for training) and scipy / ours for the Welch speed-up. The
+PyTorch twin (`experiments.torch_twin`, `pip install -e ".[compare]"`) is optional: without torch
+the comparison is skipped with a note. Nothing here asserts a time.
 """
 
 from __future__ import annotations
@@ -96,27 +98,43 @@ def bench_extraction(quick: bool, workdir) -> dict:
     }
 
 
-def bench_training(quick: bool, twin, w: Workload) -> dict:
-    steps, n_len = (2 if quick else 4), w.model.sequence_length
+def _interleaved(quick: bool, w: Workload) -> dict:
+    """Ours and the twin's training steps and inference timed in alternating rounds, so machine
+    load hits both alike (`benchmark.compare_with_torch`)."""
+    return benchmark.compare_with_torch(
+        w.model, seeds=(1, 5), batch=w.batch, seq_len=w.model.sequence_length, psd_bins=w.bins, steps=2 if quick else 4,
+        rounds=2 if quick else 5, inference_rounds=2 if quick else 10, inference_calls=5 if quick else 20,
+    )
+
+
+def bench_training(quick: bool, w: Workload, compared: dict | None) -> dict:
+    """Seconds per step, 1 and 5 seeds; beside the twin's (median of per-round ratios) when compared."""
     out: dict[str, Any] = {"workload": w.describe()}
     for n in (1, 5):
-        ours = benchmark.bench_train_step(w.model, n, batch=w.batch, seq_len=n_len, psd_bins=w.bins, steps=steps, repeats=2 if quick else 3)
-        out[f"ours_{n}_seed"] = ours
-        if twin is not None:
-            theirs = twin.bench_train_step(w.model, n_seeds=n, batch=w.batch, n_bins=w.bins, steps=3 if quick else 10)
-            out[f"torch_{n}_seed"] = theirs
-            out[f"ratio_{n}_seed"] = ours["seconds_per_step"] / theirs["seconds_per_step"]
+        if compared is None:
+            out[f"ours_{n}_seed"] = benchmark.bench_train_step(
+                w.model, n, batch=w.batch, seq_len=w.model.sequence_length, psd_bins=w.bins, steps=2 if quick else 4, repeats=2 if quick else 3
+            )
+            continue
+        c = compared["training"][f"{n}_seed"]
+        out[f"ours_{n}_seed"] = {"n_seeds": n, "seconds_per_step": c["ours_s_per_step"], "sequences_per_s_per_seed": w.batch / c["ours_s_per_step"]}
+        out[f"torch_{n}_seed"] = {"n_seeds": n, "seconds_per_step": c["torch_s_per_step"], "sequences_per_s_per_seed": w.batch * n / c["torch_s_per_step"]}
+        out[f"ratio_{n}_seed"] = c["ratio"]
     out["ours_5_over_1_per_seed"] = out["ours_5_seed"]["seconds_per_step"] / (5 * out["ours_1_seed"]["seconds_per_step"])
+    if compared is not None:
+        out["interleaved"] = {k: compared[k] for k in ("rounds", "steps_per_timing", "torch_threads", "training")}
     return out
 
 
-def bench_inference(quick: bool, twin, w: Workload) -> dict:
-    repeats = 30 if quick else 200
+def bench_inference(quick: bool, w: Workload, compared: dict | None) -> dict:
     out: dict[str, Any] = {"workload": w.describe()}
-    out["ours"] = benchmark.bench_inference(w.model, seq_len=w.model.sequence_length, psd_bins=w.bins, repeats=repeats)
-    if twin is not None:
-        out["torch"] = twin.bench_inference(w.model, n_bins=w.bins, repeats=repeats)
-        out["ratio_p50"] = out["ours"]["p50_ms"] / out["torch"]["p50_ms"]
+    if compared is None:
+        out["ours"] = benchmark.bench_inference(w.model, seq_len=w.model.sequence_length, psd_bins=w.bins, repeats=30 if quick else 200)
+        return out
+    c = compared["inference"]
+    out["ours"] = {"p50_ms": c["ours_p50_ms"], "p99_ms": c["ours_p99_ms"]}
+    out["torch"] = {"p50_ms": c["torch_p50_ms"], "p99_ms": c["torch_p99_ms"]}
+    out["ratio_p50"] = c["ratio_p50"]
     return out
 
 
@@ -161,12 +179,21 @@ def run(
         twin, note = _torch_twin()
         if note:
             out(note)
+    compared: dict[str, Any] = {}
+
+    def comparison():  # one interleaved run serves both the training and the inference entry
+        if twin is None:
+            return None
+        if not compared:
+            compared.update(_interleaved(quick, workload))
+        return compared
+
     jobs = {
         "simulator": lambda: bench_simulator(quick),
         "welch": lambda: bench_welch(quick),
         "extraction": lambda: bench_extraction(quick, workdir),
-        "training": lambda: bench_training(quick, twin, workload),
-        "inference": lambda: bench_inference(quick, twin, workload),
+        "training": lambda: bench_training(quick, workload, comparison()),
+        "inference": lambda: bench_inference(quick, workload, comparison()),
         "streaming": lambda: bench_streaming(quick, workload),
         "acquisition": lambda: bench_acquisition(quick),
     }
