@@ -36,11 +36,14 @@ def _gelu(x):
 
 
 class MLP(nn.Module):
-    def __init__(self, sizes):
+    def __init__(self, sizes, input_norm: bool = False):
         super().__init__()
+        self.input_norm = nn.LayerNorm(sizes[0], eps=LN_EPS) if input_norm else None
         self.layers = nn.ModuleList(nn.Linear(a, b) for a, b in zip(sizes[:-1], sizes[1:]))
 
     def forward(self, x):
+        if self.input_norm is not None:
+            x = self.input_norm(x)
         for layer in self.layers:
             x = _gelu(layer(x))
         return x
@@ -72,7 +75,7 @@ class TorchFabricNet(nn.Module):
         # Our model's order (fabricjax.config.MODALITIES), whatever the config's order.
         self.modalities = tuple(m for m in MODALITIES if m in config.modalities)
         audio = [m for m in self.modalities if m != "proprio"]
-        self.audio = MLP((n_bins, *config.audio_hidden)) if audio else None
+        self.audio = MLP((n_bins, *config.audio_hidden), input_norm=True) if audio else None
         self.proprio = MLP((18, *config.proprio_hidden)) if "proprio" in self.modalities else None
         dims = sum(config.proprio_hidden[-1] if m == "proprio" else config.audio_hidden[-1] for m in self.modalities)
         self.embed = nn.Linear(dims, config.width)
@@ -128,6 +131,8 @@ def state_dict_from_params(params: Mapping[str, Any]) -> dict[str, torch.Tensor]
         out[f"{prefix}.weight"] = t(p["scale"])
         out[f"{prefix}.bias"] = t(p["bias"])
 
+    if "audio" in params and params["audio"].get("input_norm"):
+        norm("audio.input_norm", params["audio"]["input_norm"])
     for enc in ("audio", "proprio"):
         if enc in params:
             for i, layer in sorted(params[enc]["layers"].items(), key=lambda kv: int(kv[0])):

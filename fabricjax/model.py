@@ -75,14 +75,24 @@ def rescale_unit(x: jax.Array, axis: int = 1) -> jax.Array:
 
 
 class MLP(nnx.Module):
-    """Linear layers with GELU between them and after the last (features feed the backbone)."""
+    """Linear layers with GELU between them and after the last (features feed the backbone).
 
-    def __init__(self, sizes: tuple[int, ...], *, dtype, rngs: nnx.Rngs):
+    `input_norm` puts a LayerNorm over the input features first. The audio encoder needs it: log10
+    PSD bins sit near -10, so without it the first layer's pre-activations have a spread of ~10,
+    most GELU units start dead, and some seeds never leave chance. Normalising each step's
+    spectrum keeps its shape (what identifies the fabric) and drops its overall level (which day-
+    to-day gain drift changes anyway).
+    """
+
+    def __init__(self, sizes: tuple[int, ...], *, dtype, rngs: nnx.Rngs, input_norm: bool = False):
+        self.input_norm = nnx.LayerNorm(sizes[0], rngs=rngs) if input_norm else None
         self.layers = nnx.List(
             [nnx.Linear(a, b, dtype=dtype, rngs=rngs) for a, b in zip(sizes[:-1], sizes[1:])]
         )
 
     def __call__(self, x):
+        if self.input_norm is not None:
+            x = self.input_norm(x)
         for layer in self.layers:
             x = jax.nn.gelu(layer(x))
         return x
@@ -180,7 +190,7 @@ class FabricNet(nnx.Module):
         if len(bins) > 1:
             raise ValueError(f"the shared audio encoder needs equal PSD bins for {audio}, got {bins}")
         cnn = config.cnn_features
-        self.audio = MLP((*bins, *config.audio_hidden), dtype=dtype, rngs=rngs) if audio else None
+        self.audio = MLP((*bins, *config.audio_hidden), dtype=dtype, rngs=rngs, input_norm=True) if audio else None
         self.proprio = (
             MLP((shapes["proprio"][-1], *config.proprio_hidden), dtype=dtype, rngs=rngs)
             if "proprio" in self.modalities
