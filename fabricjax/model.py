@@ -99,21 +99,32 @@ class MLP(nnx.Module):
 
 
 class ConvEncoder(nnx.Module):
-    """Strided 2-D convolutions then a global mean pool: resolution-independent per-frame features."""
+    """Non-overlapping strided convolutions (kernel = stride: 5x5, then 2x2 merges), ReLU, and a
+    global mean pool: resolution-independent per-frame features.
+
+    Why kernel = stride: XLA's CPU convolutions with a handful of channels run far below its matrix
+    product speed, and a non-overlapping convolution is a reshape plus one matrix product (2.5x
+    faster forward + backward than 5x5/4 and 3x3/2 convolutions on 800 60x80 frames). Frames come
+    200 per sequence, so this encoder is what the camera rows' training time is made of.
+    """
+
+    PATCHES = (5, 2, 2, 2)
 
     def __init__(self, in_channels: int, features: tuple[int, ...], *, dtype, rngs: nnx.Rngs):
+        if len(features) > len(self.PATCHES):
+            raise ValueError(f"at most {len(self.PATCHES)} CNN layers, got {features}")
         sizes = (in_channels, *features)
-        # The first layer strides by 4: frames come 200 per sequence, so early downsampling pays.
-        self.convs = nnx.List(
-            [
-                nnx.Conv(a, b, (5, 5) if i == 0 else (3, 3), 4 if i == 0 else 2, dtype=dtype, rngs=rngs)
-                for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:]))
-            ]
+        self.layers = nnx.List(
+            [nnx.Linear(p * p * a, b, dtype=dtype, rngs=rngs) for p, a, b in zip(self.PATCHES, sizes[:-1], sizes[1:])]
         )
 
     def __call__(self, x):  # (M, H, W, C)
-        for conv in self.convs:
-            x = jax.nn.relu(conv(x))
+        for p, layer in zip(self.PATCHES, self.layers):
+            m, h, w, c = x.shape
+            p = max(1, min(p, h, w))  # tiny inputs: the patch shrinks to what is there
+            h, w = h // p, w // p
+            x = x[:, : h * p, : w * p].reshape(m, h, p, w, p, c).transpose(0, 1, 3, 2, 4, 5)
+            x = jax.nn.relu(layer(x.reshape(m, h, w, p * p * c)))
         return x.mean(axis=(1, 2))
 
 
