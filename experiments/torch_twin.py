@@ -77,6 +77,9 @@ class TorchFabricNet(nn.Module):
         audio = [m for m in self.modalities if m != "proprio"]
         self.audio = MLP((n_bins, *config.audio_hidden), input_norm=True) if audio else None
         self.proprio = MLP((18, *config.proprio_hidden)) if "proprio" in self.modalities else None
+        if self.proprio is not None:  # the model's fixed joint standardisation (see FabricNet)
+            self.register_buffer("proprio_shift", torch.zeros(18))
+            self.register_buffer("proprio_scale", torch.ones(18))
         dims = sum(config.proprio_hidden[-1] if m == "proprio" else config.audio_hidden[-1] for m in self.modalities)
         self.embed = nn.Linear(dims, config.width)
         self.position = nn.Parameter(torch.randn(config.sequence_length, config.width) * 0.02)
@@ -103,7 +106,10 @@ class TorchFabricNet(nn.Module):
         nn.init.normal_(self.position, std=0.02)
 
     def forward(self, inputs):
-        parts = [self.proprio(inputs[m]) if m == "proprio" else self.audio(inputs[m]) for m in self.modalities]
+        parts = [
+            self.proprio((inputs[m] - self.proprio_shift) * self.proprio_scale) if m == "proprio" else self.audio(inputs[m])
+            for m in self.modalities
+        ]
         x = torch.cat(parts, -1)
         lo, hi = x.amin(1, keepdim=True), x.amax(1, keepdim=True)
         x = (x - lo) / (hi - lo).clamp_min(1e-6)
@@ -137,6 +143,9 @@ def state_dict_from_params(params: Mapping[str, Any]) -> dict[str, torch.Tensor]
         if enc in params:
             for i, layer in sorted(params[enc]["layers"].items(), key=lambda kv: int(kv[0])):
                 dense(f"{enc}.layers.{int(i)}", layer)
+    for k in ("proprio_shift", "proprio_scale"):
+        if k in params:
+            out[k] = t(params[k])
     dense("embed", params["embed"])
     out["position"] = t(params["position"])
     for i, block in sorted(params["blocks"].items(), key=lambda kv: int(kv[0])):

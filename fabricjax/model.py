@@ -207,6 +207,13 @@ class FabricNet(nnx.Module):
             if "proprio" in self.modalities
             else None
         )
+        if self.proprio is not None:
+            # Joint values span four orders of magnitude (currents ~1e-3 A apart, velocities ~1 rad/s),
+            # and their absolute levels carry the load: standardise each with the training split's
+            # statistics, set by `train.with_input_statistics` and held fixed (no gradient, no decay).
+            n = shapes["proprio"][-1]
+            self.proprio_shift = nnx.Param(jnp.zeros(n, jnp.float32))
+            self.proprio_scale = nnx.Param(jnp.ones(n, jnp.float32))
         self.image = ConvEncoder(3, cnn, dtype=dtype, rngs=rngs) if "image" in self.modalities else None
         self.flow = ConvEncoder(2, cnn, dtype=dtype, rngs=rngs) if "flow" in self.modalities else None
         out = {"proprio": config.proprio_hidden[-1], "image": cnn[-1], "flow": cnn[-1]}
@@ -238,7 +245,8 @@ class FabricNet(nnx.Module):
             elif m == "flow":
                 x = self.flow(jnp.moveaxis(x.astype(self.dtype), 1, -1))
             elif m == "proprio":
-                x = self.proprio(x.astype(self.dtype))
+                shift, scale = jax.lax.stop_gradient((self.proprio_shift[...], self.proprio_scale[...]))
+                x = self.proprio(((x.astype(jnp.float32) - shift) * scale).astype(self.dtype))
             else:
                 x = self.audio(x.astype(self.dtype))
             parts.append(x.reshape(b, n, -1))

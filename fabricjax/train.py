@@ -226,6 +226,24 @@ def unpad(metrics, sizes: Mapping[str, int]):
     }
 
 
+def input_statistics(config: Config, train_set) -> dict[str, jax.Array]:
+    """The model's fixed input standardisation, from the (unpadded) training split."""
+    if "proprio" not in config.modalities:
+        return {}
+    inputs = train_set["inputs"] if isinstance(train_set, Mapping) else train_set.inputs
+    x = jnp.asarray(inputs["proprio"], jnp.float32).reshape(-1, inputs["proprio"].shape[-1])
+    return {"proprio_shift": x.mean(axis=0), "proprio_scale": 1.0 / jnp.maximum(x.std(axis=0), 1e-6)}
+
+
+def with_input_statistics(state: dict[str, Any], stats: Mapping[str, jax.Array]) -> dict[str, Any]:
+    """`state` (one seed's, or stacked over seeds) with the input statistics written into its parameters."""
+
+    def put(params):
+        return {**params, **{k: jnp.broadcast_to(v, params[k].shape).astype(params[k].dtype) for k, v in stats.items()}}
+
+    return {**state, "params": put(state["params"]), "best_params": put(state["best_params"])}
+
+
 def make_train(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None = None, augment: Augment | None = None):
     """A pure `train(key) -> (state, metrics)` over data closed over on the device.
 
@@ -235,8 +253,10 @@ def make_train(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] 
     data, sizes = prepare(config, train_set, val_set, eval_sets)
     trainer = make_trainer(config, feature_shapes(data["train"]["inputs"]), augment or rotation_augment(config))
 
+    stats = input_statistics(config, train_set)
+
     def train(key):
-        state = trainer.run(trainer.init(key), data, config.epochs)
+        state = trainer.run(with_input_statistics(trainer.init(key), stats), data, config.epochs)
         return state, unpad(trainer.finish(state, data), sizes)
 
     return train
@@ -316,7 +336,8 @@ def train_and_evaluate(
         )
         state, done = checkpoint.restore(mngr, abstract, run_meta)
     else:
-        state, done = init(keys), 0
+        stats = input_statistics(config, data_sets["train"])
+        state, done = jax.device_put(with_input_statistics(init(keys), stats), per_seed), 0
     every = save_every or config.epochs
     while done < config.epochs:
         n = min(every, config.epochs - done)

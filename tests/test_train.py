@@ -121,3 +121,16 @@ def test_image_training_applies_the_rotation_augmentation():
     res = train_and_evaluate(cfg, sets, seeds=[0], augment=augment)
     assert calls == [(8, 8, 12, 16, 3)]  # traced once, inside the training step, on each minibatch
     assert np.isfinite(res.metrics["train_loss"]).all()
+
+
+def test_joint_standardisation_comes_from_the_training_split_and_stays_fixed():
+    cfg = Config(preset="smoke", modalities=("proprio",), width=16, n_layers=1, ffn=16, epochs=2, batch_size=8, seq_len=8)
+    sets = {k: synthetic.data_set(cfg, n, seed=s) for k, n, s in (("train", 16, 0), ("val", 8, 1))}
+    sets["train"]["inputs"]["proprio"] = sets["train"]["inputs"]["proprio"] * 1e-3 + 5.0  # tiny spread, large offset
+    x = sets["train"]["inputs"]["proprio"].reshape(-1, 18)
+    r = train_and_evaluate(cfg, sets, (0, 1))
+    for key in ("params", "best_params"):
+        p = r.state[key]
+        np.testing.assert_allclose(np.asarray(p["proprio_shift"])[1], x.mean(0), rtol=1e-5)
+        np.testing.assert_allclose(np.asarray(p["proprio_scale"])[0], 1 / x.std(0), rtol=1e-3)
+    assert np.all(np.isfinite(r.metrics["train_loss"]))
