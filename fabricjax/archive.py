@@ -26,12 +26,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import tempfile
 import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from fabricjax.atomic import atomic_open
 
 FORMAT_VERSION = 1
 INDEX_NAME = "index.json"
@@ -218,17 +219,8 @@ def write_archive(path: os.PathLike | str, archive: TrialArchive) -> Path:
     """Validate, then write atomically: a reader never sees a half-written archive."""
     path = Path(path)
     validate(archive, path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, meta=np.array(json.dumps(archive.meta)), **archive.arrays())
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_open(path) as f:
+        np.savez(f, meta=np.array(json.dumps(archive.meta)), **archive.arrays())
     return path
 
 
@@ -308,19 +300,6 @@ class DatasetIndex:
         return [e for e in self.entries if all(e.meta.get(k) == v for k, v in where.items())]
 
 
-def _atomic_write_text(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def build_index(folder: os.PathLike | str) -> DatasetIndex:
     """Scan a folder of archives (hardware or simulated) and write its `index.json`."""
     root = Path(folder)
@@ -332,7 +311,8 @@ def build_index(folder: os.PathLike | str) -> DatasetIndex:
         st = p.stat()
         entries.append(IndexEntry(p.name, meta, n, st.st_size, st.st_mtime_ns))
     doc = {"format_version": FORMAT_VERSION, "trials": [dataclasses.asdict(e) for e in entries]}
-    _atomic_write_text(root / INDEX_NAME, json.dumps(doc, indent=1))
+    with atomic_open(root / INDEX_NAME, "w") as f:
+        f.write(json.dumps(doc, indent=1))
     return DatasetIndex(root, tuple(entries))
 
 

@@ -5,11 +5,12 @@ from __future__ import annotations
 import json
 import os
 import platform
-import tempfile
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
+
+from fabricjax.atomic import atomic_open
 
 
 def machine() -> dict[str, Any]:
@@ -49,17 +50,9 @@ def _default(o):
 
 def write_text(path: os.PathLike | str, text: str) -> Path:
     """Atomic: a reader sees the old file or the new one, never half of one."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    with atomic_open(path, "w") as f:
+        f.write(text)
+    return Path(path)
 
 
 def write_json(path: os.PathLike | str, doc: Any) -> Path:

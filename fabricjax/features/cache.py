@@ -19,7 +19,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -29,6 +28,7 @@ import numpy as np
 from tqdm import tqdm
 
 from fabricjax import archive
+from fabricjax.atomic import atomic_open
 from fabricjax.features.extract import Feature
 
 
@@ -43,14 +43,8 @@ def folder(features_root: Path, dataset_root: Path, feature: Feature) -> Path:
 
 
 def _atomic_write(path: Path, write) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_open(path) as f:
+        write(f)
 
 
 def load(path: Path, fingerprint: str) -> np.ndarray | None:
