@@ -13,7 +13,6 @@ The simulator is the same for every row: differences from the paper are findings
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, Sequence
 
 import numpy as np
@@ -42,9 +41,7 @@ def run(
     chosen = common.select_rows(paper_tables.ABLATION, rows)
     seeds = common.seed_list(n_seeds)
     configs = [common.study_config(preset, **{"backbone": r.backbone, **overrides, "modalities": r.modalities}) for r in chosen]
-    ds = common.load_dataset(
-        dataclasses.replace(configs[0], modalities=common.union_modalities(configs)), data_dir=data_dir, workdir=workdir
-    )
+    ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir)
     progress = common.Progress("ablation", len(chosen))
     trained = {}
     for r, config in zip(chosen, configs):

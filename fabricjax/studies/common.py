@@ -98,6 +98,11 @@ def union_modalities(configs: Sequence[Config]) -> tuple[str, ...]:
     return tuple(sorted({m for c in configs for m in c.modalities}))
 
 
+def load_for_rows(configs: Sequence[Config], *, data_dir=None, workdir=None) -> Dataset:
+    """The sequences of every modality any row uses, loaded once for all rows."""
+    return load_dataset(dataclasses.replace(configs[0], modalities=union_modalities(configs)), data_dir=data_dir, workdir=workdir)
+
+
 class Progress:
     """Logs 'row i/n' with the elapsed time and an ETA from the mean time of finished rows."""
 

@@ -10,7 +10,6 @@ over 10 seeds: p >= 2 / 2^10 = 0.002) and per cafe sequence pooled over seeds (`
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, Sequence
 
 import numpy as np
@@ -38,9 +37,7 @@ def run(
     chosen = common.select_rows(ROWS, rows, name=lambda r: r[0])
     seeds = common.seed_list(n_seeds)
     configs = [common.study_config(preset, **{**overrides, "modalities": mods}) for _, mods, *_ in chosen]
-    ds = common.load_dataset(
-        dataclasses.replace(configs[0], modalities=common.union_modalities(configs)), data_dir=data_dir, workdir=workdir
-    )
+    ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir)
     if len(ds.sets[SPLIT]) == 0:
         raise ValueError(f"the dataset in {ds.folder} has no cafe-condition trials to test on")
     labels = ds.sets[SPLIT].labels["fabric"]

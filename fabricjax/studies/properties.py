@@ -16,7 +16,6 @@ The trained models (all seeds) are saved as an orbax checkpoint per row; `experi
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, Sequence
 
 import numpy as np
@@ -46,9 +45,7 @@ def run(
     chosen = common.select_rows(ROWS, rows, name=lambda r: r[0])
     seeds = common.seed_list(n_seeds)
     configs = [common.study_config(preset, **{**overrides, **SETTINGS, "modalities": mods}) for _, mods in chosen]
-    ds = common.load_dataset(
-        dataclasses.replace(configs[0], modalities=common.union_modalities(configs)), data_dir=data_dir, workdir=workdir
-    )
+    ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir)
     progress = common.Progress("properties", len(chosen))
     out_rows = []
     for (name, mods), config in zip(chosen, configs):
