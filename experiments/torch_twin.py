@@ -6,7 +6,8 @@ encoder shared by both microphones, [0, 1] rescale over time, Dense + learned po
 pre-LayerNorm attention blocks with fused QKV and `scaled_dot_product_attention`, final
 LayerNorm (epsilon 1e-6 like Flax), mean over time, ReLU hidden layer, linear head), initialised
 from the same distributions (LeCun-normal truncated kernels, zero biases, N(0, 0.02) positions),
-and trained like `fabricjax.train` (global-norm clip 1.0, AdamW decaying weight matrices only).
+and trained like `fabricjax.train` (global-norm clip 1.0, AdamW decaying weight matrices only; the
+twin keeps a constant learning rate, which costs the same per step as our warm-up schedule).
 `state_dict_from_params` converts our parameter pytree to this module's `state_dict`, so the two
 can be checked for equal logits (tests/test_torch_twin.py).
 Optional: install with `pip install -e ".[compare]"`; nothing in `fabricjax` imports torch at
