@@ -178,3 +178,12 @@ def test_index_build_load_and_missing_file(tmp_path):
 def test_index_of_missing_folder(tmp_path):
     with pytest.raises(archive.ArchiveError, match="does not exist"):
         archive.build_index(tmp_path / "nope")
+
+
+def test_written_files_get_the_usual_permissions(tmp_path):
+    old = os.umask(0o022)
+    try:
+        p = archive.write_archive(tmp_path / "t.npz", tiny_archive())
+    finally:
+        os.umask(old)
+    assert p.stat().st_mode & 0o777 == 0o644
