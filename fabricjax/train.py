@@ -55,7 +55,9 @@ def make_optimizer(config: Config) -> optax.GradientTransformation:
     return optax.chain(
         optax.clip_by_global_norm(1.0),
         optax.adamw(
-            optax.linear_schedule(0.0, config.learning_rate, max(config.warmup_steps, 1)),
+            optax.linear_schedule(0.0, config.learning_rate, config.warmup_steps)
+            if config.warmup_steps > 0
+            else config.learning_rate,
             weight_decay=config.weight_decay,
             mask=decay_mask,
         ),
