@@ -25,7 +25,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from fabricjax import catalog
+from fabricjax import benchmark, catalog
 from fabricjax.config import MODALITIES, Config
 
 LN_EPS = 1e-6  # flax.nnx.LayerNorm's default epsilon
@@ -235,5 +235,4 @@ def inference_runner(config: Config, *, n_bins: int = 320) -> Callable[[], float
 def bench_inference(config: Config, *, n_bins: int = 320, repeats: int = 200) -> dict:
     """Latency of one sequence through the eval-mode model (p50 / p99 milliseconds)."""
     run = inference_runner(config, n_bins=n_bins)
-    ms = np.array([run() for _ in range(repeats)]) * 1e3
-    return {"p50_ms": float(np.percentile(ms, 50)), "p99_ms": float(np.percentile(ms, 99))}
+    return benchmark.percentiles_ms([run() for _ in range(repeats)])

@@ -59,6 +59,12 @@ def bench_train_step(
     return {"n_seeds": n_seeds, "seconds_per_step": per_step, "sequences_per_s_per_seed": batch / per_step}
 
 
+def percentiles_ms(seconds) -> dict[str, float]:
+    """p50 / p99 in milliseconds of repeated timings (seconds)."""
+    ms = 1e3 * np.asarray(seconds)
+    return {"p50_ms": float(np.percentile(ms, 50)), "p99_ms": float(np.percentile(ms, 99))}
+
+
 def inference_runner(config: Config, seq_len: int = 200, psd_bins: int = 320) -> Callable[[], float]:
     """A compiled, warmed-up callable returning the seconds of one `predict_one` call on one sequence
     (dropout off, result ready)."""
@@ -81,8 +87,7 @@ def inference_runner(config: Config, seq_len: int = 200, psd_bins: int = 320) ->
 def bench_inference(config: Config, seq_len: int = 200, psd_bins: int = 320, repeats: int = 200) -> dict[str, float]:
     """p50 / p99 latency in ms of `predict_one` on one sequence (dropout off, result on the host)."""
     run = inference_runner(config, seq_len=seq_len, psd_bins=psd_bins)
-    ms = 1e3 * np.asarray([run() for _ in range(repeats)])
-    return {"p50_ms": float(np.percentile(ms, 50)), "p99_ms": float(np.percentile(ms, 99))}
+    return percentiles_ms([run() for _ in range(repeats)])
 
 
 # The issue's comparison workload: the paper's model on two microphones (320 bins) + joints.

@@ -1,5 +1,7 @@
 """Small builders shared by tests (not fixtures: plain functions tests call explicitly)."""
 
+import json
+
 import numpy as np
 
 from fabricjax import archive, catalog
@@ -37,3 +39,14 @@ def tiny_dataset(folder, trials, n_steps=45, images=(12, 16)):
         a = tiny_archive(n, fabric_id=fabric_id, day=day, trial=trial, condition=condition, images=images, seed=i)
         archive.write_archive(f"{folder}/{archive.trial_filename(a.meta)}", a)
     return folder
+
+
+def npz_fields(base, **changes):
+    """The npz fields of archive `base` with some replaced (None deletes): bypasses validation."""
+    fields = {"meta": np.array(json.dumps(base.meta)), **base.arrays()}
+    for k, v in changes.items():
+        if v is None:
+            fields.pop(k)
+        else:
+            fields[k] = v
+    return fields

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fabricjax import archive
-from tests.helpers import tiny_archive
+from tests.helpers import npz_fields, tiny_archive
 
 
 def test_round_trip(tmp_path):
@@ -36,14 +36,7 @@ def test_images_optional_and_skippable(tmp_path):
 
 def _rewrite(path, **changes):
     """Write an npz with some fields replaced (None deletes) bypassing validation."""
-    a = tiny_archive()
-    fields = {"meta": np.array(json.dumps(a.meta)), **a.arrays()}
-    for k, v in changes.items():
-        if v is None:
-            fields.pop(k)
-        else:
-            fields[k] = v
-    np.savez(path, **fields)
+    np.savez(path, **npz_fields(tiny_archive(), **changes))
     return path
 
 

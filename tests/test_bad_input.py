@@ -18,7 +18,7 @@ import pytest
 
 from fabricjax import archive, checkpoint, data, synthetic, train
 from fabricjax.config import Config
-from tests.helpers import tiny_archive, tiny_dataset
+from tests.helpers import npz_fields, tiny_archive, tiny_dataset
 
 TRIALS = [(4, 1, 0, "lab"), (4, 1, 1, "lab"), (4, 3, 0, "lab")]  # train, val, test
 VICTIM = "fabric04_day1_trial01_lab.npz"
@@ -37,14 +37,7 @@ def dataset(tmp_path):
 
 
 def _npz_fields(**changes):
-    a = tiny_archive(41, fabric_id=4, day=1, trial=1, images=None, seed=1)
-    fields = {"meta": np.array(json.dumps(a.meta)), **a.arrays()}
-    for k, v in changes.items():
-        if v is None:
-            fields.pop(k)
-        else:
-            fields[k] = v
-    return fields
+    return npz_fields(tiny_archive(41, fabric_id=4, day=1, trial=1, images=None, seed=1), **changes)
 
 
 def _meta(**kw):

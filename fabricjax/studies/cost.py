@@ -39,7 +39,7 @@ import jax
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, data, plots, report, splits, stats
+from fabricjax import archive, benchmark, data, plots, report, splits, stats
 from fabricjax.config import AUDIO_MODALITIES, Config
 from fabricjax.features import welch
 from fabricjax.model import predict_one
@@ -129,8 +129,7 @@ def inference_latency(graphdef, params, inputs: dict[str, np.ndarray], repeats: 
         t = time.perf_counter()
         jax.device_get(predict_one(graphdef, params, one))
         times.append(time.perf_counter() - t)
-    ms = 1e3 * np.asarray(times)
-    return {"latency_p50_ms": float(np.percentile(ms, 50)), "latency_p99_ms": float(np.percentile(ms, 99))}
+    return {f"latency_{k}": v for k, v in benchmark.percentiles_ms(times).items()}
 
 
 def pareto_front(points: Sequence[dict], key: str) -> list[str]:
