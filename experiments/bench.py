@@ -102,8 +102,8 @@ def _interleaved(quick: bool, w: Workload) -> dict:
     """Ours and the twin's training steps and inference timed in alternating rounds, so machine
     load hits both alike (`benchmark.compare_with_torch`)."""
     return benchmark.compare_with_torch(
-        w.model, seeds=(1, 5), batch=w.batch, seq_len=w.model.sequence_length, psd_bins=w.bins, steps=2 if quick else 4,
-        rounds=2 if quick else 5, inference_rounds=2 if quick else 10, inference_calls=5 if quick else 20,
+        w.model, seeds=(1, 5), batch=w.batch, seq_len=w.model.sequence_length, psd_bins=w.bins, steps=2 if quick else benchmark.STEPS_PER_EPOCH,
+        rounds=2 if quick else 5, pause_s=0.05 if quick else 1.0, inference_rounds=2 if quick else 10, inference_calls=5 if quick else 20,
     )
 
 
@@ -113,7 +113,7 @@ def bench_training(quick: bool, w: Workload, compared: dict | None) -> dict:
     for n in (1, 5):
         if compared is None:
             out[f"ours_{n}_seed"] = benchmark.bench_train_step(
-                w.model, n, batch=w.batch, seq_len=w.model.sequence_length, psd_bins=w.bins, steps=2 if quick else 4, repeats=2 if quick else 3
+                w.model, n, batch=w.batch, seq_len=w.model.sequence_length, psd_bins=w.bins, steps=2 if quick else benchmark.STEPS_PER_EPOCH, repeats=2 if quick else 3
             )
             continue
         c = compared["training"][f"{n}_seed"]
