@@ -2,8 +2,9 @@
 
     sets = load_sequences(config, data_dir, workdir=None)     # dict[str, SequenceSet]
 
-Keys of `sets` are always `SPLITS` = ("train", "val", "test", "cafe", "holdout"); a split with no
-trials is a `SequenceSet` of 0 sequences with the same trailing shapes. Splits come from the
+Keys of `sets` are the requested `split_names`, by default all of `SPLITS` = ("train", "val", "test",
+"cafe", "holdout"); a split with no trials is a `SequenceSet` of 0 sequences with the same
+trailing shapes. Trials of splits not requested are not read (no features are computed for them). Splits come from the
 archives' meta (`splits.assign_roles` with the preset's `Splits`), so a folder of real
 recordings works the same as a simulated one:
 
@@ -41,6 +42,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from typing import Sequence
 
 import numpy as np
 
@@ -105,20 +107,27 @@ def load_sequences(
     workdir: str | os.PathLike | None = None,
     workers: int | None = None,
     progress: bool = True,
+    split_names: Sequence[str] = SPLITS,
 ) -> dict[str, SequenceSet]:
-    """Every split of the dataset in `data_dir` as sequences of the config's modalities."""
+    """The splits `split_names` of the dataset in `data_dir` as sequences of the config's modalities."""
+    unknown = [s for s in split_names if s not in SPLITS]
+    if unknown:
+        raise ValueError(f"unknown splits {unknown}; choose from {SPLITS}")
+    wanted = tuple(s for s in SPLITS if s in split_names)
     index = archive.load_index(data_dir)
     roles = splits.assign_roles([e.meta for e in index.entries], splits.preset(config.preset).splits)
-    chosen = [(e, s) for e, r in zip(index.entries, roles) if (s := split_of(e.meta, r, config.exclude_fabrics))]
+    chosen = [
+        (e, s) for e, r in zip(index.entries, roles) if (s := split_of(e.meta, r, config.exclude_fabrics)) in wanted
+    ]
     if not chosen:
-        raise archive.ArchiveError(index.root, "<folder>", "no trial belongs to any split (check days and conditions)")
+        raise archive.ArchiveError(index.root, "<folder>", f"no trial belongs to the splits {list(wanted)} (check days and conditions)")
     n = config.sequence_length
     for e, _ in chosen:
         if e.n_steps < n:
             raise archive.ArchiveError(
                 index.path(e), "timestamps", f"{e.n_steps} steps, shorter than one sequence of N={n} steps"
             )
-    members = {s: [e for e, t in chosen if t == s] for s in SPLITS}
+    members = {s: [e for e, t in chosen if t == s] for s in wanted}
     features = {m: feature_for(m, config.image_resolution) for m in config.modalities}
     feats = cache.trial_features(
         index, [e for e, _ in chosen], list(features.values()), workspace.features_dir(workdir),
@@ -127,13 +136,13 @@ def load_sequences(
     # Each trial's sequences are copied into arrays preallocated from the index's step counts,
     # so the dataset is held once (not per trial and again concatenated).
     inputs: dict[str, dict[str, np.ndarray]] = {}
-    filled = dict.fromkeys(SPLITS, 0)
+    filled = dict.fromkeys(wanted, 0)
     for (e, s), f in zip(chosen, feats):
         n_seq = e.n_steps // n
         trial = {m: _sequences(f[feat.name], m, n_seq, n, config) for m, feat in features.items()}
         if not inputs:
-            sizes = {t: sum(x.n_steps // n for x in members[t]) for t in SPLITS}
-            inputs = {t: {m: np.empty((sizes[t], *a.shape[1:]), a.dtype) for m, a in trial.items()} for t in SPLITS}
+            sizes = {t: sum(x.n_steps // n for x in members[t]) for t in wanted}
+            inputs = {t: {m: np.empty((sizes[t], *a.shape[1:]), a.dtype) for m, a in trial.items()} for t in wanted}
         for m, a in trial.items():
             if a.shape[1:] != inputs[s][m].shape[1:]:
                 raise archive.ArchiveError(
@@ -142,4 +151,4 @@ def load_sequences(
                 )
             inputs[s][m][filled[s] : filled[s] + n_seq] = a
         filled[s] += n_seq
-    return {s: SequenceSet(inputs[s], *_describe(members[s], n)) for s in SPLITS}
+    return {s: SequenceSet(inputs[s], *_describe(members[s], n)) for s in wanted}

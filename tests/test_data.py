@@ -130,3 +130,17 @@ def test_trial_shorter_than_a_sequence_names_the_file(tmp_path):
     ds = tiny_dataset(tmp_path / "ds", [(4, 1, 0, "lab"), (4, 3, 0, "lab")], n_steps={(4, 3, 0, "lab"): 19})
     with pytest.raises(archive.ArchiveError, match=r"fabric04_day3_trial00_lab\.npz: field 'timestamps': 19 steps"):
         data.load_sequences(_config(), ds, workdir=tmp_path / "ws", progress=False)
+
+
+def test_only_the_requested_splits_are_read(dataset, tmp_path, reads):
+    full = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws1", progress=False)
+    n_read = len(reads)
+    sets = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws2", progress=False, split_names=("test", "train"))
+    assert list(sets) == ["train", "test"]  # in SPLITS order
+    for s in sets:
+        np.testing.assert_array_equal(sets[s].inputs["internal"], full[s].inputs["internal"])
+    second = [name for name, _ in reads[n_read:]]  # the second load's reads: no cafe or validation trial
+    assert second and not any("cafe" in name for name in second)
+    assert not any(name in second for name in full["val"].info["trial_key"])
+    with pytest.raises(ValueError, match="unknown splits"):
+        data.load_sequences(_config(), dataset, workdir=tmp_path / "ws3", progress=False, split_names=("training",))

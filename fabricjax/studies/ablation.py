@@ -41,7 +41,7 @@ def run(
     chosen = common.select_rows(paper_tables.ABLATION, rows)
     seeds = common.seed_list(n_seeds)
     configs = [common.study_config(preset, **{"backbone": r.backbone, **overrides, "modalities": r.modalities}) for r in chosen]
-    ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir)
+    ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=common.TRAIN_VAL_TEST)
     progress = common.Progress("ablation", len(chosen))
     trained = {}
     for r, config in zip(chosen, configs):

@@ -55,7 +55,7 @@ def run(
     chosen = common.select_rows(sorted(paper_tables.BANDWIDTH), rows, name=row_name)
     seeds = common.seed_list(n_seeds)
     base = common.study_config(preset, **{**overrides, "modalities": MODALITIES})
-    ds = common.load_dataset(dataclasses.replace(base, bandwidth_khz=max(paper_tables.BANDWIDTH)), data_dir=data_dir, workdir=workdir)
+    ds = common.load_dataset(dataclasses.replace(base, bandwidth_khz=max(paper_tables.BANDWIDTH)), data_dir=data_dir, workdir=workdir, split_names=common.TRAIN_VAL_TEST)
     progress = common.Progress("bandwidth", len(chosen))
     out_rows = []
     for khz in chosen:

@@ -79,8 +79,12 @@ class Dataset:
     load_s: float  # features (cached after the first run) and sequences
 
 
-def load_dataset(config: Config, *, data_dir=None, workdir=None) -> Dataset:
-    """Every split as sequences of `config.modalities` (the union a study needs), loaded once."""
+# The splits a study that evaluates on the lab test day needs (no cafe or holdout features computed).
+TRAIN_VAL_TEST = ("train", "val", "test")
+
+
+def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS) -> Dataset:
+    """The splits a study evaluates as sequences of `config.modalities` (the union it needs), loaded once."""
     t0 = time.perf_counter()
     if data_dir:
         folder, source = workspace.dataset_dir(config.preset, workdir, data_dir), "recorded"
@@ -88,7 +92,7 @@ def load_dataset(config: Config, *, data_dir=None, workdir=None) -> Dataset:
         streams = ("audio", "proprio") + (("images",) if {"image", "flow"} & set(config.modalities) else ())
         folder, source = sim.ensure_dataset(config.preset, workdir, streams=streams), "simulated"
     t1 = time.perf_counter()
-    sets = data.load_sequences(config, folder, workdir=workdir)
+    sets = data.load_sequences(config, folder, workdir=workdir, split_names=split_names)
     t2 = time.perf_counter()
     logging.info("dataset %s (%s): %s", folder, source, {k: len(v) for k, v in sets.items()})
     return Dataset(sets, Path(folder), source, t1 - t0, t2 - t1)
@@ -98,9 +102,10 @@ def union_modalities(configs: Sequence[Config]) -> tuple[str, ...]:
     return tuple(sorted({m for c in configs for m in c.modalities}))
 
 
-def load_for_rows(configs: Sequence[Config], *, data_dir=None, workdir=None) -> Dataset:
+def load_for_rows(configs: Sequence[Config], *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS) -> Dataset:
     """The sequences of every modality any row uses, loaded once for all rows."""
-    return load_dataset(dataclasses.replace(configs[0], modalities=union_modalities(configs)), data_dir=data_dir, workdir=workdir)
+    merged = dataclasses.replace(configs[0], modalities=union_modalities(configs))
+    return load_dataset(merged, data_dir=data_dir, workdir=workdir, split_names=split_names)
 
 
 class Progress:

@@ -202,7 +202,7 @@ def run(
     base = common.study_config(
         preset, backbone=backbones[0], modalities=tuple(modality_sets[0]), seq_len=base_seq_len or splits.preset(preset).seq_len, **overrides
     )
-    first = common.load_dataset(base, data_dir=data_dir, workdir=workdir)
+    first = common.load_dataset(base, data_dir=data_dir, workdir=workdir, split_names=common.TRAIN_VAL_TEST)
     max_len = _shortest_trial(first.folder)
     points, paper_name = sweep_points(
         base, seq_lens, backbones, widths, bandwidths, [tuple(m) for m in modality_sets], paper=paper, max_len=max_len
@@ -217,7 +217,8 @@ def run(
         n = p.config.sequence_length
         if n != loaded_n:  # every point of one N shares the sequences, loaded once at the widest band
             load = dataclasses.replace(base, seq_len=n, modalities=union, bandwidth_khz=widest)
-            sets, loaded_n = common.load_dataset(load, data_dir=data_dir, workdir=workdir).sets, n
+            sets = common.load_dataset(load, data_dir=data_dir, workdir=workdir, split_names=common.TRAIN_VAL_TEST).sets
+            loaded_n = n
         progress.start(p.name)
         r = measure(p, sets, seeds, latency_repeats)
         rows.append(r)

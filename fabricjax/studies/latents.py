@@ -76,7 +76,7 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
         raise KeyError(f"seed {seed} is not in the checkpoint in {checkpoint_dir} (seeds {saved['seeds']})")
     params = checkpoint.select_seed(state["best_params"], index)
 
-    ds = common.load_dataset(config, data_dir=data_dir, workdir=workdir)
+    ds = common.load_dataset(config, data_dir=data_dir, workdir=workdir, split_names=("test", "holdout"))
     test_day = _concat([ds.sets["test"], ds.sets["holdout"]])
     points, fabrics, keys, counts = trial_means(graphdef, params, test_day, config.modalities)
     xy, perplexity = tsne(points)

@@ -37,7 +37,7 @@ def run(
     chosen = common.select_rows(ROWS, rows, name=lambda r: r[0])
     seeds = common.seed_list(n_seeds)
     configs = [common.study_config(preset, **{**overrides, "modalities": mods}) for _, mods, *_ in chosen]
-    ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir)
+    ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=(*common.TRAIN_VAL_TEST, SPLIT))
     if len(ds.sets[SPLIT]) == 0:
         raise ValueError(f"the dataset in {ds.folder} has no cafe-condition trials to test on")
     labels = ds.sets[SPLIT].labels["fabric"]
