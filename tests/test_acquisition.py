@@ -5,7 +5,6 @@ import os
 import random
 import re
 import signal
-import threading
 
 import numpy as np
 import pytest
@@ -167,16 +166,22 @@ def test_recoverable_faults_are_counted(signals, tmp_path):
 
 def test_ctrl_c_keeps_an_incomplete_archive(signals, tmp_path):
     with simulated.simulated_rig(signals) as rig:
-        timer = threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT))
-        timer.start()
-        try:
-            with pytest.raises(KeyboardInterrupt, match="complete=False"):
-                recorder.record_trial(rig, sim_signals.procedure(2), fabric_id=12, day=1, trial=4, out_dir=tmp_path)
-        finally:
-            timer.cancel()
+        # A real SIGINT, sent at the 10th frame (a wall-clock timer raced the 1-s procedure under load).
+        read, calls = rig.camera.read, []
+
+        def read_then_interrupt():
+            calls.append(1)
+            if len(calls) == 10:
+                os.kill(os.getpid(), signal.SIGINT)
+            return read()
+
+        rig.camera.read = read_then_interrupt
+        with pytest.raises(KeyboardInterrupt, match="complete=False"):
+            recorder.record_trial(rig, sim_signals.procedure(2), fabric_id=12, day=1, trial=4, out_dir=tmp_path)
     (path,) = tmp_path.glob("*.npz")
     arch = archive.read_archive(path)
     assert arch.meta["complete"] is False and arch.meta["failure"] == "interrupted (Ctrl-C)"
+    assert len(arch.timestamps) == 9  # the steps before the interrupted one
     assert not list(tmp_path.glob(".*partial"))
 
 
