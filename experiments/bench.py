@@ -3,6 +3,8 @@
     python -m experiments.bench                       # everything (a few minutes on 2 CPU cores)
     python -m experiments.bench --quick               # smaller sizes, for a smoke check
     python -m experiments.bench --only=training,inference
+    XLA_FLAGS=--xla_force_host_platform_device_count=2 python -m experiments.bench --only=training --train_seeds=1,4 --results=/tmp/b
+                                                      # seeds sharded over 2 host devices (one per core)
 
 Benchmarks (names for --only):
     simulator    simulated seconds per wall second (audio + proprioception)
@@ -10,7 +12,7 @@ Benchmarks (names for --only):
     extraction   cold feature extraction (audio PSDs + proprioception) of the smoke dataset and the
                  peak memory of a fresh process doing it; paper scale extrapolated linearly in steps
     training     training step of the audio + proprioception model (batch 32, N=200, 320 bins,
-                 the paper's width 64 / 3 layers): ours for 1 and 5 vmapped seeds, the PyTorch
+                 the paper's width 64 / 3 layers): ours for 1 and 5 vmapped seeds (--train_seeds), the PyTorch
                  twin's for 1 seed and 5 seeds one after another
     inference    one 200-step sequence, p50 / p99: ours (jitted `predict_one`) and the twin's
     streaming    per-step update of `fabricjax.stream` (newest PSDs + model over N=200 steps)
@@ -29,6 +31,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import multiprocessing
+import re
 import time
 from typing import Any, Callable, Sequence
 
@@ -54,6 +57,7 @@ class Workload:
     model: Config = Config(preset="paper", modalities=("internal", "external", "proprio"), seq_len=200)
     batch: int = 32
     bins: int = 320
+    seeds: tuple[int, ...] = (1, 5)  # seed counts of the training benchmark; 1 must be among them
 
     def describe(self) -> dict:
         c = self.model
@@ -102,7 +106,7 @@ def _interleaved(quick: bool, w: Workload) -> dict:
     """Ours and the twin's training steps and inference timed in alternating rounds, so machine
     load hits both alike (`benchmark.compare_with_torch`)."""
     return benchmark.compare_with_torch(
-        w.model, seeds=(1, 5), batch=w.batch, seq_len=w.model.sequence_length, psd_bins=w.bins, steps=2 if quick else benchmark.STEPS_PER_EPOCH,
+        w.model, seeds=w.seeds, batch=w.batch, seq_len=w.model.sequence_length, psd_bins=w.bins, steps=2 if quick else benchmark.STEPS_PER_EPOCH,
         rounds=2 if quick else 5, pause_s=0.05 if quick else 1.0, inference_rounds=2 if quick else 10, inference_calls=5 if quick else 20,
     )
 
@@ -110,7 +114,7 @@ def _interleaved(quick: bool, w: Workload) -> dict:
 def bench_training(quick: bool, w: Workload, compared: dict | None) -> dict:
     """Seconds per step, 1 and 5 seeds; beside the twin's (median of per-round ratios) when compared."""
     out: dict[str, Any] = {"workload": w.describe()}
-    for n in (1, 5):
+    for n in w.seeds:
         if compared is None:
             out[f"ours_{n}_seed"] = benchmark.bench_train_step(
                 w.model, n, batch=w.batch, seq_len=w.model.sequence_length, psd_bins=w.bins, steps=2 if quick else benchmark.STEPS_PER_EPOCH, repeats=2 if quick else 3
@@ -120,7 +124,10 @@ def bench_training(quick: bool, w: Workload, compared: dict | None) -> dict:
         out[f"ours_{n}_seed"] = {"n_seeds": n, "seconds_per_step": c["ours_s_per_step"], "sequences_per_s_per_seed": w.batch / c["ours_s_per_step"]}
         out[f"torch_{n}_seed"] = {"n_seeds": n, "seconds_per_step": c["torch_s_per_step"], "sequences_per_s_per_seed": w.batch * n / c["torch_s_per_step"]}
         out[f"ratio_{n}_seed"] = c["ratio"]
-    out["ours_5_over_1_per_seed"] = out["ours_5_seed"]["seconds_per_step"] / (5 * out["ours_1_seed"]["seconds_per_step"])
+    for n in w.seeds:
+        if n > 1:  # our n vmapped seeds against n times one seed of ours (1.0: vmapping is free)
+            out[f"ours_{n}_over_1_per_seed"] = out[f"ours_{n}_seed"]["seconds_per_step"] / (n * out["ours_1_seed"]["seconds_per_step"])
+    out["devices"] = [str(d) for d in jax.devices()]
     if compared is not None:
         out["interleaved"] = {k: compared[k] for k in ("rounds", "steps_per_timing", "torch_threads", "training")}
     return out
@@ -223,10 +230,11 @@ def markdown(doc: dict[str, Any]) -> str:
     rows = []
     if "training" in b:
         t = b["training"]
-        for n in (1, 5):
+        for n in sorted(int(hit.group(1)) for k in t if (hit := re.fullmatch(r"ours_(\d+)_seed", k))):
             ours = t[f"ours_{n}_seed"]["seconds_per_step"] * 1e3
             theirs = t.get(f"torch_{n}_seed", {}).get("seconds_per_step")
-            how = "vmapped" if n > 1 else ""
+            shards = max(d for d in range(1, len(t.get("devices", [None])) + 1) if n % d == 0)
+            how = ("vmapped" if n > 1 else "") + (f", {shards} host devices" if shards > 1 else "")
             rows.append([
                 f"training step, {n} seed{'s' if n > 1 else ''} {how}".strip() + f" (batch {t['workload']['batch']}, N={t['workload']['seq_len']})",
                 f"{ours:.0f} ms", _ms(theirs and theirs * 1e3, 0) + (" (in sequence)" if n > 1 and theirs else ""),
@@ -265,7 +273,8 @@ def markdown(doc: dict[str, Any]) -> str:
             "acquisition loop, 50 Hz step p50 / p99", f"{a['p50_ms']:.1f} / {a['p99_ms']:.1f} ms",
             f"{a['missed_deadlines']} of {a['steps']} deadlines missed", "",
         ])
-    head = f"Measured by `{doc['command']}` on {m['cpu']} ({m['cores']} cores), JAX {m['jax']}" + (
+    env = "".join(f"{k}={v} " for k, v in m.get("env", {}).items())
+    head = f"Measured by `{env}{doc['command']}` on {m['cpu']} ({m['cores']} cores), JAX {m['jax']}" + (
         f", PyTorch {doc['torch']}" if doc["torch"] else ""
     ) + (" (--quick sizes)" if doc["quick"] else "") + ". Ratio: ours / PyTorch time.\n\n"
     return head + report.markdown_table(["benchmark", "fabricjax", "reference", "ratio"], rows)
@@ -282,12 +291,20 @@ def _ratio(r) -> str:
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_list("only", None, f"benchmarks to run (default all): {','.join(BENCHMARKS)}")
 absl_flags.DEFINE_bool("quick", False, "smaller sizes and fewer repeats")
+absl_flags.DEFINE_list(
+    "train_seeds", ["1", "5"],
+    "seed counts of the training benchmark (must include 1); with XLA_FLAGS=--xla_force_host_platform_device_count=K "
+    "a count divisible by K is sharded over K host devices",
+)
 
 
 def main(argv):
     del argv
     loc = flags.location_kwargs()
-    run(only=FLAGS.only, quick=FLAGS.quick, workdir=loc["workdir"], results=loc["results"], command=loc["command"])
+    seeds = tuple(sorted({int(s) for s in FLAGS.train_seeds}))
+    if 1 not in seeds or min(seeds) < 1:
+        raise app.UsageError(f"--train_seeds must be positive and include 1, got {FLAGS.train_seeds}")
+    run(only=FLAGS.only, quick=FLAGS.quick, workload=Workload(seeds=seeds), workdir=loc["workdir"], results=loc["results"], command=loc["command"])
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ from typing import Any, Callable, Sequence
 import jax
 import numpy as np
 
-from fabricjax import synthetic
+from fabricjax import sharding, synthetic
 from fabricjax.config import Config
 from fabricjax.model import feature_shapes, predict_one
 from fabricjax.train import make_trainer, seed_keys, select
@@ -33,11 +33,16 @@ def train_step_runner(
     config: Config, n_seeds: int, batch: int = 32, seq_len: int = 200, psd_bins: int = 320, steps: int = STEPS_PER_EPOCH
 ) -> Callable[[], float]:
     """A compiled, warmed-up callable that runs one epoch of `steps` vmapped training steps (the real
-    `Trainer.train_epoch` scan, parameters and optimiser state donated) and returns seconds per step."""
+    `Trainer.train_epoch` scan, parameters and optimiser state donated) and returns seconds per step.
+
+    Seeds are split over the devices as in training (`sharding.seed_mesh`): on a CPU started with
+    XLA_FLAGS=--xla_force_host_platform_device_count=K, an n divisible by K runs n/K seeds per core."""
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
-    train = select(cfg, synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins))
+    mesh = sharding.seed_mesh(n_seeds)
+    train = jax.device_put(select(cfg, synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins)), sharding.replicated(mesh))
     trainer = make_trainer(cfg, feature_shapes(train["inputs"]))
-    states = jax.jit(jax.vmap(trainer.init))(seed_keys(range(n_seeds)))
+    per_seed = sharding.by_seed(mesh)
+    states = jax.jit(jax.vmap(trainer.init), out_shardings=per_seed)(jax.device_put(seed_keys(range(n_seeds)), per_seed))
     epoch = jax.jit(
         jax.vmap(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0
     )
