@@ -176,8 +176,13 @@ def test_ctrl_c_keeps_an_incomplete_archive(signals, tmp_path):
             return read()
 
         rig.camera.read = read_then_interrupt
-        with pytest.raises(KeyboardInterrupt, match="complete=False"):
-            recorder.record_trial(rig, sim_signals.procedure(2), fabric_id=12, day=1, trial=4, out_dir=tmp_path)
+        # Python's own Ctrl-C handler, as in a terminal (a shell starts background jobs with SIGINT ignored).
+        previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+        try:
+            with pytest.raises(KeyboardInterrupt, match="complete=False"):
+                recorder.record_trial(rig, sim_signals.procedure(2), fabric_id=12, day=1, trial=4, out_dir=tmp_path)
+        finally:
+            signal.signal(signal.SIGINT, previous)
     (path,) = tmp_path.glob("*.npz")
     arch = archive.read_archive(path)
     assert arch.meta["complete"] is False and arch.meta["failure"] == "interrupted (Ctrl-C)"
