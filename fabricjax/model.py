@@ -103,8 +103,8 @@ class MLP(nnx.Module):
 
         The same function and parameters, computed as standardise(x) @ (scale * kernel) + (shift @
         kernel + bias): the standardised input is data (no parameter touches it), so the backward
-        pass needs no input-sized gradient. In the other order, that (steps x bins) gradient and
-        its two reductions over steps took ~17 % of the op time of a two-microphone training step.
+        pass needs no input-sized gradient. Dropping that (steps x bins) gradient and its two
+        reductions over steps cut the summed op time of a two-microphone training step by 11 %.
         """
         norm = self.input_norm
         x = x.astype(jnp.float32)
