@@ -39,7 +39,7 @@ import jax
 from absl import app, flags as absl_flags, logging
 
 from experiments import flags
-from fabricjax import archive, benchmark, report, sim, splits, stream, train, workspace
+from fabricjax import archive, benchmark, report, sharding, sim, splits, stream, train, workspace
 from fabricjax.config import Config
 from fabricjax.features import bench as feature_bench
 from fabricjax.features import welch
@@ -128,6 +128,7 @@ def bench_training(quick: bool, w: Workload, compared: dict | None) -> dict:
         if n > 1:  # our n vmapped seeds against n times one seed of ours (1.0: vmapping is free)
             out[f"ours_{n}_over_1_per_seed"] = out[f"ours_{n}_seed"]["seconds_per_step"] / (n * out["ours_1_seed"]["seconds_per_step"])
     out["devices"] = [str(d) for d in jax.devices()]
+    out["seed_devices"] = {str(n): sharding.seed_mesh(n).devices.size for n in w.seeds}  # as training splits them
     if compared is not None:
         out["interleaved"] = {k: compared[k] for k in ("rounds", "steps_per_timing", "torch_threads", "training")}
     return out
@@ -233,7 +234,7 @@ def markdown(doc: dict[str, Any]) -> str:
         for n in sorted(int(hit.group(1)) for k in t if (hit := re.fullmatch(r"ours_(\d+)_seed", k))):
             ours = t[f"ours_{n}_seed"]["seconds_per_step"] * 1e3
             theirs = t.get(f"torch_{n}_seed", {}).get("seconds_per_step")
-            shards = max(d for d in range(1, len(t.get("devices", [None])) + 1) if n % d == 0)
+            shards = t.get("seed_devices", {}).get(str(n), 1)
             how = ("vmapped" if n > 1 else "") + (f", {shards} host devices" if shards > 1 else "")
             rows.append([
                 f"training step, {n} seed{'s' if n > 1 else ''} {how}".strip() + f" (batch {t['workload']['batch']}, N={t['workload']['seq_len']})",

@@ -4,9 +4,9 @@
 
 Keys of `sets` are the requested `split_names`, by default all of `SPLITS` = ("train", "val", "test",
 "cafe", "holdout"); a split with no trials is a `SequenceSet` of 0 sequences with the same
-trailing shapes. Trials of splits not requested are not read (no features are computed for them). Splits come from the
-archives' meta (`splits.assign_roles` with the preset's `Splits`), so a folder of real
-recordings works the same as a simulated one:
+trailing shapes. Trials of splits not requested are not read (no features are computed for
+them). Splits come from the archives' meta (`splits.assign_roles` with the preset's `Splits`),
+so a folder of real recordings works the same as a simulated one:
 
     train, val   lab trials of the training days (val: whole trials, the last of each fabric and
                  day), minus `config.exclude_fabrics`
