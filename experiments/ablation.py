@@ -3,8 +3,6 @@
     python -m experiments.ablation --seeds=5     # README main command: default preset, wall time per row in results/ablation.md
 """
 
-from absl import app
-
 from experiments import flags
 from fabricjax.studies import ablation
 
@@ -17,4 +15,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    app.run(main)
+    flags.run(main)

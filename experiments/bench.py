@@ -3,8 +3,8 @@
     python -m experiments.bench                       # everything (a few minutes on 2 CPU cores)
     python -m experiments.bench --quick               # smaller sizes, for a smoke check
     python -m experiments.bench --only=training,inference
-    XLA_FLAGS=--xla_force_host_platform_device_count=2 python -m experiments.bench --only=training --train_seeds=1,4 --results=/tmp/b
-                                                      # seeds sharded over 2 host devices (one per core)
+    python -m experiments.bench --only=training --train_seeds=1,4,5 --cpu_devices=1 --results=/tmp/b
+                                                      # other seed counts, on one CPU device sharing the cores
 
 Benchmarks (names for --only):
     simulator    simulated seconds per wall second (audio + proprioception)
@@ -128,7 +128,8 @@ def bench_training(quick: bool, w: Workload, compared: dict | None) -> dict:
         if n > 1:  # our n vmapped seeds against n times one seed of ours (1.0: vmapping is free)
             out[f"ours_{n}_over_1_per_seed"] = out[f"ours_{n}_seed"]["seconds_per_step"] / (n * out["ours_1_seed"]["seconds_per_step"])
     out["devices"] = [str(d) for d in jax.devices()]
-    out["seed_devices"] = {str(n): sharding.seed_mesh(n).devices.size for n in w.seeds}  # as training splits them
+    # How training splits each seed count over the devices: {"seed": devices over seeds, "batch": over samples}.
+    out["mesh"] = {str(n): dict(sharding.training_mesh(n, w.batch).shape) for n in w.seeds}
     if compared is not None:
         out["interleaved"] = {k: compared[k] for k in ("rounds", "steps_per_timing", "torch_threads", "training")}
     return out
@@ -234,8 +235,9 @@ def markdown(doc: dict[str, Any]) -> str:
         for n in sorted(int(hit.group(1)) for k in t if (hit := re.fullmatch(r"ours_(\d+)_seed", k))):
             ours = t[f"ours_{n}_seed"]["seconds_per_step"] * 1e3
             theirs = t.get(f"torch_{n}_seed", {}).get("seconds_per_step")
-            shards = t.get("seed_devices", {}).get(str(n), 1)
-            how = ("vmapped" if n > 1 else "") + (f", {shards} host devices" if shards > 1 else "")
+            mesh = t.get("mesh", {}).get(str(n), {})
+            split = ", ".join(f"{k} over {v} devices" for k, v in mesh.items() if v > 1)
+            how = ", ".join(p for p in ("vmapped" if n > 1 else "", split) if p)
             rows.append([
                 f"training step, {n} seed{'s' if n > 1 else ''} {how}".strip() + f" (batch {t['workload']['batch']}, N={t['workload']['seq_len']})",
                 f"{ours:.0f} ms", _ms(theirs and theirs * 1e3, 0) + (" (in sequence)" if n > 1 and theirs else ""),
@@ -294,8 +296,8 @@ absl_flags.DEFINE_list("only", None, f"benchmarks to run (default all): {','.joi
 absl_flags.DEFINE_bool("quick", False, "smaller sizes and fewer repeats")
 absl_flags.DEFINE_list(
     "train_seeds", ["1", "5"],
-    "seed counts of the training benchmark (must include 1); with XLA_FLAGS=--xla_force_host_platform_device_count=K "
-    "a count divisible by K is sharded over K host devices",
+    "seed counts of the training benchmark (must include 1); each is split over the CPU devices as training "
+    "splits it (sharding.training_mesh)",
 )
 
 
@@ -309,4 +311,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    app.run(main)
+    flags.run(main)

@@ -3,7 +3,7 @@
     python -m experiments.cost --seeds=5     # default preset: 15 points, <= 20 min on 2 CPU cores
 """
 
-from absl import app, flags as absl_flags
+from absl import flags as absl_flags
 
 from experiments import flags
 from fabricjax import splits
@@ -46,4 +46,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    app.run(main)
+    flags.run(main)

@@ -1,7 +1,7 @@
 """Flags shared by the study commands; every sweep dimension is a flag.
 
     --seeds --preset --rows --backbone --seq_len --bandwidth --epochs   (define_sweep)
-    --workdir --data_dir --results                                      (always)
+    --workdir --data_dir --results --cpu_devices                        (always)
 
 Unset sweep flags keep the study's defaults (`fabricjax.studies.common.PRESET_TRAINING`).
 """
@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from absl import flags
+from absl import app, flags
 
-from fabricjax import splits
+from fabricjax import sharding, splits
 from fabricjax.config import BACKBONES
 from fabricjax.studies import common
 
@@ -21,6 +21,21 @@ FLAGS = flags.FLAGS
 flags.DEFINE_string("workdir", None, "workspace root: datasets, features, checkpoints (default $FABRICJAX_WORKDIR or ./workspace)")
 flags.DEFINE_string("data_dir", None, "a folder of real recorded trial archives; default: the preset's simulated dataset")
 flags.DEFINE_string("results", "results", "where <study>.md/.json and figures are written")
+flags.DEFINE_integer(
+    "cpu_devices", None,
+    "CPU devices for JAX (default: one per core, so that seeds or minibatch samples train on separate cores; "
+    "1: a single device whose ops share the cores)",
+)
+
+
+def run(main) -> None:
+    """`absl.app.run(main)`, with JAX's CPU devices set from --cpu_devices before JAX starts."""
+
+    def start(argv):
+        sharding.use_cpu_cores(FLAGS.cpu_devices)
+        return main(argv)
+
+    app.run(start)
 
 
 def define_sweep() -> None:

@@ -3,7 +3,6 @@
     python -m experiments.latents --checkpoint=DIR [--seed=N]    # DIR: listed in results/properties.md
 """
 
-from absl import app
 from absl import flags as absl_flags
 
 from experiments import flags
@@ -12,11 +11,9 @@ from fabricjax.studies import latents
 CHECKPOINT = absl_flags.DEFINE_string("checkpoint", None, "checkpoint directory written by a training study", required=True)
 SEED = absl_flags.DEFINE_integer("seed", None, "seed to use (default: the one with the best validation score)")
 
-
 def main(argv):
     del argv
     latents.run(CHECKPOINT.value, seed=SEED.value, **flags.location_kwargs())
 
-
 if __name__ == "__main__":
-    app.run(main)
+    flags.run(main)

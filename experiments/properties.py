@@ -3,8 +3,6 @@
     python -m experiments.properties --seeds=5
 """
 
-from absl import app
-
 from experiments import flags
 from fabricjax.studies import properties
 
@@ -17,4 +15,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    app.run(main)
+    flags.run(main)

@@ -8,7 +8,7 @@ Without --checkpoint a one-seed model of --preset is trained on first use (about
 default preset) and checkpointed under the workspace; later runs restore it.
 """
 
-from absl import app, flags as absl_flags
+from absl import flags as absl_flags
 
 from experiments import flags
 from fabricjax import splits, stream
@@ -39,4 +39,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    app.run(main)
+    flags.run(main)

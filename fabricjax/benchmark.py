@@ -15,6 +15,7 @@ interleaved in one process and reports the ratios.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from typing import Any, Callable, Sequence
 
@@ -35,17 +36,17 @@ def train_step_runner(
     """A compiled, warmed-up callable that runs one epoch of `steps` vmapped training steps (the real
     `Trainer.train_epoch` scan, parameters and optimiser state donated) and returns seconds per step.
 
-    Seeds are split over the devices as in training (`sharding.seed_mesh`): on a CPU started with
-    XLA_FLAGS=--xla_force_host_platform_device_count=K, an n divisible by K runs n/K seeds per core."""
+    Seeds and samples are split over the devices as in training (`sharding.training_mesh`): with
+    one CPU device per core (`sharding.use_cpu_cores`), seeds or each minibatch's samples run on
+    separate cores."""
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
-    mesh = sharding.seed_mesh(n_seeds)
+    mesh = sharding.training_mesh(n_seeds, batch)
     train = jax.device_put(select(cfg, synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins)), sharding.replicated(mesh))
-    trainer = make_trainer(cfg, feature_shapes(train["inputs"]))
+    trainer = make_trainer(cfg, feature_shapes(train["inputs"]), mesh=mesh)
     per_seed = sharding.by_seed(mesh)
-    states = jax.jit(jax.vmap(trainer.init), out_shardings=per_seed)(jax.device_put(seed_keys(range(n_seeds)), per_seed))
-    epoch = jax.jit(
-        jax.vmap(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0
-    )
+    vmap = functools.partial(jax.vmap, spmd_axis_name=sharding.SEED)
+    states = jax.jit(vmap(trainer.init), out_shardings=per_seed)(jax.device_put(seed_keys(range(n_seeds)), per_seed))
+    epoch = jax.jit(vmap(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0)
     keys = states["key"]
     carry = [(states["params"], states["opt_state"])]
     del states

@@ -34,7 +34,7 @@ def machine() -> dict[str, Any]:
         "jax_backend": jax.default_backend(),
         "devices": [str(d) for d in jax.devices()],
         # settings that change speed without changing code; recorded so a timing can be rerun alike
-        "env": {k: os.environ[k] for k in ("XLA_FLAGS", "GLIBC_TUNABLES", "OMP_NUM_THREADS") if k in os.environ},
+        "env": {k: os.environ[k] for k in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "GLIBC_TUNABLES", "OMP_NUM_THREADS") if k in os.environ},
     }
 
 

@@ -1,29 +1,73 @@
-"""Seed-axis data parallelism: one code path for one CPU, one GPU or many devices.
+"""Data parallelism over seeds and minibatch samples: one code path for one CPU, one GPU or many devices.
 
-Every training array carries a leading seed axis (`jax.vmap` over seeds), so splitting that axis
-over a 1-D mesh runs independent seeds on different devices with no communication; the data is
-replicated. With one device the mesh is trivial and nothing changes.
+Every training array carries a leading seed axis (`jax.vmap(..., spmd_axis_name=SEED)`). The mesh
+has two axes. "seed" splits independent seeds over devices: no communication, the data is
+replicated. "batch" splits every minibatch's samples over the devices the seed count cannot use
+evenly (5 seeds on 2 devices, or 1 seed); XLA then sums each step's gradients over them with an
+all-reduce, so results equal a one-device run up to the order of float summation.
+
+A CPU is one device by default; `use_cpu_cores` makes it one device per core (the experiment
+commands call it first), so that seeds or samples run on separate cores instead of sharing each op.
 """
 
 from __future__ import annotations
 
+import os
+import warnings
+
 import jax
+import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
-AXIS = "seed"
+SEED, BATCH = "seed", "batch"
 
 
-def seed_mesh(n_seeds: int) -> Mesh:
-    """A mesh over the most devices that divide `n_seeds` evenly (every device gets equal work)."""
+def use_cpu_cores(n: int | None = None) -> int:
+    """Expose `n` CPU devices (default: one per core this process may run on); returns the count.
+
+    Only possible before JAX starts its CPU backend (before any JAX computation); a count already
+    chosen with XLA_FLAGS=--xla_force_host_platform_device_count or JAX_NUM_CPU_DEVICES wins. A
+    count of 1 keeps the single device."""
+    if "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", "") or os.environ.get("JAX_NUM_CPU_DEVICES"):
+        return len(jax.devices("cpu"))
+    n = n or len(os.sched_getaffinity(0))
+    try:
+        jax.config.update("jax_num_cpu_devices", n)
+    except RuntimeError:  # JAX has started
+        if len(jax.devices("cpu")) != n:
+            warnings.warn(f"JAX already started with {len(jax.devices('cpu'))} CPU device(s); use_cpu_cores({n}) comes too late")
+    return len(jax.devices("cpu"))
+
+
+def training_mesh(n_seeds: int, batch_size: int = 1) -> Mesh:
+    """("seed", "batch") mesh: the most devices that divide `n_seeds` evenly take the seeds, and
+    each seed's share of devices splits its minibatch by the largest count dividing `batch_size`."""
     devices = jax.devices()
-    n = max(d for d in range(1, len(devices) + 1) if n_seeds % d == 0)
-    return Mesh(devices[:n], (AXIS,))
+    seeds = max(d for d in range(1, len(devices) + 1) if n_seeds % d == 0)
+    batch = max(d for d in range(1, len(devices) // seeds + 1) if batch_size % d == 0)
+    return Mesh(np.asarray(devices[: seeds * batch]).reshape(seeds, batch), (SEED, BATCH))
 
 
 def by_seed(mesh: Mesh) -> NamedSharding:
-    """Leading axis split over the mesh."""
-    return NamedSharding(mesh, P(AXIS))
+    """Leading (seed) axis split over the mesh's seed devices, replicated over its batch devices."""
+    return NamedSharding(mesh, P(SEED))
 
 
 def replicated(mesh: Mesh) -> NamedSharding:
     return NamedSharding(mesh, P())
+
+
+def split_samples(tree, mesh: Mesh | None, axis: int = 0):
+    """Constrain `axis` (the samples of a minibatch) of every leaf to the mesh's batch devices.
+
+    For use inside a function vmapped with `spmd_axis_name=SEED`; leaves whose sample count the
+    batch devices do not divide, and meshes with one batch device, are left alone."""
+    if mesh is None or mesh.shape[BATCH] == 1:
+        return tree
+
+    def constrain(a):
+        if a.shape[axis] % mesh.shape[BATCH]:
+            return a
+        return jax.lax.with_sharding_constraint(a, NamedSharding(mesh, P(*[None] * axis, BATCH)))
+
+    return jax.tree.map(constrain, tree)

@@ -29,6 +29,7 @@ import jax
 import jax.numpy as jnp
 import optax
 from flax import nnx
+from jax.sharding import Mesh
 
 from fabricjax import checkpoint, sharding
 from fabricjax.config import Config
@@ -99,6 +100,7 @@ class Trainer:
     graphdef: Any
     tx: optax.GradientTransformation
     augment: Augment | None
+    mesh: Mesh | None = None  # splits minibatch samples over its "batch" devices (`sharding.split_samples`)
 
     def init(self, key: jax.Array) -> dict[str, Any]:
         k_params, k_run = jax.random.split(key)
@@ -134,7 +136,7 @@ class Trainer:
         def step(carry, xs):
             params, opt_state = carry
             idx, k = xs
-            mb = jax.tree.map(lambda a: a[idx], train)
+            mb = sharding.split_samples(jax.tree.map(lambda a: a[idx], train), self.mesh)
             k_aug, k_drop = jax.random.split(k)
             if self.augment is not None:
                 mb = {**mb, "inputs": self.augment(k_aug, mb["inputs"])}
@@ -149,7 +151,7 @@ class Trainer:
         """Predictions and accuracy per head over a set padded to whole minibatches (see `pad`)."""
         model = nnx.merge(self.graphdef, params)
         batch = self.config.batch_size
-        chunks = jax.tree.map(lambda a: a.reshape(-1, batch, *a.shape[1:]), ds["inputs"])
+        chunks = sharding.split_samples(jax.tree.map(lambda a: a.reshape(-1, batch, *a.shape[1:]), ds["inputs"]), self.mesh, axis=1)
         logits = jax.lax.map(model, chunks)
         preds = {h: jnp.argmax(v, -1).reshape(-1).astype(jnp.int32) for h, v in logits.items()}
         acc = {h: masked_accuracy(p, ds["labels"][h]) for h, p in preds.items()}
@@ -196,10 +198,12 @@ class Trainer:
         }
 
 
-def make_trainer(config: Config, shapes: Mapping[str, tuple[int, ...]], augment: Augment | None = None) -> Trainer:
+def make_trainer(
+    config: Config, shapes: Mapping[str, tuple[int, ...]], augment: Augment | None = None, mesh: Mesh | None = None
+) -> Trainer:
     shapes = {m: tuple(shapes[m]) for m in config.modalities}
     graphdef = nnx.split(nnx.eval_shape(lambda: FabricNet(config, shapes, rngs=nnx.Rngs(0))))[0]
-    return Trainer(config, shapes, graphdef, make_optimizer(config), augment)
+    return Trainer(config, shapes, graphdef, make_optimizer(config), augment, mesh)
 
 
 def pad(ds, multiple: int):
@@ -273,13 +277,14 @@ def make_train(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] 
 def _programs(config: Config, shapes: tuple, augment: Augment | None, mesh):
     """Jitted, seed-vmapped, seed-sharded init / run(n epochs) / finish, cached so that reruns of
     a config (a resume, another data set of the same shapes) reuse the compiled programs."""
-    trainer = make_trainer(config, dict(shapes), augment)
+    trainer = make_trainer(config, dict(shapes), augment, mesh)
     per_seed = sharding.by_seed(mesh)
-    init = jax.jit(jax.vmap(trainer.init), out_shardings=per_seed)
-    finish = jax.jit(jax.vmap(trainer.finish, in_axes=(0, None)), out_shardings=per_seed)
+    vmap = functools.partial(jax.vmap, spmd_axis_name=sharding.SEED)
+    init = jax.jit(vmap(trainer.init), out_shardings=per_seed)
+    finish = jax.jit(vmap(trainer.finish, in_axes=(0, None)), out_shardings=per_seed)
     run = functools.lru_cache(
         lambda n: jax.jit(
-            jax.vmap(functools.partial(trainer.run, n_epochs=n), in_axes=(0, None)),
+            vmap(functools.partial(trainer.run, n_epochs=n), in_axes=(0, None)),
             donate_argnums=0,
             out_shardings=per_seed,
         )
@@ -328,7 +333,7 @@ def train_and_evaluate(
     seeds = tuple(int(s) for s in seeds)
     evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
     data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals)
-    mesh = sharding.seed_mesh(len(seeds))
+    mesh = sharding.training_mesh(len(seeds), config.batch_size)
     shapes = tuple(sorted(feature_shapes(data["train"]["inputs"]).items()))
     trainer, init, run, finish = _programs(config, shapes, augment or rotation_augment(config), mesh)
     per_seed = sharding.by_seed(mesh)

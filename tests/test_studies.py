@@ -178,11 +178,12 @@ def test_ablation_command_end_to_end(workdir, tmp_path):
     env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_DISABLE_MOST_OPTIMIZATIONS": "1"}
     cmd = [
         sys.executable, "-m", "experiments.ablation", "--preset=smoke", "--seeds=1", "--epochs=1", "--rows=internal",
-        f"--workdir={workdir}", f"--results={tmp_path}",
+        f"--workdir={workdir}", f"--results={tmp_path}", "--cpu_devices=2",
     ]
     subprocess.run(cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, timeout=300)
     doc = json.loads((tmp_path / "ablation.json").read_text())
     assert [r["name"] for r in doc["rows"]] == ["internal"] and doc["seeds"] == [0]
+    assert doc["machine"]["devices"] == ["cpu:0", "cpu:1"]  # --cpu_devices took effect before JAX started
     assert doc["command"].startswith("python -m experiments.ablation --preset=smoke")
     assert "| Transformer | Minsound |" in (tmp_path / "ablation.md").read_text()
 

@@ -7,7 +7,7 @@ import jax
 import numpy as np
 import pytest
 
-from fabricjax import synthetic
+from fabricjax import sharding, synthetic
 from fabricjax.config import Config
 from fabricjax.train import make_train, make_trainer, rotation_augment, masked_accuracy, masked_cross_entropy, seed_keys, train_and_evaluate
 
@@ -86,27 +86,53 @@ import json, sys
 import jax, numpy as np
 sys.path.insert(0, {tests!r})
 from test_train import TINY, data_sets
+from fabricjax import sharding
 from fabricjax.train import train_and_evaluate
 assert jax.device_count() == 4
-res = train_and_evaluate(TINY, data_sets(TINY), seeds=[3, 4, 3, 5])
-print(json.dumps({{"devices": len(res.state["epoch"].sharding.device_set),
+out = {{"mesh": {{n: dict(sharding.training_mesh(n, TINY.batch_size).shape) for n in (1, 3, 4, 5)}}}}
+mesh = sharding.training_mesh(2, 6)  # 2 seed x 2 batch devices
+split = jax.jit(jax.vmap(lambda x: 2 * sharding.split_samples(x, mesh, axis=1), spmd_axis_name="seed"))
+out["split"] = [[len(s.device_set), list(getattr(s, "spec", []))] for s in (split(np.zeros((2, 2, n, 3))).sharding for n in (4, 3))]
+for name, seeds in (("seeds", [3, 4, 3, 5]), ("samples", [4])):
+    res = train_and_evaluate(TINY, data_sets(TINY), seeds=seeds)
+    out[name] = {{"devices": len(res.state["epoch"].sharding.device_set),
                   "train_loss": res.metrics["train_loss"].tolist(),
-                  "pred": res.metrics["eval"]["test"]["predictions"]["fabric"].tolist()}}))
+                  "pred": res.metrics["eval"]["test"]["predictions"]["fabric"].tolist()}}
+print(json.dumps(out))
 """
 
 
 def test_four_host_devices_give_the_same_results_as_one(four_seeds):
+    """Seeds split over 4 devices, and one seed's minibatch samples split over 4 (gradients summed
+    across devices), train as on one device."""
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=4", "JAX_PLATFORMS": "cpu"}
     code = "import jax; jax.config.update('jax_disable_most_optimizations', True)\n"
     code += SHARDED.format(tests=os.path.dirname(__file__))
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-3000:]
     sharded = json.loads(out.stdout.strip().splitlines()[-1])
-    assert sharded["devices"] == 4
+    assert sharded["mesh"] == {
+        "1": {"seed": 1, "batch": 4}, "3": {"seed": 3, "batch": 1}, "4": {"seed": 4, "batch": 1}, "5": {"seed": 1, "batch": 4}
+    }
+    assert sharded["split"] == [[4, ["seed", None, "batch"]], [1, []]]  # 3 samples: left alone (no constraint)
     single = four_seeds
     assert len(single.state["epoch"].sharding.device_set) == 1
-    np.testing.assert_allclose(sharded["train_loss"], single.metrics["train_loss"], rtol=1e-5)
-    np.testing.assert_array_equal(sharded["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"])
+    assert sharded["seeds"]["devices"] == sharded["samples"]["devices"] == 4
+    np.testing.assert_allclose(sharded["seeds"]["train_loss"], single.metrics["train_loss"], rtol=1e-5)
+    np.testing.assert_array_equal(sharded["seeds"]["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"])
+    np.testing.assert_allclose(sharded["samples"]["train_loss"], single.metrics["train_loss"][1:2], rtol=1e-5)
+    np.testing.assert_array_equal(sharded["samples"]["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"][1:2])
+
+
+def test_cpu_devices_are_chosen_before_jax_starts_and_an_explicit_count_wins():
+    code = "from fabricjax import sharding; print(sharding.use_cpu_cores(3))"
+    env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES")}
+    run = lambda env: subprocess.run([sys.executable, "-c", code], env={**env, "JAX_PLATFORMS": "cpu"}, capture_output=True, text=True, timeout=120)  # noqa: E731
+    assert run(env).stdout.split() == ["3"]
+    assert run({**env, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}).stdout.split() == ["2"]
+    # In this process JAX has started with one CPU device: too late to change, and said so.
+    with pytest.warns(UserWarning, match="too late"):
+        assert sharding.use_cpu_cores(3) == 1
 
 
 def test_image_training_applies_the_rotation_augmentation():
