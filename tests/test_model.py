@@ -8,7 +8,7 @@ from flax import nnx
 
 from fabricjax import catalog, synthetic
 from fabricjax.config import MODALITIES, Config
-from fabricjax.model import FabricNet, feature_shapes, predict, predict_one, rescale_unit, self_attention
+from fabricjax.model import FabricNet, causal_conv, feature_shapes, predict, predict_one, rescale_unit, self_attention
 
 TINY = dict(preset="smoke", width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(4, 8), seq_len=10)
 COMBOS = [c for r in range(1, len(MODALITIES) + 1) for c in itertools.combinations(MODALITIES, r)]
@@ -111,3 +111,14 @@ def test_self_attention_and_its_gradient_match_jax_reference():
     grad = lambda f: jax.grad(lambda *a: (f(*a) * w).sum(), argnums=(0, 1, 2))(q, k, v)  # noqa: E731
     for ours, theirs in zip(grad(self_attention), grad(ref)):
         np.testing.assert_allclose(ours, theirs, rtol=1e-4, atol=1e-4)
+
+
+@pytest.mark.parametrize("dilation", [1, 2, 4])
+def test_tcn_convolution_as_a_product_equals_the_causal_convolution(dilation):
+    conv = nnx.Conv(6, 5, (3,), kernel_dilation=dilation, padding="CAUSAL", rngs=nnx.Rngs(0))
+    conv.bias[...] = jnp.arange(5.0)
+    x = jax.random.normal(jax.random.PRNGKey(dilation), (3, 2, 12, 6))  # (seeds, batch, steps, channels)
+    np.testing.assert_allclose(causal_conv(conv, x), conv(x), atol=1e-5)
+    # Step t sees steps t, t - d, t - 2d only: changing a later step leaves earlier outputs alone.
+    later = x.at[:, :, 7:].add(1.0)
+    np.testing.assert_array_equal(causal_conv(conv, later)[:, :, :7], causal_conv(conv, x)[:, :, :7])

@@ -98,16 +98,25 @@ for name, seeds in (("seeds", [3, 4, 3, 5]), ("samples", [4])):
     out[name] = {{"devices": len(res.state["epoch"].sharding.device_set),
                   "train_loss": res.metrics["train_loss"].tolist(),
                   "pred": res.metrics["eval"]["test"]["predictions"]["fabric"].tolist()}}
+def kill(epoch):
+    raise KeyboardInterrupt
+try:  # killed after its first save, then resumed from the checkpoint on the same devices
+    train_and_evaluate(TINY, data_sets(TINY), seeds=[4], workdir={workdir!r}, save_every=1, on_save=kill)
+except KeyboardInterrupt:
+    pass
+saves = out["resumed_saves"] = []
+res = train_and_evaluate(TINY, data_sets(TINY), seeds=[4], workdir={workdir!r}, save_every=1, on_save=saves.append)
+out["resumed_loss"] = res.metrics["train_loss"].tolist()
 print(json.dumps(out))
 """
 
 
-def test_four_host_devices_give_the_same_results_as_one(four_seeds):
+def test_four_host_devices_give_the_same_results_as_one(four_seeds, tmp_path):
     """Seeds split over 4 devices, and one seed's minibatch samples split over 4 (gradients summed
     across devices), train as on one device."""
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=4", "JAX_PLATFORMS": "cpu"}
     code = "import jax; jax.config.update('jax_disable_most_optimizations', True)\n"
-    code += SHARDED.format(tests=os.path.dirname(__file__))
+    code += SHARDED.format(tests=os.path.dirname(__file__), workdir=str(tmp_path))
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-3000:]
     sharded = json.loads(out.stdout.strip().splitlines()[-1])
@@ -122,6 +131,7 @@ def test_four_host_devices_give_the_same_results_as_one(four_seeds):
     np.testing.assert_array_equal(sharded["seeds"]["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"])
     np.testing.assert_allclose(sharded["samples"]["train_loss"], single.metrics["train_loss"][1:2], rtol=1e-5)
     np.testing.assert_array_equal(sharded["samples"]["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"][1:2])
+    assert sharded["resumed_saves"] == [2, 3] and sharded["resumed_loss"] == sharded["samples"]["train_loss"]
 
 
 def test_cpu_devices_are_chosen_before_jax_starts_and_an_explicit_count_wins():
