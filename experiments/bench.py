@@ -237,9 +237,9 @@ def markdown(doc: dict[str, Any]) -> str:
             theirs = t.get(f"torch_{n}_seed", {}).get("seconds_per_step")
             mesh = t.get("mesh", {}).get(str(n), {})
             split = ", ".join(f"{k} over {v} devices" for k, v in mesh.items() if v > 1)
-            how = ", ".join(p for p in ("vmapped" if n > 1 else "", split) if p)
+            what = f"{n} seed" + (("s vmapped" if n > 1 else "") + (f", {split}" if split else ""))
             rows.append([
-                f"training step, {n} seed{'s' if n > 1 else ''} {how}".strip() + f" (batch {t['workload']['batch']}, N={t['workload']['seq_len']})",
+                f"training step, {what} (batch {t['workload']['batch']}, N={t['workload']['seq_len']})",
                 f"{ours:.0f} ms", _ms(theirs and theirs * 1e3, 0) + (" (in sequence)" if n > 1 and theirs else ""),
                 _ratio(t.get(f"ratio_{n}_seed")),
             ])

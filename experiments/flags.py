@@ -24,15 +24,17 @@ flags.DEFINE_string("results", "results", "where <study>.md/.json and figures ar
 flags.DEFINE_integer(
     "cpu_devices", None,
     "CPU devices for JAX (default: one per core, so that seeds or minibatch samples train on separate cores; "
-    "1: a single device whose ops share the cores)",
+    "1, the default of experiments.stream and experiments.cost: a single device whose ops share the cores, "
+    "the lowest latency for one sequence)",
 )
 
 
-def run(main) -> None:
-    """`absl.app.run(main)`, with JAX's CPU devices set from --cpu_devices before JAX starts."""
+def run(main, cpu_devices: int | None = None) -> None:
+    """`absl.app.run(main)`, with JAX's CPU devices set before JAX starts: --cpu_devices, else
+    `cpu_devices`, else one per core."""
 
     def start(argv):
-        sharding.use_cpu_cores(FLAGS.cpu_devices)
+        sharding.use_cpu_cores(FLAGS.cpu_devices or cpu_devices)
         return main(argv)
 
     app.run(start)
