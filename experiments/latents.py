@@ -11,9 +11,11 @@ from fabricjax.studies import latents
 CHECKPOINT = absl_flags.DEFINE_string("checkpoint", None, "checkpoint directory written by a training study", required=True)
 SEED = absl_flags.DEFINE_integer("seed", None, "seed to use (default: the one with the best validation score)")
 
+
 def main(argv):
     del argv
     latents.run(CHECKPOINT.value, seed=SEED.value, **flags.location_kwargs())
+
 
 if __name__ == "__main__":
     flags.run(main)

@@ -15,7 +15,6 @@ interleaved in one process and reports the ratios.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import time
 from typing import Any, Callable, Sequence
 
@@ -44,9 +43,8 @@ def train_step_runner(
     train = jax.device_put(select(cfg, synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins)), sharding.replicated(mesh))
     trainer = make_trainer(cfg, feature_shapes(train["inputs"]), mesh=mesh)
     per_seed = sharding.by_seed(mesh)
-    vmap = functools.partial(jax.vmap, spmd_axis_name=sharding.SEED)
-    states = jax.jit(vmap(trainer.init), out_shardings=per_seed)(jax.device_put(seed_keys(range(n_seeds)), per_seed))
-    epoch = jax.jit(vmap(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0)
+    states = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)(jax.device_put(seed_keys(range(n_seeds)), per_seed))
+    epoch = jax.jit(sharding.vmap_seeds(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0)
     keys = states["key"]
     carry = [(states["params"], states["opt_state"])]
     del states

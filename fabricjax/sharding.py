@@ -50,6 +50,11 @@ def training_mesh(n_seeds: int, batch_size: int = 1) -> Mesh:
     return Mesh(np.asarray(devices[: seeds * batch]).reshape(seeds, batch), (SEED, BATCH))
 
 
+def vmap_seeds(f, **kwargs):
+    """`jax.vmap` over the leading seed axis, which the mesh's "seed" devices split."""
+    return jax.vmap(f, spmd_axis_name=SEED, **kwargs)
+
+
 def by_seed(mesh: Mesh) -> NamedSharding:
     """Leading (seed) axis split over the mesh's seed devices, replicated over its batch devices."""
     return NamedSharding(mesh, P(SEED))

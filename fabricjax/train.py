@@ -2,7 +2,8 @@
 
 The data lives on the device; one epoch is a `lax.scan` over shuffled minibatches and the epoch
 loop is a `lax.scan` too, so a whole run is one compiled program with no host round trips. Seeds
-are `jax.vmap`ped and the seed axis is sharded over all devices (`fabricjax.sharding`). Parameters
+are `jax.vmap`ped; seeds, else each minibatch's samples, are split over the devices
+(`fabricjax.sharding`). Parameters
 are plain pytrees (`nnx.to_pure_dict`); the module is rebuilt with `nnx.merge` inside the loss.
 
 Optimiser: AdamW (decoupled weight decay on weight matrices only, not on biases, LayerNorm scales)
@@ -279,12 +280,11 @@ def _programs(config: Config, shapes: tuple, augment: Augment | None, mesh):
     a config (a resume, another data set of the same shapes) reuse the compiled programs."""
     trainer = make_trainer(config, dict(shapes), augment, mesh)
     per_seed = sharding.by_seed(mesh)
-    vmap = functools.partial(jax.vmap, spmd_axis_name=sharding.SEED)
-    init = jax.jit(vmap(trainer.init), out_shardings=per_seed)
-    finish = jax.jit(vmap(trainer.finish, in_axes=(0, None)), out_shardings=per_seed)
+    init = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)
+    finish = jax.jit(sharding.vmap_seeds(trainer.finish, in_axes=(0, None)), out_shardings=per_seed)
     run = functools.lru_cache(
         lambda n: jax.jit(
-            vmap(functools.partial(trainer.run, n_epochs=n), in_axes=(0, None)),
+            sharding.vmap_seeds(functools.partial(trainer.run, n_epochs=n), in_axes=(0, None)),
             donate_argnums=0,
             out_shardings=per_seed,
         )

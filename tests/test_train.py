@@ -91,7 +91,7 @@ from fabricjax.train import train_and_evaluate
 assert jax.device_count() == 4
 out = {{"mesh": {{n: dict(sharding.training_mesh(n, TINY.batch_size).shape) for n in (1, 3, 4, 5)}}}}
 mesh = sharding.training_mesh(2, 6)  # 2 seed x 2 batch devices
-split = jax.jit(jax.vmap(lambda x: 2 * sharding.split_samples(x, mesh, axis=1), spmd_axis_name="seed"))
+split = jax.jit(sharding.vmap_seeds(lambda x: 2 * sharding.split_samples(x, mesh, axis=1)))
 out["split"] = [[len(s.device_set), list(getattr(s, "spec", []))] for s in (split(np.zeros((2, 2, n, 3))).sharding for n in (4, 3))]
 for name, seeds in (("seeds", [3, 4, 3, 5]), ("samples", [4])):
     res = train_and_evaluate(TINY, data_sets(TINY), seeds=seeds)
