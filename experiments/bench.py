@@ -127,7 +127,6 @@ def bench_training(quick: bool, w: Workload, compared: dict | None) -> dict:
     for n in w.seeds:
         if n > 1:  # our n vmapped seeds against n times one seed of ours (1.0: vmapping is free)
             out[f"ours_{n}_over_1_per_seed"] = out[f"ours_{n}_seed"]["seconds_per_step"] / (n * out["ours_1_seed"]["seconds_per_step"])
-    out["devices"] = [str(d) for d in jax.devices()]
     # How training splits each seed count over the devices: {"seed": devices over seeds, "batch": over samples}.
     out["mesh"] = {str(n): dict(sharding.training_mesh(n, w.batch).shape) for n in w.seeds}
     if compared is not None:
