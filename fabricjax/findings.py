@@ -1,0 +1,63 @@
+"""The paper's qualitative claims as predicates over per-seed results: a findings checklist.
+
+A study states each claim it can test as a `Finding`: the claim in words, whether our per-seed
+results reproduce it (None when a row it needs was not run) and the numbers behind the verdict,
+so a reader can disagree with the rule without rerunning anything. Claims compare seed means
+unless they say otherwise; the rule is part of the claim's text.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from fabricjax import report
+
+
+@dataclasses.dataclass(frozen=True)
+class Finding:
+    claim: str
+    holds: bool | None  # None: not evaluated (a row the claim needs is missing)
+    evidence: str
+
+    @property
+    def verdict(self) -> str:
+        return {True: "reproduced", False: "not reproduced", None: "not evaluated"}[self.holds]
+
+    def to_json(self) -> dict[str, Any]:
+        return {"claim": self.claim, "holds": self.holds, "verdict": self.verdict, "evidence": self.evidence}
+
+
+def mean_pct(values) -> float:
+    """Mean over seeds, in percent."""
+    return 100.0 * float(np.mean(np.asarray(values, np.float64)))
+
+
+def describe(name: str, values) -> str:
+    """'name 91.2 % (seeds: 90.1, 92.0, ...)': a mean and the per-seed values it came from."""
+    per_seed = ", ".join(f"{100 * v:.1f}" for v in np.asarray(values, np.float64).ravel())
+    return f"{name} {mean_pct(values):.1f} % (seeds: {per_seed})"
+
+
+def missing(claim: str, needed: Sequence[str], have: Mapping[str, Any]) -> Finding | None:
+    """A 'not evaluated' finding when any of `needed` is absent from `have`, else None."""
+    absent = [n for n in needed if n not in have]
+    return Finding(claim, None, f"needs {', '.join(absent)}, not run") if absent else None
+
+
+def at_least(claim: str, a: tuple[str, Any], b: tuple[str, Any], margin_pp: float = 0.0) -> Finding:
+    """Holds when mean(a) >= mean(b) + margin_pp (percentage points)."""
+    (na, va), (nb, vb) = a, b
+    diff = mean_pct(va) - mean_pct(vb)
+    rule = f"mean difference {diff:+.1f} pp" + (f" (rule: >= {margin_pp:+.1f} pp)" if margin_pp else "")
+    return Finding(claim, bool(diff >= margin_pp), f"{describe(na, va)} vs {describe(nb, vb)}; {rule}")
+
+
+def markdown(findings: Sequence[Finding]) -> str:
+    """A table: claim, verdict, evidence."""
+    rows = [[f.claim, f"**{f.verdict}**" if f.holds else f.verdict, f.evidence] for f in findings]
+    n_true = sum(f.holds is True for f in findings)
+    n_eval = sum(f.holds is not None for f in findings)
+    return f"{n_true} of {n_eval} evaluated claims reproduced.\n\n" + report.markdown_table(["Paper's claim", "Ours", "Evidence (per-seed test accuracy)"], rows)
