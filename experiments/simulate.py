@@ -13,7 +13,7 @@ FLAGS = flags.FLAGS
 flags.DEFINE_enum("preset", "default", ["smoke", "default", "paper"], "dataset preset")
 flags.DEFINE_list("streams", ["audio", "proprio", "images"], "streams to record (audio and proprio are required)")
 flags.DEFINE_string("workdir", None, "workspace root (default: $FABRICJAX_WORKDIR or ./workspace)")
-flags.DEFINE_integer("workers", 2, "simulation processes")
+flags.DEFINE_integer("workers", None, "simulation processes (default: one per core)")
 flags.DEFINE_integer("seed", 0, "simulator seed")
 
 

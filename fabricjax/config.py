@@ -20,6 +20,10 @@ MODALITIES = ("image", "flow", "internal", "external", "proprio")
 AUDIO_MODALITIES = ("internal", "external")
 BACKBONES = ("attention", "tcn")
 BANDWIDTHS_KHZ = (2.5, 10.0, 15.0, 24.0)
+# How the concatenated per-step features are normalised before the backbone: the paper's rescale of
+# each dimension to [0, 1] over the sequence, or our variant, a LayerNorm over each step's features
+# (keeps each feature's steady level, which the rescale discards).
+FUSION_NORMS = ("sequence_minmax", "step_layernorm")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,6 +43,7 @@ class Config:
     proprio_hidden: tuple[int, int] = (64, 64)
     cnn_features: tuple[int, ...] = (16, 32, 64)  # image / flow CNN channels per strided conv
     dropout: float = 0.1
+    fusion_norm: str = "sequence_minmax"  # FUSION_NORMS; the paper's is the default
     fabric_head: bool = True
     property_heads: bool = False
     compute_dtype: str = "float32"
@@ -60,6 +65,8 @@ class Config:
             raise ValueError(f"backbone must be one of {BACKBONES}, got {self.backbone!r}")
         if not 0 < self.bandwidth_khz <= 24.0:
             raise ValueError(f"bandwidth_khz must be in (0, 24], got {self.bandwidth_khz}")
+        if self.fusion_norm not in FUSION_NORMS:
+            raise ValueError(f"fusion_norm must be one of {FUSION_NORMS}, got {self.fusion_norm!r}")
         if self.image_resolution not in ("down", "full"):
             raise ValueError(f"image_resolution must be 'down' or 'full', got {self.image_resolution!r}")
         if not (self.fabric_head or self.property_heads):

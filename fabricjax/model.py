@@ -262,6 +262,10 @@ class FabricNet(nnx.Module):
         self.flow = ConvEncoder(2, cnn, dtype=dtype, rngs=rngs) if "flow" in self.modalities else None
         out = {"proprio": config.proprio_hidden[-1], "image": cnn[-1], "flow": cnn[-1]}
         dims = sum(out.get(m, config.audio_hidden[-1]) for m in self.modalities)
+        # Fusion normalisation (config.FUSION_NORMS): the paper's [0, 1] rescale over each sequence
+        # discards every feature's steady level (a palm microphone's loudness, a joint's load),
+        # so our variant normalises each step's concatenated features instead (LayerNorm).
+        self.fusion_norm = nnx.LayerNorm(dims, rngs=rngs) if config.fusion_norm == "step_layernorm" else None
         self.embed = nnx.Linear(dims, width, dtype=dtype, rngs=rngs)
         self.position = nnx.Param(nnx.initializers.normal(0.02)(rngs.params(), (config.sequence_length, width)))
         if config.backbone == "attention":
@@ -278,7 +282,7 @@ class FabricNet(nnx.Module):
         self.dropout = nnx.Dropout(config.dropout)
 
     def features(self, inputs: Mapping[str, jax.Array]) -> jax.Array:
-        """Per-step concatenated encoder outputs, rescaled to [0, 1] over time: (B, N, D)."""
+        """Per-step concatenated encoder outputs, normalised (config.fusion_norm): (B, N, D)."""
         parts = []
         for m in self.modalities:
             x = inputs[m]
@@ -294,7 +298,8 @@ class FabricNet(nnx.Module):
             else:
                 x = self.audio(x.astype(self.dtype))
             parts.append(x.reshape(b, n, -1))
-        return rescale_unit(jnp.concatenate(parts, axis=-1))
+        fused = jnp.concatenate(parts, axis=-1)
+        return rescale_unit(fused) if self.fusion_norm is None else self.fusion_norm(fused.astype(jnp.float32))
 
     def latents(self, inputs: Mapping[str, jax.Array], rngs: nnx.Rngs | None = None) -> jax.Array:
         """Backbone output per step (B, N, width): the representation the t-SNE analysis plots."""

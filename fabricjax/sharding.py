@@ -42,11 +42,18 @@ def use_cpu_cores(n: int | None = None) -> int:
 
 
 def training_mesh(n_seeds: int, batch_size: int = 1) -> Mesh:
-    """("seed", "batch") mesh: the most devices that divide `n_seeds` evenly take the seeds, and
-    each seed's share of devices splits its minibatch by the largest count dividing `batch_size`."""
+    """("seed", "batch") mesh: every minibatch's samples are split over the largest device count
+    that divides `batch_size`; the seeds stay together on each device ("seed" has size 1).
+
+    The layout depends on the batch size and the devices, never on the seed count, so a seed's
+    result does not depend on how many seeds train beside it (tested). Splitting seeds over
+    devices instead (no all-reduce) was up to ~10 % faster per step for even seed counts, but it
+    changed the float summation order of a seed's gradients with the seed count, and with it the
+    trained model."""
     devices = jax.devices()
-    seeds = max(d for d in range(1, len(devices) + 1) if n_seeds % d == 0)
-    batch = max(d for d in range(1, len(devices) // seeds + 1) if batch_size % d == 0)
+    del n_seeds  # deliberately unused: see the docstring
+    seeds = 1
+    batch = max(d for d in range(1, len(devices) + 1) if batch_size % d == 0)
     return Mesh(np.asarray(devices[: seeds * batch]).reshape(seeds, batch), (SEED, BATCH))
 
 

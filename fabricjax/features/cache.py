@@ -10,8 +10,13 @@ parameter starts a new folder. Inside, a file is trusted only if its stored fing
 the archive's current `IndexEntry.fingerprint` (name, size, mtime): a rewritten archive is
 recomputed and its entry overwritten. Files are written to a temporary name and renamed.
 
-Trials whose features are missing are computed in parallel threads (OpenCV, XLA and file reads
-release the GIL), each trial read once, without its images unless a missing feature needs them.
+Trials whose features are missing are computed first, in a process pool over trials (default:
+one process per core; each worker keeps XLA and OpenCV to one thread, so the cores go to trials,
+not to contention), each trial read once, without its images unless a missing feature needs
+them; workers write the cache files themselves, so no array crosses a process boundary. Every
+feature is a function of its archive alone, so the pool returns exactly what the serial path
+(`workers=1`, in this process) does (tested). The arrays are then read back from the cache in
+order, in threads.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import multiprocessing
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -29,7 +35,7 @@ from tqdm import tqdm
 
 from fabricjax import archive
 from fabricjax.atomic import atomic_open
-from fabricjax.features.extract import Feature
+from fabricjax.features.extract import Feature, feature_named
 
 
 def folder(features_root: Path, dataset_root: Path, feature: Feature) -> Path:
@@ -60,6 +66,46 @@ def save(path: Path, fingerprint: str, data: np.ndarray) -> None:
     _atomic_write(path, lambda f: np.savez(f, data=data, fingerprint=np.array(fingerprint)))
 
 
+def is_cached(path: Path, fingerprint: str) -> bool:
+    """The cache file exists and was made from this archive version (reads only the fingerprint)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return str(z["fingerprint"]) == fingerprint
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return False
+
+
+def _compute(job: tuple[str, str, list[str], dict[str, str]]) -> dict[str, np.ndarray]:
+    """Compute one trial's features and write the cached ones: (archive path, fingerprint,
+    feature names, {feature name: cache file})."""
+    path, fingerprint, names, files = job
+    features = [feature_named(n) for n in names]
+    needs_images = any(f.needs_images for f in features)
+    trial = archive.read_archive(path, images=needs_images)
+    if needs_images and trial.images is None:
+        names = ", ".join(f.name for f in features if f.needs_images)
+        raise archive.ArchiveError(path, "images", f"absent, but the features {names} need frames")
+    out = {}
+    for f in features:
+        out[f.name] = f.compute(trial)
+        if f.cached:
+            save(Path(files[f.name]), fingerprint, out[f.name])
+    return out
+
+
+def _compute_and_drop(job) -> None:
+    _compute(job)  # the worker's result stays in its cache file
+
+
+def _one_thread_per_worker() -> None:
+    """Pool initializer: each process computes one trial at a time on one core."""
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1").strip()
+    os.environ["JAX_PLATFORMS"] = "cpu"
+    import cv2
+
+    cv2.setNumThreads(1)
+
+
 def trial_features(
     index: archive.DatasetIndex,
     entries: list[archive.IndexEntry],
@@ -70,24 +116,34 @@ def trial_features(
     progress: bool = True,
 ) -> Iterator[dict[str, np.ndarray]]:
     """For each entry in order, {feature name: array}, from the cache where valid, else computed
-    and cached. A generator, so the caller can keep only what it needs of each trial."""
+    and cached first. A generator, so the caller can keep only what it needs of each trial."""
     folders = {f.name: folder(features_root, index.root, f) for f in features if f.cached}
+    files = lambda e: {name: str(d / f"{Path(e.file).stem}.npz") for name, d in folders.items()}  # noqa: E731
+    cached = [f for f in features if f.cached]
+    jobs = []
+    for e in entries:
+        missing = [f for f in cached if not is_cached(Path(files(e)[f.name]), e.fingerprint)]
+        if missing:
+            jobs.append((str(index.path(e)), e.fingerprint, [f.name for f in missing], files(e)))
+    workers = min(workers or os.cpu_count() or 1, max(len(jobs), 1))
+    if jobs:
+        bar = tqdm(total=len(jobs), desc=f"features ({', '.join(f.name for f in cached)}, {workers} processes)", unit="trial", disable=not progress)
+        with bar:
+            if workers > 1:
+                with multiprocessing.get_context("spawn").Pool(workers, initializer=_one_thread_per_worker) as pool:
+                    for _ in pool.imap_unordered(_compute_and_drop, jobs):
+                        bar.update()
+            else:
+                for job in jobs:
+                    _compute_and_drop(job)
+                    bar.update()
 
     def one(entry: archive.IndexEntry) -> dict[str, np.ndarray]:
-        stem = Path(entry.file).stem
-        out = {f.name: load(folders[f.name] / f"{stem}.npz", entry.fingerprint) for f in features if f.cached}
-        missing = [f for f in features if out.get(f.name) is None]
-        if missing:
-            needs_images = any(f.needs_images for f in missing)
-            trial = archive.read_archive(index.path(entry), images=needs_images)
-            if needs_images and trial.images is None:
-                names = ", ".join(f.name for f in missing if f.needs_images)
-                raise archive.ArchiveError(index.path(entry), "images", f"absent, but the features {names} need frames")
-            for f in missing:
-                out[f.name] = f.compute(trial)
-                if f.cached:
-                    save(folders[f.name] / f"{stem}.npz", entry.fingerprint, out[f.name])
+        out = {f.name: load(Path(files(entry)[f.name]), entry.fingerprint) for f in cached}
+        redo = [f for f in features if out.get(f.name) is None]  # uncached features, or a file damaged since
+        if redo:
+            out.update(_compute((str(index.path(entry)), entry.fingerprint, [f.name for f in redo], files(entry))))
         return out
 
-    with ThreadPoolExecutor(workers or os.cpu_count() or 1) as pool:
-        yield from tqdm(pool.map(one, entries), total=len(entries), desc="features", unit="trial", disable=not progress)
+    with ThreadPoolExecutor(min(4, os.cpu_count() or 1)) as pool:
+        yield from tqdm(pool.map(one, entries), total=len(entries), desc="sequences", unit="trial", disable=not progress, leave=False)

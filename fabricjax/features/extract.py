@@ -78,3 +78,13 @@ def feature_for(modality: str, image_resolution: str = "down") -> Feature:
     if modality == "image" and image_resolution == "full":
         return Feature("image_full", {}, True, False, lambda t: t.images)
     raise ValueError(f"no feature for modality {modality!r} at image resolution {image_resolution!r}")
+
+
+def feature_named(name: str) -> Feature:
+    """The feature called `name` (how a worker process rebuilds one: a Feature's function does
+    not pickle)."""
+    for modality, resolution in [(m, "down") for m in archive.MIC_NAMES] + [("proprio", "down"), ("flow", "down"), ("image", "down"), ("image", "full")]:
+        f = feature_for(modality, resolution)
+        if f.name == name:
+            return f
+    raise ValueError(f"no feature named {name!r}")

@@ -20,7 +20,9 @@ FS = 48_000  # [paper] audio sample rate, Hz
 STEP_HZ = 50  # [paper] one step per Minsight frame
 WINDOW = 2048  # [paper] audio samples per step
 LEAD_IN = 4096  # samples recorded before the procedure starts (>= WINDOW so every window is full)
-FRAME_JITTER_S = 0.0008  # [phys] USB camera frame-time jitter (frames come "approximately every 20 ms")
+FRAME_JITTER_S = 0.0008  # [hw] USB camera frame-time jitter: a UVC camera delivers frames on its own
+# clock; the host timestamps them at USB transfer with ~1 ms scheduling jitter (a USB 2.0 microframe
+# is 125 us; Linux user-space wake-up latency is ~0.1-1 ms), hence +-0.8 ms
 CONTROL_HZ = 2000  # grid on which the finger motion is integrated (then interpolated to 48 kHz)
 
 # --- finger motion [paper: force-controlled closing until 0.1 N, then rubbing cycles] ---------
@@ -39,19 +41,27 @@ FINGER_LEVER_MM = 60.0  # [hw] joint axis to fingertip contact
 # hobby servos lose speed under load: speed = commanded / (1 + SPEED_DROOP_PER_N * mu * F_n).
 # 2 / N gives ~6 % (mu = 0.25) to ~22 % (mu = 0.95) slower cycles at 0.1-0.15 N: trials of ~1300-1550 steps.
 SPEED_DROOP_PER_N = 2.0
-SPEED_JITTER = 0.02  # per-trial spread of the servo speed (supply voltage, temperature)
-CYCLE_PHASE_JITTER = 0.01  # slow wander of the instantaneous stroke rate
-CLOTH_CREEP_MM_PER_CYCLE = 0.05  # [phys] the hanging cloth creeps between strokes (random walk)
+# [hw] An STS3215's no-load speed is proportional to its supply voltage (datasheet: 0.222 s/60 deg at
+# 7.4 V, 0.16 s/60 deg at 12 V, i.e. ~6 %/V); a bench supply under a varying load sags by ~0.1-0.2 V:
+# a per-trial spread of ~2 % of the rubbing rate.
+SPEED_JITTER = 0.02
+CYCLE_PHASE_JITTER = 0.01  # [hw] slow wander of the stroke rate within a trial: half the per-trial spread
+# [phys] The hanging cloth creeps between strokes (random walk): a stroke's net slip is the
+# stick length mu F_n / k_t ~ 0.1-0.3 mm; about a third of it is not recovered on the way back.
+CLOTH_CREEP_MM_PER_CYCLE = 0.05
 
 # --- fabric surface [FACTS: f = v / lambda; roughness spectrum 1/f^s; fuzz] -----------------------
 PROFILE_DX_MM = 0.001  # 1 um grid: resolves content to > 20 kHz at the fastest slide speed
 PROFILE_LEN_MM = 65.536  # one cloth strip per fabric (2**16 samples); grasps land anywhere on it
-GRASP_RANGE_MM = (12.0, 52.0)  # [paper: the hanger is moved between trials] grasp position on the strip
+# [paper: "after each trial, the position of the clothes hanger was adjusted to create variation
+# in the grasping location"] The grasp lands anywhere on the strip, at least one contact length
+# (~10 mm) from its ends: independent cloth for every trial, so no two trials share a surface.
+GRASP_RANGE_MM = (12.0, 52.0)
 ROUGHNESS_K_MIN = 0.5  # cycles/mm: below (2 mm wavelengths) the fabric drapes rather than vibrates
 WEAVE_SHARE = 0.5  # fraction of the RMS height in the periodic weave (the rest: random roughness)
 WEAVE_HARMONICS = 8
-WEAVE_IRREGULARITY = 0.03  # yarn spacing varies by ~3 % of the period
-LOCAL_ROUGHNESS_SPREAD = 0.2  # local roughness varies +-20 % along the strip (10 mm correlation)
+WEAVE_IRREGULARITY = 0.03  # [phys] yarn spacing varies by ~3 % of the period (woven-fabric CV of yarn spacing, a few %)
+LOCAL_ROUGHNESS_SPREAD = 0.2  # [phys] local roughness varies +-20 % along the strip (10 mm correlation): wear, creases, pile direction
 FUZZ_FIBRES_PER_MM = 6.0  # loose fibre ends per mm of path at fuzz = 1
 FUZZ_FIBRE_WIDTH_MM = 0.008  # [phys] fibre diameter ~10-20 um
 FUZZ_HEIGHT = 0.6  # fibre bump height relative to the fabric's RMS roughness
@@ -125,8 +135,13 @@ SELF_NOISE_DB_A = 94.0 - 65.0  # 65 dB(A) SNR re 94 dB SPL -> 29 dB(A) SPL equiv
 BAND_HZ = (50.0, 15_000.0)  # [ds] usable band: 2nd-order roll-offs at both ends
 DECIMATION_HZ = 21_000.0  # steep digital low-pass of the sigma-delta decimator
 DC_OFFSET_COUNTS = -3000.0  # [ds/FACTS] large DC offset (of 2**17), drifting from day to day
+# [ds/FACTS] The DC offset is set by the modulator's reference and drifts with temperature; 400
+# counts is 0.3 % of full scale (an estimate: the datasheet gives no drift figure). It sits in the
+# lowest Welch bins only, which the detrend removes.
 DC_DRIFT_COUNTS = 400.0
-GAIN_DRIFT_DB = 0.5  # per-day sensitivity drift (temperature)
+# [ds] Sensitivity tolerance is +-1 dB between parts; a part's sensitivity moves far less with
+# temperature (MEMS microphones: < 0.5 dB over -40..85 C). 0.5 dB is the day-to-day bound.
+GAIN_DRIFT_DB = 0.5
 JUNK_BITS = 6  # bits 13..8 of the 24-bit word carry no information; bits 7..0 are zero
 
 # --- proprioception [hw] ----------------------------------------------------------------------
@@ -137,17 +152,47 @@ CURRENT_NOISE_A = 0.006  # PWM ripple
 IDLE_CURRENT_A = 0.04
 TORQUE_PER_AMP_NM = 0.7  # ~1.9 N m stall at ~2.7 A
 VISCOUS_NM_PER_RAD_S = 0.01  # gear-train drag of a moving joint
-ANGLE_DRIFT_RAD = 0.003  # per-day calibration offset
-CURRENT_DRIFT_A = 0.004
-FORCE_NOISE_N = 0.004  # Minsight force proxy
+# No day-to-day joint calibration drift: the STS3215 reads its angle from an absolute 12-bit
+# magnetic encoder [FACTS], which has no offset to drift unless the horn or hand is reassembled,
+# and the current reading has no documented offset drift (its 6.5 mA LSB and the PWM ripple
+# above are the sensor's limits). Day-to-day differences reach the joints through the grasp.
+# [phys] Minsight force proxy: the closing stops when the estimate crosses 0.1 N, so its error
+# shows as grasp force. Minsight's force map is trained to errors of a few hundredths of a newton;
+# we take 4 mN of frame-to-frame noise and 4 mN of per-day bias (reference image re-taken daily).
+FORCE_NOISE_N = 0.004
 FORCE_BIAS_N = 0.004
-FOLD_SPREAD = 0.1  # the folded stack's thickness varies +-10 % with the grasp
+# [phys] The hanging fabric is folded by hand on the hanger: where the grasp lands the stack is
+# two layers plus local slack and seams, +-10 % of its nominal thickness.
+FOLD_SPREAD = 0.1
+# [phys] Where the contact centre lands on Minsight's shell: the grasp is force-controlled, not
+# placed, so the patch wanders by about a third of its ~5 mm size between trials (SD, mm).
+CONTACT_OFFSET_MM = 1.5
 
 # --- Minsight images --------------------------------------------------------------------------
 SHELL_WIDTH_MM = 30.0  # the 410-pixel image spans ~30 mm of shell interior
 INDENT_PX_PER_N = 40.0  # radial bulge at full resolution per N of normal force
 SHEAR_PX_PER_N = 90.0  # lateral shift at full resolution per N of tangential force
 CONTACT_SIGMA_PX = 55.0  # contact patch radius at full resolution, 0.1 N, thin fabric
+# What the fabric stack changes in the image at a fixed 0.1 N (the force-controlled closing makes
+# the force itself the same for every fabric):
+# [phys] Patch size: a compressible stack conforms to the fingertip and spreads the load (the
+# patch grows ~15 % per mm of compressible stack), and a bending-stiff stack bridges it like a
+# plate on an elastic foundation, whose load spreads over (B / k)^(1/4) (Hetenyi 1946): the patch
+# widens across the fold as the quarter power of the stack's bending stiffness.
+CONFORM_PER_MM = 0.15
+# [phys] Bending stiffness of a layer ~ E h^3 / 12, and its in-plane stiffness ~ E h, so relative
+# to a reference layer B scales as stretch_stiffness * thickness^2 (reference: 5 N/mm, 0.5 mm, a
+# shirting cotton).
+BENDING_REF_STRETCH_N_MM = 5.0
+BENDING_REF_THICKNESS_MM = 0.5
+# [phys] The fold of the folded stack is a ridge (a U-turn of the cloth, about one stack thickness
+# wide) that presses a line into the shell where it lies inside the patch. Through an elastic
+# shell of thickness d, surface relief of wavelength lambda reaches the inner wall attenuated by
+# exp(-2 pi d / lambda) (Boussinesq layer solution, decay of a periodic surface load); the same
+# law removes weave textures of sub-millimetre period entirely, so none is drawn.
+SHELL_THICKNESS_MM = 2.0  # estimate for Minsight's elastomer shell (a few mm; exact value not public)
+RIDGE_WAVELENGTH_PER_THICKNESS = 4.0  # a ridge of width w has its relief at lambda ~ 4 w
+FOLD_ANGLE_SPREAD_RAD = 0.3  # [paper: the hanger is moved between trials] the fold's direction varies
 SHADING_PER_N = 1.2  # darkening of the indented region per N
 CAMERA_NOISE = 1.5  # grey levels
 OPEN_POSE_RAD = (0.30, 0.20, 0.10, 0.00, 0.20, 0.50)  # [hw] joint angles of the open hand

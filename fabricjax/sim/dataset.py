@@ -8,6 +8,8 @@ every archive that already exists, matches its scene and holds the wanted stream
 from __future__ import annotations
 
 import multiprocessing
+import os
+import shutil
 from pathlib import Path
 from typing import Iterable
 
@@ -15,6 +17,7 @@ import numpy as np
 from tqdm import tqdm
 
 from fabricjax import archive, splits, workspace
+from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import EFFECTS, Scene
 from fabricjax.sim.simulate import simulate
 
@@ -53,6 +56,25 @@ def is_done(path: Path, scene: Scene) -> bool:
     return made == want and (has_images or "images" not in scene.streams)
 
 
+class NotEnoughDisk(OSError):
+    """The dataset would not fit on the disk: nothing was written."""
+
+
+def trial_bytes(preset: splits.Preset, images: bool) -> int:
+    """About how many bytes one simulated trial archive of `preset` takes (uncompressed .npz).
+
+    A trial lasts its cycles at the commanded rate, ~12 % slower on average under load (the servo
+    droop of calibration.SPEED_DROOP_PER_N), plus ~1 s of closing and pauses."""
+    seconds = preset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0
+    steps = seconds * cal.STEP_HZ
+    per_step = 8 + 2 * 8 + archive.N_JOINTS * 3 * 4 + 4 + (3 * preset.image_size[0] * preset.image_size[1] if images else 0)
+    return int(steps * per_step + 2 * 4 * (seconds * cal.FS + cal.LEAD_IN))
+
+
+def _gb(n: float) -> str:
+    return f"{n / 1e9:.1f} GB"
+
+
 def _write(job: tuple[Scene, str]) -> str:
     scene, path = job
     archive.write_archive(path, simulate(scene))
@@ -64,10 +86,15 @@ def ensure_dataset(
     workdir=None,
     streams: Iterable[str] = ("audio", "proprio", "images"),
     progress: bool = True,
-    workers: int = 2,
+    workers: int | None = None,
     seed: int = 0,
 ) -> Path:
-    """Generate the missing archives of `preset_name` into `workspace.dataset_dir` and index them."""
+    """Generate the missing archives of `preset_name` into `workspace.dataset_dir` and index them.
+
+    Trials are simulated in a process pool of `workers` (default: one per core). Each archive is
+    a function of its scene alone (every draw is seeded by the scene), so the pool's order
+    changes nothing: the archives equal those of `workers=1` byte for byte (tested). Before
+    writing, the disk space the missing trials need is estimated (`trial_bytes`) and checked."""
     preset = splits.preset(preset_name)
     folder = workspace.dataset_dir(preset_name, workdir)
     folder.mkdir(parents=True, exist_ok=True)
@@ -75,6 +102,18 @@ def ensure_dataset(
         stale.unlink()
     scenes = [scene_for(spec, preset, streams, seed) for spec in preset.trials()]
     jobs = [(s, str(folder / filename(s))) for s in scenes if not is_done(folder / filename(s), s)]
+    workers = workers or os.cpu_count() or 1
+    if jobs:
+        need = len(jobs) * trial_bytes(preset, "images" in streams)
+        free = shutil.disk_usage(folder).free
+        if need > 0.95 * free:
+            raise NotEnoughDisk(f"{folder}: simulating {len(jobs)} trials of preset {preset_name!r} needs about {_gb(need)}, only {_gb(free)} free")
+        if progress:
+            print(
+                f"Simulating {len(jobs)} of {len(scenes)} trials of preset {preset_name!r} ({', '.join(streams)}) into {folder}: "
+                f"about {_gb(need)} on disk, on {workers} processes. This happens once; later runs reuse the archives.",
+                flush=True,
+            )
     bar = tqdm(total=len(scenes), initial=len(scenes) - len(jobs), desc=f"simulate {preset_name}", unit="trial", disable=not progress)
     with bar:
         if workers > 1 and len(jobs) > 1:

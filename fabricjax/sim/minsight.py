@@ -3,8 +3,14 @@
 [paper, Minsight Images] The camera looks at the inside of an opaque silicone shell lit by
 coloured LEDs; external light never enters. Contact deforms the shell, and the image shows it as
 * indentation: the normal force pushes the patch toward the camera, a radial bulge of the
-  texture around the contact centre (grows with F_n; the patch widens on thick, compressible
-  stacks) that also darkens as the surface tilts away from the LEDs;
+  texture around the contact centre (grows with F_n) that also darkens as the surface tilts away
+  from the LEDs. At the fixed 0.1 N grasp the force is the same for every fabric; what differs
+  is the patch's shape (`patch_geometry`: wider on thick, compressible stacks; elongated across
+  the fold on bending-stiff ones) and the fold ridge, a line pressed into the patch whose relief
+  survives the shell only for thick stacks (calibration: exp(-2 pi d / lambda));
+* what is not drawn, for physical reasons: weave textures (sub-mm to 3 mm periods) do not pass a
+  ~2 mm shell (the same exp law), and stick-slip micro-jumps (~10-40 per second at these slide
+  speeds) average out within a 20 ms frame into the Coulomb-limited shear below;
 * shear: the tangential load drags the patch along the rubbing direction (stick: shear builds
   up; slip: it stays at mu * F_n), which is what optical flow picks up.
 Rendered with one `cv2.remap` of a fixed procedural interior texture per frame (cheap), plus
@@ -18,6 +24,7 @@ import functools
 import cv2
 import numpy as np
 
+from fabricjax import catalog
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.motion import Motion
 from fabricjax.sim.scene import Nuisance, Scene
@@ -41,6 +48,20 @@ def interior(seed: int, height: int, width: int) -> np.ndarray:
     return np.clip(light * (1.0 - 0.55 * dots[..., None]) + 20.0, 0, 255)
 
 
+def patch_geometry(fabric: catalog.Fabric, fold: float) -> tuple[float, float, float]:
+    """(along, across, ridge) at full resolution for the folded stack at 0.1 N, see calibration:
+    the patch's size along and across the fold relative to a thin, soft fabric's, and how much of
+    the fold ridge's relief reaches the inner wall (0 for thin cloth, ~0.5 for a knitted hat)."""
+    if not fabric.is_fabric:
+        return 1.0, 1.0, 0.0
+    stack_mm = 2.0 * fabric.thickness_mm * fold
+    conform = 1.0 + cal.CONFORM_PER_MM * stack_mm * fabric.compressibility
+    bending = 2.0 * (fabric.stretch_stiffness / cal.BENDING_REF_STRETCH_N_MM) * (fabric.thickness_mm / cal.BENDING_REF_THICKNESS_MM) ** 2
+    wavelength = cal.RIDGE_WAVELENGTH_PER_THICKNESS * stack_mm
+    ridge = float(np.exp(-2 * np.pi * cal.SHELL_THICKNESS_MM / wavelength))
+    return conform, conform * (1.0 + bending) ** 0.25, ridge
+
+
 def render(scene: Scene, motion: Motion, frame_t: np.ndarray, nz: Nuisance, rng: np.random.Generator) -> np.ndarray:
     """uint8 frames (T, H, W, 3) at the frame times."""
     h, w = scene.image_size
@@ -48,22 +69,34 @@ def render(scene: Scene, motion: Motion, frame_t: np.ndarray, nz: Nuisance, rng:
     scale = w / FULL_WIDTH
     px_per_mm = w / cal.SHELL_WIDTH_MM
     fab = scene.fabric
+    along, across, ridge = patch_geometry(fab, nz.fold)
+    fold_angle = RUB_DIRECTION_RAD + np.pi / 2 + rng.normal(0.0, cal.FOLD_ANGLE_SPREAD_RAD)
     cx, cy = np.array([w / 2, h / 2]) + nz.contact_offset_mm * px_per_mm
-    conform = 1.0 + 0.15 * 2 * fab.thickness_mm * fab.compressibility
-    sigma = cal.CONTACT_SIGMA_PX * scale * conform
+    sigma = cal.CONTACT_SIGMA_PX * scale
     y, x = np.mgrid[0:h, 0:w].astype(np.float32)
-    g = np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * sigma**2)).astype(np.float32)
-    radial_x, radial_y = ((x - cx) / sigma * g).astype(np.float32), ((y - cy) / sigma * g).astype(np.float32)
+    # patch coordinates: u along the fold line, v across it
+    c, s_ = np.cos(fold_angle), np.sin(fold_angle)
+    u, v = (x - cx) * c + (y - cy) * s_, -(x - cx) * s_ + (y - cy) * c
+    su, sv = sigma * along, sigma * across
+    g = np.exp(-(u**2) / (2 * su**2) - v**2 / (2 * sv**2)).astype(np.float32)
+    radial_x = ((u / su * c - v / sv * s_) * g).astype(np.float32)
+    radial_y = ((u / su * s_ + v / sv * c) * g).astype(np.float32)
+    # the fold ridge: a line across the patch at a random offset, pushing the wall out from its axis
+    width = max(2.0 * fab.thickness_mm * nz.fold * px_per_mm, 0.5)
+    dv = v - rng.uniform(-1.0, 1.0) * sv
+    line = (ridge * np.exp(-(dv**2) / (2 * width**2)) * g).astype(np.float32)
+    radial_x += (-dv / width * line * s_).astype(np.float32)
+    radial_y += (dv / width * line * c).astype(np.float32)
     shear_x, shear_y = np.float32(np.cos(RUB_DIRECTION_RAD)) * g, np.float32(np.sin(RUB_DIRECTION_RAD)) * g
     normal = np.interp(frame_t, motion.t, motion.normal_n)
     shear = np.interp(frame_t, motion.t, motion.shear_n)
     frames = np.empty((len(frame_t), h, w, 3), np.uint8)
     for k, (fn, ft) in enumerate(zip(normal, shear)):
-        a, s = float(cal.INDENT_PX_PER_N * scale * fn / conform), float(-cal.SHEAR_PX_PER_N * scale * ft)
+        a, s = float(cal.INDENT_PX_PER_N * scale * fn / along), float(-cal.SHEAR_PX_PER_N * scale * ft)
         map_x = x - a * radial_x - s * shear_x
         map_y = y - a * radial_y - s * shear_y
         img = cv2.remap(base, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
-        img *= (1.0 - float(cal.SHADING_PER_N * fn) * g)[..., None]
+        img *= (1.0 - float(cal.SHADING_PER_N * fn) * (g + line))[..., None]
         img += rng.standard_normal(img.shape, dtype=np.float32) * cal.CAMERA_NOISE
         frames[k] = np.clip(img, 0, 255)
     return frames

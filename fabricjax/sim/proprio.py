@@ -8,8 +8,8 @@ also feel the load and the sensors are real:
 * load: the tangential contact load (friction, cloth stretch) loads the rubbing joints and the
   normal force loads the closing joints; a position-controlled servo lags by torque / stiffness
   and draws current torque / k_t, plus gear drag ~ speed;
-* sensors: 12-bit position, noisy velocity, 6.5 mA current steps, per-day calibration offsets,
-  and noise and bias on Minsight's force proxy.
+* sensors: 12-bit absolute position (no calibration drift), noisy velocity, 6.5 mA current
+  steps, and noise and a per-day bias on Minsight's force proxy.
 Without it: ideal kinematics, idle currents, the true normal force.
 """
 
@@ -46,9 +46,9 @@ def joints_and_force(motion: Motion, frame_t: np.ndarray, nz: Nuisance, rng: np.
     force = np.interp(frame_t, motion.t, motion.normal_n)
     if rng is not None:
         n = len(frame_t)
-        a = np.round((a + nz.angle_offset_rad) / cal.ANGLE_LSB_RAD) * cal.ANGLE_LSB_RAD
+        a = np.round(a / cal.ANGLE_LSB_RAD) * cal.ANGLE_LSB_RAD
         v = v + rng.normal(0.0, cal.VELOCITY_NOISE_RAD_S, (n, 6))
-        c = c + nz.current_offset_a + rng.normal(0.0, cal.CURRENT_NOISE_A, (n, 6))
+        c = c + rng.normal(0.0, cal.CURRENT_NOISE_A, (n, 6))
         c = np.maximum(np.round(c / cal.CURRENT_LSB_A), 0) * cal.CURRENT_LSB_A
         force = force + nz.force_bias_n + rng.normal(0.0, cal.FORCE_NOISE_N, n)
     joints = np.stack([a, v, c], axis=2).astype(np.float32)

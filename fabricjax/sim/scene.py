@@ -6,7 +6,7 @@ belongs to. Scopes fix what varies together:
 
     hardware  the same robot every day (shell texture, servo signature)
     fabric    the same cloth every day (its surface profile)
-    day       one recording day: ambient level, microphone DC offset and gain, joint calibration
+    day       one recording day: ambient level, microphone DC offset and gain, force-proxy bias
     trial     one trial: grasp position, fold, speed, jitter
 
 So leaving an effect out never changes another effect's draws, and two trials of one day share
@@ -90,8 +90,6 @@ class Nuisance:
     ambient_db_a: float  # at the palm microphone
     mic_gain_db: np.ndarray  # (2,)
     mic_dc_counts: np.ndarray  # (2,)
-    angle_offset_rad: np.ndarray  # (6,)
-    current_offset_a: np.ndarray  # (6,)
     force_bias_n: float
     grasp_mm: float  # where on the cloth strip the fingertips land
     fold: float  # thickness factor of the folded stack
@@ -114,12 +112,10 @@ def nuisance(scene: Scene) -> Nuisance:
         ambient_db_a=level,
         mic_gain_db=day.normal(0.0, cal.GAIN_DRIFT_DB, 2),
         mic_dc_counts=cal.DC_OFFSET_COUNTS + day.normal(0.0, cal.DC_DRIFT_COUNTS, 2),
-        angle_offset_rad=day.normal(0.0, cal.ANGLE_DRIFT_RAD, 6),
-        current_offset_a=day.normal(0.0, cal.CURRENT_DRIFT_A, 6),
         force_bias_n=float(day.normal(0.0, cal.FORCE_BIAS_N)),
         grasp_mm=float(trial.uniform(*cal.GRASP_RANGE_MM)),
         fold=float(1.0 + trial.uniform(-cal.FOLD_SPREAD, cal.FOLD_SPREAD)),
         speed=float(1.0 + trial.normal(0.0, cal.SPEED_JITTER)),
         frame_phase_s=float(trial.uniform(0.0, 1.0 / cal.STEP_HZ)),
-        contact_offset_mm=trial.normal(0.0, 1.5, 2),
+        contact_offset_mm=trial.normal(0.0, cal.CONTACT_OFFSET_MM, 2),
     )

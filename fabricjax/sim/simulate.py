@@ -72,6 +72,7 @@ def simulate(scene: Scene) -> archive.TrialArchive:
         condition=scene.condition,
         source={"kind": "simulated", "scene": scene.to_json(), "effects": list(scene.effects)},
         image_size=scene.image_size if images is not None else None,
+        closing_steps=int(np.searchsorted(t, mot.rubbing_start_s)),  # as the recorder writes it
     )
     return archive.validate(
         archive.TrialArchive(

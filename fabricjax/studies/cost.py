@@ -144,7 +144,7 @@ def pareto_front(points: Sequence[dict], key: str) -> list[str]:
 
 
 def _shortest_trial(folder) -> int:
-    return min(e.n_steps for e in archive.load_index(folder).entries)
+    return min(e.n_steps - data.first_step(e.meta) for e in archive.load_index(folder).entries)
 
 
 def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int) -> dict[str, Any]:
