@@ -15,7 +15,7 @@ from fabricjax import splits
 
 # Input streams by name. "internal"/"external" are the Minsound / palm microphone PSDs (one shared
 # encoder), "proprio" the 18 joint values, "flow" the patch-pooled optical flow, "image" Minsight
-# frames (60x80 or original resolution, see `image_resolution`).
+# frames (downsampled to `image_size` or at the archive's resolution, see `image_resolution`).
 MODALITIES = ("image", "flow", "internal", "external", "proprio")
 AUDIO_MODALITIES = ("internal", "external")
 BACKBONES = ("attention", "tcn")
@@ -24,6 +24,7 @@ BANDWIDTHS_KHZ = (2.5, 10.0, 15.0, 24.0)
 # each dimension to [0, 1] over the sequence, or our variant, a LayerNorm over each step's features
 # (keeps each feature's steady level, which the rescale discards).
 FUSION_NORMS = ("sequence_minmax", "step_layernorm")
+LR_SCHEDULES = ("constant", "cosine")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,7 +34,8 @@ class Config:
     backbone: str = "attention"
     seq_len: int | None = None  # None: the preset's N
     bandwidth_khz: float = 15.0
-    image_resolution: str = "down"  # "down" = 60x80, "full" = the archive's resolution
+    image_resolution: str = "down"  # "down" = image_size, "full" = the archive's resolution
+    image_size: tuple[int, int] = (60, 80)  # the "down" frame size: the paper's 60x80
     # model
     width: int = 64
     n_heads: int = 4
@@ -51,6 +53,7 @@ class Config:
     epochs: int = 40
     batch_size: int = 32
     learning_rate: float = 1e-3
+    lr_schedule: str = "constant"  # LR_SCHEDULES, after the warm-up
     warmup_steps: int = 100  # linear warm-up from 0: without it a few seeds collapse to chance early
     weight_decay: float = 1e-4
     augment_rotation: bool = True
@@ -67,6 +70,8 @@ class Config:
             raise ValueError(f"bandwidth_khz must be in (0, 24], got {self.bandwidth_khz}")
         if self.fusion_norm not in FUSION_NORMS:
             raise ValueError(f"fusion_norm must be one of {FUSION_NORMS}, got {self.fusion_norm!r}")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ValueError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
         if self.image_resolution not in ("down", "full"):
             raise ValueError(f"image_resolution must be 'down' or 'full', got {self.image_resolution!r}")
         if not (self.fabric_head or self.property_heads):

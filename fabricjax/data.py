@@ -33,7 +33,8 @@ N rubbing steps raises `archive.ArchiveError` naming the file.
       "proprio"               float32 (S, N, 18)       6 joints x (angle, velocity, current)
       "flow"                  float16 (S, N, 2, h, w)  sparse flow, 3x3 patch means (flow.py);
                                                        102x137 for 308x410 frames
-      "image"                 uint8   (S, N, H, W, 3)  60x80 ("down") or the archive's size ("full")
+      "image"                 uint8   (S, N, H, W, 3)  config.image_size ("down", the paper's 60x80)
+                                                       or the archive's size ("full")
     labels   int32 (S,): "fabric" (meta label: 0-20, the 21 classes; in "holdout" up to 23),
              "stretchiness", "roughness", "thickness" (property levels, -1 when unknown, e.g.
              class 0)
@@ -144,7 +145,7 @@ def load_sequences(
                 f"{e.n_steps} steps of which {e.n_steps - first_step(e.meta)} rubbing, fewer than one sequence of N={n} steps",
             )
     members = {s: [e for e, t in chosen if t == s] for s in wanted}
-    features = {m: feature_for(m, config.image_resolution) for m in config.modalities}
+    features = {m: feature_for(m, config.image_resolution, config.image_size) for m in config.modalities}
     feats = cache.trial_features(
         index, [e for e, _ in chosen], list(features.values()), workspace.features_dir(workdir),
         workers=workers, progress=progress,

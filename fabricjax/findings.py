@@ -47,12 +47,12 @@ def missing(claim: str, needed: Sequence[str], have: Mapping[str, Any]) -> Findi
     return Finding(claim, None, f"needs {', '.join(absent)}, not run") if absent else None
 
 
-def at_least(claim: str, a: tuple[str, Any], b: tuple[str, Any], margin_pp: float = 0.0) -> Finding:
-    """Holds when mean(a) >= mean(b) + margin_pp (percentage points)."""
+def at_least(claim: str, a: tuple[str, Any], b: tuple[str, Any], margin_pp: float = 0.0, strict: bool = False) -> Finding:
+    """Holds when mean(a) >= mean(b) + margin_pp (percentage points); > with `strict`."""
     (na, va), (nb, vb) = a, b
     diff = mean_pct(va) - mean_pct(vb)
-    rule = f"mean difference {diff:+.1f} pp" + (f" (rule: >= {margin_pp:+.1f} pp)" if margin_pp else "")
-    return Finding(claim, bool(diff >= margin_pp), f"{describe(na, va)} vs {describe(nb, vb)}; {rule}")
+    rule = f"mean difference {diff:+.1f} pp" + (f" (rule: {'>' if strict else '>='} {margin_pp:+.1f} pp)" if margin_pp or strict else "")
+    return Finding(claim, bool(diff > margin_pp if strict else diff >= margin_pp), f"{describe(na, va)} vs {describe(nb, vb)}; {rule}")
 
 
 def markdown(findings: Sequence[Finding]) -> str:

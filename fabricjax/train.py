@@ -80,6 +80,15 @@ def rotation_augment(config: Config) -> Augment | None:
     return lambda key, inputs: {**inputs, "image": rotate_batch(key, inputs["image"])}
 
 
+def lr_decay(config: Config, step: jax.Array, total_steps: int) -> jax.Array:
+    """The learning-rate factor at `step` of `total_steps` after the optimiser's warm-up: 1 for
+    "constant", a cosine from 1 to 0 over the run for "cosine" (short runs on a large dataset end
+    in a low-noise phase instead of stopping at full step size)."""
+    if config.lr_schedule == "constant":
+        return jnp.ones(jnp.shape(step), jnp.float32)
+    return 0.5 * (1.0 + jnp.cos(jnp.pi * jnp.minimum(step / max(total_steps, 1), 1.0))).astype(jnp.float32)
+
+
 def masked_cross_entropy(logits: jax.Array, labels: jax.Array) -> jax.Array:
     """Mean cross-entropy over known labels; -1 (unknown) and labels beyond the head are ignored."""
     valid = (labels >= 0) & (labels < logits.shape[-1])
@@ -126,26 +135,30 @@ class Trainer:
         logits = self.logits(params, batch["inputs"], key)
         return sum(masked_cross_entropy(logits[h], batch["labels"][h]) for h in logits)
 
-    def train_epoch(self, params, opt_state, key, train):
-        """One pass over shuffled minibatches (remainder dropped) in a scan: (params, opt_state, mean loss)."""
+    def train_epoch(self, params, opt_state, key, train, epoch=0):
+        """One pass over shuffled minibatches (remainder dropped) in a scan: (params, opt_state, mean loss).
+
+        `epoch` (0-based) places the pass in the run for the learning-rate schedule."""
         n = jax.tree.leaves(train)[0].shape[0]
         batch = min(self.config.batch_size, n)
         steps = n // batch
         k_perm, k_steps = jax.random.split(key)
         order = jax.random.permutation(k_perm, n)[: steps * batch].reshape(steps, batch)
+        lr_scale = lr_decay(self.config, epoch * steps + jnp.arange(steps), self.config.epochs * steps)
 
         def step(carry, xs):
             params, opt_state = carry
-            idx, k = xs
+            idx, k, scale = xs
             mb = sharding.split_samples(jax.tree.map(lambda a: a[idx], train), self.mesh)
             k_aug, k_drop = jax.random.split(k)
             if self.augment is not None:
                 mb = {**mb, "inputs": self.augment(k_aug, mb["inputs"])}
             loss, grads = jax.value_and_grad(self.loss)(params, mb, k_drop)
             updates, opt_state = self.tx.update(grads, opt_state, params)
+            updates = jax.tree.map(lambda u: u * scale, updates)  # AdamW's update is lr * (...): this scales lr
             return (optax.apply_updates(params, updates), opt_state), loss
 
-        (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), (order, jax.random.split(k_steps, steps)))
+        (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), (order, jax.random.split(k_steps, steps), lr_scale))
         return params, opt_state, losses.mean()
 
     def evaluate(self, params, ds) -> dict[str, dict[str, jax.Array]]:
@@ -170,7 +183,7 @@ class Trainer:
         def epoch(state, _):
             e = state["epoch"]
             params, opt_state, loss = self.train_epoch(
-                state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), data["train"]
+                state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), data["train"], e
             )
             val = self.selection_metric(self.evaluate(params, data["val"])["accuracy"])
             better = val > state["best_val"]

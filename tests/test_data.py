@@ -79,22 +79,22 @@ def test_splits_labels_and_holdout(dataset, tmp_path):
 
 def test_second_load_does_no_feature_work(dataset, tmp_path, reads):
     ws = tmp_path / "ws"
-    first = data.load_sequences(_config(), dataset, workdir=ws, progress=False)
+    first = data.load_sequences(_config(), dataset, workdir=ws, progress=False, workers=1)
     assert reads and all(images is False for _, images in reads)  # audio + proprio never reads frames
     reads.clear()
-    second = data.load_sequences(_config(bandwidth_khz=2.5), dataset, workdir=ws, progress=False)
+    second = data.load_sequences(_config(bandwidth_khz=2.5), dataset, workdir=ws, progress=False, workers=1)
     assert reads == []  # the bandwidth only truncates cached spectra
     np.testing.assert_array_equal(second["train"].inputs["internal"], first["train"].inputs["internal"][..., :54])
 
 
 def test_cache_invalidation(dataset, tmp_path, reads, monkeypatch):
     ws = tmp_path / "ws"
-    before = data.load_sequences(_config(), dataset, workdir=ws, progress=False)
+    before = data.load_sequences(_config(), dataset, workdir=ws, progress=False, workers=1)
     reads.clear()
     # rewriting one archive recomputes that trial only
     a = tiny_archive(45, fabric_id=0, day=1, trial=0, seed=99)
     archive.write_archive(dataset / "fabric00_day1_trial00_lab.npz", a)
-    after = data.load_sequences(_config(), dataset, workdir=ws, progress=False)
+    after = data.load_sequences(_config(), dataset, workdir=ws, progress=False, workers=1)
     assert reads == [("fabric00_day1_trial00_lab.npz", False)]
     mine = after["train"].info["trial_key"] == "fabric00_day1_trial00_lab.npz"
     assert not np.array_equal(after["train"].inputs["proprio"][mine], before["train"].inputs["proprio"][mine])
@@ -102,7 +102,7 @@ def test_cache_invalidation(dataset, tmp_path, reads, monkeypatch):
     # a changed feature parameter recomputes that feature everywhere
     reads.clear()
     monkeypatch.setattr(welch, "LOG_FLOOR", 1e-12)
-    data.load_sequences(_config(), dataset, workdir=ws, progress=False)
+    data.load_sequences(_config(), dataset, workdir=ws, progress=False, workers=1)
     assert len(reads) == len(archive.load_index(dataset).entries) - 1  # all but fabric 21
 
 
@@ -110,12 +110,12 @@ def test_image_and_flow_features(tmp_path, reads):
     trials = [(4, 1, 0, "lab"), (4, 1, 1, "lab"), (4, 3, 0, "lab")]
     ds = tiny_dataset(tmp_path / "ds", trials, n_steps=41, images=(20, 26))
     cfg = _config(modalities=("image", "flow"))
-    sets = data.load_sequences(cfg, ds, workdir=tmp_path / "ws", progress=False)
+    sets = data.load_sequences(cfg, ds, workdir=tmp_path / "ws", progress=False, workers=1)
     assert sets["train"].inputs["image"].shape == (2, N, 60, 80, 3) and sets["train"].inputs["image"].dtype == np.uint8
     assert sets["train"].inputs["flow"].shape == (2, N, 2, 6, 9) and sets["train"].inputs["flow"].dtype == np.float16
     assert not sets["train"].inputs["flow"][0, 0].any()  # step 0 of a trial has no flow
     full_cfg = dataclasses.replace(cfg, image_resolution="full")
-    full = data.load_sequences(full_cfg, ds, workdir=tmp_path / "ws", progress=False)
+    full = data.load_sequences(full_cfg, ds, workdir=tmp_path / "ws", progress=False, workers=1)
     frames = archive.read_archive(ds / "fabric04_day3_trial00_lab.npz").images
     np.testing.assert_array_equal(full["test"].inputs["image"][1], frames[N : 2 * N])
 
@@ -133,9 +133,9 @@ def test_trial_shorter_than_a_sequence_names_the_file(tmp_path):
 
 
 def test_only_the_requested_splits_are_read(dataset, tmp_path, reads):
-    full = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws1", progress=False)
+    full = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws1", progress=False, workers=1)
     n_read = len(reads)
-    sets = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws2", progress=False, split_names=("test", "train"))
+    sets = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws2", progress=False, workers=1, split_names=("test", "train"))
     assert list(sets) == ["train", "test"]  # in SPLITS order
     for s in sets:
         np.testing.assert_array_equal(sets[s].inputs["internal"], full[s].inputs["internal"])
@@ -143,4 +143,27 @@ def test_only_the_requested_splits_are_read(dataset, tmp_path, reads):
     assert second and not any("cafe" in name for name in second)
     assert not any(name in second for name in full["val"].info["trial_key"])
     with pytest.raises(ValueError, match="unknown splits"):
-        data.load_sequences(_config(), dataset, workdir=tmp_path / "ws3", progress=False, split_names=("training",))
+        data.load_sequences(_config(), dataset, workdir=tmp_path / "ws3", progress=False, workers=1, split_names=("training",))
+
+
+def test_sequences_start_at_the_first_rubbing_step(tmp_path):
+    """With meta closing_steps = C, a trial of T steps gives (T - C) // N sequences from step C."""
+    a = tiny_archive(75, fabric_id=4, day=1, trial=0)
+    a = dataclasses.replace(a, meta={**a.meta, "closing_steps": 12})
+    folder = tmp_path / "ds"
+    archive.write_archive(folder / archive.trial_filename(a.meta), a)
+    tiny_dataset(folder, [(4, 1, 1, "lab"), (4, 3, 0, "lab")])  # no closing_steps: from step 0
+    sets = data.load_sequences(_config(), folder, workdir=tmp_path / "ws", progress=False, split_names=("train",))
+    mine = sets["train"].info["trial_key"] == archive.trial_filename(a.meta)
+    assert list(sets["train"].info["start"][mine]) == [12, 32, 52]  # (75 - 12) // 20 = 3
+    np.testing.assert_array_equal(sets["train"].inputs["proprio"][mine], a.joints[12:72].reshape(3, N, 18))
+
+
+def test_feature_process_pool_equals_the_serial_path(dataset, tmp_path):
+    """Features computed in 2 worker processes are bit-identical to those computed in-process."""
+    cfg = _config(modalities=("internal", "external", "proprio", "flow"))
+    serial = data.load_sequences(cfg, dataset, workdir=tmp_path / "serial", progress=False, workers=1)
+    pooled = data.load_sequences(cfg, dataset, workdir=tmp_path / "pooled", progress=False, workers=2)
+    for split in serial:
+        for m in cfg.modalities:
+            np.testing.assert_array_equal(serial[split].inputs[m], pooled[split].inputs[m])

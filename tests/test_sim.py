@@ -14,6 +14,7 @@ from fabricjax import archive, catalog, splits
 from fabricjax.sim import EFFECTS, Scene, ensure_dataset, simulate
 from fabricjax.sim import air_path, ambient, minsight, motion, servo, shell, sph0645, stick_slip, texture
 from fabricjax.sim import calibration as cal
+from fabricjax.sim import dataset as dataset_mod
 from fabricjax.sim.scene import nuisance
 
 SHORT = dict(cycles=2)
@@ -199,3 +200,40 @@ def test_generation_killed_midway_resumes_and_keeps_finished_archives(tmp_path):
     ensure_dataset("smoke", workdir=tmp_path, streams=("audio", "proprio", "images"), progress=False, workers=1)
     arch = archive.read_archive(folder / sorted(after)[0])
     assert arch.images is not None and list(arch.images.shape[1:3]) == list(splits.preset("smoke").image_size)
+
+
+def test_parallel_generation_writes_the_same_archives_as_serial(tmp_path):
+    """The process pool changes nothing: every archive equals the serial path's byte for byte."""
+    kw = dict(streams=("audio", "proprio"), progress=False)
+    serial = ensure_dataset("smoke", workdir=tmp_path / "serial", workers=1, **kw)
+    pooled = ensure_dataset("smoke", workdir=tmp_path / "pooled", workers=2, **kw)
+    names = sorted(p.name for p in serial.glob("*.npz"))
+    assert names == sorted(p.name for p in pooled.glob("*.npz")) and len(names) == len(splits.preset("smoke").trials())
+    for name in names:
+        assert (serial / name).read_bytes() == (pooled / name).read_bytes(), name
+
+
+def test_simulated_meta_marks_the_first_rubbing_step():
+    arch = simulate(Scene(6, cycles=2))
+    c = arch.meta["closing_steps"]
+    assert 10 < c < arch.n_steps  # ~0.5-1 s of closing at 50 Hz
+    assert arch.force[c] > 0.05 > arch.force[0]  # the grasp has closed by the first rubbing step
+
+
+def test_not_enough_disk_is_a_clear_error_before_any_write(tmp_path, monkeypatch):
+    import shutil
+    from collections import namedtuple
+
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: namedtuple("u", "total used free")(10**9, 10**9, 10**6))
+    with pytest.raises(dataset_mod.NotEnoughDisk, match="needs about .* GB, only 0.0 GB free"):
+        ensure_dataset("smoke", workdir=tmp_path, streams=("audio", "proprio"), progress=False, workers=1)
+    assert not list((tmp_path / "datasets" / "smoke").glob("*.npz"))
+
+
+def test_minsight_patch_follows_the_stack_and_thin_cloth_shows_no_fold_ridge():
+    """At the same 0.1 N: thick, compressible, bending-stiff stacks spread a wider patch and press a
+    fold ridge that the shell passes; a thin silk's ridge is filtered out (exp(-2 pi d / lambda))."""
+    silk, hat, denim = (minsight.patch_geometry(catalog.fabric(i), 1.0) for i in (12, 6, 1))
+    assert silk[2] < 1e-3 < denim[2] < hat[2]
+    assert silk[0] <= denim[0] < hat[0] and silk[1] < denim[1]
+    assert minsight.patch_geometry(catalog.fabric(0), 1.0) == (1.0, 1.0, 0.0)

@@ -47,6 +47,38 @@ def test_ablation_writes_table_statistics_and_confusions(workdir, tmp_path):
     assert json.loads((tmp_path / "ablation.json").read_text())["preset"] == "smoke"
 
 
+def test_ablation_rerun_gives_identical_per_seed_accuracies(workdir, tmp_path):
+    """The main command twice on one machine: the same per-seed accuracies, to the last bit."""
+    rows = ["internal", f"{ablation.VARIANT}:internal+external"]
+    first = ablation.run(n_seeds=2, rows=rows, **run_kwargs(workdir, tmp_path / "a"))
+    second = ablation.run(n_seeds=2, rows=rows, **run_kwargs(workdir, tmp_path / "b"))
+    for a, b in zip(first["rows"], second["rows"]):
+        assert a["accuracy"] == b["accuracy"] and a["predictions"] == b["predictions"]
+    assert first["rows"][1]["fusion_norm"] == "step_layernorm" and "our step-LayerNorm fusion" in first["rows"][1]["display_name"]
+
+
+def _holds(test: dict) -> list[bool | None]:
+    return [f.holds for f in ablation.checklist({k: np.asarray(v) / 100 for k, v in test.items()})]
+
+
+def test_ablation_checklist_predicates_on_synthetic_per_seed_results():
+    paper_like = {
+        "image": [40, 42], "flow": [47, 48], "internal": [95, 94], "external": [59, 60], "proprio": [47, 46],
+        "internal+external": [97, 98], f"{ablation.VARIANT}:internal+external": [96, 97],
+        "internal+external+proprio": [96, 96], "tcn:internal+external+proprio": [75, 76],
+    }
+    assert _holds(paper_like) == [True] * 7
+    wrong = {
+        "image": [50, 50], "flow": [30, 32], "internal": [60, 62], "external": [55, 56], "proprio": [10, 12],
+        "internal+external": [58, 59], f"{ablation.VARIANT}:internal+external": [61, 62],
+        "internal+external+proprio": [50, 50], "tcn:internal+external+proprio": [51, 50],
+    }
+    # best single (61 > 55.5); palm only 5.5 pp worse; proprio 11 vs flow 31; images above flow;
+    # + palm below Minsound; our fused variant 61.5 >= 61; TCN 50.5 above the transformer's 50
+    assert _holds(wrong) == [True, False, False, False, False, True, False]
+    assert _holds({"internal": [90]}) == [None] * 7  # rows not run: not evaluated
+
+
 def test_bandwidth_truncates_the_psd_per_row(workdir, tmp_path):
     doc = bandwidth.run(n_seeds=1, rows=["2.5"], **run_kwargs(workdir, tmp_path))
     (row,) = doc["rows"]

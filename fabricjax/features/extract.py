@@ -8,13 +8,15 @@ applied when sequences are built and is not part of the key. Arrays, per trial o
     proprio                     float32 (T, 18)          joints (T, 6, 3) flattened joint-major:
                                                          [j0 angle, j0 velocity, j0 current, j1 ...]
     flow                        float16 (T, 2, h, w)     patch-pooled sparse flow (flow.py)
-    image_60x80                 uint8   (T, 60, 80, 3)   area-downsampled frames (images.py)
+    image_<h>x<w>               uint8   (T, h, w, 3)     area-downsampled frames (images.py; the
+                                                         paper's 60x80 unless config.image_size)
     image_full                  uint8   (T, H, W, 3)     the archive's frames (not cached)
 """
 
 from __future__ import annotations
 
 import dataclasses
+import re
 from typing import Any, Callable
 
 import numpy as np
@@ -63,8 +65,9 @@ def _proprio(trial: archive.TrialArchive) -> np.ndarray:
     return trial.joints.reshape(trial.n_steps, -1).astype(np.float32)
 
 
-def feature_for(modality: str, image_resolution: str = "down") -> Feature:
-    """The feature behind a model input (a `config.MODALITIES` name)."""
+def feature_for(modality: str, image_resolution: str = "down", image_size: tuple[int, int] = images.DOWN_SIZE) -> Feature:
+    """The feature behind a model input (a `config.MODALITIES` name); `image_size` is the
+    downsampled ("down") frame size."""
     if modality in archive.MIC_NAMES:
         return _psd(archive.MIC_NAMES.index(modality))
     if modality == "proprio":
@@ -73,8 +76,9 @@ def feature_for(modality: str, image_resolution: str = "down") -> Feature:
         params = {"farneback": flow.FARNEBACK, "top_fraction": flow.TOP_FRACTION, "patch": flow.PATCH, "version": 1}
         return Feature("flow", params, True, True, lambda t: flow.trial_flow(t.images))
     if modality == "image" and image_resolution == "down":
-        params = {"size": images.DOWN_SIZE, "interpolation": "area", "version": 1}
-        return Feature("image_60x80", params, True, True, lambda t: images.downsample(t.images))
+        size = (int(image_size[0]), int(image_size[1]))
+        params = {"size": size, "interpolation": "area", "version": 1}
+        return Feature(f"image_{size[0]}x{size[1]}", params, True, True, lambda t: images.downsample(t.images, size))
     if modality == "image" and image_resolution == "full":
         return Feature("image_full", {}, True, False, lambda t: t.images)
     raise ValueError(f"no feature for modality {modality!r} at image resolution {image_resolution!r}")
@@ -83,7 +87,9 @@ def feature_for(modality: str, image_resolution: str = "down") -> Feature:
 def feature_named(name: str) -> Feature:
     """The feature called `name` (how a worker process rebuilds one: a Feature's function does
     not pickle)."""
-    for modality, resolution in [(m, "down") for m in archive.MIC_NAMES] + [("proprio", "down"), ("flow", "down"), ("image", "down"), ("image", "full")]:
+    if m := re.fullmatch(r"image_(\d+)x(\d+)", name):
+        return feature_for("image", "down", (int(m[1]), int(m[2])))
+    for modality, resolution in [(m, "down") for m in archive.MIC_NAMES] + [("proprio", "down"), ("flow", "down"), ("image", "full")]:
         f = feature_for(modality, resolution)
         if f.name == name:
             return f
