@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from fabricjax import data, paper_tables, sim, train
+from fabricjax import data, paper_tables, sim, stats, train
 from fabricjax.studies import ablation, bandwidth, common, latents, noise, properties
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
@@ -153,10 +153,10 @@ def test_paired_tests_pair_per_seed_and_per_sample_like_scipy():
     a, b = fake_row("a", acc_a, pa, range(5)), fake_row("b", acc_b, pb, range(5))
     res = common.paired_tests(a, b, "test", labels)
     assert res["per_seed"].p_value == pytest.approx(sps.wilcoxon(acc_b, acc_a, method="exact").pvalue)
-    assert res["per_seed"].method == "exact" and res["per_seed"].min_attainable_p == pytest.approx(0.0625)
+    assert res["per_seed"].method == stats.EXACT and res["per_seed"].min_attainable_p == pytest.approx(0.0625)
     cb, ca = ((pb == labels)[:, 3:]).ravel().astype(float), ((pa == labels)[:, 3:]).ravel().astype(float)
     expected = sps.wilcoxon(cb, ca, zero_method="wilcox", method="approx")
-    assert res["per_sample"].n_pairs == 5 * 37 and res["per_sample"].method == "approx"
+    assert res["per_sample"].n_pairs == 5 * 37 and res["per_sample"].method == stats.APPROX
     assert res["per_sample"].p_value == pytest.approx(expected.pvalue)
     same = common.paired_tests(a, a, "test", labels)
     assert same["per_seed"].p_value == 1.0 and same["per_sample"].n_nonzero == 0
