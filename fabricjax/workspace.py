@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
 
 ENV_VAR = "FABRICJAX_WORKDIR"
+INDEX_NAME = "index.json"
 
 
 def root(workdir: str | os.PathLike | None = None) -> Path:
@@ -16,6 +18,17 @@ def root(workdir: str | os.PathLike | None = None) -> Path:
 def dataset_dir(preset: str, workdir=None, data_dir=None) -> Path:
     """A real recorded dataset (`data_dir`) wins over the simulated one of `preset`."""
     return Path(data_dir).expanduser() if data_dir else root(workdir) / "datasets" / preset
+
+
+def index_file(dataset, workdir=None) -> Path:
+    """Where a dataset folder's index lives: beside the archives for a folder inside the workspace
+    (the simulator's datasets), else `<root>/indexes/<folder name>-<hash of its resolved path>.json`.
+    A folder of recordings we are asked to read may be read-only, shared or under version control,
+    so nothing is ever written into it."""
+    folder = Path(dataset).expanduser().resolve()
+    if folder.is_relative_to(root(workdir).resolve()):
+        return folder / INDEX_NAME
+    return root(workdir) / "indexes" / f"{folder.name}-{hashlib.sha256(str(folder).encode()).hexdigest()[:16]}.json"
 
 
 def features_dir(workdir=None) -> Path:
