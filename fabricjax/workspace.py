@@ -39,7 +39,9 @@ def checkpoints_dir(name: str, workdir=None) -> Path:
     return (root(workdir) / "checkpoints" / name).absolute()
 
 
-def results_dir(results=None) -> Path:
-    p = Path(results or "results")
+def results_dir(results=None, workdir=None) -> Path:
+    """`results` if given, else <root>/results (created). Runs write there, outside the repository;
+    the tables published in the repository are regenerated with `--results=results`."""
+    p = Path(results) if results else root(workdir) / "results"
     p.mkdir(parents=True, exist_ok=True)
     return p

@@ -174,18 +174,20 @@ def test_ten_seed_floor_and_row_selection():
         common.select_rows(paper_tables.ABLATION, ["audio"])
 
 
-def test_ablation_command_end_to_end(workdir, tmp_path):
+def test_ablation_command_end_to_end(workdir):
     env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_DISABLE_MOST_OPTIMIZATIONS": "1"}
     cmd = [
         sys.executable, "-m", "experiments.ablation", "--preset=smoke", "--seeds=1", "--epochs=1", "--rows=internal",
-        f"--workdir={workdir}", f"--results={tmp_path}", "--cpu_devices=2",
+        f"--workdir={workdir}", "--cpu_devices=2",
     ]
-    subprocess.run(cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, timeout=300)
-    doc = json.loads((tmp_path / "ablation.json").read_text())
+    out = subprocess.run(cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True, timeout=300)
+    results = workdir / "results"  # the default: under the workspace, not in the repository
+    assert out.stdout.strip().splitlines()[-1] == f"wrote {results / 'ablation.json'}, {results / 'ablation.md'}"
+    doc = json.loads((results / "ablation.json").read_text())
     assert [r["name"] for r in doc["rows"]] == ["internal"] and doc["seeds"] == [0]
     assert doc["machine"]["devices"] == ["cpu:0", "cpu:1"]  # --cpu_devices took effect before JAX started
     assert doc["command"].startswith("python -m experiments.ablation --preset=smoke")
-    assert "| Transformer | Minsound |" in (tmp_path / "ablation.md").read_text()
+    assert "| Transformer | Minsound |" in (results / "ablation.md").read_text()
 
 
 @pytest.mark.slow

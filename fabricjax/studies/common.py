@@ -24,6 +24,7 @@ from absl import logging
 
 from fabricjax import data, report, sim, stats, train, workspace
 from fabricjax.config import Config
+from fabricjax.errors import UserError
 
 # Training settings per preset (configs are code). The model and optimiser fields not named here
 # keep `Config`'s defaults, which follow the paper.
@@ -53,7 +54,7 @@ def study_config(preset: str, **overrides) -> Config:
 
 def seed_list(n_seeds: int) -> tuple[int, ...]:
     if n_seeds < 1:
-        raise ValueError(f"need at least one seed, got {n_seeds}")
+        raise UserError(f"need at least one seed, got {n_seeds}")
     return tuple(range(n_seeds))
 
 
@@ -64,7 +65,7 @@ def select_rows(rows: Sequence, names: Sequence[str] | None, name=lambda r: r.na
     known = [name(r) for r in rows]
     unknown = [n for n in names if n not in known]
     if unknown:
-        raise ValueError(f"unknown rows {unknown}; choose from {known}")
+        raise UserError(f"unknown rows {unknown}; choose from {known}")
     return [r for r in rows if name(r) in names]
 
 
