@@ -1,5 +1,5 @@
 """What a user meets first: --help, a mistake on the command line or in the data folder, JAX's
-platform probing (experiments/cli.py, experiments/flags.py)."""
+platform probing (experiments/cli.py, experiments/flags.py), and the progress log's ETA."""
 
 import os
 import re
@@ -11,6 +11,8 @@ import pytest
 
 from experiments import cli
 from fabricjax import paper_tables, workspace
+from fabricjax.config import Config
+from fabricjax.studies import ablation, common
 
 ROOT = Path(__file__).parents[1]
 
@@ -86,6 +88,21 @@ def test_jax_platforms_is_cpu_only_where_no_accelerator_can_be():
     assert cli.default_platforms({}, ["libtpu"]) is None
     assert cli.default_platforms({"JAX_PLATFORMS": "cuda"}, []) is None  # the user's choice stands
     assert isinstance(cli.accelerator_plugins(), list)
+
+
+def test_eta_weighs_rows_by_their_relative_cost():
+    assert common.relative_cost(Config(modalities=("internal",))) == 1.0
+    assert common.relative_cost(Config(modalities=("image", "internal"))) == common.CAMERA_COST["image"]
+    assert common.relative_cost(Config(modalities=("flow", "internal"))) == common.CAMERA_COST["flow"]
+    progress = common.Progress("x", 3, [7.5, 1.0, 1.0])
+    progress.done = 1
+    assert progress.eta(150.0) == pytest.approx(40.0)  # 20 s per audio row, not 150
+    assert common.Progress("y", 4).costs == [1.0] * 4
+
+
+def test_progress_names_rows_as_the_table_does():
+    assert ablation.display_name("tcn:internal+external+proprio") == "TCN: Minsound + palm mic + proprioception"
+    assert ablation.display_name("image+internal") == "Minsight image + Minsound"
 
 
 def test_results_default_to_the_workspace(tmp_path):
