@@ -1,12 +1,14 @@
 """The paper's modality ablation, all 13 rows (see fabricjax/studies/ablation.py).
 
-    python -m experiments.ablation --seeds=5     # README main command: default preset, wall time per row in results/ablation.md
+    python -m experiments.ablation --seeds=5                    # README main command: default preset, into workspace/results/
+    python -m experiments.ablation --seeds=5 --results=results  # regenerates the table published in the repository
 """
 
 from experiments import flags
+from fabricjax import paper_tables
 from fabricjax.studies import ablation
 
-flags.define_sweep()
+flags.define_sweep(ablation.run, [r.name for r in paper_tables.ABLATION])
 
 
 def main(argv):

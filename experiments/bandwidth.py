@@ -6,7 +6,7 @@
 from experiments import flags
 from fabricjax.studies import bandwidth
 
-flags.define_sweep()
+flags.define_sweep(bandwidth.run)
 
 
 def main(argv):

@@ -89,7 +89,7 @@ def bench_extraction(quick: bool, workdir) -> dict:
     config = Config(preset="smoke", modalities=("internal", "external", "proprio"))
     with multiprocessing.get_context("spawn").Pool(1) as pool:
         out = pool.apply(feature_bench.bench_extraction, (config, folder))
-    steps = sum(e.n_steps for e in archive.load_index(folder).entries)
+    steps = sum(e.n_steps for e in archive.load_index(folder, workdir).entries)
     paper_steps = len(splits.preset("paper").trials()) * PAPER_STEPS_PER_TRIAL
     return {
         **out,

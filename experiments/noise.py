@@ -6,7 +6,7 @@
 from experiments import flags
 from fabricjax.studies import noise
 
-flags.define_sweep()
+flags.define_sweep(noise.run)
 
 
 def main(argv):

@@ -6,7 +6,7 @@
 from experiments import flags
 from fabricjax.studies import properties
 
-flags.define_sweep()
+flags.define_sweep(properties.run)
 
 
 def main(argv):

@@ -1,6 +1,6 @@
 """Mean Minsound PSD per class plus the cafe noise as Minsound hears it (the paper's Fig. psds).
 
-    python -m experiments.psds [--preset=default] [--results=results]
+    python -m experiments.psds [--preset=default] [--results=DIR]
 
 One trial per class (day 1, trial 0, lab) of the preset is simulated exactly as in its dataset
 (same scenes and seeds, so the audio is bit-identical to the archives); the PSD is Welch's over
@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.signal
-from absl import app, flags
+from absl import flags
+
+from experiments import cli
 
 from fabricjax import catalog, plots, splits, workspace
 from fabricjax.archive import WINDOW
@@ -21,7 +23,7 @@ from fabricjax.sim import calibration as cal
 
 FLAGS = flags.FLAGS
 flags.DEFINE_string("preset", "default", "dataset preset whose trials are shown")
-flags.DEFINE_string("results", "results", "folder for psds.png")
+flags.DEFINE_string("results", None, "folder for psds.png (default: <workspace>/results)")
 WELCH = dict(fs=cal.FS, window="hann", nperseg=1022, noverlap=511, detrend="constant", scaling="density")
 
 
@@ -53,4 +55,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    app.run(main)
+    cli.run(main)

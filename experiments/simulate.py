@@ -5,7 +5,9 @@
 
 from __future__ import annotations
 
-from absl import app, flags
+from absl import flags
+
+from experiments import cli
 
 from fabricjax.sim import ensure_dataset
 
@@ -24,4 +26,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    app.run(main)
+    cli.run(main)

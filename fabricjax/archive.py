@@ -18,7 +18,8 @@ images          uint8 (T, H, W, 3)     Minsight frames; absent when not recorded
 
 `write_archive` is atomic (temporary name in the same folder, fsync, rename); `read_archive`
 validates every field and raises `ArchiveError` naming the file, the field and the problem.
-A dataset is a folder of archives plus `index.json` (see `build_index`).
+A dataset is a folder of archives plus an index (see `build_index`, `load_index`): `index.json`
+beside the simulator's own archives, under the workspace for any other folder, which is only read.
 """
 
 from __future__ import annotations
@@ -32,10 +33,11 @@ from typing import Any
 
 import numpy as np
 
+from fabricjax import workspace
 from fabricjax.atomic import atomic_open
+from fabricjax.errors import UserError
 
 FORMAT_VERSION = 1
-INDEX_NAME = "index.json"
 WINDOW = 2048
 N_JOINTS = 6
 JOINT_FIELDS = ("angle", "velocity", "current")
@@ -66,7 +68,7 @@ CONDITIONS = ("lab", "cafe")
 PROPERTY_NAMES = ("stretchiness", "roughness", "thickness")
 
 
-class ArchiveError(ValueError):
+class ArchiveError(UserError):
     """A trial archive or dataset index is unreadable or invalid."""
 
     def __init__(self, path: os.PathLike | str, field: str, problem: str):
@@ -229,7 +231,9 @@ def _open(path: Path):
         raise ArchiveError(path, "<file>", "no such file")
     try:
         return np.load(path, allow_pickle=False)
-    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as e:
+    except ValueError:  # neither zip nor .npy: numpy's message would suggest unpickling it
+        raise ArchiveError(path, "<file>", "not a readable .npz archive (corrupt or truncated): not a zip file") from None
+    except (zipfile.BadZipFile, OSError, EOFError) as e:
         raise ArchiveError(path, "<file>", f"not a readable .npz archive (corrupt or truncated): {e}") from None
 
 
@@ -300,8 +304,9 @@ class DatasetIndex:
         return [e for e in self.entries if all(e.meta.get(k) == v for k, v in where.items())]
 
 
-def build_index(folder: os.PathLike | str) -> DatasetIndex:
-    """Scan a folder of archives (hardware or simulated) and write its `index.json`."""
+def build_index(folder: os.PathLike | str, index_file: os.PathLike | str | None = None) -> DatasetIndex:
+    """Scan a folder of archives (hardware or simulated) and write its index to `index_file`
+    (default: `index.json` in the folder, as the simulator does for the datasets it writes)."""
     root = Path(folder)
     if not root.is_dir():
         raise ArchiveError(root, "<folder>", "dataset folder does not exist")
@@ -310,19 +315,28 @@ def build_index(folder: os.PathLike | str) -> DatasetIndex:
         meta, n = read_meta(p)
         st = p.stat()
         entries.append(IndexEntry(p.name, meta, n, st.st_size, st.st_mtime_ns))
-    doc = {"format_version": FORMAT_VERSION, "trials": [dataclasses.asdict(e) for e in entries]}
-    with atomic_open(root / INDEX_NAME, "w") as f:
+    doc = {"format_version": FORMAT_VERSION, "folder": str(root.resolve()), "trials": [dataclasses.asdict(e) for e in entries]}
+    ipath = Path(index_file) if index_file is not None else root / workspace.INDEX_NAME
+    ipath.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_open(ipath, "w") as f:
         f.write(json.dumps(doc, indent=1))
     return DatasetIndex(root, tuple(entries))
 
 
-def load_index(folder: os.PathLike | str) -> DatasetIndex:
-    """Read `index.json`, building it on first use and rebuilding it when archives were added or
-    rewritten. An archive the index lists but the folder lacks is an error: data went missing."""
+def load_index(folder: os.PathLike | str, workdir: os.PathLike | str | None = None) -> DatasetIndex:
+    """Read the folder's index (where `workspace.index_file` puts it: never inside a folder outside
+    the workspace), building it on first use and rebuilding it when archives were added or
+    rewritten. A folder without archives, and an archive the index lists but the folder lacks
+    (data went missing), are errors."""
     root = Path(folder)
-    ipath = root / INDEX_NAME
+    if not root.is_dir():
+        raise ArchiveError(root, "<folder>", "dataset folder does not exist")
+    on_disk = {p.name: p.stat() for p in root.glob("*.npz")}
+    if not on_disk:
+        raise ArchiveError(root, "<folder>", "the folder holds no trial archives (*.npz)")
+    ipath = workspace.index_file(root, workdir)
     if not ipath.exists():
-        return build_index(root)
+        return build_index(root, ipath)
     try:
         doc = json.loads(ipath.read_text())
         if doc.get("format_version") != FORMAT_VERSION:
@@ -330,13 +344,12 @@ def load_index(folder: os.PathLike | str) -> DatasetIndex:
         entries = tuple(IndexEntry(**t) for t in doc["trials"])
     except (json.JSONDecodeError, KeyError, TypeError) as e:
         raise ArchiveError(ipath, "trials", f"malformed index: {e}") from None
-    on_disk = {p.name: p.stat() for p in root.glob("*.npz")}
     for e in entries:
         if e.file not in on_disk:
             raise ArchiveError(
-                ipath, f"trials[{e.file}]", "listed archive is missing from the folder (restore it, or delete index.json to re-index)"
+                ipath, f"trials[{e.file}]", f"listed archive is missing from {root} (restore it, or delete {ipath} to re-index)"
             )
     stale = len(on_disk) != len(entries) or any(
         on_disk[e.file].st_size != e.size or on_disk[e.file].st_mtime_ns != e.mtime_ns for e in entries
     )
-    return build_index(root) if stale else DatasetIndex(root, entries)
+    return build_index(root, ipath) if stale else DatasetIndex(root, entries)

@@ -14,9 +14,10 @@ import jax
 import orbax.checkpoint as ocp
 
 from fabricjax.config import Config
+from fabricjax.errors import UserError
 
 
-class CheckpointMismatch(ValueError):
+class CheckpointMismatch(UserError):
     """A checkpoint directory holds a run made with another config or other seeds."""
 
 

@@ -130,7 +130,7 @@ def load_sequences(
     if unknown:
         raise ValueError(f"unknown splits {unknown}; choose from {SPLITS}")
     wanted = tuple(s for s in SPLITS if s in split_names)
-    index = archive.load_index(data_dir)
+    index = archive.load_index(data_dir, workdir)
     roles = splits.assign_roles([e.meta for e in index.entries], splits.preset(config.preset).splits)
     chosen = [
         (e, s) for e, r in zip(index.entries, roles) if (s := split_of(e.meta, r, config.exclude_fabrics)) in wanted

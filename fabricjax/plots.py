@@ -34,20 +34,34 @@ def confusion_matrix(labels, predictions, n_classes: int) -> np.ndarray:
     return cm
 
 
+def class_label(class_id: int) -> str:
+    """'<id> <fabric name>' without the name's parenthesis, short enough for an axis tick."""
+    return f"{class_id} {catalog.fabric(class_id).name.split(' (')[0]}"
+
+
 def plot_confusions(path, panels: Sequence[tuple[str, np.ndarray, np.ndarray]], n_classes: int = catalog.N_CLASSES) -> Path:
-    """One row-normalised confusion matrix per (title, labels, predictions) panel, side by side."""
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 4.6), squeeze=False)
-    for ax, (title, y, p) in zip(axes[0], panels):
+    """One row-normalised confusion matrix per (title, labels, predictions) panel, side by side.
+
+    Classes are labelled with the catalog's fabric names; the colour scale runs from 0 to the
+    largest cell of any panel (shared, so panels compare), since near-chance models peak far
+    below 1 and a fixed 0-1 scale would leave them white."""
+    norms, titles = [], []
+    for title, y, p in panels:
         cm = confusion_matrix(y, p, n_classes).astype(float)
         rows = cm.sum(1, keepdims=True)
-        norm = np.divide(cm, rows, out=np.zeros_like(cm), where=rows > 0)
-        im = ax.imshow(norm, vmin=0, vmax=1, cmap="Blues")
-        acc = 100.0 * np.trace(cm) / max(cm.sum(), 1)
-        ax.set(title=f"{title} ({acc:.1f}% of {int(cm.sum())})", xlabel="predicted class", ylabel="true class")
-        ax.set_xticks(range(n_classes))
-        ax.set_yticks(range(n_classes))
-        ax.tick_params(labelsize=6)
-    fig.colorbar(im, ax=axes[0].tolist(), fraction=0.025, label="fraction of the true class")
+        norms.append(np.divide(cm, rows, out=np.zeros_like(cm), where=rows > 0))
+        titles.append(f"{title}\n{100.0 * np.trace(cm) / max(cm.sum(), 1):.1f}% correct of {int(cm.sum())}")
+    vmax = max(max(float(n.max()) for n in norms), 1e-9)
+    labels = [class_label(i) for i in range(n_classes)]
+    fig, axes = plt.subplots(1, len(panels), figsize=(7.4 * len(panels), 7.0), squeeze=False, layout="constrained")
+    for ax, norm, title in zip(axes[0], norms, titles):
+        im = ax.imshow(norm, vmin=0, vmax=vmax, cmap="Blues")
+        ax.set_title(title, fontsize=11)
+        ax.set_xlabel("predicted class", fontsize=10)
+        ax.set_ylabel("true class", fontsize=10)
+        ax.set_xticks(range(n_classes), labels, rotation=90, fontsize=8)
+        ax.set_yticks(range(n_classes), labels, fontsize=8)
+    fig.colorbar(im, ax=axes[0].tolist(), fraction=0.03, label="fraction of the true class")
     return _save(fig, path)
 
 

@@ -204,11 +204,11 @@ def quick_model(preset: str, modalities: tuple[str, ...], *, epochs: int | None 
     return row.results.graphdef, row.results.params(0), config, directory
 
 
-def first_test_trial(folder) -> str:
+def first_test_trial(folder, workdir=None) -> str:
     """Path of the first test-day trial of a dataset folder (a class the model knows)."""
     from fabricjax import splits
 
-    index = archive.load_index(folder)
+    index = archive.load_index(folder, workdir)
     roles = splits.assign_roles([e.meta for e in index.entries])
     for e, role in zip(index.entries, roles):
         if role == "test" and e.meta["label"] < catalog.N_CLASSES:
@@ -245,7 +245,7 @@ def run(
         graphdef, params, config, checkpoint_dir = quick_model(preset, modalities, epochs=epochs, workdir=workdir, data_dir=data_dir)
     if archive_path is None:
         folder = data_dir or sim.ensure_dataset(config.preset, workdir, streams=("audio", "proprio"), progress=False)
-        archive_path = first_test_trial(folder)
+        archive_path = first_test_trial(folder, workdir)
     trial = archive.read_archive(archive_path, images=False)
     streamer = Streamer(graphdef, params, config)
     label = int(trial.meta["label"])

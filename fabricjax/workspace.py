@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 from pathlib import Path
 
 ENV_VAR = "FABRICJAX_WORKDIR"
+INDEX_NAME = "index.json"
 
 
 def root(workdir: str | os.PathLike | None = None) -> Path:
@@ -18,6 +20,17 @@ def dataset_dir(preset: str, workdir=None, data_dir=None) -> Path:
     return Path(data_dir).expanduser() if data_dir else root(workdir) / "datasets" / preset
 
 
+def index_file(dataset, workdir=None) -> Path:
+    """Where a dataset folder's index lives: beside the archives for a folder inside the workspace
+    (the simulator's datasets), else `<root>/indexes/<folder name>-<hash of its resolved path>.json`.
+    A folder of recordings we are asked to read may be read-only, shared or under version control,
+    so nothing is ever written into it."""
+    folder = Path(dataset).expanduser().resolve()
+    if folder.is_relative_to(root(workdir).resolve()):
+        return folder / INDEX_NAME
+    return root(workdir) / "indexes" / f"{folder.name}-{hashlib.sha256(str(folder).encode()).hexdigest()[:16]}.json"
+
+
 def features_dir(workdir=None) -> Path:
     return root(workdir) / "features"
 
@@ -26,7 +39,9 @@ def checkpoints_dir(name: str, workdir=None) -> Path:
     return (root(workdir) / "checkpoints" / name).absolute()
 
 
-def results_dir(results=None) -> Path:
-    p = Path(results or "results")
+def results_dir(results=None, workdir=None) -> Path:
+    """`results` if given, else <root>/results (created). Runs write there, outside the repository;
+    the tables published in the repository are regenerated with `--results=results`."""
+    p = Path(results) if results else root(workdir) / "results"
     p.mkdir(parents=True, exist_ok=True)
     return p

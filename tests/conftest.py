@@ -6,3 +6,15 @@ import jax  # noqa: E402
 
 # Tests use tiny configs where XLA's compile time dominates the run time.
 jax.config.update("jax_disable_most_optimizations", True)
+
+
+import pytest  # noqa: E402
+
+from fabricjax import workspace  # noqa: E402
+
+
+@pytest.fixture(autouse=True, scope="session")
+def default_workspace_outside_the_repository(tmp_path_factory):
+    """What a test writes without naming a workdir (indexes of external folders, default results)
+    goes to a temporary workspace, never into the repository's ./workspace."""
+    os.environ[workspace.ENV_VAR] = str(tmp_path_factory.mktemp("default_workspace"))

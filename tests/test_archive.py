@@ -10,7 +10,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from fabricjax import archive
+from fabricjax import archive, workspace
 from tests.helpers import npz_fields, tiny_archive
 
 
@@ -121,7 +121,7 @@ def test_write_refuses_invalid_and_leaves_nothing(tmp_path):
 _KILLED_WRITER = """
 import sys, numpy as np
 sys.path.insert(0, {root!r})
-from fabricjax import archive
+from fabricjax import archive, workspace
 from tests.helpers import tiny_archive
 a = tiny_archive(n_steps=400, images=(120, 160))
 orig = np.savez
@@ -164,13 +164,50 @@ def test_index_build_load_and_missing_file(tmp_path):
     assert len(archive.load_index(tmp_path).entries) == 4
     # a listed archive that vanished is an error naming the index and the file
     (tmp_path / archive.trial_filename(a.meta)).unlink()
-    with pytest.raises(archive.ArchiveError, match="missing from the folder"):
+    with pytest.raises(archive.ArchiveError, match=f"listed archive is missing from {tmp_path}"):
         archive.load_index(tmp_path)
 
 
-def test_index_of_missing_folder(tmp_path):
+def test_index_of_missing_or_empty_folder(tmp_path):
     with pytest.raises(archive.ArchiveError, match="does not exist"):
         archive.build_index(tmp_path / "nope")
+    with pytest.raises(archive.ArchiveError, match="does not exist"):
+        archive.load_index(tmp_path / "nope")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(archive.ArchiveError, match=r"empty: field '<folder>': the folder holds no trial archives \(\*\.npz\)$"):
+        archive.load_index(tmp_path / "empty", tmp_path / "ws")
+
+
+def _tree(folder):
+    """Every file below `folder` with its bytes and modification time."""
+    return {p: (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_index_lives_beside_the_workspace_datasets_and_under_the_workspace_for_other_folders(tmp_path):
+    ws = tmp_path / "ws"
+    inside, outside = ws / "datasets" / "mine", tmp_path / "recordings"
+    for folder in (inside, outside):
+        folder.mkdir(parents=True)
+        a = tiny_archive(trial=0)
+        archive.write_archive(folder / archive.trial_filename(a.meta), a)
+    assert workspace.index_file(inside, ws) == inside.resolve() / workspace.INDEX_NAME
+    assert len(archive.load_index(inside, ws).entries) == 1 and (inside / workspace.INDEX_NAME).exists()
+    before = _tree(outside)
+    index = archive.load_index(outside, ws)
+    assert len(index.entries) == 1 and index.root == outside
+    assert _tree(outside) == before  # nothing written into the folder we only read
+    (kept,) = (ws / "indexes").iterdir()
+    assert kept == workspace.index_file(outside, ws) and kept.name.startswith("recordings-")
+    assert workspace.index_file(tmp_path / "elsewhere" / "recordings", ws) != kept  # keyed by the whole path
+    assert archive.load_index(outside, ws).entries == index.entries  # read back, not rebuilt
+
+
+def test_random_bytes_are_not_an_archive_and_nobody_suggests_unpickling(tmp_path):
+    path = tmp_path / "noise.npz"
+    path.write_bytes(os.urandom(4096))
+    with pytest.raises(archive.ArchiveError, match=r"noise\.npz: field '<file>': not a readable \.npz archive") as e:
+        archive.read_archive(path)
+    assert "pickle" not in str(e.value)
 
 
 def test_written_files_get_the_usual_permissions(tmp_path):

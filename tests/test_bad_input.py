@@ -16,7 +16,7 @@ import os
 import numpy as np
 import pytest
 
-from fabricjax import archive, checkpoint, data, synthetic, train
+from fabricjax import archive, checkpoint, data, synthetic, train, workspace
 from fabricjax.config import Config
 from tests.helpers import npz_fields, tiny_archive, tiny_dataset
 
@@ -91,12 +91,12 @@ def test_damaged_archive_in_a_dataset_is_named(dataset, tmp_path, damage):
 
 
 def test_malformed_index_is_named(dataset, tmp_path):
-    index = dataset / archive.INDEX_NAME
+    index = workspace.index_file(dataset, tmp_path / "ws")  # the dataset lies outside the workspace
     index.write_text("{ not json")
-    with pytest.raises(archive.ArchiveError, match=r"index\.json: field 'trials': malformed index"):
+    with pytest.raises(archive.ArchiveError, match=rf"{re.escape(str(index))}: field 'trials': malformed index"):
         load(dataset, tmp_path)
     index.write_text(json.dumps({"format_version": 7, "trials": []}))
-    with pytest.raises(archive.ArchiveError, match=r"index\.json: field 'format_version': unknown index version 7"):
+    with pytest.raises(archive.ArchiveError, match=r"\.json: field 'format_version': unknown index version 7"):
         load(dataset, tmp_path)
     index.write_text(json.dumps({"format_version": archive.FORMAT_VERSION, "trials": [{"file": "x.npz"}]}))
     with pytest.raises(archive.ArchiveError, match="malformed index"):
@@ -107,8 +107,28 @@ def test_malformed_index_is_named(dataset, tmp_path):
 
 def test_index_listing_a_missing_archive_through_load_sequences(dataset, tmp_path):
     (dataset / VICTIM).unlink()
-    with pytest.raises(archive.ArchiveError, match=rf"index\.json: field 'trials\[{VICTIM}\]': listed archive is missing"):
+    with pytest.raises(archive.ArchiveError, match=rf"\.json: field 'trials\[{VICTIM}\]': listed archive is missing"):
         load(dataset, tmp_path)
+
+
+def test_read_only_data_folder_is_read_and_left_byte_identical(tmp_path):
+    """A folder of recordings may be read-only, shared or under version control: indexing,
+    features and sequences all work, and nothing in it changes (checked byte for byte, since
+    permissions alone do not stop a test running as root)."""
+    ds = tiny_dataset(tmp_path / "recordings", TRIALS, n_steps=41, images=None)
+    before = {p: (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(ds.iterdir())}
+    modes = {p: p.stat().st_mode for p in [ds, *before]}
+    for p in [*before, ds]:
+        p.chmod(p.stat().st_mode & ~0o222)
+    try:
+        for _ in range(2):  # indexed, then read back from the workspace's index
+            sets = load(ds, tmp_path)
+            assert len(sets["train"]) == 2 and len(sets["test"]) == 2
+    finally:
+        for p, mode in modes.items():
+            p.chmod(mode)
+    assert {p: (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(ds.iterdir())} == before
+    assert workspace.index_file(ds, tmp_path / "ws").is_file()
 
 
 def test_damaged_feature_cache_is_recomputed(dataset, tmp_path):

@@ -8,6 +8,11 @@ def test_confusion_matrix_counts():
     assert cm.tolist() == [[1, 0, 0], [0, 1, 1], [0, 0, 1]]
 
 
+def test_confusion_classes_are_named_from_the_catalog():
+    assert plots.class_label(0) == "0 no fabric" and plots.class_label(8) == "8 swimsuit"
+    assert plots.class_label(12) == "12 real silk"
+
+
 def test_figures_are_written(tmp_path):
     rng = np.random.default_rng(0)
     y = rng.integers(0, 21, 200)

@@ -191,7 +191,7 @@ def test_generation_killed_midway_resumes_and_keeps_finished_archives(tmp_path):
     after = {p.name: p.stat().st_mtime_ns for p in folder.glob("*.npz")}
     assert len(after) == n_total and not list(folder.glob(".*.partial"))
     assert all(after[name] == mtime for name, mtime in finished.items())
-    index = archive.load_index(folder)
+    index = archive.load_index(folder, tmp_path)
     assert len(index.entries) == n_total
     for entry in index.entries:
         arch = archive.read_archive(index.path(entry))

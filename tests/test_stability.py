@@ -349,26 +349,20 @@ def test_a_batch_of_one_known_class():
 
 @settings(max_examples=60, deadline=None)
 @given(
-    st.lists(st.sampled_from([0.0, 0.01, -0.01, 0.02, 0.05, -0.05, 0.1]), min_size=1, max_size=25),
+    st.lists(st.sampled_from([0.0, 0.01, -0.01, 0.02, 0.05, -0.05, 0.1]), min_size=1, max_size=80),
     st.integers(0, 10**6),
 )
 def test_wilcoxon_with_ties_and_zeros_is_valid_and_its_floor_holds(diffs, seed):
-    """Ties and zero differences everywhere: p in [0, 1], equal to scipy's, never below the
-    reported smallest attainable p (with ties the normal approximation's floor drops)."""
+    """Ties and zero differences everywhere: p in [0, 1], never below the reported smallest
+    attainable p; the normal approximation (many pairs) equals scipy's."""
     b = np.random.default_rng(seed).uniform(size=len(diffs)).round(2)
     a = b + np.asarray(diffs)
     r = stats.wilcoxon(a, b, pairing="x")
     assert 0.0 <= r.p_value <= 1.0 and np.isfinite(r.statistic) and 0 < r.min_attainable_p <= 1
     assert r.min_attainable_p <= r.p_value * (1 + 1e-9)
-    if r.n_nonzero:
-        ref = sps.wilcoxon(a, b, zero_method="wilcox", method=r.method)
+    if r.method == stats.APPROX:
+        ref = sps.wilcoxon(a, b, zero_method="wilcox", method="approx")
         assert r.p_value == pytest.approx(ref.pvalue)
-
-
-def test_wilcoxon_all_differences_tied_reaches_its_floor():
-    r = stats.wilcoxon([0.5] * 5, [0.4] * 5, pairing="per seed")
-    assert r.method == "approx" and r.p_value == pytest.approx(r.min_attainable_p)
-    assert r.p_value == pytest.approx(sps.wilcoxon([0.5] * 5, [0.4] * 5, method="approx").pvalue)
 
 
 def test_statistics_of_non_finite_values_are_errors():

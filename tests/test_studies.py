@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from fabricjax import data, paper_tables, sim, train
+from fabricjax import data, paper_tables, sim, stats, train
 from fabricjax.studies import ablation, bandwidth, common, latents, noise, properties
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
@@ -185,10 +185,10 @@ def test_paired_tests_pair_per_seed_and_per_sample_like_scipy():
     a, b = fake_row("a", acc_a, pa, range(5)), fake_row("b", acc_b, pb, range(5))
     res = common.paired_tests(a, b, "test", labels)
     assert res["per_seed"].p_value == pytest.approx(sps.wilcoxon(acc_b, acc_a, method="exact").pvalue)
-    assert res["per_seed"].method == "exact" and res["per_seed"].min_attainable_p == pytest.approx(0.0625)
+    assert res["per_seed"].method == stats.EXACT and res["per_seed"].min_attainable_p == pytest.approx(0.0625)
     cb, ca = ((pb == labels)[:, 3:]).ravel().astype(float), ((pa == labels)[:, 3:]).ravel().astype(float)
     expected = sps.wilcoxon(cb, ca, zero_method="wilcox", method="approx")
-    assert res["per_sample"].n_pairs == 5 * 37 and res["per_sample"].method == "approx"
+    assert res["per_sample"].n_pairs == 5 * 37 and res["per_sample"].method == stats.APPROX
     assert res["per_sample"].p_value == pytest.approx(expected.pvalue)
     same = common.paired_tests(a, a, "test", labels)
     assert same["per_seed"].p_value == 1.0 and same["per_sample"].n_nonzero == 0
@@ -206,18 +206,20 @@ def test_ten_seed_floor_and_row_selection():
         common.select_rows(paper_tables.ABLATION, ["audio"])
 
 
-def test_ablation_command_end_to_end(workdir, tmp_path):
+def test_ablation_command_end_to_end(workdir):
     env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_DISABLE_MOST_OPTIMIZATIONS": "1"}
     cmd = [
         sys.executable, "-m", "experiments.ablation", "--preset=smoke", "--seeds=1", "--epochs=1", "--rows=internal",
-        f"--workdir={workdir}", f"--results={tmp_path}", "--cpu_devices=2",
+        f"--workdir={workdir}", "--cpu_devices=2",
     ]
-    subprocess.run(cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, timeout=300)
-    doc = json.loads((tmp_path / "ablation.json").read_text())
+    out = subprocess.run(cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True, timeout=300)
+    results = workdir / "results"  # the default: under the workspace, not in the repository
+    assert out.stdout.strip().splitlines()[-1] == f"wrote {results / 'ablation.json'}, {results / 'ablation.md'}"
+    doc = json.loads((results / "ablation.json").read_text())
     assert [r["name"] for r in doc["rows"]] == ["internal"] and doc["seeds"] == [0]
     assert doc["machine"]["devices"] == ["cpu:0", "cpu:1"]  # --cpu_devices took effect before JAX started
     assert doc["command"].startswith("python -m experiments.ablation --preset=smoke")
-    assert "| Transformer | Minsound |" in (tmp_path / "ablation.md").read_text()
+    assert "| Transformer | Minsound |" in (results / "ablation.md").read_text()
 
 
 @pytest.mark.slow

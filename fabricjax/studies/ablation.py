@@ -61,6 +61,13 @@ def display_name(row_name: str) -> str:
     return f"{text} (our step-LayerNorm fusion)" if r.fusion_norm == VARIANT else text
 
 
+def display_name(row_name: str) -> str:
+    """How the table names a row: 'Minsound + palm mic', 'TCN: Minsound + palm mic + proprioception'."""
+    r = next(r for r in paper_tables.ABLATION if r.name == row_name)
+    text = " + ".join(NAMES[m] for m in r.modalities)
+    return f"TCN: {text}" if r.backbone == "tcn" else text
+
+
 def run(
     *,
     n_seeds: int = 5,
@@ -81,12 +88,12 @@ def run(
         for r in chosen
     ]
     ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=common.TRAIN_VAL_TEST)
-    progress = common.Progress("ablation", len(chosen))
+    progress = common.Progress("ablation", len(chosen), [common.relative_cost(c) for c in configs])
     trained = {}
     for r, config in zip(chosen, configs):
-        progress.start(r.name)
+        progress.start(display_name(r.name))
         trained[r.name] = row = common.train_row(r.name, config, ds.sets, seeds, ["test"])
-        progress.finish(r.name, row.seconds, f"test {stats.format_mean_sd(row.accuracy('test'))} %")
+        progress.finish(display_name(r.name), row.seconds, f"test {stats.format_mean_sd(row.accuracy('test'))} %")
 
     test = ds.sets["test"]
     labels = test.labels["fabric"]

@@ -24,6 +24,7 @@ from absl import logging
 
 from fabricjax import data, report, sim, stats, train, workspace
 from fabricjax.config import Config
+from fabricjax.errors import UserError
 
 # Training settings per preset (configs are code). The model and optimiser fields not named here
 # keep `Config`'s defaults, which follow the paper.
@@ -63,7 +64,7 @@ def study_config(preset: str, **overrides) -> Config:
 
 def seed_list(n_seeds: int) -> tuple[int, ...]:
     if n_seeds < 1:
-        raise ValueError(f"need at least one seed, got {n_seeds}")
+        raise UserError(f"need at least one seed, got {n_seeds}")
     return tuple(range(n_seeds))
 
 
@@ -74,7 +75,7 @@ def select_rows(rows: Sequence, names: Sequence[str] | None, name=lambda r: r.na
     known = [name(r) for r in rows]
     unknown = [n for n in names if n not in known]
     if unknown:
-        raise ValueError(f"unknown rows {unknown}; choose from {known}")
+        raise UserError(f"unknown rows {unknown}; choose from {known}")
     return [r for r in rows if name(r) in names]
 
 
@@ -118,22 +119,41 @@ def load_for_rows(configs: Sequence[Config], *, data_dir=None, workdir=None, spl
     return load_dataset(merged, data_dir=data_dir, workdir=workdir, split_names=split_names)
 
 
-class Progress:
-    """Logs 'row i/n' with the elapsed time and an ETA from the mean time of finished rows."""
+# Training time of a row relative to a row without camera inputs, by the costliest camera input
+# it uses: the default preset's measured per-row wall times in results/ablation.md (Minsight
+# image rows 147-156 s, optical-flow rows 44-50 s, the others 18-23 s: about 7.5 and 2.2 times).
+CAMERA_COST = {"image": 7.5, "flow": 2.2}
 
-    def __init__(self, study: str, n_rows: int):
+
+def relative_cost(config: Config) -> float:
+    """A row's expected training time in units of an audio / proprioception row (`CAMERA_COST`)."""
+    return max([1.0] + [CAMERA_COST[m] for m in config.modalities if m in CAMERA_COST])
+
+
+class Progress:
+    """Logs 'row i/n' with the elapsed time and an ETA: the time per unit of relative cost of the
+    rows done so far, times the relative cost of the rows left (equal costs unless given), so a
+    camera row run first does not inflate the estimate for the audio rows after it."""
+
+    def __init__(self, study: str, n_rows: int, costs: Sequence[float] | None = None):
+        self.costs = list(costs) if costs is not None else [1.0] * n_rows
+        if len(self.costs) != n_rows:
+            raise ValueError(f"{n_rows} rows but {len(self.costs)} costs")
         self.study, self.n, self.done, self.t0 = study, n_rows, 0, time.perf_counter()
 
     def start(self, name: str) -> None:
         logging.info("%s: row %d/%d %s ...", self.study, self.done + 1, self.n, name)
 
+    def eta(self, elapsed: float) -> float:
+        """Seconds left, from `elapsed` seconds for the rows done."""
+        return elapsed / sum(self.costs[: self.done]) * sum(self.costs[self.done :])
+
     def finish(self, name: str, seconds: float, summary: str) -> None:
         self.done += 1
         elapsed = time.perf_counter() - self.t0
-        eta = elapsed / self.done * (self.n - self.done)
         logging.info(
             "%s: row %d/%d %s done in %.1f s: %s (elapsed %s, ETA %s)",
-            self.study, self.done, self.n, name, seconds, summary, _hms(elapsed), _hms(eta),
+            self.study, self.done, self.n, name, seconds, summary, _hms(elapsed), _hms(self.eta(elapsed)),
         )
 
 

@@ -143,8 +143,8 @@ def pareto_front(points: Sequence[dict], key: str) -> list[str]:
     return front
 
 
-def _shortest_trial(folder) -> int:
-    return min(e.n_steps - data.first_step(e.meta) for e in archive.load_index(folder).entries)
+def _shortest_trial(folder, workdir=None) -> int:
+    return min(e.n_steps - data.first_step(e.meta) for e in archive.load_index(folder, workdir).entries)
 
 
 def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int) -> dict[str, Any]:
@@ -203,7 +203,7 @@ def run(
         preset, backbone=backbones[0], modalities=tuple(modality_sets[0]), seq_len=base_seq_len or splits.preset(preset).seq_len, **overrides
     )
     first = common.load_dataset(base, data_dir=data_dir, workdir=workdir, split_names=common.TRAIN_VAL_TEST)
-    max_len = _shortest_trial(first.folder)
+    max_len = _shortest_trial(first.folder, workdir)
     points, paper_name = sweep_points(
         base, seq_lens, backbones, widths, bandwidths, [tuple(m) for m in modality_sets], paper=paper, max_len=max_len
     )

@@ -1,0 +1,104 @@
+"""How every command starts and ends, whatever its flags.
+
+* JAX's platforms: with JAX_PLATFORMS unset and no accelerator plugin installed, JAX would probe
+  for a TPU and log the failure ("Unable to initialize backend 'tpu' ... libtpu.so") as the first
+  line a user sees; such a machine can only be a CPU, so the CPU is chosen. With a CUDA, ROCm or
+  TPU plugin installed, or JAX_PLATFORMS set, JAX chooses as usual: a real GPU is never hidden.
+* `--help` lists the project's own flags (those of the command and of `experiments.flags`), not
+  absl's, orbax's and JAX's (`--helpfull` still shows everything), and exits 0.
+* A user's mistake (a bad flag value, or a `fabricjax.errors.UserError` such as a damaged archive,
+  an empty data folder or an unknown row) ends in one line `error: <message>` on stderr and exit
+  status 2; `--verbosity=1` (absl's debug level) shows its traceback. Anything else is a bug and
+  keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import importlib.util
+import os
+import sys
+from typing import Callable, Mapping, Sequence
+
+from absl import app, flags, logging
+
+from fabricjax.errors import UserError
+
+FLAGS = flags.FLAGS
+USER_ERROR_STATUS = 2
+HELP_ARGS = ("--help", "-help", "--helpshort", "-helpshort", "-h", "-?")
+PROJECT_PACKAGES = ("experiments", "acquisition", "fabricjax")
+TPU_LIBRARIES = ("libtpu",)  # JAX's TPU runtime, which it probes for without a plugin entry point
+
+
+def accelerator_plugins() -> list[str]:
+    """The installed JAX accelerator plugins (jax[cuda12], ROCm, TPU), by name."""
+    names = [ep.name for ep in importlib.metadata.entry_points(group="jax_plugins")]
+    return names + [m for m in ("jax_plugins", *TPU_LIBRARIES) if importlib.util.find_spec(m) is not None]
+
+
+def default_platforms(environ: Mapping[str, str], plugins: Sequence[str]) -> str | None:
+    """The JAX_PLATFORMS to set: "cpu" when it is unset and no accelerator plugin is installed,
+    else None (leave the choice to JAX)."""
+    return None if environ.get("JAX_PLATFORMS") or plugins else "cpu"
+
+
+def choose_platforms() -> None:
+    """Set JAX_PLATFORMS (see `default_platforms`) for this process, before its backends start,
+    and for the processes it spawns (simulation and feature pools)."""
+    platforms = default_platforms(os.environ, accelerator_plugins())
+    if platforms is None:
+        return
+    os.environ["JAX_PLATFORMS"] = platforms
+    if "jax" in sys.modules:  # imported already: its config read the environment at import
+        sys.modules["jax"].config.update("jax_platforms", platforms)
+
+
+def fail(message: str) -> None:
+    """The end of a command the user asked for wrongly: one line on stderr, status 2."""
+    print(f"error: {message}", file=sys.stderr)
+    sys.exit(USER_ERROR_STATUS)
+
+
+def project_flags() -> list[flags.Flag]:
+    """The flags defined by this project's modules (the command's own and experiments.flags')."""
+    main = sys.argv[0]
+    return [
+        f
+        for module, defined in FLAGS.flags_by_module_dict().items()
+        if module == main or module.split(".")[0] in PROJECT_PACKAGES
+        for f in defined
+    ]
+
+
+def _parse(argv: list[str]) -> list[str]:
+    """absl's flag parsing, with `--help` listing the project's flags (exit 0) and a bad flag
+    value reported as a user error."""
+    if any(a in HELP_ARGS for a in argv[1:]):
+        for f in project_flags():
+            FLAGS.register_key_flag_for_module(sys.argv[0], f)
+        app.usage(shorthelp=True, writeto_stdout=True)
+        print("\nFlags of absl, JAX and orbax (logging, verbosity, ...): --helpfull")
+        sys.exit(0)
+    try:
+        return FLAGS(argv)
+    except flags.Error as e:
+        fail(f"{e} (--help lists the flags)")
+
+
+def run(main: Callable[[list[str]], object], before: Callable[[], None] | None = None) -> None:
+    """`absl.app.run(main)` as described in the module docstring; `before` runs after the flags
+    are parsed and before `main` (e.g. to set JAX's CPU devices before JAX starts)."""
+    choose_platforms()
+
+    def start(argv):
+        if before is not None:
+            before()
+        try:
+            return main(argv)
+        except UserError as e:
+            if logging.get_verbosity() >= logging.DEBUG:
+                raise
+            fail(str(e))
+
+    app.run(start, flags_parser=_parse)

@@ -1,0 +1,110 @@
+"""What a user meets first: --help, a mistake on the command line or in the data folder, JAX's
+platform probing (experiments/cli.py, experiments/flags.py), and the progress log's ETA."""
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from experiments import cli
+from fabricjax import paper_tables, workspace
+from fabricjax.config import Config
+from fabricjax.studies import ablation, common
+
+ROOT = Path(__file__).parents[1]
+
+
+def command(*args, env=None):
+    """`python -m experiments.ablation ARGS` as a user runs it: JAX_PLATFORMS unset."""
+    env = {k: v for k, v in {**os.environ, **(env or {})}.items() if k != "JAX_PLATFORMS"}
+    return subprocess.run(
+        [sys.executable, "-m", "experiments.ablation", *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+
+
+def test_help_lists_the_project_flags_and_exits_0():
+    out = command("--help")
+    assert out.returncode == 0, out.stderr
+    for flag in ("--seeds", "--rows", "--preset", "--data_dir", "--results", "--workdir", "--cpu_devices", "--epochs"):
+        assert flag in out.stdout, flag
+    assert "(default: '5')" in out.stdout  # the study's seed count
+    assert all(r.name in out.stdout for r in paper_tables.ABLATION)  # --rows names the rows
+    assert "--logtostderr" not in out.stdout and "--only_check_args" not in out.stdout and "--jax_" not in out.stdout
+    assert "libtpu" not in out.stdout + out.stderr
+
+
+def damaged_folder(tmp_path):
+    folder = tmp_path / "damaged"
+    folder.mkdir()
+    (folder / "fabric04_day1_trial00_lab.npz").write_bytes(os.urandom(3000))
+    return folder
+
+
+USER_ERRORS = {  # flags -> what the one line must say
+    "no_seeds": (["--seeds=0"], r"flag --seeds=0: 0 is not a positive integer"),
+    "unknown_row": (["--rows=foo"], r"unknown rows \['foo'\]; choose from \['image', "),
+    "empty_data_dir": (["--data_dir={tmp}/empty"], r"empty: field '<folder>': the folder holds no trial archives"),
+    "missing_data_dir": (["--data_dir={tmp}/nope"], r"nope: field '<folder>': dataset folder does not exist"),
+    "damaged_archive": (["--data_dir={tmp}/damaged"], r"fabric04_day1_trial00_lab\.npz: field '<file>': not a readable \.npz archive"),
+}
+
+
+@pytest.mark.parametrize("case", list(USER_ERRORS))
+def test_a_user_error_is_one_line_with_status_2(case, tmp_path):
+    args, message = USER_ERRORS[case]
+    (tmp_path / "empty").mkdir()
+    damaged_folder(tmp_path)
+    out = command("--preset=smoke", f"--workdir={tmp_path}/ws", *[a.format(tmp=tmp_path) for a in args])
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), out.stderr
+    assert re.search(message, lines[0]), lines[0]
+    assert "pickle" not in lines[0]  # numpy's advice to unpickle a damaged file is not repeated
+
+
+def test_a_bug_keeps_its_traceback_and_debug_shows_a_user_errors():
+    code = "import fabricjax.errors\nfrom experiments import cli\ndef main(argv):\n    raise {}('boom')\ncli.run(main)"
+    env = {k: v for k, v in os.environ.items() if k != "JAX_PLATFORMS"}
+
+    def run(exc, *args):
+        return subprocess.run([sys.executable, "-c", code.format(exc), *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=120)
+
+    bug = run("RuntimeError")
+    assert bug.returncode == 1 and "Traceback" in bug.stderr and "RuntimeError: boom" in bug.stderr
+    not_ours = run("ValueError")  # a ValueError from numpy or JAX is not a user error
+    assert not_ours.returncode == 1 and "Traceback" in not_ours.stderr
+    user = "fabricjax.errors.UserError"
+    assert run(user).stderr == "error: boom\n"
+    debug = run(user, "--verbosity=1")
+    assert debug.returncode == 1 and "Traceback" in debug.stderr
+
+
+def test_jax_platforms_is_cpu_only_where_no_accelerator_can_be():
+    assert cli.default_platforms({}, []) == "cpu"
+    assert cli.default_platforms({}, ["xla_cuda12"]) is None  # a GPU plugin: JAX looks for the GPU
+    assert cli.default_platforms({}, ["libtpu"]) is None
+    assert cli.default_platforms({"JAX_PLATFORMS": "cuda"}, []) is None  # the user's choice stands
+    assert isinstance(cli.accelerator_plugins(), list)
+
+
+def test_eta_weighs_rows_by_their_relative_cost():
+    assert common.relative_cost(Config(modalities=("internal",))) == 1.0
+    assert common.relative_cost(Config(modalities=("image", "internal"))) == common.CAMERA_COST["image"]
+    assert common.relative_cost(Config(modalities=("flow", "internal"))) == common.CAMERA_COST["flow"]
+    progress = common.Progress("x", 3, [7.5, 1.0, 1.0])
+    progress.done = 1
+    assert progress.eta(150.0) == pytest.approx(40.0)  # 20 s per audio row, not 150
+    assert common.Progress("y", 4).costs == [1.0] * 4
+
+
+def test_progress_names_rows_as_the_table_does():
+    assert ablation.display_name("tcn:internal+external+proprio") == "TCN: Minsound + palm mic + proprioception"
+    assert ablation.display_name("image+internal") == "Minsight image + Minsound"
+
+
+def test_results_default_to_the_workspace(tmp_path):
+    assert workspace.results_dir(None, tmp_path) == tmp_path / "results" and (tmp_path / "results").is_dir()
+    assert workspace.results_dir(tmp_path / "mine", tmp_path) == tmp_path / "mine"
