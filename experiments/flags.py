@@ -54,7 +54,20 @@ def run(main, cpu_devices: int | None = None) -> None:
         if written:
             print("wrote " + ", ".join(str(p) for p in written))
 
-    cli.run(start, before=lambda: sharding.use_cpu_cores(FLAGS.cpu_devices or cpu_devices))
+    def setup():
+        sharding.use_cpu_cores(FLAGS.cpu_devices or cpu_devices)
+        use_compilation_cache()
+
+    cli.run(start, before=setup)
+
+
+def use_compilation_cache() -> None:
+    """Keep XLA's compiled programs under the workspace (jax_cache/), so a rerun of a study skips
+    compilation: every row is one program per config, ~15-20 s to compile on a 2-core CPU."""
+    import jax
+
+    jax.config.update("jax_compilation_cache_dir", str(workspace.compilation_cache_dir(FLAGS.workdir)))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 
 def _snapshot(folder: Path) -> dict[Path, tuple[int, int, int]]:

@@ -45,3 +45,7 @@ def results_dir(results=None, workdir=None) -> Path:
     p = Path(results) if results else root(workdir) / "results"
     p.mkdir(parents=True, exist_ok=True)
     return p
+
+
+def compilation_cache_dir(workdir=None) -> Path:
+    return (root(workdir) / "jax_cache").absolute()

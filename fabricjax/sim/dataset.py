@@ -17,6 +17,7 @@ import numpy as np
 from tqdm import tqdm
 
 from fabricjax import archive, splits, workspace
+from fabricjax.errors import UserError
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import EFFECTS, Scene
 from fabricjax.sim.simulate import simulate
@@ -56,7 +57,7 @@ def is_done(path: Path, scene: Scene) -> bool:
     return made == want and (has_images or "images" not in scene.streams)
 
 
-class NotEnoughDisk(OSError):
+class NotEnoughDisk(UserError):
     """The dataset would not fit on the disk: nothing was written."""
 
 

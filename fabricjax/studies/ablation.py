@@ -61,13 +61,6 @@ def display_name(row_name: str) -> str:
     return f"{text} (our step-LayerNorm fusion)" if r.fusion_norm == VARIANT else text
 
 
-def display_name(row_name: str) -> str:
-    """How the table names a row: 'Minsound + palm mic', 'TCN: Minsound + palm mic + proprioception'."""
-    r = next(r for r in paper_tables.ABLATION if r.name == row_name)
-    text = " + ".join(NAMES[m] for m in r.modalities)
-    return f"TCN: {text}" if r.backbone == "tcn" else text
-
-
 def run(
     *,
     n_seeds: int = 5,
