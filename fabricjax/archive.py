@@ -75,6 +75,11 @@ class ArchiveError(UserError):
         self.path, self.field, self.problem = str(path), field, problem
         super().__init__(f"{path}: field '{field}': {problem}")
 
+    def __reduce__(self):
+        # rebuilt from its three parts: a feature worker process raises it to the parent (the
+        # default, cls(message), would fail to unpickle and hang the pool)
+        return type(self), (self.path, self.field, self.problem)
+
 
 @dataclasses.dataclass(frozen=True)
 class TrialArchive:

@@ -167,3 +167,27 @@ def test_feature_process_pool_equals_the_serial_path(dataset, tmp_path):
     for split in serial:
         for m in cfg.modalities:
             np.testing.assert_array_equal(serial[split].inputs[m], pooled[split].inputs[m])
+
+
+def test_progress_bars_reach_their_total(dataset, tmp_path, monkeypatch):
+    """Every bar closes at total/total: the sequence loop runs the feature generator to its end."""
+    from fabricjax.features import cache
+
+    closed = []
+
+    class Recording(cache.tqdm):
+        def close(self):
+            closed.append((self.desc.split(" ")[0], self.n, self.total))
+            super().close()
+
+    monkeypatch.setattr(cache, "tqdm", Recording)
+    data.load_sequences(_config(), dataset, workdir=tmp_path / "ws", progress=True, workers=1)
+    assert {name for name, _, _ in closed} == {"features", "sequences"}
+    assert all(n == total > 0 for _, n, total in closed), closed
+
+
+def test_an_archive_error_in_a_feature_worker_reaches_the_caller(tmp_path):
+    """A worker process's ArchiveError is re-raised in the parent, naming the file (not a hang)."""
+    folder = tiny_dataset(tmp_path / "ds", [(4, 1, 0, "lab"), (4, 1, 1, "lab")], images=None)
+    with pytest.raises(archive.ArchiveError, match="fabric04_day1_trial0.*images.*absent"):
+        data.load_sequences(_config(modalities=("flow",)), folder, workdir=tmp_path / "ws", progress=False, workers=2)

@@ -26,7 +26,7 @@ import json
 import os
 import multiprocessing
 import zipfile
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Iterator
 
@@ -130,8 +130,12 @@ def trial_features(
         bar = tqdm(total=len(jobs), desc=f"features ({', '.join(f.name for f in cached)}, {workers} processes)", unit="trial", disable=not progress)
         with bar:
             if workers > 1:
-                with multiprocessing.get_context("spawn").Pool(workers, initializer=_one_thread_per_worker) as pool:
-                    for _ in pool.imap_unordered(_compute_and_drop, jobs):
+                # concurrent.futures, not multiprocessing.Pool: a worker that dies raises
+                # BrokenProcessPool here instead of hanging the run
+                spawn = multiprocessing.get_context("spawn")
+                with ProcessPoolExecutor(workers, mp_context=spawn, initializer=_one_thread_per_worker) as pool:
+                    for done in as_completed([pool.submit(_compute_and_drop, job) for job in jobs]):
+                        done.result()
                         bar.update()
             else:
                 for job in jobs:

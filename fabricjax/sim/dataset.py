@@ -8,6 +8,7 @@ every archive that already exists, matches its scene and holds the wanted stream
 from __future__ import annotations
 
 import multiprocessing
+from concurrent.futures import ProcessPoolExecutor, as_completed
 import os
 import shutil
 from pathlib import Path
@@ -118,8 +119,10 @@ def ensure_dataset(
     bar = tqdm(total=len(scenes), initial=len(scenes) - len(jobs), desc=f"simulate {preset_name}", unit="trial", disable=not progress)
     with bar:
         if workers > 1 and len(jobs) > 1:
-            with multiprocessing.get_context("spawn").Pool(min(workers, len(jobs))) as pool:
-                for _ in pool.imap_unordered(_write, jobs):
+            spawn = multiprocessing.get_context("spawn")  # a dead worker raises instead of hanging
+            with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=spawn) as pool:
+                for done in as_completed([pool.submit(_write, job) for job in jobs]):
+                    done.result()
                     bar.update()
         else:
             for job in jobs:
