@@ -31,6 +31,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
 import re
 import time
 from typing import Any, Callable, Sequence
@@ -87,8 +88,9 @@ def bench_extraction(quick: bool, workdir) -> dict:
     """In a spawned process, so its peak memory is the extraction's alone."""
     folder = sim.ensure_dataset("smoke", workdir, streams=("audio", "proprio"), progress=False)
     config = Config(preset="smoke", modalities=("internal", "external", "proprio"))
-    with multiprocessing.get_context("spawn").Pool(1) as pool:
-        out = pool.apply(feature_bench.bench_extraction, (config, folder))
+    # concurrent.futures: its worker is not daemonic, so the extraction's own process pool may start
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        out = pool.submit(feature_bench.bench_extraction, config, folder).result()
     steps = sum(e.n_steps for e in archive.load_index(folder, workdir).entries)
     paper_steps = len(splits.preset("paper").trials()) * PAPER_STEPS_PER_TRIAL
     return {

@@ -53,12 +53,17 @@ ROWS = tuple(Row(r.name, r.backbone, r.modalities, r.paper_mean, r.paper_sd) for
 VARIANT_PAIRS = ((WILCOXON_PAIR[0], f"{VARIANT}:{WILCOXON_PAIR[1]}"),)  # Minsound (no fusion) vs our fused variant
 
 
-def display_name(row_name: str) -> str:
+def label(modalities: Sequence[str], backbone: str, fusion_norm: str = "sequence_minmax") -> str:
     """How the table names a row: 'TCN: Minsound + palm mic', '... (our step-LayerNorm fusion)'."""
+    text = " + ".join(NAMES[m] for m in modalities)
+    text = f"TCN: {text}" if backbone == "tcn" else text
+    return f"{text} (our step-LayerNorm fusion)" if fusion_norm == VARIANT else text
+
+
+def display_name(row_name: str) -> str:
+    """The label of row `row_name` of `ROWS`."""
     r = next(r for r in ROWS if r.name == row_name)
-    text = " + ".join(NAMES[m] for m in r.modalities)
-    text = f"TCN: {text}" if r.backbone == "tcn" else text
-    return f"{text} (our step-LayerNorm fusion)" if r.fusion_norm == VARIANT else text
+    return label(r.modalities, r.backbone, r.fusion_norm)
 
 
 def run(
@@ -183,7 +188,7 @@ def table(rows: Sequence[dict[str, Any]]) -> str:
         mean, sd = stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"]))
         body.append([
             "TCN" if r["backbone"] == "tcn" else "Transformer",
-            display_name(r["name"]).removeprefix("TCN: "),
+            label(r["modalities"], r["backbone"], r.get("fusion_norm", "sequence_minmax")).removeprefix("TCN: "),
             f"{mean:.2f} ± {sd:.2f}",
             f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}",
             f"{mean - r['paper_mean']:+.2f}",
