@@ -121,8 +121,9 @@ def load_for_rows(configs: Sequence[Config], *, data_dir=None, workdir=None, spl
 
 # Training time of a row relative to a row without camera inputs, by the costliest camera input
 # it uses: the default preset's measured per-row wall times in results/ablation.md (Minsight
-# image rows 147-156 s, optical-flow rows 44-50 s, the others 18-23 s: about 7.5 and 2.2 times).
-CAMERA_COST = {"image": 7.5, "flow": 2.2}
+# image rows 124-141 s, optical-flow rows 47-58 s, the others 30-64 s, mean 43 s: about 3.1 and
+# 1.2 times).
+CAMERA_COST = {"image": 3.1, "flow": 1.2}
 
 
 def relative_cost(config: Config) -> float:
