@@ -24,16 +24,15 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import multiprocessing
 import zipfile
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Iterator
 
 import numpy as np
 from tqdm import tqdm
 
-from fabricjax import archive
+from fabricjax import archive, parallel
 from fabricjax.atomic import atomic_open
 from fabricjax.features.extract import Feature, feature_named
 
@@ -129,18 +128,7 @@ def trial_features(
     if jobs:
         bar = tqdm(total=len(jobs), desc=f"features ({', '.join(f.name for f in cached)}, {workers} processes)", unit="trial", disable=not progress)
         with bar:
-            if workers > 1:
-                # concurrent.futures, not multiprocessing.Pool: a worker that dies raises
-                # BrokenProcessPool here instead of hanging the run
-                spawn = multiprocessing.get_context("spawn")
-                with ProcessPoolExecutor(workers, mp_context=spawn, initializer=_one_thread_per_worker) as pool:
-                    for done in as_completed([pool.submit(_compute_and_drop, job) for job in jobs]):
-                        done.result()
-                        bar.update()
-            else:
-                for job in jobs:
-                    _compute_and_drop(job)
-                    bar.update()
+            parallel.run_jobs(_compute_and_drop, jobs, workers, bar.update, initializer=_one_thread_per_worker)
 
     def one(entry: archive.IndexEntry) -> dict[str, np.ndarray]:
         out = {f.name: load(Path(files(entry)[f.name]), entry.fingerprint) for f in cached}

@@ -7,8 +7,6 @@ every archive that already exists, matches its scene and holds the wanted stream
 
 from __future__ import annotations
 
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor, as_completed
 import os
 import shutil
 from pathlib import Path
@@ -17,7 +15,7 @@ from typing import Iterable
 import numpy as np
 from tqdm import tqdm
 
-from fabricjax import archive, splits, workspace
+from fabricjax import archive, parallel, splits, workspace
 from fabricjax.errors import UserError
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import EFFECTS, Scene
@@ -118,15 +116,6 @@ def ensure_dataset(
             )
     bar = tqdm(total=len(scenes), initial=len(scenes) - len(jobs), desc=f"simulate {preset_name}", unit="trial", disable=not progress)
     with bar:
-        if workers > 1 and len(jobs) > 1:
-            spawn = multiprocessing.get_context("spawn")  # a dead worker raises instead of hanging
-            with ProcessPoolExecutor(min(workers, len(jobs)), mp_context=spawn) as pool:
-                for done in as_completed([pool.submit(_write, job) for job in jobs]):
-                    done.result()
-                    bar.update()
-        else:
-            for job in jobs:
-                _write(job)
-                bar.update()
+        parallel.run_jobs(_write, jobs, workers, bar.update)
     archive.build_index(folder)
     return folder
