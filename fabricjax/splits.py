@@ -15,9 +15,10 @@ Presets (`PRESETS`), chosen with `--preset`:
     default  the README's main command on a 2-core laptop CPU, at the paper's data scale: all 24
              fabrics, 6 training trials per day, 2 test and 2 cafe trials, 50 rubbing cycles per
              trial (~30 s, ~1500 steps), N=50 (1 s). Minsight frames are rendered at 60x80, the
-             size the image rows read anyway (the paper downsamples 308x410 to 60x80), so the
-             camera rows keep the trial length within a laptop's time and disk: optical flow is
-             computed on those frames (pooled 3x3 to 20x27) instead of at 308x410.
+             paper's image-row input size (it downsamples 308x410 to 60x80), so the camera rows
+             keep the trial length within a laptop's time and disk: optical flow is computed on
+             those frames (pooled 3x3 to 20x27) instead of at 308x410. (The default training
+             settings read the image rows at 30x40, see studies/common.py.)
     paper    the paper's scale: 6 trials per day, 50 cycles (~30 s, ~1500 steps), N=200,
              Minsight at 308x410 (flow 102x137).
 """

@@ -52,12 +52,16 @@ def _atomic_write(path: Path, write) -> None:
         write(f)
 
 
+# what a missing, truncated or foreign cache file raises when opened: it is then recomputed
+_UNREADABLE = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
+
+
 def load(path: Path, fingerprint: str) -> np.ndarray | None:
     """The cached array, or None when absent, unreadable or made from another archive version."""
     try:
         with np.load(path, allow_pickle=False) as z:
             return z["data"] if str(z["fingerprint"]) == fingerprint else None
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):  # a damaged file is recomputed
+    except _UNREADABLE:
         return None
 
 
@@ -70,7 +74,7 @@ def is_cached(path: Path, fingerprint: str) -> bool:
     try:
         with np.load(path, allow_pickle=False) as z:
             return str(z["fingerprint"]) == fingerprint
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+    except _UNREADABLE:
         return False
 
 
@@ -98,7 +102,7 @@ def _compute_and_drop(job) -> None:
 
 def _one_thread_per_worker() -> None:
     """Pool initializer: each process computes one trial at a time on one core."""
-    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1").strip()
+    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false").strip()
     os.environ["JAX_PLATFORMS"] = "cpu"
     import cv2
 

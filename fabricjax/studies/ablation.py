@@ -46,8 +46,8 @@ def _variant(name: str) -> Row:
 
 
 # The fusion rows without camera inputs, again under our step-LayerNorm fusion. (The camera fusion
-# rows cost ~10x an audio row each; they stay under the paper's rescale only, to keep the table
-# within the main command's time budget.)
+# rows cost up to ~3x an audio row each, see common.CAMERA_COST; they stay under the paper's
+# rescale only, to keep the table within the main command's time budget.)
 VARIANT_ROWS = tuple(_variant(n) for n in ("internal+proprio", "internal+external+proprio", "internal+external"))
 ROWS = tuple(Row(r.name, r.backbone, r.modalities, r.paper_mean, r.paper_sd) for r in paper_tables.ABLATION) + VARIANT_ROWS
 VARIANT_PAIRS = ((WILCOXON_PAIR[0], f"{VARIANT}:{WILCOXON_PAIR[1]}"),)  # Minsound (no fusion) vs our fused variant
