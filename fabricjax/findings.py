@@ -29,6 +29,10 @@ class Finding:
     def to_json(self) -> dict[str, Any]:
         return {"claim": self.claim, "holds": self.holds, "verdict": self.verdict, "evidence": self.evidence}
 
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> "Finding":
+        return cls(doc["claim"], doc["holds"], doc["evidence"])
+
 
 def mean_pct(values) -> float:
     """Mean over seeds, in percent."""
@@ -55,9 +59,21 @@ def at_least(claim: str, a: tuple[str, Any], b: tuple[str, Any], margin_pp: floa
     return Finding(claim, bool(diff > margin_pp if strict else diff >= margin_pp), f"{describe(na, va)} vs {describe(nb, vb)}; {rule}")
 
 
-def markdown(findings: Sequence[Finding]) -> str:
-    """A table: claim, verdict, evidence."""
+def below(claim: str, a: tuple[str, Any], b: tuple[str, Any]) -> Finding:
+    """Holds when mean(a) < mean(b): `at_least` with the roles swapped, evidence in the claim's order."""
+    (na, va), (nb, vb) = a, b
+    diff = mean_pct(va) - mean_pct(vb)
+    return Finding(claim, bool(diff < 0), f"{describe(na, va)} vs {describe(nb, vb)}; mean difference {diff:+.1f} pp (rule: < 0)")
+
+
+def count(findings: Sequence[Finding]) -> tuple[int, int]:
+    """(claims reproduced, claims evaluated)."""
+    return sum(f.holds is True for f in findings), sum(f.holds is not None for f in findings)
+
+
+def markdown(findings: Sequence[Finding | Mapping[str, Any]]) -> str:
+    """A table: claim, verdict, evidence (findings as objects or as their JSON)."""
+    findings = [f if isinstance(f, Finding) else Finding.from_json(f) for f in findings]
     rows = [[f.claim, f"**{f.verdict}**" if f.holds else f.verdict, f.evidence] for f in findings]
-    n_true = sum(f.holds is True for f in findings)
-    n_eval = sum(f.holds is not None for f in findings)
-    return f"{n_true} of {n_eval} evaluated claims reproduced.\n\n" + report.markdown_table(["Paper's claim", "Ours", "Evidence (per-seed test accuracy)"], rows)
+    n_true, n_eval = count(findings)
+    return f"{n_true} of {n_eval} evaluated claims reproduced.\n\n" + report.markdown_table(["Paper's claim", "Ours", "Evidence (per-seed results)"], rows)

@@ -68,30 +68,92 @@ def plot_confusions(path, panels: Sequence[tuple[str, np.ndarray, np.ndarray]], 
 _ROUGH_MARKERS = ("o", "s", "^", "D", "P")
 
 
-def plot_latents(path, xy: np.ndarray, fabric_ids: Sequence[int], title: str = "t-SNE of per-trial mean latents") -> Path:
-    """Training fabrics filled, new fabrics 21-23 outlined in black; colour = stretchiness,
-    marker = roughness level, size = thickness level (the paper's Fig. latent_features)."""
-    fig, ax = plt.subplots(figsize=(7.5, 6))
+def plot_latents(
+    path, xy: np.ndarray, fabric_ids: Sequence[int], title: str = "t-SNE of per-trial mean latents",
+    neighbours: dict[int, int] | None = None,
+) -> Path:
+    """Colour = stretchiness, marker = roughness level, size = thickness level (the paper's Fig.
+    latent_features); holdout fabrics (never trained on, `catalog.PROPERTY_HOLDOUTS`) outlined in
+    black with bold numbers; `neighbours` (holdout id -> its nearest training fabric in latent
+    space) drawn as dashed lines; every number named in a key beside the plot."""
+    fig, ax = plt.subplots(figsize=(10.5, 6.4), layout="constrained")
     colours = {0: "tab:blue", 1: "tab:orange", None: "grey"}
-    for (x, y), fid in zip(np.asarray(xy), fabric_ids):
-        f = catalog.fabric(int(fid))
-        new = fid in catalog.NEW_FABRICS
+    where = {int(f): (x, y) for (x, y), f in zip(np.asarray(xy), fabric_ids)}
+    for h, t in (neighbours or {}).items():
+        (x0, y0), (x1, y1) = where[h], where[t]
+        ax.plot([x0, x1], [y0, y1], ls="--", lw=0.9, color="black", alpha=0.6, zorder=1)
+    for fid, (x, y) in where.items():
+        f = catalog.fabric(fid)
+        held = fid in catalog.PROPERTY_HOLDOUTS
         ax.scatter(
-            x,
-            y,
-            s=40 + 45 * (f.thickness or 0),
-            marker=_ROUGH_MARKERS[f.roughness or 0],
-            c=colours[f.stretchiness],
-            edgecolors="black" if new else "none",
-            linewidths=2.0 if new else 0,
-            alpha=0.85,
+            x, y, s=60 + 60 * (f.thickness or 0), marker=_ROUGH_MARKERS[f.roughness or 0], c=colours[f.stretchiness],
+            edgecolors="black" if held else "none", linewidths=2.2 if held else 0, alpha=0.85, zorder=2,
         )
-        ax.annotate(str(fid), (x, y), fontsize=7, xytext=(3, 3), textcoords="offset points")
-    handles = [plt.Line2D([], [], ls="", marker="o", color=colours[k], label=f"stretchiness {k}") for k in (0, 1)]
-    handles += [plt.Line2D([], [], ls="", marker=m, color="grey", label=f"roughness {i}") for i, m in enumerate(_ROUGH_MARKERS)]
-    handles += [plt.Line2D([], [], ls="", marker="o", mfc="white", mec="black", mew=2, label="new fabric (21-23)")]
-    ax.legend(handles=handles, fontsize=7, loc="best", title="marker size = thickness", title_fontsize=7)
+        ax.annotate(str(fid), (x, y), fontsize=9 if held else 8, weight="bold" if held else "normal", xytext=(5, 4), textcoords="offset points")
+    handles = [plt.Line2D([], [], ls="", marker="o", color=colours[k], label=f"stretchiness {('low', 'high')[k]}") for k in (0, 1)]
+    handles += [plt.Line2D([], [], ls="", marker=m, color="grey", label=f"roughness {i} ({'very smooth' if i == 0 else 'very rough' if i == 4 else ''})".replace(" ()", "")) for i, m in enumerate(_ROUGH_MARKERS)]
+    handles += [plt.Line2D([], [], ls="", marker="o", color="grey", ms=ms, label=f"thickness {t}") for t, ms in zip(("thin", "medium", "thick"), (7, 10, 13))]
+    handles += [plt.Line2D([], [], ls="", marker="o", mfc="white", mec="black", mew=2, label="holdout fabric (not trained on)")]
+    if neighbours:
+        handles += [plt.Line2D([], [], ls="--", color="black", label="holdout to nearest training fabric\n(in latent space)")]
+    ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    key = "\n".join(f"{'*' if fid in catalog.PROPERTY_HOLDOUTS else ' '}{fid:>2} {catalog.fabric(fid).name.split(' (')[0]}" for fid in sorted(where))
+    ax.text(1.01, 0.0, key + "\n* holdout", transform=ax.transAxes, fontsize=6.5, family="monospace", va="bottom")
     ax.set(title=title, xlabel="t-SNE 1", ylabel="t-SNE 2")
+    ax.margins(0.08)
+    return _save(fig, path)
+
+
+_SPLIT_STYLE = {"val": ("validation", "tab:blue"), "test": ("test", "tab:red"), "cafe": ("cafe test", "tab:orange")}
+
+
+def _seed_dots(ax, x: float, values: np.ndarray, colour: str, spread: float) -> None:
+    """Every seed's value as a small dot, jittered sideways by a fixed pattern (no randomness)."""
+    v = np.asarray(values, float)
+    offsets = np.linspace(-spread, spread, v.size) if v.size > 1 else np.zeros(1)
+    ax.scatter(x + offsets, v, s=12, color=colour, alpha=0.55, edgecolors="none", zorder=3)
+
+
+def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[Sequence[np.ndarray], Sequence[float]]]) -> Path:
+    """Accuracy [%] against PSD bandwidth: per split (`series`: split -> (per-seed values per
+    bandwidth, the paper's mean per bandwidth)), every seed as a dot, our mean as a line, the
+    paper's mean dashed."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    x = np.asarray(khz, float)
+    for i, (split, (per_seed, paper)) in enumerate(series.items()):
+        name, colour = _SPLIT_STYLE[split]
+        shift = (i - (len(series) - 1) / 2) * 0.35  # validation left, test right of each bandwidth
+        for xi, v in zip(x, per_seed):
+            _seed_dots(ax, xi + shift, v, colour, 0.12)
+        ax.plot(x + shift, [np.mean(v) for v in per_seed], "o-", color=colour, lw=1.6, label=f"{name}, ours (mean; dots: seeds)")
+        ax.plot(x, paper, "s--", color=colour, lw=1.0, mfc="white", alpha=0.8, label=f"{name}, paper (mean)")
+    ax.set(xlabel="PSD bandwidth [kHz]", ylabel="accuracy [%]", title="Minsound accuracy against PSD bandwidth")
+    ax.set_xticks(x, [f"{k:g}" for k in x])
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    return _save(fig, path)
+
+
+def plot_seed_bars(path, groups: Sequence[str], series: dict[str, tuple[Sequence[np.ndarray], Sequence[float | None]]], title: str) -> Path:
+    """Grouped bars of mean accuracy [%] with every seed's value as a dot: per split (`series`:
+    split -> (per-seed values per group, the paper's mean per group or None)); the paper's mean
+    is a black bar-wide tick."""
+    fig, ax = plt.subplots(figsize=(1.9 * len(groups) + 2.4, 4.4))
+    width = 0.8 / len(series)
+    for i, (split, (per_seed, paper)) in enumerate(series.items()):
+        name, colour = _SPLIT_STYLE[split]
+        xs = np.arange(len(groups)) + (i - (len(series) - 1) / 2) * width
+        ax.bar(xs, [np.mean(v) for v in per_seed], width * 0.92, color=colour, alpha=0.35, label=f"{name}, ours (mean; dots: seeds)")
+        for x, v in zip(xs, per_seed):
+            _seed_dots(ax, x, v, colour, width * 0.3)
+        for x, p in zip(xs, paper):
+            if p is not None:
+                ax.hlines(p, x - width * 0.46, x + width * 0.46, color="black", lw=2, zorder=4)
+    ax.hlines([], 0, 0, color="black", lw=2, label="paper (mean)")
+    ax.set_xticks(range(len(groups)), groups, fontsize=8)
+    ax.set(ylabel="accuracy [%]", title=title, ylim=(0, 100))
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=7, loc="upper left")
     return _save(fig, path)
 
 

@@ -11,7 +11,7 @@ import pytest
 from scipy import stats as sps
 
 from fabricjax import data, paper_tables, sim, stats, train
-from fabricjax.studies import ablation, bandwidth, common, latents, noise, properties
+from fabricjax.studies import ablation, bandwidth, common, latents, noise, properties, reproduce
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
 TINY = dict(epochs=1, width=16, n_layers=1)
@@ -231,3 +231,48 @@ def test_camera_rows(workdir, tmp_path):
     doc = properties.run(n_seeds=1, rows=["minsound+minsight"], **run_kwargs(workdir, tmp_path))
     out = latents.run(doc["rows"][0]["checkpoint"], workdir=workdir, results=tmp_path)
     assert np.isfinite([p["xy"] for p in out["points"]]).all()
+
+
+# The smallest plan that still has a study that depends on another (latents on properties); the
+# other studies' own runs are tested above.
+SMOKE_PLAN = (reproduce.Step("bandwidth", 1, ("2.5",)), reproduce.Step("properties", 1, ("minsound",)), reproduce.Step("latents"))
+
+
+def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_path):
+    said = []
+    kw = dict(preset="smoke", plan=SMOKE_PLAN, overrides=TINY, workdir=workdir, results=tmp_path, say=said.append)
+    first = reproduce.run(**kw)
+    assert list(first) == [s.study for s in SMOKE_PLAN]
+    assert "estimated time" in said[0] and all(f"{s.study:<11} run" in said[0] for s in SMOKE_PLAN)
+    text = (tmp_path / "REPORT.md").read_text()
+    for s in SMOKE_PLAN:
+        assert f"## {reproduce.TITLES[s.study]}" in text
+    assert text.count("Rerun alone: `python -m experiments.") == 3 and "`python -m experiments.bandwidth --seeds=1 --preset=smoke --rows=2.5" in text
+    assert "--checkpoint=" in text and "![bandwidth.png](bandwidth.png)" in text and "(latents.png)" in text
+    assert text.count("evaluated claims reproduced") == 3  # every study's checklist is in the report
+    outputs = {p.name: p.stat().st_ino for p in tmp_path.iterdir() if p.name not in ("REPORT.md", "reproduce.json")}
+    assert {"bandwidth.md", "bandwidth.png", "properties.json", "latents.png", "latents.md"} <= set(outputs)
+
+    said.clear()
+    second = reproduce.run(**kw)
+    assert all(f"{s.study:<11} skip" in said[0] for s in SMOKE_PLAN) and "run   ~" not in said[0]
+    assert second == first  # same keys, wall times and commands: nothing reran
+    assert {p.name: p.stat().st_ino for p in tmp_path.iterdir() if p.name in outputs} == outputs  # nothing rewritten
+    assert "0 of 3 studies run by this call" in (tmp_path / "REPORT.md").read_text()
+
+
+def test_reproduce_keys_follow_what_decides_the_numbers():
+    code = "c0de"
+    step = reproduce.Step("noise", 10)
+    key = reproduce.step_key(step, "default", {}, None, code)
+    assert key == reproduce.step_key(step, "default", {}, None, code)
+    assert key != reproduce.step_key(reproduce.Step("noise", 5), "default", {}, None, code)
+    assert key != reproduce.step_key(step, "smoke", {}, None, code)
+    assert key != reproduce.step_key(step, "default", {"epochs": 3}, None, code)
+    assert key != reproduce.step_key(step, "default", {}, None, "other code")
+    latents_step = reproduce.Step("latents")
+    assert reproduce.step_key(latents_step, "default", {}, None, code, "props-a") != reproduce.step_key(latents_step, "default", {}, None, code, "props-b")
+    assert len(reproduce.code_fingerprint()) == 64
+    assert reproduce.command(step, "default", {"epochs": 3, "width": 16}, "results") == (
+        "python -m experiments.noise --seeds=10 --preset=default --epochs=3 --results=results  (config overrides without a flag: {'width': 16})"
+    )

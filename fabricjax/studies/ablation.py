@@ -210,7 +210,7 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
         "## Findings checklist (the paper's claims about this table)",
         "",
-        findings.markdown([findings.Finding(**{k: f[k] for k in ("claim", "holds", "evidence")}) for f in doc["findings"]]),
+        findings.markdown(doc["findings"]),
     ]
     w = doc["wilcoxon"]
     if w:

@@ -6,7 +6,9 @@
 Input: the internal microphone (Minsound) alone, the setting of the paper's 15 kHz row, which
 equals its internal-audio ablation row (95.06 ± 1.85). The PSDs are loaded once at 24 kHz and
 truncated per row to the bins at or below the bandwidth (`welch.n_bins`). Reports validation
-accuracy (the best-validation epoch's) and test accuracy, beside the paper's.
+accuracy (the best-validation epoch's) and test accuracy, beside the paper's, the paper's two
+claims about the table as a findings checklist (`checklist`) and accuracy against bandwidth with
+every seed's point (results/bandwidth.png).
 """
 
 from __future__ import annotations
@@ -16,9 +18,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import data, paper_tables, report, stats
+from fabricjax import data, findings, paper_tables, plots, report, stats
 from fabricjax.config import AUDIO_MODALITIES
 from fabricjax.features import welch
+from fabricjax.errors import UserError
 from fabricjax.studies import common
 
 MODALITIES = ("internal",)
@@ -51,7 +54,7 @@ def run(
     """Train one row per bandwidth and write results/bandwidth.{md,json}; returns the JSON."""
     overrides = dict(overrides or {})
     if "bandwidth_khz" in overrides:
-        raise ValueError("the bandwidth study sweeps the bandwidth itself; choose bandwidths with rows (e.g. 2.5,15)")
+        raise UserError("the bandwidth study sweeps the bandwidth itself; choose bandwidths with rows (e.g. 2.5,15)")
     chosen = common.select_rows(sorted(paper_tables.BANDWIDTH), rows, name=row_name)
     seeds = common.seed_list(n_seeds)
     base = common.study_config(preset, **{**overrides, "modalities": MODALITIES})
@@ -81,8 +84,39 @@ def run(
         "rows": out_rows,
         "test_samples": common.samples_doc(ds.sets["test"]),
     }
+    doc["findings"] = [f.to_json() for f in checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in ("val", "test")} for r in out_rows})]
+    doc["png"] = str(plot(common.results_path(results) / "bandwidth.png", out_rows))
     common.write_outputs(results, "bandwidth", markdown(doc), doc)
     return doc
+
+
+def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
+    """The paper's claims about the bandwidth table, as predicates over per-seed accuracies
+    (`acc`: row name, e.g. "15", -> {"val": per-seed, "test": per-seed} in [0, 1]; rows not run
+    are skipped)."""
+    low, mid, full = row_name(2.5), row_name(15.0), row_name(24.0)
+    claim = "test accuracy at 15 kHz is at least that at 2.5 kHz (the band above 2.5 kHz carries fabric cues)"
+    out = [findings.missing(claim, [mid, low], acc) or findings.at_least(claim, ("15 kHz test", acc[mid]["test"]), ("2.5 kHz test", acc[low]["test"]))]
+    claim = "24 kHz overfits: its validation accuracy is at least 15 kHz's while its test accuracy is not higher"
+    if not (f := findings.missing(claim, [full, mid], acc)):
+        val = findings.at_least(claim, ("24 kHz val", acc[full]["val"]), ("15 kHz val", acc[mid]["val"]))
+        test = findings.at_least(claim, ("15 kHz test", acc[mid]["test"]), ("24 kHz test", acc[full]["test"]))
+        f = findings.Finding(claim, val.holds and test.holds, f"{val.evidence}. {test.evidence}")
+    out.append(f)
+    return out
+
+
+def plot(path, rows: Sequence[dict[str, Any]]):
+    """Validation and test accuracy against bandwidth: every seed, our means, the paper's means."""
+    khz = [r["bandwidth_khz"] for r in rows]
+    series = {
+        split: (
+            [100 * np.asarray(r["accuracy"][split]["fabric"]) for r in rows],
+            [r["paper"][f"{split}_mean"] for r in rows],
+        )
+        for split in ("val", "test")
+    }
+    return plots.plot_against_bandwidth(path, khz, series)
 
 
 def table(rows: Sequence[dict[str, Any]]) -> str:
@@ -113,4 +147,9 @@ def markdown(doc: dict[str, Any]) -> str:
         "ablation row). Validation accuracy is that of the best-validation epoch, the model every test number uses.",
         "",
         table(doc["rows"]),
+        "## Findings checklist (the paper's claims about this table)",
+        "",
+        findings.markdown(doc["findings"]),
+        "Accuracy against bandwidth, every seed: `bandwidth.png`.",
+        "",
     ])

@@ -8,6 +8,13 @@ is used: the one with the best validation score, or `seed`. For each fabric 1-23
 (training fabrics and holdouts alike) its first test trial is encoded; the backbone's latents
 (`FabricNet.latents`) are averaged over the steps and over the trial's sequences, and the points
 are embedded with t-SNE (perplexity scaled to the number of points).
+
+The paper reads its figure as: holdout fabrics land near training fabrics with the same property
+levels. `neighbour_agreement` makes that a number, in the latent space itself (t-SNE preserves
+neighbourhoods only loosely): for each holdout, the fraction of the three properties on which it
+agrees with its nearest training fabric, against the agreement with a training fabric drawn at
+random (its chance level); and, per holdout and property, whether the training fabrics sharing
+its level are nearer on average than those that do not. `checklist` states both as findings.
 """
 
 from __future__ import annotations
@@ -19,8 +26,9 @@ import numpy as np
 from flax import nnx
 from sklearn.manifold import TSNE
 
-from fabricjax import checkpoint, data, plots, report, train
+from fabricjax import catalog, checkpoint, data, findings, plots, report, train
 from fabricjax.config import Config
+from fabricjax.errors import UserError
 from fabricjax.studies import common
 
 BATCH = 32  # sequences per latent evaluation
@@ -73,16 +81,18 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
     elif seed in saved["seeds"]:
         index = saved["seeds"].index(seed)
     else:
-        raise KeyError(f"seed {seed} is not in the checkpoint in {checkpoint_dir} (seeds {saved['seeds']})")
+        raise UserError(f"seed {seed} is not in the checkpoint in {checkpoint_dir} (seeds {saved['seeds']})")
     params = checkpoint.select_seed(state["best_params"], index)
 
     ds = common.load_dataset(config, data_dir=data_dir, workdir=workdir, split_names=("test", "holdout"))
     test_day = _concat([ds.sets["test"], ds.sets["holdout"]])
     points, fabrics, keys, counts = trial_means(graphdef, params, test_day, config.modalities)
     xy, perplexity = tsne(points)
+    agreement = neighbour_agreement(points, fabrics)
     png = plots.plot_latents(
         common.results_path(results) / "latents.png", xy, fabrics,
-        title=f"t-SNE of per-trial mean latents ({'+'.join(config.modalities)}, seed {saved['seeds'][index]})",
+        title=f"t-SNE of per-trial mean latents ({'+'.join(config.modalities)}, seed {saved['seeds'][index]}; holdouts outlined)",
+        neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
     )
     doc = {
         "study": "latents",
@@ -100,9 +110,97 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
             for f, k, c, p in zip(fabrics, keys, counts, xy)
         ],
         "png": str(png),
+        "neighbours": agreement,
+        "findings": [f.to_json() for f in checklist(agreement)],
     }
     report.write_json(common.results_path(results) / "latents.json", doc)
+    report.write_text(common.results_path(results) / "latents.md", markdown(doc))
     return doc
+
+
+def _agreement(a: int, b: int) -> float | None:
+    """Fraction of the properties known for both fabrics on which their levels are equal."""
+    pa, pb = catalog.fabric(a).properties, catalog.fabric(b).properties
+    known = [p for p in pa if pa[p] is not None and pb[p] is not None]
+    return None if not known else float(np.mean([pa[p] == pb[p] for p in known]))
+
+
+def neighbour_agreement(points: np.ndarray, fabric_ids: list[int], holdouts=catalog.PROPERTY_HOLDOUTS) -> dict[str, Any]:
+    """How well the latent space groups unseen fabrics with trained fabrics of the same property
+    levels (Euclidean distance between per-trial mean latents; fabrics without properties skipped).
+
+    pairs: per holdout, its nearest training fabric, their agreement (fraction of properties with
+    equal levels) and the chance level (mean agreement with every training fabric);
+    agreement / chance: their means over holdouts; nearer_when_shared: per property, for each
+    holdout whose level some but not all training fabrics share, whether the sharing ones are
+    nearer on average; nearer_fraction: the fraction of those cases, 0.5 by chance.
+    """
+    x = np.asarray(points, np.float64)
+    ids = [int(f) for f in fabric_ids]
+    known = [i for i, f in enumerate(ids) if _agreement(f, f) is not None]
+    train = [i for i in known if ids[i] not in holdouts]
+    held = [i for i in known if ids[i] in holdouts]
+    dist = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=-1)
+    pairs, nearer = [], {p: [] for p in catalog.PROPERTY_LEVELS}
+    for h in held:
+        t = train[int(np.argmin(dist[h, train]))] if train else None
+        if t is None:
+            break
+        chance = float(np.mean([_agreement(ids[h], ids[j]) for j in train]))
+        pairs.append({"holdout": ids[h], "nearest": ids[t], "distance": float(dist[h, t]), "agreement": _agreement(ids[h], ids[t]), "chance": chance})
+        for prop, level in catalog.fabric(ids[h]).properties.items():
+            share = [j for j in train if catalog.fabric(ids[j]).properties[prop] == level]
+            other = [j for j in train if catalog.fabric(ids[j]).properties[prop] != level]
+            if share and other:
+                nearer[prop].append({"holdout": ids[h], "shared_mean_distance": float(dist[h, share].mean()),
+                                     "other_mean_distance": float(dist[h, other].mean())})
+    cases = [c["shared_mean_distance"] < c["other_mean_distance"] for v in nearer.values() for c in v]
+    return {
+        "pairs": pairs,
+        "agreement": float(np.mean([p["agreement"] for p in pairs])) if pairs else None,
+        "chance": float(np.mean([p["chance"] for p in pairs])) if pairs else None,
+        "nearer_when_shared": nearer,
+        "nearer_fraction": float(np.mean(cases)) if cases else None,
+        "nearer_cases": len(cases),
+    }
+
+
+def checklist(agreement: dict[str, Any]) -> list[findings.Finding]:
+    """The paper's reading of its t-SNE figure as predicates over `neighbour_agreement`'s numbers."""
+    claim = "a holdout's nearest training fabric in latent space shares more of its property levels than a random training fabric"
+    if agreement["agreement"] is None:
+        out = [findings.Finding(claim, None, "needs holdout and training fabrics with properties, not in the data")]
+    else:
+        pairs = ", ".join(f"{p['holdout']}->{p['nearest']} {100 * p['agreement']:.0f} %" for p in agreement["pairs"])
+        out = [findings.Finding(claim, bool(agreement["agreement"] > agreement["chance"]),
+                                f"nearest-neighbour property agreement {100 * agreement['agreement']:.1f} % against chance "
+                                f"{100 * agreement['chance']:.1f} % (holdout->nearest: {pairs})")]
+    claim = "holdouts lie nearer to the training fabrics sharing a property level than to those that do not (most holdout-property cases)"
+    if agreement["nearer_fraction"] is None:
+        out.append(findings.Finding(claim, None, "no holdout-property case with both sharing and other training fabrics"))
+    else:
+        out.append(findings.Finding(claim, bool(agreement["nearer_fraction"] > 0.5),
+                                    f"sharing fabrics nearer on average in {100 * agreement['nearer_fraction']:.0f} % of "
+                                    f"{agreement['nearer_cases']} holdout-property cases (chance 50 %)"))
+    return out
+
+
+def markdown(doc: dict[str, Any]) -> str:
+    c = doc["config"]
+    return "\n".join([
+        "# Latent space (the paper's Fig. latent_features)",
+        "",
+        f"- command: `{doc['command']}`",
+        f"- checkpoint: `{doc['checkpoint']}` ({'+'.join(c['modalities'])}; seed {doc['seed']}, the best by validation of seeds {doc['seeds']})",
+        f"- points: {len(doc['points'])} fabrics on the test day, one trial each; t-SNE perplexity {doc['perplexity']}",
+        f"- machine: {doc['machine']['cpu']}, {doc['machine']['cores']} cores, JAX {doc['machine']['jax']}",
+        "",
+        "![t-SNE of per-trial mean latents](latents.png)",
+        "",
+        "## Findings checklist (the paper's reading of its figure)",
+        "",
+        findings.markdown(doc["findings"]),
+    ])
 
 
 def _concat(sets: list[data.SequenceSet]) -> data.SequenceSet:

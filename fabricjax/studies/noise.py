@@ -6,6 +6,8 @@ Rows: Minsound; + proprioception; + palm microphone. Every row is trained on the
 days and evaluated on the cafe split (and, for reference, the lab test day). Each row is compared
 with the preceding one by Wilcoxon signed-rank tests on the cafe split, paired per seed (exact
 over 10 seeds: p >= 2 / 2^10 = 0.002) and per cafe sequence pooled over seeds (`common.paired_tests`).
+The paper's claims about the table are checked by `checklist`; results/noise.png shows every
+seed's lab and cafe accuracy per row.
 """
 
 from __future__ import annotations
@@ -14,11 +16,14 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import paper_tables, report, stats
+from fabricjax import findings, paper_tables, plots, report, stats
+from fabricjax.errors import UserError
 from fabricjax.studies import common
 
 SPLIT = "cafe"
 ROWS = tuple(("+".join(mods), mods, mean, sd, p) for mods, mean, sd, p in paper_tables.NOISE)
+NAMES = {"internal": "Minsound", "proprio": "proprioception", "external": "palm mic"}
+SIGNIFICANCE = 0.05  # the level at which the checklist calls a per-seed Wilcoxon test significant
 
 
 def run(
@@ -39,7 +44,7 @@ def run(
     configs = [common.study_config(preset, **{**overrides, "modalities": mods}) for _, mods, *_ in chosen]
     ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=(*common.TRAIN_VAL_TEST, SPLIT))
     if len(ds.sets[SPLIT]) == 0:
-        raise ValueError(f"the dataset in {ds.folder} has no cafe-condition trials to test on")
+        raise UserError(f"the dataset in {ds.folder} has no cafe-condition trials to test on")
     labels = ds.sets[SPLIT].labels["fabric"]
     progress = common.Progress("noise", len(chosen))
     out_rows, previous = [], None
@@ -67,8 +72,46 @@ def run(
         "rows": out_rows,
         "cafe_samples": common.samples_doc(ds.sets[SPLIT]),
     }
+    doc["findings"] = [f.to_json() for f in checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in (SPLIT, "test")} for r in out_rows})]
+    doc["png"] = str(plot(common.results_path(results) / "noise.png", out_rows))
     common.write_outputs(results, "noise", markdown(doc), doc)
     return doc
+
+
+def display_name(row_name: str) -> str:
+    return " + ".join(NAMES[m] for m in row_name.split("+"))
+
+
+def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
+    """The paper's claims about the cafe-noise table as predicates over per-seed accuracies
+    (`acc`: row name -> {"cafe": per-seed, "test": per-seed (the lab test day)} in [0, 1], the same
+    seeds in every row; rows not run are skipped). Each gain is tested for significance by the
+    exact per-seed Wilcoxon test (two-sided, floor 2 / 2^n over n seeds), as the paper tests it."""
+    minsound, proprio, palm = (r[0] for r in ROWS)
+    claim = "cafe noise lowers Minsound's accuracy against the lab test day"
+    out = [findings.missing(claim, [minsound], acc) or findings.below(
+        claim, ("cafe", acc[minsound][SPLIT]), ("lab test", acc[minsound]["test"]))]
+    for base, added, what in ((minsound, proprio, "proprioception"), (proprio, palm, "the palm mic")):
+        claim = f"adding {what} raises cafe accuracy ({display_name(added)} > {display_name(base)})"
+        out.append(findings.missing(claim, [added, base], acc) or findings.at_least(
+            claim, (display_name(added), acc[added][SPLIT]), (display_name(base), acc[base][SPLIT]), strict=True))
+        claim = f"the gain from {what} on the cafe split is significant (per-seed Wilcoxon, p < {SIGNIFICANCE})"
+        if not (f := findings.missing(claim, [added, base], acc)):
+            w = stats.wilcoxon(acc[added][SPLIT], acc[base][SPLIT], pairing=f"per seed: cafe accuracy of the same seed, {len(acc[base][SPLIT])} seeds")
+            gain = findings.mean_pct(acc[added][SPLIT]) - findings.mean_pct(acc[base][SPLIT])
+            f = findings.Finding(claim, bool(gain > 0 and w.p_value < SIGNIFICANCE), f"mean gain {gain:+.1f} pp; {w.describe()}")
+        out.append(f)
+    return out
+
+
+def plot(path, rows: Sequence[dict[str, Any]]):
+    """Lab-test and cafe accuracy per row, every seed a dot, the paper's cafe mean a tick."""
+    series = {
+        "test": ([100 * np.asarray(r["accuracy"]["test"]["fabric"]) for r in rows], [None] * len(rows)),
+        SPLIT: ([100 * np.asarray(r["accuracy"][SPLIT]["fabric"]) for r in rows], [r["paper"]["mean"] for r in rows]),
+    }
+    groups = [display_name(r["name"]).replace(" + ", "\n+ ") for r in rows]
+    return plots.plot_seed_bars(path, groups, series, f"Trained in the lab, tested in a cafe ({len(rows[0]['seeds'])} seeds)")
 
 
 def _p(w: dict[str, Any] | None) -> str:
@@ -108,6 +151,11 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
         "The per-seed test is the one comparable to the paper's; the per-sequence test treats sequences of one "
         "trial and of different seeds as independent, which they are not: read it as descriptive.",
+        "",
+        "## Findings checklist (the paper's claims about this table)",
+        "",
+        findings.markdown(doc["findings"]),
+        "Lab and cafe accuracy per row, every seed: `noise.png`.",
         "",
     ]
     return "\n".join(lines)

@@ -10,6 +10,8 @@ properties: its labels are unknown and ignored) and on the five holdouts. Rows: 
 always on, as in the paper. Chance is the paper's 1 / levels; the majority-level rate of each
 evaluated split is reported too, since the levels are not balanced.
 
+The paper's claims about the table are checked by `checklist` on the holdout fabrics.
+
 The trained models (all seeds) are saved as an orbax checkpoint per row; `experiments.latents
 --checkpoint=DIR` restores one for the t-SNE figure.
 """
@@ -20,7 +22,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import catalog, paper_tables, report, stats
+from fabricjax import catalog, findings, paper_tables, report, stats
 from fabricjax.studies import common
 
 PROPERTIES = tuple(catalog.PROPERTY_LEVELS)
@@ -69,8 +71,31 @@ def run(
         "rows": out_rows,
         "samples": {s: common.samples_doc(ds.sets[s]) for s in SPLITS},
     }
+    holdout = {r["name"]: {p: np.asarray(r["accuracy"]["holdout"][p]) for p in PROPERTIES} for r in out_rows}
+    doc["findings"] = [f.to_json() for f in checklist(holdout, doc["chance"])]
     common.write_outputs(results, "properties", markdown(doc), doc)
     return doc
+
+
+def checklist(holdout: dict[str, dict[str, np.ndarray]], chance: dict[str, float]) -> list[findings.Finding]:
+    """The paper's claims about property perception on the holdout fabrics, as predicates over
+    per-seed accuracies (`holdout`: row name -> property -> per-seed accuracy in [0, 1];
+    `chance`: property -> chance accuracy in percent, the paper's 1 / levels; rows not run are
+    skipped)."""
+    out = []
+    for name, _ in ROWS:
+        claim = f"{name}: every property is above chance on the holdout fabrics"
+        if not (f := findings.missing(claim, [name], holdout)):
+            above = {p: findings.mean_pct(holdout[name][p]) > chance[p] for p in PROPERTIES}
+            f = findings.Finding(claim, all(above.values()), "; ".join(
+                f"{findings.describe(p, holdout[name][p])} against chance {chance[p]:.1f} %" for p in PROPERTIES))
+        out.append(f)
+    (minsound, _), (both, _) = ROWS
+    for prop, better, worse in (("stretchiness", both, minsound), ("thickness", both, minsound), ("roughness", minsound, both)):
+        claim = f"{better} beats {worse} on {prop} on the holdout fabrics"
+        out.append(findings.missing(claim, [better, worse], holdout) or findings.at_least(
+            claim, (better, holdout[better][prop]), (worse, holdout[worse][prop]), strict=True))
+    return out
 
 
 def majority_rate(labels: np.ndarray) -> float | None:
@@ -112,5 +137,8 @@ def markdown(doc: dict[str, Any]) -> str:
         "|---|---|---|",
         *[f"| {r['name']} | {r['wall_s']:.1f} | `{r['checkpoint']}` |" for r in doc["rows"]],
         "",
+        "## Findings checklist (the paper's claims about this table, on the holdout fabrics)",
+        "",
+        findings.markdown(doc["findings"]),
     ]
     return "\n".join(lines)

@@ -1,0 +1,296 @@
+"""Every table and figure of the paper on one preset, in order, and one report: REPORT.md.
+
+    python -m experiments.reproduce                      # default preset, into workspace/results/
+    python -m experiments.reproduce --results=results    # regenerates the report published in the repository
+
+The plan (`PLAN`, data): the modality ablation (5 seeds), the PSD bandwidth (5), cafe noise (10,
+as the paper), property perception (5, saving its checkpoints) and the latent t-SNE from the
+property study's Minsound + Minsight checkpoint. The dataset is simulated once (or read from
+`data_dir`), features and compiled programs are cached, checkpoints resume, so every study after
+the first pays only for its training.
+
+A study is skipped when it is up to date: the manifest `reproduce.json` in the results folder
+records, per study, a key over what decides its numbers (the study and its seeds and rows, the
+preset, the config overrides, the data folder, the source of the `fabricjax` package and, for
+the latents, the key of the property study it reads) and its outputs exist. Change any of those
+and that study (and what depends on it) runs again. The manifest is rewritten after every
+study, so an interrupted run picks up where it stopped.
+
+The report embeds each study's own Markdown (its table beside the paper's, its findings
+checklist, its Wilcoxon tests), links its figures, and adds a summary of every checklist, the
+machine, the library versions, the code's fingerprint, each study's wall time and the exact
+command that reruns that study alone.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import hashlib
+import json
+import time
+from importlib import metadata
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import fabricjax
+from fabricjax import findings, report, splits, workspace
+from fabricjax.errors import UserError
+from fabricjax.studies import ablation, bandwidth, latents, noise, properties
+
+STUDIES = {"ablation": ablation, "bandwidth": bandwidth, "noise": noise, "properties": properties, "latents": latents}
+TITLES = {
+    "ablation": "Modality ablation (Table ablation_table)",
+    "bandwidth": "PSD bandwidth (Table bandwidth_classification)",
+    "noise": "Cafe noise (Table new_noise_results)",
+    "properties": "Property perception (Table property_perception)",
+    "latents": "Latent space (Fig. latent_features)",
+}
+FIGURES = {"ablation": ("ablation_confusion.png",), "bandwidth": ("bandwidth.png",), "noise": ("noise.png",), "latents": ("latents.png",)}
+LATENT_ROW = properties.ROWS[-1][0]  # the paper's figure: the Minsound + Minsight model
+MANIFEST = "reproduce.json"
+REPORT = "REPORT.md"
+# Flags of the study commands that set a config field (experiments/flags.py), to print a study's
+# command; other overrides are listed beside it.
+OVERRIDE_FLAGS = {"backbone": "backbone", "seq_len": "seq_len", "bandwidth_khz": "bandwidth", "epochs": "epochs"}
+
+
+@dataclasses.dataclass(frozen=True)
+class Step:
+    """One study of the plan: its name (a key of `STUDIES`), seed count and rows (None: all)."""
+
+    study: str
+    seeds: int | None = None  # None for the latents, which read the property study's checkpoint
+    rows: tuple[str, ...] | None = None
+
+
+PLAN = (Step("ablation", 5), Step("bandwidth", 5), Step("noise", 10), Step("properties", 5), Step("latents"))
+
+# Wall time [s] of each study of `PLAN` with the data, features and compiled programs cached, on
+# a 2-core AMD EPYC (JAX 0.10.2, CPU), from `python -m experiments.reproduce` runs; the estimate
+# scales them by seeds and rows. The default preset's were measured on 2026-11-23 while other
+# jobs shared the cores (so they overestimate a quiet machine); the smoke preset's on the tests'
+# tiny config.
+MEASURED_S = {
+    "default": {"ablation": 545.0, "bandwidth": 260.0, "noise": 420.0, "properties": 330.0, "latents": 40.0},
+    "smoke": {"ablation": 120.0, "bandwidth": 30.0, "noise": 25.0, "properties": 25.0, "latents": 10.0},
+}
+# Simulating the default dataset and computing its features once, quiet 2-core machine (README).
+DATA_S = {"default": 400.0, "smoke": 20.0}
+
+
+def code_fingerprint() -> str:
+    """sha256 over the source of every module of the `fabricjax` package (path and content)."""
+    h = hashlib.sha256()
+    root = Path(fabricjax.__file__).parent
+    for path in sorted(root.rglob("*.py")):
+        h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def step_key(step: Step, preset: str, overrides: Mapping[str, Any], data_dir, code: str, upstream: str = "") -> str:
+    parts = {
+        "step": dataclasses.asdict(step), "preset": preset, "overrides": dict(sorted(overrides.items())),
+        "data_dir": str(Path(data_dir).resolve()) if data_dir else None, "code": code, "upstream": upstream,
+    }
+    return hashlib.sha256(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def command(step: Step, preset: str, overrides: Mapping[str, Any], results: Path, checkpoint: str | None = None,
+            data_dir=None, workdir=None) -> str:
+    """The command that reruns `step` alone, as a user would type it."""
+    args = [f"python -m experiments.{step.study}"]
+    if step.study == "latents":
+        args.append(f"--checkpoint={checkpoint}")
+    else:
+        args += [f"--seeds={step.seeds}", f"--preset={preset}"] + ([f"--rows={','.join(step.rows)}"] if step.rows else [])
+        args += [f"--{OVERRIDE_FLAGS[k]}={v}" for k, v in overrides.items() if k in OVERRIDE_FLAGS]
+    args += [f"--data_dir={data_dir}"] * bool(data_dir) + [f"--workdir={workdir}"] * bool(workdir) + [f"--results={results}"]
+    rest = {k: v for k, v in overrides.items() if k not in OVERRIDE_FLAGS}
+    return " ".join(args) + (f"  (config overrides without a flag: {rest})" if rest and step.study != "latents" else "")
+
+
+def estimate_s(step: Step, preset: str) -> float | None:
+    """Expected wall time of `step` from `MEASURED_S` (None for a preset never measured)."""
+    measured = MEASURED_S.get(preset, {}).get(step.study)
+    if measured is None:
+        return None
+    full = next(s for s in PLAN if s.study == step.study)
+    scale = (step.seeds or 1) / (full.seeds or 1)
+    if step.rows:
+        scale *= len(step.rows) / len(_row_names(step.study))
+    return measured * scale
+
+
+def _row_names(study: str) -> list[str]:
+    module = STUDIES[study]
+    if study == "bandwidth":
+        return [bandwidth.row_name(k) for k in sorted(bandwidth.paper_tables.BANDWIDTH)]
+    return [r.name if hasattr(r, "name") else r[0] for r in module.ROWS]
+
+
+def _minutes(seconds: float | None) -> str:
+    return "unknown" if seconds is None else f"{seconds / 60:.1f} min"
+
+
+def _read_json(path: Path) -> dict[str, Any] | None:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _outputs(study: str, out: Path) -> list[Path]:
+    """The study's Markdown and JSON, and every figure its JSON names (a row subset may draw none)."""
+    doc = _read_json(out / f"{study}.json") or {}
+    figures = [Path(doc[k]).name for k in ("png", "confusion_png") if doc.get(k)]
+    return [out / f"{study}.md", out / f"{study}.json", *[out / f for f in figures]]
+
+
+def _latent_checkpoint(out: Path) -> str:
+    doc = _read_json(out / "properties.json")
+    if not doc or not doc.get("rows"):
+        raise UserError(f"{out / 'properties.json'}: field 'rows': the latents need the property study's checkpoint; run it first")
+    rows = {r["name"]: r["checkpoint"] for r in doc["rows"]}
+    return rows.get(LATENT_ROW, doc["rows"][-1]["checkpoint"])
+
+
+def run(
+    *,
+    preset: str = "default",
+    plan: Sequence[Step] = PLAN,
+    overrides: Mapping[str, Any] | None = None,
+    workdir=None,
+    data_dir=None,
+    results=None,
+    force: bool = False,
+    command_line: str = "python -m experiments.reproduce",
+    say: Callable[[str], None] = print,
+) -> dict[str, Any]:
+    """Run every study of `plan` that is not up to date (all with `force`), then write REPORT.md
+    from every study's results; returns the manifest."""
+    if preset not in splits.PRESETS:
+        raise UserError(f"unknown preset {preset!r}; choose from {sorted(splits.PRESETS)}")
+    unknown = [s.study for s in plan if s.study not in STUDIES]
+    if unknown:
+        raise UserError(f"unknown studies {unknown}; choose from {list(STUDIES)}")
+    overrides = dict(overrides or {})
+    out = workspace.results_dir(results, workdir)
+    manifest_path = out / MANIFEST
+    manifest = _read_json(manifest_path) or {}
+    code = code_fingerprint()
+
+    keys, upstream = {}, ""
+    for step in plan:
+        keys[step.study] = step_key(step, preset, overrides, data_dir, code, upstream if step.study == "latents" else "")
+        if step.study == "properties":
+            upstream = keys[step.study]
+    todo = [s for s in plan if force or manifest.get(s.study, {}).get("key") != keys[s.study] or not all(p.exists() for p in _outputs(s.study, out))]
+
+    lines = [f"reproduce: preset {preset}, results in {out}"]
+    for step in plan:
+        if step in todo:
+            lines.append(f"  {step.study:<11} run   ~{_minutes(estimate_s(step, preset))}")
+        else:
+            lines.append(f"  {step.study:<11} skip  (up to date: ran {manifest[step.study]['finished']}, {_minutes(manifest[step.study]['wall_s'])})")
+    total = [estimate_s(s, preset) for s in todo]
+    known = sum(t for t in total if t is not None)
+    data_note = ""
+    if todo and not data_dir and not (workspace.dataset_dir(preset, workdir) / workspace.INDEX_NAME).exists():
+        data_note = f", plus simulating the dataset and its features once (~{_minutes(DATA_S.get(preset))})"
+    lines.append(f"  estimated time: {_minutes(known) if None not in total else 'unknown (no measured times for this preset)'}{data_note}"
+                 " (measured on 2 CPU cores; other machines differ)")
+    say("\n".join(lines))
+
+    t_all = time.perf_counter()
+    for step in todo:
+        say(f"reproduce: {step.study} ...")
+        t0 = time.perf_counter()
+        checkpoint = _latent_checkpoint(out) if step.study == "latents" else None
+        cmd = command(step, preset, overrides, out, checkpoint, data_dir, workdir)
+        kwargs = dict(workdir=workdir, data_dir=data_dir, results=out, command=cmd)
+        if step.study == "latents":
+            latents.run(checkpoint, **kwargs)
+        else:
+            STUDIES[step.study].run(n_seeds=step.seeds, preset=preset, rows=step.rows, overrides=overrides, **kwargs)
+        wall = time.perf_counter() - t0
+        manifest[step.study] = {
+            "key": keys[step.study], "wall_s": wall, "command": cmd,
+            "finished": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        }
+        report.write_json(manifest_path, manifest)
+        say(f"reproduce: {step.study} done in {_minutes(wall)}")
+    manifest_doc = {s.study: manifest[s.study] for s in plan}
+    write_report(out / REPORT, plan, manifest_doc, preset, code, command_line, time.perf_counter() - t_all, len(todo))
+    say(f"reproduce: wrote {out / REPORT}")
+    return manifest_doc
+
+
+def versions() -> dict[str, str]:
+    out = {}
+    for name in ("jax", "jaxlib", "flax", "optax", "orbax-checkpoint", "numpy", "scipy", "opencv-contrib-python-headless", "scikit-learn"):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def _demote(markdown: str) -> str:
+    """A study's Markdown inside the report: its title dropped, its sections one level down."""
+    lines = markdown.splitlines()
+    if lines and lines[0].startswith("# "):
+        lines = lines[1:]
+    return "\n".join("#" + line if line.startswith("#") else line for line in lines).strip() + "\n"
+
+
+def write_report(path: Path, plan: Sequence[Step], manifest: Mapping[str, Any], preset: str, code: str,
+                 command_line: str, run_s: float, n_run: int) -> Path:
+    out = path.parent
+    docs = {s.study: _read_json(out / f"{s.study}.json") for s in plan}
+    first = next((d for d in docs.values() if d), None)
+    m = first["machine"] if first else report.machine()
+    total = sum(e["wall_s"] for e in manifest.values())
+    summary = []
+    for step in plan:
+        fs = [findings.Finding.from_json(f) for f in (docs[step.study] or {}).get("findings", [])]
+        held, evaluated = findings.count(fs)
+        summary.append([f"[{TITLES[step.study]}](#{_anchor(TITLES[step.study])})", step.seeds or "–",
+                        f"{held} of {evaluated}", _minutes(manifest[step.study]["wall_s"]), manifest[step.study]["finished"]])
+    lines = [
+        f"# Reproduction report: every table and figure of the paper on the {preset} preset",
+        "",
+        f"- command: `{command_line}` ({n_run} of {len(plan)} studies run by this call, in {_minutes(run_s)}; "
+        "the others were up to date and kept)",
+        f"- machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}, JAX on {m['jax_backend']} ({len(m['devices'])} devices)",
+        f"- versions: {', '.join(f'{k} {v}' for k, v in versions().items())}",
+        f"- code: fabricjax {fabricjax.__version__}, source fingerprint `{code[:16]}` (`fabricjax.studies.reproduce.code_fingerprint`)",
+        f"- wall time of the studies: {_minutes(total)} in all (each below; data simulation and feature extraction, "
+        "done once, are in the first study's)",
+        "",
+        "Every number below comes from the study's results file in this folder, written by the run named "
+        "beside it; the simulator is the same for every study and was never tuned to a table: differences "
+        "from the paper are findings.",
+        "",
+        "## Summary",
+        "",
+        report.markdown_table(["Study", "Seeds", "Paper's claims reproduced", "Wall time", "Finished"], summary),
+    ]
+    for step in plan:
+        e = manifest[step.study]
+        md = out / f"{step.study}.md"
+        lines += [
+            f"## {TITLES[step.study]}",
+            "",
+            f"Wall time {_minutes(e['wall_s'])}, finished {e['finished']}. Rerun alone: `{e['command']}`",
+            "",
+            _demote(md.read_text()) if md.exists() else f"({md.name} is missing)\n",
+        ]
+        lines += [f"![{f}]({f})\n" for f in FIGURES.get(step.study, ()) if (out / f).exists() and f"({f})" not in (md.read_text() if md.exists() else "")]
+    return report.write_text(path, "\n".join(lines))
+
+
+def _anchor(title: str) -> str:
+    """GitHub's anchor for a heading: lower case, spaces to hyphens, punctuation dropped."""
+    return "".join(c for c in title.lower().replace(" ", "-") if c.isalnum() or c in "-_")
+
