@@ -18,6 +18,8 @@ from fabricjax import splits
 # frames (downsampled to `image_size` or at the archive's resolution, see `image_resolution`).
 MODALITIES = ("image", "flow", "internal", "external", "proprio")
 AUDIO_MODALITIES = ("internal", "external")
+# How tables and figures name each modality (the sensors of the paper).
+MODALITY_NAMES = {"image": "Minsight image", "flow": "optical flow", "internal": "Minsound", "external": "palm mic", "proprio": "proprioception"}
 BACKBONES = ("attention", "tcn")
 BANDWIDTHS_KHZ = (2.5, 10.0, 15.0, 24.0)
 # How the concatenated per-step features are normalised before the backbone: the paper's rescale of

@@ -104,7 +104,7 @@ def plot_latents(
     return _save(fig, path)
 
 
-_SPLIT_STYLE = {"val": ("validation", "tab:blue"), "test": ("test", "tab:red"), "cafe": ("cafe test", "tab:orange")}
+_SPLIT_STYLE = {"val": ("validation", "tab:blue"), "test": ("lab test", "tab:red"), "cafe": ("cafe test", "tab:orange")}
 
 
 def _seed_dots(ax, x: float, values: np.ndarray, colour: str, spread: float) -> None:
@@ -118,7 +118,7 @@ def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[S
     """Accuracy [%] against PSD bandwidth: per split (`series`: split -> (per-seed values per
     bandwidth, the paper's mean per bandwidth)), every seed as a dot, our mean as a line, the
     paper's mean dashed."""
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    fig, ax = plt.subplots(figsize=(8.8, 4.4), layout="constrained")
     x = np.asarray(khz, float)
     for i, (split, (per_seed, paper)) in enumerate(series.items()):
         name, colour = _SPLIT_STYLE[split]
@@ -130,7 +130,7 @@ def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[S
     ax.set(xlabel="PSD bandwidth [kHz]", ylabel="accuracy [%]", title="Minsound accuracy against PSD bandwidth")
     ax.set_xticks(x, [f"{k:g}" for k in x])
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     return _save(fig, path)
 
 
@@ -138,7 +138,7 @@ def plot_seed_bars(path, groups: Sequence[str], series: dict[str, tuple[Sequence
     """Grouped bars of mean accuracy [%] with every seed's value as a dot: per split (`series`:
     split -> (per-seed values per group, the paper's mean per group or None)); the paper's mean
     is a black bar-wide tick."""
-    fig, ax = plt.subplots(figsize=(1.9 * len(groups) + 2.4, 4.4))
+    fig, ax = plt.subplots(figsize=(1.9 * len(groups) + 4.4, 4.4), layout="constrained")
     width = 0.8 / len(series)
     for i, (split, (per_seed, paper)) in enumerate(series.items()):
         name, colour = _SPLIT_STYLE[split]
@@ -153,7 +153,7 @@ def plot_seed_bars(path, groups: Sequence[str], series: dict[str, tuple[Sequence
     ax.set_xticks(range(len(groups)), groups, fontsize=8)
     ax.set(ylabel="accuracy [%]", title=title, ylim=(0, 100))
     ax.grid(alpha=0.3, axis="y")
-    ax.legend(fontsize=7, loc="upper left")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
     return _save(fig, path)
 
 

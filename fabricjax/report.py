@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import subprocess
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -36,6 +37,18 @@ def machine() -> dict[str, Any]:
         # settings that change speed without changing code; recorded so a timing can be rerun alike
         "env": {k: os.environ[k] for k in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "GLIBC_TUNABLES", "OMP_NUM_THREADS") if k in os.environ},
     }
+
+
+def git_commit() -> str:
+    """'commit <hash>' of the source tree this package runs from (' + uncommitted changes' when
+    git sees any), or 'no git checkout'."""
+    root = Path(__file__).resolve().parents[1]
+    try:
+        run = lambda *a: subprocess.run(["git", "-C", str(root), *a], capture_output=True, text=True, timeout=10, check=True).stdout.strip()  # noqa: E731
+        head, dirty = run("rev-parse", "--short=12", "HEAD"), run("status", "--porcelain", "--untracked-files=no", "--", "fabricjax", "experiments")
+    except (OSError, subprocess.SubprocessError):
+        return "no git checkout"
+    return f"commit {head}" + (" + uncommitted changes" if dirty else "")
 
 
 def _default(o):

@@ -11,6 +11,7 @@ import pytest
 from scipy import stats as sps
 
 from fabricjax import data, paper_tables, sim, stats, train
+from fabricjax.errors import UserError
 from fabricjax.studies import ablation, bandwidth, common, latents, noise, properties, reproduce
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
@@ -127,7 +128,8 @@ def test_latents_from_the_property_checkpoint(property_run, workdir, tmp_path):
     assert out["seed"] == out["seeds"][int(np.argmax(out["best_val_per_seed"]))]
     assert np.isfinite([p["xy"] for p in out["points"]]).all()
     assert (tmp_path / "latents.png").stat().st_size > 0
-    with pytest.raises(KeyError, match="seed 7"):
+    assert out["findings"] and (tmp_path / "latents.md").read_text().startswith("# Latent space")
+    with pytest.raises(UserError, match="seed 7"):
         latents.run(doc["rows"][0]["checkpoint"], seed=7, workdir=workdir, results=tmp_path)
 
 
@@ -155,14 +157,14 @@ def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
 def test_noise_and_bandwidth_tables():
     w = {"p_value": 0.001953125, "min_attainable_p": 0.001953125, "method": "exact"}
     rows = [
-        {"modalities": ["internal"], "paper": {"mean": 67.51, "sd": 5.05, "p": None}, "wilcoxon": None, "wall_s": 1.0,
+        {"name": "internal", "modalities": ["internal"], "paper": {"mean": 67.51, "sd": 5.05, "p": None}, "wilcoxon": None, "wall_s": 1.0,
          "accuracy": {"cafe": {"fabric": [0.7, 0.7]}, "test": {"fabric": [0.9, 0.9]}}},
-        {"modalities": ["internal", "proprio"], "paper": {"mean": 87.51, "sd": 2.66, "p": "< 0.0001"}, "wall_s": 2.0,
+        {"name": "internal+proprio", "modalities": ["internal", "proprio"], "paper": {"mean": 87.51, "sd": 2.66, "p": "< 0.0001"}, "wall_s": 2.0,
          "wilcoxon": {"per_seed": w, "per_sample": {**w, "method": "approx"}},
          "accuracy": {"cafe": {"fabric": [0.9, 0.8]}, "test": {"fabric": [1.0, 1.0]}}},
     ]
     lines = noise.table(rows).splitlines()
-    assert lines[2] == "| internal | 70.00 ± 0.00 | 67.51 ± 5.05 | +2.49 | – | – | – | 90.00 ± 0.00 | 1.0 |"
+    assert lines[2] == "| Minsound | 70.00 ± 0.00 | 67.51 ± 5.05 | +2.49 | – | – | – | 90.00 ± 0.00 | 1.0 |"
     assert "0.001953 (floor 0.002, exact)" in lines[3] and "< 0.0001" in lines[3]
     bw = [{"bandwidth_khz": 2.5, "psd_bins": 54, "paper": {"val_mean": 92.43, "val_sd": 1.13, "test_mean": 89.87, "test_sd": 3.31},
            "wall_s": 3.0, "accuracy": {"val": {"fabric": [0.9]}, "test": {"fabric": [0.8]}}}]

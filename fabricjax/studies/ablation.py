@@ -19,11 +19,11 @@ from typing import Any, Sequence
 import numpy as np
 
 from fabricjax import catalog, findings, paper_tables, plots, report, stats
+from fabricjax.config import MODALITY_NAMES
 from fabricjax.studies import common
 
 WILCOXON_PAIR = ("internal", "internal+external")  # (baseline, compared), as in the paper
 CONFUSION_ROWS = ("proprio", "flow")
-NAMES = {"image": "Minsight image", "flow": "optical flow", "internal": "Minsound", "external": "palm mic", "proprio": "proprioception"}
 VARIANT = "step_layernorm"  # our fusion normalisation (config.FUSION_NORMS), beside the paper's
 
 
@@ -55,7 +55,7 @@ VARIANT_PAIRS = ((WILCOXON_PAIR[0], f"{VARIANT}:{WILCOXON_PAIR[1]}"),)  # Minsou
 
 def label(modalities: Sequence[str], backbone: str, fusion_norm: str = "sequence_minmax") -> str:
     """How the table names a row: 'TCN: Minsound + palm mic', '... (our step-LayerNorm fusion)'."""
-    text = " + ".join(NAMES[m] for m in modalities)
+    text = " + ".join(MODALITY_NAMES[m] for m in modalities)
     text = f"TCN: {text}" if backbone == "tcn" else text
     return f"{text} (our step-LayerNorm fusion)" if fusion_norm == VARIANT else text
 
@@ -99,7 +99,7 @@ def run(
     tests = common.paired_tests(trained[base], trained[compared], "test", labels) if base in trained and compared in trained else {}
     out = common.results_path(results)
     panels = [
-        (f"{NAMES[n]} only, {len(seeds)} seeds pooled", np.tile(labels, len(seeds)), trained[n].predictions("test").ravel())
+        (f"{MODALITY_NAMES[n]} only, {len(seeds)} seeds pooled", np.tile(labels, len(seeds)), trained[n].predictions("test").ravel())
         for n in CONFUSION_ROWS
         if n in trained
     ]
@@ -155,22 +155,22 @@ def checklist(test: dict[str, np.ndarray]) -> list[findings.Finding]:
     claim = "Minsound (internal audio) is the best single modality"
     if not (f := findings.missing(claim, ["internal", *singles], test)):
         best_other = max(singles, key=lambda r: findings.mean_pct(test[r]))
-        f = findings.at_least(claim, (NAMES["internal"], test["internal"]), (f"best other, {NAMES[best_other]}", test[best_other]), strict=True)
+        f = findings.at_least(claim, (MODALITY_NAMES["internal"], test["internal"]), (f"best other, {MODALITY_NAMES[best_other]}", test[best_other]), strict=True)
     out.append(f)
     claim = f"the palm mic alone is clearly worse than Minsound (>= {CLEARLY_WORSE_PP:.0f} pp below)"
     out.append(findings.missing(claim, ["internal", "external"], test) or findings.at_least(
-        claim, (NAMES["internal"], test["internal"]), (NAMES["external"], test["external"]), CLEARLY_WORSE_PP))
+        claim, (MODALITY_NAMES["internal"], test["internal"]), (MODALITY_NAMES["external"], test["external"]), CLEARLY_WORSE_PP))
     claim = (f"proprioception and optical flow alone are similar (within {SIMILAR_PP:.0f} pp) and well above chance "
              f"(>= {WELL_ABOVE_CHANCE_PP:.0f} pp above {100 / catalog.N_CLASSES:.1f} %)")
     if not (f := findings.missing(claim, ["proprio", "flow"], test)):
         p, fl = findings.mean_pct(test["proprio"]), findings.mean_pct(test["flow"])
         floor = 100 / catalog.N_CLASSES + WELL_ABOVE_CHANCE_PP
         f = findings.Finding(claim, abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor,
-                             f"{findings.describe(NAMES['proprio'], test['proprio'])}; {findings.describe(NAMES['flow'], test['flow'])}")
+                             f"{findings.describe(MODALITY_NAMES['proprio'], test['proprio'])}; {findings.describe(MODALITY_NAMES['flow'], test['flow'])}")
     out.append(f)
     claim = "Minsight images alone are the weakest camera input (below optical flow)"
     out.append(findings.missing(claim, ["image", "flow"], test) or findings.at_least(
-        claim, (NAMES["flow"], test["flow"]), (NAMES["image"], test["image"]), strict=True))
+        claim, (MODALITY_NAMES["flow"], test["flow"]), (MODALITY_NAMES["image"], test["image"]), strict=True))
     for base, compared, variant in ((WILCOXON_PAIR[0], WILCOXON_PAIR[1], ""), *[(b, c, " (our step-LayerNorm fusion)") for b, c in VARIANT_PAIRS]):
         claim = f"Minsound + palm mic >= Minsound{variant}"
         out.append(findings.missing(claim, [base, compared], test) or findings.at_least(

@@ -27,7 +27,7 @@ from flax import nnx
 from sklearn.manifold import TSNE
 
 from fabricjax import catalog, checkpoint, data, findings, plots, report, train
-from fabricjax.config import Config
+from fabricjax.config import Config, MODALITY_NAMES
 from fabricjax.errors import UserError
 from fabricjax.studies import common
 
@@ -91,7 +91,7 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
     agreement = neighbour_agreement(points, fabrics)
     png = plots.plot_latents(
         common.results_path(results) / "latents.png", xy, fabrics,
-        title=f"t-SNE of per-trial mean latents ({'+'.join(config.modalities)}, seed {saved['seeds'][index]}; holdouts outlined)",
+        title=f"t-SNE of per-trial mean latents ({' + '.join(MODALITY_NAMES[m] for m in config.modalities)}, seed {saved['seeds'][index]}; holdouts outlined)",
         neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
     )
     doc = {
@@ -192,7 +192,7 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
         f"- command: `{doc['command']}`",
         f"- checkpoint: `{doc['checkpoint']}` ({'+'.join(c['modalities'])}; seed {doc['seed']}, the best by validation of seeds {doc['seeds']})",
-        f"- points: {len(doc['points'])} fabrics on the test day, one trial each; t-SNE perplexity {doc['perplexity']}",
+        f"- points: {len(doc['points'])} fabrics on the test day, one trial each; t-SNE perplexity {doc['perplexity'] or 0:.2f}",
         f"- machine: {doc['machine']['cpu']}, {doc['machine']['cores']} cores, JAX {doc['machine']['jax']}",
         "",
         "![t-SNE of per-trial mean latents](latents.png)",

@@ -17,12 +17,12 @@ from typing import Any, Sequence
 import numpy as np
 
 from fabricjax import findings, paper_tables, plots, report, stats
+from fabricjax.config import MODALITY_NAMES
 from fabricjax.errors import UserError
 from fabricjax.studies import common
 
 SPLIT = "cafe"
 ROWS = tuple(("+".join(mods), mods, mean, sd, p) for mods, mean, sd, p in paper_tables.NOISE)
-NAMES = {"internal": "Minsound", "proprio": "proprioception", "external": "palm mic"}
 SIGNIFICANCE = 0.05  # the level at which the checklist calls a per-seed Wilcoxon test significant
 
 
@@ -79,7 +79,7 @@ def run(
 
 
 def display_name(row_name: str) -> str:
-    return " + ".join(NAMES[m] for m in row_name.split("+"))
+    return " + ".join(MODALITY_NAMES[m] for m in row_name.split("+"))
 
 
 def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
@@ -125,7 +125,7 @@ def table(rows: Sequence[dict[str, Any]]) -> str:
         lab = stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"]))
         w = r["wilcoxon"] or {}
         body.append([
-            " + ".join(r["modalities"]),
+            display_name(r["name"]),
             f"{cafe[0]:.2f} ± {cafe[1]:.2f}",
             f"{r['paper']['mean']:.2f} ± {r['paper']['sd']:.2f}",
             f"{cafe[0] - r['paper']['mean']:+.2f}",
@@ -146,7 +146,7 @@ def markdown(doc: dict[str, Any]) -> str:
     lines = ["# Cafe noise (the paper's Table new_noise_results)", "", common.header_markdown(doc), table(doc["rows"]), "Tests, each row against the preceding one on the cafe split:", ""]
     for r in doc["rows"]:
         for w in (r["wilcoxon"] or {}).values():
-            lines.append(f"- {r['name']} vs {r['against']}: {w['describe']}")
+            lines.append(f"- {display_name(r['name'])} vs {display_name(r['against'])}: {w['describe']}")
     lines += [
         "",
         "The per-seed test is the one comparable to the paper's; the per-sequence test treats sequences of one "

@@ -67,13 +67,13 @@ class Step:
 PLAN = (Step("ablation", 5), Step("bandwidth", 5), Step("noise", 10), Step("properties", 5), Step("latents"))
 
 # Wall time [s] of each study of `PLAN` with the data, features and compiled programs cached, on
-# a 2-core AMD EPYC (JAX 0.10.2, CPU), from `python -m experiments.reproduce` runs; the estimate
-# scales them by seeds and rows. The default preset's were measured on 2026-11-23 while other
-# jobs shared the cores (so they overestimate a quiet machine); the smoke preset's on the tests'
-# tiny config.
+# a 2-core AMD EPYC (JAX 0.10.2, CPU); the estimate scales them by seeds and rows. Default preset:
+# the ablation's quiet cached rerun (README), the others each study's command on 2026-11-23 while
+# test suites shared the cores (properties: its training and loading, without the simulation
+# that run also did), so they overestimate a quiet machine. Smoke preset: the tests' tiny config.
 MEASURED_S = {
-    "default": {"ablation": 545.0, "bandwidth": 260.0, "noise": 420.0, "properties": 330.0, "latents": 40.0},
-    "smoke": {"ablation": 120.0, "bandwidth": 30.0, "noise": 25.0, "properties": 25.0, "latents": 10.0},
+    "default": {"ablation": 543.0, "bandwidth": 316.0, "noise": 471.0, "properties": 353.0, "latents": 26.0},
+    "smoke": {"ablation": 300.0, "bandwidth": 60.0, "noise": 60.0, "properties": 35.0, "latents": 15.0},
 }
 # Simulating the default dataset and computing its features once, quiet 2-core machine (README).
 DATA_S = {"default": 400.0, "smoke": 20.0}
@@ -264,7 +264,8 @@ def write_report(path: Path, plan: Sequence[Step], manifest: Mapping[str, Any], 
         "the others were up to date and kept)",
         f"- machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}, JAX on {m['jax_backend']} ({len(m['devices'])} devices)",
         f"- versions: {', '.join(f'{k} {v}' for k, v in versions().items())}",
-        f"- code: fabricjax {fabricjax.__version__}, source fingerprint `{code[:16]}` (`fabricjax.studies.reproduce.code_fingerprint`)",
+        f"- code: fabricjax {fabricjax.__version__}, {report.git_commit()}, source fingerprint `{code[:16]}` "
+        "(`fabricjax.studies.reproduce.code_fingerprint`)",
         f"- wall time of the studies: {_minutes(total)} in all (each below; data simulation and feature extraction, "
         "done once, are in the first study's)",
         "",
