@@ -261,6 +261,10 @@ def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_p
     assert second == first  # same keys, wall times and commands: nothing reran
     assert {p.name: p.stat().st_ino for p in tmp_path.iterdir() if p.name in outputs} == outputs  # nothing rewritten
     assert "0 of 3 studies run by this call" in (tmp_path / "REPORT.md").read_text()
+    said.clear()
+    reproduce.run(**{**kw, "plan": (reproduce.Step("latents"),)})  # alone: keyed on the manifest's property study
+    assert "latents     skip" in said[0]
+    assert all(f"## {reproduce.TITLES[s.study]}" in (tmp_path / "REPORT.md").read_text() for s in SMOKE_PLAN)
 
 
 def test_reproduce_keys_follow_what_decides_the_numbers():

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import fabricjax
-from fabricjax import findings, report, splits, workspace
+from fabricjax import findings, paper_tables, report, splits, workspace
 from fabricjax.errors import UserError
 from fabricjax.studies import ablation, bandwidth, latents, noise, properties
 
@@ -123,10 +123,12 @@ def estimate_s(step: Step, preset: str) -> float | None:
 
 
 def _row_names(study: str) -> list[str]:
-    module = STUDIES[study]
+    """Every row of a training study's table (ablation rows are objects, the others tuples)."""
     if study == "bandwidth":
-        return [bandwidth.row_name(k) for k in sorted(bandwidth.paper_tables.BANDWIDTH)]
-    return [r.name if hasattr(r, "name") else r[0] for r in module.ROWS]
+        return [bandwidth.row_name(k) for k in sorted(paper_tables.BANDWIDTH)]
+    if study == "ablation":
+        return [r.name for r in ablation.ROWS]
+    return [r[0] for r in STUDIES[study].ROWS]
 
 
 def _minutes(seconds: float | None) -> str:
@@ -180,11 +182,10 @@ def run(
     manifest = _read_json(manifest_path) or {}
     code = code_fingerprint()
 
-    keys, upstream = {}, ""
-    for step in plan:
-        keys[step.study] = step_key(step, preset, overrides, data_dir, code, upstream if step.study == "latents" else "")
-        if step.study == "properties":
-            upstream = keys[step.study]
+    keys = {}
+    for step in plan:  # the latents read the property study's checkpoint: its key is theirs too
+        upstream = keys.get("properties", manifest.get("properties", {}).get("key", "")) if step.study == "latents" else ""
+        keys[step.study] = step_key(step, preset, overrides, data_dir, code, upstream)
     todo = [s for s in plan if force or manifest.get(s.study, {}).get("key") != keys[s.study] or not all(p.exists() for p in _outputs(s.study, out))]
 
     lines = [f"reproduce: preset {preset}, results in {out}"]
@@ -220,10 +221,9 @@ def run(
         }
         report.write_json(manifest_path, manifest)
         say(f"reproduce: {step.study} done in {_minutes(wall)}")
-    manifest_doc = {s.study: manifest[s.study] for s in plan}
-    write_report(out / REPORT, plan, manifest_doc, preset, code, command_line, time.perf_counter() - t_all, len(todo))
+    write_report(out / REPORT, manifest, preset, code, command_line, time.perf_counter() - t_all, len(todo))
     say(f"reproduce: wrote {out / REPORT}")
-    return manifest_doc
+    return {s.study: manifest[s.study] for s in plan}
 
 
 def versions() -> dict[str, str]:
@@ -244,23 +244,26 @@ def _demote(markdown: str) -> str:
     return "\n".join("#" + line if line.startswith("#") else line for line in lines).strip() + "\n"
 
 
-def write_report(path: Path, plan: Sequence[Step], manifest: Mapping[str, Any], preset: str, code: str,
-                 command_line: str, run_s: float, n_run: int) -> Path:
+def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str, command_line: str, run_s: float, n_run: int) -> Path:
+    """REPORT.md over every study the manifest holds (this call's and earlier calls'), in `STUDIES` order."""
     out = path.parent
-    docs = {s.study: _read_json(out / f"{s.study}.json") for s in plan}
+    studies = [s for s in STUDIES if s in manifest]
+    docs = {s: _read_json(out / f"{s}.json") for s in studies}
     first = next((d for d in docs.values() if d), None)
     m = first["machine"] if first else report.machine()
     total = sum(e["wall_s"] for e in manifest.values())
     summary = []
-    for step in plan:
-        fs = [findings.Finding.from_json(f) for f in (docs[step.study] or {}).get("findings", [])]
+    for study in studies:
+        doc = docs[study] or {}
+        fs = [findings.Finding.from_json(f) for f in doc.get("findings", [])]
         held, evaluated = findings.count(fs)
-        summary.append([f"[{TITLES[step.study]}](#{_anchor(TITLES[step.study])})", step.seeds or "–",
-                        f"{held} of {evaluated}", _minutes(manifest[step.study]["wall_s"]), manifest[step.study]["finished"]])
+        seeds = len(doc["seeds"]) if study != "latents" and doc.get("seeds") else "1 (best of the property study's)"
+        summary.append([f"[{TITLES[study]}](#{_anchor(TITLES[study])})", seeds,
+                        f"{held} of {evaluated}", _minutes(manifest[study]["wall_s"]), manifest[study]["finished"]])
     lines = [
         f"# Reproduction report: every table and figure of the paper on the {preset} preset",
         "",
-        f"- command: `{command_line}` ({n_run} of {len(plan)} studies run by this call, in {_minutes(run_s)}; "
+        f"- command: `{command_line}` ({n_run} of {len(studies)} studies run by this call, in {_minutes(run_s)}; "
         "the others were up to date and kept)",
         f"- machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}, JAX on {m['jax_backend']} ({len(m['devices'])} devices)",
         f"- versions: {', '.join(f'{k} {v}' for k, v in versions().items())}",
@@ -277,17 +280,17 @@ def write_report(path: Path, plan: Sequence[Step], manifest: Mapping[str, Any], 
         "",
         report.markdown_table(["Study", "Seeds", "Paper's claims reproduced", "Wall time", "Finished"], summary),
     ]
-    for step in plan:
-        e = manifest[step.study]
-        md = out / f"{step.study}.md"
+    for study in studies:
+        e = manifest[study]
+        md = out / f"{study}.md"
         lines += [
-            f"## {TITLES[step.study]}",
+            f"## {TITLES[study]}",
             "",
             f"Wall time {_minutes(e['wall_s'])}, finished {e['finished']}. Rerun alone: `{e['command']}`",
             "",
             _demote(md.read_text()) if md.exists() else f"({md.name} is missing)\n",
         ]
-        lines += [f"![{f}]({f})\n" for f in FIGURES.get(step.study, ()) if (out / f).exists() and f"({f})" not in (md.read_text() if md.exists() else "")]
+        lines += [f"![{f}]({f})\n" for f in FIGURES.get(study, ()) if (out / f).exists() and f"({f})" not in (md.read_text() if md.exists() else "")]
     return report.write_text(path, "\n".join(lines))
 
 
