@@ -176,7 +176,7 @@ def _stepper(config: Config, shapes: tuple):
     trainer = train.make_trainer(config, dict(shapes))
 
     def step(params, opt_state, batch, key):  # the body of `Trainer.train_epoch`'s scan
-        loss, grads = jax.value_and_grad(trainer.loss)(params, batch, key)
+        (loss, _), grads = jax.value_and_grad(trainer.loss, has_aux=True)(params, batch, key)
         updates, _ = trainer.tx.update(grads, opt_state, params)
         return loss, grads, optax.apply_updates(params, updates)
 
@@ -327,7 +327,7 @@ def test_a_batch_of_one_class_without_properties():
     logits = out["logits"]
     expected = -jax.nn.log_softmax(logits["fabric"])[:, 0].mean()
     trainer = _stepper(dataclasses.replace(TINY, batch_size=6), tuple(sorted((k, v.shape[2:]) for k, v in inputs["random"].items())))[0]
-    loss = trainer.loss(out["params"], train.select(TINY, {"inputs": inputs["random"], "labels": labels}), None)
+    loss, _ = trainer.loss(out["params"], train.select(TINY, {"inputs": inputs["random"], "labels": labels}), None)
     assert float(loss) == pytest.approx(float(expected), rel=1e-5)
     for p in catalog.PROPERTY_LEVELS:
         assert not np.asarray(out["grads"]["heads"][p]["kernel"]).any()
