@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 import struct
+import time
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -63,25 +64,36 @@ class History:
 
 
 class CurveWriter:
-    """One tensorboardX `SummaryWriter` per seed."""
+    """One event file per seed, written synchronously.
 
-    def __init__(self, log_dir: str | os.PathLike, seeds: Sequence[int], fresh: bool):
-        from tensorboardX import SummaryWriter
+    tensorboardX's `SummaryWriter` queues events for a background thread, and its `flush()` does
+    not wait for that queue: what a crash or Ctrl-C (a checkpointed run's normal end) leaves on
+    disk would be unknown. Its `EventsWriter` writes and flushes in the caller."""
+
+    def __init__(self, log_dir: str | os.PathLike, seeds: Sequence[int], first_epoch: int):
+        from tensorboardX.event_file_writer import EventsWriter
 
         self.writers = []
         for seed in seeds:
             folder = seed_dir(log_dir, seed)
-            if fresh:  # a run from scratch replaces the row's old curves; a resumed run appends
+            folder.mkdir(parents=True, exist_ok=True)
+            if first_epoch == 0:  # a run from scratch replaces the row's old curves; a resumed run adds a file
                 for old in folder.glob("events.out.tfevents.*"):
                     old.unlink()
-            self.writers.append(SummaryWriter(str(folder)))
+            # event files are named by the second they were opened in: the suffix keeps a resume
+            # within the same second from overwriting the interrupted run's file
+            self.writers.append(EventsWriter(str(folder / "events"), f".from_epoch{first_epoch + 1}"))
 
     def write(self, history: History, start: int, stop: int) -> None:
-        """Epochs `start` .. `stop` - 1 of `history`, flushed so that TensorBoard shows them now."""
+        """Epochs `start` .. `stop` - 1 of `history`, on disk when this returns."""
+        from tensorboardX.proto.event_pb2 import Event
+        from tensorboardX.summary import scalar
+
+        now = time.time()
         for i, w in enumerate(self.writers):
-            for tag, values in history.scalars.items():
-                for e in range(start, stop):
-                    w.add_scalar(tag, float(values[i, e]), global_step=e + 1)
+            for e in range(start, stop):
+                for tag, values in history.scalars.items():
+                    w.write_event(Event(wall_time=now, step=e + 1, summary=scalar(tag, values[i, e])))
             w.flush()
 
     def close(self) -> None:
@@ -89,10 +101,11 @@ class CurveWriter:
             w.close()
 
 
-def open_writer(log_dir: str | os.PathLike, seeds: Sequence[int], fresh: bool) -> CurveWriter | None:
-    """A writer per seed under `log_dir`, or None (one log line) when tensorboardX is not installed."""
+def open_writer(log_dir: str | os.PathLike, seeds: Sequence[int], first_epoch: int) -> CurveWriter | None:
+    """A writer per seed under `log_dir` for a run starting at `first_epoch` (0-based), or None
+    (one log line) when tensorboardX is not installed."""
     try:
-        return CurveWriter(log_dir, seeds, fresh)
+        return CurveWriter(log_dir, seeds, first_epoch)
     except ImportError:
         logging.warning("training curves are off: tensorboardX is not installed (%s)", EXTRA)
         return None

@@ -393,7 +393,7 @@ def train_and_evaluate(
         stats = input_statistics(config, data_sets["train"])
         state, done = jax.device_put(with_input_statistics(init(keys), stats), per_seed), 0
     history = curves.History(len(seeds), config.epochs)
-    writer = curves.open_writer(log_dir, seeds, fresh=done == 0) if log_dir is not None else None
+    writer = curves.open_writer(log_dir, seeds, done) if log_dir is not None else None
     save_every = save_every or config.epochs
     chunk = 1 if writer is not None else save_every
     while done < config.epochs:
