@@ -11,7 +11,7 @@ Needs the optional Rerun SDK: pip install -e ".[viz]".
 
 from absl import flags as absl_flags
 
-from experiments import cli, flags
+from experiments import cli
 from fabricjax import view
 
 FLAGS = absl_flags.FLAGS
@@ -31,4 +31,4 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    flags.run(main, cpu_devices=1)  # one sequence at a time, as experiments.stream
+    cli.run(main)
