@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -80,16 +80,13 @@ class Step:
     frame: np.ndarray | None = None  # (H, W, 3) uint8
 
 
-def archive_steps(trial: archive.TrialArchive) -> Iterator[Step]:
-    """The steps of a recorded trial, as they came in."""
-    stamps = trial.timestamps - trial.timestamps[0]
-    mics = list(range(len(archive.MIC_NAMES)))
-    for t in range(trial.n_steps):
-        new = archive.WINDOW if t == 0 else int(trial.window_end[t, 0] - trial.window_end[t - 1, 0])
-        yield Step(
-            t, float(stamps[t]), stream.step_windows(trial, t, mics), min(max(new, 0), archive.WINDOW),
-            trial.joints[t], float(trial.force[t]), None if trial.images is None else trial.images[t],
-        )
+def archive_step(trial: archive.TrialArchive, t: int) -> Step:
+    """Step `t` of a recorded trial, as it came in."""
+    new = archive.WINDOW if t == 0 else int(trial.window_end[t, 0] - trial.window_end[t - 1, 0])
+    return Step(
+        t, float(trial.timestamps[t] - trial.timestamps[0]), stream.step_windows(trial, t, list(range(len(archive.MIC_NAMES)))),
+        min(max(new, 0), archive.WINDOW), trial.joints[t], float(trial.force[t]), None if trial.images is None else trial.images[t],
+    )
 
 
 def _flow_image(pooled: np.ndarray) -> np.ndarray:
@@ -126,6 +123,13 @@ class TrialView:
         self.previous_frame = None
         self.spectrogram = np.full((len(archive.MIC_NAMES), welch.N_BINS, SPECTROGRAM_STEPS), np.nan, np.float32)
         self.psd = jax.jit(lambda w: welch.welch_psd(w, bandwidth_khz=FULL_BAND_KHZ))
+
+    def warmup(self, image_size: tuple[int, int] | None) -> None:
+        """Compile the PSD and, for frames of `image_size` (H, W), the flow pooling, so that the
+        first steps of a live trial are not held up by compilation."""
+        self.psd(np.zeros((len(archive.MIC_NAMES), archive.WINDOW), np.int32)).block_until_ready()
+        if image_size is not None:
+            flow.sparsify_and_pool(np.zeros((1, *image_size, 2), np.float32)).block_until_ready()
 
     def _at(self, step: int, time_s: float) -> None:
         self.rec.set_time("step", sequence=step)
@@ -173,8 +177,8 @@ def log_trial(rec, trial: archive.TrialArchive, streamer: stream.Streamer | None
     """Log a recorded trial, and `streamer`'s predictions over it (as fast as it runs); returns the
     streaming summary (`stream.replay`), or {} without a model."""
     view = TrialView(rec, int(trial.meta["label"]))
-    for s in archive_steps(trial):
-        view.log_step(s)
+    for t in range(trial.n_steps):
+        view.log_step(archive_step(trial, t))
     if streamer is None:
         return {}
     return stream.replay(streamer, trial, realtime=False, on_step=view.log_prediction)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fabricjax import archive, splits, synthetic, view
+from fabricjax import archive, splits, stream, synthetic, view
 from fabricjax.features import welch
 from fabricjax.sim.dataset import scene_for
 from fabricjax.sim.simulate import simulate
@@ -83,3 +83,27 @@ def test_without_the_sdk_a_one_line_error_says_what_to_install(smoke_trial, tmp_
     out = subprocess.run([sys.executable, "-c", code, str(path), f"--save={tmp_path / 'x.rrd'}"], env=env, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert out.returncode == 2
     assert out.stderr.strip().splitlines() == ['error: viewing needs the Rerun SDK: pip install -e ".[viz]"']
+
+
+def test_stream_view_save_logs_each_steps_sensors_and_result(smoke_trial, checkpoint, tmp_path):
+    path, trial = smoke_trial
+    doc = stream.run(
+        archive_path=path, checkpoint_dir=checkpoint, realtime=False, print_every=0, results=tmp_path,
+        out=lambda line: None, view_save=tmp_path / "stream.rrd",
+    )
+    read = view.read_rrd(tmp_path / "stream.rrd")
+    assert set(read) == SENSORS | WAVES | PREDICTION
+    assert read["/minsight/frame"]["steps"] == read["/prediction/latency_ms"]["steps"] == list(range(trial.n_steps))
+    assert len(read["/prediction/probabilities"]["steps"]) == doc["decided_steps"]
+
+
+def test_record_view_save_logs_the_trial_as_it_is_recorded(checkpoint, tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    args = ["--fabric=12", "--trials=1", "--cycles=2", "--simulate", f"--out={tmp_path}", f"--view_save={tmp_path / 'rec.rrd'}", f"--checkpoint={checkpoint}"]
+    out = subprocess.run([sys.executable, "-m", "acquisition.record", *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    trial = archive.read_archive(next(tmp_path.glob("*.npz")), images=False)
+    read = view.read_rrd(tmp_path / "rec.rrd")
+    assert set(read) == SENSORS | WAVES | PREDICTION
+    assert read["/force"]["steps"] == list(range(trial.n_steps))
+    assert read["/prediction/confidence"]["steps"] == list(range(CONFIG.sequence_length - 1, trial.n_steps))
