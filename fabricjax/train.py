@@ -15,8 +15,8 @@ scan with a tree select, so it costs no host sync.
 A data set is a mapping {"inputs": {modality: (n, N, ...)}, "labels": {head: int (n,)}} (objects
 with `.inputs` / `.labels` work too); label -1 means unknown and is masked out of losses and
 accuracies. Checkpointing (`train_and_evaluate(..., workdir=...)`) splits the epoch scan into
-chunks between saves; every epoch's randomness is `fold_in(key, epoch)`, so a resumed run is the
-uninterrupted run.
+chunks between saves, training curves (`log_dir=...`, `fabricjax.curves`) into single epochs;
+every epoch's randomness is `fold_in(key, epoch)`, so a resumed run is the uninterrupted run.
 """
 
 from __future__ import annotations
@@ -103,6 +103,12 @@ def masked_accuracy(predictions: jax.Array, labels: jax.Array) -> jax.Array:
     return ((predictions == labels) & valid).sum() / jnp.maximum(valid.sum(), 1)
 
 
+def _correct_and_known(logits: dict[str, jax.Array], labels: dict[str, jax.Array]) -> dict[str, tuple[jax.Array, jax.Array]]:
+    """Per head, (right predictions, known labels) of a minibatch: summed over an epoch, the
+    counts give its training accuracy as `masked_accuracy` counts it."""
+    return {h: (((jnp.argmax(v, -1) == labels[h]) & (labels[h] >= 0)).sum(), (labels[h] >= 0).sum()) for h, v in logits.items()}
+
+
 @dataclasses.dataclass(frozen=True)
 class Trainer:
     """The pure pieces of a run, each a function of one seed's state (vmap them over seeds)."""
@@ -163,9 +169,7 @@ class Trainer:
             (loss, logits), grads = jax.value_and_grad(self.loss, has_aux=True)(params, mb, k_drop)
             updates, opt_state = self.tx.update(grads, opt_state, params)
             updates = jax.tree.map(lambda u: u * scale, updates)  # AdamW's update is lr * (...): this scales lr
-            labels = mb["labels"]
-            counts = {h: (((jnp.argmax(v, -1) == labels[h]) & (labels[h] >= 0)).sum(), (labels[h] >= 0).sum()) for h, v in logits.items()}
-            return (optax.apply_updates(params, updates), opt_state), (loss, counts)
+            return (optax.apply_updates(params, updates), opt_state), (loss, _correct_and_known(logits, mb["labels"]))
 
         (params, opt_state), (losses, counts) = jax.lax.scan(
             step, (params, opt_state), (order, jax.random.split(k_steps, steps), lr_scale)
