@@ -18,7 +18,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import catalog, findings, paper_tables, plots, report, stats, workspace
+from fabricjax import catalog, findings, paper_tables, plots, report, stats
 from fabricjax.studies import common
 
 WILCOXON_PAIR = ("internal", "internal+external")  # (baseline, compared), as in the paper
@@ -90,7 +90,7 @@ def run(
     trained = {}
     for r, config in zip(chosen, configs):
         progress.start(display_name(r.name))
-        trained[r.name] = row = common.train_row(r.name, config, ds.sets, seeds, ["test"], log_dir=workspace.logs_dir("ablation", r.name, workdir))
+        trained[r.name] = row = common.train_row(r.name, config, ds.sets, seeds, ["test"], log_dir=common.logs_dir("ablation", r.name, workdir))
         progress.finish(display_name(r.name), row.seconds, f"test {stats.format_mean_sd(row.accuracy('test'))} %")
 
     test = ds.sets["test"]

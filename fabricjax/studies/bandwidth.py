@@ -16,7 +16,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import data, paper_tables, report, stats, workspace
+from fabricjax import data, paper_tables, report, stats
 from fabricjax.config import AUDIO_MODALITIES
 from fabricjax.features import welch
 from fabricjax.studies import common
@@ -63,7 +63,7 @@ def run(
         progress.start(f"{name} kHz")
         row = common.train_row(
             name, dataclasses.replace(base, bandwidth_khz=khz), truncate(ds.sets, khz), seeds, ["test"],
-            log_dir=workspace.logs_dir("bandwidth", name, workdir),
+            log_dir=common.logs_dir("bandwidth", name, workdir),
         )
         progress.finish(f"{name} kHz", row.seconds, f"test {stats.format_mean_sd(row.accuracy('test'))} %")
         vm, vs, tm, ts = paper_tables.BANDWIDTH[khz]

@@ -202,6 +202,11 @@ def checkpoint_dir(study: str, row: str, config: Config, seeds: Sequence[int], w
     return workspace.checkpoints_dir(f"{study}/{row}-{tag}", workdir)
 
 
+def logs_dir(study: str, row: str, workdir=None) -> Path:
+    """Where a row's training curves go (`workspace.logs_dir`): the row's latest run, whatever its settings."""
+    return workspace.logs_dir(study, row, workdir)
+
+
 def paired_tests(a: Row, b: Row, split: str, labels: np.ndarray, head: str = "fabric") -> dict[str, stats.WilcoxonResult]:
     """Wilcoxon signed-rank tests of row `b` against row `a` on `split`, under both pairings.
 

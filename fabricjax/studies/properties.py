@@ -20,7 +20,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import catalog, paper_tables, report, stats, workspace
+from fabricjax import catalog, paper_tables, report, stats
 from fabricjax.studies import common
 
 PROPERTIES = tuple(catalog.PROPERTY_LEVELS)
@@ -52,7 +52,7 @@ def run(
         progress.start(name)
         ckpt = common.checkpoint_dir("properties", name, config, seeds, workdir)
         row = common.train_row(
-            name, config, ds.sets, seeds, list(SPLITS), checkpoint_dir=ckpt, log_dir=workspace.logs_dir("properties", name, workdir)
+            name, config, ds.sets, seeds, list(SPLITS), checkpoint_dir=ckpt, log_dir=common.logs_dir("properties", name, workdir)
         )
         progress.finish(name, row.seconds, ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES))
         out_rows.append({"name": name, "modalities": list(mods), "checkpoint": str(ckpt), **common.row_doc(row, list(SPLITS))})
