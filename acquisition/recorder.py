@@ -13,7 +13,7 @@ import dataclasses
 import math
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -84,8 +84,13 @@ def record_trial(
     condition: str = "lab",
     period: float = PERIOD,
     write: bool = True,
+    on_step: Callable[..., None] | None = None,
 ) -> Recording:
-    """Run the procedure on `rig` and write the trial archive into `out_dir`."""
+    """Run the procedure on `rig` and write the trial archive into `out_dir`.
+
+    `on_step` sees each step's data as it is recorded, as the keyword arguments of
+    `fabricjax.view.Step` (`acquisition.record --view`); it runs after the step's timed work, so
+    its time shows as lateness of the next step, not as step time."""
     cap = procedure.max_steps(period)
     images = np.empty((cap, *camera_mod.IMAGE_SIZE, 3), np.uint8)
     joints = np.empty((cap, archive.N_JOINTS, 3), np.float32)
@@ -109,7 +114,7 @@ def record_trial(
             ts = time.perf_counter()
             images[n] = rig.camera.read()
             joints[n] = rig.bus.read_state()
-            _, ends[n] = rig.mics.latest()
+            windows, ends[n] = rig.mics.latest()
             force[n] = rig.force(images[n])
             goals = procedure.goals(ts - t0, float(force[n]))
             if goals is None:
@@ -122,6 +127,10 @@ def record_trial(
             durations[n], lateness[n] = te - ts, ts - deadline
             if te > deadline + period:
                 missed += 1
+            if on_step is not None:
+                new = WINDOW if n == 0 else int(min(max(ends[n] - ends[n - 1], 0), WINDOW))
+                on_step(index=n, time_s=float(stamps[n] - stamps[0]), windows=windows, new_samples=new,
+                        joints=joints[n], force=float(force[n]), frame=images[n])
             n += 1
             slot = max(slot + 1, math.ceil((te - t0) / period))  # a late step skips slots, never bunches up
         else:

@@ -3,6 +3,8 @@
     python -m experiments.stream                                  # quick default-preset model, first test trial
     python -m experiments.stream --archive=PATH --checkpoint=DIR  # any trial, any streamable checkpoint
     python -m experiments.stream --realtime=false                 # as fast as possible
+    python -m experiments.stream --view                           # watch it in Rerun (pip install -e ".[viz]")
+    python -m experiments.stream --view_save=stream.rrd           # or keep it as a Rerun recording
 
 Without --checkpoint a one-seed model of --preset is trained on first use (about a minute on the
 default preset) and checkpointed under the workspace; later runs restore it.
@@ -21,6 +23,8 @@ absl_flags.DEFINE_list("modalities", ["internal", "external"], "modalities of th
 absl_flags.DEFINE_integer("epochs", None, "epochs of the quick model (default: the preset's)")
 absl_flags.DEFINE_bool("realtime", True, "replay at 50 Hz; false: as fast as possible")
 absl_flags.DEFINE_integer("print_every", 1, "print every k-th step (0: summary only)")
+absl_flags.DEFINE_bool("view", False, "stream the trial's sensors and each step's prediction, confidence and latency to the Rerun viewer")
+absl_flags.DEFINE_string("view_save", None, "log what --view shows to this .rrd file instead (no viewer needed)")
 
 
 def main(argv):
@@ -34,6 +38,8 @@ def main(argv):
         epochs=FLAGS.epochs,
         realtime=FLAGS.realtime,
         print_every=FLAGS.print_every,
+        view=FLAGS.view,
+        view_save=FLAGS.view_save,
         **loc,
     )
 

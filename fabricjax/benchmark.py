@@ -51,8 +51,8 @@ def train_step_runner(
 
     def run() -> float:
         t = time.perf_counter()
-        params, opt_state, loss = epoch(carry[0], keys, train)
-        jax.block_until_ready(loss)
+        params, opt_state, curves = epoch(carry[0], keys, train)
+        jax.block_until_ready(curves)
         seconds = time.perf_counter() - t
         carry[0] = (params, opt_state)
         return seconds / steps

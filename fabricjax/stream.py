@@ -230,12 +230,17 @@ def run(
     results="results",
     command: str | None = None,
     out: Callable[[str], None] = print,
+    view: bool = False,
+    view_save=None,
 ) -> dict:
     """Classify one trial live and write results/stream.json; returns its document.
 
     The model is `checkpoint_dir`'s (any `train_and_evaluate` checkpoint of a streamable config),
     else a quick one-seed model of `preset` (trained once, then restored from its checkpoint).
     The trial is `archive_path`, else the first test-day trial of the model's dataset.
+    With `view` (a Rerun viewer) or `view_save` (a .rrd file) each step's sensor data and result
+    are logged as they come (`fabricjax.view`); the logging runs between the timed updates, so
+    the latencies are the model's, but in real time it can make steps late.
     """
     from fabricjax import report, sim, workspace
 
@@ -246,17 +251,28 @@ def run(
     if archive_path is None:
         folder = data_dir or sim.ensure_dataset(config.preset, workdir, streams=("audio", "proprio"), progress=False)
         archive_path = first_test_trial(folder, workdir)
-    trial = archive.read_archive(archive_path, images=False)
+    watch = view or view_save is not None
+    trial = archive.read_archive(archive_path, images=watch)
     streamer = Streamer(graphdef, params, config)
     label = int(trial.meta["label"])
+    if watch:
+        from fabricjax import view as trial_view
+
+        rec = trial_view.open_recording(view_save)
+        viewer = trial_view.TrialView(rec, label)
     out(f"{archive_path}: {class_name(label)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
         f"N={streamer.n} steps ({streamer.n * STEP_S:.2f} s), {'+'.join(config.modalities)}")
 
     def show(r: StepResult) -> None:
         if print_every and (r.step % print_every == 0 or r.step == trial.n_steps - 1):
             out(format_step(r, label))
+        if watch:
+            viewer.log_step(trial_view.archive_step(trial, r.step))
+            viewer.log_prediction(r)
 
     summary = replay(streamer, trial, realtime=realtime, on_step=show)
+    if watch:
+        rec.flush()
     first, step = summary["time_to_first_correct_s"], summary["first_correct_step"]
     out(
         f"first correct decision: {'never' if first is None else f'{first:.2f} s (step {step})'}; "

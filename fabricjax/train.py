@@ -15,8 +15,8 @@ scan with a tree select, so it costs no host sync.
 A data set is a mapping {"inputs": {modality: (n, N, ...)}, "labels": {head: int (n,)}} (objects
 with `.inputs` / `.labels` work too); label -1 means unknown and is masked out of losses and
 accuracies. Checkpointing (`train_and_evaluate(..., workdir=...)`) splits the epoch scan into
-chunks between saves; every epoch's randomness is `fold_in(key, epoch)`, so a resumed run is the
-uninterrupted run.
+chunks between saves, training curves (`log_dir=...`, `fabricjax.curves`) into single epochs;
+every epoch's randomness is `fold_in(key, epoch)`, so a resumed run is the uninterrupted run.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import os
+import time
 from typing import Any, Callable, Mapping, Sequence
 
 import jax
@@ -32,7 +33,7 @@ import optax
 from flax import nnx
 from jax.sharding import Mesh
 
-from fabricjax import checkpoint, sharding
+from fabricjax import checkpoint, curves, sharding
 from fabricjax.config import Config
 from fabricjax.model import FabricNet, feature_shapes, head_sizes
 
@@ -52,17 +53,18 @@ def select(config: Config, ds) -> dict[str, dict[str, jax.Array]]:
     }
 
 
+def warmup_schedule(config: Config) -> optax.ScalarOrSchedule:
+    """The optimiser's own learning rate: a linear warm-up to `config.learning_rate`, or constant."""
+    if config.warmup_steps > 0:
+        return optax.linear_schedule(0.0, config.learning_rate, config.warmup_steps)
+    return config.learning_rate
+
+
 def make_optimizer(config: Config) -> optax.GradientTransformation:
     decay_mask = lambda params: jax.tree.map(lambda p: p.ndim > 1, params)  # noqa: E731
     return optax.chain(
         optax.clip_by_global_norm(1.0),
-        optax.adamw(
-            optax.linear_schedule(0.0, config.learning_rate, config.warmup_steps)
-            if config.warmup_steps > 0
-            else config.learning_rate,
-            weight_decay=config.weight_decay,
-            mask=decay_mask,
-        ),
+        optax.adamw(warmup_schedule(config), weight_decay=config.weight_decay, mask=decay_mask),
     )
 
 
@@ -101,6 +103,12 @@ def masked_accuracy(predictions: jax.Array, labels: jax.Array) -> jax.Array:
     return ((predictions == labels) & valid).sum() / jnp.maximum(valid.sum(), 1)
 
 
+def _correct_and_known(logits: dict[str, jax.Array], labels: dict[str, jax.Array]) -> dict[str, tuple[jax.Array, jax.Array]]:
+    """Per head, (right predictions, known labels) of a minibatch: summed over an epoch, the
+    counts give its training accuracy as `masked_accuracy` counts it."""
+    return {h: (((jnp.argmax(v, -1) == labels[h]) & (labels[h] >= 0)).sum(), (labels[h] >= 0).sum()) for h, v in logits.items()}
+
+
 @dataclasses.dataclass(frozen=True)
 class Trainer:
     """The pure pieces of a run, each a function of one seed's state (vmap them over seeds)."""
@@ -131,14 +139,19 @@ class Trainer:
         model = nnx.merge(self.graphdef, params)
         return model(inputs, rngs=None if key is None else nnx.Rngs(dropout=key))
 
-    def loss(self, params, batch, key) -> jax.Array:
+    def loss(self, params, batch, key) -> tuple[jax.Array, dict[str, jax.Array]]:
+        """(summed loss over heads, the logits): the logits give the epoch's training accuracy
+        without a second forward pass."""
         logits = self.logits(params, batch["inputs"], key)
-        return sum(masked_cross_entropy(logits[h], batch["labels"][h]) for h in logits)
+        return sum(masked_cross_entropy(logits[h], batch["labels"][h]) for h in logits), logits
 
     def train_epoch(self, params, opt_state, key, train, epoch=0):
-        """One pass over shuffled minibatches (remainder dropped) in a scan: (params, opt_state, mean loss).
+        """One pass over shuffled minibatches (remainder dropped) in a scan: (params, opt_state, summary).
 
-        `epoch` (0-based) places the pass in the run for the learning-rate schedule."""
+        `epoch` (0-based) places the pass in the run for the learning-rate schedule. `summary` is
+        the epoch's mean loss ("train_loss"), the accuracy per head over the minibatches as they
+        were trained ("train_accuracy", counted from the logits of the training steps themselves:
+        dropout and augmentation on, parameters changing) and the learning rate of its last step ("lr")."""
         n = jax.tree.leaves(train)[0].shape[0]
         batch = min(self.config.batch_size, n)
         steps = n // batch
@@ -153,13 +166,22 @@ class Trainer:
             k_aug, k_drop = jax.random.split(k)
             if self.augment is not None:
                 mb = {**mb, "inputs": self.augment(k_aug, mb["inputs"])}
-            loss, grads = jax.value_and_grad(self.loss)(params, mb, k_drop)
+            (loss, logits), grads = jax.value_and_grad(self.loss, has_aux=True)(params, mb, k_drop)
             updates, opt_state = self.tx.update(grads, opt_state, params)
             updates = jax.tree.map(lambda u: u * scale, updates)  # AdamW's update is lr * (...): this scales lr
-            return (optax.apply_updates(params, updates), opt_state), loss
+            return (optax.apply_updates(params, updates), opt_state), (loss, _correct_and_known(logits, mb["labels"]))
 
-        (params, opt_state), losses = jax.lax.scan(step, (params, opt_state), (order, jax.random.split(k_steps, steps), lr_scale))
-        return params, opt_state, losses.mean()
+        (params, opt_state), (losses, counts) = jax.lax.scan(
+            step, (params, opt_state), (order, jax.random.split(k_steps, steps), lr_scale)
+        )
+        last = epoch * steps + steps - 1
+        schedule = warmup_schedule(self.config)
+        summary = {
+            "train_loss": losses.mean(),
+            "train_accuracy": {h: right.sum() / jnp.maximum(known.sum(), 1) for h, (right, known) in counts.items()},
+            "lr": (schedule(last) if callable(schedule) else jnp.float32(schedule)) * lr_scale[-1],
+        }
+        return params, opt_state, summary
 
     def evaluate(self, params, ds) -> dict[str, dict[str, jax.Array]]:
         """Predictions and accuracy per head over a set padded to whole minibatches (see `pad`)."""
@@ -178,14 +200,18 @@ class Trainer:
         return sum(accuracy.values()) / len(accuracy)
 
     def run(self, state, data, n_epochs: int):
-        """`n_epochs` more epochs in one scan, with best-validation selection."""
+        """`n_epochs` more epochs in one scan, with best-validation selection: (state, per-epoch summary),
+        the summary of `train_epoch` plus the validation accuracy per head ("val_accuracy"), each with
+        a leading epoch axis (the scan's outputs: they leave the device with the state)."""
 
         def epoch(state, _):
             e = state["epoch"]
-            params, opt_state, loss = self.train_epoch(
+            params, opt_state, summary = self.train_epoch(
                 state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), data["train"], e
             )
-            val = self.selection_metric(self.evaluate(params, data["val"])["accuracy"])
+            loss = summary["train_loss"]
+            val_accuracy = self.evaluate(params, data["val"])["accuracy"]
+            val = self.selection_metric(val_accuracy)
             better = val > state["best_val"]
             hist = state["history"]
             return {
@@ -197,9 +223,9 @@ class Trainer:
                 "epoch": e + 1,
                 "key": state["key"],
                 "history": {"train_loss": hist["train_loss"].at[e].set(loss), "val_acc": hist["val_acc"].at[e].set(val)},
-            }, None
+            }, {**summary, "val_accuracy": val_accuracy}
 
-        return jax.lax.scan(epoch, state, length=n_epochs)[0]
+        return jax.lax.scan(epoch, state, length=n_epochs)
 
     def finish(self, state, data) -> dict[str, Any]:
         """Metrics of a finished run: learning curves and the best-validation model on every set."""
@@ -281,8 +307,8 @@ def make_train(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] 
     stats = input_statistics(config, train_set)
 
     def train(key):
-        state = trainer.run(with_input_statistics(trainer.init(key), stats), data, config.epochs)
-        return state, unpad(trainer.finish(state, data), sizes)
+        state, per_epoch = trainer.run(with_input_statistics(trainer.init(key), stats), data, config.epochs)
+        return state, {**unpad(trainer.finish(state, data), sizes), "epochs": curves.tags(per_epoch)}
 
     return train
 
@@ -335,6 +361,7 @@ def train_and_evaluate(
     save_every: int | None = None,
     on_save: Callable[[int], None] | None = None,
     augment: Augment | None = None,
+    log_dir: str | os.PathLike | None = None,
 ) -> Results:
     """Train one model per seed in a single program and evaluate it on every set.
 
@@ -342,6 +369,12 @@ def train_and_evaluate(
     With `workdir` (this run's checkpoint directory) the state is saved every `save_every`
     epochs (default: at the end) and a rerun resumes from the latest checkpoint; `on_save(epoch)`
     is called after each durable save.
+
+    The per-epoch curves (`curves.tags`: loss, accuracies per head, learning rate, epoch wall
+    time) come back in `metrics["epochs"]` as {tag: (seeds, epochs)} arrays, NaN for epochs a
+    resumed run did not train itself. With `log_dir` they are also written as TensorBoard event
+    files, one folder per seed (`curves.seed_dir`), after every epoch: the epoch scan then runs
+    one epoch per call so that a long run can be watched while it trains.
     """
     seeds = tuple(int(s) for s in seeds)
     evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
@@ -363,17 +396,27 @@ def train_and_evaluate(
     else:
         stats = input_statistics(config, data_sets["train"])
         state, done = jax.device_put(with_input_statistics(init(keys), stats), per_seed), 0
-    every = save_every or config.epochs
+    history = curves.History(len(seeds), config.epochs)
+    writer = curves.open_writer(log_dir, seeds, done) if log_dir is not None else None
+    save_every = save_every or config.epochs
+    chunk = 1 if writer is not None else save_every
     while done < config.epochs:
-        n = min(every, config.epochs - done)
-        state = run(n)(state, data)
+        n = min(chunk, save_every - done % save_every, config.epochs - done)
+        t0 = time.perf_counter()
+        state, chunk_curves = run(n)(state, data)
+        chunk_curves = jax.device_get(chunk_curves)  # waits for the chunk
+        history.add(done, chunk_curves, (time.perf_counter() - t0) / n)
+        if writer is not None:
+            writer.write(history, done, done + n)
         done += n
-        if mngr is not None:
+        if mngr is not None and (done % save_every == 0 or done == config.epochs):
             checkpoint.save(mngr, done, state, run_meta)
             if on_save is not None:
                 on_save(done)
+    if writer is not None:
+        writer.close()
     metrics = unpad(jax.device_get(finish(state, data)), sizes)
-    return Results(config, seeds, trainer.graphdef, state, metrics)
+    return Results(config, seeds, trainer.graphdef, state, {**metrics, "epochs": history.scalars})
 
 
 def restore(directory: str | os.PathLike, config: Config, seed: int | None = None):

@@ -39,6 +39,12 @@ def checkpoints_dir(name: str, workdir=None) -> Path:
     return (root(workdir) / "checkpoints" / name).absolute()
 
 
+def logs_dir(study: str, row: str, workdir=None) -> Path:
+    """A study row's training curves (TensorBoard event files, one folder per seed, see
+    `fabricjax.curves`): the latest run of the row, whatever its settings."""
+    return (root(workdir) / "logs" / study / row).absolute()
+
+
 def results_dir(results=None, workdir=None) -> Path:
     """`results` if given, else <root>/results (created). Runs write there, outside the repository;
     the tables published in the repository are regenerated with `--results=results`."""

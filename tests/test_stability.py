@@ -176,7 +176,7 @@ def _stepper(config: Config, shapes: tuple):
     trainer = train.make_trainer(config, dict(shapes))
 
     def step(params, opt_state, batch, key):  # the body of `Trainer.train_epoch`'s scan
-        loss, grads = jax.value_and_grad(trainer.loss)(params, batch, key)
+        (loss, _), grads = jax.value_and_grad(trainer.loss, has_aux=True)(params, batch, key)
         updates, _ = trainer.tx.update(grads, opt_state, params)
         return loss, grads, optax.apply_updates(params, updates)
 
@@ -327,7 +327,7 @@ def test_a_batch_of_one_class_without_properties():
     logits = out["logits"]
     expected = -jax.nn.log_softmax(logits["fabric"])[:, 0].mean()
     trainer = _stepper(dataclasses.replace(TINY, batch_size=6), tuple(sorted((k, v.shape[2:]) for k, v in inputs["random"].items())))[0]
-    loss = trainer.loss(out["params"], train.select(TINY, {"inputs": inputs["random"], "labels": labels}), None)
+    loss, _ = trainer.loss(out["params"], train.select(TINY, {"inputs": inputs["random"], "labels": labels}), None)
     assert float(loss) == pytest.approx(float(expected), rel=1e-5)
     for p in catalog.PROPERTY_LEVELS:
         assert not np.asarray(out["grads"]["heads"][p]["kernel"]).any()
@@ -442,7 +442,8 @@ def test_training_killed_mid_epoch_resumes_from_its_last_checkpoint(tmp_path):
     resumed = train.train_and_evaluate(RESUME, resume_sets(), [0, 1], workdir=workdir, save_every=1, on_save=saved.append)
     assert saved == [3, 4, 5]  # continued after epoch 2, did not start over
     full = train.train_and_evaluate(RESUME, resume_sets(), [0, 1], save_every=1)  # the same compiled chunks
-    for a, b in zip(jax.tree.leaves(resumed.metrics), jax.tree.leaves(full.metrics)):
+    outcome = lambda m: {k: v for k, v in m.items() if k != "epochs"}  # noqa: E731  (curves: NaN before the resume, own wall times)
+    for a, b in zip(jax.tree.leaves(outcome(resumed.metrics)), jax.tree.leaves(outcome(full.metrics))):
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
     assert finite(resumed.state["params"])
 

@@ -90,7 +90,7 @@ def run(
     trained = {}
     for r, config in zip(chosen, configs):
         progress.start(display_name(r.name))
-        trained[r.name] = row = common.train_row(r.name, config, ds.sets, seeds, ["test"])
+        trained[r.name] = row = common.train_row(r.name, config, ds.sets, seeds, ["test"], log_dir=common.logs_dir("ablation", r.name, workdir))
         progress.finish(display_name(r.name), row.seconds, f"test {stats.format_mean_sd(row.accuracy('test'))} %")
 
     test = ds.sets["test"]

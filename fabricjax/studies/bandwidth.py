@@ -64,7 +64,10 @@ def run(
     for khz in chosen:
         name = row_name(khz)
         progress.start(f"{name} kHz")
-        row = common.train_row(name, dataclasses.replace(base, bandwidth_khz=khz), truncate(ds.sets, khz), seeds, ["test"])
+        row = common.train_row(
+            name, dataclasses.replace(base, bandwidth_khz=khz), truncate(ds.sets, khz), seeds, ["test"],
+            log_dir=common.logs_dir("bandwidth", name, workdir),
+        )
         progress.finish(f"{name} kHz", row.seconds, f"test {stats.format_mean_sd(row.accuracy('test'))} %")
         vm, vs, tm, ts = paper_tables.BANDWIDTH[khz]
         out_rows.append({

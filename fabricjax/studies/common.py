@@ -186,11 +186,13 @@ def train_row(
     seeds: Sequence[int],
     eval_splits: Sequence[str],
     checkpoint_dir=None,
+    log_dir=None,
 ) -> Row:
-    """Train all seeds of one row and evaluate the best-validation models on `eval_splits`."""
+    """Train all seeds of one row and evaluate the best-validation models on `eval_splits`;
+    with `log_dir` (`workspace.logs_dir`) its training curves are written there as it trains."""
     data_sets = {"train": sets["train"], "val": sets["val"], **{s: sets[s] for s in eval_splits}}
     t0 = time.perf_counter()
-    results = train.train_and_evaluate(config, data_sets, seeds, workdir=checkpoint_dir)
+    results = train.train_and_evaluate(config, data_sets, seeds, workdir=checkpoint_dir, log_dir=log_dir)
     return Row(name, config, results, time.perf_counter() - t0)
 
 
@@ -198,6 +200,11 @@ def checkpoint_dir(study: str, row: str, config: Config, seeds: Sequence[int], w
     """A checkpoint directory per (row, config, seeds): reruns resume, other settings start afresh."""
     tag = hashlib.sha1(f"{config.dumps()}{list(seeds)}".encode()).hexdigest()[:8]
     return workspace.checkpoints_dir(f"{study}/{row}-{tag}", workdir)
+
+
+def logs_dir(study: str, row: str, workdir=None) -> Path:
+    """Where a row's training curves go (`workspace.logs_dir`): the row's latest run, whatever its settings."""
+    return workspace.logs_dir(study, row, workdir)
 
 
 def paired_tests(a: Row, b: Row, split: str, labels: np.ndarray, head: str = "fabric") -> dict[str, stats.WilcoxonResult]:
@@ -244,6 +251,7 @@ def row_doc(row: Row, splits: Sequence[str]) -> dict[str, Any]:
         "seeds": list(row.results.seeds),
         "wall_s": row.seconds,
         "best_epoch": np.asarray(row.results.metrics["best_epoch"]).tolist(),
+        "epochs": {t: [[None if np.isnan(x) else float(x) for x in s] for s in v] for t, v in row.results.metrics["epochs"].items()},
         "accuracy": {s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()} for s in ("val", *splits)},
         "predictions": {s: {h: np.asarray(p).tolist() for h, p in ev[s]["predictions"].items()} for s in splits},
     }

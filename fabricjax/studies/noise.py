@@ -50,7 +50,7 @@ def run(
     out_rows, previous = [], None
     for (name, mods, mean, sd, p), config in zip(chosen, configs):
         progress.start(name)
-        row = common.train_row(name, config, ds.sets, seeds, [SPLIT, "test"])
+        row = common.train_row(name, config, ds.sets, seeds, [SPLIT, "test"], log_dir=common.logs_dir("noise", name, workdir))
         progress.finish(name, row.seconds, f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %")
         tests = common.paired_tests(previous, row, SPLIT, labels) if previous is not None else {}
         out_rows.append({

@@ -53,7 +53,9 @@ def run(
     for (name, mods), config in zip(chosen, configs):
         progress.start(name)
         ckpt = common.checkpoint_dir("properties", name, config, seeds, workdir)
-        row = common.train_row(name, config, ds.sets, seeds, list(SPLITS), checkpoint_dir=ckpt)
+        row = common.train_row(
+            name, config, ds.sets, seeds, list(SPLITS), checkpoint_dir=ckpt, log_dir=common.logs_dir("properties", name, workdir)
+        )
         progress.finish(name, row.seconds, ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES))
         out_rows.append({"name": name, "modalities": list(mods), "checkpoint": str(ckpt), **common.row_doc(row, list(SPLITS))})
     doc = {

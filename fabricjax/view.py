@@ -1,0 +1,218 @@
+"""A trial on one Rerun timeline: what the hand sensed, what the model's inputs look like, and
+what a model made of it, step by step.
+
+Every step is logged at timeline "step" (the 50 Hz step index) and "time" (seconds since the
+trial's first step), under these entity paths:
+
+    minsight/frame             Image     the Minsight frame (when the trial has frames)
+    minsight/flow              Image     the flow modality's input: the step's optical flow, top
+                                         0.1 % by magnitude, 3x3-pooled (`features.flow`); hue =
+                                         direction, brightness = magnitude (the frame's largest = full)
+    audio/<mic>/spectrogram    Image     log10 PSD (`features.welch`, 0-24 kHz, low frequencies at
+                                         the bottom) of the last `SPECTROGRAM_STEPS` steps, newest
+                                         at the right: a scrolling spectrogram, colour range = its own
+    audio/<mic>/wave           Scalars   the raw waveform in full-scale units, one point per sample
+                                         (timeline "time" only: the samples new at each step)
+    joints/<joint>/<field>     Scalars   the 18 joint channels (angle rad, velocity rad/s, current A)
+    force                      Scalars   the force proxy, N
+    prediction/probabilities   BarChart  a model's class probabilities over the window ending here
+    prediction/confidence      Scalars   the predicted class's probability
+    prediction/class           TextLog   the predicted fabric (and whether it is right)
+    prediction/latency_ms      Scalars   the step's host-to-host latency (`stream.Streamer`)
+
+<mic> is "internal" (Minsound) or "external" (palm). Prediction entities come from a model
+streaming over the trial (`stream.replay`): the first N - 1 steps only fill its window and log
+just the latency. The same `TrialView` serves a recorded trial (`log_trial`, `experiments.view`),
+the live streaming classifier (`experiments.stream --view`) and the recorder
+(`acquisition.record --view`).
+
+rerun-sdk is an optional extra (`pip install -e ".[viz]"`), imported only here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from typing import Any
+
+import numpy as np
+
+from fabricjax import archive, stream
+from fabricjax.errors import UserError
+from fabricjax.features import flow, welch
+
+EXTRA = 'pip install -e ".[viz]"'
+APPLICATION_ID = "fabricjax"
+SPECTROGRAM_STEPS = 100  # 2 s at 50 Hz
+FULL_BAND_KHZ = welch.FS / 2000
+
+
+def rerun():
+    """The rerun module, or a one-line user error saying how to install it."""
+    try:
+        import rerun as rr
+    except ImportError:
+        raise UserError(f"viewing needs the Rerun SDK: {EXTRA}") from None
+    return rr
+
+
+def open_recording(save: str | os.PathLike | None = None):
+    """A Rerun recording stream: into the .rrd file `save`, else to a viewer (spawned if none runs)."""
+    rr = rerun()
+    rec = rr.RecordingStream(APPLICATION_ID)
+    if save is not None:
+        rec.save(str(save))
+    else:
+        rec.spawn()
+    return rec
+
+
+@dataclasses.dataclass(frozen=True)
+class Step:
+    """What one step brought: the recorder has exactly this in hand at each step."""
+
+    index: int
+    time_s: float  # since the trial's first step
+    windows: np.ndarray  # (2, 2048) int32 raw words of each microphone (internal, external)
+    new_samples: int  # how many of the window's newest samples arrived since the previous step
+    joints: np.ndarray  # (6, 3)
+    force: float
+    frame: np.ndarray | None = None  # (H, W, 3) uint8
+
+
+def archive_step(trial: archive.TrialArchive, t: int) -> Step:
+    """Step `t` of a recorded trial, as it came in."""
+    new = archive.WINDOW if t == 0 else int(trial.window_end[t, 0] - trial.window_end[t - 1, 0])
+    return Step(
+        t, float(trial.timestamps[t] - trial.timestamps[0]), stream.step_windows(trial, t, list(range(len(archive.MIC_NAMES)))),
+        min(max(new, 0), archive.WINDOW), trial.joints[t], float(trial.force[t]), None if trial.images is None else trial.images[t],
+    )
+
+
+def _flow_image(pooled: np.ndarray) -> np.ndarray:
+    """(2, h, w) flow -> (h, w, 3) uint8 RGB: hue = direction, brightness = magnitude / the largest."""
+    import cv2
+
+    mag, ang = cv2.cartToPolar(pooled[0].astype(np.float32), pooled[1].astype(np.float32))
+    hsv = np.zeros((*mag.shape, 3), np.uint8)
+    hsv[..., 0] = (ang * 90 / np.pi).astype(np.uint8)
+    hsv[..., 1] = 255
+    hsv[..., 2] = np.clip(255 * mag / max(float(mag.max()), 1e-12), 0, 255).astype(np.uint8)
+    return cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
+
+
+def _colormap(values: np.ndarray) -> np.ndarray:
+    """(F, K) values, NaN where empty -> (F, K, 3) uint8 'magma' over their own range, empty black."""
+    from matplotlib import colormaps
+
+    known = np.isfinite(values)
+    lo, hi = (float(values[known].min()), float(values[known].max())) if known.any() else (0.0, 1.0)
+    scaled = np.where(known, (values - lo) / max(hi - lo, 1e-12), 0.0)
+    rgb = (255 * colormaps["magma"](scaled)[..., :3]).astype(np.uint8)
+    rgb[~known] = 0
+    return rgb
+
+
+class TrialView:
+    """Logs steps (and a model's results on them) to a Rerun recording stream `rec`."""
+
+    def __init__(self, rec, label: int | None = None):
+        import jax
+
+        self.rr, self.rec, self.label = rerun(), rec, label
+        self.previous_frame = None
+        self.spectrogram = np.full((len(archive.MIC_NAMES), welch.N_BINS, SPECTROGRAM_STEPS), np.nan, np.float32)
+        self.psd = jax.jit(lambda w: welch.welch_psd(w, bandwidth_khz=FULL_BAND_KHZ))
+
+    def warmup(self, image_size: tuple[int, int] | None) -> None:
+        """Compile the PSD and, for frames of `image_size` (H, W), the flow pooling, so that the
+        first steps of a live trial are not held up by compilation."""
+        self.psd(np.zeros((len(archive.MIC_NAMES), archive.WINDOW), np.int32)).block_until_ready()
+        if image_size is not None:
+            flow.sparsify_and_pool(np.zeros((1, *image_size, 2), np.float32)).block_until_ready()
+
+    def _at(self, step: int, time_s: float) -> None:
+        self.rec.set_time("step", sequence=step)
+        self.rec.set_time("time", duration=time_s)
+
+    def log_step(self, s: Step) -> None:
+        rr, rec = self.rr, self.rec
+        self._at(s.index, s.time_s)
+        if s.frame is not None:
+            rec.log("minsight/frame", rr.Image(s.frame))
+            dense = flow.farneback(s.frame[None], self.previous_frame)
+            rec.log("minsight/flow", rr.Image(_flow_image(np.asarray(flow.sparsify_and_pool(dense))[0])))
+            self.previous_frame = s.frame
+        psd = np.asarray(self.psd(s.windows))
+        self.spectrogram = np.roll(self.spectrogram, -1, axis=2)
+        self.spectrogram[:, :, -1] = psd
+        sample_times = s.time_s - np.arange(s.new_samples)[::-1] / welch.FS
+        for i, mic in enumerate(archive.MIC_NAMES):
+            rec.log(f"audio/{mic}/spectrogram", rr.Image(_colormap(self.spectrogram[i, ::-1])))
+            wave = np.asarray(welch.to_full_scale(s.windows[i, archive.WINDOW - s.new_samples :]), np.float64)
+            rec.send_columns(
+                f"audio/{mic}/wave",
+                indexes=[rr.TimeColumn("time", duration=sample_times)],
+                columns=rr.Scalars.columns(scalars=wave),
+            )
+        for j, joint in enumerate(archive.JOINT_NAMES):
+            for k, field in enumerate(archive.JOINT_FIELDS):
+                rec.log(f"joints/{joint}/{field}", rr.Scalars(float(s.joints[j, k])))
+        rec.log("force", rr.Scalars(s.force))
+
+    def log_prediction(self, r: stream.StepResult) -> None:
+        rr, rec = self.rr, self.rec
+        self._at(r.step, r.time_s)
+        rec.log("prediction/latency_ms", rr.Scalars(r.latency_ms))
+        if r.probs is None:
+            return
+        k = int(np.argmax(r.probs))
+        rec.log("prediction/probabilities", rr.BarChart(np.asarray(r.probs, np.float32)))
+        rec.log("prediction/confidence", rr.Scalars(float(r.probs[k])))
+        mark = "" if self.label is None else (" (correct)" if k == self.label else " (wrong)")
+        rec.log("prediction/class", rr.TextLog(f"{stream.class_name(k)} p={r.probs[k]:.2f}{mark}"))
+
+
+def log_trial(rec, trial: archive.TrialArchive, streamer: stream.Streamer | None = None) -> dict[str, Any]:
+    """Log a recorded trial, and `streamer`'s predictions over it (as fast as it runs); returns the
+    streaming summary (`stream.replay`), or {} without a model."""
+    view = TrialView(rec, int(trial.meta["label"]))
+    for t in range(trial.n_steps):
+        view.log_step(archive_step(trial, t))
+    if streamer is None:
+        return {}
+    return stream.replay(streamer, trial, realtime=False, on_step=view.log_prediction)
+
+
+def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
+    """`experiments.view`: one trial archive (frames included when recorded), with a streamable
+    checkpoint's predictions over it, to `save` (.rrd) or a viewer."""
+    trial = archive.read_archive(path, images=True)
+    streamer = None
+    if checkpoint is not None:
+        graphdef, params, config = stream.restore_model(checkpoint)
+        try:
+            streamer = stream.Streamer(graphdef, params, config)
+        except ValueError as e:
+            raise UserError(f"{checkpoint}: {e}") from None
+    rec = open_recording(save)
+    summary = log_trial(rec, trial, streamer)
+    rec.flush()
+    return {"archive": str(path), "steps": trial.n_steps, "frames": trial.images is not None, "rrd": None if save is None else str(save), **summary}
+
+
+def read_rrd(path) -> dict[str, dict[str, Any]]:
+    """{entity path: {"rows": rows logged, "steps": sorted distinct "step" values}} of a .rrd file
+    (static data left out; the waveforms are on "time" only, so their "steps" are [])."""
+    from rerun.chunk import RrdReader
+
+    out: dict[str, dict[str, Any]] = {}
+    for chunk in RrdReader(str(path)).stream():
+        if chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        entry = out.setdefault(chunk.entity_path, {"rows": 0, "steps": set()})
+        entry["rows"] += chunk.num_rows
+        if "step" in batch.schema.names:
+            entry["steps"].update(batch.column("step").to_pylist())
+    return {k: {**v, "steps": sorted(v["steps"])} for k, v in out.items()}

@@ -1,0 +1,109 @@
+"""A smoke trial in Rerun: `experiments.view --save` writes a .rrd the SDK reads back."""
+
+import dataclasses
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fabricjax import archive, splits, stream, synthetic, view
+from fabricjax.features import welch
+from fabricjax.sim.dataset import scene_for
+from fabricjax.sim.simulate import simulate
+from fabricjax.train import train_and_evaluate
+from tests.test_train import TINY
+
+pytest.importorskip("rerun")
+
+ROOT = Path(__file__).resolve().parents[1]
+# streamable (Minsound + joints), a 6-step window, 54 PSD bins
+CONFIG = dataclasses.replace(TINY, seq_len=6, bandwidth_khz=2.5, epochs=1)
+SENSORS = (
+    {"/minsight/frame", "/minsight/flow", "/force"}
+    | {f"/audio/{m}/spectrogram" for m in archive.MIC_NAMES}
+    | {f"/joints/{j}/{f}" for j in archive.JOINT_NAMES for f in archive.JOINT_FIELDS}
+)
+WAVES = {f"/audio/{m}/wave" for m in archive.MIC_NAMES}
+PREDICTION = {f"/prediction/{k}" for k in ("probabilities", "confidence", "class", "latency_ms")}
+
+
+@pytest.fixture(scope="module")
+def smoke_trial(tmp_path_factory):
+    """The smoke preset's first trial, simulated with camera frames."""
+    preset = splits.preset("smoke")
+    trial = simulate(scene_for(preset.trials()[0], preset, ("audio", "proprio", "images")))
+    return archive.write_archive(tmp_path_factory.mktemp("trial") / archive.trial_filename(trial.meta), trial), trial
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    ckpt = tmp_path_factory.mktemp("ckpt")
+    bins = welch.n_bins(CONFIG.bandwidth_khz)
+    sets = {k: synthetic.data_set(CONFIG, n, seed=i, psd_bins=bins) for i, (k, n) in enumerate([("train", 24), ("val", 10)])}
+    train_and_evaluate(CONFIG, sets, [0], workdir=ckpt)
+    return ckpt
+
+
+def command(*args):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run([sys.executable, "-m", "experiments.view", *map(str, args)], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+
+def test_view_save_writes_every_sensor_entity_at_every_step(smoke_trial, tmp_path):
+    path, trial = smoke_trial
+    out = command(path, f"--save={tmp_path / 'trial.rrd'}")
+    assert out.returncode == 0, out.stderr
+    assert f"{trial.n_steps} steps" in out.stdout
+    read = view.read_rrd(tmp_path / "trial.rrd")
+    assert set(read) == SENSORS | WAVES
+    for entity in SENSORS:
+        assert read[entity]["steps"] == list(range(trial.n_steps)), entity
+    new = np.diff(trial.window_end[:, 0])
+    assert read["/audio/internal/wave"]["rows"] == archive.WINDOW + int(np.minimum(new, archive.WINDOW).sum())
+
+
+def test_view_save_with_a_checkpoint_adds_the_models_predictions(smoke_trial, checkpoint, tmp_path):
+    path, trial = smoke_trial
+    doc = view.view_archive(path, checkpoint=checkpoint, save=tmp_path / "trial.rrd")
+    read = view.read_rrd(tmp_path / "trial.rrd")
+    assert set(read) == SENSORS | WAVES | PREDICTION
+    decided = list(range(CONFIG.sequence_length - 1, trial.n_steps))  # the window's first N - 1 steps only fill it
+    assert read["/prediction/probabilities"]["steps"] == decided == read["/prediction/confidence"]["steps"]
+    assert read["/prediction/latency_ms"]["steps"] == list(range(trial.n_steps))
+    assert doc["decided_steps"] == len(decided)
+
+
+def test_without_the_sdk_a_one_line_error_says_what_to_install(smoke_trial, tmp_path):
+    path, _ = smoke_trial
+    code = "import sys; sys.modules['rerun'] = None; sys.argv[0] = 'view'; from experiments import view; from experiments import cli; cli.run(view.main)"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run([sys.executable, "-c", code, str(path), f"--save={tmp_path / 'x.rrd'}"], env=env, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2
+    assert out.stderr.strip().splitlines() == ['error: viewing needs the Rerun SDK: pip install -e ".[viz]"']
+
+
+def test_stream_view_save_logs_each_steps_sensors_and_result(smoke_trial, checkpoint, tmp_path):
+    path, trial = smoke_trial
+    doc = stream.run(
+        archive_path=path, checkpoint_dir=checkpoint, realtime=False, print_every=0, results=tmp_path,
+        out=lambda line: None, view_save=tmp_path / "stream.rrd",
+    )
+    read = view.read_rrd(tmp_path / "stream.rrd")
+    assert set(read) == SENSORS | WAVES | PREDICTION
+    assert read["/minsight/frame"]["steps"] == read["/prediction/latency_ms"]["steps"] == list(range(trial.n_steps))
+    assert len(read["/prediction/probabilities"]["steps"]) == doc["decided_steps"]
+
+
+def test_record_view_save_logs_the_trial_as_it_is_recorded(checkpoint, tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    args = ["--fabric=12", "--trials=1", "--cycles=2", "--simulate", f"--out={tmp_path}", f"--view_save={tmp_path / 'rec.rrd'}", f"--checkpoint={checkpoint}"]
+    out = subprocess.run([sys.executable, "-m", "acquisition.record", *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    trial = archive.read_archive(next(tmp_path.glob("*.npz")), images=False)
+    read = view.read_rrd(tmp_path / "rec.rrd")
+    assert set(read) == SENSORS | WAVES | PREDICTION
+    assert read["/force"]["steps"] == list(range(trial.n_steps))
+    assert read["/prediction/confidence"]["steps"] == list(range(CONFIG.sequence_length - 1, trial.n_steps))
