@@ -39,6 +39,8 @@ from fabricjax.errors import UserError
 
 FORMAT_VERSION = 1
 WINDOW = 2048
+AUDIO_RATE = 48000  # Hz, every microphone stream
+STEP_RATE = 50  # Hz, one step per Minsight frame
 N_JOINTS = 6
 JOINT_FIELDS = ("angle", "velocity", "current")
 JOINT_NAMES = ("thumb_base", "thumb_mid", "thumb_tip", "middle_base", "middle_tip", "palm")
@@ -137,7 +139,7 @@ def make_meta(
         "trial": int(trial),
         "condition": condition,
         "source": source,
-        "sample_rates": {"audio": 48000, "steps": 50},
+        "sample_rates": {"audio": AUDIO_RATE, "steps": STEP_RATE},
         "image_size": None if image_size is None else [int(image_size[0]), int(image_size[1])],
         "joint_names": list(JOINT_NAMES),
         "joint_fields": list(JOINT_FIELDS),
@@ -172,8 +174,8 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
             raise ArchiveError(path, f"meta.properties.{name}", "missing (use null when unknown)")
         if level is not None and (not isinstance(level, int) or level < 0):
             raise ArchiveError(path, f"meta.properties.{name}", f"must be a level >= 0 or null, got {level!r}")
-    if meta["sample_rates"].get("audio") != 48000:
-        raise ArchiveError(path, "meta.sample_rates.audio", f"must be 48000, got {meta['sample_rates'].get('audio')!r}")
+    if meta["sample_rates"].get("audio") != AUDIO_RATE:
+        raise ArchiveError(path, "meta.sample_rates.audio", f"must be {AUDIO_RATE}, got {meta['sample_rates'].get('audio')!r}")
     if len(meta["joint_names"]) != N_JOINTS:
         raise ArchiveError(path, "meta.joint_names", f"expected {N_JOINTS} names, got {len(meta['joint_names'])}")
     return meta

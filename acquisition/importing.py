@@ -1,0 +1,306 @@
+"""Other labs' recordings (ROS 2 bags / MCAP) to trial archives, aligned as the recorder aligns.
+
+The recorder's rule, applied to timestamped streams after the fact (`align`): one step per camera
+frame; each microphone's window ends after the last audio sample received at or before the frame;
+the joints are the latest reading at or before the frame. Frames before every microphone holds one
+full window and before the first joint reading are dropped, as the recorder waits for a full window
+before its first step. Nothing is resampled silently: a microphone not at the archive's 48 kHz is an
+error naming the topic and the rate, unless `resample=True` (`scipy.signal.resample_poly`, recorded
+in meta.import.resampled). A gap between frames is kept, never filled, and listed in
+meta.import.frame_gaps; missing audio (a hole between chunks) is an error, since every window after
+it would silently be misplaced.
+
+The mapping file (TOML) names the topics; see WORKSPACE.md, "Using your own recordings".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from acquisition.camera import ForceProxy
+from fabricjax import archive, catalog
+from fabricjax.errors import UserError
+
+GAP_FACTOR = 1.5  # a frame interval above 1.5 nominal periods is a missing frame (jitter stays below)
+AUDIO_SLACK = 0.02  # s: receive-time jitter of audio chunks tolerated before samples count as missing
+TRIAL_KEYS = ("fabric_id", "day", "trial", "condition")
+
+
+class RecordingImportError(UserError):
+    """A recording cannot become an archive; the message names file, field and problem."""
+
+    def __init__(self, path, field: str, problem: str):
+        super().__init__(f"{path}: {field}: {problem}")
+
+
+@dataclasses.dataclass
+class Stream:
+    """One microphone as recorded: sample chunks and the receive time (s) of each chunk's last sample."""
+
+    name: str  # topic or file, for errors
+    rate: int
+    times: np.ndarray  # (K,) float64
+    chunks: list[np.ndarray]  # K arrays of int32 SPH0645-style words
+
+
+def to_words(samples: np.ndarray, where, field: str) -> np.ndarray:
+    """int16 samples move to the top 16 of the 18 valid SPH0645 bits; int32 words are kept as they are."""
+    if samples.dtype == np.int16:
+        return samples.astype(np.int32) << 16
+    if samples.dtype == np.int32:
+        return samples
+    raise RecordingImportError(where, field, f"audio samples must be int16 or int32, got {samples.dtype}")
+
+
+def _audio(stream: Stream, resample: bool, resampled: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The concatenated 48 kHz stream, the chunks' times in order, and per chunk the sample count up to its end."""
+    order = np.argsort(stream.times, kind="stable")
+    times = stream.times[order]
+    chunks = [stream.chunks[i] for i in order]
+    counts = np.cumsum([len(c) for c in chunks])
+    longest = max(len(c) for c in chunks) / stream.rate
+    # each chunk's end time against the clock of the samples: a drift beyond jitter is lost audio
+    drift = (times - times[0]) - (counts - counts[0]) / stream.rate
+    if drift.max() > longest * GAP_FACTOR + AUDIO_SLACK:
+        k = int(np.argmax(drift))
+        raise RecordingImportError(
+            stream.name, "audio", f"about {drift[k]:.3f} s of samples missing before t={times[k] - times[0]:.3f} s "
+            "(a message was lost; the windows after it cannot be placed)"
+        )
+    audio = np.concatenate(chunks)
+    if stream.rate != archive.AUDIO_RATE:
+        if not resample:
+            raise RecordingImportError(
+                stream.name, "rate", f"sample rate {stream.rate} Hz, archives hold {archive.AUDIO_RATE} Hz "
+                "(pass --resample to convert with scipy.signal.resample_poly)"
+            )
+        from scipy.signal import resample_poly
+
+        ratio = Fraction(archive.AUDIO_RATE, stream.rate)
+        audio = np.round(resample_poly(audio.astype(np.float64), ratio.numerator, ratio.denominator))
+        audio = np.clip(audio, np.iinfo(np.int32).min, np.iinfo(np.int32).max).astype(np.int32)
+        counts = np.floor(counts * float(ratio)).astype(np.int64)
+        resampled[stream.name] = {"from_hz": stream.rate, "to_hz": archive.AUDIO_RATE, "method": "scipy.signal.resample_poly"}
+    return audio, times, counts
+
+
+def align(
+    *,
+    frame_times: np.ndarray,
+    images: np.ndarray,
+    mics: list[Stream],
+    joint_times: np.ndarray,
+    joints: np.ndarray,
+    trial: dict[str, Any],
+    source: dict[str, Any],
+    resample: bool = False,
+    force_gain: float = ForceProxy.gain,
+    force_deadband: float = ForceProxy.deadband,
+) -> archive.TrialArchive:
+    """The recorder's alignment (module docstring) of streams with timestamps in seconds."""
+    where = source.get("path", "<recording>")
+    if len(mics) != len(archive.MIC_NAMES):
+        raise RecordingImportError(where, "mics", f"need {len(archive.MIC_NAMES)} microphones {archive.MIC_NAMES}, got {len(mics)}")
+    for name, times in (("camera", frame_times), ("joints", joint_times)):
+        if len(times) == 0:
+            raise RecordingImportError(where, name, "no messages")
+    order = np.argsort(frame_times, kind="stable")
+    frame_times, images = frame_times[order], images[order]
+    keep = np.concatenate([[True], np.diff(frame_times) > 0])  # a repeated frame time is one frame
+    duplicates = int(np.count_nonzero(~keep))
+    frame_times, images = frame_times[keep], images[keep]
+    jorder = np.argsort(joint_times, kind="stable")
+    joint_times, joints = joint_times[jorder], joints[jorder]
+
+    resampled: dict[str, Any] = {}
+    audio, ends = [], []
+    for mic in mics:
+        if not mic.chunks:
+            raise RecordingImportError(mic.name, "audio", "no messages")
+        samples, times, counts = _audio(mic, resample, resampled)
+        k = np.searchsorted(times, frame_times, side="right") - 1
+        ends.append(np.where(k >= 0, counts[np.maximum(k, 0)], 0))
+        audio.append(samples)
+    window_end = np.stack(ends, axis=1).astype(np.int64)
+    jk = np.searchsorted(joint_times, frame_times, side="right") - 1
+    usable = (window_end >= archive.WINDOW).all(axis=1) & (jk >= 0)
+    if not usable.any():
+        raise RecordingImportError(where, "camera", "no frame comes after a full audio window and a joint reading")
+    first = int(np.argmax(usable))
+    frame_times, images, window_end, jk = frame_times[first:], images[first:], window_end[first:], jk[first:]
+
+    n_samples = min(len(a) for a in audio)  # the archive holds equally long rows; windows lie before
+    window_end = np.minimum(window_end, n_samples)
+    period = 1.0 / archive.STEP_RATE
+    gaps = np.flatnonzero(np.diff(frame_times) > GAP_FACTOR * period)
+    reference = images[0]
+    proxy = ForceProxy(reference, gain=force_gain, deadband=force_deadband)
+    fab = catalog.fabric(int(trial["fabric_id"]))
+    meta = archive.make_meta(
+        fabric_id=int(trial["fabric_id"]),
+        properties=fab.properties,
+        day=int(trial["day"]),
+        trial=int(trial["trial"]),
+        condition=str(trial["condition"]),
+        source=source,
+        image_size=images.shape[1:3],
+        closing_steps=0,
+        force_proxy={"gain": force_gain, "deadband": force_deadband, "reference": "first kept frame"},
+        **{"import": {
+            "frames_dropped_before_start": first,
+            "duplicate_frames_dropped": duplicates,
+            "frame_gaps": [{"step": int(g + 1), "seconds": round(float(frame_times[g + 1] - frame_times[g]), 6)} for g in gaps],
+            "resampled": resampled,
+        }},
+    )
+    return archive.TrialArchive(
+        meta=meta,
+        timestamps=(frame_times - frame_times[0]).astype(np.float64),
+        window_end=window_end,
+        joints=joints[jk].astype(np.float32),
+        force=np.array([proxy(im) for im in images], np.float32),
+        audio=np.stack([a[:n_samples] for a in audio]),
+        images=np.ascontiguousarray(images, dtype=np.uint8),
+    )
+
+
+def load_mapping(path: str | Path) -> dict[str, Any]:
+    """The mapping file, checked for the keys `import_bag` needs."""
+    path = Path(path)
+    try:
+        mapping = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise RecordingImportError(path, "<file>", "no such mapping file") from None
+    except tomllib.TOMLDecodeError as e:
+        raise RecordingImportError(path, "<file>", f"not valid TOML: {e}") from None
+    for key in ("camera.topic", "joints.topic", *(f"mics.{m}.topic" for m in archive.MIC_NAMES), *(f"mics.{m}.rate" for m in archive.MIC_NAMES)):
+        node: Any = mapping
+        for part in key.split("."):
+            if not isinstance(node, dict) or part not in node:
+                raise RecordingImportError(path, key, "missing")
+            node = node[part]
+    return mapping
+
+
+def trial_fields(mapping: dict[str, Any], overrides: dict[str, Any], where) -> dict[str, Any]:
+    """fabric_id, day, trial and condition: the command line wins over the mapping's [trial] table."""
+    trial = dict(mapping.get("trial", {})) | {k: v for k, v in overrides.items() if v is not None}
+    for key in TRIAL_KEYS:
+        if key not in trial:
+            raise RecordingImportError(where, f"trial.{key}", "missing (give it in the mapping's [trial] table or on the command line)")
+    if trial["condition"] not in archive.CONDITIONS:
+        raise RecordingImportError(where, "trial.condition", f"must be one of {archive.CONDITIONS}, got {trial['condition']!r}")
+    return trial
+
+
+def _decode_image(msg, topic: str) -> np.ndarray:
+    """RGB uint8 from sensor_msgs/Image (rgb8, bgr8, mono8) or CompressedImage (any format OpenCV reads)."""
+    if hasattr(msg, "format"):
+        img = cv2.imdecode(np.asarray(msg.data, np.uint8), cv2.IMREAD_COLOR)
+        if img is None:
+            raise RecordingImportError(topic, "data", f"compressed frame ({msg.format}) cannot be decoded")
+        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    channels = {"rgb8": 3, "bgr8": 3, "mono8": 1}
+    if msg.encoding not in channels:
+        raise RecordingImportError(topic, "encoding", f"image encoding {msg.encoding!r} not supported (rgb8, bgr8, mono8)")
+    c = channels[msg.encoding]
+    rows = np.asarray(msg.data, np.uint8).reshape(msg.height, msg.step)
+    img = rows[:, : msg.width * c].reshape(msg.height, msg.width, c)
+    if msg.encoding == "bgr8":
+        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    return cv2.cvtColor(img, cv2.COLOR_GRAY2RGB) if c == 1 else img.copy()
+
+
+def _stamp(msg) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def import_bag(
+    bag: str | Path,
+    mapping: dict[str, Any],
+    trial: dict[str, Any],
+    *,
+    resample: bool = False,
+) -> archive.TrialArchive:
+    """Read a ROS 2 bag (sqlite3 or MCAP folder) with `rosbags` and align it (module docstring).
+
+    Frames and joint states are placed by their header stamps; audio messages (std_msgs
+    Int16MultiArray / Int32MultiArray) have no header, so by the bag's receive time, taken as the
+    time of the chunk's last sample."""
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ModuleNotFoundError:
+        raise UserError('reading bags needs the rosbags package: pip install -e ".[bags]"') from None
+    bag = Path(bag)
+    if not bag.exists():
+        raise RecordingImportError(bag, "<bag>", "no such bag")
+    cam_topic, joint_topic = mapping["camera"]["topic"], mapping["joints"]["topic"]
+    mic_topics = {mapping["mics"][m]["topic"]: m for m in archive.MIC_NAMES}
+    names = list(mapping["joints"].get("names", archive.JOINT_NAMES))
+    if len(names) != archive.N_JOINTS:
+        raise RecordingImportError(bag, "joints.names", f"expected {archive.N_JOINTS} names, got {len(names)}")
+    frames, frame_t, joint_rows, joint_t = [], [], [], []
+    chunks: dict[str, list] = {m: [] for m in archive.MIC_NAMES}
+    chunk_t: dict[str, list] = {m: [] for m in archive.MIC_NAMES}
+    try:
+        with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+            present = {c.topic for c in reader.connections}
+            for topic in (cam_topic, joint_topic, *mic_topics):
+                if topic not in present:
+                    raise RecordingImportError(bag, topic, f"topic not in the bag (it has {sorted(present)})")
+            wanted = [c for c in reader.connections if c.topic in (cam_topic, joint_topic, *mic_topics)]
+            for conn, t_ns, raw in reader.messages(connections=wanted):
+                msg = reader.deserialize(raw, conn.msgtype)
+                if conn.topic == cam_topic:
+                    frames.append(_decode_image(msg, cam_topic))
+                    frame_t.append(_stamp(msg))
+                elif conn.topic == joint_topic:
+                    joint_rows.append(_joint_row(msg, names, joint_topic))
+                    joint_t.append(_stamp(msg))
+                else:
+                    mic = mic_topics[conn.topic]
+                    chunks[mic].append(to_words(np.asarray(msg.data), conn.topic, "data"))
+                    chunk_t[mic].append(t_ns * 1e-9)
+    except UserError:
+        raise
+    except Exception as e:  # rosbags' own errors: an unreadable or unknown bag
+        raise RecordingImportError(bag, "<bag>", f"cannot be read: {type(e).__name__}: {e}") from None
+    if len({f.shape for f in frames}) > 1:
+        raise RecordingImportError(cam_topic, "data", f"frames of different sizes {sorted({f.shape for f in frames})}")
+    mics = [
+        Stream(mapping["mics"][m]["topic"], int(mapping["mics"][m]["rate"]), np.array(chunk_t[m], np.float64), chunks[m])
+        for m in archive.MIC_NAMES
+    ]
+    return align(
+        frame_times=np.array(frame_t, np.float64),
+        images=np.stack(frames) if frames else np.zeros((0, 1, 1, 3), np.uint8),
+        mics=mics,
+        joint_times=np.array(joint_t, np.float64),
+        joints=np.array(joint_rows, np.float32).reshape(-1, archive.N_JOINTS, 3),
+        trial=trial,
+        source={"kind": "ros2_bag", "path": str(bag), "topics": {"camera": cam_topic, "joints": joint_topic, **{m: t for t, m in mic_topics.items()}}},
+        resample=resample,
+        force_gain=float(mapping.get("force", {}).get("gain", ForceProxy.gain)),
+        force_deadband=float(mapping.get("force", {}).get("deadband", ForceProxy.deadband)),
+    )
+
+
+def _joint_row(msg, names: list[str], topic: str) -> np.ndarray:
+    """(6, 3) angle, velocity, current (JointState effort) in the archive's joint order."""
+    index = {n: i for i, n in enumerate(msg.name)}
+    row = np.zeros((archive.N_JOINTS, 3), np.float32)
+    for j, name in enumerate(names):
+        if name not in index:
+            raise RecordingImportError(topic, "name", f"joint {name!r} not in the message (it has {list(msg.name)})")
+        for f, values in enumerate((msg.position, msg.velocity, msg.effort)):
+            if len(values) == len(msg.name):
+                row[j, f] = values[index[name]]
+    return row
