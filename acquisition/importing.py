@@ -29,7 +29,6 @@ from fabricjax import archive, catalog
 from fabricjax.errors import UserError
 
 GAP_FACTOR = 1.5  # a frame interval above 1.5 nominal periods is a missing frame (jitter stays below)
-AUDIO_SLACK = 0.02  # s: receive-time jitter of audio chunks tolerated before samples count as missing
 TRIAL_KEYS = ("fabric_id", "day", "trial", "condition")
 
 
@@ -65,13 +64,17 @@ def _audio(stream: Stream, resample: bool, resampled: dict) -> tuple[np.ndarray,
     times = stream.times[order]
     chunks = [stream.chunks[i] for i in order]
     counts = np.cumsum([len(c) for c in chunks])
-    longest = max(len(c) for c in chunks) / stream.rate
-    # each chunk's end time against the clock of the samples: a drift beyond jitter is lost audio
+    half_chunk = 0.5 * float(np.median([len(c) for c in chunks])) / stream.rate
+    # each chunk's end time against the clock of its samples: a late (jittered) chunk is followed by
+    # punctual ones, lost samples shift every later chunk, so only a lasting step counts; a slow drift
+    # between the two clocks moves it by far less than half a chunk per chunk
     drift = (times - times[0]) - (counts - counts[0]) / stream.rate
-    if drift.max() > longest * GAP_FACTOR + AUDIO_SLACK:
-        k = int(np.argmax(drift))
+    lasting = np.minimum.accumulate(drift[::-1])[::-1]
+    steps = np.diff(lasting)
+    if steps.size and steps.max() > half_chunk:
+        k = int(np.argmax(steps)) + 1
         raise RecordingImportError(
-            stream.name, "audio", f"about {drift[k]:.3f} s of samples missing before t={times[k] - times[0]:.3f} s "
+            stream.name, "audio", f"about {steps[k - 1]:.3f} s of samples missing before t={times[k] - times[0]:.3f} s "
             "(a message was lost; the windows after it cannot be placed)"
         )
     audio = np.concatenate(chunks)
