@@ -25,10 +25,9 @@ import cv2
 import numpy as np
 
 from acquisition.camera import ForceProxy
-from fabricjax import archive, catalog
+from fabricjax import archive, catalog, integrity
 from fabricjax.errors import UserError
 
-GAP_FACTOR = 1.5  # a frame interval above 1.5 nominal periods is a missing frame (jitter stays below)
 TRIAL_KEYS = ("fabric_id", "day", "trial", "condition")
 
 
@@ -141,8 +140,7 @@ def align(
 
     n_samples = min(len(a) for a in audio)  # the archive holds equally long rows; windows lie before
     window_end = np.minimum(window_end, n_samples)
-    period = 1.0 / archive.STEP_RATE
-    gaps = np.flatnonzero(np.diff(frame_times) > GAP_FACTOR * period)
+    gaps = integrity.frame_gaps(frame_times)
     reference = images[0]
     proxy = ForceProxy(reference, gain=force_gain, deadband=force_deadband)
     fab = catalog.fabric(int(trial["fabric_id"]))
@@ -159,7 +157,7 @@ def align(
         **{"import": {
             "frames_dropped_before_start": first,
             "duplicate_frames_dropped": duplicates,
-            "frame_gaps": [{"step": int(g + 1), "seconds": round(float(frame_times[g + 1] - frame_times[g]), 6)} for g in gaps],
+            "frame_gaps": [{"step": int(k), "seconds": round(float(frame_times[k] - frame_times[k - 1]), 6)} for k in gaps],
             "resampled": resampled,
         }},
     )

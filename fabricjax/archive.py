@@ -25,6 +25,7 @@ beside the simulator's own archives, under the workspace for any other folder, w
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import os
 import zipfile
@@ -206,8 +207,11 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
         raise ArchiveError(path, "timestamps", "trial has no steps")
     for name in ("window_end", "joints", "force", "audio"):
         _check_array(path, name, getattr(archive, name), n)
-    if np.any(np.diff(archive.timestamps) < 0):
-        raise ArchiveError(path, "timestamps", "not non-decreasing")
+    back = np.flatnonzero(np.diff(archive.timestamps) <= 0)
+    if back.size:  # a repeated step (or one out of order) would count the same moment twice
+        k = int(back[0]) + 1
+        raise ArchiveError(path, "timestamps", f"not strictly increasing: step {k} ({archive.timestamps[k]} s) "
+                           f"does not come after step {k - 1} ({archive.timestamps[k - 1]} s)")
     n_samples = archive.audio.shape[1]
     we = archive.window_end
     if we.size and (we.min() < 0 or we.max() > n_samples):
@@ -292,6 +296,7 @@ class IndexEntry:
     n_steps: int
     size: int
     mtime_ns: int
+    sha256: str = ""  # "" in an index written before content hashes: such an index is rebuilt once
 
     @property
     def fingerprint(self) -> str:
@@ -311,17 +316,36 @@ class DatasetIndex:
         return [e for e in self.entries if all(e.meta.get(k) == v for k, v in where.items())]
 
 
-def build_index(folder: os.PathLike | str, index_file: os.PathLike | str | None = None) -> DatasetIndex:
+def sha256_file(path: os.PathLike | str) -> str:
+    """Hex sha256 of a file's bytes, read in 1 MiB blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def build_index(
+    folder: os.PathLike | str, index_file: os.PathLike | str | None = None, previous: tuple[IndexEntry, ...] = ()
+) -> DatasetIndex:
     """Scan a folder of archives (hardware or simulated) and write its index to `index_file`
-    (default: `index.json` in the folder, as the simulator does for the datasets it writes)."""
+    (default: `index.json` in the folder, as the simulator does for the datasets it writes).
+    Each entry records the archive's sha256 (`experiments.verify` re-hashes against it); an entry of
+    `previous` whose file kept its size and mtime is reused, so only new or rewritten archives are
+    read and hashed."""
     root = Path(folder)
     if not root.is_dir():
         raise ArchiveError(root, "<folder>", "dataset folder does not exist")
+    known = {e.file: e for e in previous if e.sha256}
     entries = []
     for p in sorted(root.glob("*.npz")):
-        meta, n = read_meta(p)
         st = p.stat()
-        entries.append(IndexEntry(p.name, meta, n, st.st_size, st.st_mtime_ns))
+        old = known.get(p.name)
+        if old is not None and (old.size, old.mtime_ns) == (st.st_size, st.st_mtime_ns):
+            entries.append(old)
+            continue
+        meta, n = read_meta(p)
+        entries.append(IndexEntry(p.name, meta, n, st.st_size, st.st_mtime_ns, sha256_file(p)))
     doc = {"format_version": FORMAT_VERSION, "folder": str(root.resolve()), "trials": [dataclasses.asdict(e) for e in entries]}
     ipath = Path(index_file) if index_file is not None else root / workspace.INDEX_NAME
     ipath.parent.mkdir(parents=True, exist_ok=True)
@@ -357,6 +381,6 @@ def load_index(folder: os.PathLike | str, workdir: os.PathLike | str | None = No
                 ipath, f"trials[{e.file}]", f"listed archive is missing from {root} (restore it, or delete {ipath} to re-index)"
             )
     stale = len(on_disk) != len(entries) or any(
-        on_disk[e.file].st_size != e.size or on_disk[e.file].st_mtime_ns != e.mtime_ns for e in entries
+        not e.sha256 or on_disk[e.file].st_size != e.size or on_disk[e.file].st_mtime_ns != e.mtime_ns for e in entries
     )
-    return build_index(root, ipath) if stale else DatasetIndex(root, entries)
+    return build_index(root, ipath, entries) if stale else DatasetIndex(root, entries)
