@@ -40,12 +40,31 @@ class RecordingImportError(UserError):
 
 @dataclasses.dataclass
 class Stream:
-    """One microphone as recorded: sample chunks and the receive time (s) of each chunk's last sample."""
+    """One microphone as recorded: its samples, and the times (s) at which it held `counts` of them
+    (a bag: each message's receive time and the samples up to its end; a WAV file: every sample's time)."""
 
     name: str  # topic or file, for errors
     rate: int
-    times: np.ndarray  # (K,) float64
-    chunks: list[np.ndarray]  # K arrays of int32 SPH0645-style words
+    samples: np.ndarray  # (S,) int32 SPH0645-style words
+    times: np.ndarray  # (K,) float64, increasing
+    counts: np.ndarray  # (K,) int64, samples held at each time
+
+    @classmethod
+    def from_chunks(cls, name: str, rate: int, times, chunks: list[np.ndarray]) -> "Stream":
+        """Messages in any order, each a chunk of samples stamped with its last sample's time."""
+        if not chunks:
+            raise RecordingImportError(name, "audio", "no messages")
+        order = np.argsort(np.asarray(times, np.float64), kind="stable")
+        ordered = [chunks[i] for i in order]
+        counts = np.cumsum([len(c) for c in ordered]).astype(np.int64)
+        return cls(name, rate, np.concatenate(ordered), np.asarray(times, np.float64)[order], counts)
+
+    @classmethod
+    def from_samples(cls, name: str, rate: int, samples: np.ndarray, start: float = 0.0) -> "Stream":
+        """A continuous recording (a WAV file) whose first sample is at `start`."""
+        if len(samples) == 0:
+            raise RecordingImportError(name, "audio", "no samples")
+        return cls(name, rate, samples, start + np.arange(len(samples)) / rate, np.arange(1, len(samples) + 1, dtype=np.int64))
 
 
 def to_words(samples: np.ndarray, where, field: str) -> np.ndarray:
@@ -58,12 +77,9 @@ def to_words(samples: np.ndarray, where, field: str) -> np.ndarray:
 
 
 def _audio(stream: Stream, resample: bool, resampled: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The concatenated 48 kHz stream, the chunks' times in order, and per chunk the sample count up to its end."""
-    order = np.argsort(stream.times, kind="stable")
-    times = stream.times[order]
-    chunks = [stream.chunks[i] for i in order]
-    counts = np.cumsum([len(c) for c in chunks])
-    half_chunk = 0.5 * float(np.median([len(c) for c in chunks])) / stream.rate
+    """The 48 kHz samples, and the sample counts at the stream's times; lost samples are an error."""
+    times, counts, audio = stream.times, stream.counts, stream.samples
+    half_chunk = 0.5 * float(np.median(np.diff(counts, prepend=0))) / stream.rate
     # each chunk's end time against the clock of its samples: a late (jittered) chunk is followed by
     # punctual ones, lost samples shift every later chunk, so only a lasting step counts; a slow drift
     # between the two clocks moves it by far less than half a chunk per chunk
@@ -76,7 +92,6 @@ def _audio(stream: Stream, resample: bool, resampled: dict) -> tuple[np.ndarray,
             stream.name, "audio", f"about {steps[k - 1]:.3f} s of samples missing before t={times[k] - times[0]:.3f} s "
             "(a message was lost; the windows after it cannot be placed)"
         )
-    audio = np.concatenate(chunks)
     if stream.rate != archive.AUDIO_RATE:
         if not resample:
             raise RecordingImportError(
@@ -124,8 +139,6 @@ def align(
     resampled: dict[str, Any] = {}
     audio, ends = [], []
     for mic in mics:
-        if not mic.chunks:
-            raise RecordingImportError(mic.name, "audio", "no messages")
         samples, times, counts = _audio(mic, resample, resampled)
         k = np.searchsorted(times, frame_times, side="right") - 1
         ends.append(np.where(k >= 0, counts[np.maximum(k, 0)], 0))
@@ -277,7 +290,7 @@ def import_bag(
     if len({f.shape for f in frames}) > 1:
         raise RecordingImportError(cam_topic, "data", f"frames of different sizes {sorted({f.shape for f in frames})}")
     mics = [
-        Stream(mapping["mics"][m]["topic"], int(mapping["mics"][m]["rate"]), np.array(chunk_t[m], np.float64), chunks[m])
+        Stream.from_chunks(mapping["mics"][m]["topic"], int(mapping["mics"][m]["rate"]), chunk_t[m], chunks[m])
         for m in archive.MIC_NAMES
     ]
     return align(
