@@ -60,16 +60,16 @@ def _layout():
     return TS.types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
 
 
-def recording(seed=0):
+def recording(seed=0, n_frames=N_FRAMES):
     """Frames at 50 Hz from T0; 960-sample chunks whose ends fall 5 ms after each frame slot, from
     0.1 s before T0 (5 chunks = a full window at the first frame); joints at 100 Hz."""
     rng = np.random.default_rng(seed)
-    frames = rng.integers(0, 255, size=(N_FRAMES, H, W, 3), dtype=np.uint8)
-    n_chunks = N_FRAMES + 5
+    frames = rng.integers(0, 255, size=(n_frames, H, W, 3), dtype=np.uint8)
+    n_chunks = n_frames + 5
     internal = rng.integers(-(2**15), 2**15, size=(n_chunks, CHUNK), dtype=np.int16)
     external = (rng.integers(-(2**17), 2**17, size=(n_chunks, CHUNK)) << 14).astype(np.int32)
     chunk_end = T0 - 0.1 + 0.005 + 0.02 * np.arange(n_chunks)
-    joint_t = T0 - 0.05 + 0.01 * np.arange(2 * N_FRAMES + 5)
+    joint_t = T0 - 0.05 + 0.01 * np.arange(2 * n_frames + 5)
     joints = rng.normal(size=(len(joint_t), 6, 3))
     return dict(frames=frames, internal=internal, external=external, chunk_end=chunk_end, joint_t=joint_t, joints=joints)
 
