@@ -18,8 +18,9 @@ images          uint8 (T, H, W, 3)     Minsight frames; absent when not recorded
 
 `write_archive` is atomic (temporary name in the same folder, fsync, rename); `read_archive`
 validates every field and raises `ArchiveError` naming the file, the field and the problem.
-A dataset is a folder of archives plus an index (see `build_index`, `load_index`): `index.json`
-beside the simulator's own archives, under the workspace for any other folder, which is only read.
+A dataset is a folder of archives plus an index (see `build_index`, `load_index`) recording each
+archive's meta, size, mtime and sha256: `index.json` beside the simulator's own archives, under the
+workspace for any other folder, which is only read. `fabricjax.integrity` checks a dataset against it.
 """
 
 from __future__ import annotations

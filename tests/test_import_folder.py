@@ -82,3 +82,9 @@ def test_folder_errors_name_file_field_and_problem(tmp_path):
                            "--fabric=4", "--day=1", "--trial=0"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
     assert "external.wav: <file>: no such file" in done.stderr
+
+
+def test_bag_import_without_rosbags_says_how_to_install(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)  # as if the optional package were absent
+    with pytest.raises(importing.UserError, match=r'pip install -e "\.\[bags\]"'):
+        importing.import_bag(tmp_path, {}, TRIAL)
