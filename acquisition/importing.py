@@ -4,7 +4,7 @@ The recorder's rule, applied to timestamped streams after the fact (`align`): on
 frame; each microphone's window ends after the last audio sample received at or before the frame;
 the joints are the latest reading at or before the frame. Frames before every microphone holds one
 full window and before the first joint reading are dropped, as the recorder waits for a full window
-before its first step. Nothing is resampled silently: a microphone not at the archive's 48 kHz is an
+before its first step; so are frames after the shorter microphone's end. Nothing is resampled silently: a microphone not at the archive's 48 kHz is an
 error naming the topic and the rate, unless `resample=True` (`scipy.signal.resample_poly`, recorded
 in meta.import.resampled). A gap between frames is kept, never filled, and listed in
 meta.import.frame_gaps; missing audio (a hole between chunks) is an error, since every window after
@@ -151,12 +151,21 @@ def align(
     first = int(np.argmax(usable))
     frame_times, images, window_end, jk = frame_times[first:], images[first:], window_end[first:], jk[first:]
 
-    n_samples = min(len(a) for a in audio)  # the archive holds equally long rows; windows lie before
-    window_end = np.minimum(window_end, n_samples)
+    # the archive's audio rows are equally long: frames whose window would reach past the shorter
+    # microphone's end are dropped rather than given a misplaced window
+    n_samples = min(len(a) for a in audio)
+    inside = int(np.count_nonzero((window_end <= n_samples).all(axis=1)))
+    dropped_at_end = len(frame_times) - inside
+    if inside == 0:
+        raise RecordingImportError(where, "audio", f"the microphones' recordings differ in length: the shorter ({n_samples} samples) ends before the first frame")
+    frame_times, images, window_end, jk = frame_times[:inside], images[:inside], window_end[:inside], jk[:inside]
     gaps = integrity.frame_gaps(frame_times)
     reference = images[0]
     proxy = ForceProxy(reference, gain=force_gain, deadband=force_deadband)
-    fab = catalog.fabric(int(trial["fabric_id"]))
+    try:
+        fab = catalog.fabric(int(trial["fabric_id"]))
+    except KeyError as e:
+        raise RecordingImportError(where, "trial.fabric_id", e.args[0]) from None
     meta = archive.make_meta(
         fabric_id=int(trial["fabric_id"]),
         properties=fab.properties,
@@ -165,10 +174,11 @@ def align(
         condition=str(trial["condition"]),
         source=source,
         image_size=images.shape[1:3],
-        closing_steps=0,
+        closing_steps=0,  # the procedure's phases are not in other labs' recordings: every step counts
         force_proxy={"gain": force_gain, "deadband": force_deadband, "reference": "first kept frame"},
         **{"import": {
             "frames_dropped_before_start": first,
+            "frames_dropped_at_end": dropped_at_end,
             "duplicate_frames_dropped": duplicates,
             "frame_gaps": [{"step": int(k), "seconds": round(float(frame_times[k] - frame_times[k - 1]), 6)} for k in gaps],
             "resampled": resampled,
