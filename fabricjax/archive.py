@@ -326,18 +326,28 @@ def sha256_file(path: os.PathLike | str) -> str:
     return digest.hexdigest()
 
 
-def build_index(
-    folder: os.PathLike | str, index_file: os.PathLike | str | None = None, previous: tuple[IndexEntry, ...] = ()
-) -> DatasetIndex:
+def _indexed_entries(ipath: Path) -> dict[str, IndexEntry]:
+    """The hashed entries of an existing index, or none when it is absent or unreadable."""
+    try:
+        doc = json.loads(ipath.read_text())
+        if doc.get("format_version") != FORMAT_VERSION:
+            return {}
+        return {e.file: e for e in (IndexEntry(**t) for t in doc["trials"]) if e.sha256}
+    except (OSError, json.JSONDecodeError, KeyError, TypeError):
+        return {}
+
+
+def build_index(folder: os.PathLike | str, index_file: os.PathLike | str | None = None) -> DatasetIndex:
     """Scan a folder of archives (hardware or simulated) and write its index to `index_file`
     (default: `index.json` in the folder, as the simulator does for the datasets it writes).
-    Each entry records the archive's sha256 (`experiments.verify` re-hashes against it); an entry of
-    `previous` whose file kept its size and mtime is reused, so only new or rewritten archives are
-    read and hashed."""
+    Each entry records the archive's sha256 (`fabricjax.integrity.verify` re-hashes against it); an
+    entry of the existing index whose file kept its size and mtime is kept, so only new or rewritten
+    archives are read and hashed (the simulator re-indexes its 11 GB dataset on every run)."""
     root = Path(folder)
     if not root.is_dir():
         raise ArchiveError(root, "<folder>", "dataset folder does not exist")
-    known = {e.file: e for e in previous if e.sha256}
+    ipath = Path(index_file) if index_file is not None else root / workspace.INDEX_NAME
+    known = _indexed_entries(ipath)
     entries = []
     for p in sorted(root.glob("*.npz")):
         st = p.stat()
@@ -348,7 +358,6 @@ def build_index(
         meta, n = read_meta(p)
         entries.append(IndexEntry(p.name, meta, n, st.st_size, st.st_mtime_ns, sha256_file(p)))
     doc = {"format_version": FORMAT_VERSION, "folder": str(root.resolve()), "trials": [dataclasses.asdict(e) for e in entries]}
-    ipath = Path(index_file) if index_file is not None else root / workspace.INDEX_NAME
     ipath.parent.mkdir(parents=True, exist_ok=True)
     with atomic_open(ipath, "w") as f:
         f.write(json.dumps(doc, indent=1))
@@ -384,4 +393,4 @@ def load_index(folder: os.PathLike | str, workdir: os.PathLike | str | None = No
     stale = len(on_disk) != len(entries) or any(
         not e.sha256 or on_disk[e.file].st_size != e.size or on_disk[e.file].st_mtime_ns != e.mtime_ns for e in entries
     )
-    return build_index(root, ipath, entries) if stale else DatasetIndex(root, entries)
+    return build_index(root, ipath) if stale else DatasetIndex(root, entries)

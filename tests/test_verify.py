@@ -80,3 +80,17 @@ def test_repeated_step_is_refused_at_load(tmp_path):
     np.savez(path, **npz_fields(a, timestamps=ts))
     with pytest.raises(archive.ArchiveError, match=r"field 'timestamps': not strictly increasing: step 4"):
         archive.read_archive(path)
+
+
+def test_reindexing_hashes_only_new_or_rewritten_archives(tmp_path, monkeypatch):
+    folder = tiny_dataset(tmp_path / "data", TRIALS, n_steps=12, images=None)
+    archive.build_index(folder)
+    hashed = []
+    real = archive.sha256_file
+    monkeypatch.setattr(archive, "sha256_file", lambda p: hashed.append(p.name) or real(p))
+    archive.build_index(folder)
+    assert hashed == []
+    a = tiny_archive(n_steps=12, fabric_id=9, images=None)
+    archive.write_archive(folder / archive.trial_filename(a.meta), a)
+    archive.build_index(folder)
+    assert hashed == [archive.trial_filename(a.meta)]
