@@ -18,13 +18,15 @@ images          uint8 (T, H, W, 3)     Minsight frames; absent when not recorded
 
 `write_archive` is atomic (temporary name in the same folder, fsync, rename); `read_archive`
 validates every field and raises `ArchiveError` naming the file, the field and the problem.
-A dataset is a folder of archives plus an index (see `build_index`, `load_index`): `index.json`
-beside the simulator's own archives, under the workspace for any other folder, which is only read.
+A dataset is a folder of archives plus an index (see `build_index`, `load_index`) recording each
+archive's meta, size, mtime and sha256: `index.json` beside the simulator's own archives, under the
+workspace for any other folder, which is only read. `fabricjax.integrity` checks a dataset against it.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import os
 import zipfile
@@ -39,6 +41,8 @@ from fabricjax.errors import UserError
 
 FORMAT_VERSION = 1
 WINDOW = 2048
+AUDIO_RATE = 48000  # Hz, every microphone stream
+STEP_RATE = 50  # Hz, one step per Minsight frame
 N_JOINTS = 6
 JOINT_FIELDS = ("angle", "velocity", "current")
 JOINT_NAMES = ("thumb_base", "thumb_mid", "thumb_tip", "middle_base", "middle_tip", "palm")
@@ -137,7 +141,7 @@ def make_meta(
         "trial": int(trial),
         "condition": condition,
         "source": source,
-        "sample_rates": {"audio": 48000, "steps": 50},
+        "sample_rates": {"audio": AUDIO_RATE, "steps": STEP_RATE},
         "image_size": None if image_size is None else [int(image_size[0]), int(image_size[1])],
         "joint_names": list(JOINT_NAMES),
         "joint_fields": list(JOINT_FIELDS),
@@ -172,8 +176,8 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
             raise ArchiveError(path, f"meta.properties.{name}", "missing (use null when unknown)")
         if level is not None and (not isinstance(level, int) or level < 0):
             raise ArchiveError(path, f"meta.properties.{name}", f"must be a level >= 0 or null, got {level!r}")
-    if meta["sample_rates"].get("audio") != 48000:
-        raise ArchiveError(path, "meta.sample_rates.audio", f"must be 48000, got {meta['sample_rates'].get('audio')!r}")
+    if meta["sample_rates"].get("audio") != AUDIO_RATE:
+        raise ArchiveError(path, "meta.sample_rates.audio", f"must be {AUDIO_RATE}, got {meta['sample_rates'].get('audio')!r}")
     if len(meta["joint_names"]) != N_JOINTS:
         raise ArchiveError(path, "meta.joint_names", f"expected {N_JOINTS} names, got {len(meta['joint_names'])}")
     return meta
@@ -204,8 +208,11 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
         raise ArchiveError(path, "timestamps", "trial has no steps")
     for name in ("window_end", "joints", "force", "audio"):
         _check_array(path, name, getattr(archive, name), n)
-    if np.any(np.diff(archive.timestamps) < 0):
-        raise ArchiveError(path, "timestamps", "not non-decreasing")
+    back = np.flatnonzero(np.diff(archive.timestamps) <= 0)
+    if back.size:  # a repeated step (or one out of order) would count the same moment twice
+        k = int(back[0]) + 1
+        raise ArchiveError(path, "timestamps", f"not strictly increasing: step {k} ({archive.timestamps[k]} s) "
+                           f"does not come after step {k - 1} ({archive.timestamps[k - 1]} s)")
     n_samples = archive.audio.shape[1]
     we = archive.window_end
     if we.size and (we.min() < 0 or we.max() > n_samples):
@@ -290,6 +297,7 @@ class IndexEntry:
     n_steps: int
     size: int
     mtime_ns: int
+    sha256: str = ""  # "" in an index written before content hashes: such an index is rebuilt once
 
     @property
     def fingerprint(self) -> str:
@@ -309,19 +317,47 @@ class DatasetIndex:
         return [e for e in self.entries if all(e.meta.get(k) == v for k, v in where.items())]
 
 
+def sha256_file(path: os.PathLike | str) -> str:
+    """Hex sha256 of a file's bytes, read in 1 MiB blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _indexed_entries(ipath: Path) -> dict[str, IndexEntry]:
+    """The hashed entries of an existing index, or none when it is absent or unreadable."""
+    try:
+        doc = json.loads(ipath.read_text())
+        if doc.get("format_version") != FORMAT_VERSION:
+            return {}
+        return {e.file: e for e in (IndexEntry(**t) for t in doc["trials"]) if e.sha256}
+    except (OSError, json.JSONDecodeError, KeyError, TypeError):
+        return {}
+
+
 def build_index(folder: os.PathLike | str, index_file: os.PathLike | str | None = None) -> DatasetIndex:
     """Scan a folder of archives (hardware or simulated) and write its index to `index_file`
-    (default: `index.json` in the folder, as the simulator does for the datasets it writes)."""
+    (default: `index.json` in the folder, as the simulator does for the datasets it writes).
+    Each entry records the archive's sha256 (`fabricjax.integrity.verify` re-hashes against it); an
+    entry of the existing index whose file kept its size and mtime is kept, so only new or rewritten
+    archives are read and hashed (the simulator re-indexes its 11 GB dataset on every run)."""
     root = Path(folder)
     if not root.is_dir():
         raise ArchiveError(root, "<folder>", "dataset folder does not exist")
+    ipath = Path(index_file) if index_file is not None else root / workspace.INDEX_NAME
+    known = _indexed_entries(ipath)
     entries = []
     for p in sorted(root.glob("*.npz")):
-        meta, n = read_meta(p)
         st = p.stat()
-        entries.append(IndexEntry(p.name, meta, n, st.st_size, st.st_mtime_ns))
+        old = known.get(p.name)
+        if old is not None and (old.size, old.mtime_ns) == (st.st_size, st.st_mtime_ns):
+            entries.append(old)
+            continue
+        meta, n = read_meta(p)
+        entries.append(IndexEntry(p.name, meta, n, st.st_size, st.st_mtime_ns, sha256_file(p)))
     doc = {"format_version": FORMAT_VERSION, "folder": str(root.resolve()), "trials": [dataclasses.asdict(e) for e in entries]}
-    ipath = Path(index_file) if index_file is not None else root / workspace.INDEX_NAME
     ipath.parent.mkdir(parents=True, exist_ok=True)
     with atomic_open(ipath, "w") as f:
         f.write(json.dumps(doc, indent=1))
@@ -355,6 +391,6 @@ def load_index(folder: os.PathLike | str, workdir: os.PathLike | str | None = No
                 ipath, f"trials[{e.file}]", f"listed archive is missing from {root} (restore it, or delete {ipath} to re-index)"
             )
     stale = len(on_disk) != len(entries) or any(
-        on_disk[e.file].st_size != e.size or on_disk[e.file].st_mtime_ns != e.mtime_ns for e in entries
+        not e.sha256 or on_disk[e.file].st_size != e.size or on_disk[e.file].st_mtime_ns != e.mtime_ns for e in entries
     )
     return build_index(root, ipath) if stale else DatasetIndex(root, entries)

@@ -1,0 +1,43 @@
+"""Import one ROS 2 bag (sqlite3 or MCAP) as a trial archive:
+`python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR [--fabric=.. --day=.. --trial=.. --condition=..] [--resample]`.
+
+The mapping file names the camera, microphone and joint topics (format in WORKSPACE.md, "Using your
+own recordings"); the trial's fabric, day, trial and condition come from its [trial] table, and the
+flags override it. Needs the optional `rosbags` package: pip install -e ".[bags]".
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from absl import flags
+
+from acquisition import importing
+from experiments import cli
+from fabricjax import archive
+from fabricjax.errors import UserError
+
+FLAGS = flags.FLAGS
+flags.DEFINE_string("map", None, "Mapping file (TOML) naming the topics.", required=True)
+flags.DEFINE_string("out", None, "Folder to write the trial archive into.", required=True)
+flags.DEFINE_integer("fabric", None, "Fabric id (overrides the mapping's trial.fabric_id).")
+flags.DEFINE_integer("day", None, "Recording day (overrides trial.day).")
+flags.DEFINE_integer("trial", None, "Trial index (overrides trial.trial).")
+flags.DEFINE_enum("condition", None, list(archive.CONDITIONS), "Acoustic condition (overrides trial.condition).")
+flags.DEFINE_bool("resample", False, "Resample microphones not at 48 kHz (scipy.signal.resample_poly; recorded in the meta).")
+
+
+def main(argv):
+    if len(argv) != 2:
+        raise UserError("give exactly one bag: python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR")
+    mapping = importing.load_mapping(FLAGS.map)
+    overrides = {"fabric_id": FLAGS.fabric, "day": FLAGS.day, "trial": FLAGS.trial, "condition": FLAGS.condition}
+    trial = importing.trial_fields(mapping, overrides, FLAGS.map)
+    result = importing.import_bag(argv[1], mapping, trial, resample=FLAGS.resample)
+    path = archive.write_archive(Path(FLAGS.out) / archive.trial_filename(result.meta), result)
+    gaps = result.meta["import"]["frame_gaps"]
+    print(f"{path}: {result.n_steps} steps" + (f", {len(gaps)} frame gaps (see meta.import.frame_gaps)" if gaps else ""))
+
+
+if __name__ == "__main__":
+    cli.run(main)

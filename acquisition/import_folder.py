@@ -1,0 +1,40 @@
+"""Import one trial folder of WAV + CSV + video as a trial archive:
+`python -m acquisition.import_folder TRIAL_DIR --out=DIR --fabric=4 --day=1 --trial=0 [--condition=lab] [--resample]`.
+
+The folder holds `internal.wav` and `external.wav`, `joints.csv` and `camera.avi` (or `camera/*.png`
+with `frames.csv`), laid out as WORKSPACE.md's "Using your own recordings" describes; alignment and
+errors are those of the bag importer (`acquisition.importing`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from absl import flags
+
+from acquisition import importing
+from experiments import cli
+from fabricjax import archive
+from fabricjax.errors import UserError
+
+FLAGS = flags.FLAGS
+flags.DEFINE_string("out", None, "Folder to write the trial archive into.", required=True)
+flags.DEFINE_integer("fabric", None, "Fabric id.")
+flags.DEFINE_integer("day", None, "Recording day.")
+flags.DEFINE_integer("trial", None, "Trial index.")
+flags.DEFINE_enum("condition", "lab", list(archive.CONDITIONS), "Acoustic condition.")
+flags.DEFINE_bool("resample", False, "Resample WAV files not at 48 kHz (scipy.signal.resample_poly; recorded in the meta).")
+
+
+def main(argv):
+    if len(argv) != 2:
+        raise UserError("give exactly one trial folder: python -m acquisition.import_folder TRIAL_DIR --out=DIR")
+    overrides = {"fabric_id": FLAGS.fabric, "day": FLAGS.day, "trial": FLAGS.trial, "condition": FLAGS.condition}
+    trial = importing.trial_fields({}, overrides, "command line")
+    result = importing.import_folder(argv[1], trial, resample=FLAGS.resample)
+    path = archive.write_archive(Path(FLAGS.out) / archive.trial_filename(result.meta), result)
+    gaps = result.meta["import"]["frame_gaps"]
+    print(f"{path}: {result.n_steps} steps" + (f", {len(gaps)} frame gaps (see meta.import.frame_gaps)" if gaps else ""))
+
+
+if __name__ == "__main__":
+    cli.run(main)

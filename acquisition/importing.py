@@ -1,0 +1,432 @@
+"""Other labs' recordings (ROS 2 bags / MCAP) to trial archives, aligned as the recorder aligns.
+
+The recorder's rule, applied to timestamped streams after the fact (`align`): one step per camera
+frame; each microphone's window ends after the last audio sample received at or before the frame;
+the joints are the latest reading at or before the frame. Frames before every microphone holds one
+full window and before the first joint reading are dropped, as the recorder waits for a full window
+before its first step; so are frames after the shorter microphone's end. Nothing is resampled silently: a microphone not at the archive's 48 kHz is an
+error naming the topic and the rate, unless `resample=True` (`scipy.signal.resample_poly`, recorded
+in meta.import.resampled). A gap between frames is kept, never filled, and listed in
+meta.import.frame_gaps; missing audio (a hole between chunks) is an error, since every window after
+it would silently be misplaced.
+
+The mapping file (TOML) names the topics; see WORKSPACE.md, "Using your own recordings".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from acquisition.camera import ForceProxy
+from fabricjax import archive, catalog, integrity
+from fabricjax.errors import UserError
+
+TRIAL_KEYS = ("fabric_id", "day", "trial", "condition")
+
+
+class RecordingImportError(UserError):
+    """A recording cannot become an archive; the message names file, field and problem."""
+
+    def __init__(self, path, field: str, problem: str):
+        super().__init__(f"{path}: {field}: {problem}")
+
+
+@dataclasses.dataclass
+class Stream:
+    """One microphone as recorded: its samples, and the times (s) at which it held `counts` of them
+    (a bag: each message's receive time and the samples up to its end; a WAV file: every sample's time)."""
+
+    name: str  # topic or file, for errors
+    rate: int
+    samples: np.ndarray  # (S,) int32 SPH0645-style words
+    times: np.ndarray  # (K,) float64, increasing
+    counts: np.ndarray  # (K,) int64, samples held at each time
+
+    @classmethod
+    def from_chunks(cls, name: str, rate: int, times, chunks: list[np.ndarray]) -> "Stream":
+        """Messages in any order, each a chunk of samples stamped with its last sample's time."""
+        if not chunks:
+            raise RecordingImportError(name, "audio", "no messages")
+        order = np.argsort(np.asarray(times, np.float64), kind="stable")
+        ordered = [chunks[i] for i in order]
+        counts = np.cumsum([len(c) for c in ordered]).astype(np.int64)
+        return cls(name, rate, np.concatenate(ordered), np.asarray(times, np.float64)[order], counts)
+
+    @classmethod
+    def from_samples(cls, name: str, rate: int, samples: np.ndarray, start: float = 0.0) -> "Stream":
+        """A continuous recording (a WAV file) whose first sample is at `start`."""
+        if len(samples) == 0:
+            raise RecordingImportError(name, "audio", "no samples")
+        return cls(name, rate, samples, start + np.arange(len(samples)) / rate, np.arange(1, len(samples) + 1, dtype=np.int64))
+
+
+def to_words(samples: np.ndarray, where, field: str) -> np.ndarray:
+    """int16 samples move to the top 16 of the 18 valid SPH0645 bits; int32 words are kept as they are."""
+    if samples.dtype == np.int16:
+        return samples.astype(np.int32) << 16
+    if samples.dtype == np.int32:
+        return samples
+    raise RecordingImportError(where, field, f"audio samples must be int16 or int32, got {samples.dtype}")
+
+
+def _audio(stream: Stream, resample: bool, resampled: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The 48 kHz samples, and the sample counts at the stream's times; lost samples are an error."""
+    times, counts, audio = stream.times, stream.counts, stream.samples
+    half_chunk = 0.5 * float(np.median(np.diff(counts, prepend=0))) / stream.rate
+    # each chunk's end time against the clock of its samples: a late (jittered) chunk is followed by
+    # punctual ones, lost samples shift every later chunk, so only a lasting step counts; a slow drift
+    # between the two clocks moves it by far less than half a chunk per chunk
+    drift = (times - times[0]) - (counts - counts[0]) / stream.rate
+    lasting = np.minimum.accumulate(drift[::-1])[::-1]
+    steps = np.diff(lasting)
+    if steps.size and steps.max() > half_chunk:
+        k = int(np.argmax(steps)) + 1
+        raise RecordingImportError(
+            stream.name, "audio", f"about {steps[k - 1]:.3f} s of samples missing before t={times[k] - times[0]:.3f} s "
+            "(a message was lost; the windows after it cannot be placed)"
+        )
+    if stream.rate != archive.AUDIO_RATE:
+        if not resample:
+            raise RecordingImportError(
+                stream.name, "rate", f"sample rate {stream.rate} Hz, archives hold {archive.AUDIO_RATE} Hz "
+                "(pass --resample to convert with scipy.signal.resample_poly)"
+            )
+        from scipy.signal import resample_poly
+
+        ratio = Fraction(archive.AUDIO_RATE, stream.rate)
+        audio = np.round(resample_poly(audio.astype(np.float64), ratio.numerator, ratio.denominator))
+        audio = np.clip(audio, np.iinfo(np.int32).min, np.iinfo(np.int32).max).astype(np.int32)
+        counts = np.floor(counts * float(ratio)).astype(np.int64)
+        resampled[stream.name] = {"from_hz": stream.rate, "to_hz": archive.AUDIO_RATE, "method": "scipy.signal.resample_poly"}
+    return audio, times, counts
+
+
+def align(
+    *,
+    frame_times: np.ndarray,
+    images: np.ndarray,
+    mics: list[Stream],
+    joint_times: np.ndarray,
+    joints: np.ndarray,
+    trial: dict[str, Any],
+    source: dict[str, Any],
+    resample: bool = False,
+    force_gain: float = ForceProxy.gain,
+    force_deadband: float = ForceProxy.deadband,
+) -> archive.TrialArchive:
+    """The recorder's alignment (module docstring) of streams with timestamps in seconds."""
+    where = source.get("path", "<recording>")
+    if len(mics) != len(archive.MIC_NAMES):
+        raise RecordingImportError(where, "mics", f"need {len(archive.MIC_NAMES)} microphones {archive.MIC_NAMES}, got {len(mics)}")
+    for name, times in (("camera", frame_times), ("joints", joint_times)):
+        if len(times) == 0:
+            raise RecordingImportError(where, name, "no messages")
+    order = np.argsort(frame_times, kind="stable")
+    frame_times, images = frame_times[order], images[order]
+    keep = np.concatenate([[True], np.diff(frame_times) > 0])  # a repeated frame time is one frame
+    duplicates = int(np.count_nonzero(~keep))
+    frame_times, images = frame_times[keep], images[keep]
+    jorder = np.argsort(joint_times, kind="stable")
+    joint_times, joints = joint_times[jorder], joints[jorder]
+
+    resampled: dict[str, Any] = {}
+    audio, ends = [], []
+    for mic in mics:
+        samples, times, counts = _audio(mic, resample, resampled)
+        k = np.searchsorted(times, frame_times, side="right") - 1
+        ends.append(np.where(k >= 0, counts[np.maximum(k, 0)], 0))
+        audio.append(samples)
+    window_end = np.stack(ends, axis=1).astype(np.int64)
+    jk = np.searchsorted(joint_times, frame_times, side="right") - 1
+    usable = (window_end >= archive.WINDOW).all(axis=1) & (jk >= 0)
+    if not usable.any():
+        raise RecordingImportError(where, "camera", "no frame comes after a full audio window and a joint reading")
+    first = int(np.argmax(usable))
+    frame_times, images, window_end, jk = frame_times[first:], images[first:], window_end[first:], jk[first:]
+
+    # the archive's audio rows are equally long: frames whose window would reach past the shorter
+    # microphone's end are dropped rather than given a misplaced window
+    n_samples = min(len(a) for a in audio)
+    inside = int(np.count_nonzero((window_end <= n_samples).all(axis=1)))
+    dropped_at_end = len(frame_times) - inside
+    if inside == 0:
+        raise RecordingImportError(where, "audio", f"the microphones' recordings differ in length: the shorter ({n_samples} samples) ends before the first frame")
+    frame_times, images, window_end, jk = frame_times[:inside], images[:inside], window_end[:inside], jk[:inside]
+    gaps = integrity.frame_gaps(frame_times)
+    reference = images[0]
+    proxy = ForceProxy(reference, gain=force_gain, deadband=force_deadband)
+    try:
+        fab = catalog.fabric(int(trial["fabric_id"]))
+    except KeyError as e:
+        raise RecordingImportError(where, "trial.fabric_id", e.args[0]) from None
+    meta = archive.make_meta(
+        fabric_id=int(trial["fabric_id"]),
+        properties=fab.properties,
+        day=int(trial["day"]),
+        trial=int(trial["trial"]),
+        condition=str(trial["condition"]),
+        source=source,
+        image_size=images.shape[1:3],
+        closing_steps=0,  # the procedure's phases are not in other labs' recordings: every step counts
+        force_proxy={"gain": force_gain, "deadband": force_deadband, "reference": "first kept frame"},
+        **{"import": {
+            "frames_dropped_before_start": first,
+            "frames_dropped_at_end": dropped_at_end,
+            "duplicate_frames_dropped": duplicates,
+            "frame_gaps": [{"step": int(k), "seconds": round(float(frame_times[k] - frame_times[k - 1]), 6)} for k in gaps],
+            "resampled": resampled,
+        }},
+    )
+    return archive.TrialArchive(
+        meta=meta,
+        timestamps=(frame_times - frame_times[0]).astype(np.float64),
+        window_end=window_end,
+        joints=joints[jk].astype(np.float32),
+        force=np.array([proxy(im) for im in images], np.float32),
+        audio=np.stack([a[:n_samples] for a in audio]),
+        images=np.ascontiguousarray(images, dtype=np.uint8),
+    )
+
+
+def load_mapping(path: str | Path) -> dict[str, Any]:
+    """The mapping file, checked for the keys `import_bag` needs."""
+    path = Path(path)
+    try:
+        mapping = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise RecordingImportError(path, "<file>", "no such mapping file") from None
+    except tomllib.TOMLDecodeError as e:
+        raise RecordingImportError(path, "<file>", f"not valid TOML: {e}") from None
+    for key in ("camera.topic", "joints.topic", *(f"mics.{m}.topic" for m in archive.MIC_NAMES), *(f"mics.{m}.rate" for m in archive.MIC_NAMES)):
+        node: Any = mapping
+        for part in key.split("."):
+            if not isinstance(node, dict) or part not in node:
+                raise RecordingImportError(path, key, "missing")
+            node = node[part]
+    return mapping
+
+
+def trial_fields(mapping: dict[str, Any], overrides: dict[str, Any], where) -> dict[str, Any]:
+    """fabric_id, day, trial and condition: the command line wins over the mapping's [trial] table."""
+    trial = dict(mapping.get("trial", {})) | {k: v for k, v in overrides.items() if v is not None}
+    for key in TRIAL_KEYS:
+        if key not in trial:
+            raise RecordingImportError(where, f"trial.{key}", "missing (give it in the mapping's [trial] table or on the command line)")
+    if trial["condition"] not in archive.CONDITIONS:
+        raise RecordingImportError(where, "trial.condition", f"must be one of {archive.CONDITIONS}, got {trial['condition']!r}")
+    return trial
+
+
+def _decode_image(msg, topic: str) -> np.ndarray:
+    """RGB uint8 from sensor_msgs/Image (rgb8, bgr8, mono8) or CompressedImage (any format OpenCV reads)."""
+    if hasattr(msg, "format"):
+        img = cv2.imdecode(np.asarray(msg.data, np.uint8), cv2.IMREAD_COLOR)
+        if img is None:
+            raise RecordingImportError(topic, "data", f"compressed frame ({msg.format}) cannot be decoded")
+        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    channels = {"rgb8": 3, "bgr8": 3, "mono8": 1}
+    if msg.encoding not in channels:
+        raise RecordingImportError(topic, "encoding", f"image encoding {msg.encoding!r} not supported (rgb8, bgr8, mono8)")
+    c = channels[msg.encoding]
+    rows = np.asarray(msg.data, np.uint8).reshape(msg.height, msg.step)
+    img = rows[:, : msg.width * c].reshape(msg.height, msg.width, c)
+    if msg.encoding == "bgr8":
+        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    return cv2.cvtColor(img, cv2.COLOR_GRAY2RGB) if c == 1 else img.copy()
+
+
+def _stamp(msg) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def import_bag(
+    bag: str | Path,
+    mapping: dict[str, Any],
+    trial: dict[str, Any],
+    *,
+    resample: bool = False,
+) -> archive.TrialArchive:
+    """Read a ROS 2 bag (sqlite3 or MCAP folder) with `rosbags` and align it (module docstring).
+
+    Frames and joint states are placed by their header stamps; audio messages (std_msgs
+    Int16MultiArray / Int32MultiArray) have no header, so by the bag's receive time, taken as the
+    time of the chunk's last sample."""
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ModuleNotFoundError:
+        raise UserError('reading bags needs the rosbags package: pip install -e ".[bags]"') from None
+    bag = Path(bag)
+    if not bag.exists():
+        raise RecordingImportError(bag, "<bag>", "no such bag")
+    cam_topic, joint_topic = mapping["camera"]["topic"], mapping["joints"]["topic"]
+    mic_topics = {mapping["mics"][m]["topic"]: m for m in archive.MIC_NAMES}
+    names = list(mapping["joints"].get("names", archive.JOINT_NAMES))
+    if len(names) != archive.N_JOINTS:
+        raise RecordingImportError(bag, "joints.names", f"expected {archive.N_JOINTS} names, got {len(names)}")
+    frames, frame_t, joint_rows, joint_t = [], [], [], []
+    chunks: dict[str, list] = {m: [] for m in archive.MIC_NAMES}
+    chunk_t: dict[str, list] = {m: [] for m in archive.MIC_NAMES}
+    try:
+        with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+            present = {c.topic for c in reader.connections}
+            for topic in (cam_topic, joint_topic, *mic_topics):
+                if topic not in present:
+                    raise RecordingImportError(bag, topic, f"topic not in the bag (it has {sorted(present)})")
+            wanted = [c for c in reader.connections if c.topic in (cam_topic, joint_topic, *mic_topics)]
+            for conn, t_ns, raw in reader.messages(connections=wanted):
+                msg = reader.deserialize(raw, conn.msgtype)
+                if conn.topic == cam_topic:
+                    frames.append(_decode_image(msg, cam_topic))
+                    frame_t.append(_stamp(msg))
+                elif conn.topic == joint_topic:
+                    joint_rows.append(_joint_row(msg, names, joint_topic))
+                    joint_t.append(_stamp(msg))
+                else:
+                    mic = mic_topics[conn.topic]
+                    chunks[mic].append(to_words(np.asarray(msg.data), conn.topic, "data"))
+                    chunk_t[mic].append(t_ns * 1e-9)
+    except UserError:
+        raise
+    except Exception as e:  # rosbags' own errors: an unreadable or unknown bag
+        raise RecordingImportError(bag, "<bag>", f"cannot be read: {type(e).__name__}: {e}") from None
+    if len({f.shape for f in frames}) > 1:
+        raise RecordingImportError(cam_topic, "data", f"frames of different sizes {sorted({f.shape for f in frames})}")
+    mics = [
+        Stream.from_chunks(mapping["mics"][m]["topic"], int(mapping["mics"][m]["rate"]), chunk_t[m], chunks[m])
+        for m in archive.MIC_NAMES
+    ]
+    return align(
+        frame_times=np.array(frame_t, np.float64),
+        images=np.stack(frames) if frames else np.zeros((0, 1, 1, 3), np.uint8),
+        mics=mics,
+        joint_times=np.array(joint_t, np.float64),
+        joints=np.array(joint_rows, np.float32).reshape(-1, archive.N_JOINTS, 3),
+        trial=trial,
+        source={"kind": "ros2_bag", "path": str(bag), "topics": {"camera": cam_topic, "joints": joint_topic, **{m: t for t, m in mic_topics.items()}}},
+        resample=resample,
+        force_gain=float(mapping.get("force", {}).get("gain", ForceProxy.gain)),
+        force_deadband=float(mapping.get("force", {}).get("deadband", ForceProxy.deadband)),
+    )
+
+
+def _joint_row(msg, names: list[str], topic: str) -> np.ndarray:
+    """(6, 3) angle, velocity, current (JointState effort) in the archive's joint order."""
+    index = {n: i for i, n in enumerate(msg.name)}
+    row = np.zeros((archive.N_JOINTS, 3), np.float32)
+    for j, name in enumerate(names):
+        if name not in index:
+            raise RecordingImportError(topic, "name", f"joint {name!r} not in the message (it has {list(msg.name)})")
+        for f, values in enumerate((msg.position, msg.velocity, msg.effort)):
+            if len(values) == len(msg.name):
+                row[j, f] = values[index[name]]
+    return row
+
+
+VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
+
+
+def _read_wav(path: Path, start: float) -> Stream:
+    from scipy.io import wavfile
+
+    if not path.is_file():
+        raise RecordingImportError(path, "<file>", "no such file (one WAV per microphone: " + ", ".join(f"{m}.wav" for m in archive.MIC_NAMES) + ")")
+    try:
+        rate, samples = wavfile.read(path)
+    except ValueError as e:
+        raise RecordingImportError(path, "<file>", f"not a readable WAV file: {e}") from None
+    if samples.ndim != 1:
+        raise RecordingImportError(path, "channels", f"{samples.shape[1]} channels, expected 1 (one file per microphone)")
+    return Stream.from_samples(str(path), int(rate), to_words(samples, path, "samples"), start)
+
+
+def _read_joints(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Times and (N, 6, 3) joints from a CSV with a `time` column and `<joint>_<field>` columns."""
+    if not path.is_file():
+        raise RecordingImportError(path, "<file>", "no such file")
+    try:
+        table = np.genfromtxt(path, delimiter=",", names=True, dtype=np.float64, ndmin=1)
+    except ValueError as e:
+        raise RecordingImportError(path, "<file>", f"not a readable CSV: {e}") from None
+    columns = ["time", *(f"{j}_{f}" for j in archive.JOINT_NAMES for f in archive.JOINT_FIELDS)]
+    for col in columns:
+        if table.dtype.names is None or col not in table.dtype.names:
+            raise RecordingImportError(path, col, "column missing")
+        if not np.all(np.isfinite(table[col])):
+            raise RecordingImportError(path, col, "empty or non-numeric values")
+    joints = np.stack([table[c] for c in columns[1:]], axis=1).reshape(-1, archive.N_JOINTS, 3)
+    return table["time"], joints
+
+
+def _read_camera(folder: Path) -> tuple[np.ndarray, np.ndarray]:
+    """RGB frames from `camera.<video>` or `camera/*.png`, placed by `frames.csv` (column `time`)
+    when present, else by the video's frame rate."""
+    videos = [folder / f"camera{s}" for s in VIDEO_SUFFIXES if (folder / f"camera{s}").is_file()]
+    if videos:
+        cap = cv2.VideoCapture(str(videos[0]))
+        fps = cap.get(cv2.CAP_PROP_FPS)
+        frames = []
+        while True:
+            ok, frame = cap.read()
+            if not ok:
+                break
+            frames.append(cv2.cvtColor(frame, cv2.COLOR_BGR2RGB))
+        cap.release()
+        where = videos[0]
+    elif (folder / "camera").is_dir():
+        where = folder / "camera"
+        files = sorted(p for p in where.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        frames = []
+        for p in files:
+            img = cv2.imread(str(p), cv2.IMREAD_COLOR)
+            if img is None:
+                raise RecordingImportError(p, "<file>", "not a readable image")
+            frames.append(cv2.cvtColor(img, cv2.COLOR_BGR2RGB))
+        fps = 0.0
+    else:
+        raise RecordingImportError(folder, "camera", f"no camera video (camera{{{','.join(VIDEO_SUFFIXES)}}}) or image folder camera/")
+    if not frames:
+        raise RecordingImportError(where, "frames", "no frames could be read")
+    if len({f.shape for f in frames}) > 1:
+        raise RecordingImportError(where, "frames", f"frames of different sizes {sorted({f.shape for f in frames})}")
+    times_csv = folder / "frames.csv"
+    if times_csv.is_file():
+        table = np.genfromtxt(times_csv, delimiter=",", names=True, dtype=np.float64, ndmin=1)
+        if table.dtype.names is None or "time" not in table.dtype.names:
+            raise RecordingImportError(times_csv, "time", "column missing")
+        times = table["time"]
+        if len(times) != len(frames):
+            raise RecordingImportError(times_csv, "time", f"{len(times)} times for {len(frames)} frames in {where}")
+    elif fps > 0:
+        times = np.arange(len(frames)) / fps
+    else:
+        raise RecordingImportError(where, "time", "an image sequence needs frames.csv with a `time` column")
+    return np.asarray(times, np.float64), np.stack(frames)
+
+
+def import_folder(folder: str | Path, trial: dict[str, Any], *, resample: bool = False) -> archive.TrialArchive:
+    """One trial folder (layout in WORKSPACE.md): `internal.wav` and `external.wav` starting at
+    time 0, `joints.csv` and the camera on the same clock, aligned by `align`."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise RecordingImportError(folder, "<folder>", "no such trial folder")
+    frame_times, images = _read_camera(folder)
+    joint_times, joints = _read_joints(folder / "joints.csv")
+    return align(
+        frame_times=frame_times,
+        images=images,
+        mics=[_read_wav(folder / f"{m}.wav", 0.0) for m in archive.MIC_NAMES],
+        joint_times=joint_times,
+        joints=joints,
+        trial=trial,
+        source={"kind": "folder", "path": str(folder)},
+        resample=resample,
+    )

@@ -1,0 +1,34 @@
+"""Check a dataset: `python -m experiments.verify DIR`.
+
+Re-hashes every archive against its index's sha256, re-validates every field and reports irregular
+step timestamps (`fabricjax.integrity`); prints each problem as `file: field: reason` and exits 1
+if there is any. Writes nothing, in DIR or elsewhere."""
+
+from __future__ import annotations
+
+import sys
+
+from absl import flags
+
+from experiments import cli
+from fabricjax import integrity
+from fabricjax.errors import UserError
+
+FLAGS = flags.FLAGS
+flags.DEFINE_string("workdir", None, "Workspace whose index of DIR to check against (default: the usual workspace).")
+
+
+def main(argv):
+    if len(argv) != 2:
+        raise UserError("give exactly one dataset folder: python -m experiments.verify DIR")
+    problems, counts = integrity.verify(argv[1], FLAGS.workdir)
+    for p in problems:
+        print(p)
+    hashed = f"{counts['hashed']} hashed against {counts['index']}" if counts["index"] else "no index yet, so no hashes to check"
+    print(f"{counts['archives']} archives checked ({hashed}): {len(problems) or 'no'} problem{'s' * (len(problems) != 1)}")
+    if problems:
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    cli.run(main)

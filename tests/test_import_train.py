@@ -1,0 +1,27 @@
+"""Imported recordings are a dataset like any other: a smoke-preset study trains on bags imported
+for every trial the preset names."""
+
+import numpy as np
+import pytest
+
+from acquisition import importing
+from fabricjax import archive, splits
+from fabricjax.studies import ablation
+
+pytest.importorskip("rosbags")
+
+from tests.test_import_bag import MAPPING, recording, write_bag  # noqa: E402
+
+
+@pytest.mark.slow  # ~25 s: 31 bags and one training run
+def test_smoke_study_trains_on_imported_bags(tmp_path):
+    data = tmp_path / "imported"
+    for i, spec in enumerate(splits.preset("smoke").trials()):
+        bag = write_bag(tmp_path / "bags" / f"b{i}", recording(seed=i, n_frames=30))
+        trial = {"fabric_id": spec.fabric_id, "day": spec.day, "trial": spec.trial, "condition": spec.condition}
+        a = importing.import_bag(bag, MAPPING, trial)
+        archive.write_archive(data / archive.trial_filename(a.meta), a)
+    doc = ablation.run(n_seeds=1, rows=["internal"], preset="smoke", overrides=dict(epochs=1, width=16, n_layers=1),
+                       workdir=tmp_path / "ws", data_dir=data, results=tmp_path / "results", command="test")
+    acc = doc["rows"][0]["accuracy"]["test"]["fabric"]
+    assert len(acc) == 1 and np.isfinite(acc).all()

@@ -1,0 +1,96 @@
+"""Content hashes in the index, and `verify` naming each problem: a flipped byte, a truncated file,
+an irregular timestamp; read_archive refusing a repeated step."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from fabricjax import archive, integrity
+from tests.helpers import npz_fields, tiny_archive, tiny_dataset
+
+TRIALS = [(4, 1, 0, "lab"), (4, 1, 1, "lab"), (5, 1, 0, "lab")]
+
+
+def _dataset(tmp_path):
+    folder = tiny_dataset(tmp_path / "data", TRIALS, n_steps=12, images=(8, 10))
+    index = archive.load_index(folder, tmp_path / "ws")
+    return folder, index
+
+
+def test_index_records_sha256_and_verify_passes_a_clean_dataset(tmp_path):
+    folder, index = _dataset(tmp_path)
+    for e in index.entries:
+        assert e.sha256 == archive.sha256_file(folder / e.file)
+    before = sorted(p.name for p in folder.iterdir())
+    problems, counts = integrity.verify(folder, tmp_path / "ws")
+    assert problems == [] and counts["hashed"] == 3
+    assert sorted(p.name for p in folder.iterdir()) == before  # nothing written into DIR
+
+
+def test_index_without_hashes_is_rebuilt_once(tmp_path):
+    folder, index = _dataset(tmp_path)
+    (ipath,) = (tmp_path / "ws" / "indexes").iterdir()  # a folder outside the workspace: its index lives there
+    doc = json.loads(ipath.read_text())
+    for t in doc["trials"]:
+        del t["sha256"]
+    ipath.write_text(json.dumps(doc))
+    again = archive.load_index(folder, tmp_path / "ws")
+    assert all(e.sha256 for e in again.entries)
+    assert all(t["sha256"] for t in json.loads(ipath.read_text())["trials"])
+
+
+def test_verify_names_flipped_byte_truncation_and_gap(tmp_path):
+    folder, index = _dataset(tmp_path)
+    flipped, truncated, gappy = (folder / e.file for e in index.entries)
+    data = bytearray(flipped.read_bytes())
+    data[len(data) // 2] ^= 0x01
+    flipped.write_bytes(bytes(data))
+    truncated.write_bytes(truncated.read_bytes()[:-200])
+    a = archive.read_archive(gappy)
+    ts = a.timestamps.copy()
+    ts[6:] += 0.04  # two frames lost before step 6
+    np.savez(gappy, **npz_fields(a, timestamps=ts))  # rewritten behind the index's back
+    problems, _ = integrity.verify(folder, tmp_path / "ws")
+    text = [str(p) for p in problems]
+    assert any(t.startswith(f"{flipped}: <file>: sha256 differs") for t in text), text
+    assert any(t.startswith(f"{truncated}: <file>: ") and "truncated" in t for t in text), text
+    assert any(t.startswith(f"{gappy}: timestamps: irregular: step 6 comes 60.0 ms after step 5") for t in text), text
+
+
+def test_verify_command_exits_1_and_prints_each_problem(tmp_path):
+    folder, index = _dataset(tmp_path)
+    target = folder / index.entries[0].file
+    target.write_bytes(target.read_bytes()[:100])
+    cmd = [sys.executable, "-m", "experiments.verify", str(folder), f"--workdir={tmp_path / 'ws'}"]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1, done.stderr
+    assert f"{target}: <file>: " in done.stdout
+    done = subprocess.run(cmd[:3] + [str(tmp_path / "nowhere")], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and done.stderr.strip().count("\n") == 0
+
+
+def test_repeated_step_is_refused_at_load(tmp_path):
+    a = tiny_archive(n_steps=10, images=None)
+    ts = a.timestamps.copy()
+    ts[4] = ts[3]
+    path = tmp_path / "dup.npz"
+    np.savez(path, **npz_fields(a, timestamps=ts))
+    with pytest.raises(archive.ArchiveError, match=r"field 'timestamps': not strictly increasing: step 4"):
+        archive.read_archive(path)
+
+
+def test_reindexing_hashes_only_new_or_rewritten_archives(tmp_path, monkeypatch):
+    folder = tiny_dataset(tmp_path / "data", TRIALS, n_steps=12, images=None)
+    archive.build_index(folder)
+    hashed = []
+    real = archive.sha256_file
+    monkeypatch.setattr(archive, "sha256_file", lambda p: hashed.append(p.name) or real(p))
+    archive.build_index(folder)
+    assert hashed == []
+    a = tiny_archive(n_steps=12, fabric_id=9, images=None)
+    archive.write_archive(folder / archive.trial_filename(a.meta), a)
+    archive.build_index(folder)
+    assert hashed == [archive.trial_filename(a.meta)]
