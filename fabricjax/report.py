@@ -14,21 +14,29 @@ import numpy as np
 from fabricjax.atomic import atomic_open
 
 
+# CPU features XLA:CPU compiles for: hosts that differ in them may round (and run) the same
+# program differently, so every results file records which the host has.
+VECTOR_UNITS = {"sse4_2", "avx", "avx2", "fma", "avx512f", "avx512bw", "avx512_bf16", "amx_tile"}
+
+
 def machine() -> dict[str, Any]:
     """What a number was measured on; every results file carries this."""
     import jax
 
     cpu = platform.processor() or platform.machine()
+    vector_units: list[str] = []
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
+            if line.startswith("model name") and cpu == (platform.processor() or platform.machine()):
                 cpu = line.split(":", 1)[1].strip()
-                break
+            elif line.startswith("flags") and not vector_units:
+                vector_units = sorted(set(line.split(":", 1)[1].split()) & VECTOR_UNITS)
     except OSError:
         pass
     return {
         "cpu": cpu,
         "cores": os.cpu_count(),
+        "vector_units": vector_units,
         "platform": platform.platform(),
         "python": platform.python_version(),
         "jax": jax.__version__,

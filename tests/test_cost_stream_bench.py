@@ -115,6 +115,7 @@ def test_stream_run_trains_a_quick_model_then_restores_it(smoke_workdir, tmp_pat
     assert again["accuracy_over_decided_steps"] == doc["accuracy_over_decided_steps"]
 
 
+@pytest.mark.slow  # ~30-55 s on 2 cores: run with -m slow
 def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
     workload = bench.Workload(Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=12, **TINY), batch=8, bins=24)
     lines = []

@@ -488,6 +488,7 @@ def test_ablation_command_under_debug_nans(smoke_workdir, tmp_path):
     assert np.isfinite(row["accuracy"]["test"]["fabric"]).all()
 
 
+@pytest.mark.slow  # ~30-55 s on 2 cores: run with -m slow
 def test_properties_and_latents_commands_under_debug_nans(smoke_workdir, tmp_path):
     _command(
         "experiments.properties", "--preset=smoke", "--seeds=1", "--epochs=1", "--rows=minsound",

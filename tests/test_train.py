@@ -111,6 +111,7 @@ print(json.dumps(out))
 """
 
 
+@pytest.mark.slow  # ~30-55 s on 2 cores: run with -m slow
 def test_four_host_devices_give_the_same_results_as_one(four_seeds, tmp_path):
     """Four seeds', and one seed's, minibatch samples split over 4 devices (gradients summed across
     devices) train as on one device."""

@@ -65,6 +65,7 @@ def test_view_save_writes_every_sensor_entity_at_every_step(smoke_trial, tmp_pat
     assert read["/audio/internal/wave"]["rows"] == archive.WINDOW + int(np.minimum(new, archive.WINDOW).sum())
 
 
+@pytest.mark.slow  # ~30-55 s on 2 cores: run with -m slow
 def test_view_save_with_a_checkpoint_adds_the_models_predictions(smoke_trial, checkpoint, tmp_path):
     path, trial = smoke_trial
     doc = view.view_archive(path, checkpoint=checkpoint, save=tmp_path / "trial.rrd")

@@ -287,7 +287,7 @@ def header_markdown(doc: dict[str, Any]) -> str:
         f"- command: `{doc['command']}`",
         f"- preset: {doc['preset']}; {d['source']} dataset `{d['folder']}`; sequences {d['sequences']}",
         f"- seeds: {len(seeds)} ({seeds[0]}-{seeds[-1]}), mean ± SD (sample SD) over seeds",
-        f"- machine: {m['cpu']}, {m['cores']} cores, JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)",
+        f"- machine: {m['cpu']} ({', '.join(m.get('vector_units') or ['vector units not recorded'])}), {m['cores']} cores, JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)",
         f"- time: training {doc['train_s']:.0f} s in all (per row below, compilation included); "
         f"data apart from that: simulation {d['generate_s']:.0f} s, features and sequences {d['load_s']:.0f} s",
         "",
