@@ -86,6 +86,7 @@ def test_without_the_sdk_a_one_line_error_says_what_to_install(smoke_trial, tmp_
     assert out.stderr.strip().splitlines() == ['error: viewing needs the Rerun SDK: pip install -e ".[viz]"']
 
 
+@pytest.mark.slow  # ~30 s on 2 cores; the recorder's --view_save test covers live viewing by default
 def test_stream_view_save_logs_each_steps_sensors_and_result(smoke_trial, checkpoint, tmp_path):
     path, trial = smoke_trial
     doc = stream.run(
