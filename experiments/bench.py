@@ -40,7 +40,7 @@ import jax
 from absl import app, flags as absl_flags, logging
 
 from experiments import flags
-from fabricjax import archive, benchmark, report, sharding, sim, splits, stream, train, workspace
+from fabricjax import archive, benchmark, report, sharding, presets, sim, stream, train, workspace
 from fabricjax.config import Config
 from fabricjax.features import bench as feature_bench
 from fabricjax.features import welch
@@ -92,7 +92,7 @@ def bench_extraction(quick: bool, workdir) -> dict:
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
         out = pool.submit(feature_bench.bench_extraction, config, folder).result()
     steps = sum(e.n_steps for e in archive.load_index(folder, workdir).entries)
-    paper_steps = len(splits.preset("paper").trials()) * PAPER_STEPS_PER_TRIAL
+    paper_steps = len(presets.get("paper").dataset.trials()) * PAPER_STEPS_PER_TRIAL
     return {
         **out,
         "dataset": "smoke",
@@ -100,7 +100,7 @@ def bench_extraction(quick: bool, workdir) -> dict:
         "ms_per_step": 1e3 * out["cold_s"] / steps,
         "paper_scale_extrapolated_s": out["cold_s"] / steps * paper_steps,
         "paper_scale_note": f"extrapolated linearly in steps to {paper_steps} steps "
-        f"({len(splits.preset('paper').trials())} trials x ~{PAPER_STEPS_PER_TRIAL}), audio + proprioception only; not measured",
+        f"({len(presets.get('paper').dataset.trials())} trials x ~{PAPER_STEPS_PER_TRIAL}), audio + proprioception only; not measured",
     }
 
 

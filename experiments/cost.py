@@ -1,18 +1,19 @@
 """What accuracy costs in touch time, training time and inference latency (see fabricjax/studies/cost.py).
 
     python -m experiments.cost --seeds=5     # default preset: 15 points, <= 20 min on 2 CPU cores
+    python -m experiments.cost --set=seq_len=25 --set=epochs=4   # base point's N, any Config field
 """
 
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax import splits
 from fabricjax.config import BACKBONES
 from fabricjax.studies import cost
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_integer("seeds", 5, "seeds (0..n-1) trained together per point")
-absl_flags.DEFINE_enum("preset", "default", sorted(splits.PRESETS), "dataset and training preset")
+flags.define_preset()
+flags.define_overrides()
 absl_flags.DEFINE_list("seq_lens", ["25", "50", "100", "200"], "sequence lengths N (steps at 50 Hz), each with every backbone")
 absl_flags.DEFINE_list("backbones", list(BACKBONES), "backbones; the first is the base point's")
 absl_flags.DEFINE_list("widths", ["16", "64"], "model widths varied alone (FFN = 2 x width); empty: none")
@@ -21,9 +22,7 @@ absl_flags.DEFINE_list(
     "modality_sets", ["internal+external", "internal", "internal+external+proprio"],
     "modality sets joined by '+'; the first is the base point's, the others are varied alone",
 )
-absl_flags.DEFINE_integer("base_seq_len", None, "N of the base point (default: the preset's)")
 absl_flags.DEFINE_bool("paper", True, "add the paper's configuration (N=200 capped to the trials, attention, width 64, 15 kHz, internal+external)")
-absl_flags.DEFINE_integer("epochs", None, "training epochs (default: the preset's)")
 absl_flags.DEFINE_integer("latency_repeats", 100, "timed predict_one calls per point")
 
 
@@ -37,9 +36,8 @@ def main(argv):
         widths=[int(w) for w in FLAGS.widths],
         bandwidths=[float(b) for b in FLAGS.bandwidths],
         modality_sets=[tuple(s.split("+")) for s in FLAGS.modality_sets],
-        base_seq_len=FLAGS.base_seq_len,
         paper=FLAGS.paper,
-        epochs=FLAGS.epochs,
+        overrides=flags.overrides(),
         latency_repeats=FLAGS.latency_repeats,
         **flags.location_kwargs(),
     )

@@ -1,25 +1,30 @@
-"""Flags shared by the study commands; every sweep dimension is a flag.
+"""Flags shared by the study commands; every `Config` field is a sweep dimension.
 
-    --seeds --preset --rows --backbone --seq_len --bandwidth --epochs   (define_sweep)
-    --workdir --data_dir --results --cpu_devices                        (always)
+    --seeds --preset --rows --set=field=value (repeatable)   (define_sweep)
+    --workdir --data_dir --results --cpu_devices             (always)
 
-Unset sweep flags keep the study's defaults (`fabricjax.studies.common.PRESET_TRAINING`).
-Results go to <workspace>/results unless --results says otherwise, so a run leaves the repository
-clean; `--results=results` regenerates the tables published in the repository.
+`--preset` names a preset of `fabricjax/presets.py` (its data and training settings); each
+`--set` overrides one `Config` field on top, typed by the field (`--set=epochs=4`,
+`--set=backbone=tcn`, `--set=modalities=internal,proprio`, `--set=image_size=30,40`) and checked
+before anything runs. Results go to <workspace>/results unless --results says otherwise, so a run
+leaves the repository clean; `--results=results` regenerates the tables published in the
+repository.
 """
 
 from __future__ import annotations
 
 import inspect
+import shlex
+import sys
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from absl import flags
 
 from experiments import cli
-from fabricjax import sharding, splits, workspace
-from fabricjax.config import BACKBONES
-from fabricjax.studies import common
+from fabricjax import presets, sharding, workspace
+from fabricjax.config import Config, parse_override
+from fabricjax.errors import UserError
 
 FLAGS = flags.FLAGS
 
@@ -87,24 +92,47 @@ def define_sweep(study_run: Callable[..., Any], row_names: Sequence[str] | None 
     n_seeds = inspect.signature(study_run).parameters["n_seeds"].default
     rows = f"rows, from: {', '.join(row_names)}" if row_names else "row names"
     flags.DEFINE_integer("seeds", n_seeds, "number of seeds (0..n-1) trained together (the study's count by default)", lower_bound=1)
-    flags.DEFINE_enum("preset", "default", sorted(splits.PRESETS), "dataset and training preset")
+    define_preset()
     flags.DEFINE_list("rows", None, f"comma-separated {rows} (default: every row of the table)")
-    flags.DEFINE_enum("backbone", None, list(BACKBONES), "override every row's backbone")
-    flags.DEFINE_integer("seq_len", None, "steps per sequence (default: the preset's N)")
-    flags.DEFINE_float("bandwidth", None, "PSD bandwidth in kHz (default 15)")
-    flags.DEFINE_integer("epochs", None, "training epochs (default: the preset's)")
+    define_overrides()
+
+
+def define_preset() -> None:
+    flags.DEFINE_enum("preset", "default", sorted(presets.PRESETS), "dataset and training preset (fabricjax/presets.py)")
+
+
+def define_overrides() -> None:
+    flags.DEFINE_multi_string(
+        "set", [], "override a Config field on top of the preset, field=value (repeatable), e.g. --set=epochs=4 "
+        "--set=backbone=tcn --set=modalities=internal,proprio",
+    )
+
+
+def overrides() -> dict[str, Any]:
+    """--set as {field: typed value}, checked by building the preset's config with them (a bad
+    field or value is a one-line error before any data is loaded)."""
+    out = dict(parse_override(text) for text in FLAGS.set)
+    try:
+        Config.from_preset(FLAGS.preset, **out)
+    except ValueError as e:
+        raise UserError(f"--set: {e}") from None
+    return out
 
 
 def sweep_kwargs() -> dict[str, Any]:
     """The keyword arguments of a study's `run` from the parsed flags."""
-    overrides = {
-        k: v
-        for k, v in (("backbone", FLAGS.backbone), ("seq_len", FLAGS.seq_len), ("bandwidth_khz", FLAGS.bandwidth), ("epochs", FLAGS.epochs))
-        if v is not None
-    }
-    return dict(n_seeds=FLAGS.seeds, preset=FLAGS.preset, rows=FLAGS.rows, overrides=overrides, **location_kwargs())
+    return dict(n_seeds=FLAGS.seeds, preset=FLAGS.preset, rows=FLAGS.rows, overrides=overrides(), **location_kwargs())
 
 
 def location_kwargs() -> dict[str, Any]:
     """Where data and results live, and the command line (recorded in every results file)."""
-    return dict(workdir=FLAGS.workdir, data_dir=FLAGS.data_dir, results=results_dir(), command=common.command_line())
+    return dict(workdir=FLAGS.workdir, data_dir=FLAGS.data_dir, results=results_dir(), command=command_line())
+
+
+def command_line() -> str:
+    """How this process was started, as a command to paste."""
+    argv = list(sys.argv)
+    if argv and argv[0].endswith(".py") and "experiments" in argv[0]:
+        argv[0] = "-m experiments." + Path(argv[0]).stem
+        return "python " + " ".join([argv[0]] + [shlex.quote(a) for a in argv[1:]])
+    return " ".join(shlex.quote(a) for a in argv)

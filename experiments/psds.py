@@ -16,7 +16,7 @@ from absl import flags
 
 from experiments import cli
 
-from fabricjax import catalog, plots, splits, workspace
+from fabricjax import catalog, plots, presets, workspace
 from fabricjax.archive import WINDOW
 from fabricjax.sim import Scene, scene_for, simulate
 from fabricjax.sim import calibration as cal
@@ -36,13 +36,13 @@ def mean_psd(audio_row: np.ndarray, window_end: np.ndarray) -> tuple[np.ndarray,
 
 
 def class_psds(preset_name: str) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
-    preset = splits.preset(preset_name)
-    specs = [s for s in preset.trials() if s.day == preset.splits.train_days[0] and s.trial == 0 and s.fabric_id < catalog.N_CLASSES]
+    dataset = presets.get(preset_name).dataset
+    specs = [s for s in dataset.trials() if s.day == dataset.splits.train_days[0] and s.trial == 0 and s.fabric_id < catalog.N_CLASSES]
     psds = {}
     for spec in sorted(specs, key=lambda s: s.fabric_id):
-        arch = simulate(scene_for(spec, preset, ("audio", "proprio")))
+        arch = simulate(scene_for(spec, dataset, ("audio", "proprio")))
         f, psds[f"class {spec.fabric_id}"] = mean_psd(arch.audio[0], arch.window_end[:, 0])
-    cafe_day = preset.splits.cafe_days[0]
+    cafe_day = dataset.splits.cafe_days[0]
     noise = simulate(Scene(0, day=cafe_day, condition="cafe", effects=("ambient", "shell", "sph0645"), cycles=120))
     return f, psds, mean_psd(noise.audio[0], noise.window_end[:, 0])[1]
 

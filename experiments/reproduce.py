@@ -2,16 +2,17 @@
 
     python -m experiments.reproduce                      # default preset, into workspace/results/REPORT.md
     python -m experiments.reproduce --results=results    # regenerates the repository's results/REPORT.md
+    python -m experiments.reproduce --set=epochs=4       # any Config field, for every study
 """
 
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax import splits
 from fabricjax.errors import UserError
 from fabricjax.studies import reproduce
 
-PRESET = absl_flags.DEFINE_enum("preset", "default", sorted(splits.PRESETS), "dataset and training preset of every study")
+flags.define_preset()
+flags.define_overrides()
 STUDIES = absl_flags.DEFINE_list("studies", None, f"comma-separated studies to run, from: {', '.join(reproduce.STUDIES)} (default: all, in that order)")
 FORCE = absl_flags.DEFINE_bool("force", False, "rerun every study, even those whose results are up to date")
 
@@ -26,8 +27,8 @@ def main(argv):
             raise UserError(f"--studies: unknown {unknown}; choose from {known}")
         plan = tuple(s for s in plan if s.study in STUDIES.value)
     loc = flags.location_kwargs()
-    reproduce.run(preset=PRESET.value, plan=plan, workdir=loc["workdir"], data_dir=loc["data_dir"], results=loc["results"],
-                  force=FORCE.value, command_line=loc["command"])
+    reproduce.run(preset=absl_flags.FLAGS.preset, plan=plan, overrides=flags.overrides(), workdir=loc["workdir"],
+                  data_dir=loc["data_dir"], results=loc["results"], force=FORCE.value, command_line=loc["command"])
 
 
 if __name__ == "__main__":

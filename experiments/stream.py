@@ -13,12 +13,12 @@ default preset) and checkpointed under the workspace; later runs restore it.
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax import splits, stream
+from fabricjax import presets, stream
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_string("archive", None, "trial archive to replay (default: the first test-day trial of the model's dataset)")
 absl_flags.DEFINE_string("checkpoint", None, "checkpoint directory of a train_and_evaluate run (default: a quick model of --preset)")
-absl_flags.DEFINE_enum("preset", "default", sorted(splits.PRESETS), "preset of the quick model and its dataset")
+absl_flags.DEFINE_enum("preset", "default", sorted(presets.PRESETS), "preset of the quick model and its dataset")
 absl_flags.DEFINE_list("modalities", ["internal", "external"], "modalities of the quick model (internal, external, proprio)")
 absl_flags.DEFINE_integer("epochs", None, "epochs of the quick model (default: the preset's)")
 absl_flags.DEFINE_bool("realtime", True, "replay at 50 Hz; false: as fast as possible")

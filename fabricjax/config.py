@@ -1,17 +1,23 @@
 """One experiment's configuration: which data, which features, which model, how to train.
 
-Configs are code: experiments build them with `Config(...)` / `dataclasses.replace` and every
-field is overridable from absl flags. A config is hashable and JSON-serialisable (`to_json`),
-which is how checkpoints and caches recognise the config they were made with.
+Configs are code. `Config()`'s defaults are the paper's (its dataset preset, N=200, its model and
+training); `Config.from_preset(name, **overrides)` starts from a named preset (`presets.py`) and
+sets any field on top. Every field is overridable from the command line as `--set field=value`,
+typed and checked against the field's annotation (`parse_override`). A config is hashable and
+JSON-serialisable (`to_json`), which is how checkpoints and caches recognise the config they were
+made with.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
+import types
+import typing
 from typing import Any
 
-from fabricjax import splits
+from fabricjax import presets
+from fabricjax.errors import UserError
 
 # Input streams by name. "internal"/"external" are the Minsound / palm microphone PSDs (one shared
 # encoder), "proprio" the 18 joint values, "flow" the patch-pooled optical flow, "image" Minsight
@@ -31,10 +37,10 @@ LR_SCHEDULES = ("constant", "cosine")
 
 @dataclasses.dataclass(frozen=True)
 class Config:
-    preset: str = "default"
+    preset: str = "paper"  # the dataset (presets.PRESETS); `from_preset` also applies its training fields
     modalities: tuple[str, ...] = ("internal",)
     backbone: str = "attention"
-    seq_len: int | None = None  # None: the preset's N
+    seq_len: int = 200  # N, steps per sequence: the paper's 4 s at 50 Hz
     bandwidth_khz: float = 15.0
     image_resolution: str = "down"  # "down" = image_size, "full" = the archive's resolution
     image_size: tuple[int, int] = (60, 80)  # the "down" frame size: the paper's 60x80
@@ -78,11 +84,18 @@ class Config:
             raise ValueError(f"image_resolution must be 'down' or 'full', got {self.image_resolution!r}")
         if not (self.fabric_head or self.property_heads):
             raise ValueError("at least one of fabric_head and property_heads must be on")
-        splits.preset(self.preset)  # raises on an unknown preset
+        if self.seq_len < 1:
+            raise ValueError(f"seq_len must be at least 1, got {self.seq_len}")
+        presets.get(self.preset)  # raises on an unknown preset
 
     @property
     def sequence_length(self) -> int:
-        return self.seq_len or splits.preset(self.preset).seq_len
+        return self.seq_len
+
+    @classmethod
+    def from_preset(cls, name: str, **overrides) -> "Config":
+        """The preset's training fields on `Config`'s defaults, with `overrides` on top."""
+        return cls(preset=name, **{**presets.get(name).training, **overrides})
 
     def to_json(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -93,7 +106,69 @@ class Config:
         unknown = set(d) - set(fields)
         if unknown:
             raise ValueError(f"unknown config fields {sorted(unknown)}")
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+        if "seq_len" in d and d["seq_len"] is None:  # stored before N was always explicit: the preset's N
+            d["seq_len"] = presets.get(d.get("preset", cls.preset)).training.get("seq_len", cls.seq_len)
+        return cls(**d)
 
     def dumps(self) -> str:
         return json.dumps(self.to_json(), sort_keys=True)
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """`field=value` as (field, value of the field's type), e.g. "epochs=4", "backbone=tcn",
+    "modalities=internal,proprio", "image_size=30,40", "augment_rotation=false". A mistake is a
+    one-line `UserError` naming the field and the problem."""
+    field, sep, raw = text.partition("=")
+    field, raw = field.strip(), raw.strip()
+    hints = typing.get_type_hints(Config)
+    if not sep or not field:
+        raise UserError(f"override {text!r}: expected field=value, e.g. epochs=4")
+    if field not in hints:
+        raise UserError(f"override {text!r}: Config has no field {field!r}; fields: {', '.join(hints)}")
+    try:
+        return field, _parse(hints[field], raw)
+    except ValueError as e:
+        raise UserError(f"override {text!r}: {field} takes {_type_name(hints[field])}: {e}") from None
+
+
+def format_override(field: str, value: Any) -> str:
+    """The `--set` text that `parse_override` reads back as (field, value)."""
+    if isinstance(value, tuple):
+        return f"{field}={','.join(str(v) for v in value)}"
+    return f"{field}={str(value).lower() if isinstance(value, bool) else value}"
+
+
+def _parse(kind, raw: str) -> Any:
+    origin, args = typing.get_origin(kind), typing.get_args(kind)
+    if origin is tuple:
+        items = [x.strip() for x in raw.split(",") if x.strip()] if raw.strip("() ") else []
+        item = args[0]
+        if args[-1] is not Ellipsis and len(items) != len(args):
+            raise ValueError(f"{len(items)} values given, {len(args)} expected")
+        return tuple(_parse(item, x) for x in items)
+    if origin in (types.UnionType, typing.Union):
+        if raw.lower() == "none" and type(None) in args:
+            return None
+        return _parse(next(a for a in args if a is not type(None)), raw)
+    if kind is bool:
+        if raw.lower() in ("true", "1", "yes"):
+            return True
+        if raw.lower() in ("false", "0", "no"):
+            return False
+        raise ValueError(f"{raw!r} is not true or false")
+    if kind is int:
+        try:
+            return int(raw)
+        except ValueError:
+            raise ValueError(f"{raw!r} is not an integer") from None
+    if kind is float:
+        try:
+            return float(raw)
+        except ValueError:
+            raise ValueError(f"{raw!r} is not a number") from None
+    return raw
+
+
+def _type_name(kind) -> str:
+    return str(kind).replace("typing.", "") if typing.get_args(kind) else kind.__name__

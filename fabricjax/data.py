@@ -17,7 +17,7 @@ so a folder of real recordings works the same as a simulated one:
 
 Sequences start at the first rubbing step: a trial of T steps whose meta says the closing took
 C steps (`closing_steps`, written by the recorder and the simulator; 0 when absent) gives
-(T - C) // N non-overlapping sequences of N = `config.sequence_length` steps, starting at steps
+(T - C) // N non-overlapping sequences of N = `config.seq_len` steps, starting at steps
 C, C + N, ...; the remainder is dropped, as in the paper. Why: the paper describes each trial as
 its 50 rubbing motions "during which measurements from all modalities are continuously
 recorded", and the closing (~0.8 s of a fingertip approaching a still fabric) carries no texture:
@@ -53,7 +53,7 @@ from typing import Sequence
 
 import numpy as np
 
-from fabricjax import archive, catalog, splits, workspace
+from fabricjax import archive, catalog, presets, splits, workspace
 from fabricjax.config import Config
 from fabricjax.features import cache, welch
 from fabricjax.features.extract import feature_for
@@ -110,10 +110,23 @@ def _describe(entries: list[archive.IndexEntry], n: int) -> tuple[dict, dict]:
 
 def _sequences(feature: np.ndarray, modality: str, start: int, n_seq: int, n: int, config: Config) -> np.ndarray:
     """A trial's (T, ...) feature -> (n_seq, n, ...) view from step `start`, the remainder dropped."""
-    x = feature[start : start + n_seq * n]
-    if modality in archive.MIC_NAMES:
-        x = x[:, : welch.n_bins(config.bandwidth_khz)]
+    x = _band(feature[start : start + n_seq * n], modality, config)
     return x.reshape(n_seq, n, *x.shape[1:])
+
+
+def _band(x: np.ndarray, modality: str, config: Config) -> np.ndarray:
+    """A feature cut to the config's bandwidth: a PSD's first `welch.n_bins` bins (the last axis);
+    other modalities unchanged."""
+    return x[..., : welch.n_bins(config.bandwidth_khz)] if modality in archive.MIC_NAMES else x
+
+
+def narrow(sets: dict[str, SequenceSet], config: Config) -> dict[str, SequenceSet]:
+    """Sets loaded for several rows (the union of their modalities, the widest bandwidth) as one
+    row's: its modalities only, PSDs cut to its bandwidth. Views, no copies."""
+    return {
+        k: dataclasses.replace(s, inputs={m: _band(a, m, config) for m, a in s.inputs.items() if m in config.modalities})
+        for k, s in sets.items()
+    }
 
 
 def load_sequences(
@@ -131,13 +144,13 @@ def load_sequences(
         raise ValueError(f"unknown splits {unknown}; choose from {SPLITS}")
     wanted = tuple(s for s in SPLITS if s in split_names)
     index = archive.load_index(data_dir, workdir)
-    roles = splits.assign_roles([e.meta for e in index.entries], splits.preset(config.preset).splits)
+    roles = splits.assign_roles([e.meta for e in index.entries], presets.get(config.preset).dataset.splits)
     chosen = [
         (e, s) for e, r in zip(index.entries, roles) if (s := split_of(e.meta, r, config.exclude_fabrics)) in wanted
     ]
     if not chosen:
         raise archive.ArchiveError(index.root, "<folder>", f"no trial belongs to the splits {list(wanted)} (check days and conditions)")
-    n = config.sequence_length
+    n = config.seq_len
     for e, _ in chosen:
         if n_sequences(e, n) == 0:
             raise archive.ArchiveError(

@@ -1,4 +1,4 @@
-"""Splits and dataset presets as data.
+"""Splits and the dataset a preset simulates, as data.
 
 The paper's protocol: training trials on days 1 and 2 (six per fabric per day, lab noise), test
 trials on day 3 (two per fabric), a separate cafe-noise test set (two per fabric, here day 4),
@@ -10,17 +10,7 @@ Roles are derived from an archive's meta alone (`role_of`), so real recordings d
 training days' trials under days 1-2, test under day 3 and cafe-noise trials with
 condition "cafe".
 
-Presets (`PRESETS`), chosen with `--preset`:
-    smoke    seconds; 6 classes, 3 rubbing cycles per trial, N=20. For tests.
-    default  the README's main command on a 2-core laptop CPU, at the paper's data scale: all 24
-             fabrics, 6 training trials per day, 2 test and 2 cafe trials, 50 rubbing cycles per
-             trial (~30 s, ~1500 steps), N=50 (1 s). Minsight frames are rendered at 60x80, the
-             paper's image-row input size (it downsamples 308x410 to 60x80), so the camera rows
-             keep the trial length within a laptop's time and disk: optical flow is computed on
-             those frames (pooled 3x3 to 20x27) instead of at 308x410. (The default training
-             settings read the image rows at 30x40, see studies/common.py.)
-    paper    the paper's scale: 6 trials per day, 50 cycles (~30 s, ~1500 steps), N=200,
-             Minsight at 308x410 (flow 102x137).
+What each preset simulates (`DatasetSpec`) is part of its definition in `presets.py`.
 """
 
 from __future__ import annotations
@@ -50,20 +40,22 @@ class TrialSpec:
     condition: str  # "lab" | "cafe"
 
 
-@dataclasses.dataclass(frozen=True)
-class Preset:
-    name: str
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class DatasetSpec:
+    """Which trials a dataset holds and how they are recorded: per fabric, `train_trials_per_day`
+    lab trials on each training day, `cafe_trials` on each cafe day and `test_trials` on each test
+    day, each `cycles_per_trial` rubbing cycles long, Minsight frames at `image_size`."""
+
     fabrics: tuple[int, ...]
     train_trials_per_day: int
     test_trials: int
     cafe_trials: int
     cycles_per_trial: int
-    seq_len: int
     image_size: tuple[int, int]
     splits: Splits = Splits()
 
     def trials(self) -> list[TrialSpec]:
-        """Every trial this preset's dataset holds; new fabrics 21-23 have test trials only."""
+        """Every trial this dataset holds; new fabrics 21-23 have test trials only."""
         s = self.splits
         out = []
         for fid in self.fabrics:
@@ -75,21 +67,6 @@ class Preset:
             for day in s.test_days:
                 out += [TrialSpec(fid, day, t, "lab") for t in range(self.test_trials)]
         return out
-
-
-_ALL = tuple(f.id for f in catalog.FABRICS)
-PRESETS: dict[str, Preset] = {
-    "smoke": Preset("smoke", (0, 1, 4, 10, 12, 21), 2, 1, 1, 3, 20, (77, 103)),
-    "default": Preset("default", _ALL, 6, 2, 2, 50, 50, (60, 80)),
-    "paper": Preset("paper", _ALL, 6, 2, 2, 50, 200, (308, 410)),
-}
-
-
-def preset(name: str) -> Preset:
-    try:
-        return PRESETS[name]
-    except KeyError:
-        raise ValueError(f"unknown preset {name!r}; choose one of {sorted(PRESETS)}") from None
 
 
 def role_of(meta: dict[str, Any], val_trials: Iterable[tuple[int, int, int]], splits: Splits = Splits()) -> str | None:

@@ -195,12 +195,12 @@ def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config]:
 def quick_model(preset: str, modalities: tuple[str, ...], *, epochs: int | None = None, workdir=None, data_dir=None):
     """(graphdef, params, config, checkpoint dir): one seed of the preset's study config, trained on
     its dataset and checkpointed, so a rerun restores it instead of training again."""
-    from fabricjax.studies import common
+    from fabricjax.studies import loading, runner
 
-    config = common.study_config(preset, modalities=tuple(modalities), **({"epochs": epochs} if epochs else {}))
-    ds = common.load_dataset(config, data_dir=data_dir, workdir=workdir)
-    directory = common.checkpoint_dir("stream", "quick", config, [0], workdir)
-    row = common.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
+    config = Config.from_preset(preset, modalities=tuple(modalities), **({"epochs": epochs} if epochs else {}))
+    ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir)
+    directory = runner.checkpoint_dir("stream", "quick", config, [0], workdir)
+    row = runner.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
     return row.results.graphdef, row.results.params(0), config, directory
 
 

@@ -1,6 +1,8 @@
+import dataclasses
+
 import pytest
 
-from fabricjax import catalog, config, splits
+from fabricjax import catalog, config, errors, presets, splits
 
 
 def test_catalog_complete_and_in_range():
@@ -28,13 +30,15 @@ def test_unknown_fabric():
 
 
 def test_paper_preset_matches_protocol():
-    p = splits.preset("paper")
+    p = presets.get("paper").dataset
     trials = p.trials()
     per = lambda fid, day: sum(t.fabric_id == fid and t.day == day for t in trials)  # noqa: E731
     assert per(5, 1) == per(5, 2) == 6 and per(5, 3) == 2 and per(5, 4) == 2
     assert per(22, 1) == 0 and per(22, 3) == 2  # new fabrics are test-only
     assert all(t.condition == "cafe" for t in trials if t.day == 4)
-    assert p.seq_len == 200 and p.image_size == (308, 410)
+    assert p.image_size == (308, 410)
+    assert config.Config.from_preset("paper") == config.Config()  # the paper preset is Config's defaults: N=200
+    assert config.Config().seq_len == 200
 
 
 def test_roles_hold_out_whole_trials():
@@ -48,10 +52,51 @@ def test_roles_hold_out_whole_trials():
 
 
 def test_config_validation_and_json():
-    c = config.Config(modalities=("internal", "proprio"), preset="smoke")
+    c = config.Config.from_preset("smoke", modalities=("internal", "proprio"))
     assert config.Config.from_json(c.to_json()) == c
-    assert c.sequence_length == 20
+    assert c.seq_len == 20 and c.width == 16 and config.Config.from_preset("default").seq_len == 50
+    assert config.Config.from_preset("smoke", seq_len=8, width=4).seq_len == 8  # overrides win over the preset
     with pytest.raises(ValueError, match="modalities"):
         config.Config(modalities=("nose",))
     with pytest.raises(ValueError, match="preset"):
         config.Config(preset="huge")
+    with pytest.raises(errors.UserError, match="unknown preset 'huge'; choose one of"):
+        config.Config.from_preset("huge")
+
+
+def test_config_from_json_before_seq_len_was_explicit():
+    """Checkpoints and results stored `seq_len: null` for the preset's N: they read back as that N."""
+    stored = {**config.Config.from_preset("smoke").to_json(), "seq_len": None}
+    assert config.Config.from_json(stored).seq_len == 20
+
+
+def test_every_config_field_round_trips_through_an_override():
+    c = config.Config.from_preset("default", modalities=("internal", "proprio"), exclude_fabrics=(1, 10), augment_rotation=False)
+    for field, value in c.to_json().items():
+        value = tuple(value) if isinstance(value, list) else value
+        assert config.parse_override(config.format_override(field, value)) == (field, value)
+    assert config.parse_override("learning_rate=2e-3") == ("learning_rate", 0.002)
+    assert config.parse_override(" epochs = 4 ") == ("epochs", 4)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("epochs=two", "override 'epochs=two': epochs takes int: 'two' is not an integer"),
+    ("colour=red", "Config has no field 'colour'"),
+    ("epochs", "expected field=value"),
+    ("image_size=30", r"image_size takes tuple\[int, int\]: 1 values given, 2 expected"),
+    ("augment_rotation=maybe", "'maybe' is not true or false"),
+])
+def test_bad_overrides_are_one_line_errors(text, message):
+    with pytest.raises(errors.UserError, match=message) as e:
+        config.parse_override(text)
+    assert "\n" not in str(e.value)
+
+
+def test_presets_are_named_keyword_built_and_build_configs():
+    for name, p in presets.PRESETS.items():
+        assert p.name == name and p.dataset.trials()
+        assert config.Config.from_preset(name).preset == name
+        unknown = set(p.training) - {f.name for f in dataclasses.fields(config.Config)}
+        assert not unknown, f"preset {name} sets unknown Config fields {unknown}"
+    with pytest.raises(TypeError):
+        splits.DatasetSpec((0,), 1, 1, 1, 1, (8, 8))  # keyword-only: no positional fields to mix up

@@ -12,7 +12,7 @@ import pytest
 from experiments import cli
 from fabricjax import paper_tables, workspace
 from fabricjax.config import Config
-from fabricjax.studies import ablation, common
+from fabricjax.studies import ablation, runner
 
 ROOT = Path(__file__).parents[1]
 
@@ -28,7 +28,7 @@ def command(*args, env=None):
 def test_help_lists_the_project_flags_and_exits_0():
     out = command("--help")
     assert out.returncode == 0, out.stderr
-    for flag in ("--seeds", "--rows", "--preset", "--data_dir", "--results", "--workdir", "--cpu_devices", "--epochs"):
+    for flag in ("--seeds", "--rows", "--preset", "--set", "--data_dir", "--results", "--workdir", "--cpu_devices"):
         assert flag in out.stdout, flag
     assert "(default: '5')" in out.stdout  # the study's seed count
     assert all(r.name in out.stdout for r in paper_tables.ABLATION)  # --rows names the rows
@@ -48,6 +48,7 @@ USER_ERRORS = {  # flags -> what the one line must say
     "unknown_row": (["--rows=foo"], r"unknown rows \['foo'\]; choose from \['image', "),
     "empty_data_dir": (["--data_dir={tmp}/empty"], r"empty: field '<folder>': the folder holds no trial archives"),
     "missing_data_dir": (["--data_dir={tmp}/nope"], r"nope: field '<folder>': dataset folder does not exist"),
+    "bad_override_value": (["--set=backbone=lstm"], r"--set: backbone must be one of \('attention', 'tcn'\), got 'lstm'"),
     "damaged_archive": (["--data_dir={tmp}/damaged"], r"fabric04_day1_trial00_lab\.npz: field '<file>': not a readable \.npz archive"),
 }
 
@@ -91,13 +92,13 @@ def test_jax_platforms_is_cpu_only_where_no_accelerator_can_be():
 
 
 def test_eta_weighs_rows_by_their_relative_cost():
-    assert common.relative_cost(Config(modalities=("internal",))) == 1.0
-    assert common.relative_cost(Config(modalities=("image", "internal"))) == common.CAMERA_COST["image"]
-    assert common.relative_cost(Config(modalities=("flow", "internal"))) == common.CAMERA_COST["flow"]
-    progress = common.Progress("x", 3, [7.5, 1.0, 1.0])
+    assert runner.relative_cost(Config(modalities=("internal",))) == 1.0
+    assert runner.relative_cost(Config(modalities=("image", "internal"))) == runner.CAMERA_COST["image"]
+    assert runner.relative_cost(Config(modalities=("flow", "internal"))) == runner.CAMERA_COST["flow"]
+    progress = runner.Progress("x", 3, [7.5, 1.0, 1.0])
     progress.done = 1
     assert progress.eta(150.0) == pytest.approx(40.0)  # 20 s per audio row, not 150
-    assert common.Progress("y", 4).costs == [1.0] * 4
+    assert runner.Progress("y", 4).costs == [1.0] * 4
 
 
 def test_progress_names_rows_as_the_table_does():

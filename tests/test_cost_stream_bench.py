@@ -14,7 +14,7 @@ from fabricjax import archive, sim, stream, train
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.features.extract import log_psd, mic_windows
-from fabricjax.studies import common, cost
+from fabricjax.studies import cost
 
 PNG = b"\x89PNG\r\n\x1a\n"
 TINY = dict(width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16))
@@ -29,7 +29,7 @@ def smoke_workdir(tmp_path_factory):
 
 
 def test_sweep_is_one_factor_at_a_time_with_the_paper_point_capped():
-    base = common.study_config("smoke", modalities=("internal", "external"), seq_len=20)
+    base = Config.from_preset("smoke", modalities=("internal", "external"), seq_len=20)
     points, paper = cost.sweep_points(
         base, seq_lens=(10, 20, 200), backbones=("attention", "tcn"), widths=(8, 16), bandwidths=(2.5, 15.0),
         modality_sets=[("internal", "external"), ("internal",)], max_len=120,

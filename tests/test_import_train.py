@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from acquisition import importing
-from fabricjax import archive, splits
+from fabricjax import archive, presets
 from fabricjax.studies import ablation
 
 pytest.importorskip("rosbags")
@@ -16,7 +16,7 @@ from tests.test_import_bag import MAPPING, recording, write_bag  # noqa: E402
 @pytest.mark.slow  # ~25 s: 31 bags and one training run
 def test_smoke_study_trains_on_imported_bags(tmp_path):
     data = tmp_path / "imported"
-    for i, spec in enumerate(splits.preset("smoke").trials()):
+    for i, spec in enumerate(presets.get("smoke").dataset.trials()):
         bag = write_bag(tmp_path / "bags" / f"b{i}", recording(seed=i, n_frames=30))
         trial = {"fabric_id": spec.fabric_id, "day": spec.day, "trial": spec.trial, "condition": spec.condition}
         a = importing.import_bag(bag, MAPPING, trial)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from fabricjax import archive, catalog, splits
+from fabricjax import archive, catalog, presets
 from fabricjax.sim import EFFECTS, Scene, ensure_dataset, simulate
 from fabricjax.sim import air_path, ambient, minsight, motion, servo, shell, sph0645, stick_slip, texture
 from fabricjax.sim import calibration as cal
@@ -183,7 +183,7 @@ def test_generation_killed_midway_resumes_and_keeps_finished_archives(tmp_path):
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
     finished = {p.name: p.stat().st_mtime_ns for p in folder.glob("*.npz")}
-    n_total = len(splits.preset("smoke").trials())
+    n_total = len(presets.get("smoke").dataset.trials())
     assert 4 <= len(finished) < n_total
     for name in finished:  # atomic writes: whatever exists is complete
         archive.read_archive(folder / name)
@@ -199,7 +199,7 @@ def test_generation_killed_midway_resumes_and_keeps_finished_archives(tmp_path):
     # asking for images regenerates the archives that lack them, at the preset's image size
     ensure_dataset("smoke", workdir=tmp_path, streams=("audio", "proprio", "images"), progress=False, workers=1)
     arch = archive.read_archive(folder / sorted(after)[0])
-    assert arch.images is not None and list(arch.images.shape[1:3]) == list(splits.preset("smoke").image_size)
+    assert arch.images is not None and list(arch.images.shape[1:3]) == list(presets.get("smoke").dataset.image_size)
 
 
 def test_parallel_generation_writes_the_same_archives_as_serial(tmp_path):
@@ -208,7 +208,7 @@ def test_parallel_generation_writes_the_same_archives_as_serial(tmp_path):
     serial = ensure_dataset("smoke", workdir=tmp_path / "serial", workers=1, **kw)
     pooled = ensure_dataset("smoke", workdir=tmp_path / "pooled", workers=2, **kw)
     names = sorted(p.name for p in serial.glob("*.npz"))
-    assert names == sorted(p.name for p in pooled.glob("*.npz")) and len(names) == len(splits.preset("smoke").trials())
+    assert names == sorted(p.name for p in pooled.glob("*.npz")) and len(names) == len(presets.get("smoke").dataset.trials())
     for name in names:
         assert (serial / name).read_bytes() == (pooled / name).read_bytes(), name
 

@@ -11,8 +11,9 @@ import pytest
 from scipy import stats as sps
 
 from fabricjax import data, paper_tables, sim, stats, train
+from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, common, latents, noise, properties, reproduce
+from fabricjax.studies import ablation, bandwidth, documents, latents, noise, properties, reproduce, runner
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
 TINY = dict(epochs=1, width=16, n_layers=1)
@@ -80,13 +81,14 @@ def test_ablation_checklist_predicates_on_synthetic_per_seed_results():
     assert _holds({"internal": [90]}) == [None] * 7  # rows not run: not evaluated
 
 
-def test_bandwidth_truncates_the_psd_per_row(workdir, tmp_path):
+def test_bandwidth_narrows_the_psd_per_row(workdir, tmp_path):
     doc = bandwidth.run(n_seeds=1, rows=["2.5"], **run_kwargs(workdir, tmp_path))
     (row,) = doc["rows"]
     assert row["psd_bins"] == 54 and row["config"]["bandwidth_khz"] == 2.5
     assert "89.87 ± 3.31" in (tmp_path / "bandwidth.md").read_text()
-    full = {"s": data.SequenceSet({"internal": np.zeros((2, 3, 512)), "proprio": np.zeros((2, 3, 18))}, {}, {})}
-    cut = bandwidth.truncate(full, 15.0)["s"].inputs
+    full = {"s": data.SequenceSet({"internal": np.zeros((2, 3, 512)), "external": np.zeros((2, 3, 512)), "proprio": np.zeros((2, 3, 18))}, {}, {})}
+    cut = data.narrow(full, Config(modalities=("internal", "proprio"), bandwidth_khz=15.0))["s"].inputs
+    assert cut.keys() == {"internal", "proprio"}  # the row's inputs only
     assert cut["internal"].shape == (2, 3, 320) and cut["proprio"].shape == (2, 3, 18)
     with pytest.raises(ValueError, match="sweeps the bandwidth"):
         bandwidth.run(**run_kwargs(workdir, tmp_path) | {"overrides": {"bandwidth_khz": 10.0}})
@@ -173,7 +175,7 @@ def test_noise_and_bandwidth_tables():
 
 def fake_row(name, accuracy, predictions, seeds):
     metrics = {"eval": {"test": {"accuracy": {"fabric": np.asarray(accuracy)}, "predictions": {"fabric": np.asarray(predictions)}}}}
-    return common.Row(name, None, train.Results(None, tuple(seeds), None, None, metrics), 1.0)
+    return runner.Row(name, None, train.Results(None, tuple(seeds), None, None, metrics), 1.0)
 
 
 def test_paired_tests_pair_per_seed_and_per_sample_like_scipy():
@@ -185,33 +187,38 @@ def test_paired_tests_pair_per_seed_and_per_sample_like_scipy():
     acc_a = np.array([0.50, 0.55, 0.61, 0.58, 0.52])
     acc_b = acc_a + np.array([0.03, -0.01, 0.05, 0.07, 0.02])
     a, b = fake_row("a", acc_a, pa, range(5)), fake_row("b", acc_b, pb, range(5))
-    res = common.paired_tests(a, b, "test", labels)
+    res = runner.paired_tests(a, b, "test", labels)
     assert res["per_seed"].p_value == pytest.approx(sps.wilcoxon(acc_b, acc_a, method="exact").pvalue)
     assert res["per_seed"].method == stats.EXACT and res["per_seed"].min_attainable_p == pytest.approx(0.0625)
     cb, ca = ((pb == labels)[:, 3:]).ravel().astype(float), ((pa == labels)[:, 3:]).ravel().astype(float)
     expected = sps.wilcoxon(cb, ca, zero_method="wilcox", method="approx")
     assert res["per_sample"].n_pairs == 5 * 37 and res["per_sample"].method == stats.APPROX
     assert res["per_sample"].p_value == pytest.approx(expected.pvalue)
-    same = common.paired_tests(a, a, "test", labels)
+    same = runner.paired_tests(a, a, "test", labels)
     assert same["per_seed"].p_value == 1.0 and same["per_sample"].n_nonzero == 0
     with pytest.raises(ValueError, match="different seeds"):
-        common.paired_tests(a, fake_row("c", acc_b, pb, range(1, 6)), "test", labels)
+        runner.paired_tests(a, fake_row("c", acc_b, pb, range(1, 6)), "test", labels)
 
 
 def test_ten_seed_floor_and_row_selection():
     a = fake_row("a", np.linspace(0.5, 0.6, 10), np.zeros((10, 4), int), range(10))
     b = fake_row("b", np.linspace(0.5, 0.6, 10) + np.arange(1, 11) / 100, np.zeros((10, 4), int), range(10))
-    res = common.paired_tests(a, b, "test", np.zeros(4, int))["per_seed"]
+    res = runner.paired_tests(a, b, "test", np.zeros(4, int))["per_seed"]
     assert res.p_value == pytest.approx(2 / 2**10) and res.min_attainable_p == pytest.approx(0.001953125)
-    assert [r.name for r in common.select_rows(paper_tables.ABLATION, None)] == [r.name for r in paper_tables.ABLATION]
+    assert [r.name for r in runner.select_rows(paper_tables.ABLATION, None)] == [r.name for r in paper_tables.ABLATION]
     with pytest.raises(ValueError, match="unknown rows"):
-        common.select_rows(paper_tables.ABLATION, ["audio"])
+        runner.select_rows(paper_tables.ABLATION, ["audio"])
+
+
+def test_results_say_how_they_were_made():
+    assert documents.command_markdown("python -m experiments.noise --seeds=10") == "- command: `python -m experiments.noise --seeds=10`"
+    assert documents.command_markdown(None) == "- command: none (called from Python)"  # not the test runner's argv
 
 
 def test_ablation_command_end_to_end(workdir):
     env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_DISABLE_MOST_OPTIMIZATIONS": "1"}
     cmd = [
-        sys.executable, "-m", "experiments.ablation", "--preset=smoke", "--seeds=1", "--epochs=1", "--rows=internal",
+        sys.executable, "-m", "experiments.ablation", "--preset=smoke", "--seeds=1", "--set=epochs=1", "--rows=internal",
         f"--workdir={workdir}", "--cpu_devices=2",
     ]
     out = subprocess.run(cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True, timeout=300)
@@ -279,6 +286,6 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
     latents_step = reproduce.Step("latents")
     assert reproduce.step_key(latents_step, "default", {}, None, code, "props-a") != reproduce.step_key(latents_step, "default", {}, None, code, "props-b")
     assert len(reproduce.code_fingerprint()) == 64
-    assert reproduce.command(step, "default", {"epochs": 3, "width": 16}, "results") == (
-        "python -m experiments.noise --seeds=10 --preset=default --epochs=3 --results=results  (config overrides without a flag: {'width': 16})"
+    assert reproduce.command(step, "default", {"epochs": 3, "modalities": ("internal", "proprio")}, "results") == (
+        "python -m experiments.noise --seeds=10 --preset=default --set=epochs=3 --set=modalities=internal,proprio --results=results"
     )

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fabricjax import archive, splits, stream, synthetic, view
+from fabricjax import archive, presets, stream, synthetic, view
 from fabricjax.features import welch
 from fabricjax.sim.dataset import scene_for
 from fabricjax.sim.simulate import simulate
@@ -33,7 +33,7 @@ PREDICTION = {f"/prediction/{k}" for k in ("probabilities", "confidence", "class
 @pytest.fixture(scope="module")
 def smoke_trial(tmp_path_factory):
     """The smoke preset's first trial, simulated with camera frames."""
-    preset = splits.preset("smoke")
+    preset = presets.get("smoke").dataset
     trial = simulate(scene_for(preset.trials()[0], preset, ("audio", "proprio", "images")))
     return archive.write_archive(tmp_path_factory.mktemp("trial") / archive.trial_filename(trial.meta), trial), trial
 

@@ -15,14 +15,14 @@ from typing import Iterable
 import numpy as np
 from tqdm import tqdm
 
-from fabricjax import archive, parallel, splits, workspace
+from fabricjax import archive, parallel, presets, splits, workspace
 from fabricjax.errors import UserError
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import EFFECTS, Scene
 from fabricjax.sim.simulate import simulate
 
 
-def scene_for(spec: splits.TrialSpec, preset: splits.Preset, streams: Iterable[str], seed: int = 0) -> Scene:
+def scene_for(spec: splits.TrialSpec, dataset: splits.DatasetSpec, streams: Iterable[str], seed: int = 0) -> Scene:
     return Scene(
         fabric_id=spec.fabric_id,
         day=spec.day,
@@ -30,8 +30,8 @@ def scene_for(spec: splits.TrialSpec, preset: splits.Preset, streams: Iterable[s
         condition=spec.condition,
         effects=EFFECTS,
         streams=tuple(streams),
-        image_size=tuple(preset.image_size),
-        cycles=preset.cycles_per_trial,
+        image_size=tuple(dataset.image_size),
+        cycles=dataset.cycles_per_trial,
         seed=seed,
     )
 
@@ -60,14 +60,14 @@ class NotEnoughDisk(UserError):
     """The dataset would not fit on the disk: nothing was written."""
 
 
-def trial_bytes(preset: splits.Preset, images: bool) -> int:
-    """About how many bytes one simulated trial archive of `preset` takes (uncompressed .npz).
+def trial_bytes(dataset: splits.DatasetSpec, images: bool) -> int:
+    """About how many bytes one simulated trial archive of `dataset` takes (uncompressed .npz).
 
     A trial lasts its cycles at the commanded rate, ~12 % slower on average under load (the servo
     droop of calibration.SPEED_DROOP_PER_N), plus ~1 s of closing and pauses."""
-    seconds = preset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0
+    seconds = dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0
     steps = seconds * cal.STEP_HZ
-    per_step = 8 + 2 * 8 + archive.N_JOINTS * 3 * 4 + 4 + (3 * preset.image_size[0] * preset.image_size[1] if images else 0)
+    per_step = 8 + 2 * 8 + archive.N_JOINTS * 3 * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)
     return int(steps * per_step + 2 * 4 * (seconds * cal.FS + cal.LEAD_IN))
 
 
@@ -95,16 +95,16 @@ def ensure_dataset(
     a function of its scene alone (every draw is seeded by the scene), so the pool's order
     changes nothing: the archives equal those of `workers=1` byte for byte (tested). Before
     writing, the disk space the missing trials need is estimated (`trial_bytes`) and checked."""
-    preset = splits.preset(preset_name)
+    dataset = presets.get(preset_name).dataset
     folder = workspace.dataset_dir(preset_name, workdir)
     folder.mkdir(parents=True, exist_ok=True)
     for stale in folder.glob(".*.partial"):
         stale.unlink()
-    scenes = [scene_for(spec, preset, streams, seed) for spec in preset.trials()]
+    scenes = [scene_for(spec, dataset, streams, seed) for spec in dataset.trials()]
     jobs = [(s, str(folder / filename(s))) for s in scenes if not is_done(folder / filename(s), s)]
     workers = workers or os.cpu_count() or 1
     if jobs:
-        need = len(jobs) * trial_bytes(preset, "images" in streams)
+        need = len(jobs) * trial_bytes(dataset, "images" in streams)
         free = shutil.disk_usage(folder).free
         if need > 0.95 * free:
             raise NotEnoughDisk(f"{folder}: simulating {len(jobs)} trials of preset {preset_name!r} needs about {_gb(need)}, only {_gb(free)} free")

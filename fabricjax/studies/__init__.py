@@ -6,5 +6,13 @@
     properties   property heads on training and holdout fabrics (Table property_perception)
     latents      t-SNE of per-trial mean latents from a restored checkpoint (Fig. latent_features)
 
-Each module's `run(...)` trains, writes results/<study>.md and .json and returns the JSON document.
+    reproduce    every table and figure above in order, skipping those up to date, into REPORT.md
+    cost         accuracy against touch time, training time and inference latency
+
+Each study's `run(...)` trains, writes results/<study>.md and .json and returns the JSON document.
+What they share, one concept per module:
+
+    loading      the data a study needs, loaded once for all its rows
+    runner       named rows -> trained seeds (`train_rows`), progress with ETA, paired Wilcoxon tests
+    documents    the results file: where the numbers come from (`header`), per-row and per-sample records
 """

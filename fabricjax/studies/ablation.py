@@ -2,11 +2,11 @@
 
     python -m experiments.ablation --seeds=5                          # default preset, whole table
     python -m experiments.ablation --seeds=5 --rows=internal,internal+external
-    python -m experiments.ablation --preset=paper --backbone=tcn      # any sweep dimension by flag
+    python -m experiments.ablation --preset=paper --set=backbone=tcn  # any Config field by --set
 
 Each row trains all seeds in one vmapped program and reports mean ± SD test accuracy beside the
 paper's number and the difference. Internal audio is compared with internal + palm audio by
-Wilcoxon signed-rank tests (per seed and per test sequence, see `common.paired_tests`), and the
+Wilcoxon signed-rank tests (per seed and per test sequence, see `runner.paired_tests`), and the
 proprioception-only and flow-only models' confusion matrices are drawn (results/ablation_confusion.png).
 The simulator is the same for every row: differences from the paper are findings, not tuning targets.
 """
@@ -19,8 +19,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from fabricjax import catalog, findings, paper_tables, plots, report, stats
-from fabricjax.config import MODALITY_NAMES
-from fabricjax.studies import common
+from fabricjax.config import MODALITY_NAMES, Config
+from fabricjax.studies import documents, loading, runner
 
 WILCOXON_PAIR = ("internal", "internal+external")  # (baseline, compared), as in the paper
 CONFUSION_ROWS = ("proprio", "flow")
@@ -46,7 +46,7 @@ def _variant(name: str) -> Row:
 
 
 # The fusion rows without camera inputs, again under our step-LayerNorm fusion. (The camera fusion
-# rows cost up to ~3x an audio row each, see common.CAMERA_COST; they stay under the paper's
+# rows cost up to ~3x an audio row each, see runner.CAMERA_COST; they stay under the paper's
 # rescale only, to keep the table within the main command's time budget.)
 VARIANT_ROWS = tuple(_variant(n) for n in ("internal+proprio", "internal+external+proprio", "internal+external"))
 ROWS = tuple(Row(r.name, r.backbone, r.modalities, r.paper_mean, r.paper_sd) for r in paper_tables.ABLATION) + VARIANT_ROWS
@@ -78,41 +78,31 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train the chosen rows (all by default) and write results/ablation.{md,json}; returns the JSON."""
-    overrides = dict(overrides or {})
-    chosen = common.select_rows(ROWS, rows)
-    seeds = common.seed_list(n_seeds)
-    configs = [
-        common.study_config(preset, **{"backbone": r.backbone, **overrides, "modalities": r.modalities, "fusion_norm": r.fusion_norm})
+    chosen = runner.select_rows(ROWS, rows)
+    seeds = runner.seed_list(n_seeds)
+    named = [
+        (r.name, Config.from_preset(preset, **{"backbone": r.backbone, **(overrides or {}), "modalities": r.modalities, "fusion_norm": r.fusion_norm}))
         for r in chosen
     ]
-    ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=common.TRAIN_VAL_TEST)
-    progress = common.Progress("ablation", len(chosen), [common.relative_cost(c) for c in configs])
-    trained = {}
-    for r, config in zip(chosen, configs):
-        progress.start(display_name(r.name))
-        trained[r.name] = row = common.train_row(r.name, config, ds.sets, seeds, ["test"], log_dir=common.logs_dir("ablation", r.name, workdir))
-        progress.finish(display_name(r.name), row.seconds, f"test {stats.format_mean_sd(row.accuracy('test'))} %")
+    study = runner.train_rows(
+        "ablation", named, seeds, eval_splits=["test"], split_names=loading.TRAIN_VAL_TEST, data_dir=data_dir, workdir=workdir,
+        label=display_name,
+    )
+    trained = study.rows
 
-    test = ds.sets["test"]
+    test = study.dataset.sets["test"]
     labels = test.labels["fabric"]
     base, compared = WILCOXON_PAIR
-    tests = common.paired_tests(trained[base], trained[compared], "test", labels) if base in trained and compared in trained else {}
-    out = common.results_path(results)
+    tests = runner.paired_tests(trained[base], trained[compared], "test", labels) if base in trained and compared in trained else {}
     panels = [
         (f"{MODALITY_NAMES[n]} only, {len(seeds)} seeds pooled", np.tile(labels, len(seeds)), trained[n].predictions("test").ravel())
         for n in CONFUSION_ROWS
         if n in trained
     ]
-    figure = plots.plot_confusions(out / "ablation_confusion.png", panels) if panels else None
+    figure = plots.plot_confusions(documents.results_path(results) / "ablation_confusion.png", panels) if panels else None
 
     doc = {
-        "study": "ablation",
-        "command": command or common.command_line(),
-        "preset": preset,
-        "seeds": list(seeds),
-        "machine": report.machine(),
-        "dataset": common.dataset_doc(ds),
-        "train_s": sum(t.seconds for t in trained.values()),
+        **documents.header("ablation", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=study.train_s),
         "rows": [
             {
                 "name": r.name,
@@ -122,23 +112,23 @@ def run(
                 "fusion_norm": r.fusion_norm,
                 "paper_mean": r.paper_mean,
                 "paper_sd": r.paper_sd,
-                **common.row_doc(trained[r.name], ["test"]),
+                **documents.row_doc(trained[r.name], ["test"]),
             }
             for r in chosen
         ],
-        "test_samples": common.samples_doc(test),
+        "test_samples": documents.samples_doc(test),
         "wilcoxon": {
             "baseline": base,
             "compared": compared,
             "paper_p": paper_tables.ABLATION_WILCOXON_P,
-            **{k: common.wilcoxon_doc(v) for k, v in tests.items()},
+            **{k: documents.wilcoxon_doc(v) for k, v in tests.items()},
         }
         if tests
         else None,
         "confusion_png": str(figure) if figure else None,
     }
     doc["findings"] = [f.to_json() for f in checklist({r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]})]
-    common.write_outputs(results, "ablation", markdown(doc), doc)
+    documents.write_outputs(results, "ablation", markdown(doc), doc)
     return doc
 
 
@@ -202,7 +192,7 @@ def markdown(doc: dict[str, Any]) -> str:
     lines = [
         "# Modality ablation (the paper's Table ablation_table)",
         "",
-        common.header_markdown(doc),
+        documents.header_markdown(doc),
         table(doc["rows"]),
         "Rows marked *our step-LayerNorm fusion* are not in the paper: the same inputs with each step's "
         "concatenated features normalised by a LayerNorm instead of the paper's per-sequence [0, 1] rescale "

@@ -4,8 +4,8 @@
     python -m experiments.bandwidth --seeds=5 --rows=2.5,15
 
 Input: the internal microphone (Minsound) alone, the setting of the paper's 15 kHz row, which
-equals its internal-audio ablation row (95.06 ± 1.85). The PSDs are loaded once at 24 kHz and
-truncated per row to the bins at or below the bandwidth (`welch.n_bins`). Reports validation
+equals its internal-audio ablation row (95.06 ± 1.85). The PSDs are loaded once at the widest
+bandwidth chosen and cut per row to the bins at or below its bandwidth (`data.narrow`, `welch.n_bins`). Reports validation
 accuracy (the best-validation epoch's) and test accuracy, beside the paper's, the paper's two
 claims about the table as a findings checklist (`checklist`) and accuracy against bandwidth with
 every seed's point (results/bandwidth.png).
@@ -18,26 +18,17 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import data, findings, paper_tables, plots, report, stats
-from fabricjax.config import AUDIO_MODALITIES
-from fabricjax.features import welch
+from fabricjax import findings, paper_tables, plots, report, stats
+from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies import common
+from fabricjax.features import welch
+from fabricjax.studies import documents, loading, runner
 
 MODALITIES = ("internal",)
 
 
 def row_name(khz: float) -> str:
     return f"{khz:g}"
-
-
-def truncate(sets: dict[str, data.SequenceSet], khz: float) -> dict[str, data.SequenceSet]:
-    """The same sequences with every PSD cut to the bins at or below `khz`."""
-    n = welch.n_bins(khz)
-    return {
-        k: dataclasses.replace(s, inputs={m: a[..., :n] if m in AUDIO_MODALITIES else a for m, a in s.inputs.items()})
-        for k, s in sets.items()
-    }
 
 
 def run(
@@ -52,44 +43,32 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train one row per bandwidth and write results/bandwidth.{md,json}; returns the JSON."""
-    overrides = dict(overrides or {})
-    if "bandwidth_khz" in overrides:
+    if "bandwidth_khz" in (overrides or {}):
         raise UserError("the bandwidth study sweeps the bandwidth itself; choose bandwidths with rows (e.g. 2.5,15)")
-    chosen = common.select_rows(sorted(paper_tables.BANDWIDTH), rows, name=row_name)
-    seeds = common.seed_list(n_seeds)
-    base = common.study_config(preset, **{**overrides, "modalities": MODALITIES})
-    ds = common.load_dataset(dataclasses.replace(base, bandwidth_khz=max(paper_tables.BANDWIDTH)), data_dir=data_dir, workdir=workdir, split_names=common.TRAIN_VAL_TEST)
-    progress = common.Progress("bandwidth", len(chosen))
+    chosen = runner.select_rows(sorted(paper_tables.BANDWIDTH), rows, name=row_name)
+    seeds = runner.seed_list(n_seeds)
+    base = Config.from_preset(preset, **{**(overrides or {}), "modalities": MODALITIES})
+    study = runner.train_rows(
+        "bandwidth", [(row_name(khz), dataclasses.replace(base, bandwidth_khz=khz)) for khz in chosen], seeds,
+        eval_splits=["test"], split_names=loading.TRAIN_VAL_TEST, data_dir=data_dir, workdir=workdir, label=lambda name: f"{name} kHz",
+    )
     out_rows = []
     for khz in chosen:
-        name = row_name(khz)
-        progress.start(f"{name} kHz")
-        row = common.train_row(
-            name, dataclasses.replace(base, bandwidth_khz=khz), truncate(ds.sets, khz), seeds, ["test"],
-            log_dir=common.logs_dir("bandwidth", name, workdir),
-        )
-        progress.finish(f"{name} kHz", row.seconds, f"test {stats.format_mean_sd(row.accuracy('test'))} %")
         vm, vs, tm, ts = paper_tables.BANDWIDTH[khz]
         out_rows.append({
-            "name": name, "bandwidth_khz": khz, "psd_bins": welch.n_bins(khz),
+            "name": row_name(khz), "bandwidth_khz": khz, "psd_bins": welch.n_bins(khz),
             "paper": {"val_mean": vm, "val_sd": vs, "test_mean": tm, "test_sd": ts},
-            **common.row_doc(row, ["test"]),
+            **documents.row_doc(study.rows[row_name(khz)], ["test"]),
         })
     doc = {
-        "study": "bandwidth",
-        "command": command or common.command_line(),
-        "preset": preset,
+        **documents.header("bandwidth", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=study.train_s),
         "modalities": list(base.modalities),
-        "seeds": list(seeds),
-        "machine": report.machine(),
-        "dataset": common.dataset_doc(ds),
-        "train_s": sum(r["wall_s"] for r in out_rows),
         "rows": out_rows,
-        "test_samples": common.samples_doc(ds.sets["test"]),
+        "test_samples": documents.samples_doc(study.dataset.sets["test"]),
     }
     doc["findings"] = [f.to_json() for f in checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in ("val", "test")} for r in out_rows})]
-    doc["png"] = str(plot(common.results_path(results) / "bandwidth.png", out_rows))
-    common.write_outputs(results, "bandwidth", markdown(doc), doc)
+    doc["png"] = str(plot(documents.results_path(results) / "bandwidth.png", out_rows))
+    documents.write_outputs(results, "bandwidth", markdown(doc), doc)
     return doc
 
 
@@ -145,7 +124,7 @@ def markdown(doc: dict[str, Any]) -> str:
     return "\n".join([
         "# PSD bandwidth (the paper's Table bandwidth_classification)",
         "",
-        common.header_markdown(doc),
+        documents.header_markdown(doc),
         f"Inputs: {' + '.join(doc['modalities'])} (Minsound only; the paper's 15 kHz row equals its internal-audio "
         "ablation row). Validation accuracy is that of the best-validation epoch, the model every test number uses.",
         "",

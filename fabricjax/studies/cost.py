@@ -17,9 +17,9 @@ factor at a time around a base point, so it grows with the sum of the dimensions
                      palm microphone) with N capped at the preset's shortest trial; marked in
                      the table and the plot
 
-Everything not swept (the base width, layers, epochs, ...) is the preset's study config
-(`common.PRESET_TRAINING`); the base N is the preset's, the base backbone and modality set are
-the first of their flags. Lengths longer than the shortest trial are skipped and reported.
+Everything not swept (the base width, layers, epochs, ...) is the preset's (`presets.py`) with
+the `--set` overrides on top; the base N is the preset's (or `--set=seq_len=...`), the base
+backbone and modality set are the first of their flags. Lengths longer than the shortest trial are skipped and reported.
 
 Per point: test accuracy (mean ± SD over seeds; all seeds train in one vmapped program), training
 wall time of that program (compilation included, no checkpoints, so a rerun measures afresh),
@@ -39,11 +39,10 @@ import jax
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, benchmark, data, plots, report, splits, stats
-from fabricjax.config import AUDIO_MODALITIES, Config
-from fabricjax.features import welch
+from fabricjax import archive, benchmark, data, plots, report, stats
+from fabricjax.config import Config
 from fabricjax.model import predict_one
-from fabricjax.studies import common
+from fabricjax.studies import documents, loading, runner
 
 STEP_HZ = 50.0  # Minsight frame rate: one step per frame
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
@@ -67,7 +66,7 @@ def _with_width(config: Config, width: int) -> Config:
 
 def point_name(config: Config, base: Config) -> str:
     """A short plot label: backbone and N, then whatever differs from the base point."""
-    name = f"{'att' if config.backbone == 'attention' else 'tcn'} N{config.sequence_length}"
+    name = f"{'att' if config.backbone == 'attention' else 'tcn'} N{config.seq_len}"
     if config.width != base.width:
         name += f" w{config.width}"
     if config.bandwidth_khz != base.bandwidth_khz:
@@ -100,23 +99,12 @@ def sweep_points(
         candidates.append(("paper", paper_config))
     points: dict[Config, Point] = {}
     for group, config in candidates:
-        if max_len is not None and config.sequence_length > max_len:
-            logging.warning("cost: skipping %s: N=%d exceeds the shortest trial (%d steps)", group, config.sequence_length, max_len)
+        if max_len is not None and config.seq_len > max_len:
+            logging.warning("cost: skipping %s: N=%d exceeds the shortest trial (%d steps)", group, config.seq_len, max_len)
             continue
         points.setdefault(config, Point(point_name(config, base), group, config))
     paper_name = points[paper_config].name if paper_config is not None else None
     return list(points.values()), paper_name
-
-
-def _narrow(sets: dict[str, data.SequenceSet], config: Config) -> dict[str, data.SequenceSet]:
-    """Sets loaded at a wider bandwidth cut to the config's bins (the PSD's first bins)."""
-    k = welch.n_bins(config.bandwidth_khz)
-    return {
-        s: dataclasses.replace(
-            ss, inputs={m: a[..., :k] if m in AUDIO_MODALITIES else a for m, a in ss.inputs.items() if m in config.modalities}
-        )
-        for s, ss in sets.items()
-    }
 
 
 def inference_latency(graphdef, params, inputs: dict[str, np.ndarray], repeats: int, warmup: int = 5) -> dict[str, float]:
@@ -149,18 +137,18 @@ def _shortest_trial(folder, workdir=None) -> int:
 
 def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int) -> dict[str, Any]:
     """Train all seeds of one point and measure what it costs."""
-    row = common.train_row(point.name, point.config, _narrow(sets, point.config), seeds, ["test"])
+    row = runner.train_row(point.name, point.config, sets, seeds, ["test"])
     acc = 100 * row.accuracy("test")
     mean, sd = stats.mean_sd(acc)
     params = row.results.params(0)
-    test = _narrow(sets, point.config)["test"]
+    test = data.narrow({"test": sets["test"]}, point.config)["test"]
     latency = inference_latency(row.results.graphdef, params, {m: a[0] for m, a in test.inputs.items()}, latency_repeats)
     c = point.config
     return {
         "name": point.name,
         "group": point.group,
-        "seq_len": c.sequence_length,
-        "touch_s": c.sequence_length / STEP_HZ,
+        "seq_len": c.seq_len,
+        "touch_s": c.seq_len / STEP_HZ,
         "backbone": c.backbone,
         "width": c.width,
         "bandwidth_khz": c.bandwidth_khz,
@@ -185,9 +173,8 @@ def run(
     widths: Sequence[int] = (16, 64),
     bandwidths: Sequence[float] = (2.5, 24.0),
     modality_sets: Sequence[Sequence[str]] = (("internal", "external"), ("internal",), ("internal", "external", "proprio")),
-    base_seq_len: int | None = None,
     paper: bool = True,
-    epochs: int | None = None,
+    overrides: dict[str, Any] | None = None,
     latency_repeats: int = 100,
     workdir=None,
     data_dir=None,
@@ -197,27 +184,24 @@ def run(
     """Train every point of the sweep; write results/cost.{md,json} and cost_pareto.png; return the JSON."""
     if not backbones or not modality_sets:
         raise ValueError("need at least one backbone and one modality set (the base point's)")
-    seeds = common.seed_list(n_seeds)
-    overrides = {"epochs": epochs} if epochs is not None else {}
-    base = common.study_config(
-        preset, backbone=backbones[0], modalities=tuple(modality_sets[0]), seq_len=base_seq_len or splits.preset(preset).seq_len, **overrides
-    )
-    first = common.load_dataset(base, data_dir=data_dir, workdir=workdir, split_names=common.TRAIN_VAL_TEST)
+    seeds = runner.seed_list(n_seeds)
+    base = Config.from_preset(preset, **{"backbone": backbones[0], "modalities": tuple(modality_sets[0]), **(overrides or {})})
+    first = loading.load_dataset(base, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST)
     max_len = _shortest_trial(first.folder, workdir)
     points, paper_name = sweep_points(
         base, seq_lens, backbones, widths, bandwidths, [tuple(m) for m in modality_sets], paper=paper, max_len=max_len
     )
     skipped = sorted({n for n in seq_lens if n > max_len} | ({PAPER["seq_len"]} if paper and PAPER["seq_len"] > max_len else set()))
-    union = common.union_modalities([p.config for p in points])
+    union = loading.union_modalities([p.config for p in points])
     widest = max(p.config.bandwidth_khz for p in points)
-    progress = common.Progress("cost", len(points))
+    progress = runner.Progress("cost", len(points))
     rows, sets, loaded_n = [], None, None
     t_all = time.perf_counter()
-    for p in sorted(points, key=lambda p: p.config.sequence_length):
-        n = p.config.sequence_length
+    for p in sorted(points, key=lambda p: p.config.seq_len):
+        n = p.config.seq_len
         if n != loaded_n:  # every point of one N shares the sequences, loaded once at the widest band
             load = dataclasses.replace(base, seq_len=n, modalities=union, bandwidth_khz=widest)
-            sets = common.load_dataset(load, data_dir=data_dir, workdir=workdir, split_names=common.TRAIN_VAL_TEST).sets
+            sets = loading.load_dataset(load, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST).sets
             loaded_n = n
         progress.start(p.name)
         r = measure(p, sets, seeds, latency_repeats)
@@ -227,6 +211,7 @@ def run(
     rows.sort(key=lambda r: order[r["name"]])
     fronts = {key: pareto_front(rows, key) for key, _ in X_AXES}
     doc = {
+        "study": "cost",
         "command": command,
         "preset": preset,
         "seeds": list(seeds),
@@ -239,10 +224,10 @@ def run(
         "total_s": time.perf_counter() - t_all,
         "points": rows,
     }
-    out = common.results_path(results)
+    out = documents.results_path(results)
     plot = plots.plot_pareto(out / "cost_pareto.png", rows, X_AXES, highlight=paper_name)
     doc["figure"] = plot.name
-    common.write_outputs(results, "cost", markdown(doc), doc)
+    documents.write_outputs(results, "cost", markdown(doc), doc)
     return doc
 
 
@@ -252,7 +237,7 @@ def markdown(doc: dict[str, Any]) -> str:
     lines = [
         "# What accuracy costs in time",
         "",
-        f"- command: `{doc['command']}`",
+        documents.command_markdown(doc["command"]),
         f"- preset: {doc['preset']}; {doc['dataset']['source']} dataset `{doc['dataset']['folder']}` "
         f"(shortest trial {doc['dataset']['shortest_trial_steps']} steps"
         + (f"; N = {', '.join(map(str, doc['skipped_seq_lens']))} skipped as longer" if doc["skipped_seq_lens"] else "")

@@ -29,7 +29,7 @@ from sklearn.manifold import TSNE
 from fabricjax import catalog, checkpoint, data, findings, plots, report, train
 from fabricjax.config import Config, MODALITY_NAMES
 from fabricjax.errors import UserError
-from fabricjax.studies import common
+from fabricjax.studies import documents, loading
 
 BATCH = 32  # sequences per latent evaluation
 
@@ -84,26 +84,26 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
         raise UserError(f"seed {seed} is not in the checkpoint in {checkpoint_dir} (seeds {saved['seeds']})")
     params = checkpoint.select_seed(state["best_params"], index)
 
-    ds = common.load_dataset(config, data_dir=data_dir, workdir=workdir, split_names=("test", "holdout"))
+    ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir, split_names=("test", "holdout"))
     test_day = _concat([ds.sets["test"], ds.sets["holdout"]])
     points, fabrics, keys, counts = trial_means(graphdef, params, test_day, config.modalities)
     xy, perplexity = tsne(points)
     agreement = neighbour_agreement(points, fabrics)
     png = plots.plot_latents(
-        common.results_path(results) / "latents.png", xy, fabrics,
+        documents.results_path(results) / "latents.png", xy, fabrics,
         title=f"t-SNE of per-trial mean latents ({' + '.join(MODALITY_NAMES[m] for m in config.modalities)}, seed {saved['seeds'][index]}; holdouts outlined)",
         neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
     )
     doc = {
         "study": "latents",
-        "command": command or common.command_line(),
+        "command": command,
         "checkpoint": str(checkpoint_dir),
         "config": config.to_json(),
         "seeds": saved["seeds"],
         "best_val_per_seed": best_val.tolist(),
         "seed": saved["seeds"][index],
         "machine": report.machine(),
-        "dataset": common.dataset_doc(ds),
+        "dataset": documents.dataset_doc(ds),
         "perplexity": perplexity,
         "points": [
             {"fabric_id": f, "trial_key": k, "sequences": c, "xy": p.tolist()}
@@ -113,8 +113,8 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
         "neighbours": agreement,
         "findings": [f.to_json() for f in checklist(agreement)],
     }
-    report.write_json(common.results_path(results) / "latents.json", doc)
-    report.write_text(common.results_path(results) / "latents.md", markdown(doc))
+    report.write_json(documents.results_path(results) / "latents.json", doc)
+    report.write_text(documents.results_path(results) / "latents.md", markdown(doc))
     return doc
 
 
@@ -190,7 +190,7 @@ def markdown(doc: dict[str, Any]) -> str:
     return "\n".join([
         "# Latent space (the paper's Fig. latent_features)",
         "",
-        f"- command: `{doc['command']}`",
+        documents.command_markdown(doc["command"]),
         f"- checkpoint: `{doc['checkpoint']}` ({'+'.join(c['modalities'])}; seed {doc['seed']}, the best by validation of seeds {doc['seeds']})",
         f"- points: {len(doc['points'])} fabrics on the test day, one trial each; t-SNE perplexity {doc['perplexity'] or 0:.2f}",
         f"- machine: {doc['machine']['cpu']}, {doc['machine']['cores']} cores, JAX {doc['machine']['jax']}",

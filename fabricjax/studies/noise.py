@@ -5,7 +5,7 @@
 Rows: Minsound; + proprioception; + palm microphone. Every row is trained on the lab training
 days and evaluated on the cafe split (and, for reference, the lab test day). Each row is compared
 with the preceding one by Wilcoxon signed-rank tests on the cafe split, paired per seed (exact
-over 10 seeds: p >= 2 / 2^10 = 0.002) and per cafe sequence pooled over seeds (`common.paired_tests`).
+over 10 seeds: p >= 2 / 2^10 = 0.002) and per cafe sequence pooled over seeds (`runner.paired_tests`).
 The paper's claims about the table are checked by `checklist`; results/noise.png shows every
 seed's lab and cafe accuracy per row.
 """
@@ -17,9 +17,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from fabricjax import findings, paper_tables, plots, report, stats
-from fabricjax.config import MODALITY_NAMES
+from fabricjax.config import MODALITY_NAMES, Config
 from fabricjax.errors import UserError
-from fabricjax.studies import common
+from fabricjax.studies import documents, loading, runner
 
 SPLIT = "cafe"
 ROWS = tuple(("+".join(mods), mods, mean, sd, p) for mods, mean, sd, p in paper_tables.NOISE)
@@ -38,44 +38,40 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train the rows, test on the cafe split and write results/noise.{md,json}; returns the JSON."""
-    overrides = dict(overrides or {})
-    chosen = common.select_rows(ROWS, rows, name=lambda r: r[0])
-    seeds = common.seed_list(n_seeds)
-    configs = [common.study_config(preset, **{**overrides, "modalities": mods}) for _, mods, *_ in chosen]
-    ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=(*common.TRAIN_VAL_TEST, SPLIT))
-    if len(ds.sets[SPLIT]) == 0:
-        raise UserError(f"the dataset in {ds.folder} has no cafe-condition trials to test on")
-    labels = ds.sets[SPLIT].labels["fabric"]
-    progress = common.Progress("noise", len(chosen))
+    chosen = runner.select_rows(ROWS, rows, name=lambda r: r[0])
+    seeds = runner.seed_list(n_seeds)
+    study = runner.train_rows(
+        "noise", [(name, Config.from_preset(preset, **{**(overrides or {}), "modalities": mods})) for name, mods, *_ in chosen], seeds,
+        eval_splits=[SPLIT, "test"], split_names=(*loading.TRAIN_VAL_TEST, SPLIT), data_dir=data_dir, workdir=workdir,
+        summary=lambda row: f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %", check=_has_cafe_trials,
+    )
+    labels = study.dataset.sets[SPLIT].labels["fabric"]
     out_rows, previous = [], None
-    for (name, mods, mean, sd, p), config in zip(chosen, configs):
-        progress.start(name)
-        row = common.train_row(name, config, ds.sets, seeds, [SPLIT, "test"], log_dir=common.logs_dir("noise", name, workdir))
-        progress.finish(name, row.seconds, f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %")
-        tests = common.paired_tests(previous, row, SPLIT, labels) if previous is not None else {}
+    for name, mods, mean, sd, p in chosen:
+        row = study.rows[name]
+        tests = runner.paired_tests(previous, row, SPLIT, labels) if previous is not None else {}
         out_rows.append({
             "name": name, "modalities": list(mods),
             "paper": {"mean": mean, "sd": sd, "p": p},
             "against": previous.name if previous is not None else None,
-            "wilcoxon": {k: common.wilcoxon_doc(v) for k, v in tests.items()} or None,
-            **common.row_doc(row, [SPLIT, "test"]),
+            "wilcoxon": {k: documents.wilcoxon_doc(v) for k, v in tests.items()} or None,
+            **documents.row_doc(row, [SPLIT, "test"]),
         })
         previous = row
     doc = {
-        "study": "noise",
-        "command": command or common.command_line(),
-        "preset": preset,
-        "seeds": list(seeds),
-        "machine": report.machine(),
-        "dataset": common.dataset_doc(ds),
-        "train_s": sum(r["wall_s"] for r in out_rows),
+        **documents.header("noise", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=study.train_s),
         "rows": out_rows,
-        "cafe_samples": common.samples_doc(ds.sets[SPLIT]),
+        "cafe_samples": documents.samples_doc(study.dataset.sets[SPLIT]),
     }
     doc["findings"] = [f.to_json() for f in checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in (SPLIT, "test")} for r in out_rows})]
-    doc["png"] = str(plot(common.results_path(results) / "noise.png", out_rows))
-    common.write_outputs(results, "noise", markdown(doc), doc)
+    doc["png"] = str(plot(documents.results_path(results) / "noise.png", out_rows))
+    documents.write_outputs(results, "noise", markdown(doc), doc)
     return doc
+
+
+def _has_cafe_trials(ds: loading.Dataset) -> None:
+    if len(ds.sets[SPLIT]) == 0:
+        raise UserError(f"the dataset in {ds.folder} has no cafe-condition trials to test on")
 
 
 def display_name(row_name: str) -> str:
@@ -143,7 +139,7 @@ def table(rows: Sequence[dict[str, Any]]) -> str:
 
 
 def markdown(doc: dict[str, Any]) -> str:
-    lines = ["# Cafe noise (the paper's Table new_noise_results)", "", common.header_markdown(doc), table(doc["rows"]), "Tests, each row against the preceding one on the cafe split:", ""]
+    lines = ["# Cafe noise (the paper's Table new_noise_results)", "", documents.header_markdown(doc), table(doc["rows"]), "Tests, each row against the preceding one on the cafe split:", ""]
     for r in doc["rows"]:
         for w in (r["wilcoxon"] or {}).values():
             lines.append(f"- {display_name(r['name'])} vs {display_name(r['against'])}: {w['describe']}")

@@ -23,7 +23,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from fabricjax import catalog, findings, paper_tables, report, stats
-from fabricjax.studies import common
+from fabricjax.config import Config
+from fabricjax.studies import documents, runner
 
 PROPERTIES = tuple(catalog.PROPERTY_LEVELS)
 ROWS = (("minsound", ("internal", "proprio")), ("minsound+minsight", ("internal", "proprio", "image")))
@@ -43,39 +44,30 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train both rows (checkpointed), evaluate on training and holdout fabrics, write results/properties.{md,json}."""
-    overrides = dict(overrides or {})
-    chosen = common.select_rows(ROWS, rows, name=lambda r: r[0])
-    seeds = common.seed_list(n_seeds)
-    configs = [common.study_config(preset, **{**overrides, **SETTINGS, "modalities": mods}) for _, mods in chosen]
-    ds = common.load_for_rows(configs, data_dir=data_dir, workdir=workdir)
-    progress = common.Progress("properties", len(chosen))
-    out_rows = []
-    for (name, mods), config in zip(chosen, configs):
-        progress.start(name)
-        ckpt = common.checkpoint_dir("properties", name, config, seeds, workdir)
-        row = common.train_row(
-            name, config, ds.sets, seeds, list(SPLITS), checkpoint_dir=ckpt, log_dir=common.logs_dir("properties", name, workdir)
-        )
-        progress.finish(name, row.seconds, ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES))
-        out_rows.append({"name": name, "modalities": list(mods), "checkpoint": str(ckpt), **common.row_doc(row, list(SPLITS))})
+    chosen = runner.select_rows(ROWS, rows, name=lambda r: r[0])
+    seeds = runner.seed_list(n_seeds)
+    study = runner.train_rows(
+        "properties", [(name, Config.from_preset(preset, **{**(overrides or {}), **SETTINGS, "modalities": mods})) for name, mods in chosen],
+        seeds, eval_splits=list(SPLITS), data_dir=data_dir, workdir=workdir, checkpoints=True,
+        summary=lambda row: ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES),
+    )
+    ds = study.dataset
+    out_rows = [
+        {"name": name, "modalities": list(mods), "checkpoint": str(study.rows[name].checkpoint), **documents.row_doc(study.rows[name], list(SPLITS))}
+        for name, mods in chosen
+    ]
     doc = {
-        "study": "properties",
-        "command": command or common.command_line(),
-        "preset": preset,
-        "seeds": list(seeds),
-        "machine": report.machine(),
-        "dataset": common.dataset_doc(ds),
-        "train_s": sum(r["wall_s"] for r in out_rows),
+        **documents.header("properties", command=command, preset=preset, seeds=seeds, dataset=ds, train_s=study.train_s),
         "chance": {p: 100.0 / n for p, n in catalog.PROPERTY_LEVELS.items()},
         "majority": {s: {p: majority_rate(ds.sets[s].labels[p]) for p in PROPERTIES} for s in SPLITS},
         "fabrics": {s: sorted(set(ds.sets[s].info["fabric_id"].tolist())) for s in SPLITS},
         "paper": {p: dict(zip(("chance", "train_minsound", "train_minsound+minsight", "holdout_minsound", "holdout_minsound+minsight"), v)) for p, v in paper_tables.PROPERTIES.items()},
         "rows": out_rows,
-        "samples": {s: common.samples_doc(ds.sets[s]) for s in SPLITS},
+        "samples": {s: documents.samples_doc(ds.sets[s]) for s in SPLITS},
     }
     holdout = {r["name"]: {p: np.asarray(r["accuracy"]["holdout"][p]) for p in PROPERTIES} for r in out_rows}
     doc["findings"] = [f.to_json() for f in checklist(holdout, doc["chance"], doc["majority"]["holdout"])]
-    common.write_outputs(results, "properties", markdown(doc), doc)
+    documents.write_outputs(results, "properties", markdown(doc), doc)
     return doc
 
 
@@ -133,7 +125,7 @@ def markdown(doc: dict[str, Any]) -> str:
     lines = [
         "# Property perception (the paper's Table property_perception)",
         "",
-        common.header_markdown(doc),
+        documents.header_markdown(doc),
         f"Training fabrics on the test day: {doc['fabrics']['test']} (class 0 has no properties and is ignored); "
         f"holdout fabrics: {doc['fabrics']['holdout']}. The paper reports means only.",
         "",

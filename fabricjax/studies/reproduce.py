@@ -28,13 +28,15 @@ import dataclasses
 import datetime
 import hashlib
 import json
+import shlex
 import time
 from importlib import metadata
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import fabricjax
-from fabricjax import findings, paper_tables, report, splits, workspace
+from fabricjax import findings, paper_tables, presets, report, workspace
+from fabricjax.config import format_override
 from fabricjax.errors import UserError
 from fabricjax.studies import ablation, bandwidth, latents, noise, properties
 
@@ -50,9 +52,6 @@ FIGURES = {"ablation": ("ablation_confusion.png",), "bandwidth": ("bandwidth.png
 LATENT_ROW = properties.ROWS[-1][0]  # the paper's figure: the Minsound + Minsight model
 MANIFEST = "reproduce.json"
 REPORT = "REPORT.md"
-# Flags of the study commands that set a config field (experiments/flags.py), to print a study's
-# command; other overrides are listed beside it.
-OVERRIDE_FLAGS = {"backbone": "backbone", "seq_len": "seq_len", "bandwidth_khz": "bandwidth", "epochs": "epochs"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,10 +103,9 @@ def command(step: Step, preset: str, overrides: Mapping[str, Any], results: Path
         args.append(f"--checkpoint={checkpoint}")
     else:
         args += [f"--seeds={step.seeds}", f"--preset={preset}"] + ([f"--rows={','.join(step.rows)}"] if step.rows else [])
-        args += [f"--{OVERRIDE_FLAGS[k]}={v}" for k, v in overrides.items() if k in OVERRIDE_FLAGS]
+        args += [shlex.quote(f"--set={format_override(k, v)}") for k, v in sorted(overrides.items())]
     args += [f"--data_dir={data_dir}"] * bool(data_dir) + [f"--workdir={workdir}"] * bool(workdir) + [f"--results={results}"]
-    rest = {k: v for k, v in overrides.items() if k not in OVERRIDE_FLAGS}
-    return " ".join(args) + (f"  (config overrides without a flag: {rest})" if rest and step.study != "latents" else "")
+    return " ".join(args)
 
 
 def estimate_s(step: Step, preset: str) -> float | None:
@@ -171,8 +169,7 @@ def run(
 ) -> dict[str, Any]:
     """Run every study of `plan` that is not up to date (all with `force`), then write REPORT.md
     from every study's results; returns the manifest."""
-    if preset not in splits.PRESETS:
-        raise UserError(f"unknown preset {preset!r}; choose from {sorted(splits.PRESETS)}")
+    presets.get(preset)  # an unknown preset is a one-line error before anything runs
     unknown = [s.study for s in plan if s.study not in STUDIES]
     if unknown:
         raise UserError(f"unknown studies {unknown}; choose from {list(STUDIES)}")

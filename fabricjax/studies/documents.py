@@ -1,0 +1,93 @@
+"""A study's results file: where the numbers come from (`header`), per-row and per-sample
+records, written as results/<study>.md and .json atomically (`write_outputs`)."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from fabricjax import data, report, stats, workspace
+from fabricjax.studies.loading import Dataset
+from fabricjax.studies.runner import Row
+
+
+def results_path(results=None) -> Path:
+    return workspace.results_dir(results)
+
+
+def write_outputs(results, name: str, markdown: str, doc: dict[str, Any]) -> tuple[Path, Path]:
+    """results/<name>.md and .json, atomically."""
+    out = results_path(results)
+    return report.write_text(out / f"{name}.md", markdown), report.write_json(out / f"{name}.json", doc)
+
+
+def header(study: str, *, command: str | None, preset: str, seeds: Sequence[int], dataset: Dataset, train_s: float) -> dict[str, Any]:
+    """The first fields of every training study's JSON: what ran (`command`: the command line,
+    None when called from Python), on which data and machine, and how long training took."""
+    return {
+        "study": study,
+        "command": command,
+        "preset": preset,
+        "seeds": list(seeds),
+        "machine": report.machine(),
+        "dataset": dataset_doc(dataset),
+        "train_s": train_s,
+    }
+
+
+def header_markdown(doc: dict[str, Any]) -> str:
+    """Where the numbers come from: command, preset, data, machine, time."""
+    d, m = doc["dataset"], doc["machine"]
+    seeds = doc["seeds"]
+    return "\n".join([
+        command_markdown(doc["command"]),
+        f"- preset: {doc['preset']}; {d['source']} dataset `{d['folder']}`; sequences {d['sequences']}",
+        f"- seeds: {len(seeds)} ({seeds[0]}-{seeds[-1]}), mean ± SD (sample SD) over seeds",
+        f"- machine: {m['cpu']} ({', '.join(m.get('vector_units') or ['vector units not recorded'])}), {m['cores']} cores, JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)",
+        f"- time: training {doc['train_s']:.0f} s in all (per row below, compilation included); "
+        f"data apart from that: simulation {d['generate_s']:.0f} s, features and sequences {d['load_s']:.0f} s",
+        "",
+    ])
+
+
+def command_markdown(command: str | None) -> str:
+    return f"- command: `{command}`" if command else "- command: none (called from Python)"
+
+
+def row_doc(row: Row, splits: Sequence[str]) -> dict[str, Any]:
+    """A row's config, wall time and, per seed, accuracies and per-sample predictions of every head."""
+    ev = row.results.metrics["eval"]
+    return {
+        "config": row.config.to_json(),
+        "seeds": list(row.results.seeds),
+        "wall_s": row.seconds,
+        "best_epoch": np.asarray(row.results.metrics["best_epoch"]).tolist(),
+        "epochs": {t: [[None if np.isnan(x) else float(x) for x in s] for s in v] for t, v in row.results.metrics["epochs"].items()},
+        "accuracy": {s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()} for s in ("val", *splits)},
+        "predictions": {s: {h: np.asarray(p).tolist() for h, p in ev[s]["predictions"].items()} for s in splits},
+    }
+
+
+def samples_doc(ss: data.SequenceSet) -> dict[str, Any]:
+    """What each evaluated sequence is: labels and where it comes from (the predictions' columns)."""
+    return {
+        "labels": {k: v.tolist() for k, v in ss.labels.items()},
+        **{k: ss.info[k].tolist() for k in ("fabric_id", "trial_key", "start")},
+    }
+
+
+def dataset_doc(ds: Dataset) -> dict[str, Any]:
+    return {
+        "folder": str(ds.folder),
+        "source": ds.source,
+        "generate_s": ds.generate_s,
+        "load_s": ds.load_s,
+        "sequences": {k: len(v) for k, v in ds.sets.items()},
+    }
+
+
+def wilcoxon_doc(w: stats.WilcoxonResult) -> dict[str, Any]:
+    return {**dataclasses.asdict(w), "describe": w.describe()}

@@ -1,0 +1,60 @@
+"""A study's data: every split it evaluates, as sequences of every input any of its rows uses.
+
+Where the data comes from: `data_dir` (a folder of real recordings, see WORKSPACE.md) if given,
+else the simulated dataset of the preset, written on first use by `sim.ensure_dataset` (camera
+frames are rendered only when some row needs images or optical flow).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+from typing import Sequence
+
+from absl import logging
+
+from fabricjax import data, sim, workspace
+from fabricjax.config import Config
+
+# The splits a study that evaluates on the lab test day needs (no cafe or holdout features computed).
+TRAIN_VAL_TEST = ("train", "val", "test")
+
+
+@dataclasses.dataclass
+class Dataset:
+    """Sequences of every split, and what it took to get them (reported apart from training)."""
+
+    sets: dict[str, data.SequenceSet]
+    folder: Path
+    source: str  # "recorded" | "simulated"
+    generate_s: float  # simulating missing archives (0 for recorded data or a finished dataset)
+    load_s: float  # features (cached after the first run) and sequences
+
+
+def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS) -> Dataset:
+    """The splits a study evaluates as sequences of `config.modalities`, loaded once."""
+    t0 = time.perf_counter()
+    if data_dir:
+        folder, source = workspace.dataset_dir(config.preset, workdir, data_dir), "recorded"
+    else:
+        streams = ("audio", "proprio") + (("images",) if {"image", "flow"} & set(config.modalities) else ())
+        folder, source = sim.ensure_dataset(config.preset, workdir, streams=streams), "simulated"
+    t1 = time.perf_counter()
+    sets = data.load_sequences(config, folder, workdir=workdir, split_names=split_names)
+    t2 = time.perf_counter()
+    logging.info("dataset %s (%s): %s", folder, source, {k: len(v) for k, v in sets.items()})
+    return Dataset(sets, Path(folder), source, t1 - t0, t2 - t1)
+
+
+def union_modalities(configs: Sequence[Config]) -> tuple[str, ...]:
+    return tuple(sorted({m for c in configs for m in c.modalities}))
+
+
+def load_for_rows(configs: Sequence[Config], *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS) -> Dataset:
+    """The sequences of every modality any row uses, at the widest bandwidth any row uses, loaded
+    once for all rows (each row takes its own with `data.narrow`)."""
+    merged = dataclasses.replace(
+        configs[0], modalities=union_modalities(configs), bandwidth_khz=max(c.bandwidth_khz for c in configs)
+    )
+    return load_dataset(merged, data_dir=data_dir, workdir=workdir, split_names=split_names)
