@@ -179,13 +179,3 @@ def record_trial(
         raise KeyboardInterrupt(f"recording interrupted; {n} steps kept in {path} (complete=False)")
     return Recording(path, trial_archive, failure)
 
-
-def bench_acquisition(seconds: float = 10.0, fabric_id: int = 12) -> dict:
-    """Step-time distribution of the 50 Hz loop against the simulated devices (nothing written)."""
-    from acquisition import sim_signals, simulated
-
-    cycles = max(1, round(seconds * sim_signals.calibration.CYCLE_HZ))
-    signals = sim_signals.trial_signals(fabric_id, n_cycles=cycles)
-    with simulated.simulated_rig(signals) as rig:
-        rec = record_trial(rig, sim_signals.procedure(cycles), fabric_id=fabric_id, day=1, trial=0, out_dir=".", write=False)
-    return rec.archive.meta["step_time"] | {"mic_stream": rec.archive.meta["mic_stream"], "failure": rec.failure}
