@@ -17,8 +17,8 @@ import time
 import numpy as np
 
 from acquisition import wire
+from fabricjax import archive
 
-WINDOW = 2048
 LATE_S = 0.03  # a packet this much later than the best-case latency counts as late
 
 
@@ -148,7 +148,7 @@ class MicReceiver:
                 raise MicError(f"Pi sender at {self.address}: fewer than {n_frames} frames after {timeout} s")
             time.sleep(0.005)
 
-    def latest(self, n: int = WINDOW) -> tuple[np.ndarray, int]:
+    def latest(self, n: int = archive.WINDOW) -> tuple[np.ndarray, int]:
         """The newest `n` samples of each mic as (2, n) int32, and the window's exclusive end index."""
         self.check()
         with self.lock:
@@ -158,7 +158,7 @@ class MicReceiver:
         """Keep the raw stream from now on, starting with the window that precedes now.
         Returns the absolute index of the first kept frame."""
         with self.lock:
-            n = min(WINDOW, self.ring.end - self.origin)
+            n = min(archive.WINDOW, self.ring.end - self.origin)
             self._record = [self.ring.latest(n).T.copy()] if n else []
             self._record_start = self.ring.end - n
             return self._record_start

@@ -19,12 +19,12 @@ import numpy as np
 
 from acquisition import camera as camera_mod
 from acquisition.camera import Camera, CameraError, ForceProxy
-from acquisition.mics import WINDOW, MicError, MicReceiver
+from acquisition.mics import MicError, MicReceiver
 from acquisition.procedure import ExploratoryProcedure, ProcedureError
 from acquisition.servos import ServoBus, ServoError
 from fabricjax import archive, catalog
 
-PERIOD = 0.02  # 50 Hz: one step per Minsight frame
+PERIOD = 1 / archive.STEP_RATE  # s: one step per Minsight frame (0.02)
 DEVICE_ERRORS = (ServoError, CameraError, MicError, ProcedureError)
 
 
@@ -101,7 +101,7 @@ def record_trial(
     n = missed = 0
     failure, interrupted, closing = None, False, None
 
-    rig.mics.wait_for(WINDOW)
+    rig.mics.wait_for(archive.WINDOW)
     start_index = rig.mics.start_recording()
     t0 = time.perf_counter()
     slot = 0
@@ -128,7 +128,7 @@ def record_trial(
             if te > deadline + period:
                 missed += 1
             if on_step is not None:
-                new = WINDOW if n == 0 else int(min(max(ends[n] - ends[n - 1], 0), WINDOW))
+                new = archive.WINDOW if n == 0 else int(min(max(ends[n] - ends[n - 1], 0), archive.WINDOW))
                 on_step(index=n, time_s=float(stamps[n] - stamps[0]), windows=windows, new_samples=new,
                         joints=joints[n], force=float(force[n]), frame=images[n])
             n += 1
@@ -179,13 +179,3 @@ def record_trial(
         raise KeyboardInterrupt(f"recording interrupted; {n} steps kept in {path} (complete=False)")
     return Recording(path, trial_archive, failure)
 
-
-def bench_acquisition(seconds: float = 10.0, fabric_id: int = 12) -> dict:
-    """Step-time distribution of the 50 Hz loop against the simulated devices (nothing written)."""
-    from acquisition import sim_signals, simulated
-
-    cycles = max(1, round(seconds * sim_signals.calibration.CYCLE_HZ))
-    signals = sim_signals.trial_signals(fabric_id, n_cycles=cycles)
-    with simulated.simulated_rig(signals) as rig:
-        rec = record_trial(rig, sim_signals.procedure(cycles), fabric_id=fabric_id, day=1, trial=0, out_dir=".", write=False)
-    return rec.archive.meta["step_time"] | {"mic_stream": rec.archive.meta["mic_stream"], "failure": rec.failure}

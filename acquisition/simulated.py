@@ -38,6 +38,7 @@ from acquisition import servos, wire
 from acquisition.camera import Camera, ForceProxy
 from acquisition.mics import MicReceiver
 from acquisition.recorder import Rig
+from fabricjax import archive
 
 
 @dataclasses.dataclass(frozen=True)
@@ -180,7 +181,7 @@ def raw_frame(image: np.ndarray) -> np.ndarray:
 
 def write_camera_video(path: Path, images: np.ndarray, faults: Faults = Faults()) -> Path:
     """Motion-JPEG video of the sensor frames (what `cv2.VideoCapture` will serve), with faults."""
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 50, camera_mod.RAW_SIZE)
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), archive.STEP_RATE, camera_mod.RAW_SIZE)
     if not writer.isOpened():
         raise RuntimeError(f"cannot write the simulated camera video {path}")
     n = len(images) if faults.camera_stops_after is None else min(len(images), faults.camera_stops_after)

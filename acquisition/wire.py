@@ -20,7 +20,7 @@ import subprocess
 import sys
 from typing import Callable, Iterable
 
-RATE = 48000
+RATE = 48000  # fabricjax.archive.AUDIO_RATE, repeated because this module is stdlib-only (tested equal)
 CHANNELS = 2
 PERIOD = 512
 HEADER = struct.Struct("<4sIQI")  # magic, sequence, first frame, frames

@@ -164,7 +164,7 @@ def bench_streaming(quick: bool, w: Workload) -> dict:
 
 
 def bench_acquisition(quick: bool) -> dict:
-    from acquisition.recorder import bench_acquisition as run
+    from acquisition.sim_signals import bench_acquisition as run
 
     return run(seconds=3.0 if quick else 10.0)
 

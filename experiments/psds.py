@@ -4,7 +4,7 @@
 
 One trial per class (day 1, trial 0, lab) of the preset is simulated exactly as in its dataset
 (same scenes and seeds, so the audio is bit-identical to the archives); the PSD is Welch's over
-each step's 2048-sample window (scipy.signal.welch, nperseg=1022: 512 bins), averaged over the
+each step's 2048-sample window (scipy.signal.welch with `welch.SCIPY_KWARGS`: 512 bins), averaged over the
 trial. The black curve is a minute of cafe noise recorded by Minsound with the hand at rest.
 """
 
@@ -16,22 +16,20 @@ from absl import flags
 
 from experiments import cli
 
-from fabricjax import catalog, plots, presets, workspace
-from fabricjax.archive import WINDOW
+from fabricjax import archive, catalog, plots, presets, workspace
+from fabricjax.features import welch
 from fabricjax.sim import Scene, scene_for, simulate
-from fabricjax.sim import calibration as cal
 
 FLAGS = flags.FLAGS
 flags.DEFINE_string("preset", "default", "dataset preset whose trials are shown")
 flags.DEFINE_string("results", None, "folder for psds.png (default: <workspace>/results)")
-WELCH = dict(fs=cal.FS, window="hann", nperseg=1022, noverlap=511, detrend="constant", scaling="density")
 
 
 def mean_psd(audio_row: np.ndarray, window_end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Frequencies (Hz) and the mean Welch PSD (full scale^2 / Hz) over the steps' windows."""
-    x = (audio_row >> (32 - cal.VALID_BITS)).astype(np.float64) / cal.FULL_SCALE
-    windows = np.stack([x[e - WINDOW : e] for e in window_end])
-    f, p = scipy.signal.welch(windows, axis=-1, **WELCH)
+    x = (audio_row >> (32 - archive.VALID_BITS)).astype(np.float64) / archive.FULL_SCALE
+    windows = np.stack([x[e - archive.WINDOW : e] for e in window_end])
+    f, p = scipy.signal.welch(windows, axis=-1, **welch.SCIPY_KWARGS)
     return f, p.mean(axis=0)
 
 

@@ -40,9 +40,14 @@ from fabricjax.atomic import atomic_open
 from fabricjax.errors import UserError
 
 FORMAT_VERSION = 1
-WINDOW = 2048
+# The time base and sample format every archive shares (the paper's rig; the SPH0645 datasheet).
+# This is their one definition: the simulator, acquisition and features import them from here
+# (only the stdlib-only Pi side, `acquisition.wire.RATE`, repeats AUDIO_RATE; a test checks it).
+WINDOW = 2048  # audio samples per step (the Welch window)
 AUDIO_RATE = 48000  # Hz, every microphone stream
 STEP_RATE = 50  # Hz, one step per Minsight frame
+VALID_BITS = 18  # valid bits of an SPH0645 I2S word, in bits 31..14
+FULL_SCALE = 2.0 ** (VALID_BITS - 1)  # a signed 18-bit sample of this magnitude is full scale (+-1)
 N_JOINTS = 6
 JOINT_FIELDS = ("angle", "velocity", "current")
 JOINT_NAMES = ("thumb_base", "thumb_mid", "thumb_tip", "middle_base", "middle_tip", "palm")

@@ -37,7 +37,7 @@ from fabricjax.config import Config
 from fabricjax.features import welch
 
 STREAMABLE = ("internal", "external", "proprio")
-STEP_S = 0.02  # 50 Hz
+STEP_S = 1 / archive.STEP_RATE  # s per step (0.02)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -44,7 +44,7 @@ from fabricjax.features import flow, welch
 EXTRA = 'pip install -e ".[viz]"'
 APPLICATION_ID = "fabricjax"
 SPECTROGRAM_STEPS = 100  # 2 s at 50 Hz
-FULL_BAND_KHZ = welch.FS / 2000
+FULL_BAND_KHZ = archive.AUDIO_RATE / 2000
 
 
 def rerun():
@@ -146,7 +146,7 @@ class TrialView:
         psd = np.asarray(self.psd(s.windows))
         self.spectrogram = np.roll(self.spectrogram, -1, axis=2)
         self.spectrogram[:, :, -1] = psd
-        sample_times = s.time_s - np.arange(s.new_samples)[::-1] / welch.FS
+        sample_times = s.time_s - np.arange(s.new_samples)[::-1] / archive.AUDIO_RATE
         for i, mic in enumerate(archive.MIC_NAMES):
             rec.log(f"audio/{mic}/spectrogram", rr.Image(_colormap(self.spectrogram[i, ::-1])))
             wave = np.asarray(welch.to_full_scale(s.windows[i, archive.WINDOW - s.new_samples :]), np.float64)

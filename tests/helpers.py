@@ -9,8 +9,9 @@ from fabricjax import archive, catalog
 
 def tiny_archive(n_steps=30, fabric_id=4, day=1, trial=0, condition="lab", images=(12, 16), seed=0):
     rng = np.random.default_rng(seed)
-    n_samples = archive.WINDOW + 960 * n_steps
-    window_end = np.stack([archive.WINDOW + 960 * np.arange(n_steps)] * 2, axis=1).astype(np.int64)
+    hop = archive.AUDIO_RATE // archive.STEP_RATE  # 960 samples per step
+    n_samples = archive.WINDOW + hop * n_steps
+    window_end = np.stack([archive.WINDOW + hop * np.arange(n_steps)] * 2, axis=1).astype(np.int64)
     meta = archive.make_meta(
         fabric_id=fabric_id,
         properties=catalog.fabric(fabric_id).properties,

@@ -20,6 +20,10 @@ def signals():
     return sim_signals.trial_signals(12, day=1, trial=0, n_cycles=2)
 
 
+def test_wire_rate_is_the_archive_rate():
+    assert wire.RATE == archive.AUDIO_RATE  # wire.py cannot import fabricjax: it runs on a bare Pi
+
+
 def test_sign_magnitude_round_trip():
     for v, bit in [(0, 15), (1234, 15), (-1234, 15), (-1, 10), (1023, 10)]:
         assert servos.sign_magnitude(servos.encode_sign_magnitude(v, bit), bit) == v
@@ -132,7 +136,7 @@ def test_simulated_trial_through_sdk_opencv_and_tcp(signals, tmp_path):
     start = meta["mic_stream"]["start_index"]
     sent = signals.audio[:, start : start + arch.audio.shape[1]]  # a slow loop may run into the Pi's tail
     np.testing.assert_array_equal(arch.audio[:, : sent.shape[1]], sent)
-    assert arch.window_end.min() >= mics.WINDOW
+    assert arch.window_end.min() >= archive.WINDOW
     np.testing.assert_allclose(arch.joints, signals.joints[: arch.n_steps], atol=servos.RAD_PER_COUNT)
     assert arch.images.shape[1:] == (308, 410, 3)
     assert np.abs(arch.images.astype(float) - signals.images[: arch.n_steps]).mean() < 3  # JPEG round trip

@@ -4,8 +4,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
-import zipfile
 
 import numpy as np
 import pytest

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
+from fabricjax import archive
 from fabricjax.features import extract, flow, images, welch
 from tests.helpers import tiny_archive
 
@@ -14,8 +15,8 @@ def _words(samples):
 
 
 def _signal(kind, n_windows, rng):
-    t = np.arange(welch.WINDOW) / welch.FS
-    noise = rng.normal(size=(n_windows, welch.WINDOW))
+    t = np.arange(archive.WINDOW) / archive.AUDIO_RATE
+    noise = rng.normal(size=(n_windows, archive.WINDOW))
     if kind == "noise":
         x = 0.05 * noise
     elif kind == "dc_offset":  # the SPH0645's large DC offset on top of a quiet signal

@@ -23,7 +23,7 @@ SHORT = dict(cycles=2)
 def band_power_db(words: np.ndarray, lo=50.0, hi=15_000.0) -> float:
     """In-band power of one raw microphone stream, dB re full scale."""
     x = (words >> 14).astype(np.float64)
-    f, p = scipy.signal.welch(x, fs=cal.FS, nperseg=2048)
+    f, p = scipy.signal.welch(x, fs=archive.AUDIO_RATE, nperseg=2048)
     band = (f >= lo) & (f <= hi)
     return float(10 * np.log10(p[band].sum() * (f[1] - f[0])))
 
@@ -106,11 +106,11 @@ def test_texture_frequency_follows_speed_over_weave_period():
     """f = v / lambda: read the satin's weave at two constant speeds."""
     scene = Scene(2)
     lam = scene.fabric.weave_period_mm
-    t = np.arange(4 * cal.FS) / cal.FS
+    t = np.arange(4 * archive.AUDIO_RATE) / archive.AUDIO_RATE
     peaks = []
     for v in (20.0, 40.0):
         p = texture.vibration(scene, v * t, np.full_like(t, cal.GRASP_FORCE_N), 15.0, np.random.default_rng(0))
-        f, psd = scipy.signal.welch(p, fs=cal.FS, nperseg=16384)
+        f, psd = scipy.signal.welch(p, fs=archive.AUDIO_RATE, nperseg=16384)
         band = f > 0.5 * v / lam
         peaks.append(f[band][np.argmax(psd[band])])
     assert peaks[0] == pytest.approx(20.0 / lam, rel=0.05)
@@ -156,7 +156,7 @@ def test_a_trivial_level_statistic_does_not_identify_the_fabric():
             for trial in range(trials):
                 a = simulate(Scene(fid, day=day, trial=trial, cycles=2))
                 x = (a.audio[0] >> 14).astype(np.float64)
-                f, psd = scipy.signal.welch(x, fs=cal.FS, nperseg=1022)
+                f, psd = scipy.signal.welch(x, fs=archive.AUDIO_RATE, nperseg=1022)
                 shape = np.log(psd[(f >= 50) & (f <= 15_000)])
                 rows.append((fid, day, x.mean(), 10 * np.log10(x.var()), shape - shape.mean()))
     y = np.array([r[0] for r in rows])

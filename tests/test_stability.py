@@ -62,7 +62,7 @@ def _scipy_psd(words):
 
 
 def _window(kind):
-    w = np.zeros(welch.WINDOW, np.int64)
+    w = np.zeros(archive.WINDOW, np.int64)
     if kind == "silent":
         pass
     elif kind == "stuck_at_full_scale":  # a saturated converter: the largest word, junk in the low bits
@@ -76,7 +76,7 @@ def _window(kind):
     elif kind == "alternating_extremes":  # +-full scale every sample: all power at Nyquist
         w[0::2], w[1::2] = INT32_MIN, TOP
     elif kind == "clipped_square":  # a 1 kHz tone driven far past full scale
-        t = np.arange(welch.WINDOW) / welch.FS
+        t = np.arange(archive.WINDOW) / archive.AUDIO_RATE
         w[:] = np.where(np.sin(2 * np.pi * 1000 * t) >= 0, TOP, INT32_MIN)
     return w.astype(np.int32)
 
@@ -110,7 +110,7 @@ def test_impulse_and_extreme_words_match_scipy(kind):
 
 
 words_strategy = hnp.arrays(
-    np.int32, (2, welch.WINDOW),
+    np.int32, (2, archive.WINDOW),
     elements=st.one_of(st.sampled_from([INT32_MIN, INT32_MAX, TOP, 0, -1, 1 << 14]), st.integers(INT32_MIN, INT32_MAX)),
     fill=st.sampled_from([0, INT32_MAX, INT32_MIN]),
 )

@@ -17,7 +17,7 @@ import jax
 import numpy as np
 import scipy.signal
 
-from fabricjax import data
+from fabricjax import archive, data
 from fabricjax.config import Config
 from fabricjax.features import welch
 
@@ -34,7 +34,7 @@ def _best_of(fn, repeats: int) -> float:
 def bench_welch(n_windows: int = 4096, repeats: int = 5, seed: int = 0) -> dict:
     """Seconds per call (best of `repeats`, after compilation) on n_windows x 2048 windows."""
     rng = np.random.default_rng(seed)
-    words = (rng.integers(-(2**17), 2**17, size=(n_windows, welch.WINDOW)) << 14).astype(np.int32)
+    words = (rng.integers(-(2**17), 2**17, size=(n_windows, archive.WINDOW)) << 14).astype(np.int32)
     samples = np.asarray(welch.to_full_scale(words), np.float32)
     ours = jax.jit(lambda w: welch.welch_psd(w, bandwidth_khz=24.0, log=False))
     theirs = jax.jit(lambda x: jax.scipy.signal.welch(x, **welch.SCIPY_KWARGS)[1])

@@ -6,7 +6,9 @@ Parameters (`scipy.signal.welch` with the same arguments gives the same numbers)
     one-sided), average = 'mean'.
 A 2048-sample window then holds 3 segments starting at 0, 511 and 1022 (the last 4 samples are
 unused) and the density has nperseg // 2 + 1 = 512 bins at k * 48000 / 1022 Hz (46.97 Hz apart,
-bin 511 is Nyquist, 24 kHz): the paper's 512 bins without dropping one.
+bin 511 is Nyquist, 24 kHz): the paper's 512 bins without dropping one. The sample rate, the
+window and the word format are the archive's (`fabricjax.archive`: AUDIO_RATE, WINDOW, VALID_BITS,
+FULL_SCALE).
 
 Raw SPH0645 I2S words (int32) carry 18 valid bits in bits 31..14: an arithmetic shift right by 14
 gives the signed sample, divided by 2**17 it is in units of full scale (+-1). Float input is taken
@@ -35,29 +37,27 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-FS = 48_000
-WINDOW = 2048
+from fabricjax.archive import AUDIO_RATE, FULL_SCALE, VALID_BITS, WINDOW
+
 NPERSEG = 1022
 NOVERLAP = 511
 N_BINS = NPERSEG // 2 + 1
 N_SEGMENTS = (WINDOW - NOVERLAP) // (NPERSEG - NOVERLAP)
-VALID_BITS = 18
-FULL_SCALE = 2.0 ** (VALID_BITS - 1)
 # 1e-20 full-scale^2/Hz lies ~40 dB below the 18-bit quantisation noise density (~2e-16), so only
 # exact digital silence reaches it.
 LOG_FLOOR = 1e-20
 SCIPY_KWARGS = dict(
-    fs=FS, window="hann", nperseg=NPERSEG, noverlap=NOVERLAP, detrend="constant", scaling="density", average="mean"
+    fs=AUDIO_RATE, window="hann", nperseg=NPERSEG, noverlap=NOVERLAP, detrend="constant", scaling="density", average="mean"
 )
 
 
 def n_bins(bandwidth_khz: float) -> int:
     """Bins kept when the PSD is truncated at `bandwidth_khz` (centre frequency <= bandwidth)."""
-    return min(N_BINS, math.floor(bandwidth_khz * 1000 * NPERSEG / FS) + 1)
+    return min(N_BINS, math.floor(bandwidth_khz * 1000 * NPERSEG / AUDIO_RATE) + 1)
 
 
 def frequencies(bandwidth_khz: float = 24.0) -> np.ndarray:
-    return np.arange(n_bins(bandwidth_khz)) * FS / NPERSEG
+    return np.arange(n_bins(bandwidth_khz)) * AUDIO_RATE / NPERSEG
 
 
 def _float():
@@ -78,7 +78,7 @@ def _segments(x: jax.Array) -> jax.Array:
 
 _HANN = 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(NPERSEG) / NPERSEG)  # float64, as scipy builds it
 # density scaling per bin: 1 / (fs * sum(w^2)), doubled except at DC and Nyquist (even nfft)
-_SCALE = np.where((np.arange(N_BINS) == 0) | (np.arange(N_BINS) == N_BINS - 1), 1.0, 2.0) / (FS * np.sum(_HANN**2))
+_SCALE = np.where((np.arange(N_BINS) == 0) | (np.arange(N_BINS) == N_BINS - 1), 1.0, 2.0) / (AUDIO_RATE * np.sum(_HANN**2))
 
 
 @partial(jax.jit, static_argnames=("bandwidth_khz", "log", "floor"))

@@ -1,4 +1,4 @@
-"""The scene simulator: physically grounded trial archives (see DESIGN.md, "The scene simulator").
+"""The scene simulator: physically grounded trial archives, standing in for the paper's recorded dataset.
 
     scene = Scene(fabric_id=12, day=1, trial=0, condition="lab",
                   effects=EFFECTS, streams=("audio", "proprio"), cycles=50, seed=0)
@@ -6,8 +6,10 @@
     path = ensure_dataset("default")       # every trial of a preset, resumable, indexed
 
 Only what a scene calls for is computed: an effect missing from `scene.effects` is never
-evaluated, and images are rendered only when "images" is in `scene.streams`. Constants live in
-`fabricjax.sim.calibration`.
+evaluated, and images are rendered only when "images" is in `scene.streams`. Each module's
+docstring states what it models and where that comes from; every constant lives in
+`fabricjax.sim.calibration` with its source tag ([paper], [ds], [phys], [hw], [FACTS], listed
+there). The time base and word format shared with recorded trials are `fabricjax.archive`'s.
 """
 
 from fabricjax.sim.bench import bench_throughput

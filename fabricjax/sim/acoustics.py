@@ -13,6 +13,7 @@ import dataclasses
 import numpy as np
 import scipy.fft
 
+from fabricjax import archive
 from fabricjax.sim import calibration as cal
 
 P_REF = 20e-6
@@ -31,12 +32,12 @@ class Grid:
 
     @property
     def f(self) -> np.ndarray:
-        return np.fft.rfftfreq(self.nfft, 1.0 / cal.FS)
+        return np.fft.rfftfreq(self.nfft, 1.0 / archive.AUDIO_RATE)
 
     @property
     def t(self) -> np.ndarray:
         """Seconds from the start of the procedure (negative during the lead-in)."""
-        return (np.arange(self.n) - cal.LEAD_IN) / cal.FS
+        return (np.arange(self.n) - cal.LEAD_IN) / archive.AUDIO_RATE
 
     def rfft(self, x: np.ndarray) -> np.ndarray:
         return scipy.fft.rfft(x, self.nfft)
@@ -96,4 +97,4 @@ def ringing_kernel_spectrum(f: np.ndarray, ring_hz: float, decay_s: float) -> np
     a = 1.0 / decay_s
     w0 = 2 * np.pi * ring_hz
     s = 2j * np.pi * f
-    return w0 / ((s + a) ** 2 + w0**2) * cal.FS
+    return w0 / ((s + a) ** 2 + w0**2) * archive.AUDIO_RATE

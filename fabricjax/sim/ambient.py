@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fabricjax import archive
 from fabricjax.sim import acoustics
 from fabricjax.sim import calibration as cal
 
@@ -33,8 +34,8 @@ def clatter(n: int, rng: np.random.Generator) -> np.ndarray:
     """Sparse impacts (relative to a unit-RMS babble), each three inharmonic partials at 2-7 kHz."""
     out = np.zeros(n)
     tau = cal.CLATTER_DECAY_S
-    t = np.arange(int(5 * tau * cal.FS)) / cal.FS
-    for start in rng.integers(0, n, rng.poisson(cal.CLATTER_PER_S * n / cal.FS)):
+    t = np.arange(int(5 * tau * archive.AUDIO_RATE)) / archive.AUDIO_RATE
+    for start in rng.integers(0, n, rng.poisson(cal.CLATTER_PER_S * n / archive.AUDIO_RATE)):
         partials = rng.uniform(*cal.CLATTER_RING_HZ, 3)
         hit = sum(np.sin(2 * np.pi * fp * t + rng.uniform(0, 2 * np.pi)) for fp in partials) / 3
         hit *= np.exp(-t / (tau * rng.uniform(0.5, 1.5))) * rng.lognormal(0.0, 0.5)
@@ -50,7 +51,7 @@ def spectrum(condition: str, level_db_a: float, grid: acoustics.Grid, rng: np.ra
         return acoustics.scale_to_db_a(acoustics.noise_spectrum(rng, grid, lab_shape(f)), grid, level_db_a)
     babble = grid.irfft(acoustics.noise_spectrum(rng, grid, babble_shape(f)))
     babble /= babble.std()
-    n_env = int(grid.n / cal.FS * 8) + 2  # syllable-rate envelope, 8 knots per second
+    n_env = int(grid.n / archive.AUDIO_RATE * 8) + 2  # syllable-rate envelope, 8 knots per second
     env = np.interp(np.linspace(0, n_env - 1, grid.n), np.arange(n_env), rng.standard_normal(n_env))
     x = babble * (1.0 + cal.BABBLE_MODULATION * env)
     x += clatter(grid.n, rng) * 10 ** (cal.CLATTER_PEAK_DB / 20)

@@ -2,24 +2,29 @@
 
 Calibration is by physical parameters only: levels, SNRs and bands from the paper and the
 SPH0645 datasheet, geometry and material constants as textbook-order estimates. Nothing here was
-tuned to a classification accuracy. Sources are marked:
+tuned to a classification accuracy. Sources are marked, here and in the modules' docstrings
+("[paper, Section]" names where, "[paper: ...]" what it says):
 
     [paper]  stated in the paper (arxiv_main.tex, Method / Experiments)
     [ds]     SPH0645LM4H datasheet (Knowles): -26 dBFS at 94 dB SPL, 65 dB(A) SNR, AOP 120 dB SPL,
              18 valid bits of a 24-bit word in a 32-bit I2S slot, usable band 50 Hz-15 kHz
     [phys]   a physical law or a material/geometry estimate (order of magnitude, stated)
     [hw]     STS3215 servo / robot-hand estimates (resolution of the registers, lever lengths)
+    [FACTS]  an established property of the phenomenon from outside the paper and the datasheet
+             (texture vibration f = v / lambda, babble spectra, MEMS DC offset, magnetic encoders),
+             stated where it is used
 """
 
 from __future__ import annotations
 
 import math
 
+from fabricjax import archive
+
 # --- time base --------------------------------------------------------------------------------
-FS = 48_000  # [paper] audio sample rate, Hz
-STEP_HZ = 50  # [paper] one step per Minsight frame
-WINDOW = 2048  # [paper] audio samples per step
-LEAD_IN = 4096  # samples recorded before the procedure starts (>= WINDOW so every window is full)
+# [paper] The audio sample rate (48 kHz), the step rate (50 Hz, one step per Minsight frame) and the
+# audio samples per step (2048) are the archive format's: `archive.AUDIO_RATE`, `STEP_RATE`, `WINDOW`.
+LEAD_IN = 4096  # samples recorded before the procedure starts (>= archive.WINDOW so every window is full)
 FRAME_JITTER_S = 0.0008  # [hw] USB camera frame-time jitter: a UVC camera delivers frames on its own
 # clock; the host timestamps them at USB transfer with ~1 ms scheduling jitter (a USB 2.0 microframe
 # is 125 us; Linux user-space wake-up latency is ~0.1-1 ms), hence +-0.8 ms
@@ -128,14 +133,13 @@ CLATTER_PEAK_DB = 12.0  # clatter peaks above the babble RMS
 
 # --- SPH0645 [ds] -------------------------------------------------------------------------------
 SENSITIVITY_DBFS = -26.0  # at 94 dB SPL (1 Pa)
-VALID_BITS = 18
-FULL_SCALE = 2 ** (VALID_BITS - 1)
-COUNTS_PER_PA = 10 ** (SENSITIVITY_DBFS / 20) * FULL_SCALE / math.sqrt(2)  # RMS counts per Pa RMS
+# 18 valid bits, full scale 2**17: `archive.VALID_BITS`, `archive.FULL_SCALE`
+COUNTS_PER_PA = 10 ** (SENSITIVITY_DBFS / 20) * archive.FULL_SCALE / math.sqrt(2)  # RMS counts per Pa RMS
 SELF_NOISE_DB_A = 94.0 - 65.0  # 65 dB(A) SNR re 94 dB SPL -> 29 dB(A) SPL equivalent input noise
 BAND_HZ = (50.0, 15_000.0)  # [ds] usable band: 2nd-order roll-offs at both ends
 DECIMATION_HZ = 21_000.0  # steep digital low-pass of the sigma-delta decimator
-DC_OFFSET_COUNTS = -3000.0  # [ds/FACTS] large DC offset (of 2**17), drifting from day to day
-# [ds/FACTS] The DC offset is set by the modulator's reference and drifts with temperature; 400
+DC_OFFSET_COUNTS = -3000.0  # [ds, FACTS] large DC offset (of 2**17), drifting from day to day
+# [ds, FACTS] The DC offset is set by the modulator's reference and drifts with temperature; 400
 # counts is 0.3 % of full scale (an estimate: the datasheet gives no drift figure). It sits in the
 # lowest Welch bins only, which the detrend removes.
 DC_DRIFT_COUNTS = 400.0

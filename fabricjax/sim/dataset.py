@@ -66,9 +66,9 @@ def trial_bytes(dataset: splits.DatasetSpec, images: bool) -> int:
     A trial lasts its cycles at the commanded rate, ~12 % slower on average under load (the servo
     droop of calibration.SPEED_DROOP_PER_N), plus ~1 s of closing and pauses."""
     seconds = dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0
-    steps = seconds * cal.STEP_HZ
+    steps = seconds * archive.STEP_RATE
     per_step = 8 + 2 * 8 + archive.N_JOINTS * 3 * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)
-    return int(steps * per_step + 2 * 4 * (seconds * cal.FS + cal.LEAD_IN))
+    return int(steps * per_step + 2 * 4 * (seconds * archive.AUDIO_RATE + cal.LEAD_IN))
 
 
 def _gb(n: float) -> str:

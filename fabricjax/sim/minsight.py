@@ -48,6 +48,13 @@ def interior(seed: int, height: int, width: int) -> np.ndarray:
     return np.clip(light * (1.0 - 0.55 * dots[..., None]) + 20.0, 0, 255)
 
 
+def reference(scene: Scene) -> np.ndarray:
+    """uint8 (H, W, 3): the no-contact frame of `scene`'s camera without noise (the interior as
+    `render` draws it at zero force), e.g. the reference of a force proxy."""
+    h, w = scene.image_size
+    return np.clip(interior(scene.seed, h, w), 0, 255).astype(np.uint8)
+
+
 def patch_geometry(fabric: catalog.Fabric, fold: float) -> tuple[float, float, float]:
     """(along, across, ridge) at full resolution for the folded stack at 0.1 N, see calibration:
     the patch's size along and across the fold relative to a thin, soft fabric's, and how much of

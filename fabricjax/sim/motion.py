@@ -23,7 +23,7 @@ import dataclasses
 
 import numpy as np
 
-from fabricjax import catalog
+from fabricjax import archive, catalog
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import Nuisance
 
@@ -87,7 +87,7 @@ def finger_motion(fabric: catalog.Fabric, cycles: int, nz: Nuisance, rng: np.ran
     # closing, checked once per camera frame
     t_contact = (cal.OPEN_GAP_MM - thickness) / cal.CLOSING_SPEED_MM_S
     t_reach = t_contact + cal.GRASP_FORCE_N / (k_n * cal.CLOSING_SPEED_MM_S)
-    frame = 1.0 / cal.STEP_HZ
+    frame = 1.0 / archive.STEP_RATE
     t_stop = nz.frame_phase_s + frame * np.ceil((t_reach - nz.frame_phase_s) / frame)
     grasp_force = k_n * cal.CLOSING_SPEED_MM_S * (t_stop - t_contact)
     # rubbing

@@ -116,6 +116,6 @@ def nuisance(scene: Scene) -> Nuisance:
         grasp_mm=float(trial.uniform(*cal.GRASP_RANGE_MM)),
         fold=float(1.0 + trial.uniform(-cal.FOLD_SPREAD, cal.FOLD_SPREAD)),
         speed=float(1.0 + trial.normal(0.0, cal.SPEED_JITTER)),
-        frame_phase_s=float(trial.uniform(0.0, 1.0 / cal.STEP_HZ)),
+        frame_phase_s=float(trial.uniform(0.0, 1.0 / archive.STEP_RATE)),
         contact_offset_mm=trial.normal(0.0, cal.CONTACT_OFFSET_MM, 2),
     )

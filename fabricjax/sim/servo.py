@@ -1,18 +1,19 @@
 """Servo noise, heard by both microphones and present in every class (class 0 included).
 
-[DESIGN: servo noise heard by both microphones] A geared servo sings at its gear-mesh frequency,
-motor rev/s x pinion teeth = |joint speed| x gear ratio / 2 pi x teeth (a few hundred Hz at
-rubbing speeds), with harmonics, plus broadband motor/gear noise growing with speed and with the
-transmitted torque; servos holding position still hum (PWM). The sound reaches Minsound through
-the aluminium skeleton (structure-borne, band-limited) and the palm microphone through the air
-(the servos sit in the palm). Load dependence makes the servo sound carry a little friction
-information, as proprioception does.
+[hw, phys] A geared servo sings at its gear-mesh frequency, motor rev/s x pinion teeth =
+|joint speed| x gear ratio / 2 pi x teeth (a few hundred Hz at rubbing speeds), with harmonics,
+plus broadband motor/gear noise growing with speed and with the transmitted torque; servos
+holding position still hum (PWM). The sound reaches Minsound through the aluminium skeleton
+(structure-borne, band-limited) and the palm microphone through the air (the servos sit in the
+palm). Load dependence makes the servo sound carry a little friction information, as
+proprioception does.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from fabricjax import archive
 from fabricjax.sim import acoustics
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.motion import Motion
@@ -30,7 +31,7 @@ def source(motion: Motion, grid: acoustics.Grid, rng: np.random.Generator) -> np
     torque = np.abs(np.interp(t, motion.t, motion.shear_n, left=0.0, right=0.0)) * cal.FINGER_LEVER_MM * 1e-3
     load = 1.0 + torque / cal.SERVO_LOAD_REF_NM
     mesh_hz = speed * cal.GEAR_RATIO / (2 * np.pi) * cal.GEAR_TEETH
-    phase = 2 * np.pi * np.cumsum(mesh_hz) / cal.FS + rng.uniform(0, 2 * np.pi)
+    phase = 2 * np.pi * np.cumsum(mesh_hz) / archive.AUDIO_RATE + rng.uniform(0, 2 * np.pi)
     sin, cos = np.sin(phase), np.cos(phase)
     tone = sin + sin * cos + 0.25 * sin * (3.0 - 4.0 * sin * sin)  # harmonics 1, 2 (x 0.5), 3 (x 0.25)
     x = cal.SERVO_TONE_PA * speed * load * tone

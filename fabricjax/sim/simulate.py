@@ -19,8 +19,8 @@ from fabricjax.sim.scene import Scene, nuisance
 
 def frame_times(duration_s: float, phase_s: float, rng: np.random.Generator) -> np.ndarray:
     """Camera frame capture times: 50 Hz from `phase_s` with small jitter, non-decreasing."""
-    n = int(np.floor((duration_s - phase_s) * cal.STEP_HZ)) + 1
-    t = phase_s + np.arange(n) / cal.STEP_HZ + rng.uniform(-cal.FRAME_JITTER_S, cal.FRAME_JITTER_S, n)
+    n = int(np.floor((duration_s - phase_s) * archive.STEP_RATE)) + 1
+    t = phase_s + np.arange(n) / archive.STEP_RATE + rng.uniform(-cal.FRAME_JITTER_S, cal.FRAME_JITTER_S, n)
     return np.maximum.accumulate(np.clip(t, 0.0, duration_s))
 
 
@@ -59,7 +59,7 @@ def simulate(scene: Scene) -> archive.TrialArchive:
     nz = nuisance(scene)
     mot = motion.finger_motion(fab, scene.cycles, nz, scene.rng("motion", "trial"))
     t = frame_times(mot.duration_s, nz.frame_phase_s, scene.rng("frames", "trial"))
-    window_end = cal.LEAD_IN + np.round(t * cal.FS).astype(np.int64)
+    window_end = cal.LEAD_IN + np.round(t * archive.AUDIO_RATE).astype(np.int64)
     grid = acoustics.Grid.for_samples(int(window_end[-1]))
     audio = microphones(scene, mot, grid, nz)
     joints, force = proprio.joints_and_force(mot, t, nz, scene.rng("proprioception", "trial") if scene.wants("proprioception") else None)

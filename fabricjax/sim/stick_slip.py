@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fabricjax import archive
 from fabricjax.sim import acoustics
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.motion import Motion
@@ -53,7 +54,7 @@ def spectrum(scene: Scene, motion: Motion, grid: acoustics.Grid, rng: np.random.
     lo, hi = cal.SLIP_RING_HZ
     stiffness = motion.contact_stiffness_n_mm / cal.SHELL_NORMAL_STIFFNESS_N_MM  # (0, 1]
     ring = (lo + (hi - lo) * np.sqrt(stiffness)) * rng.uniform(0.9, 1.1)
-    idx = np.clip(np.round(times * cal.FS).astype(np.int64) + cal.LEAD_IN, 0, grid.n - 1)
+    idx = np.clip(np.round(times * archive.AUDIO_RATE).astype(np.int64) + cal.LEAD_IN, 0, grid.n - 1)
     train = np.zeros(grid.n)
     np.add.at(train, idx, amps)
     return grid.rfft(train) * acoustics.ringing_kernel_spectrum(grid.f, ring, cal.SLIP_DECAY_S)

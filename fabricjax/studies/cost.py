@@ -44,7 +44,6 @@ from fabricjax.config import Config
 from fabricjax.model import predict_one
 from fabricjax.studies import documents, loading, runner
 
-STEP_HZ = 50.0  # Minsight frame rate: one step per frame
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
 SHORT = {"internal": "int", "external": "ext", "proprio": "prop", "flow": "flow", "image": "img"}
 X_AXES = (
@@ -148,7 +147,7 @@ def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int) -> d
         "name": point.name,
         "group": point.group,
         "seq_len": c.seq_len,
-        "touch_s": c.seq_len / STEP_HZ,
+        "touch_s": c.seq_len / archive.STEP_RATE,
         "backbone": c.backbone,
         "width": c.width,
         "bandwidth_khz": c.bandwidth_khz,
