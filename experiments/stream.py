@@ -1,4 +1,4 @@
-"""Live classification of one trial at 50 Hz (see fabricjax/stream.py).
+"""Live classification of one trial at 50 Hz (fabricjax/studies/stream.py; the streaming: fabricjax/stream.py).
 
     python -m experiments.stream                                  # quick default-preset model, first test trial
     python -m experiments.stream --archive=PATH --checkpoint=DIR  # any trial, any streamable checkpoint
@@ -13,7 +13,8 @@ default preset) and checkpointed under the workspace; later runs restore it.
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax import splits, stream
+from fabricjax import splits
+from fabricjax.studies import stream
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_string("archive", None, "trial archive to replay (default: the first test-day trial of the model's dataset)")

@@ -42,7 +42,6 @@ from absl import logging
 from fabricjax import archive, benchmark, data, plots, report, splits, stats
 from fabricjax.config import AUDIO_MODALITIES, Config
 from fabricjax.features import welch
-from fabricjax.model import predict_one
 from fabricjax.studies import common
 
 STEP_HZ = 50.0  # Minsight frame rate: one step per frame
@@ -120,16 +119,9 @@ def _narrow(sets: dict[str, data.SequenceSet], config: Config) -> dict[str, data
 
 
 def inference_latency(graphdef, params, inputs: dict[str, np.ndarray], repeats: int, warmup: int = 5) -> dict[str, float]:
-    """p50 / p99 ms of jitted `predict_one` on one sequence, result fetched to the host."""
-    one = {m: jax.device_put(a) for m, a in inputs.items()}
-    for _ in range(warmup):
-        jax.device_get(predict_one(graphdef, params, one))
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        jax.device_get(predict_one(graphdef, params, one))
-        times.append(time.perf_counter() - t)
-    return {f"latency_{k}": v for k, v in benchmark.percentiles_ms(times).items()}
+    """p50 / p99 ms of jitted `predict_one` on one sequence, result fetched to the host (`benchmark.predict_one_timer`)."""
+    run = benchmark.predict_one_timer(graphdef, params, inputs, warmup=warmup)
+    return {f"latency_{k}": v for k, v in stats.percentiles_ms([run() for _ in range(repeats)]).items()}
 
 
 def pareto_front(points: Sequence[dict], key: str) -> list[str]:
