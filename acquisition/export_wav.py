@@ -8,7 +8,7 @@ from __future__ import annotations
 from absl import flags
 
 from acquisition import exporting
-from experiments import cli
+from fabricjax import cli
 from fabricjax.errors import UserError
 
 FLAGS = flags.FLAGS

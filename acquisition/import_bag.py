@@ -13,7 +13,7 @@ from pathlib import Path
 from absl import flags
 
 from acquisition import importing
-from experiments import cli
+from fabricjax import cli
 from fabricjax import archive
 from fabricjax.errors import UserError
 

@@ -28,7 +28,7 @@ from absl import flags
 
 from acquisition import recorder
 from acquisition.camera import IMAGE_SIZE
-from experiments import cli
+from fabricjax import cli
 from fabricjax.errors import UserError
 
 FLAGS = flags.FLAGS

@@ -22,7 +22,7 @@ from acquisition.camera import Camera, CameraError, ForceProxy
 from acquisition.mics import MicError, MicReceiver
 from acquisition.procedure import ExploratoryProcedure, ProcedureError
 from acquisition.servos import ServoBus, ServoError
-from fabricjax import archive, catalog
+from fabricjax import archive, catalog, stats
 
 PERIOD = 1 / archive.STEP_RATE  # s: one step per Minsight frame (0.02)
 DEVICE_ERRORS = (ServoError, CameraError, MicError, ProcedureError)
@@ -59,15 +59,15 @@ class Recording:
 
 def step_statistics(durations: np.ndarray, lateness: np.ndarray, missed: int, period: float = PERIOD) -> dict:
     """Work time per step and start lateness (ms); a missed deadline is a step that ended after its slot."""
-    ms = lambda x, q: round(float(np.percentile(x, q)) * 1e3, 3) if len(x) else 0.0  # noqa: E731
     n = len(durations)
+    work = stats.percentiles_ms(durations) if n else {"p50_ms": 0.0, "p99_ms": 0.0}
     return {
         "period_ms": period * 1e3,
         "steps": n,
-        "p50_ms": ms(durations, 50),
-        "p99_ms": ms(durations, 99),
+        "p50_ms": round(work["p50_ms"], 3),
+        "p99_ms": round(work["p99_ms"], 3),
         "max_ms": round(float(durations.max()) * 1e3, 3) if n else 0.0,
-        "start_late_p99_ms": ms(lateness, 99),
+        "start_late_p99_ms": round(stats.percentiles_ms(lateness)["p99_ms"], 3) if len(lateness) else 0.0,
         "missed_deadlines": int(missed),
         "missed_fraction": round(missed / n, 5) if n else 0.0,
     }

@@ -21,8 +21,7 @@ from typing import Any, Callable, Sequence
 
 from absl import flags
 
-from experiments import cli
-from fabricjax import presets, sharding, workspace
+from fabricjax import cli, presets, runtime, workspace
 from fabricjax.config import Config, parse_override
 from fabricjax.errors import UserError
 
@@ -47,9 +46,10 @@ flags.DEFINE_integer(
 
 
 def run(main, cpu_devices: int | None = None) -> None:
-    """`cli.run(main)` with JAX's CPU devices set before JAX starts (--cpu_devices, else
-    `cpu_devices`, else one per core); at the end, the files the command wrote into the results
-    folder are listed."""
+    """`cli.run(main)` with JAX configured before it starts (`runtime.configure_jax`): its CPU
+    devices (--cpu_devices, else `cpu_devices`, else one per core) and XLA's compilation cache
+    under the workspace (jax_cache/, so a rerun of a study skips compilation); at the end, the
+    files the command wrote into the results folder are listed."""
 
     def start(argv):
         folder = results_dir()
@@ -60,19 +60,12 @@ def run(main, cpu_devices: int | None = None) -> None:
             print("wrote " + ", ".join(str(p) for p in written))
 
     def setup():
-        sharding.use_cpu_cores(FLAGS.cpu_devices or cpu_devices)
-        use_compilation_cache()
+        runtime.configure_jax(
+            cpu_devices=FLAGS.cpu_devices or cpu_devices or runtime.CORES,
+            compilation_cache_dir=workspace.compilation_cache_dir(FLAGS.workdir),
+        )
 
     cli.run(start, before=setup)
-
-
-def use_compilation_cache() -> None:
-    """Keep XLA's compiled programs under the workspace (jax_cache/), so a rerun of a study skips
-    compilation: every row is one program per config, ~15-20 s to compile on a 2-core CPU."""
-    import jax
-
-    jax.config.update("jax_compilation_cache_dir", str(workspace.compilation_cache_dir(FLAGS.workdir)))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
 
 
 def _snapshot(folder: Path) -> dict[Path, tuple[int, int, int]]:

@@ -14,7 +14,7 @@ import numpy as np
 import scipy.signal
 from absl import flags
 
-from experiments import cli
+from fabricjax import cli
 
 from fabricjax import archive, catalog, plots, presets, workspace
 from fabricjax.features import welch

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from absl import flags
 
-from experiments import cli
+from fabricjax import cli
 
 from fabricjax.sim import ensure_dataset
 

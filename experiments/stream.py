@@ -1,10 +1,11 @@
-"""Live classification of one trial at 50 Hz (see fabricjax/stream.py).
+"""Live classification of one trial at 50 Hz (fabricjax/studies/stream.py; the streaming: fabricjax/stream.py).
 
     python -m experiments.stream                                  # quick default-preset model, first test trial
     python -m experiments.stream --archive=PATH --checkpoint=DIR  # any trial, any streamable checkpoint
     python -m experiments.stream --realtime=false                 # as fast as possible
     python -m experiments.stream --view                           # watch it in Rerun (pip install -e ".[viz]")
     python -m experiments.stream --view_save=stream.rrd           # or keep it as a Rerun recording
+    python -m experiments.stream --set=modalities=internal,proprio --set=epochs=4   # another quick model
 
 Without --checkpoint a one-seed model of --preset is trained on first use (about a minute on the
 default preset) and checkpointed under the workspace; later runs restore it.
@@ -13,14 +14,13 @@ default preset) and checkpointed under the workspace; later runs restore it.
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax import presets, stream
+from fabricjax.studies import stream
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_string("archive", None, "trial archive to replay (default: the first test-day trial of the model's dataset)")
 absl_flags.DEFINE_string("checkpoint", None, "checkpoint directory of a train_and_evaluate run (default: a quick model of --preset)")
-absl_flags.DEFINE_enum("preset", "default", sorted(presets.PRESETS), "preset of the quick model and its dataset")
-absl_flags.DEFINE_list("modalities", ["internal", "external"], "modalities of the quick model (internal, external, proprio)")
-absl_flags.DEFINE_integer("epochs", None, "epochs of the quick model (default: the preset's)")
+flags.define_preset()
+flags.define_overrides()
 absl_flags.DEFINE_bool("realtime", True, "replay at 50 Hz; false: as fast as possible")
 absl_flags.DEFINE_integer("print_every", 1, "print every k-th step (0: summary only)")
 absl_flags.DEFINE_bool("view", False, "stream the trial's sensors and each step's prediction, confidence and latency to the Rerun viewer")
@@ -34,8 +34,7 @@ def main(argv):
         archive_path=FLAGS.archive,
         checkpoint_dir=FLAGS.checkpoint,
         preset=FLAGS.preset,
-        modalities=tuple(FLAGS.modalities),
-        epochs=FLAGS.epochs,
+        overrides=flags.overrides(),
         realtime=FLAGS.realtime,
         print_every=FLAGS.print_every,
         view=FLAGS.view,

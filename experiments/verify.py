@@ -10,7 +10,7 @@ import sys
 
 from absl import flags
 
-from experiments import cli
+from fabricjax import cli
 from fabricjax import integrity
 from fabricjax.errors import UserError
 

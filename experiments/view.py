@@ -11,7 +11,7 @@ Needs the optional Rerun SDK: pip install -e ".[viz]".
 
 from absl import flags as absl_flags
 
-from experiments import cli
+from fabricjax import cli
 from fabricjax import view
 
 FLAGS = absl_flags.FLAGS

@@ -1,14 +1,15 @@
-"""Timing helpers for the training step and for inference (used by `experiments.bench`).
+"""Timing helpers for the training step and for inference (used by `fabricjax.studies.bench` and
+the cost study).
 
 They time the real programs: `Trainer.train_epoch` (a scan over minibatches, vmapped over seeds,
-buffers donated) and the jitted `predict_one`, on synthetic data of the paper's shapes (320 PSD
+buffers donated) and the jitted `predict_one` (`predict_one_timer`), on synthetic data of the paper's shapes (320 PSD
 bins = 15 kHz of 512, N=200 steps). Compilation is excluded; nothing here asserts a time.
 
 An epoch is timed as one call of `STEPS_PER_EPOCH` steps, as training runs it (one call per epoch
 or per run; a paper-preset epoch is ~46 steps). Each call of a compiled program gets its scratch
 memory fresh from the OS (at 5 seeds ~1.2 GB, ~300,000 page faults), so very short epochs
 overstate the cost of a step: at 4 steps per call, 5 seeds measured ~10 % slower per step.
-`compare_with_torch` times ours and the optional PyTorch twin (`experiments.torch_twin`)
+`compare_with_torch` times ours and the optional PyTorch twin (`fabricjax.torch_twin`)
 interleaved in one process and reports the ratios.
 """
 
@@ -21,9 +22,9 @@ from typing import Any, Callable, Sequence
 import jax
 import numpy as np
 
-from fabricjax import sharding, synthetic
+from fabricjax import sharding, stats, synthetic
 from fabricjax.config import Config
-from fabricjax.model import feature_shapes, predict_one
+from fabricjax.model import feature_shapes, make_predict_one
 from fabricjax.train import make_trainer, seed_keys, select
 
 STEPS_PER_EPOCH = 16
@@ -70,35 +71,36 @@ def bench_train_step(
     return {"n_seeds": n_seeds, "seconds_per_step": per_step, "sequences_per_s_per_seed": batch / per_step}
 
 
-def percentiles_ms(seconds) -> dict[str, float]:
-    """p50 / p99 in milliseconds of repeated timings (seconds)."""
-    ms = 1e3 * np.asarray(seconds)
-    return {"p50_ms": float(np.percentile(ms, 50)), "p99_ms": float(np.percentile(ms, 99))}
+def predict_one_timer(graphdef, params, inputs, warmup: int = 3) -> Callable[[], float]:
+    """A compiled, warmed-up (`warmup` calls) callable returning the seconds of one jitted
+    `predict_one` call (`model.make_predict_one`) on one sequence `inputs` {modality: (N, ...)}:
+    inputs already on the device, dropout off, logits fetched to the host."""
+    predict_one = make_predict_one(graphdef)
+    one = {m: jax.device_put(a) for m, a in inputs.items()}
+
+    def run() -> float:
+        t = time.perf_counter()
+        jax.device_get(predict_one(params, one))
+        return time.perf_counter() - t
+
+    for _ in range(warmup):
+        run()
+    return run
 
 
 def inference_runner(config: Config, seq_len: int = 200, psd_bins: int = 320) -> Callable[[], float]:
-    """A compiled, warmed-up callable returning the seconds of one `predict_one` call on one sequence
-    (dropout off, result ready)."""
+    """`predict_one_timer` of an untrained model of `config` on one synthetic sequence."""
     cfg = dataclasses.replace(config, seq_len=seq_len)
     inputs = select(cfg, synthetic.data_set(cfg, 1, psd_bins=psd_bins))["inputs"]
     trainer = make_trainer(cfg, feature_shapes(inputs))
     params = jax.jit(trainer.init)(seed_keys([0])[0])["params"]
-    one = {k: v[0] for k, v in inputs.items()}
-
-    def run() -> float:
-        t = time.perf_counter()
-        jax.block_until_ready(predict_one(trainer.graphdef, params, one))
-        return time.perf_counter() - t
-
-    for _ in range(3):
-        run()
-    return run
+    return predict_one_timer(trainer.graphdef, params, {k: v[0] for k, v in inputs.items()})
 
 
 def bench_inference(config: Config, seq_len: int = 200, psd_bins: int = 320, repeats: int = 200) -> dict[str, float]:
     """p50 / p99 latency in ms of `predict_one` on one sequence (dropout off, result on the host)."""
     run = inference_runner(config, seq_len=seq_len, psd_bins=psd_bins)
-    return percentiles_ms([run() for _ in range(repeats)])
+    return stats.percentiles_ms([run() for _ in range(repeats)])
 
 
 # The issue's comparison workload: the paper's model on two microphones (320 bins) + joints.
@@ -126,12 +128,12 @@ def compare_with_torch(
     another. Ratios are ours / twin (below 1: we are faster): `ratio` is the median of the
     per-round ratios, `ratio_of_medians` the ratio of the median times. Inference alternates
     blocks of `inference_calls` single-sequence calls. `pause_s` separates the two sides: a
-    5-seed step of ours measured ~7 % slower 50 ms after the twin's run than 1 s after it. Needs torch (`pip install -e ".[compare]"`): the twin
-    (`experiments.torch_twin`) is imported here, never at module import.
+    5-seed step of ours measured ~7 % slower 50 ms after the twin's run than 1 s after it. Needs torch (`pip install -e ".[compare]"`; ImportError without it): the twin
+    (`fabricjax.torch_twin`) imports torch when called, never at module import.
     """
-    import importlib
+    from fabricjax import torch_twin as twin
 
-    twin = importlib.import_module("experiments.torch_twin")
+    torch = twin.require()
     config = config or COMPARE_CONFIG
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
     ours = {n: train_step_runner(cfg, n, batch=batch, seq_len=seq_len, psd_bins=psd_bins, steps=steps) for n in seeds}
@@ -171,17 +173,17 @@ def compare_with_torch(
         for side, run in order if r % 2 == 0 else order[::-1]:
             time.sleep(pause_s)
             lat[side].extend(run() for _ in range(inference_calls))
-    ms = {k: 1e3 * np.asarray(v) for k, v in lat.items()}
+    p = {k: stats.percentiles_ms(v) for k, v in lat.items()}
     inference = {
-        **{f"{k}_p50_ms": float(np.percentile(v, 50)) for k, v in ms.items()},
-        **{f"{k}_p99_ms": float(np.percentile(v, 99)) for k, v in ms.items()},
-        "ratio_p50": float(np.percentile(ms["ours"], 50) / np.percentile(ms["torch"], 50)),
+        **{f"{k}_p50_ms": v["p50_ms"] for k, v in p.items()},
+        **{f"{k}_p99_ms": v["p99_ms"] for k, v in p.items()},
+        "ratio_p50": p["ours"]["p50_ms"] / p["torch"]["p50_ms"],
     }
     return {
         "shapes": {"batch": batch, "seq_len": seq_len, "psd_bins": psd_bins, "modalities": list(cfg.modalities)},
         "steps_per_timing": steps,
         "rounds": rounds,
-        "torch_threads": twin.torch.get_num_threads(),
+        "torch_threads": torch.get_num_threads(),
         "training": training,
         "inference": inference,
     }

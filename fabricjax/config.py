@@ -88,10 +88,6 @@ class Config:
             raise ValueError(f"seq_len must be at least 1, got {self.seq_len}")
         presets.get(self.preset)  # raises on an unknown preset
 
-    @property
-    def sequence_length(self) -> int:
-        return self.seq_len
-
     @classmethod
     def from_preset(cls, name: str, **overrides) -> "Config":
         """The preset's training fields on `Config`'s defaults, with `overrides` on top."""

@@ -17,7 +17,6 @@ Only the encoders named in `config.modalities` are built.
 
 from __future__ import annotations
 
-import functools
 from typing import Mapping
 
 import jax
@@ -29,27 +28,6 @@ from fabricjax import catalog
 from fabricjax.config import AUDIO_MODALITIES, MODALITIES, Config
 
 RESCALE_EPS = 1e-6
-
-
-def _unrolled_threefry_on_cpu() -> bool:
-    """Lower `threefry2x32` on CPU with the unrolled rounds JAX uses on other backends.
-
-    JAX's CPU lowering rolls the 20 rounds into a `while` loop (to save compile time), which runs
-    as a chain of small unfused kernels: dropout masks then cost ~10% of a CPU training step.
-    The unrolled lowering is one fused kernel, ~6x cheaper, and yields the same bits (same
-    function, only its lowering differs). Private JAX API: if it moves, keep JAX's default.
-    """
-    try:
-        from jax._src.interpreters import mlir
-        from jax._src.random import threefry2x32 as tf
-
-        mlir.register_lowering(tf.threefry2x32_p, tf._threefry2x32_lowering_rule, platform="cpu", inline=False)
-        return True
-    except (ImportError, AttributeError, TypeError):  # pragma: no cover - depends on the JAX version
-        return False
-
-
-UNROLLED_THREEFRY = _unrolled_threefry_on_cpu()
 
 
 def head_sizes(config: Config) -> dict[str, int]:
@@ -267,7 +245,7 @@ class FabricNet(nnx.Module):
         # so our variant normalises each step's concatenated features instead (LayerNorm).
         self.fusion_norm = nnx.LayerNorm(dims, rngs=rngs) if config.fusion_norm == "step_layernorm" else None
         self.embed = nnx.Linear(dims, width, dtype=dtype, rngs=rngs)
-        self.position = nnx.Param(nnx.initializers.normal(0.02)(rngs.params(), (config.sequence_length, width)))
+        self.position = nnx.Param(nnx.initializers.normal(0.02)(rngs.params(), (config.seq_len, width)))
         if config.backbone == "attention":
             blocks = [
                 AttentionBlock(width, config.n_heads, config.ffn, config.dropout, dtype=dtype, rngs=rngs)
@@ -320,43 +298,24 @@ class FabricNet(nnx.Module):
         return {k: head(h).astype(jnp.float32) for k, head in self.heads.items()}
 
 
-def _predict(graphdef: nnx.GraphDef, params, inputs):
-    return nnx.merge(graphdef, params)(inputs)
+def make_predict(graphdef: nnx.GraphDef):
+    """`predict(params, inputs)`: logits per head for a batch (B, N, ...) of sequences, jitted;
+    `params` a plain pytree (`nnx.to_pure_dict`). Make it once per model and keep it: the jitted
+    function closes over `graphdef`, so a call hashes no graphdef (a static `GraphDef` argument
+    is hashed on every call, ~0.1-0.3 ms on a CPU, more than a single-sequence forward pass)."""
+
+    def predict(params, inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
+        return nnx.merge(graphdef, params)(inputs)
+
+    return jax.jit(predict)
 
 
-def _predict_one(graphdef: nnx.GraphDef, params, inputs):
-    logits = nnx.merge(graphdef, params)(jax.tree.map(lambda a: a[None], inputs))
-    return jax.tree.map(lambda a: a[0], logits)
+def make_predict_one(graphdef: nnx.GraphDef):
+    """`predict_one(params, inputs)`: logits per head for one sequence (N, ...), e.g. live on the
+    robot; jitted, closing over `graphdef` like `make_predict`."""
 
+    def predict_one(params, inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
+        logits = nnx.merge(graphdef, params)(jax.tree.map(lambda a: a[None], inputs))
+        return jax.tree.map(lambda a: a[0], logits)
 
-_BY_ID: dict[tuple[int, object], tuple[nnx.GraphDef, object]] = {}
-_BY_VALUE: dict[tuple[nnx.GraphDef, object], object] = {}
-
-
-def _compiled(fn, graphdef: nnx.GraphDef):
-    """`jax.jit(fn)` with `graphdef` bound, looked up by the graphdef's identity.
-
-    `jax.jit` with a static `GraphDef` argument hashes it on every call (~0.1-0.3 ms on this CPU,
-    more than the single-sequence forward pass itself), so a graphdef object is hashed once, on
-    its first call; equal graphdefs (built elsewhere) share one jitted function.
-    """
-    hit = _BY_ID.get((id(graphdef), fn))
-    if hit is not None and hit[0] is graphdef:
-        return hit[1]
-    jitted = _BY_VALUE.get((graphdef, fn))
-    if jitted is None:
-        jitted = _BY_VALUE[(graphdef, fn)] = jax.jit(functools.partial(fn, graphdef))
-    if len(_BY_ID) >= 256:
-        _BY_ID.clear()
-    _BY_ID[(id(graphdef), fn)] = (graphdef, jitted)  # holds graphdef, so its id is not reused
-    return jitted
-
-
-def predict(graphdef: nnx.GraphDef, params, inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
-    """Logits per head for a batch (B, N, ...) of sequences; `params` a plain pytree (`nnx.to_pure_dict`). Jitted."""
-    return _compiled(_predict, graphdef)(params, inputs)
-
-
-def predict_one(graphdef: nnx.GraphDef, params, inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
-    """Logits per head for one sequence (N, ...), e.g. live on the robot. Jitted."""
-    return _compiled(_predict_one, graphdef)(params, inputs)
+    return jax.jit(predict_one)

@@ -7,9 +7,9 @@ evenly (5 seeds on 2 devices, or 1 seed); XLA then sums each step's gradients ov
 all-reduce, so results equal a one-device run up to the order of float summation.
 
 A CPU is one device by default; `use_cpu_cores` makes it one device per core (the training and
-benchmark commands call it first), so that seeds or samples run on separate cores instead of
-sharing each op. A single prediction answers faster on a one-device CPU (measured 0.1-0.5 ms at
-p50 for the paper's model), so latency-bound commands keep one device.
+benchmark commands call it first, through `runtime.configure_jax`), so that seeds or samples run
+on separate cores instead of sharing each op. A single prediction answers faster on a one-device
+CPU (measured 0.1-0.5 ms at p50 for the paper's model), so latency-bound commands keep one device.
 """
 
 from __future__ import annotations

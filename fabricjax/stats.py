@@ -1,4 +1,5 @@
-"""Honest statistics for the tables: mean +- SD over seeds and paired Wilcoxon signed-rank tests.
+"""Honest statistics for the tables: mean +- SD over seeds and paired Wilcoxon signed-rank tests;
+and the one summary of repeated timings (`percentiles_ms`: p50 / p99 in milliseconds).
 
 Every test result says what was paired (the pairing unit), which variant ran (exact sign-flip
 enumeration, which stays exact with tied and zero differences, or the normal approximation for
@@ -28,6 +29,12 @@ def mean_sd(values) -> tuple[float, float]:
 def format_mean_sd(values, scale: float = 100.0, digits: int = 2) -> str:
     m, s = mean_sd(np.asarray(values) * scale)
     return f"{m:.{digits}f} ± {s:.{digits}f}"
+
+
+def percentiles_ms(seconds) -> dict[str, float]:
+    """p50 / p99 in milliseconds of repeated timings (seconds): {"p50_ms": ..., "p99_ms": ...}."""
+    ms = 1e3 * np.asarray(seconds)
+    return {"p50_ms": float(np.percentile(ms, 50)), "p99_ms": float(np.percentile(ms, 99))}
 
 
 EXACT = "exact (sign-flip enumeration)"

@@ -3,6 +3,9 @@
     streamer = Streamer(graphdef, params, config)     # a trained model and its config
     report = replay(streamer, trial, realtime=True)   # a TrialArchive, step by step at 50 Hz
 
+The command (`python -m experiments.stream`: a quick model or a checkpoint, a trial, the live
+printout and results/stream.json) is `fabricjax.studies.stream`.
+
 Every step brings one 2048-sample window per microphone and the 18 joint values. One jitted
 update computes the Welch PSD of just those windows (`welch_psd` on a (mics, 2048) batch, at the
 config's bandwidth), shifts the (N, F) windows by one step on the device (the oldest step drops
@@ -32,12 +35,12 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from fabricjax import archive, catalog
+from fabricjax import archive, catalog, stats
 from fabricjax.config import Config
 from fabricjax.features import welch
 
 STREAMABLE = ("internal", "external", "proprio")
-STEP_S = 1 / archive.STEP_RATE  # s per step (0.02)
+STEP_S = 0.02  # 50 Hz
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,7 +61,7 @@ class Streamer:
         if not config.fabric_head:
             raise ValueError("streaming classifies fabrics: the model needs its fabric head")
         self.config = config
-        self.n = config.sequence_length
+        self.n = config.seq_len
         self.mics = [archive.MIC_NAMES.index(m) for m in config.modalities if m in archive.MIC_NAMES]
         # Everything on one device: restored parameters may carry the training mesh's sharding, and
         # a sharding that changed between steps would recompile the update mid-stream.
@@ -134,7 +137,7 @@ def replay(
     label = int(trial.meta["label"])
     n_steps = min(trial.n_steps, max_steps or trial.n_steps)
     stamps = trial.timestamps - trial.timestamps[0]
-    latencies, correct, first_correct, late = [], [], None, 0
+    seconds, correct, first_correct, late = [], [], None, 0
     streamer.warmup()
     start = time.perf_counter()
     for t in range(n_steps):
@@ -149,14 +152,14 @@ def replay(
         if realtime and done > start + (t + 1) * STEP_S:
             late += 1
         if probs is not None:
-            latencies.append(ms)
+            seconds.append(done - t0)
             ok = int(np.argmax(probs)) == label
             correct.append(ok)
             if ok and first_correct is None:
                 first_correct = t
         if on_step is not None:
             on_step(StepResult(t, float(stamps[t]), probs, ms))
-    lat = np.asarray(latencies)
+    latency = stats.percentiles_ms(seconds) if seconds else {"p50_ms": None, "p99_ms": None}
     return {
         "label": label,
         "fabric": class_name(label),
@@ -166,127 +169,18 @@ def replay(
         "accuracy_over_decided_steps": float(np.mean(correct)) if correct else None,
         "first_correct_step": first_correct,
         "time_to_first_correct_s": None if first_correct is None else float(stamps[first_correct] + STEP_S),
-        "latency_p50_ms": float(np.percentile(lat, 50)) if lat.size else None,
-        "latency_p99_ms": float(np.percentile(lat, 99)) if lat.size else None,
-        "latency_max_ms": float(lat.max()) if lat.size else None,
+        "latency_p50_ms": latency["p50_ms"],
+        "latency_p99_ms": latency["p99_ms"],
+        "latency_max_ms": 1e3 * max(seconds) if seconds else None,
         "realtime": realtime,
         "late_steps": late if realtime else None,
     }
 
 
-def format_step(r: StepResult, label: int) -> str:
-    """One line of the live printout: running prediction, confidence and latency."""
-    if r.probs is None:
-        return f"step {r.step:5d}  {r.time_s:6.2f} s  filling window  {r.latency_ms:6.2f} ms"
-    k = int(np.argmax(r.probs))
-    mark = "correct" if k == label else "wrong"
-    return f"step {r.step:5d}  {r.time_s:6.2f} s  {class_name(k):<28s} p={r.probs[k]:.2f}  {mark:<7s} {r.latency_ms:6.2f} ms"
-
-
 def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config]:
-    """(graphdef, best-validation params of the first seed, config) of a `train_and_evaluate` checkpoint."""
+    """(graphdef, best-validation params of the first seed, config) of a `train_and_evaluate`
+    checkpoint, under the config saved with it."""
     from fabricjax import checkpoint, train
 
-    config = Config.from_json(checkpoint.read_meta(checkpoint.manager(directory))["config"])
-    graphdef, state = train.restore(directory, config)
+    graphdef, state, config, _ = train.restore(directory)
     return graphdef, checkpoint.select_seed(state["best_params"], 0), config
-
-
-def quick_model(preset: str, modalities: tuple[str, ...], *, epochs: int | None = None, workdir=None, data_dir=None):
-    """(graphdef, params, config, checkpoint dir): one seed of the preset's study config, trained on
-    its dataset and checkpointed, so a rerun restores it instead of training again."""
-    from fabricjax.studies import loading, runner
-
-    config = Config.from_preset(preset, modalities=tuple(modalities), **({"epochs": epochs} if epochs else {}))
-    ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir)
-    directory = runner.checkpoint_dir("stream", "quick", config, [0], workdir)
-    row = runner.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
-    return row.results.graphdef, row.results.params(0), config, directory
-
-
-def first_test_trial(folder, workdir=None) -> str:
-    """Path of the first test-day trial of a dataset folder (a class the model knows)."""
-    from fabricjax import splits
-
-    index = archive.load_index(folder, workdir)
-    roles = splits.assign_roles([e.meta for e in index.entries])
-    for e, role in zip(index.entries, roles):
-        if role == "test" and e.meta["label"] < catalog.N_CLASSES:
-            return str(index.path(e))
-    raise archive.ArchiveError(index.root, "<folder>", "no test-day trial of a known class")
-
-
-def run(
-    *,
-    archive_path=None,
-    checkpoint_dir=None,
-    preset: str = "default",
-    modalities: tuple[str, ...] = ("internal", "external"),
-    epochs: int | None = None,
-    realtime: bool = True,
-    print_every: int = 1,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
-    out: Callable[[str], None] = print,
-    view: bool = False,
-    view_save=None,
-) -> dict:
-    """Classify one trial live and write results/stream.json; returns its document.
-
-    The model is `checkpoint_dir`'s (any `train_and_evaluate` checkpoint of a streamable config),
-    else a quick one-seed model of `preset` (trained once, then restored from its checkpoint).
-    The trial is `archive_path`, else the first test-day trial of the model's dataset.
-    With `view` (a Rerun viewer) or `view_save` (a .rrd file) each step's sensor data and result
-    are logged as they come (`fabricjax.view`); the logging runs between the timed updates, so
-    the latencies are the model's, but in real time it can make steps late.
-    """
-    from fabricjax import report, sim, workspace
-
-    if checkpoint_dir is not None:
-        graphdef, params, config = restore_model(checkpoint_dir)
-    else:
-        graphdef, params, config, checkpoint_dir = quick_model(preset, modalities, epochs=epochs, workdir=workdir, data_dir=data_dir)
-    if archive_path is None:
-        folder = data_dir or sim.ensure_dataset(config.preset, workdir, streams=("audio", "proprio"), progress=False)
-        archive_path = first_test_trial(folder, workdir)
-    watch = view or view_save is not None
-    trial = archive.read_archive(archive_path, images=watch)
-    streamer = Streamer(graphdef, params, config)
-    label = int(trial.meta["label"])
-    if watch:
-        from fabricjax import view as trial_view
-
-        rec = trial_view.open_recording(view_save)
-        viewer = trial_view.TrialView(rec, label)
-    out(f"{archive_path}: {class_name(label)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
-        f"N={streamer.n} steps ({streamer.n * STEP_S:.2f} s), {'+'.join(config.modalities)}")
-
-    def show(r: StepResult) -> None:
-        if print_every and (r.step % print_every == 0 or r.step == trial.n_steps - 1):
-            out(format_step(r, label))
-        if watch:
-            viewer.log_step(trial_view.archive_step(trial, r.step))
-            viewer.log_prediction(r)
-
-    summary = replay(streamer, trial, realtime=realtime, on_step=show)
-    if watch:
-        rec.flush()
-    first, step = summary["time_to_first_correct_s"], summary["first_correct_step"]
-    out(
-        f"first correct decision: {'never' if first is None else f'{first:.2f} s (step {step})'}; "
-        f"accuracy over {summary['decided_steps']} decided steps {100 * (summary['accuracy_over_decided_steps'] or 0):.1f} %; "
-        f"per-step latency p50 {summary['latency_p50_ms']:.2f} ms, p99 {summary['latency_p99_ms']:.2f} ms"
-        + (f"; {summary['late_steps']} of {summary['steps']} results came after their 20 ms slot" if realtime else "")
-    )
-    doc = {
-        "command": command,
-        "machine": report.machine(),
-        "archive": str(archive_path),
-        "checkpoint": str(checkpoint_dir),
-        "config": config.to_json(),
-        **summary,
-    }
-    report.write_json(workspace.results_dir(results) / "stream.json", doc)
-    return doc

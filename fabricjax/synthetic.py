@@ -23,7 +23,7 @@ def data_set(
 ) -> dict[str, dict[str, np.ndarray]]:
     """{"inputs": {modality: (n, N, ...)}, "labels": {fabric, stretchiness, roughness, thickness}}."""
     rng = np.random.default_rng(seed)
-    steps = seq_len or config.sequence_length
+    steps = seq_len or config.seq_len
     fabric = rng.integers(0, catalog.N_CLASSES, n)
     shift = (fabric / catalog.N_CLASSES).astype(np.float32)[:, None, None]
     shapes = {

@@ -25,7 +25,7 @@ import dataclasses
 import functools
 import os
 import time
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -68,18 +68,26 @@ def make_optimizer(config: Config) -> optax.GradientTransformation:
     )
 
 
-def rotation_augment(config: Config) -> Augment | None:
-    """The paper's image augmentation (one rotation in [-90°, 90°] per sequence), when it applies.
+def rotate_images(key: jax.Array, inputs: dict[str, jax.Array]) -> dict[str, jax.Array]:
+    """The paper's image augmentation: one rotation in [-90°, 90°] per sequence of `inputs["image"]`.
 
     The rotation lives with the image features (`fabricjax.features.images.rotate_batch`, a pure
     function of a key; it returns float frames on the 0-255 scale, which the image encoder takes
-    like uint8); it is imported only by image configs.
+    like uint8); it is imported only when an image config's training step is traced.
     """
-    if "image" not in config.modalities or not config.augment_rotation:
-        return None
     from fabricjax.features.images import rotate_batch
 
-    return lambda key, inputs: {**inputs, "image": rotate_batch(key, inputs["image"])}
+    return {**inputs, "image": rotate_batch(key, inputs["image"])}
+
+
+def rotation_augment(config: Config) -> Augment | None:
+    """`rotate_images` where it applies (image configs with `augment_rotation`), else None.
+
+    Always the same function object: `_programs` caches compiled programs by their augmentation,
+    so a rerun of an image config (a resume, another seed set) reuses them."""
+    if "image" not in config.modalities or not config.augment_rotation:
+        return None
+    return rotate_images
 
 
 def lr_decay(config: Config, step: jax.Array, total_steps: int) -> jax.Array:
@@ -419,12 +427,25 @@ def train_and_evaluate(
     return Results(config, seeds, trainer.graphdef, state, {**metrics, "epochs": history.scalars})
 
 
-def restore(directory: str | os.PathLike, config: Config, seed: int | None = None):
-    """(graphdef, state) saved by `train_and_evaluate`: all seeds stacked, or the one `seed` (a seed value)."""
+class Restored(NamedTuple):
+    """A `train_and_evaluate` checkpoint: the model's graphdef, its state (all seeds stacked, or
+    one seed's), and the run's config and seeds as saved with it."""
+
+    graphdef: Any
+    state: dict[str, Any]
+    config: Config
+    seeds: list[int]
+
+
+def restore(directory: str | os.PathLike, config: Config | None = None, seed: int | None = None) -> Restored:
+    """The run saved by `train_and_evaluate` in `directory`: all seeds stacked, or the one `seed`
+    (a seed value). `config` None restores under the config saved with the run; a given config
+    must be the saved one (else `checkpoint.CheckpointMismatch`)."""
     mngr = checkpoint.manager(directory)
     if mngr.latest_step() is None:
         raise FileNotFoundError(f"no checkpoint in {os.path.abspath(directory)}")
     saved = checkpoint.read_meta(mngr)
+    config = Config.from_json(saved["config"]) if config is None else config
     shapes = {k: tuple(v) for k, v in saved["shapes"].items()}
     expected = checkpoint.meta(config, saved["seeds"], shapes)
     checkpoint.check_meta(mngr.directory, saved, expected)
@@ -432,8 +453,7 @@ def restore(directory: str | os.PathLike, config: Config, seed: int | None = Non
     abstract = jax.eval_shape(jax.vmap(trainer.init), jax.ShapeDtypeStruct((len(saved["seeds"]), 2), jnp.uint32))
     state, _ = checkpoint.restore(mngr, abstract, expected)
     if seed is None:
-        return trainer.graphdef, state
+        return Restored(trainer.graphdef, state, config, saved["seeds"])
     if seed not in saved["seeds"]:
         raise KeyError(f"seed {seed} is not in the checkpoint in {mngr.directory} (seeds {saved['seeds']})")
-    return trainer.graphdef, checkpoint.select_seed(state, saved["seeds"].index(seed))
-
+    return Restored(trainer.graphdef, checkpoint.select_seed(state, saved["seeds"].index(seed)), config, saved["seeds"])

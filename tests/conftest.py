@@ -7,6 +7,10 @@ import jax  # noqa: E402
 # Tests use tiny configs where XLA's compile time dominates the run time.
 jax.config.update("jax_disable_most_optimizations", True)
 
+from fabricjax import runtime  # noqa: E402
+
+runtime.configure_jax()  # as every command does (fabricjax.cli.run)
+
 
 import pytest  # noqa: E402
 

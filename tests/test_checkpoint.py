@@ -6,7 +6,7 @@ import pytest
 
 from fabricjax import checkpoint, synthetic
 from fabricjax.config import Config
-from fabricjax.model import predict
+from fabricjax.model import make_predict
 from fabricjax.train import restore, train_and_evaluate
 
 TINY = Config(
@@ -36,18 +36,20 @@ def uninterrupted(tmp_path_factory):
 
 def test_restore_one_seed_gives_identical_predictions(uninterrupted):
     workdir, res = uninterrupted
-    graphdef, state = restore(workdir, TINY, seed=7)
+    graphdef, state, config, seeds = restore(workdir, TINY, seed=7)
+    assert config == TINY and seeds == SEEDS
     test = data_sets()["test"]["inputs"]
-    restored = predict(graphdef, state["best_params"], test)["fabric"]
-    trained = predict(res.graphdef, res.params(1), test)["fabric"]
+    restored = make_predict(graphdef)(state["best_params"], test)["fabric"]
+    trained = make_predict(res.graphdef)(res.params(1), test)["fabric"]
     np.testing.assert_array_equal(restored, trained)
     np.testing.assert_array_equal(np.argmax(restored, -1), res.metrics["eval"]["test"]["predictions"]["fabric"][1])
 
 
 def test_restore_the_whole_stack(uninterrupted):
     workdir, res = uninterrupted
-    _, state = restore(workdir, TINY)
-    for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(res.state)):
+    saved = restore(workdir)  # under the config saved with the run
+    assert saved.config == TINY and saved.seeds == SEEDS
+    for a, b in zip(jax.tree.leaves(saved.state), jax.tree.leaves(res.state)):
         np.testing.assert_array_equal(a, b)
     with pytest.raises(KeyError, match="seed 3"):
         restore(workdir, TINY, seed=3)

@@ -1,5 +1,5 @@
 """What a user meets first: --help, a mistake on the command line or in the data folder, JAX's
-platform probing (experiments/cli.py, experiments/flags.py), and the progress log's ETA."""
+platform probing (fabricjax/cli.py, experiments/flags.py), and the progress log's ETA."""
 
 import os
 import re
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from experiments import cli
+from fabricjax import cli
 from fabricjax import paper_tables, workspace
 from fabricjax.config import Config
 from fabricjax.studies import ablation, runner
@@ -67,7 +67,7 @@ def test_a_user_error_is_one_line_with_status_2(case, tmp_path):
 
 
 def test_a_bug_keeps_its_traceback_and_debug_shows_a_user_errors():
-    code = "import fabricjax.errors\nfrom experiments import cli\ndef main(argv):\n    raise {}('boom')\ncli.run(main)"
+    code = "import fabricjax.errors\nfrom fabricjax import cli\ndef main(argv):\n    raise {}('boom')\ncli.run(main)"
     env = {k: v for k, v in os.environ.items() if k != "JAX_PLATFORMS"}
 
     def run(exc, *args):

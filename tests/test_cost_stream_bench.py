@@ -9,12 +9,13 @@ import jax
 import numpy as np
 import pytest
 
-from experiments import bench
+from acquisition.sim_signals import bench_acquisition
 from fabricjax import archive, sim, stream, train
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.features.extract import log_psd, mic_windows
-from fabricjax.studies import cost
+from fabricjax.studies import bench, cost
+from fabricjax.studies import stream as stream_command
 
 PNG = b"\x89PNG\r\n\x1a\n"
 TINY = dict(width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16))
@@ -36,13 +37,13 @@ def test_sweep_is_one_factor_at_a_time_with_the_paper_point_capped():
     )
     names = [p.name for p in points]
     assert len(names) == len(set(names))
-    assert all(p.config.sequence_length <= 120 for p in points)  # N=200 skipped
+    assert all(p.config.seq_len <= 120 for p in points)  # N=200 skipped
     grid = [p for p in points if p.group == "N x backbone"]
-    assert {(p.config.backbone, p.config.sequence_length) for p in grid} == {(b, n) for b in ("attention", "tcn") for n in (10, 20)}
+    assert {(p.config.backbone, p.config.seq_len) for p in grid} == {(b, n) for b in ("attention", "tcn") for n in (10, 20)}
     # width 16 and 15 kHz and the first modality set are the base: no duplicate points
     assert sorted(p.group for p in points if p.group not in ("N x backbone",)) == ["bandwidth", "modalities", "paper", "width"]
     paper_cfg = next(p.config for p in points if p.name == paper)
-    assert (paper_cfg.sequence_length, paper_cfg.width, paper_cfg.ffn, paper_cfg.backbone) == (120, 64, 128, "attention")
+    assert (paper_cfg.seq_len, paper_cfg.width, paper_cfg.ffn, paper_cfg.backbone) == (120, 64, 128, "attention")
     assert paper_cfg.modalities == ("internal", "external") and paper_cfg.bandwidth_khz == 15.0
 
 
@@ -83,19 +84,19 @@ def _tiny_streamer(config):
 
 def test_streaming_psd_of_the_newest_step_equals_the_batch_feature(smoke_workdir):
     folder = smoke_workdir / "datasets" / "smoke"
-    trial = archive.read_archive(stream.first_test_trial(folder), images=False)
+    trial = archive.read_archive(stream_command.first_test_trial(folder), images=False)
     config = Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=8, bandwidth_khz=10.0, **TINY)
     s = _tiny_streamer(config)
     extra = 3
-    probs = [s.update(stream.step_windows(trial, t, s.mics), trial.joints[t]) for t in range(config.sequence_length + extra)]
-    assert all(p is None for p in probs[: config.sequence_length - 1])
-    assert all(p.shape == (21,) and np.isclose(p.sum(), 1, atol=1e-5) for p in probs[config.sequence_length - 1 :])
+    probs = [s.update(stream.step_windows(trial, t, s.mics), trial.joints[t]) for t in range(config.seq_len + extra)]
+    assert all(p is None for p in probs[: config.seq_len - 1])
+    assert all(p.shape == (21,) and np.isclose(p.sum(), 1, atol=1e-5) for p in probs[config.seq_len - 1 :])
     k = welch.n_bins(10.0)
-    steps = slice(extra, extra + config.sequence_length)
+    steps = slice(extra, extra + config.seq_len)
     for m, mic in (("internal", 0), ("external", 1)):
         batch = log_psd(mic_windows(trial, mic))[steps, :k]
         np.testing.assert_allclose(np.asarray(s.window[m]), batch, rtol=0, atol=1e-5)
-    np.testing.assert_array_equal(np.asarray(s.window["proprio"]), trial.joints[steps].reshape(config.sequence_length, 18))
+    np.testing.assert_array_equal(np.asarray(s.window["proprio"]), trial.joints[steps].reshape(config.seq_len, 18))
 
 
 def test_streamer_rejects_camera_models():
@@ -105,12 +106,12 @@ def test_streamer_rejects_camera_models():
 
 def test_stream_run_trains_a_quick_model_then_restores_it(smoke_workdir, tmp_path):
     lines = []
-    doc = stream.run(preset="smoke", realtime=False, print_every=5, workdir=smoke_workdir, results=tmp_path, out=lines.append)
+    doc = stream_command.run(preset="smoke", realtime=False, print_every=5, workdir=smoke_workdir, results=tmp_path, out=lines.append)
     assert doc["decided_steps"] == doc["steps"] - doc["window_steps"] + 1 > 0
     assert doc["latency_p99_ms"] >= doc["latency_p50_ms"] > 0 and doc["late_steps"] is None
     assert any("p=" in line and "ms" in line for line in lines) and lines[-1].startswith("first correct decision")
     assert json.loads((tmp_path / "stream.json").read_text())["archive"] == doc["archive"]
-    again = stream.run(checkpoint_dir=doc["checkpoint"], realtime=False, print_every=0, workdir=smoke_workdir, results=tmp_path, out=lines.append)
+    again = stream_command.run(checkpoint_dir=doc["checkpoint"], realtime=False, print_every=0, workdir=smoke_workdir, results=tmp_path, out=lines.append)
     assert again["config"] == doc["config"]
     assert again["accuracy_over_decided_steps"] == doc["accuracy_over_decided_steps"]
 
@@ -119,7 +120,9 @@ def test_stream_run_trains_a_quick_model_then_restores_it(smoke_workdir, tmp_pat
 def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
     workload = bench.Workload(Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=12, **TINY), batch=8, bins=24)
     lines = []
-    doc = bench.run(quick=True, workload=workload, workdir=smoke_workdir, results=tmp_path, command="test", out=lines.append)
+    doc = bench.run(
+        quick=True, workload=workload, workdir=smoke_workdir, results=tmp_path, command="test", out=lines.append, acquisition=bench_acquisition
+    )
     saved = json.loads((tmp_path / "bench.json").read_text())
     assert set(saved["benchmarks"]) == set(bench.BENCHMARKS) and saved["machine"]["cores"] > 0
     b = saved["benchmarks"]
@@ -136,3 +139,5 @@ def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
 def test_bench_rejects_unknown_names(tmp_path):
     with pytest.raises(ValueError, match="unknown benchmarks"):
         bench.run(only=["nope"], results=tmp_path)
+    with pytest.raises(ValueError, match="acquisition benchmark needs its function"):
+        bench.run(only=["acquisition"], results=tmp_path)

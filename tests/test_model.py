@@ -8,7 +8,7 @@ from flax import nnx
 
 from fabricjax import catalog, synthetic
 from fabricjax.config import MODALITIES, Config
-from fabricjax.model import FabricNet, causal_conv, feature_shapes, predict, predict_one, rescale_unit, self_attention
+from fabricjax.model import FabricNet, causal_conv, feature_shapes, make_predict, make_predict_one, rescale_unit, self_attention
 
 TINY = dict(preset="smoke", width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(4, 8), seq_len=10)
 COMBOS = [c for r in range(1, len(MODALITIES) + 1) for c in itertools.combinations(MODALITIES, r)]
@@ -89,8 +89,8 @@ def test_predict_one_matches_batch():
     inputs = synthetic.data_set(cfg, 3)["inputs"]
     graphdef, params = nnx.split(build(cfg, inputs))
     params = nnx.to_pure_dict(params)
-    batch = predict(graphdef, params, inputs)
-    one = predict_one(graphdef, params, {k: v[1] for k, v in inputs.items()})
+    batch = make_predict(graphdef)(params, inputs)
+    one = make_predict_one(graphdef)(params, {k: v[1] for k, v in inputs.items()})
     np.testing.assert_allclose(one["fabric"], batch["fabric"][1], rtol=1e-5, atol=1e-6)
 
 

@@ -406,6 +406,8 @@ _KILLED_TRAINER = """
 import sys, time, jax
 jax.config.update("jax_disable_most_optimizations", True)
 sys.path.insert(0, {root!r})
+from fabricjax import runtime
+runtime.configure_jax()
 from tests.test_stability import RESUME, resume_sets
 from fabricjax.train import train_and_evaluate
 

@@ -114,3 +114,8 @@ def test_p_value_always_valid(diffs, seed):
     r = stats.wilcoxon(b + np.asarray(diffs), b, pairing="x")
     assert 0.0 <= r.p_value <= 1.0 and np.isfinite(r.statistic)
     assert r.min_attainable_p <= r.p_value * (1 + 1e-9)
+
+
+def test_percentiles_ms_of_timings_in_seconds():
+    p = stats.percentiles_ms([0.001 * k for k in range(1, 101)])
+    assert p == {"p50_ms": pytest.approx(50.5), "p99_ms": pytest.approx(99.01)}

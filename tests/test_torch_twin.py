@@ -1,4 +1,4 @@
-"""The PyTorch twin (experiments/torch_twin.py) computes our model's function: equal weights, equal logits.
+"""The PyTorch twin (fabricjax/torch_twin.py) computes our model's function: equal weights, equal logits.
 
 Skipped where torch is not installed (it is an optional extra used only by the benchmarks).
 """
@@ -9,10 +9,10 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from experiments import torch_twin  # noqa: E402
+from fabricjax import torch_twin  # noqa: E402
 from fabricjax import catalog, synthetic  # noqa: E402
 from fabricjax.config import Config  # noqa: E402
-from fabricjax.model import feature_shapes, predict  # noqa: E402
+from fabricjax.model import feature_shapes, make_predict  # noqa: E402
 from fabricjax.train import make_trainer, select  # noqa: E402
 
 SMALL = dict(preset="smoke", width=32, n_heads=4, n_layers=2, ffn=48, audio_hidden=(40, 24), proprio_hidden=(24, 16), seq_len=30)
@@ -33,9 +33,9 @@ def test_twin_logits_equal_ours_with_the_same_weights(modalities):
     keys = jax.random.split(jax.random.PRNGKey(4), len(leaves))
     params = jax.tree.unflatten(tree, [p + 0.2 * jax.random.normal(k, p.shape) for p, k in zip(leaves, keys)])
     params["position"] = params["position"] * 50.0
-    ours = np.asarray(predict(trainer.graphdef, params, inputs)["fabric"])
+    ours = np.asarray(make_predict(trainer.graphdef)(params, inputs)["fabric"])
 
-    twin = torch_twin.TorchFabricNet(cfg, n_bins=20).eval()
+    twin = torch_twin.build(cfg, n_bins=20).eval()
     missing, unexpected = twin.load_state_dict(torch_twin.state_dict_from_params(params), strict=True)
     assert not missing and not unexpected
     with torch.inference_mode():
@@ -46,7 +46,7 @@ def test_twin_logits_equal_ours_with_the_same_weights(modalities):
 
 def test_twin_initialisation_matches_ours_in_scale():
     cfg = Config(modalities=("internal", "proprio"), **SMALL)
-    twin = torch_twin.TorchFabricNet(cfg, n_bins=20)
+    twin = torch_twin.build(cfg, n_bins=20)
     trainer = make_trainer(cfg, {"internal": (20,), "proprio": (18,)})
     ours = torch_twin.state_dict_from_params(trainer.init(jax.random.PRNGKey(0))["params"])
     theirs = twin.state_dict()

@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import os
 import subprocess
@@ -7,7 +8,7 @@ import jax
 import numpy as np
 import pytest
 
-from fabricjax import sharding, synthetic
+from fabricjax import sharding, synthetic, train
 from fabricjax.config import Config
 from fabricjax.train import make_train, make_trainer, rotation_augment, masked_accuracy, masked_cross_entropy, seed_keys, train_and_evaluate
 
@@ -117,6 +118,7 @@ def test_four_host_devices_give_the_same_results_as_one(four_seeds, tmp_path):
     devices) train as on one device."""
     env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=4", "JAX_PLATFORMS": "cpu"}
     code = "import jax; jax.config.update('jax_disable_most_optimizations', True)\n"
+    code += "from fabricjax import runtime; runtime.configure_jax()\n"
     code += SHARDED.format(tests=os.path.dirname(__file__), workdir=str(tmp_path))
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-3000:]
@@ -157,6 +159,18 @@ def test_image_training_applies_the_rotation_augmentation():
     res = train_and_evaluate(cfg, sets, seeds=[0], augment=augment)
     assert calls == [(8, 8, 12, 16, 3)]  # traced once, inside the training step, on each minibatch
     assert np.isfinite(res.metrics["train_loss"]).all()
+
+
+def test_image_configs_reuse_their_cached_programs():
+    """`rotation_augment` gives one function, so `_programs` (cached by config, shapes,
+    augmentation, mesh) finds an image config's compiled programs again."""
+    cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "property_heads": False})
+    assert rotation_augment(cfg) is rotation_augment(cfg) is not None
+    assert rotation_augment(dataclasses.replace(cfg, augment_rotation=False)) is None
+    mesh = sharding.training_mesh(1, cfg.batch_size)
+    shapes = (("image", (12, 16, 3)),)
+    first = train._programs(cfg, shapes, rotation_augment(cfg), mesh)
+    assert train._programs(cfg, shapes, rotation_augment(cfg), mesh) is first
 
 
 def test_joint_standardisation_comes_from_the_training_split_and_stays_fixed():

@@ -9,10 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fabricjax import archive, presets, stream, synthetic, view
+from fabricjax import archive, presets, synthetic, view
 from fabricjax.features import welch
 from fabricjax.sim.dataset import scene_for
 from fabricjax.sim.simulate import simulate
+from fabricjax.studies import stream as stream_command
 from fabricjax.train import train_and_evaluate
 from tests.test_train import TINY
 
@@ -71,7 +72,7 @@ def test_view_save_with_a_checkpoint_adds_the_models_predictions(smoke_trial, ch
     doc = view.view_archive(path, checkpoint=checkpoint, save=tmp_path / "trial.rrd")
     read = view.read_rrd(tmp_path / "trial.rrd")
     assert set(read) == SENSORS | WAVES | PREDICTION
-    decided = list(range(CONFIG.sequence_length - 1, trial.n_steps))  # the window's first N - 1 steps only fill it
+    decided = list(range(CONFIG.seq_len - 1, trial.n_steps))  # the window's first N - 1 steps only fill it
     assert read["/prediction/probabilities"]["steps"] == decided == read["/prediction/confidence"]["steps"]
     assert read["/prediction/latency_ms"]["steps"] == list(range(trial.n_steps))
     assert doc["decided_steps"] == len(decided)
@@ -79,7 +80,7 @@ def test_view_save_with_a_checkpoint_adds_the_models_predictions(smoke_trial, ch
 
 def test_without_the_sdk_a_one_line_error_says_what_to_install(smoke_trial, tmp_path):
     path, _ = smoke_trial
-    code = "import sys; sys.modules['rerun'] = None; sys.argv[0] = 'view'; from experiments import view; from experiments import cli; cli.run(view.main)"
+    code = "import sys; sys.modules['rerun'] = None; sys.argv[0] = 'view'; from experiments import view; from fabricjax import cli; cli.run(view.main)"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     out = subprocess.run([sys.executable, "-c", code, str(path), f"--save={tmp_path / 'x.rrd'}"], env=env, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert out.returncode == 2
@@ -89,7 +90,7 @@ def test_without_the_sdk_a_one_line_error_says_what_to_install(smoke_trial, tmp_
 @pytest.mark.slow  # ~30 s on 2 cores; the recorder's --view_save test covers live viewing by default
 def test_stream_view_save_logs_each_steps_sensors_and_result(smoke_trial, checkpoint, tmp_path):
     path, trial = smoke_trial
-    doc = stream.run(
+    doc = stream_command.run(
         archive_path=path, checkpoint_dir=checkpoint, realtime=False, print_every=0, results=tmp_path,
         out=lambda line: None, view_save=tmp_path / "stream.rrd",
     )
@@ -108,4 +109,4 @@ def test_record_view_save_logs_the_trial_as_it_is_recorded(checkpoint, tmp_path)
     read = view.read_rrd(tmp_path / "rec.rrd")
     assert set(read) == SENSORS | WAVES | PREDICTION
     assert read["/force"]["steps"] == list(range(trial.n_steps))
-    assert read["/prediction/confidence"]["steps"] == list(range(CONFIG.sequence_length - 1, trial.n_steps))
+    assert read["/prediction/confidence"]["steps"] == list(range(CONFIG.seq_len - 1, trial.n_steps))

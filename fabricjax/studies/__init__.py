@@ -5,6 +5,8 @@
     noise        cafe-noise test set, Wilcoxon against the preceding row (Table new_noise_results)
     properties   property heads on training and holdout fabrics (Table property_perception)
     latents      t-SNE of per-trial mean latents from a restored checkpoint (Fig. latent_features)
+    bench        every speed benchmark side by side (results/bench.json, the README's table)
+    stream       live classification of one trial (results/stream.json)
 
     reproduce    every table and figure above in order, skipping those up to date, into REPORT.md
     cost         accuracy against touch time, training time and inference latency

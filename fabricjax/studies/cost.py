@@ -41,7 +41,6 @@ from absl import logging
 
 from fabricjax import archive, benchmark, data, plots, report, stats
 from fabricjax.config import Config
-from fabricjax.model import predict_one
 from fabricjax.studies import documents, loading, runner
 
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
@@ -107,16 +106,9 @@ def sweep_points(
 
 
 def inference_latency(graphdef, params, inputs: dict[str, np.ndarray], repeats: int, warmup: int = 5) -> dict[str, float]:
-    """p50 / p99 ms of jitted `predict_one` on one sequence, result fetched to the host."""
-    one = {m: jax.device_put(a) for m, a in inputs.items()}
-    for _ in range(warmup):
-        jax.device_get(predict_one(graphdef, params, one))
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        jax.device_get(predict_one(graphdef, params, one))
-        times.append(time.perf_counter() - t)
-    return {f"latency_{k}": v for k, v in benchmark.percentiles_ms(times).items()}
+    """p50 / p99 ms of jitted `predict_one` on one sequence, result fetched to the host (`benchmark.predict_one_timer`)."""
+    run = benchmark.predict_one_timer(graphdef, params, inputs, warmup=warmup)
+    return {f"latency_{k}": v for k, v in stats.percentiles_ms([run() for _ in range(repeats)]).items()}
 
 
 def pareto_front(points: Sequence[dict], key: str) -> list[str]:

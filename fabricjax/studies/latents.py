@@ -27,7 +27,7 @@ from flax import nnx
 from sklearn.manifold import TSNE
 
 from fabricjax import catalog, checkpoint, data, findings, plots, report, train
-from fabricjax.config import Config, MODALITY_NAMES
+from fabricjax.config import MODALITY_NAMES
 from fabricjax.errors import UserError
 from fabricjax.studies import documents, loading
 
@@ -72,16 +72,14 @@ def tsne(points: np.ndarray, seed: int = 0) -> tuple[np.ndarray, float | None]:
 
 def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None, results="results", command: str | None = None) -> dict[str, Any]:
     """Restore, encode, embed, plot: writes results/latents.{png,json}; returns the JSON."""
-    saved = checkpoint.read_meta(checkpoint.manager(checkpoint_dir))
-    config = Config.from_json(saved["config"])
-    graphdef, state = train.restore(checkpoint_dir, config)
+    graphdef, state, config, seeds = train.restore(checkpoint_dir)  # under the checkpoint's own config
     best_val = np.asarray(state["best_val"], np.float64)
     if seed is None:
         index = int(np.argmax(best_val))
-    elif seed in saved["seeds"]:
-        index = saved["seeds"].index(seed)
+    elif seed in seeds:
+        index = seeds.index(seed)
     else:
-        raise UserError(f"seed {seed} is not in the checkpoint in {checkpoint_dir} (seeds {saved['seeds']})")
+        raise UserError(f"seed {seed} is not in the checkpoint in {checkpoint_dir} (seeds {seeds})")
     params = checkpoint.select_seed(state["best_params"], index)
 
     ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir, split_names=("test", "holdout"))
@@ -91,7 +89,7 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
     agreement = neighbour_agreement(points, fabrics)
     png = plots.plot_latents(
         documents.results_path(results) / "latents.png", xy, fabrics,
-        title=f"t-SNE of per-trial mean latents ({' + '.join(MODALITY_NAMES[m] for m in config.modalities)}, seed {saved['seeds'][index]}; holdouts outlined)",
+        title=f"t-SNE of per-trial mean latents ({' + '.join(MODALITY_NAMES[m] for m in config.modalities)}, seed {seeds[index]}; holdouts outlined)",
         neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
     )
     doc = {
@@ -99,9 +97,9 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
         "command": command,
         "checkpoint": str(checkpoint_dir),
         "config": config.to_json(),
-        "seeds": saved["seeds"],
+        "seeds": seeds,
         "best_val_per_seed": best_val.tolist(),
-        "seed": saved["seeds"][index],
+        "seed": seeds[index],
         "machine": report.machine(),
         "dataset": documents.dataset_doc(ds),
         "perplexity": perplexity,

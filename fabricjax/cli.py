@@ -1,5 +1,7 @@
 """How every command starts and ends, whatever its flags.
 
+* JAX's setup: `fabricjax.runtime.configure_jax` runs after the flags are parsed and before the
+  command's work (`before`; a command that sets more, such as its CPU devices, passes its own call).
 * JAX's platforms: with JAX_PLATFORMS unset and no accelerator plugin installed, JAX would probe
   for a TPU and log the failure ("Unable to initialize backend 'tpu' ... libtpu.so") as the first
   line a user sees; such a machine can only be a CPU, so the CPU is chosen. With a CUDA, ROCm or
@@ -22,6 +24,7 @@ from typing import Callable, Mapping, Sequence
 
 from absl import app, flags, logging
 
+from fabricjax import runtime
 from fabricjax.errors import UserError
 
 FLAGS = flags.FLAGS
@@ -86,14 +89,14 @@ def _parse(argv: list[str]) -> list[str]:
         fail(f"{e} (--help lists the flags)")
 
 
-def run(main: Callable[[list[str]], object], before: Callable[[], None] | None = None) -> None:
+def run(main: Callable[[list[str]], object], before: Callable[[], None] = runtime.configure_jax) -> None:
     """`absl.app.run(main)` as described in the module docstring; `before` runs after the flags
-    are parsed and before `main` (e.g. to set JAX's CPU devices before JAX starts)."""
+    are parsed and before `main`: the process's JAX setup (`runtime.configure_jax`, or a call of it
+    with the command's CPU devices and compilation cache, which must come before JAX starts)."""
     choose_platforms()
 
     def start(argv):
-        if before is not None:
-            before()
+        before()
         try:
             return main(argv)
         except UserError as e:

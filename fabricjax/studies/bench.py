@@ -1,0 +1,291 @@
+"""Every speed benchmark in one process, side by side (`python -m experiments.bench`): `run`
+writes results/bench.json and the README's table (`markdown`).
+
+Benchmarks (names for --only):
+    simulator    simulated seconds per wall second (audio + proprioception)
+    welch        `welch_psd` against `scipy.signal.welch` on 4096 windows x 2048 (float32 samples)
+    extraction   cold feature extraction (audio PSDs + proprioception) of the smoke dataset and the
+                 peak memory of a fresh process doing it; paper scale extrapolated linearly in steps
+    training     training step of the audio + proprioception model (batch 32, N=200, 320 bins,
+                 the paper's width 64 / 3 layers): ours for 1 and 5 vmapped seeds (--train_seeds), the PyTorch
+                 twin's for 1 seed and 5 seeds one after another
+    inference    one 200-step sequence, p50 / p99: ours (jitted `predict_one`) and the twin's
+    streaming    per-step update of `fabricjax.stream` (newest PSDs + model over N=200 steps)
+                 on a simulated trial replayed as fast as possible
+    acquisition  the 50 Hz recording loop against the simulated devices: step times, deadline misses
+                 (the acquisition package's benchmark, passed in by the command: `run(acquisition=...)`)
+
+Ours and the twin are timed in alternating rounds in this process (`benchmark.compare_with_torch`),
+so machine load hits both alike; ratios are ours / theirs for times (below 1: we are faster, the
+median of the per-round ratios for training) and scipy / ours for the Welch speed-up. The
+PyTorch twin (`fabricjax.torch_twin`, `pip install -e ".[compare]"`) is optional: without torch
+the comparison is skipped with a note. Nothing here asserts a time.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import multiprocessing
+import re
+import time
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any, Callable, Sequence
+
+import jax
+from absl import logging
+
+from fabricjax import archive, benchmark, presets, report, sharding, sim, stream, torch_twin, train, workspace
+from fabricjax.config import Config
+from fabricjax.features import bench as feature_bench
+from fabricjax.features import welch
+from fabricjax.sim import calibration as sim_calibration
+
+BENCHMARKS = ("simulator", "welch", "extraction", "training", "inference", "streaming", "acquisition")
+
+
+@dataclasses.dataclass(frozen=True)
+class Workload:
+    """Model and shapes of the training, inference and streaming benchmarks. The default is the
+    comparison the PyTorch twin was built for: the paper's model (width 64, 3 attention layers)
+    on two microphones (320 bins = 15 kHz) + joints, N=200, batch 32. Tests pass a tiny one."""
+
+    model: Config = Config(preset="paper", modalities=("internal", "external", "proprio"), seq_len=200)
+    batch: int = 32
+    bins: int = 320
+    seeds: tuple[int, ...] = (1, 5)  # seed counts of the training benchmark; 1 must be among them
+
+    def describe(self) -> dict:
+        c = self.model
+        return {"batch": self.batch, "seq_len": c.seq_len, "psd_bins": self.bins, "modalities": list(c.modalities),
+                "width": c.width, "n_layers": c.n_layers, "backbone": c.backbone}
+
+
+# A paper-preset trial: 50 rubbing cycles, ~30 s at 50 Hz (fabricjax/presets.py, preset "paper";
+# acquisition/procedure.py)
+PAPER_STEPS_PER_TRIAL = 1500
+
+
+def _torch_twin():
+    """The twin module, or the reason it cannot be used (torch not installed)."""
+    try:
+        torch_twin.require()
+        return torch_twin, None
+    except ImportError as e:
+        return None, f"PyTorch comparison skipped: {e} (install with pip install -e \".[compare]\")"
+
+
+def bench_simulator(quick: bool) -> dict:
+    return sim.bench_throughput(seconds=5.0 if quick else 30.0)
+
+
+def bench_welch(quick: bool) -> dict:
+    return feature_bench.bench_welch(n_windows=512 if quick else 4096, repeats=3 if quick else 5)
+
+
+def bench_extraction(quick: bool, workdir) -> dict:
+    """In a spawned process, so its peak memory is the extraction's alone."""
+    folder = sim.ensure_dataset("smoke", workdir, streams=("audio", "proprio"), progress=False)
+    config = Config(preset="smoke", modalities=("internal", "external", "proprio"))
+    # concurrent.futures: its worker is not daemonic, so the extraction's own process pool may start
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        out = pool.submit(feature_bench.bench_extraction, config, folder).result()
+    steps = sum(e.n_steps for e in archive.load_index(folder, workdir).entries)
+    paper_steps = len(presets.get("paper").dataset.trials()) * PAPER_STEPS_PER_TRIAL
+    return {
+        **out,
+        "dataset": "smoke",
+        "steps": steps,
+        "ms_per_step": 1e3 * out["cold_s"] / steps,
+        "paper_scale_extrapolated_s": out["cold_s"] / steps * paper_steps,
+        "paper_scale_note": f"extrapolated linearly in steps to {paper_steps} steps "
+        f"({len(presets.get('paper').dataset.trials())} trials x ~{PAPER_STEPS_PER_TRIAL}), audio + proprioception only; not measured",
+    }
+
+
+def _interleaved(quick: bool, w: Workload) -> dict:
+    """Ours and the twin's training steps and inference timed in alternating rounds, so machine
+    load hits both alike (`benchmark.compare_with_torch`)."""
+    return benchmark.compare_with_torch(
+        w.model, seeds=w.seeds, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins, steps=2 if quick else benchmark.STEPS_PER_EPOCH,
+        rounds=2 if quick else 5, pause_s=0.05 if quick else 1.0, inference_rounds=2 if quick else 10, inference_calls=5 if quick else 20,
+    )
+
+
+def bench_training(quick: bool, w: Workload, compared: dict | None) -> dict:
+    """Seconds per step, 1 and 5 seeds; beside the twin's (median of per-round ratios) when compared."""
+    out: dict[str, Any] = {"workload": w.describe()}
+    for n in w.seeds:
+        if compared is None:
+            out[f"ours_{n}_seed"] = benchmark.bench_train_step(
+                w.model, n, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins, steps=2 if quick else benchmark.STEPS_PER_EPOCH, repeats=2 if quick else 3
+            )
+            continue
+        c = compared["training"][f"{n}_seed"]
+        out[f"ours_{n}_seed"] = {"n_seeds": n, "seconds_per_step": c["ours_s_per_step"], "sequences_per_s_per_seed": w.batch / c["ours_s_per_step"]}
+        out[f"torch_{n}_seed"] = {"n_seeds": n, "seconds_per_step": c["torch_s_per_step"], "sequences_per_s_per_seed": w.batch * n / c["torch_s_per_step"]}
+        out[f"ratio_{n}_seed"] = c["ratio"]
+    for n in w.seeds:
+        if n > 1:  # our n vmapped seeds against n times one seed of ours (1.0: vmapping is free)
+            out[f"ours_{n}_over_1_per_seed"] = out[f"ours_{n}_seed"]["seconds_per_step"] / (n * out["ours_1_seed"]["seconds_per_step"])
+    # How training splits each seed count over the devices: {"seed": devices over seeds, "batch": over samples}.
+    out["mesh"] = {str(n): dict(sharding.training_mesh(n, w.batch).shape) for n in w.seeds}
+    if compared is not None:
+        out["interleaved"] = {k: compared[k] for k in ("rounds", "steps_per_timing", "torch_threads", "training")}
+    return out
+
+
+def bench_inference(quick: bool, w: Workload, compared: dict | None) -> dict:
+    out: dict[str, Any] = {"workload": w.describe()}
+    if compared is None:
+        out["ours"] = benchmark.bench_inference(w.model, seq_len=w.model.seq_len, psd_bins=w.bins, repeats=30 if quick else 200)
+        return out
+    c = compared["inference"]
+    out["ours"] = {"p50_ms": c["ours_p50_ms"], "p99_ms": c["ours_p99_ms"]}
+    out["torch"] = {"p50_ms": c["torch_p50_ms"], "p99_ms": c["torch_p99_ms"]}
+    out["ratio_p50"] = c["ratio_p50"]
+    return out
+
+
+def bench_streaming(quick: bool, w: Workload) -> dict:
+    """Untrained weights (latency does not depend on them) on a simulated trial longer than N.
+
+    The window's PSD bins follow the model's bandwidth (320 bins at the default 15 kHz)."""
+    n = w.model.seq_len
+    cycles = max(2, round((n + (50 if quick else 250)) / (50 / sim_calibration.CYCLE_HZ)))  # ~N + 1 or 5 s of rubbing
+    trial = sim.simulate(sim.Scene(12, cycles=cycles, streams=("audio", "proprio")))
+    shapes = {m: (18,) if m == "proprio" else (welch.n_bins(w.model.bandwidth_khz),) for m in w.model.modalities}
+    trainer = train.make_trainer(w.model, shapes)
+    params = jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"]
+    out = stream.replay(stream.Streamer(trainer.graphdef, params, w.model), trial, realtime=False)
+    keep = ("steps", "window_steps", "decided_steps", "latency_p50_ms", "latency_p99_ms", "latency_max_ms")
+    return {k: out[k] for k in keep} | {"workload": w.describe(), "target_p99_ms": 20.0, "meets_target": out["latency_p99_ms"] <= 20.0}
+
+
+def run(
+    *,
+    only: Sequence[str] | None = None,
+    quick: bool = False,
+    workload: Workload = Workload(),
+    workdir=None,
+    results="results",
+    command: str | None = None,
+    out: Callable[[str], None] = print,
+    acquisition: Callable[..., dict] | None = None,
+) -> dict[str, Any]:
+    """Run the chosen benchmarks (all by default) in order; write results/bench.json and bench.md.
+
+    `acquisition` is the acquisition package's benchmark of its recording loop
+    (`bench_acquisition(seconds=...)`, which this library does not import): without it the
+    "acquisition" entry is left out of the default set, and asking for it is an error."""
+    chosen = list(only) if only else [b for b in BENCHMARKS if b != "acquisition" or acquisition is not None]
+    unknown = [b for b in chosen if b not in BENCHMARKS]
+    if unknown:
+        raise ValueError(f"unknown benchmarks {unknown}; choose from {BENCHMARKS}")
+    if "acquisition" in chosen and acquisition is None:
+        raise ValueError("the acquisition benchmark needs its function: run(..., acquisition=bench_acquisition)")
+    twin, note = (None, None)
+    if {"training", "inference"} & set(chosen):
+        twin, note = _torch_twin()
+        if note:
+            out(note)
+    compared: dict[str, Any] = {}
+
+    def comparison():  # one interleaved run serves both the training and the inference entry
+        if twin is None:
+            return None
+        if not compared:
+            compared.update(_interleaved(quick, workload))
+        return compared
+
+    jobs = {
+        "simulator": lambda: bench_simulator(quick),
+        "welch": lambda: bench_welch(quick),
+        "extraction": lambda: bench_extraction(quick, workdir),
+        "training": lambda: bench_training(quick, workload, comparison()),
+        "inference": lambda: bench_inference(quick, workload, comparison()),
+        "streaming": lambda: bench_streaming(quick, workload),
+        "acquisition": lambda: acquisition(seconds=3.0 if quick else 10.0),
+    }
+    doc: dict[str, Any] = {"command": command, "machine": report.machine(), "quick": quick, "torch": _torch_version(twin), "benchmarks": {}}
+    if note:
+        doc["torch_note"] = note
+    for name in (b for b in BENCHMARKS if b in chosen):
+        logging.info("bench: %s ...", name)
+        t = time.perf_counter()
+        doc["benchmarks"][name] = jobs[name]()
+        logging.info("bench: %s done in %.1f s", name, time.perf_counter() - t)
+    table = markdown(doc)
+    out(table)
+    folder = workspace.results_dir(results)
+    report.write_json(folder / "bench.json", doc)
+    report.write_text(folder / "bench.md", table)
+    return doc
+
+
+def _torch_version(twin) -> str | None:
+    return None if twin is None else twin.require().__version__
+
+
+def markdown(doc: dict[str, Any]) -> str:
+    """The README table: one row per measurement, ours beside the reference where there is one."""
+    b, m = doc["benchmarks"], doc["machine"]
+    rows = []
+    if "training" in b:
+        t = b["training"]
+        for n in sorted(int(hit.group(1)) for k in t if (hit := re.fullmatch(r"ours_(\d+)_seed", k))):
+            ours = t[f"ours_{n}_seed"]["seconds_per_step"] * 1e3
+            theirs = t.get(f"torch_{n}_seed", {}).get("seconds_per_step")
+            mesh = t.get("mesh", {}).get(str(n), {})
+            split = ", ".join(f"{k} over {v} devices" for k, v in mesh.items() if v > 1)
+            what = f"{n} seed" + (("s vmapped" if n > 1 else "") + (f", {split}" if split else ""))
+            rows.append([
+                f"training step, {what} (batch {t['workload']['batch']}, N={t['workload']['seq_len']})",
+                f"{ours:.0f} ms", _ms(theirs and theirs * 1e3, 0) + (" (in sequence)" if n > 1 and theirs else ""),
+                _ratio(t.get(f"ratio_{n}_seed")),
+            ])
+    if "inference" in b:
+        i = b["inference"]
+        theirs = i.get("torch")
+        rows.append([
+            f"inference, one {i['workload']['seq_len']}-step sequence, p50 / p99",
+            f"{i['ours']['p50_ms']:.2f} / {i['ours']['p99_ms']:.2f} ms",
+            f"{theirs['p50_ms']:.2f} / {theirs['p99_ms']:.2f} ms" if theirs else "n/a",
+            _ratio(i.get("ratio_p50")),
+        ])
+    if "streaming" in b:
+        s = b["streaming"]
+        rows.append([f"streaming update per step (N={s['workload']['seq_len']}), p50 / p99", f"{s['latency_p50_ms']:.2f} / {s['latency_p99_ms']:.2f} ms", "target p99 <= 20 ms", ""])
+    if "welch" in b:
+        w = b["welch"]
+        rows.append([
+            f"Welch PSD, {w['n_windows']} windows x 2048", f"{w['welch_psd_s'] * 1e3:.1f} ms",
+            f"scipy {w['scipy_welch_s'] * 1e3:.1f} ms", f"{w['speedup_vs_scipy']:.1f}x faster",
+        ])
+    if "simulator" in b:
+        s = b["simulator"]
+        rows.append(["scene simulator (audio + joints)", f"{s['realtime_factor']:.1f}x real time", "", ""])
+    if "extraction" in b:
+        e = b["extraction"]
+        rows.append([
+            f"feature extraction, {e['dataset']} dataset ({e['steps']} steps)",
+            f"{e['cold_s']:.1f} s, peak {e['peak_rss_mb']:.0f} MB", f"paper scale ~{e['paper_scale_extrapolated_s'] / 60:.0f} min (extrapolated)", "",
+        ])
+    if "acquisition" in b:
+        a = b["acquisition"]
+        rows.append([
+            "acquisition loop, 50 Hz step p50 / p99", f"{a['p50_ms']:.1f} / {a['p99_ms']:.1f} ms",
+            f"{a['missed_deadlines']} of {a['steps']} deadlines missed", "",
+        ])
+    env = "".join(f"{k}={v} " for k, v in m.get("env", {}).items())
+    head = f"Measured by `{env}{doc['command']}` on {m['cpu']} ({m['cores']} cores), JAX {m['jax']}" + (
+        f", PyTorch {doc['torch']}" if doc["torch"] else ""
+    ) + (" (--quick sizes)" if doc["quick"] else "") + ". Ratio: ours / PyTorch time.\n\n"
+    return head + report.markdown_table(["benchmark", "fabricjax", "reference", "ratio"], rows)
+
+
+def _ms(x, digits: int) -> str:
+    return "n/a" if x is None else f"{x:.{digits}f} ms"
+
+
+def _ratio(r) -> str:
+    return "" if r is None else f"{r:.2f}"

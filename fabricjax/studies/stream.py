@@ -1,0 +1,123 @@
+"""Live classification of one trial as a command (`python -m experiments.stream`): the model
+(a checkpoint, or a quick one-seed model of a preset, trained once and checkpointed), the trial
+(an archive, or the first test-day trial of the model's dataset), the live printout and
+results/stream.json. The streaming itself is `fabricjax.stream`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from fabricjax import archive, catalog, report, sim, splits, stream, workspace
+from fabricjax.config import Config
+from fabricjax.studies import loading, runner
+
+
+def format_step(r: stream.StepResult, label: int) -> str:
+    """One line of the live printout: running prediction, confidence and latency."""
+    if r.probs is None:
+        return f"step {r.step:5d}  {r.time_s:6.2f} s  filling window  {r.latency_ms:6.2f} ms"
+    k = int(np.argmax(r.probs))
+    mark = "correct" if k == label else "wrong"
+    return f"step {r.step:5d}  {r.time_s:6.2f} s  {stream.class_name(k):<28s} p={r.probs[k]:.2f}  {mark:<7s} {r.latency_ms:6.2f} ms"
+
+
+# The quick model's inputs unless overridden: both microphones, what the streamer updates per step.
+QUICK_MODALITIES = ("internal", "external")
+
+
+def quick_model(preset: str, overrides: Mapping[str, Any] | None = None, *, workdir=None, data_dir=None):
+    """(graphdef, params, config, checkpoint dir): one seed of the preset's config (inputs
+    `QUICK_MODALITIES`, `overrides` on top), trained on its dataset and checkpointed, so a rerun
+    restores it instead of training again."""
+    config = Config.from_preset(preset, **{"modalities": QUICK_MODALITIES, **(overrides or {})})
+    ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir)
+    directory = runner.checkpoint_dir("stream", "quick", config, [0], workdir)
+    row = runner.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
+    return row.results.graphdef, row.results.params(0), config, directory
+
+
+def first_test_trial(folder, workdir=None) -> str:
+    """Path of the first test-day trial of a dataset folder (a class the model knows)."""
+    index = archive.load_index(folder, workdir)
+    roles = splits.assign_roles([e.meta for e in index.entries])
+    for e, role in zip(index.entries, roles):
+        if role == "test" and e.meta["label"] < catalog.N_CLASSES:
+            return str(index.path(e))
+    raise archive.ArchiveError(index.root, "<folder>", "no test-day trial of a known class")
+
+
+def run(
+    *,
+    archive_path=None,
+    checkpoint_dir=None,
+    preset: str = "default",
+    overrides: Mapping[str, Any] | None = None,
+    realtime: bool = True,
+    print_every: int = 1,
+    workdir=None,
+    data_dir=None,
+    results="results",
+    command: str | None = None,
+    out: Callable[[str], None] = print,
+    view: bool = False,
+    view_save=None,
+) -> dict:
+    """Classify one trial live and write results/stream.json; returns its document.
+
+    The model is `checkpoint_dir`'s (any `train_and_evaluate` checkpoint of a streamable config),
+    else a quick one-seed model of `preset` with `overrides` (trained once, then restored from its
+    checkpoint).
+    The trial is `archive_path`, else the first test-day trial of the model's dataset.
+    With `view` (a Rerun viewer) or `view_save` (a .rrd file) each step's sensor data and result
+    are logged as they come (`fabricjax.view`); the logging runs between the timed updates, so
+    the latencies are the model's, but in real time it can make steps late.
+    """
+    if checkpoint_dir is not None:
+        graphdef, params, config = stream.restore_model(checkpoint_dir)
+    else:
+        graphdef, params, config, checkpoint_dir = quick_model(preset, overrides, workdir=workdir, data_dir=data_dir)
+    if archive_path is None:
+        folder = data_dir or sim.ensure_dataset(config.preset, workdir, streams=("audio", "proprio"), progress=False)
+        archive_path = first_test_trial(folder, workdir)
+    watch = view or view_save is not None
+    trial = archive.read_archive(archive_path, images=watch)
+    streamer = stream.Streamer(graphdef, params, config)
+    label = int(trial.meta["label"])
+    if watch:
+        from fabricjax import view as trial_view
+
+        rec = trial_view.open_recording(view_save)
+        viewer = trial_view.TrialView(rec, label)
+    out(f"{archive_path}: {stream.class_name(label)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
+        f"N={streamer.n} steps ({streamer.n * stream.STEP_S:.2f} s), {'+'.join(config.modalities)}")
+
+    def show(r: stream.StepResult) -> None:
+        if print_every and (r.step % print_every == 0 or r.step == trial.n_steps - 1):
+            out(format_step(r, label))
+        if watch:
+            viewer.log_step(trial_view.archive_step(trial, r.step))
+            viewer.log_prediction(r)
+
+    summary = stream.replay(streamer, trial, realtime=realtime, on_step=show)
+    if watch:
+        rec.flush()
+    first, step = summary["time_to_first_correct_s"], summary["first_correct_step"]
+    out(
+        f"first correct decision: {'never' if first is None else f'{first:.2f} s (step {step})'}; "
+        f"accuracy over {summary['decided_steps']} decided steps {100 * (summary['accuracy_over_decided_steps'] or 0):.1f} %; "
+        f"per-step latency p50 {summary['latency_p50_ms']:.2f} ms, p99 {summary['latency_p99_ms']:.2f} ms"
+        + (f"; {summary['late_steps']} of {summary['steps']} results came after their 20 ms slot" if realtime else "")
+    )
+    doc = {
+        "command": command,
+        "machine": report.machine(),
+        "archive": str(archive_path),
+        "checkpoint": str(checkpoint_dir),
+        "config": config.to_json(),
+        **summary,
+    }
+    report.write_json(workspace.results_dir(results) / "stream.json", doc)
+    return doc

@@ -1,0 +1,271 @@
+"""A PyTorch twin of the audio + proprioception FabricNet and its training step, for benchmarks only.
+
+What a user would most likely write instead of us, made to compute the same function as
+`fabricjax.model.FabricNet` (GELU MLPs, tanh-approximated like `jax.nn.gelu`, with the audio
+encoder shared by both microphones, [0, 1] rescale over time, Dense + learned position,
+pre-LayerNorm attention blocks with fused QKV and `scaled_dot_product_attention`, final
+LayerNorm (epsilon 1e-6 like Flax), mean over time, ReLU hidden layer, linear head), initialised
+from the same distributions (LeCun-normal truncated kernels, zero biases, N(0, 0.02) positions),
+and trained like `fabricjax.train` (global-norm clip 1.0, AdamW decaying weight matrices only; the
+twin keeps a constant learning rate, which costs the same per step as our warm-up schedule).
+`build(config, n_bins)` makes the twin; `state_dict_from_params` converts our parameter pytree to
+its `state_dict`, so the two can be checked for equal logits (tests/test_torch_twin.py).
+Optional: install with `pip install -e ".[compare]"`. Importing this module does not import
+torch; every function that needs it imports it when called (ImportError without torch), so
+`fabricjax.benchmark.compare_with_torch` and the bench suite use it only where torch is installed.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from types import SimpleNamespace
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from fabricjax import catalog, stats
+from fabricjax.config import MODALITIES, Config
+
+LN_EPS = 1e-6  # flax.nnx.LayerNorm's default epsilon
+SUPPORTED = ("internal", "external", "proprio")
+
+
+@functools.cache
+def _modules() -> SimpleNamespace:
+    """The twin's torch modules, defined on first use (importing torch then, not with this module)."""
+    import torch
+    from torch import nn
+    from torch.nn import functional as F
+
+    def _gelu(x):
+        return F.gelu(x, approximate="tanh")  # jax.nn.gelu's default
+
+    class MLP(nn.Module):
+        def __init__(self, sizes, input_norm: bool = False):
+            super().__init__()
+            self.input_norm = nn.LayerNorm(sizes[0], eps=LN_EPS) if input_norm else None
+            self.layers = nn.ModuleList(nn.Linear(a, b) for a, b in zip(sizes[:-1], sizes[1:]))
+
+        def forward(self, x):
+            if self.input_norm is not None:
+                x = self.input_norm(x)
+            for layer in self.layers:
+                x = _gelu(layer(x))
+            return x
+
+    class Block(nn.Module):
+        def __init__(self, width, n_heads, ffn, dropout):
+            super().__init__()
+            self.n_heads = n_heads
+            self.norm1, self.norm2 = nn.LayerNorm(width, eps=LN_EPS), nn.LayerNorm(width, eps=LN_EPS)
+            self.qkv, self.proj = nn.Linear(width, 3 * width), nn.Linear(width, width)
+            self.ff1, self.ff2 = nn.Linear(width, ffn), nn.Linear(ffn, width)
+            self.drop = nn.Dropout(dropout)
+
+        def forward(self, x):
+            b, t, w = x.shape
+            q, k, v = self.qkv(self.norm1(x)).view(b, t, 3, self.n_heads, w // self.n_heads).permute(2, 0, 3, 1, 4)
+            a = F.scaled_dot_product_attention(q, k, v).transpose(1, 2).reshape(b, t, w)
+            x = x + self.drop(self.proj(a))
+            return x + self.drop(self.ff2(_gelu(self.ff1(self.norm2(x)))))
+
+    class TorchFabricNet(nn.Module):
+        def __init__(self, config: Config, n_bins: int):
+            super().__init__()
+            other = [m for m in config.modalities if m not in SUPPORTED]
+            if other or config.backbone != "attention" or config.property_heads or not config.fabric_head:
+                raise ValueError("the twin covers the attention model on audio + proprioception with the fabric head only")
+            # Our model's order (fabricjax.config.MODALITIES), whatever the config's order.
+            self.modalities = tuple(m for m in MODALITIES if m in config.modalities)
+            audio = [m for m in self.modalities if m != "proprio"]
+            self.audio = MLP((n_bins, *config.audio_hidden), input_norm=True) if audio else None
+            self.proprio = MLP((18, *config.proprio_hidden)) if "proprio" in self.modalities else None
+            if self.proprio is not None:  # the model's fixed joint standardisation (see FabricNet)
+                self.register_buffer("proprio_shift", torch.zeros(18))
+                self.register_buffer("proprio_scale", torch.ones(18))
+            dims = sum(config.proprio_hidden[-1] if m == "proprio" else config.audio_hidden[-1] for m in self.modalities)
+            self.embed = nn.Linear(dims, config.width)
+            self.position = nn.Parameter(torch.randn(config.seq_len, config.width) * 0.02)
+            self.blocks = nn.ModuleList(
+                Block(config.width, config.n_heads, config.ffn, config.dropout) for _ in range(config.n_layers)
+            )
+            self.norm = nn.LayerNorm(config.width, eps=LN_EPS)
+            self.hidden = nn.Linear(config.width, config.width)
+            self.head = nn.Linear(config.width, catalog.N_CLASSES)
+            self.drop = nn.Dropout(config.dropout)
+            self.reset_parameters()
+
+        @torch.no_grad()
+        def reset_parameters(self):
+            """Flax's defaults: LeCun-normal (truncated at 2 sd) kernels, zero biases, unit LayerNorm scales."""
+            for m in self.modules():
+                if isinstance(m, nn.Linear):
+                    std = math.sqrt(1.0 / m.in_features) / 0.87962566103423978  # sd of N(0,1) truncated at +-2
+                    nn.init.trunc_normal_(m.weight, std=std, a=-2 * std, b=2 * std)
+                    nn.init.zeros_(m.bias)
+                elif isinstance(m, nn.LayerNorm):
+                    nn.init.ones_(m.weight)
+                    nn.init.zeros_(m.bias)
+            nn.init.normal_(self.position, std=0.02)
+
+        def forward(self, inputs):
+            parts = [
+                self.proprio((inputs[m] - self.proprio_shift) * self.proprio_scale) if m == "proprio" else self.audio(inputs[m])
+                for m in self.modalities
+            ]
+            x = torch.cat(parts, -1)
+            lo, hi = x.amin(1, keepdim=True), x.amax(1, keepdim=True)
+            x = (x - lo) / (hi - lo).clamp_min(1e-6)
+            x = self.drop(self.embed(x) + self.position[: x.shape[1]])
+            for block in self.blocks:
+                x = block(x)
+            h = self.drop(F.relu(self.hidden(self.norm(x).mean(1))))
+            return self.head(h)
+
+    return SimpleNamespace(MLP=MLP, Block=Block, TorchFabricNet=TorchFabricNet)
+
+
+def build(config: Config, n_bins: int):
+    """The twin of `FabricNet(config, {modality: (n_bins,) or (18,)})`: a `torch.nn.Module` in
+    training mode, initialised like ours (needs torch)."""
+    return _modules().TorchFabricNet(config, n_bins)
+
+
+def require():
+    """The torch module; ImportError (with the reason) where torch is not installed."""
+    import torch
+
+    return torch
+
+
+def state_dict_from_params(params: Mapping[str, Any]) -> dict[str, Any]:
+    """Our parameter pytree (`nnx.to_pure_dict` of a FabricNet, one seed) as the twin's `state_dict`.
+
+    Dense kernels (in, out) become Linear weights (out, in); LayerNorm scales become weights; the
+    fused QKV kernel's output order (3, heads, head_dim) is the twin's `view(b, t, 3, H, D)`.
+    """
+    import torch
+
+    t = lambda a: torch.from_numpy(np.array(a, dtype=np.float32))  # noqa: E731
+    out: dict[str, Any] = {}
+
+    def dense(prefix, p):
+        out[f"{prefix}.weight"] = t(p["kernel"]).T.contiguous()
+        out[f"{prefix}.bias"] = t(p["bias"])
+
+    def norm(prefix, p):
+        out[f"{prefix}.weight"] = t(p["scale"])
+        out[f"{prefix}.bias"] = t(p["bias"])
+
+    if "audio" in params and params["audio"].get("input_norm"):
+        norm("audio.input_norm", params["audio"]["input_norm"])
+    for enc in ("audio", "proprio"):
+        if enc in params:
+            for i, layer in sorted(params[enc]["layers"].items(), key=lambda kv: int(kv[0])):
+                dense(f"{enc}.layers.{int(i)}", layer)
+    for k in ("proprio_shift", "proprio_scale"):
+        if k in params:
+            out[k] = t(params[k])
+    dense("embed", params["embed"])
+    out["position"] = t(params["position"])
+    for i, block in sorted(params["blocks"].items(), key=lambda kv: int(kv[0])):
+        for name in ("qkv", "proj", "ff1", "ff2"):
+            dense(f"blocks.{int(i)}.{name}", block[name])
+        norm(f"blocks.{int(i)}.norm1", block["norm1"])
+        norm(f"blocks.{int(i)}.norm2", block["norm2"])
+    norm("norm", params["norm"])
+    dense("hidden", params["hidden"])
+    dense("head", params["heads"]["fabric"])
+    return out
+
+
+def _optimizer(model, config: Config):
+    import torch
+
+    decay = [p for p in model.parameters() if p.ndim > 1]
+    rest = [p for p in model.parameters() if p.ndim <= 1]
+    return torch.optim.AdamW(
+        [{"params": decay, "weight_decay": config.weight_decay}, {"params": rest, "weight_decay": 0.0}],
+        lr=config.learning_rate,
+    )
+
+
+def _clip_by_global_norm(params, max_norm: float = 1.0):
+    """optax.clip_by_global_norm: scale every gradient by max_norm / max(norm, max_norm)."""
+    import torch
+
+    grads = [p.grad for p in params if p.grad is not None]
+    norm = torch.linalg.vector_norm(torch.stack([torch.linalg.vector_norm(g) for g in grads]))
+    torch._foreach_mul_(grads, max_norm / torch.clamp(norm, min=max_norm))
+
+
+def _batch(config: Config, batch: int, n_bins: int, seed: int = 0):
+    import torch
+
+    g = torch.Generator().manual_seed(seed)
+    n = config.seq_len
+    inputs = {m: torch.randn(batch, n, 18 if m == "proprio" else n_bins, generator=g) for m in config.modalities}
+    return inputs, torch.randint(0, catalog.N_CLASSES, (batch,), generator=g)
+
+
+def train_step_runner(config: Config, *, n_seeds: int = 1, batch: int = 32, n_bins: int = 320, steps: int = 4) -> Callable[[], float]:
+    """A warmed-up callable that runs `steps` training steps of `n_seeds` models one after another
+    (each step: every seed in turn) and returns seconds per step."""
+    import torch
+    from torch.nn import functional as F
+
+    torch.manual_seed(0)
+    models = [build(config, n_bins).train() for _ in range(n_seeds)]
+    opts = [_optimizer(m, config) for m in models]
+    inputs, labels = _batch(config, batch, n_bins)
+
+    def step():
+        for model, opt in zip(models, opts):
+            opt.zero_grad(set_to_none=True)
+            F.cross_entropy(model(inputs), labels, ignore_index=-1).backward()
+            _clip_by_global_norm(model.parameters(), 1.0)
+            opt.step()
+
+    step()  # warm-up
+
+    def run() -> float:
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            step()
+        return (time.perf_counter() - t0) / steps
+
+    return run
+
+
+def bench_train_step(config: Config, *, n_seeds: int = 1, batch: int = 32, n_bins: int = 320, steps: int = 10) -> dict:
+    """Seconds per training step (median over `steps`) of `n_seeds` independent models trained one after another."""
+    torch = require()
+    run = train_step_runner(config, n_seeds=n_seeds, batch=batch, n_bins=n_bins, steps=1)
+    s = float(np.median([run() for _ in range(steps)]))
+    return {"seconds_per_step": s, "sequences_per_second_per_seed": batch / (s / n_seeds), "n_seeds": n_seeds, "threads": torch.get_num_threads()}
+
+
+def inference_runner(config: Config, *, n_bins: int = 320) -> Callable[[], float]:
+    """A warmed-up callable returning the seconds of one eval-mode forward pass on one sequence."""
+    import torch
+
+    model = build(config, n_bins).eval()
+    inputs, _ = _batch(config, 1, n_bins)
+
+    def run() -> float:
+        with torch.inference_mode():
+            t0 = time.perf_counter()
+            model(inputs)
+            return time.perf_counter() - t0
+
+    for _ in range(10):
+        run()
+    return run
+
+
+def bench_inference(config: Config, *, n_bins: int = 320, repeats: int = 200) -> dict:
+    """Latency of one sequence through the eval-mode model (p50 / p99 milliseconds)."""
+    run = inference_runner(config, n_bins=n_bins)
+    return stats.percentiles_ms([run() for _ in range(repeats)])
