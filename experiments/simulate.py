@@ -7,12 +7,12 @@ from __future__ import annotations
 
 from absl import flags
 
-from fabricjax import cli
+from fabricjax import cli, presets
 
 from fabricjax.sim import ensure_dataset
 
 FLAGS = flags.FLAGS
-flags.DEFINE_enum("preset", "default", ["smoke", "default", "paper"], "dataset preset")
+flags.DEFINE_enum("preset", "default", sorted(presets.PRESETS), "dataset preset (fabricjax/presets.py)")
 flags.DEFINE_list("streams", ["audio", "proprio", "images"], "streams to record (audio and proprio are required)")
 flags.DEFINE_string("workdir", None, "workspace root (default: $FABRICJAX_WORKDIR or ./workspace)")
 flags.DEFINE_integer("workers", None, "simulation processes (default: one per core)")

@@ -16,14 +16,14 @@ import types
 import typing
 from typing import Any
 
-from fabricjax import presets
+from fabricjax import archive, presets
 from fabricjax.errors import UserError
 
 # Input streams by name. "internal"/"external" are the Minsound / palm microphone PSDs (one shared
 # encoder), "proprio" the 18 joint values, "flow" the patch-pooled optical flow, "image" Minsight
 # frames (downsampled to `image_size` or at the archive's resolution, see `image_resolution`).
 MODALITIES = ("image", "flow", "internal", "external", "proprio")
-AUDIO_MODALITIES = ("internal", "external")
+AUDIO_MODALITIES = archive.MIC_NAMES  # a microphone's PSD is the modality of the same name
 # How tables and figures name each modality (the sensors of the paper).
 MODALITY_NAMES = {"image": "Minsight image", "flow": "optical flow", "internal": "Minsound", "external": "palm mic", "proprio": "proprioception"}
 BACKBONES = ("attention", "tcn")
