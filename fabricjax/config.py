@@ -27,7 +27,6 @@ AUDIO_MODALITIES = archive.MIC_NAMES  # a microphone's PSD is the modality of th
 # How tables and figures name each modality (the sensors of the paper).
 MODALITY_NAMES = {"image": "Minsight image", "flow": "optical flow", "internal": "Minsound", "external": "palm mic", "proprio": "proprioception"}
 BACKBONES = ("attention", "tcn")
-BANDWIDTHS_KHZ = (2.5, 10.0, 15.0, 24.0)
 # How the concatenated per-step features are normalised before the backbone: the paper's rescale of
 # each dimension to [0, 1] over the sequence, or our variant, a LayerNorm over each step's features
 # (keeps each feature's steady level, which the rescale discards).

@@ -179,8 +179,9 @@ def plot_pareto(path, points: Sequence[dict], x_keys: Sequence[tuple[str, str]],
                 p["name"] + (" (paper config)" if mark else ""),
                 (x, y),
                 fontsize=6.5,
-                xytext=(4, -8 if mark else 3),
+                xytext=(0, -16) if mark else (4, 3),  # the marked point's label centred below its ring
                 textcoords="offset points",
+                ha="center" if mark else "left",
                 color="tab:red" if mark else "black",
                 weight="bold" if mark else "normal",
             )
