@@ -103,8 +103,8 @@ def bench_inference(config: Config, seq_len: int = 200, psd_bins: int = 320, rep
     return stats.percentiles_ms([run() for _ in range(repeats)])
 
 
-# The comparison workload: the paper's model on two microphones (320 bins) + joints.
-COMPARE_CONFIG = Config(preset="paper", modalities=("internal", "external", "proprio"), seq_len=200)
+# The PyTorch comparison's workload: the paper's model on two microphones (320 bins) + joints.
+COMPARE_CONFIG = Config.from_preset("paper", modalities=("internal", "external", "proprio"))
 
 
 def compare_with_torch(

@@ -49,7 +49,7 @@ class Workload:
     comparison the PyTorch twin was built for: the paper's model (width 64, 3 attention layers)
     on two microphones (320 bins = 15 kHz) + joints, N=200, batch 32. Tests pass a tiny one."""
 
-    model: Config = Config(preset="paper", modalities=("internal", "external", "proprio"), seq_len=200)
+    model: Config = benchmark.COMPARE_CONFIG
     batch: int = 32
     bins: int = 320
     seeds: tuple[int, ...] = (1, 5)  # seed counts of the training benchmark; 1 must be among them
@@ -85,7 +85,7 @@ def bench_welch(quick: bool) -> dict:
 def bench_extraction(quick: bool, workdir) -> dict:
     """In a spawned process, so its peak memory is the extraction's alone."""
     folder = sim.ensure_dataset("smoke", workdir, streams=("audio", "proprio"), progress=False)
-    config = Config(preset="smoke", modalities=("internal", "external", "proprio"))
+    config = Config.from_preset("smoke", modalities=("internal", "external", "proprio"))
     # concurrent.futures: its worker is not daemonic, so the extraction's own process pool may start
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
         out = pool.submit(feature_bench.bench_extraction, config, folder).result()
