@@ -235,7 +235,7 @@ def test_ablation_command_end_to_end(workdir):
 def test_camera_rows(workdir, tmp_path):
     """Image and optical-flow rows (CNN encoders, rotation augmentation) end to end."""
     doc = ablation.run(n_seeds=2, rows=["image+internal", "flow", "proprio"], **run_kwargs(workdir, tmp_path))
-    assert [r["name"] for r in doc["rows"]] == ["image+internal", "flow", "proprio"] and doc["wilcoxon"] is None
+    assert [r["name"] for r in doc["rows"]] == ["flow", "proprio", "image+internal"] and doc["wilcoxon"] is None  # the table's order
     assert (tmp_path / "ablation_confusion.png").stat().st_size > 0
     doc = properties.run(n_seeds=1, rows=["minsound+minsight"], **run_kwargs(workdir, tmp_path))
     out = latents.run(doc["rows"][0]["checkpoint"], workdir=workdir, results=tmp_path)
