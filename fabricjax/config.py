@@ -90,6 +90,8 @@ class Config:
     @classmethod
     def from_preset(cls, name: str, **overrides) -> "Config":
         """The preset's training fields on `Config`'s defaults, with `overrides` on top."""
+        if "preset" in overrides:
+            raise UserError(f"the preset is chosen by name (--preset={overrides['preset']}), not overridden as a field")
         return cls(preset=name, **{**presets.get(name).training, **overrides})
 
     def to_json(self) -> dict[str, Any]:

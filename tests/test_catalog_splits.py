@@ -62,6 +62,8 @@ def test_config_validation_and_json():
         config.Config(preset="huge")
     with pytest.raises(errors.UserError, match="unknown preset 'huge'; choose one of"):
         config.Config.from_preset("huge")
+    with pytest.raises(errors.UserError, match="chosen by name"):
+        config.Config.from_preset("smoke", preset="paper")
 
 
 def test_config_from_json_before_seq_len_was_explicit():
