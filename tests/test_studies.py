@@ -90,7 +90,7 @@ def test_bandwidth_narrows_the_psd_per_row(workdir, tmp_path):
     cut = data.narrow(full, Config(modalities=("internal", "proprio"), bandwidth_khz=15.0))["s"].inputs
     assert cut.keys() == {"internal", "proprio"}  # the row's inputs only
     assert cut["internal"].shape == (2, 3, 320) and cut["proprio"].shape == (2, 3, 18)
-    with pytest.raises(ValueError, match="sweeps the bandwidth"):
+    with pytest.raises(UserError, match="sets bandwidth_khz per row itself; choose bandwidths with --rows"):
         bandwidth.run(**run_kwargs(workdir, tmp_path) | {"overrides": {"bandwidth_khz": 10.0}})
 
 
@@ -208,6 +208,14 @@ def test_ten_seed_floor_and_row_selection():
     assert [r.name for r in runner.select_rows(paper_tables.ABLATION, None)] == [r.name for r in paper_tables.ABLATION]
     with pytest.raises(ValueError, match="unknown rows"):
         runner.select_rows(paper_tables.ABLATION, ["audio"])
+
+
+@pytest.mark.parametrize("study, field", [(ablation, "modalities"), (ablation, "fusion_norm"), (noise, "modalities"), (properties, "exclude_fabrics")])
+def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp_path):
+    """--set of a field the study sets per row would be silently ignored: it fails before any data is read."""
+    with pytest.raises(UserError, match=f"sets {field} per row itself; choose"):
+        study.run(preset="smoke", overrides={field: Config.__dataclass_fields__[field].default}, workdir=tmp_path / "nothing", results=tmp_path)
+    assert not (tmp_path / "nothing").exists()
 
 
 def test_results_say_how_they_were_made():

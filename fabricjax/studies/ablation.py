@@ -78,10 +78,11 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train the chosen rows (all by default) and write results/ablation.{md,json}; returns the JSON."""
+    overrides = runner.check_overrides("ablation", overrides, ("modalities", "fusion_norm"), "choose them with --rows")
     chosen = runner.select_rows(ROWS, rows)
     seeds = runner.seed_list(n_seeds)
     named = [
-        (r.name, Config.from_preset(preset, **{"backbone": r.backbone, **(overrides or {}), "modalities": r.modalities, "fusion_norm": r.fusion_norm}))
+        (r.name, Config.from_preset(preset, **{"backbone": r.backbone, **overrides, "modalities": r.modalities, "fusion_norm": r.fusion_norm}))
         for r in chosen
     ]
     study = runner.train_rows(

@@ -20,7 +20,6 @@ import numpy as np
 
 from fabricjax import findings, paper_tables, plots, report, stats
 from fabricjax.config import Config
-from fabricjax.errors import UserError
 from fabricjax.features import welch
 from fabricjax.studies import documents, loading, runner
 
@@ -43,11 +42,10 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train one row per bandwidth and write results/bandwidth.{md,json}; returns the JSON."""
-    if "bandwidth_khz" in (overrides or {}):
-        raise UserError("the bandwidth study sweeps the bandwidth itself; choose bandwidths with rows (e.g. 2.5,15)")
+    overrides = runner.check_overrides("bandwidth", overrides, ("bandwidth_khz", "modalities"), "choose bandwidths with --rows (e.g. 2.5,15)")
     chosen = runner.select_rows(sorted(paper_tables.BANDWIDTH), rows, name=row_name)
     seeds = runner.seed_list(n_seeds)
-    base = Config.from_preset(preset, **{**(overrides or {}), "modalities": MODALITIES})
+    base = Config.from_preset(preset, **{**overrides, "modalities": MODALITIES})
     study = runner.train_rows(
         "bandwidth", [(row_name(khz), dataclasses.replace(base, bandwidth_khz=khz)) for khz in chosen], seeds,
         eval_splits=["test"], split_names=loading.TRAIN_VAL_TEST, data_dir=data_dir, workdir=workdir, label=lambda name: f"{name} kHz",

@@ -38,10 +38,11 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train the rows, test on the cafe split and write results/noise.{md,json}; returns the JSON."""
+    overrides = runner.check_overrides("noise", overrides, ("modalities",), "choose them with --rows")
     chosen = runner.select_rows(ROWS, rows, name=lambda r: r[0])
     seeds = runner.seed_list(n_seeds)
     study = runner.train_rows(
-        "noise", [(name, Config.from_preset(preset, **{**(overrides or {}), "modalities": mods})) for name, mods, *_ in chosen], seeds,
+        "noise", [(name, Config.from_preset(preset, **{**overrides, "modalities": mods})) for name, mods, *_ in chosen], seeds,
         eval_splits=[SPLIT, "test"], split_names=(*loading.TRAIN_VAL_TEST, SPLIT), data_dir=data_dir, workdir=workdir,
         summary=lambda row: f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %", check=_has_cafe_trials,
     )

@@ -44,10 +44,11 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train both rows (checkpointed), evaluate on training and holdout fabrics, write results/properties.{md,json}."""
+    overrides = runner.check_overrides("properties", overrides, (*SETTINGS, "modalities"), "choose the rows with --rows")
     chosen = runner.select_rows(ROWS, rows, name=lambda r: r[0])
     seeds = runner.seed_list(n_seeds)
     study = runner.train_rows(
-        "properties", [(name, Config.from_preset(preset, **{**(overrides or {}), **SETTINGS, "modalities": mods})) for name, mods in chosen],
+        "properties", [(name, Config.from_preset(preset, **{**overrides, **SETTINGS, "modalities": mods})) for name, mods in chosen],
         seeds, eval_splits=list(SPLITS), data_dir=data_dir, workdir=workdir, checkpoints=True,
         summary=lambda row: ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES),
     )

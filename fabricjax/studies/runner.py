@@ -42,6 +42,16 @@ def select_rows(rows: Sequence, names: Sequence[str] | None, name=lambda r: r.na
     return [r for r in rows if name(r) in names]
 
 
+def check_overrides(study: str, overrides: Mapping | None, row_fields: Sequence[str], how: str) -> dict:
+    """`overrides` as a dict, after checking that none of them is a field the study sets per row
+    itself (it would be silently replaced): such an override is a one-line error saying `how`
+    to choose that dimension instead."""
+    clash = sorted(set(overrides or {}) & set(row_fields))
+    if clash:
+        raise UserError(f"the {study} study sets {', '.join(clash)} per row itself; {how}")
+    return dict(overrides or {})
+
+
 # Training time of a row relative to a row without camera inputs, by the costliest camera input
 # it uses: the default preset's measured per-row wall times in results/ablation.md (Minsight
 # image rows 124-141 s, optical-flow rows 47-58 s, the others 30-64 s, mean 43 s: about 3.1 and
