@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import types
 import typing
 from typing import Any
 
@@ -139,15 +138,10 @@ def format_override(field: str, value: Any) -> str:
 def _parse(kind, raw: str) -> Any:
     origin, args = typing.get_origin(kind), typing.get_args(kind)
     if origin is tuple:
-        items = [x.strip() for x in raw.split(",") if x.strip()] if raw.strip("() ") else []
-        item = args[0]
+        items = [x.strip() for x in raw.split(",") if x.strip()]
         if args[-1] is not Ellipsis and len(items) != len(args):
             raise ValueError(f"{len(items)} values given, {len(args)} expected")
-        return tuple(_parse(item, x) for x in items)
-    if origin in (types.UnionType, typing.Union):
-        if raw.lower() == "none" and type(None) in args:
-            return None
-        return _parse(next(a for a in args if a is not type(None)), raw)
+        return tuple(_parse(args[0], x) for x in items)  # Config's tuples hold one type
     if kind is bool:
         if raw.lower() in ("true", "1", "yes"):
             return True
