@@ -94,8 +94,6 @@ def check_mapping(mapping: dict[str, Any], where) -> None:
             value = mic.get(key)
             if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value < low):
                 problems.append(f"mics.{m}.{key}: must be an integer >= {low}, got {value!r}")
-        if "rate" not in mic and "info_topic" not in mic:
-            problems.append(f"mics.{m}.rate: missing (give the rate, or an AudioInfo topic as info_topic)")
     names = mapping["joints"].get("names", list(archive.JOINT_NAMES))
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         problems.append(f"joints.names: must be a list of joint names, got {names!r}")
@@ -331,6 +329,6 @@ def _mic(name, table, decoded, tolerance, problems, clocks) -> Chunks:
     received = np.array([t for t, _, _ in msgs])
     times, clocks[name] = _place(f"mics.{name}", stamps, received, table.get("clock", DEFAULT_CLOCK["mic"]), tolerance, problems, topic)
     if fmt.rate is None:
-        problems.append(f"mics.{name}.rate: missing and no AudioInfo in the bag says it")
+        problems.append(f"mics.{name}.rate: missing, and no AudioInfo in the bag gives it (set rate, or info_topic)")
         return Chunks(topic, 0, [], [])
     return Chunks(topic, fmt.rate, list(times), chunks)
