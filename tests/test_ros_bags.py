@@ -320,3 +320,80 @@ def test_each_issue_case_is_one_line_on_the_command_line(tmp_path):
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "header.stamp: 0.301 s behind" in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+# --- a bag as a ROS 2 lab records it ----------------------------------------------------------
+
+LAB_RATE, LAB_CHUNK, LAB_FPS, UPTIME_AT_T0 = 16000, 512, 30, 12.5  # audio_common at 16 kHz, 32 ms chunks
+LAB_MAPPING = {
+    "camera": {"topic": CAMERA, "clock": "device"},  # a camera driver stamping with the device's clock
+    "mics": {"internal": {"topic": INTERNAL, "info_topic": "/minsound/audio_info"},
+             "external": {"topic": EXTERNAL, "info_topic": "/palm/audio_info"}},
+    "joints": {"topic": JOINTS},
+    "trial": TRIAL,
+}
+
+
+def lab_messages(seed=0, seconds=1.0):
+    """30 fps rgb8 frames stamped with the camera's uptime, received 4 ms later; two audio_common
+    AudioData streams at 16 kHz S16LE (their AudioInfo published once, at the start) from 0.2 s
+    before the first frame, each chunk received 1 ms after its last sample; position-only
+    JointState (joint_state_publisher) at 50 Hz on the bag's clock, received 2 ms after the stamp."""
+    rng = np.random.default_rng(seed)
+    msgs = []
+    for i in range(int(seconds * LAB_FPS)):
+        t = T0 + i / LAB_FPS
+        img = TS.types["sensor_msgs/msg/Image"](header=_header(t - T0 + UPTIME_AT_T0), height=8, width=10, encoding="rgb8",
+                                                 is_bigendian=0, step=30, data=rng.integers(0, 255, 240, dtype=np.uint8))
+        msgs.append((t + 0.004, CAMERA, "sensor_msgs/msg/Image", img))
+    start = T0 - 0.2
+    for topic in (INTERNAL, EXTERNAL):
+        msgs.append((start, topic.replace("/audio", "/audio_info"), "audio_common_msgs/msg/AudioInfo", _info(LAB_RATE)))
+        for k in range(int((seconds + 0.2) * LAB_RATE / LAB_CHUNK)):
+            samples = rng.integers(-3000, 3000, LAB_CHUNK).astype(np.int16)
+            msgs.append((start + (k + 1) * LAB_CHUNK / LAB_RATE + 0.001, topic, "audio_common_msgs/msg/AudioData", _audio_data(samples)))
+    for k in range(int((seconds + 0.2) * 50)):
+        t = start + k / 50
+        js = TS.types["sensor_msgs/msg/JointState"](header=_header(t), name=NAMES, position=rng.normal(size=6),
+                                                     velocity=np.zeros(0), effort=np.zeros(0))
+        msgs.append((t + 0.002, JOINTS, "sensor_msgs/msg/JointState", js))
+    return sorted(msgs, key=lambda m: m[0])
+
+
+def test_lab_bag_becomes_an_archive_read_archive_and_verify_accept(tmp_path):
+    msgs = lab_messages()
+    assert {m[1] for m in msgs} == {CAMERA, INTERNAL, EXTERNAL, JOINTS, "/minsound/audio_info", "/palm/audio_info"}
+    bag = write_messages(tmp_path / "bag", msgs, storage="mcap")
+    with pytest.raises(importing.RecordingImportError, match=r"/minsound/audio: rate: sample rate 16000 Hz, archives hold 48000 Hz"):
+        importing.import_bag(bag, LAB_MAPPING, TRIAL)
+    a = importing.import_bag(bag, LAB_MAPPING, TRIAL, resample=True)
+    folder = tmp_path / "data"
+    back = archive.read_archive(archive.write_archive(folder / archive.trial_filename(a.meta), a))
+    assert back.meta["sample_rates"] == {"audio": 48000, "steps": 30}
+    assert back.meta["joint_fields_absent"] == ["velocity", "current"]
+    assert back.meta["import"]["resampled"] == {t: {"from_hz": 16000, "to_hz": 48000, "method": "scipy.signal.resample_poly"}
+                                                for t in (INTERNAL, EXTERNAL)}
+    clocks = back.meta["import"]["clocks"]
+    assert clocks["camera"] == {"clock": "device", "receive_minus_header_s": pytest.approx(T0 - UPTIME_AT_T0 + 0.004, abs=1e-6)}
+    assert clocks["joints"]["clock"] == "header" and clocks["internal"] == {"clock": "receive"}
+    np.testing.assert_allclose(np.diff(back.timestamps), 1 / LAB_FPS, atol=1e-6)
+    assert back.n_steps >= 25 and back.meta["import"]["frame_gaps"] == []
+    problems, _ = integrity.verify(folder, tmp_path / "ws")
+    assert problems == []
+
+
+def test_proprio_on_absent_joint_fields_is_a_one_line_error(tmp_path):
+    from fabricjax import data
+    from fabricjax.config import Config
+
+    folder = tmp_path / "data"
+    a = importing.import_bag(write_messages(tmp_path / "bag", lab_messages(seconds=1.5)), LAB_MAPPING, TRIAL, resample=True)
+    path = archive.write_archive(folder / archive.trial_filename(a.meta), a)
+    config = Config(preset="smoke", seq_len=20, modalities=("internal", "proprio"))
+    with pytest.raises(archive.ArchiveError) as e:
+        data.load_sequences(config, folder, workdir=tmp_path / "ws", progress=False, workers=1, split_names=("train",))
+    assert str(e.value) == (f"{path}: field 'joints': ['velocity', 'current'] not recorded (meta.joint_fields_absent), but the "
+                            "proprio input needs angle, velocity and current of every joint: leave proprio out of the modalities")
+    sets = data.load_sequences(Config(preset="smoke", seq_len=20, modalities=("internal",)), folder, workdir=tmp_path / "ws",
+                               progress=False, workers=1, split_names=("train",))
+    assert len(sets["train"]) == a.n_steps // 20
