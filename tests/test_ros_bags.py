@@ -16,7 +16,7 @@ pytest.importorskip("rosbags")
 
 from acquisition import ros_bag  # noqa: E402
 from tests.test_import_bag import (  # noqa: E402
-    CHUNK, MAPPING, MAPPING_TOML, N_FRAMES, NAMES, T0, TS, _header, bag_messages, check_fields, recording,
+    MAPPING, MAPPING_TOML, N_FRAMES, NAMES, T0, TS, _header, bag_messages, check_fields, recording,
     write_bag, write_messages,
 )
 
@@ -104,6 +104,10 @@ def test_raw_audio_without_a_format_is_a_clear_error(tmp_path):
     msgs = _as_audio_common(bag_messages(rec), rec, "AudioData") + [(T0, "/info", "audio_common_msgs/msg/AudioInfo", _info(48000))]
     with pytest.raises(ros_bag.BagError, match=r"mics\.internal\.format: 'S32LE' in the mapping, the bag's AudioInfo says 'S16LE'"):
         importing.import_bag(write_messages(tmp_path / "bag2", msgs), mapping, TRIAL)
+    no_rate = _mapping()
+    del no_rate["mics"]["external"]["rate"]
+    with pytest.raises(ros_bag.BagError, match=r"mics\.external\.rate: missing, and no AudioInfo in the bag gives it"):
+        importing.import_bag(write_bag(tmp_path / "bag3", rec), no_rate, TRIAL)
 
 
 # --- 2. no overwrite --------------------------------------------------------------------------
