@@ -61,9 +61,9 @@ def _info(rate, channels=1, sample_format="S16LE", coding_format="wave"):
 # --- 1. audio_common audio --------------------------------------------------------------------
 
 
-def _as_audio_common(msgs, rec, kind):
+def _as_audio_common(msgs, kind):
     """The internal microphone's Int16MultiArray chunks as audio_common `kind` messages (48 kHz S16LE)."""
-    out, k = [], 0
+    out = []
     for t, topic, typ, m in msgs:
         if topic == INTERNAL:
             data = _audio_data(np.asarray(m.data))
@@ -74,7 +74,7 @@ def _as_audio_common(msgs, rec, kind):
             else:
                 audio = TS.types["audio_common_msgs/msg/Audio"](audio=data, info=_info(48000))
                 m = TS.types["audio_common_msgs/msg/AudioStamped"](header=_header(t), audio=audio)
-            typ, k = f"audio_common_msgs/msg/{kind}", k + 1
+            typ = f"audio_common_msgs/msg/{kind}"
         out.append((t, topic, typ, m))
     return out
 
@@ -86,7 +86,7 @@ def _as_audio_common(msgs, rec, kind):
 ])
 def test_audio_common_audio_is_read_bit_exact(tmp_path, kind, table):
     rec = recording()
-    msgs = _as_audio_common(bag_messages(rec), rec, kind)
+    msgs = _as_audio_common(bag_messages(rec), kind)
     msgs.append((T0 - 0.2, "/minsound/audio_info", "audio_common_msgs/msg/AudioInfo", _info(48000)))
     mapping = _mapping(internal=table)
     if "format" not in table:
@@ -97,11 +97,11 @@ def test_audio_common_audio_is_read_bit_exact(tmp_path, kind, table):
 
 def test_raw_audio_without_a_format_is_a_clear_error(tmp_path):
     rec = recording()
-    bag = write_messages(tmp_path / "bag", _as_audio_common(bag_messages(rec), rec, "AudioData"))
+    bag = write_messages(tmp_path / "bag", _as_audio_common(bag_messages(rec), "AudioData"))
     with pytest.raises(ros_bag.BagError, match=r"/minsound/audio: sample_format: raw audio bytes \(uint8\[\]\) need a sample format"):
         importing.import_bag(bag, MAPPING, TRIAL)
     mapping = _mapping(internal={"format": "S32LE", "info_topic": "/info"})
-    msgs = _as_audio_common(bag_messages(rec), rec, "AudioData") + [(T0, "/info", "audio_common_msgs/msg/AudioInfo", _info(48000))]
+    msgs = _as_audio_common(bag_messages(rec), "AudioData") + [(T0, "/info", "audio_common_msgs/msg/AudioInfo", _info(48000))]
     with pytest.raises(ros_bag.BagError, match=r"mics\.internal\.format: 'S32LE' in the mapping, the bag's AudioInfo says 'S16LE'"):
         importing.import_bag(write_messages(tmp_path / "bag2", msgs), mapping, TRIAL)
     no_rate = _mapping()
