@@ -9,7 +9,8 @@ meta            0-d unicode            JSON object, see `REQUIRED_META`
 timestamps      float64 (T,)           capture time of each step (Minsight frame), seconds
 window_end      int64 (T, 2)           exclusive end index, in each raw mic stream, of the
                                        2048-sample window that belongs to the step
-joints          float32 (T, 6, 3)      6 joints x (angle rad, velocity rad/s, current A)
+joints          float32 (T, 6, 3)      6 joints x (angle rad, velocity rad/s, current A);
+                                       NaN in a field meta.joint_fields_absent lists
 force           float32 (T,)           estimated normal force at the Minsight tip, N
 audio           int32 (2, S)           raw SPH0645 I2S words, 48 kHz; row 0 = Minsound
                                        (internal), row 1 = palm (external)
@@ -134,9 +135,11 @@ def make_meta(
     image_size: tuple[int, int] | None,
     complete: bool = True,
     label: int | None = None,
+    step_rate: float = STEP_RATE,
     **extra: Any,
 ) -> dict[str, Any]:
-    """Meta with every required field filled in the canonical way."""
+    """Meta with every required field filled in the canonical way; `step_rate` is the camera's
+    frame rate when a recording's camera does not run at the rig's 50 Hz."""
     return {
         "format_version": FORMAT_VERSION,
         "fabric_id": int(fabric_id),
@@ -146,7 +149,7 @@ def make_meta(
         "trial": int(trial),
         "condition": condition,
         "source": source,
-        "sample_rates": {"audio": AUDIO_RATE, "steps": STEP_RATE},
+        "sample_rates": {"audio": AUDIO_RATE, "steps": step_rate},
         "image_size": None if image_size is None else [int(image_size[0]), int(image_size[1])],
         "joint_names": list(JOINT_NAMES),
         "joint_fields": list(JOINT_FIELDS),
@@ -185,7 +188,16 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
         raise ArchiveError(path, "meta.sample_rates.audio", f"must be {AUDIO_RATE}, got {meta['sample_rates'].get('audio')!r}")
     if len(meta["joint_names"]) != N_JOINTS:
         raise ArchiveError(path, "meta.joint_names", f"expected {N_JOINTS} names, got {len(meta['joint_names'])}")
+    absent = meta.get("joint_fields_absent", [])
+    if not isinstance(absent, list) or not set(absent) <= set(JOINT_FIELDS) or len(set(absent)) != len(absent):
+        raise ArchiveError(path, "meta.joint_fields_absent", f"must list distinct fields of {list(JOINT_FIELDS)}, got {absent!r}")
     return meta
+
+
+def absent_joint_fields(meta: dict[str, Any]) -> list[str]:
+    """The JOINT_FIELDS a recording lacks (optional meta.joint_fields_absent, e.g. a position-only
+    ROS JointState): NaN in `joints`, never zeros, which would read as a still, unpowered joint."""
+    return list(meta.get("joint_fields_absent", []))
 
 
 def _check_array(path, name: str, arr: np.ndarray, n_steps: int | None) -> None:
@@ -211,8 +223,15 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
     n = archive.n_steps
     if n < 1:
         raise ArchiveError(path, "timestamps", "trial has no steps")
-    for name in ("window_end", "joints", "force", "audio"):
+    for name in ("window_end", "force", "audio"):
         _check_array(path, name, getattr(archive, name), n)
+    joints = archive.joints
+    absent = [JOINT_FIELDS.index(f) for f in absent_joint_fields(archive.meta)]
+    if absent and joints.ndim == 3 and joints.shape[2:] == (len(JOINT_FIELDS),):
+        if not np.isnan(joints[..., absent]).all():
+            raise ArchiveError(path, "joints", f"fields {absent_joint_fields(archive.meta)} are absent (meta.joint_fields_absent) but hold values")
+        joints = np.where(np.isin(np.arange(len(JOINT_FIELDS)), absent), 0, joints).astype(joints.dtype)  # NaN checked above
+    _check_array(path, "joints", joints, n)
     back = np.flatnonzero(np.diff(archive.timestamps) <= 0)
     if back.size:  # a repeated step (or one out of order) would count the same moment twice
         k = int(back[0]) + 1
