@@ -54,17 +54,21 @@ def _cue(kind: str, labels: np.ndarray, steps: int, n_classes: int, rng) -> np.n
     """(n, steps) cue in [0, 1] per sequence.
 
     static:  a level constant over the sequence, class c at c / (n_classes - 1).
-    dynamic: a square wave between 0 and 1 whose period is 2 ** (c + 1) steps, at a random phase:
-             every class has the same per-sequence minimum and maximum (0 and 1), so only the
-             temporal pattern tells classes apart (what survives the paper's [0, 1] rescale)."""
+    dynamic: a pulse: the cue is 1 for a run of round((c + 1) / (n_classes + 1) * steps) steps
+             starting at a random step (wrapping around) and 0 elsewhere, so every class has the
+             same per-sequence minimum (0) and maximum (1): only the time spent high tells
+             classes apart, which is what survives the paper's [0, 1] rescale over the sequence
+             (a sensor's steady level does not)."""
     n = len(labels)
     if kind == "static":
         return np.repeat((labels / max(n_classes - 1, 1))[:, None], steps, axis=1).astype(np.float32)
     if kind != "dynamic":
         raise ValueError(f"cue kind must be one of {CUE_KINDS}, got {kind!r}")
-    period = 2 ** (labels + 1)
-    t = np.arange(steps)[None, :] + rng.integers(0, period)[:, None]
-    return ((t // (period[:, None] // 2)) % 2).astype(np.float32)
+    if steps < n_classes + 1:
+        raise ValueError(f"a dynamic cue for {n_classes} classes needs at least {n_classes + 1} steps, got {steps}")
+    high = np.clip(np.round((labels + 1) / (n_classes + 1) * steps), 1, steps - 1).astype(int)
+    t = (np.arange(steps)[None, :] - rng.integers(0, steps, n)[:, None]) % steps
+    return (t < high[:, None]).astype(np.float32)
 
 
 def planted_cue(
