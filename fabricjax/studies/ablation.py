@@ -66,6 +66,16 @@ def display_name(row_name: str) -> str:
     return label(r.modalities, r.backbone, r.fusion_norm)
 
 
+# The `Config` fields every row sets itself: an override of one would be silently replaced.
+ROW_FIELDS = ("modalities", "fusion_norm")
+
+
+def row_config(row: Row, preset: str, overrides: dict[str, Any]) -> Config:
+    """The config a row trains with: the preset, the row's backbone (which `overrides` may
+    replace, e.g. --set=backbone=tcn), `overrides`, then the row's inputs and fusion."""
+    return Config.from_preset(preset, **{"backbone": row.backbone, **overrides, "modalities": row.modalities, "fusion_norm": row.fusion_norm})
+
+
 def run(
     *,
     n_seeds: int = 5,
@@ -78,13 +88,10 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train the chosen rows (all by default) and write results/ablation.{md,json}; returns the JSON."""
-    overrides = runner.check_overrides("ablation", overrides, ("modalities", "fusion_norm"), "choose them with --rows")
+    overrides = runner.check_overrides("ablation", overrides, ROW_FIELDS, "choose them with --rows")
     chosen = runner.select_rows(ROWS, rows)
     seeds = runner.seed_list(n_seeds)
-    named = [
-        (r.name, Config.from_preset(preset, **{"backbone": r.backbone, **overrides, "modalities": r.modalities, "fusion_norm": r.fusion_norm}))
-        for r in chosen
-    ]
+    named = [(r.name, row_config(r, preset, overrides)) for r in chosen]
     study = runner.train_rows(
         "ablation", named, seeds, eval_splits=["test"], split_names=loading.TRAIN_VAL_TEST, data_dir=data_dir, workdir=workdir,
         label=display_name,
