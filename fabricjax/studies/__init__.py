@@ -1,6 +1,6 @@
 """The paper's experiments as library functions; `experiments/` holds their thin command lines.
 
-    ablation     modality ablation, 13 rows incl. TCN (Table ablation_table)
+    ablation     modality ablation, 13 rows incl. TCN (Table ablation_table) + 9 step-LayerNorm variants
     bandwidth    PSD bandwidth 2.5 / 10 / 15 / 24 kHz (Table bandwidth_classification)
     noise        cafe-noise test set, Wilcoxon against the preceding row (Table new_noise_results)
     properties   property heads on training and holdout fabrics (Table property_perception)
