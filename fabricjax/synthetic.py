@@ -79,7 +79,7 @@ def planted_cue(
     *,
     n_classes: int = 4,
     psd_bins: int = 24,
-    flow_hw: tuple[int, int] = (12, 16),
+    flow_hw: tuple[int, int] = (15, 20),
     image_hw: tuple[int, int] = (24, 32),
     seed: int = 0,
 ) -> dict[str, dict[str, np.ndarray]]:
@@ -93,7 +93,7 @@ def planted_cue(
         flow      a uniform flow of 0 -> 1 px/frame along x over the frame's centre third, on
                   noise of SD 0.5 px/frame
         internal / external   log-PSD bins 4-11 rise by 0 -> 1 (decades) over noise of SD 0.5
-        proprio   joint values 0-5 rise by 0 -> 1 over unit noise
+        proprio   every joint value rises by 0 -> 1 over unit noise (a load shows in every joint)
     """
     if cued not in config.modalities:
         raise ValueError(f"the cued modality {cued!r} is not among {config.modalities}")
@@ -118,7 +118,7 @@ def planted_cue(
             inputs[m] = x
         elif m == "proprio":
             x = rng.normal(0, 1, (n, steps, 18)).astype(np.float32)
-            x[:, :, :6] += on[:, :, None]
+            x += on[:, :, None]
             inputs[m] = x
         else:
             x = rng.normal(-8, 0.5, (n, steps, psd_bins)).astype(np.float32)

@@ -28,7 +28,7 @@ CASES = [
 
 def held_out_accuracy(modality: str, kind: str, norm: str) -> float:
     config = Config.from_preset(
-        "smoke", modalities=(modality,), fusion_norm=norm, seq_len=16, epochs=12, warmup_steps=20, batch_size=16,
+        "smoke", modalities=(modality,), fusion_norm=norm, seq_len=16, epochs=24, warmup_steps=20, batch_size=16,
     )
     sets = {
         split: synthetic.planted_cue(config, modality, kind, n, n_classes=N_CLASSES, seed=seed)
@@ -49,7 +49,7 @@ def test_the_model_learns_a_planted_cue(modality, kind, norm):
 
 def test_without_a_cue_the_model_stays_near_chance():
     """The control can fail: labels the planted stream does not carry are not learned."""
-    config = Config.from_preset("smoke", modalities=("proprio",), fusion_norm="step_layernorm", seq_len=16, epochs=12, warmup_steps=20)
+    config = Config.from_preset("smoke", modalities=("proprio",), fusion_norm="step_layernorm", seq_len=16, epochs=24, warmup_steps=20)
     sets = {
         split: synthetic.planted_cue(config, "proprio", "static", n, n_classes=N_CLASSES, seed=seed)
         for split, n, seed in (("train", 256, 0), ("val", 64, 1), ("test", 128, 2))
