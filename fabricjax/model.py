@@ -1,7 +1,8 @@
 """The paper's classifier (Fig. method_overview) in Flax NNX.
 
 Per-step encoders (one MLP shared by both microphones, an MLP for the joints, small CNNs for
-Minsight images and optical flow) → concatenate → rescale every feature dimension to [0, 1] over
+Minsight images and optical flow; joints, pixels and flow first standardised per channel with
+fixed training-split statistics) → concatenate → rescale every feature dimension to [0, 1] over
 the sequence's time axis → Dense + learned position embedding → 3 pre-LayerNorm self-attention
 blocks or a TCN → mean over time → two linear layers (fabric class) whose last layer is replaced
 by one per property when property heads are on.

@@ -184,3 +184,19 @@ def test_joint_standardisation_comes_from_the_training_split_and_stays_fixed():
         np.testing.assert_allclose(np.asarray(p["proprio_shift"])[1], x.mean(0), rtol=1e-5)
         np.testing.assert_allclose(np.asarray(p["proprio_scale"])[0], 1 / x.std(0), rtol=1e-3)
     assert np.all(np.isfinite(r.metrics["train_loss"]))
+
+
+def test_pixel_and_flow_standardisation_is_per_channel_over_the_training_split():
+    """Camera inputs are centred and scaled per colour channel / flow component (model.STANDARDISED),
+    accumulated in chunks: equal to NumPy's statistics over every sequence, step and position."""
+    cfg = Config(preset="smoke", modalities=("image", "flow"), epochs=1, batch_size=8, seq_len=4)
+    ds = synthetic.data_set(cfg, 10, image_hw=(6, 8), flow_hw=(3, 4))
+    ds["inputs"]["flow"][:, :, 1] *= 1e-3  # a nearly silent component is scaled up, never divided by 0
+    stats = train.input_statistics(cfg, ds, chunk=3)
+    image = ds["inputs"]["image"].astype(np.float64).reshape(-1, 3)
+    flow = np.moveaxis(ds["inputs"]["flow"].astype(np.float64), 2, -1).reshape(-1, 2)
+    np.testing.assert_allclose(stats["image_shift"], image.mean(0), rtol=1e-5)
+    np.testing.assert_allclose(stats["image_scale"], 1 / image.std(0), rtol=1e-4)
+    np.testing.assert_allclose(stats["flow_shift"], flow.mean(0), rtol=1e-4, atol=1e-7)
+    np.testing.assert_allclose(stats["flow_scale"], 1 / flow.std(0), rtol=1e-4)
+    assert set(stats) == {"image_shift", "image_scale", "flow_shift", "flow_scale"}
