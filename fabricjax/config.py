@@ -34,6 +34,8 @@ LR_SCHEDULES = ("constant", "cosine")
 # The two readings of the paper's flow filter, "filter for the top 0.1 percentile according to
 # magnitude" (fabricjax/features/flow.py): keep the strongest 0.1 % of vectors, or drop them.
 FLOW_SPARSIFY = ("keep_top", "drop_top")
+# What a rotated Minsight frame shows where its source lies outside the frame (features/images.py).
+ROTATION_FILLS = ("zero", "sequence_mean")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,6 +69,7 @@ class Config:
     warmup_steps: int = 100  # linear warm-up from 0: without it a few seeds collapse to chance early
     weight_decay: float = 1e-4
     augment_rotation: bool = True
+    rotation_fill: str = "zero"  # ROTATION_FILLS
     # training data selection: fabrics excluded from training (the property holdouts)
     exclude_fabrics: tuple[int, ...] = ()
 
@@ -84,6 +87,8 @@ class Config:
             raise ValueError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
         if self.flow_sparsify not in FLOW_SPARSIFY:
             raise ValueError(f"flow_sparsify must be one of {FLOW_SPARSIFY}, got {self.flow_sparsify!r}")
+        if self.rotation_fill not in ROTATION_FILLS:
+            raise ValueError(f"rotation_fill must be one of {ROTATION_FILLS}, got {self.rotation_fill!r}")
         if self.image_resolution not in ("down", "full"):
             raise ValueError(f"image_resolution must be 'down' or 'full', got {self.image_resolution!r}")
         if not (self.fabric_head or self.property_heads):

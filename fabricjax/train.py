@@ -70,7 +70,8 @@ def make_optimizer(config: Config) -> optax.GradientTransformation:
 
 
 def rotate_images(key: jax.Array, inputs: dict[str, jax.Array]) -> dict[str, jax.Array]:
-    """The paper's image augmentation: one rotation in [-90°, 90°] per sequence of `inputs["image"]`.
+    """The paper's image augmentation: one rotation in [-90°, 90°] per sequence of `inputs["image"]`,
+    black outside the source frame.
 
     The rotation lives with the image features (`fabricjax.features.images.rotate_batch`, a pure
     function of a key; it returns float frames on the 0-255 scale, which the image encoder takes
@@ -81,14 +82,21 @@ def rotate_images(key: jax.Array, inputs: dict[str, jax.Array]) -> dict[str, jax
     return {**inputs, "image": rotate_batch(key, inputs["image"])}
 
 
-def rotation_augment(config: Config) -> Augment | None:
-    """`rotate_images` where it applies (image configs with `augment_rotation`), else None.
+def rotate_images_mean_fill(key: jax.Array, inputs: dict[str, jax.Array]) -> dict[str, jax.Array]:
+    """`rotate_images` with each sequence's mean colour outside the source frame."""
+    from fabricjax.features.images import rotate_batch
 
-    Always the same function object: `_programs` caches compiled programs by their augmentation,
-    so a rerun of an image config (a resume, another seed set) reuses them."""
+    return {**inputs, "image": rotate_batch(key, inputs["image"], fill="sequence_mean")}
+
+
+def rotation_augment(config: Config) -> Augment | None:
+    """The rotation where it applies (image configs with `augment_rotation`), else None.
+
+    Always the same function object per fill: `_programs` caches compiled programs by their
+    augmentation, so a rerun of an image config (a resume, another seed set) reuses them."""
     if "image" not in config.modalities or not config.augment_rotation:
         return None
-    return rotate_images
+    return rotate_images_mean_fill if config.rotation_fill == "sequence_mean" else rotate_images
 
 
 def lr_decay(config: Config, step: jax.Array, total_steps: int) -> jax.Array:
