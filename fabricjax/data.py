@@ -54,7 +54,7 @@ as warnings, never silent.
     info     (S,): "fabric_id" int32, "day" int32 (-1: no day), "trial" int32, "start" int32
              (first step), "condition" str ("lab"/"cafe"), "trial_key" str (archive file name)
     rates    {audio modality: its microphone's sample rate, Hz} (what `narrow` cuts bands by)
-    n_classes  the classes of the label space (the fabric head's size)
+    classes  the class names of the label space, by class (its length is the fabric head's size)
 
 Features are computed once per trial and cached (features/cache.py); only the modalities the
 config asks for are computed, and frames are never read for an audio / proprioception config.
@@ -85,7 +85,11 @@ class SequenceSet:
     labels: dict[str, np.ndarray]
     info: dict[str, np.ndarray]
     rates: Mapping[str, int] = dataclasses.field(default_factory=dict)  # absent: the hand's 48 kHz
-    n_classes: int = catalog.N_CLASSES
+    classes: tuple[str, ...] = tuple(catalog.fabric(k).name for k in range(catalog.N_CLASSES))
+
+    @property
+    def n_classes(self) -> int:
+        return len(self.classes)
 
     def __len__(self) -> int:
         return len(self.info["trial_key"])
@@ -101,15 +105,17 @@ def split_of(meta: dict, role: str | None, exclude: tuple[int, ...], n_classes: 
     return role
 
 
-def classes_of(index: archive.DatasetIndex) -> int:
-    """The dataset's number of classes: its label map's (every archive must carry the same one), or
-    the catalog's 21 for archives without one."""
+def classes_of(index: archive.DatasetIndex) -> tuple[str, ...]:
+    """The dataset's class names by class: its label map's (every archive must carry the same one;
+    names sharing a class are joined by " / "), or the catalog's 21 for archives without one."""
     maps = {json_key(e.meta.get("label_map")): e for e in index.entries}
     if len(maps) > 1:
         a, b = list(maps.values())[:2]
         raise archive.ArchiveError(index.path(b), "meta.label_map", f"differs from the label map of {a.file} (one dataset, one label map)")
-    n = archive.n_classes(index.entries[0].meta)
-    return catalog.N_CLASSES if n is None else n
+    label_map = index.entries[0].meta.get("label_map")
+    if label_map is None:
+        return SequenceSet.__dataclass_fields__["classes"].default
+    return tuple(" / ".join(sorted(n for n, c in label_map.items() if c == k)) for k in range(archive.n_classes(index.entries[0].meta)))
 
 
 def json_key(x) -> str:
@@ -234,7 +240,8 @@ def load_sequences(
         raise ValueError(f"unknown splits {unknown}; choose from {SPLITS}")
     wanted = tuple(s for s in SPLITS if s in split_names)
     index = archive.load_index(data_dir, workdir)
-    n_classes = classes_of(index)
+    classes = classes_of(index)
+    n_classes = len(classes)
     roles = splits.assign_roles([e.meta for e in index.entries], presets.get(config.preset).dataset.splits)
     place = lambda e, r: split_of(e.meta, r, config.exclude_fabrics, n_classes)  # noqa: E731
     _report_unused(index.entries, roles, place, n_classes)
@@ -277,4 +284,4 @@ def load_sequences(
                 )
             inputs[s][m][filled[s] : filled[s] + n_seq] = a
         filled[s] += n_seq
-    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, n_classes=n_classes) for s in wanted}
+    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, classes=classes) for s in wanted}

@@ -120,3 +120,37 @@ def test_rig_file_mistakes_are_named(tmp_path):
     bad.write_text('[[mics]]\nname = "v"\nfile = "v.wav"\n')
     with pytest.raises(UserError, match=r"steps\.rate: missing: without a camera or joints"):
         rig.load_rig(bad)
+
+
+@pytest.mark.slow  # ~1-3 min on 2 shared cores: import and two smoke-size rows
+def test_a_study_trains_and_tests_on_the_imported_rig(recordings, tmp_path, capsys):
+    from fabricjax.studies import ablation
+
+    out = tmp_path / "archives"
+    _run(recordings, out)
+    names = sorted(p.name for p in out.iterdir())
+    doc = ablation.run(n_seeds=1, rows=["proprio", "internal+proprio"], preset="smoke", workdir=tmp_path / "ws",
+                       data_dir=out, results=tmp_path / "results", command="test")
+    assert sorted(p.name for p in out.iterdir()) == names  # the data folder is only read: no invented files
+    printed = capsys.readouterr().out
+    assert "recorded data" in printed and "train 6 trials /" in printed and "val 3 trials /" in printed and "test 3 trials /" in printed
+    assert doc["dataset"]["classes"] == LABELS and doc["dataset"]["trials"] == {"train": 6, "val": 3, "test": 3}
+    for row in doc["rows"]:
+        assert row["config"]["n_classes"] == 3 and "paper_mean" not in row
+        acc = np.asarray(row["accuracy"]["test"]["fabric"])
+        assert acc.shape == (1,) and np.isfinite(acc).all()
+    assert doc["findings"] == []
+    md = (tmp_path / "results" / "ablation.md").read_text()
+    assert "recorded data" in md and "chance 33.3 %" in md and "Row − best row" in md
+    assert "paper" not in md.lower() and "simulat" not in md.lower()
+
+
+def test_a_row_the_rig_cannot_feed_is_refused_before_training(recordings, tmp_path):
+    from fabricjax.studies import ablation
+
+    out = tmp_path / "archives"
+    _run(recordings, out)
+    with pytest.raises(archive.ArchiveError, match=r"field 'audio': absent: the data has no external \(palm mic\).*it has microphones: vibration"):
+        ablation.run(n_seeds=1, rows=["internal+external"], preset="smoke", workdir=tmp_path / "ws", data_dir=out,
+                     results=tmp_path / "results", command="test")
+    assert not (tmp_path / "results" / "ablation.md").exists()

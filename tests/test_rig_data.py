@@ -46,7 +46,7 @@ def test_rig_sequences_use_the_mics_rate_and_say_the_band_is_capped(tmp_path, ca
     assert "above the internal microphone's Nyquist (1.1 kHz at 2200 Hz)" in caplog.text
     assert sets["train"].inputs["internal"].shape[2] == welch.N_BINS  # the whole 0-1.1 kHz band
     assert sets["train"].inputs["proprio"].shape[2] == 7 * 3
-    assert sets["train"].n_classes == 3 and sets["train"].rates == {"internal": 2200}
+    assert sets["train"].classes == ("oak", "pine", "felt") and sets["train"].rates == {"internal": 2200}
     assert set(sets["test"].info["day"].tolist()) == {-1}
     narrowed = data.narrow(sets, _config(modalities=("internal",), bandwidth_khz=0.55))
     assert narrowed["train"].inputs["internal"].shape[2] == 256 and "proprio" not in narrowed["train"].inputs

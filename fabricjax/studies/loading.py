@@ -32,9 +32,13 @@ class Dataset:
     load_s: float  # features (cached after the first run) and sequences
 
     @property
+    def classes(self) -> tuple[str, ...]:
+        """The class names of the data's label space (every split has the same)."""
+        return next(iter(self.sets.values())).classes
+
+    @property
     def n_classes(self) -> int:
-        """The classes of the data's label space (every split has the same)."""
-        return next(iter(self.sets.values())).n_classes
+        return len(self.classes)
 
     @property
     def recorded(self) -> bool:
