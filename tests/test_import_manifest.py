@@ -154,3 +154,15 @@ def test_a_row_the_rig_cannot_feed_is_refused_before_training(recordings, tmp_pa
         ablation.run(n_seeds=1, rows=["internal+external"], preset="smoke", workdir=tmp_path / "ws", data_dir=out,
                      results=tmp_path / "results", command="test")
     assert not (tmp_path / "results" / "ablation.md").exists()
+
+
+def test_import_benchmark_entry_and_row(tmp_path):
+    from fabricjax.studies import bench
+
+    doc = bench.run(only=["import"], results=tmp_path, command="test", out=lambda s: None,
+                    importer=lambda trials: rig_bench.bench_import(trials=20, seconds=(2.0, 3.0), workers=1))
+    entry = doc["benchmarks"]["import"]
+    assert entry["trials"] == 20 and entry["steps"] > 0 and entry["wall_s"] > 0
+    assert "batch import, 20 trials of 2-3 s" in (tmp_path / "bench.md").read_text()
+    with pytest.raises(ValueError, match="the import benchmark needs its function"):
+        bench.run(only=["import"], results=tmp_path, command="test", out=lambda s: None)
