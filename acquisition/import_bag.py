@@ -1,9 +1,9 @@
 """Import one ROS 2 bag (sqlite3 or MCAP) as a trial archive:
-`python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR [--fabric=.. --day=.. --trial=.. --condition=..] [--resample]`.
+`python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR [--fabric=.. --day=.. --trial=.. --condition=..] [--resample] [--overwrite]`.
 
 The mapping file names the camera, microphone and joint topics (format in WORKSPACE.md, "Using your
 own recordings"); the trial's fabric, day, trial and condition come from its [trial] table, and the
-flags override it. Needs the optional `rosbags` package: pip install -e ".[bags]".
+flags override it. An archive already in DIR is not replaced without --overwrite. Needs the optional `rosbags` package: pip install -e ".[bags]".
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ flags.DEFINE_integer("day", None, "Recording day (overrides trial.day).")
 flags.DEFINE_integer("trial", None, "Trial index (overrides trial.trial).")
 flags.DEFINE_enum("condition", None, list(archive.CONDITIONS), "Acoustic condition (overrides trial.condition).")
 flags.DEFINE_bool("resample", False, "Resample microphones not at 48 kHz (scipy.signal.resample_poly; recorded in the meta).")
+flags.DEFINE_bool("overwrite", False, "Replace an archive of the same fabric, day, trial and condition in --out.")
 
 
 def main(argv):
@@ -34,7 +35,10 @@ def main(argv):
     overrides = {"fabric_id": FLAGS.fabric, "day": FLAGS.day, "trial": FLAGS.trial, "condition": FLAGS.condition}
     trial = importing.trial_fields(mapping, overrides, FLAGS.map)
     result = importing.import_bag(argv[1], mapping, trial, resample=FLAGS.resample)
-    path = archive.write_archive(Path(FLAGS.out) / archive.trial_filename(result.meta), result)
+    path = Path(FLAGS.out) / archive.trial_filename(result.meta)
+    if path.exists() and not FLAGS.overwrite:  # two bags with the same [trial] table must not silently become one
+        raise importing.RecordingImportError(path, "<file>", "exists (pass --overwrite to replace it)")
+    archive.write_archive(path, result)
     gaps = result.meta["import"]["frame_gaps"]
     print(f"{path}: {result.n_steps} steps" + (f", {len(gaps)} frame gaps (see meta.import.frame_gaps)" if gaps else ""))
 

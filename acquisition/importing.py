@@ -4,7 +4,9 @@ The recorder's rule, applied to timestamped streams after the fact (`align`): on
 frame; each microphone's window ends after the last audio sample received at or before the frame;
 the joints are the latest reading at or before the frame. Frames before every microphone holds one
 full window and before the first joint reading are dropped, as the recorder waits for a full window
-before its first step; so are frames after the shorter microphone's end. Nothing is resampled silently: a microphone not at the archive's 48 kHz is an
+before its first step; so are frames after the shorter microphone's end. The step rate is the
+camera's frame rate (declared, or measured from the median frame interval), so a 30 fps camera
+gives 30 Hz steps, not frame loss. Nothing is resampled silently: a microphone not at the archive's 48 kHz is an
 error naming the topic and the rate, unless `resample=True` (`scipy.signal.resample_poly`, recorded
 in meta.import.resampled). A gap between frames is kept, never filled, and listed in
 meta.import.frame_gaps; missing audio (a hole between chunks) is an error, since every window after
@@ -24,6 +26,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from acquisition import ros_bag
 from acquisition.camera import ForceProxy
 from fabricjax import archive, catalog, integrity
 from fabricjax.errors import UserError
@@ -120,8 +123,15 @@ def align(
     resample: bool = False,
     force_gain: float = ForceProxy.gain,
     force_deadband: float = ForceProxy.deadband,
+    step_rate: float | None = None,
+    joint_fields_absent: list[str] | tuple[str, ...] = (),
+    clocks: dict[str, Any] | None = None,
 ) -> archive.TrialArchive:
-    """The recorder's alignment (module docstring) of streams with timestamps in seconds."""
+    """The recorder's alignment (module docstring) of streams with timestamps in seconds.
+
+    `step_rate`: the camera's frame rate, the archive's step rate; None measures it (`step_rate_of`).
+    `joint_fields_absent`: JOINT_FIELDS the recording lacks (NaN in `joints`; meta.streams.joints.absent).
+    `clocks`: how each stream was placed in time (meta.import.clocks)."""
     where = source.get("path", "<recording>")
     if len(mics) != len(archive.MIC_NAMES):
         raise RecordingImportError(where, "mics", f"need {len(archive.MIC_NAMES)} microphones {archive.MIC_NAMES}, got {len(mics)}")
@@ -147,7 +157,13 @@ def align(
     jk = np.searchsorted(joint_times, frame_times, side="right") - 1
     usable = (window_end >= archive.WINDOW).all(axis=1) & (jk >= 0)
     if not usable.any():
-        raise RecordingImportError(where, "camera", "no frame comes after a full audio window and a joint reading")
+        full = (window_end >= archive.WINDOW).all(axis=1)
+        first_full = f"{frame_times[np.argmax(full)]:.3f} s" if full.any() else "none"
+        raise RecordingImportError(
+            where, "camera", f"no frame comes after a full audio window and a joint reading: frames span "
+            f"{frame_times[0]:.3f}-{frame_times[-1]:.3f} s, the first with a full audio window: {first_full}, the first "
+            f"joint reading: {joint_times[0]:.3f} s (streams on different clocks? see the mapping's clock keys)"
+        )
     first = int(np.argmax(usable))
     frame_times, images, window_end, jk = frame_times[first:], images[first:], window_end[first:], jk[first:]
 
@@ -159,7 +175,8 @@ def align(
     if inside == 0:
         raise RecordingImportError(where, "audio", f"the microphones' recordings differ in length: the shorter ({n_samples} samples) ends before the first frame")
     frame_times, images, window_end, jk = frame_times[:inside], images[:inside], window_end[:inside], jk[:inside]
-    gaps = integrity.frame_gaps(frame_times)
+    rate, rate_from = (step_rate, "mapping camera.rate") if step_rate else step_rate_of(frame_times)
+    gaps = integrity.frame_gaps(frame_times, rate)
     reference = images[0]
     proxy = ForceProxy(reference, gain=force_gain, deadband=force_deadband)
     try:
@@ -174,14 +191,17 @@ def align(
         condition=str(trial["condition"]),
         source=source,
         image_size=images.shape[1:3],
+        streams=archive.hand_streams(images.shape[1:3], step_rate=rate, joint_fields_absent=joint_fields_absent),
         closing_steps=0,  # the procedure's phases are not in other labs' recordings: every step counts
         force_proxy={"gain": force_gain, "deadband": force_deadband, "reference": "first kept frame"},
         **{"import": {
+            "step_rate_from": rate_from,
             "frames_dropped_before_start": first,
             "frames_dropped_at_end": dropped_at_end,
             "duplicate_frames_dropped": duplicates,
             "frame_gaps": [{"step": int(k), "seconds": round(float(frame_times[k] - frame_times[k - 1]), 6)} for k in gaps],
             "resampled": resampled,
+            **({"clocks": clocks} if clocks else {}),
         }},
     )
     return archive.TrialArchive(
@@ -195,6 +215,17 @@ def align(
     )
 
 
+def step_rate_of(frame_times: np.ndarray) -> tuple[float, str]:
+    """The camera's frame rate from its median frame interval (lost frames do not move a median):
+    the nearest whole rate when within 1 % of it (29.97 fps is 30), else to 0.01 Hz; and how it was found."""
+    if len(frame_times) < 2:
+        return archive.STEP_RATE, "a single frame: the recorder's rate"
+    interval = float(np.median(np.diff(frame_times)))
+    rate = 1.0 / interval
+    whole = round(rate)
+    return (int(whole) if abs(rate - whole) <= 0.01 * rate else round(rate, 2)), f"median frame interval {interval * 1e3:.2f} ms"
+
+
 def load_mapping(path: str | Path) -> dict[str, Any]:
     """The mapping file, checked for the keys `import_bag` needs."""
     path = Path(path)
@@ -204,12 +235,13 @@ def load_mapping(path: str | Path) -> dict[str, Any]:
         raise RecordingImportError(path, "<file>", "no such mapping file") from None
     except tomllib.TOMLDecodeError as e:
         raise RecordingImportError(path, "<file>", f"not valid TOML: {e}") from None
-    for key in ("camera.topic", "joints.topic", *(f"mics.{m}.topic" for m in archive.MIC_NAMES), *(f"mics.{m}.rate" for m in archive.MIC_NAMES)):
+    for key in ("camera.topic", "joints.topic", *(f"mics.{m}.topic" for m in archive.MIC_NAMES)):
         node: Any = mapping
         for part in key.split("."):
             if not isinstance(node, dict) or part not in node:
                 raise RecordingImportError(path, key, "missing")
             node = node[part]
+    ros_bag.check_mapping(mapping, path)
     return mapping
 
 
@@ -224,28 +256,6 @@ def trial_fields(mapping: dict[str, Any], overrides: dict[str, Any], where) -> d
     return trial
 
 
-def _decode_image(msg, topic: str) -> np.ndarray:
-    """RGB uint8 from sensor_msgs/Image (rgb8, bgr8, mono8) or CompressedImage (any format OpenCV reads)."""
-    if hasattr(msg, "format"):
-        img = cv2.imdecode(np.asarray(msg.data, np.uint8), cv2.IMREAD_COLOR)
-        if img is None:
-            raise RecordingImportError(topic, "data", f"compressed frame ({msg.format}) cannot be decoded")
-        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
-    channels = {"rgb8": 3, "bgr8": 3, "mono8": 1}
-    if msg.encoding not in channels:
-        raise RecordingImportError(topic, "encoding", f"image encoding {msg.encoding!r} not supported (rgb8, bgr8, mono8)")
-    c = channels[msg.encoding]
-    rows = np.asarray(msg.data, np.uint8).reshape(msg.height, msg.step)
-    img = rows[:, : msg.width * c].reshape(msg.height, msg.width, c)
-    if msg.encoding == "bgr8":
-        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
-    return cv2.cvtColor(img, cv2.COLOR_GRAY2RGB) if c == 1 else img.copy()
-
-
-def _stamp(msg) -> float:
-    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-
-
 def import_bag(
     bag: str | Path,
     mapping: dict[str, Any],
@@ -253,81 +263,26 @@ def import_bag(
     *,
     resample: bool = False,
 ) -> archive.TrialArchive:
-    """Read a ROS 2 bag (sqlite3 or MCAP folder) with `rosbags` and align it (module docstring).
-
-    Frames and joint states are placed by their header stamps; audio messages (std_msgs
-    Int16MultiArray / Int32MultiArray) have no header, so by the bag's receive time, taken as the
-    time of the chunk's last sample."""
-    try:
-        from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
-    except ModuleNotFoundError:
-        raise UserError('reading bags needs the rosbags package: pip install -e ".[bags]"') from None
-    bag = Path(bag)
-    if not bag.exists():
-        raise RecordingImportError(bag, "<bag>", "no such bag")
-    cam_topic, joint_topic = mapping["camera"]["topic"], mapping["joints"]["topic"]
-    mic_topics = {mapping["mics"][m]["topic"]: m for m in archive.MIC_NAMES}
-    names = list(mapping["joints"].get("names", archive.JOINT_NAMES))
-    if len(names) != archive.N_JOINTS:
-        raise RecordingImportError(bag, "joints.names", f"expected {archive.N_JOINTS} names, got {len(names)}")
-    frames, frame_t, joint_rows, joint_t = [], [], [], []
-    chunks: dict[str, list] = {m: [] for m in archive.MIC_NAMES}
-    chunk_t: dict[str, list] = {m: [] for m in archive.MIC_NAMES}
-    try:
-        with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
-            present = {c.topic for c in reader.connections}
-            for topic in (cam_topic, joint_topic, *mic_topics):
-                if topic not in present:
-                    raise RecordingImportError(bag, topic, f"topic not in the bag (it has {sorted(present)})")
-            wanted = [c for c in reader.connections if c.topic in (cam_topic, joint_topic, *mic_topics)]
-            for conn, t_ns, raw in reader.messages(connections=wanted):
-                msg = reader.deserialize(raw, conn.msgtype)
-                if conn.topic == cam_topic:
-                    frames.append(_decode_image(msg, cam_topic))
-                    frame_t.append(_stamp(msg))
-                elif conn.topic == joint_topic:
-                    joint_rows.append(_joint_row(msg, names, joint_topic))
-                    joint_t.append(_stamp(msg))
-                else:
-                    mic = mic_topics[conn.topic]
-                    chunks[mic].append(to_words(np.asarray(msg.data), conn.topic, "data"))
-                    chunk_t[mic].append(t_ns * 1e-9)
-    except UserError:
-        raise
-    except Exception as e:  # rosbags' own errors: an unreadable or unknown bag
-        raise RecordingImportError(bag, "<bag>", f"cannot be read: {type(e).__name__}: {e}") from None
-    if len({f.shape for f in frames}) > 1:
-        raise RecordingImportError(cam_topic, "data", f"frames of different sizes {sorted({f.shape for f in frames})}")
-    mics = [
-        Stream.from_chunks(mapping["mics"][m]["topic"], int(mapping["mics"][m]["rate"]), chunk_t[m], chunks[m])
-        for m in archive.MIC_NAMES
-    ]
+    """Read a ROS 2 bag (sqlite3 or MCAP folder, or one storage file) with `rosbags`, each stream
+    placed on the bag's receive clock by the mapping's clock policy (`acquisition.ros_bag`), and
+    align it (module docstring)."""
+    rec = ros_bag.read_bag(bag, mapping)
+    mics = [Stream.from_chunks(c.topic, c.rate, c.times, [to_words(x, c.topic, "data") for x in c.chunks]) for c in rec.mics]
     return align(
-        frame_times=np.array(frame_t, np.float64),
-        images=np.stack(frames) if frames else np.zeros((0, 1, 1, 3), np.uint8),
+        frame_times=rec.frame_times,
+        images=rec.images,
         mics=mics,
-        joint_times=np.array(joint_t, np.float64),
-        joints=np.array(joint_rows, np.float32).reshape(-1, archive.N_JOINTS, 3),
+        joint_times=rec.joint_times,
+        joints=rec.joints,
         trial=trial,
-        source={"kind": "ros2_bag", "path": str(bag), "topics": {"camera": cam_topic, "joints": joint_topic, **{m: t for t, m in mic_topics.items()}}},
+        source=rec.source,
         resample=resample,
         force_gain=float(mapping.get("force", {}).get("gain", ForceProxy.gain)),
         force_deadband=float(mapping.get("force", {}).get("deadband", ForceProxy.deadband)),
+        step_rate=rec.step_rate,
+        joint_fields_absent=rec.joint_fields_absent,
+        clocks=rec.clocks,
     )
-
-
-def _joint_row(msg, names: list[str], topic: str) -> np.ndarray:
-    """(6, 3) angle, velocity, current (JointState effort) in the archive's joint order."""
-    index = {n: i for i, n in enumerate(msg.name)}
-    row = np.zeros((archive.N_JOINTS, 3), np.float32)
-    for j, name in enumerate(names):
-        if name not in index:
-            raise RecordingImportError(topic, "name", f"joint {name!r} not in the message (it has {list(msg.name)})")
-        for f, values in enumerate((msg.position, msg.velocity, msg.effort)):
-            if len(values) == len(msg.name):
-                row[j, f] = values[index[name]]
-    return row
 
 
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov")

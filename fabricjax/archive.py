@@ -16,7 +16,8 @@ audio           int32 (M, S)           raw SPH0645-style I2S words (18 valid bit
                                        fewer samples than S is zero-padded at the end (no
                                        window reaches into the padding)
 joints          float32 (T, J, F)      streams.joints: J named joints x F fields (units from
-                                       the recording); absent when the rig has none
+                                       the recording); absent when the rig has none; NaN in
+                                       a field streams.joints.absent lists
 force           float32 (T,)           estimated normal force at the Minsight tip, N; absent
                                        when the rig has no camera to estimate it from
 images          uint8 (T, H, W, 3)     camera frames; absent when not recorded
@@ -25,12 +26,19 @@ images          uint8 (T, H, W, 3)     camera frames; absent when not recorded
 The paper's hand (`hand_streams`: microphones "internal" and "external" at 48 kHz, 6 joints x
 angle / velocity / current, Minsight at 50 Hz) is the default layout. Format version 1 (archives
 written before layouts were declared) is read unchanged: its meta has no `streams`, and its layout
-is the hand's. Format version 2 adds to the meta:
+is the hand's, at meta.sample_rates.steps (the camera's frame rate; 50 unless an import recorded
+another) and with NaN in the fields an optional top-level meta.joint_fields_absent lists (format
+1's key for what format 2 writes as streams.joints.absent). Format version 2 adds to the meta:
 
     streams      {"mics": [{"name", "rate" (Hz), "role" ("internal" | "external" | null: which
                   model input it feeds)}], "joints": {"names", "fields", "units"} | null,
                   "camera": {"image_size": [H, W]} | null, "force": "N" | null,
                   "steps": {"clock": "camera" | "rate" | "joints", "rate": Hz}}
+                 joints.absent (optional, default []): fields the recording lacks, e.g. velocity
+                  and current of a position-only ROS JointState; they are NaN in `joints`, never
+                  zeros (which would read as a still, unpowered joint), and the proprio input is
+                  not offered on such data. steps.rate is the camera's own frame rate when the
+                  camera is the clock (a 30 fps camera: 30).
     label_map    optional {name: class}: the dataset's classes (0..K-1), set by the user; absent:
                   the catalog's 21 fabric classes (the paper's hand)
     label_name   optional, the trial's label as the user named it
@@ -141,6 +149,7 @@ class Layout:
     joint_names: tuple[str, ...]
     joint_fields: tuple[str, ...]
     joint_units: tuple[str, ...]
+    joint_fields_absent: tuple[str, ...]  # of joint_fields: not recorded, NaN in `joints`
     image_size: tuple[int, int] | None
     force: bool
     step_clock: str
@@ -157,33 +166,40 @@ class Layout:
     def modalities(self) -> tuple[str, ...]:
         """The model inputs (`config.MODALITIES`) this data can feed."""
         out = tuple(m.role for m in self.mics if m.role is not None)
-        out += ("proprio",) if self.has_joints else ()
+        out += ("proprio",) if self.has_joints and not self.joint_fields_absent else ()  # NaN fields: no input
         return out + (("image", "flow") if self.image_size is not None else ())
 
     def describe(self) -> str:
         """One line: what the data has."""
         mics = ", ".join(f"{m.name} ({m.rate} Hz" + (f", feeds {m.role})" if m.role else ", feeds no input)") for m in self.mics)
-        joints = f"{len(self.joint_names)} joints x {', '.join(f'{f} [{u}]' for f, u in zip(self.joint_fields, self.joint_units))}" if self.has_joints else "no joints"
+        fields = ", ".join(f"{f} [{u}]" + (" (not recorded)" if f in self.joint_fields_absent else "") for f, u in zip(self.joint_fields, self.joint_units))
+        joints = f"{len(self.joint_names)} joints x {fields}" if self.has_joints else "no joints"
         camera = f"camera {self.image_size[0]}x{self.image_size[1]}" if self.image_size else "no camera"
         return f"microphones: {mics or 'none'}; {joints}; {camera}; steps at {self.step_rate:g} Hz ({self.step_clock} clock)"
 
 
-def hand_streams(image_size: tuple[int, int] | None) -> dict[str, Any]:
-    """`meta.streams` of the paper's hand; `image_size` None when frames are not recorded."""
+def hand_streams(
+    image_size: tuple[int, int] | None, step_rate: float = STEP_RATE, joint_fields_absent: list[str] | tuple[str, ...] = ()
+) -> dict[str, Any]:
+    """`meta.streams` of the paper's hand; `image_size` None when frames are not recorded;
+    `step_rate` the camera's frame rate when an imported recording's camera does not run at 50 Hz;
+    `joint_fields_absent` the JOINT_FIELDS a recording lacks (a position-only ROS JointState)."""
+    joints = {"names": list(JOINT_NAMES), "fields": list(JOINT_FIELDS), "units": list(UNITS["joints"])}
     return {
         "mics": [{"name": m, "rate": AUDIO_RATE, "role": m} for m in MIC_NAMES],
-        "joints": {"names": list(JOINT_NAMES), "fields": list(JOINT_FIELDS), "units": list(UNITS["joints"])},
+        "joints": joints | ({"absent": list(joint_fields_absent)} if joint_fields_absent else {}),
         "camera": None if image_size is None else {"image_size": [int(image_size[0]), int(image_size[1])]},
         "force": UNITS["force"],
-        "steps": {"clock": "camera", "rate": STEP_RATE},
+        "steps": {"clock": "camera", "rate": step_rate},
         "audio_format": AUDIO_FORMAT,
     }
 
 
 def layout(meta: dict[str, Any]) -> Layout:
-    """The streams of a validated meta (format 1: the hand's, with its recorded image size)."""
+    """The streams of a validated meta (format 1: the hand's, with its recorded image size, step
+    rate and absent joint fields)."""
     if meta["format_version"] == 1:
-        s = hand_streams(meta["image_size"])
+        s = hand_streams(meta["image_size"], meta["sample_rates"].get("steps", STEP_RATE), meta.get("joint_fields_absent", ()))
     else:
         s = meta["streams"]
     j = s["joints"] or {"names": [], "fields": [], "units": []}
@@ -191,6 +207,7 @@ def layout(meta: dict[str, Any]) -> Layout:
     return Layout(
         mics=tuple(Mic(m["name"], int(m["rate"]), m.get("role")) for m in s["mics"]),
         joint_names=tuple(j["names"]), joint_fields=tuple(j["fields"]), joint_units=tuple(j["units"]),
+        joint_fields_absent=tuple(j.get("absent", ())),
         image_size=None if cam is None else (int(cam["image_size"][0]), int(cam["image_size"][1])),
         force=s["force"] is not None, step_clock=s["steps"]["clock"], step_rate=float(s["steps"]["rate"]),
     )
@@ -223,7 +240,6 @@ class TrialArchive:
 
 
 _ARRAYS = ("timestamps", "window_end", "joints", "force", "audio", "images")
-_OPTIONAL = ("joints", "force", "images")  # present exactly when the layout declares them
 
 
 def _spec(name: str, lay: Layout) -> tuple[Any, tuple]:
@@ -291,6 +307,7 @@ def _check_streams(streams: dict[str, Any], path) -> None:
             need(isinstance(j.get(key), list) and all(isinstance(x, str) for x in j[key]), f"joints.{key}", "must be a list of strings")
         need(len(j["fields"]) == len(j["units"]), "joints.units", f"{len(j['units'])} units for {len(j['fields'])} fields")
         need(len(j["names"]) > 0 and len(j["fields"]) > 0, "joints", "no names or no fields (use null for no joints)")
+        _check_absent_fields(j.get("absent", []), j["fields"], path, "meta.streams.joints.absent")
     cam = streams["camera"]
     need(cam is None or (isinstance(cam, dict) and isinstance(cam.get("image_size"), list) and len(cam["image_size"]) == 2), "camera", "must be null or {\"image_size\": [H, W]}")
     steps = streams["steps"]
@@ -327,9 +344,15 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
     if version == 1:
         if meta["sample_rates"].get("audio") != AUDIO_RATE:
             raise ArchiveError(path, "meta.sample_rates.audio", f"must be {AUDIO_RATE}, got {meta['sample_rates'].get('audio')!r}")
+        steps = meta["sample_rates"].get("steps", STEP_RATE)
+        if not isinstance(steps, (int, float)) or isinstance(steps, bool) or not steps > 0:
+            raise ArchiveError(path, "meta.sample_rates.steps", f"must be a rate in Hz > 0, got {steps!r}")
         if len(meta["joint_names"]) != N_JOINTS:
             raise ArchiveError(path, "meta.joint_names", f"expected {N_JOINTS} names, got {len(meta['joint_names'])}")
+        _check_absent_fields(meta.get("joint_fields_absent", []), JOINT_FIELDS, path, "meta.joint_fields_absent")
         return meta
+    if "joint_fields_absent" in meta:  # one representation per format
+        raise ArchiveError(path, "meta.joint_fields_absent", "a format-1 key: format 2 lists absent joint fields in meta.streams.joints.absent")
     _check_streams(meta["streams"], path)
     if meta.get("split") is not None and meta["split"] not in SPLITS:
         raise ArchiveError(path, "meta.split", f"must be one of {SPLITS} or absent, got {meta['split']!r}")
@@ -341,6 +364,11 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
         if meta["label"] not in classes:
             raise ArchiveError(path, "meta.label", f"class {meta['label']} is not in the label map's classes 0..{max(classes)}")
     return meta
+
+
+def _check_absent_fields(absent: Any, fields, path, field: str) -> None:
+    if not isinstance(absent, list) or not set(absent) <= set(fields) or len(set(absent)) != len(absent):
+        raise ArchiveError(path, field, f"must list distinct fields of {list(fields)}, got {absent!r}")
 
 
 def _check_array(path, name: str, arr: np.ndarray, n_steps: int | None, lay: Layout) -> None:
@@ -376,6 +404,11 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
             continue
         if name in declared and not declared[name]:
             raise ArchiveError(path, name, f"present, but meta.streams declares no {name}")
+        if name == "joints" and lay.joint_fields_absent and arr.ndim == 3 and arr.shape[2] == len(lay.joint_fields):
+            absent = np.isin(lay.joint_fields, lay.joint_fields_absent)
+            if not np.isnan(arr[..., absent]).all():
+                raise ArchiveError(path, "joints", f"fields {list(lay.joint_fields_absent)} are recorded as absent but hold values (NaN where not recorded)")
+            arr = np.where(absent, 0, arr).astype(arr.dtype)  # NaN where absent, checked above; finite elsewhere, checked next
         _check_array(path, name, arr, n, lay)
     back = np.flatnonzero(np.diff(archive.timestamps) <= 0)
     if back.size:  # a repeated step (or one out of order) would count the same moment twice

@@ -31,6 +31,9 @@ BACKBONES = ("attention", "tcn")
 # (keeps each feature's steady level, which the rescale discards).
 FUSION_NORMS = ("sequence_minmax", "step_layernorm")
 LR_SCHEDULES = ("constant", "cosine")
+# The two readings of the paper's flow filter, "filter for the top 0.1 percentile according to
+# magnitude" (fabricjax/features/flow.py): keep the strongest 0.1 % of vectors, or drop them.
+FLOW_SPARSIFY = ("keep_top", "drop_top")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -42,6 +45,7 @@ class Config:
     bandwidth_khz: float = 15.0
     image_resolution: str = "down"  # "down" = image_size, "full" = the archive's resolution
     image_size: tuple[int, int] = (60, 80)  # the "down" frame size: the paper's 60x80
+    flow_sparsify: str = "keep_top"  # FLOW_SPARSIFY
     # model
     width: int = 64
     n_heads: int = 4
@@ -79,6 +83,8 @@ class Config:
             raise ValueError(f"fusion_norm must be one of {FUSION_NORMS}, got {self.fusion_norm!r}")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ValueError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
+        if self.flow_sparsify not in FLOW_SPARSIFY:
+            raise ValueError(f"flow_sparsify must be one of {FLOW_SPARSIFY}, got {self.flow_sparsify!r}")
         if self.image_resolution not in ("down", "full"):
             raise ValueError(f"image_resolution must be 'down' or 'full', got {self.image_resolution!r}")
         if not (self.fabric_head or self.property_heads):

@@ -261,7 +261,7 @@ def load_sequences(
                 f"{e.n_steps} steps of which {e.n_steps - first_step(e.meta)} rubbing, fewer than one sequence of N={n} steps",
             )
     members = {s: [e for e, t in chosen if t == s] for s in wanted}
-    features = {m: feature_for(m, config.image_resolution, config.image_size) for m in config.modalities}
+    features = {m: feature_for(m, config.image_resolution, config.image_size, config.flow_sparsify) for m in config.modalities}
     feats = cache.trial_features(
         index, [e for e, _ in chosen], list(features.values()), workspace.features_dir(workdir),
         workers=workers, progress=progress,

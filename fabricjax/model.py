@@ -28,6 +28,20 @@ from fabricjax import catalog
 from fabricjax.config import AUDIO_MODALITIES, MODALITIES, Config
 
 RESCALE_EPS = 1e-6
+# Inputs standardised per channel with fixed training-split statistics, and the axis of a per-step
+# input (no batch or step axes) that holds their channels: joint values, colour, flow component.
+STANDARDISED = {"proprio": -1, "image": -1, "flow": 0}
+
+
+def standardised_channels(modality: str, step_shape: tuple[int, ...]) -> int:
+    return step_shape[STANDARDISED[modality]]
+
+
+def channel_shape(modality: str, ndim: int) -> tuple[int, ...]:
+    """Broadcast shape of per-channel statistics against a (M, ...) batch of `ndim` per-step axes."""
+    shape = [1] * (ndim + 1)
+    shape[STANDARDISED[modality] % ndim + 1] = -1
+    return tuple(shape)
 
 
 def head_sizes(config: Config) -> dict[str, int]:
@@ -230,13 +244,17 @@ class FabricNet(nnx.Module):
             if "proprio" in self.modalities
             else None
         )
-        if self.proprio is not None:
-            # Joint values span four orders of magnitude (currents ~1e-3 A apart, velocities ~1 rad/s),
-            # and their absolute levels carry the load: standardise each with the training split's
-            # statistics, set by `train.with_input_statistics` and held fixed (no gradient, no decay).
-            n = shapes["proprio"][-1]
-            self.proprio_shift = nnx.Param(jnp.zeros(n, jnp.float32))
-            self.proprio_scale = nnx.Param(jnp.ones(n, jnp.float32))
+        # Fixed input standardisation (no gradient, no decay), set from the training split by
+        # `train.with_input_statistics`: joint values span four orders of magnitude (currents ~1e-3 A
+        # apart, velocities ~1 rad/s) and their absolute levels carry the load; camera pixels (0-255)
+        # and sparse flow (mostly exact zeros) must be centred and scaled before a handful of ReLU
+        # channels, or most units start on one side of zero for every input and the rows never
+        # leave chance. One (shift, scale) per joint value, colour channel or flow component.
+        for m in STANDARDISED:
+            if m in self.modalities:
+                n = standardised_channels(m, shapes[m])
+                setattr(self, f"{m}_shift", nnx.Param(jnp.zeros(n, jnp.float32)))
+                setattr(self, f"{m}_scale", nnx.Param(jnp.ones(n, jnp.float32)))
         self.image = ConvEncoder(3, cnn, dtype=dtype, rngs=rngs) if "image" in self.modalities else None
         self.flow = ConvEncoder(2, cnn, dtype=dtype, rngs=rngs) if "flow" in self.modalities else None
         out = {"proprio": config.proprio_hidden[-1], "image": cnn[-1], "flow": cnn[-1]}
@@ -267,18 +285,25 @@ class FabricNet(nnx.Module):
             x = inputs[m]
             b, n = x.shape[:2]
             x = x.reshape(b * n, *x.shape[2:])
+            if m in STANDARDISED:
+                x = self.standardise(m, x)
             if m == "image":
-                x = self.image(x.astype(self.dtype) / 255.0)
+                x = self.image(x)
             elif m == "flow":
-                x = self.flow(jnp.moveaxis(x.astype(self.dtype), 1, -1))
+                x = self.flow(jnp.moveaxis(x, 1, -1))
             elif m == "proprio":
-                shift, scale = jax.lax.stop_gradient((self.proprio_shift[...], self.proprio_scale[...]))
-                x = self.proprio(((x.astype(jnp.float32) - shift) * scale).astype(self.dtype))
+                x = self.proprio(x)
             else:
                 x = self.audio(x.astype(self.dtype))
             parts.append(x.reshape(b, n, -1))
         fused = jnp.concatenate(parts, axis=-1)
         return rescale_unit(fused) if self.fusion_norm is None else self.fusion_norm(fused.astype(jnp.float32))
+
+    def standardise(self, modality: str, x: jax.Array) -> jax.Array:
+        """(x - shift) * scale per channel with the fixed training-split statistics, in the compute dtype."""
+        shift, scale = jax.lax.stop_gradient((getattr(self, f"{modality}_shift")[...], getattr(self, f"{modality}_scale")[...]))
+        shape = channel_shape(modality, x.ndim - 1)
+        return ((x.astype(jnp.float32) - shift.reshape(shape)) * scale.reshape(shape)).astype(self.dtype)
 
     def latents(self, inputs: Mapping[str, jax.Array], rngs: nnx.Rngs | None = None) -> jax.Array:
         """Backbone output per step (B, N, width): the representation the t-SNE analysis plots."""

@@ -10,7 +10,7 @@ Python or from the command line (`--set field=value`).
 
     smoke    seconds; 6 classes, 3 rubbing cycles per trial, N=20, a tiny model. For tests: XLA
              compilation dominates and the numbers mean nothing.
-    default  the README's main command (16-row ablation x 5 seeds) on a 2-core laptop CPU, at the
+    default  the README's main command (22-row ablation x 5 seeds) on a 2-core laptop CPU, at the
              paper's data scale: all 24 fabrics, 6 training trials per day, 2 test and 2 cafe
              trials, 50 rubbing cycles per trial (~30 s, ~1500 steps), N=50 (1 s), ~5900 training
              sequences. Minsight frames are rendered at 60x80, the paper's image-row input size (it

@@ -129,27 +129,28 @@ def replay(
     on_step: Callable[[StepResult], None] | None = None,
     max_steps: int | None = None,
 ) -> dict:
-    """Feed a recorded trial to `streamer` step by step (at 50 Hz when `realtime`, else as fast as
-    possible) after one warm-up update, and summarise: time to the first correct decision,
-    accuracy over decided steps, per-step latency p50 / p99 and, in real time, the steps whose
-    result came after the end of their 20 ms slot (which also counts the OS waking the sleeping
-    loop late)."""
+    """Feed a recorded trial to `streamer` step by step (at the trial's step rate, meta
+    streams.steps.rate, when `realtime`, else as fast as possible) after one warm-up update, and
+    summarise: time to the first correct decision, accuracy over decided steps, per-step latency
+    p50 / p99 and, in real time, the steps whose result came after the end of their slot (20 ms at
+    50 Hz; this also counts the OS waking the sleeping loop late)."""
     label = int(trial.meta["label"])
     n_steps = min(trial.n_steps, max_steps or trial.n_steps)
     stamps = trial.timestamps - trial.timestamps[0]
+    period = 1.0 / archive.layout(trial.meta).step_rate  # an imported 30 fps camera: 33 ms
     seconds, correct, first_correct, late = [], [], None, 0
     streamer.warmup()
     start = time.perf_counter()
     for t in range(n_steps):
         if realtime:
-            wait = start + t * STEP_S - time.perf_counter()
+            wait = start + t * period - time.perf_counter()
             if wait > 0:
                 time.sleep(wait)
         t0 = time.perf_counter()
         probs = streamer.update(step_windows(trial, t, streamer.mics), trial.joints[t])
         done = time.perf_counter()
         ms = 1e3 * (done - t0)
-        if realtime and done > start + (t + 1) * STEP_S:
+        if realtime and done > start + (t + 1) * period:
             late += 1
         if probs is not None:
             seconds.append(done - t0)
@@ -168,7 +169,7 @@ def replay(
         "decided_steps": len(correct),
         "accuracy_over_decided_steps": float(np.mean(correct)) if correct else None,
         "first_correct_step": first_correct,
-        "time_to_first_correct_s": None if first_correct is None else float(stamps[first_correct] + STEP_S),
+        "time_to_first_correct_s": None if first_correct is None else float(stamps[first_correct] + period),
         "latency_p50_ms": latency["p50_ms"],
         "latency_p99_ms": latency["p99_ms"],
         "latency_max_ms": 1e3 * max(seconds) if seconds else None,

@@ -29,13 +29,14 @@ from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from flax import nnx
 from jax.sharding import Mesh
 
 from fabricjax import checkpoint, curves, sharding
 from fabricjax.config import Config
-from fabricjax.model import FabricNet, feature_shapes, head_sizes
+from fabricjax.model import STANDARDISED, FabricNet, feature_shapes, head_sizes
 
 Augment = Callable[[jax.Array, dict[str, jax.Array]], dict[str, jax.Array]]
 
@@ -285,13 +286,28 @@ def unpad(metrics, sizes: Mapping[str, int]):
     }
 
 
-def input_statistics(config: Config, train_set) -> dict[str, jax.Array]:
-    """The model's fixed input standardisation, from the (unpadded) training split."""
-    if "proprio" not in config.modalities:
-        return {}
+def input_statistics(config: Config, train_set, chunk: int = 256) -> dict[str, jax.Array]:
+    """The model's fixed input standardisation (`model.STANDARDISED`) from the (unpadded) training
+    split: per channel, the mean and 1 / SD over every sequence, step and position. Accumulated on
+    the host in float64 over chunks of sequences, so a camera split (GBs of uint8 frames) is never
+    copied whole into float32."""
     inputs = train_set["inputs"] if isinstance(train_set, Mapping) else train_set.inputs
-    x = jnp.asarray(inputs["proprio"], jnp.float32).reshape(-1, inputs["proprio"].shape[-1])
-    return {"proprio_shift": x.mean(axis=0), "proprio_scale": 1.0 / jnp.maximum(x.std(axis=0), 1e-6)}
+    stats = {}
+    for m in config.modalities:
+        if m not in STANDARDISED:
+            continue
+        x = inputs[m]
+        axis = STANDARDISED[m] % (x.ndim - 2) + 2  # the channel axis of (S, N, ...)
+        total, total_sq, count = 0.0, 0.0, 0
+        for start in range(0, max(len(x), 1), chunk):
+            part = np.moveaxis(np.asarray(x[start : start + chunk], np.float64), axis, -1)
+            part = part.reshape(-1, part.shape[-1])
+            total, total_sq, count = total + part.sum(0), total_sq + (part * part).sum(0), count + len(part)
+        mean = total / max(count, 1)
+        sd = np.sqrt(np.maximum(total_sq / max(count, 1) - mean * mean, 0.0))
+        stats[f"{m}_shift"] = jnp.asarray(mean, jnp.float32)
+        stats[f"{m}_scale"] = jnp.asarray(1.0 / np.maximum(sd, 1e-6), jnp.float32)
+    return stats
 
 
 def with_input_statistics(state: dict[str, Any], stats: Mapping[str, jax.Array]) -> dict[str, Any]:

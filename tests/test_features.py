@@ -97,16 +97,16 @@ def test_proprio_is_joint_major():
     np.testing.assert_array_equal(p[2, 3:6], a.joints[2, 1])
 
 
-def _numpy_pool(dense):
-    """Plain reference: top ceil(0.1 %) magnitudes per frame, then means of 3x3 patches (rows
-    floor(H / 3), columns ceil(W / 3), the last column patch over the pixels it has)."""
+def _numpy_pool(dense, drop_top=False):
+    """Plain reference: top ceil(0.1 %) magnitudes per frame (or all but them), then means of 3x3
+    patches (rows floor(H / 3), columns ceil(W / 3), the last column patch over the pixels it has)."""
     t, h, w, _ = dense.shape
     ph, pw = h // 3, -(-w // 3)
     out = np.zeros((t, 2, ph, pw))
     for f in range(t):
         mag = np.hypot(dense[f, ..., 0], dense[f, ..., 1])
         kth = np.sort(mag.ravel())[-int(np.ceil(0.001 * h * w))]
-        kept = np.where((mag >= kth)[..., None], dense[f], 0.0)
+        kept = np.where(((mag >= kth) != drop_top)[..., None], dense[f], 0.0)
         for i in range(ph):
             for j in range(pw):
                 out[f, :, i, j] = kept[3 * i : 3 * i + 3, 3 * j : 3 * j + 3].reshape(-1, 2).mean(axis=0)
@@ -121,6 +121,21 @@ def test_flow_pooling_matches_numpy(shape):
     assert got.shape == (3, 2, *flow.pooled_shape(*shape))
     np.testing.assert_allclose(got, _numpy_pool(dense), rtol=1e-6, atol=1e-7)
     assert (got[0] != 0).sum() <= 2 * np.ceil(0.001 * shape[0] * shape[1])
+
+
+def test_the_two_flow_readings_split_the_field_between_them():
+    """keep_top keeps the strongest 0.1 % of vectors (5 of 4800 at 60x80), drop_top zeros exactly
+    those: each matches the NumPy reference, and the two add up to the pooled dense flow."""
+    dense = np.random.default_rng(2).normal(size=(2, 60, 80, 2)).astype(np.float32)
+    keep, drop = (np.asarray(flow.sparsify_and_pool(dense, mode)) for mode in ("keep_top", "drop_top"))
+    np.testing.assert_allclose(keep, _numpy_pool(dense), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(drop, _numpy_pool(dense, drop_top=True), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(keep + drop, _numpy_pool(dense, drop_top=True) + _numpy_pool(dense), rtol=1e-5, atol=1e-6)
+    assert (keep != 0).mean() < 0.02 and (drop != 0).mean() > 0.99
+    with pytest.raises(ValueError, match="sparsification"):
+        flow.sparsify_and_pool(dense, "keep_all")
+    assert {extract.feature_for("flow", flow_sparsify=m).name for m in flow.SPARSIFY} == {"flow", "flow_drop_top"}
+    assert extract.feature_named("flow_drop_top").params["sparsify"] == "drop_top"
 
 
 def test_flow_shape_at_paper_and_preset_sizes():

@@ -13,10 +13,11 @@ from fabricjax import archive
 
 pytest.importorskip("rosbags")
 
-from rosbags.rosbag2 import Writer  # noqa: E402
-from rosbags.typesys import Stores, get_typestore  # noqa: E402
+from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
 
-TS = get_typestore(Stores.ROS2_HUMBLE)
+from acquisition import ros_bag, ros_messages  # noqa: E402
+
+TS = ros_messages.typestore_for([])  # ROS 2 Humble's types and audio_common's
 T0 = 100.0  # s, the first frame's stamp
 N_FRAMES, CHUNK, H, W = 20, 960, 8, 10
 NAMES = list(archive.JOINT_NAMES)
@@ -74,9 +75,27 @@ def recording(seed=0, n_frames=N_FRAMES):
     return dict(frames=frames, internal=internal, external=external, chunk_end=chunk_end, joint_t=joint_t, joints=joints)
 
 
-def write_bag(path, rec, *, compressed=False, shuffle=False, drop_frame=None, drop_chunk=None, rate_note=None):
-    """Write `rec` as a ROS 2 bag; `shuffle` writes messages out of time order (receive time of
-    frames and joints then disagrees with their header stamps, which place them)."""
+def write_bag(path, rec, *, storage="sqlite3", qos=None, **options):
+    """Write `rec` (`bag_messages` with `options`) as a ROS 2 bag."""
+    return write_messages(path, bag_messages(rec, **options), storage=storage, qos=qos)
+
+
+def write_messages(path, msgs, *, storage="sqlite3", qos=None):
+    """(receive time s, topic, type, message) as a rosbag2 folder, as rosbag2 records: one
+    connection per topic, messages in the order given; `qos`: {topic: offered QoS profiles}."""
+    plugin = {"sqlite3": StoragePlugin.SQLITE3, "mcap": StoragePlugin.MCAP}[storage]
+    with Writer(path, version=8, storage_plugin=plugin) as writer:
+        conns = {}
+        for t, topic, typ, msg in msgs:
+            if topic not in conns:
+                conns[topic] = writer.add_connection(topic, typ, typestore=TS, offered_qos_profiles=(qos or {}).get(topic, ()))
+            writer.write(conns[topic], int(round(t * 1e9)), TS.serialize_cdr(msg, typ))
+    return Path(path)
+
+
+def bag_messages(rec, *, compressed=False, shuffle=False, drop_frame=None, drop_chunk=None):
+    """`rec`'s messages (receive time, topic, type, message); `shuffle` puts them out of time order
+    (receive time of frames and joints then disagrees with their header stamps, which place them)."""
     msgs = []  # (receive time, topic, type, message)
     for i, img in enumerate(rec["frames"]):
         if i == drop_frame:
@@ -109,13 +128,7 @@ def write_bag(path, rec, *, compressed=False, shuffle=False, drop_frame=None, dr
         # frames and joints arrive late and in bursts: receive times no longer follow the stamps
         msgs = [(t + (0.05 if topic in ("/minsight/image", "/joint_states") and i % 3 == 0 else 0.0), topic, typ, m)
                 for i, (t, topic, typ, m) in enumerate(msgs)]
-    with Writer(path, version=8) as writer:
-        conns = {}
-        for t, topic, typ, msg in msgs:
-            if topic not in conns:
-                conns[topic] = writer.add_connection(topic, typ, typestore=TS)
-            writer.write(conns[topic], int(round(t * 1e9)), TS.serialize_cdr(msg, typ))
-    return Path(path)
+    return msgs
 
 
 def expected_window_end(n=N_FRAMES):
@@ -135,12 +148,13 @@ def check_fields(a, rec):
     assert a.meta["fabric_id"] == 4 and a.meta["day"] == 2 and a.meta["trial"] == 3
     assert archive.layout(a.meta).image_size == (H, W)
     assert a.meta["import"]["frame_gaps"] == []
+    assert archive.layout(a.meta).step_rate == 50 and "absent" not in a.meta["streams"]["joints"]
 
 
-@pytest.mark.parametrize("compressed", [False, True])
-def test_bag_becomes_aligned_archive(tmp_path, compressed):
+@pytest.mark.parametrize("compressed,storage", [(False, "sqlite3"), (True, "mcap")])
+def test_bag_becomes_aligned_archive(tmp_path, compressed, storage):
     rec = recording()
-    bag = write_bag(tmp_path / "bag", rec, compressed=compressed, shuffle=True)
+    bag = write_bag(tmp_path / "bag", rec, compressed=compressed, shuffle=True, storage=storage)
     a = importing.import_bag(bag, MAPPING, MAPPING["trial"])
     path = archive.write_archive(tmp_path / "out" / archive.trial_filename(a.meta), a)
     check_fields(archive.read_archive(path), rec)
@@ -173,7 +187,7 @@ def test_wrong_rate_is_an_error_unless_resampled(tmp_path):
 def test_missing_topic_is_named(tmp_path):
     bag = write_bag(tmp_path / "bag", recording())
     mapping = {**MAPPING, "joints": {"topic": "/hand/joints"}}
-    with pytest.raises(importing.RecordingImportError, match=r"bag: /hand/joints: topic not in the bag"):
+    with pytest.raises(ros_bag.BagError, match=r"bag: topics \['/hand/joints'\] not in the bag \(it has \['/joint_states', "):
         importing.import_bag(bag, mapping, MAPPING["trial"])
 
 

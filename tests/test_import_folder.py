@@ -85,6 +85,7 @@ def test_folder_errors_name_file_field_and_problem(tmp_path):
 
 
 def test_bag_import_without_rosbags_says_how_to_install(tmp_path, monkeypatch):
-    monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)  # as if the optional package were absent
+    for name in {"rosbags", *(m for m in sys.modules if m.startswith("rosbags."))}:
+        monkeypatch.setitem(sys.modules, name, None)  # as if the optional package were absent
     with pytest.raises(importing.UserError, match=r'pip install -e "\.\[bags\]"'):
         importing.import_bag(tmp_path, {}, TRIAL)

@@ -66,6 +66,54 @@ def test_format_1_archive_reads_unchanged_as_the_hand(tmp_path):
     assert archive.n_classes(b.meta) is None  # the catalog's classes
 
 
+def test_format_1_archive_of_a_30_fps_position_only_import_reads_unchanged(tmp_path):
+    """Format-1 archives that issue 27's importer wrote: the camera's own step rate in
+    sample_rates.steps and the fields a JointState lacked in joint_fields_absent (NaN)."""
+    a = tiny_archive()
+    joints = a.joints.copy()
+    joints[..., 1:] = np.nan
+    meta = {**v1_meta(), "sample_rates": {"audio": 48000, "steps": 30}, "joint_fields_absent": ["velocity", "current"]}
+    p = tmp_path / "old.npz"
+    np.savez(p, meta=np.array(json.dumps(meta)), **{**a.arrays(), "joints": joints})
+    b = archive.read_archive(p)
+    assert b.meta == meta
+    lay = archive.layout(b.meta)
+    assert lay.step_rate == 30 and lay.step_clock == "camera" and lay.joint_fields_absent == ("velocity", "current")
+    assert "proprio" not in lay.modalities() and "velocity [rad/s] (not recorded)" in lay.describe()
+    np.savez(p, meta=np.array(json.dumps(meta)), **{**a.arrays(), "joints": np.nan_to_num(joints)})
+    with pytest.raises(archive.ArchiveError, match=r"'joints': fields \['velocity', 'current'\] are recorded as absent but hold values"):
+        archive.read_archive(p)
+    for bad, field in [({"joint_fields_absent": ["torque"]}, "meta.joint_fields_absent"),
+                       ({"sample_rates": {"audio": 48000, "steps": 0}}, "meta.sample_rates.steps")]:
+        np.savez(p, meta=np.array(json.dumps({**meta, **bad})), **{**a.arrays(), "joints": joints})
+        with pytest.raises(archive.ArchiveError) as e:
+            archive.read_archive(p)
+        assert e.value.field == field
+
+
+def test_absent_joint_fields_in_format_2(tmp_path):
+    """Format 2 says which joint fields were not recorded in streams.joints.absent (one
+    representation: format 1's top-level joint_fields_absent is refused there)."""
+    streams = rig_streams()
+    streams["joints"]["absent"] = ["torque"]
+    a = rig_archive(streams=streams)
+    a.joints[..., 2] = np.nan
+    b = archive.read_archive(archive.write_archive(tmp_path / "a.npz", a))
+    assert archive.layout(b.meta).joint_fields_absent == ("torque",) and np.isnan(b.joints[..., 2]).all()
+    assert archive.layout(b.meta).modalities() == ("internal",)
+    a.joints[..., 1] = np.nan  # NaN in a recorded field is still refused
+    with pytest.raises(archive.ArchiveError, match="'joints': 280 non-finite values"):
+        archive.write_archive(tmp_path / "b.npz", a)
+    streams["joints"]["absent"] = ["current"]
+    with pytest.raises(archive.ArchiveError) as e:
+        archive.write_archive(tmp_path / "c.npz", rig_archive(streams=streams))
+    assert e.value.field == "meta.streams.joints.absent"
+    with pytest.raises(archive.ArchiveError) as e:
+        archive.write_archive(tmp_path / "d.npz", rig_archive(joint_fields_absent=["torque"]))
+    assert e.value.field == "meta.joint_fields_absent" and "format 2 lists absent joint fields in meta.streams.joints.absent" in e.value.problem
+    assert not (tmp_path / "c.npz").exists() and not (tmp_path / "d.npz").exists()
+
+
 def test_rig_without_camera_force_or_palm_mic_round_trips(tmp_path):
     a = rig_archive()
     p = archive.write_archive(tmp_path / archive.trial_filename(a.meta), a)

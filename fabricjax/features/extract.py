@@ -11,7 +11,8 @@ applied when sequences are built and is not part of the key. Arrays, per trial o
     proprio                     float32 (T, J * F)       joints (T, J, F) flattened joint-major:
                                                          [j0 field 0, j0 field 1, ..., j1 ...]; the
                                                          hand's 6 x (angle, velocity, current) = 18
-    flow                        float16 (T, 2, h, w)     patch-pooled sparse flow (flow.py)
+    flow                        float16 (T, 2, h, w)     patch-pooled sparse flow (flow.py);
+                                                         flow_drop_top: the other reading
     image_<h>x<w>               uint8   (T, h, w, 3)     area-downsampled frames (images.py; the
                                                          paper's 60x80 unless config.image_size)
     image_full                  uint8   (T, H, W, 3)     the archive's frames (not cached)
@@ -85,16 +86,22 @@ def _proprio(trial: archive.TrialArchive) -> np.ndarray:
     return trial.joints.reshape(trial.n_steps, -1).astype(np.float32)
 
 
-def feature_for(modality: str, image_resolution: str = "down", image_size: tuple[int, int] = images.DOWN_SIZE) -> Feature:
+def feature_for(
+    modality: str, image_resolution: str = "down", image_size: tuple[int, int] = images.DOWN_SIZE, flow_sparsify: str = "keep_top"
+) -> Feature:
     """The feature behind a model input (a `config.MODALITIES` name); `image_size` is the
-    downsampled ("down") frame size."""
+    downsampled ("down") frame size, `flow_sparsify` the flow's reading of the paper's filter
+    (`flow.SPARSIFY`: "flow" is the default reading's feature, "flow_<reading>" another's)."""
     if modality in archive.MIC_ROLES:
         return _psd(modality)
     if modality == "proprio":
         return Feature("proprio", {"version": 1}, False, True, _proprio)
     if modality == "flow":
         params = {"farneback": flow.FARNEBACK, "top_fraction": flow.TOP_FRACTION, "patch": flow.PATCH, "version": 1}
-        return Feature("flow", params, True, True, lambda t: flow.trial_flow(t.images))
+        if flow_sparsify != flow.SPARSIFY[0]:  # the default reading keeps its name and cache key
+            params["sparsify"] = flow_sparsify
+        name = "flow" if flow_sparsify == flow.SPARSIFY[0] else f"flow_{flow_sparsify}"
+        return Feature(name, params, True, True, lambda t: flow.trial_flow(t.images, flow_sparsify))
     if modality == "image" and image_resolution == "down":
         size = (int(image_size[0]), int(image_size[1]))
         params = {"size": size, "interpolation": "area", "version": 1}
@@ -109,8 +116,9 @@ def feature_named(name: str) -> Feature:
     not pickle)."""
     if m := re.fullmatch(r"image_(\d+)x(\d+)", name):
         return feature_for("image", "down", (int(m[1]), int(m[2])))
-    for modality, resolution in [(m, "down") for m in archive.MIC_ROLES] + [("proprio", "down"), ("flow", "down"), ("image", "full")]:
-        f = feature_for(modality, resolution)
+    candidates = [feature_for(m) for m in (*archive.MIC_ROLES, "proprio")] + [feature_for("image", "full")]
+    candidates += [feature_for("flow", flow_sparsify=mode) for mode in flow.SPARSIFY]
+    for f in candidates:
         if f.name == name:
             return f
     raise ValueError(f"no feature named {name!r}")

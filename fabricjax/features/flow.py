@@ -6,11 +6,17 @@ Two stages:
      so trials run in parallel threads. Step 0 has no predecessor and gets zero flow.
   2. In JAX (jitted): sparsify, then pool 3x3 patches.
 
-Sparsify ("filter for the top 0.1 percentile according to magnitude"): per frame, keep the
-k = ceil(0.001 * H * W) vectors with the largest magnitude (ties at the k-th magnitude are kept as
-well) and zero every other vector. We read it as *keeping* the strongest 0.1 % rather than
-clipping them away, because the paper presents it as the filter that extracts the informative
-motion: under rubbing most of the shell barely moves and the shear shows up in a small region.
+Sparsify ("filter for the top 0.1 percentile according to magnitude"), two readings (`SPARSIFY`,
+chosen by `Config.flow_sparsify`), both over the k = ceil(0.001 * H * W) vectors of largest
+magnitude per frame (ties at the k-th magnitude count as among them):
+
+    keep_top   keep those k vectors, zero every other one (the default). "Filter for X" selects X,
+               and the paper presents the step as the one that extracts the informative motion.
+               It leaves 5 of 4800 vectors per 60x80 frame and 127 of 126280 at 308x410.
+    drop_top   zero those k vectors and keep the other 99.9 %: the strongest vectors as outliers
+               (Farneback's largest vectors sit at specular highlights and the image border, while
+               the shell's shear under a rubbing fingertip is a smooth field over the whole contact
+               patch, which covers much of the frame). Published as a labelled variant.
 
 Pooling: mean over 3x3 patches. The paper's 2x102x137 for 308x410 frames is floor(308 / 3) rows
 and ceil(410 / 3) columns, so that is the rule for any size: the incomplete band of bottom rows
@@ -20,12 +26,15 @@ pixels it has. 308x410 -> 102x137, 154x205 -> 51x69, 77x103 -> 25x35.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import cv2
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from fabricjax.config import FLOW_SPARSIFY as SPARSIFY
 
 PATCH = 3
 TOP_FRACTION = 0.001
@@ -69,14 +78,17 @@ def _kth_largest_bits(bits: jax.Array, k: int) -> jax.Array:
     return jax.lax.fori_loop(0, 31, step, (lo, hi))[0]
 
 
-def _keep_top(flow: jax.Array) -> jax.Array:
-    """Zero all but the top `TOP_FRACTION` of vectors by magnitude, per frame. (T, H, W, 2)."""
+def _sparsify(flow: jax.Array, mode: str) -> jax.Array:
+    """Per frame, keep ("keep_top") or zero ("drop_top") the top `TOP_FRACTION` of vectors by
+    magnitude and zero (keep) the rest. (T, H, W, 2)."""
     t, h, w, _ = flow.shape
     k = math.ceil(TOP_FRACTION * h * w)
     # squared magnitudes are >= 0, so their float32 bit patterns sort like the values
     bits = jax.lax.bitcast_convert_type(jnp.sum(flow**2, axis=-1), jnp.int32).reshape(t, h * w)
-    keep = bits >= _kth_largest_bits(bits, k)[:, None]
-    return jnp.where(keep.reshape(t, h, w, 1), flow, 0.0)
+    top = (bits >= _kth_largest_bits(bits, k)[:, None]).reshape(t, h, w, 1)
+    if mode not in SPARSIFY:
+        raise ValueError(f"flow sparsification must be one of {SPARSIFY}, got {mode!r}")
+    return jnp.where(top if mode == "keep_top" else ~top, flow, 0.0)
 
 
 def _pool(flow: jax.Array) -> jax.Array:
@@ -90,13 +102,13 @@ def _pool(flow: jax.Array) -> jax.Array:
     return (sums / (PATCH * cols)[None, None, :, None]).transpose(0, 3, 1, 2)
 
 
-@jax.jit
-def sparsify_and_pool(flow: jax.Array) -> jax.Array:
-    """Dense (T, H, W, 2) flow -> (T, 2, h, w): top 0.1 % by magnitude, then 3x3 patch means."""
-    return _pool(_keep_top(flow))
+@functools.partial(jax.jit, static_argnames=("mode",))
+def sparsify_and_pool(flow: jax.Array, mode: str = "keep_top") -> jax.Array:
+    """Dense (T, H, W, 2) flow -> (T, 2, h, w): sparsified (`SPARSIFY`), then 3x3 patch means."""
+    return _pool(_sparsify(flow, mode))
 
 
-def trial_flow(frames: np.ndarray, chunk: int = 8) -> np.ndarray:
+def trial_flow(frames: np.ndarray, mode: str = "keep_top", chunk: int = 8) -> np.ndarray:
     """One trial's (T, H, W, 3) frames -> (T, 2, h, w) float16 pooled flow.
 
     Works in chunks of `chunk` steps so the dense full-resolution flow of a whole trial
@@ -109,5 +121,5 @@ def trial_flow(frames: np.ndarray, chunk: int = 8) -> np.ndarray:
         stop = min(start + chunk, n)
         dense = farneback(frames[start:stop], frames[start - 1] if start else None)
         dense = np.pad(dense, ((0, chunk - (stop - start)), (0, 0), (0, 0), (0, 0)))
-        out[start:stop] = np.asarray(sparsify_and_pool(dense))[: stop - start]
+        out[start:stop] = np.asarray(sparsify_and_pool(dense, mode))[: stop - start]
     return out

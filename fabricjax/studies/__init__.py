@@ -1,6 +1,6 @@
 """The paper's experiments as library functions; `experiments/` holds their thin command lines.
 
-    ablation     modality ablation, 13 rows incl. TCN (Table ablation_table)
+    ablation     modality ablation, 13 rows incl. TCN (Table ablation_table) + 9 step-LayerNorm variants
     bandwidth    PSD bandwidth 2.5 / 10 / 15 / 24 kHz (Table bandwidth_classification)
     noise        cafe-noise test set, Wilcoxon against the preceding row (Table new_noise_results)
     properties   property heads on training and holdout fabrics (Table property_perception)
@@ -10,6 +10,7 @@
 
     reproduce    every table and figure above in order, skipping those up to date, into REPORT.md
     cost         accuracy against touch time, training time and inference latency
+    sweep        a recipe grid over Config fields on the ablation's rows, best point by mean validation
 
 Each study's `run(...)` trains, writes results/<study>.md and .json and returns the JSON document.
 What they share, one concept per module:

@@ -111,6 +111,18 @@ def inference_latency(graphdef, params, inputs: dict[str, np.ndarray], repeats: 
     return {f"latency_{k}": v for k, v in stats.percentiles_ms([run() for _ in range(repeats)]).items()}
 
 
+def measure_inference(row: runner.Row, test: data.SequenceSet, repeats: int) -> dict[str, Any]:
+    """A trained row's size and inference latency: the parameter count of its first seed's model
+    and `inference_latency` on the first sequence of `test` (loaded for several rows: narrowed
+    to the row's inputs here)."""
+    params = row.results.params(0)
+    mine = data.narrow({"test": test}, row.config)["test"]
+    return {
+        "params": int(sum(np.size(x) for x in jax.tree.leaves(params))),
+        **inference_latency(row.results.graphdef, params, {m: a[0] for m, a in mine.inputs.items()}, repeats),
+    }
+
+
 def pareto_front(points: Sequence[dict], key: str) -> list[str]:
     """Names of the points no other point beats on both `key` (lower) and accuracy (higher)."""
     order = sorted(points, key=lambda p: (p[key], -p["accuracy_mean"]))
@@ -131,9 +143,6 @@ def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int) -> d
     row = runner.train_row(point.name, point.config, sets, seeds, ["test"])
     acc = 100 * row.accuracy("test")
     mean, sd = stats.mean_sd(acc)
-    params = row.results.params(0)
-    test = data.narrow({"test": sets["test"]}, point.config)["test"]
-    latency = inference_latency(row.results.graphdef, params, {m: a[0] for m, a in test.inputs.items()}, latency_repeats)
     c = point.config
     return {
         "name": point.name,
@@ -144,13 +153,12 @@ def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int) -> d
         "width": c.width,
         "bandwidth_khz": c.bandwidth_khz,
         "modalities": list(c.modalities),
-        "params": int(sum(np.size(x) for x in jax.tree.leaves(params))),
         "train_sequences": len(sets["train"]),
         "accuracy": acc.tolist(),
         "accuracy_mean": mean,
         "accuracy_sd": sd,
         "train_s": row.seconds,
-        **latency,
+        **measure_inference(row, sets["test"], latency_repeats),
         "config": c.to_json(),
     }
 

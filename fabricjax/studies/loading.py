@@ -19,6 +19,10 @@ from fabricjax.config import Config
 
 # The splits a study that evaluates on the lab test day needs (no cafe or holdout features computed).
 TRAIN_VAL_TEST = ("train", "val", "test")
+# The `Config` fields besides modalities and bandwidth that decide the sequences `data.load_sequences`
+# returns (which trials, how they are cut, which camera features): one load serves several rows
+# only where these agree (`data.narrow` then gives each row its modalities and band).
+SEQUENCE_FIELDS = ("preset", "seq_len", "exclude_fabrics", "image_resolution", "image_size", "flow_sparsify")
 
 
 @dataclasses.dataclass
@@ -68,13 +72,22 @@ def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Se
     return ds
 
 
+def sequence_key(config: Config) -> tuple:
+    """What of `config` decides its loaded sequences (`SEQUENCE_FIELDS`): rows with equal keys share a load."""
+    return tuple(getattr(config, f) for f in SEQUENCE_FIELDS)
+
+
 def union_modalities(configs: Sequence[Config]) -> tuple[str, ...]:
     return tuple(sorted({m for c in configs for m in c.modalities}))
 
 
 def load_for_rows(configs: Sequence[Config], *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS) -> Dataset:
     """The sequences of every modality any row uses, at the widest bandwidth any row uses, loaded
-    once for all rows (each row takes its own with `data.narrow`)."""
+    once for all rows (each row takes its own with `data.narrow`). The rows must agree on
+    `SEQUENCE_FIELDS`, which `data.narrow` cannot change."""
+    keys = {sequence_key(c) for c in configs}
+    if len(keys) > 1:
+        raise ValueError(f"rows differ in {SEQUENCE_FIELDS} ({sorted(map(str, keys))}): they need separate loads")
     merged = dataclasses.replace(
         configs[0], modalities=union_modalities(configs), bandwidth_khz=max(c.bandwidth_khz for c in configs)
     )

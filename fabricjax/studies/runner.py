@@ -82,6 +82,11 @@ class Progress:
         """Seconds left, from `elapsed` seconds for the rows done."""
         return elapsed / sum(self.costs[: self.done]) * sum(self.costs[self.done :])
 
+    def exclude(self, seconds: float) -> None:
+        """Leave `seconds` spent on something else (loading a later part's data) out of the
+        elapsed time the ETA is estimated from."""
+        self.t0 += seconds
+
     def finish(self, name: str, seconds: float, summary: str) -> None:
         self.done += 1
         elapsed = time.perf_counter() - self.t0
@@ -163,20 +168,25 @@ def train_rows(
     label: Callable[[str], str] = str,
     summary: Callable[[Row], str] = lambda row: f"test {stats.format_mean_sd(row.accuracy('test'))} %",
     check: Callable[[loading.Dataset], None] | None = None,
+    progress: Progress | None = None,
 ) -> Trained:
     """Load the data every row needs once, then train each (name, config) row's seeds.
 
     `eval_splits`: the splits every row is evaluated on (beside val); `split_names`: the splits
     loaded. `checkpoints`: keep each row's models (`checkpoint_dir`). `label` names a row in the
     progress log, `summary` says how it did there. `check` looks at the loaded data before any
-    training (raise `UserError` for data the study cannot use)."""
+    training (raise `UserError` for data the study cannot use). `progress`: a log shared with
+    other calls (a study that loads its rows in several parts), else one for these rows."""
     configs = [c for _, c in rows]
     ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
     if check is not None:
         check(ds)
     rows = [(name, dataclasses.replace(config, n_classes=ds.n_classes)) for name, config in rows]  # the data's classes
     configs = [c for _, c in rows]
-    progress = Progress(study, len(rows), [relative_cost(c) for c in configs])
+    if progress is None:
+        progress = Progress(study, len(rows), [relative_cost(c) for c in configs])
+    else:  # started before this load
+        progress.exclude(ds.generate_s + ds.load_s)
     trained = {}
     for name, config in rows:
         progress.start(label(name))
