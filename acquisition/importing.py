@@ -130,7 +130,7 @@ def align(
     """The recorder's alignment (module docstring) of streams with timestamps in seconds.
 
     `step_rate`: the camera's frame rate, the archive's step rate; None measures it (`step_rate_of`).
-    `joint_fields_absent`: JOINT_FIELDS the recording lacks (NaN in `joints`; meta.joint_fields_absent).
+    `joint_fields_absent`: JOINT_FIELDS the recording lacks (NaN in `joints`; meta.streams.joints.absent).
     `clocks`: how each stream was placed in time (meta.import.clocks)."""
     where = source.get("path", "<recording>")
     if len(mics) != len(archive.MIC_NAMES):
@@ -191,10 +191,9 @@ def align(
         condition=str(trial["condition"]),
         source=source,
         image_size=images.shape[1:3],
+        streams=archive.hand_streams(images.shape[1:3], step_rate=rate, joint_fields_absent=joint_fields_absent),
         closing_steps=0,  # the procedure's phases are not in other labs' recordings: every step counts
         force_proxy={"gain": force_gain, "deadband": force_deadband, "reference": "first kept frame"},
-        step_rate=rate,
-        **({"joint_fields_absent": list(joint_fields_absent)} if joint_fields_absent else {}),
         **{"import": {
             "step_rate_from": rate_from,
             "frames_dropped_before_start": first,

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from absl import app, flags as absl_flags
 
+from acquisition.rig_bench import bench_import
 from acquisition.sim_signals import bench_acquisition
 from experiments import flags
 from fabricjax.studies import bench
@@ -35,7 +36,7 @@ def main(argv):
         raise app.UsageError(f"--train_seeds must be positive and include 1, got {FLAGS.train_seeds}")
     bench.run(
         only=FLAGS.only, quick=FLAGS.quick, workload=bench.Workload(seeds=seeds), workdir=loc["workdir"], results=loc["results"],
-        command=loc["command"], acquisition=bench_acquisition,
+        command=loc["command"], acquisition=bench_acquisition, importer=bench_import,
     )
 
 

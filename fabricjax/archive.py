@@ -1,21 +1,51 @@
 """The trial archive: the one contract between acquisition / simulator and everything downstream.
 
-One `.npz` per trial, loadable with `allow_pickle=False`:
+One `.npz` per trial, loadable with `allow_pickle=False`. An archive holds the streams its rig has;
+the meta's `streams` declares them (`Layout`, read with `layout(meta)`):
 
 ==============  =====================  ======================================================
 key             dtype, shape           meaning
 ==============  =====================  ======================================================
 meta            0-d unicode            JSON object, see `REQUIRED_META`
-timestamps      float64 (T,)           capture time of each step (Minsight frame), seconds
-window_end      int64 (T, 2)           exclusive end index, in each raw mic stream, of the
-                                       2048-sample window that belongs to the step
-joints          float32 (T, 6, 3)      6 joints x (angle rad, velocity rad/s, current A);
-                                       NaN in a field meta.joint_fields_absent lists
-force           float32 (T,)           estimated normal force at the Minsight tip, N
-audio           int32 (2, S)           raw SPH0645 I2S words, 48 kHz; row 0 = Minsound
-                                       (internal), row 1 = palm (external)
-images          uint8 (T, H, W, 3)     Minsight frames; absent when not recorded
+timestamps      float64 (T,)           time of each step, seconds (the step clock:
+                                       streams.steps, a camera frame or a declared rate)
+window_end      int64 (T, M)           exclusive end index, in each microphone's own stream, of
+                                       the 2048-sample window that belongs to the step
+audio           int32 (M, S)           raw SPH0645-style I2S words (18 valid bits in 31..14),
+                                       row k = streams.mics[k] at its own rate; a mic with
+                                       fewer samples than S is zero-padded at the end (no
+                                       window reaches into the padding)
+joints          float32 (T, J, F)      streams.joints: J named joints x F fields (units from
+                                       the recording); absent when the rig has none; NaN in
+                                       a field streams.joints.absent lists
+force           float32 (T,)           estimated normal force at the Minsight tip, N; absent
+                                       when the rig has no camera to estimate it from
+images          uint8 (T, H, W, 3)     camera frames; absent when not recorded
 ==============  =====================  ======================================================
+
+The paper's hand (`hand_streams`: microphones "internal" and "external" at 48 kHz, 6 joints x
+angle / velocity / current, Minsight at 50 Hz) is the default layout. Format version 1 (archives
+written before layouts were declared) is read unchanged: its meta has no `streams`, and its layout
+is the hand's, at meta.sample_rates.steps (the camera's frame rate; 50 unless an import recorded
+another) and with NaN in the fields an optional top-level meta.joint_fields_absent lists (format
+1's key for what format 2 writes as streams.joints.absent). Format version 2 adds to the meta:
+
+    streams      {"mics": [{"name", "rate" (Hz), "role" ("internal" | "external" | null: which
+                  model input it feeds)}], "joints": {"names", "fields", "units"} | null,
+                  "camera": {"image_size": [H, W]} | null, "force": "N" | null,
+                  "steps": {"clock": "camera" | "rate" | "joints", "rate": Hz}}
+                 joints.absent (optional, default []): fields the recording lacks, e.g. velocity
+                  and current of a position-only ROS JointState; they are NaN in `joints`, never
+                  zeros (which would read as a still, unpowered joint), and the proprio input is
+                  not offered on such data. steps.rate is the camera's own frame rate when the
+                  camera is the clock (a 30 fps camera: 30).
+    label_map    optional {name: class}: the dataset's classes (0..K-1), set by the user; absent:
+                  the catalog's 21 fabric classes (the paper's hand)
+    label_name   optional, the trial's label as the user named it
+    split        optional "train" | "val" | "test" | "cafe" | "holdout": the user's split (absent:
+                  by day, `splits.role_of`)
+    day          int, or null for recordings without days
+    properties   property levels only where known (a missing name or null: unknown)
 
 `write_archive` is atomic (temporary name in the same folder, fsync, rename); `read_archive`
 validates every field and raises `ArchiveError` naming the file, the field and the problem.
@@ -30,6 +60,7 @@ import dataclasses
 import hashlib
 import json
 import os
+import re
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -40,42 +71,50 @@ from fabricjax import workspace
 from fabricjax.atomic import atomic_open
 from fabricjax.errors import UserError
 
-FORMAT_VERSION = 1
-# The time base and sample format every archive shares (the paper's rig; the SPH0645 datasheet).
-# This is their one definition: the simulator, acquisition and features import them from here
-# (only the stdlib-only Pi side, `acquisition.wire.RATE`, repeats AUDIO_RATE; a test checks it).
-WINDOW = 2048  # audio samples per step (the Welch window)
-AUDIO_RATE = 48000  # Hz, every microphone stream
-STEP_RATE = 50  # Hz, one step per Minsight frame
+FORMAT_VERSION = 2  # what `write_archive` writes; READ_VERSIONS are read
+READ_VERSIONS = (1, 2)
+INDEX_VERSION = 1  # the dataset index's own format (its entries hold each archive's meta)
+# The time base and sample format of the paper's hand (the SPH0645 datasheet). This is their one
+# definition: the simulator, acquisition and features import them from here (only the stdlib-only
+# Pi side, `acquisition.wire.RATE`, repeats AUDIO_RATE; a test checks it). Other rigs declare their
+# own rates in the meta (`streams`); WINDOW and the word format are every archive's.
+WINDOW = 2048  # audio samples per step (the Welch window), at each microphone's own rate
+AUDIO_RATE = 48000  # Hz, the hand's microphones
+STEP_RATE = 50  # Hz, the hand: one step per Minsight frame
 VALID_BITS = 18  # valid bits of an SPH0645 I2S word, in bits 31..14
 FULL_SCALE = 2.0 ** (VALID_BITS - 1)  # a signed 18-bit sample of this magnitude is full scale (+-1)
 N_JOINTS = 6
 JOINT_FIELDS = ("angle", "velocity", "current")
 JOINT_NAMES = ("thumb_base", "thumb_mid", "thumb_tip", "middle_base", "middle_tip", "palm")
 MIC_NAMES = ("internal", "external")
+# The model inputs a microphone can feed (its `role`): the one in the touching fingertip, and one
+# away from the contact (the hand's palm). Their names are the hand's microphones'.
+MIC_ROLES = MIC_NAMES
+AUDIO_FORMAT = "SPH0645 I2S word (int32; 18 valid bits in bits 31..14)"
 UNITS = {
     "timestamps": "s",
     "joints": ["rad", "rad/s", "A"],
     "force": "N",
-    "audio": "SPH0645 I2S word (int32; 18 valid bits in bits 31..14)",
+    "audio": AUDIO_FORMAT,
 }
-REQUIRED_META = {
+STEP_CLOCKS = ("camera", "rate", "joints")
+_COMMON_META = {
     "format_version": int,
     "fabric_id": int,
     "label": int,
     "properties": dict,
-    "day": int,
     "trial": int,
     "condition": str,
     "source": dict,
-    "sample_rates": dict,
-    "image_size": (list, type(None)),
-    "joint_names": list,
-    "units": dict,
     "complete": bool,
+}
+REQUIRED_META = {  # by format version
+    1: {**_COMMON_META, "day": int, "sample_rates": dict, "image_size": (list, type(None)), "joint_names": list, "units": dict},
+    2: {**_COMMON_META, "day": (int, type(None)), "streams": dict},
 }
 CONDITIONS = ("lab", "cafe")
 PROPERTY_NAMES = ("stretchiness", "roughness", "thickness")
+SPLITS = ("train", "val", "test", "cafe", "holdout")  # a user's split (meta.split), as `data` names them
 
 
 class ArchiveError(UserError):
@@ -92,14 +131,103 @@ class ArchiveError(UserError):
 
 
 @dataclasses.dataclass(frozen=True)
+class Mic:
+    name: str
+    rate: int  # Hz
+    role: str | None  # the model input it feeds (MIC_ROLES), None: none
+
+    @property
+    def nyquist_khz(self) -> float:
+        return self.rate / 2000
+
+
+@dataclasses.dataclass(frozen=True)
+class Layout:
+    """The streams an archive holds, as its meta declares them."""
+
+    mics: tuple[Mic, ...]
+    joint_names: tuple[str, ...]
+    joint_fields: tuple[str, ...]
+    joint_units: tuple[str, ...]
+    joint_fields_absent: tuple[str, ...]  # of joint_fields: not recorded, NaN in `joints`
+    image_size: tuple[int, int] | None
+    force: bool
+    step_clock: str
+    step_rate: float
+
+    @property
+    def has_joints(self) -> bool:
+        return bool(self.joint_names)
+
+    def mic(self, role: str) -> int | None:
+        """Index (row of `audio`) of the microphone feeding model input `role`, or None."""
+        return next((k for k, m in enumerate(self.mics) if m.role == role), None)
+
+    def modalities(self) -> tuple[str, ...]:
+        """The model inputs (`config.MODALITIES`) this data can feed."""
+        out = tuple(m.role for m in self.mics if m.role is not None)
+        out += ("proprio",) if self.has_joints and not self.joint_fields_absent else ()  # NaN fields: no input
+        return out + (("image", "flow") if self.image_size is not None else ())
+
+    def describe(self) -> str:
+        """One line: what the data has."""
+        mics = ", ".join(f"{m.name} ({m.rate} Hz" + (f", feeds {m.role})" if m.role else ", feeds no input)") for m in self.mics)
+        fields = ", ".join(f"{f} [{u}]" + (" (not recorded)" if f in self.joint_fields_absent else "") for f, u in zip(self.joint_fields, self.joint_units))
+        joints = f"{len(self.joint_names)} joints x {fields}" if self.has_joints else "no joints"
+        camera = f"camera {self.image_size[0]}x{self.image_size[1]}" if self.image_size else "no camera"
+        return f"microphones: {mics or 'none'}; {joints}; {camera}; steps at {self.step_rate:g} Hz ({self.step_clock} clock)"
+
+
+def hand_streams(
+    image_size: tuple[int, int] | None, step_rate: float = STEP_RATE, joint_fields_absent: list[str] | tuple[str, ...] = ()
+) -> dict[str, Any]:
+    """`meta.streams` of the paper's hand; `image_size` None when frames are not recorded;
+    `step_rate` the camera's frame rate when an imported recording's camera does not run at 50 Hz;
+    `joint_fields_absent` the JOINT_FIELDS a recording lacks (a position-only ROS JointState)."""
+    joints = {"names": list(JOINT_NAMES), "fields": list(JOINT_FIELDS), "units": list(UNITS["joints"])}
+    return {
+        "mics": [{"name": m, "rate": AUDIO_RATE, "role": m} for m in MIC_NAMES],
+        "joints": joints | ({"absent": list(joint_fields_absent)} if joint_fields_absent else {}),
+        "camera": None if image_size is None else {"image_size": [int(image_size[0]), int(image_size[1])]},
+        "force": UNITS["force"],
+        "steps": {"clock": "camera", "rate": step_rate},
+        "audio_format": AUDIO_FORMAT,
+    }
+
+
+def layout(meta: dict[str, Any]) -> Layout:
+    """The streams of a validated meta (format 1: the hand's, with its recorded image size, step
+    rate and absent joint fields)."""
+    if meta["format_version"] == 1:
+        s = hand_streams(meta["image_size"], meta["sample_rates"].get("steps", STEP_RATE), meta.get("joint_fields_absent", ()))
+    else:
+        s = meta["streams"]
+    j = s["joints"] or {"names": [], "fields": [], "units": []}
+    cam = s["camera"]
+    return Layout(
+        mics=tuple(Mic(m["name"], int(m["rate"]), m.get("role")) for m in s["mics"]),
+        joint_names=tuple(j["names"]), joint_fields=tuple(j["fields"]), joint_units=tuple(j["units"]),
+        joint_fields_absent=tuple(j.get("absent", ())),
+        image_size=None if cam is None else (int(cam["image_size"][0]), int(cam["image_size"][1])),
+        force=s["force"] is not None, step_clock=s["steps"]["clock"], step_rate=float(s["steps"]["rate"]),
+    )
+
+
+def n_classes(meta: dict[str, Any]) -> int | None:
+    """Classes of the trial's label map (K: classes 0..K-1), None without one (the catalog's)."""
+    label_map = meta.get("label_map")
+    return None if label_map is None else max(label_map.values()) + 1
+
+
+@dataclasses.dataclass(frozen=True)
 class TrialArchive:
     """One recorded or simulated trial, validated."""
 
     meta: dict[str, Any]
     timestamps: np.ndarray
     window_end: np.ndarray
-    joints: np.ndarray
-    force: np.ndarray
+    joints: np.ndarray | None
+    force: np.ndarray | None
     audio: np.ndarray
     images: np.ndarray | None = None
 
@@ -108,56 +236,83 @@ class TrialArchive:
         return int(self.timestamps.shape[0])
 
     def arrays(self) -> dict[str, np.ndarray]:
-        out = {k: getattr(self, k) for k in ("timestamps", "window_end", "joints", "force", "audio")}
-        if self.images is not None:
-            out["images"] = self.images
-        return out
+        return {k: v for k in _ARRAYS if (v := getattr(self, k)) is not None}
 
 
-_SPEC = {  # field -> (dtype, shape with None for free dims, 'T' for the step count)
-    "timestamps": (np.float64, ("T",)),
-    "window_end": (np.int64, ("T", 2)),
-    "joints": (np.float32, ("T", N_JOINTS, 3)),
-    "force": (np.float32, ("T",)),
-    "audio": (np.int32, (2, None)),
-    "images": (np.uint8, ("T", None, None, 3)),
-}
+_ARRAYS = ("timestamps", "window_end", "joints", "force", "audio", "images")
+
+
+def _spec(name: str, lay: Layout) -> tuple[Any, tuple]:
+    """(dtype, shape with None for free dims and 'T' for the step count) of an array under `lay`."""
+    return {
+        "timestamps": (np.float64, ("T",)),
+        "window_end": (np.int64, ("T", len(lay.mics))),
+        "joints": (np.float32, ("T", len(lay.joint_names), len(lay.joint_fields))),
+        "force": (np.float32, ("T",)),
+        "audio": (np.int32, (len(lay.mics), None)),
+        "images": (np.uint8, ("T", None, None, 3)),
+    }[name]
 
 
 def make_meta(
     *,
     fabric_id: int,
     properties: dict[str, int | None],
-    day: int,
+    day: int | None,
     trial: int,
     condition: str,
     source: dict[str, Any],
     image_size: tuple[int, int] | None,
     complete: bool = True,
     label: int | None = None,
-    step_rate: float = STEP_RATE,
+    streams: dict[str, Any] | None = None,
     **extra: Any,
 ) -> dict[str, Any]:
-    """Meta with every required field filled in the canonical way; `step_rate` is the camera's
-    frame rate when a recording's camera does not run at the rig's 50 Hz."""
+    """Meta with every required field filled in the canonical way; `streams` defaults to the
+    hand's (`hand_streams(image_size)`), and only the given property levels are kept."""
     return {
         "format_version": FORMAT_VERSION,
         "fabric_id": int(fabric_id),
         "label": int(fabric_id if label is None else label),
-        "properties": {k: (None if properties.get(k) is None else int(properties[k])) for k in PROPERTY_NAMES},
-        "day": int(day),
+        "properties": {k: (None if v is None else int(v)) for k, v in properties.items()},
+        "day": None if day is None else int(day),
         "trial": int(trial),
         "condition": condition,
         "source": source,
-        "sample_rates": {"audio": AUDIO_RATE, "steps": step_rate},
-        "image_size": None if image_size is None else [int(image_size[0]), int(image_size[1])],
-        "joint_names": list(JOINT_NAMES),
-        "joint_fields": list(JOINT_FIELDS),
-        "mic_names": list(MIC_NAMES),
-        "units": UNITS,
+        "streams": hand_streams(image_size) if streams is None else streams,
         "complete": bool(complete),
         **extra,
     }
+
+
+def _check_streams(streams: dict[str, Any], path) -> None:
+    """The shape of a version-2 `meta.streams` (what `layout` reads)."""
+    def need(cond: bool, field: str, problem: str) -> None:
+        if not cond:
+            raise ArchiveError(path, f"meta.streams.{field}", problem)
+
+    for key in ("mics", "joints", "camera", "force", "steps"):
+        need(key in streams, key, "missing (use null for a stream the rig does not have)")
+    mics = streams["mics"]
+    need(isinstance(mics, list), "mics", "must be a list")
+    for k, m in enumerate(mics):
+        need(isinstance(m, dict) and isinstance(m.get("name"), str), f"mics[{k}].name", "missing")
+        need(isinstance(m.get("rate"), int) and not isinstance(m["rate"], bool) and m["rate"] > 0, f"mics[{k}].rate", f"must be a rate in Hz > 0, got {m.get('rate')!r}")
+        need(m.get("role") in (*MIC_ROLES, None), f"mics[{k}].role", f"must be one of {MIC_ROLES} or null, got {m.get('role')!r}")
+    roles = [m["role"] for m in mics if m.get("role")]
+    need(len(roles) == len(set(roles)), "mics", f"two microphones feed the same input: roles {roles}")
+    j = streams["joints"]
+    if j is not None:
+        for key in ("names", "fields", "units"):
+            need(isinstance(j.get(key), list) and all(isinstance(x, str) for x in j[key]), f"joints.{key}", "must be a list of strings")
+        need(len(j["fields"]) == len(j["units"]), "joints.units", f"{len(j['units'])} units for {len(j['fields'])} fields")
+        need(len(j["names"]) > 0 and len(j["fields"]) > 0, "joints", "no names or no fields (use null for no joints)")
+        _check_absent_fields(j.get("absent", []), j["fields"], path, "meta.streams.joints.absent")
+    cam = streams["camera"]
+    need(cam is None or (isinstance(cam, dict) and isinstance(cam.get("image_size"), list) and len(cam["image_size"]) == 2), "camera", "must be null or {\"image_size\": [H, W]}")
+    steps = streams["steps"]
+    need(isinstance(steps, dict) and steps.get("clock") in STEP_CLOCKS, "steps.clock", f"must be one of {STEP_CLOCKS}")
+    need(isinstance(steps.get("rate"), (int, float)) and steps["rate"] > 0, "steps.rate", f"must be a rate in Hz > 0, got {steps.get('rate')!r}")
 
 
 def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
@@ -165,11 +320,10 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
         raise ArchiveError(path, "meta", f"expected a JSON object, got {type(meta).__name__}")
     if "format_version" not in meta:
         raise ArchiveError(path, "meta.format_version", "missing")
-    if meta["format_version"] != FORMAT_VERSION:
-        raise ArchiveError(
-            path, "meta.format_version", f"unknown format version {meta['format_version']!r} (this code reads {FORMAT_VERSION})"
-        )
-    for key, typ in REQUIRED_META.items():
+    version = meta["format_version"]
+    if version not in READ_VERSIONS:
+        raise ArchiveError(path, "meta.format_version", f"unknown format version {version!r} (this code reads {READ_VERSIONS})")
+    for key, typ in REQUIRED_META[version].items():
         if key not in meta:
             raise ArchiveError(path, f"meta.{key}", "missing")
         if not isinstance(meta[key], typ) or (typ is int and isinstance(meta[key], bool)):
@@ -178,30 +332,47 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
         raise ArchiveError(path, "meta.condition", f"must be one of {CONDITIONS}, got {meta['condition']!r}")
     if meta["fabric_id"] < 0:
         raise ArchiveError(path, "meta.fabric_id", f"must be >= 0, got {meta['fabric_id']}")
-    for name in PROPERTY_NAMES:
+    unknown = sorted(set(meta["properties"]) - set(PROPERTY_NAMES))
+    if unknown:
+        raise ArchiveError(path, "meta.properties", f"unknown properties {unknown}; known: {PROPERTY_NAMES}")
+    for name in PROPERTY_NAMES if version == 1 else meta["properties"]:
         level = meta["properties"].get(name, "missing")
         if level == "missing":
             raise ArchiveError(path, f"meta.properties.{name}", "missing (use null when unknown)")
         if level is not None and (not isinstance(level, int) or level < 0):
             raise ArchiveError(path, f"meta.properties.{name}", f"must be a level >= 0 or null, got {level!r}")
-    if meta["sample_rates"].get("audio") != AUDIO_RATE:
-        raise ArchiveError(path, "meta.sample_rates.audio", f"must be {AUDIO_RATE}, got {meta['sample_rates'].get('audio')!r}")
-    if len(meta["joint_names"]) != N_JOINTS:
-        raise ArchiveError(path, "meta.joint_names", f"expected {N_JOINTS} names, got {len(meta['joint_names'])}")
-    absent = meta.get("joint_fields_absent", [])
-    if not isinstance(absent, list) or not set(absent) <= set(JOINT_FIELDS) or len(set(absent)) != len(absent):
-        raise ArchiveError(path, "meta.joint_fields_absent", f"must list distinct fields of {list(JOINT_FIELDS)}, got {absent!r}")
+    if version == 1:
+        if meta["sample_rates"].get("audio") != AUDIO_RATE:
+            raise ArchiveError(path, "meta.sample_rates.audio", f"must be {AUDIO_RATE}, got {meta['sample_rates'].get('audio')!r}")
+        steps = meta["sample_rates"].get("steps", STEP_RATE)
+        if not isinstance(steps, (int, float)) or isinstance(steps, bool) or not steps > 0:
+            raise ArchiveError(path, "meta.sample_rates.steps", f"must be a rate in Hz > 0, got {steps!r}")
+        if len(meta["joint_names"]) != N_JOINTS:
+            raise ArchiveError(path, "meta.joint_names", f"expected {N_JOINTS} names, got {len(meta['joint_names'])}")
+        _check_absent_fields(meta.get("joint_fields_absent", []), JOINT_FIELDS, path, "meta.joint_fields_absent")
+        return meta
+    if "joint_fields_absent" in meta:  # one representation per format
+        raise ArchiveError(path, "meta.joint_fields_absent", "a format-1 key: format 2 lists absent joint fields in meta.streams.joints.absent")
+    _check_streams(meta["streams"], path)
+    if meta.get("split") is not None and meta["split"] not in SPLITS:
+        raise ArchiveError(path, "meta.split", f"must be one of {SPLITS} or absent, got {meta['split']!r}")
+    if "label_map" in meta:
+        label_map = meta["label_map"]
+        classes = set(label_map.values()) if isinstance(label_map, dict) else None
+        if not classes or any(not isinstance(c, int) or isinstance(c, bool) for c in classes) or classes != set(range(max(classes) + 1)):
+            raise ArchiveError(path, "meta.label_map", "must map names to classes 0..K-1, every class named")
+        if meta["label"] not in classes:
+            raise ArchiveError(path, "meta.label", f"class {meta['label']} is not in the label map's classes 0..{max(classes)}")
     return meta
 
 
-def absent_joint_fields(meta: dict[str, Any]) -> list[str]:
-    """The JOINT_FIELDS a recording lacks (optional meta.joint_fields_absent, e.g. a position-only
-    ROS JointState): NaN in `joints`, never zeros, which would read as a still, unpowered joint."""
-    return list(meta.get("joint_fields_absent", []))
+def _check_absent_fields(absent: Any, fields, path, field: str) -> None:
+    if not isinstance(absent, list) or not set(absent) <= set(fields) or len(set(absent)) != len(absent):
+        raise ArchiveError(path, field, f"must list distinct fields of {list(fields)}, got {absent!r}")
 
 
-def _check_array(path, name: str, arr: np.ndarray, n_steps: int | None) -> None:
-    dtype, shape = _SPEC[name]
+def _check_array(path, name: str, arr: np.ndarray, n_steps: int | None, lay: Layout) -> None:
+    dtype, shape = _spec(name, lay)
     if arr.dtype != dtype:
         raise ArchiveError(path, name, f"dtype {arr.dtype}, expected {np.dtype(dtype)}")
     if arr.ndim != len(shape):
@@ -210,28 +381,35 @@ def _check_array(path, name: str, arr: np.ndarray, n_steps: int | None) -> None:
         if want == "T" and n_steps is not None and size != n_steps:
             raise ArchiveError(path, name, f"shape {arr.shape}: {size} steps, but timestamps has {n_steps}")
         if isinstance(want, int) and size != want:
-            raise ArchiveError(path, name, f"shape {arr.shape}, expected {shape}")
+            raise ArchiveError(path, name, f"shape {arr.shape}, expected {shape} (the streams meta.streams declares)")
     if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
         bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
         raise ArchiveError(path, name, f"{bad} non-finite values (NaN or Inf)")
 
 
 def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> TrialArchive:
-    """Raise `ArchiveError` unless every field is well-formed and consistent."""
+    """Raise `ArchiveError` unless every field is well-formed and consistent with the declared streams."""
     validate_meta(archive.meta, path)
-    _check_array(path, "timestamps", archive.timestamps, None)
+    lay = layout(archive.meta)
+    _check_array(path, "timestamps", archive.timestamps, None, lay)
     n = archive.n_steps
     if n < 1:
         raise ArchiveError(path, "timestamps", "trial has no steps")
-    for name in ("window_end", "force", "audio"):
-        _check_array(path, name, getattr(archive, name), n)
-    joints = archive.joints
-    absent = [JOINT_FIELDS.index(f) for f in absent_joint_fields(archive.meta)]
-    if absent and joints.ndim == 3 and joints.shape[2:] == (len(JOINT_FIELDS),):
-        if not np.isnan(joints[..., absent]).all():
-            raise ArchiveError(path, "joints", f"fields {absent_joint_fields(archive.meta)} are absent (meta.joint_fields_absent) but hold values")
-        joints = np.where(np.isin(np.arange(len(JOINT_FIELDS)), absent), 0, joints).astype(joints.dtype)  # NaN checked above
-    _check_array(path, "joints", joints, n)
+    declared = {"joints": lay.has_joints, "force": lay.force, "images": lay.image_size is not None}
+    for name in ("window_end", "joints", "force", "audio"):
+        arr = getattr(archive, name)
+        if arr is None:
+            if declared[name]:
+                raise ArchiveError(path, name, "missing")
+            continue
+        if name in declared and not declared[name]:
+            raise ArchiveError(path, name, f"present, but meta.streams declares no {name}")
+        if name == "joints" and lay.joint_fields_absent and arr.ndim == 3 and arr.shape[2] == len(lay.joint_fields):
+            absent = np.isin(lay.joint_fields, lay.joint_fields_absent)
+            if not np.isnan(arr[..., absent]).all():
+                raise ArchiveError(path, "joints", f"fields {list(lay.joint_fields_absent)} are recorded as absent but hold values (NaN where not recorded)")
+            arr = np.where(absent, 0, arr).astype(arr.dtype)  # NaN where absent, checked above; finite elsewhere, checked next
+        _check_array(path, name, arr, n, lay)
     back = np.flatnonzero(np.diff(archive.timestamps) <= 0)
     if back.size:  # a repeated step (or one out of order) would count the same moment twice
         k = int(back[0]) + 1
@@ -246,10 +424,9 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
     if np.any(np.diff(we, axis=0) < 0):
         raise ArchiveError(path, "window_end", "indices decrease between steps")
     if archive.images is not None:
-        _check_array(path, "images", archive.images, n)
-        size = archive.meta["image_size"]
-        if size is None or list(archive.images.shape[1:3]) != list(size):
-            raise ArchiveError(path, "images", f"shape {archive.images.shape} disagrees with meta.image_size {size}")
+        _check_array(path, "images", archive.images, n, lay)
+        if lay.image_size is None or tuple(archive.images.shape[1:3]) != lay.image_size:
+            raise ArchiveError(path, "images", f"shape {archive.images.shape} disagrees with the declared image_size {lay.image_size}")
     return archive
 
 
@@ -305,12 +482,20 @@ def read_archive(path: os.PathLike | str, *, images: bool = True) -> TrialArchiv
     path = Path(path)
     with _open(path) as npz:
         meta = _parse_meta(path, npz)
-        fields = {k: _load_field(path, npz, k) for k in ("timestamps", "window_end", "joints", "force", "audio")}
+        fields = {k: _load_field(path, npz, k) for k in ("timestamps", "window_end", "audio")}
+        # optional streams: `validate` says "missing" for one the meta declares but the file lacks
+        fields |= {k: _load_field(path, npz, k) if k in npz.files else None for k in ("joints", "force")}
         imgs = _load_field(path, npz, "images") if images and "images" in npz.files else None
     return validate(TrialArchive(meta=meta, images=imgs, **fields), path)
 
 
 def trial_filename(meta: dict[str, Any]) -> str:
+    """`fabric04_day1_trial00_lab.npz`; a trial labelled by name and without a day:
+    `<label name>_trial000_lab.npz` (characters other than letters, digits, '-' and '.' become '_')."""
+    if "label_name" in meta:
+        who = re.sub(r"[^A-Za-z0-9.-]+", "_", meta["label_name"]).strip("_") or f"class{meta['label']:02d}"
+        when = "" if meta["day"] is None else f"_day{meta['day']}"
+        return f"{who}{when}_trial{meta['trial']:03d}_{meta['condition']}.npz"
     return f"fabric{meta['fabric_id']:02d}_day{meta['day']}_trial{meta['trial']:02d}_{meta['condition']}.npz"
 
 
@@ -354,7 +539,7 @@ def _indexed_entries(ipath: Path) -> dict[str, IndexEntry]:
     """The hashed entries of an existing index, or none when it is absent or unreadable."""
     try:
         doc = json.loads(ipath.read_text())
-        if doc.get("format_version") != FORMAT_VERSION:
+        if doc.get("format_version") != INDEX_VERSION:
             return {}
         return {e.file: e for e in (IndexEntry(**t) for t in doc["trials"]) if e.sha256}
     except (OSError, json.JSONDecodeError, KeyError, TypeError):
@@ -381,7 +566,7 @@ def build_index(folder: os.PathLike | str, index_file: os.PathLike | str | None 
             continue
         meta, n = read_meta(p)
         entries.append(IndexEntry(p.name, meta, n, st.st_size, st.st_mtime_ns, sha256_file(p)))
-    doc = {"format_version": FORMAT_VERSION, "folder": str(root.resolve()), "trials": [dataclasses.asdict(e) for e in entries]}
+    doc = {"format_version": INDEX_VERSION, "folder": str(root.resolve()), "trials": [dataclasses.asdict(e) for e in entries]}
     ipath.parent.mkdir(parents=True, exist_ok=True)
     with atomic_open(ipath, "w") as f:
         f.write(json.dumps(doc, indent=1))
@@ -404,7 +589,7 @@ def load_index(folder: os.PathLike | str, workdir: os.PathLike | str | None = No
         return build_index(root, ipath)
     try:
         doc = json.loads(ipath.read_text())
-        if doc.get("format_version") != FORMAT_VERSION:
+        if doc.get("format_version") != INDEX_VERSION:
             raise ArchiveError(ipath, "format_version", f"unknown index version {doc.get('format_version')!r}")
         entries = tuple(IndexEntry(**t) for t in doc["trials"])
     except (json.JSONDecodeError, KeyError, TypeError) as e:

@@ -15,7 +15,7 @@ import json
 import typing
 from typing import Any
 
-from fabricjax import archive, presets
+from fabricjax import archive, catalog, presets
 from fabricjax.errors import UserError
 
 # Input streams by name. "internal"/"external" are the Minsound / palm microphone PSDs (one shared
@@ -59,6 +59,7 @@ class Config:
     dropout: float = 0.1
     fusion_norm: str = "sequence_minmax"  # FUSION_NORMS; the paper's is the default
     fabric_head: bool = True
+    n_classes: int = catalog.N_CLASSES  # the fabric head's classes: the dataset's label map (studies set it from the data)
     property_heads: bool = False
     compute_dtype: str = "float32"
     # training
@@ -93,6 +94,8 @@ class Config:
             raise ValueError(f"image_resolution must be 'down' or 'full', got {self.image_resolution!r}")
         if not (self.fabric_head or self.property_heads):
             raise ValueError("at least one of fabric_head and property_heads must be on")
+        if self.n_classes < 2:
+            raise ValueError(f"n_classes must be at least 2, got {self.n_classes}")
         if self.seq_len < 1:
             raise ValueError(f"seq_len must be at least 1, got {self.seq_len}")
         presets.get(self.preset)  # raises on an unknown preset

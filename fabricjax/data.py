@@ -5,8 +5,9 @@
 Keys of `sets` are the requested `split_names`, by default all of `SPLITS` = ("train", "val", "test",
 "cafe", "holdout"); a split with no trials is a `SequenceSet` of 0 sequences with the same
 trailing shapes. Trials of splits not requested are not read (no features are computed for
-them). Splits come from the archives' meta (`splits.assign_roles` with the preset's `Splits`),
-so a folder of real recordings works the same as a simulated one:
+them). Splits come from the archives' meta (`splits.assign_roles` with the preset's `Splits`):
+the split the user gave a trial at import (`meta.split`), else by day, so a folder of real
+recordings works the same as a simulated one:
 
     train, val   lab trials of the training days (val: whole trials, the last of each fabric and
                  day), minus `config.exclude_fabrics`
@@ -25,21 +26,35 @@ on the former default preset the first sequence of every trial was mostly closin
 transformer scored ~45 % on those against 69 % on rubbing ones. A selected trial with fewer than
 N rubbing steps raises `archive.ArchiveError` naming the file.
 
+What the data holds is checked before any of it is read: every selected trial must carry the
+streams the config's modalities need (`archive.Layout.modalities`; else a one-line `UserError`
+listing what the data has), the microphones a modality uses must share one rate across trials,
+and the classes are the trials' label map (`meta.label_map`, all trials alike) or, without one,
+the catalog's 21. A training or validation trial with a label outside the classes is an error;
+test and cafe trials outside them (the hand's new fabrics 21-23), trials no split uses (a day the
+preset does not know) and a bandwidth above a microphone's Nyquist (capped there) are reported
+as warnings, never silent.
+
 `SequenceSet` (S sequences; arrays are NumPy, sequences ordered by trial file name, then start):
 
     inputs   one array per `config.modalities` entry:
-      "internal", "external"  float32 (S, N, F)        log10 PSD (welch.py), F = welch.n_bins(
-                                                       config.bandwidth_khz): 320 at 15 kHz
-      "proprio"               float32 (S, N, 18)       6 joints x (angle, velocity, current)
+      "internal", "external"  float32 (S, N, F)        log10 PSD (welch.py) of the microphone of
+                                                       that role, F = welch.n_bins(config.
+                                                       bandwidth_khz, its rate): 320 at 15 kHz and
+                                                       48 kHz, all 512 at or above its Nyquist
+      "proprio"               float32 (S, N, J * F)    joints x fields: the hand's 6 x (angle,
+                                                       velocity, current) = 18
       "flow"                  float16 (S, N, 2, h, w)  sparse flow, 3x3 patch means (flow.py);
                                                        102x137 for 308x410 frames
       "image"                 uint8   (S, N, H, W, 3)  config.image_size ("down", the paper's 60x80)
                                                        or the archive's size ("full")
-    labels   int32 (S,): "fabric" (meta label: 0-20, the 21 classes; in "holdout" up to 23),
-             "stretchiness", "roughness", "thickness" (property levels, -1 when unknown, e.g.
-             class 0)
-    info     (S,): "fabric_id" int32, "day" int32, "trial" int32, "start" int32 (first step),
-             "condition" str ("lab"/"cafe"), "trial_key" str (archive file name)
+    labels   int32 (S,): "fabric" (meta label: 0..n_classes-1; the hand's 21 classes, in
+             "holdout" up to 23), "stretchiness", "roughness", "thickness" (property levels, -1
+             when unknown, e.g. class 0 or a property the recording does not give)
+    info     (S,): "fabric_id" int32, "day" int32 (-1: no day), "trial" int32, "start" int32
+             (first step), "condition" str ("lab"/"cafe"), "trial_key" str (archive file name)
+    rates    {audio modality: its microphone's sample rate, Hz} (what `narrow` cuts bands by)
+    classes  the class names of the label space, by class (its length is the fabric head's size)
 
 Features are computed once per trial and cached (features/cache.py); only the modalities the
 config asks for are computed, and frames are never read for an audio / proprioception config.
@@ -49,16 +64,18 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
+from absl import logging
 
 from fabricjax import archive, catalog, presets, splits, workspace
-from fabricjax.config import Config
+from fabricjax.config import MODALITY_NAMES, Config
+from fabricjax.errors import UserError
 from fabricjax.features import cache, welch
 from fabricjax.features.extract import feature_for
 
-SPLITS = ("train", "val", "test", "cafe", "holdout")
+SPLITS = archive.SPLITS
 _SOURCE_FIELD = {"image": "images", "flow": "images", "proprio": "joints"}  # archive field behind a modality
 
 
@@ -67,19 +84,83 @@ class SequenceSet:
     inputs: dict[str, np.ndarray]
     labels: dict[str, np.ndarray]
     info: dict[str, np.ndarray]
+    rates: Mapping[str, int] = dataclasses.field(default_factory=dict)  # absent: the hand's 48 kHz
+    classes: tuple[str, ...] = tuple(catalog.fabric(k).name for k in range(catalog.N_CLASSES))
+
+    @property
+    def n_classes(self) -> int:
+        return len(self.classes)
 
     def __len__(self) -> int:
         return len(self.info["trial_key"])
 
 
-def split_of(meta: dict, role: str | None, exclude: tuple[int, ...]) -> str | None:
+def split_of(meta: dict, role: str | None, exclude: tuple[int, ...], n_classes: int = catalog.N_CLASSES) -> str | None:
     """The `SPLITS` entry a trial belongs to under a config's exclusions (None: unused)."""
     fid = meta["fabric_id"]
     if role == "test" and fid in exclude:
         return "holdout"
-    if role is None or fid in exclude or (role in ("test", "cafe") and meta["label"] >= catalog.N_CLASSES):
+    if role is None or fid in exclude or (role in ("test", "cafe") and meta["label"] >= n_classes):
         return None
     return role
+
+
+def classes_of(index: archive.DatasetIndex) -> tuple[str, ...]:
+    """The dataset's class names by class: its label map's (every archive must carry the same one;
+    names sharing a class are joined by " / "), or the catalog's 21 for archives without one."""
+    maps = {json_key(e.meta.get("label_map")): e for e in index.entries}
+    if len(maps) > 1:
+        a, b = list(maps.values())[:2]
+        raise archive.ArchiveError(index.path(b), "meta.label_map", f"differs from the label map of {a.file} (one dataset, one label map)")
+    label_map = index.entries[0].meta.get("label_map")
+    if label_map is None:
+        return SequenceSet.__dataclass_fields__["classes"].default
+    return tuple(" / ".join(sorted(n for n, c in label_map.items() if c == k)) for k in range(archive.n_classes(index.entries[0].meta)))
+
+
+def json_key(x) -> str:
+    return repr(sorted(x.items())) if isinstance(x, dict) else repr(x)
+
+
+def check_streams(index: archive.DatasetIndex, entries: Sequence[archive.IndexEntry], modalities: Sequence[str]) -> dict[str, int]:
+    """Before any data is read: every trial carries the streams `modalities` need (else a one-line
+    error listing what the data has), and each microphone used has one rate in all trials.
+    Returns {audio modality: rate}."""
+    rates: dict[str, tuple[int, archive.IndexEntry]] = {}
+    for e in entries:
+        lay = archive.layout(e.meta)
+        lacking = [m for m in modalities if m not in lay.modalities()]
+        if lacking:
+            names = ", ".join(f"{m} ({MODALITY_NAMES[m]})" for m in lacking)
+            raise archive.ArchiveError(
+                index.path(e), _SOURCE_FIELD.get(lacking[0], "audio"),
+                f"absent: the data has no {names} for the modalities {', '.join(modalities)}; it has {lay.describe()} "
+                f"(choose rows or modalities it supports: {', '.join(lay.modalities()) or 'none'})",
+            )
+        for m in modalities:
+            k = lay.mic(m)
+            if k is None:
+                continue
+            rate = lay.mics[k].rate
+            first = rates.setdefault(m, (rate, e))
+            if first[0] != rate:
+                raise archive.ArchiveError(index.path(e), "meta.streams.mics", f"the {m} microphone runs at {rate} Hz, but at {first[0]} Hz in {first[1].file} (one rate per microphone in a dataset)")
+    return {m: r for m, (r, _) in rates.items()}
+
+
+def _report_unused(entries: Sequence[archive.IndexEntry], roles, chosen_split, n_classes: int) -> None:
+    """Say which trials no split uses, and why (a day no split names, a label outside the classes)."""
+    no_role = [e for e, r in zip(entries, roles) if r is None]
+    if no_role:
+        days = sorted({str(e.meta["day"]) for e in no_role})
+        logging.warning("%d trials belong to no split and are not used (days %s: not among the preset's days, and no split "
+                        "given at import), e.g. %s", len(no_role), ", ".join(days), no_role[0].file)
+    outside = [e for e, r in zip(entries, roles) if r in ("test", "cafe") and chosen_split(e, r) is None and e.meta["label"] >= n_classes]
+    if outside:
+        labels = sorted({e.meta["label"] for e in outside})
+        logging.warning("%d %s trials have labels outside the %d classes (%s) and are not evaluated, e.g. %s",
+                        len(outside), "/".join(sorted({r for e, r in zip(entries, roles) if e in outside})), n_classes,
+                        ", ".join(map(str, labels)), outside[0].file)
 
 
 def first_step(meta: dict) -> int:
@@ -100,33 +181,48 @@ def _describe(entries: list[archive.IndexEntry], n: int) -> tuple[dict, dict]:
 
     labels = {"fabric": column(lambda m, f, s: m["label"], np.int32)}
     for p in archive.PROPERTY_NAMES:
-        labels[p] = column(lambda m, f, s: -1 if m["properties"][p] is None else m["properties"][p], np.int32)
-    info = {k: column(lambda m, f, s: m[k], np.int32) for k in ("fabric_id", "day", "trial")}
+        labels[p] = column(lambda m, f, s: -1 if m["properties"].get(p) is None else m["properties"][p], np.int32)
+    info = {k: column(lambda m, f, s: -1 if m[k] is None else m[k], np.int32) for k in ("fabric_id", "day", "trial")}
     info["start"] = column(lambda m, f, s: s, np.int32)
     info["condition"] = column(lambda m, f, s: m["condition"], str)
     info["trial_key"] = column(lambda m, f, s: f, str)
     return labels, info
 
 
-def _sequences(feature: np.ndarray, modality: str, start: int, n_seq: int, n: int, config: Config) -> np.ndarray:
+def _sequences(feature: np.ndarray, modality: str, start: int, n_seq: int, n: int, config: Config, rates: Mapping[str, int]) -> np.ndarray:
     """A trial's (T, ...) feature -> (n_seq, n, ...) view from step `start`, the remainder dropped."""
-    x = _band(feature[start : start + n_seq * n], modality, config)
+    x = _band(feature[start : start + n_seq * n], modality, config, rates)
     return x.reshape(n_seq, n, *x.shape[1:])
 
 
-def _band(x: np.ndarray, modality: str, config: Config) -> np.ndarray:
-    """A feature cut to the config's bandwidth: a PSD's first `welch.n_bins` bins (the last axis);
-    other modalities unchanged."""
-    return x[..., : welch.n_bins(config.bandwidth_khz)] if modality in archive.MIC_NAMES else x
+def _band(x: np.ndarray, modality: str, config: Config, rates: Mapping[str, int]) -> np.ndarray:
+    """A feature cut to the config's bandwidth: a PSD's first `welch.n_bins` bins at its
+    microphone's rate (the last axis; all of them at or above its Nyquist); other modalities unchanged."""
+    if modality not in archive.MIC_ROLES:
+        return x
+    return x[..., : welch.n_bins(config.bandwidth_khz, rates.get(modality, archive.AUDIO_RATE))]
 
 
 def narrow(sets: dict[str, SequenceSet], config: Config) -> dict[str, SequenceSet]:
     """Sets loaded for several rows (the union of their modalities, the widest bandwidth) as one
     row's: its modalities only, PSDs cut to its bandwidth. Views, no copies."""
     return {
-        k: dataclasses.replace(s, inputs={m: _band(a, m, config) for m, a in s.inputs.items() if m in config.modalities})
+        k: dataclasses.replace(s, inputs={m: _band(a, m, config, s.rates) for m, a in s.inputs.items() if m in config.modalities})
         for k, s in sets.items()
     }
+
+
+def _check_bands(config: Config, rates: Mapping[str, int]) -> None:
+    """State a bandwidth above a microphone's Nyquist (the PSD stops there), and refuse two
+    microphones whose bands give the shared audio encoder different bin counts."""
+    for m, rate in rates.items():
+        if config.bandwidth_khz > rate / 2000:
+            logging.warning("bandwidth %g kHz is above the %s microphone's Nyquist (%g kHz at %d Hz): its PSD is capped at "
+                            "0-%g kHz (%d bins)", config.bandwidth_khz, m, rate / 2000, rate, rate / 2000, welch.N_BINS)
+    bins = {m: welch.n_bins(config.bandwidth_khz, r) for m, r in rates.items()}
+    if len(set(bins.values())) > 1:
+        raise UserError(f"the microphones' PSDs have different bin counts at {config.bandwidth_khz:g} kHz ({bins}: rates {dict(rates)}); "
+                        "the shared audio encoder needs equal ones: use one microphone, or a bandwidth at or above both Nyquists")
 
 
 def load_sequences(
@@ -144,12 +240,19 @@ def load_sequences(
         raise ValueError(f"unknown splits {unknown}; choose from {SPLITS}")
     wanted = tuple(s for s in SPLITS if s in split_names)
     index = archive.load_index(data_dir, workdir)
+    classes = classes_of(index)
+    n_classes = len(classes)
     roles = splits.assign_roles([e.meta for e in index.entries], presets.get(config.preset).dataset.splits)
-    chosen = [
-        (e, s) for e, r in zip(index.entries, roles) if (s := split_of(e.meta, r, config.exclude_fabrics)) in wanted
-    ]
+    place = lambda e, r: split_of(e.meta, r, config.exclude_fabrics, n_classes)  # noqa: E731
+    _report_unused(index.entries, roles, place, n_classes)
+    chosen = [(e, s) for e, r in zip(index.entries, roles) if (s := place(e, r)) in wanted]
     if not chosen:
-        raise archive.ArchiveError(index.root, "<folder>", f"no trial belongs to the splits {list(wanted)} (check days and conditions)")
+        raise archive.ArchiveError(index.root, "<folder>", f"no trial belongs to the splits {list(wanted)} (check days, conditions and splits)")
+    for e, s in chosen:
+        if s in ("train", "val") and not 0 <= e.meta["label"] < n_classes:
+            raise archive.ArchiveError(index.path(e), "meta.label", f"label {e.meta['label']} of a {s} trial is outside the {n_classes} classes 0..{n_classes - 1}")
+    rates = check_streams(index, [e for e, _ in chosen], config.modalities)
+    _check_bands(config, rates)
     n = config.seq_len
     for e, _ in chosen:
         if n_sequences(e, n) == 0:
@@ -169,7 +272,7 @@ def load_sequences(
     filled = dict.fromkeys(wanted, 0)
     for (e, s), f in zip(chosen, feats, strict=True):  # strict: runs the generator to its end (the bar closes)
         n_seq = n_sequences(e, n)
-        trial = {m: _sequences(f[feat.name], m, first_step(e.meta), n_seq, n, config) for m, feat in features.items()}
+        trial = {m: _sequences(f[feat.name], m, first_step(e.meta), n_seq, n, config, rates) for m, feat in features.items()}
         if not inputs:
             sizes = {t: sum(n_sequences(x, n) for x in members[t]) for t in wanted}
             inputs = {t: {m: np.empty((sizes[t], *a.shape[1:]), a.dtype) for m, a in trial.items()} for t in wanted}
@@ -181,4 +284,4 @@ def load_sequences(
                 )
             inputs[s][m][filled[s] : filled[s] + n_seq] = a
         filled[s] += n_seq
-    return {s: SequenceSet(inputs[s], *_describe(members[s], n)) for s in wanted}
+    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, classes=classes) for s in wanted}

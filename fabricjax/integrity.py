@@ -69,7 +69,7 @@ def verify(folder: os.PathLike | str, workdir: os.PathLike | str | None = None) 
         except archive.ArchiveError as e:
             problems.append(Problem(e.path, e.field, e.problem))
             continue
-        rate = trial.meta["sample_rates"].get("steps", archive.STEP_RATE)
+        rate = archive.layout(trial.meta).step_rate
         for k in frame_gaps(trial.timestamps, rate):
             dt = trial.timestamps[k] - trial.timestamps[k - 1]
             problems.append(Problem(str(p), "timestamps", f"irregular: step {k} comes {dt * 1e3:.1f} ms after step {k - 1} "

@@ -46,8 +46,9 @@ def channel_shape(modality: str, ndim: int) -> tuple[int, ...]:
 
 
 def head_sizes(config: Config) -> dict[str, int]:
-    """Output heads and their class counts: fabric (21) and/or the three properties."""
-    heads = {"fabric": catalog.N_CLASSES} if config.fabric_head else {}
+    """Output heads and their class counts: fabric (`config.n_classes`: the data's classes, the
+    hand's 21 by default) and/or the three properties."""
+    heads = {"fabric": config.n_classes} if config.fabric_head else {}
     if config.property_heads:
         heads.update(catalog.PROPERTY_LEVELS)
     return heads

@@ -39,12 +39,16 @@ def class_label(class_id: int) -> str:
     return f"{class_id} {catalog.fabric(class_id).name.split(' (')[0]}"
 
 
-def plot_confusions(path, panels: Sequence[tuple[str, np.ndarray, np.ndarray]], n_classes: int = catalog.N_CLASSES) -> Path:
+def plot_confusions(path, panels: Sequence[tuple[str, np.ndarray, np.ndarray]], n_classes: int = catalog.N_CLASSES,
+                    class_names: Sequence[str] | None = None) -> Path:
     """One row-normalised confusion matrix per (title, labels, predictions) panel, side by side.
 
-    Classes are labelled with the catalog's fabric names; the colour scale runs from 0 to the
+    Classes are labelled with `class_names` (a dataset's own label map; then `n_classes` is their
+    number), else with the catalog's fabric names; the colour scale runs from 0 to the
     largest cell of any panel (shared, so panels compare), since near-chance models peak far
     below 1 and a fixed 0-1 scale would leave them white."""
+    if class_names is not None:
+        n_classes = len(class_names)
     norms, titles = [], []
     for title, y, p in panels:
         cm = confusion_matrix(y, p, n_classes).astype(float)
@@ -52,7 +56,7 @@ def plot_confusions(path, panels: Sequence[tuple[str, np.ndarray, np.ndarray]], 
         norms.append(np.divide(cm, rows, out=np.zeros_like(cm), where=rows > 0))
         titles.append(f"{title}\n{100.0 * np.trace(cm) / max(cm.sum(), 1):.1f}% correct of {int(cm.sum())}")
     vmax = max(max(float(n.max()) for n in norms), 1e-9)
-    labels = [class_label(i) for i in range(n_classes)]
+    labels = [class_label(i) if class_names is None else f"{i} {class_names[i]}" for i in range(n_classes)]
     fig, axes = plt.subplots(1, len(panels), figsize=(7.4 * len(panels), 7.0), squeeze=False, layout="constrained")
     for ax, norm, title in zip(axes[0], norms, titles):
         im = ax.imshow(norm, vmin=0, vmax=vmax, cmap="Blues")

@@ -6,9 +6,10 @@ property holdouts (fabrics 1 and 10 never trained on in the property experiment,
 21-23 only ever tested). A validation split is carved from the training days by holding out
 whole trials (the last `val_trials_per_day` of each fabric and day), so no trial leaks.
 
-Roles are derived from an archive's meta alone (`role_of`), so real recordings drop in: put the
-training days' trials under days 1-2, test under day 3 and cafe-noise trials with
-condition "cafe".
+Roles are derived from an archive's meta alone (`role_of`), so real recordings drop in: a trial
+whose meta names its split (`split`, set by the user at import: a manifest column or a rule, see
+`acquisition.import_manifest`) has that role; otherwise put the training days' trials under days
+1-2, test under day 3 and cafe-noise trials with condition "cafe".
 
 What each preset simulates (`DatasetSpec`) is part of its definition in `presets.py`.
 """
@@ -71,6 +72,8 @@ class DatasetSpec:
 
 def role_of(meta: dict[str, Any], val_trials: Iterable[tuple[int, int, int]], splits: Splits = Splits()) -> str | None:
     """The split a trial belongs to, from its meta (None: not used by any split)."""
+    if meta.get("split") is not None:
+        return meta["split"]
     if meta["condition"] == "cafe":
         return "cafe"
     day = meta["day"]
@@ -85,7 +88,7 @@ def validation_trials(metas: Iterable[dict[str, Any]], splits: Splits = Splits()
     """The last `val_trials_per_day` trial indices of each (fabric, training day) with >1 trial."""
     by_key: dict[tuple[int, int], list[int]] = defaultdict(list)
     for m in metas:
-        if m["condition"] == "lab" and m["day"] in splits.train_days:
+        if m.get("split") is None and m["condition"] == "lab" and m["day"] in splits.train_days:
             by_key[(m["fabric_id"], m["day"])].append(m["trial"])
     out = set()
     for (fid, day), trials in by_key.items():

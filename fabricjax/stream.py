@@ -130,14 +130,14 @@ def replay(
     max_steps: int | None = None,
 ) -> dict:
     """Feed a recorded trial to `streamer` step by step (at the trial's step rate, meta
-    sample_rates.steps, when `realtime`, else as fast as possible) after one warm-up update, and
+    streams.steps.rate, when `realtime`, else as fast as possible) after one warm-up update, and
     summarise: time to the first correct decision, accuracy over decided steps, per-step latency
     p50 / p99 and, in real time, the steps whose result came after the end of their slot (20 ms at
     50 Hz; this also counts the OS waking the sleeping loop late)."""
     label = int(trial.meta["label"])
     n_steps = min(trial.n_steps, max_steps or trial.n_steps)
     stamps = trial.timestamps - trial.timestamps[0]
-    period = 1.0 / trial.meta["sample_rates"].get("steps", archive.STEP_RATE)  # an imported 30 fps camera: 33 ms
+    period = 1.0 / archive.layout(trial.meta).step_rate  # an imported 30 fps camera: 33 ms
     seconds, correct, first_correct, late = [], [], None, 0
     streamer.warmup()
     start = time.perf_counter()

@@ -60,7 +60,7 @@ def _corrupt(path):
 DAMAGE = {
     "truncated": (_truncate, "<file>|audio|joints|force|window_end|timestamps", "corrupt or truncated"),
     "corrupt_bytes": (_corrupt, "<file>|audio|joints|force|window_end|timestamps|meta", "corrupt or truncated|not valid JSON|CRC"),
-    "wrong_version": ({"meta": _meta(format_version=2)}, "meta.format_version", "unknown format version 2"),
+    "wrong_version": ({"meta": _meta(format_version=3)}, "meta.format_version", "unknown format version 3"),
     "nan_joints": ({"joints": np.full((41, 6, 3), np.nan, np.float32)}, "joints", "738 non-finite values"),
     "inf_force": ({"force": np.r_[np.ones(40), np.inf].astype(np.float32)}, "force", "1 non-finite values"),
     "nan_timestamps": ({"timestamps": np.r_[np.arange(40) * 0.02, np.nan]}, "timestamps", "non-finite"),
@@ -98,7 +98,7 @@ def test_malformed_index_is_named(dataset, tmp_path):
     index.write_text(json.dumps({"format_version": 7, "trials": []}))
     with pytest.raises(archive.ArchiveError, match=r"\.json: field 'format_version': unknown index version 7"):
         load(dataset, tmp_path)
-    index.write_text(json.dumps({"format_version": archive.FORMAT_VERSION, "trials": [{"file": "x.npz"}]}))
+    index.write_text(json.dumps({"format_version": archive.INDEX_VERSION, "trials": [{"file": "x.npz"}]}))
     with pytest.raises(archive.ArchiveError, match="malformed index"):
         load(dataset, tmp_path)
     index.unlink()  # deleting the index re-indexes the folder

@@ -9,6 +9,7 @@ import jax
 import numpy as np
 import pytest
 
+from acquisition.rig_bench import bench_import
 from acquisition.sim_signals import bench_acquisition
 from fabricjax import archive, sim, stream, train
 from fabricjax.config import Config
@@ -121,13 +122,15 @@ def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
     workload = bench.Workload(Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=12, **TINY), batch=8, bins=24)
     lines = []
     doc = bench.run(
-        quick=True, workload=workload, workdir=smoke_workdir, results=tmp_path, command="test", out=lines.append, acquisition=bench_acquisition
+        quick=True, workload=workload, workdir=smoke_workdir, results=tmp_path, command="test", out=lines.append, acquisition=bench_acquisition,
+        importer=lambda trials: bench_import(trials=20, seconds=(2.0, 3.0)),
     )
     saved = json.loads((tmp_path / "bench.json").read_text())
     assert set(saved["benchmarks"]) == set(bench.BENCHMARKS) and saved["machine"]["cores"] > 0
     b = saved["benchmarks"]
     assert b["training"]["ours_5_seed"]["n_seeds"] == 5 and b["welch"]["speedup_vs_scipy"] > 0
     assert b["streaming"]["decided_steps"] > 0 and b["extraction"]["peak_rss_mb"] > 0
+    assert b["import"]["trials"] == 20 and b["import"]["wall_s"] > 0
     assert "missed_deadlines" in b["acquisition"] and b["simulator"]["realtime_factor"] > 0
     if doc["torch"] is not None:
         assert {"ratio_1_seed", "ratio_5_seed"} <= set(b["training"]) and "ratio_p50" in b["inference"]

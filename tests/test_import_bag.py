@@ -146,9 +146,9 @@ def check_fields(a, rec):
     # latest joint reading at or before frame i (T0 + 0.02 i) is joint sample 5 + 2 i
     np.testing.assert_allclose(a.joints, rec["joints"][5 + 2 * np.arange(N_FRAMES)].astype(np.float32), rtol=1e-6)
     assert a.meta["fabric_id"] == 4 and a.meta["day"] == 2 and a.meta["trial"] == 3
-    assert a.meta["image_size"] == [H, W]
+    assert archive.layout(a.meta).image_size == (H, W)
     assert a.meta["import"]["frame_gaps"] == []
-    assert a.meta["sample_rates"]["steps"] == 50 and "joint_fields_absent" not in a.meta
+    assert archive.layout(a.meta).step_rate == 50 and "absent" not in a.meta["streams"]["joints"]
 
 
 @pytest.mark.parametrize("compressed,storage", [(False, "sqlite3"), (True, "mcap")])

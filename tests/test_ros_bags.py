@@ -159,12 +159,13 @@ def test_position_only_joint_states_record_absent_fields(tmp_path):
     a = importing.import_bag(write_messages(tmp_path / "bag", _position_only(bag_messages(rec))), MAPPING, TRIAL)
     path = archive.write_archive(tmp_path / "out" / archive.trial_filename(a.meta), a)
     back = archive.read_archive(path)
-    assert back.meta["joint_fields_absent"] == ["velocity", "current"]
+    assert back.meta["streams"]["joints"]["absent"] == ["velocity", "current"]
+    assert archive.layout(back.meta).joint_fields_absent == ("velocity", "current")
     np.testing.assert_allclose(back.joints[..., 0], rec["joints"][5 + 2 * np.arange(N_FRAMES), :, 0].astype(np.float32), rtol=1e-6)
     assert np.isnan(back.joints[..., 1:]).all()  # never zeros
     # an absent field that holds values is refused
     fake = archive.TrialArchive(**{**back.__dict__, "joints": np.nan_to_num(back.joints)})
-    with pytest.raises(archive.ArchiveError, match=r"joints': fields \['velocity', 'current'\] are absent .* but hold values"):
+    with pytest.raises(archive.ArchiveError, match=r"joints': fields \['velocity', 'current'\] are recorded as absent but hold values"):
         archive.validate(fake)
 
 
@@ -221,7 +222,7 @@ def test_thirty_fps_camera_sets_the_step_rate_not_frame_loss(tmp_path):
     rec = recording()
     msgs, n = _thirty_fps(rec)
     a = importing.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
-    assert a.n_steps == n and a.meta["sample_rates"]["steps"] == 30
+    assert a.n_steps == n and a.meta["streams"]["steps"] == {"clock": "camera", "rate": 30}
     assert a.meta["import"]["frame_gaps"] == [] and a.meta["import"]["step_rate_from"] == "median frame interval 33.33 ms"
     folder = tmp_path / "data"
     archive.write_archive(folder / archive.trial_filename(a.meta), a)
@@ -233,7 +234,7 @@ def test_thirty_fps_camera_sets_the_step_rate_not_frame_loss(tmp_path):
     assert [str(p).split(": ")[1:3] for p in problems] == [["timestamps", "irregular"]]
     assert "step 7 comes 66.7 ms after step 6 (more than 1.5 periods of 33 ms" in str(problems[0])
     declared = importing.import_bag(write_messages(tmp_path / "bag3", msgs), _mapping(camera={"rate": 29.97}), TRIAL)
-    assert declared.meta["sample_rates"]["steps"] == 29.97 and declared.meta["import"]["step_rate_from"] == "mapping camera.rate"
+    assert archive.layout(declared.meta).step_rate == 29.97 and declared.meta["import"]["step_rate_from"] == "mapping camera.rate"
 
 
 # --- 6-9. problems named precisely, all at once -----------------------------------------------
@@ -373,8 +374,9 @@ def test_lab_bag_becomes_an_archive_read_archive_and_verify_accept(tmp_path):
     a = importing.import_bag(bag, LAB_MAPPING, TRIAL, resample=True)
     folder = tmp_path / "data"
     back = archive.read_archive(archive.write_archive(folder / archive.trial_filename(a.meta), a))
-    assert back.meta["sample_rates"] == {"audio": 48000, "steps": 30}
-    assert back.meta["joint_fields_absent"] == ["velocity", "current"]
+    lay = archive.layout(back.meta)
+    assert [m.rate for m in lay.mics] == [48000, 48000] and lay.step_rate == 30
+    assert lay.joint_fields_absent == ("velocity", "current")
     assert back.meta["import"]["resampled"] == {t: {"from_hz": 16000, "to_hz": 48000, "method": "scipy.signal.resample_poly"}
                                                 for t in (INTERNAL, EXTERNAL)}
     clocks = back.meta["import"]["clocks"]
@@ -396,8 +398,10 @@ def test_proprio_on_absent_joint_fields_is_a_one_line_error(tmp_path):
     config = Config(preset="smoke", seq_len=20, modalities=("internal", "proprio"))
     with pytest.raises(archive.ArchiveError) as e:
         data.load_sequences(config, folder, workdir=tmp_path / "ws", progress=False, workers=1, split_names=("train",))
-    assert str(e.value) == (f"{path}: field 'joints': ['velocity', 'current'] not recorded (meta.joint_fields_absent), but the "
-                            "proprio input needs angle, velocity and current of every joint: leave proprio out of the modalities")
+    assert str(e.value) == (f"{path}: field 'joints': absent: the data has no proprio (proprioception) for the modalities internal, "
+                            "proprio; it has microphones: internal (48000 Hz, feeds internal), external (48000 Hz, feeds external); "
+                            "6 joints x angle [rad], velocity [rad/s] (not recorded), current [A] (not recorded); camera 8x10; "
+                            "steps at 30 Hz (camera clock) (choose rows or modalities it supports: internal, external, image, flow)")
     sets = data.load_sequences(Config(preset="smoke", seq_len=20, modalities=("internal",)), folder, workdir=tmp_path / "ws",
                                progress=False, workers=1, split_names=("train",))
     assert len(sets["train"]) == a.n_steps // 20

@@ -41,7 +41,7 @@ def test_same_scene_same_bits_other_trial_other_bits():
 def test_archive_layout_follows_the_sph0645_and_the_paper():
     arch = simulate(Scene(5, **SHORT))
     assert arch.meta["source"]["kind"] == "simulated" and arch.meta["source"]["effects"] == list(EFFECTS)
-    assert arch.images is None and arch.meta["image_size"] is None
+    assert arch.images is None and archive.layout(arch.meta).image_size is None
     assert np.all(arch.audio & 0xFF == 0)  # bits 7..0 of the 24-bit word are zero
     assert np.array_equal(arch.window_end[:, 0], arch.window_end[:, 1])
     assert arch.window_end[0, 0] >= archive.WINDOW

@@ -88,10 +88,6 @@ def _compute(job: tuple[str, str, list[str], dict[str, str]]) -> dict[str, np.nd
     if needs_images and trial.images is None:
         names = ", ".join(f.name for f in features if f.needs_images)
         raise archive.ArchiveError(path, "images", f"absent, but the features {names} need frames")
-    absent = archive.absent_joint_fields(trial.meta)
-    if "proprio" in names and absent:  # NaN fields: the proprio input is all 18 channels or nothing
-        raise archive.ArchiveError(path, "joints", f"{absent} not recorded (meta.joint_fields_absent), but the proprio "
-                                   "input needs angle, velocity and current of every joint: leave proprio out of the modalities")
     out = {}
     for f in features:
         out[f.name] = f.compute(trial)

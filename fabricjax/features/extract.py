@@ -4,9 +4,13 @@ Each feature names the parameters that determine its numbers (`params`), which i
 cache keys on; a parameter that only selects part of a cached array (the PSD bandwidth) is
 applied when sequences are built and is not part of the key. Arrays, per trial of T steps:
 
-    psd_internal, psd_external  float32 (T, 512)         log10 PSD, full 0-24 kHz (welch.py)
-    proprio                     float32 (T, 18)          joints (T, 6, 3) flattened joint-major:
-                                                         [j0 angle, j0 velocity, j0 current, j1 ...]
+    psd_internal, psd_external  float32 (T, 512)         log10 PSD of the microphone whose role is
+                                                         internal / external, full band 0 to its
+                                                         Nyquist at its own rate (welch.py): 0-24 kHz
+                                                         for the hand
+    proprio                     float32 (T, J * F)       joints (T, J, F) flattened joint-major:
+                                                         [j0 field 0, j0 field 1, ..., j1 ...]; the
+                                                         hand's 6 x (angle, velocity, current) = 18
     flow                        float16 (T, 2, h, w)     patch-pooled sparse flow (flow.py);
                                                          flow_drop_top: the other reading
     image_<h>x<w>               uint8   (T, h, w, 3)     area-downsampled frames (images.py; the
@@ -37,6 +41,14 @@ class Feature:
     compute: Callable[[archive.TrialArchive], np.ndarray]
 
 
+def mic_index(trial: archive.TrialArchive, role: str) -> int:
+    """The `audio` row of the microphone feeding model input `role`; a trial without one is an error."""
+    k = archive.layout(trial.meta).mic(role)
+    if k is None:
+        raise ValueError(f"the trial has no microphone feeding {role!r}: {archive.layout(trial.meta).describe()}")
+    return k
+
+
 def mic_windows(trial: archive.TrialArchive, mic: int) -> np.ndarray:
     """(T, 2048) int32: each step's window of raw words from microphone `mic`.
 
@@ -48,18 +60,26 @@ def mic_windows(trial: archive.TrialArchive, mic: int) -> np.ndarray:
     return pad[idx]
 
 
-def log_psd(windows: np.ndarray) -> np.ndarray:
-    """(T, 2048) raw windows -> (T, 512) float32 log10 PSD over the full band."""
+def log_psd(windows: np.ndarray, rate: int = archive.AUDIO_RATE) -> np.ndarray:
+    """(T, 2048) raw windows of a microphone at `rate` Hz -> (T, 512) float32 log10 PSD over its
+    full band (0 to Nyquist)."""
     n = len(windows)
     padded = np.pad(windows, ((0, -n % PSD_CHUNK), (0, 0)))
     chunks = np.split(padded, len(padded) // PSD_CHUNK)
-    out = [np.asarray(welch.welch_psd(c, bandwidth_khz=24.0, floor=welch.LOG_FLOOR)) for c in chunks]
+    out = [np.asarray(welch.welch_psd(c, bandwidth_khz=rate / 2000, floor=welch.LOG_FLOOR, rate=rate)) for c in chunks]
     return np.concatenate(out)[:n]
 
 
-def _psd(mic: int) -> Feature:
-    params = {"mic": archive.MIC_NAMES[mic], **welch.SCIPY_KWARGS, "log10_floor": welch.LOG_FLOOR, "version": 1}
-    return Feature(f"psd_{archive.MIC_NAMES[mic]}", params, False, True, lambda t: log_psd(mic_windows(t, mic)))
+def _trial_psd(trial: archive.TrialArchive, role: str) -> np.ndarray:
+    k = mic_index(trial, role)
+    return log_psd(mic_windows(trial, k), archive.layout(trial.meta).mics[k].rate)
+
+
+def _psd(role: str) -> Feature:
+    # SCIPY_KWARGS' fs is the hand's 48 kHz; another rig's microphone is analysed at its own rate,
+    # which its archive (and so the cache's archive fingerprint) records
+    params = {"mic": role, **welch.SCIPY_KWARGS, "log10_floor": welch.LOG_FLOOR, "version": 1}
+    return Feature(f"psd_{role}", params, False, True, lambda t: _trial_psd(t, role))
 
 
 def _proprio(trial: archive.TrialArchive) -> np.ndarray:
@@ -72,8 +92,8 @@ def feature_for(
     """The feature behind a model input (a `config.MODALITIES` name); `image_size` is the
     downsampled ("down") frame size, `flow_sparsify` the flow's reading of the paper's filter
     (`flow.SPARSIFY`: "flow" is the default reading's feature, "flow_<reading>" another's)."""
-    if modality in archive.MIC_NAMES:
-        return _psd(archive.MIC_NAMES.index(modality))
+    if modality in archive.MIC_ROLES:
+        return _psd(modality)
     if modality == "proprio":
         return Feature("proprio", {"version": 1}, False, True, _proprio)
     if modality == "flow":
@@ -96,7 +116,7 @@ def feature_named(name: str) -> Feature:
     not pickle)."""
     if m := re.fullmatch(r"image_(\d+)x(\d+)", name):
         return feature_for("image", "down", (int(m[1]), int(m[2])))
-    candidates = [feature_for(m) for m in (*archive.MIC_NAMES, "proprio")] + [feature_for("image", "full")]
+    candidates = [feature_for(m) for m in (*archive.MIC_ROLES, "proprio")] + [feature_for("image", "full")]
     candidates += [feature_for("flow", flow_sparsify=mode) for mode in flow.SPARSIFY]
     for f in candidates:
         if f.name == name:

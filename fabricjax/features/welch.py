@@ -15,8 +15,14 @@ gives the signed sample, divided by 2**17 it is in units of full scale (+-1). Fl
 to be in full-scale units already. The microphone's large DC offset is removed by the per-segment
 detrend.
 
+Another rig's microphone keeps the same 2048-sample window and segments at its own rate `rate`
+(the archive's `meta.streams.mics[k].rate`): bins then lie at k * rate / 1022 Hz, up to its Nyquist
+rate / 2, and the density is per Hz at that rate. Nothing is resampled.
+
 Bandwidth truncation keeps the bins whose centre frequency is <= the bandwidth:
-    n_bins = floor(bandwidth * nperseg / fs) + 1  ->  2.5 kHz: 54, 10 kHz: 213, 15 kHz: 320, 24 kHz: 512.
+    n_bins = floor(bandwidth * nperseg / fs) + 1  ->  2.5 kHz: 54, 10 kHz: 213, 15 kHz: 320, 24 kHz: 512
+at 48 kHz; a bandwidth at or above the microphone's Nyquist keeps all 512 bins (the cap: there is
+no content above Nyquist to keep).
 
 Accuracy against scipy in float64: <= 1e-5 relative in float32 on every bin holding >= 1e-4 of
 the window's power (FFT rounding scales with the window's energy, so no float32 FFT does better
@@ -51,13 +57,14 @@ SCIPY_KWARGS = dict(
 )
 
 
-def n_bins(bandwidth_khz: float) -> int:
-    """Bins kept when the PSD is truncated at `bandwidth_khz` (centre frequency <= bandwidth)."""
-    return min(N_BINS, math.floor(bandwidth_khz * 1000 * NPERSEG / AUDIO_RATE) + 1)
+def n_bins(bandwidth_khz: float, rate: int = AUDIO_RATE) -> int:
+    """Bins kept when the PSD of a microphone at `rate` Hz is truncated at `bandwidth_khz` (centre
+    frequency <= bandwidth), capped at its Nyquist (all bins)."""
+    return min(N_BINS, math.floor(bandwidth_khz * 1000 * NPERSEG / rate) + 1)
 
 
-def frequencies(bandwidth_khz: float = 24.0) -> np.ndarray:
-    return np.arange(n_bins(bandwidth_khz)) * AUDIO_RATE / NPERSEG
+def frequencies(bandwidth_khz: float = 24.0, rate: int = AUDIO_RATE) -> np.ndarray:
+    return np.arange(n_bins(bandwidth_khz, rate)) * rate / NPERSEG
 
 
 def _float():
@@ -77,15 +84,19 @@ def _segments(x: jax.Array) -> jax.Array:
 
 
 _HANN = 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(NPERSEG) / NPERSEG)  # float64, as scipy builds it
-# density scaling per bin: 1 / (fs * sum(w^2)), doubled except at DC and Nyquist (even nfft)
-_SCALE = np.where((np.arange(N_BINS) == 0) | (np.arange(N_BINS) == N_BINS - 1), 1.0, 2.0) / (AUDIO_RATE * np.sum(_HANN**2))
 
 
-@partial(jax.jit, static_argnames=("bandwidth_khz", "log", "floor"))
+def _scale(rate: int) -> np.ndarray:
+    """Density scaling per bin: 1 / (fs * sum(w^2)), doubled except at DC and Nyquist (even nfft)."""
+    return np.where((np.arange(N_BINS) == 0) | (np.arange(N_BINS) == N_BINS - 1), 1.0, 2.0) / (rate * np.sum(_HANN**2))
+
+
+@partial(jax.jit, static_argnames=("bandwidth_khz", "log", "floor", "rate"))
 def welch_psd(
-    windows: jax.Array, *, bandwidth_khz: float = 15.0, log: bool = True, floor: float = LOG_FLOOR
+    windows: jax.Array, *, bandwidth_khz: float = 15.0, log: bool = True, floor: float = LOG_FLOOR, rate: int = AUDIO_RATE
 ) -> jax.Array:
-    """(..., 2048) microphone windows -> (..., n_bins(bandwidth_khz)) PSD, or log10 of it.
+    """(..., 2048) windows of a microphone at `rate` Hz -> (..., n_bins(bandwidth_khz, rate)) PSD,
+    or log10 of it.
 
     Integer input is converted from SPH0645 words; float input is in full-scale units. Computes
     in float32, or float64 when x64 is enabled (int or float64 input). With `log`, values below
@@ -102,7 +113,7 @@ def welch_psd(
         x = _segments(windows)
         x = x - x.mean(axis=-1, keepdims=True)
     spec = jnp.fft.rfft(x * _HANN.astype(x.dtype), axis=-1)
-    k = n_bins(bandwidth_khz)
+    k = n_bins(bandwidth_khz, rate)
     spec = spec[..., :k]
-    psd = (spec.real**2 + spec.imag**2).mean(axis=-2) * _SCALE[:k].astype(x.dtype)
+    psd = (spec.real**2 + spec.imag**2).mean(axis=-2) * _scale(rate)[:k].astype(x.dtype)
     return jnp.log10(jnp.maximum(psd, floor)) if log else psd

@@ -10,6 +10,8 @@ paper's number and the difference. Internal audio is compared with internal + pa
 Wilcoxon signed-rank tests (per seed and per test sequence, see `runner.paired_tests`), and the
 proprioception-only and flow-only models' confusion matrices are drawn (results/ablation_confusion.png).
 The simulator is the same for every row: differences from the paper are findings, not tuning targets.
+On recorded data (`--data_dir`, only the rows the data supports, chosen with --rows) the rows are
+compared with each other: no paper column, no checklist of the paper's claims, the data's own classes.
 """
 
 from __future__ import annotations
@@ -107,6 +109,7 @@ def run(
 
     test = study.dataset.sets["test"]
     labels = test.labels["fabric"]
+    recorded = study.dataset.recorded
     base, compared = WILCOXON_PAIR
     tests = runner.paired_tests(trained[base], trained[compared], "test", labels) if base in trained and compared in trained else {}
     panels = [
@@ -114,7 +117,9 @@ def run(
         for n in CONFUSION_ROWS
         if n in trained
     ]
-    figure = plots.plot_confusions(documents.results_path(results) / "ablation_confusion.png", panels) if panels else None
+    figure = plots.plot_confusions(
+        documents.results_path(results) / "ablation_confusion.png", panels, class_names=study.dataset.classes if recorded else None
+    ) if panels else None
 
     doc = {
         **documents.header("ablation", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=study.train_s),
@@ -125,8 +130,7 @@ def run(
                 "modalities": list(r.modalities),
                 "display_name": display_name(r.name),
                 "fusion_norm": r.fusion_norm,
-                "paper_mean": r.paper_mean,
-                "paper_sd": r.paper_sd,
+                **({} if recorded else {"paper_mean": r.paper_mean, "paper_sd": r.paper_sd}),
                 **documents.row_doc(trained[r.name], ["test"]),
             }
             for r in chosen
@@ -135,14 +139,15 @@ def run(
         "wilcoxon": {
             "baseline": base,
             "compared": compared,
-            "paper_p": paper_tables.ABLATION_WILCOXON_P,
+            **({} if recorded else {"paper_p": paper_tables.ABLATION_WILCOXON_P}),
             **{k: documents.wilcoxon_doc(v) for k, v in tests.items()},
         }
         if tests
         else None,
         "confusion_png": str(figure) if figure else None,
     }
-    doc["findings"] = [f.to_json() for f in checklist({r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]})]
+    # the checklist holds the paper's claims: recorded data is not the paper's
+    doc["findings"] = [] if recorded else [f.to_json() for f in checklist({r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]})]
     documents.write_outputs(results, "ablation", markdown(doc), doc)
     return doc
 
@@ -186,24 +191,28 @@ def checklist(test: dict[str, np.ndarray]) -> list[findings.Finding]:
     return out
 
 
-def table(rows: Sequence[dict[str, Any]]) -> str:
-    """Our accuracy beside the paper's, with the difference, one line per row."""
+def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
+    """Our accuracy beside the paper's, with the difference, one line per row; on recorded data
+    each row beside the best row instead."""
+    means = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
+    best = max(m for m, _ in means)
     body = []
-    for r in rows:
-        mean, sd = stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"]))
+    for r, (mean, sd) in zip(rows, means):
         body.append([
             "TCN" if r["backbone"] == "tcn" else "Transformer",
             label(r["modalities"], r["backbone"], r.get("fusion_norm", "sequence_minmax")).removeprefix("TCN: "),
             f"{mean:.2f} ± {sd:.2f}",
-            f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}",
-            f"{mean - r['paper_mean']:+.2f}",
+            *([f"{mean - best:+.2f}"] if recorded else [f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}", f"{mean - r['paper_mean']:+.2f}"]),
             f"{r['wall_s']:.1f}",
         ])
-    header = ["Backbone", "Modalities", f"Test accuracy [%] (ours, {len(rows[0]['seeds'])} seeds)", "Paper [%]", "Ours − paper [pp]", "Train wall time [s]"]
-    return report.markdown_table(header, body)
+    accuracy = f"Test accuracy [%] ({'recorded data' if recorded else 'ours'}, {len(rows[0]['seeds'])} seeds)"
+    compared = ["Row − best row [pp]"] if recorded else ["Paper [%]", "Ours − paper [pp]"]
+    return report.markdown_table(["Backbone", "Modalities", accuracy, *compared, "Train wall time [s]"], body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
+    if documents.recorded(doc):
+        return _recorded_markdown(doc)
     lines = [
         "# Modality ablation (the paper's Table ablation_table)",
         "",
@@ -236,4 +245,23 @@ def markdown(doc: dict[str, Any]) -> str:
         "The simulator is the same for every row (never tuned per row): differences from the paper are findings.",
         "",
     ]
+    return "\n".join(lines)
+
+
+def _recorded_markdown(doc: dict[str, Any]) -> str:
+    """The table of a `--data_dir` run: recorded data, rows compared with each other."""
+    lines = [
+        "# Modality ablation on recorded data",
+        "",
+        documents.header_markdown(doc),
+        table(doc["rows"], recorded=True),
+        "Rows are compared with each other on the same recorded data and test trials.",
+        "",
+    ]
+    w = doc["wilcoxon"]
+    if w:
+        lines += [f"## Wilcoxon signed-rank: {w['compared']} against {w['baseline']}", "", f"- {w['per_seed']['describe']}",
+                  f"- {w['per_sample']['describe']}", ""]
+    if doc["confusion_png"]:
+        lines += ["Confusion matrices (proprioception only, optical flow only, where run): `ablation_confusion.png`.", ""]
     return "\n".join(lines)

@@ -14,6 +14,9 @@ Benchmarks (names for --only):
                  on a simulated trial replayed as fast as possible
     acquisition  the 50 Hz recording loop against the simulated devices: step times, deadline misses
                  (the acquisition package's benchmark, passed in by the command: `run(acquisition=...)`)
+    import       batch import (`acquisition.import_manifest`) of 1000 recorded trials of 6-8 s from a rig
+                 unlike the hand (one 2.2 kHz vibration channel, 7 joints, no camera); target <= 3 min on
+                 2 cores (passed in by the command like acquisition: `run(importer=...)`)
 
 Ours and the twin are timed in alternating rounds in this process (`benchmark.compare_with_torch`),
 so machine load hits both alike; ratios are ours / theirs for times (below 1: we are faster, the
@@ -40,7 +43,8 @@ from fabricjax.features import bench as feature_bench
 from fabricjax.features import welch
 from fabricjax.sim import calibration as sim_calibration
 
-BENCHMARKS = ("simulator", "welch", "extraction", "training", "inference", "streaming", "acquisition")
+BENCHMARKS = ("simulator", "welch", "extraction", "training", "inference", "streaming", "acquisition", "import")
+PASSED_IN = ("acquisition", "import")  # benchmarks of the acquisition package, which this library does not import
 
 
 @dataclasses.dataclass(frozen=True)
@@ -171,18 +175,22 @@ def run(
     command: str | None = None,
     out: Callable[[str], None] = print,
     acquisition: Callable[..., dict] | None = None,
+    importer: Callable[..., dict] | None = None,
 ) -> dict[str, Any]:
     """Run the chosen benchmarks (all by default) in order; write results/bench.json and bench.md.
 
-    `acquisition` is the acquisition package's benchmark of its recording loop
-    (`bench_acquisition(seconds=...)`, which this library does not import): without it the
-    "acquisition" entry is left out of the default set, and asking for it is an error."""
-    chosen = list(only) if only else [b for b in BENCHMARKS if b != "acquisition" or acquisition is not None]
+    `acquisition` and `importer` are the acquisition package's benchmarks of its recording loop
+    (`bench_acquisition(seconds=...)`) and of the batch import (`rig_bench.bench_import(trials=...)`),
+    which this library does not import: without one its entry is left out of the default set, and
+    asking for it is an error."""
+    given = {"acquisition": acquisition, "import": importer}
+    chosen = list(only) if only else [b for b in BENCHMARKS if b not in PASSED_IN or given[b] is not None]
     unknown = [b for b in chosen if b not in BENCHMARKS]
     if unknown:
         raise ValueError(f"unknown benchmarks {unknown}; choose from {BENCHMARKS}")
-    if "acquisition" in chosen and acquisition is None:
-        raise ValueError("the acquisition benchmark needs its function: run(..., acquisition=bench_acquisition)")
+    for b in PASSED_IN:
+        if b in chosen and given[b] is None:
+            raise ValueError(f"the {b} benchmark needs its function: run(..., acquisition=bench_acquisition, importer=bench_import)")
     twin, note = (None, None)
     if {"training", "inference"} & set(chosen):
         twin, note = _torch_twin()
@@ -205,6 +213,7 @@ def run(
         "inference": lambda: bench_inference(quick, workload, comparison()),
         "streaming": lambda: bench_streaming(quick, workload),
         "acquisition": lambda: acquisition(seconds=3.0 if quick else 10.0),
+        "import": lambda: importer(trials=100 if quick else 1000),
     }
     doc: dict[str, Any] = {"command": command, "machine": report.machine(), "quick": quick, "torch": _torch_version(twin), "benchmarks": {}}
     if note:
@@ -275,6 +284,12 @@ def markdown(doc: dict[str, Any]) -> str:
         rows.append([
             "acquisition loop, 50 Hz step p50 / p99", f"{a['p50_ms']:.1f} / {a['p99_ms']:.1f} ms",
             f"{a['missed_deadlines']} of {a['steps']} deadlines missed", "",
+        ])
+    if "import" in b:
+        i = b["import"]
+        rows.append([
+            f"batch import, {i['trials']} trials of {i['seconds_per_trial'][0]:g}-{i['seconds_per_trial'][1]:g} s ({i['rig']})",
+            f"{i['wall_s']:.0f} s ({i['ms_per_trial']:.0f} ms per trial)", f"target <= {i['target_s']:.0f} s", "",
         ])
     env = "".join(f"{k}={v} " for k, v in m.get("env", {}).items())
     head = f"Measured by `{env}{doc['command']}` on {m['cpu']} ({m['cores']} cores), JAX {m['jax']}" + (

@@ -44,11 +44,16 @@ def header_markdown(doc: dict[str, Any]) -> str:
     seeds = doc["seeds"]
     return "\n".join([
         command_markdown(doc["command"]),
-        f"- preset: {doc['preset']}; {d['source']} dataset `{d['folder']}`; sequences {d['sequences']}",
+        f"- preset: {doc['preset']}; " + (
+            f"recorded data `{d['folder']}` ({len(d['classes'])} classes, chance {100 / len(d['classes']):.1f} %); "
+            f"trials {d['trials']}; sequences {d['sequences']}" if d["source"] == "recorded"
+            else f"{d['source']} dataset `{d['folder']}`; sequences {d['sequences']}"
+        ),
         f"- seeds: {len(seeds)} ({seeds[0]}-{seeds[-1]}), mean ± SD (sample SD) over seeds",
         f"- machine: {m['cpu']} ({', '.join(m.get('vector_units') or ['vector units not recorded'])}), {m['cores']} cores, JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)",
         f"- time: training {doc['train_s']:.0f} s in all (per row below, compilation included); "
-        f"data apart from that: simulation {d['generate_s']:.0f} s, features and sequences {d['load_s']:.0f} s",
+        "data apart from that: " + ("" if d["source"] == "recorded" else f"simulation {d['generate_s']:.0f} s, ")
+        + f"features and sequences {d['load_s']:.0f} s",
         "",
     ])
 
@@ -86,7 +91,15 @@ def dataset_doc(ds: Dataset) -> dict[str, Any]:
         "generate_s": ds.generate_s,
         "load_s": ds.load_s,
         "sequences": {k: len(v) for k, v in ds.sets.items()},
+        "trials": {k: c["trials"] for k, c in ds.split_counts().items()},
+        "classes": list(ds.classes),
     }
+
+
+def recorded(doc: dict[str, Any]) -> bool:
+    """The results are of recorded data (`--data_dir`): compared row with row, never with the
+    paper's numbers or the simulator's."""
+    return doc["dataset"]["source"] == "recorded"
 
 
 def wilcoxon_doc(w: stats.WilcoxonResult) -> dict[str, Any]:

@@ -35,6 +35,23 @@ class Dataset:
     generate_s: float  # simulating missing archives (0 for recorded data or a finished dataset)
     load_s: float  # features (cached after the first run) and sequences
 
+    @property
+    def classes(self) -> tuple[str, ...]:
+        """The class names of the data's label space (every split has the same)."""
+        return next(iter(self.sets.values())).classes
+
+    @property
+    def n_classes(self) -> int:
+        return len(self.classes)
+
+    @property
+    def recorded(self) -> bool:
+        return self.source == "recorded"
+
+    def split_counts(self) -> dict[str, dict[str, int]]:
+        """Trials and sequences per split."""
+        return {k: {"trials": len(set(v.info["trial_key"].tolist())), "sequences": len(v)} for k, v in self.sets.items()}
+
 
 def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS) -> Dataset:
     """The splits a study evaluates as sequences of `config.modalities`, loaded once."""
@@ -48,7 +65,11 @@ def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Se
     sets = data.load_sequences(config, folder, workdir=workdir, split_names=split_names)
     t2 = time.perf_counter()
     logging.info("dataset %s (%s): %s", folder, source, {k: len(v) for k, v in sets.items()})
-    return Dataset(sets, Path(folder), source, t1 - t0, t2 - t1)
+    ds = Dataset(sets, Path(folder), source, t1 - t0, t2 - t1)
+    if ds.recorded:  # the user's own splits: say what each got
+        counts = ", ".join(f"{k} {c['trials']} trials / {c['sequences']} sequences" for k, c in ds.split_counts().items())
+        print(f"recorded data {folder} ({ds.n_classes} classes): {counts}")
+    return ds
 
 
 def sequence_key(config: Config) -> tuple:

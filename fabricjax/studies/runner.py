@@ -181,6 +181,8 @@ def train_rows(
     ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
     if check is not None:
         check(ds)
+    rows = [(name, dataclasses.replace(config, n_classes=ds.n_classes)) for name, config in rows]  # the data's classes
+    configs = [c for _, c in rows]
     if progress is None:
         progress = Progress(study, len(rows), [relative_cost(c) for c in configs])
     else:  # started before this load

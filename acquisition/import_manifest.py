@@ -1,0 +1,303 @@
+"""Import every trial a manifest lists, in one process pool with one progress bar:
+
+    python -m acquisition.import_manifest MANIFEST.csv --out=DIR [--rig=rig.toml | --map=mapping.toml]
+        [--labels=labels.csv] [--split=fraction:0.7,0.15,0.15 | --split=day] [--overwrite] [--workers=N]
+
+The manifest is a CSV with a header row, one row per trial (WORKSPACE.md, "Recordings from another
+rig"):
+
+    path        the trial: a folder (of the rig file's layout with --rig, else of the hand's:
+                internal.wav, external.wav, joints.csv, camera) or a ROS 2 bag (with --map)
+                relative to the manifest's folder
+    label       the trial's class by name (with --rig; e.g. "felt"), or the hand's fabric id
+    split       optional: train | val | test | cafe | holdout
+    day, trial, condition     optional (condition: lab | cafe, default lab; trial: default the
+                row's index among its label's rows)
+    stretchiness, roughness, thickness     optional property levels (ints), only where known
+
+The label map (name -> class) is `--labels` (a CSV with columns name, class) or, without it, the
+manifest's label names in sorted order as classes 0..K-1; it is written into every archive
+(meta.label_map), so the classes and the classifier's size come from the data, and nothing from
+our fabric catalog is stamped on a rig's recordings. Splits are the manifest's `split` column, or
+a rule: `--split=fraction:TRAIN,VAL,TEST` (per class, in trial order: the first fraction of its
+trials train, then val, then test) or `--split=day` (by day, as the preset's days: the hand's
+protocol). A rig's trials without a split or a day would never be used, so that is an error.
+
+Each row's archive goes to DIR under `archive.trial_filename`. A rerun resumes: an archive already
+imported from the same recording is kept; an existing archive from another recording is an error
+unless --overwrite. Per trial the existing importers do the work (`acquisition.rig.import_rig_folder`,
+`importing.import_folder`, `importing.import_bag`); manifest columns and joint columns that are not
+used are reported, never dropped silently.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import os
+import time
+from collections import Counter, defaultdict
+from pathlib import Path
+from typing import Any, Callable
+
+from absl import flags
+from tqdm import tqdm
+
+from acquisition import importing, rig as rig_mod
+from fabricjax import archive, cli, parallel
+from fabricjax.errors import UserError
+
+COLUMNS = ("path", "label", "split", "day", "trial", "condition", *archive.PROPERTY_NAMES)
+
+
+@dataclasses.dataclass(frozen=True)
+class Row:
+    line: int  # in the manifest, for errors
+    path: Path
+    label: str
+    split: str | None
+    day: int | None
+    trial: int | None
+    condition: str
+    properties: dict[str, int]
+
+
+class ManifestError(UserError):
+    def __init__(self, path, line: int | str, field: str, problem: str):
+        super().__init__(f"{path}: line {line}: {field}: {problem}")
+
+
+def _int(text: str, manifest, line: int, field: str) -> int | None:
+    if text.strip() == "":
+        return None
+    try:
+        return int(text)
+    except ValueError:
+        raise ManifestError(manifest, line, field, f"{text!r} is not an integer") from None
+
+
+def read_manifest(manifest: str | Path) -> tuple[list[Row], list[str]]:
+    """The rows, and the manifest's columns that are not used."""
+    manifest = Path(manifest)
+    if not manifest.is_file():
+        raise ManifestError(manifest, "-", "<file>", "no such manifest")
+    with open(manifest, newline="") as f:
+        reader = csv.DictReader(f)
+        header = [h.strip() for h in reader.fieldnames or []]
+        for col in ("path", "label"):
+            if col not in header:
+                raise ManifestError(manifest, 1, col, "column missing")
+        rows = []
+        for line, raw in enumerate(reader, start=2):
+            r = {k.strip(): (v or "").strip() for k, v in raw.items() if k is not None}
+            if not r["path"] or not r["label"]:
+                raise ManifestError(manifest, line, "path" if not r["path"] else "label", "empty")
+            split = r.get("split") or None
+            if split is not None and split not in archive.SPLITS:
+                raise ManifestError(manifest, line, "split", f"must be one of {archive.SPLITS}, got {split!r}")
+            condition = r.get("condition") or "lab"
+            if condition not in archive.CONDITIONS:
+                raise ManifestError(manifest, line, "condition", f"must be one of {archive.CONDITIONS}, got {condition!r}")
+            props = {p: v for p in archive.PROPERTY_NAMES if (v := _int(r.get(p, ""), manifest, line, p)) is not None}
+            rows.append(Row(line, (manifest.parent / r["path"]).resolve(), r["label"], split, _int(r.get("day", ""), manifest, line, "day"),
+                            _int(r.get("trial", ""), manifest, line, "trial"), condition, props))
+    if not rows:
+        raise ManifestError(manifest, 2, "<rows>", "the manifest lists no trials")
+    return rows, [h for h in header if h not in COLUMNS]
+
+
+def read_label_map(path: str | Path) -> dict[str, int]:
+    """A label map file: CSV with columns name, class (classes 0..K-1, each named)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ManifestError(path, "-", "<file>", "no such label map")
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        if not {"name", "class"} <= set(reader.fieldnames or []):
+            raise ManifestError(path, 1, "name, class", "columns missing")
+        out = {}
+        for line, r in enumerate(reader, start=2):
+            cls = _int(r["class"] or "", path, line, "class")
+            if cls is None or cls < 0:
+                raise ManifestError(path, line, "class", f"must be a class >= 0, got {r['class']!r}")
+            out[r["name"].strip()] = cls
+    if not out or set(out.values()) != set(range(max(out.values()) + 1)):
+        raise ManifestError(path, "-", "class", f"classes must be 0..K-1, each named; got {sorted(set(out.values()))}")
+    return out
+
+
+def parse_split_rule(rule: str | None) -> tuple[str, tuple[float, ...]] | None:
+    """None (the manifest's column), ("day", ()) or ("fraction", (train, val, test))."""
+    if rule is None:
+        return None
+    if rule == "day":
+        return ("day", ())
+    kind, _, rest = rule.partition(":")
+    try:
+        fractions = tuple(float(x) for x in rest.split(","))
+    except ValueError:
+        fractions = ()
+    if kind != "fraction" or len(fractions) != 3 or min(fractions) < 0 or abs(sum(fractions) - 1) > 1e-6:
+        raise UserError(f"--split={rule}: expected day or fraction:TRAIN,VAL,TEST with fractions summing to 1, e.g. fraction:0.7,0.15,0.15")
+    return ("fraction", fractions)
+
+
+def by_fraction(rows: list[Row], fractions: tuple[float, float, float]) -> list[str]:
+    """Per label, in (day, trial) order: the first `train` fraction train, then val, the rest test
+    (stratified by class, deterministic)."""
+    out = [""] * len(rows)
+    groups: dict[str, list[int]] = defaultdict(list)
+    for i, r in enumerate(rows):
+        groups[r.label].append(i)
+    for members in groups.values():
+        members.sort(key=lambda i: (rows[i].day if rows[i].day is not None else -1, rows[i].trial))
+        n = len(members)
+        n_train = round(fractions[0] * n)
+        n_val = round((fractions[0] + fractions[1]) * n) - n_train
+        for k, i in enumerate(members):
+            out[i] = "train" if k < n_train else "val" if k < n_train + n_val else "test"
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Job:
+    kind: str  # "rig" | "folder" | "bag"
+    row: Row
+    target: str  # archive path
+    meta_fields: dict[str, Any]  # rig: make_meta's trial fields; folder / bag: the importers' trial dict
+    split: str | None
+    rig: rig_mod.Rig | None
+    mapping: dict[str, Any] | None
+
+
+def _import_one(job: Job) -> None:
+    """One trial, by the importer for its kind, written atomically (a worker's job)."""
+    if job.kind == "rig":
+        result = rig_mod.import_rig_folder(job.row.path, job.rig, job.meta_fields)
+    else:
+        result = (importing.import_folder(job.row.path, job.meta_fields) if job.kind == "folder"
+                  else importing.import_bag(job.row.path, job.mapping, job.meta_fields))
+        if job.split is not None:
+            result.meta["split"] = job.split
+    archive.write_archive(job.target, result)
+
+
+def plan(rows: list[Row], out: Path, *, rig: rig_mod.Rig | None, mapping: dict[str, Any] | None, label_map: dict[str, int] | None,
+         splits: list[str | None], manifest) -> list[Job]:
+    """One job per row, with its archive's name; two rows giving one name are an error."""
+    kind = "rig" if rig is not None else "bag" if mapping is not None else "folder"
+    jobs, seen = [], {}
+    for r, split in zip(rows, splits):
+        if kind == "rig":
+            if r.label not in label_map:
+                raise ManifestError(manifest, r.line, "label", f"{r.label!r} is not in the label map (its names: {', '.join(sorted(label_map))})")
+            cls = label_map[r.label]
+            fields = dict(fabric_id=cls, label=cls, label_name=r.label, label_map=label_map, properties=r.properties,
+                          day=r.day, trial=r.trial, condition=r.condition, **({"split": split} if split else {}))
+            name = archive.trial_filename(fields)
+        else:
+            fid = _int(r.label, manifest, r.line, "label")
+            if r.day is None:
+                raise ManifestError(manifest, r.line, "day", "missing: the hand's importers need a day")
+            fields = {"fabric_id": fid, "day": r.day, "trial": r.trial, "condition": r.condition}
+            name = archive.trial_filename(fields)
+        if name in seen:
+            raise ManifestError(manifest, r.line, "trial", f"gives the archive {name}, as line {seen[name]} does (make label, day, trial unique)")
+        seen[name] = r.line
+        jobs.append(Job(kind, r, str(out / name), fields, split, rig, mapping))
+    return jobs
+
+
+def _resumable(job: Job, overwrite: bool) -> bool:
+    """True when the job's archive is already there from the same recording (nothing to do)."""
+    target = Path(job.target)
+    if overwrite or not target.exists():
+        return False
+    try:
+        meta, _ = archive.read_meta(target)
+    except archive.ArchiveError:
+        meta = {}
+    if meta.get("source", {}).get("path") == str(job.row.path) and meta.get("split") == job.split and meta.get("complete"):
+        return True
+    raise UserError(f"{target}: exists and was not imported from {job.row.path} as this row says; pass --overwrite to replace it")
+
+
+def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None, mapping: str | Path | None = None,
+        labels: str | Path | None = None, split: str | None = None, overwrite: bool = False, workers: int | None = None,
+        progress: bool = True, say: Callable[[str], None] = print) -> dict[str, Any]:
+    """Import every row of `manifest` into `out` (module docstring); returns a summary."""
+    t0 = time.perf_counter()
+    if rig is not None and mapping is not None:
+        raise UserError("give --rig (trial folders of another rig) or --map (ROS 2 bags), not both")
+    rows, ignored = read_manifest(manifest)
+    if ignored:
+        say(f"note: {manifest}: columns not used: {', '.join(ignored)} (used: {', '.join(COLUMNS)})")
+    counters: dict[str, int] = defaultdict(int)
+    rows = [dataclasses.replace(r, trial=r.trial if r.trial is not None else _next(counters, r.label)) for r in rows]
+    rule = parse_split_rule(split)
+    has_column = any(r.split for r in rows)
+    if rule is not None and has_column:
+        raise UserError(f"{manifest}: has a split column and --split={split} was given: choose one")
+    if rule is None and has_column and not all(r.split for r in rows):
+        r = next(r for r in rows if not r.split)
+        raise ManifestError(manifest, r.line, "split", "empty, while other rows give one (give every row a split, or none)")
+    splits = by_fraction(rows, rule[1]) if rule and rule[0] == "fraction" else [r.split for r in rows]
+    loaded_rig = rig_mod.load_rig(rig) if rig is not None else None
+    if loaded_rig is not None and not any(splits) and any(r.day is None for r in rows):
+        r = next(r for r in rows if r.day is None)
+        raise ManifestError(manifest, r.line, "split", "no split and no day: the trial would belong to no split "
+                            "(give a split column, --split=fraction:TRAIN,VAL,TEST, or days with --split=day)")
+    label_map = None
+    if loaded_rig is not None:
+        label_map = read_label_map(labels) if labels else {name: k for k, name in enumerate(sorted({r.label for r in rows}))}
+    elif labels:
+        raise UserError("--labels names classes of a rig's recordings (--rig); the hand's folders and bags are labelled by fabric id")
+    loaded_map = importing.load_mapping(mapping) if mapping is not None else None
+    out = Path(out)
+    jobs = plan(rows, out, rig=loaded_rig, mapping=loaded_map, label_map=label_map, splits=splits, manifest=manifest)
+    todo = [j for j in jobs if not _resumable(j, overwrite)]
+    out.mkdir(parents=True, exist_ok=True)
+    workers = max(1, min(workers or os.cpu_count() or 1, len(todo)))
+    with tqdm(total=len(todo), desc=f"import ({workers} processes)", unit="trial", disable=not progress) as bar:
+        parallel.run_jobs(_import_one, todo, workers, bar.update)
+    unused_columns = Counter()
+    steps = 0
+    for j in jobs:
+        meta, n = archive.read_meta(j.target)
+        steps += n
+        unused_columns.update(meta.get("import", {}).get("ignored_columns", []))
+    if unused_columns:
+        say(f"note: joint columns not named in the rig file, not imported: {', '.join(f'{c} ({k} trials)' for c, k in sorted(unused_columns.items()))}")
+    per_split = Counter(s or "by day" for s in splits)
+    summary = {"trials": len(jobs), "imported": len(todo), "resumed": len(jobs) - len(todo), "steps": steps,
+               "splits": dict(per_split), "classes": len(label_map) if label_map else None, "seconds": time.perf_counter() - t0, "out": str(out)}
+    say(f"{out}: {len(todo)} trials imported, {len(jobs) - len(todo)} already there (resumed); {steps} steps; "
+        f"splits {', '.join(f'{k} {v}' for k, v in sorted(per_split.items()))}" + (f"; {len(label_map)} classes" if label_map else "")
+        + f" ({summary['seconds']:.1f} s)")
+    return summary
+
+
+def _next(counters: dict[str, int], label: str) -> int:
+    counters[label] += 1
+    return counters[label] - 1
+
+
+FLAGS = flags.FLAGS
+
+
+def main(argv):
+    if len(argv) != 2:
+        raise UserError("give exactly one manifest: python -m acquisition.import_manifest MANIFEST.csv --out=DIR")
+    run(argv[1], FLAGS.out, rig=FLAGS.rig, mapping=FLAGS.map, labels=FLAGS.labels, split=FLAGS.split,
+        overwrite=FLAGS.overwrite, workers=FLAGS.workers)
+
+
+if __name__ == "__main__":
+    flags.DEFINE_string("out", None, "Folder to write the trial archives into.", required=True)
+    flags.DEFINE_string("rig", None, "Rig file (TOML): the streams of each trial folder (acquisition/rig.py).")
+    flags.DEFINE_string("map", None, "Mapping file (TOML) of ROS 2 bags (acquisition/import_bag.py).")
+    flags.DEFINE_string("labels", None, "Label map: CSV with columns name, class (default: the manifest's labels, sorted).")
+    flags.DEFINE_string("split", None, "Split rule when the manifest has no split column: fraction:TRAIN,VAL,TEST or day.")
+    flags.DEFINE_bool("overwrite", False, "Replace existing archives (default: keep those of the same recording, refuse others).")
+    flags.DEFINE_integer("workers", None, "Processes (default: one per core).", lower_bound=1)
+    cli.run(main)

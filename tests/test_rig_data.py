@@ -1,0 +1,93 @@
+"""Sequences from a rig unlike the hand (issue 26): the PSD at the microphone's own rate, the
+band capped at its Nyquist, rows checked against the streams the data has, the classes from the
+label map, and every trial not used said so."""
+
+import dataclasses
+import logging
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from fabricjax import archive, data
+from fabricjax.config import Config
+from fabricjax.features import welch
+from tests.helpers import tiny_dataset
+from tests.test_rig_archive import rig_archive, rig_streams
+
+
+def _config(**kw):
+    return Config.from_preset("smoke", **kw)
+
+
+def test_welch_at_another_rate_is_scipys():
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(3, archive.WINDOW))
+    ours = np.asarray(welch.welch_psd(x, bandwidth_khz=1.1, log=False, rate=2200))
+    _, ref = scipy.signal.welch(x, **{**welch.SCIPY_KWARGS, "fs": 2200})
+    np.testing.assert_allclose(ours, ref, rtol=1e-4)
+    assert welch.n_bins(1.1, 2200) == welch.n_bins(15.0, 2200) == welch.N_BINS  # capped at Nyquist
+    assert welch.n_bins(0.55, 2200) == 256 and welch.n_bins(15.0) == 320  # the hand's unchanged
+    assert welch.frequencies(24.0, 2200)[-1] == pytest.approx(1100.0)
+
+
+def _rig_dataset(folder, labels_splits, n_steps=60, streams=None):
+    for t, (label, split) in enumerate(labels_splits):
+        a = rig_archive(n_steps=n_steps, streams=streams, split=split)
+        a.meta.update(label=label, fabric_id=label, trial=t, label_name=["oak", "pine", "felt"][label])
+        archive.write_archive(folder / archive.trial_filename(a.meta), a)
+    return folder
+
+
+def test_rig_sequences_use_the_mics_rate_and_say_the_band_is_capped(tmp_path, caplog):
+    ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "train"), (2, "val"), (0, "test")])
+    with caplog.at_level(logging.WARNING):
+        sets = data.load_sequences(_config(modalities=("internal", "proprio")), ds, workdir=tmp_path / "ws", progress=False)
+    assert "above the internal microphone's Nyquist (1.1 kHz at 2200 Hz)" in caplog.text
+    assert sets["train"].inputs["internal"].shape[2] == welch.N_BINS  # the whole 0-1.1 kHz band
+    assert sets["train"].inputs["proprio"].shape[2] == 7 * 3
+    assert sets["train"].classes == ("oak", "pine", "felt") and sets["train"].rates == {"internal": 2200}
+    assert set(sets["test"].info["day"].tolist()) == {-1}
+    narrowed = data.narrow(sets, _config(modalities=("internal",), bandwidth_khz=0.55))
+    assert narrowed["train"].inputs["internal"].shape[2] == 256 and "proprio" not in narrowed["train"].inputs
+
+
+def test_a_row_needing_a_stream_the_data_lacks_lists_what_it_has(tmp_path):
+    ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "test")])
+    with pytest.raises(archive.ArchiveError) as e:
+        data.load_sequences(_config(modalities=("internal", "external")), ds, workdir=tmp_path / "ws", progress=False)
+    msg = str(e.value)
+    assert "\n" not in msg and "no external (palm mic)" in msg
+    assert "vibration (2200 Hz, feeds internal)" in msg and "7 joints" in msg and "no camera" in msg
+    assert not (tmp_path / "ws" / "features").exists() or not any((tmp_path / "ws" / "features").rglob("*.npz"))
+
+
+def test_mics_at_different_rates_are_refused_for_the_shared_encoder(tmp_path):
+    streams = rig_streams(mics=(("vibration", 2200, "internal"), ("room", 2200 * 2, "external")))
+    ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "test")], streams=streams)
+    with pytest.raises(Exception, match="different bin counts"):
+        data.load_sequences(_config(modalities=("internal", "external"), bandwidth_khz=1.0), ds, workdir=tmp_path / "ws", progress=False)
+
+
+def test_a_training_label_outside_the_classes_is_an_error(tmp_path):
+    ds = tiny_dataset(tmp_path / "ds", [(4, 1, 0, "lab"), (21, 1, 0, "lab"), (4, 3, 0, "lab")], n_steps=45)
+    with pytest.raises(archive.ArchiveError, match=r"fabric21_day1_trial00_lab\.npz: field 'meta.label': label 21 of a train trial is outside the 21 classes"):
+        data.load_sequences(_config(), ds, workdir=tmp_path / "ws", progress=False)
+
+
+def test_unused_trials_are_reported(tmp_path, caplog):
+    ds = tiny_dataset(tmp_path / "ds", [(4, 1, 0, "lab"), (4, 7, 0, "lab"), (4, 3, 0, "lab"), (22, 3, 0, "lab")], n_steps=45)
+    with caplog.at_level(logging.WARNING):
+        sets = data.load_sequences(_config(), ds, workdir=tmp_path / "ws", progress=False)
+    assert "1 trials belong to no split and are not used (days 7" in caplog.text
+    assert "1 test trials have labels outside the 21 classes (22)" in caplog.text
+    assert len(sets["test"]) > 0
+
+
+def test_label_maps_must_agree(tmp_path):
+    ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "test")])
+    other = rig_archive(split="train")
+    other.meta.update(label_map={"oak": 0, "pine": 1, "felt": 2, "silk": 3}, trial=9)
+    archive.write_archive(ds / archive.trial_filename(other.meta), other)
+    with pytest.raises(archive.ArchiveError, match="meta.label_map.*differs"):
+        data.load_sequences(_config(), ds, workdir=tmp_path / "ws", progress=False)
