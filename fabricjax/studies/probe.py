@@ -73,7 +73,7 @@ def summarise(x: np.ndarray) -> np.ndarray:
     """(S, N, ...) sequences -> (S, 2 D) float32: each of the D = prod(...) dimensions' mean over
     the N steps, then its standard deviation, converted in chunks so that a uint8 image set is
     never held as float32 whole."""
-    flat = x.reshape(x.shape[0], x.shape[1], -1)
+    flat = x.reshape(*x.shape[:2], int(np.prod(x.shape[2:])))
     d = flat.shape[2]
     out = np.empty((len(flat), 2 * d), np.float32)
     for i in range(0, len(flat), SUMMARY_CHUNK):
