@@ -72,9 +72,11 @@ PLAN = (Step("ablation", 5), Step("probe"), Step("bandwidth", 5), Step("noise", 
 # a 2-core AMD EPYC (JAX 0.10.2, CPU); the estimate scales them by seeds and rows. Default preset:
 # the ablation's quiet cached rerun (README), the others each study's command on 2026-11-23 while
 # test suites shared the cores (properties: its training and loading, without the simulation
-# that run also did), so they overestimate a quiet machine. Smoke preset: the tests' tiny config.
+# that run also did), so they overestimate a quiet machine. Probe: its command on 2026-11-24 while
+# a sweep and a test suite shared the cores, 528 s, plus ~170 s its first run spent on the cafe
+# split's features (the ablation computes the others). Smoke preset: the tests' tiny config.
 MEASURED_S = {
-    "default": {"ablation": 543.0, "bandwidth": 316.0, "noise": 471.0, "properties": 353.0, "latents": 26.0},
+    "default": {"ablation": 543.0, "probe": 700.0, "bandwidth": 316.0, "noise": 471.0, "properties": 353.0, "latents": 26.0},
     "smoke": {"ablation": 300.0, "probe": 30.0, "bandwidth": 60.0, "noise": 60.0, "properties": 35.0, "latents": 15.0},
 }
 # Simulating the default dataset and computing its features once, quiet 2-core machine (README).
