@@ -13,7 +13,7 @@ from scipy import stats as sps
 from fabricjax import data, paper_tables, sim, stats, train
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, documents, latents, noise, properties, reproduce, runner
+from fabricjax.studies import ablation, bandwidth, documents, latents, noise, probe, properties, reproduce, runner
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
 TINY = dict(epochs=1, width=16, n_layers=1)
@@ -102,6 +102,44 @@ def test_noise_tests_each_row_against_the_preceding_one(workdir, tmp_path):
     assert len(second["accuracy"]["cafe"]["fabric"]) == 2 and "test" in second["accuracy"]
     md = (tmp_path / "noise.md").read_text()
     assert "67.51 ± 5.05" in md and "< 0.0001" in md
+
+
+def test_probe_writes_its_table_for_the_ablation_rows_inputs(workdir, tmp_path):
+    rows = ["image", "proprio", "internal+external"]
+    doc = probe.run(rows=rows, **run_kwargs(workdir, tmp_path))
+    assert [r["name"] for r in doc["rows"]] == rows and doc["splits"] == ["train", "val", "test", "cafe"]
+    assert doc["dataset"]["source"] == "simulated" and doc["dataset"]["sequences"]["cafe"] > 0
+    for r in doc["rows"]:
+        assert set(r["accuracy"]) == {"train", "val", "test", "cafe"} and r["C"] in probe.C_GRID
+        assert all(0 <= a <= 1 for a in r["accuracy"].values())
+        assert len(r["predictions"]["test"]) == len(doc["samples"]["test"]["labels"]["fabric"])
+    image = doc["inputs"]["image"]  # the smoke preset's 60x80 frames: 14400 dims per step, reduced
+    assert image["step_dims"] == 60 * 80 * 3 and image["probe_dims"] <= probe.PCA_DIMS and 0 < image["explained_variance"] <= 1 + 1e-6
+    assert doc["inputs"]["proprio"]["probe_dims"] == 36 and doc["rows"][2]["probe_dims"] == 2 * 640
+    md = (tmp_path / "probe.md").read_text()
+    assert md.startswith("# Linear probe") and "command: `test`" in md and "| Minsound + palm mic | 1280 |" in md
+    assert json.loads((tmp_path / "probe.json").read_text())["rows"] == json.loads(json.dumps(doc["rows"]))
+
+
+def test_probe_command_reads_a_data_dir_and_writes_nothing_there(workdir, tmp_path):
+    """A folder of recordings outside the workspace (the smoke archives, hard-linked): its index goes
+    to the workspace, and nothing is written into it."""
+    simulated = sim.ensure_dataset("smoke", workdir, streams=("audio", "proprio", "images"), progress=False)
+    folder = tmp_path / "recordings"
+    folder.mkdir()
+    for archive in simulated.glob("*.npz"):
+        os.link(archive, folder / archive.name)
+    before = sorted((p.name, p.stat().st_mtime_ns) for p in folder.rglob("*"))
+    env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+    cmd = [sys.executable, "-m", "experiments.probe", "--preset=smoke", "--rows=proprio", f"--data_dir={folder}",
+           f"--workdir={workdir}", f"--results={tmp_path / 'results'}"]
+    out = subprocess.run(cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True, timeout=300)
+    results = tmp_path / "results"
+    assert out.stdout.strip().splitlines()[-1] == f"wrote {results / 'probe.json'}, {results / 'probe.md'}"
+    doc = json.loads((results / "probe.json").read_text())
+    assert doc["dataset"]["source"] == "recorded" and doc["dataset"]["folder"] == str(folder)
+    assert [r["name"] for r in doc["rows"]] == ["proprio"] and doc["command"].startswith("python -m experiments.probe --preset=smoke")
+    assert sorted((p.name, p.stat().st_mtime_ns) for p in folder.rglob("*")) == before  # only read
 
 
 @pytest.fixture(scope="module")
@@ -210,7 +248,7 @@ def test_ten_seed_floor_and_row_selection():
         runner.select_rows(paper_tables.ABLATION, ["audio"])
 
 
-@pytest.mark.parametrize("study, field", [(ablation, "modalities"), (ablation, "fusion_norm"), (noise, "modalities"), (properties, "exclude_fabrics")])
+@pytest.mark.parametrize("study, field", [(ablation, "modalities"), (ablation, "fusion_norm"), (noise, "modalities"), (properties, "exclude_fabrics"), (probe, "modalities")])
 def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp_path):
     """--set of a field the study sets per row would be silently ignored: it fails before any data is read."""
     with pytest.raises(UserError, match=f"sets {field} per row itself; choose"):
@@ -250,9 +288,10 @@ def test_camera_rows(workdir, tmp_path):
     assert np.isfinite([p["xy"] for p in out["points"]]).all()
 
 
-# The smallest plan that still has a study that depends on another (latents on properties); the
-# other studies' own runs are tested above.
-SMOKE_PLAN = (reproduce.Step("bandwidth", 1, ("2.5",)), reproduce.Step("properties", 1, ("minsound",)), reproduce.Step("latents"))
+# The smallest plan that still has a study that depends on another (latents on properties) and
+# one without seeds (the probe); the other studies' own runs are tested above.
+SMOKE_PLAN = (reproduce.Step("probe", rows=("proprio",)), reproduce.Step("bandwidth", 1, ("2.5",)), reproduce.Step("properties", 1, ("minsound",)),
+              reproduce.Step("latents"))
 
 
 def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_path):
@@ -264,18 +303,19 @@ def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_p
     text = (tmp_path / "REPORT.md").read_text()
     for s in SMOKE_PLAN:
         assert f"## {reproduce.TITLES[s.study]}" in text
-    assert text.count("Rerun alone: `python -m experiments.") == 3 and "`python -m experiments.bandwidth --seeds=1 --preset=smoke --rows=2.5" in text
+    assert text.count("Rerun alone: `python -m experiments.") == 4 and "`python -m experiments.bandwidth --seeds=1 --preset=smoke --rows=2.5" in text
+    assert "`python -m experiments.probe --preset=smoke --rows=proprio --set=" in text and "| – (deterministic) | – (not in the paper) |" in text
     assert "--checkpoint=" in text and "![bandwidth.png](bandwidth.png)" in text and "(latents.png)" in text
-    assert text.count("evaluated claims reproduced") == 3  # every study's checklist is in the report
+    assert text.count("evaluated claims reproduced") == 3  # every paper study's checklist is in the report (the probe has none)
     outputs = {p.name: p.stat().st_ino for p in tmp_path.iterdir() if p.name not in ("REPORT.md", "reproduce.json")}
-    assert {"bandwidth.md", "bandwidth.png", "properties.json", "latents.png", "latents.md"} <= set(outputs)
+    assert {"probe.md", "probe.json", "bandwidth.md", "bandwidth.png", "properties.json", "latents.png", "latents.md"} <= set(outputs)
 
     said.clear()
     second = reproduce.run(**kw)
     assert all(f"{s.study:<11} skip" in said[0] for s in SMOKE_PLAN) and "run   ~" not in said[0]
     assert second == first  # same keys, wall times and commands: nothing reran
     assert {p.name: p.stat().st_ino for p in tmp_path.iterdir() if p.name in outputs} == outputs  # nothing rewritten
-    assert "0 of 3 studies run by this call" in (tmp_path / "REPORT.md").read_text()
+    assert "0 of 4 studies run by this call" in (tmp_path / "REPORT.md").read_text()
     said.clear()
     reproduce.run(**{**kw, "plan": (reproduce.Step("latents"),)})  # alone: keyed on the manifest's property study
     assert "latents     skip" in said[0]

@@ -1,6 +1,7 @@
 """The paper's experiments as library functions; `experiments/` holds their thin command lines.
 
     ablation     modality ablation, 13 rows incl. TCN (Table ablation_table) + 9 step-LayerNorm variants
+    probe        a linear probe of each ablation row's inputs: what they carry before any model
     bandwidth    PSD bandwidth 2.5 / 10 / 15 / 24 kHz (Table bandwidth_classification)
     noise        cafe-noise test set, Wilcoxon against the preceding row (Table new_noise_results)
     properties   property heads on training and holdout fabrics (Table property_perception)

@@ -40,22 +40,32 @@ def header(study: str, *, command: str | None, preset: str, seeds: Sequence[int]
 
 def header_markdown(doc: dict[str, Any]) -> str:
     """Where the numbers come from: command, preset, data, machine, time."""
-    d, m = doc["dataset"], doc["machine"]
+    d = doc["dataset"]
     seeds = doc["seeds"]
     return "\n".join([
         command_markdown(doc["command"]),
-        f"- preset: {doc['preset']}; " + (
-            f"recorded data `{d['folder']}` ({len(d['classes'])} classes, chance {100 / len(d['classes']):.1f} %); "
-            f"trials {d['trials']}; sequences {d['sequences']}" if d["source"] == "recorded"
-            else f"{d['source']} dataset `{d['folder']}`; sequences {d['sequences']}"
-        ),
+        data_markdown(doc["preset"], d),
         f"- seeds: {len(seeds)} ({seeds[0]}-{seeds[-1]}), mean ± SD (sample SD) over seeds",
-        f"- machine: {m['cpu']} ({', '.join(m.get('vector_units') or ['vector units not recorded'])}), {m['cores']} cores, JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)",
+        machine_markdown(doc["machine"]),
         f"- time: training {doc['train_s']:.0f} s in all (per row below, compilation included); "
         "data apart from that: " + ("" if d["source"] == "recorded" else f"simulation {d['generate_s']:.0f} s, ")
         + f"features and sequences {d['load_s']:.0f} s",
         "",
     ])
+
+
+def data_markdown(preset: str, d: dict[str, Any]) -> str:
+    """The preset and the dataset (`dataset_doc`) a study read."""
+    if d["source"] == "recorded":
+        return (f"- preset: {preset}; recorded data `{d['folder']}` ({len(d['classes'])} classes, chance "
+                f"{100 / len(d['classes']):.1f} %); trials {d['trials']}; sequences {d['sequences']}")
+    return f"- preset: {preset}; {d['source']} dataset `{d['folder']}`; sequences {d['sequences']}"
+
+
+def machine_markdown(m: dict[str, Any]) -> str:
+    """The machine (`report.machine`) a study ran on."""
+    return (f"- machine: {m['cpu']} ({', '.join(m.get('vector_units') or ['vector units not recorded'])}), {m['cores']} cores, "
+            f"JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)")
 
 
 def command_markdown(command: str | None) -> str:

@@ -3,9 +3,10 @@
     python -m experiments.reproduce                      # default preset, into workspace/results/
     python -m experiments.reproduce --results=results    # regenerates the report published in the repository
 
-The plan (`PLAN`, data): the modality ablation (5 seeds), the PSD bandwidth (5), cafe noise (10,
-as the paper), property perception (5, saving its checkpoints) and the latent t-SNE from the
-property study's Minsound + Minsight checkpoint. The dataset is simulated once (or read from
+The plan (`PLAN`, data): the modality ablation (5 seeds), the linear probe of every ablation
+row's inputs (no seeds: deterministic, and cheap), the PSD bandwidth (5), cafe noise (10, as the
+paper), property perception (5, saving its checkpoints) and the latent t-SNE from the property
+study's Minsound + Minsight checkpoint. The dataset is simulated once (or read from
 `data_dir`), features and compiled programs are cached, checkpoints resume, so every study after
 the first pays only for its training.
 
@@ -17,7 +18,8 @@ and that study (and what depends on it) runs again. The manifest is rewritten af
 study, so an interrupted run picks up where it stopped.
 
 The report embeds each study's own Markdown (its table beside the paper's, its findings
-checklist, its Wilcoxon tests), links its figures, and adds a summary of every checklist, the
+checklist, its Wilcoxon tests), links its figures, sets the probe beside the ablation row by row
+(from both studies' JSON, `probe.beside_ablation`), and adds a summary of every checklist, the
 machine, the library versions, the code's fingerprint, each study's wall time and the exact
 command that reruns that study alone.
 """
@@ -38,11 +40,12 @@ import fabricjax
 from fabricjax import findings, paper_tables, presets, report, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, latents, noise, properties
+from fabricjax.studies import ablation, bandwidth, latents, noise, probe, properties
 
-STUDIES = {"ablation": ablation, "bandwidth": bandwidth, "noise": noise, "properties": properties, "latents": latents}
+STUDIES = {"ablation": ablation, "probe": probe, "bandwidth": bandwidth, "noise": noise, "properties": properties, "latents": latents}
 TITLES = {
     "ablation": "Modality ablation (Table ablation_table)",
+    "probe": "Linear probe of every ablation row's inputs (not in the paper)",
     "bandwidth": "PSD bandwidth (Table bandwidth_classification)",
     "noise": "Cafe noise (Table new_noise_results)",
     "properties": "Property perception (Table property_perception)",
@@ -59,20 +62,22 @@ class Step:
     """One study of the plan: its name (a key of `STUDIES`), seed count and rows (None: all)."""
 
     study: str
-    seeds: int | None = None  # None for the latents, which read the property study's checkpoint
+    seeds: int | None = None  # None for the probe (deterministic) and the latents (the property study's checkpoint)
     rows: tuple[str, ...] | None = None
 
 
-PLAN = (Step("ablation", 5), Step("bandwidth", 5), Step("noise", 10), Step("properties", 5), Step("latents"))
+PLAN = (Step("ablation", 5), Step("probe"), Step("bandwidth", 5), Step("noise", 10), Step("properties", 5), Step("latents"))
 
 # Wall time [s] of each study of `PLAN` with the data, features and compiled programs cached, on
 # a 2-core AMD EPYC (JAX 0.10.2, CPU); the estimate scales them by seeds and rows. Default preset:
 # the ablation's quiet cached rerun (README), the others each study's command on 2026-11-23 while
 # test suites shared the cores (properties: its training and loading, without the simulation
-# that run also did), so they overestimate a quiet machine. Smoke preset: the tests' tiny config.
+# that run also did), so they overestimate a quiet machine. Probe: its command on 2026-11-24 while
+# a sweep and a test suite shared the cores, 528 s, plus ~170 s its first run spent on the cafe
+# split's features (the ablation computes the others). Smoke preset: the tests' tiny config.
 MEASURED_S = {
-    "default": {"ablation": 543.0, "bandwidth": 316.0, "noise": 471.0, "properties": 353.0, "latents": 26.0},
-    "smoke": {"ablation": 300.0, "bandwidth": 60.0, "noise": 60.0, "properties": 35.0, "latents": 15.0},
+    "default": {"ablation": 543.0, "probe": 700.0, "bandwidth": 316.0, "noise": 471.0, "properties": 353.0, "latents": 26.0},
+    "smoke": {"ablation": 300.0, "probe": 30.0, "bandwidth": 60.0, "noise": 60.0, "properties": 35.0, "latents": 15.0},
 }
 # Simulating the default dataset and computing its features once, quiet 2-core machine (README).
 DATA_S = {"default": 400.0, "smoke": 20.0}
@@ -102,7 +107,7 @@ def command(step: Step, preset: str, overrides: Mapping[str, Any], results: Path
     if step.study == "latents":
         args.append(f"--checkpoint={checkpoint}")
     else:
-        args += [f"--seeds={step.seeds}", f"--preset={preset}"] + ([f"--rows={','.join(step.rows)}"] if step.rows else [])
+        args += [f"--seeds={step.seeds}"] * bool(step.seeds) + [f"--preset={preset}"] + ([f"--rows={','.join(step.rows)}"] if step.rows else [])
         args += [shlex.quote(f"--set={format_override(k, v)}") for k, v in sorted(overrides.items())]
     args += [f"--data_dir={data_dir}"] * bool(data_dir) + [f"--workdir={workdir}"] * bool(workdir) + [f"--results={results}"]
     return " ".join(args)
@@ -124,8 +129,8 @@ def _row_names(study: str) -> list[str]:
     """Every row of a training study's table (ablation rows are objects, the others tuples)."""
     if study == "bandwidth":
         return [bandwidth.row_name(k) for k in sorted(paper_tables.BANDWIDTH)]
-    if study == "ablation":
-        return [r.name for r in ablation.ROWS]
+    if study in ("ablation", "probe"):
+        return [r.name for r in STUDIES[study].ROWS]
     return [r[0] for r in STUDIES[study].ROWS]
 
 
@@ -210,7 +215,8 @@ def run(
         if step.study == "latents":
             latents.run(checkpoint, **kwargs)
         else:
-            STUDIES[step.study].run(n_seeds=step.seeds, preset=preset, rows=step.rows, overrides=overrides, **kwargs)
+            seeds = {"n_seeds": step.seeds} if step.seeds else {}
+            STUDIES[step.study].run(**seeds, preset=preset, rows=step.rows, overrides=overrides, **kwargs)
         wall = time.perf_counter() - t0
         manifest[step.study] = {
             "key": keys[step.study], "wall_s": wall, "command": cmd,
@@ -252,11 +258,14 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
     summary = []
     for study in studies:
         doc = docs[study] or {}
-        fs = [findings.Finding.from_json(f) for f in doc.get("findings", [])]
-        held, evaluated = findings.count(fs)
-        seeds = len(doc["seeds"]) if study != "latents" and doc.get("seeds") else "1 (best of the property study's)"
-        summary.append([f"[{TITLES[study]}](#{_anchor(TITLES[study])})", seeds,
-                        f"{held} of {evaluated}", _minutes(manifest[study]["wall_s"]), manifest[study]["finished"]])
+        if study == "probe":  # not a table of the paper: no claims to check, no seeds
+            seeds, claims = "– (deterministic)", "– (not in the paper)"
+        else:
+            held, evaluated = findings.count([findings.Finding.from_json(f) for f in doc.get("findings", [])])
+            seeds = len(doc["seeds"]) if study != "latents" and doc.get("seeds") else "1 (best of the property study's)"
+            claims = f"{held} of {evaluated}"
+        summary.append([f"[{TITLES[study]}](#{_anchor(TITLES[study])})", seeds, claims,
+                        _minutes(manifest[study]["wall_s"]), manifest[study]["finished"]])
     lines = [
         f"# Reproduction report: every table and figure of the paper on the {preset} preset",
         "",
@@ -288,6 +297,8 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
             _demote(md.read_text()) if md.exists() else f"({md.name} is missing)\n",
         ]
         lines += [f"![{f}]({f})\n" for f in FIGURES.get(study, ()) if (out / f).exists() and f"({f})" not in (md.read_text() if md.exists() else "")]
+        if study == "probe" and docs["probe"] and docs.get("ablation"):
+            lines += ["### The probe beside the model, row by row", "", probe.beside_ablation(docs["probe"], docs["ablation"])]
     return report.write_text(path, "\n".join(lines))
 
 

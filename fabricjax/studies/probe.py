@@ -1,0 +1,297 @@
+"""What each input carries before any model: a linear probe per row of the modality ablation.
+
+    python -m experiments.probe                               # default preset, every ablation row's inputs
+    python -m experiments.probe --rows=image,internal --data_dir=DIR
+
+A row of the ablation at chance can mean a sensor that carries nothing about the fabric or a
+model that cannot read it. This study answers the first half without any model of ours: for every
+distinct set of inputs among the ablation's rows (`ablation.ROWS`, so the two tables line up row
+by row; the TCN and fusion-variant rows share their inputs with a paper row and so its probe), a
+multinomial logistic regression (scikit-learn, lbfgs) reads each sequence's per-dimension mean
+and standard deviation over its N steps. Images are every frame's pixels as floats, optical flow
+its pooled cells, PSDs their bins, proprioception its 18 joint channels. Each input's summaries
+are standardised on the training split; an input with more than `PCA_ABOVE` dimensions per step
+(the camera's) is reduced to at most `PCA_DIMS` principal components fitted on the training
+split; a row's inputs' features are concatenated and the regularisation C is chosen on the
+validation split from `C_GRID`. The sequences and splits are the ablation's own
+(`loading.load_for_rows`: the simulated preset, or `data_dir`), plus the cafe split where the
+data has one. Deterministic: no seeds.
+
+REPORT.md puts this table beside the ablation's, row by row (`beside_ablation`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import warnings
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+from absl import logging
+from sklearn.decomposition import PCA
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.linear_model import LogisticRegression
+from sklearn.preprocessing import StandardScaler
+from threadpoolctl import threadpool_limits
+
+from fabricjax import archive, report, stats
+from fabricjax.config import MODALITY_NAMES, Config
+from fabricjax.studies import ablation, documents, loading, runner
+
+SPLITS = (*loading.TRAIN_VAL_TEST, "cafe")  # the ablation's, and the cafe condition where the data has it
+C_GRID = (0.001, 0.01, 0.1, 1.0, 10.0)  # inverse L2 strength, chosen by validation accuracy
+PCA_ABOVE = 400  # an input with more dimensions per step than this is reduced by PCA ...
+PCA_DIMS = 200  # ... to at most this many components of its summaries
+MAX_ITER = 1000  # lbfgs iterations per C (warm-started from the previous C); reported if reached
+# BLAS threads of the PCA and the fits: one. Measured on the 2-core host with other jobs running: a
+# 21-class fit on 5934 x 200 features took 29 s with OpenBLAS's 2 threads against 4.8 s with one.
+BLAS_THREADS = 1
+SUMMARY_CHUNK = 256  # sequences converted to float32 at a time (a default-preset image chunk: 184 MB)
+
+
+@dataclasses.dataclass(frozen=True)
+class Row:
+    """One probe: a distinct set of inputs among the ablation's rows, named like its first row."""
+
+    name: str
+    modalities: tuple[str, ...]
+
+
+def _rows() -> tuple[Row, ...]:
+    seen: dict[frozenset, Row] = {}
+    for r in ablation.ROWS:
+        seen.setdefault(frozenset(r.modalities), Row("+".join(r.modalities), r.modalities))
+    return tuple(seen.values())
+
+
+ROWS = _rows()
+
+
+def row_for(modalities: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> Mapping[str, Any] | None:
+    """The probe row (as JSON) that reads exactly `modalities`, in any order; None if not probed."""
+    return next((r for r in rows if set(r["modalities"]) == set(modalities)), None)
+
+
+def summarise(x: np.ndarray) -> np.ndarray:
+    """(S, N, ...) sequences -> (S, 2 D) float32: each of the D = prod(...) dimensions' mean over
+    the N steps, then its standard deviation, converted in chunks so that a uint8 image set is
+    never held as float32 whole."""
+    flat = x.reshape(*x.shape[:2], int(np.prod(x.shape[2:])))
+    d = flat.shape[2]
+    out = np.empty((len(flat), 2 * d), np.float32)
+    for i in range(0, len(flat), SUMMARY_CHUNK):
+        part = flat[i : i + SUMMARY_CHUNK].astype(np.float32)
+        out[i : i + SUMMARY_CHUNK, :d] = part.mean(axis=1)
+        out[i : i + SUMMARY_CHUNK, d:] = part.std(axis=1)
+    return out
+
+
+@dataclasses.dataclass
+class Input:
+    """One input's probe features on every split: its summaries standardised (every dimension on
+    the same scale for the L2 penalty), then PCA-reduced where the input is wide. The components
+    are divided by one common factor to a mean variance of 1, like a standardised input's
+    dimensions, so that in a fusion row a wide input's components are not cheaper to use than a
+    narrow input's dimensions, while within the input the leading components keep their larger
+    share (whitening each would weigh the trailing noise like the leading structure)."""
+
+    step_dims: int
+    summary_dims: int
+    features: dict[str, np.ndarray]
+    explained_variance: float | None  # fraction of the standardised summaries' variance the PCA keeps
+    seconds: float
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "step_dims": self.step_dims, "summary_dims": self.summary_dims,
+            "probe_dims": next(iter(self.features.values())).shape[1],
+            "explained_variance": self.explained_variance, "seconds": self.seconds,
+        }
+
+
+def prepare(sequences: Mapping[str, np.ndarray]) -> Input:
+    """An input's sequences per split (`sequences["train"]` fits the scaling and the PCA) -> `Input`."""
+    t0 = time.perf_counter()
+    train = sequences["train"]
+    step_dims = int(np.prod(train.shape[2:]))
+    summaries = {s: summarise(x) for s, x in sequences.items()}
+    scaler = StandardScaler().fit(summaries["train"])
+    features = {s: scaler.transform(v).astype(np.float32) for s, v in summaries.items()}
+    explained = None
+    if step_dims > PCA_ABOVE:
+        pca = PCA(n_components=min(PCA_DIMS, *features["train"].shape), random_state=0).fit(features["train"])
+        unit = np.sqrt(np.mean(pca.explained_variance_))  # one factor for all components: mean variance 1
+        features = {s: (pca.transform(v) / unit).astype(np.float32) for s, v in features.items()}
+        explained = float(pca.explained_variance_ratio_.sum())
+    return Input(step_dims, 2 * step_dims, features, explained, time.perf_counter() - t0)
+
+
+def fit(x: Mapping[str, np.ndarray], labels: Mapping[str, np.ndarray], c_grid: Sequence[float] = C_GRID) -> dict[str, Any]:
+    """Logistic regression on the features `x` of every split (fitted on `x["train"]`) for every
+    C of `c_grid`, ascending, each fit warm-started from the last; the chosen C is the one with
+    the best validation accuracy (the smallest on a tie). Returns every C's accuracy on every
+    split, the chosen C and its predictions on every split but train."""
+    model = LogisticRegression(solver="lbfgs", max_iter=MAX_ITER, warm_start=True)
+    per_c, predictions = [], []
+    for c in sorted(c_grid):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)  # reported below instead
+            model.set_params(C=c).fit(x["train"], labels["train"])
+        iterations = int(np.max(model.n_iter_))
+        predicted = {s: model.predict(v) for s, v in x.items()}
+        per_c.append({
+            "C": c, "iterations": iterations, "converged": iterations < MAX_ITER,
+            "accuracy": {s: float(np.mean(p == labels[s])) for s, p in predicted.items()},
+        })
+        predictions.append(predicted)
+    best = int(np.argmax([e["accuracy"]["val"] for e in per_c]))  # argmax: the first, i.e. the smallest C, on a tie
+    chosen = per_c[best]
+    return {
+        "C": chosen["C"], "converged": chosen["converged"], "accuracy": chosen["accuracy"], "per_c": per_c,
+        "predictions": {s: p.tolist() for s, p in predictions[best].items() if s != "train"},
+    }
+
+
+def run(
+    *,
+    preset: str = "default",
+    rows: Sequence[str] | None = None,
+    overrides: dict[str, Any] | None = None,
+    workdir=None,
+    data_dir=None,
+    results="results",
+    command: str | None = None,
+) -> dict[str, Any]:
+    """Probe the chosen rows' inputs (all by default) and write results/probe.{md,json}; returns the JSON."""
+    overrides = runner.check_overrides("probe", overrides, ("modalities",), "choose them with --rows")
+    chosen = runner.select_rows(ROWS, rows)
+    configs = [Config.from_preset(preset, **{**overrides, "modalities": r.modalities}) for r in chosen]
+    ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=SPLITS)
+    present = [s for s in SPLITS if len(ds.sets[s])]
+    for split in ("train", "val"):
+        if split not in present:
+            raise archive.ArchiveError(ds.folder, "<folder>", f"no {split} sequences (check days and conditions): the probe fits on train and chooses C on val")
+    labels = {s: ds.sets[s].labels["fabric"] for s in present}
+    if len(np.unique(labels["train"])) < 2:
+        raise archive.ArchiveError(ds.folder, "label", "the training split holds fewer than two fabrics: nothing to probe")
+
+    t0 = time.perf_counter()
+    with threadpool_limits(BLAS_THREADS):
+        inputs = {}
+        for m in loading.union_modalities(configs):
+            inputs[m] = prepare({s: ds.sets[s].inputs[m] for s in present})  # every row has the same bandwidth
+            logging.info("probe: %s summaries %s", m, inputs[m].to_json())
+        progress = runner.Progress("probe", len(chosen))
+        out_rows = [_probe_row(r, inputs, labels, present, progress) for r in chosen]
+
+    doc = {
+        "study": "probe",
+        "command": command,
+        "preset": preset,
+        "machine": report.machine(),
+        "dataset": documents.dataset_doc(ds),
+        "probe_s": time.perf_counter() - t0,
+        "method": {
+            "summaries": ["mean", "sd"], "pca_above_step_dims": PCA_ABOVE, "pca_dims": PCA_DIMS,
+            "c_grid": list(C_GRID), "solver": "lbfgs", "max_iter": MAX_ITER,
+        },
+        "splits": present,
+        "classes": sorted(np.unique(labels["train"]).tolist()),
+        "inputs": {m: i.to_json() for m, i in inputs.items()},
+        "rows": out_rows,
+        "samples": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
+    }
+    documents.write_outputs(results, "probe", markdown(doc), doc)
+    return doc
+
+
+def _probe_row(r: Row, inputs: Mapping[str, Input], labels, splits: Sequence[str], progress: runner.Progress) -> dict[str, Any]:
+    """Row `r`'s probe on its inputs' features, concatenated, as the JSON row."""
+    name = ablation.label(r.modalities, "attention")
+    progress.start(name)
+    t0 = time.perf_counter()
+    features = {s: np.concatenate([inputs[m].features[s] for m in r.modalities], axis=1) for s in splits}
+    result = fit(features, labels)
+    seconds = time.perf_counter() - t0
+    progress.finish(name, seconds, f"C={result['C']:g}, test {100 * result['accuracy'].get('test', np.nan):.1f} %")
+    return {
+        "name": r.name, "modalities": list(r.modalities), "display_name": name,
+        "probe_dims": int(features["train"].shape[1]), "wall_s": seconds, **result,
+    }
+
+
+def _pct(accuracy: Mapping[str, float], split: str) -> str:
+    return f"{100 * accuracy[split]:.2f}" if accuracy.get(split) is not None else "–"
+
+
+def table(doc: Mapping[str, Any]) -> str:
+    """One line per probe: its inputs, features, chosen C and accuracy on every split."""
+    body = [
+        [r["display_name"], r["probe_dims"], f"{r['C']:g}" + ("" if r["converged"] else " (not converged)"),
+         *[_pct(r["accuracy"], s) for s in SPLITS], f"{r['wall_s']:.1f}"]
+        for r in doc["rows"]
+    ]
+    header = ["Inputs", "Probe features", "C (by validation)", "Train [%]", "Validation [%]", "Test [%]", "Cafe [%]", "Fit time [s]"]
+    return report.markdown_table(header, body)
+
+
+def inputs_table(doc: Mapping[str, Any]) -> str:
+    body = [
+        [MODALITY_NAMES[m], i["step_dims"], i["summary_dims"],
+         f"{i['probe_dims']} (PCA, {100 * i['explained_variance']:.1f} % of the variance)" if i["explained_variance"] is not None else i["probe_dims"],
+         f"{i['seconds']:.1f}"]
+        for m, i in doc["inputs"].items()
+    ]
+    return report.markdown_table(["Input", "Dimensions per step", "Summary (mean, SD)", "Probe features", "Time [s]"], body)
+
+
+def markdown(doc: Mapping[str, Any]) -> str:
+    m = doc["method"]
+    return "\n".join([
+        "# Linear probe: what each input carries before any model",
+        "",
+        documents.command_markdown(doc["command"]),
+        documents.data_markdown(doc["preset"], doc["dataset"]),
+        documents.machine_markdown(doc["machine"]),
+        f"- time: probes {doc['probe_s']:.0f} s in all (summaries and PCA included); data apart from that: "
+        f"simulation {doc['dataset']['generate_s']:.0f} s, features and sequences {doc['dataset']['load_s']:.0f} s",
+        "",
+        "Logistic regression (scikit-learn, lbfgs, L2) on each sequence's per-dimension mean and SD over its steps, "
+        "standardised on the training split; "
+        f"inputs with more than {m['pca_above_step_dims']} dimensions per step reduced to at most {m['pca_dims']} principal "
+        f"components fitted on the training split; C from {', '.join(f'{c:g}' for c in m['c_grid'])} by validation accuracy. "
+        f"Chance: {100 / len(doc['classes']):.2f} % ({len(doc['classes'])} classes in the training split). "
+        "One probe per distinct set of inputs of the modality ablation; REPORT.md sets it beside the ablation's rows.",
+        "",
+        table(doc),
+        inputs_table(doc),
+    ])
+
+
+def beside_ablation(probe_doc: Mapping[str, Any], ablation_doc: Mapping[str, Any]) -> str:
+    """The ablation's rows in its order, each beside the probe of the same inputs: probe test
+    accuracy, the model's (mean ± SD over seeds) and model − probe; a line on how many rows reach
+    their probe, and a warning when the two ran on different data."""
+    body, reached = [], 0
+    for r in ablation_doc["rows"]:
+        p = row_for(r["modalities"], probe_doc["rows"])
+        test = 100 * np.asarray(r["accuracy"]["test"]["fabric"], np.float64)
+        mean, sd = stats.mean_sd(test)
+        probe_test = None if p is None or p["accuracy"].get("test") is None else 100 * p["accuracy"]["test"]
+        reached += probe_test is not None and mean >= probe_test
+        body.append([
+            r["display_name"], "–" if probe_test is None else f"{probe_test:.2f}", f"{mean:.2f} ± {sd:.2f}",
+            "–" if probe_test is None else f"{mean - probe_test:+.2f}",
+        ])
+    n_seeds = len(ablation_doc["seeds"])
+    compared = sum(b[1] != "–" for b in body)
+    lines = [
+        report.markdown_table(["Ablation row", "Linear probe, test [%]", f"Model, test [%] ({n_seeds} seeds)", "Model − probe [pp]"], body),
+        f"{reached} of {compared} rows at or above their probe's test accuracy (model: mean over seeds).",
+        "",
+    ]
+    a, p = ablation_doc["dataset"], probe_doc["dataset"]
+    if (ablation_doc["preset"], a["folder"]) != (probe_doc["preset"], p["folder"]):
+        lines += [f"**Not the same data**: ablation on {ablation_doc['preset']} `{a['folder']}`, probe on {probe_doc['preset']} `{p['folder']}`.", ""]
+    return "\n".join(lines)

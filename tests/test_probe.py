@@ -1,0 +1,120 @@
+"""The linear probe without a dataset: its summaries, a planted cue it must find and noise it must
+not, and its table beside the ablation's in REPORT.md (the study on the smoke preset, its
+command, --data_dir and reproduce are in test_studies.py)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from fabricjax.studies import ablation, probe, reproduce
+
+N_CLASSES, PER_CLASS, N_STEPS = 6, 60, 10
+SPLIT_SEEDS = {"train": 1, "val": 2, "test": 3}
+
+
+def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
+    assert [r.name for r in probe.ROWS] == [r.name for r in ablation.ROWS if not r.name.startswith(("tcn:", ablation.VARIANT))]
+    for r in ablation.ROWS:  # every ablation row, the TCN and fusion variants included, has its probe
+        assert probe.row_for(r.modalities, [{"modalities": list(p.modalities)} for p in probe.ROWS]) is not None
+
+
+def test_summaries_are_the_mean_and_sd_over_steps_of_every_dimension(monkeypatch):
+    monkeypatch.setattr(probe, "SUMMARY_CHUNK", 2)  # several chunks and a partial last one
+    rng = np.random.default_rng(0)
+    for x in (rng.integers(0, 256, (5, 4, 3, 2, 3), dtype=np.uint8), rng.normal(size=(5, 4, 2, 3, 2)).astype(np.float16)):
+        flat = x.reshape(5, 4, -1).astype(np.float64)
+        got = probe.summarise(x)
+        assert got.dtype == np.float32 and got.shape == (5, 2 * flat.shape[2])
+        np.testing.assert_allclose(got, np.concatenate([flat.mean(1), flat.std(1)], axis=1), rtol=1e-5, atol=1e-5)
+    assert probe.summarise(np.zeros((0, 4, 18), np.float32)).shape == (0, 36)  # an empty split
+    assert np.isfinite(probe.summarise(np.full((3, 1, 5), 7.0, np.float32))).all()  # one step: SD 0, finite
+
+
+def _stream(split: str, level: float) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Sequences of two inputs, noise plus a level `level` (in noise SDs) that class k plants in
+    its own place: proprioception-shaped (18 dims per step, class k in dimension k) and
+    image-shaped (12x16x3 = 576 dims, wider than PCA_ABOVE; class k brightens its own 4x4 patch)."""
+    rng = np.random.default_rng(SPLIT_SEEDS[split])
+    labels = np.repeat(np.arange(N_CLASSES), PER_CLASS)
+    idx = np.arange(len(labels))
+    proprio = rng.normal(size=(len(labels), N_STEPS, 18)).astype(np.float32)
+    proprio[idx, :, labels] += level
+    image = rng.normal(120.0, 30.0, size=(len(labels), N_STEPS, 12, 16, 3))
+    for k in range(N_CLASSES):
+        row, col = divmod(k, 4)
+        image[labels == k, :, 4 * row : 4 * row + 4, 4 * col : 4 * col + 4, :] += 30.0 * level
+    return {"proprio": proprio, "image": np.clip(image, 0, 255).astype(np.uint8)}, labels
+
+
+def _probe(level: float, modality: str) -> dict:
+    streams = {s: _stream(s, level) for s in SPLIT_SEEDS}
+    inp = probe.prepare({s: x[modality] for s, (x, _) in streams.items()})
+    assert (inp.explained_variance is not None) == (modality == "image")  # the image input goes through the PCA
+    return probe.fit(inp.features, {s: y for s, (_, y) in streams.items()})
+
+
+@pytest.mark.parametrize("modality", ["proprio", "image"])
+def test_a_planted_class_level_is_found_and_pure_noise_is_at_chance(modality):
+    chance = 1 / N_CLASSES
+    planted = _probe(1.0, modality)
+    assert planted["accuracy"]["test"] > 0.9, planted["accuracy"]
+    noise = _probe(0.0, modality)
+    n_test = N_CLASSES * PER_CLASS
+    assert abs(noise["accuracy"]["test"] - chance) < 5 * np.sqrt(chance * (1 - chance) / n_test), noise["accuracy"]
+    assert noise["accuracy"]["train"] > noise["accuracy"]["test"]  # the noise is fitted on train, and read nowhere else
+    assert [e["C"] for e in planted["per_c"]] == sorted(probe.C_GRID) and planted["C"] in probe.C_GRID
+    assert planted["accuracy"]["val"] == max(e["accuracy"]["val"] for e in planted["per_c"])
+    assert len(planted["predictions"]["test"]) == n_test and "train" not in planted["predictions"]
+
+
+def _ablation_row(name, test):
+    r = next(r for r in ablation.ROWS if r.name == name)
+    return {"name": name, "modalities": list(r.modalities), "display_name": ablation.display_name(name), "accuracy": {"test": {"fabric": test}}}
+
+
+PROBE_DOC = {
+    "preset": "default", "dataset": {"folder": "/w/datasets/default"},
+    "rows": [{"name": "internal", "modalities": ["internal"], "accuracy": {"test": 0.65}},
+             {"name": "internal+external+proprio", "modalities": ["internal", "external", "proprio"], "accuracy": {"test": 0.75}}],
+}
+ABLATION_DOC = {
+    "preset": "default", "dataset": {"folder": "/w/datasets/default"}, "seeds": [0, 1],
+    "rows": [_ablation_row("internal", [0.8, 0.9]), _ablation_row("proprio", [0.4, 0.4]),
+             _ablation_row("tcn:internal+external+proprio", [0.7, 0.7]),
+             _ablation_row(f"{ablation.VARIANT}:internal+external+proprio", [0.8, 0.8])],
+}
+
+
+def test_the_probe_sits_beside_every_ablation_row_with_the_difference():
+    lines = probe.beside_ablation(PROBE_DOC, ABLATION_DOC).splitlines()
+    assert lines[0] == "| Ablation row | Linear probe, test [%] | Model, test [%] (2 seeds) | Model − probe [pp] |"
+    assert lines[2] == "| Minsound | 65.00 | 85.00 ± 7.07 | +20.00 |"
+    assert lines[3] == "| proprioception | – | 40.00 ± 0.00 | – |"  # not probed in this run
+    assert lines[4] == "| TCN: Minsound + palm mic + proprioception | 75.00 | 70.00 ± 0.00 | -5.00 |"  # the TCN row, same inputs
+    assert lines[5] == "| Minsound + palm mic + proprioception (our step-LayerNorm fusion) | 75.00 | 80.00 ± 0.00 | +5.00 |"
+    text = "\n".join(lines)
+    assert "2 of 3 rows at or above their probe's test accuracy" in text and "Not the same data" not in text
+    other = {**PROBE_DOC, "preset": "smoke", "dataset": {"folder": "/w/datasets/smoke"}}
+    assert "**Not the same data**: ablation on default `/w/datasets/default`, probe on smoke" in probe.beside_ablation(other, ABLATION_DOC)
+
+
+def test_report_sets_the_probe_beside_the_ablation_from_their_json(tmp_path):
+    for study, doc in (("ablation", ABLATION_DOC), ("probe", PROBE_DOC)):
+        (tmp_path / f"{study}.json").write_text(json.dumps({**doc, "machine": {"cpu": "x", "cores": 2, "platform": "p", "python": "3", "jax_backend": "cpu", "devices": []}}))
+        (tmp_path / f"{study}.md").write_text(f"# {study}\n\n{study} table\n")
+    manifest = {s: {"wall_s": 60.0, "finished": "today", "command": f"python -m experiments.{s}"} for s in ("ablation", "probe")}
+    text = reproduce.write_report(tmp_path / "REPORT.md", manifest, "default", "c0de" * 16, "test", 1.0, 2).read_text()
+    assert text.index("## Modality ablation") < text.index("## Linear probe") < text.index("### The probe beside the model, row by row")
+    assert "| Minsound | 65.00 | 85.00 ± 7.07 | +20.00 |" in text
+    assert "| – (deterministic) | – (not in the paper) |" in text  # the summary line of the probe
+    (tmp_path / "ablation.json").unlink()
+    del manifest["ablation"]
+    assert "beside the model" not in reproduce.write_report(tmp_path / "REPORT.md", manifest, "default", "c0de" * 16, "test", 1.0, 1).read_text()
+
+
+def test_reproduce_runs_the_probe_without_seeds():
+    step = next(s for s in reproduce.PLAN if s.study == "probe")
+    assert step.seeds is None and reproduce.PLAN.index(step) == 1  # right after the ablation
+    assert reproduce.command(step, "default", {"epochs": 3}, "results") == "python -m experiments.probe --preset=default --set=epochs=3 --results=results"
+    assert reproduce.estimate_s(step, "default") is not None and reproduce.estimate_s(step, "smoke") is not None
