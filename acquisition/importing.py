@@ -226,15 +226,21 @@ def step_rate_of(frame_times: np.ndarray) -> tuple[float, str]:
     return (int(whole) if abs(rate - whole) <= 0.01 * rate else round(rate, 2)), f"median frame interval {interval * 1e3:.2f} ms"
 
 
+def read_toml(path: Path, what: str) -> dict[str, Any]:
+    """A TOML file (`what`: "mapping", "rig", ...) as a dict; a missing or malformed file is a
+    one-line error naming it."""
+    try:
+        return tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise RecordingImportError(path, "<file>", f"no such {what} file") from None
+    except tomllib.TOMLDecodeError as e:
+        raise RecordingImportError(path, "<file>", f"not valid TOML: {e}") from None
+
+
 def load_mapping(path: str | Path) -> dict[str, Any]:
     """The mapping file, checked for the keys `import_bag` needs."""
     path = Path(path)
-    try:
-        mapping = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise RecordingImportError(path, "<file>", "no such mapping file") from None
-    except tomllib.TOMLDecodeError as e:
-        raise RecordingImportError(path, "<file>", f"not valid TOML: {e}") from None
+    mapping = read_toml(path, "mapping")
     for key in ("camera.topic", "joints.topic", *(f"mics.{m}.topic" for m in archive.MIC_NAMES)):
         node: Any = mapping
         for part in key.split("."):

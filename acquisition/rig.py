@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -65,12 +64,7 @@ class Rig:
 def load_rig(path: str | Path) -> Rig:
     """The rig file, checked: a mistake is a one-line error naming the file and the key."""
     path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise RecordingImportError(path, "<file>", "no such rig file") from None
-    except tomllib.TOMLDecodeError as e:
-        raise RecordingImportError(path, "<file>", f"not valid TOML: {e}") from None
+    doc = importing.read_toml(path, "rig")
     known = {"steps", "mics", "joints", "camera"}
     if set(doc) - known:
         raise RecordingImportError(path, ", ".join(sorted(set(doc) - known)), f"unknown table (known: {', '.join(sorted(known))})")

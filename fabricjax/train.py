@@ -35,7 +35,7 @@ from flax import nnx
 from jax.sharding import Mesh
 
 from fabricjax import checkpoint, curves, sharding
-from fabricjax.config import Config
+from fabricjax.config import ROTATION_FILLS, Config
 from fabricjax.model import STANDARDISED, FabricNet, feature_shapes, head_sizes
 
 Augment = Callable[[jax.Array, dict[str, jax.Array]], dict[str, jax.Array]]
@@ -69,34 +69,33 @@ def make_optimizer(config: Config) -> optax.GradientTransformation:
     )
 
 
-def rotate_images(key: jax.Array, inputs: dict[str, jax.Array]) -> dict[str, jax.Array]:
-    """The paper's image augmentation: one rotation in [-90°, 90°] per sequence of `inputs["image"]`,
-    black outside the source frame.
+def _rotation(fill: str) -> Augment:
+    """The paper's image augmentation: one rotation in [-90°, 90°] per sequence of
+    `inputs["image"]`, with `fill` (config.ROTATION_FILLS) outside the source frame.
 
     The rotation lives with the image features (`fabricjax.features.images.rotate_batch`, a pure
     function of a key; it returns float frames on the 0-255 scale, which the image encoder takes
     like uint8); it is imported only when an image config's training step is traced.
     """
-    from fabricjax.features.images import rotate_batch
 
-    return {**inputs, "image": rotate_batch(key, inputs["image"])}
+    def rotate_images(key: jax.Array, inputs: dict[str, jax.Array]) -> dict[str, jax.Array]:
+        from fabricjax.features.images import rotate_batch
+
+        return {**inputs, "image": rotate_batch(key, inputs["image"], fill=fill)}
+
+    return rotate_images
 
 
-def rotate_images_mean_fill(key: jax.Array, inputs: dict[str, jax.Array]) -> dict[str, jax.Array]:
-    """`rotate_images` with each sequence's mean colour outside the source frame."""
-    from fabricjax.features.images import rotate_batch
-
-    return {**inputs, "image": rotate_batch(key, inputs["image"], fill="sequence_mean")}
+# One function object per fill: `_programs` caches compiled programs by their augmentation, so a
+# rerun of an image config (a resume, another seed set) reuses them.
+ROTATIONS: dict[str, Augment] = {fill: _rotation(fill) for fill in ROTATION_FILLS}
 
 
 def rotation_augment(config: Config) -> Augment | None:
-    """The rotation where it applies (image configs with `augment_rotation`), else None.
-
-    Always the same function object per fill: `_programs` caches compiled programs by their
-    augmentation, so a rerun of an image config (a resume, another seed set) reuses them."""
+    """The rotation where it applies (image configs with `augment_rotation`), else None."""
     if "image" not in config.modalities or not config.augment_rotation:
         return None
-    return rotate_images_mean_fill if config.rotation_fill == "sequence_mean" else rotate_images
+    return ROTATIONS[config.rotation_fill]
 
 
 def lr_decay(config: Config, step: jax.Array, total_steps: int) -> jax.Array:
