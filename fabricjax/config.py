@@ -34,8 +34,12 @@ LR_SCHEDULES = ("constant", "cosine")
 # The two readings of the paper's flow filter, "filter for the top 0.1 percentile according to
 # magnitude" (fabricjax/features/flow.py): keep the strongest 0.1 % of vectors, or drop them.
 FLOW_SPARSIFY = ("keep_top", "drop_top")
-# What a rotated Minsight frame shows where its source lies outside the frame (features/images.py).
-ROTATION_FILLS = ("zero", "sequence_mean")
+# What the image encoder's input is measured from (model.FabricNet.standardise): nothing (each colour
+# channel centred on its training mean, as the paper's pipeline reads the frame) or a reference frame,
+# the training split's mean frame per pixel, as Minsight's own force network reads the frame minus a
+# no-contact reference (Andrussow et al.; FACTS.md). The reference removes the LEDs' fixed colour
+# field, so the paper's rotation turns the shell's deformation and not the camera's own lighting.
+IMAGE_REFERENCES = ("none", "training_mean")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,8 +73,8 @@ class Config:
     lr_schedule: str = "constant"  # LR_SCHEDULES, after the warm-up
     warmup_steps: int = 100  # linear warm-up from 0: without it a few seeds collapse to chance early
     weight_decay: float = 1e-4
-    augment_rotation: bool = True
-    rotation_fill: str = "sequence_mean"  # ROTATION_FILLS; the paper does not say, and black leaves a turning edge
+    augment_rotation: bool = True  # the paper's image augmentation (features/images.py), applied to the model's input
+    image_reference: str = "training_mean"  # IMAGE_REFERENCES
     # training data selection: fabrics excluded from training (the property holdouts)
     exclude_fabrics: tuple[int, ...] = ()
 
@@ -88,8 +92,8 @@ class Config:
             raise ValueError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
         if self.flow_sparsify not in FLOW_SPARSIFY:
             raise ValueError(f"flow_sparsify must be one of {FLOW_SPARSIFY}, got {self.flow_sparsify!r}")
-        if self.rotation_fill not in ROTATION_FILLS:
-            raise ValueError(f"rotation_fill must be one of {ROTATION_FILLS}, got {self.rotation_fill!r}")
+        if self.image_reference not in IMAGE_REFERENCES:
+            raise ValueError(f"image_reference must be one of {IMAGE_REFERENCES}, got {self.image_reference!r}")
         if self.image_resolution not in ("down", "full"):
             raise ValueError(f"image_resolution must be 'down' or 'full', got {self.image_resolution!r}")
         if not (self.fabric_head or self.property_heads):

@@ -2,7 +2,8 @@
 
 Per-step encoders (one MLP shared by both microphones, an MLP for the joints, small CNNs for
 Minsight images and optical flow; joints, pixels and flow first standardised per channel with
-fixed training-split statistics) → concatenate → rescale every feature dimension to [0, 1] over
+fixed training-split statistics, Minsight frames measured from a reference frame and, in
+training, rotated by the paper's augmentation) → concatenate → rescale every feature dimension to [0, 1] over
 the sequence's time axis → Dense + learned position embedding → 3 pre-LayerNorm self-attention
 blocks or a TCN → mean over time → two linear layers (fabric class) whose last layer is replaced
 by one per property when property heads are on.
@@ -36,6 +37,16 @@ STANDARDISED = {"proprio": -1, "image": -1, "flow": 0}
 
 def standardised_channels(modality: str, step_shape: tuple[int, ...]) -> int:
     return step_shape[STANDARDISED[modality]]
+
+
+def per_position_shift(config: Config, modality: str) -> bool:
+    """Whether `modality`'s shift is a whole reference frame (one value per pixel and colour,
+    `config.image_reference`) rather than one value per channel."""
+    return modality == "image" and config.image_reference == "training_mean"
+
+
+def shift_shape(config: Config, modality: str, step_shape: tuple[int, ...]) -> tuple[int, ...]:
+    return tuple(step_shape) if per_position_shift(config, modality) else (standardised_channels(modality, step_shape),)
 
 
 def channel_shape(modality: str, ndim: int) -> tuple[int, ...]:
@@ -251,11 +262,16 @@ class FabricNet(nnx.Module):
         # and sparse flow (mostly exact zeros) must be centred and scaled before a handful of ReLU
         # channels, or most units start on one side of zero for every input and the rows never
         # leave chance. One (shift, scale) per joint value, colour channel or flow component.
+        # Minsight frames are read as the difference to a reference frame (`config.image_reference`,
+        # the training split's mean frame): without it the LEDs' fixed colour field dominates every
+        # frame, and under the paper's rotation it turns with the angle, a nuisance far larger than
+        # the deformation that tells fabrics apart (the image row stayed at chance in training).
         for m in STANDARDISED:
             if m in self.modalities:
                 n = standardised_channels(m, shapes[m])
-                setattr(self, f"{m}_shift", nnx.Param(jnp.zeros(n, jnp.float32)))
+                setattr(self, f"{m}_shift", nnx.Param(jnp.zeros(shift_shape(config, m, shapes[m]), jnp.float32)))
                 setattr(self, f"{m}_scale", nnx.Param(jnp.ones(n, jnp.float32)))
+        self.rotate_images = "image" in self.modalities and config.augment_rotation
         self.image = ConvEncoder(3, cnn, dtype=dtype, rngs=rngs) if "image" in self.modalities else None
         self.flow = ConvEncoder(2, cnn, dtype=dtype, rngs=rngs) if "flow" in self.modalities else None
         out = {"proprio": config.proprio_hidden[-1], "image": cnn[-1], "flow": cnn[-1]}
@@ -279,8 +295,11 @@ class FabricNet(nnx.Module):
         self.heads = nnx.Dict({k: nnx.Linear(width, n, rngs=rngs) for k, n in head_sizes(config).items()})
         self.dropout = nnx.Dropout(config.dropout)
 
-    def features(self, inputs: Mapping[str, jax.Array]) -> jax.Array:
-        """Per-step concatenated encoder outputs, normalised (config.fusion_norm): (B, N, D)."""
+    def features(self, inputs: Mapping[str, jax.Array], rngs: nnx.Rngs | None = None) -> jax.Array:
+        """Per-step concatenated encoder outputs, normalised (config.fusion_norm): (B, N, D).
+        In training (`rngs` given) image sequences are rotated by the paper's augmentation, one
+        angle per sequence from the "augment" stream, after standardisation: what turns is the
+        frame minus the reference, and 0 (no deformation) fills what the turn brings in."""
         parts = []
         for m in self.modalities:
             x = inputs[m]
@@ -289,6 +308,10 @@ class FabricNet(nnx.Module):
             if m in STANDARDISED:
                 x = self.standardise(m, x)
             if m == "image":
+                if self.rotate_images and rngs is not None:
+                    from fabricjax.features.images import rotate_batch  # traced only for image rows
+
+                    x = rotate_batch(rngs.augment(), x.reshape(b, n, *x.shape[1:])).reshape(x.shape).astype(self.dtype)
                 x = self.image(x)
             elif m == "flow":
                 x = self.flow(jnp.moveaxis(x, 1, -1))
@@ -304,11 +327,12 @@ class FabricNet(nnx.Module):
         """(x - shift) * scale per channel with the fixed training-split statistics, in the compute dtype."""
         shift, scale = jax.lax.stop_gradient((getattr(self, f"{modality}_shift")[...], getattr(self, f"{modality}_scale")[...]))
         shape = channel_shape(modality, x.ndim - 1)
-        return ((x.astype(jnp.float32) - shift.reshape(shape)) * scale.reshape(shape)).astype(self.dtype)
+        shift = shift.reshape(shape) if shift.ndim == 1 else shift  # a reference frame broadcasts as it is
+        return ((x.astype(jnp.float32) - shift) * scale.reshape(shape)).astype(self.dtype)
 
     def latents(self, inputs: Mapping[str, jax.Array], rngs: nnx.Rngs | None = None) -> jax.Array:
         """Backbone output per step (B, N, width): the representation the t-SNE analysis plots."""
-        x = self.features(inputs)
+        x = self.features(inputs, rngs)
         n = x.shape[1]
         if n > self.position.shape[0]:
             raise ValueError(f"sequence of {n} steps exceeds the model's {self.position.shape[0]}")
@@ -319,7 +343,8 @@ class FabricNet(nnx.Module):
         return self.norm(x)
 
     def __call__(self, inputs: Mapping[str, jax.Array], rngs: nnx.Rngs | None = None) -> dict[str, jax.Array]:
-        """Logits per head (float32). Dropout is on exactly when `rngs` is given (training)."""
+        """Logits per head (float32). Dropout and the image rotation are on exactly when `rngs` (streams
+        "dropout" and "augment") is given: training."""
         h = jax.nn.relu(self.hidden(self.latents(inputs, rngs).mean(axis=1)))
         h = self.dropout(h, deterministic=rngs is None, rngs=rngs)
         return {k: head(h).astype(jnp.float32) for k, head in self.heads.items()}

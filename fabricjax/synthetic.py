@@ -88,8 +88,11 @@ def planted_cue(
     per-step noise. The cue's strength is of the order of the noise, so a model must average over
     steps (or pixels) to read it.
 
-        image     a centred disc (radius a third of the frame's height) brightens with the cue,
-                  grey 96 -> 160 on pixel noise of SD 24: invariant to rotation about the centre
+        image     a centred disc (radius a third of the frame's height) brightens with the cue by
+                  0 -> 64 grey levels on pixel noise of SD 24, over a fixed colour field (each
+                  colour a ramp of 40 -> 200 across the frame in its own direction, the same for
+                  every sequence, as the shell's LEDs light a Minsight frame): the disc's
+                  brightening is invariant to rotation about the centre, the field is not
         flow      a uniform flow of 0 -> 1 px/frame along x over the frame's centre third, on
                   noise of SD 0.5 px/frame
         internal / external   log-PSD bins 4-11 rise by 0 -> 1 (decades) over noise of SD 0.5
@@ -108,7 +111,8 @@ def planted_cue(
             h, w = image_hw
             yy, xx = np.mgrid[:h, :w]
             disc = ((yy - (h - 1) / 2) ** 2 + (xx - (w - 1) / 2) ** 2 <= (h / 3) ** 2).astype(np.float32)
-            x = 96 + 64 * on[:, :, None, None, None] * disc[None, None, :, :, None]
+            field = np.stack([40 + 160 * ramp for ramp in (xx / (w - 1), yy / (h - 1), 1 - xx / (w - 1))], axis=-1)
+            x = field + 64 * on[:, :, None, None, None] * disc[None, None, :, :, None]
             x = x + rng.normal(0, 24, (n, steps, h, w, 3))
             inputs[m] = np.clip(x, 0, 255).astype(np.uint8)
         elif m == "flow":

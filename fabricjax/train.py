@@ -35,8 +35,8 @@ from flax import nnx
 from jax.sharding import Mesh
 
 from fabricjax import checkpoint, curves, sharding
-from fabricjax.config import ROTATION_FILLS, Config
-from fabricjax.model import STANDARDISED, FabricNet, feature_shapes, head_sizes
+from fabricjax.config import Config
+from fabricjax.model import STANDARDISED, FabricNet, feature_shapes, head_sizes, per_position_shift
 
 Augment = Callable[[jax.Array, dict[str, jax.Array]], dict[str, jax.Array]]
 
@@ -67,35 +67,6 @@ def make_optimizer(config: Config) -> optax.GradientTransformation:
         optax.clip_by_global_norm(1.0),
         optax.adamw(warmup_schedule(config), weight_decay=config.weight_decay, mask=decay_mask),
     )
-
-
-def _rotation(fill: str) -> Augment:
-    """The paper's image augmentation: one rotation in [-90°, 90°] per sequence of
-    `inputs["image"]`, with `fill` (config.ROTATION_FILLS) outside the source frame.
-
-    The rotation lives with the image features (`fabricjax.features.images.rotate_batch`, a pure
-    function of a key; it returns float frames on the 0-255 scale, which the image encoder takes
-    like uint8); it is imported only when an image config's training step is traced.
-    """
-
-    def rotate_images(key: jax.Array, inputs: dict[str, jax.Array]) -> dict[str, jax.Array]:
-        from fabricjax.features.images import rotate_batch
-
-        return {**inputs, "image": rotate_batch(key, inputs["image"], fill=fill)}
-
-    return rotate_images
-
-
-# One function object per fill: `_programs` caches compiled programs by their augmentation, so a
-# rerun of an image config (a resume, another seed set) reuses them.
-ROTATIONS: dict[str, Augment] = {fill: _rotation(fill) for fill in ROTATION_FILLS}
-
-
-def rotation_augment(config: Config) -> Augment | None:
-    """The rotation where it applies (image configs with `augment_rotation`), else None."""
-    if "image" not in config.modalities or not config.augment_rotation:
-        return None
-    return ROTATIONS[config.rotation_fill]
 
 
 def lr_decay(config: Config, step: jax.Array, total_steps: int) -> jax.Array:
@@ -152,8 +123,13 @@ class Trainer:
         }
 
     def logits(self, params, inputs, key=None) -> dict[str, jax.Array]:
+        """Logits per head; with `key` in training mode: dropout and the model's own augmentation
+        (the image rotation) on, each from its own stream."""
         model = nnx.merge(self.graphdef, params)
-        return model(inputs, rngs=None if key is None else nnx.Rngs(dropout=key))
+        if key is None:
+            return model(inputs)
+        k_augment, k_dropout = jax.random.split(key)
+        return model(inputs, rngs=nnx.Rngs(dropout=k_dropout, augment=k_augment))
 
     def loss(self, params, batch, key) -> tuple[jax.Array, dict[str, jax.Array]]:
         """(summed loss over heads, the logits): the logits give the epoch's training accuracy
@@ -179,10 +155,9 @@ class Trainer:
             params, opt_state = carry
             idx, k, scale = xs
             mb = sharding.split_samples(jax.tree.map(lambda a: a[idx], train), self.mesh)
-            k_aug, k_drop = jax.random.split(k)
             if self.augment is not None:
-                mb = {**mb, "inputs": self.augment(k_aug, mb["inputs"])}
-            (loss, logits), grads = jax.value_and_grad(self.loss, has_aux=True)(params, mb, k_drop)
+                mb = {**mb, "inputs": self.augment(jax.random.fold_in(k, 1), mb["inputs"])}
+            (loss, logits), grads = jax.value_and_grad(self.loss, has_aux=True)(params, mb, k)
             updates, opt_state = self.tx.update(grads, opt_state, params)
             updates = jax.tree.map(lambda u: u * scale, updates)  # AdamW's update is lr * (...): this scales lr
             return (optax.apply_updates(params, updates), opt_state), (loss, _correct_and_known(logits, mb["labels"]))
@@ -295,9 +270,10 @@ def unpad(metrics, sizes: Mapping[str, int]):
 
 def input_statistics(config: Config, train_set, chunk: int = 256) -> dict[str, jax.Array]:
     """The model's fixed input standardisation (`model.STANDARDISED`) from the (unpadded) training
-    split: per channel, the mean and 1 / SD over every sequence, step and position. Accumulated on
-    the host in float64 over chunks of sequences, so a camera split (GBs of uint8 frames) is never
-    copied whole into float32."""
+    split: per channel, the mean and 1 / SD over every sequence, step and position; for images
+    read from a reference frame (`model.per_position_shift`), the mean frame (per pixel and colour)
+    and 1 / SD of the frames' difference to it, per colour. Accumulated on the host in float64 over
+    chunks of sequences, so a camera split (GBs of uint8 frames) is never copied whole into float32."""
     inputs = train_set["inputs"] if isinstance(train_set, Mapping) else train_set.inputs
     stats = {}
     for m in config.modalities:
@@ -308,12 +284,17 @@ def input_statistics(config: Config, train_set, chunk: int = 256) -> dict[str, j
         total, total_sq, count = 0.0, 0.0, 0
         for start in range(0, max(len(x), 1), chunk):
             part = np.moveaxis(np.asarray(x[start : start + chunk], np.float64), axis, -1)
-            part = part.reshape(-1, part.shape[-1])
+            part = part.reshape(-1, *part.shape[2:])  # (sequences x steps, positions..., channels)
             total, total_sq, count = total + part.sum(0), total_sq + (part * part).sum(0), count + len(part)
-        mean = total / max(count, 1)
-        sd = np.sqrt(np.maximum(total_sq / max(count, 1) - mean * mean, 0.0))
+        mean, mean_sq = total / max(count, 1), total_sq / max(count, 1)  # per position and channel
+        positions = tuple(range(mean.ndim - 1))
+        if per_position_shift(config, m):  # spread about each position's own mean
+            variance = np.maximum(mean_sq - mean * mean, 0.0).mean(positions)
+        else:
+            mean, mean_sq = mean.mean(positions), mean_sq.mean(positions)
+            variance = np.maximum(mean_sq - mean * mean, 0.0)
         stats[f"{m}_shift"] = jnp.asarray(mean, jnp.float32)
-        stats[f"{m}_scale"] = jnp.asarray(1.0 / np.maximum(sd, 1e-6), jnp.float32)
+        stats[f"{m}_scale"] = jnp.asarray(1.0 / np.maximum(np.sqrt(variance), 1e-6), jnp.float32)
     return stats
 
 
@@ -329,11 +310,12 @@ def with_input_statistics(state: dict[str, Any], stats: Mapping[str, jax.Array])
 def make_train(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None = None, augment: Augment | None = None):
     """A pure `train(key) -> (state, metrics)` over data closed over on the device.
 
-    `augment` defaults to the paper's rotation for image configs (`rotation_augment`).
+    `augment(key, inputs)` transforms each training minibatch before the model (the image rotation
+    is the model's own, `model.FabricNet.features`).
     Use as `jax.jit(jax.vmap(train))(jax.random.split(key, n_seeds))`.
     """
     data, sizes = prepare(config, train_set, val_set, eval_sets)
-    trainer = make_trainer(config, feature_shapes(data["train"]["inputs"]), augment or rotation_augment(config))
+    trainer = make_trainer(config, feature_shapes(data["train"]["inputs"]), augment)
 
     stats = input_statistics(config, train_set)
 
@@ -412,7 +394,7 @@ def train_and_evaluate(
     data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals)
     mesh = sharding.training_mesh(len(seeds), config.batch_size)
     shapes = tuple(sorted(feature_shapes(data["train"]["inputs"]).items()))
-    trainer, init, run, finish = _programs(config, shapes, augment or rotation_augment(config), mesh)
+    trainer, init, run, finish = _programs(config, shapes, augment, mesh)
     per_seed = sharding.by_seed(mesh)
     data = jax.device_put(data, sharding.replicated(mesh))
     keys = jax.device_put(seed_keys(seeds), per_seed)

@@ -184,19 +184,3 @@ def test_downsample_to_60x80():
     small = images.downsample(frames)
     assert small.shape == (2, 60, 80, 3) and small.dtype == np.uint8
     assert np.all(small == 77)
-
-
-def test_mean_fill_rotation_is_the_zero_fill_rotation_plus_the_uncovered_share_of_the_mean():
-    """rotation_fill="sequence_mean": inside the source frame the pixels are the zero-fill rotation's;
-    outside, the sequence's mean colour (no black border); at 0 degrees nothing changes."""
-    frames = np.random.default_rng(3).integers(0, 256, (4, 10, 14, 3)).astype(np.uint8)
-    key = jax.random.key(7)
-    zero = np.asarray(images.rotate_sequence(key, frames))
-    mean = np.asarray(images.rotate_sequence(key, frames, fill="sequence_mean"))
-    colour = frames.astype(np.float64).mean(axis=(0, 1, 2))
-    ones = np.asarray(images.rotate_sequence(key, np.full((1, 10, 14, 1), 1, np.uint8)))[0, ..., 0]  # covered share
-    np.testing.assert_allclose(mean, zero + (1 - ones)[None, :, :, None] * colour, rtol=1e-5, atol=1e-3)
-    assert (ones < 0.5).any() and (mean[:, ones < 0.5] > 20).all()  # pixels outside the source are not black
-    np.testing.assert_allclose(np.asarray(images.rotate(frames, 0.0, colour.astype(np.float32))), frames, atol=1e-4)
-    with pytest.raises(ValueError, match="rotation fill"):
-        images.rotate_sequence(key, frames, fill="edge")

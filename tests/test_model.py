@@ -42,7 +42,7 @@ def test_all_modalities_forward_is_finite_at_any_flow_resolution(backbone):
         inputs = synthetic.data_set(cfg, 2, flow_hw=flow_hw, image_hw=(30, 40))["inputs"]
         inputs["flow"] = inputs["flow"].astype(np.float16)
         graphdef, params = nnx.split(build(cfg, inputs))
-        logits = jax.jit(lambda p, x: nnx.merge(graphdef, p)(x, rngs=nnx.Rngs(dropout=1)))(params, inputs)
+        logits = jax.jit(lambda p, x: nnx.merge(graphdef, p)(x, rngs=nnx.Rngs(dropout=1, augment=2)))(params, inputs)
         assert logits["fabric"].shape == (2, catalog.N_CLASSES)
         assert np.isfinite(logits["fabric"]).all()
 

@@ -5,12 +5,15 @@ import subprocess
 import sys
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
+from flax import nnx
 
 from fabricjax import sharding, synthetic, train
 from fabricjax.config import Config
-from fabricjax.train import make_train, make_trainer, rotation_augment, masked_accuracy, masked_cross_entropy, seed_keys, train_and_evaluate
+from fabricjax.model import FabricNet
+from fabricjax.train import make_train, make_trainer, masked_accuracy, masked_cross_entropy, seed_keys, train_and_evaluate
 
 TINY = Config(
     preset="smoke", modalities=("internal", "proprio"), width=16, n_layers=1, ffn=32,
@@ -147,30 +150,52 @@ def test_cpu_devices_are_chosen_before_jax_starts_and_an_explicit_count_wins():
         assert sharding.use_cpu_cores(3) == 1
 
 
-def test_image_training_applies_the_rotation_augmentation():
-    cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "epochs": 1, "property_heads": False})
-    calls, rotate = [], rotation_augment(cfg)
-
-    def augment(key, inputs):
-        calls.append(inputs["image"].shape)
-        return rotate(key, inputs)
-
+def test_image_rows_rotate_the_frame_minus_the_reference_in_training_only():
+    """The paper's rotation is the model's own augmentation, applied to its input (the frame minus
+    the reference frame): a frame equal to the reference is no deformation at every angle, other
+    frames turn in training and never in evaluation, and without `augment_rotation` nothing turns."""
+    cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "property_heads": False})
     sets = {k: synthetic.data_set(cfg, 8, image_hw=(12, 16), seed=i) for i, k in enumerate(["train", "val"])}
-    res = train_and_evaluate(cfg, sets, seeds=[0], augment=augment)
-    assert calls == [(8, 8, 12, 16, 3)]  # traced once, inside the training step, on each minibatch
+    stats = train.input_statistics(cfg, sets["train"])
+    assert stats["image_shift"].shape == (12, 16, 3) and stats["image_scale"].shape == (3,)
+    model = FabricNet(cfg, {"image": (12, 16, 3)}, rngs=nnx.Rngs(0))
+    for k, v in stats.items():
+        getattr(model, k).value = v
+    reference = jnp.broadcast_to(stats["image_shift"], (2, 4, 12, 16, 3))
+    np.testing.assert_allclose(model.standardise("image", reference.reshape(8, 12, 16, 3)), 0.0, atol=1e-4)
+    frames = jnp.asarray(sets["train"]["inputs"]["image"][:2])
+    seen = []
+
+    class Spy(nnx.Module):
+        def __init__(self, encoder):
+            self.encoder = encoder
+
+        def __call__(self, x):
+            seen.append(np.asarray(x))
+            return self.encoder(x)
+
+    model.image = Spy(model.image)
+    model.features({"image": frames})
+    model.features({"image": frames})
+    model.features({"image": frames}, nnx.Rngs(dropout=0, augment=1))
+    model.features({"image": reference}, nnx.Rngs(dropout=0, augment=2))
+    np.testing.assert_array_equal(seen[0], seen[1])  # evaluation: deterministic, unrotated
+    assert not np.allclose(seen[0], seen[2])  # training: rotated
+    np.testing.assert_allclose(seen[3], 0.0, atol=1e-4)  # the reference turned is still no deformation
+    still = FabricNet(dataclasses.replace(cfg, augment_rotation=False), {"image": (12, 16, 3)}, rngs=nnx.Rngs(0))
+    assert not still.rotate_images and model.rotate_images
+    res = train_and_evaluate(cfg, sets, seeds=[0])
     assert np.isfinite(res.metrics["train_loss"]).all()
 
 
 def test_image_configs_reuse_their_cached_programs():
-    """`rotation_augment` gives one function, so `_programs` (cached by config, shapes,
-    augmentation, mesh) finds an image config's compiled programs again."""
+    """`_programs` (cached by config, shapes, augmentation, mesh) finds an image config's compiled
+    programs again: a rerun (a resume, another seed set) compiles nothing."""
     cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "property_heads": False})
-    assert rotation_augment(cfg) is rotation_augment(cfg) is not None
-    assert rotation_augment(dataclasses.replace(cfg, augment_rotation=False)) is None
     mesh = sharding.training_mesh(1, cfg.batch_size)
     shapes = (("image", (12, 16, 3)),)
-    first = train._programs(cfg, shapes, rotation_augment(cfg), mesh)
-    assert train._programs(cfg, shapes, rotation_augment(cfg), mesh) is first
+    first = train._programs(cfg, shapes, None, mesh)
+    assert train._programs(cfg, shapes, None, mesh) is first
 
 
 def test_joint_standardisation_comes_from_the_training_split_and_stays_fixed():
@@ -189,7 +214,7 @@ def test_joint_standardisation_comes_from_the_training_split_and_stays_fixed():
 def test_pixel_and_flow_standardisation_is_per_channel_over_the_training_split():
     """Camera inputs are centred and scaled per colour channel / flow component (model.STANDARDISED),
     accumulated in chunks: equal to NumPy's statistics over every sequence, step and position."""
-    cfg = Config(preset="smoke", modalities=("image", "flow"), epochs=1, batch_size=8, seq_len=4)
+    cfg = Config(preset="smoke", modalities=("image", "flow"), epochs=1, batch_size=8, seq_len=4, image_reference="none")
     ds = synthetic.data_set(cfg, 10, image_hw=(6, 8), flow_hw=(3, 4))
     ds["inputs"]["flow"][:, :, 1] *= 1e-3  # a nearly silent component is scaled up, never divided by 0
     stats = train.input_statistics(cfg, ds, chunk=3)
@@ -200,3 +225,9 @@ def test_pixel_and_flow_standardisation_is_per_channel_over_the_training_split()
     np.testing.assert_allclose(stats["flow_shift"], flow.mean(0), rtol=1e-4, atol=1e-7)
     np.testing.assert_allclose(stats["flow_scale"], 1 / flow.std(0), rtol=1e-4)
     assert set(stats) == {"image_shift", "image_scale", "flow_shift", "flow_scale"}
+    # read from a reference frame: the training mean frame, and the spread about it per colour
+    ref = train.input_statistics(dataclasses.replace(cfg, image_reference="training_mean"), ds, chunk=3)
+    pixels = ds["inputs"]["image"].astype(np.float64).reshape(-1, 6, 8, 3)
+    np.testing.assert_allclose(ref["image_shift"], pixels.mean(0), rtol=1e-5)
+    np.testing.assert_allclose(ref["image_scale"], 1 / (pixels - pixels.mean(0)).reshape(-1, 3).std(0), rtol=1e-4)
+    np.testing.assert_allclose(ref["flow_scale"], stats["flow_scale"])

@@ -5,9 +5,10 @@ standard choice for shrinking, and what Minsight's own pipeline uses to resize),
 before caching. "full" rows use the archive's frames unchanged.
 
 The augmentation rotates every frame of a sequence by one angle drawn uniformly from
-[-90, 90] degrees, about the image centre, with bilinear interpolation and black or the
-sequence's mean colour outside the shell image (`config.ROTATION_FILLS`); it is a pure jitted
-function of a PRNG key, so it runs inside the training step.
+[-90, 90] degrees, about the image centre, with bilinear interpolation; it is a pure jitted
+function of a PRNG key, so it runs inside the training step. The model applies it to its own
+input, the frame minus the reference (`model.FabricNet.standardise`), where 0 means "no
+deformation": that is what a rotated frame shows where its source lies outside the frame.
 """
 
 from __future__ import annotations
@@ -19,8 +20,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fabricjax.config import ROTATION_FILLS
-
 DOWN_SIZE = (60, 80)
 MAX_DEGREES = 90.0
 
@@ -31,12 +30,12 @@ def downsample(frames: np.ndarray, size: tuple[int, int] = DOWN_SIZE) -> np.ndar
     return np.stack([cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA) for f in frames])
 
 
-def rotate(frames: jax.Array, degrees: jax.Array, fill: jax.Array | float = 0.0) -> jax.Array:
+def rotate(frames: jax.Array, degrees: jax.Array) -> jax.Array:
     """Rotate (N, H, W, C) frames by `degrees` about the centre; positive turns the picture
     clockwise as displayed (90 equals `np.rot90(frames, -1, axes=(1, 2))` on a square frame).
 
-    Returns float32; pixels whose source lies outside the frame take `fill` (a scalar or one
-    value per channel), blended bilinearly at the frame's edge.
+    Returns float32; pixels whose source lies outside the frame are 0, blended bilinearly at the
+    frame's edge.
     """
     n, h, w, c = frames.shape
     theta = jnp.deg2rad(degrees)
@@ -50,34 +49,22 @@ def rotate(frames: jax.Array, degrees: jax.Array, fill: jax.Array | float = 0.0)
     fy, fx = sy - y0, sx - x0
     x = frames.astype(jnp.float32)
     out = jnp.zeros((n, h, w, c), jnp.float32)
-    covered = jnp.zeros((h, w), jnp.float32)
     for dy, dx, weight in ((0, 0, (1 - fy) * (1 - fx)), (0, 1, (1 - fy) * fx), (1, 0, fy * (1 - fx)), (1, 1, fy * fx)):
         yi, xi = (y0 + dy).astype(jnp.int32), (x0 + dx).astype(jnp.int32)
         inside = (yi >= 0) & (yi < h) & (xi >= 0) & (xi < w)
         pixels = x[:, jnp.clip(yi, 0, h - 1), jnp.clip(xi, 0, w - 1)]
         out = out + jnp.where(inside, weight, 0.0)[None, :, :, None] * pixels
-        covered = covered + jnp.where(inside, weight, 0.0)
-    if isinstance(fill, float) and fill == 0.0:
-        return out
-    return out + (1.0 - covered)[None, :, :, None] * jnp.asarray(fill, jnp.float32)
+    return out
 
 
-@partial(jax.jit, static_argnames=("max_degrees", "fill"))
-def rotate_sequence(key: jax.Array, frames: jax.Array, max_degrees: float = MAX_DEGREES, fill: str = "zero") -> jax.Array:
-    """One random angle in [-max_degrees, max_degrees] for the whole (N, H, W, C) sequence.
-
-    `fill` (config.ROTATION_FILLS) is what the frame shows where its source lies outside it: black
-    ("zero"), or the sequence's own mean colour ("sequence_mean"), which leaves no artificial edge
-    at the border (a black border turns with the angle and, once the model centres the pixels, is
-    the strongest contrast in the frame)."""
-    if fill not in ROTATION_FILLS:
-        raise ValueError(f"rotation fill must be one of {ROTATION_FILLS}, got {fill!r}")
-    value = frames.astype(jnp.float32).mean(axis=(0, 1, 2)) if fill == "sequence_mean" else 0.0
-    return rotate(frames, jax.random.uniform(key, (), minval=-max_degrees, maxval=max_degrees), value)
+@partial(jax.jit, static_argnames=("max_degrees",))
+def rotate_sequence(key: jax.Array, frames: jax.Array, max_degrees: float = MAX_DEGREES) -> jax.Array:
+    """One random angle in [-max_degrees, max_degrees] for the whole (N, H, W, C) sequence."""
+    return rotate(frames, jax.random.uniform(key, (), minval=-max_degrees, maxval=max_degrees))
 
 
-@partial(jax.jit, static_argnames=("max_degrees", "fill"))
-def rotate_batch(key: jax.Array, frames: jax.Array, max_degrees: float = MAX_DEGREES, fill: str = "zero") -> jax.Array:
+@partial(jax.jit, static_argnames=("max_degrees",))
+def rotate_batch(key: jax.Array, frames: jax.Array, max_degrees: float = MAX_DEGREES) -> jax.Array:
     """(B, N, H, W, C): an independent angle per sequence, shared by its frames."""
     keys = jax.random.split(key, frames.shape[0])
-    return jax.vmap(lambda k, f: rotate_sequence(k, f, max_degrees, fill))(keys, frames)
+    return jax.vmap(lambda k, f: rotate_sequence(k, f, max_degrees))(keys, frames)
