@@ -249,3 +249,11 @@ def test_the_palm_path_carries_at_least_the_fingertips_own_radiation():
     f = np.geomspace(*cal.BAND_HZ, 400)
     own = np.abs(shell.contact_transfer(f) * air_path.fingertip_radiation(f))
     assert np.all(np.abs(air_path.contact_transfer(f)) > own)
+
+
+def test_the_microphone_gain_drifts_within_its_datasheet_bound():
+    """[ds] A MEMS microphone's sensitivity moves < 0.5 dB over its whole temperature range
+    (-40..85 C), so no recording day's gain lies further than 0.5 dB from nominal; it does drift."""
+    gains = np.array([nuisance(Scene(1, day=day, condition=c)).mic_gain_db for day in range(1, 201) for c in ("lab", "cafe")])
+    assert np.abs(gains).max() <= 0.5
+    assert gains.std() > 0.15

@@ -124,10 +124,11 @@ SOUND_SPEED_M_S = 343.0  # [phys] air at 20 C
 #   only ~2-7 dB above it at 4-8 kHz, so in the cafe the palm hears the room, not the rubbing,
 #   except a few dB of the roughest fabrics at 4-8 kHz. The paper reports no palm-side level of
 #   the rubbing; its palm-only row (59 % test) says the lab palm does hear many fabrics.
-# * Day or fabric: between lab days the palm's level moves by the room's +-1 dB (`LAB_DB_A`) and
-#   the microphone's gain bound (`GAIN_DRIFT_DB`), ~0.4 dB SD of day means; the rubbing moves it
-#   by ~3 dB SD between fabrics, so the fabric, not the day, explains most (~80-97 %) of the
-#   per-trial band-level variance below 11 kHz. Lab to cafe is the large change: +20 dB(A).
+# * Day or fabric: between lab days the palm's level moves with the room (drawn within `LAB_DB_A`
+#   [paper]: SD 0.6 dB) and the microphone's gain (within +-`GAIN_DRIFT_DB` [ds]: SD 0.3 dB); the
+#   rubbing moves it by ~3 dB(A) SD between classes, so the fabric, not the day, explains most
+#   (~80-98 %) of the palm's per-trial octave-band level variance in the lab, the day a few %.
+#   Lab to cafe is the large change: +20 dB(A), nearly all of it below 2 kHz.
 # [phys] Mass law for the shell wall: TL = 20 log10(f * m'') - 47 dB, m'' = 1100 kg/m^3 * 2 mm
 # (a thin shell: Minsight's must deform visibly at 0.1 N).
 SHELL_SURFACE_MASS_KG_M2 = 2.2
@@ -168,7 +169,9 @@ DC_OFFSET_COUNTS = -3000.0  # [ds, FACTS] large DC offset (of 2**17), drifting f
 # lowest Welch bins only, which the detrend removes.
 DC_DRIFT_COUNTS = 400.0
 # [ds] Sensitivity tolerance is +-1 dB between parts; a part's sensitivity moves far less with
-# temperature (MEMS microphones: < 0.5 dB over -40..85 C). 0.5 dB is the day-to-day bound.
+# temperature (MEMS microphones: < 0.5 dB over -40..85 C). 0.5 dB is the day-to-day bound: each
+# day's gain is drawn uniformly within +-GAIN_DRIFT_DB (a bound, not a standard deviation; a lab's
+# few degrees between days would move it by hundredths of a dB, so the bound is generous).
 GAIN_DRIFT_DB = 0.5
 JUNK_BITS = 6  # bits 13..8 of the 24-bit word carry no information; bits 7..0 are zero
 

@@ -159,6 +159,27 @@ def _power_sum(*levels: np.ndarray) -> np.ndarray:
     return 10 * np.log10(sum(10 ** (np.asarray(x) / 10) for x in levels))
 
 
+def summary(doc: dict[str, Any]) -> list[str]:
+    """What comes out, in three lines computed from the tables below."""
+    rub = np.array(list(doc["sources"]["rubbing at the palm"].values()))[:, -1]
+    rooms = {c: [r["levels"][-1] for r in doc["rooms"] if r["condition"] == c] for c in ("lab", "cafe")}
+    palm = doc["shares"]["palm"]
+    lab_sd = (cal.LAB_DB_A[1] - cal.LAB_DB_A[0]) / np.sqrt(12)
+    gain_sd = cal.GAIN_DRIFT_DB / np.sqrt(3)
+    return [
+        f"- rubbing at the palm: {rub.min():.0f}-{rub.max():.0f} dB(A) over the classes (median {np.median(rub):.0f}); "
+        f"room: lab {min(rooms['lab']):.1f}-{max(rooms['lab']):.1f} dB(A), cafe {min(rooms['cafe']):.1f}-{max(rooms['cafe']):.1f} "
+        f"dB(A); SPH0645 self-noise {doc['self_noise'][-1]:.1f} dB(A)",
+        f"- between lab days the room is drawn with an SD of {lab_sd:.2f} dB (uniform over `LAB_DB_A`) and each microphone's "
+        f"gain with {gain_sd:.2f} dB (uniform within +-`GAIN_DRIFT_DB`); these {len(doc['lab_days'])} days' means scatter by "
+        f"{palm['day SD [dB]'][-1]:.2f} dB(A) at the palm, the classes' by {palm['fabric SD [dB]'][-1]:.2f} dB(A)",
+        f"- share of the palm's per-trial dB(A) variance: fabric {100 * palm['fabric'][-1]:.1f} %, day {100 * palm['day'][-1]:.1f} %, "
+        f"fabric x day {100 * palm['fabric x day'][-1]:.1f} %, trial {100 * palm['trial'][-1]:.1f} %; per octave band: fabric "
+        f"{100 * min(palm['fabric'][:-1]):.0f}-{100 * max(palm['fabric'][:-1]):.0f} %, day "
+        f"{100 * min(palm['day'][:-1]):.1f}-{100 * max(palm['day'][:-1]):.1f} %",
+    ]
+
+
 def markdown(doc: dict[str, Any], command: str | None, machine: dict[str, Any], date: str) -> str:
     bands = doc["bands"]
     floor = np.array(doc["quantisation_floor"])
@@ -181,6 +202,8 @@ def markdown(doc: dict[str, Any], command: str | None, machine: dict[str, Any], 
         "`fabricjax/sim/calibration.py` (the palm's account is under \"air paths\"). Levels in dB SPL per octave band "
         "(ideal microphone, nominal sensitivity) and A-weighted over 50 Hz-15 kHz; bins up to 15 kHz, the model's PSDs. "
         "Levels within ~3 dB of the 18-bit quantisation floor (last row of the first table) are the floor, not the source.",
+        "",
+        *summary(doc),
         "",
         "## Each source alone at the palm (and the rubbing inside Minsound)",
         "",
