@@ -85,7 +85,13 @@ def quantisation_floor_db() -> np.ndarray:
 
 
 def trial_levels(scene: Scene, mic: int) -> np.ndarray:
-    return levels_db(rubbing_psd(simulate(scene), mic))
+    return scene_levels(scene, (mic,))[0]
+
+
+def scene_levels(scene: Scene, mics: Sequence[int]) -> np.ndarray:
+    """(len(mics), bands + 1) `levels_db` of one simulated scene's microphones."""
+    arch = simulate(scene)
+    return np.stack([levels_db(rubbing_psd(arch, mic)) for mic in mics])
 
 
 def variance_shares(x: np.ndarray) -> dict[str, np.ndarray]:
@@ -131,7 +137,7 @@ def measure(preset: str = "default", cycles: int = CYCLES, trials: int = TRIALS,
                 })
     self_noise = trial_levels(Scene(0, day=first, effects=("sph0645",), cycles=cycles, seed=seed), 1)
     full = np.array([
-        [[[trial_levels(Scene(fid, day=day, trial=t, effects=EFFECTS, cycles=cycles, seed=seed), mic) for mic in (0, 1)] for t in range(trials)] for day in lab_days]
+        [[scene_levels(Scene(fid, day=day, trial=t, effects=EFFECTS, cycles=cycles, seed=seed), (0, 1)) for t in range(trials)] for day in lab_days]
         for fid in classes
     ])  # (fabric, day, trial, mic, band)
     f = np.array([np.sqrt(lo * hi) for lo, hi in BANDS_HZ])
