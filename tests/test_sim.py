@@ -237,3 +237,23 @@ def test_minsight_patch_follows_the_stack_and_thin_cloth_shows_no_fold_ridge():
     assert silk[2] < 1e-3 < denim[2] < hat[2]
     assert silk[0] <= denim[0] < hat[0] and silk[1] < denim[1]
     assert minsight.patch_geometry(catalog.fabric(0), 1.0) == (1.0, 1.0, 0.0)
+
+
+def test_the_palm_path_carries_at_least_the_fingertips_own_radiation():
+    """[phys] The fingertip radiates the cavity's volume change as a pulsating sphere: -52 dB re the
+    cavity pressure at 1 kHz and 8 cm, +12 dB per octave while k a << 1. The lumped palm path
+    (fingertip and cloth) must be at least that loud across the microphone's band."""
+    own_db = 20 * np.log10(np.abs(air_path.fingertip_radiation(np.array([250.0, 500.0, 1000.0]))))
+    assert own_db[2] == pytest.approx(-51.8, abs=0.3)
+    assert np.diff(own_db) == pytest.approx([12.0, 12.0], abs=0.5)
+    f = np.geomspace(*cal.BAND_HZ, 400)
+    own = np.abs(shell.contact_transfer(f) * air_path.fingertip_radiation(f))
+    assert np.all(np.abs(air_path.contact_transfer(f)) > own)
+
+
+def test_the_microphone_gain_drifts_within_its_datasheet_bound():
+    """[ds] A MEMS microphone's sensitivity moves < 0.5 dB over its whole temperature range
+    (-40..85 C), so no recording day's gain lies further than 0.5 dB from nominal; it does drift."""
+    gains = np.array([nuisance(Scene(1, day=day, condition=c)).mic_gain_db for day in range(1, 201) for c in ("lab", "cafe")])
+    assert np.abs(gains).max() <= 0.5
+    assert gains.std() > 0.15

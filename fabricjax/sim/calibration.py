@@ -104,6 +104,31 @@ SLIP_SPREAD = 0.5  # log-normal sigma of click amplitudes
 # cloth near the ear is faintly audible, tens of dB SPL).
 AIR_PATH_GAIN_DB = -30.0  # palm pressure relative to cavity pressure, above the corner
 AIR_PATH_CORNER_HZ = 500.0
+PALM_DISTANCE_M = 0.08  # [paper, hw] contact to the microphone "on the side of the palm": ~8 cm
+SOUND_SPEED_M_S = 343.0  # [phys] air at 20 C
+# How loud the rubbing is at the palm against the room (measured on this simulator by
+# `python -m experiments.palm_physics`, results/palm_physics.md; magnitudes and sources here):
+# * The fingertip's own radiation is bounded by physics [phys]: incompressible silicone makes the
+#   shell's outer volume change equal the cavity's, so the fingertip is a pulsating sphere
+#   (`air_path.fingertip_radiation`): k^2 V / (4 pi r) = -52 dB re the cavity pressure at 1 kHz and
+#   8 cm, +12 dB per octave up to ka = 1 (3.6 kHz for the 30 mm shell). After the shell's wall mode
+#   it peaks near -33 dB at 3 kHz and is < -39 dB below 2 kHz or above 6 kHz. The lumped -30 dB
+#   path exceeds it at every frequency (tested): the rest is the rubbed cloth, whose radiation
+#   (a porous, floppy membrane far below its coincidence frequency) no source pins down better
+#   than the estimate above, so it stays.
+# * What comes out: rubbing ~6-42 dB(A) at the palm depending on the fabric (smooth satins and
+#   silks at the bottom, knits and piles at the top), against the lab room's 29-31 dB(A) [paper],
+#   the SPH0645's own 29 dB(A) [ds] and the servos' ~30 dB(A) (below): about half the classes rise
+#   above the rest in some octave band in the lab. The cafe room (47-55 dB(A) [paper]) is babble
+#   [FACTS: long-term speech spectrum, peak 125-250 Hz], ~20-30 dB above the lab below 1 kHz but
+#   only ~2-7 dB above it at 4-8 kHz, so in the cafe the palm hears the room, not the rubbing,
+#   except a few dB of the roughest fabrics at 4-8 kHz. The paper reports no palm-side level of
+#   the rubbing; its palm-only row (59 % test) says the lab palm does hear many fabrics.
+# * Day or fabric: between lab days the palm's level moves with the room (drawn within `LAB_DB_A`
+#   [paper]: SD 0.6 dB) and the microphone's gain (within +-`GAIN_DRIFT_DB` [ds]: SD 0.3 dB); the
+#   rubbing moves it by ~3 dB(A) SD between classes, so the fabric, not the day, explains most
+#   (~80-98 %) of the palm's per-trial octave-band level variance in the lab, the day a few %.
+#   Lab to cafe is the large change: +20 dB(A), nearly all of it below 2 kHz.
 # [phys] Mass law for the shell wall: TL = 20 log10(f * m'') - 47 dB, m'' = 1100 kg/m^3 * 2 mm
 # (a thin shell: Minsight's must deform visibly at 0.1 N).
 SHELL_SURFACE_MASS_KG_M2 = 2.2
@@ -144,7 +169,9 @@ DC_OFFSET_COUNTS = -3000.0  # [ds, FACTS] large DC offset (of 2**17), drifting f
 # lowest Welch bins only, which the detrend removes.
 DC_DRIFT_COUNTS = 400.0
 # [ds] Sensitivity tolerance is +-1 dB between parts; a part's sensitivity moves far less with
-# temperature (MEMS microphones: < 0.5 dB over -40..85 C). 0.5 dB is the day-to-day bound.
+# temperature (MEMS microphones: < 0.5 dB over -40..85 C). 0.5 dB is the day-to-day bound: each
+# day's gain is drawn uniformly within +-GAIN_DRIFT_DB (a bound, not a standard deviation; a lab's
+# few degrees between days would move it by hundredths of a dB, so the bound is generous).
 GAIN_DRIFT_DB = 0.5
 JUNK_BITS = 6  # bits 13..8 of the 24-bit word carry no information; bits 7..0 are zero
 

@@ -110,7 +110,7 @@ def nuisance(scene: Scene) -> Nuisance:
         level = float(np.clip(level + trial.uniform(-1.0, 1.0), lo, hi))
     return Nuisance(
         ambient_db_a=level,
-        mic_gain_db=day.normal(0.0, cal.GAIN_DRIFT_DB, 2),
+        mic_gain_db=day.uniform(-cal.GAIN_DRIFT_DB, cal.GAIN_DRIFT_DB, 2),
         mic_dc_counts=cal.DC_OFFSET_COUNTS + day.normal(0.0, cal.DC_DRIFT_COUNTS, 2),
         force_bias_n=float(day.normal(0.0, cal.FORCE_BIAS_N)),
         grasp_mm=float(trial.uniform(*cal.GRASP_RANGE_MM)),

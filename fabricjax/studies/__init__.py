@@ -12,6 +12,7 @@
     reproduce    every table and figure above in order, skipping those up to date, into REPORT.md
     cost         accuracy against touch time, training time and inference latency
     sweep        a recipe grid over Config fields on the ablation's rows, best point by mean validation
+    palm         the palm microphone by physics: source levels at the palm, day against fabric (no model)
 
 Each study's `run(...)` trains, writes results/<study>.md and .json and returns the JSON document.
 What they share, one concept per module:

@@ -1,0 +1,25 @@
+"""The palm microphone by physics: rubbing against the room, day against fabric (see fabricjax/studies/palm.py).
+
+    python -m experiments.palm_physics                     # default preset's classes and days, into workspace/results/
+    python -m experiments.palm_physics --results=results   # regenerates results/palm_physics.md
+
+Short scenes simulated in this process (nothing is written to the dataset folder); about a minute on one core.
+"""
+
+from absl import flags as absl_flags
+
+from experiments import flags
+from fabricjax.studies import palm
+
+flags.define_preset()
+CYCLES = absl_flags.DEFINE_integer("cycles", palm.CYCLES, "rubbing cycles per simulated scene")
+
+
+def main(argv):
+    del argv
+    loc = flags.location_kwargs()
+    palm.run(preset=absl_flags.FLAGS.preset, cycles=CYCLES.value, command=loc["command"], results=loc["results"])
+
+
+if __name__ == "__main__":
+    flags.run(main)
