@@ -9,8 +9,7 @@ normalisations (it survives the paper's per-sequence [0, 1] rescale) and the sta
 per-step LayerNorm (the rescale removes a steady level by design), on held-out sequences; image
 rows train with the paper's rotation augmentation, and the image cue (a centred disc brightening
 over a fixed, strongly coloured field, like the LEDs' light in a Minsight frame) is
-rotation-invariant, so the augmentation must not stop the model from learning it; with the
-frames read as they are (`image_reference="none"`), the turning colour field hides the disc.
+rotation-invariant, so the augmentation must not stop the model from learning it.
 """
 
 import numpy as np
