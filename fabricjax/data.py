@@ -33,7 +33,8 @@ and the classes are the trials' label map (`meta.label_map`, all trials alike) o
 the catalog's 21. A training or validation trial with a label outside the classes is an error;
 test and cafe trials outside them (the hand's new fabrics 21-23), trials no split uses (a day the
 preset does not know) and a bandwidth above a microphone's Nyquist (capped there) are reported
-as warnings, never silent.
+as warnings, and trials of splits not requested (a study reading train, val and test skips cafe
+and holdout) are counted in an info line: never silent.
 
 `SequenceSet` (S sequences; arrays are NumPy, sequences ordered by trial file name, then start):
 
@@ -64,6 +65,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections import Counter
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -148,8 +150,10 @@ def check_streams(index: archive.DatasetIndex, entries: Sequence[archive.IndexEn
     return {m: r for m, (r, _) in rates.items()}
 
 
-def _report_unused(entries: Sequence[archive.IndexEntry], roles, chosen_split, n_classes: int) -> None:
-    """Say which trials no split uses, and why (a day no split names, a label outside the classes)."""
+def _report_unused(entries: Sequence[archive.IndexEntry], roles, chosen_split, n_classes: int, wanted: Sequence[str]) -> None:
+    """Say which trials no split uses, and why (a day no split names, a label outside the classes),
+    and how many of the splits the caller does not read there are (a study reading train, val and
+    test skips cafe and holdout trials, which would otherwise vanish from a --data_dir run unsaid)."""
     no_role = [e for e, r in zip(entries, roles) if r is None]
     if no_role:
         days = sorted({str(e.meta["day"]) for e in no_role})
@@ -161,6 +165,10 @@ def _report_unused(entries: Sequence[archive.IndexEntry], roles, chosen_split, n
         logging.warning("%d %s trials have labels outside the %d classes (%s) and are not evaluated, e.g. %s",
                         len(outside), "/".join(sorted({r for e, r in zip(entries, roles) if e in outside})), n_classes,
                         ", ".join(map(str, labels)), outside[0].file)
+    skipped = Counter(s for e, r in zip(entries, roles) if (s := chosen_split(e, r)) not in (None, *wanted))
+    if skipped:
+        logging.info("%s are not used by this study (it reads %s)",
+                     ", ".join(f"{skipped[s]} trials on split {s}" for s in SPLITS if s in skipped), ", ".join(wanted))
 
 
 def first_step(meta: dict) -> int:
@@ -244,7 +252,7 @@ def load_sequences(
     n_classes = len(classes)
     roles = splits.assign_roles([e.meta for e in index.entries], presets.get(config.preset).dataset.splits)
     place = lambda e, r: split_of(e.meta, r, config.exclude_fabrics, n_classes)  # noqa: E731
-    _report_unused(index.entries, roles, place, n_classes)
+    _report_unused(index.entries, roles, place, n_classes, wanted)
     chosen = [(e, s) for e, r in zip(index.entries, roles) if (s := place(e, r)) in wanted]
     if not chosen:
         raise archive.ArchiveError(index.root, "<folder>", f"no trial belongs to the splits {list(wanted)} (check days, conditions and splits)")

@@ -84,6 +84,15 @@ def test_unused_trials_are_reported(tmp_path, caplog):
     assert len(sets["test"]) > 0
 
 
+def test_trials_of_splits_a_study_does_not_read_are_counted(tmp_path, caplog):
+    ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "train"), (2, "val"), (0, "test"), (1, "cafe"), (2, "cafe")])
+    with caplog.at_level(logging.INFO):
+        sets = data.load_sequences(_config(modalities=("proprio",)), ds, workdir=tmp_path / "ws", progress=False,
+                                   split_names=("train", "val", "test"))
+    assert "2 trials on split cafe are not used by this study (it reads train, val, test)" in caplog.text
+    assert set(sets) == {"train", "val", "test"}
+
+
 def test_label_maps_must_agree(tmp_path):
     ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "test")])
     other = rig_archive(split="train")
