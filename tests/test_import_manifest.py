@@ -22,6 +22,14 @@ def recordings(tmp_path_factory):
     return rig_bench.write_recordings(tmp_path_factory.mktemp("rig"), LABELS, 4, splits=SPLITS)
 
 
+@pytest.fixture(scope="module")
+def archives(recordings, tmp_path_factory):
+    """The recordings imported as they are (the studies below only read them)."""
+    out = tmp_path_factory.mktemp("imported") / "archives"
+    _run(recordings, out)
+    return out
+
+
 def _run(manifest, out, **kw):
     said = []
     summary = import_manifest.run(manifest, out, rig=manifest.parent / "rig.toml", workers=1, progress=False, say=said.append, **kw)
@@ -123,15 +131,13 @@ def test_rig_file_mistakes_are_named(tmp_path):
 
 
 @pytest.mark.slow  # ~1-3 min on 2 shared cores: import and two smoke-size rows
-def test_a_study_trains_and_tests_on_the_imported_rig(recordings, tmp_path, capsys):
+def test_a_study_trains_and_tests_on_the_imported_rig(archives, tmp_path, capsys):
     from fabricjax.studies import ablation
 
-    out = tmp_path / "archives"
-    _run(recordings, out)
-    names = sorted(p.name for p in out.iterdir())
+    names = sorted(p.name for p in archives.iterdir())
     doc = ablation.run(n_seeds=1, rows=["proprio", "internal+proprio"], preset="smoke", workdir=tmp_path / "ws",
-                       data_dir=out, results=tmp_path / "results", command="test")
-    assert sorted(p.name for p in out.iterdir()) == names  # the data folder is only read: no invented files
+                       data_dir=archives, results=tmp_path / "results", command="test")
+    assert sorted(p.name for p in archives.iterdir()) == names  # the data folder is only read: no invented files
     printed = capsys.readouterr().out
     assert "recorded data" in printed and "train 6 trials /" in printed and "val 3 trials /" in printed and "test 3 trials /" in printed
     assert doc["dataset"]["classes"] == LABELS and doc["dataset"]["trials"] == {"train": 6, "val": 3, "test": 3}
@@ -145,15 +151,26 @@ def test_a_study_trains_and_tests_on_the_imported_rig(recordings, tmp_path, caps
     assert "paper" not in md.lower() and "simulat" not in md.lower()
 
 
-def test_a_row_the_rig_cannot_feed_is_refused_before_training(recordings, tmp_path):
+def test_a_row_the_rig_cannot_feed_is_refused_before_training(archives, tmp_path):
     from fabricjax.studies import ablation
 
-    out = tmp_path / "archives"
-    _run(recordings, out)
     with pytest.raises(archive.ArchiveError, match=r"field 'audio': absent: the data has no external \(palm mic\).*it has microphones: vibration"):
-        ablation.run(n_seeds=1, rows=["internal+external"], preset="smoke", workdir=tmp_path / "ws", data_dir=out,
+        ablation.run(n_seeds=1, rows=["internal+external"], preset="smoke", workdir=tmp_path / "ws", data_dir=archives,
                      results=tmp_path / "results", command="test")
     assert not (tmp_path / "results" / "ablation.md").exists()
+
+
+def test_the_probe_reads_the_imported_rig(archives, tmp_path):
+    from fabricjax.studies import probe
+
+    doc = probe.run(rows=["proprio", "internal"], preset="smoke", workdir=tmp_path / "ws", data_dir=archives,
+                    results=tmp_path / "results", command="test")
+    assert doc["splits"] == ["train", "val", "test"] and doc["classes"] == [0, 1, 2]  # no cafe trials: no cafe column filled
+    assert doc["inputs"]["proprio"]["step_dims"] == 7 * 3 and doc["inputs"]["internal"]["step_dims"] == 512
+    assert all(0 <= r["accuracy"]["test"] <= 1 for r in doc["rows"])
+    md = (tmp_path / "results" / "probe.md").read_text()
+    assert "recorded data" in md and "chance 33.3 %" in md and "(recorded data, read as it is)" in md
+    assert "simulat" not in md.lower()
 
 
 def test_import_benchmark_entry_and_row(tmp_path):

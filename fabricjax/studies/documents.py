@@ -47,11 +47,17 @@ def header_markdown(doc: dict[str, Any]) -> str:
         data_markdown(doc["preset"], d),
         f"- seeds: {len(seeds)} ({seeds[0]}-{seeds[-1]}), mean ± SD (sample SD) over seeds",
         machine_markdown(doc["machine"]),
-        f"- time: training {doc['train_s']:.0f} s in all (per row below, compilation included); "
-        "data apart from that: " + ("" if d["source"] == "recorded" else f"simulation {d['generate_s']:.0f} s, ")
-        + f"features and sequences {d['load_s']:.0f} s",
+        f"- time: training {doc['train_s']:.0f} s in all (per row below, compilation included); {data_time_markdown(d)}",
         "",
     ])
+
+
+def data_time_markdown(d: dict[str, Any]) -> str:
+    """The data's share of a study's time (`dataset_doc`): recorded data is read, never simulated."""
+    load = f"features and sequences {d['load_s']:.0f} s"
+    if d["source"] == "recorded":
+        return f"data apart from that: {load} (recorded data, read as it is)"
+    return f"data apart from that: simulation {d['generate_s']:.0f} s, {load}"
 
 
 def data_markdown(preset: str, d: dict[str, Any]) -> str:

@@ -254,8 +254,7 @@ def markdown(doc: Mapping[str, Any]) -> str:
         documents.command_markdown(doc["command"]),
         documents.data_markdown(doc["preset"], doc["dataset"]),
         documents.machine_markdown(doc["machine"]),
-        f"- time: probes {doc['probe_s']:.0f} s in all (summaries and PCA included); data apart from that: "
-        f"simulation {doc['dataset']['generate_s']:.0f} s, features and sequences {doc['dataset']['load_s']:.0f} s",
+        f"- time: probes {doc['probe_s']:.0f} s in all (summaries and PCA included); {documents.data_time_markdown(doc['dataset'])}",
         "",
         "Logistic regression (scikit-learn, lbfgs, L2) on each sequence's per-dimension mean and SD over its steps, "
         "standardised on the training split; "
