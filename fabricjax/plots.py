@@ -120,8 +120,8 @@ def _seed_dots(ax, x: float, values: np.ndarray, colour: str, spread: float) -> 
 
 def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[Sequence[np.ndarray], Sequence[float]]]) -> Path:
     """Accuracy [%] against PSD bandwidth: per split (`series`: split -> (per-seed values per
-    bandwidth, the paper's mean per bandwidth)), every seed as a dot, our mean as a line, the
-    paper's mean dashed."""
+    bandwidth, the paper's mean per bandwidth or None: recorded data), every seed as a dot, our
+    mean as a line, the paper's mean dashed."""
     fig, ax = plt.subplots(figsize=(8.8, 4.4), layout="constrained")
     x = np.asarray(khz, float)
     for i, (split, (per_seed, paper)) in enumerate(series.items()):
@@ -130,7 +130,8 @@ def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[S
         for xi, v in zip(x, per_seed):
             _seed_dots(ax, xi + shift, v, colour, 0.12)
         ax.plot(x + shift, [np.mean(v) for v in per_seed], "o-", color=colour, lw=1.6, label=f"{name}, ours (mean; dots: seeds)")
-        ax.plot(x, paper, "s--", color=colour, lw=1.0, mfc="white", alpha=0.8, label=f"{name}, paper (mean)")
+        if paper is not None:
+            ax.plot(x, paper, "s--", color=colour, lw=1.0, mfc="white", alpha=0.8, label=f"{name}, paper (mean)")
     ax.set(xlabel="PSD bandwidth [kHz]", ylabel="accuracy [%]", title="Minsound accuracy against PSD bandwidth")
     ax.set_xticks(x, [f"{k:g}" for k in x])
     ax.grid(alpha=0.3)
@@ -153,7 +154,8 @@ def plot_seed_bars(path, groups: Sequence[str], series: dict[str, tuple[Sequence
         for x, p in zip(xs, paper):
             if p is not None:
                 ax.hlines(p, x - width * 0.46, x + width * 0.46, color="black", lw=2, zorder=4)
-    ax.hlines([], 0, 0, color="black", lw=2, label="paper (mean)")
+    if any(p is not None for _, paper in series.values() for p in paper):
+        ax.hlines([], 0, 0, color="black", lw=2, label="paper (mean)")
     ax.set_xticks(range(len(groups)), groups, fontsize=8)
     ax.set(ylabel="accuracy [%]", title=title, ylim=(0, 100))
     ax.grid(alpha=0.3, axis="y")

@@ -195,18 +195,18 @@ def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
     """Our accuracy beside the paper's, with the difference, one line per row; on recorded data
     each row beside the best row instead."""
     means = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
-    best = max(m for m, _ in means)
+    gaps = documents.best_gaps([m for m, _ in means])
     body = []
-    for r, (mean, sd) in zip(rows, means):
+    for r, (mean, sd), gap in zip(rows, means, gaps):
         body.append([
             "TCN" if r["backbone"] == "tcn" else "Transformer",
             label(r["modalities"], r["backbone"], r.get("fusion_norm", "sequence_minmax")).removeprefix("TCN: "),
             f"{mean:.2f} ± {sd:.2f}",
-            *([f"{mean - best:+.2f}"] if recorded else [f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}", f"{mean - r['paper_mean']:+.2f}"]),
+            *([gap] if recorded else [f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}", f"{mean - r['paper_mean']:+.2f}"]),
             f"{r['wall_s']:.1f}",
         ])
     accuracy = f"Test accuracy [%] ({'recorded data' if recorded else 'ours'}, {len(rows[0]['seeds'])} seeds)"
-    compared = ["Row − best row [pp]"] if recorded else ["Paper [%]", "Ours − paper [pp]"]
+    compared = [documents.BEST_GAP] if recorded else ["Paper [%]", "Ours − paper [pp]"]
     return report.markdown_table(["Backbone", "Modalities", accuracy, *compared, "Train wall time [s]"], body)
 
 
@@ -214,7 +214,7 @@ def markdown(doc: dict[str, Any]) -> str:
     if documents.recorded(doc):
         return _recorded_markdown(doc)
     lines = [
-        "# Modality ablation (the paper's Table ablation_table)",
+        documents.title(doc, "Modality ablation", "ablation_table"),
         "",
         documents.header_markdown(doc),
         table(doc["rows"]),
@@ -251,11 +251,11 @@ def markdown(doc: dict[str, Any]) -> str:
 def _recorded_markdown(doc: dict[str, Any]) -> str:
     """The table of a `--data_dir` run: recorded data, rows compared with each other."""
     lines = [
-        "# Modality ablation on recorded data",
+        documents.title(doc, "Modality ablation", "ablation_table"),
         "",
         documents.header_markdown(doc),
         table(doc["rows"], recorded=True),
-        "Rows are compared with each other on the same recorded data and test trials.",
+        documents.RECORDED_NOTE,
         "",
     ]
     w = doc["wilcoxon"]

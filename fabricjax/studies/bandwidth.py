@@ -8,7 +8,8 @@ equals its internal-audio ablation row (95.06 ± 1.85). The PSDs are loaded once
 bandwidth chosen and cut per row to the bins at or below its bandwidth (`data.narrow`, `welch.n_bins`). Reports validation
 accuracy (the best-validation epoch's) and test accuracy, beside the paper's, the paper's two
 claims about the table as a findings checklist (`checklist`) and accuracy against bandwidth with
-every seed's point (results/bandwidth.png).
+every seed's point (results/bandwidth.png). On recorded data (`--data_dir`) the rows are compared
+with each other instead (`documents.recorded`), and the PSD bins are those at its microphone's rate.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import findings, paper_tables, plots, report, stats
+from fabricjax import archive, findings, paper_tables, plots, report, stats
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.studies import documents, loading, runner
@@ -50,21 +51,24 @@ def run(
         "bandwidth", [(row_name(khz), dataclasses.replace(base, bandwidth_khz=khz)) for khz in chosen], seeds,
         eval_splits=["test"], split_names=loading.TRAIN_VAL_TEST, data_dir=data_dir, workdir=workdir, label=lambda name: f"{name} kHz",
     )
+    test = study.dataset.sets["test"]
+    recorded = study.dataset.recorded
     out_rows = []
     for khz in chosen:
         vm, vs, tm, ts = paper_tables.BANDWIDTH[khz]
         out_rows.append({
-            "name": row_name(khz), "bandwidth_khz": khz, "psd_bins": welch.n_bins(khz),
-            "paper": {"val_mean": vm, "val_sd": vs, "test_mean": tm, "test_sd": ts},
+            "name": row_name(khz), "bandwidth_khz": khz, "psd_bins": welch.n_bins(khz, test.rates.get("internal", archive.AUDIO_RATE)),
+            **({} if recorded else {"paper": {"val_mean": vm, "val_sd": vs, "test_mean": tm, "test_sd": ts}}),
             **documents.row_doc(study.rows[row_name(khz)], ["test"]),
         })
     doc = {
         **documents.header("bandwidth", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=study.train_s),
         "modalities": list(base.modalities),
         "rows": out_rows,
-        "test_samples": documents.samples_doc(study.dataset.sets["test"]),
+        "test_samples": documents.samples_doc(test),
     }
-    doc["findings"] = [f.to_json() for f in checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in ("val", "test")} for r in out_rows})]
+    # the checklist holds the paper's claims: recorded data is not the paper's
+    doc["findings"] = [] if recorded else [f.to_json() for f in checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in ("val", "test")} for r in out_rows})]
     doc["png"] = str(plot(documents.results_path(results) / "bandwidth.png", out_rows))
     documents.write_outputs(results, "bandwidth", markdown(doc), doc)
     return doc
@@ -87,49 +91,55 @@ def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
 
 
 def plot(path, rows: Sequence[dict[str, Any]]):
-    """Validation and test accuracy against bandwidth: every seed, our means, the paper's means."""
+    """Validation and test accuracy against bandwidth: every seed, our means, the paper's means
+    (none on recorded data)."""
     khz = [r["bandwidth_khz"] for r in rows]
     series = {
         split: (
             [100 * np.asarray(r["accuracy"][split]["fabric"]) for r in rows],
-            [r["paper"][f"{split}_mean"] for r in rows],
+            [r["paper"][f"{split}_mean"] for r in rows] if "paper" in rows[0] else None,
         )
         for split in ("val", "test")
     }
     return plots.plot_against_bandwidth(path, khz, series)
 
 
-def table(rows: Sequence[dict[str, Any]]) -> str:
+def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
+    """Validation and test accuracy per bandwidth beside the paper's; on recorded data test
+    accuracy beside the best row's instead."""
+    val = [stats.mean_sd(100 * np.asarray(r["accuracy"]["val"]["fabric"])) for r in rows]
+    test = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
+    gaps = documents.best_gaps([m for m, _ in test])
     body = []
-    for r in rows:
-        val = stats.mean_sd(100 * np.asarray(r["accuracy"]["val"]["fabric"]))
-        test = stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"]))
-        p = r["paper"]
-        body.append([
-            f"{r['bandwidth_khz']:g}", r["psd_bins"],
-            f"{val[0]:.2f} ± {val[1]:.2f}", f"{p['val_mean']:.2f} ± {p['val_sd']:.2f}", f"{val[0] - p['val_mean']:+.2f}",
-            f"{test[0]:.2f} ± {test[1]:.2f}", f"{p['test_mean']:.2f} ± {p['test_sd']:.2f}", f"{test[0] - p['test_mean']:+.2f}",
-            f"{r['wall_s']:.1f}",
-        ])
-    header = [
-        "Bandwidth [kHz]", "PSD bins", "Val [%] (ours)", "Val [%] (paper)", "Val diff [pp]",
-        "Test [%] (ours)", "Test [%] (paper)", "Test diff [pp]", "Train wall time [s]",
-    ]
-    return report.markdown_table(header, body)
+    for r, v, t, gap in zip(rows, val, test, gaps):
+        if recorded:
+            compared = [f"{v[0]:.2f} ± {v[1]:.2f}", f"{t[0]:.2f} ± {t[1]:.2f}", gap]
+        else:
+            p = r["paper"]
+            compared = [f"{v[0]:.2f} ± {v[1]:.2f}", f"{p['val_mean']:.2f} ± {p['val_sd']:.2f}", f"{v[0] - p['val_mean']:+.2f}",
+                        f"{t[0]:.2f} ± {t[1]:.2f}", f"{p['test_mean']:.2f} ± {p['test_sd']:.2f}", f"{t[0] - p['test_mean']:+.2f}"]
+        body.append([f"{r['bandwidth_khz']:g}", r["psd_bins"], *compared, f"{r['wall_s']:.1f}"])
+    compared = (["Val [%]", "Test [%]", documents.BEST_GAP] if recorded else
+                ["Val [%] (ours)", "Val [%] (paper)", "Val diff [pp]", "Test [%] (ours)", "Test [%] (paper)", "Test diff [pp]"])
+    return report.markdown_table(["Bandwidth [kHz]", "PSD bins", *compared, "Train wall time [s]"], body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
-    return "\n".join([
-        "# PSD bandwidth (the paper's Table bandwidth_classification)",
+    recorded = documents.recorded(doc)
+    inputs = ("the internal microphone only" if recorded else
+              "Minsound only; the paper's 15 kHz row equals its internal-audio ablation row")
+    lines = [
+        documents.title(doc, "PSD bandwidth", "bandwidth_classification"),
         "",
         documents.header_markdown(doc),
-        f"Inputs: {' + '.join(doc['modalities'])} (Minsound only; the paper's 15 kHz row equals its internal-audio "
-        "ablation row). Validation accuracy is that of the best-validation epoch, the model every test number uses.",
+        f"Inputs: {' + '.join(doc['modalities'])} ({inputs}). Validation accuracy is that of the best-validation epoch, "
+        "the model every test number uses.",
         "",
-        table(doc["rows"]),
-        "## Findings checklist (the paper's claims about this table)",
-        "",
-        findings.markdown(doc["findings"]),
-        "Accuracy against bandwidth, every seed: `bandwidth.png`.",
-        "",
-    ])
+        table(doc["rows"], recorded),
+    ]
+    if recorded:
+        lines += [documents.RECORDED_NOTE, ""]
+    else:
+        lines += ["## Findings checklist (the paper's claims about this table)", "", findings.markdown(doc["findings"])]
+    lines += ["Accuracy against bandwidth, every seed: `bandwidth.png`.", ""]
+    return "\n".join(lines)

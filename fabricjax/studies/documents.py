@@ -118,5 +118,20 @@ def recorded(doc: dict[str, Any]) -> bool:
     return doc["dataset"]["source"] == "recorded"
 
 
+def title(doc: dict[str, Any], study: str, paper_table: str) -> str:
+    """A study's heading: on recorded data it names the data, not the paper's table it reproduces."""
+    return f"# {study} on recorded data" if recorded(doc) else f"# {study} (the paper's Table {paper_table})"
+
+
+BEST_GAP = "Row − best row [pp]"  # the column recorded-data tables have instead of the paper's
+RECORDED_NOTE = "Rows are compared with each other on the same recorded data and test trials."
+
+
+def best_gaps(means: Sequence[float]) -> list[str]:
+    """Each row's mean [%] minus the best row's: how rows on recorded data are compared."""
+    best = max(means)
+    return [f"{m - best:+.2f}" for m in means]
+
+
 def wilcoxon_doc(w: stats.WilcoxonResult) -> dict[str, Any]:
     return {**dataclasses.asdict(w), "describe": w.describe()}

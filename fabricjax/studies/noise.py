@@ -7,7 +7,8 @@ days and evaluated on the cafe split (and, for reference, the lab test day). Eac
 with the preceding one by Wilcoxon signed-rank tests on the cafe split, paired per seed (exact
 over 10 seeds: p >= 2 / 2^10 = 0.002) and per cafe sequence pooled over seeds (`runner.paired_tests`).
 The paper's claims about the table are checked by `checklist`; results/noise.png shows every
-seed's lab and cafe accuracy per row.
+seed's lab and cafe accuracy per row. On recorded data (`--data_dir`, its cafe split) the rows are
+compared with each other instead (`documents.recorded`).
 """
 
 from __future__ import annotations
@@ -47,13 +48,14 @@ def run(
         summary=lambda row: f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %", check=_has_cafe_trials,
     )
     labels = study.dataset.sets[SPLIT].labels["fabric"]
+    recorded = study.dataset.recorded
     out_rows, previous = [], None
     for name, mods, mean, sd, p in chosen:
         row = study.rows[name]
         tests = runner.paired_tests(previous, row, SPLIT, labels) if previous is not None else {}
         out_rows.append({
             "name": name, "modalities": list(mods),
-            "paper": {"mean": mean, "sd": sd, "p": p},
+            **({} if recorded else {"paper": {"mean": mean, "sd": sd, "p": p}}),
             "against": previous.name if previous is not None else None,
             "wilcoxon": {k: documents.wilcoxon_doc(v) for k, v in tests.items()} or None,
             **documents.row_doc(row, [SPLIT, "test"]),
@@ -64,7 +66,8 @@ def run(
         "rows": out_rows,
         "cafe_samples": documents.samples_doc(study.dataset.sets[SPLIT]),
     }
-    doc["findings"] = [f.to_json() for f in checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in (SPLIT, "test")} for r in out_rows})]
+    # the checklist holds the paper's claims: recorded data is not the paper's
+    doc["findings"] = [] if recorded else [f.to_json() for f in checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in (SPLIT, "test")} for r in out_rows})]
     doc["png"] = str(plot(documents.results_path(results) / "noise.png", out_rows))
     documents.write_outputs(results, "noise", markdown(doc), doc)
     return doc
@@ -102,10 +105,10 @@ def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
 
 
 def plot(path, rows: Sequence[dict[str, Any]]):
-    """Lab-test and cafe accuracy per row, every seed a dot, the paper's cafe mean a tick."""
+    """Lab-test and cafe accuracy per row, every seed a dot, the paper's cafe mean a tick (none on recorded data)."""
     series = {
         "test": ([100 * np.asarray(r["accuracy"]["test"]["fabric"]) for r in rows], [None] * len(rows)),
-        SPLIT: ([100 * np.asarray(r["accuracy"][SPLIT]["fabric"]) for r in rows], [r["paper"]["mean"] for r in rows]),
+        SPLIT: ([100 * np.asarray(r["accuracy"][SPLIT]["fabric"]) for r in rows], [r["paper"]["mean"] if "paper" in r else None for r in rows]),
     }
     groups = [display_name(r["name"]).replace(" + ", "\n+ ") for r in rows]
     return plots.plot_seed_bars(path, groups, series, f"Trained in the lab, tested in a cafe ({len(rows[0]['seeds'])} seeds)")
@@ -115,44 +118,40 @@ def _p(w: dict[str, Any] | None) -> str:
     return "–" if w is None else f"{w['p_value']:.4g} (floor {w['min_attainable_p']:.2g}, {w['method']})"
 
 
-def table(rows: Sequence[dict[str, Any]]) -> str:
+def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
+    """Cafe accuracy per row beside the paper's (on recorded data: beside the best row's), the
+    tests against the preceding row, and the lab test day's accuracy."""
+    cafe = [stats.mean_sd(100 * np.asarray(r["accuracy"][SPLIT]["fabric"])) for r in rows]
+    gaps = documents.best_gaps([m for m, _ in cafe])
     body = []
-    for r in rows:
-        cafe = stats.mean_sd(100 * np.asarray(r["accuracy"][SPLIT]["fabric"]))
+    for r, (mean, sd), gap in zip(rows, cafe, gaps):
         lab = stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"]))
         w = r["wilcoxon"] or {}
-        body.append([
-            display_name(r["name"]),
-            f"{cafe[0]:.2f} ± {cafe[1]:.2f}",
-            f"{r['paper']['mean']:.2f} ± {r['paper']['sd']:.2f}",
-            f"{cafe[0] - r['paper']['mean']:+.2f}",
-            _p(w.get("per_seed")),
-            _p(w.get("per_sample")),
-            r["paper"]["p"] or "–",
-            f"{lab[0]:.2f} ± {lab[1]:.2f}",
-            f"{r['wall_s']:.1f}",
-        ])
-    header = [
-        "Modalities", "Cafe test [%] (ours)", "Paper [%]", "Ours − paper [pp]", "p per seed", "p per sequence",
-        "Paper p", "Lab test [%] (ours)", "Train wall time [s]",
-    ]
-    return report.markdown_table(header, body)
+        tests = [_p(w.get("per_seed")), _p(w.get("per_sample"))]
+        if recorded:
+            compared = [gap, *tests]
+        else:
+            p = r["paper"]
+            compared = [f"{p['mean']:.2f} ± {p['sd']:.2f}", f"{mean - p['mean']:+.2f}", *tests, p["p"] or "–"]
+        body.append([display_name(r["name"]), f"{mean:.2f} ± {sd:.2f}", *compared, f"{lab[0]:.2f} ± {lab[1]:.2f}", f"{r['wall_s']:.1f}"])
+    tests = ["p per seed", "p per sequence"]
+    compared = [documents.BEST_GAP, *tests] if recorded else ["Paper [%]", "Ours − paper [pp]", *tests, "Paper p"]
+    ours = "recorded data" if recorded else "ours"
+    return report.markdown_table(["Modalities", f"Cafe test [%] ({ours})", *compared, f"Lab test [%] ({ours})", "Train wall time [s]"], body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
-    lines = ["# Cafe noise (the paper's Table new_noise_results)", "", documents.header_markdown(doc), table(doc["rows"]), "Tests, each row against the preceding one on the cafe split:", ""]
+    recorded = documents.recorded(doc)
+    lines = [documents.title(doc, "Cafe noise", "new_noise_results"), "", documents.header_markdown(doc), table(doc["rows"], recorded),
+             "Tests, each row against the preceding one on the cafe split:", ""]
     for r in doc["rows"]:
         for w in (r["wilcoxon"] or {}).values():
             lines.append(f"- {display_name(r['name'])} vs {display_name(r['against'])}: {w['describe']}")
-    lines += [
-        "",
-        "The per-seed test is the one comparable to the paper's; the per-sequence test treats sequences of one "
-        "trial and of different seeds as independent, which they are not: read it as descriptive.",
-        "",
-        "## Findings checklist (the paper's claims about this table)",
-        "",
-        findings.markdown(doc["findings"]),
-        "Lab and cafe accuracy per row, every seed: `noise.png`.",
-        "",
-    ]
+    caveat = "per-sequence test treats sequences of one trial and of different seeds as independent, which they are not: read it as descriptive."
+    lines += ["", f"The {caveat}" if recorded else f"The per-seed test is the one comparable to the paper's; the {caveat}", ""]
+    if recorded:
+        lines += [documents.RECORDED_NOTE, ""]
+    else:
+        lines += ["## Findings checklist (the paper's claims about this table)", "", findings.markdown(doc["findings"])]
+    lines += ["Lab and cafe accuracy per row, every seed: `noise.png`.", ""]
     return "\n".join(lines)

@@ -10,7 +10,8 @@ properties: its labels are unknown and ignored) and on the five holdouts. Rows: 
 always on, as in the paper. Chance is the paper's 1 / levels; the majority-level rate of each
 evaluated split is reported too, since the levels are not balanced.
 
-The paper's claims about the table are checked by `checklist` on the holdout fabrics.
+The paper's claims about the table are checked by `checklist` on the holdout fabrics. On recorded
+data (`--data_dir`) the rows are compared with each other instead (`documents.recorded`).
 
 The trained models (all seeds) are saved as an orbax checkpoint per row; `experiments.latents
 --checkpoint=DIR` restores one for the t-SNE figure.
@@ -53,6 +54,7 @@ def run(
         summary=lambda row: ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES),
     )
     ds = study.dataset
+    recorded = ds.recorded
     out_rows = [
         {"name": name, "modalities": list(mods), "checkpoint": str(study.rows[name].checkpoint), **documents.row_doc(study.rows[name], list(SPLITS))}
         for name, mods in chosen
@@ -62,12 +64,14 @@ def run(
         "chance": {p: 100.0 / n for p, n in catalog.PROPERTY_LEVELS.items()},
         "majority": {s: {p: majority_rate(ds.sets[s].labels[p]) for p in PROPERTIES} for s in SPLITS},
         "fabrics": {s: sorted(set(ds.sets[s].info["fabric_id"].tolist())) for s in SPLITS},
-        "paper": {p: dict(zip(("chance", "train_minsound", "train_minsound+minsight", "holdout_minsound", "holdout_minsound+minsight"), v)) for p, v in paper_tables.PROPERTIES.items()},
+        **({} if recorded else {"paper": {p: dict(zip(("chance", "train_minsound", "train_minsound+minsight", "holdout_minsound", "holdout_minsound+minsight"), v))
+                                          for p, v in paper_tables.PROPERTIES.items()}}),
         "rows": out_rows,
         "samples": {s: documents.samples_doc(ds.sets[s]) for s in SPLITS},
     }
     holdout = {r["name"]: {p: np.asarray(r["accuracy"]["holdout"][p]) for p in PROPERTIES} for r in out_rows}
-    doc["findings"] = [f.to_json() for f in checklist(holdout, doc["chance"], doc["majority"]["holdout"])]
+    # the checklist holds the paper's claims: recorded data is not the paper's
+    doc["findings"] = [] if recorded else [f.to_json() for f in checklist(holdout, doc["chance"], doc["majority"]["holdout"])]
     documents.write_outputs(results, "properties", markdown(doc), doc)
     return doc
 
@@ -103,40 +107,49 @@ def majority_rate(labels: np.ndarray) -> float | None:
 
 
 def table(doc: dict[str, Any]) -> str:
-    """One line per property: chance, then ours and the paper's per split and row."""
+    """One line per property: chance, then ours and the paper's per split and row (on recorded
+    data ours and each row beside the best row on that split)."""
+    recorded = documents.recorded(doc)
     header = ["Property", "Chance [%]"]
     for split, title in SPLITS.items():
         header.append(f"Majority level, {title} [%]")
-        header += [f"{title}: {r['name']} [%] (ours / paper)" for r in doc["rows"]]
+        header += [f"{title}: {r['name']} [%] ({'recorded data / row − best row [pp]' if recorded else 'ours / paper'})" for r in doc["rows"]]
     body = []
     for p in PROPERTIES:
         line = [p, f"{doc['chance'][p]:.2f}"]
         for split in SPLITS:
             maj = doc["majority"][split][p]
             line.append("–" if maj is None else f"{maj:.2f}")
-            for r in doc["rows"]:
-                ours = stats.mean_sd(100 * np.asarray(r["accuracy"][split][p]))
-                paper = doc["paper"][p][f"{'train' if split == 'test' else 'holdout'}_{r['name']}"]
-                line.append(f"{ours[0]:.2f} ± {ours[1]:.2f} / {paper:.2f}")
+            ours = [stats.mean_sd(100 * np.asarray(r["accuracy"][split][p])) for r in doc["rows"]]
+            gaps = documents.best_gaps([m for m, _ in ours])
+            paper = "train" if split == "test" else "holdout"
+            for r, (mean, sd), gap in zip(doc["rows"], ours, gaps):
+                compared = gap if recorded else f"{doc['paper'][p][paper + '_' + r['name']]:.2f}"
+                line.append(f"{mean:.2f} ± {sd:.2f} / {compared}")
         body.append(line)
     return report.markdown_table(header, body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
+    recorded = documents.recorded(doc)
+    fabrics = (f"Fabrics of the test trials: {doc['fabrics']['test']}; of the holdout trials: {doc['fabrics']['holdout']} "
+               "(trials without a property's level are ignored for it)." if recorded else
+               f"Training fabrics on the test day: {doc['fabrics']['test']} (class 0 has no properties and is ignored); "
+               f"holdout fabrics: {doc['fabrics']['holdout']}. The paper reports means only.")
     lines = [
-        "# Property perception (the paper's Table property_perception)",
+        documents.title(doc, "Property perception", "property_perception"),
         "",
         documents.header_markdown(doc),
-        f"Training fabrics on the test day: {doc['fabrics']['test']} (class 0 has no properties and is ignored); "
-        f"holdout fabrics: {doc['fabrics']['holdout']}. The paper reports means only.",
+        fabrics,
         "",
         table(doc),
         "| Row | Train wall time [s] | Checkpoint (all seeds) |",
         "|---|---|---|",
         *[f"| {r['name']} | {r['wall_s']:.1f} | `{r['checkpoint']}` |" for r in doc["rows"]],
         "",
-        "## Findings checklist (the paper's claims about this table, on the holdout fabrics)",
-        "",
-        findings.markdown(doc["findings"]),
     ]
+    if recorded:
+        lines += [documents.RECORDED_NOTE, ""]
+    else:
+        lines += ["## Findings checklist (the paper's claims about this table, on the holdout fabrics)", "", findings.markdown(doc["findings"])]
     return "\n".join(lines)
