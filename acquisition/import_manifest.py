@@ -1,7 +1,8 @@
 """Import every trial a manifest lists, in one process pool with one progress bar:
 
     python -m acquisition.import_manifest MANIFEST.csv --out=DIR [--rig=rig.toml | --map=mapping.toml]
-        [--labels=labels.csv] [--split=fraction:0.7,0.15,0.15 | --split=day] [--overwrite] [--workers=N]
+        [--labels=labels.csv] [--split=fraction:0.7,0.15,0.15 | --split=trial:train=0-3,val=4,test=5-6 | --split=day]
+        [--overwrite] [--workers=N]
 
 The manifest is a CSV with a header row, one row per trial (WORKSPACE.md, "Recordings from another
 rig"):
@@ -20,8 +21,9 @@ manifest's label names in sorted order as classes 0..K-1; it is written into eve
 (meta.label_map), so the classes and the classifier's size come from the data, and nothing from
 our fabric catalog is stamped on a rig's recordings. Splits are the manifest's `split` column, or
 a rule: `--split=fraction:TRAIN,VAL,TEST` (per class, in trial order: the first fraction of its
-trials train, then val, then test) or `--split=day` (by day, as the preset's days: the hand's
-protocol). A rig's trials without a split or a day would never be used, so that is an error.
+trials train, then val, then test), `--split=trial:train=0-3,val=4,test=5-6` (by trial index,
+inclusive ranges, the same in every class; every trial's index must be in one) or `--split=day`
+(by day, as the preset's days: the hand's protocol). A rig's trials without a split or a day would never be used, so that is an error.
 
 Each row's archive goes to DIR under `archive.trial_filename`. A rerun resumes: an archive already
 imported from the same recording is kept; an existing archive from another recording is an error
@@ -126,20 +128,53 @@ def read_label_map(path: str | Path) -> dict[str, int]:
     return out
 
 
-def parse_split_rule(rule: str | None) -> tuple[str, tuple[float, ...]] | None:
-    """None (the manifest's column), ("day", ()) or ("fraction", (train, val, test))."""
+def parse_split_rule(rule: str | None) -> tuple[str, tuple[float, ...] | dict[int, str]] | None:
+    """None (the manifest's column), ("day", ()), ("fraction", (train, val, test)) or ("trial",
+    {trial index: split})."""
     if rule is None:
         return None
     if rule == "day":
         return ("day", ())
     kind, _, rest = rule.partition(":")
+    if kind == "trial":
+        return ("trial", _trial_ranges(rule, rest))
     try:
         fractions = tuple(float(x) for x in rest.split(","))
     except ValueError:
         fractions = ()
     if kind != "fraction" or len(fractions) != 3 or min(fractions) < 0 or abs(sum(fractions) - 1) > 1e-6:
-        raise UserError(f"--split={rule}: expected day or fraction:TRAIN,VAL,TEST with fractions summing to 1, e.g. fraction:0.7,0.15,0.15")
+        raise UserError(f"--split={rule}: expected day, fraction:TRAIN,VAL,TEST with fractions summing to 1 (e.g. "
+                        "fraction:0.7,0.15,0.15) or trial:SPLIT=FIRST-LAST,... (e.g. trial:train=0-3,val=4,test=5-6)")
     return ("fraction", fractions)
+
+
+def _trial_ranges(rule: str, rest: str) -> dict[int, str]:
+    """`train=0-3,val=4,test=5-6` -> {0: "train", ..., 6: "test"}: inclusive ranges of trial
+    indices, each index in one split."""
+    usage = (f"--split={rule}: expected trial:SPLIT=FIRST-LAST,... with splits from {', '.join(archive.SPLITS)} "
+             "and each trial index in one range, e.g. trial:train=0-3,val=4,test=5-6")
+    out: dict[int, str] = {}
+    for item in rest.split(","):
+        split, _, span = item.partition("=")
+        first, _, last = span.partition("-")
+        try:
+            first, last = int(first), int(last or first)
+        except ValueError:
+            raise UserError(usage) from None
+        indices = range(first, last + 1)
+        if split not in archive.SPLITS or first < 0 or not indices or any(k in out for k in indices):
+            raise UserError(usage)
+        out.update(dict.fromkeys(indices, split))
+    return out
+
+
+def by_trial(rows: list[Row], splits: dict[int, str], manifest, rule: str) -> list[str]:
+    """Each row's split by its trial index (the same indices in every class: stratified by class);
+    a row whose index no range names is an error, not a trial left out."""
+    for r in rows:
+        if r.trial not in splits:
+            raise ManifestError(manifest, r.line, "trial", f"trial {r.trial} is in no range of --split={rule}")
+    return [splits[r.trial] for r in rows]
 
 
 def by_fraction(rows: list[Row], fractions: tuple[float, float, float]) -> list[str]:
@@ -241,12 +276,17 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
     if rule is None and has_column and not all(r.split for r in rows):
         r = next(r for r in rows if not r.split)
         raise ManifestError(manifest, r.line, "split", "empty, while other rows give one (give every row a split, or none)")
-    splits = by_fraction(rows, rule[1]) if rule and rule[0] == "fraction" else [r.split for r in rows]
+    if rule and rule[0] == "fraction":
+        splits = by_fraction(rows, rule[1])
+    elif rule and rule[0] == "trial":
+        splits = by_trial(rows, rule[1], manifest, split)
+    else:
+        splits = [r.split for r in rows]
     loaded_rig = rig_mod.load_rig(rig) if rig is not None else None
     if loaded_rig is not None and not any(splits) and any(r.day is None for r in rows):
         r = next(r for r in rows if r.day is None)
         raise ManifestError(manifest, r.line, "split", "no split and no day: the trial would belong to no split "
-                            "(give a split column, --split=fraction:TRAIN,VAL,TEST, or days with --split=day)")
+                            "(give a split column, --split=fraction:TRAIN,VAL,TEST or trial:SPLIT=FIRST-LAST,..., or days with --split=day)")
     label_map = None
     if loaded_rig is not None:
         label_map = read_label_map(labels) if labels else {name: k for k, name in enumerate(sorted({r.label for r in rows}))}
@@ -297,7 +337,7 @@ if __name__ == "__main__":
     flags.DEFINE_string("rig", None, "Rig file (TOML): the streams of each trial folder (acquisition/rig.py).")
     flags.DEFINE_string("map", None, "Mapping file (TOML) of ROS 2 bags (acquisition/import_bag.py).")
     flags.DEFINE_string("labels", None, "Label map: CSV with columns name, class (default: the manifest's labels, sorted).")
-    flags.DEFINE_string("split", None, "Split rule when the manifest has no split column: fraction:TRAIN,VAL,TEST or day.")
+    flags.DEFINE_string("split", None, "Split rule when the manifest has no split column: fraction:TRAIN,VAL,TEST, trial:SPLIT=FIRST-LAST,... or day.")
     flags.DEFINE_bool("overwrite", False, "Replace existing archives (default: keep those of the same recording, refuse others).")
     flags.DEFINE_integer("workers", None, "Processes (default: one per core).", lower_bound=1)
     cli.run(main)

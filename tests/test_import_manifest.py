@@ -87,6 +87,19 @@ def test_fraction_rule_splits_each_class_in_trial_order(tmp_path):
     assert archive.read_meta(tmp_path / "out" / "felt_trial000_lab.npz")[0]["split"] == "train"
 
 
+def test_trial_rule_splits_every_class_by_trial_index(tmp_path):
+    manifest = rig_bench.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
+    summary, _ = _run(manifest, tmp_path / "out", split="trial:train=0-1,val=2,test=3")
+    assert summary["splits"] == {"train": 4, "val": 2, "test": 2}
+    assert [archive.read_meta(tmp_path / "out" / f"felt_trial00{k}_lab.npz")[0]["split"] for k in range(4)] == ["train", "train", "val", "test"]
+    with pytest.raises(UserError, match=r"manifest\.csv: line \d+: trial: trial 3 is in no range of --split=trial:train=0-1,val=2"):
+        _run(manifest, tmp_path / "out2", split="trial:train=0-1,val=2")
+    for bad in ("trial:train=0-2,val=2", "trial:train=3-1", "trial:dev=0-3", "trial:train=0-x"):
+        with pytest.raises(UserError, match=f"--split={bad}: expected trial:SPLIT=FIRST-LAST"):
+            import_manifest.parse_split_rule(bad)
+    assert import_manifest.parse_split_rule("trial:test=2,train=0-1") == ("trial", {2: "test", 0: "train", 1: "train"})
+
+
 def _edit_manifest(manifest, out_path, change):
     rows = list(csv.reader(open(manifest)))
     rows = change(rows)
