@@ -13,7 +13,7 @@ from scipy import stats as sps
 from fabricjax import data, paper_tables, sim, stats, train
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, documents, latents, noise, probe, properties, reproduce, runner
+from fabricjax.studies import ablation, bandwidth, documents, latents, noise, probe, properties, reproduce, runner, sweep
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
 TINY = dict(epochs=1, width=16, n_layers=1)
@@ -248,12 +248,36 @@ def test_ten_seed_floor_and_row_selection():
         runner.select_rows(paper_tables.ABLATION, ["audio"])
 
 
-@pytest.mark.parametrize("study, field", [(ablation, "modalities"), (ablation, "fusion_norm"), (noise, "modalities"), (properties, "exclude_fabrics"), (probe, "modalities")])
+# Every study whose rows set `Config` fields, with how to run it (the sweep also needs a grid).
+STUDIES_WITH_ROWS = {
+    "ablation": (ablation.ROW_SETTINGS, ablation.run),
+    "bandwidth": (bandwidth.ROW_SETTINGS, bandwidth.run),
+    "noise": (noise.ROW_SETTINGS, noise.run),
+    "properties": (properties.ROW_SETTINGS, properties.run),
+    "probe": (probe.ROW_SETTINGS, probe.run),
+    "sweep": (ablation.ROW_SETTINGS, lambda **kw: sweep.run(grid={"epochs": (1,)}, **kw)),
+}
+
+
+@pytest.mark.parametrize("study, field", [(s, f) for s, (settings, _) in STUDIES_WITH_ROWS.items() for f in sorted({f for r in settings.values() for f in r})])
 def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp_path):
-    """--set of a field the study sets per row would be silently ignored: it fails before any data is read."""
-    with pytest.raises(UserError, match=f"sets {field} per row itself; choose"):
-        study.run(preset="smoke", overrides={field: Config.__dataclass_fields__[field].default}, workdir=tmp_path / "nothing", results=tmp_path)
+    """--set of a field any of the study's rows sets would be silently replaced, or would silently
+    change what a row is (--set=backbone=attention made the ablation's TCN row a transformer): it
+    fails in one line naming the field and the rows, before any data is read."""
+    settings, run = STUDIES_WITH_ROWS[study]
+    with pytest.raises(UserError, match=f"the {study} study sets {field} per row itself \\((every one of its {len(settings)} rows|rows .+)\\); choose") as e:
+        run(preset="smoke", overrides={field: Config.__dataclass_fields__[field].default}, workdir=tmp_path / "nothing", results=tmp_path)
+    assert "\n" not in str(e.value)
     assert not (tmp_path / "nothing").exists()
+
+
+def test_the_override_error_names_the_rows_that_set_the_field():
+    settings = {"a": {"backbone": "tcn", "modalities": ("internal",)}, "b": {"modalities": ("proprio",)}, "c": {"modalities": ("flow",)}}
+    with pytest.raises(UserError) as e:
+        runner.check_overrides("toy", {"backbone": "attention", "modalities": ("internal",), "epochs": 1}, settings, "choose them with --rows")
+    assert str(e.value) == ("the toy study sets backbone per row itself (rows a); modalities per row itself (every one of its 3 rows); "
+                            "choose them with --rows")
+    assert runner.check_overrides("toy", {"epochs": 1}, settings, "") == {"epochs": 1}
 
 
 def test_results_say_how_they_were_made():

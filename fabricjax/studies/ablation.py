@@ -3,7 +3,7 @@ nine of them again under our step-LayerNorm fusion (every camera row and the non
 
     python -m experiments.ablation --seeds=5                          # default preset, whole table
     python -m experiments.ablation --seeds=5 --rows=internal,internal+external
-    python -m experiments.ablation --preset=paper --set=backbone=tcn  # any Config field by --set
+    python -m experiments.ablation --preset=paper --set=width=64      # any Config field no row sets, by --set
 
 Each row trains all seeds in one vmapped program and reports mean ± SD test accuracy beside the
 paper's number and the difference. Internal audio is compared with internal + palm audio by
@@ -75,14 +75,19 @@ def display_name(row_name: str) -> str:
     return label(r.modalities, r.backbone, r.fusion_norm)
 
 
-# The `Config` fields every row sets itself: an override of one would be silently replaced.
-ROW_FIELDS = ("modalities", "fusion_norm")
+def row_settings(row: Row) -> dict[str, Any]:
+    """The `Config` fields a row sets itself, on top of the preset and the overrides."""
+    return {"backbone": row.backbone, "modalities": row.modalities, "fusion_norm": row.fusion_norm}
+
+
+# What every row sets (row name -> fields): an override of one of these fields is an error
+# (`runner.check_overrides`), since the row would replace it or it would change what the row is.
+ROW_SETTINGS = {r.name: row_settings(r) for r in ROWS}
 
 
 def row_config(row: Row, preset: str, overrides: dict[str, Any]) -> Config:
-    """The config a row trains with: the preset, the row's backbone (which `overrides` may
-    replace, e.g. --set=backbone=tcn), `overrides`, then the row's inputs and fusion."""
-    return Config.from_preset(preset, **{"backbone": row.backbone, **overrides, "modalities": row.modalities, "fusion_norm": row.fusion_norm})
+    """The config a row trains with: the preset, `overrides`, then the row's own fields (`row_settings`)."""
+    return Config.from_preset(preset, **{**overrides, **row_settings(row)})
 
 
 def run(
@@ -97,7 +102,7 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train the chosen rows (all by default) and write results/ablation.{md,json}; returns the JSON."""
-    overrides = runner.check_overrides("ablation", overrides, ROW_FIELDS, "choose them with --rows")
+    overrides = runner.check_overrides("ablation", overrides, ROW_SETTINGS, "choose them with --rows")
     chosen = runner.select_rows(ROWS, rows)
     seeds = runner.seed_list(n_seeds)
     named = [(r.name, row_config(r, preset, overrides)) for r in chosen]

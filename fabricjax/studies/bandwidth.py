@@ -14,7 +14,6 @@ with each other instead (`documents.recorded`), and the PSD bins are those at it
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, Sequence
 
 import numpy as np
@@ -31,6 +30,14 @@ def row_name(khz: float) -> str:
     return f"{khz:g}"
 
 
+def row_settings(khz: float) -> dict[str, Any]:
+    """The `Config` fields the row of bandwidth `khz` sets itself, on top of the preset and the overrides."""
+    return {"modalities": MODALITIES, "bandwidth_khz": khz}
+
+
+ROW_SETTINGS = {row_name(khz): row_settings(khz) for khz in sorted(paper_tables.BANDWIDTH)}
+
+
 def run(
     *,
     n_seeds: int = 5,
@@ -43,12 +50,11 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train one row per bandwidth and write results/bandwidth.{md,json}; returns the JSON."""
-    overrides = runner.check_overrides("bandwidth", overrides, ("bandwidth_khz", "modalities"), "choose bandwidths with --rows (e.g. 2.5,15)")
+    overrides = runner.check_overrides("bandwidth", overrides, ROW_SETTINGS, "choose bandwidths with --rows (e.g. 2.5,15)")
     chosen = runner.select_rows(sorted(paper_tables.BANDWIDTH), rows, name=row_name)
     seeds = runner.seed_list(n_seeds)
-    base = Config.from_preset(preset, **{**overrides, "modalities": MODALITIES})
     study = runner.train_rows(
-        "bandwidth", [(row_name(khz), dataclasses.replace(base, bandwidth_khz=khz)) for khz in chosen], seeds,
+        "bandwidth", [(row_name(khz), Config.from_preset(preset, **{**overrides, **row_settings(khz)})) for khz in chosen], seeds,
         eval_splits=["test"], split_names=loading.TRAIN_VAL_TEST, data_dir=data_dir, workdir=workdir, label=lambda name: f"{name} kHz",
     )
     test = study.dataset.sets["test"]
@@ -63,7 +69,7 @@ def run(
         })
     doc = {
         **documents.header("bandwidth", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=study.train_s),
-        "modalities": list(base.modalities),
+        "modalities": list(MODALITIES),
         "rows": out_rows,
         "test_samples": documents.samples_doc(test),
     }

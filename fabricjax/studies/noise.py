@@ -24,6 +24,7 @@ from fabricjax.studies import documents, loading, runner
 
 SPLIT = "cafe"
 ROWS = tuple(("+".join(mods), mods, mean, sd, p) for mods, mean, sd, p in paper_tables.NOISE)
+ROW_SETTINGS = {name: {"modalities": mods} for name, mods, *_ in ROWS}  # the `Config` fields each row sets itself
 SIGNIFICANCE = 0.05  # the level at which the checklist calls a per-seed Wilcoxon test significant
 
 
@@ -39,11 +40,11 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train the rows, test on the cafe split and write results/noise.{md,json}; returns the JSON."""
-    overrides = runner.check_overrides("noise", overrides, ("modalities",), "choose them with --rows")
+    overrides = runner.check_overrides("noise", overrides, ROW_SETTINGS, "choose them with --rows")
     chosen = runner.select_rows(ROWS, rows, name=lambda r: r[0])
     seeds = runner.seed_list(n_seeds)
     study = runner.train_rows(
-        "noise", [(name, Config.from_preset(preset, **{**overrides, "modalities": mods})) for name, mods, *_ in chosen], seeds,
+        "noise", [(name, Config.from_preset(preset, **{**overrides, **ROW_SETTINGS[name]})) for name, *_ in chosen], seeds,
         eval_splits=[SPLIT, "test"], split_names=(*loading.TRAIN_VAL_TEST, SPLIT), data_dir=data_dir, workdir=workdir,
         summary=lambda row: f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %", check=_has_cafe_trials,
     )

@@ -66,6 +66,7 @@ def _rows() -> tuple[Row, ...]:
 
 
 ROWS = _rows()
+ROW_SETTINGS = {r.name: {"modalities": r.modalities} for r in ROWS}  # the `Config` fields each row sets itself
 
 
 def row_for(modalities: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> Mapping[str, Any] | None:
@@ -164,9 +165,9 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Probe the chosen rows' inputs (all by default) and write results/probe.{md,json}; returns the JSON."""
-    overrides = runner.check_overrides("probe", overrides, ("modalities",), "choose them with --rows")
+    overrides = runner.check_overrides("probe", overrides, ROW_SETTINGS, "choose them with --rows")
     chosen = runner.select_rows(ROWS, rows)
-    configs = [Config.from_preset(preset, **{**overrides, "modalities": r.modalities}) for r in chosen]
+    configs = [Config.from_preset(preset, **{**overrides, **ROW_SETTINGS[r.name]}) for r in chosen]
     ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=SPLITS)
     present = [s for s in SPLITS if len(ds.sets[s])]
     for split in ("train", "val"):

@@ -31,6 +31,7 @@ PROPERTIES = tuple(catalog.PROPERTY_LEVELS)
 ROWS = (("minsound", ("internal", "proprio")), ("minsound+minsight", ("internal", "proprio", "image")))
 SPLITS = {"test": "training fabrics", "holdout": "holdout fabrics"}
 SETTINGS = dict(property_heads=True, fabric_head=False, exclude_fabrics=catalog.PROPERTY_HOLDOUTS, image_resolution="down")
+ROW_SETTINGS = {name: {**SETTINGS, "modalities": mods} for name, mods in ROWS}  # the `Config` fields each row sets itself
 
 
 def run(
@@ -45,11 +46,11 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Train both rows (checkpointed), evaluate on training and holdout fabrics, write results/properties.{md,json}."""
-    overrides = runner.check_overrides("properties", overrides, (*SETTINGS, "modalities"), "choose the rows with --rows")
+    overrides = runner.check_overrides("properties", overrides, ROW_SETTINGS, "choose the rows with --rows")
     chosen = runner.select_rows(ROWS, rows, name=lambda r: r[0])
     seeds = runner.seed_list(n_seeds)
     study = runner.train_rows(
-        "properties", [(name, Config.from_preset(preset, **{**overrides, **SETTINGS, "modalities": mods})) for name, mods in chosen],
+        "properties", [(name, Config.from_preset(preset, **{**overrides, **ROW_SETTINGS[name]})) for name, _ in chosen],
         seeds, eval_splits=list(SPLITS), data_dir=data_dir, workdir=workdir, checkpoints=True,
         summary=lambda row: ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES),
     )

@@ -14,7 +14,7 @@ import dataclasses
 import hashlib
 import time
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 from absl import logging
@@ -42,14 +42,26 @@ def select_rows(rows: Sequence, names: Sequence[str] | None, name=lambda r: r.na
     return [r for r in rows if name(r) in names]
 
 
-def check_overrides(study: str, overrides: Mapping | None, row_fields: Sequence[str], how: str) -> dict:
-    """`overrides` as a dict, after checking that none of them is a field the study sets per row
-    itself (it would be silently replaced): such an override is a one-line error saying `how`
-    to choose that dimension instead."""
-    clash = sorted(set(overrides or {}) & set(row_fields))
+def check_overrides(study: str, overrides: Mapping | None, row_settings: Mapping[str, Mapping[str, Any]], how: str) -> dict:
+    """`overrides` as a dict, after checking that none of them is a `Config` field that one of the
+    study's rows sets itself (`row_settings`: row name -> the fields that row sets on top of the
+    overrides): the row would silently replace the override, or the override would silently turn
+    the row into another one. Such an override is a one-line error naming the field, the rows that
+    set it and `how` to choose that dimension instead."""
+    overrides = dict(overrides or {})
+    setters: dict[str, list[str]] = {}
+    for row, fields in row_settings.items():
+        for field in fields:
+            setters.setdefault(field, []).append(row)
+    clash = sorted(set(overrides) & set(setters))
     if clash:
-        raise UserError(f"the {study} study sets {', '.join(clash)} per row itself; {how}")
-    return dict(overrides or {})
+        said = "; ".join(f"{field} per row itself ({_which_rows(setters[field], len(row_settings))})" for field in clash)
+        raise UserError(f"the {study} study sets {said}; {how}")
+    return overrides
+
+
+def _which_rows(names: Sequence[str], n_rows: int) -> str:
+    return f"every one of its {n_rows} rows" if len(names) == n_rows else f"rows {', '.join(names)}"
 
 
 # Training time of a row relative to a row without camera inputs, by the costliest camera input

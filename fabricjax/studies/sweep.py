@@ -7,7 +7,7 @@ A recipe (width, epochs, learning rate, the camera encoder's size, ...) is chose
 of the modality ablation at once, so it is judged by the validation accuracy averaged over the
 rows, not by one row's. The grid is the cartesian product of the `--grid` fields' values; every
 point is the preset, the `--set` overrides and the point's fields (`ablation.row_config`: a row
-sets its inputs and fusion itself, so those are chosen with `--rows`, never swept). Every
+sets its backbone, inputs and fusion itself, so those are chosen with `--rows`, never swept). Every
 (point, row) trains all seeds in one vmapped program (`runner.train_rows`) on sequences loaded
 once for the whole sweep, or once per distinct value of the fields that decide the sequences
 (`loading.SEQUENCE_FIELDS`, e.g. seq_len) where the grid varies one. No checkpoints: a rerun
@@ -85,7 +85,7 @@ def check_grid(grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any]) 
     decide, no field both swept and fixed by --set."""
     if not grid or not all(grid.values()):
         raise UserError(f"--grid: give at least one field with at least one value: {GRID_HELP}")
-    grid = runner.check_overrides("sweep", {f: tuple(v) for f, v in grid.items()}, ablation.ROW_FIELDS, "choose the ablation's rows with --rows")
+    grid = runner.check_overrides("sweep", {f: tuple(v) for f, v in grid.items()}, ablation.ROW_SETTINGS, "choose the ablation's rows with --rows")
     if "preset" in grid:
         raise UserError("--grid: the preset is not a grid field (its dataset is loaded once); run one sweep per --preset")
     both = sorted(set(grid) & set(overrides))
@@ -174,7 +174,7 @@ def run(
 ) -> dict[str, Any]:
     """Train every grid point on every chosen row of the ablation (all by default); write
     results/sweep.{md,json}; return the JSON."""
-    overrides = runner.check_overrides("sweep", overrides, ablation.ROW_FIELDS, "choose the ablation's rows with --rows")
+    overrides = runner.check_overrides("sweep", overrides, ablation.ROW_SETTINGS, "choose the ablation's rows with --rows")
     grid = check_grid(grid, overrides)
     chosen = runner.select_rows(ablation.ROWS, rows)
     seeds = runner.seed_list(n_seeds)
@@ -234,7 +234,7 @@ def markdown(doc: dict[str, Any]) -> str:
         f"- grid: {'; '.join(f'`{f}` in {{{_values(v)}}}' for f, v in doc['grid'].items())}: "
         f"{len(doc['points'])} points x {n_rows} rows ({', '.join(doc['rows'])})",
         f"- every point is the preset `{doc['preset']}`, the fixed fields ({fixed}) and its own fields; each row sets its "
-        "inputs and fusion normalisation (and its backbone unless the grid sweeps it)",
+        "backbone, inputs and fusion normalisation",
     ]
     if len(doc["loads"]) > 1:
         lines.append(f"- sequences loaded {len(doc['loads'])} times, once per distinct "
