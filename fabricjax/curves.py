@@ -9,7 +9,8 @@ TensorBoard overlays the seeds of a row:
     tensorboard --logdir workspace/logs
 
 The step of a scalar is the epoch, counted from 1. tensorboardX is an optional extra
-(`pip install -e ".[logs]"`): without it a run logs one line saying so and trains without curves,
+(`pip install -e ".[logs]"`): without it the process logs one line saying so (once, however many
+rows it trains) and trains without curves,
 because the curves are for watching a run, and the results (`Results.metrics["epochs"]`, the
 studies' JSON) carry the same numbers anyway. `read_scalars` reads event files back (tests, and
 anyone comparing runs without TensorBoard).
@@ -101,13 +102,20 @@ class CurveWriter:
             w.close()
 
 
+_said_curves_are_off = False  # whether this process has logged that tensorboardX is missing
+
+
 def open_writer(log_dir: str | os.PathLike, seeds: Sequence[int], first_epoch: int) -> CurveWriter | None:
     """A writer per seed under `log_dir` for a run starting at `first_epoch` (0-based), or None
-    (one log line) when tensorboardX is not installed."""
+    when tensorboardX is not installed: then one log line says so, once per process, not once per
+    row of a study."""
+    global _said_curves_are_off
     try:
         return CurveWriter(log_dir, seeds, first_epoch)
     except ImportError:
-        logging.warning("training curves are off: tensorboardX is not installed (%s)", EXTRA)
+        if not _said_curves_are_off:
+            logging.warning("training curves are off: tensorboardX is not installed (%s)", EXTRA)
+            _said_curves_are_off = True
         return None
 
 

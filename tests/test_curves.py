@@ -45,14 +45,27 @@ def test_the_curves_are_the_training_history_and_the_event_files_hold_them(logge
     assert sorted(curves.read_scalars(curves.seed_dir(log_dir, 3))["lr"]) == [1, 2, 3]  # steps are epochs from 1
 
 
+def hide_tensorboardx(monkeypatch):
+    """As if tensorboardX were not installed, in a process that has not yet said so."""
+    for name in [m for m in sys.modules if m.split(".")[0] == "tensorboardX"]:
+        monkeypatch.setitem(sys.modules, name, None)
+    monkeypatch.setattr(curves, "_said_curves_are_off", False)
+
+
 def test_without_tensorboardx_training_goes_on_without_curves(logged, tmp_path, monkeypatch, caplog):
     _, with_curves = logged
-    for name in [m for m in sys.modules if m.split(".")[0] == "tensorboardX"]:
-        monkeypatch.setitem(sys.modules, name, None)  # as if not installed
+    hide_tensorboardx(monkeypatch)
     res = train_and_evaluate(TINY, data_sets(TINY), SEEDS, log_dir=tmp_path / "logs")
     assert not (tmp_path / "logs").exists()
     assert any("tensorboardX is not installed" in r.getMessage() and '".[logs]"' in r.getMessage() for r in caplog.records)
     np.testing.assert_array_equal(res.metrics["eval"]["test"]["accuracy"]["fabric"], with_curves.metrics["eval"]["test"]["accuracy"]["fabric"])
+
+
+def test_missing_tensorboardx_is_said_once_per_process_not_once_per_row(tmp_path, monkeypatch, caplog):
+    hide_tensorboardx(monkeypatch)
+    for row in range(3):
+        assert curves.open_writer(tmp_path / f"row{row}", SEEDS, 0) is None
+    assert sum("training curves are off" in r.getMessage() for r in caplog.records) == 1
 
 
 def test_a_resumed_run_appends_to_the_curves_of_the_interrupted_one(logged, tmp_path):
