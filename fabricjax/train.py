@@ -1,16 +1,20 @@
 """Pure, jitted multi-seed training (purejaxrl style): `train(key) -> (state, metrics)`.
 
 The data lives on the device; one epoch is a `lax.scan` over shuffled minibatches and the epoch
-loop is a `lax.scan` too, so a whole run is one compiled program with no host round trips. Seeds
-are `jax.vmap`ped; seeds, else each minibatch's samples, are split over the devices
-(`fabricjax.sharding`). Parameters
-are plain pytrees (`nnx.to_pure_dict`); the module is rebuilt with `nnx.merge` inside the loss.
+loop is a `lax.scan` too, so epochs run without the host: `make_train` gives a whole run as one
+pure function, and `train_and_evaluate` runs it as three compiled programs (init, the epoch scan,
+the final evaluation), the host reading back only each chunk's curves (one chunk for the whole
+run unless checkpoints or curve files split the scan, see below). Seeds are `jax.vmap`ped; seeds,
+else each minibatch's samples, are split over the devices (`fabricjax.sharding`). Parameters are
+plain pytrees (`nnx.to_pure_dict`); the module is rebuilt with `nnx.merge` inside the loss.
 
 Optimiser: AdamW (decoupled weight decay on weight matrices only, not on biases, LayerNorm scales)
-after a global-norm clip at 1.0; the learning rate rises linearly over `warmup_steps`, then stays
-constant (without the warm-up, a few seeds of some rows collapsed to chance in their first epochs). Best-validation selection keeps the
-parameters of the epoch with the highest validation accuracy (the earliest on ties) inside the
-scan with a tree select, so it costs no host sync.
+after a global-norm clip at 1.0; the learning rate rises linearly over `warmup_steps` (without the
+warm-up, a few seeds of some rows collapsed to chance in their first epochs) and is scaled by a
+factor over the whole run (`lr_decay`): 1 throughout for `lr_schedule="constant"`, a cosine from 1
+to 0 for `"cosine"`. Best-validation selection keeps the parameters of the epoch with the highest
+validation accuracy (the earliest on ties) inside the scan with a tree select, so it costs no host
+sync.
 
 A data set is a mapping {"inputs": {modality: (n, N, ...)}, "labels": {head: int (n,)}} (objects
 with `.inputs` / `.labels` work too); label -1 means unknown and is masked out of losses and

@@ -280,6 +280,24 @@ def test_the_override_error_names_the_rows_that_set_the_field():
     assert runner.check_overrides("toy", {"epochs": 1}, settings, "") == {"epochs": 1}
 
 
+def test_the_ablation_row_counts_the_docs_state_are_the_code_s():
+    paper, variants = len(paper_tables.ABLATION), len(ablation.VARIANT_ROWS)
+    tcn = sum(r.backbone == "tcn" for r in paper_tables.ABLATION)
+    assert tcn == 1 and len(ablation.ROWS) == paper + variants
+    repo = Path(__file__).parents[1]
+    said = {
+        "fabricjax/studies/ablation.py": [f"{paper - tcn} transformer rows and the TCN row, and {variants} of them again"],
+        "fabricjax/studies/__init__.py": [f"{paper} rows incl. TCN (Table ablation_table) + {variants} step-LayerNorm variants"],
+        "experiments/ablation.py": [f"its {paper} rows and our {variants} fusion-variant rows"],
+        "README.md": [f"{paper - tcn} transformer rows + TCN, and {variants} rows again", f"{len(ablation.ROWS)} rows in all",
+                      f"the ablation has {variants} step-LayerNorm rows", f"8 points x {len(ablation.ROWS)} rows"],
+    }
+    for path, texts in said.items():
+        text = " ".join((repo / path).read_text().split())
+        for t in texts:
+            assert t in text, (path, t)
+
+
 def test_results_say_how_they_were_made():
     assert documents.command_markdown("python -m experiments.noise --seeds=10") == "- command: `python -m experiments.noise --seeds=10`"
     assert documents.command_markdown(None) == "- command: none (called from Python)"  # not the test runner's argv

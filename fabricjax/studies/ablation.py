@@ -1,5 +1,5 @@
 """The paper's modality ablation (Table ablation_table): 12 transformer rows and the TCN row, and
-nine of them again under our step-LayerNorm fusion (every camera row and the non-camera fusion rows).
+9 of them again under our step-LayerNorm fusion (every camera row and the non-camera fusion rows).
 
     python -m experiments.ablation --seeds=5                          # default preset, whole table
     python -m experiments.ablation --seeds=5 --rows=internal,internal+external
