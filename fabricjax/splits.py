@@ -22,8 +22,6 @@ from typing import Any, Iterable
 
 from fabricjax import catalog
 
-ROLES = ("train", "val", "test", "cafe")
-
 
 @dataclasses.dataclass(frozen=True)
 class Splits:

@@ -41,10 +41,6 @@ class Motion:
     slip_width_mm: float  # mean delta of the play operator (stick length at each reversal)
     contact_stiffness_n_mm: float  # normal stiffness of shells + stack
 
-    @property
-    def speed_mm_s(self) -> np.ndarray:
-        return np.gradient(self.slide_mm, self.t)
-
 
 def stack_stiffness(fabric: catalog.Fabric, thickness_mm: float) -> float:
     """Normal stiffness of the shells in series with the fabric stack (linearised at 0.1 N)."""
