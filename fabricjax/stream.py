@@ -40,7 +40,6 @@ from fabricjax.config import Config
 from fabricjax.features import welch
 
 STREAMABLE = ("internal", "external", "proprio")
-STEP_S = 0.02  # 50 Hz
 
 
 @dataclasses.dataclass(frozen=True)

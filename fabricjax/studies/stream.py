@@ -92,7 +92,7 @@ def run(
         rec = trial_view.open_recording(view_save)
         viewer = trial_view.TrialView(rec, label)
     out(f"{archive_path}: {stream.class_name(label)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
-        f"N={streamer.n} steps ({streamer.n * stream.STEP_S:.2f} s), {'+'.join(config.modalities)}")
+        f"N={streamer.n} steps ({streamer.n / archive.STEP_RATE:.2f} s), {'+'.join(config.modalities)}")
 
     def show(r: stream.StepResult) -> None:
         if print_every and (r.step % print_every == 0 or r.step == trial.n_steps - 1):
