@@ -117,6 +117,14 @@ PROPERTY_NAMES = ("stretchiness", "roughness", "thickness")
 SPLITS = ("train", "val", "test", "cafe", "holdout")  # a user's split (meta.split), as `data` names them
 
 
+def nyquist_khz(rate: float) -> float:
+    """The Nyquist frequency [kHz] of audio sampled at `rate` Hz: the top of its PSD's full band."""
+    return rate / 2000
+
+
+NYQUIST_KHZ = nyquist_khz(AUDIO_RATE)  # 24 kHz, the hand's microphones': the widest PSD bandwidth
+
+
 class ArchiveError(UserError):
     """A trial archive or dataset index is unreadable or invalid."""
 
@@ -138,7 +146,7 @@ class Mic:
 
     @property
     def nyquist_khz(self) -> float:
-        return self.rate / 2000
+        return nyquist_khz(self.rate)
 
 
 @dataclasses.dataclass(frozen=True)

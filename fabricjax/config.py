@@ -84,8 +84,8 @@ class Config:
             raise ValueError(f"modalities must be a non-empty subset of {MODALITIES}, got {self.modalities}")
         if self.backbone not in BACKBONES:
             raise ValueError(f"backbone must be one of {BACKBONES}, got {self.backbone!r}")
-        if not 0 < self.bandwidth_khz <= 24.0:
-            raise ValueError(f"bandwidth_khz must be in (0, 24], got {self.bandwidth_khz}")
+        if not 0 < self.bandwidth_khz <= archive.NYQUIST_KHZ:
+            raise ValueError(f"bandwidth_khz must be in (0, {archive.NYQUIST_KHZ:g}], got {self.bandwidth_khz}")
         if self.fusion_norm not in FUSION_NORMS:
             raise ValueError(f"fusion_norm must be one of {FUSION_NORMS}, got {self.fusion_norm!r}")
         if self.lr_schedule not in LR_SCHEDULES:

@@ -224,9 +224,10 @@ def _check_bands(config: Config, rates: Mapping[str, int]) -> None:
     """State a bandwidth above a microphone's Nyquist (the PSD stops there), and refuse two
     microphones whose bands give the shared audio encoder different bin counts."""
     for m, rate in rates.items():
-        if config.bandwidth_khz > rate / 2000:
+        nyquist = archive.nyquist_khz(rate)
+        if config.bandwidth_khz > nyquist:
             logging.warning("bandwidth %g kHz is above the %s microphone's Nyquist (%g kHz at %d Hz): its PSD is capped at "
-                            "0-%g kHz (%d bins)", config.bandwidth_khz, m, rate / 2000, rate, rate / 2000, welch.N_BINS)
+                            "0-%g kHz (%d bins)", config.bandwidth_khz, m, nyquist, rate, nyquist, welch.N_BINS)
     bins = {m: welch.n_bins(config.bandwidth_khz, r) for m, r in rates.items()}
     if len(set(bins.values())) > 1:
         raise UserError(f"the microphones' PSDs have different bin counts at {config.bandwidth_khz:g} kHz ({bins}: rates {dict(rates)}); "

@@ -44,7 +44,6 @@ from fabricjax.features import flow, welch
 EXTRA = 'pip install -e ".[viz]"'
 APPLICATION_ID = "fabricjax"
 SPECTROGRAM_STEPS = 100  # 2 s at 50 Hz
-FULL_BAND_KHZ = archive.AUDIO_RATE / 2000
 
 
 def rerun():
@@ -122,7 +121,7 @@ class TrialView:
         self.rr, self.rec, self.label = rerun(), rec, label
         self.previous_frame = None
         self.spectrogram = np.full((len(archive.MIC_NAMES), welch.N_BINS, SPECTROGRAM_STEPS), np.nan, np.float32)
-        self.psd = jax.jit(lambda w: welch.welch_psd(w, bandwidth_khz=FULL_BAND_KHZ))
+        self.psd = jax.jit(lambda w: welch.welch_psd(w, bandwidth_khz=archive.NYQUIST_KHZ))
 
     def warmup(self, image_size: tuple[int, int] | None) -> None:
         """Compile the PSD and, for frames of `image_size` (H, W), the flow pooling, so that the

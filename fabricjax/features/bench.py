@@ -36,7 +36,7 @@ def bench_welch(n_windows: int = 4096, repeats: int = 5, seed: int = 0) -> dict:
     rng = np.random.default_rng(seed)
     words = (rng.integers(-(2**17), 2**17, size=(n_windows, archive.WINDOW)) << 14).astype(np.int32)
     samples = np.asarray(welch.to_full_scale(words), np.float32)
-    ours = jax.jit(lambda w: welch.welch_psd(w, bandwidth_khz=24.0, log=False))
+    ours = jax.jit(lambda w: welch.welch_psd(w, bandwidth_khz=archive.NYQUIST_KHZ, log=False))
     theirs = jax.jit(lambda x: jax.scipy.signal.welch(x, **welch.SCIPY_KWARGS)[1])
     dev_words, dev_samples = jax.device_put(words), jax.device_put(samples)
     ours(dev_words).block_until_ready()

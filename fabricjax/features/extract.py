@@ -66,7 +66,7 @@ def log_psd(windows: np.ndarray, rate: int = archive.AUDIO_RATE) -> np.ndarray:
     n = len(windows)
     padded = np.pad(windows, ((0, -n % PSD_CHUNK), (0, 0)))
     chunks = np.split(padded, len(padded) // PSD_CHUNK)
-    out = [np.asarray(welch.welch_psd(c, bandwidth_khz=rate / 2000, floor=welch.LOG_FLOOR, rate=rate)) for c in chunks]
+    out = [np.asarray(welch.welch_psd(c, bandwidth_khz=archive.nyquist_khz(rate), floor=welch.LOG_FLOOR, rate=rate)) for c in chunks]
     return np.concatenate(out)[:n]
 
 

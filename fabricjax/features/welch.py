@@ -43,7 +43,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fabricjax.archive import AUDIO_RATE, FULL_SCALE, VALID_BITS, WINDOW
+from fabricjax.archive import AUDIO_RATE, FULL_SCALE, NYQUIST_KHZ, VALID_BITS, WINDOW
 
 NPERSEG = 1022
 NOVERLAP = 511
@@ -63,7 +63,7 @@ def n_bins(bandwidth_khz: float, rate: int = AUDIO_RATE) -> int:
     return min(N_BINS, math.floor(bandwidth_khz * 1000 * NPERSEG / rate) + 1)
 
 
-def frequencies(bandwidth_khz: float = 24.0, rate: int = AUDIO_RATE) -> np.ndarray:
+def frequencies(bandwidth_khz: float = NYQUIST_KHZ, rate: int = AUDIO_RATE) -> np.ndarray:
     return np.arange(n_bins(bandwidth_khz, rate)) * rate / NPERSEG
 
 
