@@ -27,7 +27,7 @@ flags.DEFINE_string("results", None, "folder for psds.png (default: <workspace>/
 
 def mean_psd(audio_row: np.ndarray, window_end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Frequencies (Hz) and the mean Welch PSD (full scale^2 / Hz) over the steps' windows."""
-    x = (audio_row >> (32 - archive.VALID_BITS)).astype(np.float64) / archive.FULL_SCALE
+    x = (audio_row >> archive.SAMPLE_SHIFT).astype(np.float64) / archive.FULL_SCALE
     windows = np.stack([x[e - archive.WINDOW : e] for e in window_end])
     f, p = scipy.signal.welch(windows, axis=-1, **welch.SCIPY_KWARGS)
     return f, p.mean(axis=0)

@@ -82,6 +82,7 @@ WINDOW = 2048  # audio samples per step (the Welch window), at each microphone's
 AUDIO_RATE = 48000  # Hz, the hand's microphones
 STEP_RATE = 50  # Hz, the hand: one step per Minsight frame
 VALID_BITS = 18  # valid bits of an SPH0645 I2S word, in bits 31..14
+SAMPLE_SHIFT = 32 - VALID_BITS  # word = sample << SAMPLE_SHIFT; sample = word >> SAMPLE_SHIFT (arithmetic)
 FULL_SCALE = 2.0 ** (VALID_BITS - 1)  # a signed 18-bit sample of this magnitude is full scale (+-1)
 N_JOINTS = 6
 JOINT_FIELDS = ("angle", "velocity", "current")

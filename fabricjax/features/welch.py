@@ -8,7 +8,7 @@ A 2048-sample window then holds 3 segments starting at 0, 511 and 1022 (the last
 unused) and the density has nperseg // 2 + 1 = 512 bins at k * 48000 / 1022 Hz (46.97 Hz apart,
 bin 511 is Nyquist, 24 kHz): the paper's 512 bins without dropping one. The sample rate, the
 window and the word format are the archive's (`fabricjax.archive`: AUDIO_RATE, WINDOW, VALID_BITS,
-FULL_SCALE).
+SAMPLE_SHIFT, FULL_SCALE).
 
 Raw SPH0645 I2S words (int32) carry 18 valid bits in bits 31..14: an arithmetic shift right by 14
 gives the signed sample, divided by 2**17 it is in units of full scale (+-1). Float input is taken
@@ -43,7 +43,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fabricjax.archive import AUDIO_RATE, FULL_SCALE, NYQUIST_KHZ, VALID_BITS, WINDOW
+from fabricjax.archive import AUDIO_RATE, FULL_SCALE, NYQUIST_KHZ, SAMPLE_SHIFT, WINDOW
 
 NPERSEG = 1022
 NOVERLAP = 511
@@ -73,7 +73,7 @@ def _float():
 
 def to_full_scale(words: jax.Array) -> jax.Array:
     """SPH0645 int32 I2S words -> signed 18-bit samples in units of full scale (exact in float32)."""
-    return jnp.right_shift(jnp.asarray(words), 32 - VALID_BITS).astype(_float()) / FULL_SCALE
+    return jnp.right_shift(jnp.asarray(words), SAMPLE_SHIFT).astype(_float()) / FULL_SCALE
 
 
 def _segments(x: jax.Array) -> jax.Array:
@@ -107,7 +107,7 @@ def welch_psd(
     if jnp.issubdtype(windows.dtype, jnp.integer):
         # Detrend exactly in integers (|n*q - sum q| < 2**31), then scale: a float32 mean of a
         # large DC offset would leave a rounding residue that dominates the lowest bins.
-        q = _segments(jnp.right_shift(windows.astype(jnp.int32), 32 - VALID_BITS))
+        q = _segments(jnp.right_shift(windows.astype(jnp.int32), SAMPLE_SHIFT))
         x = (q * NPERSEG - q.sum(axis=-1, keepdims=True)).astype(_float()) / (NPERSEG * FULL_SCALE)
     else:
         x = _segments(windows)

@@ -33,7 +33,7 @@ def self_noise(grid: acoustics.Grid, rng: np.random.Generator) -> np.ndarray:
 
 def to_words(counts: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
     """Signed 18-bit samples -> int32 I2S words (clipped at full scale; optional junk bits)."""
-    q = np.clip(np.round(counts), -archive.FULL_SCALE, archive.FULL_SCALE - 1).astype(np.int32) << 14
+    q = np.clip(np.round(counts), -archive.FULL_SCALE, archive.FULL_SCALE - 1).astype(np.int32) << archive.SAMPLE_SHIFT
     if rng is not None:
         q |= rng.integers(0, 2**cal.JUNK_BITS, q.shape, dtype=np.int32) << 8
     return q
