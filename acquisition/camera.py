@@ -15,9 +15,11 @@ import dataclasses
 import cv2
 import numpy as np
 
+from fabricjax import archive
+
 RAW_SIZE = (1280, 960)  # W, H
 CROP_COLUMNS = (160, 1120)
-IMAGE_SIZE = (308, 410)  # H, W (archive order)
+IMAGE_SIZE = archive.MINSIGHT_SIZE  # H, W (archive order)
 
 
 class CameraError(RuntimeError):

@@ -39,7 +39,7 @@ import dataclasses
 from types import MappingProxyType
 from typing import Any, Mapping
 
-from fabricjax import catalog
+from fabricjax import archive, catalog
 from fabricjax.errors import UserError
 from fabricjax.splits import DatasetSpec
 
@@ -78,7 +78,7 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
                 cnn_features=(4, 8), epochs=2, batch_size=16, learning_rate=2e-3, lr_schedule="cosine", image_size=(30, 40),
             )),
         ),
-        Preset(name="paper", dataset=DatasetSpec(**_PAPER_DATA, image_size=(308, 410))),
+        Preset(name="paper", dataset=DatasetSpec(**_PAPER_DATA, image_size=archive.MINSIGHT_SIZE)),
     )
 })
 

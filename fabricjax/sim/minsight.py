@@ -24,12 +24,12 @@ import functools
 import cv2
 import numpy as np
 
-from fabricjax import catalog
+from fabricjax import archive, catalog
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.motion import Motion
 from fabricjax.sim.scene import Nuisance, Scene
 
-FULL_WIDTH = 410
+FULL_WIDTH = archive.MINSIGHT_SIZE[1]  # the "full resolution" of the calibration's pixel sizes (`cal.*_PX*`)
 RUB_DIRECTION_RAD = 0.35  # the stroke direction as seen by the camera
 
 

@@ -39,7 +39,7 @@ class Scene:
     condition: str = "lab"
     effects: tuple[str, ...] = EFFECTS
     streams: tuple[str, ...] = REQUIRED_STREAMS
-    image_size: tuple[int, int] = (308, 410)
+    image_size: tuple[int, int] = archive.MINSIGHT_SIZE
     cycles: int = 50
     seed: int = 0
 
