@@ -121,7 +121,7 @@ class Config:
         if unknown:
             raise ValueError(f"unknown config fields {sorted(unknown)}")
         d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
-        if "seq_len" in d and d["seq_len"] is None:  # stored before N was always explicit: the preset's N
+        if "seq_len" in d and d["seq_len"] is None:  # a saved config may hold seq_len null (N unset): read as its preset's N, so such checkpoints still restore
             d["seq_len"] = presets.get(d.get("preset", cls.preset)).training.get("seq_len", cls.seq_len)
         return cls(**d)
 
