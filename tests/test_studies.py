@@ -90,7 +90,7 @@ def test_bandwidth_narrows_the_psd_per_row(workdir, tmp_path):
     cut = data.narrow(full, Config(modalities=("internal", "proprio"), bandwidth_khz=15.0))["s"].inputs
     assert cut.keys() == {"internal", "proprio"}  # the row's inputs only
     assert cut["internal"].shape == (2, 3, 320) and cut["proprio"].shape == (2, 3, 18)
-    with pytest.raises(UserError, match="sets bandwidth_khz per row itself; choose bandwidths with --rows"):
+    with pytest.raises(UserError, match=r"sets bandwidth_khz per row itself \(every one of its 4 rows\); choose bandwidths with --rows"):
         bandwidth.run(**run_kwargs(workdir, tmp_path) | {"overrides": {"bandwidth_khz": 10.0}})
 
 
