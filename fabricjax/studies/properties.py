@@ -137,7 +137,7 @@ def markdown(doc: dict[str, Any]) -> str:
                f"Training fabrics on the test day: {doc['fabrics']['test']} (class 0 has no properties and is ignored); "
                f"holdout fabrics: {doc['fabrics']['holdout']}. The paper reports means only.")
     lines = [
-        documents.title(doc, "Property perception", "property_perception"),
+        documents.title(doc, "Property perception", "Table property_perception"),
         "",
         documents.header_markdown(doc),
         fabrics,
