@@ -364,3 +364,15 @@ def _run_hand(manifest, out, **kw):
     """`import_manifest` without a rig file: the hand's folders, or bags with `mapping`."""
     said = []
     return import_manifest.run(manifest, out, workers=1, progress=False, say=said.append, **kw), "\n".join(said)
+
+
+@pytest.mark.slow  # ~1-2 min on 2 shared cores: one smoke-size point
+def test_the_cost_study_reads_the_imported_rig_without_the_paper_point(archives, tmp_path):
+    from fabricjax.studies import cost
+
+    doc = cost.run(n_seeds=1, preset="smoke", seq_lens=(10,), backbones=("attention",), widths=(), bandwidths=(), modality_sets=[("internal",)],
+                   latency_repeats=2, workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test")
+    assert doc["paper_point"] is None and "paper" not in {p["group"] for p in doc["points"]}
+    assert doc["dataset"]["step_rate"] == rig_bench.STEP_RATE and all(p["touch_s"] == p["seq_len"] / rig_bench.STEP_RATE for p in doc["points"])
+    md = (tmp_path / "results" / "cost.md").read_text()
+    assert md.startswith("# What accuracy costs in time on recorded data") and "paper" not in md.lower()
