@@ -376,3 +376,24 @@ def test_the_cost_study_reads_the_imported_rig_without_the_paper_point(archives,
     assert doc["dataset"]["step_rate"] == rig_bench.STEP_RATE and all(p["touch_s"] == p["seq_len"] / rig_bench.STEP_RATE for p in doc["points"])
     md = (tmp_path / "results" / "cost.md").read_text()
     assert md.startswith("# What accuracy costs in time on recorded data") and "paper" not in md.lower()
+
+
+@pytest.mark.slow  # ~1-2 min on 2 shared cores: one smoke-size property row and its t-SNE
+def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs_fabrics(tmp_path):
+    from fabricjax.studies import latents, properties
+
+    labels = [*LABELS, "silk"]
+    manifest = rig_bench.write_recordings(tmp_path / "rig", labels, 4, seconds=(3.0, 3.5), splits=SPLITS)
+    roughness = {"cotton canvas": "1", "felt": "0", "oak": "1", "silk": "0"}
+    _edit_manifest(manifest, manifest, lambda rows: [r + ["roughness"] if i == 0 else r[:3] + ["holdout" if r[1] == "silk" else r[3], roughness[r[1]]]
+                                                     for i, r in enumerate(rows)])
+    _run(manifest, tmp_path / "out")
+    doc = properties.run(n_seeds=1, rows=["minsound"], preset="smoke", workdir=tmp_path / "ws", data_dir=tmp_path / "out",
+                         results=tmp_path / "results", command="test")
+    # class 1 (felt) trains, as the data says: the catalog's holdout ids (1, 10, 21-23) are not a rig's classes
+    assert doc["dataset"]["trials"]["train"] == 6 and doc["fabrics"] == {"test": [0, 1, 2], "holdout": [3]}
+    ld = latents.run(doc["rows"][0]["checkpoint"], workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test")
+    assert ld["holdouts"] == [3] and [p["fabric_id"] for p in ld["points"]] == [0, 1, 2, 3] and ld["findings"] == []
+    assert [(p["holdout"], p["chance"]) for p in ld["neighbours"]["pairs"]] == [(3, pytest.approx(1 / 3))]  # roughness 0 as felt only
+    md = (tmp_path / "results" / "latents.md").read_text()
+    assert md.startswith("# Latent space on recorded data") and "paper" not in md.lower()
