@@ -309,10 +309,11 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
     if unused_columns:
         say(f"note: joint columns not named in the rig file, not imported: {', '.join(f'{c} ({k} trials)' for c, k in sorted(unused_columns.items()))}")
     per_split = Counter(s or "by day" for s in splits)
+    n_classes = len(set(label_map.values())) if label_map else None  # classes, not names: a label file may give one class two names
     summary = {"trials": len(jobs), "imported": len(todo), "resumed": len(jobs) - len(todo), "steps": steps,
-               "splits": dict(per_split), "classes": len(label_map) if label_map else None, "seconds": time.perf_counter() - t0, "out": str(out)}
+               "splits": dict(per_split), "classes": n_classes, "seconds": time.perf_counter() - t0, "out": str(out)}
     say(f"{out}: {len(todo)} trials imported, {len(jobs) - len(todo)} already there (resumed); {steps} steps; "
-        f"splits {', '.join(f'{k} {v}' for k, v in sorted(per_split.items()))}" + (f"; {len(label_map)} classes" if label_map else "")
+        f"splits {', '.join(f'{k} {v}' for k, v in sorted(per_split.items()))}" + (f"; {n_classes} classes" if label_map else "")
         + f" ({summary['seconds']:.1f} s)")
     return summary
 

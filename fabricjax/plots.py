@@ -7,7 +7,7 @@ pyplot state survives a call (figures are created and closed here, Agg backend).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Collection, Mapping, Sequence
 
 import matplotlib
 
@@ -73,13 +73,14 @@ _ROUGH_MARKERS = ("o", "s", "^", "D", "P")
 
 
 def plot_latents(
-    path, xy: np.ndarray, fabric_ids: Sequence[int], title: str = "t-SNE of per-trial mean latents",
-    neighbours: dict[int, int] | None = None,
+    path, xy: np.ndarray, fabric_ids: Sequence[int], fabrics: Mapping[int, tuple[str, Mapping[str, int | None]]],
+    holdouts: Collection[int], title: str = "t-SNE of per-trial mean latents", neighbours: dict[int, int] | None = None,
 ) -> Path:
     """Colour = stretchiness, marker = roughness level, size = thickness level (the paper's Fig.
-    latent_features); holdout fabrics (never trained on, `catalog.PROPERTY_HOLDOUTS`) outlined in
-    black with bold numbers; `neighbours` (holdout id -> its nearest training fabric in latent
-    space) drawn as dashed lines; every number named in a key beside the plot."""
+    latent_features), from `fabrics` (id -> name and property levels, None where unknown: the
+    catalog's for the hand, the data's own for recorded data); `holdouts` (never trained on)
+    outlined in black with bold numbers; `neighbours` (holdout id -> its nearest training fabric in
+    latent space) drawn as dashed lines; every number named in a key beside the plot."""
     fig, ax = plt.subplots(figsize=(10.5, 6.4), layout="constrained")
     colours = {0: "tab:blue", 1: "tab:orange", None: "grey"}
     where = {int(f): (x, y) for (x, y), f in zip(np.asarray(xy), fabric_ids)}
@@ -87,10 +88,10 @@ def plot_latents(
         (x0, y0), (x1, y1) = where[h], where[t]
         ax.plot([x0, x1], [y0, y1], ls="--", lw=0.9, color="black", alpha=0.6, zorder=1)
     for fid, (x, y) in where.items():
-        f = catalog.fabric(fid)
-        held = fid in catalog.PROPERTY_HOLDOUTS
+        p = fabrics[fid][1]
+        held = fid in holdouts
         ax.scatter(
-            x, y, s=60 + 60 * (f.thickness or 0), marker=_ROUGH_MARKERS[f.roughness or 0], c=colours[f.stretchiness],
+            x, y, s=60 + 60 * (p["thickness"] or 0), marker=_ROUGH_MARKERS[p["roughness"] or 0], c=colours[p["stretchiness"]],
             edgecolors="black" if held else "none", linewidths=2.2 if held else 0, alpha=0.85, zorder=2,
         )
         ax.annotate(str(fid), (x, y), fontsize=9 if held else 8, weight="bold" if held else "normal", xytext=(5, 4), textcoords="offset points")
@@ -101,7 +102,7 @@ def plot_latents(
     if neighbours:
         handles += [plt.Line2D([], [], ls="--", color="black", label="holdout to nearest training fabric\n(in latent space)")]
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
-    key = "\n".join(f"{'*' if fid in catalog.PROPERTY_HOLDOUTS else ' '}{fid:>2} {catalog.fabric(fid).name.split(' (')[0]}" for fid in sorted(where))
+    key = "\n".join(f"{'*' if fid in holdouts else ' '}{fid:>2} {fabrics[fid][0].split(' (')[0]}" for fid in sorted(where))
     ax.text(1.01, 0.0, key + "\n* holdout", transform=ax.transAxes, fontsize=6.5, family="monospace", va="bottom")
     ax.set(title=title, xlabel="t-SNE 1", ylabel="t-SNE 2")
     ax.margins(0.08)
@@ -118,8 +119,8 @@ def _seed_dots(ax, x: float, values: np.ndarray, colour: str, spread: float) -> 
     ax.scatter(x + offsets, v, s=12, color=colour, alpha=0.55, edgecolors="none", zorder=3)
 
 
-def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[Sequence[np.ndarray], Sequence[float]]]) -> Path:
-    """Accuracy [%] against PSD bandwidth: per split (`series`: split -> (per-seed values per
+def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[Sequence[np.ndarray], Sequence[float]]], microphone: str) -> Path:
+    """Accuracy [%] of `microphone` (the data's name for it) against PSD bandwidth: per split (`series`: split -> (per-seed values per
     bandwidth, the paper's mean per bandwidth or None: recorded data), every seed as a dot, our
     mean as a line, the paper's mean dashed."""
     fig, ax = plt.subplots(figsize=(8.8, 4.4), layout="constrained")
@@ -132,7 +133,7 @@ def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[S
         ax.plot(x + shift, [np.mean(v) for v in per_seed], "o-", color=colour, lw=1.6, label=f"{name}, ours (mean; dots: seeds)")
         if paper is not None:
             ax.plot(x, paper, "s--", color=colour, lw=1.0, mfc="white", alpha=0.8, label=f"{name}, paper (mean)")
-    ax.set(xlabel="PSD bandwidth [kHz]", ylabel="accuracy [%]", title="Minsound accuracy against PSD bandwidth")
+    ax.set(xlabel="PSD bandwidth [kHz]", ylabel="accuracy [%]", title=f"{microphone} accuracy against PSD bandwidth")
     ax.set_xticks(x, [f"{k:g}" for k in x])
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)

@@ -120,5 +120,5 @@ def test_findings_round_trip_through_json_and_markdown():
 def test_bandwidth_plot_takes_every_seed(tmp_path, split):
     rows = [{"bandwidth_khz": k, "accuracy": {s: {"fabric": [0.5, 0.6, 0.7]} for s in ("val", "test")},
              "paper": {"val_mean": 90.0, "test_mean": 88.0}} for k in (2.5, 10, 15, 24)]
-    png = bandwidth.plot(tmp_path / f"bw-{split}.png", rows)
+    png = bandwidth.plot(tmp_path / f"bw-{split}.png", rows, "Minsound")
     assert png.read_bytes()[:4] == b"\x89PNG"

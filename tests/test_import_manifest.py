@@ -186,6 +186,13 @@ def test_the_probe_reads_the_imported_rig(archives, tmp_path):
     assert "simulat" not in md.lower()
 
 
+def test_the_bandwidth_plot_names_the_rigs_microphone(archives, tmp_path):
+    from fabricjax.studies import bandwidth, loading
+
+    assert bandwidth.microphone(loading.Dataset({}, archives, "recorded", 0.0, 0.0), tmp_path / "ws") == "vibration"
+    assert bandwidth.microphone(loading.Dataset({}, archives, "simulated", 0.0, 0.0)) == "Minsound"
+
+
 def test_import_benchmark_entry_and_row(tmp_path):
     from fabricjax.studies import bench
 
@@ -196,3 +203,197 @@ def test_import_benchmark_entry_and_row(tmp_path):
     assert "batch import, 20 trials of 2-3 s" in (tmp_path / "bench.md").read_text()
     with pytest.raises(ValueError, match="the import benchmark needs its function"):
         bench.run(only=["import"], results=tmp_path, command="test", out=lambda s: None)
+
+
+def _rig_manifest(root, rig_toml, labels=LABELS[:1], trials=1, seconds=(2.0, 2.0), splits=None):
+    """A rig's recordings (`rig_bench`) under another rig file: its step clock or microphones."""
+    manifest = rig_bench.write_recordings(root, labels, trials, seconds, splits=splits or {k: "train" for k in range(trials)})
+    (root / "rig.toml").write_text(rig_toml)
+    return manifest
+
+
+def test_without_a_camera_or_a_rate_the_joints_timestamps_are_the_steps(tmp_path):
+    manifest = _rig_manifest(tmp_path / "rig", rig_bench.RIG_TOML.replace(f"[steps]\nrate = {rig_bench.STEP_RATE}\n", ""))
+    _run(manifest, tmp_path / "out")
+    a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")
+    lay = archive.layout(a.meta)
+    assert lay.step_clock == "joints" and lay.step_rate == rig_bench.JOINT_RATE
+    np.testing.assert_allclose(np.diff(a.timestamps), 1 / rig_bench.JOINT_RATE, atol=1e-9)
+    # every step is one joint reading, as read (no interpolation): the rows from the first usable one
+    table = np.loadtxt(tmp_path / "rig" / "recordings" / "00_000" / "joints.csv", delimiter=",", skiprows=1)
+    first = a.meta["import"]["steps_dropped_before_start"]
+    assert first == int(np.ceil(archive.WINDOW / rig_bench.VIBRATION_RATE * rig_bench.JOINT_RATE))  # a full 2048-sample window
+    rows = table[first : first + a.n_steps, 1:-1].reshape(a.n_steps, rig_bench.N_JOINTS, 3)
+    np.testing.assert_allclose(a.joints, rows.astype(np.float32))
+    step_t = table[first : first + a.n_steps, 0]
+    np.testing.assert_array_equal(a.window_end[:, 0], np.floor(step_t * rig_bench.VIBRATION_RATE + 1e-9).astype(np.int64) + 1)
+
+
+def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
+    import cv2
+
+    manifest = _rig_manifest(tmp_path / "rig", rig_bench.RIG_TOML + "\n[camera]\n")
+    folder = tmp_path / "rig" / "recordings" / "00_000"
+    frames = np.random.default_rng(1).integers(0, 255, size=(12, 6, 8, 3), dtype=np.uint8)
+    (folder / "camera").mkdir()
+    for i, f in enumerate(frames):
+        cv2.imwrite(str(folder / "camera" / f"{i:04d}.png"), cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
+    frame_t = 1.0005 + np.arange(len(frames)) / 30  # 30 fps, from after the first full window
+    np.savetxt(folder / "frames.csv", frame_t, header="time", comments="", fmt="%.6f")
+    _run(manifest, tmp_path / "out")  # the declared rate gives way to the camera's frames
+    a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")
+    lay = archive.layout(a.meta)
+    assert lay.step_clock == "camera" and lay.step_rate == pytest.approx(30.0, abs=1e-3) and lay.image_size == (6, 8)
+    np.testing.assert_allclose(a.timestamps, frame_t - frame_t[0], atol=1e-6)
+    np.testing.assert_array_equal(a.images, frames)
+    np.testing.assert_array_equal(a.window_end[:, 0], np.floor(frame_t * rig_bench.VIBRATION_RATE).astype(np.int64) + 1)
+    assert "image" in lay.modalities() and "flow" in lay.modalities()
+
+
+def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path, caplog):
+    import logging
+
+    from scipy.io import wavfile
+
+    from fabricjax import data
+    from fabricjax.config import Config
+    from fabricjax.features import welch
+
+    room = rig_bench.RIG_TOML.replace("[joints]", '[[mics]]\nname = "room"\nfile = "room.wav"\nrole = "external"\n\n[joints]')
+    manifest = _rig_manifest(tmp_path / "rig", room, labels=LABELS[:2], trials=2, splits={0: "train", 1: "test"})
+    rng = np.random.default_rng(2)
+    for folder in (tmp_path / "rig" / "recordings").iterdir():  # white noise of one level in both microphones
+        wavfile.write(folder / "vibration.wav", 2200, rng.normal(0, 2**12, 2 * 2200).astype(np.int16))
+        wavfile.write(folder / "room.wav", 4400, rng.normal(0, 2**12, 2 * 4400).astype(np.int16))
+    _run(manifest, tmp_path / "out")
+    lay = archive.layout(archive.read_meta(tmp_path / "out" / "felt_trial001_lab.npz")[0])
+    assert [(m.name, m.rate, m.role) for m in lay.mics] == [("vibration", 2200, "internal"), ("room", 4400, "external")]
+    config = Config.from_preset("smoke", modalities=("internal", "external"), bandwidth_khz=15.0, seq_len=10)
+    with caplog.at_level(logging.WARNING):
+        sets = data.load_sequences(config, tmp_path / "out", workdir=tmp_path / "ws", progress=False)
+    for mic, rate in (("internal", 2200), ("external", 4400)):  # each band capped at its own Nyquist
+        assert f"above the {mic} microphone's Nyquist ({rate / 2000:g} kHz at {rate} Hz)" in caplog.text
+        assert sets["train"].inputs[mic].shape[2] == welch.N_BINS
+    assert sets["train"].rates == {"internal": 2200, "external": 4400}
+    # one noise level: the density (per Hz) of the microphone at half the rate is twice as high
+    level = {m: np.mean(sets["train"].inputs[m][..., 1:-1]) for m in ("internal", "external")}
+    assert level["internal"] - level["external"] == pytest.approx(np.log10(2), abs=0.02)
+
+
+def test_a_labels_file_sets_the_classes_and_their_count(recordings, tmp_path):
+    from fabricjax import data
+    from fabricjax.config import Config
+
+    labels = tmp_path / "labels.csv"  # two names, one class; the classes in the file's order, not sorted
+    labels.write_text("name,class\noak,0\nfelt,1\ncotton canvas,1\n")
+    summary, said = _run(recordings, tmp_path / "out", labels=labels)
+    assert summary["classes"] == 2 and "; 2 classes" in said
+    meta = archive.read_meta(tmp_path / "out" / "felt_trial003_lab.npz")[0]
+    assert meta["label_map"] == {"oak": 0, "felt": 1, "cotton canvas": 1} and meta["label"] == 1 and meta["label_name"] == "felt"
+    assert archive.read_meta(tmp_path / "out" / "oak_trial000_lab.npz")[0]["label"] == 0
+    sets = data.load_sequences(Config.from_preset("smoke", modalities=("proprio",)), tmp_path / "out", workdir=tmp_path / "ws",
+                               progress=False, split_names=("train", "test"))
+    assert sets["train"].classes == ("oak", "cotton canvas / felt") and sets["train"].n_classes == 2
+    assert set(sets["test"].labels["fabric"].tolist()) == {0, 1}
+
+
+def test_property_columns_give_levels_only_where_given(tmp_path):
+    from fabricjax import data
+    from fabricjax.config import Config
+
+    manifest = rig_bench.write_recordings(tmp_path / "rig", LABELS[:2], 2, seconds=(2.0, 2.0), splits={0: "train", 1: "test"})
+    levels = {"cotton canvas": ("1", "3", ""), "felt": ("0", "", "")}  # stretchiness, roughness, thickness
+    _edit_manifest(manifest, manifest, lambda rows: [r + (["stretchiness", "roughness", "thickness"] if i == 0 else list(levels[r[1]]))
+                                                     for i, r in enumerate(rows)])
+    _run(manifest, tmp_path / "out")
+    assert archive.read_meta(tmp_path / "out" / "cotton_canvas_trial001_lab.npz")[0]["properties"] == {"stretchiness": 1, "roughness": 3}
+    assert archive.read_meta(tmp_path / "out" / "felt_trial000_lab.npz")[0]["properties"] == {"stretchiness": 0}
+    sets = data.load_sequences(Config.from_preset("smoke", modalities=("proprio",)), tmp_path / "out", workdir=tmp_path / "ws",
+                               progress=False, split_names=("train", "test"))
+    ss = sets["test"]
+    felt = ss.labels["fabric"] == 1
+    assert set(ss.labels["stretchiness"][felt].tolist()) == {0} and set(ss.labels["stretchiness"][~felt].tolist()) == {1}
+    assert set(ss.labels["roughness"][felt].tolist()) == {-1} and set(ss.labels["roughness"][~felt].tolist()) == {3}
+    assert set(ss.labels["thickness"].tolist()) == {-1}  # no level given: unknown, never the catalog's
+
+
+def test_the_hands_folders_import_through_a_manifest(tmp_path):
+    from tests.test_import_folder import write_folder
+
+    write_folder(tmp_path / "rec" / "a", seed=0)
+    write_folder(tmp_path / "rec" / "b", seed=1)
+    manifest = tmp_path / "rec" / "manifest.csv"
+    manifest.write_text("path,label,day,trial\na,4,1,0\nb,7,3,2\n")
+    summary, _ = _run_hand(manifest, tmp_path / "out")
+    assert summary["trials"] == 2 and summary["classes"] is None and summary["splits"] == {"by day": 2}
+    a = archive.read_archive(tmp_path / "out" / "fabric04_day1_trial00_lab.npz")
+    assert a.meta["fabric_id"] == 4 and a.audio.shape[0] == 2 and a.images is not None and "split" not in a.meta
+    b = archive.read_meta(tmp_path / "out" / "fabric07_day3_trial02_lab.npz")[0]
+    assert b["day"] == 3 and b["label"] == 7 and b["label"] == b["fabric_id"]  # split by day, as the hand's protocol
+    manifest.write_text("path,label,day,trial,split\na,4,1,0,test\n")
+    _run_hand(manifest, tmp_path / "out1")
+    assert archive.read_meta(tmp_path / "out1" / "fabric04_day1_trial00_lab.npz")[0]["split"] == "test"  # the column wins over the day
+    manifest.write_text("path,label,split\na,4,train\n")
+    with pytest.raises(UserError, match=r"manifest\.csv: line 2: day: missing: the hand's importers need a day"):
+        _run_hand(manifest, tmp_path / "out2")
+    labels = tmp_path / "labels.csv"
+    labels.write_text("name,class\nfelt,0\n")
+    with pytest.raises(UserError, match="--labels names classes of a rig's recordings"):
+        _run_hand(manifest, tmp_path / "out3", labels=labels)
+
+
+def test_bags_import_through_a_manifest_with_a_map(tmp_path):
+    pytest.importorskip("rosbags")
+    from tests import test_import_bag as bags
+
+    bags.write_bag(tmp_path / "rec" / "bag0", bags.recording(seed=0))
+    (tmp_path / "map.toml").write_text(bags.MAPPING_TOML)
+    manifest = tmp_path / "rec" / "manifest.csv"
+    manifest.write_text("path,label,day,trial,split\nbag0,9,2,5,test\n")  # the row's fields win over the map's [trial]
+    summary, _ = _run_hand(manifest, tmp_path / "out", mapping=tmp_path / "map.toml")
+    assert summary["trials"] == 1
+    a = archive.read_archive(tmp_path / "out" / "fabric09_day2_trial05_lab.npz")
+    assert a.meta["split"] == "test" and a.meta["fabric_id"] == 9 and a.meta["source"]["path"].endswith("bag0")
+    rec = bags.recording(seed=0)  # aligned as the bag importer aligns alone
+    np.testing.assert_allclose(a.timestamps, 0.02 * np.arange(bags.N_FRAMES), atol=1e-6)
+    np.testing.assert_array_equal(a.window_end, np.stack([bags.expected_window_end()] * 2, axis=1))
+    np.testing.assert_array_equal(a.images, rec["frames"])
+
+
+def _run_hand(manifest, out, **kw):
+    """`import_manifest` without a rig file: the hand's folders, or bags with `mapping`."""
+    said = []
+    return import_manifest.run(manifest, out, workers=1, progress=False, say=said.append, **kw), "\n".join(said)
+
+
+@pytest.mark.slow  # ~1-2 min on 2 shared cores: one smoke-size point
+def test_the_cost_study_reads_the_imported_rig_without_the_paper_point(archives, tmp_path):
+    from fabricjax.studies import cost
+
+    doc = cost.run(n_seeds=1, preset="smoke", seq_lens=(10,), backbones=("attention",), widths=(), bandwidths=(), modality_sets=[("internal",)],
+                   latency_repeats=2, workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test")
+    assert doc["paper_point"] is None and "paper" not in {p["group"] for p in doc["points"]}
+    assert doc["dataset"]["step_rate"] == rig_bench.STEP_RATE and all(p["touch_s"] == p["seq_len"] / rig_bench.STEP_RATE for p in doc["points"])
+    md = (tmp_path / "results" / "cost.md").read_text()
+    assert md.startswith("# What accuracy costs in time on recorded data") and "paper" not in md.lower()
+
+
+@pytest.mark.slow  # ~1-2 min on 2 shared cores: one smoke-size property row and its t-SNE
+def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs_fabrics(tmp_path):
+    from fabricjax.studies import latents, properties
+
+    labels = [*LABELS, "silk"]
+    manifest = rig_bench.write_recordings(tmp_path / "rig", labels, 4, seconds=(3.0, 3.5), splits=SPLITS)
+    roughness = {"cotton canvas": "1", "felt": "0", "oak": "1", "silk": "0"}
+    _edit_manifest(manifest, manifest, lambda rows: [r + ["roughness"] if i == 0 else r[:3] + ["holdout" if r[1] == "silk" else r[3], roughness[r[1]]]
+                                                     for i, r in enumerate(rows)])
+    _run(manifest, tmp_path / "out")
+    doc = properties.run(n_seeds=1, rows=["minsound"], preset="smoke", workdir=tmp_path / "ws", data_dir=tmp_path / "out",
+                         results=tmp_path / "results", command="test")
+    # class 1 (felt) trains, as the data says: the catalog's holdout ids (1, 10, 21-23) are not a rig's classes
+    assert doc["dataset"]["trials"]["train"] == 6 and doc["fabrics"] == {"test": [0, 1, 2], "holdout": [3]}
+    ld = latents.run(doc["rows"][0]["checkpoint"], workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test")
+    assert ld["holdouts"] == [3] and [p["fabric_id"] for p in ld["points"]] == [0, 1, 2, 3] and ld["findings"] == []
+    assert [(p["holdout"], p["chance"]) for p in ld["neighbours"]["pairs"]] == [(3, pytest.approx(1 / 3))]  # roughness 0 as felt only
+    md = (tmp_path / "results" / "latents.md").read_text()
+    assert md.startswith("# Latent space on recorded data") and "paper" not in md.lower()

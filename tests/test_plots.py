@@ -1,6 +1,6 @@
 import numpy as np
 
-from fabricjax import plots
+from fabricjax import catalog, plots
 
 
 def test_confusion_matrix_counts():
@@ -18,7 +18,8 @@ def test_figures_are_written(tmp_path):
     y = rng.integers(0, 21, 200)
     p1 = plots.plot_confusions(tmp_path / "cm.png", [("proprio", y, y), ("flow", y, rng.integers(0, 21, 200))])
     ids = list(range(1, 24))
-    p2 = plots.plot_latents(tmp_path / "tsne.png", rng.normal(size=(len(ids), 2)), ids)
+    fabrics = {f: (catalog.fabric(f).name, catalog.fabric(f).properties) for f in ids}
+    p2 = plots.plot_latents(tmp_path / "tsne.png", rng.normal(size=(len(ids), 2)), ids, fabrics, catalog.PROPERTY_HOLDOUTS)
     pts = [dict(name=f"N={n}", accuracy_mean=50 + n / 5, accuracy_sd=2.0, touch_s=n / 50, latency_ms=n / 100) for n in (25, 50, 100, 200)]
     p3 = plots.plot_pareto(tmp_path / "pareto.png", pts, [("touch_s", "touch time [s]"), ("latency_ms", "latency [ms]")], highlight="N=200")
     f = np.linspace(0, 24000, 512)

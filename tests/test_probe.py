@@ -74,12 +74,12 @@ def _ablation_row(name, test):
 
 
 PROBE_DOC = {
-    "preset": "default", "dataset": {"folder": "/w/datasets/default"},
+    "preset": "default", "dataset": {"folder": "/w/datasets/default", "source": "simulated"},
     "rows": [{"name": "internal", "modalities": ["internal"], "accuracy": {"test": 0.65}},
              {"name": "internal+external+proprio", "modalities": ["internal", "external", "proprio"], "accuracy": {"test": 0.75}}],
 }
 ABLATION_DOC = {
-    "preset": "default", "dataset": {"folder": "/w/datasets/default"}, "seeds": [0, 1],
+    "preset": "default", "dataset": {"folder": "/w/datasets/default", "source": "simulated"}, "seeds": [0, 1],
     "rows": [_ablation_row("internal", [0.8, 0.9]), _ablation_row("proprio", [0.4, 0.4]),
              _ablation_row("tcn:internal+external+proprio", [0.7, 0.7]),
              _ablation_row(f"{ablation.VARIANT}:internal+external+proprio", [0.8, 0.8])],

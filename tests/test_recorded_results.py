@@ -2,11 +2,17 @@
 each other, and nothing of the paper's numbers, its claims checklist or the simulator. The
 documents are built by hand (no training)."""
 
+import json
+
+import numpy as np
 import pytest
 
-from fabricjax.studies import bandwidth, documents, noise, properties
+from fabricjax import data, plots
+from fabricjax.errors import UserError
+from fabricjax.studies import bandwidth, cost, documents, latents, noise, properties, reproduce
 
-MACHINE = {"cpu": "test cpu", "vector_units": [], "cores": 2, "jax": "0", "jax_backend": "cpu", "devices": [0]}
+MACHINE = {"cpu": "test cpu", "vector_units": [], "cores": 2, "jax": "0", "jax_backend": "cpu", "devices": [0],
+           "platform": "test platform", "python": "3"}
 DATASET = {"folder": "rig_archives", "source": "recorded", "generate_s": 0.0, "load_s": 3.0,
            "sequences": {"train": 90, "val": 45, "test": 40}, "trials": {"train": 6, "val": 3, "test": 3},
            "classes": ["cotton canvas", "felt", "oak"]}
@@ -22,7 +28,7 @@ def _bandwidth_doc():
         {"name": f"{k:g}", "bandwidth_khz": k, "psd_bins": 512, "wall_s": 1.0,
          "accuracy": {"val": {"fabric": [v, v]}, "test": {"fabric": [t, t]}}}
         for k, v, t in ((0.55, 0.8, 0.7), (1.1, 0.9, 0.9))
-    ], modalities=["internal"])
+    ], modalities=["internal"], microphone="vibration")
 
 
 def _noise_doc():
@@ -57,6 +63,70 @@ def test_recorded_results_compare_rows_not_the_paper(study, doc, best_gap, other
     assert "paper" not in md.lower() and "simulat" not in md.lower() and "checklist" not in md.lower()
 
 
-def test_recorded_plots_have_no_paper_marks(tmp_path):
-    assert bandwidth.plot(tmp_path / "bw.png", _bandwidth_doc()["rows"]).read_bytes()[:4] == b"\x89PNG"
+def test_recorded_plots_have_no_paper_marks(tmp_path, monkeypatch):
+    titles = []
+    save = plots._save
+    monkeypatch.setattr(plots, "_save", lambda fig, path: titles.append(fig.axes[0].get_title()) or save(fig, path))
+    assert bandwidth.plot(tmp_path / "bw.png", _bandwidth_doc()["rows"], "vibration").read_bytes()[:4] == b"\x89PNG"
+    assert titles == ["vibration accuracy against PSD bandwidth"]  # the rig's microphone, not Minsound
     assert noise.plot(tmp_path / "noise.png", _noise_doc()["rows"]).read_bytes()[:4] == b"\x89PNG"
+
+
+def _latents_doc(neighbours):
+    return {"study": "latents", "command": "test", "checkpoint": "ckpt/minsound", "config": {"preset": "smoke", "modalities": ["internal", "proprio"]},
+            "seeds": [0, 1], "best_val_per_seed": [0.5, 0.6], "seed": 1, "machine": MACHINE, "dataset": DATASET, "perplexity": 1.0,
+            "points": [{"fabric_id": f, "trial_key": f"t{f}", "sequences": 3, "xy": [f, 0.0]} for f in range(3)],
+            "png": "latents.png", "holdouts": [2], "neighbours": neighbours, "findings": []}
+
+
+def test_recorded_latents_use_the_datas_classes_and_levels_not_the_catalogs():
+    # class 0 is a fabric on a rig (the hand's class 0 has no properties); levels only where the manifest gave them
+    ss = data.SequenceSet({}, {"fabric": np.array([0, 1, 2, 2]), "stretchiness": np.array([-1, -1, -1, -1]),
+                               "roughness": np.array([1, 3, 1, 1]), "thickness": np.array([0, -1, 2, 2])},
+                          {"fabric_id": np.array([0, 1, 2, 2]), "trial_key": np.array(["a", "b", "c", "c"])})
+    fabrics = latents.recorded_fabrics(ss, DATASET["classes"])
+    assert fabrics == {0: ("cotton canvas", {"stretchiness": None, "roughness": 1, "thickness": 0}),
+                       1: ("felt", {"stretchiness": None, "roughness": 3, "thickness": None}),
+                       2: ("oak", {"stretchiness": None, "roughness": 1, "thickness": 2})}
+    a = latents.neighbour_agreement(np.array([[0.0], [1.0], [0.9]]), [0, 1, 2], fabrics, holdouts=[2])
+    assert [(p["holdout"], p["nearest"], p["agreement"]) for p in a["pairs"]] == [(2, 1, 0.0)]
+    assert a["chance"] == pytest.approx(0.25)  # (0.5 with class 0 + 0 with class 1) / 2
+    assert a["nearer_cases"] == 1  # roughness only: no training class has thickness 2, stretchiness is not given
+    ss.labels["thickness"][3] = 1
+    with pytest.raises(UserError, match=r"^class 'oak': its trials give thickness levels \[1, 2\]; one class, one level"):
+        latents.recorded_fabrics(ss, DATASET["classes"])
+    md = latents.markdown(_latents_doc(a))
+    assert md.splitlines()[0] == "# Latent space on recorded data" and "recorded data `rig_archives` (3 classes" in md
+    assert "3 classes of the test and holdout splits" in md and "nearest-neighbour property agreement 0.0 % against chance 25.0 %" in md
+    assert "paper" not in md.lower() and "simulat" not in md.lower() and "checklist" not in md.lower()
+
+
+def _cost_doc():
+    point = dict(name="att N25", group="N x backbone", seq_len=25, touch_s=25 / 30, backbone="attention", width=16, bandwidth_khz=1.1,
+                 modalities=["internal"], params=1000, accuracy_mean=80.0, accuracy_sd=1.0, train_s=3.0, latency_p50_ms=1.0, latency_p99_ms=2.0)
+    return {"study": "cost", "command": "test", "preset": "smoke", "seeds": [0, 1], "machine": MACHINE,
+            "dataset": {**DATASET, "shortest_trial_steps": 60, "step_rate": 30.0},
+            "base": {"backbone": "attention", "seq_len": 25, "width": 16, "bandwidth_khz": 1.1, "modalities": ["internal"], "n_layers": 1, "epochs": 2},
+            "paper_point": None, "skipped_seq_lens": [], "pareto_front": {"touch_s": ["att N25"], "latency_p50_ms": ["att N25"]},
+            "total_s": 60.0, "points": [point], "figure": "cost_pareto.png"}
+
+
+def test_recorded_cost_has_no_paper_point_and_steps_at_the_datas_rate():
+    md = cost.markdown(_cost_doc())
+    assert md.splitlines()[0] == "# What accuracy costs in time on recorded data"
+    assert "recorded data `rig_archives` (3 classes, chance 33.3 %)" in md and "(shortest trial 60 steps)" in md
+    assert "touch time: N steps at 30 Hz" in md and documents.RECORDED_NOTE in md and "| 0.83 |" in md
+    assert "paper" not in md.lower() and "**" not in md and "simulat" not in md.lower()
+
+
+def test_the_report_of_recorded_data_names_no_paper(tmp_path):
+    doc = _bandwidth_doc()
+    (tmp_path / "bandwidth.json").write_text(json.dumps(doc))
+    (tmp_path / "bandwidth.md").write_text(bandwidth.markdown(doc))
+    manifest = {"bandwidth": {"key": "k", "wall_s": 60.0, "command": "python -m experiments.bandwidth --data_dir=rig_archives",
+                              "finished": "2026-11-25 08:00 UTC"}}
+    text = reproduce.write_report(tmp_path / "REPORT.md", manifest, "smoke", "c0de" * 16, "test", 1.0, 1).read_text()
+    assert text.splitlines()[0] == "# Report: every study on the smoke preset on recorded data"
+    assert "## PSD bandwidth\n" in text and "| [PSD bandwidth](#psd-bandwidth) | 2 | 1.0 min |" in text
+    assert documents.RECORDED_NOTE in text and "feature extraction, done once, is in the first study's" in text
+    assert "paper" not in text.lower() and "simulat" not in text.lower()

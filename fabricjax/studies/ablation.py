@@ -219,7 +219,7 @@ def markdown(doc: dict[str, Any]) -> str:
     if documents.recorded(doc):
         return _recorded_markdown(doc)
     lines = [
-        documents.title(doc, "Modality ablation", "ablation_table"),
+        documents.title(doc, "Modality ablation", "Table ablation_table"),
         "",
         documents.header_markdown(doc),
         table(doc["rows"]),
@@ -256,7 +256,7 @@ def markdown(doc: dict[str, Any]) -> str:
 def _recorded_markdown(doc: dict[str, Any]) -> str:
     """The table of a `--data_dir` run: recorded data, rows compared with each other."""
     lines = [
-        documents.title(doc, "Modality ablation", "ablation_table"),
+        documents.title(doc, "Modality ablation", "Table ablation_table"),
         "",
         documents.header_markdown(doc),
         table(doc["rows"], recorded=True),

@@ -19,7 +19,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from fabricjax import archive, findings, paper_tables, plots, report, stats
-from fabricjax.config import Config
+from fabricjax.config import MODALITY_NAMES, Config
 from fabricjax.features import welch
 from fabricjax.studies import documents, loading, runner
 
@@ -70,12 +70,13 @@ def run(
     doc = {
         **documents.header("bandwidth", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=study.train_s),
         "modalities": list(MODALITIES),
+        "microphone": microphone(study.dataset, workdir),
         "rows": out_rows,
         "test_samples": documents.samples_doc(test),
     }
     # the checklist holds the paper's claims: recorded data is not the paper's
     doc["findings"] = [] if recorded else [f.to_json() for f in checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in ("val", "test")} for r in out_rows})]
-    doc["png"] = str(plot(documents.results_path(results) / "bandwidth.png", out_rows))
+    doc["png"] = str(plot(documents.results_path(results) / "bandwidth.png", out_rows, doc["microphone"]))
     documents.write_outputs(results, "bandwidth", markdown(doc), doc)
     return doc
 
@@ -96,9 +97,19 @@ def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
     return out
 
 
-def plot(path, rows: Sequence[dict[str, Any]]):
-    """Validation and test accuracy against bandwidth: every seed, our means, the paper's means
-    (none on recorded data)."""
+def microphone(ds: loading.Dataset, workdir=None) -> str:
+    """The microphone the rows read, as the data names it: Minsound on the hand's simulated data,
+    on recorded data the name its meta gives the microphone feeding the internal input (a rig's
+    own, not the paper's)."""
+    if not ds.recorded:
+        return MODALITY_NAMES["internal"]
+    lay = archive.layout(archive.load_index(ds.folder, workdir).entries[0].meta)
+    return lay.mics[lay.mic("internal")].name
+
+
+def plot(path, rows: Sequence[dict[str, Any]], microphone: str):
+    """Validation and test accuracy of `microphone` against bandwidth: every seed, our means, the
+    paper's means (none on recorded data)."""
     khz = [r["bandwidth_khz"] for r in rows]
     series = {
         split: (
@@ -107,7 +118,7 @@ def plot(path, rows: Sequence[dict[str, Any]]):
         )
         for split in ("val", "test")
     }
-    return plots.plot_against_bandwidth(path, khz, series)
+    return plots.plot_against_bandwidth(path, khz, series, microphone)
 
 
 def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
@@ -132,10 +143,10 @@ def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
 
 def markdown(doc: dict[str, Any]) -> str:
     recorded = documents.recorded(doc)
-    inputs = ("the internal microphone only" if recorded else
+    inputs = (f"its microphone `{doc['microphone']}` only" if recorded else
               "Minsound only; the paper's 15 kHz row equals its internal-audio ablation row")
     lines = [
-        documents.title(doc, "PSD bandwidth", "bandwidth_classification"),
+        documents.title(doc, "PSD bandwidth", "Table bandwidth_classification"),
         "",
         documents.header_markdown(doc),
         f"Inputs: {' + '.join(doc['modalities'])} ({inputs}). Validation accuracy is that of the best-validation epoch, "

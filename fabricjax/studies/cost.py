@@ -17,6 +17,10 @@ factor at a time around a base point, so it grows with the sum of the dimensions
                      palm microphone) with N capped at the preset's shortest trial; marked in
                      the table and the plot
 
+On recorded data (`--data_dir`) there is no paper point (the paper's inputs need not exist on a
+rig, and its numbers are not the data's): the points are compared with each other, and touch time
+is N steps at the data's own step rate.
+
 Everything not swept (the base width, layers, epochs, ...) is the preset's (`presets.py`) with
 the `--set` overrides on top; the base N is the preset's (or `--set=seq_len=...`), the base
 backbone and modality set are the first of their flags. Lengths longer than the shortest trial are skipped and reported.
@@ -46,7 +50,7 @@ from fabricjax.studies import documents, loading, runner
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
 SHORT = {"internal": "int", "external": "ext", "proprio": "prop", "flow": "flow", "image": "img"}
 X_AXES = (
-    ("touch_s", "touch time to a decision [s] (N steps / 50 Hz)"),
+    ("touch_s", "touch time to a decision [s] (N steps / step rate)"),
     ("latency_p50_ms", "inference latency of one sequence, p50 [ms]"),
 )
 
@@ -134,12 +138,18 @@ def pareto_front(points: Sequence[dict], key: str) -> list[str]:
     return front
 
 
-def _shortest_trial(folder, workdir=None) -> int:
-    return min(e.n_steps - data.first_step(e.meta) for e in archive.load_index(folder, workdir).entries)
+def _steps(folder, workdir=None) -> tuple[int, float]:
+    """The shortest trial's steps and the data's step rate [Hz] (50 on the hand; a rig's own):
+    touch time is N steps at it, so trials stepping at different rates have none."""
+    entries = archive.load_index(folder, workdir).entries
+    rates = sorted({archive.layout(e.meta).step_rate for e in entries})
+    if len(rates) > 1:
+        raise archive.ArchiveError(folder, "meta.streams.steps.rate", f"the trials step at {rates} Hz: touch time needs one step rate")
+    return min(e.n_steps - data.first_step(e.meta) for e in entries), rates[0]
 
 
-def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int) -> dict[str, Any]:
-    """Train all seeds of one point and measure what it costs."""
+def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int, step_rate: float) -> dict[str, Any]:
+    """Train all seeds of one point and measure what it costs (touch time at `step_rate`)."""
     row = runner.train_row(point.name, point.config, sets, seeds, ["test"])
     acc = 100 * row.accuracy("test")
     mean, sd = stats.mean_sd(acc)
@@ -148,7 +158,7 @@ def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int) -> d
         "name": point.name,
         "group": point.group,
         "seq_len": c.seq_len,
-        "touch_s": c.seq_len / archive.STEP_RATE,
+        "touch_s": c.seq_len / step_rate,
         "backbone": c.backbone,
         "width": c.width,
         "bandwidth_khz": c.bandwidth_khz,
@@ -186,7 +196,8 @@ def run(
     seeds = runner.seed_list(n_seeds)
     base = Config.from_preset(preset, **{"backbone": backbones[0], "modalities": tuple(modality_sets[0]), **(overrides or {})})
     first = loading.load_dataset(base, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST)
-    max_len = _shortest_trial(first.folder, workdir)
+    max_len, step_rate = _steps(first.folder, workdir)
+    paper = paper and not first.recorded  # recorded data is compared with itself, not with the paper's configuration
     points, paper_name = sweep_points(
         base, seq_lens, backbones, widths, bandwidths, [tuple(m) for m in modality_sets], paper=paper, max_len=max_len
     )
@@ -203,7 +214,7 @@ def run(
             sets = loading.load_dataset(load, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST).sets
             loaded_n = n
         progress.start(p.name)
-        r = measure(p, sets, seeds, latency_repeats)
+        r = measure(p, sets, seeds, latency_repeats, step_rate)
         rows.append(r)
         progress.finish(p.name, r["train_s"], f"test {r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f} %, p50 {r['latency_p50_ms']:.2f} ms")
     order = {p.name: i for i, p in enumerate(points)}
@@ -215,7 +226,7 @@ def run(
         "preset": preset,
         "seeds": list(seeds),
         "machine": report.machine(),
-        "dataset": {"folder": str(first.folder), "source": first.source, "shortest_trial_steps": max_len},
+        "dataset": {**documents.dataset_doc(first), "shortest_trial_steps": max_len, "step_rate": step_rate},
         "base": base.to_json(),
         "paper_point": paper_name,
         "skipped_seq_lens": skipped,
@@ -233,24 +244,25 @@ def run(
 def markdown(doc: dict[str, Any]) -> str:
     m, base = doc["machine"], doc["base"]
     seeds = doc["seeds"]
+    d = doc["dataset"]
     lines = [
-        "# What accuracy costs in time",
+        documents.title(doc, "What accuracy costs in time"),
         "",
         documents.command_markdown(doc["command"]),
-        f"- preset: {doc['preset']}; {doc['dataset']['source']} dataset `{doc['dataset']['folder']}` "
-        f"(shortest trial {doc['dataset']['shortest_trial_steps']} steps"
+        documents.data_markdown(doc["preset"], d) + f" (shortest trial {d['shortest_trial_steps']} steps"
         + (f"; N = {', '.join(map(str, doc['skipped_seq_lens']))} skipped as longer" if doc["skipped_seq_lens"] else "")
         + ")",
         f"- base point: {base['backbone']}, N={base['seq_len']}, width {base['width']}, {base['bandwidth_khz']:g} kHz, "
         f"{'+'.join(base['modalities'])}, {base['n_layers']} layers, {base['epochs']} epochs; one factor varied at a time",
         f"- seeds: {len(seeds)}, test accuracy mean ± SD (sample SD) over seeds; all seeds train in one vmapped program",
         f"- machine: {m['cpu']}, {m['cores']} cores, JAX {m['jax']} on {m['jax_backend']}; sweep took {doc['total_s'] / 60:.1f} min",
-        "- touch time: N steps at 50 Hz; train: wall time of the multi-seed program incl. compilation; "
+        f"- touch time: N steps at {d['step_rate']:g} Hz; train: wall time of the multi-seed program incl. compilation; "
         "latency: jitted `predict_one` on one test sequence after warm-up (p50 / p99 of repeated calls)",
         f"- Pareto front (marked T for touch time, L for latency): "
         f"{', '.join(doc['pareto_front']['touch_s'])} | {', '.join(doc['pareto_front']['latency_p50_ms'])}",
-        f"- figure: `{doc['figure']}`; **bold**: the paper's configuration on this preset",
+        f"- figure: `{doc['figure']}`" + ("; **bold**: the paper's configuration on this preset" if doc["paper_point"] else ""),
         "",
+        *([documents.RECORDED_NOTE, ""] if documents.recorded(doc) else []),
         "",
     ]
     header = ["point", "N", "touch [s]", "backbone", "width", "band [kHz]", "modalities", "params",

@@ -118,9 +118,12 @@ def recorded(doc: dict[str, Any]) -> bool:
     return doc["dataset"]["source"] == "recorded"
 
 
-def title(doc: dict[str, Any], study: str, paper_table: str) -> str:
-    """A study's heading: on recorded data it names the data, not the paper's table it reproduces."""
-    return f"# {study} on recorded data" if recorded(doc) else f"# {study} (the paper's Table {paper_table})"
+def title(doc: dict[str, Any], study: str, paper: str | None = None) -> str:
+    """A study's heading: on recorded data it names the data, not what of the paper (`paper`, e.g.
+    "Table ablation_table"; None: nothing of the paper's) it reproduces."""
+    if recorded(doc):
+        return f"# {study} on recorded data"
+    return f"# {study} (the paper's {paper})" if paper else f"# {study}"
 
 
 BEST_GAP = "Row − best row [pp]"  # the column recorded-data tables have instead of the paper's

@@ -15,11 +15,16 @@ neighbourhoods only loosely): for each holdout, the fraction of the three proper
 agrees with its nearest training fabric, against the agreement with a training fabric drawn at
 random (its chance level); and, per holdout and property, whether the training fabrics sharing
 its level are nearer on average than those that do not. `checklist` states both as findings.
+
+On recorded data (`--data_dir`) the fabrics are the data's classes (every class on its test and
+holdout splits), their names and property levels the data's own (`recorded_fabrics`: never the
+catalog's), the holdouts the classes of its holdout split; the neighbour numbers are reported as
+measurements, without the paper's reading as a checklist.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Mapping, Sequence
 
 import jax
 import numpy as np
@@ -34,11 +39,12 @@ from fabricjax.studies import documents, loading
 BATCH = 32  # sequences per latent evaluation
 
 
-def trial_means(graphdef, params, ss: data.SequenceSet, modalities) -> tuple[np.ndarray, list[int], list[str], list[int]]:
-    """Per fabric (>= 1), its first test trial's latent mean: (points, fabric ids, trial keys, sequences per trial)."""
+def trial_means(graphdef, params, ss: data.SequenceSet, modalities, fabric_ids) -> tuple[np.ndarray, list[int], list[str], list[int]]:
+    """Per fabric of `fabric_ids` in `ss`, its first test trial's latent mean: (points, fabric ids,
+    trial keys, sequences per trial)."""
     encode = jax.jit(lambda p, x: nnx.merge(graphdef, p).latents(x).mean(axis=1))
     points, fabrics, keys, counts = [], [], [], []
-    for fid in sorted(set(ss.info["fabric_id"].tolist()) - {0}):
+    for fid in sorted(set(ss.info["fabric_id"].tolist()) & set(fabric_ids)):
         mine = ss.info["fabric_id"] == fid
         first = min(zip(ss.info["trial"][mine].tolist(), ss.info["trial_key"][mine].tolist()))[1]
         idx = np.flatnonzero(ss.info["trial_key"] == first)
@@ -84,11 +90,15 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
 
     ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir, split_names=("test", "holdout"))
     test_day = _concat([ds.sets["test"], ds.sets["holdout"]])
-    points, fabrics, keys, counts = trial_means(graphdef, params, test_day, config.modalities)
+    if ds.recorded:
+        known, holdouts = recorded_fabrics(test_day, ds.classes), sorted(set(ds.sets["holdout"].info["fabric_id"].tolist()))
+    else:  # the hand's fabrics 1-23: class 0 (no fabric) has no properties
+        known, holdouts = catalog_fabrics(set(test_day.info["fabric_id"].tolist()) - {0}), catalog.PROPERTY_HOLDOUTS
+    points, fabrics, keys, counts = trial_means(graphdef, params, test_day, config.modalities, known)
     xy, perplexity = tsne(points)
-    agreement = neighbour_agreement(points, fabrics)
+    agreement = neighbour_agreement(points, fabrics, known, holdouts)
     png = plots.plot_latents(
-        documents.results_path(results) / "latents.png", xy, fabrics,
+        documents.results_path(results) / "latents.png", xy, fabrics, known, holdouts,
         title=f"t-SNE of per-trial mean latents ({' + '.join(MODALITY_NAMES[m] for m in config.modalities)}, seed {seeds[index]}; holdouts outlined)",
         neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
     )
@@ -108,24 +118,50 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
             for f, k, c, p in zip(fabrics, keys, counts, xy)
         ],
         "png": str(png),
+        "holdouts": list(holdouts),
         "neighbours": agreement,
-        "findings": [f.to_json() for f in checklist(agreement)],
+        # the checklist holds the paper's reading of its figure: recorded data is not the paper's
+        "findings": [] if ds.recorded else [f.to_json() for f in checklist(agreement)],
     }
     report.write_json(documents.results_path(results) / "latents.json", doc)
     report.write_text(documents.results_path(results) / "latents.md", markdown(doc))
     return doc
 
 
-def _agreement(a: int, b: int) -> float | None:
-    """Fraction of the properties known for both fabrics on which their levels are equal."""
-    pa, pb = catalog.fabric(a).properties, catalog.fabric(b).properties
+def catalog_fabrics(ids) -> dict[int, tuple[str, dict[str, int | None]]]:
+    """Per fabric id of the hand: its name and property levels, from the catalog."""
+    return {int(f): (catalog.fabric(f).name, catalog.fabric(f).properties) for f in ids}
+
+
+def recorded_fabrics(ss: data.SequenceSet, classes: Sequence[str]) -> dict[int, tuple[str, dict[str, int | None]]]:
+    """Per class of recorded data: its name and the property levels its trials give (None where
+    none does: a rig's levels are its own, only where the manifest gives them); a class whose
+    trials give two levels of one property has no place in the figure's encoding, an error."""
+    out = {}
+    for fid in sorted(set(ss.info["fabric_id"].tolist())):
+        mine = ss.info["fabric_id"] == fid
+        levels = {p: sorted(set(ss.labels[p][mine].tolist()) - {-1}) for p in catalog.PROPERTY_LEVELS}
+        for p, v in levels.items():
+            if len(v) > 1:
+                raise UserError(f"class {classes[fid]!r}: its trials give {p} levels {v}; one class, one level (the manifest's {p} column)")
+        out[int(fid)] = (classes[fid], {p: v[0] if v else None for p, v in levels.items()})
+    return out
+
+
+def _agreement(a: int, b: int, fabrics: Mapping[int, tuple[str, Mapping[str, int | None]]] | None = None) -> float | None:
+    """Fraction of the properties known for both fabrics on which their levels are equal (levels
+    from `fabrics`, id -> name and levels; None: the catalog's)."""
+    fabrics = fabrics if fabrics is not None else catalog_fabrics((a, b))
+    pa, pb = fabrics[a][1], fabrics[b][1]
     known = [p for p in pa if pa[p] is not None and pb[p] is not None]
     return None if not known else float(np.mean([pa[p] == pb[p] for p in known]))
 
 
-def neighbour_agreement(points: np.ndarray, fabric_ids: list[int], holdouts=catalog.PROPERTY_HOLDOUTS) -> dict[str, Any]:
+def neighbour_agreement(points: np.ndarray, fabric_ids: list[int], fabrics: Mapping[int, tuple[str, Mapping[str, int | None]]] | None = None,
+                        holdouts=catalog.PROPERTY_HOLDOUTS) -> dict[str, Any]:
     """How well the latent space groups unseen fabrics with trained fabrics of the same property
-    levels (Euclidean distance between per-trial mean latents; fabrics without properties skipped).
+    levels (Euclidean distance between per-trial mean latents; fabrics without properties skipped;
+    levels from `fabrics` as in `_agreement`).
 
     pairs: per holdout, its nearest training fabric, their agreement (fraction of properties with
     equal levels) and the chance level (mean agreement with every training fabric);
@@ -135,7 +171,9 @@ def neighbour_agreement(points: np.ndarray, fabric_ids: list[int], holdouts=cata
     """
     x = np.asarray(points, np.float64)
     ids = [int(f) for f in fabric_ids]
-    known = [i for i, f in enumerate(ids) if _agreement(f, f) is not None]
+    fabrics = fabrics if fabrics is not None else catalog_fabrics(ids)
+    agreement = lambda a, b: _agreement(a, b, fabrics)  # noqa: E731
+    known = [i for i, f in enumerate(ids) if agreement(f, f) is not None]
     train = [i for i in known if ids[i] not in holdouts]
     held = [i for i in known if ids[i] in holdouts]
     dist = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=-1)
@@ -144,11 +182,13 @@ def neighbour_agreement(points: np.ndarray, fabric_ids: list[int], holdouts=cata
         t = train[int(np.argmin(dist[h, train]))] if train else None
         if t is None:
             break
-        chance = float(np.mean([_agreement(ids[h], ids[j]) for j in train]))
-        pairs.append({"holdout": ids[h], "nearest": ids[t], "distance": float(dist[h, t]), "agreement": _agreement(ids[h], ids[t]), "chance": chance})
-        for prop, level in catalog.fabric(ids[h]).properties.items():
-            share = [j for j in train if catalog.fabric(ids[j]).properties[prop] == level]
-            other = [j for j in train if catalog.fabric(ids[j]).properties[prop] != level]
+        chance = float(np.mean([agreement(ids[h], ids[j]) for j in train]))
+        pairs.append({"holdout": ids[h], "nearest": ids[t], "distance": float(dist[h, t]), "agreement": agreement(ids[h], ids[t]), "chance": chance})
+        for prop, level in fabrics[ids[h]][1].items():
+            if level is None:  # unknown (a rig's level not given): nothing to share
+                continue
+            share = [j for j in train if fabrics[ids[j]][1][prop] == level]
+            other = [j for j in train if fabrics[ids[j]][1][prop] not in (None, level)]
             if share and other:
                 nearer[prop].append({"holdout": ids[h], "shared_mean_distance": float(dist[h, share].mean()),
                                      "other_mean_distance": float(dist[h, other].mean())})
@@ -185,20 +225,26 @@ def checklist(agreement: dict[str, Any]) -> list[findings.Finding]:
 
 def markdown(doc: dict[str, Any]) -> str:
     c = doc["config"]
-    return "\n".join([
-        "# Latent space (the paper's Fig. latent_features)",
+    recorded = documents.recorded(doc)
+    points = "classes of the test and holdout splits" if recorded else "fabrics on the test day"
+    lines = [
+        documents.title(doc, "Latent space", "Fig. latent_features"),
         "",
         documents.command_markdown(doc["command"]),
+        documents.data_markdown(c["preset"], doc["dataset"]),
         f"- checkpoint: `{doc['checkpoint']}` ({'+'.join(c['modalities'])}; seed {doc['seed']}, the best by validation of seeds {doc['seeds']})",
-        f"- points: {len(doc['points'])} fabrics on the test day, one trial each; t-SNE perplexity {doc['perplexity'] or 0:.2f}",
+        f"- points: {len(doc['points'])} {points}, one trial each; t-SNE perplexity {doc['perplexity'] or 0:.2f}",
         f"- machine: {doc['machine']['cpu']}, {doc['machine']['cores']} cores, JAX {doc['machine']['jax']}",
         "",
         "![t-SNE of per-trial mean latents](latents.png)",
         "",
-        "## Findings checklist (the paper's reading of its figure)",
-        "",
-        findings.markdown(doc["findings"]),
-    ])
+    ]
+    if recorded:  # the measurements `checklist` would judge, without the paper's reading
+        lines += ["## Holdout classes and their neighbours in latent space", "",
+                  *[f"- {f.evidence}" for f in checklist(doc["neighbours"])], ""]
+    else:
+        lines += ["## Findings checklist (the paper's reading of its figure)", "", findings.markdown(doc["findings"])]
+    return "\n".join(lines)
 
 
 def _concat(sets: list[data.SequenceSet]) -> data.SequenceSet:

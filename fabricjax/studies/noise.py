@@ -143,7 +143,7 @@ def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
 
 def markdown(doc: dict[str, Any]) -> str:
     recorded = documents.recorded(doc)
-    lines = [documents.title(doc, "Cafe noise", "new_noise_results"), "", documents.header_markdown(doc), table(doc["rows"], recorded),
+    lines = [documents.title(doc, "Cafe noise", "Table new_noise_results"), "", documents.header_markdown(doc), table(doc["rows"], recorded),
              "Tests, each row against the preceding one on the cafe split:", ""]
     for r in doc["rows"]:
         for w in (r["wilcoxon"] or {}).values():

@@ -11,7 +11,8 @@ always on, as in the paper. Chance is the paper's 1 / levels; the majority-level
 evaluated split is reported too, since the levels are not balanced.
 
 The paper's claims about the table are checked by `checklist` on the holdout fabrics. On recorded
-data (`--data_dir`) the rows are compared with each other instead (`documents.recorded`).
+data (`--data_dir`) the rows are compared with each other instead (`documents.recorded`), and the
+holdouts are the trials of its holdout split (no class is excluded by the catalog's fabric ids).
 
 The trained models (all seeds) are saved as an orbax checkpoint per row; `experiments.latents
 --checkpoint=DIR` restores one for the t-SNE figure.
@@ -49,8 +50,10 @@ def run(
     overrides = runner.check_overrides("properties", overrides, ROW_SETTINGS, "choose the rows with --rows")
     chosen = runner.select_rows(ROWS, rows, name=lambda r: r[0])
     seeds = runner.seed_list(n_seeds)
+    # recorded data's holdouts are its own holdout split: the catalog's fabric ids are not its classes
+    own_holdouts = {"exclude_fabrics": ()} if data_dir else {}
     study = runner.train_rows(
-        "properties", [(name, Config.from_preset(preset, **{**overrides, **ROW_SETTINGS[name]})) for name, _ in chosen],
+        "properties", [(name, Config.from_preset(preset, **{**overrides, **ROW_SETTINGS[name], **own_holdouts})) for name, _ in chosen],
         seeds, eval_splits=list(SPLITS), data_dir=data_dir, workdir=workdir, checkpoints=True,
         summary=lambda row: ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES),
     )
@@ -138,7 +141,7 @@ def markdown(doc: dict[str, Any]) -> str:
                f"Training fabrics on the test day: {doc['fabrics']['test']} (class 0 has no properties and is ignored); "
                f"holdout fabrics: {doc['fabrics']['holdout']}. The paper reports means only.")
     lines = [
-        documents.title(doc, "Property perception", "property_perception"),
+        documents.title(doc, "Property perception", "Table property_perception"),
         "",
         documents.header_markdown(doc),
         fabrics,

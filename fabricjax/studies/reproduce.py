@@ -21,7 +21,8 @@ The report embeds each study's own Markdown (its table beside the paper's, its f
 checklist, its Wilcoxon tests), links its figures, sets the probe beside the ablation row by row
 (from both studies' JSON, `probe.beside_ablation`), and adds a summary of every checklist, the
 machine, the library versions, the code's fingerprint, each study's wall time and the exact
-command that reruns that study alone.
+command that reruns that study alone. On recorded data (`data_dir`) the report, like its studies,
+names the data and compares rows with each other: no paper in its titles or summary.
 """
 
 from __future__ import annotations
@@ -40,17 +41,22 @@ import fabricjax
 from fabricjax import findings, paper_tables, presets, report, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, latents, noise, probe, properties
+from fabricjax.studies import ablation, bandwidth, documents, latents, noise, probe, properties
 
 STUDIES = {"ablation": ablation, "probe": probe, "bandwidth": bandwidth, "noise": noise, "properties": properties, "latents": latents}
-TITLES = {
-    "ablation": "Modality ablation (Table ablation_table)",
-    "probe": "Linear probe of every ablation row's inputs (not in the paper)",
-    "bandwidth": "PSD bandwidth (Table bandwidth_classification)",
-    "noise": "Cafe noise (Table new_noise_results)",
-    "properties": "Property perception (Table property_perception)",
-    "latents": "Latent space (Fig. latent_features)",
+NAMES = {
+    "ablation": "Modality ablation",
+    "probe": "Linear probe of every ablation row's inputs",
+    "bandwidth": "PSD bandwidth",
+    "noise": "Cafe noise",
+    "properties": "Property perception",
+    "latents": "Latent space",
 }
+PAPER = {  # what of the paper each study reproduces: named in its title on simulated data only
+    "ablation": "Table ablation_table", "probe": "not in the paper", "bandwidth": "Table bandwidth_classification",
+    "noise": "Table new_noise_results", "properties": "Table property_perception", "latents": "Fig. latent_features",
+}
+TITLES = {s: f"{n} ({PAPER[s]})" for s, n in NAMES.items()}
 FIGURES = {"ablation": ("ablation_confusion.png",), "bandwidth": ("bandwidth.png",), "noise": ("noise.png",), "latents": ("latents.png",)}
 LATENT_ROW = properties.ROWS[-1][0]  # the paper's figure: the Minsound + Minsight model
 MANIFEST = "reproduce.json"
@@ -254,6 +260,9 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
     docs = {s: _read_json(out / f"{s}.json") for s in studies}
     first = next((d for d in docs.values() if d), None)
     m = first["machine"] if first else report.machine()
+    # recorded data (`--data_dir`): its studies compare rows with each other, so no paper in titles or summary
+    recorded = first is not None and documents.recorded(first)
+    titles = NAMES if recorded else TITLES
     total = sum(e["wall_s"] for e in manifest.values())
     summary = []
     for study in studies:
@@ -264,10 +273,18 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
             held, evaluated = findings.count([findings.Finding.from_json(f) for f in doc.get("findings", [])])
             seeds = len(doc["seeds"]) if study != "latents" and doc.get("seeds") else "1 (best of the property study's)"
             claims = f"{held} of {evaluated}"
-        summary.append([f"[{TITLES[study]}](#{_anchor(TITLES[study])})", seeds, claims,
+        summary.append([f"[{titles[study]}](#{_anchor(titles[study])})", seeds, *([] if recorded else [claims]),
                         _minutes(manifest[study]["wall_s"]), manifest[study]["finished"]])
+    if recorded:
+        heading = documents.title(first, f"Report: every study on the {preset} preset")
+        data_note, numbers = "feature extraction, done once, is", documents.RECORDED_NOTE
+    else:
+        heading = f"# Reproduction report: every table and figure of the paper on the {preset} preset"
+        data_note = "data simulation and feature extraction, done once, are"
+        numbers = ("The simulator is the same for every study and was never tuned to a table: differences from the paper "
+                   "are findings.")
     lines = [
-        f"# Reproduction report: every table and figure of the paper on the {preset} preset",
+        heading,
         "",
         f"- command: `{command_line}` ({n_run} of {len(studies)} studies run by this call, in {_minutes(run_s)}; "
         "the others were up to date and kept)",
@@ -275,22 +292,19 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
         f"- versions: {', '.join(f'{k} {v}' for k, v in versions().items())}",
         f"- code: fabricjax {fabricjax.__version__}, {report.git_commit()}, source fingerprint `{code[:16]}` "
         "(`fabricjax.studies.reproduce.code_fingerprint`)",
-        f"- wall time of the studies: {_minutes(total)} in all (each below; data simulation and feature extraction, "
-        "done once, are in the first study's)",
+        f"- wall time of the studies: {_minutes(total)} in all (each below; {data_note} in the first study's)",
         "",
-        "Every number below comes from the study's results file in this folder, written by the run named "
-        "beside it; the simulator is the same for every study and was never tuned to a table: differences "
-        "from the paper are findings.",
+        f"Every number below comes from the study's results file in this folder, written by the run named beside it. {numbers}",
         "",
         "## Summary",
         "",
-        report.markdown_table(["Study", "Seeds", "Paper's claims reproduced", "Wall time", "Finished"], summary),
+        report.markdown_table(["Study", "Seeds", *([] if recorded else ["Paper's claims reproduced"]), "Wall time", "Finished"], summary),
     ]
     for study in studies:
         e = manifest[study]
         md = out / f"{study}.md"
         lines += [
-            f"## {TITLES[study]}",
+            f"## {titles[study]}",
             "",
             f"Wall time {_minutes(e['wall_s'])}, finished {e['finished']}. Rerun alone: `{e['command']}`",
             "",
