@@ -132,8 +132,12 @@ def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
     assert b["streaming"]["decided_steps"] > 0 and b["extraction"]["peak_rss_mb"] > 0
     assert b["import"]["trials"] == 20 and b["import"]["wall_s"] > 0
     assert "missed_deadlines" in b["acquisition"] and b["simulator"]["realtime_factor"] > 0
+    assert saved["matmul_peak"]["gflop_per_s"] > 0
+    assert b["training"]["ours_5_seed"]["xla"]["flops_per_step"] > b["training"]["ours_1_seed"]["xla"]["flops_per_step"] > 0
+    assert 0 < b["inference"]["ours"]["xla"]["fraction_of_matmul_peak"]
     if doc["torch"] is not None:
         assert {"ratio_1_seed", "ratio_5_seed"} <= set(b["training"]) and "ratio_p50" in b["inference"]
+        assert b["training"]["torch_1_seed"]["variant"] in b["training"]["interleaved"]["training"]["1_seed"]["torch_variants"]
     else:
         assert "skipped" in doc["torch_note"]
     assert "| benchmark |" in lines[-1] and (tmp_path / "bench.md").exists()

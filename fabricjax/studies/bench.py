@@ -168,7 +168,8 @@ def bench_inference(quick: bool, w: Workload, compared: dict | None, peak: dict)
         out["torch"] = {"variant": c["torch_variant"], "p50_ms": c["torch_p50_ms"], "p99_ms": c["torch_p99_ms"]}
         out["ratio_p50"] = c["ratio_p50"]
         out["interleaved"] = {k: c[k] for k in ("ours_build_and_warmup_s", "torch_variants")}
-    # At p50: the typical call's rate (p99 is the machine's hiccups, not the program's work).
+    # At p50: the typical call's rate (p99 is the machine's hiccups, not the program's work). One
+    # sequence runs on one device, so its share is of a peak that every device makes together.
     flops = benchmark.inference_flops(w.model, seq_len=w.model.seq_len, psd_bins=w.bins)
     out["ours"]["xla"] = benchmark.utilisation(flops, out["ours"]["p50_ms"] / 1e3, peak["gflop_per_s"])
     return out
@@ -349,7 +350,7 @@ def markdown(doc: dict[str, Any]) -> str:
     if variants:
         adamw = b.get("training", {}).get("interleaved", {}).get("torch_adamw")
         text += (
-            "\n\nEvery PyTorch variant" + (f" (AdamW {adamw})" if adamw else "") + "; build + compile: seconds to build it and run its "
+            "\nEvery PyTorch variant" + (f" (AdamW {adamw})" if adamw else "") + "; build + compile: seconds to build it and run its "
             "first, compiling calls, not in its times.\n\n"
             + report.markdown_table(["workload", "PyTorch variant", "time", "ratio", "build + compile"], variants)
         )
