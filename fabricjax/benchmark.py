@@ -58,6 +58,7 @@ def matmul_peak(n: int = MATMUL_N, repeats: int = 5) -> dict[str, Any]:
     over every JAX device (as training splits its batch), timed after warm-up, best of `repeats`.
     Its FLOPs are XLA's count (`xla_flops`), so a utilisation divides like by like."""
     devices = jax.devices()
+    n = -(-n // len(devices)) * len(devices)  # rows divide evenly over the devices
     mesh = jax.sharding.Mesh(np.asarray(devices), ("rows",))
     a = jax.device_put(jax.random.normal(jax.random.PRNGKey(0), (n, n), np.float32), jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("rows")))
     b = jax.device_put(jax.random.normal(jax.random.PRNGKey(1), (n, n), np.float32), jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec()))
@@ -197,7 +198,8 @@ def _build(make: Callable[[], Callable[[], float]], tolerate: bool) -> tuple[Cal
     except Exception as e:  # noqa: BLE001 (only with tolerate; re-raised otherwise)
         if not tolerate:
             raise
-        return None, {"error": f"{type(e).__name__}: {str(e).strip().splitlines()[0][:300] if str(e).strip() else ''}"}
+        lines = str(e).strip().splitlines()  # its first line: torch's compile errors run to pages
+        return None, {"error": f"{type(e).__name__}: {lines[0][:300] if lines else ''}"}
     return run, {"build_and_warmup_s": time.perf_counter() - t}
 
 
