@@ -1,8 +1,8 @@
 """Every speed benchmark in one command, side by side in one process; writes results/bench.json.
 
     python -m experiments.bench                       # everything (a few minutes on 2 CPU cores)
-    python -m experiments.bench --quick               # a small model, fewer repeats: a smoke check (well under a minute
-                                                      # once torch.compile's cache is warm), not a measurement
+    python -m experiments.bench --quick               # a small model, fewer repeats: a smoke check, not a measurement
+                                                      # (2 min on 2 cores shared with a training job, compile caches warm)
     python -m experiments.bench --only=training,inference
     python -m experiments.bench --only=training --train_seeds=1,4,5 --cpu_devices=1 --results=/tmp/b
                                                       # other seed counts, on one CPU device sharing the cores

@@ -68,8 +68,9 @@ class Workload:
                 "width": c.width, "n_layers": c.n_layers, "backbone": c.backbone}
 
 
-# --quick's workload: a small model on short sequences, so the whole suite, the twin's
-# torch.compile included, smoke-runs in well under a minute; the default stays the full measurement.
+# --quick's workload: a small model on short sequences, so a smoke run of the whole suite (the
+# twin's torch.compile included) spends its time on compiling, not on paper-sized steps; a smoke
+# check, not a measurement. The default stays the full measurement.
 QUICK_WORKLOAD = Workload(
     dataclasses.replace(
         benchmark.COMPARE_CONFIG, width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16), seq_len=24,
