@@ -1,6 +1,7 @@
 """Every speed benchmark in one command, side by side in one process; writes results/bench.json.
 
-    python -m experiments.bench                       # everything (a few minutes on 2 CPU cores)
+    python -m experiments.bench                       # everything (5.5 min on 2 CPU cores with the twin eager only;
+                                                      # its two compiled variants add about as much again, not yet measured)
     python -m experiments.bench --quick               # a small model, fewer repeats: a smoke check, not a measurement
                                                       # (2 min on 2 cores shared with a training job, compile caches warm)
     python -m experiments.bench --only=training,inference
