@@ -157,6 +157,28 @@ def test_xla_flops_utilisation_and_matmul_peak_are_positive():
     assert use["fraction_of_matmul_peak"] == pytest.approx(use["gflop_per_s"] / peak["gflop_per_s"])
 
 
+def test_bench_table_names_the_fastest_variant_and_a_failed_compile():
+    xla = {"flops_per_step": 2e9, "gflop_per_s": 20.0, "fraction_of_matmul_peak": 0.25}
+    failed = {"error": "BackendCompilerFailed: no C++ compiler"}
+    training = {"1_seed": {"torch_variants": {"eager": {"build_and_warmup_s": 1.0, "s_per_step": 0.2, "ratio": 0.5}, "compiled:default": failed}}}
+    doc = {
+        "command": "test", "quick": False, "torch": "2.13.0", "machine": {"cpu": "cpu", "cores": 2, "jax": "0.10"},
+        "matmul_peak": {"n": 2048, "devices": 2, "gflop_per_s": 80.0},
+        "benchmarks": {
+            "training": {
+                "workload": {"batch": 32, "seq_len": 200}, "ours_1_seed": {"seconds_per_step": 0.1, "xla": xla},
+                "torch_1_seed": {"variant": "eager", "seconds_per_step": 0.2}, "ratio_1_seed": 0.5,
+                "interleaved": {"torch_adamw": "fused", "training": training},
+            },
+            "inference": {"workload": {"seq_len": 200}, "ours": {"p50_ms": 3.0, "p99_ms": 9.0, "xla": xla}},
+        },
+    }
+    table = bench.markdown(doc)
+    assert "| eager 200 ms | 0.50 | 2 | 20 (25 %) |" in table and "80.0 GFLOP/s on the same 2 devices" in table
+    assert "| training, 1 seed | compiled:default | n/a |  | failed: BackendCompilerFailed: no C++ compiler |" in table
+    assert "AdamW fused" in table
+
+
 def test_bench_rejects_unknown_names(tmp_path):
     with pytest.raises(ValueError, match="unknown benchmarks"):
         bench.run(only=["nope"], results=tmp_path)
