@@ -1,7 +1,9 @@
 """Every speed benchmark in one command, side by side in one process; writes results/bench.json.
 
-    python -m experiments.bench                       # everything (a few minutes on 2 CPU cores)
-    python -m experiments.bench --quick               # smaller sizes, for a smoke check
+    python -m experiments.bench                       # everything (5.5 min on 2 CPU cores with the twin eager only;
+                                                      # its two compiled variants add about as much again, not yet measured)
+    python -m experiments.bench --quick               # a small model, fewer repeats: a smoke check, not a measurement
+                                                      # (2 min on 2 cores shared with a training job, compile caches warm)
     python -m experiments.bench --only=training,inference
     python -m experiments.bench --only=training --train_seeds=1,4,5 --cpu_devices=1 --results=/tmp/b
                                                       # other seed counts, on one CPU device sharing the cores
@@ -10,6 +12,8 @@ The benchmarks (names for --only) and what they measure: fabricjax/studies/bench
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 from absl import app, flags as absl_flags
 
@@ -20,7 +24,7 @@ from fabricjax.studies import bench
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_list("only", None, f"benchmarks to run (default all): {','.join(bench.BENCHMARKS)}")
-absl_flags.DEFINE_bool("quick", False, "smaller sizes and fewer repeats")
+absl_flags.DEFINE_bool("quick", False, "a small model (studies/bench.QUICK_WORKLOAD), smaller sizes and fewer repeats: a smoke check")
 absl_flags.DEFINE_list(
     "train_seeds", ["1", "5"],
     "seed counts of the training benchmark (must include 1); each is split over the CPU devices as training "
@@ -34,8 +38,9 @@ def main(argv):
     seeds = tuple(sorted({int(s) for s in FLAGS.train_seeds}))
     if 1 not in seeds or min(seeds) < 1:
         raise app.UsageError(f"--train_seeds must be positive and include 1, got {FLAGS.train_seeds}")
+    workload = dataclasses.replace(bench.QUICK_WORKLOAD if FLAGS.quick else bench.Workload(), seeds=seeds)
     bench.run(
-        only=FLAGS.only, quick=FLAGS.quick, workload=bench.Workload(seeds=seeds), workdir=loc["workdir"], results=loc["results"],
+        only=FLAGS.only, quick=FLAGS.quick, workload=workload, workdir=loc["workdir"], results=loc["results"],
         command=loc["command"], acquisition=bench_acquisition, importer=bench_import,
     )
 

@@ -13,6 +13,11 @@ its `state_dict`, so the two can be checked for equal logits (tests/test_torch_t
 Optional: install with `pip install -e ".[compare]"`. Importing this module does not import
 torch; every function that needs it imports it when called (ImportError without torch), so
 `fabricjax.benchmark.compare_with_torch` and the bench suite use it only where torch is installed.
+
+The strongest PyTorch we know to write: the runners take `compile_mode` (None: eager; else a
+`torch.compile` mode, `COMPILE_MODES`), and the optimiser is the fastest AdamW implementation
+this torch offers (`adamw_impl`: fused, else foreach), so a ratio against the twin is not a ratio
+against a slow default.
 """
 
 from __future__ import annotations
@@ -30,6 +35,10 @@ from fabricjax.config import MODALITIES, Config
 
 LN_EPS = 1e-6  # flax.nnx.LayerNorm's default epsilon
 SUPPORTED = ("internal", "external", "proprio")
+# torch.compile modes the benchmarks time besides eager: the default and the slowest-to-compile
+# one that works without a GPU (CUDA graphs are GPU-only).
+COMPILE_MODES = ("default", "max-autotune-no-cudagraphs")
+ADAMW_IMPLS = ("fused", "foreach")  # fastest first; `adamw_impl` picks the first this torch builds
 
 
 @functools.cache
@@ -181,15 +190,37 @@ def state_dict_from_params(params: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _param_groups(model, config: Config) -> list[dict]:
+    """AdamW's groups as ours: weight decay on weight matrices only."""
+    decay = [p for p in model.parameters() if p.ndim > 1]
+    rest = [p for p in model.parameters() if p.ndim <= 1]
+    return [{"params": decay, "weight_decay": config.weight_decay}, {"params": rest, "weight_decay": 0.0}]
+
+
+@functools.cache
+def adamw_impl() -> str:
+    """The first of `ADAMW_IMPLS` that this torch builds and steps on CPU parameters.
+
+    Probed once on a throwaway parameter: fused AdamW on CPU arrived in torch 2.4, and a torch
+    without it raises at construction or at the first step."""
+    import torch
+
+    for impl in ADAMW_IMPLS:
+        try:
+            p = torch.nn.Parameter(torch.ones(2, 2))
+            p.grad = torch.ones(2, 2)
+            torch.optim.AdamW([p], **{impl: True}).step()
+            return impl
+        except (RuntimeError, TypeError, ValueError):
+            continue
+    return "for-loop"
+
+
 def _optimizer(model, config: Config):
     import torch
 
-    decay = [p for p in model.parameters() if p.ndim > 1]
-    rest = [p for p in model.parameters() if p.ndim <= 1]
-    return torch.optim.AdamW(
-        [{"params": decay, "weight_decay": config.weight_decay}, {"params": rest, "weight_decay": 0.0}],
-        lr=config.learning_rate,
-    )
+    impl = adamw_impl()
+    return torch.optim.AdamW(_param_groups(model, config), lr=config.learning_rate, **({impl: True} if impl in ADAMW_IMPLS else {}))
 
 
 def _clip_by_global_norm(params, max_norm: float = 1.0):
@@ -210,21 +241,38 @@ def _batch(config: Config, batch: int, n_bins: int, seed: int = 0):
     return inputs, torch.randint(0, catalog.N_CLASSES, (batch,), generator=g)
 
 
-def train_step_runner(config: Config, *, n_seeds: int = 1, batch: int = 32, n_bins: int = 320, steps: int = 4) -> Callable[[], float]:
+def compiled(model, compile_mode: str | None):
+    """`model` itself (eager) or `torch.compile(model, mode=compile_mode)`; compilation happens at
+    the first call, so the runners' warm-up call is where a mode fails or spends its compile time."""
+    import torch
+
+    if compile_mode is None:
+        return model
+    if compile_mode not in COMPILE_MODES:
+        raise ValueError(f"compile_mode must be None or one of {COMPILE_MODES}, got {compile_mode!r}")
+    return torch.compile(model, mode=compile_mode)
+
+
+def train_step_runner(
+    config: Config, *, n_seeds: int = 1, batch: int = 32, n_bins: int = 320, steps: int = 4, compile_mode: str | None = None
+) -> Callable[[], float]:
     """A warmed-up callable that runs `steps` training steps of `n_seeds` models one after another
-    (each step: every seed in turn) and returns seconds per step."""
+    (each step: every seed in turn) and returns seconds per step. With `compile_mode` each model's
+    forward (and with it, through AOTAutograd, its backward) is `torch.compile`d; gradient clipping
+    and the AdamW step (`adamw_impl`) stay eager, as fused kernels already."""
     import torch
     from torch.nn import functional as F
 
     torch.manual_seed(0)
     models = [build(config, n_bins).train() for _ in range(n_seeds)]
     opts = [_optimizer(m, config) for m in models]
+    forwards = [compiled(m, compile_mode) for m in models]
     inputs, labels = _batch(config, batch, n_bins)
 
     def step():
-        for model, opt in zip(models, opts):
+        for model, forward, opt in zip(models, forwards, opts):
             opt.zero_grad(set_to_none=True)
-            F.cross_entropy(model(inputs), labels, ignore_index=-1).backward()
+            F.cross_entropy(forward(inputs), labels, ignore_index=-1).backward()
             _clip_by_global_norm(model.parameters(), 1.0)
             opt.step()
 
@@ -247,11 +295,12 @@ def bench_train_step(config: Config, *, n_seeds: int = 1, batch: int = 32, n_bin
     return {"seconds_per_step": s, "sequences_per_second_per_seed": batch / (s / n_seeds), "n_seeds": n_seeds, "threads": torch.get_num_threads()}
 
 
-def inference_runner(config: Config, *, n_bins: int = 320) -> Callable[[], float]:
-    """A warmed-up callable returning the seconds of one eval-mode forward pass on one sequence."""
+def inference_runner(config: Config, *, n_bins: int = 320, compile_mode: str | None = None) -> Callable[[], float]:
+    """A warmed-up callable returning the seconds of one eval-mode forward pass on one sequence
+    (`compile_mode` as in `train_step_runner`)."""
     import torch
 
-    model = build(config, n_bins).eval()
+    model = compiled(build(config, n_bins).eval(), compile_mode)
     inputs, _ = _batch(config, 1, n_bins)
 
     def run() -> float:

@@ -11,7 +11,7 @@ import pytest
 
 from acquisition.rig_bench import bench_import
 from acquisition.sim_signals import bench_acquisition
-from fabricjax import archive, sim, stream, train
+from fabricjax import archive, benchmark, sim, stream, train
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.features.extract import log_psd, mic_windows
@@ -132,11 +132,51 @@ def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
     assert b["streaming"]["decided_steps"] > 0 and b["extraction"]["peak_rss_mb"] > 0
     assert b["import"]["trials"] == 20 and b["import"]["wall_s"] > 0
     assert "missed_deadlines" in b["acquisition"] and b["simulator"]["realtime_factor"] > 0
+    assert saved["matmul_peak"]["gflop_per_s"] > 0
+    assert b["training"]["ours_5_seed"]["xla"]["flops_per_step"] > b["training"]["ours_1_seed"]["xla"]["flops_per_step"] > 0
+    assert 0 < b["inference"]["ours"]["xla"]["fraction_of_matmul_peak"]
     if doc["torch"] is not None:
         assert {"ratio_1_seed", "ratio_5_seed"} <= set(b["training"]) and "ratio_p50" in b["inference"]
+        assert b["training"]["torch_1_seed"]["variant"] in b["training"]["interleaved"]["training"]["1_seed"]["torch_variants"]
     else:
         assert "skipped" in doc["torch_note"]
     assert "| benchmark |" in lines[-1] and (tmp_path / "bench.md").exists()
+
+
+def test_xla_flops_utilisation_and_matmul_peak_are_positive():
+    f = jax.jit(lambda a, b: jax.numpy.tanh(a @ b))
+    a, b = jax.numpy.ones((32, 16)), jax.numpy.ones((16, 8))
+    flops = benchmark.xla_flops(f, a, b)
+    assert np.isfinite(flops) and flops >= 2 * 32 * 16 * 8  # at least the matmul's multiply-adds
+    peak = benchmark.matmul_peak(n=128, repeats=2)
+    # Rows split over every device: the per-device counts add up to the whole matmul's.
+    assert peak["flops"] == pytest.approx(2 * 128**3, rel=0.01) and peak["devices"] == len(jax.devices())
+    assert np.isfinite(peak["gflop_per_s"]) and peak["gflop_per_s"] > 0
+    use = benchmark.utilisation(flops, 1e-4, peak["gflop_per_s"])
+    assert all(np.isfinite(v) and v > 0 for v in use.values())
+    assert use["fraction_of_matmul_peak"] == pytest.approx(use["gflop_per_s"] / peak["gflop_per_s"])
+
+
+def test_bench_table_names_the_fastest_variant_and_a_failed_compile():
+    xla = {"flops_per_step": 2e9, "gflop_per_s": 20.0, "fraction_of_matmul_peak": 0.25}
+    failed = {"error": "BackendCompilerFailed: no C++ compiler"}
+    training = {"1_seed": {"torch_variants": {"eager": {"build_and_warmup_s": 1.0, "s_per_step": 0.2, "ratio": 0.5}, "compiled:default": failed}}}
+    doc = {
+        "command": "test", "quick": False, "torch": "2.13.0", "machine": {"cpu": "cpu", "cores": 2, "jax": "0.10"},
+        "matmul_peak": {"n": 2048, "devices": 2, "gflop_per_s": 80.0},
+        "benchmarks": {
+            "training": {
+                "workload": {"batch": 32, "seq_len": 200}, "ours_1_seed": {"seconds_per_step": 0.1, "xla": xla},
+                "torch_1_seed": {"variant": "eager", "seconds_per_step": 0.2}, "ratio_1_seed": 0.5,
+                "interleaved": {"torch_adamw": "fused", "training": training},
+            },
+            "inference": {"workload": {"seq_len": 200}, "ours": {"p50_ms": 3.0, "p99_ms": 9.0, "xla": xla}},
+        },
+    }
+    table = bench.markdown(doc)
+    assert "| eager 200 ms | 0.50 | 2 | 20 (25 %) |" in table and "80.0 GFLOP/s on the same 2 devices" in table
+    assert "| training, 1 seed | compiled:default | n/a |  | failed: BackendCompilerFailed: no C++ compiler |" in table
+    assert "AdamW fused" in table
 
 
 def test_bench_rejects_unknown_names(tmp_path):

@@ -64,3 +64,23 @@ def test_twin_training_step_runs():
     cfg = Config(modalities=("internal", "proprio"), **SMALL)
     run = torch_twin.train_step_runner(cfg, n_seeds=2, batch=4, n_bins=20, steps=1)
     assert run() > 0
+
+
+def test_compiled_twin_computes_the_eager_twins_outputs():
+    """torch.compile (the benchmarks' fastest twin variants) changes the speed, not the function.
+    The first run compiles C++ (~40 s on 2 busy cores); later runs hit inductor's cache (seconds)."""
+    cfg = Config(modalities=("internal", "proprio"), **SMALL)
+    model = torch_twin.build(cfg, n_bins=20).eval()
+    inputs, _ = torch_twin._batch(cfg, 3, 20)
+    with torch.inference_mode():
+        eager = model(inputs).numpy()
+        compiled = torch_twin.compiled(model, torch_twin.COMPILE_MODES[0])(inputs).numpy()
+    assert compiled.shape == eager.shape == (3, catalog.N_CLASSES)
+    np.testing.assert_allclose(compiled, eager, rtol=1e-4, atol=1e-5)
+    with pytest.raises(ValueError, match="compile_mode"):
+        torch_twin.compiled(model, "fastest")
+
+
+def test_fastest_adamw_is_named():
+    # The compare extra asks torch >= 2.5, which has fused AdamW on CPU.
+    assert torch_twin.adamw_impl() == "fused"

@@ -8,8 +8,8 @@ Benchmarks (names for --only):
                  peak memory of a fresh process doing it; paper scale extrapolated linearly in steps
     training     training step of the audio + proprioception model (batch 32, N=200, 320 bins,
                  the paper's width 64 / 3 layers): ours for 1 and 5 vmapped seeds (--train_seeds), the PyTorch
-                 twin's for 1 seed and 5 seeds one after another
-    inference    one 200-step sequence, p50 / p99: ours (jitted `predict_one`) and the twin's
+                 twin's for 1 seed and 5 seeds one after another, eager and torch.compiled
+    inference    one 200-step sequence, p50 / p99: ours (jitted `predict_one`) and the twin's (eager, compiled)
     streaming    per-step update of `fabricjax.stream` (newest PSDs + model over N=200 steps)
                  on a simulated trial replayed as fast as possible
     acquisition  the 50 Hz recording loop against the simulated devices: step times, deadline misses
@@ -20,7 +20,11 @@ Benchmarks (names for --only):
 
 Ours and the twin are timed in alternating rounds in this process (`benchmark.compare_with_torch`),
 so machine load hits both alike; ratios are ours / theirs for times (below 1: we are faster, the
-median of the per-round ratios for training) and scipy / ours for the Welch speed-up. The
+median of the per-round ratios for training), theirs being the fastest of the twin's variants
+(eager, each `torch.compile` mode; every variant and its compile time in bench.json), and scipy /
+ours for the Welch speed-up. Training and inference also say how close ours comes to the machine:
+FLOPs per step by XLA's cost analysis of the compiled program, the GFLOP/s that makes, and its
+fraction of a dense float32 matmul's GFLOP/s measured in the same run (`benchmark.matmul_peak`). The
 PyTorch twin (`fabricjax.torch_twin`, `pip install -e ".[compare]"`) is optional: without torch
 the comparison is skipped with a note. Nothing here asserts a time.
 """
@@ -63,6 +67,17 @@ class Workload:
         return {"batch": self.batch, "seq_len": c.seq_len, "psd_bins": self.bins, "modalities": list(c.modalities),
                 "width": c.width, "n_layers": c.n_layers, "backbone": c.backbone}
 
+
+# --quick's workload: a small model on short sequences, so a smoke run of the whole suite (the
+# twin's torch.compile included) spends its time on compiling, not on paper-sized steps; a smoke
+# check, not a measurement. The default stays the full measurement.
+QUICK_WORKLOAD = Workload(
+    dataclasses.replace(
+        benchmark.COMPARE_CONFIG, width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16), seq_len=24,
+    ),
+    batch=8,
+    bins=24,
+)
 
 # A paper-preset trial: 50 rubbing cycles, ~30 s at 50 Hz (fabricjax/presets.py, preset "paper";
 # acquisition/procedure.py)
@@ -115,38 +130,49 @@ def _interleaved(quick: bool, w: Workload) -> dict:
     )
 
 
-def bench_training(quick: bool, w: Workload, compared: dict | None) -> dict:
-    """Seconds per step, 1 and 5 seeds; beside the twin's (median of per-round ratios) when compared."""
+def bench_training(quick: bool, w: Workload, compared: dict | None, peak: dict) -> dict:
+    """Seconds per step, 1 and 5 seeds; beside the twin's fastest variant (median of per-round
+    ratios) when compared; ours' FLOPs per step and their share of the matmul `peak`."""
     out: dict[str, Any] = {"workload": w.describe()}
     for n in w.seeds:
         if compared is None:
             out[f"ours_{n}_seed"] = benchmark.bench_train_step(
                 w.model, n, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins, steps=2 if quick else benchmark.STEPS_PER_EPOCH, repeats=2 if quick else 3
             )
-            continue
-        c = compared["training"][f"{n}_seed"]
-        out[f"ours_{n}_seed"] = {"n_seeds": n, "seconds_per_step": c["ours_s_per_step"], "sequences_per_s_per_seed": w.batch / c["ours_s_per_step"]}
-        out[f"torch_{n}_seed"] = {"n_seeds": n, "seconds_per_step": c["torch_s_per_step"], "sequences_per_s_per_seed": w.batch * n / c["torch_s_per_step"]}
-        out[f"ratio_{n}_seed"] = c["ratio"]
+        else:
+            c = compared["training"][f"{n}_seed"]
+            out[f"ours_{n}_seed"] = {"n_seeds": n, "seconds_per_step": c["ours_s_per_step"], "sequences_per_s_per_seed": w.batch / c["ours_s_per_step"]}
+            out[f"torch_{n}_seed"] = {
+                "n_seeds": n, "variant": c["torch_variant"], "seconds_per_step": c["torch_s_per_step"],
+                "sequences_per_s_per_seed": w.batch * n / c["torch_s_per_step"],
+            }
+            out[f"ratio_{n}_seed"] = c["ratio"]
+        flops = benchmark.train_step_flops(w.model, n, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins)
+        out[f"ours_{n}_seed"]["xla"] = benchmark.utilisation(flops, out[f"ours_{n}_seed"]["seconds_per_step"], peak["gflop_per_s"])
     for n in w.seeds:
         if n > 1:  # our n vmapped seeds against n times one seed of ours (1.0: vmapping is free)
             out[f"ours_{n}_over_1_per_seed"] = out[f"ours_{n}_seed"]["seconds_per_step"] / (n * out["ours_1_seed"]["seconds_per_step"])
     # How training splits each seed count over the devices: {"seed": devices over seeds, "batch": over samples}.
     out["mesh"] = {str(n): dict(sharding.training_mesh(n, w.batch).shape) for n in w.seeds}
     if compared is not None:
-        out["interleaved"] = {k: compared[k] for k in ("rounds", "steps_per_timing", "torch_threads", "training")}
+        out["interleaved"] = {k: compared[k] for k in ("rounds", "steps_per_timing", "torch_threads", "torch_adamw", "training")}
     return out
 
 
-def bench_inference(quick: bool, w: Workload, compared: dict | None) -> dict:
+def bench_inference(quick: bool, w: Workload, compared: dict | None, peak: dict) -> dict:
     out: dict[str, Any] = {"workload": w.describe()}
     if compared is None:
         out["ours"] = benchmark.bench_inference(w.model, seq_len=w.model.seq_len, psd_bins=w.bins, repeats=30 if quick else 200)
-        return out
-    c = compared["inference"]
-    out["ours"] = {"p50_ms": c["ours_p50_ms"], "p99_ms": c["ours_p99_ms"]}
-    out["torch"] = {"p50_ms": c["torch_p50_ms"], "p99_ms": c["torch_p99_ms"]}
-    out["ratio_p50"] = c["ratio_p50"]
+    else:
+        c = compared["inference"]
+        out["ours"] = {"p50_ms": c["ours_p50_ms"], "p99_ms": c["ours_p99_ms"]}
+        out["torch"] = {"variant": c["torch_variant"], "p50_ms": c["torch_p50_ms"], "p99_ms": c["torch_p99_ms"]}
+        out["ratio_p50"] = c["ratio_p50"]
+        out["interleaved"] = {k: c[k] for k in ("ours_build_and_warmup_s", "torch_variants")}
+    # At p50: the typical call's rate (p99 is the machine's hiccups, not the program's work). One
+    # sequence runs on one device, so its share is of a peak that every device makes together.
+    flops = benchmark.inference_flops(w.model, seq_len=w.model.seq_len, psd_bins=w.bins)
+    out["ours"]["xla"] = benchmark.utilisation(flops, out["ours"]["p50_ms"] / 1e3, peak["gflop_per_s"])
     return out
 
 
@@ -197,6 +223,12 @@ def run(
         if note:
             out(note)
     compared: dict[str, Any] = {}
+    peak: dict[str, Any] = {}
+
+    def matmul_peak():  # measured once, in this process, for the training and the inference entry
+        if not peak:
+            peak.update(benchmark.matmul_peak(repeats=2 if quick else 5))
+        return peak
 
     def comparison():  # one interleaved run serves both the training and the inference entry
         if twin is None:
@@ -209,8 +241,8 @@ def run(
         "simulator": lambda: bench_simulator(quick),
         "welch": lambda: bench_welch(quick),
         "extraction": lambda: bench_extraction(quick, workdir),
-        "training": lambda: bench_training(quick, workload, comparison()),
-        "inference": lambda: bench_inference(quick, workload, comparison()),
+        "training": lambda: bench_training(quick, workload, comparison(), matmul_peak()),
+        "inference": lambda: bench_inference(quick, workload, comparison(), matmul_peak()),
         "streaming": lambda: bench_streaming(quick, workload),
         "acquisition": lambda: acquisition(seconds=3.0 if quick else 10.0),
         "import": lambda: importer(trials=100 if quick else 1000),
@@ -223,6 +255,8 @@ def run(
         t = time.perf_counter()
         doc["benchmarks"][name] = jobs[name]()
         logging.info("bench: %s done in %.1f s", name, time.perf_counter() - t)
+    if peak:
+        doc["matmul_peak"] = peak
     table = markdown(doc)
     out(table)
     folder = workspace.results_dir(results)
@@ -239,28 +273,37 @@ def markdown(doc: dict[str, Any]) -> str:
     """The README table: one row per measurement, ours beside the reference where there is one."""
     b, m = doc["benchmarks"], doc["machine"]
     rows = []
+    variants = []  # every twin variant: its time, our ratio to it, its build + compile time
     if "training" in b:
         t = b["training"]
         for n in sorted(int(hit.group(1)) for k in t if (hit := re.fullmatch(r"ours_(\d+)_seed", k))):
-            ours = t[f"ours_{n}_seed"]["seconds_per_step"] * 1e3
-            theirs = t.get(f"torch_{n}_seed", {}).get("seconds_per_step")
+            ours = t[f"ours_{n}_seed"]
+            theirs = t.get(f"torch_{n}_seed", {})
             mesh = t.get("mesh", {}).get(str(n), {})
             split = ", ".join(f"{k} over {v} devices" for k, v in mesh.items() if v > 1)
-            what = f"{n} seed" + (("s vmapped" if n > 1 else "") + (f", {split}" if split else ""))
+            what = f"training step, {n} seed" + (("s vmapped" if n > 1 else "") + (f", {split}" if split else "")) + (
+                f" (batch {t['workload']['batch']}, N={t['workload']['seq_len']})"
+            )
+            secs = theirs.get("seconds_per_step")
             rows.append([
-                f"training step, {what} (batch {t['workload']['batch']}, N={t['workload']['seq_len']})",
-                f"{ours:.0f} ms", _ms(theirs and theirs * 1e3, 0) + (" (in sequence)" if n > 1 and theirs else ""),
-                _ratio(t.get(f"ratio_{n}_seed")),
+                what, f"{ours['seconds_per_step'] * 1e3:.0f} ms",
+                f"{theirs['variant']} {secs * 1e3:.0f} ms" + (" (in sequence)" if n > 1 else "") if secs else "n/a",
+                _ratio(t.get(f"ratio_{n}_seed")), *_machine(ours.get("xla")),
             ])
+            for name, v in t.get("interleaved", {}).get("training", {}).get(f"{n}_seed", {}).get("torch_variants", {}).items():
+                variants.append([f"training, {n} seed" + ("s" if n > 1 else ""), name, _ms(v.get("s_per_step") and v["s_per_step"] * 1e3, 0), _ratio(v.get("ratio")), _built(v)])
     if "inference" in b:
         i = b["inference"]
         theirs = i.get("torch")
         rows.append([
             f"inference, one {i['workload']['seq_len']}-step sequence, p50 / p99",
             f"{i['ours']['p50_ms']:.2f} / {i['ours']['p99_ms']:.2f} ms",
-            f"{theirs['p50_ms']:.2f} / {theirs['p99_ms']:.2f} ms" if theirs else "n/a",
-            _ratio(i.get("ratio_p50")),
+            f"{theirs['variant']} {theirs['p50_ms']:.2f} / {theirs['p99_ms']:.2f} ms" if theirs else "n/a",
+            _ratio(i.get("ratio_p50")), *_machine(i["ours"].get("xla")),
         ])
+        for name, v in i.get("interleaved", {}).get("torch_variants", {}).items():
+            timing = f"{v['p50_ms']:.2f} / {v['p99_ms']:.2f} ms" if "p50_ms" in v else "n/a"
+            variants.append(["inference, p50 / p99", name, timing, _ratio(v.get("ratio_p50")), _built(v)])
     if "streaming" in b:
         s = b["streaming"]
         rows.append([f"streaming update per step (N={s['workload']['seq_len']}), p50 / p99", f"{s['latency_p50_ms']:.2f} / {s['latency_p99_ms']:.2f} ms", "target p99 <= 20 ms", ""])
@@ -294,8 +337,37 @@ def markdown(doc: dict[str, Any]) -> str:
     env = "".join(f"{k}={v} " for k, v in m.get("env", {}).items())
     head = f"Measured by `{env}{doc['command']}` on {m['cpu']} ({m['cores']} cores), JAX {m['jax']}" + (
         f", PyTorch {doc['torch']}" if doc["torch"] else ""
-    ) + (" (--quick sizes)" if doc["quick"] else "") + ". Ratio: ours / PyTorch time.\n\n"
-    return head + report.markdown_table(["benchmark", "fabricjax", "reference", "ratio"], rows)
+    ) + (" (--quick sizes)" if doc["quick"] else "") + (
+        ". Ratio: ours / the fastest PyTorch variant's time (named in the reference column)." if doc["torch"] else "."
+    )
+    if "matmul_peak" in doc:
+        p = doc["matmul_peak"]
+        head += (
+            f" GFLOP: XLA's cost analysis of our compiled step or call; % peak: its GFLOP/s over a {p['n']}x{p['n']} float32 "
+            f"matmul's {p['gflop_per_s']:.1f} GFLOP/s on the same {p['devices']} device{'s' if p['devices'] > 1 else ''}, measured in this run."
+        )
+    cols = ["benchmark", "fabricjax", "reference", "ratio", "GFLOP", "GFLOP/s (% peak)"]
+    text = head + "\n\n" + report.markdown_table(cols, [r + [""] * (len(cols) - len(r)) for r in rows])
+    if variants:
+        adamw = b.get("training", {}).get("interleaved", {}).get("torch_adamw")
+        text += (
+            "\nEvery PyTorch variant" + (f" (AdamW {adamw})" if adamw else "") + "; build + compile: seconds to build it and run its "
+            "first, compiling calls, not in its times.\n\n"
+            + report.markdown_table(["workload", "PyTorch variant", "time", "ratio", "build + compile"], variants)
+        )
+    return text
+
+
+def _machine(xla: dict | None) -> list[str]:
+    """The GFLOP and GFLOP/s (% of the matmul peak) cells of a row."""
+    if xla is None:
+        return ["", ""]
+    return [f"{xla['flops_per_step'] / 1e9:.3g}", f"{xla['gflop_per_s']:.3g} ({100 * xla['fraction_of_matmul_peak']:.0f} %)"]
+
+
+def _built(variant: dict) -> str:
+    """A twin variant's build + compile seconds, or why it failed."""
+    return f"failed: {variant['error']}" if "error" in variant else f"{variant['build_and_warmup_s']:.1f} s"
 
 
 def _ms(x, digits: int) -> str:
