@@ -162,7 +162,9 @@ def test_simulated_trial_through_sdk_opencv_and_tcp(signals, tmp_path):
 )
 def test_device_failure_keeps_an_incomplete_archive(signals, tmp_path, faults, failure):
     rec, arch, _ = _record(signals, faults, tmp_path)
-    assert arch.meta["complete"] is False and arch.n_steps > 10
+    # the steps before the fault are kept; how many depends on the machine's load (the Pi's
+    # stream runs in real time, the simulated camera's steps slow down under load)
+    assert arch.meta["complete"] is False and arch.n_steps > 0
     assert re.search(failure, arch.meta["failure"])
     assert rec.failure == arch.meta["failure"]
 
