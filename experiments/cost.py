@@ -16,7 +16,7 @@ flags.define_preset()
 flags.define_overrides()
 absl_flags.DEFINE_list("seq_lens", ["25", "50", "100", "200"], "sequence lengths N (steps at 50 Hz), each with every backbone")
 absl_flags.DEFINE_list("backbones", list(BACKBONES), "backbones; the first is the base point's")
-absl_flags.DEFINE_list("widths", ["16", "64"], "model widths varied alone (FFN = 2 x width); empty: none")
+absl_flags.DEFINE_list("widths", ["32", "128"], "model widths varied alone (FFN = 2 x width); empty: none")
 absl_flags.DEFINE_list("bandwidths", ["2.5", "24"], "PSD bandwidths [kHz] varied alone; empty: none")
 absl_flags.DEFINE_list(
     "modality_sets", ["internal+external", "internal", "internal+external+proprio"],

@@ -48,6 +48,14 @@ def test_sweep_is_one_factor_at_a_time_with_the_paper_point_capped():
     assert paper_cfg.modalities == ("internal", "external") and paper_cfg.bandwidth_khz == 15.0
 
 
+def test_a_width_point_at_the_base_width_but_another_ffn_has_its_own_name():
+    # the default preset's FFN is not 2 x width, so its width's point (FFN 2 x width) is another model
+    base = Config.from_preset("smoke", seq_len=20, width=16, ffn=16)
+    points, _ = cost.sweep_points(base, seq_lens=(20,), backbones=("attention",), widths=(16,), bandwidths=(), modality_sets=[base.modalities], max_len=120)
+    names = [p.name for p in points]
+    assert len(names) == len(set(names)) and "att N20 w16/32" in names
+
+
 def test_pareto_front_keeps_only_undominated_points():
     pts = [
         {"name": "a", "touch_s": 0.5, "accuracy_mean": 60.0},

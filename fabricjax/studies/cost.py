@@ -69,8 +69,8 @@ def _with_width(config: Config, width: int) -> Config:
 def point_name(config: Config, base: Config) -> str:
     """A short plot label: backbone and N, then whatever differs from the base point."""
     name = f"{'att' if config.backbone == 'attention' else 'tcn'} N{config.seq_len}"
-    if config.width != base.width:
-        name += f" w{config.width}"
+    if (config.width, config.ffn) != (base.width, base.ffn):
+        name += f" w{config.width}/{config.ffn}"  # width / FFN: a width point's FFN is 2 x width
     if config.bandwidth_khz != base.bandwidth_khz:
         name += f" {config.bandwidth_khz:g}kHz"
     if config.modalities != base.modalities:
@@ -179,7 +179,7 @@ def run(
     preset: str = "default",
     seq_lens: Sequence[int] = (25, 50, 100, 200),
     backbones: Sequence[str] = ("attention", "tcn"),
-    widths: Sequence[int] = (16, 64),
+    widths: Sequence[int] = (32, 128),
     bandwidths: Sequence[float] = (2.5, 24.0),
     modality_sets: Sequence[Sequence[str]] = (("internal", "external"), ("internal",), ("internal", "external", "proprio")),
     paper: bool = True,
