@@ -154,9 +154,6 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
         table(doc["rows"], recorded),
     ]
-    if recorded:
-        lines += [documents.RECORDED_NOTE, ""]
-    else:
-        lines += ["## Findings checklist (the paper's claims about this table)", "", findings.markdown(doc["findings"])]
+    lines += documents.claims_markdown(doc)
     lines += ["Accuracy against bandwidth, every seed: `bandwidth.png`.", ""]
     return "\n".join(lines)

@@ -9,7 +9,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import data, report, stats, workspace
+from fabricjax import data, findings, report, stats, workspace
 from fabricjax.studies.loading import Dataset
 from fabricjax.studies.runner import Row
 
@@ -128,6 +128,14 @@ def title(doc: dict[str, Any], study: str, paper: str | None = None) -> str:
 
 BEST_GAP = "Row − best row [pp]"  # the column recorded-data tables have instead of the paper's
 RECORDED_NOTE = "Rows are compared with each other on the same recorded data and test trials."
+
+
+def claims_markdown(doc: dict[str, Any], claims: str = "the paper's claims about this table") -> list[str]:
+    """A table's closing section: the paper's `claims` checked (`doc["findings"]`), or on recorded
+    data, which has no paper to check, the note that its rows are compared with each other."""
+    if recorded(doc):
+        return [RECORDED_NOTE, ""]
+    return [f"## Findings checklist ({claims})", "", findings.markdown(doc["findings"])]
 
 
 def best_gaps(means: Sequence[float]) -> list[str]:

@@ -150,9 +150,6 @@ def markdown(doc: dict[str, Any]) -> str:
             lines.append(f"- {display_name(r['name'])} vs {display_name(r['against'])}: {w['describe']}")
     caveat = "per-sequence test treats sequences of one trial and of different seeds as independent, which they are not: read it as descriptive."
     lines += ["", f"The {caveat}" if recorded else f"The per-seed test is the one comparable to the paper's; the {caveat}", ""]
-    if recorded:
-        lines += [documents.RECORDED_NOTE, ""]
-    else:
-        lines += ["## Findings checklist (the paper's claims about this table)", "", findings.markdown(doc["findings"])]
+    lines += documents.claims_markdown(doc)
     lines += ["Lab and cafe accuracy per row, every seed: `noise.png`.", ""]
     return "\n".join(lines)

@@ -152,8 +152,5 @@ def markdown(doc: dict[str, Any]) -> str:
         *[f"| {r['name']} | {r['wall_s']:.1f} | `{r['checkpoint']}` |" for r in doc["rows"]],
         "",
     ]
-    if recorded:
-        lines += [documents.RECORDED_NOTE, ""]
-    else:
-        lines += ["## Findings checklist (the paper's claims about this table, on the holdout fabrics)", "", findings.markdown(doc["findings"])]
+    lines += documents.claims_markdown(doc, "the paper's claims about this table, on the holdout fabrics")
     return "\n".join(lines)
