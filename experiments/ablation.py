@@ -7,13 +7,5 @@
 from experiments import flags
 from fabricjax.studies import ablation
 
-flags.define_sweep(ablation.run, [r.name for r in ablation.ROWS])
-
-
-def main(argv):
-    del argv
-    ablation.run(**flags.sweep_kwargs())
-
-
 if __name__ == "__main__":
-    flags.run(main)
+    flags.study_command(ablation.STUDY)

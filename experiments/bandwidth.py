@@ -6,13 +6,5 @@
 from experiments import flags
 from fabricjax.studies import bandwidth
 
-flags.define_sweep(bandwidth.run)
-
-
-def main(argv):
-    del argv
-    bandwidth.run(**flags.sweep_kwargs())
-
-
 if __name__ == "__main__":
-    flags.run(main)
+    flags.study_command(bandwidth.STUDY)

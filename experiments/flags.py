@@ -1,6 +1,6 @@
 """Flags shared by the study commands; every `Config` field is a sweep dimension.
 
-    --seeds --preset --rows --set=field=value (repeatable)   (define_sweep)
+    --seeds --preset --rows --set=field=value (repeatable)   (define_rows, study_command)
     --workdir --data_dir --results --cpu_devices             (always)
 
 `--preset` names a preset of `fabricjax/presets.py` (its data and training settings); each
@@ -13,17 +13,19 @@ repository.
 
 from __future__ import annotations
 
-import inspect
 import shlex
 import sys
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 from absl import flags
 
 from fabricjax import cli, presets, runtime, workspace
 from fabricjax.config import Config, parse_override
 from fabricjax.errors import UserError
+
+if TYPE_CHECKING:
+    from fabricjax.studies.runner import Study
 
 FLAGS = flags.FLAGS
 
@@ -79,15 +81,25 @@ def results_dir() -> Path:
     return workspace.results_dir(FLAGS.results, FLAGS.workdir)
 
 
-def define_sweep(study_run: Callable[..., Any], row_names: Sequence[str] | None = None) -> None:
-    """The sweep flags of a training study (ablation, bandwidth, noise, properties). The --seeds
-    default is the `n_seeds` default of `study_run`; --rows lists `row_names` where given."""
-    n_seeds = inspect.signature(study_run).parameters["n_seeds"].default
-    rows = f"rows, from: {', '.join(row_names)}" if row_names else "row names"
+def define_rows(row_names: Sequence[str], n_seeds: int) -> None:
+    """The flags of a command that trains rows: --seeds (default `n_seeds`), --preset, --rows
+    (from `row_names`) and --set."""
     flags.DEFINE_integer("seeds", n_seeds, "number of seeds (0..n-1) trained together (the study's count by default)", lower_bound=1)
     define_preset()
-    flags.DEFINE_list("rows", None, f"comma-separated {rows} (default: every row of the table)")
+    flags.DEFINE_list("rows", None, f"comma-separated rows, from: {', '.join(row_names)} (default: every row of the table)")
     define_overrides()
+
+
+def study_command(study: Study) -> None:
+    """The whole command line of a training study (experiments/ablation.py and its three twins):
+    its flags, then `study.run` with them."""
+    define_rows(study.row_names, study.n_seeds)
+
+    def main(argv):
+        del argv
+        study.run(**rows_kwargs())
+
+    run(main)
 
 
 def define_preset() -> None:
@@ -112,8 +124,8 @@ def overrides() -> dict[str, Any]:
     return out
 
 
-def sweep_kwargs() -> dict[str, Any]:
-    """The keyword arguments of a study's `run` from the parsed flags."""
+def rows_kwargs() -> dict[str, Any]:
+    """The keyword arguments of `runner.run_study` (and `sweep.run`) from the parsed flags."""
     return dict(n_seeds=FLAGS.seeds, preset=FLAGS.preset, rows=FLAGS.rows, overrides=overrides(), **location_kwargs())
 
 

@@ -6,13 +6,5 @@
 from experiments import flags
 from fabricjax.studies import noise
 
-flags.define_sweep(noise.run)
-
-
-def main(argv):
-    del argv
-    noise.run(**flags.sweep_kwargs())
-
-
 if __name__ == "__main__":
-    flags.run(main)
+    flags.study_command(noise.STUDY)

@@ -6,13 +6,5 @@
 from experiments import flags
 from fabricjax.studies import properties
 
-flags.define_sweep(properties.run)
-
-
-def main(argv):
-    del argv
-    properties.run(**flags.sweep_kwargs())
-
-
 if __name__ == "__main__":
-    flags.run(main)
+    flags.study_command(properties.STUDY)

@@ -15,14 +15,14 @@ from experiments import flags
 from fabricjax.studies import ablation, sweep
 
 FLAGS = absl_flags.FLAGS
-flags.define_sweep(sweep.run, [r.name for r in ablation.ROWS])
+flags.define_rows(ablation.STUDY.row_names, sweep.N_SEEDS)
 absl_flags.DEFINE_multi_string("grid", [], f"a swept Config field, repeatable (the points are the cartesian product): {sweep.GRID_HELP}")
 absl_flags.DEFINE_integer("latency_repeats", 100, "timed predict_one calls per point and row", lower_bound=1)
 
 
 def main(argv):
     del argv
-    sweep.run(grid=sweep.parse_grid(FLAGS.grid), latency_repeats=FLAGS.latency_repeats, **flags.sweep_kwargs())
+    sweep.run(grid=sweep.parse_grid(FLAGS.grid), latency_repeats=FLAGS.latency_repeats, **flags.rows_kwargs())
 
 
 if __name__ == "__main__":

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from fabricjax import catalog, findings
-from fabricjax.studies import bandwidth, latents, noise, properties
+from fabricjax import catalog
+from fabricjax.studies import bandwidth, latents, noise, properties, findings
 
 
 def _pct(values):
@@ -32,7 +32,7 @@ def test_bandwidth_checklist():
 
 
 def _noise_acc(cafe, lab):
-    names = [r[0] for r in noise.ROWS]
+    names = [r.name for r in noise.ROWS]
     return {n: {"cafe": _pct(c), "test": _pct(t)} for n, c, t in zip(names, cafe, lab)}
 
 
@@ -49,13 +49,13 @@ def test_noise_checklist_with_exact_wilcoxon_over_ten_seeds():
     flip = np.tile([0.5, -0.5], 5)
     worse = [base + 30, base + 20, base + 20 + flip]
     assert _holds(noise.checklist(_noise_acc(worse, lab))) == [False, False, False, False, False]
-    only = {noise.ROWS[0][0]: {"cafe": _pct(base), "test": _pct(base + 5)}}
+    only = {noise.ROWS[0].name: {"cafe": _pct(base), "test": _pct(base + 5)}}
     assert _holds(noise.checklist(only)) == [True, None, None, None, None]
 
 
 def test_properties_checklist():
     chance = {p: 100.0 / n for p, n in catalog.PROPERTY_LEVELS.items()}
-    (minsound, _), (both, _) = properties.ROWS
+    minsound, both = (r.name for r in properties.ROWS)
 
     def hold(a, b):
         return {minsound: {p: _pct(v) for p, v in a.items()}, both: {p: _pct(v) for p, v in b.items()}}

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from fabricjax import cli
-from fabricjax import paper_tables, workspace
+from fabricjax import workspace
 from fabricjax.config import Config
 from fabricjax.studies import ablation, runner
 
@@ -31,7 +31,7 @@ def test_help_lists_the_project_flags_and_exits_0():
     for flag in ("--seeds", "--rows", "--preset", "--set", "--data_dir", "--results", "--workdir", "--cpu_devices"):
         assert flag in out.stdout, flag
     assert "(default: '5')" in out.stdout  # the study's seed count
-    assert all(r.name in out.stdout for r in paper_tables.ABLATION)  # --rows names the rows
+    assert all(r.name in out.stdout for r in ablation.PAPER_ROWS)  # --rows names the rows
     assert "--logtostderr" not in out.stdout and "--only_check_args" not in out.stdout and "--jax_" not in out.stdout
     assert "libtpu" not in out.stdout + out.stderr
 

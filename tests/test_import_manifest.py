@@ -189,7 +189,7 @@ def test_the_probe_reads_the_imported_rig(archives, tmp_path):
 def test_the_bandwidth_plot_names_the_rigs_microphone(archives, tmp_path):
     from fabricjax.studies import bandwidth, loading
 
-    assert bandwidth.microphone(loading.Dataset({}, archives, "recorded", 0.0, 0.0), tmp_path / "ws") == "vibration"
+    assert bandwidth.microphone(loading.Dataset({}, archives, "recorded", 0.0, 0.0, tmp_path / "ws")) == "vibration"
     assert bandwidth.microphone(loading.Dataset({}, archives, "simulated", 0.0, 0.0)) == "Minsound"
 
 

@@ -14,7 +14,7 @@ SPLIT_SEEDS = {"train": 1, "val": 2, "test": 3}
 
 
 def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
-    assert [r.name for r in probe.ROWS] == [r.name for r in ablation.ROWS if not r.name.startswith(("tcn:", ablation.VARIANT))]
+    assert [r.name for r in probe.ROWS] == [r.name for r in ablation.ROWS if not r.name.startswith(("tcn:", ablation.STEP_LAYERNORM))]
     for r in ablation.ROWS:  # every ablation row, the TCN and fusion variants included, has its probe
         assert probe.row_for(r.modalities, [{"modalities": list(p.modalities)} for p in probe.ROWS]) is not None
 
@@ -82,7 +82,7 @@ ABLATION_DOC = {
     "preset": "default", "dataset": {"folder": "/w/datasets/default", "source": "simulated"}, "seeds": [0, 1],
     "rows": [_ablation_row("internal", [0.8, 0.9]), _ablation_row("proprio", [0.4, 0.4]),
              _ablation_row("tcn:internal+external+proprio", [0.7, 0.7]),
-             _ablation_row(f"{ablation.VARIANT}:internal+external+proprio", [0.8, 0.8])],
+             _ablation_row(f"{ablation.STEP_LAYERNORM}:internal+external+proprio", [0.8, 0.8])],
 }
 
 
@@ -117,4 +117,7 @@ def test_reproduce_runs_the_probe_without_seeds():
     step = next(s for s in reproduce.PLAN if s.study == "probe")
     assert step.seeds is None and reproduce.PLAN.index(step) == 1  # right after the ablation
     assert reproduce.command(step, "default", {"epochs": 3}, "results") == "python -m experiments.probe --preset=default --set=epochs=3 --results=results"
-    assert reproduce.estimate_s(step, "default") is not None and reproduce.estimate_s(step, "smoke") is not None
+    recorded = {"probe": {"preset": "default", "seeds": None, "rows": len(probe.ROWS), "wall_s": 60.0}}
+    assert reproduce.estimate_s(step, "default", {}, recorded) == 60.0  # the first manifest that recorded the preset
+    assert reproduce.estimate_s(reproduce.Step("probe", rows=("proprio",)), "default", recorded) == pytest.approx(60.0 / len(probe.ROWS))
+    assert reproduce.estimate_s(step, "smoke", recorded) is None

@@ -20,7 +20,7 @@ DATASET = {"folder": "rig_archives", "source": "recorded", "generate_s": 0.0, "l
 
 def _doc(study, rows, **fields):
     return {"study": study, "command": "test", "preset": "smoke", "seeds": [0, 1], "machine": MACHINE, "dataset": DATASET,
-            "train_s": 5.0, "rows": [{**r, "seeds": [0, 1]} for r in rows], "findings": [], **fields}
+            "train_s": 5.0, "rows": [{**r, "seeds": [0, 1]} for r in rows], "findings": [], "figures": [], **fields}
 
 
 def _bandwidth_doc():
@@ -44,8 +44,8 @@ def _noise_doc():
 def _properties_doc():
     acc = lambda a: {s: {p: [a, a] for p in properties.PROPERTIES} for s in properties.SPLITS}  # noqa: E731
     return _doc("properties", [
-        {"name": name, "modalities": list(mods), "checkpoint": f"ckpt/{name}", "wall_s": 1.0, "accuracy": acc(a)}
-        for (name, mods), a in zip(properties.ROWS, (0.5, 0.75))
+        {"name": r.name, "modalities": list(r.modalities), "checkpoint": f"ckpt/{r.name}", "wall_s": 1.0, "accuracy": acc(a)}
+        for r, a in zip(properties.ROWS, (0.5, 0.75))
     ], chance={p: 100.0 / 3 for p in properties.PROPERTIES}, majority={s: dict.fromkeys(properties.PROPERTIES, 40.0) for s in properties.SPLITS},
         fabrics={"test": [0, 1, 2], "holdout": []})
 
@@ -73,10 +73,10 @@ def test_recorded_plots_have_no_paper_marks(tmp_path, monkeypatch):
 
 
 def _latents_doc(neighbours):
-    return {"study": "latents", "command": "test", "checkpoint": "ckpt/minsound", "config": {"preset": "smoke", "modalities": ["internal", "proprio"]},
-            "seeds": [0, 1], "best_val_per_seed": [0.5, 0.6], "seed": 1, "machine": MACHINE, "dataset": DATASET, "perplexity": 1.0,
+    return {"study": "latents", "command": "test", "preset": "smoke", "checkpoint": "ckpt/minsound", "config": {"preset": "smoke", "modalities": ["internal", "proprio"]},
+            "checkpoint_seeds": [0, 1], "best_val_per_seed": [0.5, 0.6], "seed": 1, "machine": MACHINE, "dataset": DATASET, "perplexity": 1.0,
             "points": [{"fabric_id": f, "trial_key": f"t{f}", "sequences": 3, "xy": [f, 0.0]} for f in range(3)],
-            "png": "latents.png", "holdouts": [2], "neighbours": neighbours, "findings": []}
+            "figures": ["latents.png"], "holdouts": [2], "neighbours": neighbours, "findings": []}
 
 
 def test_recorded_latents_use_the_datas_classes_and_levels_not_the_catalogs():
@@ -108,13 +108,13 @@ def _cost_doc():
             "dataset": {**DATASET, "shortest_trial_steps": 60, "step_rate": 30.0},
             "base": {"backbone": "attention", "seq_len": 25, "width": 16, "bandwidth_khz": 1.1, "modalities": ["internal"], "n_layers": 1, "epochs": 2},
             "paper_point": None, "skipped_seq_lens": [], "pareto_front": {"touch_s": ["att N25"], "latency_p50_ms": ["att N25"]},
-            "total_s": 60.0, "points": [point], "figure": "cost_pareto.png"}
+            "total_s": 60.0, "points": [point], "figures": ["cost_pareto.png"]}
 
 
 def test_recorded_cost_has_no_paper_point_and_steps_at_the_datas_rate():
     md = cost.markdown(_cost_doc())
     assert md.splitlines()[0] == "# What accuracy costs in time on recorded data"
-    assert "recorded data `rig_archives` (3 classes, chance 33.3 %)" in md and "(shortest trial 60 steps)" in md
+    assert "recorded data `rig_archives` (3 classes, chance 33.3 %)" in md and "shortest trial 60 steps" in md
     assert "touch time: N steps at 30 Hz" in md and documents.RECORDED_NOTE in md and "| 0.83 |" in md
     assert "paper" not in md.lower() and "**" not in md and "simulat" not in md.lower()
 

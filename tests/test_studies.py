@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from fabricjax import data, paper_tables, sim, stats, train
+from fabricjax import data, sim, stats, train
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies import ablation, bandwidth, documents, latents, noise, probe, properties, reproduce, runner, sweep
@@ -51,7 +51,7 @@ def test_ablation_writes_table_statistics_and_confusions(workdir, tmp_path):
 
 def test_ablation_rerun_gives_identical_per_seed_accuracies(workdir, tmp_path):
     """The main command twice on one machine: the same per-seed accuracies, to the last bit."""
-    rows = ["internal", f"{ablation.VARIANT}:internal+external"]
+    rows = ["internal", f"{ablation.STEP_LAYERNORM}:internal+external"]
     first = ablation.run(n_seeds=2, rows=rows, **run_kwargs(workdir, tmp_path / "a"))
     second = ablation.run(n_seeds=2, rows=rows, **run_kwargs(workdir, tmp_path / "b"))
     for a, b in zip(first["rows"], second["rows"]):
@@ -66,13 +66,13 @@ def _holds(test: dict) -> list[bool | None]:
 def test_ablation_checklist_predicates_on_synthetic_per_seed_results():
     paper_like = {
         "image": [40, 42], "flow": [47, 48], "internal": [95, 94], "external": [59, 60], "proprio": [47, 46],
-        "internal+external": [97, 98], f"{ablation.VARIANT}:internal+external": [96, 97],
+        "internal+external": [97, 98], f"{ablation.STEP_LAYERNORM}:internal+external": [96, 97],
         "internal+external+proprio": [96, 96], "tcn:internal+external+proprio": [75, 76],
     }
     assert _holds(paper_like) == [True] * 7
     wrong = {
         "image": [50, 50], "flow": [30, 32], "internal": [60, 62], "external": [55, 56], "proprio": [10, 12],
-        "internal+external": [58, 59], f"{ablation.VARIANT}:internal+external": [61, 62],
+        "internal+external": [58, 59], f"{ablation.STEP_LAYERNORM}:internal+external": [61, 62],
         "internal+external+proprio": [50, 50], "tcn:internal+external+proprio": [51, 50],
     }
     # best single (61 > 55.5); palm only 5.5 pp worse; proprio 11 vs flow 31; images above flow;
@@ -243,23 +243,23 @@ def test_ten_seed_floor_and_row_selection():
     b = fake_row("b", np.linspace(0.5, 0.6, 10) + np.arange(1, 11) / 100, np.zeros((10, 4), int), range(10))
     res = runner.paired_tests(a, b, "test", np.zeros(4, int))["per_seed"]
     assert res.p_value == pytest.approx(2 / 2**10) and res.min_attainable_p == pytest.approx(0.001953125)
-    assert [r.name for r in runner.select_rows(paper_tables.ABLATION, None)] == [r.name for r in paper_tables.ABLATION]
+    assert [r.name for r in runner.select_rows(ablation.PAPER_ROWS, None)] == [r.name for r in ablation.PAPER_ROWS]
     with pytest.raises(ValueError, match="unknown rows"):
-        runner.select_rows(paper_tables.ABLATION, ["audio"])
+        runner.select_rows(ablation.PAPER_ROWS, ["audio"])
 
 
 # Every study whose rows set `Config` fields, with how to run it (the sweep also needs a grid).
 STUDIES_WITH_ROWS = {
-    "ablation": (ablation.ROW_SETTINGS, ablation.run),
-    "bandwidth": (bandwidth.ROW_SETTINGS, bandwidth.run),
-    "noise": (noise.ROW_SETTINGS, noise.run),
-    "properties": (properties.ROW_SETTINGS, properties.run),
-    "probe": (probe.ROW_SETTINGS, probe.run),
-    "sweep": (ablation.ROW_SETTINGS, lambda **kw: sweep.run(grid={"epochs": (1,)}, **kw)),
+    "ablation": (ablation.ROWS, ablation.run),
+    "bandwidth": (bandwidth.ROWS, bandwidth.run),
+    "noise": (noise.ROWS, noise.run),
+    "properties": (properties.ROWS, properties.run),
+    "probe": (probe.ROWS, probe.run),
+    "sweep": (ablation.ROWS, lambda **kw: sweep.run(grid={"epochs": (1,)}, **kw)),
 }
 
 
-@pytest.mark.parametrize("study, field", [(s, f) for s, (settings, _) in STUDIES_WITH_ROWS.items() for f in sorted({f for r in settings.values() for f in r})])
+@pytest.mark.parametrize("study, field", [(s, f) for s, (rows, _) in STUDIES_WITH_ROWS.items() for f in sorted({f for r in rows for f in r.settings})])
 def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp_path):
     """--set of a field any of the study's rows sets would be silently replaced, or would silently
     change what a row is (--set=backbone=attention made the ablation's TCN row a transformer): it
@@ -272,17 +272,18 @@ def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp
 
 
 def test_the_override_error_names_the_rows_that_set_the_field():
-    settings = {"a": {"backbone": "tcn", "modalities": ("internal",)}, "b": {"modalities": ("proprio",)}, "c": {"modalities": ("flow",)}}
+    rows = [runner.StudyRow(n, s, n) for n, s in (("a", {"backbone": "tcn", "modalities": ("internal",)}), ("b", {"modalities": ("proprio",)}),
+                                                   ("c", {"modalities": ("flow",)}))]
     with pytest.raises(UserError) as e:
-        runner.check_overrides("toy", {"backbone": "attention", "modalities": ("internal",), "epochs": 1}, settings, "choose them with --rows")
+        runner.check_overrides("toy", {"backbone": "attention", "modalities": ("internal",), "epochs": 1}, rows, "choose them with --rows")
     assert str(e.value) == ("the toy study sets backbone per row itself (rows a); modalities per row itself (every one of its 3 rows); "
                             "choose them with --rows")
-    assert runner.check_overrides("toy", {"epochs": 1}, settings, "") == {"epochs": 1}
+    assert runner.check_overrides("toy", {"epochs": 1}, rows, "") == {"epochs": 1}
 
 
 def test_the_ablation_row_counts_the_docs_state_are_the_code_s():
-    paper, variants = len(paper_tables.ABLATION), len(ablation.VARIANT_ROWS)
-    tcn = sum(r.backbone == "tcn" for r in paper_tables.ABLATION)
+    paper, variants = len(ablation.PAPER_ROWS), len(ablation.STEP_LAYERNORM_ROWS)
+    tcn = sum(r.settings["backbone"] == "tcn" for r in ablation.PAPER_ROWS)
     assert tcn == 1 and len(ablation.ROWS) == paper + variants
     repo = Path(__file__).parents[1]
     said = {
@@ -344,7 +345,7 @@ def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_p
     assert "estimated time" in said[0] and all(f"{s.study:<11} run" in said[0] for s in SMOKE_PLAN)
     text = (tmp_path / "REPORT.md").read_text()
     for s in SMOKE_PLAN:
-        assert f"## {reproduce.TITLES[s.study]}" in text
+        assert f"## {reproduce.title(s.study)}" in text
     assert text.count("Rerun alone: `python -m experiments.") == 4 and "`python -m experiments.bandwidth --seeds=1 --preset=smoke --rows=2.5" in text
     assert "`python -m experiments.probe --preset=smoke --rows=proprio --set=" in text and "| – (deterministic) | – (not in the paper) |" in text
     assert "--checkpoint=" in text and "![bandwidth.png](bandwidth.png)" in text and "(latents.png)" in text
@@ -361,7 +362,7 @@ def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_p
     said.clear()
     reproduce.run(**{**kw, "plan": (reproduce.Step("latents"),)})  # alone: keyed on the manifest's property study
     assert "latents     skip" in said[0]
-    assert all(f"## {reproduce.TITLES[s.study]}" in (tmp_path / "REPORT.md").read_text() for s in SMOKE_PLAN)
+    assert all(f"## {reproduce.title(s.study)}" in (tmp_path / "REPORT.md").read_text() for s in SMOKE_PLAN)
 
 
 def test_reproduce_keys_follow_what_decides_the_numbers():

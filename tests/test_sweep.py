@@ -113,7 +113,7 @@ def test_every_point_trains_the_preset_with_set_and_its_own_fields_on_every_row(
         f"epochs={e}/cnn_features={c}/{r}" for e in (1, 2) for c in ("4,8", "8,16") for r in ("image", "tcn:internal+external+proprio")
     ]  # point-major, the first field slowest; the name is the unit's log folder
     for _, config, fields, row in units:
-        expected = Config.from_preset("smoke", learning_rate=3e-3, backbone=row.backbone, modalities=row.modalities, **fields)
+        expected = Config.from_preset("smoke", learning_rate=3e-3, **row.settings, **fields)
         assert config == expected and config.fusion_norm == row.fusion_norm
 
 
@@ -176,7 +176,7 @@ def test_each_point_trains_the_preset_with_its_own_fields(swept):
     for e in doc["entries"]:
         r = rows[e["row"]]
         expected = Config.from_preset(
-            "smoke", backbone=r.backbone, modalities=r.modalities, fusion_norm=r.fusion_norm, **FIXED, epochs=e["fields"]["epochs"],
+            "smoke", **r.settings, **FIXED, epochs=e["fields"]["epochs"],
         )
         assert Config.from_json(e["config"]) == expected
 

@@ -16,127 +16,102 @@ compared with each other: no paper column, no checklist of the paper's claims, t
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import catalog, findings, paper_tables, plots, report, stats
-from fabricjax.config import MODALITY_NAMES, Config
-from fabricjax.studies import documents, loading, runner
+from fabricjax import catalog, plots, stats
+from fabricjax.config import MODALITY_NAMES
+from fabricjax.studies import documents, findings, loading, runner
+from fabricjax.studies.runner import StudyRow
+
+TITLE, PAPER = "Modality ablation", "Table ablation_table"  # how results name the study, and what of the paper it reproduces
 
 WILCOXON_PAIR = ("internal", "internal+external")  # (baseline, compared), as in the paper
+PAPER_WILCOXON_P = 0.0254  # the paper's test of that pair
 CONFUSION_ROWS = ("proprio", "flow")
-VARIANT = "step_layernorm"  # our fusion normalisation (config.FUSION_NORMS), beside the paper's
-
-
-@dataclasses.dataclass(frozen=True)
-class Row:
-    """A row of the table: the paper's, or our fusion-normalisation variant of one (`paper_*` then
-    are the paper's row with the same inputs, for reference)."""
-
-    name: str
-    backbone: str
-    modalities: tuple[str, ...]
-    paper_mean: float
-    paper_sd: float
-    fusion_norm: str = "sequence_minmax"
-
-
-def _variant(name: str) -> Row:
-    r = next(r for r in paper_tables.ABLATION if r.name == name)
-    return Row(f"{VARIANT}:{r.name}", r.backbone, r.modalities, r.paper_mean, r.paper_sd, VARIANT)
-
-
-# Every camera row and the fusion rows without camera inputs, again under our step-LayerNorm fusion:
-# the paper's rescale over the sequence removes a stream's steady level, which is where a camera
-# frame's contact patch and a joint's load show, so a row at chance under it alone is no verdict.
-VARIANT_ROWS = tuple(
-    _variant(n)
-    for n in (
-        "image", "flow", "image+internal", "image+internal+external+proprio", "flow+internal",
-        "flow+internal+external+proprio", "internal+proprio", "internal+external+proprio", "internal+external",
-    )
-)
-ROWS = tuple(Row(r.name, r.backbone, r.modalities, r.paper_mean, r.paper_sd) for r in paper_tables.ABLATION) + VARIANT_ROWS
-VARIANT_PAIRS = ((WILCOXON_PAIR[0], f"{VARIANT}:{WILCOXON_PAIR[1]}"),)  # Minsound (no fusion) vs our fused variant
+STEP_LAYERNORM = "step_layernorm"  # our fusion normalisation (config.FUSION_NORMS), beside the paper's sequence_minmax
 
 
 def label(modalities: Sequence[str], backbone: str, fusion_norm: str = "sequence_minmax") -> str:
     """How the table names a row: 'TCN: Minsound + palm mic', '... (our step-LayerNorm fusion)'."""
     text = " + ".join(MODALITY_NAMES[m] for m in modalities)
     text = f"TCN: {text}" if backbone == "tcn" else text
-    return f"{text} (our step-LayerNorm fusion)" if fusion_norm == VARIANT else text
+    return f"{text} (our step-LayerNorm fusion)" if fusion_norm == STEP_LAYERNORM else text
+
+
+def _row(modalities: Sequence[str], mean: float, sd: float, backbone: str = "attention", fusion_norm: str = "sequence_minmax") -> StudyRow:
+    """A row and the paper's test accuracy [%] (mean, SD over its seeds) for the same inputs."""
+    name = ("tcn:" if backbone == "tcn" else "") + "+".join(modalities)
+    if fusion_norm != "sequence_minmax":
+        name = f"{fusion_norm}:{name}"
+    settings = {"backbone": backbone, "modalities": tuple(modalities), "fusion_norm": fusion_norm}
+    return StudyRow(name, settings, label(modalities, backbone, fusion_norm), {"mean": mean, "sd": sd})
+
+
+# The paper's Table ablation_table: 12 transformer rows and the TCN row.
+PAPER_ROWS = (
+    _row(("image",), 41.15, 5.74),
+    _row(("flow",), 47.16, 5.12),
+    _row(("internal",), 95.06, 1.85),
+    _row(("external",), 59.22, 2.43),
+    _row(("proprio",), 47.10, 3.72),
+    _row(("image", "internal"), 73.94, 5.73),
+    _row(("image", "internal", "external", "proprio"), 85.59, 3.87),
+    _row(("flow", "internal"), 87.44, 5.88),
+    _row(("flow", "internal", "external", "proprio"), 91.34, 2.47),
+    _row(("internal", "proprio"), 94.63, 2.78),
+    _row(("internal", "external", "proprio"), 96.10, 1.26),
+    _row(("internal", "external"), 97.75, 1.27),
+    _row(("internal", "external", "proprio"), 75.41, 11.2, backbone="tcn"),
+)
+# Every camera row and the fusion rows without camera inputs, again under our step-LayerNorm fusion:
+# the paper's rescale over the sequence removes a stream's steady level, which is where a camera
+# frame's contact patch and a joint's load show, so a row at chance under it alone is no verdict.
+# Their paper numbers are the paper's row with the same inputs, for reference.
+STEP_LAYERNORM_ROWS = tuple(
+    _row(r.modalities, r.paper["mean"], r.paper["sd"], fusion_norm=STEP_LAYERNORM)
+    for r in PAPER_ROWS
+    if r.name in ("image", "flow", "image+internal", "image+internal+external+proprio", "flow+internal",
+                  "flow+internal+external+proprio", "internal+proprio", "internal+external+proprio", "internal+external")
+)
+ROWS = PAPER_ROWS + STEP_LAYERNORM_ROWS
+# Minsound (no fusion) against our fused variant of Minsound + palm mic
+STEP_LAYERNORM_PAIRS = ((WILCOXON_PAIR[0], f"{STEP_LAYERNORM}:{WILCOXON_PAIR[1]}"),)
 
 
 def display_name(row_name: str) -> str:
     """The label of row `row_name` of `ROWS`."""
-    r = next(r for r in ROWS if r.name == row_name)
-    return label(r.modalities, r.backbone, r.fusion_norm)
+    return next(r.label for r in ROWS if r.name == row_name)
 
 
-def row_settings(row: Row) -> dict[str, Any]:
-    """The `Config` fields a row sets itself, on top of the preset and the overrides."""
-    return {"backbone": row.backbone, "modalities": row.modalities, "fusion_norm": row.fusion_norm}
-
-
-# What every row sets (row name -> fields): an override of one of these fields is an error
-# (`runner.check_overrides`), since the row would replace it or it would change what the row is.
-ROW_SETTINGS = {r.name: row_settings(r) for r in ROWS}
-
-
-def row_config(row: Row, preset: str, overrides: dict[str, Any]) -> Config:
-    """The config a row trains with: the preset, `overrides`, then the row's own fields (`row_settings`)."""
-    return Config.from_preset(preset, **{**overrides, **row_settings(row)})
-
-
-def run(
-    *,
-    n_seeds: int = 5,
-    preset: str = "default",
-    rows: Sequence[str] | None = None,
-    overrides: dict[str, Any] | None = None,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
-) -> dict[str, Any]:
-    """Train the chosen rows (all by default) and write results/ablation.{md,json}; returns the JSON."""
-    overrides = runner.check_overrides("ablation", overrides, ROW_SETTINGS, "choose them with --rows")
-    chosen = runner.select_rows(ROWS, rows)
-    seeds = runner.seed_list(n_seeds)
-    named = [(r.name, row_config(r, preset, overrides)) for r in chosen]
-    study = runner.train_rows(
-        "ablation", named, seeds, eval_splits=["test"], split_names=loading.TRAIN_VAL_TEST, data_dir=data_dir, workdir=workdir,
-        label=display_name,
-    )
-    trained = study.rows
-
-    test = study.dataset.sets["test"]
+def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+    """The rows beside the paper's, the Wilcoxon tests of `WILCOXON_PAIR` and the confusion
+    matrices of `CONFUSION_ROWS` (results/ablation_confusion.png)."""
+    rows, seeds = trained.rows, next(iter(trained.rows.values())).results.seeds
+    test = trained.dataset.sets["test"]
     labels = test.labels["fabric"]
-    recorded = study.dataset.recorded
+    recorded = trained.dataset.recorded
     base, compared = WILCOXON_PAIR
-    tests = runner.paired_tests(trained[base], trained[compared], "test", labels) if base in trained and compared in trained else {}
+    tests = runner.paired_tests(rows[base], rows[compared], "test", labels) if base in rows and compared in rows else {}
     panels = [
-        (f"{MODALITY_NAMES[n]} only, {len(seeds)} seeds pooled", np.tile(labels, len(seeds)), trained[n].predictions("test").ravel())
+        (f"{MODALITY_NAMES[n]} only, {len(seeds)} seeds pooled", np.tile(labels, len(seeds)), rows[n].predictions("test").ravel())
         for n in CONFUSION_ROWS
-        if n in trained
+        if n in rows
     ]
     figure = plots.plot_confusions(
-        documents.results_path(results) / "ablation_confusion.png", panels, class_names=study.dataset.classes if recorded else None
+        results / "ablation_confusion.png", panels, class_names=trained.dataset.classes if recorded else None
     ) if panels else None
-
-    doc = {
-        **documents.header("ablation", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=study.train_s),
+    body = {
         "rows": [
             {
                 "name": r.name,
-                "backbone": trained[r.name].config.backbone,
+                "backbone": rows[r.name].config.backbone,
                 "modalities": list(r.modalities),
-                "display_name": display_name(r.name),
-                "fusion_norm": r.fusion_norm,
-                **({} if recorded else {"paper_mean": r.paper_mean, "paper_sd": r.paper_sd}),
-                **documents.row_doc(trained[r.name], ["test"]),
+                "display_name": r.label,
+                "fusion_norm": r.settings["fusion_norm"],
+                **({} if recorded else {"paper_mean": r.paper["mean"], "paper_sd": r.paper["sd"]}),
+                **documents.row_doc(rows[r.name], ["test"]),
             }
             for r in chosen
         ],
@@ -144,17 +119,13 @@ def run(
         "wilcoxon": {
             "baseline": base,
             "compared": compared,
-            **({} if recorded else {"paper_p": paper_tables.ABLATION_WILCOXON_P}),
+            **({} if recorded else {"paper_p": PAPER_WILCOXON_P}),
             **{k: documents.wilcoxon_doc(v) for k, v in tests.items()},
         }
         if tests
         else None,
-        "confusion_png": str(figure) if figure else None,
     }
-    # the checklist holds the paper's claims: recorded data is not the paper's
-    doc["findings"] = [] if recorded else [f.to_json() for f in checklist({r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]})]
-    documents.write_outputs(results, "ablation", markdown(doc), doc)
-    return doc
+    return body, [figure]
 
 
 CLEARLY_WORSE_PP = 10.0  # "clearly worse": at least this many points below (the paper: 36)
@@ -186,7 +157,7 @@ def checklist(test: dict[str, np.ndarray]) -> list[findings.Finding]:
     claim = "Minsight images alone are the weakest camera input (below optical flow)"
     out.append(findings.missing(claim, ["image", "flow"], test) or findings.at_least(
         claim, (MODALITY_NAMES["flow"], test["flow"]), (MODALITY_NAMES["image"], test["image"]), strict=True))
-    for base, compared, variant in ((WILCOXON_PAIR[0], WILCOXON_PAIR[1], ""), *[(b, c, " (our step-LayerNorm fusion)") for b, c in VARIANT_PAIRS]):
+    for base, compared, variant in ((WILCOXON_PAIR[0], WILCOXON_PAIR[1], ""), *[(b, c, " (our step-LayerNorm fusion)") for b, c in STEP_LAYERNORM_PAIRS]):
         claim = f"Minsound + palm mic >= Minsound{variant}"
         out.append(findings.missing(claim, [base, compared], test) or findings.at_least(
             claim, (display_name(compared), test[compared]), (display_name(base), test[base])))
@@ -212,14 +183,14 @@ def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
         ])
     accuracy = f"Test accuracy [%] ({'recorded data' if recorded else 'ours'}, {len(rows[0]['seeds'])} seeds)"
     compared = [documents.BEST_GAP] if recorded else ["Paper [%]", "Ours − paper [pp]"]
-    return report.markdown_table(["Backbone", "Modalities", accuracy, *compared, "Train wall time [s]"], body)
+    return documents.markdown_table(["Backbone", "Modalities", accuracy, *compared, "Train wall time [s]"], body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
     if documents.recorded(doc):
         return _recorded_markdown(doc)
     lines = [
-        documents.title(doc, "Modality ablation", "Table ablation_table"),
+        documents.title(doc, TITLE, PAPER),
         "",
         documents.header_markdown(doc),
         table(doc["rows"]),
@@ -244,7 +215,7 @@ def markdown(doc: dict[str, Any]) -> str:
             "which they are not: read it as descriptive.",
             "",
         ]
-    if doc["confusion_png"]:
+    if "ablation_confusion.png" in doc["figures"]:
         lines += ["Confusion matrices (proprioception only, optical flow only): `ablation_confusion.png`.", ""]
     lines += [
         "The simulator is the same for every row (never tuned per row): differences from the paper are findings.",
@@ -256,7 +227,7 @@ def markdown(doc: dict[str, Any]) -> str:
 def _recorded_markdown(doc: dict[str, Any]) -> str:
     """The table of a `--data_dir` run: recorded data, rows compared with each other."""
     lines = [
-        documents.title(doc, "Modality ablation", "Table ablation_table"),
+        documents.title(doc, TITLE, PAPER),
         "",
         documents.header_markdown(doc),
         table(doc["rows"], recorded=True),
@@ -267,6 +238,14 @@ def _recorded_markdown(doc: dict[str, Any]) -> str:
     if w:
         lines += [f"## Wilcoxon signed-rank: {w['compared']} against {w['baseline']}", "", f"- {w['per_seed']['describe']}",
                   f"- {w['per_sample']['describe']}", ""]
-    if doc["confusion_png"]:
+    if "ablation_confusion.png" in doc["figures"]:
         lines += ["Confusion matrices (proprioception only, optical flow only, where run): `ablation_confusion.png`.", ""]
     return "\n".join(lines)
+
+
+STUDY = runner.Study(
+    "ablation", ROWS, n_seeds=5, eval_splits=("test",), split_names=loading.TRAIN_VAL_TEST,
+    document=document, checklist=lambda doc: checklist({r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]}),
+    markdown=markdown,
+)
+run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

@@ -18,10 +18,13 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import archive, findings, paper_tables, plots, report, stats
-from fabricjax.config import MODALITY_NAMES, Config
+from fabricjax import archive, plots, stats
+from fabricjax.config import MODALITY_NAMES
 from fabricjax.features import welch
-from fabricjax.studies import documents, loading, runner
+from fabricjax.studies import documents, findings, loading, runner
+from fabricjax.studies.runner import StudyRow
+
+TITLE, PAPER = "PSD bandwidth", "Table bandwidth_classification"  # how results name the study, and what of the paper it reproduces
 
 MODALITIES = ("internal",)
 
@@ -30,55 +33,31 @@ def row_name(khz: float) -> str:
     return f"{khz:g}"
 
 
-def row_settings(khz: float) -> dict[str, Any]:
-    """The `Config` fields the row of bandwidth `khz` sets itself, on top of the preset and the overrides."""
-    return {"modalities": MODALITIES, "bandwidth_khz": khz}
+def _row(khz: float, val_mean: float, val_sd: float, test_mean: float, test_sd: float) -> StudyRow:
+    """The row of bandwidth `khz` and the paper's validation and test accuracy [%] (5 seeds)."""
+    paper = {"val_mean": val_mean, "val_sd": val_sd, "test_mean": test_mean, "test_sd": test_sd}
+    return StudyRow(row_name(khz), {"modalities": MODALITIES, "bandwidth_khz": khz}, f"{khz:g} kHz", paper)
 
 
-ROW_SETTINGS = {row_name(khz): row_settings(khz) for khz in sorted(paper_tables.BANDWIDTH)}
+# The paper's Table bandwidth_classification.
+ROWS = (_row(2.5, 92.43, 1.13, 89.87, 3.31), _row(10.0, 97.45, 1.17, 93.07, 3.33), _row(15.0, 97.75, 1.62, 95.06, 1.85), _row(24.0, 98.20, 1.39, 91.94, 2.68))
 
 
-def run(
-    *,
-    n_seeds: int = 5,
-    preset: str = "default",
-    rows: Sequence[str] | None = None,
-    overrides: dict[str, Any] | None = None,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
-) -> dict[str, Any]:
-    """Train one row per bandwidth and write results/bandwidth.{md,json}; returns the JSON."""
-    overrides = runner.check_overrides("bandwidth", overrides, ROW_SETTINGS, "choose bandwidths with --rows (e.g. 2.5,15)")
-    chosen = runner.select_rows(sorted(paper_tables.BANDWIDTH), rows, name=row_name)
-    seeds = runner.seed_list(n_seeds)
-    study = runner.train_rows(
-        "bandwidth", [(row_name(khz), Config.from_preset(preset, **{**overrides, **row_settings(khz)})) for khz in chosen], seeds,
-        eval_splits=["test"], split_names=loading.TRAIN_VAL_TEST, data_dir=data_dir, workdir=workdir, label=lambda name: f"{name} kHz",
-    )
-    test = study.dataset.sets["test"]
-    recorded = study.dataset.recorded
+def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+    """Every row's PSD bins beside the paper's, the microphone read and results/bandwidth.png."""
+    test = trained.dataset.sets["test"]
+    recorded = trained.dataset.recorded
     out_rows = []
-    for khz in chosen:
-        vm, vs, tm, ts = paper_tables.BANDWIDTH[khz]
+    for r in chosen:
+        khz = r.settings["bandwidth_khz"]
         out_rows.append({
-            "name": row_name(khz), "bandwidth_khz": khz, "psd_bins": welch.n_bins(khz, test.rates.get("internal", archive.AUDIO_RATE)),
-            **({} if recorded else {"paper": {"val_mean": vm, "val_sd": vs, "test_mean": tm, "test_sd": ts}}),
-            **documents.row_doc(study.rows[row_name(khz)], ["test"]),
+            "name": r.name, "bandwidth_khz": khz, "psd_bins": welch.n_bins(khz, test.rates.get("internal", archive.AUDIO_RATE)),
+            **({} if recorded else {"paper": dict(r.paper)}),
+            **documents.row_doc(trained.rows[r.name], ["test"]),
         })
-    doc = {
-        **documents.header("bandwidth", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=study.train_s),
-        "modalities": list(MODALITIES),
-        "microphone": microphone(study.dataset, workdir),
-        "rows": out_rows,
-        "test_samples": documents.samples_doc(test),
-    }
-    # the checklist holds the paper's claims: recorded data is not the paper's
-    doc["findings"] = [] if recorded else [f.to_json() for f in checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in ("val", "test")} for r in out_rows})]
-    doc["png"] = str(plot(documents.results_path(results) / "bandwidth.png", out_rows, doc["microphone"]))
-    documents.write_outputs(results, "bandwidth", markdown(doc), doc)
-    return doc
+    mic = microphone(trained.dataset)
+    figure = plot(results / "bandwidth.png", out_rows, mic)
+    return {"modalities": list(MODALITIES), "microphone": mic, "rows": out_rows, "test_samples": documents.samples_doc(test)}, [figure]
 
 
 def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
@@ -97,13 +76,13 @@ def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
     return out
 
 
-def microphone(ds: loading.Dataset, workdir=None) -> str:
+def microphone(ds: loading.Dataset) -> str:
     """The microphone the rows read, as the data names it: Minsound on the hand's simulated data,
     on recorded data the name its meta gives the microphone feeding the internal input (a rig's
     own, not the paper's)."""
     if not ds.recorded:
         return MODALITY_NAMES["internal"]
-    lay = archive.layout(archive.load_index(ds.folder, workdir).entries[0].meta)
+    lay = archive.layout(archive.load_index(ds.folder, ds.workdir).entries[0].meta)
     return lay.mics[lay.mic("internal")].name
 
 
@@ -138,7 +117,7 @@ def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
         body.append([f"{r['bandwidth_khz']:g}", r["psd_bins"], *compared, f"{r['wall_s']:.1f}"])
     compared = (["Val [%]", "Test [%]", documents.BEST_GAP] if recorded else
                 ["Val [%] (ours)", "Val [%] (paper)", "Val diff [pp]", "Test [%] (ours)", "Test [%] (paper)", "Test diff [pp]"])
-    return report.markdown_table(["Bandwidth [kHz]", "PSD bins", *compared, "Train wall time [s]"], body)
+    return documents.markdown_table(["Bandwidth [kHz]", "PSD bins", *compared, "Train wall time [s]"], body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
@@ -146,7 +125,7 @@ def markdown(doc: dict[str, Any]) -> str:
     inputs = (f"its microphone `{doc['microphone']}` only" if recorded else
               "Minsound only; the paper's 15 kHz row equals its internal-audio ablation row")
     lines = [
-        documents.title(doc, "PSD bandwidth", "Table bandwidth_classification"),
+        documents.title(doc, TITLE, PAPER),
         "",
         documents.header_markdown(doc),
         f"Inputs: {' + '.join(doc['modalities'])} ({inputs}). Validation accuracy is that of the best-validation epoch, "
@@ -154,6 +133,15 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
         table(doc["rows"], recorded),
     ]
-    lines += documents.claims_markdown(doc)
+    lines += findings.claims_markdown(doc)
     lines += ["Accuracy against bandwidth, every seed: `bandwidth.png`.", ""]
     return "\n".join(lines)
+
+
+STUDY = runner.Study(
+    "bandwidth", ROWS, n_seeds=5, eval_splits=("test",),
+    split_names=loading.TRAIN_VAL_TEST, document=document,
+    checklist=lambda doc: checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in ("val", "test")} for r in doc["rows"]}),
+    markdown=markdown, choose_rows="choose bandwidths with --rows (e.g. 2.5,15)",
+)
+run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

@@ -41,11 +41,12 @@ from typing import Any, Callable, Sequence
 import jax
 from absl import logging
 
-from fabricjax import archive, benchmark, presets, report, sharding, sim, stream, torch_twin, train, workspace
+from fabricjax import archive, benchmark, presets, sharding, sim, stream, torch_twin, train
 from fabricjax.config import Config
 from fabricjax.features import bench as feature_bench
 from fabricjax.features import welch
 from fabricjax.sim import calibration as sim_calibration
+from fabricjax.studies import documents
 
 BENCHMARKS = ("simulator", "welch", "extraction", "training", "inference", "streaming", "acquisition", "import")
 PASSED_IN = ("acquisition", "import")  # benchmarks of the acquisition package, which this library does not import
@@ -247,7 +248,7 @@ def run(
         "acquisition": lambda: acquisition(seconds=3.0 if quick else 10.0),
         "import": lambda: importer(trials=100 if quick else 1000),
     }
-    doc: dict[str, Any] = {"command": command, "machine": report.machine(), "quick": quick, "torch": _torch_version(twin), "benchmarks": {}}
+    doc = documents.header("bench", command=command, quick=quick, torch=_torch_version(twin), benchmarks={})
     if note:
         doc["torch_note"] = note
     for name in (b for b in BENCHMARKS if b in chosen):
@@ -257,12 +258,8 @@ def run(
         logging.info("bench: %s done in %.1f s", name, time.perf_counter() - t)
     if peak:
         doc["matmul_peak"] = peak
-    table = markdown(doc)
-    out(table)
-    folder = workspace.results_dir(results)
-    report.write_json(folder / "bench.json", doc)
-    report.write_text(folder / "bench.md", table)
-    return doc
+    out(markdown(doc))
+    return documents.write(results, doc, markdown)
 
 
 def _torch_version(twin) -> str | None:
@@ -347,13 +344,13 @@ def markdown(doc: dict[str, Any]) -> str:
             f"matmul's {p['gflop_per_s']:.1f} GFLOP/s on the same {p['devices']} device{'s' if p['devices'] > 1 else ''}, measured in this run."
         )
     cols = ["benchmark", "fabricjax", "reference", "ratio", "GFLOP", "GFLOP/s (% peak)"]
-    text = head + "\n\n" + report.markdown_table(cols, [r + [""] * (len(cols) - len(r)) for r in rows])
+    text = head + "\n\n" + documents.markdown_table(cols, [r + [""] * (len(cols) - len(r)) for r in rows])
     if variants:
         adamw = b.get("training", {}).get("interleaved", {}).get("torch_adamw")
         text += (
             "\nEvery PyTorch variant" + (f" (AdamW {adamw})" if adamw else "") + "; build + compile: seconds to build it and run its "
             "first, compiling calls, not in its times.\n\n"
-            + report.markdown_table(["workload", "PyTorch variant", "time", "ratio", "build + compile"], variants)
+            + documents.markdown_table(["workload", "PyTorch variant", "time", "ratio", "build + compile"], variants)
         )
     return text
 

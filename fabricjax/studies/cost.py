@@ -43,12 +43,12 @@ import jax
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, benchmark, data, plots, report, stats
+from fabricjax import archive, benchmark, data, plots, stats
 from fabricjax.config import Config
 from fabricjax.studies import documents, loading, runner
 
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
-SHORT = {"internal": "int", "external": "ext", "proprio": "prop", "flow": "flow", "image": "img"}
+MODALITY_ABBREVIATIONS = {"internal": "int", "external": "ext", "proprio": "prop", "flow": "flow", "image": "img"}
 X_AXES = (
     ("touch_s", "touch time to a decision [s] (N steps / step rate)"),
     ("latency_p50_ms", "inference latency of one sequence, p50 [ms]"),
@@ -74,7 +74,7 @@ def point_name(config: Config, base: Config) -> str:
     if config.bandwidth_khz != base.bandwidth_khz:
         name += f" {config.bandwidth_khz:g}kHz"
     if config.modalities != base.modalities:
-        name += " " + "+".join(SHORT[m] for m in config.modalities)
+        name += " " + "+".join(MODALITY_ABBREVIATIONS[m] for m in config.modalities)
     return name
 
 
@@ -220,13 +220,10 @@ def run(
     order = {p.name: i for i, p in enumerate(points)}
     rows.sort(key=lambda r: order[r["name"]])
     fronts = {key: pareto_front(rows, key) for key, _ in X_AXES}
+    doc = documents.header("cost", command=command, preset=preset, seeds=seeds, dataset=first)
+    doc["dataset"].update(shortest_trial_steps=max_len, step_rate=step_rate)
     doc = {
-        "study": "cost",
-        "command": command,
-        "preset": preset,
-        "seeds": list(seeds),
-        "machine": report.machine(),
-        "dataset": {**documents.dataset_doc(first), "shortest_trial_steps": max_len, "step_rate": step_rate},
+        **doc,
         "base": base.to_json(),
         "paper_point": paper_name,
         "skipped_seq_lens": skipped,
@@ -234,33 +231,25 @@ def run(
         "total_s": time.perf_counter() - t_all,
         "points": rows,
     }
-    out = documents.results_path(results)
-    plot = plots.plot_pareto(out / "cost_pareto.png", rows, X_AXES, highlight=paper_name)
-    doc["figure"] = plot.name
-    documents.write_outputs(results, "cost", markdown(doc), doc)
-    return doc
+    figure = plots.plot_pareto(documents.results_path(results) / "cost_pareto.png", rows, X_AXES, highlight=paper_name)
+    return documents.write(results, doc, markdown, [figure])
 
 
 def markdown(doc: dict[str, Any]) -> str:
-    m, base = doc["machine"], doc["base"]
-    seeds = doc["seeds"]
-    d = doc["dataset"]
+    base, d = doc["base"], doc["dataset"]
     lines = [
         documents.title(doc, "What accuracy costs in time"),
         "",
-        documents.command_markdown(doc["command"]),
-        documents.data_markdown(doc["preset"], d) + f" (shortest trial {d['shortest_trial_steps']} steps"
-        + (f"; N = {', '.join(map(str, doc['skipped_seq_lens']))} skipped as longer" if doc["skipped_seq_lens"] else "")
-        + ")",
+        documents.header_markdown(doc, f"the sweep took {doc['total_s'] / 60:.1f} min; all seeds of a point train in one vmapped program").rstrip("\n"),
+        f"- shortest trial {d['shortest_trial_steps']} steps"
+        + (f"; N = {', '.join(map(str, doc['skipped_seq_lens']))} skipped as longer" if doc["skipped_seq_lens"] else ""),
         f"- base point: {base['backbone']}, N={base['seq_len']}, width {base['width']}, {base['bandwidth_khz']:g} kHz, "
         f"{'+'.join(base['modalities'])}, {base['n_layers']} layers, {base['epochs']} epochs; one factor varied at a time",
-        f"- seeds: {len(seeds)}, test accuracy mean ± SD (sample SD) over seeds; all seeds train in one vmapped program",
-        f"- machine: {m['cpu']}, {m['cores']} cores, JAX {m['jax']} on {m['jax_backend']}; sweep took {doc['total_s'] / 60:.1f} min",
         f"- touch time: N steps at {d['step_rate']:g} Hz; train: wall time of the multi-seed program incl. compilation; "
         "latency: jitted `predict_one` on one test sequence after warm-up (p50 / p99 of repeated calls)",
         f"- Pareto front (marked T for touch time, L for latency): "
         f"{', '.join(doc['pareto_front']['touch_s'])} | {', '.join(doc['pareto_front']['latency_p50_ms'])}",
-        f"- figure: `{doc['figure']}`" + ("; **bold**: the paper's configuration on this preset" if doc["paper_point"] else ""),
+        f"- figure: `{doc['figures'][0]}`" + ("; **bold**: the paper's configuration on this preset" if doc["paper_point"] else ""),
         "",
         *([documents.RECORDED_NOTE, ""] if documents.recorded(doc) else []),
         "",
@@ -276,4 +265,4 @@ def markdown(doc: dict[str, Any]) -> str:
             "+".join(r["modalities"]), f"{r['params']:,}", f"{r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f}",
             f"{r['train_s']:.0f}", f"{r['latency_p50_ms']:.2f}", f"{r['latency_p99_ms']:.2f}", front,
         ])
-    return "\n".join(lines) + report.markdown_table(header, rows)
+    return "\n".join(lines) + documents.markdown_table(header, rows)

@@ -1,55 +1,162 @@
-"""A study's results file: where the numbers come from (`header`), per-row and per-sample
-records, written as results/<study>.md and .json atomically (`write_outputs`)."""
+"""The results layer: every results file a command writes, and what it says about where its
+numbers come from.
+
+Every study (the training studies, the probe, cost, sweep, latents, stream, bench, palm) builds
+its JSON document on `header` (study, command, code, machine, date, and the fields it adds:
+preset, seeds, dataset, ...), says where its numbers come from in Markdown with `header_markdown`
+and writes results/<study>.md and .json atomically with `write`, which also records the figures
+it drew under one key, "figures". Tables are `markdown_table`; per-row and per-sample records of a
+trained row are `row_doc` and `samples_doc`. The paper's claims checked on a study's rows live in
+`findings`; REPORT.md, which gathers every study, is `reproduce`'s."""
 
 from __future__ import annotations
 
 import dataclasses
+import datetime
+import json
+import os
+import platform
+import subprocess
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from fabricjax import data, findings, report, stats, workspace
+from fabricjax import data, stats, workspace
+from fabricjax.atomic import atomic_open
 from fabricjax.studies.loading import Dataset
 from fabricjax.studies.runner import Row
+
+
+# CPU features XLA:CPU compiles for: hosts that differ in them may round (and run) the same
+# program differently, so every results file records which the host has.
+VECTOR_UNITS = {"sse4_2", "avx", "avx2", "fma", "avx512f", "avx512bw", "avx512_bf16", "amx_tile"}
+
+
+def machine() -> dict[str, Any]:
+    """What a number was measured on; every results file carries this."""
+    import jax
+
+    cpu = platform.processor() or platform.machine()
+    vector_units: list[str] = []
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name") and cpu == (platform.processor() or platform.machine()):
+                cpu = line.split(":", 1)[1].strip()
+            elif line.startswith("flags") and not vector_units:
+                vector_units = sorted(set(line.split(":", 1)[1].split()) & VECTOR_UNITS)
+    except OSError:
+        pass
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "vector_units": vector_units,
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "jax": jax.__version__,
+        "jax_backend": jax.default_backend(),
+        "devices": [str(d) for d in jax.devices()],
+        # settings that change speed without changing code; recorded so a timing can be rerun alike
+        "env": {k: os.environ[k] for k in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "GLIBC_TUNABLES", "OMP_NUM_THREADS") if k in os.environ},
+    }
+
+
+def git_commit() -> str:
+    """'commit <hash>' of the source tree this package runs from (' + uncommitted changes' when
+    git sees any), or 'no git checkout'."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        run = lambda *a: subprocess.run(["git", "-C", str(root), *a], capture_output=True, text=True, timeout=10, check=True).stdout.strip()  # noqa: E731
+        head, dirty = run("rev-parse", "--short=12", "HEAD"), run("status", "--porcelain", "--untracked-files=no", "--", "fabricjax", "experiments")
+    except (OSError, subprocess.SubprocessError):
+        return "no git checkout"
+    return f"commit {head}" + (" + uncommitted changes" if dirty else "")
+
+
+def _default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (set, tuple)):
+        return list(o)
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON-serialisable: {type(o).__name__}")
+
+
+def write_text(path: os.PathLike | str, text: str) -> Path:
+    """Atomic: a reader sees the old file or the new one, never half of one."""
+    with atomic_open(path, "w") as f:
+        f.write(text)
+    return Path(path)
+
+
+def write_json(path: os.PathLike | str, doc: Any) -> Path:
+    return write_text(path, json.dumps(doc, indent=1, default=_default) + "\n")
+
+
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    def cell(x):
+        return str(x).replace("|", "\\|")
+
+    lines = ["| " + " | ".join(map(cell, header)) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(map(cell, r)) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
 
 
 def results_path(results=None) -> Path:
     return workspace.results_dir(results)
 
 
-def write_outputs(results, name: str, markdown: str, doc: dict[str, Any]) -> tuple[Path, Path]:
-    """results/<name>.md and .json, atomically."""
-    out = results_path(results)
-    return report.write_text(out / f"{name}.md", markdown), report.write_json(out / f"{name}.json", doc)
-
-
-def header(study: str, *, command: str | None, preset: str, seeds: Sequence[int], dataset: Dataset, train_s: float) -> dict[str, Any]:
-    """The first fields of every training study's JSON: what ran (`command`: the command line,
-    None when called from Python), on which data and machine, and how long training took."""
-    return {
+def header(study: str, *, command: str | None, seeds: Sequence[int] | None = None, dataset: Dataset | None = None, **fields) -> dict[str, Any]:
+    """The first fields of every results JSON: what ran (`study`; `command`: the command line,
+    None when called from Python), from which code, when and on which machine, then the study's
+    own `fields` (its preset, the seeds, the dataset it read as `dataset_doc`, its times, ...)."""
+    doc = {
         "study": study,
         "command": command,
-        "preset": preset,
-        "seeds": list(seeds),
-        "machine": report.machine(),
-        "dataset": dataset_doc(dataset),
-        "train_s": train_s,
+        "code": git_commit(),
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "machine": machine(),
     }
+    if seeds is not None:
+        doc["seeds"] = list(seeds)
+    if dataset is not None:
+        doc["dataset"] = dataset_doc(dataset)
+    return {**doc, **fields}
 
 
-def header_markdown(doc: dict[str, Any]) -> str:
-    """Where the numbers come from: command, preset, data, machine, time."""
-    d = doc["dataset"]
-    seeds = doc["seeds"]
-    return "\n".join([
-        command_markdown(doc["command"]),
-        data_markdown(doc["preset"], d),
-        f"- seeds: {len(seeds)} ({seeds[0]}-{seeds[-1]}), mean ± SD (sample SD) over seeds",
-        machine_markdown(doc["machine"]),
-        f"- time: training {doc['train_s']:.0f} s in all (per row below, compilation included); {data_time_markdown(d)}",
-        "",
-    ])
+def header_markdown(doc: dict[str, Any], time: str | None = None) -> str:
+    """Where the numbers come from, as a list: command, code and date, preset and data, seeds,
+    machine, and `time` (default: a training study's training and data times)."""
+    lines = [command_markdown(doc["command"])]
+    if "code" in doc:  # results written before the header named its code and date have neither
+        lines.append(f"- code: {doc['code']}; written {doc['date']}")
+    if "dataset" in doc:
+        lines.append(data_markdown(doc["preset"], doc["dataset"]))
+    if "seeds" in doc:
+        seeds = doc["seeds"]
+        lines.append(f"- seeds: {len(seeds)} ({seeds[0]}-{seeds[-1]}), mean ± SD (sample SD) over seeds")
+    lines.append(machine_markdown(doc["machine"]))
+    if time is None and "train_s" in doc:
+        time = f"training {doc['train_s']:.0f} s in all (per row below, compilation included); {data_time_markdown(doc['dataset'])}"
+    if time:
+        lines.append(f"- time: {time}")
+    return "\n".join([*lines, ""])
+
+
+def write(results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str] | None, figures: Sequence[Path | None] = ()) -> dict[str, Any]:
+    """Write `doc` as results/<study>.json and `markdown(doc)` (None: no Markdown) as
+    results/<study>.md, atomically; `figures` (drawn into the same folder; None: not drawn) are
+    listed by file name under the document's "figures" key first, which is how the Markdown and
+    `reproduce` know a study's figures."""
+    out = results_path(results)
+    doc["figures"] = [Path(f).name for f in figures if f is not None]
+    if markdown is not None:
+        write_text(out / f"{doc['study']}.md", markdown(doc))
+    write_json(out / f"{doc['study']}.json", doc)
+    return doc
 
 
 def data_time_markdown(d: dict[str, Any]) -> str:
@@ -69,7 +176,7 @@ def data_markdown(preset: str, d: dict[str, Any]) -> str:
 
 
 def machine_markdown(m: dict[str, Any]) -> str:
-    """The machine (`report.machine`) a study ran on."""
+    """The machine (`machine`) a study ran on."""
     return (f"- machine: {m['cpu']} ({', '.join(m.get('vector_units') or ['vector units not recorded'])}), {m['cores']} cores, "
             f"JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)")
 
@@ -128,14 +235,6 @@ def title(doc: dict[str, Any], study: str, paper: str | None = None) -> str:
 
 BEST_GAP = "Row − best row [pp]"  # the column recorded-data tables have instead of the paper's
 RECORDED_NOTE = "Rows are compared with each other on the same recorded data and test trials."
-
-
-def claims_markdown(doc: dict[str, Any], claims: str = "the paper's claims about this table") -> list[str]:
-    """A table's closing section: the paper's `claims` checked (`doc["findings"]`), or on recorded
-    data, which has no paper to check, the note that its rows are compared with each other."""
-    if recorded(doc):
-        return [RECORDED_NOTE, ""]
-    return [f"## Findings checklist ({claims})", "", findings.markdown(doc["findings"])]
 
 
 def best_gaps(means: Sequence[float]) -> list[str]:

@@ -31,11 +31,12 @@ import numpy as np
 from flax import nnx
 from sklearn.manifold import TSNE
 
-from fabricjax import catalog, checkpoint, data, findings, plots, report, train
+from fabricjax import catalog, checkpoint, data, plots, train
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.errors import UserError
-from fabricjax.studies import documents, loading
+from fabricjax.studies import documents, findings, loading
 
+TITLE, PAPER = "Latent space", "Fig. latent_features"
 BATCH = 32  # sequences per latent evaluation
 
 
@@ -103,29 +104,23 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
         neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
     )
     doc = {
-        "study": "latents",
-        "command": command,
+        **documents.header("latents", command=command, preset=config.preset, dataset=ds),
         "checkpoint": str(checkpoint_dir),
         "config": config.to_json(),
-        "seeds": seeds,
+        "checkpoint_seeds": seeds,
         "best_val_per_seed": best_val.tolist(),
         "seed": seeds[index],
-        "machine": report.machine(),
-        "dataset": documents.dataset_doc(ds),
         "perplexity": perplexity,
         "points": [
             {"fabric_id": f, "trial_key": k, "sequences": c, "xy": p.tolist()}
             for f, k, c, p in zip(fabrics, keys, counts, xy)
         ],
-        "png": str(png),
         "holdouts": list(holdouts),
         "neighbours": agreement,
         # the checklist holds the paper's reading of its figure: recorded data is not the paper's
         "findings": [] if ds.recorded else [f.to_json() for f in checklist(agreement)],
     }
-    report.write_json(documents.results_path(results) / "latents.json", doc)
-    report.write_text(documents.results_path(results) / "latents.md", markdown(doc))
-    return doc
+    return documents.write(results, doc, markdown, [png])
 
 
 def catalog_fabrics(ids) -> dict[int, tuple[str, dict[str, int | None]]]:
@@ -228,13 +223,11 @@ def markdown(doc: dict[str, Any]) -> str:
     recorded = documents.recorded(doc)
     points = "classes of the test and holdout splits" if recorded else "fabrics on the test day"
     lines = [
-        documents.title(doc, "Latent space", "Fig. latent_features"),
+        documents.title(doc, TITLE, PAPER),
         "",
-        documents.command_markdown(doc["command"]),
-        documents.data_markdown(c["preset"], doc["dataset"]),
-        f"- checkpoint: `{doc['checkpoint']}` ({'+'.join(c['modalities'])}; seed {doc['seed']}, the best by validation of seeds {doc['seeds']})",
+        documents.header_markdown(doc).rstrip("\n"),
+        f"- checkpoint: `{doc['checkpoint']}` ({'+'.join(c['modalities'])}; seed {doc['seed']}, the best by validation of seeds {doc['checkpoint_seeds']})",
         f"- points: {len(doc['points'])} {points}, one trial each; t-SNE perplexity {doc['perplexity'] or 0:.2f}",
-        f"- machine: {doc['machine']['cpu']}, {doc['machine']['cores']} cores, JAX {doc['machine']['jax']}",
         "",
         "![t-SNE of per-trial mean latents](latents.png)",
         "",

@@ -34,6 +34,7 @@ class Dataset:
     source: str  # "recorded" | "simulated"
     generate_s: float  # simulating missing archives (0 for recorded data or a finished dataset)
     load_s: float  # features (cached after the first run) and sequences
+    workdir: str | Path | None = None  # the workspace it was loaded under (a recorded folder's index lives there)
 
     @property
     def classes(self) -> tuple[str, ...]:
@@ -65,7 +66,7 @@ def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Se
     sets = data.load_sequences(config, folder, workdir=workdir, split_names=split_names)
     t2 = time.perf_counter()
     logging.info("dataset %s (%s): %s", folder, source, {k: len(v) for k, v in sets.items()})
-    ds = Dataset(sets, Path(folder), source, t1 - t0, t2 - t1)
+    ds = Dataset(sets, Path(folder), source, t1 - t0, t2 - t1, workdir)
     if ds.recorded:  # the user's own splits: say what each got
         counts = ", ".join(f"{k} {c['trials']} trials / {c['sequences']} sequences" for k, c in ds.split_counts().items())
         print(f"recorded data {folder} ({ds.n_classes} classes): {counts}")

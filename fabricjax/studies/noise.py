@@ -17,61 +17,54 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import findings, paper_tables, plots, report, stats
-from fabricjax.config import MODALITY_NAMES, Config
+from fabricjax import plots, stats
+from fabricjax.config import MODALITY_NAMES
 from fabricjax.errors import UserError
-from fabricjax.studies import documents, loading, runner
+from fabricjax.studies import documents, findings, loading, runner
+from fabricjax.studies.runner import StudyRow
+
+TITLE, PAPER = "Cafe noise", "Table new_noise_results"  # how results name the study, and what of the paper it reproduces
 
 SPLIT = "cafe"
-ROWS = tuple(("+".join(mods), mods, mean, sd, p) for mods, mean, sd, p in paper_tables.NOISE)
-ROW_SETTINGS = {name: {"modalities": mods} for name, mods, *_ in ROWS}  # the `Config` fields each row sets itself
 SIGNIFICANCE = 0.05  # the level at which the checklist calls a per-seed Wilcoxon test significant
 
 
-def run(
-    *,
-    n_seeds: int = 10,
-    preset: str = "default",
-    rows: Sequence[str] | None = None,
-    overrides: dict[str, Any] | None = None,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
-) -> dict[str, Any]:
-    """Train the rows, test on the cafe split and write results/noise.{md,json}; returns the JSON."""
-    overrides = runner.check_overrides("noise", overrides, ROW_SETTINGS, "choose them with --rows")
-    chosen = runner.select_rows(ROWS, rows, name=lambda r: r[0])
-    seeds = runner.seed_list(n_seeds)
-    study = runner.train_rows(
-        "noise", [(name, Config.from_preset(preset, **{**overrides, **ROW_SETTINGS[name]})) for name, *_ in chosen], seeds,
-        eval_splits=[SPLIT, "test"], split_names=(*loading.TRAIN_VAL_TEST, SPLIT), data_dir=data_dir, workdir=workdir,
-        summary=lambda row: f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %", check=_has_cafe_trials,
-    )
-    labels = study.dataset.sets[SPLIT].labels["fabric"]
-    recorded = study.dataset.recorded
+def display_name(row_name: str) -> str:
+    return " + ".join(MODALITY_NAMES[m] for m in row_name.split("+"))
+
+
+def _row(modalities: tuple[str, ...], mean: float, sd: float, p: str | None) -> StudyRow:
+    """A row and the paper's cafe accuracy [%] (10 seeds) with its p against the preceding row."""
+    name = "+".join(modalities)
+    return StudyRow(name, {"modalities": modalities}, display_name(name), {"mean": mean, "sd": sd, "p": p})
+
+
+# The paper's Table new_noise_results.
+ROWS = (
+    _row(("internal",), 67.51, 5.05, None),
+    _row(("internal", "proprio"), 87.51, 2.66, "< 0.0001"),
+    _row(("internal", "proprio", "external"), 90.30, 2.18, "0.0098"),
+)
+
+
+def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+    """Every row with its tests against the preceding row on the cafe split, and results/noise.png."""
+    labels = trained.dataset.sets[SPLIT].labels["fabric"]
+    recorded = trained.dataset.recorded
     out_rows, previous = [], None
-    for name, mods, mean, sd, p in chosen:
-        row = study.rows[name]
+    for r in chosen:
+        row = trained.rows[r.name]
         tests = runner.paired_tests(previous, row, SPLIT, labels) if previous is not None else {}
         out_rows.append({
-            "name": name, "modalities": list(mods),
-            **({} if recorded else {"paper": {"mean": mean, "sd": sd, "p": p}}),
+            "name": r.name, "modalities": list(r.modalities),
+            **({} if recorded else {"paper": dict(r.paper)}),
             "against": previous.name if previous is not None else None,
             "wilcoxon": {k: documents.wilcoxon_doc(v) for k, v in tests.items()} or None,
             **documents.row_doc(row, [SPLIT, "test"]),
         })
         previous = row
-    doc = {
-        **documents.header("noise", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=study.train_s),
-        "rows": out_rows,
-        "cafe_samples": documents.samples_doc(study.dataset.sets[SPLIT]),
-    }
-    # the checklist holds the paper's claims: recorded data is not the paper's
-    doc["findings"] = [] if recorded else [f.to_json() for f in checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in (SPLIT, "test")} for r in out_rows})]
-    doc["png"] = str(plot(documents.results_path(results) / "noise.png", out_rows))
-    documents.write_outputs(results, "noise", markdown(doc), doc)
-    return doc
+    figure = plot(results / "noise.png", out_rows)
+    return {"rows": out_rows, "cafe_samples": documents.samples_doc(trained.dataset.sets[SPLIT])}, [figure]
 
 
 def _has_cafe_trials(ds: loading.Dataset) -> None:
@@ -79,16 +72,12 @@ def _has_cafe_trials(ds: loading.Dataset) -> None:
         raise UserError(f"the dataset in {ds.folder} has no cafe-condition trials to test on")
 
 
-def display_name(row_name: str) -> str:
-    return " + ".join(MODALITY_NAMES[m] for m in row_name.split("+"))
-
-
 def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
     """The paper's claims about the cafe-noise table as predicates over per-seed accuracies
     (`acc`: row name -> {"cafe": per-seed, "test": per-seed (the lab test day)} in [0, 1], the same
     seeds in every row; rows not run are skipped). Each gain is tested for significance by the
     exact per-seed Wilcoxon test (two-sided, floor 2 / 2^n over n seeds), as the paper tests it."""
-    minsound, proprio, palm = (r[0] for r in ROWS)
+    minsound, proprio, palm = (r.name for r in ROWS)
     claim = "cafe noise lowers Minsound's accuracy against the lab test day"
     out = [findings.missing(claim, [minsound], acc) or findings.below(
         claim, ("cafe", acc[minsound][SPLIT]), ("lab test", acc[minsound]["test"]))]
@@ -138,18 +127,27 @@ def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
     tests = ["p per seed", "p per sequence"]
     compared = [documents.BEST_GAP, *tests] if recorded else ["Paper [%]", "Ours − paper [pp]", *tests, "Paper p"]
     ours = "recorded data" if recorded else "ours"
-    return report.markdown_table(["Modalities", f"Cafe test [%] ({ours})", *compared, f"Lab test [%] ({ours})", "Train wall time [s]"], body)
+    return documents.markdown_table(["Modalities", f"Cafe test [%] ({ours})", *compared, f"Lab test [%] ({ours})", "Train wall time [s]"], body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
     recorded = documents.recorded(doc)
-    lines = [documents.title(doc, "Cafe noise", "Table new_noise_results"), "", documents.header_markdown(doc), table(doc["rows"], recorded),
+    lines = [documents.title(doc, TITLE, PAPER), "", documents.header_markdown(doc), table(doc["rows"], recorded),
              "Tests, each row against the preceding one on the cafe split:", ""]
     for r in doc["rows"]:
         for w in (r["wilcoxon"] or {}).values():
             lines.append(f"- {display_name(r['name'])} vs {display_name(r['against'])}: {w['describe']}")
     caveat = "per-sequence test treats sequences of one trial and of different seeds as independent, which they are not: read it as descriptive."
     lines += ["", f"The {caveat}" if recorded else f"The per-seed test is the one comparable to the paper's; the {caveat}", ""]
-    lines += documents.claims_markdown(doc)
+    lines += findings.claims_markdown(doc)
     lines += ["Lab and cafe accuracy per row, every seed: `noise.png`.", ""]
     return "\n".join(lines)
+
+
+STUDY = runner.Study(
+    "noise", ROWS, n_seeds=10, eval_splits=(SPLIT, "test"),
+    split_names=(*loading.TRAIN_VAL_TEST, SPLIT), document=document,
+    checklist=lambda doc: checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in (SPLIT, "test")} for r in doc["rows"]}),
+    markdown=markdown, summary=lambda row: f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %", check=_has_cafe_trials,
+)
+run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

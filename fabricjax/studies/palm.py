@@ -27,13 +27,12 @@ steps and does not need a 30 s trial.
 
 from __future__ import annotations
 
-import datetime
 import time
 from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import archive, catalog, presets, report
+from fabricjax import archive, catalog, presets
 from fabricjax.features import welch
 from fabricjax.sim import EFFECTS, Scene, acoustics, air_path, shell, simulate
 from fabricjax.sim import calibration as cal
@@ -186,7 +185,7 @@ def summary(doc: dict[str, Any]) -> list[str]:
     ]
 
 
-def markdown(doc: dict[str, Any], command: str | None, machine: dict[str, Any], date: str) -> str:
+def markdown(doc: dict[str, Any]) -> str:
     bands = doc["bands"]
     floor = np.array(doc["quantisation_floor"])
     rooms = doc["rooms"]
@@ -197,9 +196,7 @@ def markdown(doc: dict[str, Any], command: str | None, machine: dict[str, Any], 
     lines = [
         "# The palm microphone by physics: rubbing against the room, day against fabric",
         "",
-        documents.command_markdown(command),
-        f"- date: {date}",
-        documents.machine_markdown(machine),
+        documents.header_markdown(doc).rstrip("\n"),
         f"- scenes: preset {doc['preset']}'s {len(doc['classes'])} training classes, lab days {doc['lab_days']}, cafe days "
         f"{doc['cafe_days']}, {doc['trials']} trials per day, {doc['cycles']} rubbing cycles per trial (levels are means over "
         f"the rubbing steps), seed {doc['seed']}; {doc['wall_s']:.0f} s",
@@ -227,12 +224,12 @@ def markdown(doc: dict[str, Any], command: str | None, machine: dict[str, Any], 
     rows.append(["cafe room minus lab room (means over days and trials)", *_fmt(cafe.mean(axis=0) - lab.mean(axis=0))])
     rows.append(["SPH0645 self-noise (palm, day %d)" % doc["lab_days"][0], *_fmt(noise)])
     rows.append(["18-bit quantisation floor (ideal microphone)", *_fmt(floor)])
-    lines += [report.markdown_table(["source", *bands], rows)]
+    lines += [documents.markdown_table(["source", *bands], rows)]
     lines += [
         "Room levels as drawn per day and trial (`scene.nuisance`: the level the ambient is scaled to, dB(A)) and the palm "
         "microphone's gain drift of that day (dB):",
         "",
-        report.markdown_table(
+        documents.markdown_table(
             ["condition", "day", "trial", "room dB(A) drawn", "room dB(A) measured (50 Hz-15 kHz)", "palm gain drift [dB]"],
             [[r["condition"], r["day"], r["trial"], f"{r['drawn_db_a']:.2f}", f"{r['levels'][-1]:.2f}", f"{r['palm_gain_db']:+.2f}"] for r in rooms],
         ),
@@ -248,7 +245,7 @@ def markdown(doc: dict[str, Any], command: str | None, machine: dict[str, Any], 
         servo = np.array(doc["sources"]["servos at the palm"][fid])
         margins[fid] = [np.array(lv) - _power_sum(room.mean(axis=0), servo, noise) for room in (lab, cafe)]
     rows = [[f"{fid} {catalog.fabric(int(fid)).name}", *_fmt(m_lab), *_fmt(m_cafe)] for fid, (m_lab, m_cafe) in margins.items()]
-    lines += [report.markdown_table(["class", *[f"lab {b}" for b in bands], *[f"cafe {b}" for b in bands]], rows)]
+    lines += [documents.markdown_table(["class", *[f"lab {b}" for b in bands], *[f"cafe {b}" for b in bands]], rows)]
     above = [sum(bool(np.any(m[c][:-1] > 0)) for m in margins.values()) for c in (0, 1)]
     lines += [
         f"Classes whose rubbing stands above the rest in at least one octave band: lab {above[0]} of {len(rub)}, "
@@ -263,7 +260,7 @@ def markdown(doc: dict[str, Any], command: str | None, machine: dict[str, Any], 
     for mic in ("palm", "Minsound"):
         sh = doc["shares"][mic]
         rows = [[k, *[f"{v:.2f}" if "SD" in k else f"{100 * v:.1f} %" for v in sh[k]]] for k in sh]
-        lines += [f"**{mic}**", "", report.markdown_table(["share", *bands], rows)]
+        lines += [f"**{mic}**", "", documents.markdown_table(["share", *bands], rows)]
     t = doc["transfer"]
     lines += [
         "## The air path against the fingertip's own radiation",
@@ -272,7 +269,7 @@ def markdown(doc: dict[str, Any], command: str | None, machine: dict[str, Any], 
         "and cloth together) and the fingertip's own monopole radiation after the shell "
         "(`shell.contact_transfer` x `air_path.fingertip_radiation`), at each band's centre.",
         "",
-        report.markdown_table(
+        documents.markdown_table(
             ["band centre [Hz]", "lumped air path [dB]", "fingertip alone [dB]"],
             [[f"{fc:.0f}", f"{a:.1f}", f"{b:.1f}"] for fc, a, b in zip(t["band_centre_hz"], t["air_path_db"], t["fingertip_db"])],
         ),
@@ -282,9 +279,5 @@ def markdown(doc: dict[str, Any], command: str | None, machine: dict[str, Any], 
 
 def run(preset: str = "default", cycles: int = CYCLES, command: str | None = None, results=None) -> dict[str, Any]:
     """Measure, then write results/palm_physics.md and .json atomically."""
-    doc = measure(preset, cycles)
-    machine = report.machine()
-    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    doc.update(command=command, machine=machine, date=date)
-    documents.write_outputs(results, "palm_physics", markdown(doc, command, machine, date), doc)
-    return doc
+    doc = {**documents.header("palm_physics", command=command), **measure(preset, cycles)}
+    return documents.write(results, doc, markdown)

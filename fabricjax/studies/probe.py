@@ -35,10 +35,12 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.preprocessing import StandardScaler
 from threadpoolctl import threadpool_limits
 
-from fabricjax import archive, report, stats
-from fabricjax.config import MODALITY_NAMES, Config
+from fabricjax import archive, stats
+from fabricjax.config import MODALITY_NAMES
 from fabricjax.studies import ablation, documents, loading, runner
+from fabricjax.studies.runner import StudyRow
 
+TITLE, PAPER = "Linear probe of every ablation row's inputs", "not in the paper"
 SPLITS = (*loading.TRAIN_VAL_TEST, "cafe")  # the ablation's, and the cafe condition where the data has it
 C_GRID = (0.001, 0.01, 0.1, 1.0, 10.0)  # inverse L2 strength, chosen by validation accuracy
 PCA_ABOVE = 400  # an input with more dimensions per step than this is reduced by PCA ...
@@ -50,23 +52,16 @@ BLAS_THREADS = 1
 SUMMARY_CHUNK = 256  # sequences converted to float32 at a time (a default-preset image chunk: 184 MB)
 
 
-@dataclasses.dataclass(frozen=True)
-class Row:
-    """One probe: a distinct set of inputs among the ablation's rows, named like its first row."""
-
-    name: str
-    modalities: tuple[str, ...]
-
-
-def _rows() -> tuple[Row, ...]:
-    seen: dict[frozenset, Row] = {}
+def _rows() -> tuple[StudyRow, ...]:
+    """One probe per distinct set of inputs among the ablation's rows, named like its first row."""
+    seen: dict[frozenset, StudyRow] = {}
     for r in ablation.ROWS:
-        seen.setdefault(frozenset(r.modalities), Row("+".join(r.modalities), r.modalities))
+        mods = r.modalities
+        seen.setdefault(frozenset(mods), StudyRow("+".join(mods), {"modalities": mods}, ablation.label(mods, "attention")))
     return tuple(seen.values())
 
 
 ROWS = _rows()
-ROW_SETTINGS = {r.name: {"modalities": r.modalities} for r in ROWS}  # the `Config` fields each row sets itself
 
 
 def row_for(modalities: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> Mapping[str, Any] | None:
@@ -165,9 +160,9 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Probe the chosen rows' inputs (all by default) and write results/probe.{md,json}; returns the JSON."""
-    overrides = runner.check_overrides("probe", overrides, ROW_SETTINGS, "choose them with --rows")
+    overrides = runner.check_overrides("probe", overrides, ROWS, "choose them with --rows")
     chosen = runner.select_rows(ROWS, rows)
-    configs = [Config.from_preset(preset, **{**overrides, **ROW_SETTINGS[r.name]}) for r in chosen]
+    configs = [r.config(preset, overrides) for r in chosen]
     ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=SPLITS)
     present = [s for s in SPLITS if len(ds.sets[s])]
     for split in ("train", "val"):
@@ -187,12 +182,7 @@ def run(
         out_rows = [_probe_row(r, inputs, labels, present, progress) for r in chosen]
 
     doc = {
-        "study": "probe",
-        "command": command,
-        "preset": preset,
-        "machine": report.machine(),
-        "dataset": documents.dataset_doc(ds),
-        "probe_s": time.perf_counter() - t0,
+        **documents.header("probe", command=command, preset=preset, dataset=ds, probe_s=time.perf_counter() - t0),
         "method": {
             "summaries": ["mean", "sd"], "pca_above_step_dims": PCA_ABOVE, "pca_dims": PCA_DIMS,
             "c_grid": list(C_GRID), "solver": "lbfgs", "max_iter": MAX_ITER,
@@ -203,13 +193,12 @@ def run(
         "rows": out_rows,
         "samples": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
     }
-    documents.write_outputs(results, "probe", markdown(doc), doc)
-    return doc
+    return documents.write(results, doc, markdown)
 
 
-def _probe_row(r: Row, inputs: Mapping[str, Input], labels, splits: Sequence[str], progress: runner.Progress) -> dict[str, Any]:
+def _probe_row(r: StudyRow, inputs: Mapping[str, Input], labels, splits: Sequence[str], progress: runner.Progress) -> dict[str, Any]:
     """Row `r`'s probe on its inputs' features, concatenated, as the JSON row."""
-    name = ablation.label(r.modalities, "attention")
+    name = r.label
     progress.start(name)
     t0 = time.perf_counter()
     features = {s: np.concatenate([inputs[m].features[s] for m in r.modalities], axis=1) for s in splits}
@@ -234,7 +223,7 @@ def table(doc: Mapping[str, Any]) -> str:
         for r in doc["rows"]
     ]
     header = ["Inputs", "Probe features", "C (by validation)", "Train [%]", "Validation [%]", "Test [%]", "Cafe [%]", "Fit time [s]"]
-    return report.markdown_table(header, body)
+    return documents.markdown_table(header, body)
 
 
 def inputs_table(doc: Mapping[str, Any]) -> str:
@@ -244,7 +233,7 @@ def inputs_table(doc: Mapping[str, Any]) -> str:
          f"{i['seconds']:.1f}"]
         for m, i in doc["inputs"].items()
     ]
-    return report.markdown_table(["Input", "Dimensions per step", "Summary (mean, SD)", "Probe features", "Time [s]"], body)
+    return documents.markdown_table(["Input", "Dimensions per step", "Summary (mean, SD)", "Probe features", "Time [s]"], body)
 
 
 def markdown(doc: Mapping[str, Any]) -> str:
@@ -252,11 +241,7 @@ def markdown(doc: Mapping[str, Any]) -> str:
     return "\n".join([
         "# Linear probe: what each input carries before any model",
         "",
-        documents.command_markdown(doc["command"]),
-        documents.data_markdown(doc["preset"], doc["dataset"]),
-        documents.machine_markdown(doc["machine"]),
-        f"- time: probes {doc['probe_s']:.0f} s in all (summaries and PCA included); {documents.data_time_markdown(doc['dataset'])}",
-        "",
+        documents.header_markdown(doc, f"probes {doc['probe_s']:.0f} s in all (summaries and PCA included); {documents.data_time_markdown(doc['dataset'])}"),
         "Logistic regression (scikit-learn, lbfgs, L2) on each sequence's per-dimension mean and SD over its steps, "
         "standardised on the training split; "
         f"inputs with more than {m['pca_above_step_dims']} dimensions per step reduced to at most {m['pca_dims']} principal "
@@ -287,7 +272,7 @@ def beside_ablation(probe_doc: Mapping[str, Any], ablation_doc: Mapping[str, Any
     n_seeds = len(ablation_doc["seeds"])
     compared = sum(b[1] != "–" for b in body)
     lines = [
-        report.markdown_table(["Ablation row", "Linear probe, test [%]", f"Model, test [%] ({n_seeds} seeds)", "Model − probe [pp]"], body),
+        documents.markdown_table(["Ablation row", "Linear probe, test [%]", f"Model, test [%] ({n_seeds} seeds)", "Model − probe [pp]"], body),
         f"{reached} of {compared} rows at or above their probe's test accuracy (model: mean over seeds).",
         "",
     ]

@@ -24,60 +24,49 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import catalog, findings, paper_tables, report, stats
-from fabricjax.config import Config
-from fabricjax.studies import documents, runner
+from fabricjax import catalog, data, stats
+from fabricjax.studies import documents, findings, runner
+from fabricjax.studies.runner import StudyRow
+
+TITLE, PAPER = "Property perception", "Table property_perception"  # how results name the study, and what of the paper it reproduces
 
 PROPERTIES = tuple(catalog.PROPERTY_LEVELS)
-ROWS = (("minsound", ("internal", "proprio")), ("minsound+minsight", ("internal", "proprio", "image")))
 SPLITS = {"test": "training fabrics", "holdout": "holdout fabrics"}
 SETTINGS = dict(property_heads=True, fabric_head=False, exclude_fabrics=catalog.PROPERTY_HOLDOUTS, image_resolution="down")
-ROW_SETTINGS = {name: {**SETTINGS, "modalities": mods} for name, mods in ROWS}  # the `Config` fields each row sets itself
 
 
-def run(
-    *,
-    n_seeds: int = 5,
-    preset: str = "default",
-    rows: Sequence[str] | None = None,
-    overrides: dict[str, Any] | None = None,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
-) -> dict[str, Any]:
-    """Train both rows (checkpointed), evaluate on training and holdout fabrics, write results/properties.{md,json}."""
-    overrides = runner.check_overrides("properties", overrides, ROW_SETTINGS, "choose the rows with --rows")
-    chosen = runner.select_rows(ROWS, rows, name=lambda r: r[0])
-    seeds = runner.seed_list(n_seeds)
-    # recorded data's holdouts are its own holdout split: the catalog's fabric ids are not its classes
-    own_holdouts = {"exclude_fabrics": ()} if data_dir else {}
-    study = runner.train_rows(
-        "properties", [(name, Config.from_preset(preset, **{**overrides, **ROW_SETTINGS[name], **own_holdouts})) for name, _ in chosen],
-        seeds, eval_splits=list(SPLITS), data_dir=data_dir, workdir=workdir, checkpoints=True,
-        summary=lambda row: ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES),
-    )
-    ds = study.dataset
-    recorded = ds.recorded
+def _row(name: str, modalities: tuple[str, ...], train: tuple[float, ...], holdout: tuple[float, ...]) -> StudyRow:
+    """A row and the paper's mean accuracy [%] (5 seeds) per property (`PROPERTIES` order) on
+    the training fabrics and on the holdout fabrics."""
+    paper = {"train": dict(zip(PROPERTIES, train)), "holdout": dict(zip(PROPERTIES, holdout))}
+    return StudyRow(name, {**SETTINGS, "modalities": modalities}, name, paper)
+
+
+# The paper's Table property_perception; proprioception is always on.
+ROWS = (
+    _row("minsound", ("internal", "proprio"), (97.40, 97.47, 97.59), (76.15, 40.23, 70.56)),
+    _row("minsound+minsight", ("internal", "proprio", "image"), (85.99, 82.38, 90.43), (82.95, 33.94, 90.47)),
+)
+
+
+def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+    """Per row its checkpoint and accuracies per property; chance, the majority-level rate and
+    the fabrics of each evaluated split; the paper's numbers."""
+    ds = trained.dataset
     out_rows = [
-        {"name": name, "modalities": list(mods), "checkpoint": str(study.rows[name].checkpoint), **documents.row_doc(study.rows[name], list(SPLITS))}
-        for name, mods in chosen
+        {"name": r.name, "modalities": list(r.modalities), "checkpoint": str(trained.rows[r.name].checkpoint),
+         **documents.row_doc(trained.rows[r.name], list(SPLITS))}
+        for r in chosen
     ]
-    doc = {
-        **documents.header("properties", command=command, preset=preset, seeds=seeds, dataset=ds, train_s=study.train_s),
+    paper = {p: {f"{split}_{r.name}": r.paper[split][p] for r in ROWS for split in ("train", "holdout")} for p in PROPERTIES}
+    return {
         "chance": {p: 100.0 / n for p, n in catalog.PROPERTY_LEVELS.items()},
         "majority": {s: {p: majority_rate(ds.sets[s].labels[p]) for p in PROPERTIES} for s in SPLITS},
         "fabrics": {s: sorted(set(ds.sets[s].info["fabric_id"].tolist())) for s in SPLITS},
-        **({} if recorded else {"paper": {p: dict(zip(("chance", "train_minsound", "train_minsound+minsight", "holdout_minsound", "holdout_minsound+minsight"), v))
-                                          for p, v in paper_tables.PROPERTIES.items()}}),
+        **({} if ds.recorded else {"paper": paper}),
         "rows": out_rows,
         "samples": {s: documents.samples_doc(ds.sets[s]) for s in SPLITS},
-    }
-    holdout = {r["name"]: {p: np.asarray(r["accuracy"]["holdout"][p]) for p in PROPERTIES} for r in out_rows}
-    # the checklist holds the paper's claims: recorded data is not the paper's
-    doc["findings"] = [] if recorded else [f.to_json() for f in checklist(holdout, doc["chance"], doc["majority"]["holdout"])]
-    documents.write_outputs(results, "properties", markdown(doc), doc)
-    return doc
+    }, []
 
 
 def checklist(holdout: dict[str, dict[str, np.ndarray]], chance: dict[str, float], majority: dict[str, float | None] | None = None) -> list[findings.Finding]:
@@ -88,7 +77,7 @@ def checklist(holdout: dict[str, dict[str, np.ndarray]], chance: dict[str, float
     the evidence: the holdouts' levels are unbalanced, so 1 / levels is a low bar."""
     majority = majority or {}
     out = []
-    for name, _ in ROWS:
+    for name in (r.name for r in ROWS):
         claim = f"{name}: every property is above chance on the holdout fabrics"
         if not (f := findings.missing(claim, [name], holdout)):
             above = {p: findings.mean_pct(holdout[name][p]) > chance[p] for p in PROPERTIES}
@@ -96,7 +85,7 @@ def checklist(holdout: dict[str, dict[str, np.ndarray]], chance: dict[str, float
                 f"{findings.describe(p, holdout[name][p])} against chance {chance[p]:.1f} %"
                 + (f" (majority level {majority[p]:.1f} %)" if majority.get(p) is not None else "") for p in PROPERTIES))
         out.append(f)
-    (minsound, _), (both, _) = ROWS
+    minsound, both = (r.name for r in ROWS)
     for prop, better, worse in (("stretchiness", both, minsound), ("thickness", both, minsound), ("roughness", minsound, both)):
         claim = f"{better} beats {worse} on {prop} on the holdout fabrics"
         out.append(findings.missing(claim, [better, worse], holdout) or findings.at_least(
@@ -131,7 +120,7 @@ def table(doc: dict[str, Any]) -> str:
                 compared = gap if recorded else f"{doc['paper'][p][paper + '_' + r['name']]:.2f}"
                 line.append(f"{mean:.2f} ± {sd:.2f} / {compared}")
         body.append(line)
-    return report.markdown_table(header, body)
+    return documents.markdown_table(header, body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
@@ -141,7 +130,7 @@ def markdown(doc: dict[str, Any]) -> str:
                f"Training fabrics on the test day: {doc['fabrics']['test']} (class 0 has no properties and is ignored); "
                f"holdout fabrics: {doc['fabrics']['holdout']}. The paper reports means only.")
     lines = [
-        documents.title(doc, "Property perception", "Table property_perception"),
+        documents.title(doc, TITLE, PAPER),
         "",
         documents.header_markdown(doc),
         fabrics,
@@ -152,5 +141,18 @@ def markdown(doc: dict[str, Any]) -> str:
         *[f"| {r['name']} | {r['wall_s']:.1f} | `{r['checkpoint']}` |" for r in doc["rows"]],
         "",
     ]
-    lines += documents.claims_markdown(doc, "the paper's claims about this table, on the holdout fabrics")
+    lines += findings.claims_markdown(doc, "the paper's claims about this table, on the holdout fabrics")
     return "\n".join(lines)
+
+
+STUDY = runner.Study(
+    "properties", ROWS, n_seeds=5, eval_splits=tuple(SPLITS),
+    split_names=data.SPLITS, document=document,
+    checklist=lambda doc: checklist({r["name"]: {p: np.asarray(r["accuracy"]["holdout"][p]) for p in PROPERTIES} for r in doc["rows"]},
+                                    doc["chance"], doc["majority"]["holdout"]),
+    markdown=markdown, choose_rows="choose the rows with --rows", checkpoints=True,
+    summary=lambda row: ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES),
+    # recorded data's holdouts are its own holdout split: the catalog's fabric ids are not its classes
+    recorded_settings={"exclude_fabrics": ()},
+)
+run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

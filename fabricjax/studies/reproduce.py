@@ -38,27 +38,13 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import fabricjax
-from fabricjax import findings, paper_tables, presets, report, workspace
+from fabricjax import presets, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, documents, latents, noise, probe, properties
+from fabricjax.studies import ablation, bandwidth, documents, findings, latents, noise, probe, properties
 
 STUDIES = {"ablation": ablation, "probe": probe, "bandwidth": bandwidth, "noise": noise, "properties": properties, "latents": latents}
-NAMES = {
-    "ablation": "Modality ablation",
-    "probe": "Linear probe of every ablation row's inputs",
-    "bandwidth": "PSD bandwidth",
-    "noise": "Cafe noise",
-    "properties": "Property perception",
-    "latents": "Latent space",
-}
-PAPER = {  # what of the paper each study reproduces: named in its title on simulated data only
-    "ablation": "Table ablation_table", "probe": "not in the paper", "bandwidth": "Table bandwidth_classification",
-    "noise": "Table new_noise_results", "properties": "Table property_perception", "latents": "Fig. latent_features",
-}
-TITLES = {s: f"{n} ({PAPER[s]})" for s, n in NAMES.items()}
-FIGURES = {"ablation": ("ablation_confusion.png",), "bandwidth": ("bandwidth.png",), "noise": ("noise.png",), "latents": ("latents.png",)}
-LATENT_ROW = properties.ROWS[-1][0]  # the paper's figure: the Minsound + Minsight model
+LATENT_ROW = properties.ROWS[-1].name  # the paper's figure: the Minsound + Minsight model
 MANIFEST = "reproduce.json"
 REPORT = "REPORT.md"
 
@@ -74,19 +60,15 @@ class Step:
 
 PLAN = (Step("ablation", 5), Step("probe"), Step("bandwidth", 5), Step("noise", 10), Step("properties", 5), Step("latents"))
 
-# Wall time [s] of each study of `PLAN` with the data, features and compiled programs cached, on
-# a 2-core AMD EPYC (JAX 0.10.2, CPU); the estimate scales them by seeds and rows. Default preset:
-# the ablation's quiet cached rerun (README), the others each study's command on 2026-11-23 while
-# test suites shared the cores (properties: its training and loading, without the simulation
-# that run also did), so they overestimate a quiet machine. Probe: its command on 2026-11-24 while
-# a sweep and a test suite shared the cores, 528 s, plus ~170 s its first run spent on the cafe
-# split's features (the ablation computes the others). Smoke preset: the tests' tiny config.
-MEASURED_S = {
-    "default": {"ablation": 543.0, "probe": 700.0, "bandwidth": 316.0, "noise": 471.0, "properties": 353.0, "latents": 26.0},
-    "smoke": {"ablation": 300.0, "probe": 30.0, "bandwidth": 60.0, "noise": 60.0, "properties": 35.0, "latents": 15.0},
-}
-# Simulating the default dataset and computing its features once, quiet 2-core machine (README).
-DATA_S = {"default": 400.0, "smoke": 20.0}
+# The manifest the repository publishes (results/reproduce.json): its recorded wall times are the
+# estimate for a run of the same preset before this folder has its own.
+PUBLISHED_MANIFEST = Path(fabricjax.__file__).resolve().parents[1] / "results" / MANIFEST
+
+
+def title(study: str, recorded: bool = False) -> str:
+    """How the report names `study`: its title, and on simulated data what of the paper it reproduces."""
+    module = STUDIES[study]
+    return module.TITLE if recorded else f"{module.TITLE} ({module.PAPER})"
 
 
 def code_fingerprint() -> str:
@@ -119,25 +101,19 @@ def command(step: Step, preset: str, overrides: Mapping[str, Any], results: Path
     return " ".join(args)
 
 
-def estimate_s(step: Step, preset: str) -> float | None:
-    """Expected wall time of `step` from `MEASURED_S` (None for a preset never measured)."""
-    measured = MEASURED_S.get(preset, {}).get(step.study)
-    if measured is None:
+def estimate_s(step: Step, preset: str, *manifests: Mapping[str, Any]) -> float | None:
+    """Expected wall time of `step`: the first of `manifests` that recorded this study on `preset`,
+    scaled by seeds and rows (None where none did)."""
+    entry = next((m[step.study] for m in manifests if m.get(step.study, {}).get("preset") == preset), None)
+    if entry is None:
         return None
-    full = next(s for s in PLAN if s.study == step.study)
-    scale = (step.seeds or 1) / (full.seeds or 1)
-    if step.rows:
-        scale *= len(step.rows) / len(_row_names(step.study))
-    return measured * scale
+    scale = (step.seeds or 1) / (entry["seeds"] or 1) * (len(step.rows) if step.rows else _n_rows(step.study)) / entry["rows"]
+    return entry["wall_s"] * scale
 
 
-def _row_names(study: str) -> list[str]:
-    """Every row of a training study's table (ablation rows are objects, the others tuples)."""
-    if study == "bandwidth":
-        return [bandwidth.row_name(k) for k in sorted(paper_tables.BANDWIDTH)]
-    if study in ("ablation", "probe"):
-        return [r.name for r in STUDIES[study].ROWS]
-    return [r[0] for r in STUDIES[study].ROWS]
+def _n_rows(study: str) -> int:
+    """Rows of a study's whole table (1 for the latents, which have none)."""
+    return len(getattr(STUDIES[study], "ROWS", (None,)))
 
 
 def _minutes(seconds: float | None) -> str:
@@ -154,8 +130,7 @@ def _read_json(path: Path) -> dict[str, Any] | None:
 def _outputs(study: str, out: Path) -> list[Path]:
     """The study's Markdown and JSON, and every figure its JSON names (a row subset may draw none)."""
     doc = _read_json(out / f"{study}.json") or {}
-    figures = [Path(doc[k]).name for k in ("png", "confusion_png") if doc.get(k)]
-    return [out / f"{study}.md", out / f"{study}.json", *[out / f for f in figures]]
+    return [out / f"{study}.md", out / f"{study}.json", *[out / f for f in doc.get("figures", [])]]
 
 
 def _latent_checkpoint(out: Path) -> str:
@@ -197,18 +172,19 @@ def run(
     todo = [s for s in plan if force or manifest.get(s.study, {}).get("key") != keys[s.study] or not all(p.exists() for p in _outputs(s.study, out))]
 
     lines = [f"reproduce: preset {preset}, results in {out}"]
+    published = _read_json(PUBLISHED_MANIFEST) or {}
     for step in plan:
         if step in todo:
-            lines.append(f"  {step.study:<11} run   ~{_minutes(estimate_s(step, preset))}")
+            lines.append(f"  {step.study:<11} run   ~{_minutes(estimate_s(step, preset, manifest, published))}")
         else:
             lines.append(f"  {step.study:<11} skip  (up to date: ran {manifest[step.study]['finished']}, {_minutes(manifest[step.study]['wall_s'])})")
-    total = [estimate_s(s, preset) for s in todo]
+    total = [estimate_s(s, preset, manifest, published) for s in todo]
     known = sum(t for t in total if t is not None)
     data_note = ""
     if todo and not data_dir and not (workspace.dataset_dir(preset, workdir) / workspace.INDEX_NAME).exists():
-        data_note = f", plus simulating the dataset and its features once (~{_minutes(DATA_S.get(preset))})"
-    lines.append(f"  estimated time: {_minutes(known) if None not in total else 'unknown (no measured times for this preset)'}{data_note}"
-                 " (measured on 2 CPU cores; other machines differ)")
+        data_note = ", plus simulating the dataset and its features once (README gives the time)"
+    lines.append(f"  estimated time: {_minutes(known) if None not in total else 'unknown (no recorded run of this preset)'}{data_note}"
+                 " (from the recorded wall times of an earlier run; other machines differ)")
     say("\n".join(lines))
 
     t_all = time.perf_counter()
@@ -227,8 +203,10 @@ def run(
         manifest[step.study] = {
             "key": keys[step.study], "wall_s": wall, "command": cmd,
             "finished": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            # what an estimate of a later run scales from
+            "preset": preset, "seeds": step.seeds, "rows": len(step.rows) if step.rows else _n_rows(step.study),
         }
-        report.write_json(manifest_path, manifest)
+        documents.write_json(manifest_path, manifest)
         say(f"reproduce: {step.study} done in {_minutes(wall)}")
     write_report(out / REPORT, manifest, preset, code, command_line, time.perf_counter() - t_all, len(todo))
     say(f"reproduce: wrote {out / REPORT}")
@@ -259,10 +237,9 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
     studies = [s for s in STUDIES if s in manifest]
     docs = {s: _read_json(out / f"{s}.json") for s in studies}
     first = next((d for d in docs.values() if d), None)
-    m = first["machine"] if first else report.machine()
+    m = first["machine"] if first else documents.machine()
     # recorded data (`--data_dir`): its studies compare rows with each other, so no paper in titles or summary
     recorded = first is not None and documents.recorded(first)
-    titles = NAMES if recorded else TITLES
     total = sum(e["wall_s"] for e in manifest.values())
     summary = []
     for study in studies:
@@ -273,7 +250,7 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
             held, evaluated = findings.count([findings.Finding.from_json(f) for f in doc.get("findings", [])])
             seeds = len(doc["seeds"]) if study != "latents" and doc.get("seeds") else "1 (best of the property study's)"
             claims = f"{held} of {evaluated}"
-        summary.append([f"[{titles[study]}](#{_anchor(titles[study])})", seeds, *([] if recorded else [claims]),
+        summary.append([f"[{title(study, recorded)}](#{_anchor(title(study, recorded))})", seeds, *([] if recorded else [claims]),
                         _minutes(manifest[study]["wall_s"]), manifest[study]["finished"]])
     if recorded:
         heading = documents.title(first, f"Report: every study on the {preset} preset")
@@ -290,7 +267,7 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
         "the others were up to date and kept)",
         f"- machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}, JAX on {m['jax_backend']} ({len(m['devices'])} devices)",
         f"- versions: {', '.join(f'{k} {v}' for k, v in versions().items())}",
-        f"- code: fabricjax {fabricjax.__version__}, {report.git_commit()}, source fingerprint `{code[:16]}` "
+        f"- code: fabricjax {fabricjax.__version__}, {documents.git_commit()}, source fingerprint `{code[:16]}` "
         "(`fabricjax.studies.reproduce.code_fingerprint`)",
         f"- wall time of the studies: {_minutes(total)} in all (each below; {data_note} in the first study's)",
         "",
@@ -298,22 +275,23 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
         "",
         "## Summary",
         "",
-        report.markdown_table(["Study", "Seeds", *([] if recorded else ["Paper's claims reproduced"]), "Wall time", "Finished"], summary),
+        documents.markdown_table(["Study", "Seeds", *([] if recorded else ["Paper's claims reproduced"]), "Wall time", "Finished"], summary),
     ]
     for study in studies:
         e = manifest[study]
         md = out / f"{study}.md"
         lines += [
-            f"## {titles[study]}",
+            f"## {title(study, recorded)}",
             "",
             f"Wall time {_minutes(e['wall_s'])}, finished {e['finished']}. Rerun alone: `{e['command']}`",
             "",
             _demote(md.read_text()) if md.exists() else f"({md.name} is missing)\n",
         ]
-        lines += [f"![{f}]({f})\n" for f in FIGURES.get(study, ()) if (out / f).exists() and f"({f})" not in (md.read_text() if md.exists() else "")]
+        figures = (docs[study] or {}).get("figures", [])
+        lines += [f"![{f}]({f})\n" for f in figures if (out / f).exists() and f"({f})" not in (md.read_text() if md.exists() else "")]
         if study == "probe" and docs["probe"] and docs.get("ablation"):
             lines += ["### The probe beside the model, row by row", "", probe.beside_ablation(docs["probe"], docs["ablation"])]
-    return report.write_text(path, "\n".join(lines))
+    return documents.write_text(path, "\n".join(lines))
 
 
 def _anchor(title: str) -> str:

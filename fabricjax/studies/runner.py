@@ -1,11 +1,16 @@
-"""Training a study's rows: named configs -> one dataset load -> every row's seeds -> `Trained`.
+"""Training studies as data, and the one runner they all go through.
 
-    trained = runner.train_rows("noise", [(name, config), ...], seeds, eval_splits=["cafe", "test"])
+    STUDY = runner.Study("noise", rows=(runner.StudyRow(...), ...), n_seeds=10, eval_splits=("cafe", "test"), ...)
+    doc = runner.run_study(STUDY, n_seeds=10, preset="default")     # what `experiments.noise` calls
 
-A study is a list of rows (one `Config` each) trained on sequences loaded ONCE for the union of
-the rows' modalities (`loading.load_for_rows`); each row takes its own inputs (`data.narrow`)
-and trains all seeds in one vmapped program (`train.train_and_evaluate`). What a study keeps for
-itself: its rows, its statistics and its table (`documents` builds the results file around them).
+A `Study` is its rows (`StudyRow`: a name, the `Config` fields the row sets, its label and the
+paper's numbers for it), the splits it evaluates, and three functions: `document` (the study's
+own part of the results JSON: its statistics and figures), `checklist` (the paper's claims as
+predicates over that document) and `markdown` (its table). `run_study` does the rest, the same
+way for every study: it refuses a `--set` of a field a row sets, picks the rows, builds their
+configs, trains them (`train_rows`: sequences loaded ONCE for the union of the rows' inputs,
+each row's seeds in one vmapped program), checks the paper's claims (never on recorded data)
+and writes results/<study>.md and .json (`documents.write`).
 """
 
 from __future__ import annotations
@@ -14,7 +19,7 @@ import dataclasses
 import hashlib
 import time
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 import numpy as np
 from absl import logging
@@ -24,6 +29,9 @@ from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies import loading
 
+if TYPE_CHECKING:
+    from fabricjax.studies.findings import Finding
+
 
 def seed_list(n_seeds: int) -> tuple[int, ...]:
     if n_seeds < 1:
@@ -31,32 +39,52 @@ def seed_list(n_seeds: int) -> tuple[int, ...]:
     return tuple(range(n_seeds))
 
 
-def select_rows(rows: Sequence, names: Sequence[str] | None, name=lambda r: r.name) -> list:
+@dataclasses.dataclass(frozen=True)
+class StudyRow:
+    """A row of a study's table: `name` (what --rows, logs and checkpoints call it), the `Config`
+    fields it sets on top of the preset and the overrides (`settings`), how tables label it, and
+    the paper's numbers for it (None where the paper has no such row)."""
+
+    name: str
+    settings: Mapping[str, Any]
+    label: str
+    paper: Mapping[str, Any] | None = None
+
+    @property
+    def modalities(self) -> tuple[str, ...]:
+        return tuple(self.settings["modalities"])
+
+    def config(self, preset: str, overrides: Mapping[str, Any], last: Mapping[str, Any] | None = None) -> Config:
+        """The config the row trains with: the preset, `overrides`, the row's own fields, then
+        `last` (a study's `recorded_settings`)."""
+        return Config.from_preset(preset, **{**overrides, **self.settings, **(last or {})})
+
+
+def select_rows(rows: Sequence[StudyRow], names: Sequence[str] | None) -> list[StudyRow]:
     """The rows named in `names` (all when None), in the table's order; unknown names raise."""
     if not names:
         return list(rows)
-    known = [name(r) for r in rows]
+    known = [r.name for r in rows]
     unknown = [n for n in names if n not in known]
     if unknown:
         raise UserError(f"unknown rows {unknown}; choose from {known}")
-    return [r for r in rows if name(r) in names]
+    return [r for r in rows if r.name in names]
 
 
-def check_overrides(study: str, overrides: Mapping | None, row_settings: Mapping[str, Mapping[str, Any]], how: str) -> dict:
+def check_overrides(study: str, overrides: Mapping | None, rows: Sequence[StudyRow], instead: str) -> dict:
     """`overrides` as a dict, after checking that none of them is a `Config` field that one of the
-    study's rows sets itself (`row_settings`: row name -> the fields that row sets on top of the
-    overrides): the row would silently replace the override, or the override would silently turn
-    the row into another one. Such an override is a one-line error naming the field, the rows that
-    set it and `how` to choose that dimension instead."""
+    study's `rows` sets itself: the row would silently replace the override, or the override
+    would silently turn the row into another one. Such an override is a one-line error naming the
+    field, the rows that set it and, `instead`, how to choose that dimension."""
     overrides = dict(overrides or {})
     setters: dict[str, list[str]] = {}
-    for row, fields in row_settings.items():
-        for field in fields:
-            setters.setdefault(field, []).append(row)
+    for row in rows:
+        for field in row.settings:
+            setters.setdefault(field, []).append(row.name)
     clash = sorted(set(overrides) & set(setters))
     if clash:
-        said = "; ".join(f"{field} per row itself ({_which_rows(setters[field], len(row_settings))})" for field in clash)
-        raise UserError(f"the {study} study sets {said}; {how}")
+        said = "; ".join(f"{field} per row itself ({_which_rows(setters[field], len(rows))})" for field in clash)
+        raise UserError(f"the {study} study sets {said}; {instead}")
     return overrides
 
 
@@ -143,9 +171,9 @@ def train_row(
     """Train all seeds of one row on its part of `sets` (`data.narrow`) and evaluate the
     best-validation models on `eval_splits`; with `checkpoint_dir` the models are saved there,
     with `log_dir` (`workspace.logs_dir`) the training curves are written there as it trains."""
-    mine = data.narrow({s: sets[s] for s in ("train", "val", *eval_splits)}, config)
+    row_sets = data.narrow({s: sets[s] for s in ("train", "val", *eval_splits)}, config)
     t0 = time.perf_counter()
-    results = train.train_and_evaluate(config, mine, seeds, workdir=checkpoint_dir, log_dir=log_dir)
+    results = train.train_and_evaluate(config, row_sets, seeds, workdir=checkpoint_dir, log_dir=log_dir)
     return Row(name, config, results, time.perf_counter() - t0, Path(checkpoint_dir) if checkpoint_dir else None)
 
 
@@ -235,3 +263,75 @@ def paired_tests(a: Row, b: Row, split: str, labels: np.ndarray, head: str = "fa
             pairing=f"per {split} sequence: correctness (0/1) on the same sequence and seed, pooled over {n} seeds",
         ),
     }
+
+
+def _test_summary(row: Row) -> str:
+    return f"test {stats.format_mean_sd(row.accuracy('test'))} %"
+
+
+@dataclasses.dataclass(frozen=True)
+class Study:
+    """A training study as data: what `run_study` needs to train, check and write it.
+
+    `document(trained, chosen, results)` returns the study's own part of the results JSON (rows,
+    statistics, samples) and the figures it drew into the `results` folder; `checklist(doc)` the
+    paper's claims about the table as `findings.Finding`s (skipped on recorded data);
+    `markdown(doc)` the table people read. `recorded_settings`: `Config` fields every row sets on
+    recorded data only (the property study's holdouts are the data's own holdout split)."""
+
+    name: str
+    rows: tuple[StudyRow, ...]
+    n_seeds: int
+    eval_splits: tuple[str, ...]
+    split_names: tuple[str, ...]
+    document: Callable[[Trained, Sequence[StudyRow], Path], tuple[dict[str, Any], list[Path | None]]]
+    checklist: Callable[[dict[str, Any]], list[Finding]]
+    markdown: Callable[[dict[str, Any]], str]
+    choose_rows: str = "choose them with --rows"  # how to pick what a row sets instead of --set
+    checkpoints: bool = False
+    summary: Callable[[Row], str] = _test_summary
+    check: Callable[[loading.Dataset], None] | None = None
+    recorded_settings: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+
+    def row(self, name: str) -> StudyRow:
+        return next(r for r in self.rows if r.name == name)
+
+    @property
+    def row_names(self) -> list[str]:
+        return [r.name for r in self.rows]
+
+    def run(self, **kwargs) -> dict[str, Any]:
+        """`run_study(self, **kwargs)`."""
+        return run_study(self, **kwargs)
+
+
+def run_study(
+    study: Study,
+    *,
+    n_seeds: int | None = None,
+    preset: str = "default",
+    rows: Sequence[str] | None = None,
+    overrides: Mapping[str, Any] | None = None,
+    workdir=None,
+    data_dir=None,
+    results="results",
+    command: str | None = None,
+) -> dict[str, Any]:
+    """Train the chosen `rows` of `study` (all by default) with `n_seeds` seeds (the study's count
+    by default), check the paper's claims and write results/<study>.md and .json; returns the JSON."""
+    from fabricjax.studies import documents  # the results layer builds on this module's `Row`
+
+    overrides = check_overrides(study.name, overrides, study.rows, study.choose_rows)
+    chosen = select_rows(study.rows, rows)
+    seeds = seed_list(study.n_seeds if n_seeds is None else n_seeds)
+    own = dict(study.recorded_settings) if data_dir else {}
+    trained = train_rows(
+        study.name, [(r.name, r.config(preset, overrides, own)) for r in chosen], seeds,
+        eval_splits=study.eval_splits, split_names=study.split_names, data_dir=data_dir, workdir=workdir,
+        checkpoints=study.checkpoints, label=lambda name: study.row(name).label, summary=study.summary, check=study.check,
+    )
+    body, figures = study.document(trained, chosen, documents.results_path(results))
+    doc = {**documents.header(study.name, command=command, preset=preset, seeds=seeds, dataset=trained.dataset, train_s=trained.train_s), **body}
+    # the checklist holds the paper's claims: recorded data is not the paper's
+    doc["findings"] = [] if trained.dataset.recorded else [f.to_json() for f in study.checklist(doc)]
+    return documents.write(results, doc, study.markdown, figures)

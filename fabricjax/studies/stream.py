@@ -10,9 +10,9 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from fabricjax import archive, catalog, report, sim, splits, stream, workspace
+from fabricjax import archive, catalog, sim, splits, stream
 from fabricjax.config import Config
-from fabricjax.studies import loading, runner
+from fabricjax.studies import documents, loading, runner
 
 
 def format_step(r: stream.StepResult, label: int) -> str:
@@ -112,12 +112,7 @@ def run(
         + (f"; {summary['late_steps']} of {summary['steps']} results came after their 20 ms slot" if realtime else "")
     )
     doc = {
-        "command": command,
-        "machine": report.machine(),
-        "archive": str(archive_path),
-        "checkpoint": str(checkpoint_dir),
-        "config": config.to_json(),
+        **documents.header("stream", command=command, archive=str(archive_path), checkpoint=str(checkpoint_dir), config=config.to_json()),
         **summary,
     }
-    report.write_json(workspace.results_dir(results) / "stream.json", doc)
-    return doc
+    return documents.write(results, doc, None)

@@ -6,7 +6,7 @@
 A recipe (width, epochs, learning rate, the camera encoder's size, ...) is chosen for every row
 of the modality ablation at once, so it is judged by the validation accuracy averaged over the
 rows, not by one row's. The grid is the cartesian product of the `--grid` fields' values; every
-point is the preset, the `--set` overrides and the point's fields (`ablation.row_config`: a row
+point is the preset, the `--set` overrides and the point's fields (`StudyRow.config`: a row
 sets its backbone, inputs and fusion itself, so those are chosen with `--rows`, never swept). Every
 (point, row) trains all seeds in one vmapped program (`runner.train_rows`) on sequences loaded
 once for the whole sweep, or once per distinct value of the fields that decide the sequences
@@ -30,10 +30,11 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax import report, stats
+from fabricjax import stats
 from fabricjax.config import Config, format_override, parse_override
 from fabricjax.errors import UserError
 from fabricjax.studies import ablation, cost, documents, loading, runner
+from fabricjax.studies.runner import StudyRow
 
 # The separators between a --grid field's values: ';' always (needed when the field is a tuple,
 # whose own items are comma-separated, e.g. cnn_features=4,8;8,16), ',' for a scalar field
@@ -41,6 +42,7 @@ from fabricjax.studies import ablation, cost, documents, loading, runner
 TUPLE_SEPARATOR, SCALAR_SEPARATOR = ";", ","
 GRID_HELP = "field=v1,v2,... e.g. --grid=epochs=2,4; ';' between values of a tuple field, e.g. --grid='cnn_features=4,8;8,16'"
 HEAD = "fabric"  # the sweep ranks recipes by fabric accuracy
+N_SEEDS = 2  # seeds per (point, row) by default
 
 
 def parse_grid(texts: Sequence[str]) -> dict[str, tuple]:
@@ -85,7 +87,7 @@ def check_grid(grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any]) 
     decide, no field both swept and fixed by --set."""
     if not grid or not all(grid.values()):
         raise UserError(f"--grid: give at least one field with at least one value: {GRID_HELP}")
-    grid = runner.check_overrides("sweep", {f: tuple(v) for f, v in grid.items()}, ablation.ROW_SETTINGS, "choose the ablation's rows with --rows")
+    grid = runner.check_overrides("sweep", {f: tuple(v) for f, v in grid.items()}, ablation.ROWS, "choose the ablation's rows with --rows")
     if "preset" in grid:
         raise UserError("--grid: the preset is not a grid field (its dataset is loaded once); run one sweep per --preset")
     both = sorted(set(grid) & set(overrides))
@@ -95,15 +97,15 @@ def check_grid(grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any]) 
 
 
 def plan(
-    preset: str, grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any], rows: Sequence[ablation.Row]
-) -> list[tuple[str, Config, dict[str, Any], ablation.Row]]:
+    preset: str, grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any], rows: Sequence[StudyRow]
+) -> list[tuple[str, Config, dict[str, Any], StudyRow]]:
     """Every (point, row) as (unit name, config, point fields, row), every config built (and so
     checked) before any data is read. The unit name is also its log folder: <field=value>/.../<row>."""
     units = []
     for fields in grid_points(grid):
         for row in rows:
             try:
-                config = ablation.row_config(row, preset, {**overrides, **fields})
+                config = row.config(preset, {**overrides, **fields})
             except ValueError as e:
                 raise UserError(f"--grid point {point_name(fields)}: {e}") from None
             if not getattr(config, f"{HEAD}_head"):
@@ -116,7 +118,7 @@ def _pct(values) -> tuple[float, float]:
     return stats.mean_sd(100 * np.asarray(values, np.float64))
 
 
-def entry(trained: runner.Row, fields: Mapping[str, Any], row: ablation.Row, test, latency_repeats: int) -> dict[str, Any]:
+def entry(trained: runner.Row, fields: Mapping[str, Any], row: StudyRow, test, latency_repeats: int) -> dict[str, Any]:
     """One (point, row): accuracies (per seed and mean ± SD, %), cost, config and curves."""
     val_mean, val_sd = _pct(trained.accuracy("val", HEAD))
     test_mean, test_sd = _pct(trained.accuracy("test", HEAD))
@@ -127,7 +129,7 @@ def entry(trained: runner.Row, fields: Mapping[str, Any], row: ablation.Row, tes
         "point": point_name(fields),
         "fields": dict(fields),
         "row": row.name,
-        "display_name": ablation.display_name(row.name),
+        "display_name": row.label,
         "val_mean": val_mean,
         "val_sd": val_sd,
         "test_mean": test_mean,
@@ -146,14 +148,14 @@ def summarise(points: Sequence[dict[str, Any]], entries: Sequence[dict[str, Any]
     out = []
     for fields in points:
         name = point_name(fields)
-        mine = [e for e in entries if e["point"] == name]
+        of_point = [e for e in entries if e["point"] == name]
         out.append({
             "name": name,
             "fields": dict(fields),
-            "rows": len(mine),
-            "val_mean_over_rows": float(np.mean([e["val_mean"] for e in mine])),
-            "test_mean_over_rows": float(np.mean([e["test_mean"] for e in mine])),
-            "train_s": float(sum(e["train_s"] for e in mine)),
+            "rows": len(of_point),
+            "val_mean_over_rows": float(np.mean([e["val_mean"] for e in of_point])),
+            "test_mean_over_rows": float(np.mean([e["test_mean"] for e in of_point])),
+            "train_s": float(sum(e["train_s"] for e in of_point)),
         })
     best = int(np.argmax([p["val_mean_over_rows"] for p in out]))  # argmax: the first maximum
     return out, best
@@ -162,7 +164,7 @@ def summarise(points: Sequence[dict[str, Any]], entries: Sequence[dict[str, Any]
 def run(
     *,
     grid: Mapping[str, Sequence[Any]],
-    n_seeds: int = 2,
+    n_seeds: int = N_SEEDS,
     preset: str = "default",
     rows: Sequence[str] | None = None,
     overrides: dict[str, Any] | None = None,
@@ -174,7 +176,7 @@ def run(
 ) -> dict[str, Any]:
     """Train every grid point on every chosen row of the ablation (all by default); write
     results/sweep.{md,json}; return the JSON."""
-    overrides = runner.check_overrides("sweep", overrides, ablation.ROW_SETTINGS, "choose the ablation's rows with --rows")
+    overrides = runner.check_overrides("sweep", overrides, ablation.ROWS, "choose the ablation's rows with --rows")
     grid = check_grid(grid, overrides)
     chosen = runner.select_rows(ablation.ROWS, rows)
     seeds = runner.seed_list(n_seeds)
@@ -187,7 +189,7 @@ def run(
         by_key.setdefault(loading.sequence_key(unit[1]), []).append(unit)
     order = [u for group in by_key.values() for u in group]
     progress = runner.Progress("sweep", len(order), [runner.relative_cost(c) * c.epochs for _, c, _, _ in order])
-    labels = {name: f"{point_name(fields)} | {ablation.display_name(row.name)}" for name, _, fields, row in order}
+    labels = {name: f"{point_name(fields)} | {row.label}" for name, _, fields, row in order}
     summary = lambda r: f"val {stats.format_mean_sd(r.accuracy('val', HEAD))} %, test {stats.format_mean_sd(r.accuracy('test', HEAD))} %"  # noqa: E731
     entries, loads, head = {}, [], None
     for group in by_key.values():
@@ -216,8 +218,7 @@ def run(
         "points": points,
         "entries": flat,
     }
-    documents.write_outputs(results, "sweep", markdown(doc), doc)
-    return doc
+    return documents.write(results, doc, markdown)
 
 
 def _values(values: Sequence[Any]) -> str:
@@ -255,7 +256,7 @@ def markdown(doc: dict[str, Any]) -> str:
         [f"**{p['name']}**" if i == best["index"] else p["name"], f"{p['val_mean_over_rows']:.2f}", f"{p['test_mean_over_rows']:.2f}", f"{p['train_s']:.0f}"]
         for i, p in enumerate(doc["points"])
     ]
-    lines.append(report.markdown_table(["point", f"val, mean over {n_rows} rows [%]", f"test, mean over {n_rows} rows [%]", "training, all rows [s]"], body))
+    lines.append(documents.markdown_table(["point", f"val, mean over {n_rows} rows [%]", f"test, mean over {n_rows} rows [%]", "training, all rows [s]"], body))
     lines += ["## Per point and row", ""]
     body = [
         [
@@ -265,5 +266,5 @@ def markdown(doc: dict[str, Any]) -> str:
         for e in doc["entries"]
     ]
     header = ["point", "row", "val [%]", "test [%]", "train, last epoch [%]", "train [s]", "params", "latency p50 [ms]", "latency p99 [ms]"]
-    lines.append(report.markdown_table(header, body))
+    lines.append(documents.markdown_table(header, body))
     return "\n".join(lines)

@@ -13,7 +13,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax import report
+from fabricjax.studies import documents
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,4 +76,12 @@ def markdown(findings: Sequence[Finding | Mapping[str, Any]]) -> str:
     findings = [f if isinstance(f, Finding) else Finding.from_json(f) for f in findings]
     rows = [[f.claim, f"**{f.verdict}**" if f.holds else f.verdict, f.evidence] for f in findings]
     n_true, n_eval = count(findings)
-    return f"{n_true} of {n_eval} evaluated claims reproduced.\n\n" + report.markdown_table(["Paper's claim", "Ours", "Evidence (per-seed results)"], rows)
+    return f"{n_true} of {n_eval} evaluated claims reproduced.\n\n" + documents.markdown_table(["Paper's claim", "Ours", "Evidence (per-seed results)"], rows)
+
+
+def claims_markdown(doc: dict[str, Any], claims: str = "the paper's claims about this table") -> list[str]:
+    """A table's closing section: the paper's `claims` checked (`doc["findings"]`), or on recorded
+    data, which has no paper to check, the note that its rows are compared with each other."""
+    if documents.recorded(doc):
+        return [documents.RECORDED_NOTE, ""]
+    return [f"## Findings checklist ({claims})", "", markdown(doc["findings"])]
