@@ -87,7 +87,7 @@ def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_b
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
     mesh = sharding.training_mesh(n_seeds, batch)
     train = jax.device_put(select(cfg, synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins)), sharding.replicated(mesh))
-    trainer = make_trainer(cfg, feature_shapes(train["inputs"]), mesh=mesh)
+    trainer = make_trainer(cfg, feature_shapes(train["inputs"]), mesh=mesh, n_train=batch * steps)
     per_seed = sharding.by_seed(mesh)
     states = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)(jax.device_put(seed_keys(range(n_seeds)), per_seed))
     epoch = jax.jit(sharding.vmap_seeds(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0)

@@ -1,18 +1,18 @@
-"""Pure, jitted multi-seed training (purejaxrl style): `train(key) -> (state, metrics)`.
+"""Pure, jitted multi-seed training (purejaxrl style), with one entry point: `train_and_evaluate`.
 
-The data lives on the device; one epoch is a `lax.scan` over shuffled minibatches and the epoch
-loop is a `lax.scan` too, so epochs run without the host: `make_train` gives a whole run as one
-pure function, and `train_and_evaluate` runs it as three compiled programs (init, the epoch scan,
-the final evaluation), the host reading back only each chunk's curves (one chunk for the whole
-run unless checkpoints or curve files split the scan, see below). Seeds are `jax.vmap`ped; seeds,
+A run is three pure functions of one seed's state (`Trainer.init(key)`, `Trainer.run(state, data,
+n_epochs)`, `Trainer.finish(state, data)`), each `jax.jit(jax.vmap(...))`ed over the seeds. The
+data lives on the device; one epoch is a `lax.scan` over shuffled minibatches and the epoch loop
+is a `lax.scan` too, so epochs run without the host, which reads back only each chunk's curves
+(one chunk for the whole run unless checkpoints or curve files split the scan, see below). Seeds are `jax.vmap`ped; seeds,
 else each minibatch's samples, are split over the devices (`fabricjax.sharding`). Parameters are
 plain pytrees (`nnx.to_pure_dict`); the module is rebuilt with `nnx.merge` inside the loss.
 
 Optimiser: AdamW (decoupled weight decay on weight matrices only, not on biases, LayerNorm scales)
 after a global-norm clip at 1.0; the learning rate rises linearly over `warmup_steps` (without the
 warm-up, a few seeds of some rows collapsed to chance in their first epochs) and is scaled by a
-factor over the whole run (`lr_decay`): 1 throughout for `lr_schedule="constant"`, a cosine from 1
-to 0 for `"cosine"`. Best-validation selection keeps the parameters of the epoch with the highest
+factor over the whole run (`decay_schedule`): none for `lr_schedule="constant"`, a cosine from 1
+to 0 for `"cosine"`. The whole schedule is the optax chain of `make_optimizer`. Best-validation selection keeps the parameters of the epoch with the highest
 validation accuracy (the earliest on ties) inside the scan with a tree select, so it costs no host
 sync.
 
@@ -59,27 +59,43 @@ def select(config: Config, ds) -> dict[str, dict[str, jax.Array]]:
 
 
 def warmup_schedule(config: Config) -> optax.ScalarOrSchedule:
-    """The optimiser's own learning rate: a linear warm-up to `config.learning_rate`, or constant."""
+    """AdamW's learning rate: a linear warm-up to `config.learning_rate`, or constant."""
     if config.warmup_steps > 0:
         return optax.linear_schedule(0.0, config.learning_rate, config.warmup_steps)
     return config.learning_rate
 
 
-def make_optimizer(config: Config) -> optax.GradientTransformation:
-    decay_mask = lambda params: jax.tree.map(lambda p: p.ndim > 1, params)  # noqa: E731
-    return optax.chain(
-        optax.clip_by_global_norm(1.0),
-        optax.adamw(warmup_schedule(config), weight_decay=config.weight_decay, mask=decay_mask),
-    )
-
-
-def lr_decay(config: Config, step: jax.Array, total_steps: int) -> jax.Array:
-    """The learning-rate factor at `step` of `total_steps` after the optimiser's warm-up: 1 for
-    "constant", a cosine from 1 to 0 over the run for "cosine" (short runs on a large dataset end
-    in a low-noise phase instead of stopping at full step size)."""
+def decay_schedule(config: Config, total_steps: int) -> optax.Schedule | None:
+    """The factor on AdamW's step over the run, after its warm-up: none for "constant", a cosine
+    from 1 to 0 over `total_steps` for "cosine" (short runs on a large dataset end in a low-noise
+    phase instead of stopping at full step size)."""
     if config.lr_schedule == "constant":
-        return jnp.ones(jnp.shape(step), jnp.float32)
-    return 0.5 * (1.0 + jnp.cos(jnp.pi * jnp.minimum(step / max(total_steps, 1), 1.0))).astype(jnp.float32)
+        return None
+    return lambda step: 0.5 * (1.0 + jnp.cos(jnp.pi * jnp.minimum(step / max(total_steps, 1), 1.0))).astype(jnp.float32)
+
+
+def learning_rate(config: Config, total_steps: int, step: jax.Array) -> jax.Array:
+    """The learning rate at `step` that `make_optimizer` applies: warm-up times decay."""
+    warmup, decay = warmup_schedule(config), decay_schedule(config, total_steps)
+    lr = warmup(step) if callable(warmup) else jnp.float32(warmup)
+    return lr if decay is None else lr * decay(step)
+
+
+def make_optimizer(config: Config, total_steps: int) -> optax.GradientTransformation:
+    """The whole learning-rate schedule lives here, counted by optax's own step counters: a
+    global-norm clip at 1.0, AdamW with the warm-up (`warmup_schedule`; weight decay on weight
+    matrices only), then the decay over `total_steps` (`decay_schedule`) scaling AdamW's step."""
+    decay_mask = lambda params: jax.tree.map(lambda p: p.ndim > 1, params)  # noqa: E731
+    chain = [optax.clip_by_global_norm(1.0), optax.adamw(warmup_schedule(config), weight_decay=config.weight_decay, mask=decay_mask)]
+    decay = decay_schedule(config, total_steps)
+    if decay is not None:
+        chain.append(optax.scale_by_schedule(decay))
+    return optax.chain(*chain)
+
+
+def total_steps(config: Config, n_train: int) -> int:
+    """Optimiser steps of a whole run on `n_train` training sequences (the remainder batch dropped)."""
+    return config.epochs * (n_train // min(config.batch_size, n_train))
 
 
 def masked_cross_entropy(logits: jax.Array, labels: jax.Array) -> jax.Array:
@@ -108,6 +124,7 @@ class Trainer:
     shapes: dict[str, tuple[int, ...]]
     graphdef: Any
     tx: optax.GradientTransformation
+    total_steps: int  # of the whole run: the learning-rate schedule's length (`make_optimizer`)
     augment: Augment | None
     mesh: Mesh | None = None  # splits minibatch samples over its "batch" devices (`sharding.split_samples`)
 
@@ -153,28 +170,22 @@ class Trainer:
         steps = n // batch
         k_perm, k_steps = jax.random.split(key)
         order = jax.random.permutation(k_perm, n)[: steps * batch].reshape(steps, batch)
-        lr_scale = lr_decay(self.config, epoch * steps + jnp.arange(steps), self.config.epochs * steps)
 
         def step(carry, xs):
             params, opt_state = carry
-            idx, k, scale = xs
+            idx, k = xs
             mb = sharding.split_samples(jax.tree.map(lambda a: a[idx], train), self.mesh)
             if self.augment is not None:
                 mb = {**mb, "inputs": self.augment(jax.random.fold_in(k, 1), mb["inputs"])}
             (loss, logits), grads = jax.value_and_grad(self.loss, has_aux=True)(params, mb, k)
             updates, opt_state = self.tx.update(grads, opt_state, params)
-            updates = jax.tree.map(lambda u: u * scale, updates)  # AdamW's update is lr * (...): this scales lr
             return (optax.apply_updates(params, updates), opt_state), (loss, _correct_and_known(logits, mb["labels"]))
 
-        (params, opt_state), (losses, counts) = jax.lax.scan(
-            step, (params, opt_state), (order, jax.random.split(k_steps, steps), lr_scale)
-        )
-        last = epoch * steps + steps - 1
-        schedule = warmup_schedule(self.config)
+        (params, opt_state), (losses, counts) = jax.lax.scan(step, (params, opt_state), (order, jax.random.split(k_steps, steps)))
         summary = {
             "train_loss": losses.mean(),
             "train_accuracy": {h: right.sum() / jnp.maximum(known.sum(), 1) for h, (right, known) in counts.items()},
-            "lr": (schedule(last) if callable(schedule) else jnp.float32(schedule)) * lr_scale[-1],
+            "lr": learning_rate(self.config, self.total_steps, epoch * steps + steps - 1),
         }
         return params, opt_state, summary
 
@@ -234,11 +245,16 @@ class Trainer:
 
 
 def make_trainer(
-    config: Config, shapes: Mapping[str, tuple[int, ...]], augment: Augment | None = None, mesh: Mesh | None = None
+    config: Config, shapes: Mapping[str, tuple[int, ...]], augment: Augment | None = None, mesh: Mesh | None = None,
+    n_train: int | None = None,
 ) -> Trainer:
+    """The pieces of a run of `config` on inputs of per-sample `shapes` and `n_train` training
+    sequences, which fix the learning-rate schedule's length (None: one minibatch per epoch, for a
+    trainer built to initialise, restore or predict, whose optimiser never steps)."""
     shapes = {m: tuple(shapes[m]) for m in config.modalities}
     graphdef = nnx.split(nnx.eval_shape(lambda: FabricNet(config, shapes, rngs=nnx.Rngs(0))))[0]
-    return Trainer(config, shapes, graphdef, make_optimizer(config), augment, mesh)
+    steps = total_steps(config, config.batch_size if n_train is None else n_train)
+    return Trainer(config, shapes, graphdef, make_optimizer(config, steps), steps, augment, mesh)
 
 
 def pad(ds, multiple: int):
@@ -311,30 +327,11 @@ def with_input_statistics(state: dict[str, Any], stats: Mapping[str, jax.Array])
     return {**state, "params": put(state["params"]), "best_params": put(state["best_params"])}
 
 
-def make_train(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None = None, augment: Augment | None = None):
-    """A pure `train(key) -> (state, metrics)` over data closed over on the device.
-
-    `augment(key, inputs)` transforms each training minibatch before the model (the image rotation
-    is the model's own, `model.FabricNet.features`).
-    Use as `jax.jit(jax.vmap(train))(jax.random.split(key, n_seeds))`.
-    """
-    data, sizes = prepare(config, train_set, val_set, eval_sets)
-    trainer = make_trainer(config, feature_shapes(data["train"]["inputs"]), augment)
-
-    stats = input_statistics(config, train_set)
-
-    def train(key):
-        state, per_epoch = trainer.run(with_input_statistics(trainer.init(key), stats), data, config.epochs)
-        return state, {**unpad(trainer.finish(state, data), sizes), "epochs": curves.tags(per_epoch)}
-
-    return train
-
-
 @functools.lru_cache(maxsize=8)
-def _programs(config: Config, shapes: tuple, augment: Augment | None, mesh):
+def _programs(config: Config, shapes: tuple, n_train: int, augment: Augment | None, mesh):
     """Jitted, seed-vmapped, seed-sharded init / run(n epochs) / finish, cached so that reruns of
     a config (a resume, another data set of the same shapes) reuse the compiled programs."""
-    trainer = make_trainer(config, dict(shapes), augment, mesh)
+    trainer = make_trainer(config, dict(shapes), augment, mesh, n_train)
     per_seed = sharding.by_seed(mesh)
     init = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)
     finish = jax.jit(sharding.vmap_seeds(trainer.finish, in_axes=(0, None)), out_shardings=per_seed)
@@ -398,7 +395,8 @@ def train_and_evaluate(
     data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals)
     mesh = sharding.training_mesh(len(seeds), config.batch_size)
     shapes = tuple(sorted(feature_shapes(data["train"]["inputs"]).items()))
-    trainer, init, run, finish = _programs(config, shapes, augment, mesh)
+    n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
+    trainer, init, run, finish = _programs(config, shapes, n_train, augment, mesh)
     per_seed = sharding.by_seed(mesh)
     data = jax.device_put(data, sharding.replicated(mesh))
     keys = jax.device_put(seed_keys(seeds), per_seed)
