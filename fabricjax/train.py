@@ -38,7 +38,7 @@ import optax
 from flax import nnx
 from jax.sharding import Mesh
 
-from fabricjax import checkpoint, curves, sharding
+from fabricjax import checkpoint, curves, runtime, sharding
 from fabricjax.config import Config
 from fabricjax.model import STANDARDISED, FabricNet, feature_shapes, head_sizes, per_position_shift
 
@@ -400,8 +400,8 @@ def train_and_evaluate(
     shapes = tuple(sorted(feature_shapes(data["train"]["inputs"]).items()))
     trainer, init, run, finish = _programs(config, shapes, augment, mesh)
     per_seed = sharding.by_seed(mesh)
-    data = jax.device_put(data, sharding.replicated(mesh))
-    keys = jax.device_put(seed_keys(seeds), per_seed)
+    data = sharding.put(data, sharding.replicated(mesh))
+    keys = sharding.put(seed_keys(seeds), per_seed)
 
     mngr = checkpoint.manager(workdir) if workdir is not None else None
     run_meta = checkpoint.meta(config, seeds, trainer.shapes)
@@ -412,9 +412,10 @@ def train_and_evaluate(
         state, done = checkpoint.restore(mngr, abstract, run_meta)
     else:
         stats = input_statistics(config, data_sets["train"])
-        state, done = jax.device_put(with_input_statistics(init(keys), stats), per_seed), 0
+        state, done = sharding.put(with_input_statistics(init(keys), stats), per_seed), 0
     history = curves.History(len(seeds), config.epochs)
-    writer = curves.open_writer(log_dir, seeds, done) if log_dir is not None else None
+    # in a multi-process run only process 0 writes curves; the others open no files but chunk alike
+    writer = curves.open_writer(log_dir, seeds if runtime.is_primary() else (), done) if log_dir is not None else None
     save_every = save_every or config.epochs
     chunk = 1 if writer is not None else save_every
     while done < config.epochs:
