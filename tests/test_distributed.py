@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 # One process of a run: trains two seeds of tests/test_train.py's tiny config over every device of
 # the run (the mesh spans the processes' devices), with a checkpoint and training curves, restores
@@ -52,6 +53,7 @@ def start(tmp_path, name: str, cpu_devices: int, distributed=None) -> subprocess
     return subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
+@pytest.mark.slow  # ~85 s on 2 loaded cores (three processes compiling): run with -m slow
 def test_two_processes_train_as_one_process_with_two_devices(tmp_path):
     (tmp_path / "out").mkdir()
     address = f"localhost:{free_port()}"
