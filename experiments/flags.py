@@ -48,7 +48,7 @@ flags.DEFINE_integer(
 flags.DEFINE_bool(
     "distributed", False,
     "join a run over several processes (hosts), each started with the same command: jax.distributed.initialize() "
-    "reads a cluster's environment (SLURM, Open MPI, ...); elsewhere give the three flags below",
+    "reads a cluster's environment (SLURM, Open MPI, ...); elsewhere give --coordinator_address, --num_processes and --process_id",
 )
 flags.DEFINE_string("coordinator_address", None, "host:port of process 0 of a --distributed run outside a cluster scheduler")
 flags.DEFINE_integer("num_processes", None, "number of processes of a --distributed run outside a cluster scheduler", lower_bound=1)

@@ -8,11 +8,13 @@ all-reduce, so results equal a one-device run up to the order of float summation
 
 A CPU is one device by default; `use_cpu_cores` makes it one device per core (the training and
 benchmark commands call it first, through `runtime.configure_jax`), so that seeds or samples run
-on separate cores instead of sharing each op. In a run over several processes
-(`runtime.join_processes`) `jax.devices()` lists every process's devices, so the mesh spans them:
-host values go onto it with `put`, and what training returns is replicated on every device (the
-"seed" axis has size 1), so every process reads it whole with `jax.device_get`. A single prediction answers faster on a one-device
+on separate cores instead of sharing each op. A single prediction answers faster on a one-device
 CPU (measured 0.1-0.5 ms at p50 for the paper's model), so latency-bound commands keep one device.
+
+In a run over several processes (`runtime.join_processes`) `jax.devices()` lists every process's
+devices, so the mesh spans them all: host values go onto it with `put`, and what training returns
+is replicated on every device (the "seed" axis has size 1), so every process reads it whole with
+`jax.device_get`.
 """
 
 from __future__ import annotations

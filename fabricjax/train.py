@@ -5,7 +5,8 @@ loop is a `lax.scan` too, so epochs run without the host: `make_train` gives a w
 pure function, and `train_and_evaluate` runs it as three compiled programs (init, the epoch scan,
 the final evaluation), the host reading back only each chunk's curves (one chunk for the whole
 run unless checkpoints or curve files split the scan, see below). Seeds are `jax.vmap`ped; seeds,
-else each minibatch's samples, are split over the devices (`fabricjax.sharding`). Parameters are
+else each minibatch's samples, are split over the devices, those of every process in a
+multi-process run (`fabricjax.sharding`). Parameters are
 plain pytrees (`nnx.to_pure_dict`); the module is rebuilt with `nnx.merge` inside the loss.
 
 Optimiser: AdamW (decoupled weight decay on weight matrices only, not on biases, LayerNorm scales)
