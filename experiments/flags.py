@@ -77,7 +77,7 @@ def run(main, cpu_devices: int | None = None) -> None:
         before = _snapshot(folder)
         main(argv)
         written = sorted(p for p, st in _snapshot(folder).items() if before.get(p) != st)
-        if written:
+        if written and runtime.is_primary():  # the others write nothing (and would list process 0's temporaries)
             print("wrote " + ", ".join(str(p) for p in written))
 
     def setup():
