@@ -2,6 +2,7 @@
 
     --seeds --preset --rows --set=field=value (repeatable)   (define_rows, study_command)
     --workdir --data_dir --results --cpu_devices             (always)
+    --distributed --coordinator_address --num_processes --process_id   (always: a run over several processes)
 
 `--preset` names a preset of `fabricjax/presets.py` (its data and training settings); each
 `--set` overrides one `Config` field on top, typed by the field (`--set=epochs=4`,
@@ -46,25 +47,46 @@ flags.DEFINE_integer(
     "the lowest latency for one sequence)",
 )
 
+flags.DEFINE_bool(
+    "distributed", False,
+    "join a run over several processes (hosts), each started with the same command: jax.distributed.initialize() "
+    "reads a cluster's environment (SLURM, Open MPI, ...); elsewhere give --coordinator_address, --num_processes and --process_id",
+)
+flags.DEFINE_string("coordinator_address", None, "host:port of process 0 of a --distributed run outside a cluster scheduler")
+flags.DEFINE_integer("num_processes", None, "number of processes of a --distributed run outside a cluster scheduler", lower_bound=1)
+flags.DEFINE_integer("process_id", None, "this process's index (0..num_processes-1) in a --distributed run outside a cluster scheduler", lower_bound=0)
+
+PROCESS_FLAGS = ("coordinator_address", "num_processes", "process_id")
+
+
+def distributed() -> dict[str, Any] | None:
+    """`runtime.configure_jax`'s `distributed` from the flags: None for a run in this process
+    alone, else the explicit settings given (none under a cluster scheduler). Any of the three
+    explicit flags implies --distributed."""
+    given = {name: getattr(FLAGS, name) for name in PROCESS_FLAGS if getattr(FLAGS, name) is not None}
+    return given if FLAGS.distributed or given else None
+
 
 def run(main, cpu_devices: int | None = None) -> None:
     """`cli.run(main)` with JAX configured before it starts (`runtime.configure_jax`): its CPU
     devices (--cpu_devices, else `cpu_devices`, else one per core) and XLA's compilation cache
-    under the workspace (jax_cache/, so a rerun of a study skips compilation); at the end, the
-    files the command wrote into the results folder are listed."""
+    under the workspace (jax_cache/, so a rerun of a study skips compilation), and with
+    --distributed this process joins a run over several processes; at the end, the files the
+    command wrote into the results folder are listed."""
 
     def start(argv):
         folder = results_dir()
         before = _snapshot(folder)
         main(argv)
         written = sorted(p for p, st in _snapshot(folder).items() if before.get(p) != st)
-        if written:
+        if written and runtime.is_primary():  # the others write nothing (and would list process 0's temporaries)
             print("wrote " + ", ".join(str(p) for p in written))
 
     def setup():
         runtime.configure_jax(
             cpu_devices=FLAGS.cpu_devices or cpu_devices or runtime.CORES,
             compilation_cache_dir=workspace.compilation_cache_dir(FLAGS.workdir),
+            distributed=distributed(),
         )
 
     cli.run(start, before=setup)

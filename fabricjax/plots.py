@@ -15,14 +15,16 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from fabricjax import catalog  # noqa: E402
+from fabricjax import catalog, runtime  # noqa: E402
 from fabricjax.atomic import atomic_open  # noqa: E402
 
 
 def _save(fig, path) -> Path:
+    """Written by process 0 only in a multi-process run (every process draws the same figure)."""
     try:
-        with atomic_open(path) as f:
-            fig.savefig(f, format="png", dpi=130, bbox_inches="tight")
+        if runtime.is_primary():
+            with atomic_open(path) as f:
+                fig.savefig(f, format="png", dpi=130, bbox_inches="tight")
     finally:
         plt.close(fig)
     return Path(path)

@@ -7,6 +7,8 @@ the tests' own training subprocesses. A program that uses the library without it
 same results, only its CPU training steps are slower (see `unroll_threefry_on_cpu`).
 
 What it sets:
+* `distributed`: this process joins a run over several processes (hosts) first
+  (`join_processes`), before JAX starts a backend;
 * always: the unrolled `threefry2x32` lowering on CPU (`unroll_threefry_on_cpu`);
 * `cpu_devices`: JAX's CPU device count (`sharding.use_cpu_cores`; `CORES`: one per core), which
   must come before JAX starts its CPU backend; None leaves JAX's choice (one CPU device, or
@@ -21,6 +23,8 @@ JAX itself is imported inside the functions, so that `fabricjax.cli` can choose 
 from __future__ import annotations
 
 import os
+import sys
+from typing import Any, Mapping
 
 CORES = "cores"  # cpu_devices: one CPU device per core this process may run on
 MIN_CACHED_COMPILE_S = 1.0  # programs compiling faster than this are not worth a cache file
@@ -59,8 +63,38 @@ def use_compilation_cache(directory: str | os.PathLike) -> None:
     jax.config.update("jax_persistent_cache_min_compile_time_secs", MIN_CACHED_COMPILE_S)
 
 
-def configure_jax(*, cpu_devices: int | str | None = None, compilation_cache_dir: str | os.PathLike | None = None) -> None:
-    """The process's JAX setup (see the module docstring); call it before JAX computes anything."""
+def join_processes(**initialize: Any) -> None:
+    """Make this process one of a multi-process run: `jax.distributed.initialize(**initialize)`.
+
+    Without arguments JAX reads the cluster's environment (SLURM, Open MPI, ...); outside a
+    cluster scheduler give `coordinator_address` ("host:port" of process 0), `num_processes` and
+    `process_id`. Afterwards `jax.devices()` lists every process's devices, so the training mesh
+    (`sharding.training_mesh`) spans them all; on CPU the processes' collectives go over Gloo
+    (JAX's default `jax_cpu_collectives_implementation`). Must come before JAX starts a backend."""
+    import jax
+
+    jax.distributed.initialize(**initialize)
+
+
+def is_primary() -> bool:
+    """Whether this process writes the files every process would write alike (results, figures,
+    training curves): process 0 of a multi-process run, and any process that joined none (asked
+    without importing JAX or starting a backend)."""
+    jax = sys.modules.get("jax")
+    return jax is None or not jax.distributed.is_initialized() or jax.process_index() == 0
+
+
+def configure_jax(
+    *,
+    cpu_devices: int | str | None = None,
+    compilation_cache_dir: str | os.PathLike | None = None,
+    distributed: Mapping[str, Any] | None = None,
+) -> None:
+    """The process's JAX setup (see the module docstring); call it before JAX computes anything.
+    `distributed`: the keyword arguments of `join_processes` ({} for a cluster's environment),
+    None for a run in this process alone."""
+    if distributed is not None:
+        join_processes(**distributed)
     unroll_threefry_on_cpu()
     if cpu_devices is not None:
         from fabricjax import sharding

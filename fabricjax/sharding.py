@@ -10,6 +10,11 @@ A CPU is one device by default; `use_cpu_cores` makes it one device per core (th
 benchmark commands call it first, through `runtime.configure_jax`), so that seeds or samples run
 on separate cores instead of sharing each op. A single prediction answers faster on a one-device
 CPU (measured 0.1-0.5 ms at p50 for the paper's model), so latency-bound commands keep one device.
+
+In a run over several processes (`runtime.join_processes`) `jax.devices()` lists every process's
+devices, so the mesh spans them all: host values go onto it with `put`, and what training returns
+is replicated on every device (the "seed" axis has size 1), so every process reads it whole with
+`jax.device_get`.
 """
 
 from __future__ import annotations
@@ -69,6 +74,23 @@ def by_seed(mesh: Mesh) -> NamedSharding:
 
 def replicated(mesh: Mesh) -> NamedSharding:
     return NamedSharding(mesh, P())
+
+
+def put(tree, to: NamedSharding):
+    """`jax.device_put(tree, to)` of host values (or arrays on this process's devices), also where
+    `to` spans other processes' devices: every process then holds the same values and hands its own
+    devices their shards (`jax.make_array_from_callback`), instead of `jax.device_put`'s check
+    that the processes' values agree, which gathers every array onto every process."""
+    if to.is_fully_addressable:
+        return jax.device_put(tree, to)
+
+    def one(a):
+        if isinstance(a, jax.Array) and not a.is_fully_addressable:  # on the global mesh already
+            return jax.device_put(a, to)
+        host = np.asarray(a)
+        return jax.make_array_from_callback(host.shape, to, lambda index: host[index])
+
+    return jax.tree.map(one, tree)
 
 
 def split_samples(tree, mesh: Mesh | None, axis: int = 0):

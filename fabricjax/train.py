@@ -4,8 +4,9 @@ A run is three pure functions of one seed's state (`Trainer.init(key)`, `Trainer
 n_epochs)`, `Trainer.finish(state, data)`), each `jax.jit(jax.vmap(...))`ed over the seeds. The
 data lives on the device; one epoch is a `lax.scan` over shuffled minibatches and the epoch loop
 is a `lax.scan` too, so epochs run without the host, which reads back only each chunk's curves
-(one chunk for the whole run unless checkpoints or curve files split the scan, see below). Seeds are `jax.vmap`ped; seeds,
-else each minibatch's samples, are split over the devices (`fabricjax.sharding`). Parameters are
+(one chunk for the whole run unless checkpoints or curve files split the scan, see below). Seeds
+are `jax.vmap`ped; seeds, else each minibatch's samples, are split over the devices, those of
+every process in a multi-process run (`fabricjax.sharding`). Parameters are
 plain pytrees (`nnx.to_pure_dict`); the module is rebuilt with `nnx.merge` inside the loss.
 
 Optimiser: AdamW (decoupled weight decay on weight matrices only, not on biases, LayerNorm scales)
@@ -38,7 +39,7 @@ import optax
 from flax import nnx
 from jax.sharding import Mesh
 
-from fabricjax import checkpoint, curves, sharding
+from fabricjax import checkpoint, curves, runtime, sharding
 from fabricjax.config import Config
 from fabricjax.model import STANDARDISED, FabricNet, feature_shapes, head_sizes, per_position_shift
 
@@ -398,8 +399,8 @@ def train_and_evaluate(
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
     trainer, init, run, finish = _programs(config, shapes, n_train, augment, mesh)
     per_seed = sharding.by_seed(mesh)
-    data = jax.device_put(data, sharding.replicated(mesh))
-    keys = jax.device_put(seed_keys(seeds), per_seed)
+    data = sharding.put(data, sharding.replicated(mesh))
+    keys = sharding.put(seed_keys(seeds), per_seed)
 
     mngr = checkpoint.manager(workdir) if workdir is not None else None
     run_meta = checkpoint.meta(config, seeds, trainer.shapes)
@@ -410,9 +411,10 @@ def train_and_evaluate(
         state, done = checkpoint.restore(mngr, abstract, run_meta)
     else:
         stats = input_statistics(config, data_sets["train"])
-        state, done = jax.device_put(with_input_statistics(init(keys), stats), per_seed), 0
+        state, done = sharding.put(with_input_statistics(init(keys), stats), per_seed), 0
     history = curves.History(len(seeds), config.epochs)
-    writer = curves.open_writer(log_dir, seeds, done) if log_dir is not None else None
+    # in a multi-process run only process 0 writes curves; the others open no files but chunk alike
+    writer = curves.open_writer(log_dir, seeds if runtime.is_primary() else (), done) if log_dir is not None else None
     save_every = save_every or config.epochs
     chunk = 1 if writer is not None else save_every
     while done < config.epochs:

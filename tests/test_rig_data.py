@@ -2,7 +2,6 @@
 band capped at its Nyquist, rows checked against the streams the data has, the classes from the
 label map, and every trial not used said so."""
 
-import dataclasses
 import logging
 
 import numpy as np

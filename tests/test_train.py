@@ -13,7 +13,7 @@ from flax import nnx
 from fabricjax import sharding, synthetic, train
 from fabricjax.config import Config
 from fabricjax.model import FabricNet
-from fabricjax.train import make_trainer, masked_accuracy, masked_cross_entropy, seed_keys, train_and_evaluate
+from fabricjax.train import make_trainer, masked_accuracy, masked_cross_entropy, train_and_evaluate
 
 TINY = Config(
     preset="smoke", modalities=("internal", "proprio"), width=16, n_layers=1, ffn=32,

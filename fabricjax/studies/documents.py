@@ -22,7 +22,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from fabricjax import data, stats, workspace
+from fabricjax import data, runtime, stats, workspace
 from fabricjax.atomic import atomic_open
 from fabricjax.studies.loading import Dataset
 from fabricjax.studies.runner import Row
@@ -86,9 +86,11 @@ def _default(o):
 
 
 def write_text(path: os.PathLike | str, text: str) -> Path:
-    """Atomic: a reader sees the old file or the new one, never half of one."""
-    with atomic_open(path, "w") as f:
-        f.write(text)
+    """Atomic: a reader sees the old file or the new one, never half of one. In a multi-process
+    run every process computes the same document and only process 0 writes it (`runtime.is_primary`)."""
+    if runtime.is_primary():
+        with atomic_open(path, "w") as f:
+            f.write(text)
     return Path(path)
 
 
