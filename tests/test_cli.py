@@ -91,14 +91,18 @@ def test_jax_platforms_is_cpu_only_where_no_accelerator_can_be():
     assert isinstance(cli.accelerator_plugins(), list)
 
 
-def test_eta_weighs_rows_by_their_relative_cost():
-    assert runner.relative_cost(Config(modalities=("internal",))) == 1.0
-    assert runner.relative_cost(Config(modalities=("image", "internal"))) == runner.CAMERA_COST["image"]
-    assert runner.relative_cost(Config(modalities=("flow", "internal"))) == runner.CAMERA_COST["flow"]
-    progress = runner.Progress("x", 3, [7.5, 1.0, 1.0])
-    progress.done = 1
-    assert progress.eta(150.0) == pytest.approx(40.0)  # 20 s per audio row, not 150
-    assert runner.Progress("y", 4).costs == [1.0] * 4
+def test_eta_learns_each_kind_of_row_s_time_from_the_rows_done():
+    assert [runner.row_kind(Config(modalities=m)) for m in (("internal",), ("image", "internal"), ("flow", "proprio"))] == ["other", "image", "flow"]
+    progress = runner.Progress("x", 4, ["image", "other", "other", "image"])
+    progress.finish("a", 150.0, "")  # a camera row first: no audio row done yet, so its rate stands in
+    assert progress.eta() == pytest.approx(450.0)
+    progress.finish("b", 20.0, "")
+    assert progress.eta() == pytest.approx(20.0 + 150.0)  # each kind at its own rate: 20 s per audio row, not 150
+    sweep = runner.Progress("s", 2, ["other", "other"], work=[2, 4])  # work: epochs
+    sweep.finish("c", 10.0, "")
+    assert sweep.eta() == pytest.approx(20.0)
+    with pytest.raises(ValueError):
+        runner.Progress("z", 3, ["other"])
 
 
 def test_progress_names_rows_as_the_table_does():

@@ -92,47 +92,52 @@ def _which_rows(names: Sequence[str], n_rows: int) -> str:
     return f"every one of its {n_rows} rows" if len(names) == n_rows else f"rows {', '.join(names)}"
 
 
-# Training time of a row relative to a row without camera inputs, by the costliest camera input
-# it uses: the default preset's measured per-row wall times in results/ablation.md (Minsight
-# image rows 124-141 s, optical-flow rows 47-58 s, the others 30-64 s, mean 43 s: about 3.1 and
-# 1.2 times).
-CAMERA_COST = {"image": 3.1, "flow": 1.2}
-
-
-def relative_cost(config: Config) -> float:
-    """A row's expected training time in units of an audio / proprioception row (`CAMERA_COST`)."""
-    return max([1.0] + [CAMERA_COST[m] for m in config.modalities if m in CAMERA_COST])
+def row_kind(config: Config) -> str:
+    """What a row's training time mostly depends on: its costliest input (a camera row trains
+    several times longer than an audio row), else "other"."""
+    return next((m for m in ("image", "flow") if m in config.modalities), "other")
 
 
 class Progress:
-    """Logs 'row i/n' with the elapsed time and an ETA: the time per unit of relative cost of the
-    rows done so far, times the relative cost of the rows left (equal costs unless given), so a
-    camera row run first does not inflate the estimate for the audio rows after it."""
+    """Logs 'row i/n' with the elapsed time and an ETA. Each row has a kind (`row_kind`) and an
+    amount of work (default 1; the sweep's rows: their epochs); a row left is expected to take
+    its work times the seconds per unit of work of the rows of its kind done so far (of every row
+    done while none of its kind is), so a camera row run first does not inflate the estimate for
+    the audio rows after it. The rates are this run's own: nothing measured elsewhere."""
 
-    def __init__(self, study: str, n_rows: int, costs: Sequence[float] | None = None):
-        self.costs = list(costs) if costs is not None else [1.0] * n_rows
-        if len(self.costs) != n_rows:
-            raise ValueError(f"{n_rows} rows but {len(self.costs)} costs")
+    def __init__(self, study: str, n_rows: int, kinds: Sequence[str] | None = None, work: Sequence[float] | None = None):
+        self.kinds = list(kinds) if kinds is not None else ["other"] * n_rows
+        self.work = list(work) if work is not None else [1.0] * n_rows
+        if not len(self.kinds) == len(self.work) == n_rows:
+            raise ValueError(f"{n_rows} rows but {len(self.kinds)} kinds and {len(self.work)} amounts of work")
         self.study, self.n, self.done, self.t0 = study, n_rows, 0, time.perf_counter()
+        self.seconds: list[float] = []
 
     def start(self, name: str) -> None:
         logging.info("%s: row %d/%d %s ...", self.study, self.done + 1, self.n, name)
 
-    def eta(self, elapsed: float) -> float:
-        """Seconds left, from `elapsed` seconds for the rows done."""
-        return elapsed / sum(self.costs[: self.done]) * sum(self.costs[self.done :])
+    def eta(self) -> float:
+        """Seconds left, from the rows done (`finish`)."""
+        done = range(self.done)
+
+        def rate(kind: str | None) -> float:
+            rows = [i for i in done if kind is None or self.kinds[i] == kind]
+            return sum(self.seconds[i] for i in rows) / max(sum(self.work[i] for i in rows), 1e-9)
+
+        return sum(self.work[i] * rate(self.kinds[i] if self.kinds[i] in self.kinds[: self.done] else None) for i in range(self.done, self.n))
 
     def exclude(self, seconds: float) -> None:
         """Leave `seconds` spent on something else (loading a later part's data) out of the
-        elapsed time the ETA is estimated from."""
+        elapsed time."""
         self.t0 += seconds
 
     def finish(self, name: str, seconds: float, summary: str) -> None:
         self.done += 1
+        self.seconds.append(seconds)
         elapsed = time.perf_counter() - self.t0
         logging.info(
             "%s: row %d/%d %s done in %.1f s: %s (elapsed %s, ETA %s)",
-            self.study, self.done, self.n, name, seconds, summary, _hms(elapsed), _hms(self.eta(elapsed)),
+            self.study, self.done, self.n, name, seconds, summary, _hms(elapsed), _hms(self.eta()),
         )
 
 
@@ -224,7 +229,7 @@ def train_rows(
     rows = [(name, dataclasses.replace(config, n_classes=ds.n_classes)) for name, config in rows]  # the data's classes
     configs = [c for _, c in rows]
     if progress is None:
-        progress = Progress(study, len(rows), [relative_cost(c) for c in configs])
+        progress = Progress(study, len(rows), [row_kind(c) for c in configs])
     else:  # started before this load
         progress.exclude(ds.generate_s + ds.load_s)
     trained = {}

@@ -188,7 +188,7 @@ def run(
     for unit in units:
         by_key.setdefault(loading.sequence_key(unit[1]), []).append(unit)
     order = [u for group in by_key.values() for u in group]
-    progress = runner.Progress("sweep", len(order), [runner.relative_cost(c) * c.epochs for _, c, _, _ in order])
+    progress = runner.Progress("sweep", len(order), [runner.row_kind(c) for _, c, _, _ in order], [c.epochs for _, c, _, _ in order])
     labels = {name: f"{point_name(fields)} | {row.label}" for name, _, fields, row in order}
     summary = lambda r: f"val {stats.format_mean_sd(r.accuracy('val', HEAD))} %, test {stats.format_mean_sd(r.accuracy('test', HEAD))} %"  # noqa: E731
     entries, loads, head = {}, [], None
