@@ -15,7 +15,7 @@ from typing import Iterable
 import numpy as np
 from tqdm import tqdm
 
-from fabricjax import archive, parallel, presets, splits, workspace
+from fabricjax import archive, dataset_index, parallel, presets, splits, workspace
 from fabricjax.errors import UserError
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import EFFECTS, Scene
@@ -117,5 +117,5 @@ def ensure_dataset(
     bar = tqdm(total=len(scenes), initial=len(scenes) - len(jobs), desc=f"simulate {preset_name}", unit="trial", disable=not progress)
     with bar:
         parallel.run_jobs(_write, jobs, workers, bar.update)
-    archive.build_index(folder)
+    dataset_index.build_index(folder)
     return folder

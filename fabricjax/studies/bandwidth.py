@@ -18,7 +18,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import archive, findings, paper_tables, plots, report, stats
+from fabricjax import archive, dataset_index, findings, paper_tables, plots, report, stats
 from fabricjax.config import MODALITY_NAMES, Config
 from fabricjax.features import welch
 from fabricjax.studies import documents, loading, runner
@@ -103,7 +103,7 @@ def microphone(ds: loading.Dataset, workdir=None) -> str:
     own, not the paper's)."""
     if not ds.recorded:
         return MODALITY_NAMES["internal"]
-    lay = archive.layout(archive.load_index(ds.folder, workdir).entries[0].meta)
+    lay = archive.layout(dataset_index.load_index(ds.folder, workdir).entries[0].meta)
     return lay.mics[lay.mic("internal")].name
 
 

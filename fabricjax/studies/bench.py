@@ -41,7 +41,7 @@ from typing import Any, Callable, Sequence
 import jax
 from absl import logging
 
-from fabricjax import archive, benchmark, presets, report, sharding, sim, stream, torch_twin, train, workspace
+from fabricjax import benchmark, dataset_index, presets, report, sharding, sim, stream, torch_twin, train, workspace
 from fabricjax.config import Config
 from fabricjax.features import bench as feature_bench
 from fabricjax.features import welch
@@ -108,7 +108,7 @@ def bench_extraction(quick: bool, workdir) -> dict:
     # concurrent.futures: its worker is not daemonic, so the extraction's own process pool may start
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
         out = pool.submit(feature_bench.bench_extraction, config, folder).result()
-    steps = sum(e.n_steps for e in archive.load_index(folder, workdir).entries)
+    steps = sum(e.n_steps for e in dataset_index.load_index(folder, workdir).entries)
     paper_steps = len(presets.get("paper").dataset.trials()) * PAPER_STEPS_PER_TRIAL
     return {
         **out,

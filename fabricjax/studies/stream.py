@@ -10,7 +10,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from fabricjax import archive, catalog, report, sim, splits, stream, workspace
+from fabricjax import archive, catalog, dataset_index, report, sim, splits, stream, workspace
 from fabricjax.config import Config
 from fabricjax.studies import loading, runner
 
@@ -41,7 +41,7 @@ def quick_model(preset: str, overrides: Mapping[str, Any] | None = None, *, work
 
 def first_test_trial(folder, workdir=None) -> str:
     """Path of the first test-day trial of a dataset folder (a class the model knows)."""
-    index = archive.load_index(folder, workdir)
+    index = dataset_index.load_index(folder, workdir)
     roles = splits.assign_roles([e.meta for e in index.entries])
     for e, role in zip(index.entries, roles):
         if role == "test" and e.meta["label"] < catalog.N_CLASSES:
