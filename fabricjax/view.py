@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from fabricjax import archive, stream
+from fabricjax import archive, false_colour, stream
 from fabricjax.errors import UserError
 from fabricjax.features import flow, welch
 
@@ -88,30 +88,6 @@ def archive_step(trial: archive.TrialArchive, t: int) -> Step:
     )
 
 
-def _flow_image(pooled: np.ndarray) -> np.ndarray:
-    """(2, h, w) flow -> (h, w, 3) uint8 RGB: hue = direction, brightness = magnitude / the largest."""
-    import cv2
-
-    mag, ang = cv2.cartToPolar(pooled[0].astype(np.float32), pooled[1].astype(np.float32))
-    hsv = np.zeros((*mag.shape, 3), np.uint8)
-    hsv[..., 0] = (ang * 90 / np.pi).astype(np.uint8)
-    hsv[..., 1] = 255
-    hsv[..., 2] = np.clip(255 * mag / max(float(mag.max()), 1e-12), 0, 255).astype(np.uint8)
-    return cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
-
-
-def _colormap(values: np.ndarray) -> np.ndarray:
-    """(F, K) values, NaN where empty -> (F, K, 3) uint8 'magma' over their own range, empty black."""
-    from matplotlib import colormaps
-
-    known = np.isfinite(values)
-    lo, hi = (float(values[known].min()), float(values[known].max())) if known.any() else (0.0, 1.0)
-    scaled = np.where(known, (values - lo) / max(hi - lo, 1e-12), 0.0)
-    rgb = (255 * colormaps["magma"](scaled)[..., :3]).astype(np.uint8)
-    rgb[~known] = 0
-    return rgb
-
-
 class TrialView:
     """Logs steps (and a model's results on them) to a Rerun recording stream `rec`."""
 
@@ -140,14 +116,14 @@ class TrialView:
         if s.frame is not None:
             rec.log("minsight/frame", rr.Image(s.frame))
             dense = flow.farneback(s.frame[None], self.previous_frame)
-            rec.log("minsight/flow", rr.Image(_flow_image(np.asarray(flow.sparsify_and_pool(dense))[0])))
+            rec.log("minsight/flow", rr.Image(false_colour.flow_rgb(np.asarray(flow.sparsify_and_pool(dense))[0])))
             self.previous_frame = s.frame
         psd = np.asarray(self.psd(s.windows))
         self.spectrogram = np.roll(self.spectrogram, -1, axis=2)
         self.spectrogram[:, :, -1] = psd
         sample_times = s.time_s - np.arange(s.new_samples)[::-1] / archive.AUDIO_RATE
         for i, mic in enumerate(archive.MIC_NAMES):
-            rec.log(f"audio/{mic}/spectrogram", rr.Image(_colormap(self.spectrogram[i, ::-1])))
+            rec.log(f"audio/{mic}/spectrogram", rr.Image(false_colour.magma_rgb(self.spectrogram[i, ::-1])))
             wave = np.asarray(welch.to_full_scale(s.windows[i, archive.WINDOW - s.new_samples :]), np.float64)
             rec.send_columns(
                 f"audio/{mic}/wave",
@@ -198,20 +174,3 @@ def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
     summary = log_trial(rec, trial, streamer)
     rec.flush()
     return {"archive": str(path), "steps": trial.n_steps, "frames": trial.images is not None, "rrd": None if save is None else str(save), **summary}
-
-
-def read_rrd(path) -> dict[str, dict[str, Any]]:
-    """{entity path: {"rows": rows logged, "steps": sorted distinct "step" values}} of a .rrd file
-    (static data left out; the waveforms are on "time" only, so their "steps" are [])."""
-    from rerun.chunk import RrdReader
-
-    out: dict[str, dict[str, Any]] = {}
-    for chunk in RrdReader(str(path)).stream():
-        if chunk.is_static:
-            continue
-        batch = chunk.to_record_batch()
-        entry = out.setdefault(chunk.entity_path, {"rows": 0, "steps": set()})
-        entry["rows"] += chunk.num_rows
-        if "step" in batch.schema.names:
-            entry["steps"].update(batch.column("step").to_pylist())
-    return {k: {**v, "steps": sorted(v["steps"])} for k, v in out.items()}
