@@ -45,7 +45,7 @@ def read_joints_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
             raise RecordingImportError(path, col, "column missing")
         if not np.all(np.isfinite(table[col])):
             raise RecordingImportError(path, col, "empty or non-numeric values")
-    joints = np.stack([table[c] for c in columns[1:]], axis=1).reshape(-1, archive.N_JOINTS, 3)
+    joints = np.stack([table[c] for c in columns[1:]], axis=1).reshape(-1, archive.N_JOINTS, archive.N_JOINT_FIELDS)
     return table["time"], joints
 
 

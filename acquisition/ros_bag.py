@@ -259,7 +259,7 @@ def _joints(msgs, table, tolerance, problems, clocks) -> tuple[np.ndarray, np.nd
     names = list(table.get("names", archive.JOINT_NAMES))
     rows = _decode_each(msgs, lambda m: rm.joint_row(m, names), topic, problems)
     if not rows:
-        return np.zeros(0), np.zeros((0, archive.N_JOINTS, 3)), []
+        return np.zeros(0), np.zeros((0, archive.N_JOINTS, archive.N_JOINT_FIELDS)), []
     joints = np.stack(rows)
     absent = []
     for f, (field, ros_field) in enumerate(zip(archive.JOINT_FIELDS, ("position", "velocity", "effort"))):

@@ -81,9 +81,11 @@ MINSIGHT_SIZE = (308, 410)  # H, W of a Minsight frame as its sensor code delive
 VALID_BITS = 18  # valid bits of an SPH0645 I2S word, in bits 31..14
 SAMPLE_SHIFT = 32 - VALID_BITS  # word = sample << SAMPLE_SHIFT; sample = word >> SAMPLE_SHIFT (arithmetic)
 FULL_SCALE = 2.0 ** (VALID_BITS - 1)  # a signed 18-bit sample of this magnitude is full scale (+-1)
-N_JOINTS = 6
-JOINT_FIELDS = ("angle", "velocity", "current")
 JOINT_NAMES = ("thumb_base", "thumb_mid", "thumb_tip", "middle_base", "middle_tip", "palm")
+JOINT_FIELDS = ("angle", "velocity", "current")
+N_JOINTS = len(JOINT_NAMES)
+N_JOINT_FIELDS = len(JOINT_FIELDS)
+N_PROPRIO = N_JOINTS * N_JOINT_FIELDS  # the proprio input: every joint's fields, flattened joint-major
 MIC_NAMES = ("internal", "external")
 # The model inputs a microphone can feed (its `role`): the one in the touching fingertip, and one
 # away from the contact (the hand's palm). Their names are the hand's microphones'.

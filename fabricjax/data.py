@@ -45,7 +45,7 @@ and holdout) are counted in an info line: never silent.
                                                        bandwidth_khz, its rate): 320 at 15 kHz and
                                                        48 kHz, all 512 at or above its Nyquist
       "proprio"               float32 (S, N, J * F)    joints x fields: the hand's 6 x (angle,
-                                                       velocity, current) = 18
+                                                       velocity, current), archive.N_PROPRIO
       "flow"                  float16 (S, N, 2, h, w)  sparse flow, 3x3 patch means (flow.py);
                                                        102x137 for 308x410 frames
       "image"                 uint8   (S, N, H, W, 3)  config.image_size ("down", the paper's 60x80)

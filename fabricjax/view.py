@@ -13,7 +13,7 @@ trial's first step), under these entity paths:
                                          at the right: a scrolling spectrogram, colour range = its own
     audio/<mic>/wave           Scalars   the raw waveform in full-scale units, one point per sample
                                          (timeline "time" only: the samples new at each step)
-    joints/<joint>/<field>     Scalars   the 18 joint channels (angle rad, velocity rad/s, current A)
+    joints/<joint>/<field>     Scalars   every joint's angle (rad), velocity (rad/s), current (A)
     force                      Scalars   the force proxy, N
     prediction/probabilities   BarChart  a model's class probabilities over the window ending here
     prediction/confidence      Scalars   the predicted class's probability

@@ -67,7 +67,7 @@ def trial_bytes(dataset: splits.DatasetSpec, images: bool) -> int:
     droop of calibration.SPEED_DROOP_PER_N), plus ~1 s of closing and pauses."""
     seconds = dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0
     steps = seconds * archive.STEP_RATE
-    per_step = 8 + 2 * 8 + archive.N_JOINTS * 3 * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)
+    per_step = 8 + 2 * 8 + archive.N_PROPRIO * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)
     return int(steps * per_step + 2 * 4 * (seconds * archive.AUDIO_RATE + cal.LEAD_IN))
 
 
