@@ -143,11 +143,11 @@ def main(argv):
         watching = watch(trial) if watch is not None else None
         on_step = watching.on_step if watching is not None else None
         if FLAGS.simulate:
-            from acquisition import sim_signals, simulated
+            from acquisition import simulated_devices, simulated_signals
 
-            signals = sim_signals.trial_signals(FLAGS.fabric, FLAGS.day, trial, n_cycles=FLAGS.cycles, condition=FLAGS.condition)
-            with simulated.simulated_rig(signals) as rig:
-                rec = recorder.record_trial(rig, sim_signals.procedure(FLAGS.cycles), fabric_id=FLAGS.fabric, day=FLAGS.day,
+            signals = simulated_signals.trial_signals(FLAGS.fabric, FLAGS.day, trial, n_cycles=FLAGS.cycles, condition=FLAGS.condition)
+            with simulated_devices.simulated_rig(signals) as rig:
+                rec = recorder.record_trial(rig, simulated_signals.procedure(FLAGS.cycles), fabric_id=FLAGS.fabric, day=FLAGS.day,
                                             trial=trial, out_dir=out, condition=FLAGS.condition, on_step=on_step)
         else:
             from acquisition.procedure import ExploratoryProcedure

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from acquisition.rig_bench import bench_import
-from acquisition.sim_signals import bench_acquisition
+from acquisition.simulated_signals import bench_acquisition
 from fabricjax import archive, benchmark, sim, stream, train
 from fabricjax.config import Config
 from fabricjax.features import welch

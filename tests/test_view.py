@@ -12,7 +12,7 @@ import pytest
 from fabricjax import archive, presets, synthetic, view
 from fabricjax.features import welch
 from fabricjax.sim.dataset import scene_for
-from fabricjax.sim.simulate import simulate
+from fabricjax.sim.trial import simulate
 from fabricjax.studies import stream as stream_command
 from fabricjax.train import train_and_evaluate
 from tests.helpers import read_rrd

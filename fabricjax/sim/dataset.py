@@ -19,7 +19,7 @@ from fabricjax import archive, dataset_index, parallel, presets, splits, workspa
 from fabricjax.errors import UserError
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import EFFECTS, Scene
-from fabricjax.sim.simulate import simulate
+from fabricjax.sim.trial import simulate
 
 
 def scene_for(spec: splits.TrialSpec, dataset: splits.DatasetSpec, streams: Iterable[str], seed: int = 0) -> Scene:
