@@ -18,10 +18,10 @@ trial's first step), under these entity paths:
     prediction/probabilities   BarChart  a model's class probabilities over the window ending here
     prediction/confidence      Scalars   the predicted class's probability
     prediction/class           TextLog   the predicted fabric (and whether it is right)
-    prediction/latency_ms      Scalars   the step's host-to-host latency (`stream.Streamer`)
+    prediction/latency_ms      Scalars   the step's host-to-host latency (`live.Streamer`)
 
 <mic> is "internal" (Minsound) or "external" (palm). Prediction entities come from a model
-streaming over the trial (`stream.replay`): the first N - 1 steps only fill its window and log
+streaming over the trial (`live.replay`): the first N - 1 steps only fill its window and log
 just the latency. The same `TrialView` serves a recorded trial (`log_trial`, `experiments.view`),
 the live streaming classifier (`experiments.stream --view`) and the recorder
 (`acquisition.record --view`).
@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from fabricjax import archive, false_colour, stream
+from fabricjax import archive, false_colour, live
 from fabricjax.errors import UserError
 from fabricjax.features import flow, welch
 
@@ -83,7 +83,7 @@ def archive_step(trial: archive.TrialArchive, t: int) -> Step:
     """Step `t` of a recorded trial, as it came in."""
     new = archive.WINDOW if t == 0 else int(trial.window_end[t, 0] - trial.window_end[t - 1, 0])
     return Step(
-        t, float(trial.timestamps[t] - trial.timestamps[0]), stream.step_windows(trial, t, list(range(len(archive.MIC_NAMES)))),
+        t, float(trial.timestamps[t] - trial.timestamps[0]), live.step_windows(trial, t, list(range(len(archive.MIC_NAMES)))),
         min(max(new, 0), archive.WINDOW), trial.joints[t], float(trial.force[t]), None if trial.images is None else trial.images[t],
     )
 
@@ -135,7 +135,7 @@ class TrialView:
                 rec.log(f"joints/{joint}/{field}", rr.Scalars(float(s.joints[j, k])))
         rec.log("force", rr.Scalars(s.force))
 
-    def log_prediction(self, r: stream.StepResult) -> None:
+    def log_prediction(self, r: live.StepResult) -> None:
         rr, rec = self.rr, self.rec
         self._at(r.step, r.time_s)
         rec.log("prediction/latency_ms", rr.Scalars(r.latency_ms))
@@ -145,18 +145,18 @@ class TrialView:
         rec.log("prediction/probabilities", rr.BarChart(np.asarray(r.probs, np.float32)))
         rec.log("prediction/confidence", rr.Scalars(float(r.probs[k])))
         mark = "" if self.label is None else (" (correct)" if k == self.label else " (wrong)")
-        rec.log("prediction/class", rr.TextLog(f"{stream.class_name(k)} p={r.probs[k]:.2f}{mark}"))
+        rec.log("prediction/class", rr.TextLog(f"{live.class_name(k)} p={r.probs[k]:.2f}{mark}"))
 
 
-def log_trial(rec, trial: archive.TrialArchive, streamer: stream.Streamer | None = None) -> dict[str, Any]:
+def log_trial(rec, trial: archive.TrialArchive, streamer: live.Streamer | None = None) -> dict[str, Any]:
     """Log a recorded trial, and `streamer`'s predictions over it (as fast as it runs); returns the
-    streaming summary (`stream.replay`), or {} without a model."""
+    streaming summary (`live.replay`), or {} without a model."""
     view = TrialView(rec, int(trial.meta["label"]))
     for t in range(trial.n_steps):
         view.log_step(archive_step(trial, t))
     if streamer is None:
         return {}
-    return stream.replay(streamer, trial, realtime=False, on_step=view.log_prediction)
+    return live.replay(streamer, trial, realtime=False, on_step=view.log_prediction)
 
 
 def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
@@ -165,9 +165,9 @@ def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
     trial = archive.read_archive(path, images=True)
     streamer = None
     if checkpoint is not None:
-        graphdef, params, config = stream.restore_model(checkpoint)
+        graphdef, params, config = live.restore_model(checkpoint)
         try:
-            streamer = stream.Streamer(graphdef, params, config)
+            streamer = live.Streamer(graphdef, params, config)
         except ValueError as e:
             raise UserError(f"{checkpoint}: {e}") from None
     rec = open_recording(save)

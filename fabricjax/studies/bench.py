@@ -10,7 +10,7 @@ Benchmarks (names for --only):
                  the paper's width 64 / 3 layers): ours for 1 and 5 vmapped seeds (--train_seeds), the PyTorch
                  twin's for 1 seed and 5 seeds one after another, eager and torch.compiled
     inference    one 200-step sequence, p50 / p99: ours (jitted `predict_one`) and the twin's (eager, compiled)
-    streaming    per-step update of `fabricjax.stream` (newest PSDs + model over N=200 steps)
+    streaming    per-step update of `fabricjax.live` (newest PSDs + model over N=200 steps)
                  on a simulated trial replayed as fast as possible
     acquisition  the 50 Hz recording loop against the simulated devices: step times, deadline misses
                  (the acquisition package's benchmark, passed in by the command: `run(acquisition=...)`)
@@ -41,7 +41,7 @@ from typing import Any, Callable, Sequence
 import jax
 from absl import logging
 
-from fabricjax import benchmark, dataset_index, presets, report, sharding, sim, stream, torch_twin, train, workspace
+from fabricjax import benchmark, dataset_index, live as stream, presets, report, sharding, sim, torch_twin, train, workspace
 from fabricjax.config import Config
 from fabricjax.features import bench as feature_bench
 from fabricjax.features import welch

@@ -1,7 +1,7 @@
 """Live classification of one trial as a command (`python -m experiments.stream`): the model
 (a checkpoint, or a quick one-seed model of a preset, trained once and checkpointed), the trial
 (an archive, or the first test-day trial of the model's dataset), the live printout and
-results/stream.json. The streaming itself is `fabricjax.stream`.
+results/stream.json. The streaming itself is `fabricjax.live`.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from fabricjax import archive, catalog, dataset_index, report, sim, splits, stream, workspace
+from fabricjax import archive, catalog, dataset_index, live as stream, report, sim, splits, workspace
 from fabricjax.config import Config
 from fabricjax.studies import loading, runner
 
