@@ -22,10 +22,9 @@ C steps (`closing_steps`, written by the recorder and the simulator; 0 when abse
 C, C + N, ...; the remainder is dropped, as in the paper. Why: the paper describes each trial as
 its 50 rubbing motions "during which measurements from all modalities are continuously
 recorded", and the closing (~0.8 s of a fingertip approaching a still fabric) carries no texture:
-counted from step 0 instead, the first sequence of every trial is mostly closing, and a
-transformer so trained (measured on an earlier default preset) scored ~45 % on those sequences
-against 69 % on rubbing ones. A selected trial with fewer than
-N rubbing steps raises `archive.ArchiveError` naming the file.
+counted from step 0 instead, the first sequence of every trial would be mostly closing, a
+sequence without the cue the classifier is meant to read. A selected trial with fewer than N
+rubbing steps raises `archive.ArchiveError` naming the file.
 
 What the data holds is checked before any of it is read: every selected trial must carry the
 streams the config's modalities need (`archive.Layout.modalities`; else a one-line `UserError`
