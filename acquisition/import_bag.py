@@ -12,7 +12,8 @@ from pathlib import Path
 
 from absl import flags
 
-from acquisition import importing
+from acquisition import mapping_file, ros_bag
+from acquisition.recording import RecordingImportError
 from fabricjax import cli
 from fabricjax import archive
 from fabricjax.errors import UserError
@@ -31,13 +32,13 @@ flags.DEFINE_bool("overwrite", False, "Replace an archive of the same fabric, da
 def main(argv):
     if len(argv) != 2:
         raise UserError("give exactly one bag: python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR")
-    mapping = importing.load_mapping(FLAGS.map)
+    mapping = mapping_file.load_mapping(FLAGS.map)
     overrides = {"fabric_id": FLAGS.fabric, "day": FLAGS.day, "trial": FLAGS.trial, "condition": FLAGS.condition}
-    trial = importing.trial_fields(mapping, overrides, FLAGS.map)
-    result = importing.import_bag(argv[1], mapping, trial, resample=FLAGS.resample)
+    trial = mapping_file.trial_fields(mapping, overrides, FLAGS.map)
+    result = ros_bag.import_bag(argv[1], mapping, trial, resample=FLAGS.resample)
     path = Path(FLAGS.out) / archive.trial_filename(result.meta)
     if path.exists() and not FLAGS.overwrite:  # two bags with the same [trial] table must not silently become one
-        raise importing.RecordingImportError(path, "<file>", "exists (pass --overwrite to replace it)")
+        raise RecordingImportError(path, "<file>", "exists (pass --overwrite to replace it)")
     archive.write_archive(path, result)
     gaps = result.meta["import"]["frame_gaps"]
     print(f"{path}: {result.n_steps} steps" + (f", {len(gaps)} frame gaps (see meta.import.frame_gaps)" if gaps else ""))

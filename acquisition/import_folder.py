@@ -3,7 +3,7 @@
 
 The folder holds `internal.wav` and `external.wav`, `joints.csv` and `camera.avi` (or `camera/*.png`
 with `frames.csv`), laid out as WORKSPACE.md's "Using your own recordings" describes; alignment and
-errors are those of the bag importer (`acquisition.importing`)."""
+errors are those of the bag importer (`acquisition.alignment`)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 
 from absl import flags
 
-from acquisition import importing
+from acquisition import hand_folder, mapping_file
 from fabricjax import cli
 from fabricjax import archive
 from fabricjax.errors import UserError
@@ -29,8 +29,8 @@ def main(argv):
     if len(argv) != 2:
         raise UserError("give exactly one trial folder: python -m acquisition.import_folder TRIAL_DIR --out=DIR")
     overrides = {"fabric_id": FLAGS.fabric, "day": FLAGS.day, "trial": FLAGS.trial, "condition": FLAGS.condition}
-    trial = importing.trial_fields({}, overrides, "command line")
-    result = importing.import_folder(argv[1], trial, resample=FLAGS.resample)
+    trial = mapping_file.trial_fields({}, overrides, "command line")
+    result = hand_folder.import_folder(argv[1], trial, resample=FLAGS.resample)
     path = archive.write_archive(Path(FLAGS.out) / archive.trial_filename(result.meta), result)
     gaps = result.meta["import"]["frame_gaps"]
     print(f"{path}: {result.n_steps} steps" + (f", {len(gaps)} frame gaps (see meta.import.frame_gaps)" if gaps else ""))

@@ -28,7 +28,7 @@ inclusive ranges, the same in every class; every trial's index must be in one) o
 Each row's archive goes to DIR under `archive.trial_filename`. A rerun resumes: an archive already
 imported from the same recording is kept; an existing archive from another recording is an error
 unless --overwrite. Per trial the existing importers do the work (`acquisition.rig.import_rig_folder`,
-`importing.import_folder`, `importing.import_bag`); manifest columns and joint columns that are not
+`hand_folder.import_folder`, `ros_bag.import_bag`); manifest columns and joint columns that are not
 used are reported, never dropped silently.
 """
 
@@ -45,7 +45,7 @@ from typing import Any, Callable
 from absl import flags
 from tqdm import tqdm
 
-from acquisition import importing, rig as rig_mod
+from acquisition import hand_folder, mapping_file, ros_bag, rig as rig_mod
 from fabricjax import archive, cli, parallel
 from fabricjax.errors import UserError
 
@@ -210,8 +210,8 @@ def _import_one(job: Job) -> None:
     if job.kind == "rig":
         result = rig_mod.import_rig_folder(job.row.path, job.rig, job.meta_fields)
     else:
-        result = (importing.import_folder(job.row.path, job.meta_fields) if job.kind == "folder"
-                  else importing.import_bag(job.row.path, job.mapping, job.meta_fields))
+        result = (hand_folder.import_folder(job.row.path, job.meta_fields) if job.kind == "folder"
+                  else ros_bag.import_bag(job.row.path, job.mapping, job.meta_fields))
         if job.split is not None:
             result.meta["split"] = job.split
     archive.write_archive(job.target, result)
@@ -292,7 +292,7 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
         label_map = read_label_map(labels) if labels else {name: k for k, name in enumerate(sorted({r.label for r in rows}))}
     elif labels:
         raise UserError("--labels names classes of a rig's recordings (--rig); the hand's folders and bags are labelled by fabric id")
-    loaded_map = importing.load_mapping(mapping) if mapping is not None else None
+    loaded_map = mapping_file.load_mapping(mapping) if mapping is not None else None
     out = Path(out)
     jobs = plan(rows, out, rig=loaded_rig, mapping=loaded_map, label_map=label_map, splits=splits, manifest=manifest)
     todo = [j for j in jobs if not _resumable(j, overwrite)]

@@ -20,9 +20,9 @@ flags.DEFINE_integer("cycles", 50, "Rubbing cycles of the simulated trial (with 
 def main(argv):
     del argv
     if FLAGS.simulate:
-        from acquisition import sim_signals, simulated
+        from acquisition import simulated_devices, simulated_signals
 
-        periods = simulated.paced_periods(sim_signals.trial_signals(FLAGS.fabric, n_cycles=FLAGS.cycles).audio)
+        periods = simulated_devices.paced_periods(simulated_signals.trial_signals(FLAGS.fabric, n_cycles=FLAGS.cycles).audio)
     else:
         periods = wire.arecord_periods(FLAGS.device)
     print(wire.serve(periods, FLAGS.host, FLAGS.port))

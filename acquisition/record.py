@@ -74,8 +74,8 @@ class Watcher:
 
     BACKLOG = 250  # 5 s of steps
 
-    def __init__(self, view, stream, streamer, save):
-        self.view, self.stream, self.streamer = view, stream, streamer
+    def __init__(self, view, live, streamer, save):
+        self.view, self.live, self.streamer = view, live, streamer
         self.rec = view.open_recording(save)
         self.viewer = view.TrialView(self.rec, FLAGS.fabric)
         self.viewer.warmup(IMAGE_SIZE)
@@ -99,7 +99,7 @@ class Watcher:
             if self.streamer is not None:
                 t0 = time.perf_counter()
                 probs = self.streamer.update(step.windows[self.streamer.mics], step.joints)
-                self.viewer.log_prediction(self.stream.StepResult(step.index, step.time_s, probs, 1e3 * (time.perf_counter() - t0)))
+                self.viewer.log_prediction(self.live.StepResult(step.index, step.time_s, probs, 1e3 * (time.perf_counter() - t0)))
 
     def close(self) -> None:
         """Log the backlog, then flush the recording."""
@@ -115,12 +115,12 @@ def watcher():
         raise UserError("--checkpoint shows a model's predictions in the viewer: add --view or --view_save")
     if not (FLAGS.view or FLAGS.view_save):
         return None
-    from fabricjax import stream, view
+    from fabricjax import live, view
 
     streamer = None
     if FLAGS.checkpoint:
         try:
-            streamer = stream.Streamer(*stream.restore_model(FLAGS.checkpoint))
+            streamer = live.Streamer(*live.restore_model(FLAGS.checkpoint))
         except ValueError as e:
             raise UserError(f"{FLAGS.checkpoint}: {e}") from None
         streamer.warmup()
@@ -130,7 +130,7 @@ def watcher():
         if FLAGS.view_save:
             save = Path(FLAGS.view_save)
             save = save if FLAGS.trials == 1 else save.with_name(f"{save.stem}_trial{trial}{save.suffix}")
-        return Watcher(view, stream, streamer, save)
+        return Watcher(view, live, streamer, save)
 
     return for_trial
 
@@ -143,11 +143,11 @@ def main(argv):
         watching = watch(trial) if watch is not None else None
         on_step = watching.on_step if watching is not None else None
         if FLAGS.simulate:
-            from acquisition import sim_signals, simulated
+            from acquisition import simulated_devices, simulated_signals
 
-            signals = sim_signals.trial_signals(FLAGS.fabric, FLAGS.day, trial, n_cycles=FLAGS.cycles, condition=FLAGS.condition)
-            with simulated.simulated_rig(signals) as rig:
-                rec = recorder.record_trial(rig, sim_signals.procedure(FLAGS.cycles), fabric_id=FLAGS.fabric, day=FLAGS.day,
+            signals = simulated_signals.trial_signals(FLAGS.fabric, FLAGS.day, trial, n_cycles=FLAGS.cycles, condition=FLAGS.condition)
+            with simulated_devices.simulated_rig(signals) as rig:
+                rec = recorder.record_trial(rig, simulated_signals.procedure(FLAGS.cycles), fabric_id=FLAGS.fabric, day=FLAGS.day,
                                             trial=trial, out_dir=out, condition=FLAGS.condition, on_step=on_step)
         else:
             from acquisition.procedure import ExploratoryProcedure

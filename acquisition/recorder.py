@@ -93,7 +93,7 @@ def record_trial(
     its time shows as lateness of the next step, not as step time."""
     cap = procedure.max_steps(period)
     images = np.empty((cap, *camera_mod.IMAGE_SIZE, 3), np.uint8)
-    joints = np.empty((cap, archive.N_JOINTS, 3), np.float32)
+    joints = np.empty((cap, archive.N_JOINTS, archive.N_JOINT_FIELDS), np.float32)
     force = np.empty(cap, np.float32)
     stamps = np.empty(cap, np.float64)
     ends = np.empty(cap, np.int64)

@@ -18,7 +18,7 @@ A rig file (TOML) says what one trial folder holds (WORKSPACE.md, "Recordings fr
     [camera]                       # optional: camera.<video> or camera/ + frames.csv, as the
                                    # hand's folders; its frames are then the step clock
 
-Alignment is the recorder's rule (`acquisition.importing`): at each step, each microphone's
+Alignment is the recorder's rule (`acquisition.alignment`): at each step, each microphone's
 window ends after the last sample at or before it, the joints are the latest reading at or before
 it; steps before every microphone holds a full 2048-sample window at its own rate, before the
 first joint reading, or after any stream's end are dropped and counted in meta.import. Nothing is
@@ -36,8 +36,9 @@ from typing import Any
 
 import numpy as np
 
-from acquisition import importing
-from acquisition.importing import RecordingImportError, Stream
+from acquisition.mapping_file import read_toml
+from acquisition.readers import read_camera, read_wav
+from acquisition.recording import RecordingImportError, Stream
 from fabricjax import archive
 
 
@@ -64,7 +65,7 @@ class Rig:
 def load_rig(path: str | Path) -> Rig:
     """The rig file, checked: a mistake is a one-line error naming the file and the key."""
     path = Path(path)
-    doc = importing.read_toml(path, "rig")
+    doc = read_toml(path, "rig")
     known = {"steps", "mics", "joints", "camera"}
     if set(doc) - known:
         raise RecordingImportError(path, ", ".join(sorted(set(doc) - known)), f"unknown table (known: {', '.join(sorted(known))})")
@@ -211,7 +212,7 @@ def import_rig_folder(folder: str | Path, rig: Rig, meta_fields: dict[str, Any])
     for m in rig.mics:
         if not (folder / m.file).is_file():
             raise RecordingImportError(folder / m.file, "<file>", f"no such file (microphone {m.name!r} of the rig file)")
-    mics = [importing._read_wav(folder / m.file, 0.0) for m in rig.mics]  # the hand folders' WAV reader
+    mics = [read_wav(folder / m.file, 0.0) for m in rig.mics]  # the hand folders' WAV reader
     joint_times = joints = None
     ignored: list[str] = []
     if rig.joints_file:
@@ -220,6 +221,6 @@ def import_rig_folder(folder: str | Path, rig: Rig, meta_fields: dict[str, Any])
         joint_times, joints = joint_times[order], joints[order]
     frame_times = images = None
     if rig.camera:
-        frame_times, images = importing._read_camera(folder)  # the hand folders' camera reader
+        frame_times, images = read_camera(folder)  # the hand folders' camera reader
     return align_rig(rig, mics=mics, joint_times=joint_times, joints=joints, frame_times=frame_times, images=images,
                      meta_fields=meta_fields, source={"kind": "rig_folder", "path": str(folder)}, ignored_columns=ignored)

@@ -1,4 +1,5 @@
-"""A ROS 2 bag (sqlite3 or MCAP) read into timestamped streams for `importing.align`.
+"""A ROS 2 bag (sqlite3 or MCAP) read into timestamped streams (`read_bag`) and imported as a trial
+archive (`import_bag`, aligned by `acquisition.alignment.align`).
 
 Every problem the bag has (a missing topic, a topic of the wrong type, fewer messages than its
 metadata counts, a message that cannot be decoded, clocks that disagree) is collected and reported
@@ -29,6 +30,9 @@ from typing import Any
 import numpy as np
 
 from acquisition import ros_messages as rm
+from acquisition.alignment import align
+from acquisition.camera import ForceProxy
+from acquisition.recording import Stream, to_words
 from fabricjax import archive
 from fabricjax.errors import UserError
 
@@ -255,7 +259,7 @@ def _joints(msgs, table, tolerance, problems, clocks) -> tuple[np.ndarray, np.nd
     names = list(table.get("names", archive.JOINT_NAMES))
     rows = _decode_each(msgs, lambda m: rm.joint_row(m, names), topic, problems)
     if not rows:
-        return np.zeros(0), np.zeros((0, archive.N_JOINTS, 3)), []
+        return np.zeros(0), np.zeros((0, archive.N_JOINTS, archive.N_JOINT_FIELDS)), []
     joints = np.stack(rows)
     absent = []
     for f, (field, ros_field) in enumerate(zip(archive.JOINT_FIELDS, ("position", "velocity", "effort"))):
@@ -332,3 +336,32 @@ def _mic(name, table, decoded, tolerance, problems, clocks) -> Chunks:
         problems.append(f"mics.{name}.rate: missing, and no AudioInfo in the bag gives it (set rate, or info_topic)")
         return Chunks(topic, 0, [], [])
     return Chunks(topic, fmt.rate, list(times), chunks)
+
+
+def import_bag(
+    bag: str | Path,
+    mapping: dict[str, Any],
+    trial: dict[str, Any],
+    *,
+    resample: bool = False,
+) -> archive.TrialArchive:
+    """Read a ROS 2 bag (sqlite3 or MCAP folder, or one storage file) with `rosbags`, each stream
+    placed on the bag's receive clock by the mapping's clock policy (module docstring), and
+    align it (`acquisition.alignment`)."""
+    rec = read_bag(bag, mapping)
+    mics = [Stream.from_chunks(c.topic, c.rate, c.times, [to_words(x, c.topic, "data") for x in c.chunks]) for c in rec.mics]
+    return align(
+        frame_times=rec.frame_times,
+        images=rec.images,
+        mics=mics,
+        joint_times=rec.joint_times,
+        joints=rec.joints,
+        trial=trial,
+        source=rec.source,
+        resample=resample,
+        force_gain=float(mapping.get("force", {}).get("gain", ForceProxy.gain)),
+        force_deadband=float(mapping.get("force", {}).get("deadband", ForceProxy.deadband)),
+        step_rate=rec.step_rate,
+        joint_fields_absent=rec.joint_fields_absent,
+        clocks=rec.clocks,
+    )

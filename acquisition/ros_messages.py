@@ -165,7 +165,7 @@ def joint_row(msg, names: list[str]) -> np.ndarray:
     missing = [n for n in names if n not in index]
     if missing:
         raise DecodeError("name", f"joints {missing} not in the message (it has {list(msg.name)})")
-    row = np.full((archive.N_JOINTS, len(archive.JOINT_FIELDS)), np.nan)
+    row = np.full((archive.N_JOINTS, archive.N_JOINT_FIELDS), np.nan)
     for f, (field, values) in enumerate(zip(("position", "velocity", "effort"), (msg.position, msg.velocity, msg.effort))):
         if len(values) == 0:
             continue

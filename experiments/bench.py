@@ -18,7 +18,7 @@ import dataclasses
 from absl import app, flags as absl_flags
 
 from acquisition.rig_bench import bench_import
-from acquisition.sim_signals import bench_acquisition
+from acquisition.simulated_signals import bench_acquisition
 from experiments import flags
 from fabricjax.studies import bench
 

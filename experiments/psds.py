@@ -14,9 +14,7 @@ import numpy as np
 import scipy.signal
 from absl import flags
 
-from fabricjax import cli
-
-from fabricjax import archive, catalog, plots, presets, workspace
+from fabricjax import archive, catalog, cli, plots, presets, workspace
 from fabricjax.features import welch
 from fabricjax.sim import Scene, scene_for, simulate
 
@@ -27,7 +25,7 @@ flags.DEFINE_string("results", None, "folder for psds.png (default: <workspace>/
 
 def mean_psd(audio_row: np.ndarray, window_end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Frequencies (Hz) and the mean Welch PSD (full scale^2 / Hz) over the steps' windows."""
-    x = (audio_row >> archive.SAMPLE_SHIFT).astype(np.float64) / archive.FULL_SCALE
+    x = np.asarray(welch.to_full_scale(audio_row), np.float64)  # exact: 18-bit samples / 2**17
     windows = np.stack([x[e - archive.WINDOW : e] for e in window_end])
     f, p = scipy.signal.welch(windows, axis=-1, **welch.SCIPY_KWARGS)
     return f, p.mean(axis=0)

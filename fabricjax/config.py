@@ -19,8 +19,9 @@ from fabricjax import archive, catalog, presets
 from fabricjax.errors import UserError
 
 # Input streams by name. "internal"/"external" are the Minsound / palm microphone PSDs (one shared
-# encoder), "proprio" the 18 joint values, "flow" the patch-pooled optical flow, "image" Minsight
-# frames (downsampled to `image_size` or at the archive's resolution, see `image_resolution`).
+# encoder), "proprio" the joint values (`archive.N_PROPRIO`), "flow" the patch-pooled optical
+# flow, "image" Minsight frames (downsampled to `image_size` or at the archive's resolution, see
+# `image_resolution`).
 MODALITIES = ("image", "flow", "internal", "external", "proprio")
 AUDIO_MODALITIES = archive.MIC_NAMES  # a microphone's PSD is the modality of the same name
 # How tables and figures name each modality (the sensors of the paper).

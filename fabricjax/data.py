@@ -22,10 +22,9 @@ C steps (`closing_steps`, written by the recorder and the simulator; 0 when abse
 C, C + N, ...; the remainder is dropped, as in the paper. Why: the paper describes each trial as
 its 50 rubbing motions "during which measurements from all modalities are continuously
 recorded", and the closing (~0.8 s of a fingertip approaching a still fabric) carries no texture:
-counted from step 0 instead, the first sequence of every trial is mostly closing, and a
-transformer so trained (measured on an earlier default preset) scored ~45 % on those sequences
-against 69 % on rubbing ones. A selected trial with fewer than
-N rubbing steps raises `archive.ArchiveError` naming the file.
+counted from step 0 instead, the first sequence of every trial would be mostly closing, a
+sequence without the cue the classifier is meant to read. A selected trial with fewer than N
+rubbing steps raises `archive.ArchiveError` naming the file.
 
 What the data holds is checked before any of it is read: every selected trial must carry the
 streams the config's modalities need (`archive.Layout.modalities`; else a one-line `UserError`
@@ -45,7 +44,7 @@ and holdout) are counted in an info line: never silent.
                                                        bandwidth_khz, its rate): 320 at 15 kHz and
                                                        48 kHz, all 512 at or above its Nyquist
       "proprio"               float32 (S, N, J * F)    joints x fields: the hand's 6 x (angle,
-                                                       velocity, current) = 18
+                                                       velocity, current), archive.N_PROPRIO
       "flow"                  float16 (S, N, 2, h, w)  sparse flow, 3x3 patch means (flow.py);
                                                        102x137 for 308x410 frames
       "image"                 uint8   (S, N, H, W, 3)  config.image_size ("down", the paper's 60x80)
@@ -72,7 +71,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, catalog, presets, splits, workspace
+from fabricjax import archive, catalog, dataset_index, presets, splits, workspace
 from fabricjax.config import MODALITY_NAMES, Config
 from fabricjax.errors import UserError
 from fabricjax.features import cache, welch
@@ -108,7 +107,7 @@ def split_of(meta: dict, role: str | None, exclude: tuple[int, ...], n_classes: 
     return role
 
 
-def classes_of(index: archive.DatasetIndex) -> tuple[str, ...]:
+def classes_of(index: dataset_index.DatasetIndex) -> tuple[str, ...]:
     """The dataset's class names by class: its label map's (every archive must carry the same one;
     names sharing a class are joined by " / "), or the catalog's 21 for archives without one."""
     maps = {json_key(e.meta.get("label_map")): e for e in index.entries}
@@ -125,11 +124,11 @@ def json_key(x) -> str:
     return repr(sorted(x.items())) if isinstance(x, dict) else repr(x)
 
 
-def check_streams(index: archive.DatasetIndex, entries: Sequence[archive.IndexEntry], modalities: Sequence[str]) -> dict[str, int]:
+def check_streams(index: dataset_index.DatasetIndex, entries: Sequence[dataset_index.IndexEntry], modalities: Sequence[str]) -> dict[str, int]:
     """Before any data is read: every trial carries the streams `modalities` need (else a one-line
     error listing what the data has), and each microphone used has one rate in all trials.
     Returns {audio modality: rate}."""
-    rates: dict[str, tuple[int, archive.IndexEntry]] = {}
+    rates: dict[str, tuple[int, dataset_index.IndexEntry]] = {}
     for e in entries:
         lay = archive.layout(e.meta)
         lacking = [m for m in modalities if m not in lay.modalities()]
@@ -151,7 +150,7 @@ def check_streams(index: archive.DatasetIndex, entries: Sequence[archive.IndexEn
     return {m: r for m, (r, _) in rates.items()}
 
 
-def _report_unused(entries: Sequence[archive.IndexEntry], roles, chosen_split, n_classes: int, wanted: Sequence[str]) -> None:
+def _report_unused(entries: Sequence[dataset_index.IndexEntry], roles, chosen_split, n_classes: int, wanted: Sequence[str]) -> None:
     """Say which trials no split uses, and why (a day no split names, a label outside the classes),
     and how many of the splits the caller does not read there are (a study reading train, val and
     test skips cafe and holdout trials, which would otherwise vanish from a --data_dir run unsaid)."""
@@ -177,11 +176,11 @@ def first_step(meta: dict) -> int:
     return int(meta.get("closing_steps", 0))
 
 
-def n_sequences(entry: archive.IndexEntry, n: int) -> int:
+def n_sequences(entry: dataset_index.IndexEntry, n: int) -> int:
     return max(entry.n_steps - first_step(entry.meta), 0) // n
 
 
-def _describe(entries: list[archive.IndexEntry], n: int) -> tuple[dict, dict]:
+def _describe(entries: list[dataset_index.IndexEntry], n: int) -> tuple[dict, dict]:
     """Labels and info of every sequence the entries give, in order."""
     rows = [(e.meta, e.file, first_step(e.meta) + k * n) for e in entries for k in range(n_sequences(e, n))]
 
@@ -249,7 +248,7 @@ def load_sequences(
     if unknown:
         raise ValueError(f"unknown splits {unknown}; choose from {SPLITS}")
     wanted = tuple(s for s in SPLITS if s in split_names)
-    index = archive.load_index(data_dir, workdir)
+    index = dataset_index.load_index(data_dir, workdir)
     classes = classes_of(index)
     n_classes = len(classes)
     roles = splits.assign_roles([e.meta for e in index.entries], presets.get(config.preset).dataset.splits)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fabricjax import archive, workspace
+from fabricjax import archive, dataset_index, workspace
 
 GAP_FACTOR = 1.5  # capture jitter stays well below half a period; a lost frame makes 2 periods
 
@@ -62,7 +62,7 @@ def verify(folder: os.PathLike | str, workdir: os.PathLike | str | None = None) 
             size = p.stat().st_size
             if size != entry.get("size"):
                 problems.append(Problem(str(p), "<file>", f"{size} bytes, the index recorded {entry.get('size')} (truncated or rewritten)"))
-            elif archive.sha256_file(p) != entry["sha256"]:
+            elif dataset_index.sha256_file(p) != entry["sha256"]:
                 problems.append(Problem(str(p), "<file>", f"sha256 differs from the one {ipath} recorded (bytes changed since indexing)"))
         try:
             trial = archive.read_archive(p)

@@ -10,7 +10,7 @@ by one per property when property heads are on.
 
 Inputs are a dict keyed by modality, every array with leading (batch, steps):
     internal / external  float (B, N, F)      log-PSD bins (same F: the encoder is shared)
-    proprio              float (B, N, 18)
+    proprio              float (B, N, archive.N_PROPRIO): 6 joints x angle, velocity, current
     image                uint8 (B, N, H, W, 3)
     flow                 float (B, N, 2, h, w)
 The CNNs end in a global mean pool, so any image/flow resolution works with the same weights.

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fabricjax import catalog
+from fabricjax import archive, catalog
 from fabricjax.config import Config
 
 
@@ -29,7 +29,7 @@ def data_set(
     shapes = {
         "internal": (psd_bins,),
         "external": (psd_bins,),
-        "proprio": (18,),
+        "proprio": (archive.N_PROPRIO,),
         "flow": (2, *flow_hw),
         "image": (*image_hw, 3),
     }
@@ -121,7 +121,7 @@ def planted_cue(
             x[:, :, 0, h // 3 : 2 * h // 3, w // 3 : 2 * w // 3] += on[:, :, None, None]
             inputs[m] = x
         elif m == "proprio":
-            x = rng.normal(0, 1, (n, steps, 18)).astype(np.float32)
+            x = rng.normal(0, 1, (n, steps, archive.N_PROPRIO)).astype(np.float32)
             x += on[:, :, None]
             inputs[m] = x
         else:

@@ -30,7 +30,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from fabricjax import catalog, stats
+from fabricjax import archive, catalog, stats
 from fabricjax.config import MODALITIES, Config
 
 LN_EPS = 1e-6  # flax.nnx.LayerNorm's default epsilon
@@ -90,10 +90,10 @@ def _modules() -> SimpleNamespace:
             self.modalities = tuple(m for m in MODALITIES if m in config.modalities)
             audio = [m for m in self.modalities if m != "proprio"]
             self.audio = MLP((n_bins, *config.audio_hidden), input_norm=True) if audio else None
-            self.proprio = MLP((18, *config.proprio_hidden)) if "proprio" in self.modalities else None
+            self.proprio = MLP((archive.N_PROPRIO, *config.proprio_hidden)) if "proprio" in self.modalities else None
             if self.proprio is not None:  # the model's fixed joint standardisation (see FabricNet)
-                self.register_buffer("proprio_shift", torch.zeros(18))
-                self.register_buffer("proprio_scale", torch.ones(18))
+                self.register_buffer("proprio_shift", torch.zeros(archive.N_PROPRIO))
+                self.register_buffer("proprio_scale", torch.ones(archive.N_PROPRIO))
             dims = sum(config.proprio_hidden[-1] if m == "proprio" else config.audio_hidden[-1] for m in self.modalities)
             self.embed = nn.Linear(dims, config.width)
             self.position = nn.Parameter(torch.randn(config.seq_len, config.width) * 0.02)
@@ -137,7 +137,7 @@ def _modules() -> SimpleNamespace:
 
 
 def build(config: Config, n_bins: int):
-    """The twin of `FabricNet(config, {modality: (n_bins,) or (18,)})`: a `torch.nn.Module` in
+    """The twin of `FabricNet(config, {modality: (n_bins,) or (archive.N_PROPRIO,)})`: a `torch.nn.Module` in
     training mode, initialised like ours (needs torch)."""
     return _modules().TorchFabricNet(config, n_bins)
 
@@ -237,7 +237,7 @@ def _batch(config: Config, batch: int, n_bins: int, seed: int = 0):
 
     g = torch.Generator().manual_seed(seed)
     n = config.seq_len
-    inputs = {m: torch.randn(batch, n, 18 if m == "proprio" else n_bins, generator=g) for m in config.modalities}
+    inputs = {m: torch.randn(batch, n, archive.N_PROPRIO if m == "proprio" else n_bins, generator=g) for m in config.modalities}
     return inputs, torch.randint(0, catalog.N_CLASSES, (batch,), generator=g)
 
 

@@ -13,15 +13,15 @@ trial's first step), under these entity paths:
                                          at the right: a scrolling spectrogram, colour range = its own
     audio/<mic>/wave           Scalars   the raw waveform in full-scale units, one point per sample
                                          (timeline "time" only: the samples new at each step)
-    joints/<joint>/<field>     Scalars   the 18 joint channels (angle rad, velocity rad/s, current A)
+    joints/<joint>/<field>     Scalars   every joint's angle (rad), velocity (rad/s), current (A)
     force                      Scalars   the force proxy, N
     prediction/probabilities   BarChart  a model's class probabilities over the window ending here
     prediction/confidence      Scalars   the predicted class's probability
     prediction/class           TextLog   the predicted fabric (and whether it is right)
-    prediction/latency_ms      Scalars   the step's host-to-host latency (`stream.Streamer`)
+    prediction/latency_ms      Scalars   the step's host-to-host latency (`live.Streamer`)
 
 <mic> is "internal" (Minsound) or "external" (palm). Prediction entities come from a model
-streaming over the trial (`stream.replay`): the first N - 1 steps only fill its window and log
+streaming over the trial (`live.replay`): the first N - 1 steps only fill its window and log
 just the latency. The same `TrialView` serves a recorded trial (`log_trial`, `experiments.view`),
 the live streaming classifier (`experiments.stream --view`) and the recorder
 (`acquisition.record --view`).
@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from fabricjax import archive, stream
+from fabricjax import archive, false_colour, live
 from fabricjax.errors import UserError
 from fabricjax.features import flow, welch
 
@@ -83,33 +83,9 @@ def archive_step(trial: archive.TrialArchive, t: int) -> Step:
     """Step `t` of a recorded trial, as it came in."""
     new = archive.WINDOW if t == 0 else int(trial.window_end[t, 0] - trial.window_end[t - 1, 0])
     return Step(
-        t, float(trial.timestamps[t] - trial.timestamps[0]), stream.step_windows(trial, t, list(range(len(archive.MIC_NAMES)))),
+        t, float(trial.timestamps[t] - trial.timestamps[0]), live.step_windows(trial, t, list(range(len(archive.MIC_NAMES)))),
         min(max(new, 0), archive.WINDOW), trial.joints[t], float(trial.force[t]), None if trial.images is None else trial.images[t],
     )
-
-
-def _flow_image(pooled: np.ndarray) -> np.ndarray:
-    """(2, h, w) flow -> (h, w, 3) uint8 RGB: hue = direction, brightness = magnitude / the largest."""
-    import cv2
-
-    mag, ang = cv2.cartToPolar(pooled[0].astype(np.float32), pooled[1].astype(np.float32))
-    hsv = np.zeros((*mag.shape, 3), np.uint8)
-    hsv[..., 0] = (ang * 90 / np.pi).astype(np.uint8)
-    hsv[..., 1] = 255
-    hsv[..., 2] = np.clip(255 * mag / max(float(mag.max()), 1e-12), 0, 255).astype(np.uint8)
-    return cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
-
-
-def _colormap(values: np.ndarray) -> np.ndarray:
-    """(F, K) values, NaN where empty -> (F, K, 3) uint8 'magma' over their own range, empty black."""
-    from matplotlib import colormaps
-
-    known = np.isfinite(values)
-    lo, hi = (float(values[known].min()), float(values[known].max())) if known.any() else (0.0, 1.0)
-    scaled = np.where(known, (values - lo) / max(hi - lo, 1e-12), 0.0)
-    rgb = (255 * colormaps["magma"](scaled)[..., :3]).astype(np.uint8)
-    rgb[~known] = 0
-    return rgb
 
 
 class TrialView:
@@ -140,14 +116,14 @@ class TrialView:
         if s.frame is not None:
             rec.log("minsight/frame", rr.Image(s.frame))
             dense = flow.farneback(s.frame[None], self.previous_frame)
-            rec.log("minsight/flow", rr.Image(_flow_image(np.asarray(flow.sparsify_and_pool(dense))[0])))
+            rec.log("minsight/flow", rr.Image(false_colour.flow_rgb(np.asarray(flow.sparsify_and_pool(dense))[0])))
             self.previous_frame = s.frame
         psd = np.asarray(self.psd(s.windows))
         self.spectrogram = np.roll(self.spectrogram, -1, axis=2)
         self.spectrogram[:, :, -1] = psd
         sample_times = s.time_s - np.arange(s.new_samples)[::-1] / archive.AUDIO_RATE
         for i, mic in enumerate(archive.MIC_NAMES):
-            rec.log(f"audio/{mic}/spectrogram", rr.Image(_colormap(self.spectrogram[i, ::-1])))
+            rec.log(f"audio/{mic}/spectrogram", rr.Image(false_colour.magma_rgb(self.spectrogram[i, ::-1])))
             wave = np.asarray(welch.to_full_scale(s.windows[i, archive.WINDOW - s.new_samples :]), np.float64)
             rec.send_columns(
                 f"audio/{mic}/wave",
@@ -159,7 +135,7 @@ class TrialView:
                 rec.log(f"joints/{joint}/{field}", rr.Scalars(float(s.joints[j, k])))
         rec.log("force", rr.Scalars(s.force))
 
-    def log_prediction(self, r: stream.StepResult) -> None:
+    def log_prediction(self, r: live.StepResult) -> None:
         rr, rec = self.rr, self.rec
         self._at(r.step, r.time_s)
         rec.log("prediction/latency_ms", rr.Scalars(r.latency_ms))
@@ -169,18 +145,18 @@ class TrialView:
         rec.log("prediction/probabilities", rr.BarChart(np.asarray(r.probs, np.float32)))
         rec.log("prediction/confidence", rr.Scalars(float(r.probs[k])))
         mark = "" if self.label is None else (" (correct)" if k == self.label else " (wrong)")
-        rec.log("prediction/class", rr.TextLog(f"{stream.class_name(k)} p={r.probs[k]:.2f}{mark}"))
+        rec.log("prediction/class", rr.TextLog(f"{live.class_name(k)} p={r.probs[k]:.2f}{mark}"))
 
 
-def log_trial(rec, trial: archive.TrialArchive, streamer: stream.Streamer | None = None) -> dict[str, Any]:
+def log_trial(rec, trial: archive.TrialArchive, streamer: live.Streamer | None = None) -> dict[str, Any]:
     """Log a recorded trial, and `streamer`'s predictions over it (as fast as it runs); returns the
-    streaming summary (`stream.replay`), or {} without a model."""
+    streaming summary (`live.replay`), or {} without a model."""
     view = TrialView(rec, int(trial.meta["label"]))
     for t in range(trial.n_steps):
         view.log_step(archive_step(trial, t))
     if streamer is None:
         return {}
-    return stream.replay(streamer, trial, realtime=False, on_step=view.log_prediction)
+    return live.replay(streamer, trial, realtime=False, on_step=view.log_prediction)
 
 
 def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
@@ -189,29 +165,12 @@ def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
     trial = archive.read_archive(path, images=True)
     streamer = None
     if checkpoint is not None:
-        graphdef, params, config = stream.restore_model(checkpoint)
+        graphdef, params, config = live.restore_model(checkpoint)
         try:
-            streamer = stream.Streamer(graphdef, params, config)
+            streamer = live.Streamer(graphdef, params, config)
         except ValueError as e:
             raise UserError(f"{checkpoint}: {e}") from None
     rec = open_recording(save)
     summary = log_trial(rec, trial, streamer)
     rec.flush()
     return {"archive": str(path), "steps": trial.n_steps, "frames": trial.images is not None, "rrd": None if save is None else str(save), **summary}
-
-
-def read_rrd(path) -> dict[str, dict[str, Any]]:
-    """{entity path: {"rows": rows logged, "steps": sorted distinct "step" values}} of a .rrd file
-    (static data left out; the waveforms are on "time" only, so their "steps" are [])."""
-    from rerun.chunk import RrdReader
-
-    out: dict[str, dict[str, Any]] = {}
-    for chunk in RrdReader(str(path)).stream():
-        if chunk.is_static:
-            continue
-        batch = chunk.to_record_batch()
-        entry = out.setdefault(chunk.entity_path, {"rows": 0, "steps": set()})
-        entry["rows"] += chunk.num_rows
-        if "step" in batch.schema.names:
-            entry["steps"].update(batch.column("step").to_pylist())
-    return {k: {**v, "steps": sorted(v["steps"])} for k, v in out.items()}

@@ -1,6 +1,7 @@
 """Small builders shared by tests (not fixtures: plain functions tests call explicitly)."""
 
 import json
+from typing import Any
 
 import numpy as np
 
@@ -51,3 +52,20 @@ def npz_fields(base, **changes):
         else:
             fields[k] = v
     return fields
+
+
+def read_rrd(path) -> dict[str, dict[str, Any]]:
+    """{entity path: {"rows": rows logged, "steps": sorted distinct "step" values}} of a .rrd file
+    (static data left out; the waveforms are on "time" only, so their "steps" are [])."""
+    from rerun.chunk import RrdReader
+
+    out: dict[str, dict[str, Any]] = {}
+    for chunk in RrdReader(str(path)).stream():
+        if chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        entry = out.setdefault(chunk.entity_path, {"rows": 0, "steps": set()})
+        entry["rows"] += chunk.num_rows
+        if "step" in batch.schema.names:
+            entry["steps"].update(batch.column("step").to_pylist())
+    return {k: {**v, "steps": sorted(v["steps"])} for k, v in out.items()}

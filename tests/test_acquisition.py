@@ -12,13 +12,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from acquisition import mics, recorder, servos, sim_signals, simulated, wire
+from acquisition import mics, recorder, servos, simulated_devices, simulated_signals, wire
 from fabricjax import archive
 
 
 @pytest.fixture(scope="module")
 def signals():
-    return sim_signals.trial_signals(12, day=1, trial=0, n_cycles=2)
+    return simulated_signals.trial_signals(12, day=1, trial=0, n_cycles=2)
 
 
 def test_wire_rate_is_the_archive_rate():
@@ -33,7 +33,7 @@ def test_sign_magnitude_round_trip():
 
 
 def test_sdk_round_trip_over_pty(signals):
-    sim = simulated.SimServoBus(signals.joints).start()
+    sim = simulated_devices.SimServoBus(signals.joints).start()
     bus = servos.ServoBus(sim.path)
     try:
         assert bus.ping_all() == {i: servos.STS3215_MODEL for i in servos.DEFAULT_IDS}
@@ -56,7 +56,7 @@ def test_sdk_round_trip_over_pty(signals):
 
 
 def test_silent_servo_is_a_clear_error(signals):
-    sim = simulated.SimServoBus(signals.joints, faults=simulated.Faults(silent_servo=(5, 1))).start()
+    sim = simulated_devices.SimServoBus(signals.joints, faults=simulated_devices.Faults(silent_servo=(5, 1))).start()
     bus = servos.ServoBus(sim.path, retries=1)
     try:
         bus.read_state()
@@ -68,7 +68,7 @@ def test_silent_servo_is_a_clear_error(signals):
 
 
 def test_corrupt_checksums_are_retried_then_reported(signals):
-    sim = simulated.SimServoBus(signals.joints, faults=simulated.Faults(corrupt_servo=(3, 2, 3))).start()
+    sim = simulated_devices.SimServoBus(signals.joints, faults=simulated_devices.Faults(corrupt_servo=(3, 2, 3))).start()
     bus = servos.ServoBus(sim.path, retries=2)
     try:
         for _ in range(8):  # every third sync read is garbled: each one is retried successfully
@@ -77,7 +77,7 @@ def test_corrupt_checksums_are_retried_then_reported(signals):
     finally:
         bus.close()
         sim.stop()
-    sim = simulated.SimServoBus(signals.joints, faults=simulated.Faults(corrupt_servo=(3, 1, 1))).start()
+    sim = simulated_devices.SimServoBus(signals.joints, faults=simulated_devices.Faults(corrupt_servo=(3, 1, 1))).start()
     bus = servos.ServoBus(sim.path, retries=2)
     try:
         with pytest.raises(servos.ServoError, match=r"servo 3 \(thumb_tip\).*Incorrect status packet.*3 tries"):
@@ -127,14 +127,14 @@ def _record(signals, faults, tmp_path, cycles=2):
     # clock is wall time, the simulated frames advance per read, so the force crosses 0.1 N later
     # than 4 s). Otherwise a spurious ServoError or ProcedureError ends a trial whose test is
     # about another device's fault.
-    procedure = dataclasses.replace(sim_signals.procedure(cycles), max_close_s=30.0)
-    with simulated.simulated_rig(signals, faults, servo_retries=5) as rig:
+    procedure = dataclasses.replace(simulated_signals.procedure(cycles), max_close_s=30.0)
+    with simulated_devices.simulated_rig(signals, faults, servo_retries=5) as rig:
         rec = recorder.record_trial(rig, procedure, fabric_id=12, day=1, trial=0, out_dir=tmp_path)
     return rec, archive.read_archive(rec.path), rig.source["device_stats"]
 
 
 def test_simulated_trial_through_sdk_opencv_and_tcp(signals, tmp_path):
-    rec, arch, stats = _record(signals, simulated.Faults(tcp_chunks=True, seed=3), tmp_path)
+    rec, arch, stats = _record(signals, simulated_devices.Faults(tcp_chunks=True, seed=3), tmp_path)
     meta = arch.meta
     assert rec.failure is None and meta["complete"] is True
     assert 0 < meta["closing_steps"] < arch.n_steps
@@ -155,9 +155,9 @@ def test_simulated_trial_through_sdk_opencv_and_tcp(signals, tmp_path):
 @pytest.mark.parametrize(
     "faults, failure",
     [
-        (simulated.Faults(drop_connection_after=70), "MicError: Pi sender .* closed the connection"),
-        (simulated.Faults(camera_stops_after=20), "CameraError: camera .* no frame after"),
-        (simulated.Faults(silent_servo=(2, 20)), r"ServoError: servo 2 \(thumb_mid\)"),
+        (simulated_devices.Faults(drop_connection_after=70), "MicError: Pi sender .* closed the connection"),
+        (simulated_devices.Faults(camera_stops_after=20), "CameraError: camera .* no frame after"),
+        (simulated_devices.Faults(silent_servo=(2, 20)), r"ServoError: servo 2 \(thumb_mid\)"),
     ],
 )
 def test_device_failure_keeps_an_incomplete_archive(signals, tmp_path, faults, failure):
@@ -170,7 +170,7 @@ def test_device_failure_keeps_an_incomplete_archive(signals, tmp_path, faults, f
 
 
 def test_recoverable_faults_are_counted(signals, tmp_path):
-    _, arch, _ = _record(signals, simulated.Faults(repeat_frames_every=10, drop_periods_every=25, corrupt_servo=(4, 5, 20)), tmp_path)
+    _, arch, _ = _record(signals, simulated_devices.Faults(repeat_frames_every=10, drop_periods_every=25, corrupt_servo=(4, 5, 20)), tmp_path)
     meta = arch.meta
     assert meta["complete"] is True, meta.get("failure")
     assert meta["camera_dropped_frames"] > 0
@@ -179,7 +179,7 @@ def test_recoverable_faults_are_counted(signals, tmp_path):
 
 
 def test_ctrl_c_keeps_an_incomplete_archive(signals, tmp_path):
-    with simulated.simulated_rig(signals) as rig:
+    with simulated_devices.simulated_rig(signals) as rig:
         # A real SIGINT, sent at the 10th frame (a wall-clock timer raced the 1-s procedure under load).
         read, calls = rig.camera.read, []
 
@@ -194,7 +194,7 @@ def test_ctrl_c_keeps_an_incomplete_archive(signals, tmp_path):
         previous = signal.signal(signal.SIGINT, signal.default_int_handler)
         try:
             with pytest.raises(KeyboardInterrupt, match="complete=False"):
-                recorder.record_trial(rig, sim_signals.procedure(2), fabric_id=12, day=1, trial=4, out_dir=tmp_path)
+                recorder.record_trial(rig, simulated_signals.procedure(2), fabric_id=12, day=1, trial=4, out_dir=tmp_path)
         finally:
             signal.signal(signal.SIGINT, previous)
     (path,) = tmp_path.glob("*.npz")
@@ -216,9 +216,9 @@ def test_recorded_features_match_the_simulators_direct_path(tmp_path):
     fabrics = (4, 6)  # smooth synthetic, knitted wool hat
     direct = {f: mean_psd(sim.simulate(sim.Scene(fabric_id=f, day=2, trial=1, cycles=2))) for f in fabrics}
     for f in fabrics:
-        signals = sim_signals.trial_signals(f, day=1, trial=0, n_cycles=2)
-        with simulated.simulated_rig(signals) as rig:
-            rec = recorder.record_trial(rig, sim_signals.procedure(2), fabric_id=f, day=1, trial=0, out_dir=tmp_path / str(f))
+        signals = simulated_signals.trial_signals(f, day=1, trial=0, n_cycles=2)
+        with simulated_devices.simulated_rig(signals) as rig:
+            rec = recorder.record_trial(rig, simulated_signals.procedure(2), fabric_id=f, day=1, trial=0, out_dir=tmp_path / str(f))
         recorded = mean_psd(archive.read_archive(rec.path, images=False))
         same_scene = mean_psd(sim.simulate(sim.Scene(fabric_id=f, day=1, trial=0, cycles=2)))
         assert np.abs(recorded - same_scene).mean() < 0.3  # log10 units: windows fall at other instants

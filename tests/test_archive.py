@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from fabricjax import archive, workspace
+from fabricjax import archive, dataset_index, workspace
 from tests.helpers import npz_fields, tiny_archive
 
 
@@ -145,35 +145,35 @@ def test_killed_writer_leaves_no_partial_archive(tmp_path):
     assert not out.exists()
     # only the hidden temporary remains, which no reader or index picks up
     assert all(p.name.endswith(".partial") for p in tmp_path.iterdir())
-    assert archive.build_index(tmp_path).entries == ()
+    assert dataset_index.build_index(tmp_path).entries == ()
 
 
 def test_index_build_load_and_missing_file(tmp_path):
     for t in range(3):
         a = tiny_archive(trial=t)
         archive.write_archive(tmp_path / archive.trial_filename(a.meta), a)
-    idx = archive.build_index(tmp_path)
+    idx = dataset_index.build_index(tmp_path)
     assert len(idx.entries) == 3 and all(e.n_steps == 30 for e in idx.entries)
-    assert archive.load_index(tmp_path).entries == idx.entries
+    assert dataset_index.load_index(tmp_path).entries == idx.entries
     assert len(idx.select(trial=1)) == 1
     # a new archive is picked up
     a = tiny_archive(trial=7)
     archive.write_archive(tmp_path / archive.trial_filename(a.meta), a)
-    assert len(archive.load_index(tmp_path).entries) == 4
+    assert len(dataset_index.load_index(tmp_path).entries) == 4
     # a listed archive that vanished is an error naming the index and the file
     (tmp_path / archive.trial_filename(a.meta)).unlink()
     with pytest.raises(archive.ArchiveError, match=f"listed archive is missing from {tmp_path}"):
-        archive.load_index(tmp_path)
+        dataset_index.load_index(tmp_path)
 
 
 def test_index_of_missing_or_empty_folder(tmp_path):
     with pytest.raises(archive.ArchiveError, match="does not exist"):
-        archive.build_index(tmp_path / "nope")
+        dataset_index.build_index(tmp_path / "nope")
     with pytest.raises(archive.ArchiveError, match="does not exist"):
-        archive.load_index(tmp_path / "nope")
+        dataset_index.load_index(tmp_path / "nope")
     (tmp_path / "empty").mkdir()
     with pytest.raises(archive.ArchiveError, match=r"empty: field '<folder>': the folder holds no trial archives \(\*\.npz\)$"):
-        archive.load_index(tmp_path / "empty", tmp_path / "ws")
+        dataset_index.load_index(tmp_path / "empty", tmp_path / "ws")
 
 
 def _tree(folder):
@@ -189,15 +189,15 @@ def test_index_lives_beside_the_workspace_datasets_and_under_the_workspace_for_o
         a = tiny_archive(trial=0)
         archive.write_archive(folder / archive.trial_filename(a.meta), a)
     assert workspace.index_file(inside, ws) == inside.resolve() / workspace.INDEX_NAME
-    assert len(archive.load_index(inside, ws).entries) == 1 and (inside / workspace.INDEX_NAME).exists()
+    assert len(dataset_index.load_index(inside, ws).entries) == 1 and (inside / workspace.INDEX_NAME).exists()
     before = _tree(outside)
-    index = archive.load_index(outside, ws)
+    index = dataset_index.load_index(outside, ws)
     assert len(index.entries) == 1 and index.root == outside
     assert _tree(outside) == before  # nothing written into the folder we only read
     (kept,) = (ws / "indexes").iterdir()
     assert kept == workspace.index_file(outside, ws) and kept.name.startswith("recordings-")
     assert workspace.index_file(tmp_path / "elsewhere" / "recordings", ws) != kept  # keyed by the whole path
-    assert archive.load_index(outside, ws).entries == index.entries  # read back, not rebuilt
+    assert dataset_index.load_index(outside, ws).entries == index.entries  # read back, not rebuilt
 
 
 def test_random_bytes_are_not_an_archive_and_nobody_suggests_unpickling(tmp_path):

@@ -16,7 +16,7 @@ import os
 import numpy as np
 import pytest
 
-from fabricjax import archive, checkpoint, data, synthetic, train, workspace
+from fabricjax import archive, checkpoint, data, dataset_index, synthetic, train, workspace
 from fabricjax.config import Config
 from tests.helpers import npz_fields, tiny_archive, tiny_dataset
 
@@ -98,7 +98,7 @@ def test_malformed_index_is_named(dataset, tmp_path):
     index.write_text(json.dumps({"format_version": 7, "trials": []}))
     with pytest.raises(archive.ArchiveError, match=r"\.json: field 'format_version': unknown index version 7"):
         load(dataset, tmp_path)
-    index.write_text(json.dumps({"format_version": archive.INDEX_VERSION, "trials": [{"file": "x.npz"}]}))
+    index.write_text(json.dumps({"format_version": dataset_index.INDEX_VERSION, "trials": [{"file": "x.npz"}]}))
     with pytest.raises(archive.ArchiveError, match="malformed index"):
         load(dataset, tmp_path)
     index.unlink()  # deleting the index re-indexes the folder
@@ -163,7 +163,7 @@ def test_incomplete_archive_is_kept_and_readable(tmp_path):
     a = tiny_archive(25, fabric_id=4, day=1, trial=0, images=None, seed=5)
     a.meta.update(complete=False, failure="interrupted (Ctrl-C)")
     archive.write_archive(ds / archive.trial_filename(a.meta), a)
-    entry = {e.file: e for e in archive.load_index(ds).entries}["fabric04_day1_trial00_lab.npz"]
+    entry = {e.file: e for e in dataset_index.load_index(ds).entries}["fabric04_day1_trial00_lab.npz"]
     assert entry.meta["complete"] is False and entry.n_steps == 25
     sets = load(ds, tmp_path)
     assert (sets["train"].info["trial_key"] == entry.file).sum() == 1

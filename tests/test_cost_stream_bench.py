@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from acquisition.rig_bench import bench_import
-from acquisition.sim_signals import bench_acquisition
-from fabricjax import archive, benchmark, sim, stream, train
+from acquisition.simulated_signals import bench_acquisition
+from fabricjax import archive, benchmark, live, sim, train
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.features.extract import log_psd, mic_windows
@@ -88,7 +88,7 @@ def test_cost_run_writes_table_json_and_pareto_png(smoke_workdir, tmp_path):
 def _tiny_streamer(config):
     shapes = {m: (18,) if m == "proprio" else (welch.n_bins(config.bandwidth_khz),) for m in config.modalities}
     trainer = train.make_trainer(config, shapes)
-    return stream.Streamer(trainer.graphdef, jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"], config)
+    return live.Streamer(trainer.graphdef, jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"], config)
 
 
 def test_streaming_psd_of_the_newest_step_equals_the_batch_feature(smoke_workdir):
@@ -97,7 +97,7 @@ def test_streaming_psd_of_the_newest_step_equals_the_batch_feature(smoke_workdir
     config = Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=8, bandwidth_khz=10.0, **TINY)
     s = _tiny_streamer(config)
     extra = 3
-    probs = [s.update(stream.step_windows(trial, t, s.mics), trial.joints[t]) for t in range(config.seq_len + extra)]
+    probs = [s.update(live.step_windows(trial, t, s.mics), trial.joints[t]) for t in range(config.seq_len + extra)]
     assert all(p is None for p in probs[: config.seq_len - 1])
     assert all(p.shape == (21,) and np.isclose(p.sum(), 1, atol=1e-5) for p in probs[config.seq_len - 1 :])
     k = welch.n_bins(10.0)
@@ -110,7 +110,7 @@ def test_streaming_psd_of_the_newest_step_equals_the_batch_feature(smoke_workdir
 
 def test_streamer_rejects_camera_models():
     with pytest.raises(ValueError, match="streaming supports"):
-        stream.Streamer(None, None, Config(preset="smoke", modalities=("internal", "flow")))
+        live.Streamer(None, None, Config(preset="smoke", modalities=("internal", "flow")))
 
 
 def test_stream_run_trains_a_quick_model_then_restores_it(smoke_workdir, tmp_path):

@@ -4,7 +4,7 @@ import os
 import numpy as np
 import pytest
 
-from fabricjax import archive, data
+from fabricjax import archive, data, dataset_index
 from fabricjax.config import Config
 from fabricjax.features import welch
 from tests.helpers import tiny_archive, tiny_dataset
@@ -44,7 +44,7 @@ def reads(monkeypatch):
 def test_sequences_cover_each_trial_without_overlap(dataset, tmp_path):
     sets = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws", progress=False)
     assert set(sets) == set(data.SPLITS)
-    index = archive.load_index(dataset)
+    index = dataset_index.load_index(dataset)
     for s in sets.values():
         for entry in index.entries:
             mine = s.info["trial_key"] == entry.file
@@ -103,7 +103,7 @@ def test_cache_invalidation(dataset, tmp_path, reads, monkeypatch):
     reads.clear()
     monkeypatch.setattr(welch, "LOG_FLOOR", 1e-12)
     data.load_sequences(_config(), dataset, workdir=ws, progress=False, workers=1)
-    assert len(reads) == len(archive.load_index(dataset).entries) - 1  # all but fabric 21
+    assert len(reads) == len(dataset_index.load_index(dataset).entries) - 1  # all but fabric 21
 
 
 def test_image_and_flow_features(tmp_path, reads):

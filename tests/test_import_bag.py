@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from acquisition import importing
+from acquisition.recording import RecordingImportError
 from fabricjax import archive
 
 pytest.importorskip("rosbags")
@@ -155,14 +155,14 @@ def check_fields(a, rec):
 def test_bag_becomes_aligned_archive(tmp_path, compressed, storage):
     rec = recording()
     bag = write_bag(tmp_path / "bag", rec, compressed=compressed, shuffle=True, storage=storage)
-    a = importing.import_bag(bag, MAPPING, MAPPING["trial"])
+    a = ros_bag.import_bag(bag, MAPPING, MAPPING["trial"])
     path = archive.write_archive(tmp_path / "out" / archive.trial_filename(a.meta), a)
     check_fields(archive.read_archive(path), rec)
 
 
 def test_missing_frame_is_a_reported_gap(tmp_path):
     rec = recording()
-    a = importing.import_bag(write_bag(tmp_path / "bag", rec, drop_frame=7), MAPPING, MAPPING["trial"])
+    a = ros_bag.import_bag(write_bag(tmp_path / "bag", rec, drop_frame=7), MAPPING, MAPPING["trial"])
     assert a.n_steps == N_FRAMES - 1
     assert a.meta["import"]["frame_gaps"] == [{"step": 7, "seconds": pytest.approx(0.04, abs=1e-6)}]
     archive.validate(a)
@@ -170,16 +170,16 @@ def test_missing_frame_is_a_reported_gap(tmp_path):
 
 def test_missing_audio_message_is_an_error(tmp_path):
     bag = write_bag(tmp_path / "bag", recording(), drop_chunk=10)
-    with pytest.raises(importing.RecordingImportError, match=r"/minsound/audio: audio: about 0\.02\d* s of samples missing"):
-        importing.import_bag(bag, MAPPING, MAPPING["trial"])
+    with pytest.raises(RecordingImportError, match=r"/minsound/audio: audio: about 0\.02\d* s of samples missing"):
+        ros_bag.import_bag(bag, MAPPING, MAPPING["trial"])
 
 
 def test_wrong_rate_is_an_error_unless_resampled(tmp_path):
     bag = write_bag(tmp_path / "bag", recording())
     mapping = {**MAPPING, "mics": {**MAPPING["mics"], "external": {"topic": "/palm/audio", "rate": 44100}}}
-    with pytest.raises(importing.RecordingImportError, match=r"^/palm/audio: rate: sample rate 44100 Hz"):
-        importing.import_bag(bag, mapping, MAPPING["trial"])
-    a = importing.import_bag(bag, mapping, MAPPING["trial"], resample=True)
+    with pytest.raises(RecordingImportError, match=r"^/palm/audio: rate: sample rate 44100 Hz"):
+        ros_bag.import_bag(bag, mapping, MAPPING["trial"])
+    a = ros_bag.import_bag(bag, mapping, MAPPING["trial"], resample=True)
     assert a.meta["import"]["resampled"]["/palm/audio"]["from_hz"] == 44100
     archive.validate(a)
 
@@ -188,7 +188,7 @@ def test_missing_topic_is_named(tmp_path):
     bag = write_bag(tmp_path / "bag", recording())
     mapping = {**MAPPING, "joints": {"topic": "/hand/joints"}}
     with pytest.raises(ros_bag.BagError, match=r"bag: topics \['/hand/joints'\] not in the bag \(it has \['/joint_states', "):
-        importing.import_bag(bag, mapping, MAPPING["trial"])
+        ros_bag.import_bag(bag, mapping, MAPPING["trial"])
 
 
 def test_command_writes_archive_and_reports_errors_in_one_line(tmp_path):

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 from scipy.io import wavfile
 
-from acquisition import importing
+from acquisition import hand_folder, ros_bag
+from acquisition.recording import RecordingImportError
 from fabricjax import archive
+from fabricjax.errors import UserError
 
 N, H, W, FPS = 15, 8, 10, 50
 TRIAL = {"fabric_id": 4, "day": 1, "trial": 2, "condition": "lab"}
@@ -52,7 +54,7 @@ def write_folder(folder, *, video=False, rate=48000, drop_column=None, seed=0):
 @pytest.mark.parametrize("video", [False, True])
 def test_folder_becomes_aligned_archive(tmp_path, video):
     rec = write_folder(tmp_path / "trial", video=video)
-    a = importing.import_folder(tmp_path / "trial", TRIAL)
+    a = hand_folder.import_folder(tmp_path / "trial", TRIAL)
     a = archive.read_archive(archive.write_archive(tmp_path / "out" / archive.trial_filename(a.meta), a))
     assert a.n_steps == N
     np.testing.assert_allclose(a.timestamps, np.arange(N) / FPS, atol=1e-6)
@@ -71,12 +73,12 @@ def test_folder_becomes_aligned_archive(tmp_path, video):
 
 def test_folder_errors_name_file_field_and_problem(tmp_path):
     write_folder(tmp_path / "rate", rate=44100)
-    with pytest.raises(importing.RecordingImportError, match=r"rate/internal\.wav: rate: sample rate 44100 Hz"):
-        importing.import_folder(tmp_path / "rate", TRIAL)
-    assert importing.import_folder(tmp_path / "rate", TRIAL, resample=True).meta["import"]["resampled"]
+    with pytest.raises(RecordingImportError, match=r"rate/internal\.wav: rate: sample rate 44100 Hz"):
+        hand_folder.import_folder(tmp_path / "rate", TRIAL)
+    assert hand_folder.import_folder(tmp_path / "rate", TRIAL, resample=True).meta["import"]["resampled"]
     write_folder(tmp_path / "col", drop_column="palm_current")
-    with pytest.raises(importing.RecordingImportError, match=r"joints\.csv: palm_current: column missing"):
-        importing.import_folder(tmp_path / "col", TRIAL)
+    with pytest.raises(RecordingImportError, match=r"joints\.csv: palm_current: column missing"):
+        hand_folder.import_folder(tmp_path / "col", TRIAL)
     (tmp_path / "rate" / "external.wav").unlink()
     done = subprocess.run([sys.executable, "-m", "acquisition.import_folder", str(tmp_path / "rate"), f"--out={tmp_path / 'o'}",
                            "--fabric=4", "--day=1", "--trial=0"], capture_output=True, text=True, timeout=120)
@@ -87,5 +89,5 @@ def test_folder_errors_name_file_field_and_problem(tmp_path):
 def test_bag_import_without_rosbags_says_how_to_install(tmp_path, monkeypatch):
     for name in {"rosbags", *(m for m in sys.modules if m.startswith("rosbags."))}:
         monkeypatch.setitem(sys.modules, name, None)  # as if the optional package were absent
-    with pytest.raises(importing.UserError, match=r'pip install -e "\.\[bags\]"'):
-        importing.import_bag(tmp_path, {}, TRIAL)
+    with pytest.raises(UserError, match=r'pip install -e "\.\[bags\]"'):
+        ros_bag.import_bag(tmp_path, {}, TRIAL)

@@ -4,7 +4,7 @@ for every trial the preset names."""
 import numpy as np
 import pytest
 
-from acquisition import importing
+from acquisition import ros_bag
 from fabricjax import archive, presets
 from fabricjax.studies import ablation
 
@@ -19,7 +19,7 @@ def test_smoke_study_trains_on_imported_bags(tmp_path):
     for i, spec in enumerate(presets.get("smoke").dataset.trials()):
         bag = write_bag(tmp_path / "bags" / f"b{i}", recording(seed=i, n_frames=30))
         trial = {"fabric_id": spec.fabric_id, "day": spec.day, "trial": spec.trial, "condition": spec.condition}
-        a = importing.import_bag(bag, MAPPING, trial)
+        a = ros_bag.import_bag(bag, MAPPING, trial)
         archive.write_archive(data / archive.trial_filename(a.meta), a)
     doc = ablation.run(n_seeds=1, rows=["internal"], preset="smoke", overrides=dict(epochs=1, width=16, n_layers=1),
                        workdir=tmp_path / "ws", data_dir=data, results=tmp_path / "results", command="test")
@@ -36,7 +36,7 @@ def test_smoke_study_trains_on_bags_recorded_as_a_ros2_lab_records(tmp_path):
     for i, spec in enumerate(presets.get("smoke").dataset.trials()):
         bag = write_messages(tmp_path / "bags" / f"b{i}", lab_messages(seed=i), storage="mcap")
         trial = {"fabric_id": spec.fabric_id, "day": spec.day, "trial": spec.trial, "condition": spec.condition}
-        a = importing.import_bag(bag, LAB_MAPPING, trial, resample=True)
+        a = ros_bag.import_bag(bag, LAB_MAPPING, trial, resample=True)
         archive.read_archive(archive.write_archive(data / archive.trial_filename(a.meta), a))
     doc = ablation.run(n_seeds=1, rows=["internal"], preset="smoke", overrides=dict(epochs=1, width=16, n_layers=1),
                        workdir=tmp_path / "ws", data_dir=data, results=tmp_path / "results", command="test")

@@ -9,7 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from acquisition import importing
+from acquisition import mapping_file
+from acquisition.recording import RecordingImportError
 from fabricjax import archive, integrity
 
 pytest.importorskip("rosbags")
@@ -91,7 +92,7 @@ def test_audio_common_audio_is_read_bit_exact(tmp_path, kind, table):
     mapping = _mapping(internal=table)
     if "format" not in table:
         del mapping["mics"]["internal"]["rate"]  # the rate comes from the AudioInfo
-    a = importing.import_bag(write_messages(tmp_path / "bag", msgs), mapping, TRIAL)
+    a = ros_bag.import_bag(write_messages(tmp_path / "bag", msgs), mapping, TRIAL)
     check_fields(archive.validate(a), rec)
 
 
@@ -99,15 +100,15 @@ def test_raw_audio_without_a_format_is_a_clear_error(tmp_path):
     rec = recording()
     bag = write_messages(tmp_path / "bag", _as_audio_common(bag_messages(rec), "AudioData"))
     with pytest.raises(ros_bag.BagError, match=r"/minsound/audio: sample_format: raw audio bytes \(uint8\[\]\) need a sample format"):
-        importing.import_bag(bag, MAPPING, TRIAL)
+        ros_bag.import_bag(bag, MAPPING, TRIAL)
     mapping = _mapping(internal={"format": "S32LE", "info_topic": "/info"})
     msgs = _as_audio_common(bag_messages(rec), "AudioData") + [(T0, "/info", "audio_common_msgs/msg/AudioInfo", _info(48000))]
     with pytest.raises(ros_bag.BagError, match=r"mics\.internal\.format: 'S32LE' in the mapping, the bag's AudioInfo says 'S16LE'"):
-        importing.import_bag(write_messages(tmp_path / "bag2", msgs), mapping, TRIAL)
+        ros_bag.import_bag(write_messages(tmp_path / "bag2", msgs), mapping, TRIAL)
     no_rate = _mapping()
     del no_rate["mics"]["external"]["rate"]
     with pytest.raises(ros_bag.BagError, match=r"mics\.external\.rate: missing, and no AudioInfo in the bag gives it"):
-        importing.import_bag(write_bag(tmp_path / "bag3", rec), no_rate, TRIAL)
+        ros_bag.import_bag(write_bag(tmp_path / "bag3", rec), no_rate, TRIAL)
 
 
 # --- 2. no overwrite --------------------------------------------------------------------------
@@ -138,7 +139,7 @@ def test_an_existing_archive_is_not_overwritten_without_the_flag(tmp_path):
 def test_zero_joint_stamps_fall_back_to_receive_time_with_a_note(tmp_path):
     rec = recording()
     msgs = _restamp(bag_messages(rec), JOINTS, lambda t: 0.0)
-    a = importing.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
+    a = ros_bag.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
     # joints received at their stamp + 2 ms: the latest at or before frame i is reading 4 + 2 i
     np.testing.assert_allclose(a.joints, rec["joints"][4 + 2 * np.arange(N_FRAMES)].astype(np.float32), rtol=1e-6)
     assert a.meta["import"]["clocks"]["joints"] == {"clock": "receive", "note": f"{len(rec['joint_t'])} of {len(rec['joint_t'])} header stamps are zero: placed by receive time"}
@@ -156,7 +157,7 @@ def _position_only(msgs):
 
 def test_position_only_joint_states_record_absent_fields(tmp_path):
     rec = recording()
-    a = importing.import_bag(write_messages(tmp_path / "bag", _position_only(bag_messages(rec))), MAPPING, TRIAL)
+    a = ros_bag.import_bag(write_messages(tmp_path / "bag", _position_only(bag_messages(rec))), MAPPING, TRIAL)
     path = archive.write_archive(tmp_path / "out" / archive.trial_filename(a.meta), a)
     back = archive.read_archive(path)
     assert back.meta["streams"]["joints"]["absent"] == ["velocity", "current"]
@@ -174,7 +175,7 @@ def test_a_field_that_comes_and_goes_is_an_error(tmp_path):
     first = next(i for i, (_, topic, _, _) in enumerate(msgs) if topic == JOINTS)
     msgs[first:first + 1] = _position_only(msgs[first:first + 1])
     with pytest.raises(ros_bag.BagError, match=r"/joint_states: velocity: carried by 44 of 45 messages"):
-        importing.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
+        ros_bag.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
 
 
 # --- 4. clocks --------------------------------------------------------------------------------
@@ -185,9 +186,9 @@ def test_stamps_on_another_clock_are_an_error_unless_the_mapping_says_so(tmp_pat
     bag = write_messages(tmp_path / "bag", _restamp(bag_messages(rec), CAMERA, lambda t: t - 0.3))
     with pytest.raises(ros_bag.BagError, match=r"/minsight/image: header.stamp: 0\.301 s behind the bag's receive time "
                        r"\(tolerance 0\.02 s\): the stamps are on another clock; set clock = \"device\""):
-        importing.import_bag(bag, MAPPING, TRIAL)
+        ros_bag.import_bag(bag, MAPPING, TRIAL)
     for clock in ("receive", "device"):
-        a = importing.import_bag(bag, _mapping(camera={"clock": clock}), TRIAL)
+        a = ros_bag.import_bag(bag, _mapping(camera={"clock": clock}), TRIAL)
         check_fields(a, rec)  # frames received 1 ms after their slot: the same steps
         assert a.meta["import"]["clocks"]["camera"] == {"clock": clock, "receive_minus_header_s": pytest.approx(0.301)}
     assert a.meta["import"]["clocks"]["joints"]["receive_minus_header_s"] == pytest.approx(0.002)
@@ -198,8 +199,8 @@ def test_device_clock_camera_is_shifted_onto_the_bag_clock(tmp_path):
     uptime = lambda t: t - T0 + 12.5  # noqa: E731  a camera stamping with its own uptime
     bag = write_messages(tmp_path / "bag", _restamp(bag_messages(rec), CAMERA, uptime))
     with pytest.raises(ros_bag.BagError, match=r"header.stamp: 87\.501 s behind"):
-        importing.import_bag(bag, MAPPING, TRIAL)
-    check_fields(importing.import_bag(bag, _mapping(camera={"clock": "device"}), TRIAL), rec)
+        ros_bag.import_bag(bag, MAPPING, TRIAL)
+    check_fields(ros_bag.import_bag(bag, _mapping(camera={"clock": "device"}), TRIAL), rec)
 
 
 # --- 5. a 30 fps camera -----------------------------------------------------------------------
@@ -221,19 +222,19 @@ def _thirty_fps(rec, drop=None):
 def test_thirty_fps_camera_sets_the_step_rate_not_frame_loss(tmp_path):
     rec = recording()
     msgs, n = _thirty_fps(rec)
-    a = importing.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
+    a = ros_bag.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
     assert a.n_steps == n and a.meta["streams"]["steps"] == {"clock": "camera", "rate": 30}
     assert a.meta["import"]["frame_gaps"] == [] and a.meta["import"]["step_rate_from"] == "median frame interval 33.33 ms"
     folder = tmp_path / "data"
     archive.write_archive(folder / archive.trial_filename(a.meta), a)
     lost, _ = _thirty_fps(rec, drop=7)
-    b = importing.import_bag(write_messages(tmp_path / "bag2", lost), MAPPING, {**TRIAL, "trial": 4})
+    b = ros_bag.import_bag(write_messages(tmp_path / "bag2", lost), MAPPING, {**TRIAL, "trial": 4})
     assert [g["step"] for g in b.meta["import"]["frame_gaps"]] == [7]  # a real loss at 30 fps still shows
     archive.write_archive(folder / archive.trial_filename(b.meta), b)
     problems, _ = integrity.verify(folder, tmp_path / "ws")
     assert [str(p).split(": ")[1:3] for p in problems] == [["timestamps", "irregular"]]
     assert "step 7 comes 66.7 ms after step 6 (more than 1.5 periods of 33 ms" in str(problems[0])
-    declared = importing.import_bag(write_messages(tmp_path / "bag3", msgs), _mapping(camera={"rate": 29.97}), TRIAL)
+    declared = ros_bag.import_bag(write_messages(tmp_path / "bag3", msgs), _mapping(camera={"rate": 29.97}), TRIAL)
     assert archive.layout(declared.meta).step_rate == 29.97 and declared.meta["import"]["step_rate_from"] == "mapping camera.rate"
 
 
@@ -246,7 +247,7 @@ def test_every_problem_of_a_bag_is_listed_in_one_line(tmp_path):
     bag = write_messages(tmp_path / "bag", msgs)
     mapping = _mapping(joints={"topic": "/hand/joints"}, external={"topic": "/palm/mic"})
     with pytest.raises(ros_bag.BagError) as e:
-        importing.import_bag(bag, mapping, TRIAL)
+        ros_bag.import_bag(bag, mapping, TRIAL)
     assert str(e.value) == (
         f"{bag}: topics ['/hand/joints', '/palm/mic'] not in the bag (it has ['/joint_states', '/minsight/image', "
         "'/minsound/audio', '/palm/audio']); /minsight/image: type std_msgs/msg/String, expected sensor_msgs/msg/Image "
@@ -266,10 +267,10 @@ def test_metadata_qos_unlike_the_storage_still_reads_every_message(tmp_path):
     text = meta.read_text()
     assert text.count("depth: 10") == 1
     meta.write_text(text.replace("depth: 10", "depth: 5"))  # the metadata spells the profile differently
-    check_fields(importing.import_bag(bag, MAPPING, TRIAL), rec)
+    check_fields(ros_bag.import_bag(bag, MAPPING, TRIAL), rec)
     meta.write_text(text.replace("message_count: 45", "message_count: 47"))  # and counts more than are stored
     with pytest.raises(ros_bag.BagError, match=r"/joint_states: the bag's metadata counts 47 messages, 45 could be read"):
-        importing.import_bag(bag, MAPPING, TRIAL)
+        ros_bag.import_bag(bag, MAPPING, TRIAL)
 
 
 def test_older_type_names_are_read(tmp_path):
@@ -281,17 +282,17 @@ def test_older_type_names_are_read(tmp_path):
         db.execute("UPDATE topics SET type = replace(type, 'sensor_msgs/msg/', 'sensor_msgs/')")
         db.execute("UPDATE message_definitions SET topic_type = replace(topic_type, 'sensor_msgs/msg/', 'sensor_msgs/')")
     assert "type: sensor_msgs/Image" in meta.read_text()
-    check_fields(importing.import_bag(bag, MAPPING, TRIAL), rec)
+    check_fields(ros_bag.import_bag(bag, MAPPING, TRIAL), rec)
 
 
 def test_mapping_problems_name_the_mapping_file(tmp_path):
     path = tmp_path / "map.toml"
     path.write_text(MAPPING_TOML.replace('topic = "/joint_states"', 'topic = "/joint_states"\nnames = ["a", "b", "a", "c", "d", "e"]'))
     with pytest.raises(ros_bag.BagError, match=rf"^{path}: joints\.names: \['a'\] named more than once$"):
-        importing.load_mapping(path)
+        mapping_file.load_mapping(path)
     path.write_text(MAPPING_TOML.replace('topic = "/joint_states"', 'topic = "/joint_states"\nnames = ["a"]\nclock = "gps"'))
     with pytest.raises(ros_bag.BagError, match=rf"^{path}: joints\.clock: must be one of .*; joints\.names: expected 6 names"):
-        importing.load_mapping(path)
+        mapping_file.load_mapping(path)
 
 
 def test_8uc1_frames_read_as_mono8(tmp_path):
@@ -304,7 +305,7 @@ def test_8uc1_frames_read_as_mono8(tmp_path):
             m = TS.types["sensor_msgs/msg/Image"](header=m.header, height=8, width=10, encoding="8UC1", is_bigendian=0,
                                                    step=10, data=gray[i].ravel())
         msgs.append((t, topic, typ, m))
-    a = importing.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
+    a = ros_bag.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
     np.testing.assert_array_equal(a.images, np.repeat(gray[..., None], 3, axis=-1))
 
 
@@ -314,8 +315,8 @@ def test_folder_without_metadata_names_the_storage_file_to_give(tmp_path):
     (bag / "metadata.yaml").unlink()
     with pytest.raises(ros_bag.BagError, match=r"bag: metadata.yaml: missing \(a rosbag2 folder has one\); to read a storage "
                        r"file without it give the file itself: bag\.mcap$"):
-        importing.import_bag(bag, MAPPING, TRIAL)
-    check_fields(importing.import_bag(bag / "bag.mcap", MAPPING, TRIAL), rec)
+        ros_bag.import_bag(bag, MAPPING, TRIAL)
+    check_fields(ros_bag.import_bag(bag / "bag.mcap", MAPPING, TRIAL), rec)
 
 
 def test_each_issue_case_is_one_line_on_the_command_line(tmp_path):
@@ -369,9 +370,9 @@ def test_lab_bag_becomes_an_archive_read_archive_and_verify_accept(tmp_path):
     msgs = lab_messages()
     assert {m[1] for m in msgs} == {CAMERA, INTERNAL, EXTERNAL, JOINTS, "/minsound/audio_info", "/palm/audio_info"}
     bag = write_messages(tmp_path / "bag", msgs, storage="mcap")
-    with pytest.raises(importing.RecordingImportError, match=r"/minsound/audio: rate: sample rate 16000 Hz, archives hold 48000 Hz"):
-        importing.import_bag(bag, LAB_MAPPING, TRIAL)
-    a = importing.import_bag(bag, LAB_MAPPING, TRIAL, resample=True)
+    with pytest.raises(RecordingImportError, match=r"/minsound/audio: rate: sample rate 16000 Hz, archives hold 48000 Hz"):
+        ros_bag.import_bag(bag, LAB_MAPPING, TRIAL)
+    a = ros_bag.import_bag(bag, LAB_MAPPING, TRIAL, resample=True)
     folder = tmp_path / "data"
     back = archive.read_archive(archive.write_archive(folder / archive.trial_filename(a.meta), a))
     lay = archive.layout(back.meta)
@@ -393,7 +394,7 @@ def test_proprio_on_absent_joint_fields_is_a_one_line_error(tmp_path):
     from fabricjax.config import Config
 
     folder = tmp_path / "data"
-    a = importing.import_bag(write_messages(tmp_path / "bag", lab_messages(seconds=1.5)), LAB_MAPPING, TRIAL, resample=True)
+    a = ros_bag.import_bag(write_messages(tmp_path / "bag", lab_messages(seconds=1.5)), LAB_MAPPING, TRIAL, resample=True)
     path = archive.write_archive(folder / archive.trial_filename(a.meta), a)
     config = Config(preset="smoke", seq_len=20, modalities=("internal", "proprio"))
     with pytest.raises(archive.ArchiveError) as e:

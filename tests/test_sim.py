@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from fabricjax import archive, catalog, presets
+from fabricjax import archive, catalog, dataset_index, presets
 from fabricjax.sim import EFFECTS, Scene, ensure_dataset, simulate
 from fabricjax.sim import air_path, ambient, minsight, motion, servo, shell, sph0645, stick_slip, texture
 from fabricjax.sim import calibration as cal
@@ -191,7 +191,7 @@ def test_generation_killed_midway_resumes_and_keeps_finished_archives(tmp_path):
     after = {p.name: p.stat().st_mtime_ns for p in folder.glob("*.npz")}
     assert len(after) == n_total and not list(folder.glob(".*.partial"))
     assert all(after[name] == mtime for name, mtime in finished.items())
-    index = archive.load_index(folder, tmp_path)
+    index = dataset_index.load_index(folder, tmp_path)
     assert len(index.entries) == n_total
     for entry in index.entries:
         arch = archive.read_archive(index.path(entry))

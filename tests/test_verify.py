@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from fabricjax import archive, integrity
+from fabricjax import archive, dataset_index, integrity
 from tests.helpers import npz_fields, tiny_archive, tiny_dataset
 
 TRIALS = [(4, 1, 0, "lab"), (4, 1, 1, "lab"), (5, 1, 0, "lab")]
@@ -16,14 +16,14 @@ TRIALS = [(4, 1, 0, "lab"), (4, 1, 1, "lab"), (5, 1, 0, "lab")]
 
 def _dataset(tmp_path):
     folder = tiny_dataset(tmp_path / "data", TRIALS, n_steps=12, images=(8, 10))
-    index = archive.load_index(folder, tmp_path / "ws")
+    index = dataset_index.load_index(folder, tmp_path / "ws")
     return folder, index
 
 
 def test_index_records_sha256_and_verify_passes_a_clean_dataset(tmp_path):
     folder, index = _dataset(tmp_path)
     for e in index.entries:
-        assert e.sha256 == archive.sha256_file(folder / e.file)
+        assert e.sha256 == dataset_index.sha256_file(folder / e.file)
     before = sorted(p.name for p in folder.iterdir())
     problems, counts = integrity.verify(folder, tmp_path / "ws")
     assert problems == [] and counts["hashed"] == 3
@@ -37,7 +37,7 @@ def test_index_without_hashes_is_rebuilt_once(tmp_path):
     for t in doc["trials"]:
         del t["sha256"]
     ipath.write_text(json.dumps(doc))
-    again = archive.load_index(folder, tmp_path / "ws")
+    again = dataset_index.load_index(folder, tmp_path / "ws")
     assert all(e.sha256 for e in again.entries)
     assert all(t["sha256"] for t in json.loads(ipath.read_text())["trials"])
 
@@ -84,13 +84,13 @@ def test_repeated_step_is_refused_at_load(tmp_path):
 
 def test_reindexing_hashes_only_new_or_rewritten_archives(tmp_path, monkeypatch):
     folder = tiny_dataset(tmp_path / "data", TRIALS, n_steps=12, images=None)
-    archive.build_index(folder)
+    dataset_index.build_index(folder)
     hashed = []
-    real = archive.sha256_file
-    monkeypatch.setattr(archive, "sha256_file", lambda p: hashed.append(p.name) or real(p))
-    archive.build_index(folder)
+    real = dataset_index.sha256_file
+    monkeypatch.setattr(dataset_index, "sha256_file", lambda p: hashed.append(p.name) or real(p))
+    dataset_index.build_index(folder)
     assert hashed == []
     a = tiny_archive(n_steps=12, fabric_id=9, images=None)
     archive.write_archive(folder / archive.trial_filename(a.meta), a)
-    archive.build_index(folder)
+    dataset_index.build_index(folder)
     assert hashed == [archive.trial_filename(a.meta)]

@@ -12,9 +12,10 @@ import pytest
 from fabricjax import archive, presets, synthetic, view
 from fabricjax.features import welch
 from fabricjax.sim.dataset import scene_for
-from fabricjax.sim.simulate import simulate
+from fabricjax.sim.trial import simulate
 from fabricjax.studies import stream as stream_command
 from fabricjax.train import train_and_evaluate
+from tests.helpers import read_rrd
 from tests.test_train import TINY
 
 pytest.importorskip("rerun")
@@ -58,7 +59,7 @@ def test_view_save_writes_every_sensor_entity_at_every_step(smoke_trial, tmp_pat
     out = command(path, f"--save={tmp_path / 'trial.rrd'}")
     assert out.returncode == 0, out.stderr
     assert f"{trial.n_steps} steps" in out.stdout
-    read = view.read_rrd(tmp_path / "trial.rrd")
+    read = read_rrd(tmp_path / "trial.rrd")
     assert set(read) == SENSORS | WAVES
     for entity in SENSORS:
         assert read[entity]["steps"] == list(range(trial.n_steps)), entity
@@ -70,7 +71,7 @@ def test_view_save_writes_every_sensor_entity_at_every_step(smoke_trial, tmp_pat
 def test_view_save_with_a_checkpoint_adds_the_models_predictions(smoke_trial, checkpoint, tmp_path):
     path, trial = smoke_trial
     doc = view.view_archive(path, checkpoint=checkpoint, save=tmp_path / "trial.rrd")
-    read = view.read_rrd(tmp_path / "trial.rrd")
+    read = read_rrd(tmp_path / "trial.rrd")
     assert set(read) == SENSORS | WAVES | PREDICTION
     decided = list(range(CONFIG.seq_len - 1, trial.n_steps))  # the window's first N - 1 steps only fill it
     assert read["/prediction/probabilities"]["steps"] == decided == read["/prediction/confidence"]["steps"]
@@ -94,7 +95,7 @@ def test_stream_view_save_logs_each_steps_sensors_and_result(smoke_trial, checkp
         archive_path=path, checkpoint_dir=checkpoint, realtime=False, print_every=0, results=tmp_path,
         out=lambda line: None, view_save=tmp_path / "stream.rrd",
     )
-    read = view.read_rrd(tmp_path / "stream.rrd")
+    read = read_rrd(tmp_path / "stream.rrd")
     assert set(read) == SENSORS | WAVES | PREDICTION
     assert read["/minsight/frame"]["steps"] == read["/prediction/latency_ms"]["steps"] == list(range(trial.n_steps))
     assert len(read["/prediction/probabilities"]["steps"]) == doc["decided_steps"]
@@ -106,7 +107,7 @@ def test_record_view_save_logs_the_trial_as_it_is_recorded(checkpoint, tmp_path)
     out = subprocess.run([sys.executable, "-m", "acquisition.record", *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     trial = archive.read_archive(next(tmp_path.glob("*.npz")), images=False)
-    read = view.read_rrd(tmp_path / "rec.rrd")
+    read = read_rrd(tmp_path / "rec.rrd")
     assert set(read) == SENSORS | WAVES | PREDICTION
     assert read["/force"]["steps"] == list(range(trial.n_steps))
     assert read["/prediction/confidence"]["steps"] == list(range(CONFIG.seq_len - 1, trial.n_steps))

@@ -32,7 +32,7 @@ from typing import Iterator
 import numpy as np
 from tqdm import tqdm
 
-from fabricjax import archive, parallel
+from fabricjax import archive, dataset_index, parallel
 from fabricjax.atomic import atomic_open
 from fabricjax.features.extract import Feature, feature_named
 
@@ -110,8 +110,8 @@ def _one_thread_per_worker() -> None:
 
 
 def trial_features(
-    index: archive.DatasetIndex,
-    entries: list[archive.IndexEntry],
+    index: dataset_index.DatasetIndex,
+    entries: list[dataset_index.IndexEntry],
     features: list[Feature],
     features_root: Path,
     *,
@@ -134,7 +134,7 @@ def trial_features(
         with bar:
             parallel.run_jobs(_compute_and_drop, jobs, workers, bar.update, initializer=_one_thread_per_worker)
 
-    def one(entry: archive.IndexEntry) -> dict[str, np.ndarray]:
+    def one(entry: dataset_index.IndexEntry) -> dict[str, np.ndarray]:
         out = {f.name: load(Path(files(entry)[f.name]), entry.fingerprint) for f in cached}
         redo = [f for f in features if out.get(f.name) is None]  # uncached features, or a file damaged since
         if redo:

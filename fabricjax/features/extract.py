@@ -10,7 +10,8 @@ applied when sequences are built and is not part of the key. Arrays, per trial o
                                                          for the hand
     proprio                     float32 (T, J * F)       joints (T, J, F) flattened joint-major:
                                                          [j0 field 0, j0 field 1, ..., j1 ...]; the
-                                                         hand's 6 x (angle, velocity, current) = 18
+                                                         hand's 6 x (angle, velocity, current):
+                                                         archive.N_PROPRIO
     flow                        float16 (T, 2, h, w)     patch-pooled sparse flow (flow.py);
                                                          flow_drop_top: the other reading
     image_<h>x<w>               uint8   (T, h, w, 3)     area-downsampled frames (images.py; the

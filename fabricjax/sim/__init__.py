@@ -15,6 +15,6 @@ there). The time base and word format shared with recorded trials are `fabricjax
 from fabricjax.sim.bench import bench_throughput
 from fabricjax.sim.dataset import ensure_dataset, scene_for
 from fabricjax.sim.scene import EFFECTS, REQUIRED_STREAMS, STREAMS, Scene
-from fabricjax.sim.simulate import simulate
+from fabricjax.sim.trial import simulate
 
 __all__ = ["EFFECTS", "REQUIRED_STREAMS", "STREAMS", "Scene", "bench_throughput", "ensure_dataset", "scene_for", "simulate"]

@@ -6,7 +6,7 @@ import time
 
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import Scene
-from fabricjax.sim.simulate import simulate
+from fabricjax.sim.trial import simulate
 
 
 def bench_throughput(seconds: float = 30.0, fabrics: tuple[int, ...] = (0, 6, 12), streams=("audio", "proprio")) -> dict:

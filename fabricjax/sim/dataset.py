@@ -15,11 +15,11 @@ from typing import Iterable
 import numpy as np
 from tqdm import tqdm
 
-from fabricjax import archive, parallel, presets, splits, workspace
+from fabricjax import archive, dataset_index, parallel, presets, splits, workspace
 from fabricjax.errors import UserError
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import EFFECTS, Scene
-from fabricjax.sim.simulate import simulate
+from fabricjax.sim.trial import simulate
 
 
 def scene_for(spec: splits.TrialSpec, dataset: splits.DatasetSpec, streams: Iterable[str], seed: int = 0) -> Scene:
@@ -67,7 +67,7 @@ def trial_bytes(dataset: splits.DatasetSpec, images: bool) -> int:
     droop of calibration.SPEED_DROOP_PER_N), plus ~1 s of closing and pauses."""
     seconds = dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0
     steps = seconds * archive.STEP_RATE
-    per_step = 8 + 2 * 8 + archive.N_JOINTS * 3 * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)
+    per_step = 8 + 2 * 8 + archive.N_PROPRIO * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)
     return int(steps * per_step + 2 * 4 * (seconds * archive.AUDIO_RATE + cal.LEAD_IN))
 
 
@@ -117,5 +117,5 @@ def ensure_dataset(
     bar = tqdm(total=len(scenes), initial=len(scenes) - len(jobs), desc=f"simulate {preset_name}", unit="trial", disable=not progress)
     with bar:
         parallel.run_jobs(_write, jobs, workers, bar.update)
-    archive.build_index(folder)
+    dataset_index.build_index(folder)
     return folder

@@ -47,8 +47,8 @@ def joints_and_force(motion: Motion, frame_t: np.ndarray, nz: Nuisance, rng: np.
     if rng is not None:
         n = len(frame_t)
         a = np.round(a / cal.ANGLE_LSB_RAD) * cal.ANGLE_LSB_RAD
-        v = v + rng.normal(0.0, cal.VELOCITY_NOISE_RAD_S, (n, 6))
-        c = c + rng.normal(0.0, cal.CURRENT_NOISE_A, (n, 6))
+        v = v + rng.normal(0.0, cal.VELOCITY_NOISE_RAD_S, v.shape)
+        c = c + rng.normal(0.0, cal.CURRENT_NOISE_A, c.shape)
         c = np.maximum(np.round(c / cal.CURRENT_LSB_A), 0) * cal.CURRENT_LSB_A
         force = force + nz.force_bias_n + rng.normal(0.0, cal.FORCE_NOISE_N, n)
     joints = np.stack([a, v, c], axis=2).astype(np.float32)

@@ -18,7 +18,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import archive, plots, stats
+from fabricjax import archive, dataset_index, plots, stats
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.features import welch
 from fabricjax.studies import documents, findings, loading, runner
@@ -82,7 +82,7 @@ def microphone(ds: loading.Dataset) -> str:
     own, not the paper's)."""
     if not ds.recorded:
         return MODALITY_NAMES["internal"]
-    lay = archive.layout(archive.load_index(ds.folder, ds.workdir).entries[0].meta)
+    lay = archive.layout(dataset_index.load_index(ds.folder, ds.workdir).entries[0].meta)
     return lay.mics[lay.mic("internal")].name
 
 

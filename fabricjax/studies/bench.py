@@ -10,7 +10,7 @@ Benchmarks (names for --only):
                  the paper's width 64 / 3 layers): ours for 1 and 5 vmapped seeds (--train_seeds), the PyTorch
                  twin's for 1 seed and 5 seeds one after another, eager and torch.compiled
     inference    one 200-step sequence, p50 / p99: ours (jitted `predict_one`) and the twin's (eager, compiled)
-    streaming    per-step update of `fabricjax.stream` (newest PSDs + model over N=200 steps)
+    streaming    per-step update of `fabricjax.live` (newest PSDs + model over N=200 steps)
                  on a simulated trial replayed as fast as possible
     acquisition  the 50 Hz recording loop against the simulated devices: step times, deadline misses
                  (the acquisition package's benchmark, passed in by the command: `run(acquisition=...)`)
@@ -41,7 +41,7 @@ from typing import Any, Callable, Sequence
 import jax
 from absl import logging
 
-from fabricjax import archive, benchmark, presets, sharding, sim, stream, torch_twin, train
+from fabricjax import archive, benchmark, dataset_index, live, presets, sharding, sim, torch_twin, train
 from fabricjax.config import Config
 from fabricjax.features import bench as feature_bench
 from fabricjax.features import welch
@@ -109,7 +109,7 @@ def bench_extraction(quick: bool, workdir) -> dict:
     # concurrent.futures: its worker is not daemonic, so the extraction's own process pool may start
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
         out = pool.submit(feature_bench.bench_extraction, config, folder).result()
-    steps = sum(e.n_steps for e in archive.load_index(folder, workdir).entries)
+    steps = sum(e.n_steps for e in dataset_index.load_index(folder, workdir).entries)
     paper_steps = len(presets.get("paper").dataset.trials()) * PAPER_STEPS_PER_TRIAL
     return {
         **out,
@@ -184,10 +184,10 @@ def bench_streaming(quick: bool, w: Workload) -> dict:
     n = w.model.seq_len
     cycles = max(2, round((n + (50 if quick else 250)) / (50 / sim_calibration.CYCLE_HZ)))  # ~N + 1 or 5 s of rubbing
     trial = sim.simulate(sim.Scene(12, cycles=cycles, streams=("audio", "proprio")))
-    shapes = {m: (18,) if m == "proprio" else (welch.n_bins(w.model.bandwidth_khz),) for m in w.model.modalities}
+    shapes = {m: (archive.N_PROPRIO,) if m == "proprio" else (welch.n_bins(w.model.bandwidth_khz),) for m in w.model.modalities}
     trainer = train.make_trainer(w.model, shapes)
     params = jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"]
-    out = stream.replay(stream.Streamer(trainer.graphdef, params, w.model), trial, realtime=False)
+    out = live.replay(live.Streamer(trainer.graphdef, params, w.model), trial, realtime=False)
     keep = ("steps", "window_steps", "decided_steps", "latency_p50_ms", "latency_p99_ms", "latency_max_ms")
     return {k: out[k] for k in keep} | {"workload": w.describe(), "target_p99_ms": 20.0, "meets_target": out["latency_p99_ms"] <= 20.0}
 

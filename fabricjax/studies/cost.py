@@ -43,7 +43,7 @@ import jax
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, benchmark, data, plots, stats
+from fabricjax import archive, benchmark, data, dataset_index, plots, stats
 from fabricjax.config import Config
 from fabricjax.studies import documents, loading, runner
 
@@ -141,7 +141,7 @@ def pareto_front(points: Sequence[dict], key: str) -> list[str]:
 def _steps(folder, workdir=None) -> tuple[int, float]:
     """The shortest trial's steps and the data's step rate [Hz] (50 on the hand; a rig's own):
     touch time is N steps at it, so trials stepping at different rates have none."""
-    entries = archive.load_index(folder, workdir).entries
+    entries = dataset_index.load_index(folder, workdir).entries
     rates = sorted({archive.layout(e.meta).step_rate for e in entries})
     if len(rates) > 1:
         raise archive.ArchiveError(folder, "meta.streams.steps.rate", f"the trials step at {rates} Hz: touch time needs one step rate")

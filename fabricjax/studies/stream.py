@@ -1,7 +1,7 @@
 """Live classification of one trial as a command (`python -m experiments.stream`): the model
 (a checkpoint, or a quick one-seed model of a preset, trained once and checkpointed), the trial
 (an archive, or the first test-day trial of the model's dataset), the live printout and
-results/stream.json. The streaming itself is `fabricjax.stream`.
+results/stream.json. The streaming itself is `fabricjax.live`.
 """
 
 from __future__ import annotations
@@ -10,18 +10,18 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from fabricjax import archive, catalog, sim, splits, stream
+from fabricjax import archive, catalog, dataset_index, live, sim, splits
 from fabricjax.config import Config
 from fabricjax.studies import documents, loading, runner
 
 
-def format_step(r: stream.StepResult, label: int) -> str:
+def format_step(r: live.StepResult, label: int) -> str:
     """One line of the live printout: running prediction, confidence and latency."""
     if r.probs is None:
         return f"step {r.step:5d}  {r.time_s:6.2f} s  filling window  {r.latency_ms:6.2f} ms"
     k = int(np.argmax(r.probs))
     mark = "correct" if k == label else "wrong"
-    return f"step {r.step:5d}  {r.time_s:6.2f} s  {stream.class_name(k):<28s} p={r.probs[k]:.2f}  {mark:<7s} {r.latency_ms:6.2f} ms"
+    return f"step {r.step:5d}  {r.time_s:6.2f} s  {live.class_name(k):<28s} p={r.probs[k]:.2f}  {mark:<7s} {r.latency_ms:6.2f} ms"
 
 
 # The quick model's inputs unless overridden: both microphones, what the streamer updates per step.
@@ -41,7 +41,7 @@ def quick_model(preset: str, overrides: Mapping[str, Any] | None = None, *, work
 
 def first_test_trial(folder, workdir=None) -> str:
     """Path of the first test-day trial of a dataset folder (a class the model knows)."""
-    index = archive.load_index(folder, workdir)
+    index = dataset_index.load_index(folder, workdir)
     roles = splits.assign_roles([e.meta for e in index.entries])
     for e, role in zip(index.entries, roles):
         if role == "test" and e.meta["label"] < catalog.N_CLASSES:
@@ -76,7 +76,7 @@ def run(
     the latencies are the model's, but in real time it can make steps late.
     """
     if checkpoint_dir is not None:
-        graphdef, params, config = stream.restore_model(checkpoint_dir)
+        graphdef, params, config = live.restore_model(checkpoint_dir)
     else:
         graphdef, params, config, checkpoint_dir = quick_model(preset, overrides, workdir=workdir, data_dir=data_dir)
     if archive_path is None:
@@ -84,24 +84,24 @@ def run(
         archive_path = first_test_trial(folder, workdir)
     watch = view or view_save is not None
     trial = archive.read_archive(archive_path, images=watch)
-    streamer = stream.Streamer(graphdef, params, config)
+    streamer = live.Streamer(graphdef, params, config)
     label = int(trial.meta["label"])
     if watch:
         from fabricjax import view as trial_view
 
         rec = trial_view.open_recording(view_save)
         viewer = trial_view.TrialView(rec, label)
-    out(f"{archive_path}: {stream.class_name(label)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
+    out(f"{archive_path}: {live.class_name(label)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
         f"N={streamer.n} steps ({streamer.n / archive.STEP_RATE:.2f} s), {'+'.join(config.modalities)}")
 
-    def show(r: stream.StepResult) -> None:
+    def show(r: live.StepResult) -> None:
         if print_every and (r.step % print_every == 0 or r.step == trial.n_steps - 1):
             out(format_step(r, label))
         if watch:
             viewer.log_step(trial_view.archive_step(trial, r.step))
             viewer.log_prediction(r)
 
-    summary = stream.replay(streamer, trial, realtime=realtime, on_step=show)
+    summary = live.replay(streamer, trial, realtime=realtime, on_step=show)
     if watch:
         rec.flush()
     first, step = summary["time_to_first_correct_s"], summary["first_correct_step"]

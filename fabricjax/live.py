@@ -6,10 +6,10 @@
 The command (`python -m experiments.stream`: a quick model or a checkpoint, a trial, the live
 printout and results/stream.json) is `fabricjax.studies.stream`.
 
-Every step brings one 2048-sample window per microphone and the 18 joint values. One jitted
-update computes the Welch PSD of just those windows (`welch_psd` on a (mics, 2048) batch, at the
-config's bandwidth), shifts the (N, F) windows by one step on the device (the oldest step drops
-out, buffers donated), and runs the model over the window. Nothing of the window is recomputed:
+Every step brings one 2048-sample window per microphone and the `archive.N_PROPRIO` joint values.
+One jitted update computes the Welch PSD of just those windows (`welch_psd` on a (mics, 2048)
+batch, at the config's bandwidth), shifts the (N, F) windows by one step on the device (the oldest
+step drops out, buffers donated), and runs the model over the window. Nothing of the window is recomputed:
 the PSD of a step is computed once, when it arrives, and equals the batch feature of
 `features.extract.log_psd` for that step. The model itself does run over the whole window each
 step: its per-sequence [0, 1] rescale and attention see every step.
@@ -67,7 +67,7 @@ class Streamer:
         self.device = jax.devices()[0]
         self.params = jax.device_put(params, self.device)
         bins = welch.n_bins(config.bandwidth_khz)
-        self._empty = {m: np.zeros((self.n, 18 if m == "proprio" else bins), np.float32) for m in config.modalities}
+        self._empty = {m: np.zeros((self.n, archive.N_PROPRIO if m == "proprio" else bins), np.float32) for m in config.modalities}
         self._update = jax.jit(functools.partial(_update, graphdef, config), donate_argnums=1)
         self.reset()
 
@@ -78,7 +78,7 @@ class Streamer:
     def warmup(self) -> None:
         """Compile the update and run it twice (first window and steady state), then reset."""
         for _ in range(2):
-            self.update(np.zeros((len(self.mics), archive.WINDOW), np.int32), np.zeros((archive.N_JOINTS, 3), np.float32))
+            self.update(np.zeros((len(self.mics), archive.WINDOW), np.int32), np.zeros((archive.N_JOINTS, archive.N_JOINT_FIELDS), np.float32))
         self.reset()
 
     def update(self, mic_windows: np.ndarray, joints: np.ndarray) -> np.ndarray | None:

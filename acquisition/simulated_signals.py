@@ -15,9 +15,9 @@ goal positions: the goals are checked and counted only.
 from __future__ import annotations
 
 from acquisition import camera as camera_mod
-from acquisition import recorder, simulated
+from acquisition import recorder, simulated_devices
 from acquisition.procedure import ExploratoryProcedure
-from acquisition.simulated import SimulatedSignals
+from acquisition.simulated_devices import SimulatedSignals
 from fabricjax import sim
 from fabricjax.sim import calibration, minsight
 
@@ -46,6 +46,6 @@ def bench_acquisition(seconds: float = 10.0, fabric_id: int = 12) -> dict:
     """Step-time distribution of the 50 Hz loop against the simulated devices (nothing written)."""
     cycles = max(1, round(seconds * calibration.CYCLE_HZ))
     signals = trial_signals(fabric_id, n_cycles=cycles)
-    with simulated.simulated_rig(signals) as rig:
+    with simulated_devices.simulated_rig(signals) as rig:
         rec = recorder.record_trial(rig, procedure(cycles), fabric_id=fabric_id, day=1, trial=0, out_dir=".", write=False)
     return rec.archive.meta["step_time"] | {"mic_stream": rec.archive.meta["mic_stream"], "failure": rec.failure}
