@@ -84,7 +84,7 @@ def run(main, cpu_devices: int | None = None) -> None:
 
     def setup():
         runtime.configure_jax(
-            cpu_devices=FLAGS.cpu_devices or cpu_devices or runtime.CORES,
+            cpu_devices=FLAGS.cpu_devices or cpu_devices or runtime.available_cores(),
             compilation_cache_dir=workspace.compilation_cache_dir(FLAGS.workdir),
             distributed=distributed(),
         )

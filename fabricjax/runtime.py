@@ -10,7 +10,7 @@ What it sets:
 * `distributed`: this process joins a run over several processes (hosts) first
   (`join_processes`), before JAX starts a backend;
 * always: the unrolled `threefry2x32` lowering on CPU (`unroll_threefry_on_cpu`);
-* `cpu_devices`: JAX's CPU device count (`sharding.use_cpu_cores`; `CORES`: one per core), which
+* `cpu_devices`: JAX's CPU device count (`sharding.use_cpu_cores`; `available_cores()`: one per core), which
   must come before JAX starts its CPU backend; None leaves JAX's choice (one CPU device, or
   XLA_FLAGS / JAX_NUM_CPU_DEVICES);
 * `compilation_cache_dir`: XLA's persistent compilation cache there (programs that took >= 1 s to
@@ -26,7 +26,6 @@ import os
 import sys
 from typing import Any, Mapping
 
-CORES = "cores"  # cpu_devices: one CPU device per core this process may run on
 MIN_CACHED_COMPILE_S = 1.0  # programs compiling faster than this are not worth a cache file
 
 _threefry_unrolled: bool | None = None
@@ -84,9 +83,14 @@ def is_primary() -> bool:
     return jax is None or not jax.distributed.is_initialized() or jax.process_index() == 0
 
 
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity): one CPU device each for training."""
+    return len(os.sched_getaffinity(0))
+
+
 def configure_jax(
     *,
-    cpu_devices: int | str | None = None,
+    cpu_devices: int | None = None,
     compilation_cache_dir: str | os.PathLike | None = None,
     distributed: Mapping[str, Any] | None = None,
 ) -> None:
@@ -99,6 +103,6 @@ def configure_jax(
     if cpu_devices is not None:
         from fabricjax import sharding
 
-        sharding.use_cpu_cores(None if cpu_devices == CORES else int(cpu_devices))
+        sharding.use_cpu_cores(cpu_devices)
     if compilation_cache_dir is not None:
         use_compilation_cache(compilation_cache_dir)

@@ -9,7 +9,7 @@ all-reduce, so results equal a one-device run up to the order of float summation
 A CPU is one device by default; `use_cpu_cores` makes it one device per core (the training and
 benchmark commands call it first, through `runtime.configure_jax`), so that seeds or samples run
 on separate cores instead of sharing each op. A single prediction answers faster on a one-device
-CPU (measured 0.1-0.5 ms at p50 for the paper's model), so latency-bound commands keep one device.
+CPU, whose ops use every core (README's speed section), so latency-bound commands keep one device.
 
 In a run over several processes (`runtime.join_processes`) `jax.devices()` lists every process's
 devices, so the mesh spans them all: host values go onto it with `put`, and what training returns
@@ -26,6 +26,8 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
+from fabricjax import runtime
+
 SEED, BATCH = "seed", "batch"
 
 
@@ -37,7 +39,7 @@ def use_cpu_cores(n: int | None = None) -> int:
     count of 1 keeps the single device."""
     if "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", "") or os.environ.get("JAX_NUM_CPU_DEVICES"):
         return len(jax.devices("cpu"))
-    n = n or len(os.sched_getaffinity(0))
+    n = n or runtime.available_cores()
     try:
         jax.config.update("jax_num_cpu_devices", n)
     except RuntimeError:  # JAX has started
