@@ -17,7 +17,7 @@ import dataclasses
 
 from absl import app, flags as absl_flags
 
-from acquisition.rig_bench import bench_import
+from acquisition.other_rig import bench_import
 from acquisition.simulated_signals import bench_acquisition
 from experiments import flags
 from fabricjax.studies import bench

@@ -157,11 +157,11 @@ class ConvEncoder(nnx.Module):
 def self_attention(q: jax.Array, k: jax.Array, v: jax.Array) -> jax.Array:
     """Softmax attention of head-major (B, H, T, D) projections -> (B, H, T, D).
 
-    Formulation chosen for XLA's CPU backend (measured with `fabricjax.benchmark` and per-block
-    micro-benchmarks): head-major einsums batch well under the seed `vmap`, where
-    `jax.nn.dot_product_attention` cost 1.6-2x per seed at 5 seeds; and normalising after the
-    value product (divide the (B, H, T, D) output, not the (B, H, T, T) weights, with the max
-    shift outside the gradient: softmax is shift-invariant) halves a block's training step.
+    Formulation chosen for XLA's CPU backend (timed with `fabricjax.program_timing`): head-major
+    einsums batch well under the seed `vmap`, where `jax.nn.dot_product_attention` cost more per
+    seed; and normalising after the value product (divide the (B, H, T, D) output, not the
+    (B, H, T, T) weights, with the max shift outside the gradient: softmax is shift-invariant)
+    does less work per training step.
     """
     # float32 scores even under float16 compute: a float16 product overflows to inf above 65504
     scores = jnp.einsum("bhtd,bhsd->bhts", q * q.shape[-1] ** -0.5, k, preferred_element_type=jnp.float32)

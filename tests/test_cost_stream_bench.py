@@ -9,9 +9,9 @@ import jax
 import numpy as np
 import pytest
 
-from acquisition.rig_bench import bench_import
+from acquisition.other_rig import bench_import
 from acquisition.simulated_signals import bench_acquisition
-from fabricjax import archive, benchmark, live, sim, train
+from fabricjax import archive, program_timing, live, sim, train
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.features.extract import log_psd, mic_windows
@@ -154,13 +154,13 @@ def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
 def test_xla_flops_utilisation_and_matmul_peak_are_positive():
     f = jax.jit(lambda a, b: jax.numpy.tanh(a @ b))
     a, b = jax.numpy.ones((32, 16)), jax.numpy.ones((16, 8))
-    flops = benchmark.xla_flops(f, a, b)
+    flops = program_timing.xla_flops(f, a, b)
     assert np.isfinite(flops) and flops >= 2 * 32 * 16 * 8  # at least the matmul's multiply-adds
-    peak = benchmark.matmul_peak(n=128, repeats=2)
+    peak = program_timing.matmul_peak(n=128, repeats=2)
     # Rows split over every device: the per-device counts add up to the whole matmul's.
     assert peak["flops"] == pytest.approx(2 * 128**3, rel=0.01) and peak["devices"] == len(jax.devices())
     assert np.isfinite(peak["gflop_per_s"]) and peak["gflop_per_s"] > 0
-    use = benchmark.utilisation(flops, 1e-4, peak["gflop_per_s"])
+    use = program_timing.utilisation(flops, 1e-4, peak["gflop_per_s"])
     assert all(np.isfinite(v) and v > 0 for v in use.values())
     assert use["fraction_of_matmul_peak"] == pytest.approx(use["gflop_per_s"] / peak["gflop_per_s"])
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acquisition import import_manifest, rig_bench
+from acquisition import import_manifest, other_rig
 from fabricjax import archive
 from fabricjax.errors import UserError
 
@@ -19,7 +19,7 @@ SPLITS = {0: "train", 1: "train", 2: "val", 3: "test"}
 
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory):
-    return rig_bench.write_recordings(tmp_path_factory.mktemp("rig"), LABELS, 4, splits=SPLITS)
+    return other_rig.write_recordings(tmp_path_factory.mktemp("rig"), LABELS, 4, splits=SPLITS)
 
 
 @pytest.fixture(scope="module")
@@ -80,7 +80,7 @@ def test_rerun_resumes_and_a_foreign_archive_needs_overwrite(recordings, tmp_pat
 
 
 def test_fraction_rule_splits_each_class_in_trial_order(tmp_path):
-    manifest = rig_bench.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
+    manifest = other_rig.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
     summary, _ = _run(manifest, tmp_path / "out", split="fraction:0.5,0.25,0.25")
     assert summary["splits"] == {"train": 4, "val": 2, "test": 2}
     assert archive.read_meta(tmp_path / "out" / "felt_trial003_lab.npz")[0]["split"] == "test"
@@ -88,7 +88,7 @@ def test_fraction_rule_splits_each_class_in_trial_order(tmp_path):
 
 
 def test_trial_rule_splits_every_class_by_trial_index(tmp_path):
-    manifest = rig_bench.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
+    manifest = other_rig.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
     summary, _ = _run(manifest, tmp_path / "out", split="trial:train=0-1,val=2,test=3")
     assert summary["splits"] == {"train": 4, "val": 2, "test": 2}
     assert [archive.read_meta(tmp_path / "out" / f"felt_trial00{k}_lab.npz")[0]["split"] for k in range(4)] == ["train", "train", "val", "test"]
@@ -197,7 +197,7 @@ def test_import_benchmark_entry_and_row(tmp_path):
     from fabricjax.studies import bench
 
     doc = bench.run(only=["import"], results=tmp_path, command="test", out=lambda s: None,
-                    importer=lambda trials: rig_bench.bench_import(trials=20, seconds=(2.0, 3.0), workers=1))
+                    importer=lambda trials: other_rig.bench_import(trials=20, seconds=(2.0, 3.0), workers=1))
     entry = doc["benchmarks"]["import"]
     assert entry["trials"] == 20 and entry["steps"] > 0 and entry["wall_s"] > 0
     assert "batch import, 20 trials of 2-3 s" in (tmp_path / "bench.md").read_text()
@@ -206,33 +206,33 @@ def test_import_benchmark_entry_and_row(tmp_path):
 
 
 def _rig_manifest(root, rig_toml, labels=LABELS[:1], trials=1, seconds=(2.0, 2.0), splits=None):
-    """A rig's recordings (`rig_bench`) under another rig file: its step clock or microphones."""
-    manifest = rig_bench.write_recordings(root, labels, trials, seconds, splits=splits or {k: "train" for k in range(trials)})
+    """A rig's recordings (`other_rig`) under another rig file: its step clock or microphones."""
+    manifest = other_rig.write_recordings(root, labels, trials, seconds, splits=splits or {k: "train" for k in range(trials)})
     (root / "rig.toml").write_text(rig_toml)
     return manifest
 
 
 def test_without_a_camera_or_a_rate_the_joints_timestamps_are_the_steps(tmp_path):
-    manifest = _rig_manifest(tmp_path / "rig", rig_bench.RIG_TOML.replace(f"[steps]\nrate = {rig_bench.STEP_RATE}\n", ""))
+    manifest = _rig_manifest(tmp_path / "rig", other_rig.RIG_TOML.replace(f"[steps]\nrate = {other_rig.STEP_RATE}\n", ""))
     _run(manifest, tmp_path / "out")
     a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")
     lay = archive.layout(a.meta)
-    assert lay.step_clock == "joints" and lay.step_rate == rig_bench.JOINT_RATE
-    np.testing.assert_allclose(np.diff(a.timestamps), 1 / rig_bench.JOINT_RATE, atol=1e-9)
+    assert lay.step_clock == "joints" and lay.step_rate == other_rig.JOINT_RATE
+    np.testing.assert_allclose(np.diff(a.timestamps), 1 / other_rig.JOINT_RATE, atol=1e-9)
     # every step is one joint reading, as read (no interpolation): the rows from the first usable one
     table = np.loadtxt(tmp_path / "rig" / "recordings" / "00_000" / "joints.csv", delimiter=",", skiprows=1)
     first = a.meta["import"]["steps_dropped_before_start"]
-    assert first == int(np.ceil(archive.WINDOW / rig_bench.VIBRATION_RATE * rig_bench.JOINT_RATE))  # a full 2048-sample window
-    rows = table[first : first + a.n_steps, 1:-1].reshape(a.n_steps, rig_bench.N_JOINTS, 3)
+    assert first == int(np.ceil(archive.WINDOW / other_rig.VIBRATION_RATE * other_rig.JOINT_RATE))  # a full 2048-sample window
+    rows = table[first : first + a.n_steps, 1:-1].reshape(a.n_steps, other_rig.N_JOINTS, 3)
     np.testing.assert_allclose(a.joints, rows.astype(np.float32))
     step_t = table[first : first + a.n_steps, 0]
-    np.testing.assert_array_equal(a.window_end[:, 0], np.floor(step_t * rig_bench.VIBRATION_RATE + 1e-9).astype(np.int64) + 1)
+    np.testing.assert_array_equal(a.window_end[:, 0], np.floor(step_t * other_rig.VIBRATION_RATE + 1e-9).astype(np.int64) + 1)
 
 
 def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     import cv2
 
-    manifest = _rig_manifest(tmp_path / "rig", rig_bench.RIG_TOML + "\n[camera]\n")
+    manifest = _rig_manifest(tmp_path / "rig", other_rig.RIG_TOML + "\n[camera]\n")
     folder = tmp_path / "rig" / "recordings" / "00_000"
     frames = np.random.default_rng(1).integers(0, 255, size=(12, 6, 8, 3), dtype=np.uint8)
     (folder / "camera").mkdir()
@@ -246,7 +246,7 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     assert lay.step_clock == "camera" and lay.step_rate == pytest.approx(30.0, abs=1e-3) and lay.image_size == (6, 8)
     np.testing.assert_allclose(a.timestamps, frame_t - frame_t[0], atol=1e-6)
     np.testing.assert_array_equal(a.images, frames)
-    np.testing.assert_array_equal(a.window_end[:, 0], np.floor(frame_t * rig_bench.VIBRATION_RATE).astype(np.int64) + 1)
+    np.testing.assert_array_equal(a.window_end[:, 0], np.floor(frame_t * other_rig.VIBRATION_RATE).astype(np.int64) + 1)
     assert "image" in lay.modalities() and "flow" in lay.modalities()
 
 
@@ -259,7 +259,7 @@ def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path, ca
     from fabricjax.config import Config
     from fabricjax.features import welch
 
-    room = rig_bench.RIG_TOML.replace("[joints]", '[[mics]]\nname = "room"\nfile = "room.wav"\nrole = "external"\n\n[joints]')
+    room = other_rig.RIG_TOML.replace("[joints]", '[[mics]]\nname = "room"\nfile = "room.wav"\nrole = "external"\n\n[joints]')
     manifest = _rig_manifest(tmp_path / "rig", room, labels=LABELS[:2], trials=2, splits={0: "train", 1: "test"})
     rng = np.random.default_rng(2)
     for folder in (tmp_path / "rig" / "recordings").iterdir():  # white noise of one level in both microphones
@@ -301,7 +301,7 @@ def test_property_columns_give_levels_only_where_given(tmp_path):
     from fabricjax import data
     from fabricjax.config import Config
 
-    manifest = rig_bench.write_recordings(tmp_path / "rig", LABELS[:2], 2, seconds=(2.0, 2.0), splits={0: "train", 1: "test"})
+    manifest = other_rig.write_recordings(tmp_path / "rig", LABELS[:2], 2, seconds=(2.0, 2.0), splits={0: "train", 1: "test"})
     levels = {"cotton canvas": ("1", "3", ""), "felt": ("0", "", "")}  # stretchiness, roughness, thickness
     _edit_manifest(manifest, manifest, lambda rows: [r + (["stretchiness", "roughness", "thickness"] if i == 0 else list(levels[r[1]]))
                                                      for i, r in enumerate(rows)])
@@ -373,7 +373,7 @@ def test_the_cost_study_reads_the_imported_rig_without_the_paper_point(archives,
     doc = cost.run(n_seeds=1, preset="smoke", seq_lens=(10,), backbones=("attention",), widths=(), bandwidths=(), modality_sets=[("internal",)],
                    latency_repeats=2, workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test")
     assert doc["paper_point"] is None and "paper" not in {p["group"] for p in doc["points"]}
-    assert doc["dataset"]["step_rate"] == rig_bench.STEP_RATE and all(p["touch_s"] == p["seq_len"] / rig_bench.STEP_RATE for p in doc["points"])
+    assert doc["dataset"]["step_rate"] == other_rig.STEP_RATE and all(p["touch_s"] == p["seq_len"] / other_rig.STEP_RATE for p in doc["points"])
     md = (tmp_path / "results" / "cost.md").read_text()
     assert md.startswith("# What accuracy costs in time on recorded data") and "paper" not in md.lower()
 
@@ -383,7 +383,7 @@ def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs
     from fabricjax.studies import latents, properties
 
     labels = [*LABELS, "silk"]
-    manifest = rig_bench.write_recordings(tmp_path / "rig", labels, 4, seconds=(3.0, 3.5), splits=SPLITS)
+    manifest = other_rig.write_recordings(tmp_path / "rig", labels, 4, seconds=(3.0, 3.5), splits=SPLITS)
     roughness = {"cotton canvas": "1", "felt": "0", "oak": "1", "silk": "0"}
     _edit_manifest(manifest, manifest, lambda rows: [r + ["roughness"] if i == 0 else r[:3] + ["holdout" if r[1] == "silk" else r[3], roughness[r[1]]]
                                                      for i, r in enumerate(rows)])

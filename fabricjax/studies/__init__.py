@@ -14,10 +14,16 @@
     sweep        a recipe grid over Config fields on the ablation's rows, best point by mean validation
     palm         the palm microphone by physics: source levels at the palm, day against fabric (no model)
 
-Each study's `run(...)` trains, writes results/<study>.md and .json and returns the JSON document.
-What they share, one concept per module:
+Each study's `run(...)` trains or measures, writes results/<study>.md and .json and returns the
+JSON document. The four training studies of the paper's tables (ablation, bandwidth, noise,
+properties) are data: a `runner.Study` of `runner.StudyRow`s (name, the `Config` fields the row
+sets, its label, the paper's numbers), run by `runner.run_study`. What they share, one concept
+per module:
 
     loading      the data a study needs, loaded once for all its rows
-    runner       named rows -> trained seeds (`train_rows`), progress with ETA, paired Wilcoxon tests
-    documents    the results file: where the numbers come from (`header`), per-row and per-sample records
+    runner       Study / StudyRow and run_study; named rows -> trained seeds (`train_rows`), progress
+                 with ETA, paired Wilcoxon tests
+    documents    the results layer: every results file's header (command, code, date, machine, data),
+                 tables, per-row and per-sample records, atomic writing with the figures listed
+    findings     the paper's claims as predicates over per-seed results: a study's checklist
 """

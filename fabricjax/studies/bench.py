@@ -18,13 +18,13 @@ Benchmarks (names for --only):
                  unlike the hand (one 2.2 kHz vibration channel, 7 joints, no camera); target <= 3 min on
                  2 cores (passed in by the command like acquisition: `run(importer=...)`)
 
-Ours and the twin are timed in alternating rounds in this process (`benchmark.compare_with_torch`),
+Ours and the twin are timed in alternating rounds in this process (`program_timing.compare_with_torch`),
 so machine load hits both alike; ratios are ours / theirs for times (below 1: we are faster, the
 median of the per-round ratios for training), theirs being the fastest of the twin's variants
 (eager, each `torch.compile` mode; every variant and its compile time in bench.json), and scipy /
 ours for the Welch speed-up. Training and inference also say how close ours comes to the machine:
 FLOPs per step by XLA's cost analysis of the compiled program, the GFLOP/s that makes, and its
-fraction of a dense float32 matmul's GFLOP/s measured in the same run (`benchmark.matmul_peak`). The
+fraction of a dense float32 matmul's GFLOP/s measured in the same run (`program_timing.matmul_peak`). The
 PyTorch twin (`fabricjax.torch_twin`, `pip install -e ".[compare]"`) is optional: without torch
 the comparison is skipped with a note. Nothing here asserts a time.
 """
@@ -41,9 +41,9 @@ from typing import Any, Callable, Sequence
 import jax
 from absl import logging
 
-from fabricjax import archive, benchmark, dataset_index, live, presets, sharding, sim, torch_twin, train
+from fabricjax import archive, program_timing, dataset_index, live, presets, sharding, sim, torch_twin, train
 from fabricjax.config import Config
-from fabricjax.features import bench as feature_bench
+from fabricjax.features import timing as feature_timing
 from fabricjax.features import welch
 from fabricjax.sim import calibration as sim_calibration
 from fabricjax.studies import documents
@@ -58,7 +58,7 @@ class Workload:
     comparison the PyTorch twin was built for: the paper's model (width 64, 3 attention layers)
     on two microphones (320 bins = 15 kHz) + joints, N=200, batch 32. Tests pass a tiny one."""
 
-    model: Config = benchmark.COMPARE_CONFIG
+    model: Config = program_timing.COMPARE_CONFIG
     batch: int = 32
     bins: int = 320
     seeds: tuple[int, ...] = (1, 5)  # seed counts of the training benchmark; 1 must be among them
@@ -74,7 +74,7 @@ class Workload:
 # check, not a measurement. The default stays the full measurement.
 QUICK_WORKLOAD = Workload(
     dataclasses.replace(
-        benchmark.COMPARE_CONFIG, width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16), seq_len=24,
+        program_timing.COMPARE_CONFIG, width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16), seq_len=24,
     ),
     batch=8,
     bins=24,
@@ -99,7 +99,7 @@ def bench_simulator(quick: bool) -> dict:
 
 
 def bench_welch(quick: bool) -> dict:
-    return feature_bench.bench_welch(n_windows=512 if quick else 4096, repeats=3 if quick else 5)
+    return feature_timing.bench_welch(n_windows=512 if quick else 4096, repeats=3 if quick else 5)
 
 
 def bench_extraction(quick: bool, workdir) -> dict:
@@ -108,7 +108,7 @@ def bench_extraction(quick: bool, workdir) -> dict:
     config = Config.from_preset("smoke", modalities=("internal", "external", "proprio"))
     # concurrent.futures: its worker is not daemonic, so the extraction's own process pool may start
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
-        out = pool.submit(feature_bench.bench_extraction, config, folder).result()
+        out = pool.submit(feature_timing.bench_extraction, config, folder).result()
     steps = sum(e.n_steps for e in dataset_index.load_index(folder, workdir).entries)
     paper_steps = len(presets.get("paper").dataset.trials()) * PAPER_STEPS_PER_TRIAL
     return {
@@ -124,9 +124,9 @@ def bench_extraction(quick: bool, workdir) -> dict:
 
 def _interleaved(quick: bool, w: Workload) -> dict:
     """Ours and the twin's training steps and inference timed in alternating rounds, so machine
-    load hits both alike (`benchmark.compare_with_torch`)."""
-    return benchmark.compare_with_torch(
-        w.model, seeds=w.seeds, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins, steps=2 if quick else benchmark.STEPS_PER_EPOCH,
+    load hits both alike (`program_timing.compare_with_torch`)."""
+    return program_timing.compare_with_torch(
+        w.model, seeds=w.seeds, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins, steps=2 if quick else program_timing.STEPS_PER_EPOCH,
         rounds=2 if quick else 5, pause_s=0.05 if quick else 1.0, inference_rounds=2 if quick else 10, inference_calls=5 if quick else 20,
     )
 
@@ -137,8 +137,8 @@ def bench_training(quick: bool, w: Workload, compared: dict | None, peak: dict) 
     out: dict[str, Any] = {"workload": w.describe()}
     for n in w.seeds:
         if compared is None:
-            out[f"ours_{n}_seed"] = benchmark.bench_train_step(
-                w.model, n, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins, steps=2 if quick else benchmark.STEPS_PER_EPOCH, repeats=2 if quick else 3
+            out[f"ours_{n}_seed"] = program_timing.bench_train_step(
+                w.model, n, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins, steps=2 if quick else program_timing.STEPS_PER_EPOCH, repeats=2 if quick else 3
             )
         else:
             c = compared["training"][f"{n}_seed"]
@@ -148,8 +148,8 @@ def bench_training(quick: bool, w: Workload, compared: dict | None, peak: dict) 
                 "sequences_per_s_per_seed": w.batch * n / c["torch_s_per_step"],
             }
             out[f"ratio_{n}_seed"] = c["ratio"]
-        flops = benchmark.train_step_flops(w.model, n, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins)
-        out[f"ours_{n}_seed"]["xla"] = benchmark.utilisation(flops, out[f"ours_{n}_seed"]["seconds_per_step"], peak["gflop_per_s"])
+        flops = program_timing.train_step_flops(w.model, n, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins)
+        out[f"ours_{n}_seed"]["xla"] = program_timing.utilisation(flops, out[f"ours_{n}_seed"]["seconds_per_step"], peak["gflop_per_s"])
     for n in w.seeds:
         if n > 1:  # our n vmapped seeds against n times one seed of ours (1.0: vmapping is free)
             out[f"ours_{n}_over_1_per_seed"] = out[f"ours_{n}_seed"]["seconds_per_step"] / (n * out["ours_1_seed"]["seconds_per_step"])
@@ -163,7 +163,7 @@ def bench_training(quick: bool, w: Workload, compared: dict | None, peak: dict) 
 def bench_inference(quick: bool, w: Workload, compared: dict | None, peak: dict) -> dict:
     out: dict[str, Any] = {"workload": w.describe()}
     if compared is None:
-        out["ours"] = benchmark.bench_inference(w.model, seq_len=w.model.seq_len, psd_bins=w.bins, repeats=30 if quick else 200)
+        out["ours"] = program_timing.bench_inference(w.model, seq_len=w.model.seq_len, psd_bins=w.bins, repeats=30 if quick else 200)
     else:
         c = compared["inference"]
         out["ours"] = {"p50_ms": c["ours_p50_ms"], "p99_ms": c["ours_p99_ms"]}
@@ -172,8 +172,8 @@ def bench_inference(quick: bool, w: Workload, compared: dict | None, peak: dict)
         out["interleaved"] = {k: c[k] for k in ("ours_build_and_warmup_s", "torch_variants")}
     # At p50: the typical call's rate (p99 is the machine's hiccups, not the program's work). One
     # sequence runs on one device, so its share is of a peak that every device makes together.
-    flops = benchmark.inference_flops(w.model, seq_len=w.model.seq_len, psd_bins=w.bins)
-    out["ours"]["xla"] = benchmark.utilisation(flops, out["ours"]["p50_ms"] / 1e3, peak["gflop_per_s"])
+    flops = program_timing.inference_flops(w.model, seq_len=w.model.seq_len, psd_bins=w.bins)
+    out["ours"]["xla"] = program_timing.utilisation(flops, out["ours"]["p50_ms"] / 1e3, peak["gflop_per_s"])
     return out
 
 
@@ -207,7 +207,7 @@ def run(
     """Run the chosen benchmarks (all by default) in order; write results/bench.json and bench.md.
 
     `acquisition` and `importer` are the acquisition package's benchmarks of its recording loop
-    (`bench_acquisition(seconds=...)`) and of the batch import (`rig_bench.bench_import(trials=...)`),
+    (`bench_acquisition(seconds=...)`) and of the batch import (`other_rig.bench_import(trials=...)`),
     which this library does not import: without one its entry is left out of the default set, and
     asking for it is an error."""
     given = {"acquisition": acquisition, "import": importer}
@@ -228,7 +228,7 @@ def run(
 
     def matmul_peak():  # measured once, in this process, for the training and the inference entry
         if not peak:
-            peak.update(benchmark.matmul_peak(repeats=2 if quick else 5))
+            peak.update(program_timing.matmul_peak(repeats=2 if quick else 5))
         return peak
 
     def comparison():  # one interleaved run serves both the training and the inference entry

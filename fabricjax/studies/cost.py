@@ -43,7 +43,7 @@ import jax
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, benchmark, data, dataset_index, plots, stats
+from fabricjax import archive, program_timing, data, dataset_index, plots, stats
 from fabricjax.config import Config
 from fabricjax.studies import documents, loading, runner
 
@@ -110,8 +110,8 @@ def sweep_points(
 
 
 def inference_latency(graphdef, params, inputs: dict[str, np.ndarray], repeats: int, warmup: int = 5) -> dict[str, float]:
-    """p50 / p99 ms of jitted `predict_one` on one sequence, result fetched to the host (`benchmark.predict_one_timer`)."""
-    run = benchmark.predict_one_timer(graphdef, params, inputs, warmup=warmup)
+    """p50 / p99 ms of jitted `predict_one` on one sequence, result fetched to the host (`program_timing.predict_one_timer`)."""
+    run = program_timing.predict_one_timer(graphdef, params, inputs, warmup=warmup)
     return {f"latency_{k}": v for k, v in stats.percentiles_ms([run() for _ in range(repeats)]).items()}
 
 

@@ -6,9 +6,8 @@ buffers donated) and the jitted `predict_one` (`predict_one_timer`), on syntheti
 bins = 15 kHz of 512, N=200 steps). Compilation is excluded; nothing here asserts a time.
 
 An epoch is timed as one call of `STEPS_PER_EPOCH` steps, as training runs it (one call per epoch
-or per run; a paper-preset epoch is ~46 steps). Each call of a compiled program gets its scratch
-memory fresh from the OS (at 5 seeds ~1.2 GB, ~300,000 page faults), so very short epochs
-overstate the cost of a step: at 4 steps per call, 5 seeds measured ~10 % slower per step.
+or per run). Each call of a compiled program gets its scratch memory fresh from the OS, so very
+short epochs would overstate the cost of a step.
 `compare_with_torch` times ours and the optional PyTorch twin (`fabricjax.torch_twin`), eager and
 `torch.compile`d, interleaved in one process and reports the ratios.
 
