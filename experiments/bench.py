@@ -1,9 +1,7 @@
 """Every speed benchmark in one command, side by side in one process; writes results/bench.json.
 
-    python -m experiments.bench                       # everything (5.5 min on 2 CPU cores with the twin eager only;
-                                                      # its two compiled variants add about as much again, not yet measured)
+    python -m experiments.bench                       # everything (README's speed section says how long it takes)
     python -m experiments.bench --quick               # a small model, fewer repeats: a smoke check, not a measurement
-                                                      # (2 min on 2 cores shared with a training job, compile caches warm)
     python -m experiments.bench --only=training,inference
     python -m experiments.bench --only=training --train_seeds=1,4,5 --cpu_devices=1 --results=/tmp/b
                                                       # other seed counts, on one CPU device sharing the cores

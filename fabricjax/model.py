@@ -174,8 +174,8 @@ class AttentionBlock(nnx.Module):
 
     The QKV projection is one parameter (W, 3W), applied as three (W, W) products: each output
     then goes to the head-major layout with a 4-D transpose, where splitting one fused (B, T, 3,
-    H, D) output takes a 5-D one that XLA's CPU backend runs up to 40x slower at 5 seeds, in the
-    forward pass and again in the backward pass (measured: -5 to -8 % of a training step).
+    H, D) output takes a 5-D one that XLA's CPU backend runs far slower under the seed vmap, in the
+    forward pass and again in the backward pass.
     """
 
     def __init__(self, width: int, n_heads: int, ffn: int, dropout: float, *, dtype, rngs: nnx.Rngs):

@@ -242,8 +242,8 @@ def compare_with_torch(
     the median times. Inference alternates blocks of `inference_calls` single-sequence calls,
     fastest variant by p50. The build times are an upper bound for the first compiled variant and
     may be near zero for later ones of the same shapes, which reuse its graphs (torch's in-process
-    and on-disk caches, as JAX's compilation cache serves ours). `pause_s` separates the sides: a 5-seed step of ours measured ~7 %
-    slower 50 ms after the twin's run than 1 s after it. Needs torch (`pip install -e
+    and on-disk caches, as JAX's compilation cache serves ours). `pause_s` separates the sides: a step run right after the
+    other side's is slower (caches and the CPU's clock still busy with it). Needs torch (`pip install -e
     ".[compare]"`; ImportError without it): the twin (`fabricjax.torch_twin`) imports torch when
     called, never at module import.
     """
