@@ -80,12 +80,13 @@ def utilisation(flops: float, seconds: float, peak_gflop_per_s: float) -> dict[s
     return {"flops_per_step": flops, "gflop_per_s": achieved, "fraction_of_matmul_peak": achieved / peak_gflop_per_s}
 
 
-def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_bins: int, steps: int):
+def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_bins: int, steps: int, image_hw: tuple[int, int] = (60, 80)):
     """The jitted, vmapped `Trainer.train_epoch` and its arguments (carry, keys, data), placed as
     training places them (`sharding.training_mesh`)."""
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
     mesh = sharding.training_mesh(n_seeds, batch)
-    train = jax.device_put(select(cfg, synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins)), sharding.replicated(mesh))
+    data = synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins, image_hw=tuple(image_hw))
+    train = jax.device_put(select(cfg, data), sharding.replicated(mesh))
     trainer = make_trainer(cfg, feature_shapes(train["inputs"]), mesh=mesh, n_train=batch * steps)
     per_seed = sharding.by_seed(mesh)
     states = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)(jax.device_put(seed_keys(range(n_seeds)), per_seed))
@@ -94,15 +95,16 @@ def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_b
 
 
 def train_step_runner(
-    config: Config, n_seeds: int, batch: int = 32, seq_len: int = 200, psd_bins: int = 320, steps: int = STEPS_PER_EPOCH
+    config: Config, n_seeds: int, batch: int = 32, seq_len: int = 200, psd_bins: int = 320, steps: int = STEPS_PER_EPOCH,
+    image_hw: tuple[int, int] = (60, 80),
 ) -> Callable[[], float]:
     """A compiled, warmed-up callable that runs one epoch of `steps` vmapped training steps (the real
     `Trainer.train_epoch` scan, parameters and optimiser state donated) and returns seconds per step.
 
     Seeds and samples are split over the devices as in training (`sharding.training_mesh`): with
     one CPU device per core (`sharding.use_cpu_cores`), seeds or each minibatch's samples run on
-    separate cores."""
-    epoch, first, keys, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps)
+    separate cores. `image_hw` is the size of the synthetic camera frames (image rows only)."""
+    epoch, first, keys, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps, image_hw)
     carry = [first]
     del first
 
@@ -175,6 +177,38 @@ def bench_inference(config: Config, seq_len: int = 200, psd_bins: int = 320, rep
     """p50 / p99 latency in ms of `predict_one` on one sequence (dropout off, result on the host)."""
     run = inference_runner(config, seq_len=seq_len, psd_bins=psd_bins)
     return stats.percentiles_ms([run() for _ in range(repeats)])
+
+
+CAMERA_TARGET = 1.5  # the target: a camera row's training step costs at most 1.5x an audio row's
+
+
+def compare_rows(
+    rows: dict[str, Config], *, reference: str, n_seeds: int = 5, psd_bins: int = 320, steps: int = STEPS_PER_EPOCH,
+    rounds: int = 5, pause_s: float = 1.0,
+) -> dict[str, Any]:
+    """Training steps of study rows (`rows`: name -> config, each at its own batch size, N and
+    camera frame size `image_size`) timed in alternating rounds in this process (`_interleave`), so
+    machine load hits all alike; each row's seconds per step (median over rounds) and its ratio
+    to the `reference` row: `ratio` the median of the per-round ratios, `ratio_of_medians` the
+    ratio of the median times."""
+    runs, built = {}, {}
+    for name, cfg in rows.items():
+        make = functools.partial(
+            train_step_runner, cfg, n_seeds, batch=cfg.batch_size, seq_len=cfg.seq_len, psd_bins=psd_bins, steps=steps, image_hw=cfg.image_size
+        )
+        runs[name], built[name] = _build(make, tolerate=False)
+    times = {k: np.asarray(v) for k, v in _interleave(runs, rounds, pause_s).items()}
+    ref = times[reference]
+    return {
+        "n_seeds": n_seeds, "steps_per_timing": steps, "rounds": rounds, "reference": reference,
+        "rows": {
+            name: {
+                **built[name], "s_per_step": float(np.median(t)), "min_s": float(t.min()), "rounds": t.tolist(),
+                **({} if name == reference else {"ratio": float(np.median(t / ref)), "ratio_of_medians": float(np.median(t) / np.median(ref))}),
+            }
+            for name, t in times.items()
+        },
+    }
 
 
 # The PyTorch comparison's workload: the paper's model on two microphones (320 bins) + joints.

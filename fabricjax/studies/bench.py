@@ -9,6 +9,9 @@ Benchmarks (names for --only):
     training     training step of the audio + proprioception model (batch 32, N=200, 320 bins,
                  the paper's width 64 / 3 layers): ours for 1 and 5 vmapped seeds (--train_seeds), the PyTorch
                  twin's for 1 seed and 5 seeds one after another, eager and torch.compiled
+    camera       a camera row's training step against an audio row's (target: at most 1.5x), the
+                 ablation's rows on the default preset (batch 16, N=50, 30x40 frames, 5 vmapped seeds),
+                 interleaved: audio (Minsound), image, and image without the rotation augmentation
     inference    one 200-step sequence, p50 / p99: ours (jitted `predict_one`) and the twin's (eager, compiled)
     streaming    per-step update of `fabricjax.live` (newest PSDs + model over N=200 steps)
                  on a simulated trial replayed as fast as possible
@@ -48,7 +51,7 @@ from fabricjax.features import welch
 from fabricjax.sim import calibration as sim_calibration
 from fabricjax.studies import documents
 
-BENCHMARKS = ("simulator", "welch", "extraction", "training", "inference", "streaming", "acquisition", "import")
+BENCHMARKS = ("simulator", "welch", "extraction", "training", "camera", "inference", "streaming", "acquisition", "import")
 PASSED_IN = ("acquisition", "import")  # benchmarks of the acquisition package, which this library does not import
 
 
@@ -160,6 +163,32 @@ def bench_training(quick: bool, w: Workload, compared: dict | None, peak: dict) 
     return out
 
 
+def camera_rows(quick: bool) -> dict[str, Config]:
+    """The ablation's audio and camera rows on the default preset (--quick: a small model on short
+    sequences of small frames), and the camera row without its rotation (the rotation's share)."""
+    shrink = dict(seq_len=12, width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), batch_size=8, image_size=(12, 16)) if quick else {}
+    audio = Config.from_preset("default", modalities=("internal",), **shrink)
+    camera = Config.from_preset("default", modalities=("image",), **shrink)
+    return {"audio": audio, "camera": camera, "camera_unrotated": dataclasses.replace(camera, augment_rotation=False)}
+
+
+def bench_camera(quick: bool) -> dict:
+    """A camera row's 5-seed training step against an audio row's, interleaved (`program_timing.compare_rows`),
+    with the target for the ratio (camera / audio <= `program_timing.CAMERA_TARGET`)."""
+    rows = camera_rows(quick)
+    bins = 24 if quick else welch.n_bins(rows["audio"].bandwidth_khz)
+    out = program_timing.compare_rows(
+        rows, reference="audio", psd_bins=bins, steps=2 if quick else program_timing.STEPS_PER_EPOCH, rounds=2 if quick else 5, pause_s=0.05 if quick else 1.0,
+    )
+    c = rows["camera"]
+    ratio = out["rows"]["camera"]["ratio"]
+    return {
+        **out, "workload": {"preset": c.preset, "batch": c.batch_size, "seq_len": c.seq_len, "image_size": list(c.image_size), "psd_bins": bins,
+                            "cnn_features": list(c.cnn_features), "width": c.width, "n_layers": c.n_layers},
+        "target_ratio": program_timing.CAMERA_TARGET, "meets_target": ratio <= program_timing.CAMERA_TARGET,
+    }
+
+
 def bench_inference(quick: bool, w: Workload, compared: dict | None, peak: dict) -> dict:
     out: dict[str, Any] = {"workload": w.describe()}
     if compared is None:
@@ -243,6 +272,7 @@ def run(
         "welch": lambda: bench_welch(quick),
         "extraction": lambda: bench_extraction(quick, workdir),
         "training": lambda: bench_training(quick, workload, comparison(), matmul_peak()),
+        "camera": lambda: bench_camera(quick),
         "inference": lambda: bench_inference(quick, workload, comparison(), matmul_peak()),
         "streaming": lambda: bench_streaming(quick, workload),
         "acquisition": lambda: acquisition(seconds=3.0 if quick else 10.0),
@@ -289,6 +319,15 @@ def markdown(doc: dict[str, Any]) -> str:
             ])
             for name, v in t.get("interleaved", {}).get("training", {}).get(f"{n}_seed", {}).get("torch_variants", {}).items():
                 variants.append([f"training, {n} seed" + ("s" if n > 1 else ""), name, _ms(v.get("s_per_step") and v["s_per_step"] * 1e3, 0), _ratio(v.get("ratio")), _built(v)])
+    if "camera" in b:
+        c = b["camera"]
+        r, w = c["rows"], c["workload"]
+        rows.append([
+            f"camera row's training step, {c['n_seeds']} seeds vmapped ({w['preset']} preset: batch {w['batch']}, N={w['seq_len']}, "
+            f"{w['image_size'][0]}x{w['image_size'][1]} frames; without rotation {r['camera_unrotated']['s_per_step'] * 1e3:.0f} ms)",
+            f"{r['camera']['s_per_step'] * 1e3:.0f} ms", f"audio row {r['audio']['s_per_step'] * 1e3:.0f} ms; target ratio <= {c['target_ratio']:g}",
+            _ratio(r["camera"]["ratio"]),
+        ])
     if "inference" in b:
         i = b["inference"]
         theirs = i.get("torch")
