@@ -17,6 +17,12 @@ from fabricjax.config import Config
 from fabricjax.errors import UserError
 
 
+# The layout of the saved training state; bumped whenever it changes (2: the optimiser state holds
+# the cosine decay's own step counter), so a checkpoint of another layout is refused by name
+# instead of failing inside orbax, and a study's checkpoint folder (tagged with it) starts afresh.
+STATE_VERSION = 2
+
+
 class CheckpointMismatch(UserError):
     """A checkpoint directory holds a run made with another config or other seeds."""
 
@@ -28,8 +34,11 @@ def manager(directory: str | os.PathLike, max_to_keep: int = 2) -> ocp.Checkpoin
 
 
 def meta(config: Config, seeds, shapes: dict[str, tuple[int, ...]]) -> dict[str, Any]:
-    """What identifies a run: its config, its seeds and the per-step input shapes."""
-    return {"config": config.to_json(), "seeds": [int(s) for s in seeds], "shapes": {k: list(v) for k, v in shapes.items()}}
+    """What identifies a run: its config, its seeds, the per-step input shapes and the state's layout."""
+    return {
+        "config": config.to_json(), "seeds": [int(s) for s in seeds], "shapes": {k: list(v) for k, v in shapes.items()},
+        "state_version": STATE_VERSION,
+    }
 
 
 def save(mngr: ocp.CheckpointManager, step: int, state, run_meta: dict[str, Any]) -> None:
@@ -48,7 +57,7 @@ def check_meta(directory, saved: dict[str, Any], expected: dict[str, Any]) -> No
     cfg = expected["config"]
     saved_cfg = saved.get("config", {})
     diff = sorted(k for k in set(cfg) | set(saved_cfg) if _norm(cfg.get(k)) != _norm(saved_cfg.get(k)))
-    diff += [k for k in ("seeds", "shapes") if _norm(saved.get(k)) != _norm(expected[k])]
+    diff += [k for k in RUN_FIELDS if _norm(saved.get(k, 1 if k == "state_version" else None)) != _norm(expected[k])]
     if diff:
         details = "; ".join(
             f"{k}: saved {_field(saved, k)!r}, requested {_field(expected, k)!r}" for k in diff
@@ -56,8 +65,11 @@ def check_meta(directory, saved: dict[str, Any], expected: dict[str, Any]) -> No
         raise CheckpointMismatch(f"checkpoint in {directory} was made with a different run: {details}")
 
 
+RUN_FIELDS = ("seeds", "shapes", "state_version")  # beside the config's fields (a checkpoint without state_version has layout 1)
+
+
 def _field(m: dict[str, Any], k: str):
-    return m[k] if k in ("seeds", "shapes") else m.get("config", {}).get(k)
+    return m.get(k, 1 if k == "state_version" else None) if k in RUN_FIELDS else m.get("config", {}).get(k)
 
 
 def _norm(v):

@@ -88,3 +88,14 @@ def test_a_different_config_is_a_clear_error(uninterrupted):
     assert str(workdir) in str(err.value)
     with pytest.raises(checkpoint.CheckpointMismatch, match="seeds"):
         train_and_evaluate(TINY, data_sets(), [0, 1], workdir=workdir)
+
+
+def test_a_checkpoint_of_another_state_layout_is_refused_by_name():
+    """A checkpoint saved before the optimiser state held the cosine decay's counter (no
+    state_version: layout 1) is refused naming the field, not with an error from inside orbax;
+    the studies' checkpoint folders are tagged with the layout, so they start afresh instead."""
+    expected = checkpoint.meta(TINY, [0, 1], {"internal": (24,)})
+    old = {k: v for k, v in expected.items() if k != "state_version"}
+    with pytest.raises(checkpoint.CheckpointMismatch, match=f"state_version: saved 1, requested {checkpoint.STATE_VERSION}"):
+        checkpoint.check_meta("ckpt", old, expected)
+    checkpoint.check_meta("ckpt", expected, expected)

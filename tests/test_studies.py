@@ -165,7 +165,7 @@ def test_latents_from_the_property_checkpoint(property_run, workdir, tmp_path):
     doc, _ = property_run
     out = latents.run(doc["rows"][0]["checkpoint"], workdir=workdir, results=tmp_path, command="test")
     assert [p["fabric_id"] for p in out["points"]] == [1, 4, 10, 12, 21]  # fabrics of the smoke preset but 0
-    assert out["seed"] == out["seeds"][int(np.argmax(out["best_val_per_seed"]))]
+    assert out["seed"] == out["checkpoint_seeds"][int(np.argmax(out["best_val_per_seed"]))]
     assert np.isfinite([p["xy"] for p in out["points"]]).all()
     assert (tmp_path / "latents.png").stat().st_size > 0
     assert out["findings"] and (tmp_path / "latents.md").read_text().startswith("# Latent space")
@@ -407,4 +407,4 @@ def test_palm_physics_on_smoke_scenes(tmp_path):
     at_palm = np.array(list(doc["sources"]["rubbing at the palm"].values()))[:, -1]
     assert np.all(inside > at_palm + 20)
     text = (tmp_path / "palm_physics.md").read_text()
-    assert "Day or fabric" in text and "- date: " in text and "- machine: " in text
+    assert "Day or fabric" in text and "- code: " in text and "; written " in text and "- machine: " in text

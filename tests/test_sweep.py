@@ -114,7 +114,7 @@ def test_every_point_trains_the_preset_with_set_and_its_own_fields_on_every_row(
     ]  # point-major, the first field slowest; the name is the unit's log folder
     for _, config, fields, row in units:
         expected = Config.from_preset("smoke", learning_rate=3e-3, **row.settings, **fields)
-        assert config == expected and config.fusion_norm == row.fusion_norm
+        assert config == expected and config.fusion_norm == row.settings["fusion_norm"]
 
 
 def test_the_best_point_is_the_first_argmax_of_the_validation_accuracy_averaged_over_rows():

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import data, stats, train, workspace
+from fabricjax import checkpoint, data, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies import loading
@@ -184,8 +184,12 @@ def train_row(
 
 def checkpoint_dir(study: str, row: str, config: Config, seeds: Sequence[int], workdir=None) -> Path:
     """A checkpoint directory per (row, config, seeds): reruns resume, other settings start afresh."""
-    tag = hashlib.sha1(f"{config.dumps()}{list(seeds)}".encode()).hexdigest()[:8]
+    tag = hashlib.sha1(f"{config.dumps()}{list(seeds)}{checkpoint.STATE_VERSION}".encode()).hexdigest()[:8]
     return workspace.checkpoints_dir(f"{study}/{row}-{tag}", workdir)
+
+
+def _test_summary(row: Row) -> str:
+    return f"test {stats.format_mean_sd(row.accuracy('test'))} %"
 
 
 @dataclasses.dataclass
@@ -211,7 +215,7 @@ def train_rows(
     workdir=None,
     checkpoints: bool = False,
     label: Callable[[str], str] = str,
-    summary: Callable[[Row], str] = lambda row: f"test {stats.format_mean_sd(row.accuracy('test'))} %",
+    summary: Callable[[Row], str] = _test_summary,
     check: Callable[[loading.Dataset], None] | None = None,
     progress: Progress | None = None,
 ) -> Trained:
@@ -268,10 +272,6 @@ def paired_tests(a: Row, b: Row, split: str, labels: np.ndarray, head: str = "fa
             pairing=f"per {split} sequence: correctness (0/1) on the same sequence and seed, pooled over {n} seeds",
         ),
     }
-
-
-def _test_summary(row: Row) -> str:
-    return f"test {stats.format_mean_sd(row.accuracy('test'))} %"
 
 
 @dataclasses.dataclass(frozen=True)
