@@ -371,7 +371,8 @@ def markdown(doc: dict[str, Any]) -> str:
             f"{i['wall_s']:.0f} s ({i['ms_per_trial']:.0f} ms per trial)", f"target <= {i['target_s']:.0f} s", "",
         ])
     env = "".join(f"{k}={v} " for k, v in m.get("env", {}).items())
-    head = f"Measured by `{env}{doc['command']}` on {m['cpu']} ({m['cores']} cores), JAX {m['jax']}" + (
+    written = f" ({doc['code']}, {doc['date']})" if "code" in doc else ""
+    head = f"Measured by `{env}{doc['command']}`{written} on {m['cpu']} ({m['cores']} cores), JAX {m['jax']}" + (
         f", PyTorch {doc['torch']}" if doc["torch"] else ""
     ) + (" (--quick sizes)" if doc["quick"] else "") + (
         ". Ratio: ours / the fastest PyTorch variant's time (named in the reference column)." if doc["torch"] else "."

@@ -183,8 +183,10 @@ def run(
     data_note = ""
     if todo and not data_dir and not (workspace.dataset_dir(preset, workdir) / workspace.INDEX_NAME).exists():
         data_note = ", plus simulating the dataset and its features once (README gives the time)"
-    lines.append(f"  estimated time: {_minutes(known) if None not in total else 'unknown (no recorded run of this preset)'}{data_note}"
-                 " (from the recorded wall times of an earlier run; other machines differ)")
+    if None in total:
+        lines.append(f"  estimated time: unknown (no earlier run of the {preset} preset recorded its wall times){data_note}")
+    else:
+        lines.append(f"  estimated time: {_minutes(known)}{data_note} (scaled from an earlier run's wall times; other machines differ)")
     say("\n".join(lines))
 
     t_all = time.perf_counter()
