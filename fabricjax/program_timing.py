@@ -80,12 +80,13 @@ def utilisation(flops: float, seconds: float, peak_gflop_per_s: float) -> dict[s
     return {"flops_per_step": flops, "gflop_per_s": achieved, "fraction_of_matmul_peak": achieved / peak_gflop_per_s}
 
 
-def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_bins: int, steps: int, image_hw: tuple[int, int] = (60, 80)):
+def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_bins: int, steps: int, image_hw: tuple[int, int] | None = None):
     """The jitted, vmapped `Trainer.train_epoch` and its arguments (carry, keys, data), placed as
     training places them (`sharding.training_mesh`)."""
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
     mesh = sharding.training_mesh(n_seeds, batch)
-    data = synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins, image_hw=tuple(image_hw))
+    frames = {} if image_hw is None else {"image_hw": tuple(image_hw)}  # None: synthetic's own frame size
+    data = synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins, **frames)
     train = jax.device_put(select(cfg, data), sharding.replicated(mesh))
     trainer = make_trainer(cfg, feature_shapes(train["inputs"]), mesh=mesh, n_train=batch * steps)
     per_seed = sharding.by_seed(mesh)
@@ -96,14 +97,14 @@ def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_b
 
 def train_step_runner(
     config: Config, n_seeds: int, batch: int = 32, seq_len: int = 200, psd_bins: int = 320, steps: int = STEPS_PER_EPOCH,
-    image_hw: tuple[int, int] = (60, 80),
+    image_hw: tuple[int, int] | None = None,
 ) -> Callable[[], float]:
     """A compiled, warmed-up callable that runs one epoch of `steps` vmapped training steps (the real
     `Trainer.train_epoch` scan, parameters and optimiser state donated) and returns seconds per step.
 
     Seeds and samples are split over the devices as in training (`sharding.training_mesh`): with
     one CPU device per core (`sharding.use_cpu_cores`), seeds or each minibatch's samples run on
-    separate cores. `image_hw` is the size of the synthetic camera frames (image rows only)."""
+    separate cores. `image_hw` is the size of the synthetic camera frames (image rows only; None: `synthetic.data_set`'s)."""
     epoch, first, keys, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps, image_hw)
     carry = [first]
     del first

@@ -82,7 +82,7 @@ STEP_LAYERNORM_PAIRS = ((WILCOXON_PAIR[0], f"{STEP_LAYERNORM}:{WILCOXON_PAIR[1]}
 
 def display_name(row_name: str) -> str:
     """The label of row `row_name` of `ROWS`."""
-    return next(r.label for r in ROWS if r.name == row_name)
+    return STUDY.row(row_name).label
 
 
 def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:

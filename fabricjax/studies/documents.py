@@ -111,6 +111,11 @@ def results_path(results=None) -> Path:
     return workspace.results_dir(results)
 
 
+def utc_now() -> str:
+    """The time results files record: '2026-11-25 10:55 UTC'."""
+    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+
 def header(study: str, *, command: str | None, seeds: Sequence[int] | None = None, dataset: Dataset | None = None, **fields) -> dict[str, Any]:
     """The first fields of every results JSON: what ran (`study`; `command`: the command line,
     None when called from Python), from which code, when and on which machine, then the study's
@@ -119,7 +124,7 @@ def header(study: str, *, command: str | None, seeds: Sequence[int] | None = Non
         "study": study,
         "command": command,
         "code": git_commit(),
-        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "date": utc_now(),
         "machine": machine(),
     }
     if seeds is not None:

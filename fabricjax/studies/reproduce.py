@@ -28,7 +28,6 @@ names the data and compares rows with each other: no paper in its titles or summ
 from __future__ import annotations
 
 import dataclasses
-import datetime
 import hashlib
 import json
 import shlex
@@ -204,7 +203,7 @@ def run(
         wall = time.perf_counter() - t0
         manifest[step.study] = {
             "key": keys[step.study], "wall_s": wall, "command": cmd,
-            "finished": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            "finished": documents.utc_now(),
             # what an estimate of a later run scales from
             "preset": preset, "seeds": step.seeds, "rows": len(step.rows) if step.rows else _n_rows(step.study),
         }

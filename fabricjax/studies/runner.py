@@ -120,11 +120,12 @@ class Progress:
         """Seconds left, from the rows done (`finish`)."""
         done = range(self.done)
 
-        def rate(kind: str | None) -> float:
-            rows = [i for i in done if kind is None or self.kinds[i] == kind]
+        def rate(rows) -> float:
             return sum(self.seconds[i] for i in rows) / max(sum(self.work[i] for i in rows), 1e-9)
 
-        return sum(self.work[i] * rate(self.kinds[i] if self.kinds[i] in self.kinds[: self.done] else None) for i in range(self.done, self.n))
+        by_kind = {k: rate([i for i in done if self.kinds[i] == k]) for k in set(self.kinds[: self.done])}
+        overall = rate(done)
+        return sum(self.work[i] * by_kind.get(self.kinds[i], overall) for i in range(self.done, self.n))
 
     def exclude(self, seconds: float) -> None:
         """Leave `seconds` spent on something else (loading a later part's data) out of the
