@@ -12,6 +12,8 @@ Inputs are a dict keyed by modality, every array with leading (batch, steps):
     internal / external  float (B, N, F)      log-PSD bins (same F: the encoder is shared)
     proprio              float (B, N, archive.N_PROPRIO): 6 joints x angle, velocity, current
     image                uint8 (B, N, H, W, 3)
+    image_rows           uint8 (B, H*W, 3, N)  the same frames as pixel rows, instead of "image":
+                                              how training holds its set (`training_layout`)
     flow                 float (B, N, 2, h, w)
 The CNNs end in a global mean pool, so any image/flow resolution works with the same weights.
 Only the encoders named in `config.modalities` are built.
@@ -145,13 +147,64 @@ class ConvEncoder(nnx.Module):
         )
 
     def __call__(self, x):  # (M, H, W, C)
-        for p, layer in zip(self.PATCHES, self.layers):
-            m, h, w, c = x.shape
-            p = max(1, min(p, h, w))  # tiny inputs: the patch shrinks to what is there
-            h, w = h // p, w // p
-            x = x[:, : h * p, : w * p].reshape(m, h, p, w, p, c).transpose(0, 1, 3, 2, 4, 5)
-            x = jax.nn.relu(layer(x.reshape(m, h, w, p * p * c)))
+        return self.after_first(jax.nn.relu(self.layers[0](_patches(x, self.first_patch(*x.shape[1:3])))))
+
+    def first_patch(self, h: int, w: int) -> int:
+        """The first layer's patch side on an (h, w) input (tiny inputs: what is there)."""
+        return max(1, min(self.PATCHES[0], h, w))
+
+    def from_rows(self, rows: jax.Array, grid: tuple[int, int]) -> jax.Array:
+        """The same features from a batch of sequences given as patch rows: (B, cells, p*p*C, N),
+        the pixels of each of the first layer's `grid` (rows, columns) of patches in their order
+        (`features.images.patch_pixels`), every frame of the sequence side by side. -> (B * N, F).
+        `patch_product` applies the first layer in this layout: the rotation hands its output over
+        without the transpose into frames."""
+        first = self.layers[0]
+        dtype = first.dtype or jnp.float32
+        y = patch_product(rows.astype(dtype), first.kernel[...].astype(dtype)) + first.bias[...].astype(dtype)[:, None]
+        b, cells, f, n = y.shape
+        return self.after_first(jax.nn.relu(jnp.moveaxis(y, 3, 1).reshape(b * n, *grid, f)))
+
+    def after_first(self, x):
+        """The layers after the first, on its (M, h, w, F) output, then the global mean pool."""
+        for p, layer in zip(self.PATCHES[1:], self.layers[1:]):
+            x = jax.nn.relu(layer(_patches(x, max(1, min(p, *x.shape[1:3])))))
         return x.mean(axis=(1, 2))
+
+
+def _patches(x: jax.Array, p: int) -> jax.Array:
+    """(M, H, W, C) -> (M, H // p, W // p, p * p * C): non-overlapping p x p patches of the
+    top-left crop, each flattened row by row (the layout `ConvEncoder`'s layers read)."""
+    m, h, w, c = x.shape
+    h, w = h // p, w // p
+    return x[:, : h * p, : w * p].reshape(m, h, p, w, p, c).transpose(0, 1, 3, 2, 4, 5).reshape(m, h, w, p * p * c)
+
+
+@jax.custom_vjp
+def patch_product(rows: jax.Array, kernel: jax.Array) -> jax.Array:
+    """(B, cells, J, N) patch rows times a (J, F) kernel -> (B, cells, F, N): each cell's (F, J) @
+    (J, N) product, batched over (B, cells).
+
+    Batched so that every product is a plain matrix product on XLA's CPU backend: the same
+    contraction as one (B*cells*N, J) @ (J, F) product needs the rows transposed first. The VJP
+    is written out for the same reason: the kernel's gradient as each cell's rows @ dy^T (with the
+    small dy transposed) runs as plain products, where autodiff's form contracted both operands'
+    minor axis and took most of the first layer's time."""
+    return jnp.einsum("bckj,bcjn->bckn", jnp.broadcast_to(kernel.T, (*rows.shape[:2], *kernel.T.shape)), rows)
+
+
+def _patch_product_fwd(rows, kernel):
+    return patch_product(rows, kernel), (rows, kernel)
+
+
+def _patch_product_bwd(saved, dy):
+    rows, kernel = saved
+    d_rows = jnp.einsum("bckj,bckn->bcjn", jnp.broadcast_to(kernel.T, (*rows.shape[:2], *kernel.T.shape)), dy)
+    d_kernel = jnp.einsum("bcjn,bcnk->bcjk", rows, jnp.swapaxes(dy, 2, 3)).sum((0, 1))
+    return d_rows, d_kernel
+
+
+patch_product.defvjp(_patch_product_fwd, _patch_product_bwd)
 
 
 def self_attention(q: jax.Array, k: jax.Array, v: jax.Array) -> jax.Array:
@@ -273,6 +326,7 @@ class FabricNet(nnx.Module):
                 setattr(self, f"{m}_scale", nnx.Param(jnp.ones(n, jnp.float32)))
         self.rotate_images = "image" in self.modalities and config.augment_rotation
         self.image = ConvEncoder(3, cnn, dtype=dtype, rngs=rngs) if "image" in self.modalities else None
+        self.image_hw = tuple(shapes["image"][:2]) if "image" in self.modalities else None  # (H, W) of its frames
         self.flow = ConvEncoder(2, cnn, dtype=dtype, rngs=rngs) if "flow" in self.modalities else None
         out = {"proprio": config.proprio_hidden[-1], "image": cnn[-1], "flow": cnn[-1]}
         dims = sum(out.get(m, config.audio_hidden[-1]) for m in self.modalities)
@@ -302,18 +356,15 @@ class FabricNet(nnx.Module):
         frame minus the reference, and 0 (no deformation) fills what the turn brings in."""
         parts = []
         for m in self.modalities:
+            if m == "image":
+                parts.append(self.image_features(inputs, rngs))
+                continue
             x = inputs[m]
             b, n = x.shape[:2]
             x = x.reshape(b * n, *x.shape[2:])
             if m in STANDARDISED:
                 x = self.standardise(m, x)
-            if m == "image":
-                if self.rotate_images and rngs is not None:
-                    from fabricjax.features.images import rotate_batch  # traced only for image rows
-
-                    x = rotate_batch(rngs.augment(), x.reshape(b, n, *x.shape[1:])).reshape(x.shape).astype(self.dtype)
-                x = self.image(x)
-            elif m == "flow":
+            if m == "flow":
                 x = self.flow(jnp.moveaxis(x, 1, -1))
             elif m == "proprio":
                 x = self.proprio(x)
@@ -322,6 +373,34 @@ class FabricNet(nnx.Module):
             parts.append(x.reshape(b, n, -1))
         fused = jnp.concatenate(parts, axis=-1)
         return rescale_unit(fused) if self.fusion_norm is None else self.fusion_norm(fused.astype(jnp.float32))
+
+    def image_features(self, inputs: Mapping[str, jax.Array], rngs: nnx.Rngs | None) -> jax.Array:
+        """Per-step image features (B, N, F). Evaluation on frames ("image"): standardise, then the
+        CNN. Training (`rngs` given), or frames already as rows ("image_rows", how training holds
+        its set: `training_layout`): standardise the rows, turn each sequence by its angle
+        (`features.images.rotate_rows`, when `rotate_images`), taking the rotated frame's pixels
+        in the first layer's patch order, and feed those rows to the CNN (`ConvEncoder.from_rows`):
+        the same function as rotating the frames and running the CNN on them."""
+        from fabricjax.features import images  # traced only for image rows
+
+        if "image_rows" not in inputs and rngs is None:
+            x = inputs["image"]
+            b, n = x.shape[:2]
+            return self.image(self.standardise("image", x.reshape(b * n, *x.shape[2:]))).reshape(b, n, -1)
+        rows = inputs["image_rows"] if "image_rows" in inputs else images.to_rows(inputs["image"])
+        b, _, c, n = rows.shape
+        (h, w), p = self.image_hw, self.image.first_patch(*self.image_hw)
+        pixels = images.patch_pixels(h, w, p)
+        shift, scale = jax.lax.stop_gradient((self.image_shift[...], self.image_scale[...]))
+        reference = jnp.broadcast_to(shift, (h, w, c)).reshape(h * w, c, 1)  # a frame, or one value per colour
+        rows = (rows.astype(jnp.float32) - reference) * scale[:, None]
+        if self.rotate_images and rngs is not None:
+            degrees = images.random_angles(rngs.augment(), b)
+            rows = jax.vmap(lambda r, d: images.rotate_rows(r, d, h, w, pixels))(rows, degrees)
+        else:
+            rows = rows[:, pixels]
+        grid = (h // p, w // p)
+        return self.image.from_rows(rows.reshape(b, grid[0] * grid[1], p * p * c, n), grid).reshape(b, n, -1)
 
     def standardise(self, modality: str, x: jax.Array) -> jax.Array:
         """(x - shift) * scale per channel with the fixed training-split statistics, in the compute dtype."""
@@ -348,6 +427,19 @@ class FabricNet(nnx.Module):
         h = jax.nn.relu(self.hidden(self.latents(inputs, rngs).mean(axis=1)))
         h = self.dropout(h, deterministic=rngs is None, rngs=rngs)
         return {k: head(h).astype(jnp.float32) for k, head in self.heads.items()}
+
+
+def training_layout(inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
+    """A training set's inputs as training reads them: frames ("image", (S, N, H, W, C)) as rows
+    ("image_rows", (S, H*W, C, N): `features.images.to_rows`), so that each minibatch's rotation
+    moves whole rows (`FabricNet.image_features`); other inputs unchanged. `Trainer.run` does it
+    once, on the whole set, outside the step scan (a copy of the set's frames for the run): done
+    per minibatch inside the step, XLA fused the transpose into the rotation's gathers."""
+    if "image" not in inputs:
+        return dict(inputs)
+    from fabricjax.features import images
+
+    return {("image_rows" if k == "image" else k): images.to_rows(v) if k == "image" else v for k, v in inputs.items()}
 
 
 def make_predict(graphdef: nnx.GraphDef):

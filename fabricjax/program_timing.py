@@ -28,7 +28,7 @@ import numpy as np
 
 from fabricjax import sharding, stats, synthetic
 from fabricjax.config import Config
-from fabricjax.model import feature_shapes, make_predict_one
+from fabricjax.model import feature_shapes, make_predict_one, training_layout
 from fabricjax.train import make_trainer, seed_keys, select
 
 STEPS_PER_EPOCH = 16
@@ -87,8 +87,9 @@ def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_b
     mesh = sharding.training_mesh(n_seeds, batch)
     frames = {} if image_hw is None else {"image_hw": tuple(image_hw)}  # None: synthetic's own frame size
     data = synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins, **frames)
-    train = jax.device_put(select(cfg, data), sharding.replicated(mesh))
-    trainer = make_trainer(cfg, feature_shapes(train["inputs"]), mesh=mesh, n_train=batch * steps)
+    chosen = select(cfg, data)
+    trainer = make_trainer(cfg, feature_shapes(chosen["inputs"]), mesh=mesh, n_train=batch * steps)
+    train = jax.device_put({**chosen, "inputs": training_layout(chosen["inputs"])}, sharding.replicated(mesh))
     per_seed = sharding.by_seed(mesh)
     states = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)(jax.device_put(seed_keys(range(n_seeds)), per_seed))
     epoch = jax.jit(sharding.vmap_seeds(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0)

@@ -41,7 +41,7 @@ from jax.sharding import Mesh
 
 from fabricjax import checkpoint, curves, runtime, sharding
 from fabricjax.config import Config
-from fabricjax.model import STANDARDISED, FabricNet, feature_shapes, head_sizes, per_position_shift
+from fabricjax.model import STANDARDISED, FabricNet, feature_shapes, head_sizes, per_position_shift, training_layout
 
 Augment = Callable[[jax.Array, dict[str, jax.Array]], dict[str, jax.Array]]
 
@@ -162,7 +162,8 @@ class Trainer:
     def train_epoch(self, params, opt_state, key, train, epoch=0):
         """One pass over shuffled minibatches (remainder dropped) in a scan: (params, opt_state, summary).
 
-        `epoch` (0-based) places the pass in the run for the learning-rate schedule. `summary` is
+        `train` is in the layout training holds its set in (`model.training_layout`: frames as
+        rows; `run` converts it once). `epoch` (0-based) places the pass in the run for the learning-rate schedule. `summary` is
         the epoch's mean loss ("train_loss"), the accuracy per head over the minibatches as they
         were trained ("train_accuracy", counted from the logits of the training steps themselves:
         dropout and augmentation on, parameters changing) and the learning rate of its last step ("lr")."""
@@ -210,11 +211,12 @@ class Trainer:
         """`n_epochs` more epochs in one scan, with best-validation selection: (state, per-epoch summary),
         the summary of `train_epoch` plus the validation accuracy per head ("val_accuracy"), each with
         a leading epoch axis (the scan's outputs: they leave the device with the state)."""
+        train = {**data["train"], "inputs": training_layout(data["train"]["inputs"])}
 
         def epoch(state, _):
             e = state["epoch"]
             params, opt_state, summary = self.train_epoch(
-                state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), data["train"], e
+                state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), train, e
             )
             loss = summary["train_loss"]
             val_accuracy = self.evaluate(params, data["val"])["accuracy"]
@@ -383,7 +385,9 @@ def train_and_evaluate(
     `data_sets` holds "train", "val" and any number of evaluation sets ("test", "cafe", ...).
     With `workdir` (this run's checkpoint directory) the state is saved every `save_every`
     epochs (default: at the end) and a rerun resumes from the latest checkpoint; `on_save(epoch)`
-    is called after each durable save.
+    is called after each durable save. `augment(key, inputs)`, if given, transforms each training
+    minibatch's inputs before the loss; they hold frames as rows there ("image_rows",
+    `model.training_layout`).
 
     The per-epoch curves (`curves.tags`: loss, accuracies per head, learning rate, epoch wall
     time) come back in `metrics["epochs"]` as {tag: (seeds, epochs)} arrays, NaN for epochs a

@@ -69,3 +69,37 @@ def read_rrd(path) -> dict[str, dict[str, Any]]:
         if "step" in batch.schema.names:
             entry["steps"].update(batch.column("step").to_pylist())
     return {k: {**v, "steps": sorted(v["steps"])} for k, v in out.items()}
+
+
+def reference_rotate(frames, degrees):
+    """The rotation augmentation as the model applied it before it moved to pixel rows
+    (`features.images.rotate_rows`), kept verbatim as the reference the rows must equal: rotate
+    (N, H, W, C) frames by `degrees` about the centre with bilinear interpolation, 0 outside."""
+    import jax.numpy as jnp
+
+    n, h, w, c = frames.shape
+    theta = jnp.deg2rad(degrees)
+    cy, cx = (h - 1) / 2.0, (w - 1) / 2.0
+    yy, xx = jnp.meshgrid(jnp.arange(h, dtype=jnp.float32) - cy, jnp.arange(w, dtype=jnp.float32) - cx, indexing="ij")
+    cos, sin = jnp.cos(theta), jnp.sin(theta)
+    sy = cos * yy - sin * xx + cy
+    sx = sin * yy + cos * xx + cx
+    y0, x0 = jnp.floor(sy), jnp.floor(sx)
+    fy, fx = sy - y0, sx - x0
+    x = frames.astype(jnp.float32)
+    out = jnp.zeros((n, h, w, c), jnp.float32)
+    for dy, dx, weight in ((0, 0, (1 - fy) * (1 - fx)), (0, 1, (1 - fy) * fx), (1, 0, fy * (1 - fx)), (1, 1, fy * fx)):
+        yi, xi = (y0 + dy).astype(jnp.int32), (x0 + dx).astype(jnp.int32)
+        inside = (yi >= 0) & (yi < h) & (xi >= 0) & (xi < w)
+        pixels = x[:, jnp.clip(yi, 0, h - 1), jnp.clip(xi, 0, w - 1)]
+        out = out + jnp.where(inside, weight, 0.0)[None, :, :, None] * pixels
+    return out
+
+
+def reference_rotate_batch(key, frames, max_degrees=90.0):
+    """(B, N, H, W, C): an independent angle per sequence from `key`, as the model drew them."""
+    import jax
+
+    keys = jax.random.split(key, frames.shape[0])
+    angles = jax.vmap(lambda k: jax.random.uniform(k, (), minval=-max_degrees, maxval=max_degrees))(keys)
+    return jax.vmap(reference_rotate)(frames, angles)

@@ -1,10 +1,12 @@
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 import scipy.signal
 
 from fabricjax import archive
 from fabricjax.features import extract, flow, images, welch
+from tests import helpers
 from tests.helpers import tiny_archive
 
 
@@ -160,23 +162,50 @@ def test_trial_flow_sees_motion_and_chunks_agree():
     assert np.abs(a[1:, 1]).sum() < 0.2 * np.abs(a[1:, 0]).sum()
 
 
-def test_rotation_is_one_angle_per_sequence():
-    frames = np.random.default_rng(0).integers(0, 255, (4, 12, 16, 3), dtype=np.uint8)
-    key = jax.random.key(3)
-    seq = np.asarray(images.rotate_sequence(key, frames))
-    for i in range(len(frames)):  # each frame turned exactly as it would be alone with this key
-        np.testing.assert_allclose(seq[i], np.asarray(images.rotate_sequence(key, frames[i : i + 1]))[0], atol=1e-4)
-    assert not np.allclose(seq, np.asarray(images.rotate_sequence(jax.random.key(4), frames)))
-    same = np.repeat(frames[:1], 3, axis=0)
-    batch = np.asarray(images.rotate_batch(jax.random.key(0), np.stack([same, same])))
-    assert np.allclose(batch[:, 0:1], batch[:, 1:])  # consistent inside each sequence
-    assert not np.allclose(batch[0], batch[1])  # independent across sequences
+def _rotate_frames(frames, degrees):
+    """(N, H, W, C) frames turned by the library's rows rotation, back as frames."""
+    n, h, w, c = frames.shape
+    rows = images.rotate_rows(images.to_rows(jnp.asarray(frames)), degrees, h, w, np.arange(h * w))
+    return np.asarray(jnp.moveaxis(rows, -1, 0).reshape(n, h, w, c))
 
 
 def test_rotation_geometry():
     f = np.random.default_rng(0).integers(0, 255, (1, 9, 9, 1)).astype(np.float32)
-    np.testing.assert_allclose(np.asarray(images.rotate(f, 0.0)), f)
-    np.testing.assert_allclose(np.asarray(images.rotate(f, 90.0)), np.rot90(f, -1, axes=(1, 2)), atol=1e-3)
+    np.testing.assert_allclose(_rotate_frames(f, 0.0), f)
+    np.testing.assert_allclose(_rotate_frames(f, 90.0), np.rot90(f, -1, axes=(1, 2)), atol=1e-3)
+
+
+@pytest.mark.parametrize("hw", [(12, 16), (30, 40), (7, 5)])
+def test_rotated_rows_equal_the_frame_rotation_they_replaced(hw):
+    """Same angles, same bilinear interpolation: the rows path computes the rotation of the
+    frames the model used to apply (kept in tests/helpers.py), in any pixel order asked for."""
+    h, w = hw
+    frames = np.random.default_rng(1).normal(size=(3, h, w, 3)).astype(np.float32)
+    order = images.patch_pixels(h, w, min(5, h, w))
+    for degrees in (-90.0, -33.3, 0.0, 12.5, 61.0, 90.0):
+        want = np.asarray(helpers.reference_rotate(frames, degrees)).reshape(3, h * w, 3)
+        rows = np.asarray(images.rotate_rows(images.to_rows(jnp.asarray(frames)), degrees, h, w, order))
+        np.testing.assert_allclose(np.moveaxis(rows, -1, 0), want[:, order], atol=2e-5)
+
+
+def test_patch_pixels_are_the_first_layers_patches():
+    frame = np.arange(7 * 11).reshape(7, 11)
+    p = 3
+    order = images.patch_pixels(7, 11, p)
+    assert order.shape == (2 * 3 * p * p,) and len(set(order)) == len(order)
+    patches = frame[:6, :9].reshape(2, p, 3, p).transpose(0, 2, 1, 3).reshape(-1)
+    np.testing.assert_array_equal(frame.reshape(-1)[order], patches)
+
+
+def test_one_angle_per_sequence():
+    angles = np.asarray(images.random_angles(jax.random.key(3), 64))
+    assert angles.shape == (64,) and len(set(angles.tolist())) == 64
+    assert np.all(np.abs(angles) <= images.MAX_DEGREES) and angles.min() < -45 and angles.max() > 45
+    np.testing.assert_array_equal(angles, np.asarray(images.random_angles(jax.random.key(3), 64)))
+    frames = np.random.default_rng(0).normal(size=(4, 12, 16, 3)).astype(np.float32)
+    turned = _rotate_frames(frames, float(angles[0]))
+    for i in range(len(frames)):  # each frame turned exactly as it would be alone
+        np.testing.assert_allclose(turned[i], _rotate_frames(frames[i : i + 1], float(angles[0]))[0], atol=1e-5)
 
 
 def test_downsample_to_60x80():

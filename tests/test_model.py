@@ -8,7 +8,7 @@ from flax import nnx
 
 from fabricjax import catalog, synthetic
 from fabricjax.config import MODALITIES, Config
-from fabricjax.model import FabricNet, causal_conv, feature_shapes, make_predict, make_predict_one, rescale_unit, self_attention
+from fabricjax.model import FabricNet, causal_conv, feature_shapes, make_predict, make_predict_one, patch_product, rescale_unit, self_attention
 
 TINY = dict(preset="smoke", width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(4, 8), seq_len=10)
 COMBOS = [c for r in range(1, len(MODALITIES) + 1) for c in itertools.combinations(MODALITIES, r)]
@@ -122,3 +122,16 @@ def test_tcn_convolution_as_a_product_equals_the_causal_convolution(dilation):
     # Step t sees steps t, t - d, t - 2d only: changing a later step leaves earlier outputs alone.
     later = x.at[:, :, 7:].add(1.0)
     np.testing.assert_array_equal(causal_conv(conv, later)[:, :, :7], causal_conv(conv, x)[:, :, :7])
+
+
+def test_patch_product_and_its_written_out_gradient_are_the_plain_product():
+    """`patch_product` writes its VJP out for speed: both cotangents equal autodiff's of the plain
+    (cells x N, J) @ (J, F) product it computes."""
+    rng = np.random.default_rng(0)
+    rows = jnp.asarray(rng.normal(size=(3, 4, 12, 5)).astype(np.float32))
+    kernel = jnp.asarray(rng.normal(size=(12, 2)).astype(np.float32))
+    plain = lambda r, k: jnp.moveaxis(jnp.moveaxis(r, 3, 2) @ k, 3, 2)  # noqa: E731
+    np.testing.assert_allclose(patch_product(rows, kernel), plain(rows, kernel), rtol=1e-5, atol=1e-5)
+    dy = jnp.asarray(rng.normal(size=(3, 4, 2, 5)).astype(np.float32))
+    for got, want in zip(jax.vjp(patch_product, rows, kernel)[1](dy), jax.vjp(plain, rows, kernel)[1](dy)):
+        np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)

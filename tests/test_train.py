@@ -12,8 +12,9 @@ from flax import nnx
 
 from fabricjax import sharding, synthetic, train
 from fabricjax.config import Config
-from fabricjax.model import FabricNet
+from fabricjax.model import FabricNet, training_layout
 from fabricjax.train import make_trainer, masked_accuracy, masked_cross_entropy, train_and_evaluate
+from tests import helpers
 
 TINY = Config(
     preset="smoke", modalities=("internal", "proprio"), width=16, n_layers=1, ffn=32,
@@ -144,38 +145,41 @@ def test_cpu_devices_are_chosen_before_jax_starts_and_an_explicit_count_wins():
 
 def test_image_rows_rotate_the_frame_minus_the_reference_in_training_only():
     """The paper's rotation is the model's own augmentation, applied to its input (the frame minus
-    the reference frame): a frame equal to the reference is no deformation at every angle, other
-    frames turn in training and never in evaluation, and without `augment_rotation` nothing turns."""
-    cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "property_heads": False})
+    the reference frame), through pixel rows: in training the features equal the CNN on the
+    standardised frames turned by the rotation the model used to apply to frames (tests/helpers.py,
+    same angles from the same key); a frame equal to the reference is no deformation at every
+    angle; evaluation never turns, on frames or on rows; without `augment_rotation` nothing turns."""
+    cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4, 8), "property_heads": False})
     sets = {k: synthetic.data_set(cfg, 8, image_hw=(12, 16), seed=i) for i, k in enumerate(["train", "val"])}
     stats = train.input_statistics(cfg, sets["train"])
     assert stats["image_shift"].shape == (12, 16, 3) and stats["image_scale"].shape == (3,)
-    model = FabricNet(cfg, {"image": (12, 16, 3)}, rngs=nnx.Rngs(0))
-    for k, v in stats.items():
-        getattr(model, k).value = v
+
+    def built(config):
+        model = FabricNet(config, {"image": (12, 16, 3)}, rngs=nnx.Rngs(0))
+        for k, v in stats.items():
+            getattr(model, k).value = v
+        return model
+
+    model = built(cfg)
     reference = jnp.broadcast_to(stats["image_shift"], (2, 4, 12, 16, 3))
     np.testing.assert_allclose(model.standardise("image", reference.reshape(8, 12, 16, 3)), 0.0, atol=1e-4)
     frames = jnp.asarray(sets["train"]["inputs"]["image"][:2])
-    seen = []
-
-    class Spy(nnx.Module):
-        def __init__(self, encoder):
-            self.encoder = encoder
-
-        def __call__(self, x):
-            seen.append(np.asarray(x))
-            return self.encoder(x)
-
-    model.image = Spy(model.image)
-    model.features({"image": frames})
-    model.features({"image": frames})
-    model.features({"image": frames}, nnx.Rngs(dropout=0, augment=1))
-    model.features({"image": reference}, nnx.Rngs(dropout=0, augment=2))
-    np.testing.assert_array_equal(seen[0], seen[1])  # evaluation: deterministic, unrotated
-    assert not np.allclose(seen[0], seen[2])  # training: rotated
-    np.testing.assert_allclose(seen[3], 0.0, atol=1e-4)  # the reference turned is still no deformation
-    still = FabricNet(dataclasses.replace(cfg, augment_rotation=False), {"image": (12, 16, 3)}, rngs=nnx.Rngs(0))
+    b, n = frames.shape[:2]
+    standardised = model.standardise("image", frames.reshape(b * n, 12, 16, 3))
+    evaluation = model.image_features({"image": frames}, None)
+    np.testing.assert_allclose(evaluation, model.image(standardised).reshape(b, n, -1), atol=1e-6)
+    np.testing.assert_allclose(model.image_features(training_layout({"image": frames}), None), evaluation, atol=1e-5)
+    trained = model.image_features({"image": frames}, nnx.Rngs(dropout=0, augment=1))
+    turned = helpers.reference_rotate_batch(nnx.Rngs(dropout=0, augment=1).augment(), standardised.reshape(b, n, 12, 16, 3))
+    np.testing.assert_allclose(trained, model.image(turned.reshape(b * n, 12, 16, 3)).reshape(b, n, -1), atol=1e-5)
+    assert not np.allclose(trained, evaluation, atol=1e-3)  # training: rotated
+    np.testing.assert_allclose(  # the reference turned is still no deformation
+        model.image_features({"image": reference}, nnx.Rngs(dropout=0, augment=2)),
+        model.image(jnp.zeros((8, 12, 16, 3))).reshape(2, 4, -1), atol=1e-4,
+    )
+    still = built(dataclasses.replace(cfg, augment_rotation=False))
     assert not still.rotate_images and model.rotate_images
+    np.testing.assert_allclose(still.image_features({"image": frames}, nnx.Rngs(dropout=0, augment=1)), evaluation, atol=1e-5)
     res = train_and_evaluate(cfg, sets, seeds=[0])
     assert np.isfinite(res.metrics["train_loss"]).all()
 

@@ -5,15 +5,14 @@ standard choice for shrinking, and what Minsight's own pipeline uses to resize),
 before caching. "full" rows use the archive's frames unchanged.
 
 The augmentation rotates every frame of a sequence by one angle drawn uniformly from
-[-90, 90] degrees, about the image centre, with bilinear interpolation; it is a pure jitted
-function of a PRNG key, so it runs inside the training step. The model applies it to its own
-input, the frame minus the reference (`model.FabricNet.standardise`), where 0 means "no
-deformation": that is what a rotated frame shows where its source lies outside the frame.
+[-90, 90] degrees, about the image centre, with bilinear interpolation; it is a pure function of
+a PRNG key, so it runs inside the training step. The model applies it to its own input, the frame
+minus the reference (`model.FabricNet.standardise`), where 0 means "no deformation": that is what
+a rotated frame shows where its source lies outside the frame. It works on a sequence's pixel
+rows (`to_rows`), the layout in which one angle per sequence is cheap to apply.
 """
 
 from __future__ import annotations
-
-from functools import partial
 
 import cv2
 import jax
@@ -30,41 +29,63 @@ def downsample(frames: np.ndarray, size: tuple[int, int] = DOWN_SIZE) -> np.ndar
     return np.stack([cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA) for f in frames])
 
 
-def rotate(frames: jax.Array, degrees: jax.Array) -> jax.Array:
-    """Rotate (N, H, W, C) frames by `degrees` about the centre; positive turns the picture
-    clockwise as displayed (90 equals `np.rot90(frames, -1, axes=(1, 2))` on a square frame).
+def to_rows(frames):
+    """(..., N, H, W, C) frames -> (..., H*W, C, N) rows: pixel-major, one row per pixel holding
+    its colours in every frame of the sequence.
 
-    Returns float32; pixels whose source lies outside the frame are 0, blended bilinearly at the
-    frame's edge.
-    """
-    n, h, w, c = frames.shape
+    The layout the rotation wants: a sequence's frames share one angle, so rotating it moves whole
+    rows (`rotate_rows`), which XLA's CPU backend gathers as contiguous copies; the same bilinear
+    gathers of 3-value pixels, frame by frame, were most of a camera row's training step.
+    Training holds its set in this layout (`model.training_layout`)."""
+    *lead, n, h, w, c = frames.shape
+    return jnp.moveaxis(jnp.reshape(frames, (*lead, n, h * w, c)), -3, -1)
+
+
+def patch_pixels(h: int, w: int, p: int) -> np.ndarray:
+    """Flat indices of the pixels of an (h, w) frame's top-left (h // p * p, w // p * p) crop in
+    patch order: patch row, patch column, then row and column inside the p x p patch. The order
+    in which `model.ConvEncoder`'s first layer reads a frame, so rows taken in it (`rotate_rows`)
+    reshape into that layer's input without a transpose."""
+    ph, pw, py, px = np.meshgrid(np.arange(h // p), np.arange(w // p), np.arange(p), np.arange(p), indexing="ij")
+    return ((ph * p + py) * w + (pw * p + px)).reshape(-1).astype(np.int32)
+
+
+def random_angles(key: jax.Array, n: int, max_degrees: float = MAX_DEGREES) -> jax.Array:
+    """(n,) angles, each uniform in [-max_degrees, max_degrees]: one per sequence."""
+    keys = jax.random.split(key, n)
+    return jax.vmap(lambda k: jax.random.uniform(k, (), minval=-max_degrees, maxval=max_degrees))(keys)
+
+
+def bilinear_taps(degrees: jax.Array, h: int, w: int, pixels: np.ndarray) -> tuple[jax.Array, jax.Array]:
+    """The source pixels and weights of `pixels` (flat indices) of an (h, w) frame turned by
+    `degrees` about its centre: (4, P) int32 flat source indices and (4, P) float32 bilinear
+    weights, one per corner of the source cell. Positive degrees turn the picture clockwise as
+    displayed; a corner outside the frame has weight 0 (its index is clipped to the frame)."""
     theta = jnp.deg2rad(degrees)
     cy, cx = (h - 1) / 2.0, (w - 1) / 2.0
     yy, xx = jnp.meshgrid(jnp.arange(h, dtype=jnp.float32) - cy, jnp.arange(w, dtype=jnp.float32) - cx, indexing="ij")
+    yy, xx = yy.reshape(-1)[pixels], xx.reshape(-1)[pixels]
     cos, sin = jnp.cos(theta), jnp.sin(theta)
     # inverse map: each output pixel samples the source at its position rotated by -theta
     sy = cos * yy - sin * xx + cy
     sx = sin * yy + cos * xx + cx
     y0, x0 = jnp.floor(sy), jnp.floor(sx)
     fy, fx = sy - y0, sx - x0
-    x = frames.astype(jnp.float32)
-    out = jnp.zeros((n, h, w, c), jnp.float32)
+    sources, weights = [], []
     for dy, dx, weight in ((0, 0, (1 - fy) * (1 - fx)), (0, 1, (1 - fy) * fx), (1, 0, fy * (1 - fx)), (1, 1, fy * fx)):
         yi, xi = (y0 + dy).astype(jnp.int32), (x0 + dx).astype(jnp.int32)
         inside = (yi >= 0) & (yi < h) & (xi >= 0) & (xi < w)
-        pixels = x[:, jnp.clip(yi, 0, h - 1), jnp.clip(xi, 0, w - 1)]
-        out = out + jnp.where(inside, weight, 0.0)[None, :, :, None] * pixels
+        sources.append(jnp.clip(yi, 0, h - 1) * w + jnp.clip(xi, 0, w - 1))
+        weights.append(jnp.where(inside, weight, 0.0))
+    return jnp.stack(sources), jnp.stack(weights)
+
+
+def rotate_rows(rows: jax.Array, degrees: jax.Array, h: int, w: int, pixels: np.ndarray) -> jax.Array:
+    """`pixels` of a sequence turned by `degrees`, from its rows (`to_rows`: (H*W, ...) float):
+    (len(pixels), ...) float32, the four corners' rows summed with their bilinear weights
+    (`bilinear_taps`); pixels whose source lies outside the frame are 0, blended bilinearly at its edge."""
+    sources, weights = bilinear_taps(degrees, h, w, pixels)
+    out = jnp.zeros((len(pixels), *rows.shape[1:]), jnp.float32)
+    for source, weight in zip(sources, weights):
+        out = out + weight.reshape(-1, *[1] * (rows.ndim - 1)) * rows[source].astype(jnp.float32)
     return out
-
-
-@partial(jax.jit, static_argnames=("max_degrees",))
-def rotate_sequence(key: jax.Array, frames: jax.Array, max_degrees: float = MAX_DEGREES) -> jax.Array:
-    """One random angle in [-max_degrees, max_degrees] for the whole (N, H, W, C) sequence."""
-    return rotate(frames, jax.random.uniform(key, (), minval=-max_degrees, maxval=max_degrees))
-
-
-@partial(jax.jit, static_argnames=("max_degrees",))
-def rotate_batch(key: jax.Array, frames: jax.Array, max_degrees: float = MAX_DEGREES) -> jax.Array:
-    """(B, N, H, W, C): an independent angle per sequence, shared by its frames."""
-    keys = jax.random.split(key, frames.shape[0])
-    return jax.vmap(lambda k, f: rotate_sequence(k, f, max_degrees))(keys, frames)
