@@ -99,3 +99,17 @@ def test_a_checkpoint_of_another_state_layout_is_refused_by_name():
     with pytest.raises(checkpoint.CheckpointMismatch, match=f"state_version: saved 1, requested {checkpoint.STATE_VERSION}"):
         checkpoint.check_meta("ckpt", old, expected)
     checkpoint.check_meta("ckpt", expected, expected)
+
+
+def test_a_studys_checkpoint_folder_changes_with_the_code(monkeypatch, tmp_path):
+    """A rerun after a change to the code trains afresh: the folder is tagged with the source's
+    fingerprint, not only the config and seeds (a change in how training rounds leaves both alike)."""
+    from fabricjax import source
+    from fabricjax.studies import runner
+
+    cfg = Config.from_preset("smoke")
+    folder = runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], tmp_path)
+    assert folder == runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], tmp_path)
+    assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 2], tmp_path)
+    monkeypatch.setattr(source, "fingerprint", lambda: "other code")
+    assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], tmp_path)

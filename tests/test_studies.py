@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from fabricjax import data, sim, stats, train
+from fabricjax import data, sim, source, stats, train
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies import ablation, bandwidth, documents, latents, noise, probe, properties, reproduce, runner, sweep
@@ -376,7 +376,7 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
     assert key != reproduce.step_key(step, "default", {}, None, "other code")
     latents_step = reproduce.Step("latents")
     assert reproduce.step_key(latents_step, "default", {}, None, code, "props-a") != reproduce.step_key(latents_step, "default", {}, None, code, "props-b")
-    assert len(reproduce.code_fingerprint()) == 64
+    assert len(source.fingerprint()) == 64
     assert reproduce.command(step, "default", {"epochs": 3, "modalities": ("internal", "proprio")}, "results") == (
         "python -m experiments.noise --seeds=10 --preset=default --set=epochs=3 --set=modalities=internal,proprio --results=results"
     )

@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import fabricjax
-from fabricjax import presets, workspace
+from fabricjax import presets, source, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
 from fabricjax.studies import ablation, bandwidth, documents, findings, latents, noise, probe, properties
@@ -68,15 +68,6 @@ def title(study: str, recorded: bool = False) -> str:
     """How the report names `study`: its title, and on simulated data what of the paper it reproduces."""
     module = STUDIES[study]
     return module.TITLE if recorded else f"{module.TITLE} ({module.PAPER})"
-
-
-def code_fingerprint() -> str:
-    """sha256 over the source of every module of the `fabricjax` package (path and content)."""
-    h = hashlib.sha256()
-    root = Path(fabricjax.__file__).parent
-    for path in sorted(root.rglob("*.py")):
-        h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes() + b"\0")
-    return h.hexdigest()
 
 
 def step_key(step: Step, preset: str, overrides: Mapping[str, Any], data_dir, code: str, upstream: str = "") -> str:
@@ -162,7 +153,7 @@ def run(
     out = workspace.results_dir(results, workdir)
     manifest_path = out / MANIFEST
     manifest = _read_json(manifest_path) or {}
-    code = code_fingerprint()
+    code = source.fingerprint()
 
     keys = {}
     for step in plan:  # the latents read the property study's checkpoint: its key is theirs too
@@ -269,7 +260,7 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
         f"- machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}, JAX on {m['jax_backend']} ({len(m['devices'])} devices)",
         f"- versions: {', '.join(f'{k} {v}' for k, v in versions().items())}",
         f"- code: fabricjax {fabricjax.__version__}, {documents.git_commit()}, source fingerprint `{code[:16]}` "
-        "(`fabricjax.studies.reproduce.code_fingerprint`)",
+        "(`fabricjax.source.fingerprint`)",
         f"- wall time of the studies: {_minutes(total)} in all (each below; {data_note} in the first study's)",
         "",
         f"Every number below comes from the study's results file in this folder, written by the run named beside it. {numbers}",

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import checkpoint, data, stats, train, workspace
+from fabricjax import checkpoint, data, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies import loading
@@ -184,8 +184,9 @@ def train_row(
 
 
 def checkpoint_dir(study: str, row: str, config: Config, seeds: Sequence[int], workdir=None) -> Path:
-    """A checkpoint directory per (row, config, seeds): reruns resume, other settings start afresh."""
-    tag = hashlib.sha1(f"{config.dumps()}{list(seeds)}{checkpoint.STATE_VERSION}".encode()).hexdigest()[:8]
+    """A checkpoint directory per (row, config, seeds, code): reruns resume; other settings, or
+    other code (`source.fingerprint`), start afresh instead of reusing what older code trained."""
+    tag = hashlib.sha1(f"{config.dumps()}{list(seeds)}{checkpoint.STATE_VERSION}{source.fingerprint()}".encode()).hexdigest()[:8]
     return workspace.checkpoints_dir(f"{study}/{row}-{tag}", workdir)
 
 
