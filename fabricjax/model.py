@@ -150,8 +150,8 @@ class ConvEncoder(nnx.Module):
         return self.after_first(jax.nn.relu(self.layers[0](_patches(x, self.first_patch(*x.shape[1:3])))))
 
     def first_patch(self, h: int, w: int) -> int:
-        """The first layer's patch side on an (h, w) input (tiny inputs: what is there)."""
-        return max(1, min(self.PATCHES[0], h, w))
+        """The first layer's patch side on an (h, w) input."""
+        return _patch_side(self.PATCHES[0], h, w)
 
     def from_rows(self, rows: jax.Array, grid: tuple[int, int]) -> jax.Array:
         """The same features from a batch of sequences given as patch rows: (B, cells, p*p*C, N),
@@ -168,8 +168,13 @@ class ConvEncoder(nnx.Module):
     def after_first(self, x):
         """The layers after the first, on its (M, h, w, F) output, then the global mean pool."""
         for p, layer in zip(self.PATCHES[1:], self.layers[1:]):
-            x = jax.nn.relu(layer(_patches(x, max(1, min(p, *x.shape[1:3])))))
+            x = jax.nn.relu(layer(_patches(x, _patch_side(p, *x.shape[1:3]))))
         return x.mean(axis=(1, 2))
+
+
+def _patch_side(p: int, h: int, w: int) -> int:
+    """A layer's patch side `p` on an (h, w) input: tiny inputs shrink it to what is there."""
+    return max(1, min(p, h, w))
 
 
 def _patches(x: jax.Array, p: int) -> jax.Array:
@@ -432,9 +437,9 @@ class FabricNet(nnx.Module):
 def training_layout(inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
     """A training set's inputs as training reads them: frames ("image", (S, N, H, W, C)) as rows
     ("image_rows", (S, H*W, C, N): `features.images.to_rows`), so that each minibatch's rotation
-    moves whole rows (`FabricNet.image_features`); other inputs unchanged. `Trainer.run` does it
-    once, on the whole set, outside the step scan (a copy of the set's frames for the run): done
-    per minibatch inside the step, XLA fused the transpose into the rotation's gathers."""
+    moves whole rows (`FabricNet.image_features`); other inputs unchanged. `train_and_evaluate`
+    does it once, on the whole set, before it goes to the devices: done per minibatch inside the
+    step, XLA fused the transpose into the rotation's gathers."""
     if "image" not in inputs:
         return dict(inputs)
     from fabricjax.features import images

@@ -163,7 +163,7 @@ class Trainer:
         """One pass over shuffled minibatches (remainder dropped) in a scan: (params, opt_state, summary).
 
         `train` is in the layout training holds its set in (`model.training_layout`: frames as
-        rows; `run` converts it once). `epoch` (0-based) places the pass in the run for the learning-rate schedule. `summary` is
+        rows; `train_and_evaluate` converts it once per training). `epoch` (0-based) places the pass in the run for the learning-rate schedule. `summary` is
         the epoch's mean loss ("train_loss"), the accuracy per head over the minibatches as they
         were trained ("train_accuracy", counted from the logits of the training steps themselves:
         dropout and augmentation on, parameters changing) and the learning rate of its last step ("lr")."""
@@ -210,13 +210,13 @@ class Trainer:
     def run(self, state, data, n_epochs: int):
         """`n_epochs` more epochs in one scan, with best-validation selection: (state, per-epoch summary),
         the summary of `train_epoch` plus the validation accuracy per head ("val_accuracy"), each with
-        a leading epoch axis (the scan's outputs: they leave the device with the state)."""
-        train = {**data["train"], "inputs": training_layout(data["train"]["inputs"])}
+        a leading epoch axis (the scan's outputs: they leave the device with the state).
+        `data["train"]` is in training's layout (`model.training_layout`)."""
 
         def epoch(state, _):
             e = state["epoch"]
             params, opt_state, summary = self.train_epoch(
-                state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), train, e
+                state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), data["train"], e
             )
             loss = summary["train_loss"]
             val_accuracy = self.evaluate(params, data["val"])["accuracy"]
@@ -403,6 +403,8 @@ def train_and_evaluate(
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
     trainer, init, run, finish = _programs(config, shapes, n_train, augment, mesh)
     per_seed = sharding.by_seed(mesh)
+    # once per training, not per `run` call (studies write curves, so they run one epoch per call)
+    data = {**data, "train": {**data["train"], "inputs": training_layout(data["train"]["inputs"])}}
     data = sharding.put(data, sharding.replicated(mesh))
     keys = sharding.put(seed_keys(seeds), per_seed)
 
