@@ -188,7 +188,7 @@ def _view(seed: int, h: int, w: int, axial: float, rotation: float) -> _View:
 
 def _exposure(seed: int) -> float:
     """DN per unit radiance: the nominal no-contact frame's brightest pixels at EXPOSURE_LEVEL_DN."""
-    v = _view(seed, *render_size((77, 103)), 0.0, 0.0)
+    v = _view(seed, *FULL_SIZE, 0.0, 0.0)
     radiance = (v.albedo * v.light)[:, v.valid]
     return cal.EXPOSURE_LEVEL_DN / float(np.percentile(radiance.max(0), 99.5))
 
