@@ -72,12 +72,13 @@ def snr(sc: Scene, step_n: float, size) -> float:
 
 def test_a_force_step_at_the_published_accuracy_is_above_the_camera_noise():
     """[minsight, insight] Force accuracy ~0.03 N (Insight) to 0.07 N (Minsight): a 0.03 N step at the
-    grasp's 0.1 N changes one frame far above the shot noise at 308x410 and still above it at the
+    grasp's 0.1 N changes one frame well above the shot noise at 308x410 and still above it at the
     paper's 60x80 (Andrussow et al.: 60x80 suffices for precise forces); a step a hundred times
-    smaller is below the noise at 60x80. The accuracy is the learned mapping's, not the camera's."""
+    smaller is below the noise at both sizes."""
     sc = scene(image_size=archive.MINSIGHT_SIZE)
-    assert snr(sc, cal.FORCE_ACCURACY_N, archive.MINSIGHT_SIZE) > 100
+    assert snr(sc, cal.FORCE_ACCURACY_N, archive.MINSIGHT_SIZE) > 20
     assert snr(sc, cal.FORCE_ACCURACY_N, (60, 80)) > 3
+    assert snr(sc, cal.FORCE_ACCURACY_N / 100, archive.MINSIGHT_SIZE) < 1
     assert snr(sc, cal.FORCE_ACCURACY_N / 100, (60, 80)) < 1
 
 

@@ -224,6 +224,11 @@ LED_RING_RADIUS_MM = 6.0  # [phys] the LED ring lies inside the 10.25 mm skeleto
 # three directions 120 degrees apart, the photometric-stereo lighting of [insight]: a tilt of the
 # wall changes the three colours differently.
 LED_ANGLES_RAD = (math.radians(90.0), math.radians(210.0), math.radians(330.0))  # red, green, blue
+# [insight, minsight] A collimator in front of the LED ring shapes their light into a cone inside the
+# shell ("structured light"): [phys] each LED's light leaves within 35 degrees of the axis, fading
+# linearly in cos to that edge (estimate: the cone must reach the wall from ~6 mm above the camera
+# to the tip; the collimator's drawing gives its aperture, not its optics).
+COLLIMATOR_HALF_ANGLE_RAD = math.radians(35.0)
 # [phys] The camera's fixed exposure (camera.py: manual exposure 156, auto white balance off) is
 # set for an unsaturated reference: the brightest no-contact pixels sit near this level (estimate).
 EXPOSURE_LEVEL_DN = 200.0

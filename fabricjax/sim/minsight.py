@@ -177,7 +177,9 @@ def _view(seed: int, h: int, w: int, axial: float, rotation: float) -> _View:
         to_led = led - p
         dist2 = np.sum(to_led**2, -1)
         unit = to_led / np.sqrt(dist2)[..., None]
-        emit = np.maximum(-unit[..., 2], 0.0)  # the LED faces along the axis, Lambertian
+        # the collimator passes the LED's light within a cone about the axis, fading to its edge
+        cone = np.cos(cal.COLLIMATOR_HALF_ANGLE_RAD)
+        emit = np.maximum((-unit[..., 2] - cone) / (1 - cone), 0.0)
         lights.append(np.maximum(np.sum(unit * normal, -1), 0.0) * emit / dist2)
         tangents.append(np.stack([np.sum(unit * e_s, -1), np.sum(unit * e_c, -1)], -1) * (emit / dist2)[..., None])
     half_s = 0.5 * np.hypot(ds_dx, ds_dy).clip(cal.FLAKE_SIZE_MM / 4)
