@@ -123,8 +123,6 @@ class _View:
     c: np.ndarray  # circumferential arc, mm
     jac_inv: np.ndarray  # (H, W, 2, 2): pixel (x, y) change per (s, c) mm change
     shift_n: np.ndarray  # (H, W, 2): (s, c) seen per mm of inward wall displacement
-    e_s: np.ndarray  # (H, W, 3) unit tangent along the meridian (toward the base)
-    e_c: np.ndarray  # (H, W, 3) unit tangent around the circumference
     light: np.ndarray  # (3, H, W) irradiance of each LED (cos incidence / distance^2, emitter cosine)
     light_tangent: np.ndarray  # (3, H, W, 2): each LED's unit direction projected on (e_s, e_c), / distance^2
     albedo: np.ndarray  # (H, W) flake albedo averaged over the pixel's footprint
@@ -185,9 +183,10 @@ def _view(seed: int, h: int, w: int, axial: float, rotation: float) -> _View:
     half_s = 0.5 * np.hypot(ds_dx, ds_dy).clip(cal.FLAKE_SIZE_MM / 4)
     half_c = 0.5 * np.hypot(dc_dx, dc_dy).clip(cal.FLAKE_SIZE_MM / 4)
     albedo = _box_average(_flake_table(seed), s - half_s, s + half_s, c - half_c, c + half_c)
-    return _View(valid, s, c, jac_inv, shift_n, e_s, e_c, np.stack(lights), np.stack(tangents), albedo)
+    return _View(valid, s, c, jac_inv, shift_n, np.stack(lights), np.stack(tangents), albedo)
 
 
+@functools.lru_cache(maxsize=2)
 def _exposure(seed: int) -> float:
     """DN per unit radiance: the nominal no-contact frame's brightest pixels at EXPOSURE_LEVEL_DN."""
     v = _view(seed, *FULL_SIZE, 0.0, 0.0)
@@ -295,19 +294,18 @@ def physical_frames(scene: Scene, indent_mm: np.ndarray, shear_mm: np.ndarray, c
     big = render_size(size)
     day = day_state(scene)
     view = _view(scene.seed, *big, day.seat_axial_mm, day.seat_rotation_rad)
-    gain = np.asarray(day.led_gain)[:, None, None]
-    base = _exposure(scene.seed) * gain * view.light  # (3, H, W)
+    gain = _exposure(scene.seed) * np.asarray(day.led_gain)[:, None, None]  # DN per unit irradiance, per colour
+    base = gain * view.light  # (3, H, W)
     albedo = np.where(view.valid, view.albedo, 0.0).astype(np.float32)
     y, x = np.mgrid[0:big[0], 0:big[1]].astype(np.float32)
     frames = np.empty((len(indent_mm), *size, 3), np.float32)
     if contact is None:
-        img = (albedo[None] * base).transpose(1, 2, 0)[None]
-        frames[:] = _area_down(np.where(view.valid[None, ..., None], img, 0.0), size)
+        frames[:] = _area_down((albedo[..., None] * base.transpose(1, 2, 0))[None].astype(np.float32), size)
         return frames
     c = _contact(view, **contact)
     valid = view.valid[..., None]
     base_t = np.where(valid, base.transpose(1, 2, 0), 0.0).astype(np.float32)
-    shade = np.where(valid, (_exposure(scene.seed) * gain * c.shading).transpose(1, 2, 0), 0.0).astype(np.float32)
+    shade = np.where(valid, (gain * c.shading).transpose(1, 2, 0), 0.0).astype(np.float32)
     px, py = c.per_indent[..., 0].astype(np.float32), c.per_indent[..., 1].astype(np.float32)
     sx, sy = c.per_shear[..., 0].astype(np.float32), c.per_shear[..., 1].astype(np.float32)
     indent, shear = np.asarray(indent_mm, np.float32), np.asarray(shear_mm, np.float32)
