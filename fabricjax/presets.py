@@ -18,8 +18,8 @@ Python or from the command line (`--set field=value`).
              308x410 frames, rendered at twice the size (120x160) and area-averaged down
              (`sim.minsight`). Two render pixels per output pixel resolve what reaches a 60x80
              pixel (the contact patch spans a few output pixels; the shell's 75 um grain averages
-             out either way) at about twice the old direct 60x80 drawing's cost, whereas rendering
-             each frame at 308x410 costs ~26x the 2x render, hours for the dataset on two cores.
+             out either way); rendering each frame at 308x410 instead costs ~26x as much, hours
+             for the dataset on two cores.
              Optical flow is computed on the 60x80 frames (pooled 3x3 to 20x27) instead of at
              308x410, which keeps the camera rows within a laptop's time and disk. The model is narrower than the paper's, with small CNNs, and
              its recipe (width, epochs, ...) is the best point by validation accuracy averaged over
