@@ -195,6 +195,16 @@ def write_camera_video(path: Path, images: np.ndarray, faults: Faults = Faults()
     return path
 
 
+def delivered_frames(path: Path, images: np.ndarray) -> np.ndarray:
+    """`images` as the camera serves them: through the Motion-JPEG video and Minsight's
+    preprocessing (what the recorder's force proxy sees, so it is calibrated on that)."""
+    camera = Camera(str(write_camera_video(path, images)))
+    try:
+        return np.stack([camera.read() for _ in images])
+    finally:
+        camera.close()
+
+
 # ----------------------------------------------------------------------------------------------
 # Pi sender
 
@@ -285,7 +295,9 @@ def simulated_rig(signals: SimulatedSignals, faults: Faults = Faults(), *, servo
                 raise RuntimeError("simulated devices did not start within 30 s")
             pty_path, port = parent.recv()
             closing = slice(0, int(np.argmax(signals.force >= 0.1)) + 1)  # no contact .. grasp: no shear yet
-            force = ForceProxy.calibrate(signals.reference, signals.images[closing], signals.force[closing])
+            reference = delivered_frames(tmp / "reference.avi", signals.reference[None])[0]
+            delivered = delivered_frames(tmp / "closing.avi", signals.images[closing])
+            force = ForceProxy.calibrate(reference, delivered, signals.force[closing])
             bus = servos.ServoBus(pty_path, retries=servo_retries)
             bus.ping_all()
             bus.set_torque(True)

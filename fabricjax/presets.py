@@ -13,10 +13,15 @@ Python or from the command line (`--set field=value`).
     default  the README's main command (22-row ablation x 5 seeds) on a 2-core laptop CPU, at the
              paper's data scale: all 24 fabrics, 6 training trials per day, 2 test and 2 cafe
              trials, 50 rubbing cycles per trial (~30 s, ~1500 steps), N=50 (1 s), ~5900 training
-             sequences. Minsight frames are rendered at 60x80, the paper's image-row input size (it
-             downsamples 308x410 to 60x80), so the camera rows keep the trial length within a
-             laptop's time and disk: optical flow is computed on those frames (pooled 3x3 to 20x27)
-             instead of at 308x410. The model is narrower than the paper's, with small CNNs, and
+             sequences. Minsight frames are 60x80, the paper's image-row input size (it
+             downsamples 308x410 to 60x80): the same millimetre scene as the paper preset's
+             308x410 frames, rendered at twice the size (120x160) and area-averaged down
+             (`sim.minsight`). Two render pixels per output pixel resolve what reaches a 60x80
+             pixel (the contact patch spans a few output pixels; the shell's 75 um grain averages
+             out either way); rendering each frame at 308x410 instead costs ~26x as much, hours
+             for the dataset on two cores.
+             Optical flow is computed on the 60x80 frames (pooled 3x3 to 20x27) instead of at
+             308x410, which keeps the camera rows within a laptop's time and disk. The model is narrower than the paper's, with small CNNs, and
              its recipe (width, epochs, ...) is the best point by validation accuracy averaged over
              the ablation's rows, among the points of the published recipe sweep
              (results/sweep.md, `python -m experiments.sweep`) whose training fits the main

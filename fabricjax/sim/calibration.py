@@ -200,10 +200,74 @@ FOLD_SPREAD = 0.1
 CONTACT_OFFSET_MM = 1.5
 
 # --- Minsight images --------------------------------------------------------------------------
-SHELL_WIDTH_MM = 30.0  # the 410-pixel image spans ~30 mm of shell interior
-INDENT_PX_PER_N = 40.0  # radial bulge at full resolution per N of normal force
-SHEAR_PX_PER_N = 90.0  # lateral shift at full resolution per N of tangential force
-CONTACT_SIGMA_PX = 55.0  # contact patch radius at full resolution, 0.1 N, thin fabric
+# Sources: [minsight] Andrussow, Sun, Kuchenbecker, Martius, "Minsight: A Fingertip-Sized Vision-Based
+# Tactile Sensor for Robotic Manipulation", Advanced Intelligent Systems 5(8), 2023, and its open
+# design files and code (github.com/martius-lab/Minsight-sensor: CAD/skeleton.STEP, the calibration
+# data Code/minsight_runner_ros/config/calibration_files/C1/indentation_info.txt, the camera node
+# Code/.../minsight_sensor/camera.py); [insight] Sun, Kuchenbecker, Martius, "A soft thumb-sized
+# vision-based sensor with accurate all-round force perception", Nature Machine Intelligence 4, 2022.
+# Geometry, in millimetres: a cylinder capped by a hemisphere, the elastomer over-moulded on an
+# aluminium skeleton; the camera sits on the axis in the base, the LED ring beside it.
+SHELL_OUTER_RADIUS_MM = 11.8  # [minsight] radial distance of the calibration indentation points (indentation_info.txt)
+SKELETON_RADIUS_MM = 10.25  # [minsight] outer radius of the skeleton (skeleton.STEP): the elastomer's inner face
+SHELL_THICKNESS_MM = SHELL_OUTER_RADIUS_MM - SKELETON_RADIUS_MM  # 1.55 mm of elastomer
+SHELL_WIDTH_MM = 2 * SHELL_OUTER_RADIUS_MM  # the fingertip's outer diameter (also Minsound's [paper: same dimensions])
+SHELL_CYLINDER_MM = 15.0  # [minsight] skeleton length ~25 mm (skeleton.STEP) less the hemispherical cap's radius
+# [minsight, camera.py] The camera delivers 1280x960; the node crops the central 960x960 and resizes it
+# to 410x308 (W x H), so one square field of view spans both axes with different pixel pitches.
+# [phys] The lens is taken as an equidistant fisheye whose image circle fills the crop's width and
+# reaches 80 degrees off axis (the wall ~1.8 mm above the camera): a wide-angle estimate, since the
+# lens's field of view is not published.
+CAMERA_HALF_FOV_RAD = math.radians(80.0)
+LED_RING_RADIUS_MM = 6.0  # [phys] the LED ring lies inside the 10.25 mm skeleton, around the camera (estimate)
+# [minsight] Full-colour SMD chip LEDs (Wuerth WL-SFCC) on a ring: red, green and blue emitters from
+# three directions 120 degrees apart, the photometric-stereo lighting of [insight]: a tilt of the
+# wall changes the three colours differently.
+LED_ANGLES_RAD = (math.radians(90.0), math.radians(210.0), math.radians(330.0))  # red, green, blue
+# [insight, minsight] A collimator in front of the LED ring shapes their light into a cone inside the
+# shell ("structured light"): [phys] each LED's light leaves within 35 degrees of the axis, fading
+# linearly in cos to that edge (estimate: the cone must reach the wall from ~6 mm above the camera
+# to the tip; the collimator's drawing gives its aperture, not its optics).
+COLLIMATOR_HALF_ANGLE_RAD = math.radians(35.0)
+# [phys] The camera's fixed exposure (camera.py: manual exposure 156, auto white balance off) is
+# set for an unsaturated reference: the brightest no-contact pixels sit near this level (estimate).
+EXPOSURE_LEVEL_DN = 200.0
+# [minsight] The interior is Ecoflex 00-30 filled with 65 um aluminium powder and 75 um aluminium
+# flakes: a grainy metallic surface. [phys] Each 75 um cell reflects a random share of the light
+# (flake orientation): albedo 1 + FLAKE_CONTRAST * N(0, 1) per cell (estimate: half the cells' light
+# is the diffuse powder, the flake half varies with unit coefficient of variation); a pixel shows the
+# average over the cells in its footprint, so the grain fades with the pixel's area.
+FLAKE_SIZE_MM = 0.075
+FLAKE_CONTRAST = 0.5
+# [phys] Camera noise: shot noise of a small-pixel CMOS sensor, sigma = sqrt(DN / gain) with
+# gain = full well / 255 electrons per DN (full well ~6000 e-: order of magnitude for 1.4-2 um pixels);
+# the node's bilinear resize to 410x308 blends 4 native pixels (noise x 2/3), and area-averaging a
+# frame to a smaller size divides it by the square root of the pixels averaged.
+CAMERA_FULL_WELL_E = 6000.0
+RESIZE_NOISE_FACTOR = 2.0 / 3.0  # sqrt(E[sum of squared bilinear weights]) = sqrt((2/3)^2)
+# Contact mechanics. [phys] Hertz (1882): two equal elastic spheres (Minsight and the thumb's shell of
+# the same size, the thin cloth between them) at force F touch over a disc of radius
+# a = (3 F R_eff / (4 E*))^(1/3), R_eff = R / 2, 1 / E* = 2 (1 - nu^2) / E, and each shell is indented
+# by a^2 / R. The displacement of the outer surface (Johnson, Contact Mechanics, 1985, eq. 3.41) reaches
+# the inner wall through the layer low-passed by exp(-|k| d) (the decay of a periodic surface load in
+# an elastic layer). E from the Ecoflex 00-30 datasheet (Smooth-On): 100 % modulus 10 psi = 69 kPa,
+# i.e. E = 3 * 69 kPa / (2 - 1/4) = 118 kPa for a neo-Hookean solid, nu = 0.5 (rubber). At 0.1 N:
+# a = 1.8 mm, 0.27 mm per shell, consistent with SHELL_NORMAL_STIFFNESS_N_MM above.
+ELASTOMER_E_PA = 3 * 69e3 / (2.0 - 0.25)
+ELASTOMER_POISSON = 0.5
+# [phys] The skeleton holds the shell's global shape: the displacement vanishes one outer radius
+# from the contact centre (the half-space's slow 1/r tail is cut there).
+CONTACT_SUPPORT_MM = SHELL_OUTER_RADIUS_MM
+# The shear of the contact: the tangential load over the shell's shear stiffness
+# (SHELL_SHEAR_STIFFNESS_N_MM above), spread like the indentation and along the rubbing, which runs
+# across the finger (circumferentially on the shell).
+# [paper] The grasp lands on the finger pad; the contact centre sits on the side wall where it meets
+# the cap (axial position below, mm from the camera), wandering by CONTACT_OFFSET_MM between trials.
+CONTACT_AXIAL_MM = SHELL_CYLINDER_MM
+# [minsight, insight] Force accuracy: mean absolute force error 0.07 N (Minsight, over its surface),
+# force magnitude accuracy ~0.03 N over 0.03-2 N (Insight); the image test checks that a step of
+# this size is far above the camera noise for an ideal observer.
+FORCE_ACCURACY_N = 0.03
 # What the fabric stack changes in the image at a fixed 0.1 N (the force-controlled closing makes
 # the force itself the same for every fabric):
 # [phys] Patch size: a compressible stack conforms to the fingertip and spreads the load (the
@@ -219,13 +283,37 @@ BENDING_REF_THICKNESS_MM = 0.5
 # [phys] The fold of the folded stack is a ridge (a U-turn of the cloth, about one stack thickness
 # wide) that presses a line into the shell where it lies inside the patch. Through an elastic
 # shell of thickness d, surface relief of wavelength lambda reaches the inner wall attenuated by
-# exp(-2 pi d / lambda) (Boussinesq layer solution, decay of a periodic surface load); the same
-# law removes weave textures of sub-millimetre period entirely, so none is drawn.
-SHELL_THICKNESS_MM = 2.0  # estimate for Minsight's elastomer shell (a few mm; exact value not public)
+# exp(-2 pi d / lambda) (the same layer law as the contact); it removes weave textures of
+# sub-millimetre period entirely, so none is drawn.
 RIDGE_WAVELENGTH_PER_THICKNESS = 4.0  # a ridge of width w has its relief at lambda ~ 4 w
 FOLD_ANGLE_SPREAD_RAD = 0.3  # [paper: the hanger is moved between trials] the fold's direction varies
-SHADING_PER_N = 1.2  # darkening of the indented region per N
-CAMERA_NOISE = 1.5  # grey levels
+# The camera's day. [minsight, camera.py] Exposure and white balance are fixed by the camera node
+# (manual exposure, auto white balance off), so they do not move between days; what moves is:
+# * the LEDs' light with the room's temperature. [phys] Light output falls with junction temperature
+#   as exp(-dT / T1): T1 ~ 95 K for AlGaInP (red), ~1600 K for GaInN (green, blue) (E. F. Schubert,
+#   Light-Emitting Diodes, 2nd ed., Cambridge University Press 2006, ch. 6), so the red channel drifts
+#   ~1 %/K and the frame's colour with it; the dominant-wavelength shift (< 0.1 nm/K) is negligible
+#   against the camera's broad colour filters. A lab's temperature between days: SD 1 K (rooms are
+#   held within the 20-24 C comfort band of ISO 7730 / ASHRAE 55).
+LED_T1_K = (95.0, 1600.0, 1600.0)
+LAB_TEMPERATURE_DAY_SD_K = 1.0
+# * the LEDs' drive: [phys] series-resistor LEDs on the USB supply, whose VBUS the USB 2.0
+#   specification allows within 4.75-5.25 V; a day's VBUS is drawn within that bound and the current
+#   follows (V - Vf) / R, Vf ~2.0 V (red) and ~3.0 V (green, blue) (full-colour chip LED datasheets).
+USB_VBUS_V = 5.0
+USB_VBUS_TOLERANCE_V = 0.25
+LED_FORWARD_V = (2.0, 3.0, 3.0)
+# * the seating of the shell on the base after remounting: [phys] SLA-printed mating parts (the
+#   camera holder and base are Form 3 prints [minsight]) fit to ~0.1 mm (Formlabs' tolerance guide),
+#   so the shell sits up to ~0.05 mm higher or lower (SD) and turns about its axis by that much over
+#   its 10 mm radius.
+SEATING_AXIAL_SD_MM = 0.05
+SEATING_ROTATION_SD_RAD = SEATING_AXIAL_SD_MM / SKELETON_RADIUS_MM
+# * the reference (no-contact) frame is taken anew each day [minsight, camera.py: one frame after
+#   the warm-up], so it carries that day's LEDs and seating.
+# Frames smaller than 308x410 are rendered at RENDER_SUPERSAMPLE times their size (at most the full
+# 308x410) from the same millimetre scene and area-averaged down, as the paper downsamples.
+RENDER_SUPERSAMPLE = 2
 OPEN_POSE_RAD = (0.30, 0.20, 0.10, 0.00, 0.20, 0.50)  # [hw] joint angles of the open hand
 CLOSING_SHARE = (0.0, 0.6, 0.4, 0.0, 1.0, 0.0)  # how each finger's closing travel splits over joints
 SERVO_STIFFNESS_NM_RAD = 4.0  # [hw] position-loop stiffness: loaded joints lag their command
