@@ -64,10 +64,14 @@ def rms_of_spectrum(spectrum: np.ndarray, grid: Grid, weight: np.ndarray | None 
     return float(np.sqrt(total / grid.nfft / grid.n))
 
 
+def gain_to_db_a(spectrum: np.ndarray, grid: Grid, db_a: float) -> float:
+    """The factor that brings `spectrum`'s A-weighted level to `db_a` dB SPL."""
+    return db_to_pa(db_a) / max(rms_of_spectrum(spectrum, grid, a_weighting(grid.f)), 1e-30)
+
+
 def scale_to_db_a(spectrum: np.ndarray, grid: Grid, db_a: float) -> np.ndarray:
     """Scale `spectrum` so that its A-weighted level is `db_a` dB SPL."""
-    level = rms_of_spectrum(spectrum, grid, a_weighting(grid.f))
-    return spectrum * (db_to_pa(db_a) / max(level, 1e-30))
+    return spectrum * gain_to_db_a(spectrum, grid, db_a)
 
 
 def noise_spectrum(rng: np.random.Generator, grid: Grid, shape: np.ndarray) -> np.ndarray:
