@@ -7,8 +7,8 @@ than Minsound] The palm SPH0645 is in free air ~8 cm from the pinch. It hears th
   equal to its cavity's, so the radiated pressure follows the cavity pressure (rising 12 dB per
   octave below k a = 1). The thumb's contact is Minsound's; the middle finger's Minsight shell rubs
   the other face of the fold, an independent patch of the same cloth;
-* the cloth in the pinch, an unbaffled disc of the contact's size moved by half of each face's
-  relief, a dipole (rising 18 dB per octave for a given displacement).
+* the cloth in the pinch, an unbaffled disc of the contact's size moved by half of the difference
+  of the two skins' mean displacements, a dipole (rising 18 dB per octave for a given displacement).
 Each path carries its propagation delay r / c. A contact's spectrum is given as the equivalent
 Minsound cavity pressure (`texture.vibration`, `stick_slip.spectrum`), before the shell.
 """
@@ -18,7 +18,6 @@ from __future__ import annotations
 import numpy as np
 
 from fabricjax.sim import calibration as cal
-from fabricjax.sim import shell
 
 
 def distance_m(a, b) -> float:
@@ -45,20 +44,22 @@ def fingertip_radiation(f: np.ndarray, r_m: float) -> np.ndarray:
 def cloth_radiation(f: np.ndarray, r_m: float, cos_theta: float) -> np.ndarray:
     """Pressure at `r_m` per cavity-equivalent contact pressure of the cloth's dipole, without the delay.
 
-    [phys] The contact pressure is the skin relief times `TEXTURE_PA_PER_UM`; the sheet moves by
-    `CLOTH_DISPLACEMENT_SHARE` of it; an unbaffled disc of radius a moving by xi radiates
-    p = -j rho c^2 k^3 (2 a^3 / (3 pi)) xi cos(theta) / r (Lamb's added mass 8 rho a^3 / 3 as a dipole).
+    [phys] Only the contact's area-mean motion radiates: relief far shorter than the patch averages out,
+    and its mean is what changes the cavity's volume, dV = p V / (gamma P0) over the patch area. The sheet
+    moves by `CLOTH_DISPLACEMENT_SHARE` of the skins' mean displacement dV / A; an unbaffled disc of
+    radius a moving by xi radiates p = -j rho c^2 k^3 (2 a^3 / (3 pi)) xi cos(theta) / r (Lamb's added
+    mass 8 rho a^3 / 3 as a dipole).
     """
     k = 2 * np.pi * np.asarray(f, float) / cal.SOUND_SPEED_M_S
-    xi_per_pa = cal.CLOTH_DISPLACEMENT_SHARE * 1e-6 / cal.TEXTURE_PA_PER_UM
+    xi_per_pa = cal.CLOTH_DISPLACEMENT_SHARE * cal.CAVITY_VOLUME_M3 / (cal.GAMMA_P0_PA * cal.CONTACT_AREA_M2)
     strength = cal.AIR_DENSITY_KG_M3 * cal.SOUND_SPEED_M_S**2 * 2 * cal.CLOTH_RADIATOR_RADIUS_M**3 / (3 * np.pi)
     return -1j * strength * k**3 * xi_per_pa * cos_theta / r_m
 
 
-def palm_transfers(f: np.ndarray) -> dict[str, np.ndarray]:
+def palm_transfers(f: np.ndarray, wall) -> dict[str, np.ndarray]:
     """Palm pressure per cavity-equivalent contact pressure, delays included, for each radiator:
-    "thumb" and "middle" (the fingertips, through their shells' wall mode) and "cloth"."""
-    wall = shell.contact_transfer(f)
+    "thumb" and "middle" (the fingertips, through their shells' wall transfer `wall`, e.g.
+    `shell.contact_transfer(f)`) and "cloth"."""
     r_thumb = distance_m(cal.PALM_MIC_M, cal.THUMB_TIP_M)
     r_middle = distance_m(cal.PALM_MIC_M, cal.MIDDLE_TIP_M)
     r_cloth = distance_m(cal.PALM_MIC_M, (0.0, 0.0, 0.0))

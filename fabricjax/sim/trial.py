@@ -53,8 +53,9 @@ def sound_sources(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, nz) ->
     rubbing = scene.wants("texture") or scene.wants("stick_slip")
     if rubbing:
         thumb = contact(scene, mot, grid, 1.0, nz.grasp_mm, ("texture", "stick_slip"))
-        paths = air_path.palm_transfers(f) if scene.wants("air_path") else None
-        out["thumb contact"] = (thumb * shell.contact_transfer(f) if scene.wants("shell") else thumb, None if paths is None else thumb * paths["thumb"])
+        wall = shell.contact_transfer(f) if scene.wants("shell") else 1.0
+        paths = air_path.palm_transfers(f, wall) if scene.wants("air_path") else None
+        out["thumb contact"] = (thumb * wall, None if paths is None else thumb * paths["thumb"])
         if paths is not None and scene.fabric.is_fabric:
             grasp = middle_grasp_mm(nz.grasp_mm, scene.rng("fold", "trial"))
             middle = contact(scene, mot, grid, -1.0, grasp, ("texture_middle", "stick_slip_middle"))
