@@ -40,7 +40,7 @@ from fabricjax.studies import documents
 
 CYCLES = 3
 TRIALS = 2
-EVENT_MINUTES = 10.0
+EVENT_MINUTES = 3.0
 BANDWIDTH_KHZ = 15.0  # the model's PSD bandwidth [paper]
 OCTAVE_CENTRES_HZ = (125, 250, 500, 1000, 2000, 4000, 8000)
 # Octave bands (IEC 61260 base-2 edges f / sqrt 2 .. f * sqrt 2), and the 16 kHz octave cut at the
