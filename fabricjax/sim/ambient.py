@@ -96,10 +96,10 @@ def _burst(kind: str, seconds: float, rng: np.random.Generator) -> np.ndarray:
     elif kind == "steps":
         shape = np.abs(acoustics.lowpass2(g.f, cal.STEP_LOWPASS_HZ)).astype(np.float32)
         since = (t + rng.uniform(0, 1 / cal.STEP_HZ)) % (1 / cal.STEP_HZ)
-        env = np.exp(-since / 0.03)  # a heel strike rings down in tens of ms
+        env = np.exp(-since / cal.STEP_DECAY_S)
     else:  # door
         shape = octave_shape(g.f, cal.LAB_FLOOR_OCTAVE_DB)
-        env = np.exp(-t / seconds * 3)
+        env = np.exp(-t / (seconds * cal.DOOR_DECAY_SHARE))
     x = g.irfft(acoustics.scale_to_db_a(acoustics.noise_spectrum(rng, g, shape), g, 20 * np.log10(1 / acoustics.P_REF)))
     return x * env
 

@@ -219,6 +219,8 @@ EVENT_DISTANCE_M = (2.0, 8.0)
 SYLLABLE_HZ = 4.0
 STEP_HZ = 1.9
 STEP_LOWPASS_HZ = 500.0
+STEP_DECAY_S = 0.03  # [phys] a heel strike on a floor slab rings down within tens of ms
+DOOR_DECAY_SHARE = 1 / 3  # the door's impact decays with a time constant of a third of its 0.3 s
 # The cafe [paper: "loud background noise resembling ambient sound in a coffee shop", "while playing
 # audible noise"]: a recording played from a loudspeaker. Its long-term spectrum is that of babble,
 # i.e. of speech (many talkers sum to the long-term average speech spectrum, which is the same across

@@ -59,7 +59,7 @@ def sound_sources(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, nz) ->
         paths = air_path.palm_transfers(f, wall) if scene.wants("air_path") else None
         out["thumb contact"] = (thumb * wall, None if paths is None else thumb * paths["thumb"])
         if paths is not None and scene.fabric.is_fabric:
-            grasp = middle_grasp_mm(nz.grasp_mm, scene.rng("fold", "trial"))
+            grasp = middle_grasp_mm(nz.grasp_mm, scene.rng("middle_patch", "trial"))
             middle = contact(scene, mot, grid, (-slide, normal), grasp, ("texture_middle", "stick_slip_middle"))  # opposite phase
             out["middle contact"] = (None, middle * paths["middle"])
             out["cloth"] = (None, (thumb - middle) * paths["cloth"])
