@@ -37,14 +37,14 @@ def octave_shape(f: np.ndarray, octave_db: dict[float, float]) -> np.ndarray:
     """Amplitude spectrum (any scale) whose octave-band levels follow `octave_db` (interpolated in log f)."""
     fc = np.array(list(octave_db), float)
     density_db = np.array(list(octave_db.values())) - 10 * np.log10(fc / np.sqrt(2))  # per Hz of an octave's width
-    log_f = np.log(np.maximum(np.asarray(f, float), 20.0))
-    return (10 ** (np.interp(log_f, np.log(fc), density_db) / 20)).astype(np.float32)
+    log_f = np.log(np.maximum(np.asarray(f, np.float32), np.float32(20.0)))
+    return np.exp(np.interp(log_f, np.log(fc), density_db * (np.log(10) / 20)).astype(np.float32))
 
 
 def diffuse_coherence(f: np.ndarray) -> np.ndarray:
     """sin(k d) / (k d) between the palm microphone and Minsound's shell (Cook et al. 1955)."""
     d = air_path.distance_m(cal.PALM_MIC_M, cal.THUMB_TIP_M)
-    return np.sinc(2 * np.asarray(f, float) * d / cal.SOUND_SPEED_M_S)
+    return np.sinc(np.asarray(f, np.float32) * np.float32(2 * d / cal.SOUND_SPEED_M_S))
 
 
 def room_constant_m2() -> float:
