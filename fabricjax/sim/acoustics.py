@@ -9,6 +9,7 @@ SU 130) reports them.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 import scipy.fft
@@ -30,9 +31,14 @@ class Grid:
     def for_samples(cls, n: int) -> "Grid":
         return cls(n, scipy.fft.next_fast_len(n, real=True))
 
-    @property
+    @functools.cached_property
     def f(self) -> np.ndarray:
         return np.fft.rfftfreq(self.nfft, 1.0 / archive.AUDIO_RATE)
+
+    @functools.cached_property
+    def a_weight(self) -> np.ndarray:
+        """`a_weighting(f)`, computed once per grid."""
+        return a_weighting(self.f)
 
     @property
     def t(self) -> np.ndarray:
@@ -66,7 +72,7 @@ def rms_of_spectrum(spectrum: np.ndarray, grid: Grid, weight: np.ndarray | None 
 
 def gain_to_db_a(spectrum: np.ndarray, grid: Grid, db_a: float) -> float:
     """The factor that brings `spectrum`'s A-weighted level to `db_a` dB SPL."""
-    return db_to_pa(db_a) / max(rms_of_spectrum(spectrum, grid, a_weighting(grid.f)), 1e-30)
+    return db_to_pa(db_a) / max(rms_of_spectrum(spectrum, grid, grid.a_weight), 1e-30)
 
 
 def scale_to_db_a(spectrum: np.ndarray, grid: Grid, db_a: float) -> np.ndarray:
