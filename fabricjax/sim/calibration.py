@@ -137,17 +137,18 @@ FOLD_LINE_MM = (5.0, 15.0)
 # * Relief of one face reaching the other fingertip through the stack: through an elastic layer of
 #   thickness d, relief of wavelength lambda decays as exp(-2 pi d / lambda) (see the Minsight
 #   section); at the rubbing speed (<= 40 mm/s) audio frequencies have lambda <= 0.8 mm and the
-#   folded stack is >= 0.3 mm thick: >= 20 dB down at 50 Hz, > 100 dB down at 1 kHz.
+#   folded stack is >= 0.16 mm thick (two layers of the thinnest cloth): >= 11 dB down at 50 Hz,
+#   > 100 dB down from 500 Hz.
 # * Cloth-on-cloth rubbing inside the fold: the motion keeps the cloth in place and the fingertips
 #   slide on it [paper: the hanger holds the cloth], so the two layers move against each other only
-#   by the cloth's stretch under the friction load, mu F_n / stretch_stiffness <= 0.1 N / 1 N/mm =
-#   0.1 mm per stroke at <= 1 mm/s: relief of >= 10 um (a fibre) passes at <= 100 Hz, whose dipole
-#   radiation (k^3 above) lies > 60 dB below the fingertips' at the palm.
+#   by the cloth's stretch under the friction load, mu F_n / stretch_stiffness <= 0.13 N / 0.5 N/mm
+#   = 0.26 mm per stroke at <= 2 mm/s: relief of >= 10 um (a fibre) passes at <= 200 Hz, where the
+#   dipole above radiates > 100 dB below the cavity pressure (`palm_physics`, "The paths").
 # * Structure-borne sound through the hand to the palm microphone: a MEMS diaphragm (~1 um of
 #   polysilicon, 2.3e-3 kg/m^2; Scheeper, van der Donk, Olthuis & Bergveld, A review of silicon
 #   microphones, Sensors and Actuators A 44, 1994) reads an acceleration a as a pressure m'' a. The
 #   contact's audio-band force (shell stiffness x skin displacement, 0.25 N/mm x ~5 um ~ 1 mN)
-#   shakes at least a finger link and its servo (~0.1 kg): ~0.01 m/s^2, i.e. ~3e-5 Pa (~4 dB SPL),
+#   shakes at least a finger link and its servo (~0.1 kg): ~0.01 m/s^2, i.e. ~2e-5 Pa (~1 dB SPL),
 #   below the microphone's own noise in every octave band. Into Minsound the contact's force acts
 #   directly (the shell transfer below), which dwarfs any share that returns through the skeleton.
 # [phys] Mass law for the shell wall (Beranek & Ver, Noise and Vibration Control Engineering, Wiley
@@ -201,14 +202,15 @@ ROOM_T60_S = 0.6
 #   of people walking, The Structural Engineer 83, 2005), each a floor impact of a few dB(A) below
 #   speech at 1 m, low-passed at 500 Hz (impact sound of a shod heel on a concrete floor is strongest
 #   below 500 Hz; ISO 717-2 reference spectra); rate an estimate;
-# * door: a door closing, an impact ~70 dB(A) at 1 m (a door closed normally, 65-75 dB(A); the
-#   estimate of a slam's fraction), broadband, 0.3 s decay; rate an estimate.
+# * door: a door closing, an impact of ~70 dB(A) at 1 m (an estimate: a door closed normally,
+#   65-75 dB(A)), broadband, 0.3 s long; rate an estimate.
 # With these rates a trial of ~30 s holds an event about one time in three, and the events' long-term
 # level (~34 dB(A)) stays a few dB above the meter's 29-31 dB: the paper's reading is the floor between
 # events. Each day draws its activity (a log-normal factor on every rate, sigma 0.7: a quiet day has a
 # quarter, a busy one four times the mean rate); each event's distance is uniform in 2-8 m (the far
-# side of the hand's bench to the far side of the room) and it reaches the microphones through the
-# room (direct + reverberant field, Hopkins-Stryker).
+# side of the hand's bench to the far side of the room); its level at the hand is the direct plus the
+# reverberant field (Hopkins-Stryker), its sound reaches the two microphones through the room's
+# responses (beyond the 0.9 m critical distance the reverberant field dominates).
 LAB_EVENTS = {  # kind: (per minute, dB(A) at 1 m, seconds)
     "voice": (0.2, 50.0, (1.0, 4.0)),
     "steps": (0.5, 45.0, (3.0, 6.0)),
