@@ -1,9 +1,9 @@
-"""The palm microphone by physics: rubbing against the room, day against fabric (see fabricjax/studies/palm.py).
+"""Each sound at each microphone by physics; fabric, day and condition (see fabricjax/studies/palm.py).
 
     python -m experiments.palm_physics                     # default preset's classes and days, into workspace/results/
     python -m experiments.palm_physics --results=results   # regenerates results/palm_physics.md
 
-Short scenes simulated in this process (nothing is written to the dataset folder); about a minute on one core.
+Short scenes simulated in this process (nothing is written to the dataset folder); a minute or two on one core.
 """
 
 from absl import flags as absl_flags

@@ -12,7 +12,7 @@ import scipy.signal
 
 from fabricjax import archive, catalog, dataset_index, presets
 from fabricjax.sim import EFFECTS, Scene, ensure_dataset, simulate
-from fabricjax.sim import air_path, ambient, minsight, motion, servo, shell, sph0645, stick_slip, texture
+from fabricjax.sim import acoustics, air_path, ambient, minsight, motion, servo, shell, sph0645, stick_slip, texture, trial
 from fabricjax.sim import calibration as cal
 from fabricjax.sim import dataset as dataset_mod
 from fabricjax.sim.scene import nuisance
@@ -55,9 +55,9 @@ EFFECT_CALLS = {  # effect -> (module, function that only that effect calls)
     "texture": (texture, "vibration"),
     "stick_slip": (stick_slip, "spectrum"),
     "shell": (shell, "contact_transfer"),
-    "air_path": (air_path, "contact_transfer"),
+    "air_path": (air_path, "palm_transfers"),
     "servo_noise": (servo, "source"),
-    "ambient": (ambient, "spectrum"),
+    "ambient": (ambient, "spectra"),
     "sph0645": (sph0645, "self_noise"),
 }
 
@@ -239,16 +239,88 @@ def test_minsight_patch_follows_the_stack_and_thin_cloth_shows_no_fold_ridge():
     assert minsight.patch_geometry(catalog.fabric(0), 1.0) == (1.0, 1.0, 0.0)
 
 
-def test_the_palm_path_carries_at_least_the_fingertips_own_radiation():
-    """[phys] The fingertip radiates the cavity's volume change as a pulsating sphere: -52 dB re the
-    cavity pressure at 1 kHz and 8 cm, +12 dB per octave while k a << 1. The lumped palm path
-    (fingertip and cloth) must be at least that loud across the microphone's band."""
-    own_db = 20 * np.log10(np.abs(air_path.fingertip_radiation(np.array([250.0, 500.0, 1000.0]))))
+def test_the_fingertip_radiates_as_a_pulsating_sphere_and_the_cloth_as_a_weaker_dipole():
+    """[phys] A fingertip radiates its cavity's volume change as a pulsating sphere: -52 dB re the cavity
+    pressure at 1 kHz and 8 cm, +12 dB per octave while k a << 1. The cloth's dipole rises 18 dB per
+    octave and stays below the fingertip's monopole up to 4 kHz."""
+    own_db = 20 * np.log10(np.abs(air_path.fingertip_radiation(np.array([250.0, 500.0, 1000.0]), 0.08)))
     assert own_db[2] == pytest.approx(-51.8, abs=0.3)
     assert np.diff(own_db) == pytest.approx([12.0, 12.0], abs=0.5)
-    f = np.geomspace(*cal.BAND_HZ, 400)
-    own = np.abs(shell.contact_transfer(f) * air_path.fingertip_radiation(f))
-    assert np.all(np.abs(air_path.contact_transfer(f)) > own)
+    cloth_db = 20 * np.log10(np.abs(air_path.cloth_radiation(np.array([250.0, 500.0, 1000.0]), 0.08, 0.5)))
+    assert np.diff(cloth_db) == pytest.approx([18.1, 18.1], abs=0.1)
+    f = np.geomspace(125.0, 4000.0, 50)
+    paths = air_path.palm_transfers(f, 1.0)
+    assert np.all(np.abs(paths["cloth"]) < np.abs(paths["thumb"]))
+
+
+def test_the_middle_finger_rubs_its_own_patch_and_only_the_palm_hears_it(monkeypatch):
+    """Both fingertips rub the fold (two texture readings) only when the palm's air path is called for;
+    the middle finger's patch is another place on the strip than the thumb's."""
+    calls = []
+    original = texture.vibration
+    monkeypatch.setattr(texture, "vibration", lambda *a, **k: calls.append(a[3]) or original(*a, **k))
+    simulate(Scene(9, effects=("texture", "air_path"), cycles=1))
+    assert len(calls) == 2 and calls[0] != calls[1]
+    calls.clear()
+    simulate(Scene(9, effects=("texture", "shell"), cycles=1))
+    assert len(calls) == 1
+    scene = Scene(9, effects=("texture", "stick_slip", "air_path", "shell"), cycles=1)
+    proc = trial.procedure(scene)
+    sources = trial.sound_sources(scene, proc.motion, proc.grid, proc.nuisance)
+    assert sources["middle contact"][0] is None and sources["cloth"][0] is None
+    assert sources["thumb contact"][0] is not None and sources["middle contact"][1] is not None
+
+
+def _band_coherence(a: np.ndarray, b: np.ndarray, f: np.ndarray, lo: float, hi: float) -> float:
+    band = (f >= lo) & (f < hi)
+    return float(np.abs(np.sum(a[band] * np.conj(b[band]))) ** 2 / (np.sum(np.abs(a[band]) ** 2) * np.sum(np.abs(b[band]) ** 2)))
+
+
+def test_the_room_is_coherent_at_both_microphones_only_where_its_wavelength_spans_them():
+    """[phys] A diffuse field's coherence over d = 7.4 cm is sin(kd)/(kd): ~1 at 100-300 Hz, ~0 above 5 kHz."""
+    grid = acoustics.Grid.for_samples(48_000)
+    palm, outside = ambient.floor(grid, 30.0, np.random.default_rng(0))
+    assert _band_coherence(palm, outside, grid.f, 100, 300) > 0.95
+    assert _band_coherence(palm, outside, grid.f, 5000, 10000) < 0.05
+    assert 29.9 < 20 * np.log10(acoustics.rms_of_spectrum(palm, grid, acoustics.a_weighting(grid.f)) / acoustics.P_REF) < 30.1
+
+
+def test_the_lab_changes_from_day_to_day_and_the_cafe_plays_from_a_place():
+    """Lab events follow the day's activity (drawn per day: the same for every trial of a day); the cafe's
+    loudspeaker stands in one place per day and reaches the palm at the drawn level."""
+    grid = acoustics.Grid.for_samples(3 * 60 * archive.AUDIO_RATE)
+
+    def event_energy(day, t):
+        scene = Scene(1, day=day, trial=t)
+        x = ambient.events(scene, grid, scene.rng("ambient", "trial"))
+        return 0.0 if x is None else float(np.sum(x**2))
+
+    energies = np.array([event_energy(day, 0) for day in range(1, 9)])
+    assert np.unique(energies.round(12)).size > 4  # events happen, and differ
+    activity = [Scene(1, day=d).rng("lab_activity", "day").lognormal(0.0, cal.LAB_ACTIVITY_SIGMA) for d in range(1, 9)]
+    assert np.std(np.log(activity)) > 0.2
+    here = [ambient.speaker_position_m(Scene(f, day=4, trial=t, condition="cafe")) for f, t in ((1, 0), (5, 1))]
+    assert np.array_equal(here[0], here[1])
+    assert not np.array_equal(here[0], ambient.speaker_position_m(Scene(1, day=5, condition="cafe")))
+    r = np.linalg.norm(here[0])
+    assert cal.SPEAKER_DISTANCE_M[0] <= r <= cal.SPEAKER_DISTANCE_M[1]
+    scene = Scene(3, day=4, condition="cafe", effects=("ambient",), cycles=2)
+    proc = trial.procedure(scene)
+    palm = trial.sound_sources(scene, proc.motion, proc.grid, proc.nuisance)["cafe loudspeaker"][1]
+    level = 20 * np.log10(acoustics.rms_of_spectrum(palm, proc.grid, acoustics.a_weighting(proc.grid.f)) / acoustics.P_REF)
+    assert level == pytest.approx(proc.nuisance.ambient_db_a, abs=0.01)
+
+
+def test_a_cafe_archive_is_the_same_bits_for_the_same_seed_day_and_trial():
+    scene = Scene(7, day=4, trial=1, condition="cafe", cycles=2)
+    assert np.array_equal(simulate(scene).audio, simulate(scene).audio)
+    assert not np.array_equal(simulate(scene).audio, simulate(Scene(7, day=4, trial=0, condition="cafe", cycles=2)).audio)
+
+
+def test_the_shell_loss_follows_its_construction():
+    """Mass law with m'' = silicone density x shell thickness (1100 kg/m^3 x 2 mm): 20 dB at 1 kHz."""
+    assert shell.surface_mass_kg_m2() == pytest.approx(cal.SILICONE_DENSITY_KG_M3 * cal.SHELL_THICKNESS_MM * 1e-3)
+    assert shell.transmission_loss_db(np.array([1000.0]))[0] == pytest.approx(20 * np.log10(1000 * 2.2) - 47, abs=0.01)
 
 
 def test_the_microphone_gain_drifts_within_its_datasheet_bound():

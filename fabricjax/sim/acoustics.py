@@ -9,6 +9,7 @@ SU 130) reports them.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 import scipy.fft
@@ -30,9 +31,14 @@ class Grid:
     def for_samples(cls, n: int) -> "Grid":
         return cls(n, scipy.fft.next_fast_len(n, real=True))
 
-    @property
+    @functools.cached_property
     def f(self) -> np.ndarray:
         return np.fft.rfftfreq(self.nfft, 1.0 / archive.AUDIO_RATE)
+
+    @functools.cached_property
+    def a_weight(self) -> np.ndarray:
+        """`a_weighting(f)`, computed once per grid."""
+        return a_weighting(self.f)
 
     @property
     def t(self) -> np.ndarray:
@@ -64,10 +70,14 @@ def rms_of_spectrum(spectrum: np.ndarray, grid: Grid, weight: np.ndarray | None 
     return float(np.sqrt(total / grid.nfft / grid.n))
 
 
+def gain_to_db_a(spectrum: np.ndarray, grid: Grid, db_a: float) -> float:
+    """The factor that brings `spectrum`'s A-weighted level to `db_a` dB SPL."""
+    return db_to_pa(db_a) / max(rms_of_spectrum(spectrum, grid, grid.a_weight), 1e-30)
+
+
 def scale_to_db_a(spectrum: np.ndarray, grid: Grid, db_a: float) -> np.ndarray:
     """Scale `spectrum` so that its A-weighted level is `db_a` dB SPL."""
-    level = rms_of_spectrum(spectrum, grid, a_weighting(grid.f))
-    return spectrum * (db_to_pa(db_a) / max(level, 1e-30))
+    return spectrum * gain_to_db_a(spectrum, grid, db_a)
 
 
 def noise_spectrum(rng: np.random.Generator, grid: Grid, shape: np.ndarray) -> np.ndarray:

@@ -97,41 +97,65 @@ SLIP_RING_HZ = (900.0, 3500.0)  # contact/skin ring of a slip click
 SLIP_DECAY_S = 0.0003
 SLIP_SPREAD = 0.5  # log-normal sigma of click amplitudes
 
-# --- air paths --------------------------------------------------------------------------------
-# [phys] The palm microphone (~8 cm away, in free air) hears what the fabric and fingertips radiate:
-# a small radiator (fingertip plus the rubbed patch of hanging cloth) is ~f^1 below its radiation
-# corner; the closed-cavity pressure is ~30 dB above the free-field pressure ~8 cm away (rubbing
-# cloth near the ear is faintly audible, tens of dB SPL).
-AIR_PATH_GAIN_DB = -30.0  # palm pressure relative to cavity pressure, above the corner
-AIR_PATH_CORNER_HZ = 500.0
-PALM_DISTANCE_M = 0.08  # [paper, hw] contact to the microphone "on the side of the palm": ~8 cm
+# --- air paths: what each microphone hears of the contacts -------------------------------------
+# Geometry [hw, estimates for the ISyHand: the paper gives no drawing with dimensions]: the pinch
+# point on the fold is the origin, the pinch axis (thumb to middle finger, normal to the cloth) is x.
+# Each fingertip's centre lies half a shell width plus half the folded stack from the cloth; the
+# palm microphone sits "on the side of the palm" [paper] ~8 cm from the pinch, below and behind it.
+THUMB_TIP_M = (-0.015, 0.0, 0.0)  # Minsound's shell (and its microphone) on the thumb
+MIDDLE_TIP_M = (0.015, 0.0, 0.0)  # Minsight's shell on the middle finger
+PALM_MIC_M = (-0.03, -0.07, 0.02)  # 7.9 cm from the pinch, 7.4 cm from the thumb, 8.6 cm from the middle finger
 SOUND_SPEED_M_S = 343.0  # [phys] air at 20 C
-# How loud the rubbing is at the palm against the room (measured on this simulator by
-# `python -m experiments.palm_physics`, results/palm_physics.md; magnitudes and sources here):
-# * The fingertip's own radiation is bounded by physics [phys]: incompressible silicone makes the
-#   shell's outer volume change equal the cavity's, so the fingertip is a pulsating sphere
-#   (`air_path.fingertip_radiation`): k^2 V / (4 pi r) = -52 dB re the cavity pressure at 1 kHz and
-#   8 cm, +12 dB per octave up to ka = 1 (3.6 kHz for the 30 mm shell). After the shell's wall mode
-#   it peaks near -33 dB at 3 kHz and is < -39 dB below 2 kHz or above 6 kHz. The lumped -30 dB
-#   path exceeds it at every frequency (tested): the rest is the rubbed cloth, whose radiation
-#   (a porous, floppy membrane far below its coincidence frequency) no source pins down better
-#   than the estimate above, so it stays.
-# * What comes out: rubbing ~6-42 dB(A) at the palm depending on the fabric (smooth satins and
-#   silks at the bottom, knits and piles at the top), against the lab room's 29-31 dB(A) [paper],
-#   the SPH0645's own 29 dB(A) [ds] and the servos' ~30 dB(A) (below): about half the classes rise
-#   above the rest in some octave band in the lab. The cafe room (47-55 dB(A) [paper]) is babble
-#   [FACTS: long-term speech spectrum, peak 125-250 Hz], ~20-30 dB above the lab below 1 kHz but
-#   only ~2-7 dB above it at 4-8 kHz, so in the cafe the palm hears the room, not the rubbing,
-#   except a few dB of the roughest fabrics at 4-8 kHz. The paper reports no palm-side level of
-#   the rubbing; its palm-only row (59 % test) says the lab palm does hear many fabrics.
-# * Day or fabric: between lab days the palm's level moves with the room (drawn within `LAB_DB_A`
-#   [paper]: SD 0.6 dB) and the microphone's gain (within +-`GAIN_DRIFT_DB` [ds]: SD 0.3 dB); the
-#   rubbing moves it by ~3 dB(A) SD between classes, so the fabric, not the day, explains most
-#   (~80-98 %) of the palm's per-trial octave-band level variance in the lab, the day a few %.
-#   Lab to cafe is the large change: +20 dB(A), nearly all of it below 2 kHz.
-# [phys] Mass law for the shell wall: TL = 20 log10(f * m'') - 47 dB, m'' = 1100 kg/m^3 * 2 mm
-# (a thin shell: Minsight's must deform visibly at 0.1 N).
-SHELL_SURFACE_MASS_KG_M2 = 2.2
+AIR_DENSITY_KG_M3 = 1.2  # [phys] air at 20 C; rho c^2 = gamma P0 for an ideal gas
+# [phys] Each fingertip radiates as a pulsating sphere (Kinsler, Frey, Coppens & Sanders,
+# Fundamentals of Acoustics, 4th ed., Wiley 2000, Sec. 7.3): silicone is incompressible, so the
+# shell's outer surface changes volume by exactly its cavity's dV, and p(r) = rho w^2 dV / (4 pi r
+# (1 + j k a)) with a half the shell's width (`air_path.fingertip_radiation`): -52 dB re the cavity
+# pressure at 1 kHz and 8 cm, +12 dB per octave up to k a = 1 (3.6 kHz). Minsight's shell is built as
+# Minsound's (silicone on a rigid skeleton, the same contact patch) [paper, Hardware], so its
+# contact radiates by the same law from its own centre.
+# [phys] The cloth between the fingertips is a limp sheet (membrane waves in hanging cloth travel
+# at ~1 m/s and die within a millimetre at audio frequencies), so it radiates from the contact patch
+# only: an unbaffled rigid disc of the patch's radius oscillating normal to itself, a dipole whose
+# far field is p = rho c^2 k^3 (2 a^3 / (3 pi)) xi cos(theta) / r (Lamb, Hydrodynamics, 6th ed.
+# 1932, Sec. 102: added mass 8 rho a^3 / 3 of a disc; Pierce, Acoustics, ASA 1989, Sec. 4.4: far
+# field of a dipole of that strength): +18 dB per octave for a given displacement.
+CLOTH_RADIATOR_RADIUS_M = math.sqrt(CONTACT_AREA_M2 / math.pi)  # 2.5 mm: the contact patch
+# [phys] Only the patch's area-mean motion radiates (relief of microns to a millimetre, far shorter
+# than the 5 mm patch, averages out; its mean is what changes the cavity volume, `WALL_COUPLING`),
+# and the sheet between two equal soft shells in series moves by half the difference of the two
+# skins' mean displacements (the stack is far stiffer than the shells at 0.1 N). So the cloth's
+# dipole is ~0.16 k a below a fingertip's monopole: -30 dB at 4 kHz; it matters only above ~8 kHz,
+# where the shell's wall mode has cut the fingertips' own radiation.
+CLOTH_DISPLACEMENT_SHARE = 0.5
+# [phys, paper: the fingers rub a fold of the hanging cloth] The middle finger's Minsight shell rubs
+# the other face of the fold: an independent patch of the same cloth strip, as far along the strip
+# as twice the pinch's distance from the fold line (the grasp lands 5-15 mm above the fold: the
+# fingertips are ~20 mm long and pinch the fold near its middle), moving opposite to the thumb.
+FOLD_LINE_MM = (5.0, 15.0)
+# Paths judged and left out, each bounded by the magnitudes above:
+# * Relief of one face reaching the other fingertip through the stack: through an elastic layer of
+#   thickness d, relief of wavelength lambda decays as exp(-2 pi d / lambda) (see the Minsight
+#   section); at the rubbing speed (<= 40 mm/s) audio frequencies have lambda <= 0.8 mm and the
+#   folded stack is >= 0.16 mm thick (two layers of the thinnest cloth): >= 11 dB down at 50 Hz,
+#   > 100 dB down from 500 Hz.
+# * Cloth-on-cloth rubbing inside the fold: the motion keeps the cloth in place and the fingertips
+#   slide on it [paper: the hanger holds the cloth], so the two layers move against each other only
+#   by the cloth's stretch under the friction load, mu F_n / stretch_stiffness <= 0.13 N / 0.5 N/mm
+#   = 0.26 mm per stroke at <= 2 mm/s: relief of >= 10 um (a fibre) passes at <= 200 Hz, where the
+#   dipole above radiates > 100 dB below the cavity pressure (`palm_physics`, "The paths").
+# * Structure-borne sound through the hand to the palm microphone: a MEMS diaphragm (~1 um of
+#   polysilicon, 2.3e-3 kg/m^2; Scheeper, van der Donk, Olthuis & Bergveld, A review of silicon
+#   microphones, Sensors and Actuators A 44, 1994) reads an acceleration a as a pressure m'' a. The
+#   contact's audio-band force (shell stiffness x skin displacement, 0.25 N/mm x ~5 um ~ 1 mN)
+#   shakes at least a finger link and its servo (~0.1 kg): ~0.01 m/s^2, i.e. ~2e-5 Pa (~1 dB SPL),
+#   below the microphone's own noise in every octave band. Into Minsound the contact's force acts
+#   directly (the shell transfer below), which dwarfs any share that returns through the skeleton.
+# [phys] Mass law for the shell wall (Beranek & Ver, Noise and Vibration Control Engineering, Wiley
+# 1992, Ch. 9: field-incidence TL = 20 log10(f m'') - 47 dB), with m'' the shell's construction:
+# silicone of 1.07-1.1 g/cm^3 (Smooth-On Ecoflex / Dragon Skin technical bulletins) times the
+# Minsight-section shell thickness (`shell.transmission_loss_db`).
+SILICONE_DENSITY_KG_M3 = 1100.0
 SHELL_TL_MIN_DB = 3.0  # leaks around the base and the stiffness-controlled region at low frequency
 SHELL_TL_MAX_DB = 40.0  # flanking through the aluminium skeleton
 
@@ -145,16 +169,81 @@ SERVO_LOAD_REF_NM = 0.01  # torque at which the gear noise doubles
 SERVO_STRUCTURE_BAND_HZ = (150.0, 6000.0)  # structure-borne band into the Minsound cavity
 SERVO_PALM_GAIN_DB = -10.0  # airborne at the palm (the servos sit in the palm) vs structure-borne
 
-# --- ambient sound [paper: lab 29-31 dB, cafe 47-55 dB at the external mic; FACTS: babble] --------
+# --- ambient sound: the room, its events and the cafe loudspeaker -----------------------------
+# [paper, Robustness] Sound meter (Sauter SU 130, A-weighted) near the palm microphone: lab 29-31 dB,
+# cafe noise 47-55 dB. `scene.nuisance` draws the level per day and trial within these ranges: the
+# lab's steady floor, and the loudspeaker's sound at the palm in the cafe condition.
 LAB_DB_A = (29.0, 31.0)
 CAFE_DB_A = (47.0, 55.0)
 CAFE_DAY_SPREAD_DB = 2.0  # a cafe day sits at U(48, 54), each trial +-1 dB, all within 47-55
-BABBLE_PEAK_HZ = 180.0  # long-term speech spectrum of many talkers peaks near 125-250 Hz
+# The lab floor (ventilation, building services): the shape of Beranek's noise-criterion curve NC-25
+# (Beranek, Revised criteria for noise in buildings, Noise Control 3(1), 1957; ANSI S12.2), octave
+# band levels in dB at 63 Hz-8 kHz; only its shape is used, scaled to the drawn dB(A) level.
+LAB_FLOOR_OCTAVE_DB = {63: 54.0, 125: 44.0, 250: 37.0, 500: 31.0, 1000: 27.0, 2000: 24.0, 4000: 22.0, 8000: 21.0}
+# The room [estimates for a university lab; the paper names none]: 8 x 6 x 3 m with a mid-frequency
+# reverberation time of 0.6 s (the classroom target of ANSI S12.60-2002; offices 0.4-0.8 s). Sabine
+# absorption A = 0.161 V / T60 = 39 m^2, room constant R ~ A: the reverberant field (4 / R) equals the
+# direct field of a Q = 1 source (Q / 4 pi r^2) at 0.9 m (Hopkins & Stryker 1948, in Beranek,
+# Acoustics, 1954, Ch. 10).
+ROOM_VOLUME_M3 = 144.0
+ROOM_T60_S = 0.6
+# Between the palm microphone and Minsound (7.4 cm apart) a diffuse field has the coherence
+# sin(k d) / (k d) (Cook, Waterhouse, Berendt, Edelman & Thompson, Measurement of correlation
+# coefficients in reverberant sound fields, JASA 27, 1955): near 1 below ~1 kHz, small above 2.3 kHz.
+# Lab events [day-to-day: how busy the lab is]: talk, footsteps, doors. Each kind: mean rate per
+# minute on an average day, A-weighted level at 1 m in free field, duration (s).
+# * voice: conversational speech in quiet, 50 dB(A) at 1 m (van Heusden, Plomp & Pols, Effect of
+#   ambient noise on the vocal output ..., Applied Acoustics 12, 1979; Pearsons, Bennett & Fidell,
+#   Speech levels in various noise environments, EPA-600/1-77-025, 1977: 50-55 dB(A) casual-normal),
+#   long-term speech spectrum (`SPEECH_OCTAVE_DB`), 1-4 s utterances, syllabic envelope at 4 Hz
+#   (Houtgast & Steeneken, A review of the MTF concept in room acoustics, JASA 77, 1985: the speech
+#   envelope spectrum peaks at 3-4 Hz); rate an estimate (a remark every five minutes);
+# * steps: a walk past, footfalls at the walking cadence 1.9 Hz (Pachi & Ji, Frequency and velocity
+#   of people walking, The Structural Engineer 83, 2005), each a floor impact of a few dB(A) below
+#   speech at 1 m, low-passed at 500 Hz (impact sound of a shod heel on a concrete floor is strongest
+#   below 500 Hz; ISO 717-2 reference spectra); rate an estimate;
+# * door: a door closing, an impact of ~70 dB(A) at 1 m (an estimate: a door closed normally,
+#   65-75 dB(A)), broadband, 0.3 s long; rate an estimate.
+# With these rates a trial of ~30 s holds an event about one time in three, and the events' long-term
+# level (~34 dB(A)) stays a few dB above the meter's 29-31 dB: the paper's reading is the floor between
+# events. Each day draws its activity (a log-normal factor on every rate, sigma 0.7: a quiet day has a
+# quarter, a busy one four times the mean rate); each event's distance is uniform in 2-8 m (the far
+# side of the hand's bench to the far side of the room); its level at the hand is the direct plus the
+# reverberant field (Hopkins-Stryker), its sound reaches the two microphones through the room's
+# responses (beyond the 0.9 m critical distance the reverberant field dominates).
+LAB_EVENTS = {  # kind: (per minute, dB(A) at 1 m, seconds)
+    "voice": (0.2, 50.0, (1.0, 4.0)),
+    "steps": (0.5, 45.0, (3.0, 6.0)),
+    "door": (0.05, 70.0, (0.3, 0.3)),
+}
+LAB_ACTIVITY_SIGMA = 0.7
+EVENT_DISTANCE_M = (2.0, 8.0)
+SYLLABLE_HZ = 4.0
+STEP_HZ = 1.9
+STEP_LOWPASS_HZ = 500.0
+STEP_DECAY_S = 0.03  # [phys] a heel strike on a floor slab rings down within tens of ms
+DOOR_DECAY_SHARE = 1 / 3  # the door's impact decays with a time constant of a third of its 0.3 s
+# The cafe [paper: "loud background noise resembling ambient sound in a coffee shop", "while playing
+# audible noise"]: a recording played from a loudspeaker. Its long-term spectrum is that of babble,
+# i.e. of speech (many talkers sum to the long-term average speech spectrum, which is the same across
+# languages within a few dB: Byrne et al., An international comparison of long-term average speech
+# spectra, JASA 96(4), 1994): octave levels of normal-effort speech, ANSI S3.5-1969 (250-4000 Hz, as
+# tabulated in Crocker, Handbook of Noise and Vibration Control, Wiley 2007, Table 4.3, peaks - 12 dB)
+# and the 125 Hz and 8 kHz octaves from Byrne et al. 1994's universal LTASS (125 Hz ~3 dB below the
+# 250 Hz octave; flat from 4 to 8 kHz). Only the shape is used; the level is the paper's.
+SPEECH_OCTAVE_DB = {125: 57.5, 250: 60.5, 500: 62.0, 1000: 56.0, 2000: 50.0, 4000: 45.0, 8000: 45.0}
 BABBLE_MODULATION = 0.25  # residual syllabic modulation of many overlapping talkers
 CLATTER_PER_S = 1.5  # cups, plates, cutlery
 CLATTER_RING_HZ = (2000.0, 7000.0)
 CLATTER_DECAY_S = 0.015
 CLATTER_PEAK_DB = 12.0  # clatter peaks above the babble RMS
+# [estimate; the paper does not place the loudspeaker] A loudspeaker on a table 0.5-2 m from the hand,
+# in a direction drawn per cafe day; a small box radiates with directivity Q ~ 2 towards the hand
+# (Beranek, Acoustics, 1954, Ch. 4: a closed box is omnidirectional at low and beamed at high
+# frequencies). Its direct sound reaches each microphone along its own path and delay; the
+# reverberant sound through the room's response at each microphone.
+SPEAKER_DISTANCE_M = (0.5, 2.0)
+SPEAKER_Q = 2.0
 
 # --- SPH0645 [ds] -------------------------------------------------------------------------------
 SENSITIVITY_DBFS = -26.0  # at 94 dB SPL (1 Pa)

@@ -12,6 +12,8 @@ only the conversion to 18-bit words, which the archive format requires, remains.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from fabricjax import archive
@@ -23,6 +25,12 @@ def band_transfer(f: np.ndarray) -> np.ndarray:
     lo, hi = cal.BAND_HZ
     decimator = 1.0 / (1.0 + (f / cal.DECIMATION_HZ) ** 24)
     return acoustics.highpass2(f, lo) * acoustics.lowpass2(f, hi) * decimator
+
+
+@functools.lru_cache(maxsize=2)
+def band_on(grid: acoustics.Grid) -> np.ndarray:
+    """`band_transfer` on the grid's frequencies, computed once for both microphones of a trial."""
+    return band_transfer(grid.f)
 
 
 def self_noise(grid: acoustics.Grid, rng: np.random.Generator) -> np.ndarray:
@@ -46,5 +54,5 @@ def record(pressure_spectrum: np.ndarray, grid: acoustics.Grid, mic: int, nuisan
     if rng is None:
         return to_words(grid.irfft(pressure_spectrum) * cal.COUNTS_PER_PA, None)
     gain = 10 ** (nuisance.mic_gain_db[mic] / 20) * cal.COUNTS_PER_PA
-    spec = (pressure_spectrum + self_noise(grid, rng)) * band_transfer(grid.f)
+    spec = (pressure_spectrum + self_noise(grid, rng)) * band_on(grid)
     return to_words(grid.irfft(spec) * gain + nuisance.mic_dc_counts[mic], rng)

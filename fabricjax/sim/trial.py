@@ -1,20 +1,22 @@
 """`simulate(scene)`: one trial archive, computing only the effects and streams the scene calls for.
 
 Order of work: the finger motion (always: it is the procedure and fixes the time base), then each
-listed sound effect adds its spectrum to the contact, servo and ambient sources, which are mixed
-into the two microphones through their paths; proprioception and force are sampled at the frame
+listed sound effect computes its sources (both fingertips' contacts, the cloth, the servos, the
+room) at the two microphones through their paths (`sound_sources`), which are summed and recorded; proprioception and force are sampled at the frame
 times; images are rendered only when "images" is among the streams. Each effect draws from its own
 generator (`Scene.rng`), so switching one effect off leaves the others' draws unchanged.
 """
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from fabricjax import archive
 from fabricjax.sim import acoustics, air_path, ambient, minsight, motion, proprio, servo, shell, sph0645, stick_slip, texture
 from fabricjax.sim import calibration as cal
-from fabricjax.sim.scene import Scene, nuisance
+from fabricjax.sim.scene import Nuisance, Scene, nuisance
 
 
 def frame_times(duration_s: float, phase_s: float, rng: np.random.Generator) -> np.ndarray:
@@ -24,44 +26,91 @@ def frame_times(duration_s: float, phase_s: float, rng: np.random.Generator) -> 
     return np.maximum.accumulate(np.clip(t, 0.0, duration_s))
 
 
-def microphones(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, nz) -> np.ndarray:
-    """int32 (2, n) I2S words: row 0 Minsound (inside the shell), row 1 the palm microphone."""
+def middle_grasp_mm(grasp_mm: float, rng: np.random.Generator) -> float:
+    """Where on the strip the middle finger rubs: the fold's other face, twice the pinch's distance from the
+    fold line further along the strip (wrapped into the grasp range)."""
+    lo, hi = cal.GRASP_RANGE_MM
+    return float(lo + (grasp_mm + 2 * rng.uniform(*cal.FOLD_LINE_MM) - lo) % (hi - lo))
+
+
+def contact(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, slide_normal, grasp_mm: float, names: tuple[str, str]) -> np.ndarray:
+    """Spectrum (cavity-equivalent Pa) of one fingertip's contact: texture (read along `slide_normal`, the
+    slide position and normal force per audio sample) and stick-slip, as the scene calls for."""
+    spec = np.zeros(len(grid.f), np.complex128)
+    if scene.wants("texture"):
+        spec += grid.rfft(texture.vibration(scene, *slide_normal, grasp_mm, scene.rng(names[0], "trial")))
+    if scene.wants("stick_slip"):
+        spec += stick_slip.spectrum(scene, mot, grid, scene.rng(names[1], "trial"))
+    return spec
+
+
+def sound_sources(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, nz) -> dict[str, tuple[np.ndarray | None, np.ndarray | None]]:
+    """Pressure spectra (Pa) of each sound the scene calls for at (Minsound's microphone, the palm microphone);
+    None where a sound does not reach that microphone (calibration, "air paths", bounds what is left out)."""
     f = grid.f
-    inside = np.zeros(len(f), np.complex128)
-    palm = np.zeros(len(f), np.complex128)
-    contact = np.zeros(len(f), np.complex128)
-    if scene.wants("texture") or scene.wants("stick_slip"):
+    out = {}
+    rubbing = scene.wants("texture") or scene.wants("stick_slip")
+    if rubbing:
         t = grid.t
         slide = np.interp(t, mot.t, mot.slide_mm)
         normal = np.interp(t, mot.t, mot.normal_n, left=0.0, right=0.0)
-        if scene.wants("texture"):
-            contact += grid.rfft(texture.vibration(scene, slide, normal, nz.grasp_mm, scene.rng("texture", "trial")))
-        if scene.wants("stick_slip"):
-            contact += stick_slip.spectrum(scene, mot, grid, scene.rng("stick_slip", "trial"))
-    inside += contact * shell.contact_transfer(f) if scene.wants("shell") else contact
-    if scene.wants("air_path"):
-        palm += contact * air_path.contact_transfer(f)
+        thumb = contact(scene, mot, grid, (slide, normal), nz.grasp_mm, ("texture", "stick_slip"))
+        wall = shell.contact_transfer(f) if scene.wants("shell") else 1.0
+        paths = air_path.palm_transfers(f, wall) if scene.wants("air_path") else None
+        out["thumb contact"] = (thumb * wall, None if paths is None else thumb * paths["thumb"])
+        if paths is not None and scene.fabric.is_fabric:
+            grasp = middle_grasp_mm(nz.grasp_mm, scene.rng("middle_patch", "trial"))
+            middle = contact(scene, mot, grid, (-slide, normal), grasp, ("texture_middle", "stick_slip_middle"))  # opposite phase
+            out["middle contact"] = (None, middle * paths["middle"])
+            out["cloth"] = (None, (thumb - middle) * paths["cloth"])
+        elif paths is not None:  # no cloth: the two shells rub each other, one contact indents both
+            out["middle contact"] = (None, thumb * paths["middle"])
     if scene.wants("servo_noise"):
         src = servo.source(mot, grid, scene.rng("servo_noise", "trial"))
-        inside += src * servo.internal_transfer(f)
-        palm += src * servo.palm_transfer(f)
+        out["servos"] = (src * servo.internal_transfer(f), src * servo.palm_transfer(f))
     if scene.wants("ambient"):
-        amb = ambient.spectrum(scene.condition, nz.ambient_db_a, grid, scene.rng("ambient", "trial"))
-        inside += amb * shell.airborne_transfer(f) if scene.wants("shell") else amb
-        palm += amb
+        loss = shell.airborne_transfer(f) if scene.wants("shell") else 1.0
+        for name, (palm, outside) in ambient.spectra(scene, nz.ambient_db_a, grid, scene.rng("ambient", "trial")).items():
+            out[name] = (outside * loss, palm)
+    return out
+
+
+def microphones(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, nz) -> np.ndarray:
+    """int32 (2, n) I2S words: row 0 Minsound (inside the shell), row 1 the palm microphone."""
+    total = [np.zeros(len(grid.f), np.complex128), np.zeros(len(grid.f), np.complex128)]
+    for at_mics in sound_sources(scene, mot, grid, nz).values():
+        for m, spec in enumerate(at_mics):
+            if spec is not None:
+                total[m] += spec
     rngs = [scene.rng(f"sph0645_{m}", "trial") if scene.wants("sph0645") else None for m in range(2)]
-    return np.stack([sph0645.record(spec, grid, m, nz, rngs[m]) for m, spec in enumerate((inside, palm))])
+    return np.stack([sph0645.record(spec, grid, m, nz, rngs[m]) for m, spec in enumerate(total)])
+
+
+@dataclasses.dataclass(frozen=True)
+class Procedure:
+    """What fixes a trial's time base: the day's and trial's nuisance, the finger motion, the frame times."""
+
+    nuisance: Nuisance
+    motion: motion.Motion
+    frame_times: np.ndarray
+    window_end: np.ndarray  # audio sample (lead-in included) at which each step's window ends
+    grid: acoustics.Grid
+
+
+def procedure(scene: Scene) -> Procedure:
+    nz = nuisance(scene)
+    mot = motion.finger_motion(scene.fabric, scene.cycles, nz, scene.rng("motion", "trial"))
+    t = frame_times(mot.duration_s, nz.frame_phase_s, scene.rng("frames", "trial"))
+    window_end = cal.LEAD_IN + np.round(t * archive.AUDIO_RATE).astype(np.int64)
+    return Procedure(nz, mot, t, window_end, acoustics.Grid.for_samples(int(window_end[-1])))
 
 
 def simulate(scene: Scene) -> archive.TrialArchive:
     """The trial archive of `scene` (validated; `images` is None unless "images" is streamed)."""
     fab = scene.fabric
-    nz = nuisance(scene)
-    mot = motion.finger_motion(fab, scene.cycles, nz, scene.rng("motion", "trial"))
-    t = frame_times(mot.duration_s, nz.frame_phase_s, scene.rng("frames", "trial"))
-    window_end = cal.LEAD_IN + np.round(t * archive.AUDIO_RATE).astype(np.int64)
-    grid = acoustics.Grid.for_samples(int(window_end[-1]))
-    audio = microphones(scene, mot, grid, nz)
+    proc = procedure(scene)
+    nz, mot, t, window_end = proc.nuisance, proc.motion, proc.frame_times, proc.window_end
+    audio = microphones(scene, mot, proc.grid, nz)
     joints, force = proprio.joints_and_force(mot, t, nz, scene.rng("proprioception", "trial") if scene.wants("proprioception") else None)
     images = minsight.render(scene, mot, t, nz, scene.rng("minsight", "trial")) if "images" in scene.streams else None
     meta = archive.make_meta(
