@@ -71,7 +71,7 @@ def test_rerun_resumes_and_a_foreign_archive_needs_overwrite(recordings, tmp_pat
     foreign = archive.read_archive(out / "oak_trial001_lab.npz")
     archive.write_archive(victim, foreign)  # an archive of another recording under this row's name
     before = victim.read_bytes()
-    with pytest.raises(UserError, match="oak_trial000_lab.npz: exists and was not imported from .*--overwrite"):
+    with pytest.raises(UserError, match="oak_trial000_lab.npz: exists, but was imported from .*02_001, not from .*02_000 as line 10 says; pass --overwrite"):
         _run(recordings, out)
     assert victim.read_bytes() == before
     replaced, _ = _run(recordings, out, overwrite=True)
