@@ -45,14 +45,14 @@ def check_seconds(times: np.ndarray, where, field: str, mics: list[Stream]) -> N
 
 def stream_gaps(times: np.ndarray, steps: np.ndarray, period: float) -> list[dict[str, float]]:
     """The holes of a stream (readings at `times`) longer than HOLE_STEPS step periods within the
-    steps' span: the steps inside one hold its last reading. Each: when it starts (s, on the steps'
-    clock), how long it lasts, and how many steps hold the stale reading."""
+    steps' span: the steps inside one hold its last reading. Each: when it starts (s, on the
+    recording's clock), how long it lasts, and how many steps hold the stale reading."""
     gaps = np.flatnonzero(np.diff(times) > HOLE_STEPS * period)
     out = []
     for k in gaps:
         inside = int(np.count_nonzero((steps > times[k]) & (steps < times[k + 1])))
         if inside:
-            out.append({"after_s": round(float(times[k] - steps[0]), 6), "seconds": round(float(times[k + 1] - times[k]), 6), "steps": inside})
+            out.append({"from_s": round(float(times[k]), 6), "seconds": round(float(times[k + 1] - times[k]), 6), "steps": inside})
     return out
 
 

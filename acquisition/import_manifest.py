@@ -316,17 +316,15 @@ def plan(rows: list[Row], out: Path, *, rig: rig_mod.Rig | None, mapping: dict[s
     return jobs
 
 
-def _differences(meta: dict[str, Any], job: Job) -> list[str]:
-    """How an existing archive differs from what the job would import (empty: the same trial)."""
+def _difference(meta: dict[str, Any], job: Job) -> str | None:
+    """How an existing archive differs from what the job would import (None: the same trial)."""
     if meta["source"].get("path") != str(job.row.path):
-        return [f"was imported from {meta['source'].get('path')}, not from {job.row.path} as line {job.row.line} says"]
-    out = []
+        return f"was imported from {meta['source'].get('path')}, not from {job.row.path} as line {job.row.line} says"
     if meta.get("label_map") != job.meta_fields.get("label_map"):
-        out.append(f"its label map {meta.get('label_map')} differs from the manifest's {job.meta_fields.get('label_map')} (classes added or renamed)")
-    for key, want in {**{k: v for k, v in job.meta_fields.items() if k != "label_map"}, "split": job.split}.items():
-        if meta.get(key) != want:
-            out.append(f"{key} {meta.get(key)!r}, line {job.row.line} says {want!r}")
-    return out
+        return f"its label map {meta.get('label_map')} differs from the manifest's {job.meta_fields.get('label_map')} (classes added or renamed)"
+    wanted = {**{k: v for k, v in job.meta_fields.items() if k != "label_map"}, "split": job.split}
+    changed = [f"{key} {meta.get(key)!r} where line {job.row.line} says {want!r}" for key, want in wanted.items() if meta.get(key) != want]
+    return f"it has {', '.join(changed)}" if changed else None
 
 
 def check_out(out: Path, jobs: list[Job], overwrite: bool, manifest, problems: list[str], say: Callable[[str], None]) -> tuple[list[Job], list[Path]]:
@@ -355,7 +353,8 @@ def check_out(out: Path, jobs: list[Job], overwrite: bool, manifest, problems: l
             say(f"note: {target}: damaged ({e.field}: {e.problem}): imported again")
             todo.append(j)
             continue
-        problems += [f"{target}: exists, but {d}; pass --overwrite to replace the dataset" for d in _differences(meta, j)]
+        if (difference := _difference(meta, j)) is not None:
+            problems.append(f"{target}: exists, but {difference}; pass --overwrite to replace the dataset")
     return todo, []
 
 

@@ -124,7 +124,7 @@ def test_joint_timestamps_in_milliseconds_header_only_and_holes(tmp_path):
     held = (table[:, 0] > 0.15) & (table[:, 0] < 0.30)  # 150 ms without a reading: steps hold the last one
     np.savetxt(tmp_path / "hole" / "joints.csv", table[~held], delimiter=",", header=header, comments="", fmt="%.9g")
     gaps = hand_folder.import_folder(tmp_path / "hole", TRIAL).meta["import"]["joint_gaps"]
-    assert len(gaps) == 1 and gaps[0]["seconds"] == pytest.approx(0.15, abs=0.011) and gaps[0]["steps"] == 7
+    assert len(gaps) == 1 and gaps[0]["from_s"] == pytest.approx(0.15) and gaps[0]["seconds"] == pytest.approx(0.15, abs=0.011) and gaps[0]["steps"] == 7
 
 
 def test_bag_import_without_rosbags_says_how_to_install(tmp_path, monkeypatch):
