@@ -127,6 +127,7 @@ MAX_MEMBER_BYTES = 16 << 30  # inflated bytes of one member
 # A compressed member may inflate to FREE_INFLATION bytes, beyond that to INFLATION_RATIO times its
 # compressed size: recorded signals compress a few times, a zip bomb a thousand times.
 FREE_INFLATION = 64 << 20
+READ_CHUNK = 256 << 10  # bytes read from a member at a time (numpy's own read size: small reads stay in cache)
 INFLATION_RATIO = 64
 CONDITIONS = ("lab", "cafe")
 PROPERTY_NAMES = ("stretchiness", "roughness", "thickness")
@@ -571,15 +572,18 @@ class _Members:
                 nbytes = int(np.prod(shape, dtype=np.uint64)) * dtype.itemsize
                 if nbytes != info.file_size - f.tell():
                     raise ArchiveError(path, name, f"the npy header's shape {shape} of {dtype} needs {nbytes} bytes, the zip member holds {info.file_size - f.tell()}")
-                data = bytearray(nbytes)
-                if f.readinto(data) != nbytes or f.read(1):  # reading to the end checks the member's CRC
+                arr = np.empty(shape[::-1] if fortran else shape, dtype)
+                view, done = memoryview(arr.reshape(-1).view(np.uint8)), 0
+                while done < nbytes and (chunk := f.read(min(READ_CHUNK, nbytes - done))):
+                    view[done : done + len(chunk)] = chunk
+                    done += len(chunk)
+                if done != nbytes or f.read(1):  # reading to the end checks the member's CRC
                     raise ArchiveError(path, name, "shorter or longer than its npy header declares")
         except ArchiveError:
             raise
         except (zipfile.BadZipFile, OSError, EOFError, ValueError, RuntimeError, NotImplementedError, zlib.error) as e:
             raise ArchiveError(path, name, f"unreadable (corrupt or truncated): {e}") from None
-        arr = np.frombuffer(data, dtype)
-        return arr.reshape(shape[::-1]).T if fortran else arr.reshape(shape)
+        return arr.T if fortran else arr
 
 
 def _npy_header(f, path: Path, name: str) -> tuple[np.dtype, tuple[int, ...], bool]:
