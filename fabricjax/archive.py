@@ -513,8 +513,9 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
         raise ArchiveError(path, "window_end", "indices decrease between steps")
     if archive.images is not None:
         _check_array(path, "images", archive.images, n, lay)
-    if archive.meta.get("closing_steps", 0) >= n:
-        raise ArchiveError(path, "meta.closing_steps", f"{archive.meta['closing_steps']} closing steps leave none of the trial's {n} steps to rub")
+    closing = archive.meta.get("closing_steps", 0)
+    if closing > n or (closing == n and archive.meta["complete"]):  # a trial interrupted while closing has no rubbing steps
+        raise ArchiveError(path, "meta.closing_steps", f"{closing} closing steps leave none of the trial's {n} steps to rub")
     return archive
 
 
