@@ -48,7 +48,11 @@ another) and with NaN in the fields an optional top-level meta.joint_fields_abse
     properties   property levels only where known (a missing name or null: unknown)
 
 `write_archive` is atomic (temporary name in the same folder, fsync, rename); `read_archive`
-validates every field and raises `ArchiveError` naming the file, the field and the problem.
+validates every field by type and range and raises `ArchiveError` naming the file, the field and
+the problem. It trusts no size a file declares: the meta JSON is bounded in length, nesting and
+number size before it is parsed, each member's npy header is checked against the meta and the step
+count before its data is inflated, inflation is bounded per member, and every member is checked
+against its CRC-32.
 A dataset is a folder of archives plus an index (`fabricjax.dataset_index`) recording each
 archive's meta, size, mtime and sha256; `fabricjax.integrity` checks a dataset against it.
 """
@@ -560,7 +564,10 @@ class _Members:
         path, info = self.path, self.infos.get(name)
         if info is None:
             raise ArchiveError(path, name, "missing")
-        bound = min(MAX_MEMBER_BYTES, max(FREE_INFLATION, INFLATION_RATIO * info.compress_size)) if info.compress_type != zipfile.ZIP_STORED else MAX_MEMBER_BYTES
+        stored = info.compress_type == zipfile.ZIP_STORED
+        if stored and info.file_size != info.compress_size:
+            raise ArchiveError(path, name, f"a stored member declaring {info.file_size} bytes in {info.compress_size} (a damaged size)")
+        bound = MAX_MEMBER_BYTES if stored else min(MAX_MEMBER_BYTES, max(FREE_INFLATION, INFLATION_RATIO * info.compress_size))
         if info.file_size > bound:
             raise ArchiveError(path, name, f"declares {info.file_size} bytes inflated from {info.compress_size}, more than the {bound} "
                                "a trial's member may hold (a zip bomb or a damaged size)")
