@@ -535,31 +535,48 @@ import_manifest.run({manifest!r}, {out!r}, rig={rig!r}, workers=2, progress=Fals
 """
 
 
-def _children(pid):
-    import psutil
-
+def _stat(pid):
+    """(parent pid, state) of a process from /proc, None when it is gone."""
     try:
-        return psutil.Process(pid).children(recursive=True)
-    except psutil.NoSuchProcess:
-        return []
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    fields = text[text.rindex(")") + 2:].split()
+    return int(fields[1]), fields[0]
 
 
+def _workers(pid):
+    """The worker processes `pid` started (its children but the multiprocessing resource tracker)."""
+    out = []
+    for p in Path("/proc").iterdir():
+        if p.name.isdigit() and (st := _stat(p.name)) is not None and st[0] == pid:
+            cmdline = (p / "cmdline").read_bytes() if (p / "cmdline").exists() else b""
+            out += [] if b"resource_tracker" in cmdline else [int(p.name)]
+    return out
+
+
+def _alive(pid):
+    st = _stat(pid)
+    return st is not None and st[1] not in "ZX"
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads processes from /proc (Linux)")
 def test_killing_the_import_ends_its_workers_and_a_rerun_removes_what_it_left(tmp_path):
-    import psutil
-
     manifest = other_rig.write_recordings(tmp_path / "rig", LABELS, 6, seconds=(6.0, 8.0), splits={k: "train" for k in range(6)})
     out = tmp_path / "out"
     root = str(Path(__file__).parents[1])
     proc = subprocess.Popen([sys.executable, "-c", _KILL_IMPORT.format(root=root, manifest=str(manifest), out=str(out), rig=str(manifest.parent / "rig.toml"))])
     deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and not (list(out.glob(".import-*.partial/*.npz")) and len(_children(proc.pid)) >= 2):
+    while time.monotonic() < deadline and not (list(out.glob(".import-*.partial/*.npz")) and len(_workers(proc.pid)) >= 2):
         time.sleep(0.05)
-    workers = [c for c in _children(proc.pid) if "resource_tracker" not in " ".join(c.cmdline())]
+    workers = _workers(proc.pid)
     assert workers, "the import started no workers"
     proc.kill()
     proc.wait()
-    gone, alive = psutil.wait_procs(workers, timeout=10)
-    assert not alive, f"workers outlived the killed import: {alive}"
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(w) for w in workers):
+        time.sleep(0.1)
+    assert not any(_alive(w) for w in workers), "workers outlived the killed import"
     assert list(out.glob(".import-*.partial")) and not list(out.glob("*.npz"))  # staged, never in DIR
     summary, _ = _run(manifest, out)
     assert summary["imported"] == 18 and not list(out.glob(".*"))
