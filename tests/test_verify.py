@@ -138,3 +138,24 @@ def test_a_data_dir_inside_the_workspace_gets_no_index(tmp_path):
     assert workspace.index_file(folder, ws).parent == ws / "indexes" and workspace.index_file(folder, ws).exists()
     sim = tiny_dataset(ws / "datasets" / "smoke", TRIALS, n_steps=12, images=None)  # the simulator's own: beside it
     assert workspace.index_file(sim, ws) == sim.resolve() / workspace.INDEX_NAME
+
+
+_BROKEN_VERIFY = """
+import sys
+from fabricjax import cli, integrity
+def broken(p, entry, ipath):
+    raise TypeError("a reader bug")
+integrity._check_file = broken
+from experiments import verify
+sys.argv = ["verify", {folder!r}, "--workdir={workdir}"]
+cli.run(verify.main)
+"""
+
+
+def test_verify_command_exits_2_on_its_own_failure_after_printing_every_file(tmp_path):
+    folder, index = _dataset(tmp_path)
+    code = _BROKEN_VERIFY.format(folder=str(folder), workdir=tmp_path / "ws")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=Path(__file__).parents[1])
+    assert done.returncode == 2, done.stderr
+    assert done.stdout.count("<verify>: verify failed on this file: TypeError: a reader bug") == 3
+    assert "verify failed on 3 files (a bug of verify" in done.stderr
