@@ -443,8 +443,9 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
         raise ArchiveError(path, "meta.split", f"must be one of {SPLITS} or absent, got {meta['split']!r}")
     if "label_map" in meta:
         label_map = meta["label_map"]
-        classes = set(label_map.values()) if isinstance(label_map, dict) else None
-        if not classes or any(not _is(c, int) or not 0 <= c < len(label_map) for c in classes) or classes != set(range(max(classes) + 1)):
+        ints = isinstance(label_map, dict) and all(_is(c, int) and 0 <= c < len(label_map) for c in label_map.values())
+        classes = set(label_map.values()) if ints else None
+        if not classes or classes != set(range(max(classes) + 1)):
             raise ArchiveError(path, "meta.label_map", "must map names to classes 0..K-1, every class named")
         if meta["label"] not in classes:
             raise ArchiveError(path, "meta.label", f"class {meta['label']} is not in the label map's classes 0..{max(classes)}")

@@ -18,7 +18,7 @@ from tests.helpers import npz_fields, tiny_archive
 N_STEPS = 8
 SECONDS = 5  # per read: a tiny archive reads in milliseconds
 PEAK_BYTES = 64 << 20  # per read: a tiny archive needs well under 1 MB
-HOSTILE = [-5, "x", None, True, False, 1.5, 0, 10**30, float("inf"), float("nan"), [], {}, [1], "", 2**70, 3]
+HOSTILE = [-5, "x", None, True, False, 1.5, 0, 10**30, float("inf"), float("nan"), [], {}, [1], "", 2**70, 3, {"a": [1]}, ["x", "y", "z"]]
 # meta fields the reader validates (free-form dicts: source, import, force_proxy, are not mutated)
 FIELDS = ["format_version", "fabric_id", "label", "properties.stretchiness", "properties.roughness", "trial", "condition",
           "complete", "day", "closing_steps", "split", "label_name", "label_map", "streams.mics.0.rate", "streams.mics.0.role",
@@ -234,7 +234,8 @@ def test_every_mutation_is_a_clean_error_or_a_correct_reading(tmp_path):
 
 
 @pytest.mark.parametrize("key, value", [("closing_steps", -5), ("closing_steps", N_STEPS), ("day", False), ("properties.roughness", True),
-                                        ("streams.steps.rate", True), ("label", -1), ("streams.mics.0.rate", 48000.5)])
+                                        ("streams.steps.rate", True), ("label", -1), ("streams.mics.0.rate", 48000.5),
+                                        ("label_map", {"a": [1]}), ("streams.joints", "angle"), ("streams.camera.image_size", ["x", None])])
 def test_each_accepted_wrong_case_of_the_report_is_refused(tmp_path, key, value):
     base = tiny_archive(n_steps=N_STEPS, images=(4, 5))
     meta = json.loads(json.dumps(base.meta))
