@@ -44,6 +44,8 @@ def _index_entries(root: Path, workdir) -> tuple[Path, dict[str, dict] | None, l
     try:
         doc = json.loads(ipath.read_text())
         return ipath, {t["file"]: t for t in doc["trials"]}, []
+    except OSError as e:
+        return ipath, None, [Problem(str(ipath), "<file>", f"unreadable index: {e.strerror or e}")]
     except (ValueError, KeyError, TypeError) as e:  # ValueError: not JSON, or not UTF-8
         return ipath, None, [Problem(str(ipath), "trials", f"malformed index: {e}")]
 
