@@ -550,6 +550,7 @@ class _Members:
             self.zip.close()
             raise ArchiveError(path, "<file>", f"{len(infos)} zip members, more than {MAX_MEMBERS}: not a trial archive")
         self.infos = {i.filename[: -len(".npy")]: i for i in infos if i.filename.endswith(".npy")}
+        self.size = path.stat().st_size
 
     def __enter__(self) -> "_Members":
         return self
@@ -565,6 +566,8 @@ class _Members:
         path, info = self.path, self.infos.get(name)
         if info is None:
             raise ArchiveError(path, name, "missing")
+        if info.compress_size > self.size:
+            raise ArchiveError(path, name, f"declares {info.compress_size} bytes, the file holds {self.size} (truncated, or a damaged size)")
         stored = info.compress_type == zipfile.ZIP_STORED
         if stored and info.file_size != info.compress_size:
             raise ArchiveError(path, name, f"a stored member declaring {info.file_size} bytes in {info.compress_size} (a damaged size)")

@@ -121,6 +121,17 @@ def _header_declaring(a: archive.TrialArchive, shape) -> bytes:
     return buf.getvalue()
 
 
+def _sizes_declaring(raw: bytes, member: str, size: int) -> bytes:
+    """The archive with `member`'s compressed and inflated sizes in the central directory set to `size`."""
+    data, at = bytearray(raw), 0
+    while (at := data.find(b"PK\x01\x02", at)) >= 0:
+        name_len = int.from_bytes(data[at + 28: at + 30], "little")
+        if data[at + 46: at + 46 + name_len] == member.encode():
+            data[at + 20: at + 28] = size.to_bytes(4, "little") * 2
+        at += 4
+    return bytes(data)
+
+
 def _member_offsets(raw: bytes) -> dict[str, tuple[int, int]]:
     """(start of data, data length) of each stored member in the file."""
     out = {}
@@ -173,6 +184,7 @@ def mutations(seed: int = 0):
     yield "meta an int array", _bytes(base, meta=np.arange(3)), "refuse", None
     for name, shape in [("an npy header declaring terabytes", (2, 1 << 40)), ("an npy header of another shape", (2, 7))]:
         yield name, _header_declaring(base, shape), "refuse", None
+    yield "a stored member declaring 4 GB", _sizes_declaring(raw, "timestamps.npy", 0xFFFFFFF0), "refuse", None
     npy = io.BytesIO()
     np.save(npy, base.audio)
     yield "a plain .npy renamed .npz", npy.getvalue(), "refuse", None
