@@ -9,8 +9,11 @@ camera's frame rate (declared, or measured from the median frame interval), so a
 gives 30 Hz steps, not frame loss. Nothing is resampled silently: a microphone not at the archive's 48 kHz is an
 error naming the topic and the rate, unless `resample=True` (`scipy.signal.resample_poly`, recorded
 in meta.import.resampled). A gap between frames is kept, never filled, and listed in
-meta.import.frame_gaps; missing audio (a hole between chunks) is an error, since every window after
-it would silently be misplaced.
+meta.import.frame_gaps; a hole in the joints longer than HOLE_STEPS frames, where steps hold the
+last reading, is listed in meta.import.joint_gaps; missing audio (a hole between chunks) is an
+error, since every window after it would silently be misplaced. Timestamps are seconds: times
+spanning far more than the audio (milliseconds) are an error, and a WAV file cut off before its
+header's length gives `complete: false` (meta.import.truncated names it).
 """
 
 from __future__ import annotations
@@ -23,6 +26,34 @@ import numpy as np
 from acquisition.camera import ForceProxy
 from acquisition.recording import RecordingImportError, Stream
 from fabricjax import archive, catalog, integrity
+
+HOLE_STEPS = 3  # a stream silent for more than this many step periods has a hole (declared in meta.import)
+SPAN_FACTOR = 10  # timestamps spanning this many times the audio's duration are not seconds
+
+
+def check_seconds(times: np.ndarray, where, field: str, mics: list[Stream]) -> None:
+    """Timestamps must be seconds on the microphones' clock: times spanning far more than the audio
+    (milliseconds or microseconds put every step on the first reading) are an error."""
+    if not mics or len(times) < 2:
+        return
+    audio_s = max(len(m.samples) / m.rate for m in mics)
+    span = float(times[-1] - times[0])
+    if span > SPAN_FACTOR * audio_s + 1.0:
+        raise RecordingImportError(where, field, f"timestamps span {span:g}, but the microphones hold {audio_s:.2f} s of audio: "
+                                   "timestamps must be seconds (these look like milliseconds or another clock)")
+
+
+def stream_gaps(times: np.ndarray, steps: np.ndarray, period: float) -> list[dict[str, float]]:
+    """The holes of a stream (readings at `times`) longer than HOLE_STEPS step periods within the
+    steps' span: the steps inside one hold its last reading. Each: when it starts (s, on the
+    recording's clock), how long it lasts, and how many steps hold the stale reading."""
+    gaps = np.flatnonzero(np.diff(times) > HOLE_STEPS * period)
+    out = []
+    for k in gaps:
+        inside = int(np.count_nonzero((steps > times[k]) & (steps < times[k + 1])))
+        if inside:
+            out.append({"from_s": round(float(times[k]), 6), "seconds": round(float(times[k + 1] - times[k]), 6), "steps": inside})
+    return out
 
 
 def _at_archive_rate(stream: Stream, resample: bool, resampled: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -72,12 +103,15 @@ def align(
     step_rate: float | None = None,
     joint_fields_absent: list[str] | tuple[str, ...] = (),
     clocks: dict[str, Any] | None = None,
+    complete: bool = True,
+    notes: dict[str, Any] | None = None,
 ) -> archive.TrialArchive:
     """The recorder's alignment (module docstring) of streams with timestamps in seconds.
 
     `step_rate`: the camera's frame rate, the archive's step rate; None measures it (`step_rate_of`).
     `joint_fields_absent`: JOINT_FIELDS the recording lacks (NaN in `joints`; meta.streams.joints.absent).
-    `clocks`: how each stream was placed in time (meta.import.clocks)."""
+    `clocks`: how each stream was placed in time (meta.import.clocks). `complete`: False for a
+    recording cut off (meta.complete); `notes`: more of meta.import (e.g. the truncated files)."""
     where = source.get("path", "<recording>")
     if len(mics) != len(archive.MIC_NAMES):
         raise RecordingImportError(where, "mics", f"need {len(archive.MIC_NAMES)} microphones {archive.MIC_NAMES}, got {len(mics)}")
@@ -137,6 +171,7 @@ def align(
         condition=str(trial["condition"]),
         source=source,
         image_size=images.shape[1:3],
+        complete=complete,
         streams=archive.hand_streams(images.shape[1:3], step_rate=rate, joint_fields_absent=joint_fields_absent),
         closing_steps=0,  # the procedure's phases are not in other labs' recordings: every step counts
         force_proxy={"gain": force_gain, "deadband": force_deadband, "reference": "first kept frame"},
@@ -146,8 +181,10 @@ def align(
             "frames_dropped_at_end": dropped_at_end,
             "duplicate_frames_dropped": duplicates,
             "frame_gaps": [{"step": int(k), "seconds": round(float(frame_times[k] - frame_times[k - 1]), 6)} for k in gaps],
+            "joint_gaps": stream_gaps(joint_times, frame_times, 1.0 / rate),
             "resampled": resampled,
             **({"clocks": clocks} if clocks else {}),
+            **(notes or {}),
         }},
     )
     return archive.TrialArchive(

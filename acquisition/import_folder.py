@@ -3,7 +3,8 @@
 
 The folder holds `internal.wav` and `external.wav`, `joints.csv` and `camera.avi` (or `camera/*.png`
 with `frames.csv`), laid out as WORKSPACE.md's "Using your own recordings" describes; alignment and
-errors are those of the bag importer (`acquisition.alignment`)."""
+errors are those of the bag importer (`acquisition.alignment`); another rig's folder is a one-line
+error naming every missing file and pointing to `acquisition.import_manifest --rig`."""
 
 from __future__ import annotations
 
@@ -32,8 +33,10 @@ def main(argv):
     trial = mapping_file.trial_fields({}, overrides, "command line")
     result = hand_folder.import_folder(argv[1], trial, resample=FLAGS.resample)
     path = archive.write_archive(Path(FLAGS.out) / archive.trial_filename(result.meta), result)
-    gaps = result.meta["import"]["frame_gaps"]
-    print(f"{path}: {result.n_steps} steps" + (f", {len(gaps)} frame gaps (see meta.import.frame_gaps)" if gaps else ""))
+    notes = result.meta["import"]
+    print(f"{path}: {result.n_steps} steps" + (f", {len(notes['frame_gaps'])} frame gaps (see meta.import.frame_gaps)" if notes["frame_gaps"] else "")
+          + (f", {len(notes['joint_gaps'])} holes in the joints (see meta.import.joint_gaps)" if notes["joint_gaps"] else "")
+          + (f", incomplete: {', '.join(notes['truncated'])} cut off" if not result.meta["complete"] else ""))
 
 
 if __name__ == "__main__":

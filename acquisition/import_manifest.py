@@ -25,11 +25,26 @@ trials train, then val, then test), `--split=trial:train=0-3,val=4,test=5-6` (by
 inclusive ranges, the same in every class; every trial's index must be in one) or `--split=day`
 (by day, as the preset's days: the hand's protocol). A rig's trials without a split or a day would never be used, so that is an error.
 
-Each row's archive goes to DIR under `archive.trial_filename`. A rerun resumes: an archive already
-imported from the same recording is kept; an existing archive from another recording is an error
-unless --overwrite. Per trial the existing importers do the work (`acquisition.rig.import_rig_folder`,
-`hand_folder.import_folder`, `ros_bag.import_bag`); manifest columns and joint columns that are not
-used are reported, never dropped silently.
+The import of a manifest is one transaction. Every problem that can be found before importing (a
+row's fields, a recording listed twice, two rows naming one archive, a missing trial folder or
+file, a label outside the label map, what DIR already holds) is listed, one line each, and nothing
+is written. The trials are then imported into a hidden staging folder in DIR; a trial that fails
+is reported as the same one-line error with one worker or many, after every trial was tried, and
+then nothing reaches DIR. Only a complete import is moved into DIR under `archive.trial_filename`.
+
+A rerun resumes: an archive already in DIR is kept when it reads back whole (every member's CRC-32
+checked) and was imported from the same recording with the same label, label map, split, day,
+trial, condition and properties; a damaged one is imported again. Anything else is refused unless
+--overwrite, which replaces the dataset in DIR: its archives become exactly the manifest's. So an
+archive of another recording under a row's name, a changed label map (a class added or renamed),
+and archives no row produces (another dataset, or rows since deleted or relabelled) are errors
+without --overwrite. Staging folders and `.partial` files a killed run left in DIR are removed at the
+next run (one import per DIR at a time); a killed import's worker processes end with it.
+
+Per trial the existing importers do the work (`acquisition.rig.import_rig_folder`,
+`hand_folder.import_folder`, `ros_bag.import_bag`); manifest columns no importer of the run reads
+(the property columns of the hand's folders and bags, whose levels come from the fabric catalog)
+and joint columns that are not used are reported, never dropped silently.
 """
 
 from __future__ import annotations
@@ -37,6 +52,9 @@ from __future__ import annotations
 import csv
 import dataclasses
 import os
+import shutil
+import tempfile
+import threading
 import time
 from collections import Counter, defaultdict
 from pathlib import Path
@@ -47,9 +65,12 @@ from tqdm import tqdm
 
 from acquisition import hand_folder, mapping_file, ros_bag, rig as rig_mod
 from fabricjax import archive, cli, parallel
+from fabricjax.atomic import atomic_open
 from fabricjax.errors import UserError
 
 COLUMNS = ("path", "label", "split", "day", "trial", "condition", *archive.PROPERTY_NAMES)
+HAND_COLUMNS = COLUMNS[:6]  # the hand's folders and bags: property levels come from the fabric catalog
+STAGING = (".import-", ".partial")  # prefix and suffix of the staging folder in DIR
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,6 +90,14 @@ class ManifestError(UserError):
         super().__init__(f"{path}: line {line}: {field}: {problem}")
 
 
+class ImportProblems(UserError):
+    """Every problem of an import, one line each (a single problem is its one line)."""
+
+    def __init__(self, problems: list[str]):
+        self.problems = problems
+        super().__init__("\n".join(problems))
+
+
 def _int(text: str, manifest, line: int, field: str) -> int | None:
     if text.strip() == "":
         return None
@@ -78,34 +107,47 @@ def _int(text: str, manifest, line: int, field: str) -> int | None:
         raise ManifestError(manifest, line, field, f"{text!r} is not an integer") from None
 
 
-def read_manifest(manifest: str | Path) -> tuple[list[Row], list[str]]:
-    """The rows, and the manifest's columns that are not used."""
+def _utf8_lines(path: Path, what: str):
+    """The text of a UTF-8 file (with or without a byte-order mark); another encoding is a one-line error."""
+    try:
+        return path.read_text(encoding="utf-8-sig").splitlines(keepends=True)
+    except UnicodeDecodeError as e:
+        raise ManifestError(path, "-", "<file>", f"not UTF-8 text (byte {e.object[e.start]:#04x} at offset {e.start}): save the {what} as UTF-8") from None
+
+
+def read_manifest(manifest: str | Path) -> tuple[list[Row], list[str], list[str]]:
+    """The rows, the manifest's columns, and the problems of its rows (one line each; such a row is left out)."""
     manifest = Path(manifest)
     if not manifest.is_file():
         raise ManifestError(manifest, "-", "<file>", "no such manifest")
-    with open(manifest, newline="") as f:
-        reader = csv.DictReader(f)
-        header = [h.strip() for h in reader.fieldnames or []]
-        for col in ("path", "label"):
-            if col not in header:
-                raise ManifestError(manifest, 1, col, "column missing")
-        rows = []
-        for line, raw in enumerate(reader, start=2):
-            r = {k.strip(): (v or "").strip() for k, v in raw.items() if k is not None}
-            if not r["path"] or not r["label"]:
-                raise ManifestError(manifest, line, "path" if not r["path"] else "label", "empty")
-            split = r.get("split") or None
-            if split is not None and split not in archive.SPLITS:
-                raise ManifestError(manifest, line, "split", f"must be one of {archive.SPLITS}, got {split!r}")
-            condition = r.get("condition") or "lab"
-            if condition not in archive.CONDITIONS:
-                raise ManifestError(manifest, line, "condition", f"must be one of {archive.CONDITIONS}, got {condition!r}")
-            props = {p: v for p in archive.PROPERTY_NAMES if (v := _int(r.get(p, ""), manifest, line, p)) is not None}
-            rows.append(Row(line, (manifest.parent / r["path"]).resolve(), r["label"], split, _int(r.get("day", ""), manifest, line, "day"),
-                            _int(r.get("trial", ""), manifest, line, "trial"), condition, props))
-    if not rows:
+    reader = csv.DictReader(_utf8_lines(manifest, "manifest"))
+    header = [h.strip() for h in reader.fieldnames or []]
+    for col in ("path", "label"):
+        if col not in header:
+            raise ManifestError(manifest, 1, col, "column missing")
+    rows, problems = [], []
+    for line, raw in enumerate(reader, start=2):
+        try:
+            rows.append(_row(manifest, line, {k.strip(): (v or "").strip() for k, v in raw.items() if k is not None}))
+        except ManifestError as e:
+            problems.append(str(e))
+    if not rows and not problems:
         raise ManifestError(manifest, 2, "<rows>", "the manifest lists no trials")
-    return rows, [h for h in header if h not in COLUMNS]
+    return rows, header, problems
+
+
+def _row(manifest: Path, line: int, r: dict[str, str]) -> Row:
+    if not r["path"] or not r["label"]:
+        raise ManifestError(manifest, line, "path" if not r["path"] else "label", "empty")
+    split = r.get("split") or None
+    if split is not None and split not in archive.SPLITS:
+        raise ManifestError(manifest, line, "split", f"must be one of {archive.SPLITS}, got {split!r}")
+    condition = r.get("condition") or "lab"
+    if condition not in archive.CONDITIONS:
+        raise ManifestError(manifest, line, "condition", f"must be one of {archive.CONDITIONS}, got {condition!r}")
+    props = {p: v for p in archive.PROPERTY_NAMES if (v := _int(r.get(p, ""), manifest, line, p)) is not None}
+    return Row(line, (manifest.parent / r["path"]).resolve(), r["label"], split, _int(r.get("day", ""), manifest, line, "day"),
+               _int(r.get("trial", ""), manifest, line, "trial"), condition, props)
 
 
 def read_label_map(path: str | Path) -> dict[str, int]:
@@ -113,16 +155,15 @@ def read_label_map(path: str | Path) -> dict[str, int]:
     path = Path(path)
     if not path.is_file():
         raise ManifestError(path, "-", "<file>", "no such label map")
-    with open(path, newline="") as f:
-        reader = csv.DictReader(f)
-        if not {"name", "class"} <= set(reader.fieldnames or []):
-            raise ManifestError(path, 1, "name, class", "columns missing")
-        out = {}
-        for line, r in enumerate(reader, start=2):
-            cls = _int(r["class"] or "", path, line, "class")
-            if cls is None or cls < 0:
-                raise ManifestError(path, line, "class", f"must be a class >= 0, got {r['class']!r}")
-            out[r["name"].strip()] = cls
+    reader = csv.DictReader(_utf8_lines(path, "label map"))
+    if not {"name", "class"} <= set(reader.fieldnames or []):
+        raise ManifestError(path, 1, "name, class", "columns missing")
+    out = {}
+    for line, r in enumerate(reader, start=2):
+        cls = _int(r["class"] or "", path, line, "class")
+        if cls is None or cls < 0:
+            raise ManifestError(path, line, "class", f"must be a class >= 0, got {r['class']!r}")
+        out[(r["name"] or "").strip()] = cls
     if not out or set(out.values()) != set(range(max(out.values()) + 1)):
         raise ManifestError(path, "-", "class", f"classes must be 0..K-1, each named; got {sorted(set(out.values()))}")
     return out
@@ -168,13 +209,11 @@ def _trial_ranges(rule: str, rest: str) -> dict[int, str]:
     return out
 
 
-def by_trial(rows: list[Row], splits: dict[int, str], manifest, rule: str) -> list[str]:
+def by_trial(rows: list[Row], splits: dict[int, str], manifest, rule: str, problems: list[str]) -> list[str | None]:
     """Each row's split by its trial index (the same indices in every class: stratified by class);
-    a row whose index no range names is an error, not a trial left out."""
-    for r in rows:
-        if r.trial not in splits:
-            raise ManifestError(manifest, r.line, "trial", f"trial {r.trial} is in no range of --split={rule}")
-    return [splits[r.trial] for r in rows]
+    a row whose index no range names is a problem, not a trial left out."""
+    problems += [str(ManifestError(manifest, r.line, "trial", f"trial {r.trial} is in no range of --split={rule}")) for r in rows if r.trial not in splits]
+    return [splits.get(r.trial) for r in rows]
 
 
 def by_fraction(rows: list[Row], fractions: tuple[float, float, float]) -> list[str]:
@@ -206,87 +245,164 @@ class Job:
 
 
 def _import_one(job: Job) -> None:
-    """One trial, by the importer for its kind, written atomically (a worker's job)."""
-    if job.kind == "rig":
-        result = rig_mod.import_rig_folder(job.row.path, job.rig, job.meta_fields)
-    else:
-        result = (hand_folder.import_folder(job.row.path, job.meta_fields) if job.kind == "folder"
-                  else ros_bag.import_bag(job.row.path, job.mapping, job.meta_fields))
-        if job.split is not None:
-            result.meta["split"] = job.split
-    archive.write_archive(job.target, result)
+    """One trial, by the importer for its kind, written atomically to its staging path (a worker's
+    job); a trial that cannot be imported leaves its one-line error beside it (`<target>.error`),
+    so every trial is tried and every error reported, with one worker or many."""
+    try:
+        if job.kind == "rig":
+            result = rig_mod.import_rig_folder(job.row.path, job.rig, job.meta_fields)
+        else:
+            result = (hand_folder.import_folder(job.row.path, job.meta_fields) if job.kind == "folder"
+                      else ros_bag.import_bag(job.row.path, job.mapping, job.meta_fields))
+            if job.split is not None:
+                result.meta["split"] = job.split
+        archive.write_archive(job.target, result)
+    except UserError as e:
+        with atomic_open(job.target + ".error", "w") as f:
+            f.write(str(e))
+
+
+def _exit_with_parent() -> None:
+    """A worker's initializer: the worker ends when the importing process is gone (killed), rather
+    than living on as an orphan."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
 
 
 def plan(rows: list[Row], out: Path, *, rig: rig_mod.Rig | None, mapping: dict[str, Any] | None, label_map: dict[str, int] | None,
-         splits: list[str | None], manifest) -> list[Job]:
-    """One job per row, with its archive's name; two rows giving one name are an error."""
+         splits: list[str | None], manifest, problems: list[str]) -> list[Job]:
+    """One job per row, with its archive's name; two rows giving one name or listing one recording,
+    a label outside the label map and a missing recording or file are problems."""
     kind = "rig" if rig is not None else "bag" if mapping is not None else "folder"
-    jobs, seen = [], {}
+    jobs, names, paths = [], {}, {}
     for r, split in zip(rows, splits):
-        if kind == "rig":
-            if r.label not in label_map:
-                raise ManifestError(manifest, r.line, "label", f"{r.label!r} is not in the label map (its names: {', '.join(sorted(label_map))})")
-            cls = label_map[r.label]
-            fields = dict(fabric_id=cls, label=cls, label_name=r.label, label_map=label_map, properties=r.properties,
-                          day=r.day, trial=r.trial, condition=r.condition, **({"split": split} if split else {}))
-            name = archive.trial_filename(fields)
-        else:
-            fid = _int(r.label, manifest, r.line, "label")
-            if r.day is None:
-                raise ManifestError(manifest, r.line, "day", "missing: the hand's importers need a day")
-            fields = {"fabric_id": fid, "day": r.day, "trial": r.trial, "condition": r.condition}
-            name = archive.trial_filename(fields)
-        if name in seen:
-            raise ManifestError(manifest, r.line, "trial", f"gives the archive {name}, as line {seen[name]} does (make label, day, trial unique)")
-        seen[name] = r.line
+        if r.path in paths:
+            problems.append(str(ManifestError(manifest, r.line, "path", f"the recording {r.path} is listed again (line {paths[r.path]}): "
+                                              "one recording is one trial, in one split, under one label")))
+            continue
+        paths[r.path] = r.line
+        try:
+            if kind == "rig":
+                if r.label not in label_map:
+                    raise ManifestError(manifest, r.line, "label", f"{r.label!r} is not in the label map (its names: {', '.join(sorted(label_map))})")
+                cls = label_map[r.label]
+                fields = dict(fabric_id=cls, label=cls, label_name=r.label, label_map=label_map, properties=r.properties,
+                              day=r.day, trial=r.trial, condition=r.condition, **({"split": split} if split else {}))
+                rig_mod.check_layout(r.path, rig)
+            else:
+                fid = _int(r.label, manifest, r.line, "label")
+                if r.day is None:
+                    raise ManifestError(manifest, r.line, "day", "missing: the hand's importers need a day")
+                fields = {"fabric_id": fid, "day": r.day, "trial": r.trial, "condition": r.condition}
+                if kind == "folder":
+                    hand_folder.check_layout(r.path)
+                elif not r.path.exists():
+                    raise ManifestError(manifest, r.line, "path", f"no such bag: {r.path}")
+        except UserError as e:
+            problems.append(str(e))
+            continue
+        name = archive.trial_filename(fields)
+        if name in names:
+            problems.append(str(ManifestError(manifest, r.line, "trial", f"gives the archive {name}, as line {names[name]} does (make label, day, trial unique)")))
+            continue
+        names[name] = r.line
         jobs.append(Job(kind, r, str(out / name), fields, split, rig, mapping))
     return jobs
 
 
-def _resumable(job: Job, overwrite: bool) -> bool:
-    """True when the job's archive is already there from the same recording (nothing to do)."""
-    target = Path(job.target)
-    if overwrite or not target.exists():
-        return False
+def _difference(meta: dict[str, Any], job: Job) -> str | None:
+    """How an existing archive differs from what the job would import (None: the same trial)."""
+    if meta["source"].get("path") != str(job.row.path):
+        return f"was imported from {meta['source'].get('path')}, not from {job.row.path} as line {job.row.line} says"
+    if meta.get("label_map") != job.meta_fields.get("label_map"):
+        return f"its label map {meta.get('label_map')} differs from the manifest's {job.meta_fields.get('label_map')} (classes added or renamed)"
+    wanted = {**{k: v for k, v in job.meta_fields.items() if k != "label_map"}, "split": job.split}
+    changed = [f"{key} {meta.get(key)!r} where line {job.row.line} says {want!r}" for key, want in wanted.items() if meta.get(key) != want]
+    return f"it has {', '.join(changed)}" if changed else None
+
+
+def check_out(out: Path, jobs: list[Job], overwrite: bool, manifest, problems: list[str], say: Callable[[str], None]) -> tuple[list[Job], list[Path]]:
+    """The jobs to run, and the archives in `out` that --overwrite removes (no row produces them);
+    what `out` already holds that a plain rerun may not keep is a problem."""
+    if out.exists() and not out.is_dir():
+        problems.append(f"{out}: --out: not a folder")
+        return jobs, []
+    names = {Path(j.target).name for j in jobs}
+    foreign = sorted(p for p in out.glob("*.npz") if p.name not in names) if out.is_dir() else []
+    if overwrite:
+        return jobs, foreign
+    if foreign:
+        shown = ", ".join(p.name for p in foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
+        problems.append(f"{out}: --out: holds {len(foreign)} archive{'s' * (len(foreign) != 1)} no row of {manifest} produces ({shown}): "
+                        "another dataset, or rows since removed or relabelled; choose another --out, or pass --overwrite to replace the dataset in it")
+    todo = []
+    for j in jobs:
+        target = Path(j.target)
+        if not target.exists():
+            todo.append(j)
+            continue
+        try:
+            meta = archive.read_archive(target).meta  # every member read back against its CRC-32
+        except archive.ArchiveError as e:
+            say(f"note: {target}: damaged ({e.field}: {e.problem}): imported again")
+            todo.append(j)
+            continue
+        if (difference := _difference(meta, j)) is not None:
+            problems.append(f"{target}: exists, but {difference}; pass --overwrite to replace the dataset")
+    return todo, []
+
+
+def _staging(out: Path) -> Path:
+    """A new staging folder in `out`, after removing what a killed run left there."""
     try:
-        meta, _ = archive.read_meta(target)
-    except archive.ArchiveError:
-        meta = {}
-    if meta.get("source", {}).get("path") == str(job.row.path) and meta.get("split") == job.split and meta.get("complete"):
-        return True
-    raise UserError(f"{target}: exists and was not imported from {job.row.path} as this row says; pass --overwrite to replace it")
+        out.mkdir(parents=True, exist_ok=True)
+        for stray in out.glob(f"{STAGING[0]}*{STAGING[1]}"):
+            shutil.rmtree(stray)
+        for stray in out.glob(".*.partial"):  # `atomic_open`'s temporaries
+            stray.unlink()
+        return Path(tempfile.mkdtemp(prefix=STAGING[0], suffix=STAGING[1], dir=out))
+    except OSError as e:
+        raise UserError(f"{out}: --out: cannot write there: {e.strerror or e}") from None
 
 
 def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None, mapping: str | Path | None = None,
         labels: str | Path | None = None, split: str | None = None, overwrite: bool = False, workers: int | None = None,
         progress: bool = True, say: Callable[[str], None] = print) -> dict[str, Any]:
-    """Import every row of `manifest` into `out` (module docstring); returns a summary."""
+    """Import every row of `manifest` into `out` as one transaction (module docstring); returns a summary."""
     t0 = time.perf_counter()
     if rig is not None and mapping is not None:
         raise UserError("give --rig (trial folders of another rig) or --map (ROS 2 bags), not both")
-    rows, ignored = read_manifest(manifest)
+    rows, header, problems = read_manifest(manifest)
+    used = COLUMNS if rig is not None else HAND_COLUMNS
+    ignored = [h for h in header if h not in used]
     if ignored:
-        say(f"note: {manifest}: columns not used: {', '.join(ignored)} (used: {', '.join(COLUMNS)})")
+        say(f"note: {manifest}: columns not used: {', '.join(ignored)} (used: {', '.join(used)})")
     counters: dict[str, int] = defaultdict(int)
     rows = [dataclasses.replace(r, trial=r.trial if r.trial is not None else _next(counters, r.label)) for r in rows]
     rule = parse_split_rule(split)
     has_column = any(r.split for r in rows)
     if rule is not None and has_column:
         raise UserError(f"{manifest}: has a split column and --split={split} was given: choose one")
-    if rule is None and has_column and not all(r.split for r in rows):
-        r = next(r for r in rows if not r.split)
-        raise ManifestError(manifest, r.line, "split", "empty, while other rows give one (give every row a split, or none)")
+    if rule is None and has_column:
+        problems += [str(ManifestError(manifest, r.line, "split", "empty, while other rows give one (give every row a split, or none)"))
+                     for r in rows if not r.split]
     if rule and rule[0] == "fraction":
         splits = by_fraction(rows, rule[1])
     elif rule and rule[0] == "trial":
-        splits = by_trial(rows, rule[1], manifest, split)
+        splits = by_trial(rows, rule[1], manifest, split, problems)
     else:
         splits = [r.split for r in rows]
     loaded_rig = rig_mod.load_rig(rig) if rig is not None else None
     if loaded_rig is not None and not any(splits) and any(r.day is None for r in rows):
         r = next(r for r in rows if r.day is None)
-        raise ManifestError(manifest, r.line, "split", "no split and no day: the trial would belong to no split "
-                            "(give a split column, --split=fraction:TRAIN,VAL,TEST or trial:SPLIT=FIRST-LAST,..., or days with --split=day)")
+        problems.append(str(ManifestError(manifest, r.line, "split", "no split and no day: the trial would belong to no split "
+                        "(give a split column, --split=fraction:TRAIN,VAL,TEST or trial:SPLIT=FIRST-LAST,..., or days with --split=day)")))
     label_map = None
     if loaded_rig is not None:
         label_map = read_label_map(labels) if labels else {name: k for k, name in enumerate(sorted({r.label for r in rows}))}
@@ -294,27 +410,46 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
         raise UserError("--labels names classes of a rig's recordings (--rig); the hand's folders and bags are labelled by fabric id")
     loaded_map = mapping_file.load_mapping(mapping) if mapping is not None else None
     out = Path(out)
-    jobs = plan(rows, out, rig=loaded_rig, mapping=loaded_map, label_map=label_map, splits=splits, manifest=manifest)
-    todo = [j for j in jobs if not _resumable(j, overwrite)]
-    out.mkdir(parents=True, exist_ok=True)
-    workers = max(1, min(workers or os.cpu_count() or 1, len(todo)))
-    with tqdm(total=len(todo), desc=f"import ({workers} processes)", unit="trial", disable=not progress) as bar:
-        parallel.run_jobs(_import_one, todo, workers, bar.update)
-    unused_columns = Counter()
+    jobs = plan(rows, out, rig=loaded_rig, mapping=loaded_map, label_map=label_map, splits=splits, manifest=manifest, problems=problems)
+    todo, stale = check_out(out, jobs, overwrite, manifest, problems, say)
+    if problems:
+        raise ImportProblems(problems + ([f"{out}: nothing was written ({len(problems)} problems above)"] if len(problems) > 1 else []))
+    staging = _staging(out)
+    try:
+        staged = [dataclasses.replace(j, target=str(staging / Path(j.target).name)) for j in todo]
+        n = max(1, min(workers or os.cpu_count() or 1, len(todo)))
+        with tqdm(total=len(todo), desc=f"import ({n} processes)", unit="trial", disable=not progress) as bar:
+            parallel.run_jobs(_import_one, staged, n, bar.update, initializer=_exit_with_parent)
+        failed = [Path(j.target + ".error").read_text() for j in staged if Path(j.target + ".error").exists()]
+        if failed:
+            raise ImportProblems(failed + ([f"{out}: nothing was written ({len(failed)} trials failed)"] if len(failed) > 1 else []))
+        for j, s in zip(todo, staged):  # the import is complete: into DIR, and what no row produces out of it
+            os.replace(s.target, j.target)
+        for p in stale:
+            p.unlink()
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    notes: dict[str, Counter] = defaultdict(Counter)
     steps = 0
     for j in jobs:
-        meta, n = archive.read_meta(j.target)
-        steps += n
-        unused_columns.update(meta.get("import", {}).get("ignored_columns", []))
-    if unused_columns:
-        say(f"note: joint columns not named in the rig file, not imported: {', '.join(f'{c} ({k} trials)' for c, k in sorted(unused_columns.items()))}")
+        meta, n_steps = archive.read_meta(j.target)
+        steps += n_steps
+        notes["columns"].update(meta.get("import", {}).get("ignored_columns", []))
+        notes["incomplete"].update(["trials"] if not meta["complete"] else [])
+        notes["joint_gaps"].update(["trials"] if meta.get("import", {}).get("joint_gaps") else [])
+    if notes["columns"]:
+        say(f"note: joint columns not named in the rig file, not imported: {', '.join(f'{c} ({k} trials)' for c, k in sorted(notes['columns'].items()))}")
+    if notes["incomplete"]:
+        say(f"note: {notes['incomplete']['trials']} trials are incomplete (complete: false; meta.import.truncated names the cut-off files)")
+    if notes["joint_gaps"]:
+        say(f"note: {notes['joint_gaps']['trials']} trials have holes in the joints, where steps hold the last reading (meta.import.joint_gaps)")
     per_split = Counter(s or "by day" for s in splits)
     n_classes = len(set(label_map.values())) if label_map else None  # classes, not names: a label file may give one class two names
-    summary = {"trials": len(jobs), "imported": len(todo), "resumed": len(jobs) - len(todo), "steps": steps,
+    summary = {"trials": len(jobs), "imported": len(todo), "resumed": len(jobs) - len(todo), "removed": len(stale), "steps": steps,
                "splits": dict(per_split), "classes": n_classes, "seconds": time.perf_counter() - t0, "out": str(out)}
     say(f"{out}: {len(todo)} trials imported, {len(jobs) - len(todo)} already there (resumed); {steps} steps; "
         f"splits {', '.join(f'{k} {v}' for k, v in sorted(per_split.items()))}" + (f"; {n_classes} classes" if label_map else "")
-        + f" ({summary['seconds']:.1f} s)")
+        + (f"; {len(stale)} archives no row produces removed (--overwrite)" if stale else "") + f" ({summary['seconds']:.1f} s)")
     return summary
 
 
@@ -339,6 +474,6 @@ if __name__ == "__main__":
     flags.DEFINE_string("map", None, "Mapping file (TOML) of ROS 2 bags (acquisition/import_bag.py).")
     flags.DEFINE_string("labels", None, "Label map: CSV with columns name, class (default: the manifest's labels, sorted).")
     flags.DEFINE_string("split", None, "Split rule when the manifest has no split column: fraction:TRAIN,VAL,TEST, trial:SPLIT=FIRST-LAST,... or day.")
-    flags.DEFINE_bool("overwrite", False, "Replace existing archives (default: keep those of the same recording, refuse others).")
+    flags.DEFINE_bool("overwrite", False, "Replace the dataset in --out by the manifest's (default: keep archives of the same rows, refuse anything else).")
     flags.DEFINE_integer("workers", None, "Processes (default: one per core).", lower_bound=1)
     cli.run(main)

@@ -4,6 +4,7 @@ folders (`acquisition.hand_folder`) and other rigs' (`acquisition.rig`) share th
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import cv2
@@ -17,18 +18,22 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
 
 
 def read_wav(path: Path, start: float) -> Stream:
-    """One microphone's mono WAV file, its first sample at `start` (s)."""
+    """One microphone's mono WAV file, its first sample at `start` (s); a file cut off before the
+    length its header declares is read as far as it goes and marked `truncated`."""
     from scipy.io import wavfile
 
     if not path.is_file():
         raise RecordingImportError(path, "<file>", "no such file (one WAV per microphone: " + ", ".join(f"{m}.wav" for m in archive.MIC_NAMES) + ")")
-    try:
-        rate, samples = wavfile.read(path)
-    except ValueError as e:
-        raise RecordingImportError(path, "<file>", f"not a readable WAV file: {e}") from None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", wavfile.WavFileWarning)
+        try:
+            rate, samples = wavfile.read(path)
+        except (ValueError, EOFError) as e:
+            raise RecordingImportError(path, "<file>", f"not a readable WAV file: {e}") from None
+    truncated = any("EOF prematurely" in str(w.message) for w in caught)
     if samples.ndim != 1:
         raise RecordingImportError(path, "channels", f"{samples.shape[1]} channels, expected 1 (one file per microphone)")
-    return Stream.from_samples(str(path), int(rate), to_words(samples, path, "samples"), start)
+    return Stream.from_samples(str(path), int(rate), to_words(samples, path, "samples"), start, truncated)
 
 
 def read_joints_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -36,10 +41,14 @@ def read_joints_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
     if not path.is_file():
         raise RecordingImportError(path, "<file>", "no such file")
     try:
-        table = np.genfromtxt(path, delimiter=",", names=True, dtype=np.float64, ndmin=1)
-    except ValueError as e:
-        raise RecordingImportError(path, "<file>", f"not a readable CSV: {e}") from None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # an empty table is the error below, not a warning
+            table = np.genfromtxt(path, delimiter=",", names=True, dtype=np.float64, ndmin=1, encoding="utf-8")
+    except ValueError as e:  # also a file that is not UTF-8 (UnicodeDecodeError)
+        raise RecordingImportError(path, "<file>", f"not a readable UTF-8 CSV: {e}") from None
     columns = ["time", *(f"{j}_{f}" for j in archive.JOINT_NAMES for f in archive.JOINT_FIELDS)]
+    if table.size == 0:
+        raise RecordingImportError(path, "<rows>", "no readings (a header row only)")
     for col in columns:
         if table.dtype.names is None or col not in table.dtype.names:
             raise RecordingImportError(path, col, "column missing")

@@ -15,7 +15,13 @@ class RecordingImportError(UserError):
     """A recording cannot become an archive; the message names file, field and problem."""
 
     def __init__(self, path, field: str, problem: str):
+        self.path, self.field, self.problem = str(path), field, problem
         super().__init__(f"{path}: {field}: {problem}")
+
+    def __reduce__(self):
+        # rebuilt from its three parts, so a worker process can raise it to the parent (the
+        # default, cls(message), would fail to unpickle and break the pool)
+        return type(self), (self.path, self.field, self.problem)
 
 
 @dataclasses.dataclass
@@ -28,6 +34,7 @@ class Stream:
     samples: np.ndarray  # (S,) int32 SPH0645-style words
     times: np.ndarray  # (K,) float64, increasing
     counts: np.ndarray  # (K,) int64, samples held at each time
+    truncated: bool = False  # the file ends before the length its header declares (a cut-off recording)
 
     @classmethod
     def from_chunks(cls, name: str, rate: int, times, chunks: list[np.ndarray]) -> "Stream":
@@ -40,11 +47,11 @@ class Stream:
         return cls(name, rate, np.concatenate(ordered), np.asarray(times, np.float64)[order], counts)
 
     @classmethod
-    def from_samples(cls, name: str, rate: int, samples: np.ndarray, start: float = 0.0) -> "Stream":
+    def from_samples(cls, name: str, rate: int, samples: np.ndarray, start: float = 0.0, truncated: bool = False) -> "Stream":
         """A continuous recording (a WAV file) whose first sample is at `start`."""
         if len(samples) == 0:
             raise RecordingImportError(name, "audio", "no samples")
-        return cls(name, rate, samples, start + np.arange(len(samples)) / rate, np.arange(1, len(samples) + 1, dtype=np.int64))
+        return cls(name, rate, samples, start + np.arange(len(samples)) / rate, np.arange(1, len(samples) + 1, dtype=np.int64), truncated)
 
 
 def to_words(samples: np.ndarray, where, field: str) -> np.ndarray:

@@ -21,7 +21,10 @@ A rig file (TOML) says what one trial folder holds (WORKSPACE.md, "Recordings fr
 Alignment is the recorder's rule (`acquisition.alignment`): at each step, each microphone's
 window ends after the last sample at or before it, the joints are the latest reading at or before
 it; steps before every microphone holds a full 2048-sample window at its own rate, before the
-first joint reading, or after any stream's end are dropped and counted in meta.import. Nothing is
+first joint reading, or after any stream's end are dropped and counted in meta.import; a hole in
+the joints longer than `alignment.HOLE_STEPS` steps, where steps hold the last reading, is listed
+in meta.import.joint_gaps. Timestamps are seconds (times spanning far more than the audio are an
+error), and a WAV file cut off before its header's length makes the trial `complete: false`. Nothing is
 resampled or invented: a rig without a camera has no frames and no force, one microphone is one
 audio row. Columns of the joints file the rig file does not name are listed in
 meta.import.ignored_columns (the batch importer reports them).
@@ -31,11 +34,13 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from acquisition.alignment import check_seconds, stream_gaps
 from acquisition.mapping_file import read_toml
 from acquisition.readers import read_camera, read_wav
 from acquisition.recording import RecordingImportError, Stream
@@ -107,20 +112,42 @@ def load_rig(path: str | Path) -> Rig:
     )
 
 
+def missing_files(folder: Path, rig: Rig) -> list[str]:
+    """The files the rig file names that `folder` lacks (every one, not the first)."""
+    files = [m.file for m in rig.mics] + ([rig.joints_file] if rig.joints_file else [])
+    return [f for f in files if not (folder / f).is_file()]
+
+
+def check_layout(folder: Path, rig: Rig) -> None:
+    """A one-line error naming every file of the rig file that the trial folder lacks."""
+    if not folder.is_dir():
+        raise RecordingImportError(folder, "<folder>", "no such trial folder")
+    missing = missing_files(folder, rig)
+    if missing:
+        raise RecordingImportError(folder, "<folder>", f"missing {', '.join(missing)} (named by the rig file)")
+
+
 def read_joints(path: Path, rig: Rig) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Times, (N, J, F) values and the columns not used, from a CSV with a header row."""
+    """Times, (N, J, F) values and the columns not used, from a UTF-8 CSV with a header row."""
     if not path.is_file():
         raise RecordingImportError(path, "<file>", "no such file")
-    with open(path, newline="") as f:
-        header = [h.strip() for h in next(csv.reader(f), [])]
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            header = [h.strip() for h in next(csv.reader(f), [])]
+    except UnicodeDecodeError as e:
+        raise RecordingImportError(path, "<file>", f"not UTF-8 text: {e}") from None
     wanted = ["time", *(f"{j}_{f}" for j in rig.joint_names for f in rig.joint_fields)]
     for col in wanted:
         if col not in header:
             raise RecordingImportError(path, col, "column missing")
     try:
-        table = np.loadtxt(path, delimiter=",", skiprows=1, usecols=[header.index(c) for c in wanted], ndmin=2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # no rows is the error below, not a warning
+            table = np.loadtxt(path, delimiter=",", skiprows=1, usecols=[header.index(c) for c in wanted], ndmin=2, encoding="utf-8")
     except ValueError as e:
         raise RecordingImportError(path, "<file>", f"not a numeric CSV: {e}") from None
+    if len(table) == 0:
+        raise RecordingImportError(path, "<rows>", "no readings (a header row only)")
     if not np.all(np.isfinite(table)):
         col = wanted[int(np.argmin(np.all(np.isfinite(table), axis=0)))]
         raise RecordingImportError(path, col, "empty or non-numeric values")
@@ -152,9 +179,11 @@ def align_rig(
     meta_fields: dict[str, Any],
     source: dict[str, Any],
     ignored_columns: list[str],
+    truncated: list[str] = (),
 ) -> archive.TrialArchive:
     """The recorder's alignment (module docstring) of the rig's streams; `meta_fields` are the
-    trial's label, label map, split, day, trial, condition and properties."""
+    trial's label, label map, split, day, trial, condition and properties; `truncated`: the files
+    cut off before their header's length (the trial is then `complete: false`)."""
     where = source.get("path", "<recording>")
     times, clock, rate = step_times(rig, mics, joint_times, frame_times)
     n = len(times)
@@ -189,9 +218,13 @@ def align_rig(
         "steps": {"clock": clock, "rate": round(rate, 6)},
         "audio_format": archive.AUDIO_FORMAT,
     }
+    notes = {"steps_dropped_before_start": first, "steps_dropped_at_end": n - 1 - last, "ignored_columns": ignored_columns}
+    if joint_times is not None:
+        notes["joint_gaps"] = stream_gaps(joint_times, times[sel], 1.0 / rate)
+    if truncated:
+        notes["truncated"] = list(truncated)
     meta = archive.make_meta(
-        **meta_fields, source=source, image_size=None, streams=streams, closing_steps=0,
-        **{"import": {"steps_dropped_before_start": first, "steps_dropped_at_end": n - 1 - last, "ignored_columns": ignored_columns}},
+        **meta_fields, source=source, image_size=None, streams=streams, closing_steps=0, complete=not truncated, **{"import": notes},
     )
     return archive.TrialArchive(
         meta=meta,
@@ -207,20 +240,20 @@ def align_rig(
 def import_rig_folder(folder: str | Path, rig: Rig, meta_fields: dict[str, Any]) -> archive.TrialArchive:
     """One trial folder of the rig (module docstring) as an archive."""
     folder = Path(folder)
-    if not folder.is_dir():
-        raise RecordingImportError(folder, "<folder>", "no such trial folder")
-    for m in rig.mics:
-        if not (folder / m.file).is_file():
-            raise RecordingImportError(folder / m.file, "<file>", f"no such file (microphone {m.name!r} of the rig file)")
+    check_layout(folder, rig)
     mics = [read_wav(folder / m.file, 0.0) for m in rig.mics]  # the hand folders' WAV reader
     joint_times = joints = None
     ignored: list[str] = []
     if rig.joints_file:
         joint_times, joints, ignored = read_joints(folder / rig.joints_file, rig)
+        check_seconds(joint_times, folder / rig.joints_file, "time", mics)
         order = np.argsort(joint_times, kind="stable")
         joint_times, joints = joint_times[order], joints[order]
     frame_times = images = None
     if rig.camera:
         frame_times, images = read_camera(folder)  # the hand folders' camera reader
+        check_seconds(frame_times, folder / "frames.csv", "time", mics)
     return align_rig(rig, mics=mics, joint_times=joint_times, joints=joints, frame_times=frame_times, images=images,
-                     meta_fields=meta_fields, source={"kind": "rig_folder", "path": str(folder)}, ignored_columns=ignored)
+                     meta_fields=meta_fields, source={"kind": "rig_folder", "path": str(folder)}, ignored_columns=ignored,
+                     truncated=[m.file for m, s in zip(rig.mics, mics) if s.truncated])
+

@@ -2,7 +2,9 @@
 
 Re-hashes every archive against its index's sha256, re-validates every field and reports irregular
 step timestamps (`fabricjax.integrity`); prints each problem as `file: field: reason` and exits 1
-if there is any. Writes nothing, in DIR or elsewhere."""
+if there is any. Every file is checked whatever another holds; a file verify itself fails on (a bug,
+not a finding about the data) is printed with the exception, and the exit status is then 2, as for
+any error of the command. Writes nothing, in DIR or elsewhere."""
 
 from __future__ import annotations
 
@@ -26,6 +28,11 @@ def main(argv):
         print(p)
     hashed = f"{counts['hashed']} hashed against {counts['index']}" if counts["index"] else "no index yet, so no hashes to check"
     print(f"{counts['archives']} archives checked ({hashed}): {len(problems) or 'no'} problem{'s' * (len(problems) != 1)}")
+    for f in counts["failures"]:
+        print(f)
+    if counts["failures"]:
+        print(f"verify failed on {len(counts['failures'])} file{'s' * (len(counts['failures']) != 1)} (a bug of verify: the lines above name them)", file=sys.stderr)
+        sys.exit(2)
     if problems:
         sys.exit(1)
 

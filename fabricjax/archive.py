@@ -48,7 +48,11 @@ another) and with NaN in the fields an optional top-level meta.joint_fields_abse
     properties   property levels only where known (a missing name or null: unknown)
 
 `write_archive` is atomic (temporary name in the same folder, fsync, rename); `read_archive`
-validates every field and raises `ArchiveError` naming the file, the field and the problem.
+validates every field by type and range and raises `ArchiveError` naming the file, the field and
+the problem. It trusts no size a file declares: the meta JSON is bounded in length, nesting and
+number size before it is parsed, each member's npy header is checked against the meta and the step
+count before its data is inflated, inflation is bounded per member, and every member is checked
+against its CRC-32.
 A dataset is a folder of archives plus an index (`fabricjax.dataset_index`) recording each
 archive's meta, size, mtime and sha256; `fabricjax.integrity` checks a dataset against it.
 """
@@ -60,8 +64,9 @@ import json
 import os
 import re
 import zipfile
+import zlib
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -108,10 +113,26 @@ _COMMON_META = {
     "source": dict,
     "complete": bool,
 }
-REQUIRED_META = {  # by format version
+REQUIRED_META = {  # by format version; an int is never a bool, a float is finite
     1: {**_COMMON_META, "day": int, "sample_rates": dict, "image_size": (list, type(None)), "joint_names": list, "units": dict},
     2: {**_COMMON_META, "day": (int, type(None)), "streams": dict},
 }
+OPTIONAL_META = {"closing_steps": int, "label_name": str, "label_map": dict, "split": (str, type(None)), "import": dict, "force_proxy": dict}
+# Bounds of what a reader accepts, checked before the bytes they bound are parsed or inflated: a
+# damaged or hostile file is an ArchiveError, never a reader that runs out of memory or time.
+MAX_META_CHARS = 1 << 20  # characters of meta JSON (a meta is a few kB)
+MAX_JSON_DEPTH = 64  # nesting of meta JSON (a meta nests 5 deep)
+MAX_NUMBER_CHARS = 32  # characters of one JSON number (an int64 has 19 digits)
+MAX_INT = 2**63 - 1  # integers of the meta fit an int64
+MAX_RATE = 10_000_000  # Hz, any stream's rate (no sensor here samples faster)
+MAX_IMAGE_SIDE = 16384  # pixels, a frame's height or width
+MAX_MEMBERS = 64  # zip members of one archive (it holds at most 7 arrays)
+MAX_MEMBER_BYTES = 16 << 30  # inflated bytes of one member
+# A compressed member may inflate to FREE_INFLATION bytes, beyond that to INFLATION_RATIO times its
+# compressed size: recorded signals compress a few times, a zip bomb a thousand times.
+FREE_INFLATION = 64 << 20
+READ_CHUNK = 256 << 10  # bytes read from a member at a time (numpy's own read size: small reads stay in cache)
+INFLATION_RATIO = 64
 CONDITIONS = ("lab", "cafe")
 PROPERTY_NAMES = ("stretchiness", "roughness", "thickness")
 SPLITS = ("train", "val", "test", "cafe", "holdout")  # a user's split (meta.split), as `data` names them
@@ -293,6 +314,50 @@ def make_meta(
     }
 
 
+def _is(value: Any, typ) -> bool:
+    """isinstance, where a bool is not an int and a float is finite."""
+    types = typ if isinstance(typ, tuple) else (typ,)
+    if isinstance(value, bool):
+        return bool in types
+    if isinstance(value, float):
+        return float in types and bool(np.isfinite(value))
+    return isinstance(value, types)
+
+
+def _type_name(typ) -> str:
+    types = typ if isinstance(typ, tuple) else (typ,)
+    names = {int: "an integer", float: "a finite number", str: "a string", bool: "true or false", dict: "an object", list: "a list", type(None): "null"}
+    return " or ".join(names[t] for t in types)
+
+
+def _check_type(value: Any, typ, path, field: str) -> None:
+    if not _is(value, typ):
+        raise ArchiveError(path, field, f"must be {_type_name(typ)}, got {json.dumps(value)[:60]}")
+
+
+def _check_count(value: Any, path, field: str, low: int = 0, high: int = MAX_INT) -> None:
+    """An integer (never a bool) in [low, high]."""
+    if not _is(value, int) or not low <= value <= high:
+        raise ArchiveError(path, field, f"must be an integer in [{low}, {high}], got {json.dumps(value)[:60]}")
+
+
+def _check_rate(value: Any, path, field: str, integer: bool = False) -> None:
+    """A rate in Hz: finite, > 0, at most MAX_RATE (an integer where `integer`)."""
+    if not _is(value, int if integer else (int, float)) or not 0 < value <= MAX_RATE:
+        kind = "an integer rate" if integer else "a rate"
+        raise ArchiveError(path, field, f"must be {kind} in Hz, > 0 and <= {MAX_RATE}, got {json.dumps(value)[:60]}")
+
+
+def _check_image_size(size: Any, path, field: str) -> None:
+    if not isinstance(size, list) or len(size) != 2 or not all(_is(x, int) and 1 <= x <= MAX_IMAGE_SIDE for x in size):
+        raise ArchiveError(path, field, f"must be [H, W], two integers in [1, {MAX_IMAGE_SIDE}], got {json.dumps(size)[:60]}")
+
+
+def _check_strings(values: Any, path, field: str) -> None:
+    if not isinstance(values, list) or not all(isinstance(x, str) for x in values):
+        raise ArchiveError(path, field, f"must be a list of strings, got {json.dumps(values)[:60]}")
+
+
 def _check_streams(streams: dict[str, Any], path) -> None:
     """The shape of a version-2 `meta.streams` (what `layout` reads)."""
     def need(cond: bool, field: str, problem: str) -> None:
@@ -305,41 +370,52 @@ def _check_streams(streams: dict[str, Any], path) -> None:
     need(isinstance(mics, list), "mics", "must be a list")
     for k, m in enumerate(mics):
         need(isinstance(m, dict) and isinstance(m.get("name"), str), f"mics[{k}].name", "missing")
-        need(isinstance(m.get("rate"), int) and not isinstance(m["rate"], bool) and m["rate"] > 0, f"mics[{k}].rate", f"must be a rate in Hz > 0, got {m.get('rate')!r}")
+        _check_rate(m.get("rate"), path, f"meta.streams.mics[{k}].rate", integer=True)
         need(m.get("role") in (*MIC_ROLES, None), f"mics[{k}].role", f"must be one of {MIC_ROLES} or null, got {m.get('role')!r}")
     roles = [m["role"] for m in mics if m.get("role")]
     need(len(roles) == len(set(roles)), "mics", f"two microphones feed the same input: roles {roles}")
     j = streams["joints"]
+    need(j is None or isinstance(j, dict), "joints", "must be null or {\"names\", \"fields\", \"units\"}")
     if j is not None:
         for key in ("names", "fields", "units"):
-            need(isinstance(j.get(key), list) and all(isinstance(x, str) for x in j[key]), f"joints.{key}", "must be a list of strings")
+            _check_strings(j.get(key), path, f"meta.streams.joints.{key}")
         need(len(j["fields"]) == len(j["units"]), "joints.units", f"{len(j['units'])} units for {len(j['fields'])} fields")
         need(len(j["names"]) > 0 and len(j["fields"]) > 0, "joints", "no names or no fields (use null for no joints)")
         _check_absent_fields(j.get("absent", []), j["fields"], path, "meta.streams.joints.absent")
     cam = streams["camera"]
-    need(cam is None or (isinstance(cam, dict) and isinstance(cam.get("image_size"), list) and len(cam["image_size"]) == 2), "camera", "must be null or {\"image_size\": [H, W]}")
+    need(cam is None or isinstance(cam, dict), "camera", "must be null or {\"image_size\": [H, W]}")
+    if cam is not None:
+        _check_image_size(cam.get("image_size"), path, "meta.streams.camera.image_size")
+    need(streams["force"] is None or isinstance(streams["force"], str), "force", f"must be a unit (\"N\") or null, got {streams['force']!r}")
     steps = streams["steps"]
     need(isinstance(steps, dict) and steps.get("clock") in STEP_CLOCKS, "steps.clock", f"must be one of {STEP_CLOCKS}")
-    need(isinstance(steps.get("rate"), (int, float)) and steps["rate"] > 0, "steps.rate", f"must be a rate in Hz > 0, got {steps.get('rate')!r}")
+    _check_rate(steps.get("rate"), path, "meta.streams.steps.rate")
 
 
 def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
+    """Raise `ArchiveError` unless every field of `meta` has its type and range (the step count,
+    which bounds closing_steps, is checked by `validate`)."""
     if not isinstance(meta, dict):
         raise ArchiveError(path, "meta", f"expected a JSON object, got {type(meta).__name__}")
     if "format_version" not in meta:
         raise ArchiveError(path, "meta.format_version", "missing")
     version = meta["format_version"]
-    if version not in READ_VERSIONS:
+    if not _is(version, int) or version not in READ_VERSIONS:
         raise ArchiveError(path, "meta.format_version", f"unknown format version {version!r} (this code reads {READ_VERSIONS})")
     for key, typ in REQUIRED_META[version].items():
         if key not in meta:
             raise ArchiveError(path, f"meta.{key}", "missing")
-        if not isinstance(meta[key], typ) or (typ is int and isinstance(meta[key], bool)):
-            raise ArchiveError(path, f"meta.{key}", f"wrong type {type(meta[key]).__name__}")
+        _check_type(meta[key], typ, path, f"meta.{key}")
+    for key, typ in OPTIONAL_META.items():
+        if key in meta:
+            _check_type(meta[key], typ, path, f"meta.{key}")
+    for key in ("fabric_id", "label", "trial", "closing_steps"):
+        if key in meta:
+            _check_count(meta[key], path, f"meta.{key}")
+    if meta["day"] is not None:
+        _check_count(meta["day"], path, "meta.day")
     if meta["condition"] not in CONDITIONS:
         raise ArchiveError(path, "meta.condition", f"must be one of {CONDITIONS}, got {meta['condition']!r}")
-    if meta["fabric_id"] < 0:
-        raise ArchiveError(path, "meta.fabric_id", f"must be >= 0, got {meta['fabric_id']}")
     unknown = sorted(set(meta["properties"]) - set(PROPERTY_NAMES))
     if unknown:
         raise ArchiveError(path, "meta.properties", f"unknown properties {unknown}; known: {PROPERTY_NAMES}")
@@ -347,14 +423,15 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
         level = meta["properties"].get(name, "missing")
         if level == "missing":
             raise ArchiveError(path, f"meta.properties.{name}", "missing (use null when unknown)")
-        if level is not None and (not isinstance(level, int) or level < 0):
-            raise ArchiveError(path, f"meta.properties.{name}", f"must be a level >= 0 or null, got {level!r}")
+        if level is not None:
+            _check_count(level, path, f"meta.properties.{name}")
     if version == 1:
-        if meta["sample_rates"].get("audio") != AUDIO_RATE:
+        if not _is(meta["sample_rates"].get("audio"), int) or meta["sample_rates"]["audio"] != AUDIO_RATE:
             raise ArchiveError(path, "meta.sample_rates.audio", f"must be {AUDIO_RATE}, got {meta['sample_rates'].get('audio')!r}")
-        steps = meta["sample_rates"].get("steps", STEP_RATE)
-        if not isinstance(steps, (int, float)) or isinstance(steps, bool) or not steps > 0:
-            raise ArchiveError(path, "meta.sample_rates.steps", f"must be a rate in Hz > 0, got {steps!r}")
+        _check_rate(meta["sample_rates"].get("steps", STEP_RATE), path, "meta.sample_rates.steps")
+        if meta["image_size"] is not None:
+            _check_image_size(meta["image_size"], path, "meta.image_size")
+        _check_strings(meta["joint_names"], path, "meta.joint_names")
         if len(meta["joint_names"]) != N_JOINTS:
             raise ArchiveError(path, "meta.joint_names", f"expected {N_JOINTS} names, got {len(meta['joint_names'])}")
         _check_absent_fields(meta.get("joint_fields_absent", []), JOINT_FIELDS, path, "meta.joint_fields_absent")
@@ -366,8 +443,9 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
         raise ArchiveError(path, "meta.split", f"must be one of {SPLITS} or absent, got {meta['split']!r}")
     if "label_map" in meta:
         label_map = meta["label_map"]
-        classes = set(label_map.values()) if isinstance(label_map, dict) else None
-        if not classes or any(not isinstance(c, int) or isinstance(c, bool) for c in classes) or classes != set(range(max(classes) + 1)):
+        ints = isinstance(label_map, dict) and all(_is(c, int) and 0 <= c < len(label_map) for c in label_map.values())
+        classes = set(label_map.values()) if ints else None
+        if not classes or classes != set(range(max(classes) + 1)):
             raise ArchiveError(path, "meta.label_map", "must map names to classes 0..K-1, every class named")
         if meta["label"] not in classes:
             raise ArchiveError(path, "meta.label", f"class {meta['label']} is not in the label map's classes 0..{max(classes)}")
@@ -375,21 +453,28 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
 
 
 def _check_absent_fields(absent: Any, fields, path, field: str) -> None:
-    if not isinstance(absent, list) or not set(absent) <= set(fields) or len(set(absent)) != len(absent):
+    if not isinstance(absent, list) or not all(isinstance(x, str) for x in absent) or not set(absent) <= set(fields) or len(set(absent)) != len(absent):
         raise ArchiveError(path, field, f"must list distinct fields of {list(fields)}, got {absent!r}")
 
 
+def _check_form(path, name: str, dtype: np.dtype, shape: tuple[int, ...], n_steps: int | None, lay: Layout) -> None:
+    """An array's dtype and shape against the declared streams (also on an npy header, before its data is read)."""
+    want_dtype, want = _spec(name, lay)
+    if dtype != want_dtype:
+        raise ArchiveError(path, name, f"dtype {dtype}, expected {np.dtype(want_dtype)}")
+    if len(shape) != len(want):
+        raise ArchiveError(path, name, f"shape {shape}, expected {len(want)} dimensions {want}")
+    for size, w in zip(shape, want):
+        if w == "T" and n_steps is not None and size != n_steps:
+            raise ArchiveError(path, name, f"shape {shape}: {size} steps, but timestamps has {n_steps}")
+        if isinstance(w, int) and size != w:
+            raise ArchiveError(path, name, f"shape {shape}, expected {want} (the streams meta.streams declares)")
+    if name == "images" and (lay.image_size is None or tuple(shape[1:3]) != lay.image_size):
+        raise ArchiveError(path, "images", f"shape {shape} disagrees with the declared image_size {lay.image_size}")
+
+
 def _check_array(path, name: str, arr: np.ndarray, n_steps: int | None, lay: Layout) -> None:
-    dtype, shape = _spec(name, lay)
-    if arr.dtype != dtype:
-        raise ArchiveError(path, name, f"dtype {arr.dtype}, expected {np.dtype(dtype)}")
-    if arr.ndim != len(shape):
-        raise ArchiveError(path, name, f"shape {arr.shape}, expected {len(shape)} dimensions {shape}")
-    for size, want in zip(arr.shape, shape):
-        if want == "T" and n_steps is not None and size != n_steps:
-            raise ArchiveError(path, name, f"shape {arr.shape}: {size} steps, but timestamps has {n_steps}")
-        if isinstance(want, int) and size != want:
-            raise ArchiveError(path, name, f"shape {arr.shape}, expected {shape} (the streams meta.streams declares)")
+    _check_form(path, name, arr.dtype, arr.shape, n_steps, lay)
     if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
         bad = int(np.size(arr) - np.count_nonzero(np.isfinite(arr)))
         raise ArchiveError(path, name, f"{bad} non-finite values (NaN or Inf)")
@@ -433,8 +518,9 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
         raise ArchiveError(path, "window_end", "indices decrease between steps")
     if archive.images is not None:
         _check_array(path, "images", archive.images, n, lay)
-        if lay.image_size is None or tuple(archive.images.shape[1:3]) != lay.image_size:
-            raise ArchiveError(path, "images", f"shape {archive.images.shape} disagrees with the declared image_size {lay.image_size}")
+    closing = archive.meta.get("closing_steps", 0)
+    if closing > n or (closing == n and archive.meta["complete"]):  # a trial interrupted while closing has no rubbing steps
+        raise ArchiveError(path, "meta.closing_steps", f"{closing} closing steps leave none of the trial's {n} steps to rub")
     return archive
 
 
@@ -447,54 +533,152 @@ def write_archive(path: os.PathLike | str, archive: TrialArchive) -> Path:
     return path
 
 
-def _open(path: Path):
-    if not path.is_file():
-        raise ArchiveError(path, "<file>", "no such file")
-    try:
-        return np.load(path, allow_pickle=False)
-    except ValueError:  # neither zip nor .npy: numpy's message would suggest unpickling it
-        raise ArchiveError(path, "<file>", "not a readable .npz archive (corrupt or truncated): not a zip file") from None
-    except (zipfile.BadZipFile, OSError, EOFError) as e:
-        raise ArchiveError(path, "<file>", f"not a readable .npz archive (corrupt or truncated): {e}") from None
+class _Members:
+    """The npy members of an archive's zip, each read only after its declared sizes and npy header
+    are checked (so nothing is inflated beyond its bound), and CRC-checked as it is read."""
+
+    def __init__(self, path: Path):
+        if not path.is_file():
+            raise ArchiveError(path, "<file>", "no such file")
+        self.path = path
+        try:
+            self.zip = zipfile.ZipFile(path)
+            infos = self.zip.infolist()
+        except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError, ValueError, RuntimeError) as e:
+            raise ArchiveError(path, "<file>", f"not a readable .npz archive (corrupt or truncated): {e}") from None
+        if len(infos) > MAX_MEMBERS:
+            self.zip.close()
+            raise ArchiveError(path, "<file>", f"{len(infos)} zip members, more than {MAX_MEMBERS}: not a trial archive")
+        self.infos = {i.filename[: -len(".npy")]: i for i in infos if i.filename.endswith(".npy")}
+        self.size = path.stat().st_size
+
+    def __enter__(self) -> "_Members":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.zip.close()
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.infos
+
+    def read(self, name: str, check: Callable[[np.dtype, tuple[int, ...]], None]) -> np.ndarray:
+        """Member `name` as an array; `check(dtype, shape)` judges its npy header before its data is inflated."""
+        path, info = self.path, self.infos.get(name)
+        if info is None:
+            raise ArchiveError(path, name, "missing")
+        if info.compress_size > self.size:
+            raise ArchiveError(path, name, f"declares {info.compress_size} bytes, the file holds {self.size} (truncated, or a damaged size)")
+        stored = info.compress_type == zipfile.ZIP_STORED
+        if stored and info.file_size != info.compress_size:
+            raise ArchiveError(path, name, f"a stored member declaring {info.file_size} bytes in {info.compress_size} (a damaged size)")
+        bound = MAX_MEMBER_BYTES if stored else min(MAX_MEMBER_BYTES, max(FREE_INFLATION, INFLATION_RATIO * info.compress_size))
+        if info.file_size > bound:
+            raise ArchiveError(path, name, f"declares {info.file_size} bytes inflated from {info.compress_size}, more than the {bound} "
+                               "a trial's member may hold (a zip bomb or a damaged size)")
+        try:
+            with self.zip.open(info) as f:
+                dtype, shape, fortran = _npy_header(f, path, name)
+                if dtype.hasobject or dtype.kind not in "biufU":
+                    raise ArchiveError(path, name, f"dtype {dtype}: not an array of numbers or text")
+                check(dtype, shape)
+                nbytes = int(np.prod(shape, dtype=np.uint64)) * dtype.itemsize
+                if nbytes != info.file_size - f.tell():
+                    raise ArchiveError(path, name, f"the npy header's shape {shape} of {dtype} needs {nbytes} bytes, the zip member holds {info.file_size - f.tell()}")
+                arr = np.empty(shape[::-1] if fortran else shape, dtype)
+                view, done = memoryview(arr.reshape(-1).view(np.uint8)), 0
+                while done < nbytes and (chunk := f.read(min(READ_CHUNK, nbytes - done))):
+                    view[done : done + len(chunk)] = chunk
+                    done += len(chunk)
+                if done != nbytes or f.read(1):  # reading to the end checks the member's CRC
+                    raise ArchiveError(path, name, "shorter or longer than its npy header declares")
+        except ArchiveError:
+            raise
+        except (zipfile.BadZipFile, OSError, EOFError, ValueError, RuntimeError, NotImplementedError, zlib.error) as e:
+            raise ArchiveError(path, name, f"unreadable (corrupt or truncated): {e}") from None
+        return arr.T if fortran else arr
 
 
-def _load_field(path: Path, npz, name: str) -> np.ndarray:
+def _npy_header(f, path: Path, name: str) -> tuple[np.dtype, tuple[int, ...], bool]:
+    """(dtype, shape, fortran order) of an npy stream, which is left at the start of the data."""
     try:
-        return npz[name]
+        version = np.lib.format.read_magic(f)
+        read = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}[version]
+        shape, fortran, dtype = read(f)
     except KeyError:
-        raise ArchiveError(path, name, "missing") from None
-    except (zipfile.BadZipFile, OSError, ValueError, EOFError, RuntimeError) as e:
-        raise ArchiveError(path, name, f"unreadable (corrupt or truncated): {e}") from None
+        raise ArchiveError(path, name, "unknown npy format version") from None
+    except Exception as e:  # numpy parses the header with ast and tokenize: any damage is a broken header, not a bug of ours
+        raise ArchiveError(path, name, f"not an npy array (its header is damaged): {type(e).__name__}: {e}") from None
+    if any(d > MAX_INT for d in shape) or np.prod([float(d) for d in shape]) * dtype.itemsize > MAX_MEMBER_BYTES:
+        raise ArchiveError(path, name, f"the npy header declares shape {shape} of {dtype}, more than {MAX_MEMBER_BYTES} bytes")
+    return dtype, tuple(int(d) for d in shape), bool(fortran)
 
 
-def _parse_meta(path: Path, npz) -> dict[str, Any]:
-    raw = _load_field(path, npz, "meta")
+_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+
+
+def parse_json(text: str, path, field: str) -> Any:
+    """JSON whose size, nesting depth and numbers are bounded before it is parsed (a hostile file
+    cannot exhaust memory, the stack or time); NaN and Infinity are not JSON."""
+    if len(text) > MAX_META_CHARS:
+        raise ArchiveError(path, field, f"{len(text)} characters of JSON, more than {MAX_META_CHARS}")
+    brackets = np.frombuffer(_JSON_STRING.sub('""', text).encode("utf-8", "replace"), np.uint8)
+    depth = np.cumsum(np.isin(brackets, (ord("["), ord("{"))).astype(np.int64) - np.isin(brackets, (ord("]"), ord("}"))))
+    if depth.size and depth.max() > MAX_JSON_DEPTH:
+        raise ArchiveError(path, field, f"JSON nested {int(depth.max())} deep, more than {MAX_JSON_DEPTH}")
+
+    def number(kind):
+        def parse(s: str):
+            if len(s) > MAX_NUMBER_CHARS:
+                raise ArchiveError(path, field, f"a number of {len(s)} characters, more than {MAX_NUMBER_CHARS}")
+            return kind(s)
+        return parse
+
+    def constant(name: str):
+        raise ArchiveError(path, field, f"{name} is not a JSON number (values are finite)")
+
     try:
-        meta = json.loads(str(raw[()]))
-    except (json.JSONDecodeError, TypeError, IndexError) as e:
-        raise ArchiveError(path, "meta", f"not valid JSON: {e}") from None
-    return validate_meta(meta, path)
+        return json.loads(text, parse_int=number(int), parse_float=number(float), parse_constant=constant)
+    except (json.JSONDecodeError, RecursionError) as e:
+        raise ArchiveError(path, field, f"not valid JSON: {e}") from None
+
+
+def _parse_meta(path: Path, members: _Members) -> dict[str, Any]:
+    def check(dtype: np.dtype, shape: tuple[int, ...]) -> None:
+        if dtype.kind != "U" or shape != () or dtype.itemsize > 4 * MAX_META_CHARS:
+            raise ArchiveError(path, "meta", f"must be one JSON string (0-d unicode) of at most {MAX_META_CHARS} characters, got {dtype} {shape}")
+
+    return validate_meta(parse_json(str(members.read("meta", check)[()]), path, "meta"), path)
+
+
+def _read_streams(path: Path, members: _Members, names: tuple[str, ...]) -> tuple[dict[str, Any], dict[str, np.ndarray | None]]:
+    """The validated meta and the arrays `names` (None where absent), each header checked against
+    the meta's layout and the step count before its data is read."""
+    meta = _parse_meta(path, members)
+    lay = layout(meta)
+    ts = members.read("timestamps", lambda dtype, shape: _check_form(path, "timestamps", dtype, shape, None, lay))
+    out: dict[str, np.ndarray | None] = {"timestamps": ts}
+    for name in names:
+        if name in members or name in ("window_end", "audio"):  # `validate` says "missing" for a declared stream the file lacks
+            out[name] = members.read(name, lambda dtype, shape, name=name: _check_form(path, name, dtype, shape, ts.shape[0], lay))
+        else:
+            out[name] = None
+    return meta, out
 
 
 def read_meta(path: os.PathLike | str) -> tuple[dict[str, Any], int]:
-    """Meta and step count without loading the streams (cheap, for indexing)."""
+    """Meta and step count without loading the other streams (cheap, for indexing)."""
     path = Path(path)
-    with _open(path) as npz:
-        meta = _parse_meta(path, npz)
-        ts = _load_field(path, npz, "timestamps")
-    return meta, int(ts.shape[0]) if ts.ndim == 1 else -1
+    with _Members(path) as members:
+        meta, fields = _read_streams(path, members, ())
+    return meta, int(fields["timestamps"].shape[0])
 
 
 def read_archive(path: os.PathLike | str, *, images: bool = True) -> TrialArchive:
     """Load and fully validate one archive. `images=False` skips the (large) image stream."""
     path = Path(path)
-    with _open(path) as npz:
-        meta = _parse_meta(path, npz)
-        fields = {k: _load_field(path, npz, k) for k in ("timestamps", "window_end", "audio")}
-        # optional streams: `validate` says "missing" for one the meta declares but the file lacks
-        fields |= {k: _load_field(path, npz, k) if k in npz.files else None for k in ("joints", "force")}
-        imgs = _load_field(path, npz, "images") if images and "images" in npz.files else None
-    return validate(TrialArchive(meta=meta, images=imgs, **fields), path)
+    with _Members(path) as members:
+        meta, fields = _read_streams(path, members, ("window_end", "audio", "joints", "force") + (("images",) if images else ()))
+    return validate(TrialArchive(meta=meta, images=fields.pop("images", None), **fields), path)
 
 
 def trial_filename(meta: dict[str, Any]) -> str:

@@ -1,6 +1,7 @@
 """A dataset's index: every archive of a folder with its meta, step count, size, modification time
-and sha256. It is `index.json` beside the simulator's own archives, and under the workspace for any
-other folder, which is only read (`workspace.index_file`). `load_index` builds it on first use and
+and sha256. It is `index.json` beside the simulator's own archives (`<workspace>/datasets/`), and under
+`<workspace>/indexes/` for any other folder, even one inside the workspace: a folder of
+recordings is only read (`workspace.index_file`). `load_index` builds it on first use and
 rebuilds it when archives were added or rewritten, reading and hashing only those;
 `fabricjax.integrity` re-hashes a dataset against it."""
 
@@ -63,7 +64,7 @@ def _indexed_entries(ipath: Path) -> dict[str, IndexEntry]:
         if doc.get("format_version") != INDEX_VERSION:
             return {}
         return {e.file: e for e in (IndexEntry(**t) for t in doc["trials"]) if e.sha256}
-    except (OSError, json.JSONDecodeError, KeyError, TypeError):
+    except (OSError, ValueError, KeyError, TypeError):  # ValueError: not JSON, or not UTF-8
         return {}
 
 
@@ -113,7 +114,9 @@ def load_index(folder: os.PathLike | str, workdir: os.PathLike | str | None = No
         if doc.get("format_version") != INDEX_VERSION:
             raise ArchiveError(ipath, "format_version", f"unknown index version {doc.get('format_version')!r}")
         entries = tuple(IndexEntry(**t) for t in doc["trials"])
-    except (json.JSONDecodeError, KeyError, TypeError) as e:
+    except ArchiveError:
+        raise
+    except (ValueError, KeyError, TypeError) as e:  # ValueError: not JSON, or not UTF-8
         raise ArchiveError(ipath, "trials", f"malformed index: {e}") from None
     for e in entries:
         if e.file not in on_disk:

@@ -3,7 +3,10 @@ index recorded, re-validates every field (`archive.read_archive`), and checks th
 regular: a frame interval above `GAP_FACTOR` nominal periods (30 ms at 50 Hz) means frames were lost
 or a step was late. Such a gap is legal in an archive (the recorder skips a missed slot rather than
 bunching steps up, and importers keep gaps rather than fill them), so `read_archive` accepts it and
-verify reports it. It never writes: not into the dataset folder, not the index."""
+verify reports it. Every archive of the folder is checked whatever another one holds; a reader that
+fails other than with `ArchiveError` on a file is verify's own failure, reported with the file and
+counted apart from the dataset's problems. It never writes: not into the dataset folder, not the
+index."""
 
 from __future__ import annotations
 
@@ -41,12 +44,36 @@ def _index_entries(root: Path, workdir) -> tuple[Path, dict[str, dict] | None, l
     try:
         doc = json.loads(ipath.read_text())
         return ipath, {t["file"]: t for t in doc["trials"]}, []
-    except (json.JSONDecodeError, KeyError, TypeError) as e:
+    except OSError as e:
+        return ipath, None, [Problem(str(ipath), "<file>", f"unreadable index: {e.strerror or e}")]
+    except (ValueError, KeyError, TypeError) as e:  # ValueError: not JSON, or not UTF-8
         return ipath, None, [Problem(str(ipath), "trials", f"malformed index: {e}")]
 
 
+def _check_file(p: Path, entry: dict | None, ipath: Path) -> list[Problem]:
+    """The problems of one archive: its bytes against the index entry, its fields, its steps."""
+    problems = []
+    if entry is not None and entry.get("sha256"):
+        size = p.stat().st_size
+        if size != entry.get("size"):
+            problems.append(Problem(str(p), "<file>", f"{size} bytes, the index recorded {entry.get('size')} (truncated or rewritten)"))
+        elif dataset_index.sha256_file(p) != entry["sha256"]:
+            problems.append(Problem(str(p), "<file>", f"sha256 differs from the one {ipath} recorded (bytes changed since indexing)"))
+    try:
+        trial = archive.read_archive(p)
+    except archive.ArchiveError as e:
+        return problems + [Problem(e.path, e.field, e.problem)]
+    rate = archive.layout(trial.meta).step_rate
+    for k in frame_gaps(trial.timestamps, rate):
+        dt = trial.timestamps[k] - trial.timestamps[k - 1]
+        problems.append(Problem(str(p), "timestamps", f"irregular: step {k} comes {dt * 1e3:.1f} ms after step {k - 1} "
+                                f"(more than {GAP_FACTOR} periods of {1e3 / rate:.0f} ms: frames lost or a step late)"))
+    return problems
+
+
 def verify(folder: os.PathLike | str, workdir: os.PathLike | str | None = None) -> tuple[list[Problem], dict]:
-    """Every problem of the dataset in `folder`, and counts (archives, hashed against the index)."""
+    """Every problem of the dataset in `folder`, and counts (archives, hashed against the index, and
+    `failures`: the files verify itself could not check, each a Problem naming the exception)."""
     root = Path(folder)
     if not root.is_dir():
         raise archive.ArchiveError(root, "<folder>", "dataset folder does not exist")
@@ -54,27 +81,17 @@ def verify(folder: os.PathLike | str, workdir: os.PathLike | str | None = None) 
     files = sorted(root.glob("*.npz"))
     if not files:
         raise archive.ArchiveError(root, "<folder>", "the folder holds no trial archives (*.npz)")
-    hashed = 0
+    hashed, failures = 0, []
     for p in files:
         entry = (indexed or {}).get(p.name)
-        if entry is not None and entry.get("sha256"):
-            hashed += 1
-            size = p.stat().st_size
-            if size != entry.get("size"):
-                problems.append(Problem(str(p), "<file>", f"{size} bytes, the index recorded {entry.get('size')} (truncated or rewritten)"))
-            elif dataset_index.sha256_file(p) != entry["sha256"]:
-                problems.append(Problem(str(p), "<file>", f"sha256 differs from the one {ipath} recorded (bytes changed since indexing)"))
+        hashed += bool(entry is not None and entry.get("sha256"))
         try:
-            trial = archive.read_archive(p)
-        except archive.ArchiveError as e:
-            problems.append(Problem(e.path, e.field, e.problem))
-            continue
-        rate = archive.layout(trial.meta).step_rate
-        for k in frame_gaps(trial.timestamps, rate):
-            dt = trial.timestamps[k] - trial.timestamps[k - 1]
-            problems.append(Problem(str(p), "timestamps", f"irregular: step {k} comes {dt * 1e3:.1f} ms after step {k - 1} "
-                                    f"(more than {GAP_FACTOR} periods of {1e3 / rate:.0f} ms: frames lost or a step late)"))
+            problems += _check_file(p, entry, ipath)
+        except OSError as e:  # the file cannot be read at all (permissions, I/O): the dataset's problem
+            problems.append(Problem(str(p), "<file>", f"unreadable: {e.strerror or e}"))
+        except Exception as e:  # noqa: BLE001 - verify's own failure on this file: named, and the other files still checked
+            failures.append(Problem(str(p), "<verify>", f"verify failed on this file: {type(e).__name__}: {e}"))
     on_disk = {p.name for p in files}
     for name in sorted(set(indexed or {}) - on_disk):
         problems.append(Problem(str(ipath), f"trials[{name}]", f"listed archive is missing from {root}"))
-    return problems, {"archives": len(files), "hashed": hashed, "index": str(ipath) if indexed is not None else None}
+    return problems, {"archives": len(files), "hashed": hashed, "index": str(ipath) if indexed is not None else None, "failures": failures}

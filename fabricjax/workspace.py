@@ -21,12 +21,12 @@ def dataset_dir(preset: str, workdir=None, data_dir=None) -> Path:
 
 
 def index_file(dataset, workdir=None) -> Path:
-    """Where a dataset folder's index lives: beside the archives for a folder inside the workspace
-    (the simulator's datasets), else `<root>/indexes/<folder name>-<hash of its resolved path>.json`.
+    """Where a dataset folder's index lives: beside the archives for the simulator's own datasets
+    (`<root>/datasets/...`), else `<root>/indexes/<folder name>-<hash of its resolved path>.json`.
     A folder of recordings we are asked to read may be read-only, shared or under version control,
-    so nothing is ever written into it."""
+    so nothing is ever written into it, wherever it lies (inside the workspace too)."""
     folder = Path(dataset).expanduser().resolve()
-    if folder.is_relative_to(root(workdir).resolve()):
+    if folder.is_relative_to((root(workdir) / "datasets").resolve()):
         return folder / INDEX_NAME
     return root(workdir) / "indexes" / f"{folder.name}-{hashlib.sha256(str(folder).encode()).hexdigest()[:16]}.json"
 

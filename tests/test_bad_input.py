@@ -70,7 +70,7 @@ DAMAGE = {
     "float_audio": ({"audio": np.zeros((2, 50000), np.float32)}, "audio", "dtype float32"),
     "window_past_audio": ({"audio": np.zeros((2, 1000), np.int32)}, "window_end", r"must lie in \[0, 1000\]"),
     "missing_audio": ({"audio": None}, "audio", "missing"),
-    "label_bool": ({"meta": _meta(label=True)}, "meta.label", "wrong type bool"),
+    "label_bool": ({"meta": _meta(label=True)}, "meta.label", "must be an integer, got true"),
 }
 
 

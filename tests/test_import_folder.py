@@ -83,7 +83,48 @@ def test_folder_errors_name_file_field_and_problem(tmp_path):
     done = subprocess.run([sys.executable, "-m", "acquisition.import_folder", str(tmp_path / "rate"), f"--out={tmp_path / 'o'}",
                            "--fabric=4", "--day=1", "--trial=0"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
-    assert "external.wav: <file>: no such file" in done.stderr
+    assert "rate: <folder>: not a trial folder of the hand's layout: missing external.wav;" in done.stderr
+
+
+def test_another_rigs_folder_names_every_missing_file_and_the_rig_import(tmp_path):
+    from acquisition import other_rig
+
+    other_rig.write_recordings(tmp_path / "rig", ["felt"], 1, seconds=(2.0, 2.0))
+    folder = tmp_path / "rig" / "recordings" / "00_000"
+    with pytest.raises(RecordingImportError) as e:
+        hand_folder.import_folder(folder, TRIAL)
+    assert str(e.value).startswith(f"{folder}: <folder>: not a trial folder of the hand's layout: missing internal.wav, external.wav, camera{{")
+    assert "joints.csv" not in str(e.value).split(";")[0]  # the folder has one
+    assert "python -m acquisition.import_manifest MANIFEST.csv --out=DIR --rig=rig.toml" in str(e.value)
+
+
+def test_a_cut_off_wav_imports_as_incomplete(tmp_path):
+    write_folder(tmp_path / "t")
+    wav = tmp_path / "t" / "external.wav"
+    wav.write_bytes(wav.read_bytes()[: wav.stat().st_size * 3 // 4])
+    a = hand_folder.import_folder(tmp_path / "t", TRIAL)
+    assert a.meta["complete"] is False and a.meta["import"]["truncated"] == ["external.wav"]
+    write_folder(tmp_path / "whole")
+    assert hand_folder.import_folder(tmp_path / "whole", TRIAL).meta["complete"] is True
+
+
+def test_joint_timestamps_in_milliseconds_header_only_and_holes(tmp_path):
+    write_folder(tmp_path / "ms")
+    table = np.loadtxt(tmp_path / "ms" / "joints.csv", delimiter=",", skiprows=1)
+    header = (tmp_path / "ms" / "joints.csv").read_text().splitlines()[0]
+    table[:, 0] *= 1000
+    np.savetxt(tmp_path / "ms" / "joints.csv", table, delimiter=",", header=header, comments="", fmt="%.9g")
+    with pytest.raises(RecordingImportError, match=r"ms/joints\.csv: time: timestamps span 440, but the microphones hold 0\.43 s .* must be seconds"):
+        hand_folder.import_folder(tmp_path / "ms", TRIAL)
+    (tmp_path / "ms" / "joints.csv").write_text(header + "\n")
+    with pytest.raises(RecordingImportError, match=r"joints\.csv: <rows>: no readings \(a header row only\)"):
+        hand_folder.import_folder(tmp_path / "ms", TRIAL)
+    write_folder(tmp_path / "hole")
+    table = np.loadtxt(tmp_path / "hole" / "joints.csv", delimiter=",", skiprows=1)
+    held = (table[:, 0] > 0.15) & (table[:, 0] < 0.30)  # 150 ms without a reading: steps hold the last one
+    np.savetxt(tmp_path / "hole" / "joints.csv", table[~held], delimiter=",", header=header, comments="", fmt="%.9g")
+    gaps = hand_folder.import_folder(tmp_path / "hole", TRIAL).meta["import"]["joint_gaps"]
+    assert len(gaps) == 1 and gaps[0]["from_s"] == pytest.approx(0.15) and gaps[0]["seconds"] == pytest.approx(0.15, abs=0.011) and gaps[0]["steps"] == 7
 
 
 def test_bag_import_without_rosbags_says_how_to_install(tmp_path, monkeypatch):

@@ -2,8 +2,11 @@
 with torque, no camera, no palm microphone, string labels, no days."""
 
 import csv
+import os
+import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -71,7 +74,7 @@ def test_rerun_resumes_and_a_foreign_archive_needs_overwrite(recordings, tmp_pat
     foreign = archive.read_archive(out / "oak_trial001_lab.npz")
     archive.write_archive(victim, foreign)  # an archive of another recording under this row's name
     before = victim.read_bytes()
-    with pytest.raises(UserError, match="oak_trial000_lab.npz: exists and was not imported from .*--overwrite"):
+    with pytest.raises(UserError, match="oak_trial000_lab.npz: exists, but was imported from .*02_001, not from .*02_000 as line 10 says; pass --overwrite"):
         _run(recordings, out)
     assert victim.read_bytes() == before
     replaced, _ = _run(recordings, out, overwrite=True)
@@ -124,8 +127,9 @@ def test_silent_cases_are_messages(recordings, tmp_path):
     _, said = _run(extra, out)
     assert "columns not used: notes" in said
     # two rows naming one archive
-    dup = _edit_manifest(recordings, recordings.parent / "dup.csv", lambda rows: rows + [rows[1]])
-    with pytest.raises(UserError, match="gives the archive cotton_canvas_trial000_lab.npz, as line 2 does"):
+    shutil.copytree(recordings.parent / "recordings" / "00_000", recordings.parent / "recordings" / "extra", dirs_exist_ok=True)
+    dup = _edit_manifest(recordings, recordings.parent / "dup.csv", lambda rows: rows + [["recordings/extra", *rows[1][1:]]])
+    with pytest.raises(UserError, match=r"dup\.csv: line 14: trial: gives the archive cotton_canvas_trial000_lab\.npz, as line 2 does"):
         _run(dup, tmp_path / "out2")
     with pytest.raises(UserError, match="--split=fraction:0.5,0.5,0.5: expected"):
         _run(no_split, tmp_path / "out3", split="fraction:0.5,0.5,0.5")
@@ -397,3 +401,182 @@ def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs
     assert [(p["holdout"], p["chance"]) for p in ld["neighbours"]["pairs"]] == [(3, pytest.approx(1 / 3))]  # roughness 0 as felt only
     md = (tmp_path / "results" / "latents.md").read_text()
     assert md.startswith("# Latent space on recorded data") and "paper" not in md.lower()
+
+
+# The import cases of a transaction: each an error naming file, field and problem, or declared in the meta.
+
+def _small(root, labels=LABELS[:2], trials=2, seconds=(2.0, 2.0)):
+    return other_rig.write_recordings(root, labels, trials, seconds, splits={0: "train", 1: "test", 2: "val"})
+
+
+def test_every_problem_of_a_manifest_is_listed_and_nothing_written(tmp_path):
+    manifest = _small(tmp_path / "rig")
+    (tmp_path / "rig" / "recordings" / "00_001" / "vibration.wav").unlink()
+    (tmp_path / "rig" / "recordings" / "01_000" / "joints.csv").unlink()
+    _edit_manifest(manifest, manifest, lambda rows: rows + [rows[1]] + [[rows[2][0], rows[2][1], "x", rows[2][3]]])
+    with pytest.raises(import_manifest.ImportProblems) as e:
+        _run(manifest, tmp_path / "out")
+    lines = str(e.value).splitlines()
+    assert lines[0] == f"{manifest}: line 7: trial: 'x' is not an integer"
+    assert lines[1] == f"{tmp_path / 'rig' / 'recordings' / '00_001'}: <folder>: missing vibration.wav (named by the rig file)"
+    assert lines[2] == f"{tmp_path / 'rig' / 'recordings' / '01_000'}: <folder>: missing joints.csv (named by the rig file)"
+    assert lines[3].startswith(f"{manifest}: line 6: path: the recording {tmp_path / 'rig' / 'recordings' / '00_000'} is listed again (line 2)")
+    assert lines[4] == f"{tmp_path / 'out'}: nothing was written (4 problems above)" and len(lines) == 5
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_trial_failing_in_a_worker_is_the_same_one_line_error_and_nothing_is_written(tmp_path, workers):
+    manifest = _small(tmp_path / "rig")
+    joints = tmp_path / "rig" / "recordings" / "01_001" / "joints.csv"
+    joints.write_text(joints.read_text().splitlines()[0] + "\n")  # a header only
+    with pytest.raises(import_manifest.ImportProblems) as e:
+        import_manifest.run(manifest, tmp_path / "out", rig=tmp_path / "rig" / "rig.toml", workers=workers, progress=False, say=lambda s: None)
+    assert str(e.value) == f"{joints}: <rows>: no readings (a header row only)"
+    assert [p.name for p in (tmp_path / "out").iterdir()] == []  # no archive, no staging folder
+
+
+def test_a_new_class_changes_the_label_map_which_needs_overwrite_and_then_replaces(tmp_path):
+    grown = _small(tmp_path / "rig", labels=["cotton", "felt", "oak"])
+    first = _edit_manifest(grown, tmp_path / "rig" / "first.csv", lambda rows: [r for r in rows if r[1] != "cotton"])
+    _run(first, tmp_path / "out")
+    with pytest.raises(UserError) as e:
+        _run(grown, tmp_path / "out")
+    assert str(e.value).splitlines()[0] == (f"{tmp_path / 'out' / 'felt_trial000_lab.npz'}: exists, but its label map {{'felt': 0, 'oak': 1}} differs "
+                                            "from the manifest's {'cotton': 0, 'felt': 1, 'oak': 2} (classes added or renamed); pass --overwrite to replace the dataset")
+    summary, _ = _run(grown, tmp_path / "out", overwrite=True)
+    assert summary["imported"] == 6 and len(list((tmp_path / "out").glob("*.npz"))) == 6
+    assert {archive.read_meta(p)[0]["label_map"]["oak"] for p in (tmp_path / "out").glob("*.npz")} == {2}
+
+
+def test_a_relabelled_row_with_overwrite_leaves_no_stale_archive_and_a_foreign_out_is_refused(tmp_path):
+    manifest = _small(tmp_path / "rig")
+    _run(manifest, tmp_path / "out")
+    relabelled = _edit_manifest(manifest, tmp_path / "rig" / "relabelled.csv",
+                                lambda rows: rows[:-1] + [[rows[-1][0], "cotton canvas", "5", rows[-1][3]]])
+    with pytest.raises(UserError, match=r"holds 1 archive no row of .*relabelled\.csv produces \(felt_trial001_lab\.npz\): another dataset, "
+                                        r"or rows since removed or relabelled; choose another --out, or pass --overwrite"):
+        _run(relabelled, tmp_path / "out")
+    summary, said = _run(relabelled, tmp_path / "out", overwrite=True)
+    assert summary["removed"] == 1 and "1 archives no row produces removed (--overwrite)" in said
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.npz")) == [
+        "cotton_canvas_trial000_lab.npz", "cotton_canvas_trial001_lab.npz", "cotton_canvas_trial005_lab.npz", "felt_trial000_lab.npz"]
+
+
+def test_resume_imports_a_damaged_archive_again(tmp_path):
+    manifest = _small(tmp_path / "rig")
+    _run(manifest, tmp_path / "out")
+    victim = tmp_path / "out" / "felt_trial000_lab.npz"
+    good = victim.read_bytes()
+    data = bytearray(good)
+    data[len(data) // 2] ^= 0x04  # one bit of a stream: only the member's CRC tells
+    victim.write_bytes(bytes(data))
+    summary, said = _run(manifest, tmp_path / "out")
+    assert summary["imported"] == 1 and summary["resumed"] == 3
+    assert f"note: {victim}: damaged (" in said and "imported again" in said
+    assert victim.read_bytes() == good  # the same recording gives the same bytes
+
+
+def test_timestamps_in_milliseconds_holes_and_cut_off_wavs(tmp_path):
+    manifest = _small(tmp_path / "rig", labels=LABELS[:1], trials=3)
+    rec = tmp_path / "rig" / "recordings"
+    header = (rec / "00_000" / "joints.csv").read_text().splitlines()[0]
+    table = np.loadtxt(rec / "00_000" / "joints.csv", delimiter=",", skiprows=1)
+    ms = table.copy()
+    ms[:, 0] *= 1000
+    np.savetxt(rec / "00_000" / "joints.csv", ms, delimiter=",", header=header, comments="", fmt="%.6f")
+    with pytest.raises(UserError, match=r"00_000/joints\.csv: time: timestamps span 1990, but the microphones hold 2\.00 s of audio: "
+                                        r"timestamps must be seconds"):
+        _run(manifest, tmp_path / "out")
+    hole = (table[:, 0] > 1.2) & (table[:, 0] < 1.79)  # 0.59 s without a joint reading
+    np.savetxt(rec / "00_000" / "joints.csv", table[~hole], delimiter=",", header=header, comments="", fmt="%.6f")
+    wav = rec / "00_001" / "vibration.wav"
+    wav.write_bytes(wav.read_bytes()[: wav.stat().st_size // 2])
+    _, said = _run(manifest, tmp_path / "out")
+    gaps = archive.read_meta(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")[0]["import"]["joint_gaps"]
+    assert gaps == [{"from_s": pytest.approx(1.2), "seconds": pytest.approx(0.59), "steps": 29}]  # steps 1.22 .. 1.78 s hold the 1.2 s reading
+    cut = archive.read_meta(tmp_path / "out" / "cotton_canvas_trial001_lab.npz")[0]
+    assert cut["complete"] is False and cut["import"]["truncated"] == ["vibration.wav"]
+    assert archive.read_meta(tmp_path / "out" / "cotton_canvas_trial002_lab.npz")[0]["complete"] is True
+    assert "note: 1 trials are incomplete" in said and "note: 1 trials have holes in the joints" in said
+
+
+def test_latin1_manifest_read_only_out_and_unread_columns_are_one_line(tmp_path):
+    manifest = _small(tmp_path / "rig", labels=["felt"], trials=1)
+    latin = tmp_path / "rig" / "latin1.csv"
+    latin.write_bytes(manifest.read_text().replace("felt", "feutre lav\u00e9").encode("latin-1"))
+    with pytest.raises(UserError, match=r"latin1\.csv: line -: <file>: not UTF-8 text \(byte 0xe9 at offset \d+\): save the manifest as UTF-8$"):
+        _run(latin, tmp_path / "out")
+    (tmp_path / "a_file").write_text("")
+    with pytest.raises(UserError, match=rf"^{tmp_path / 'a_file' / 'out'}: --out: cannot write there: Not a directory$"):
+        _run(manifest, tmp_path / "a_file" / "out")
+    out = tmp_path / "ro"
+    out.mkdir()
+    out.chmod(0o555)
+    try:
+        if not os.access(out, os.W_OK):  # (root may write anywhere)
+            with pytest.raises(UserError, match=rf"^{out}: --out: cannot write there: Permission denied$"):
+                _run(manifest, out)
+    finally:
+        out.chmod(0o755)
+    from tests.test_import_folder import write_folder
+
+    write_folder(tmp_path / "hand" / "a", seed=0)
+    (tmp_path / "hand" / "manifest.csv").write_text("path,label,day,roughness\na,4,1,2\n")
+    _, said = _run_hand(tmp_path / "hand" / "manifest.csv", tmp_path / "hand_out")
+    assert said.count("columns not used: roughness") == 1  # the hand's levels come from the catalog
+
+
+_KILL_IMPORT = """
+import sys
+sys.path.insert(0, {root!r})
+from acquisition import import_manifest
+import_manifest.run({manifest!r}, {out!r}, rig={rig!r}, workers=2, progress=False)
+"""
+
+
+def _stat(pid):
+    """(parent pid, state) of a process from /proc, None when it is gone."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    fields = text[text.rindex(")") + 2:].split()
+    return int(fields[1]), fields[0]
+
+
+def _workers(pid):
+    """The worker processes `pid` started (its children but the multiprocessing resource tracker)."""
+    out = []
+    for p in Path("/proc").iterdir():
+        if p.name.isdigit() and (st := _stat(p.name)) is not None and st[0] == pid:
+            cmdline = (p / "cmdline").read_bytes() if (p / "cmdline").exists() else b""
+            out += [] if b"resource_tracker" in cmdline else [int(p.name)]
+    return out
+
+
+def _alive(pid):
+    st = _stat(pid)
+    return st is not None and st[1] not in "ZX"
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads processes from /proc (Linux)")
+def test_killing_the_import_ends_its_workers_and_a_rerun_removes_what_it_left(tmp_path):
+    manifest = other_rig.write_recordings(tmp_path / "rig", LABELS, 6, seconds=(6.0, 8.0), splits={k: "train" for k in range(6)})
+    out = tmp_path / "out"
+    root = str(Path(__file__).parents[1])
+    proc = subprocess.Popen([sys.executable, "-c", _KILL_IMPORT.format(root=root, manifest=str(manifest), out=str(out), rig=str(manifest.parent / "rig.toml"))])
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not (list(out.glob(".import-*.partial/*.npz")) and len(_workers(proc.pid)) >= 2):
+        time.sleep(0.05)
+    workers = _workers(proc.pid)
+    assert workers, "the import started no workers"
+    proc.kill()
+    proc.wait()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(w) for w in workers):
+        time.sleep(0.1)
+    assert not any(_alive(w) for w in workers), "workers outlived the killed import"
+    assert list(out.glob(".import-*.partial")) and not list(out.glob("*.npz"))  # staged, never in DIR
+    summary, _ = _run(manifest, out)
+    assert summary["imported"] == 18 and not list(out.glob(".*"))

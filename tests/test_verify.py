@@ -4,11 +4,12 @@ an irregular timestamp; read_archive refusing a repeated step."""
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fabricjax import archive, dataset_index, integrity
+from fabricjax import archive, dataset_index, integrity, workspace
 from tests.helpers import npz_fields, tiny_archive, tiny_dataset
 
 TRIALS = [(4, 1, 0, "lab"), (4, 1, 1, "lab"), (5, 1, 0, "lab")]
@@ -94,3 +95,67 @@ def test_reindexing_hashes_only_new_or_rewritten_archives(tmp_path, monkeypatch)
     archive.write_archive(folder / archive.trial_filename(a.meta), a)
     dataset_index.build_index(folder)
     assert hashed == [archive.trial_filename(a.meta)]
+
+
+def test_verify_checks_every_file_of_a_folder_of_every_mutation(tmp_path):
+    from tests.test_archive_fuzz import mutations
+
+    folder = tmp_path / "data"
+    folder.mkdir()
+    bad = [data for _, data, kind, _ in mutations() if kind == "refuse"]
+    for k, data in enumerate(bad):
+        (folder / f"m{k:03d}.npz").write_bytes(data)
+    archive.write_archive(folder / "good.npz", tiny_archive(n_steps=8, images=None))
+    problems, counts = integrity.verify(folder, tmp_path / "ws")
+    assert counts["archives"] == len(bad) + 1 and counts["failures"] == []
+    assert sorted({Path(p.file).name for p in problems}) == [f"m{k:03d}.npz" for k in range(len(bad))]  # each named, the good one not
+
+
+def test_verify_names_its_own_failure_on_a_file_and_still_checks_the_rest(tmp_path, monkeypatch):
+    folder, index = _dataset(tmp_path)
+    first = folder / index.entries[0].file
+    real = archive.read_archive
+
+    def broken(path, **kw):
+        if Path(path) == first:
+            raise TypeError("a reader bug")
+        return real(path, **kw)
+
+    monkeypatch.setattr(archive, "read_archive", broken)
+    truncated = folder / index.entries[2].file
+    truncated.write_bytes(truncated.read_bytes()[:300])
+    problems, counts = integrity.verify(folder, tmp_path / "ws")
+    assert [str(f) for f in counts["failures"]] == [f"{first}: <verify>: verify failed on this file: TypeError: a reader bug"]
+    assert {p.file for p in problems} == {str(truncated)}
+
+
+def test_a_data_dir_inside_the_workspace_gets_no_index(tmp_path):
+    ws = tmp_path / "ws"
+    folder = tiny_dataset(ws / "my_recordings", TRIALS, n_steps=12, images=None)
+    before = sorted(p.name for p in folder.iterdir())
+    dataset_index.load_index(folder, ws)
+    assert sorted(p.name for p in folder.iterdir()) == before
+    assert workspace.index_file(folder, ws).parent == ws / "indexes" and workspace.index_file(folder, ws).exists()
+    sim = tiny_dataset(ws / "datasets" / "smoke", TRIALS, n_steps=12, images=None)  # the simulator's own: beside it
+    assert workspace.index_file(sim, ws) == sim.resolve() / workspace.INDEX_NAME
+
+
+_BROKEN_VERIFY = """
+import sys
+from fabricjax import cli, integrity
+def broken(p, entry, ipath):
+    raise TypeError("a reader bug")
+integrity._check_file = broken
+from experiments import verify
+sys.argv = ["verify", {folder!r}, "--workdir={workdir}"]
+cli.run(verify.main)
+"""
+
+
+def test_verify_command_exits_2_on_its_own_failure_after_printing_every_file(tmp_path):
+    folder, index = _dataset(tmp_path)
+    code = _BROKEN_VERIFY.format(folder=str(folder), workdir=tmp_path / "ws")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=Path(__file__).parents[1])
+    assert done.returncode == 2, done.stderr
+    assert done.stdout.count("<verify>: verify failed on this file: TypeError: a reader bug") == 3
+    assert "verify failed on 3 files (a bug of verify" in done.stderr
