@@ -58,6 +58,8 @@ and holdout) are counted in an info line: never silent.
     info     (S,): "fabric_id" int32, "day" int32 (-1: no day), "trial" int32, "start" int32
              (first step), "condition" str ("lab"/"cafe"), "trial_key" str (archive file name)
     rates    {audio modality: its microphone's sample rate, Hz} (what `narrow` cuts bands by)
+    names    {modality: how the data names its stream}: a microphone by its name (the rig file's),
+             the joints by theirs and their fields (`stream_names`)
     classes  the class names of the label space, by class (its length is the fabric head's size)
 
 Features are computed once per trial and cached (features/cache.py); only the modalities the
@@ -90,6 +92,7 @@ class SequenceSet:
     labels: dict[str, np.ndarray]
     info: dict[str, np.ndarray]
     rates: Mapping[str, int] = dataclasses.field(default_factory=dict)  # absent: the hand's 48 kHz
+    names: Mapping[str, str] = dataclasses.field(default_factory=dict)  # absent: the paper's (config.MODALITY_NAMES)
     classes: tuple[str, ...] = tuple(catalog.fabric(k).name for k in range(catalog.N_CLASSES))
 
     @property
@@ -172,6 +175,19 @@ def _report_unused(entries: Sequence[dataset_index.IndexEntry], roles, chosen_sp
     if skipped:
         logging.info("%s are not used by this study (it reads %s)",
                      ", ".join(f"{skipped[s]} trials on split {s}" for s in SPLITS if s in skipped), ", ".join(wanted))
+
+
+def stream_names(lay: archive.Layout) -> dict[str, str]:
+    """{modality: how the data names its stream}: a microphone's name, "joints <names> (<fields>)"
+    (first–last of more than three joints), and the camera's inputs."""
+    out = {m.role: m.name for m in lay.mics if m.role is not None}
+    if lay.has_joints:
+        j = lay.joint_names
+        joints = ", ".join(j) if len(j) <= 3 else f"{j[0]}–{j[-1]}"
+        out["proprio"] = f"joints {joints} ({', '.join(lay.joint_fields)})"
+    if lay.image_size is not None:
+        out.update(image="camera image", flow="camera optical flow")
+    return out
 
 
 def first_step(meta: dict) -> int:
@@ -317,4 +333,5 @@ def load_sequences(
                 )
             inputs[s][m][filled[s] : filled[s] + n_seq] = a
         filled[s] += n_seq
-    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, classes=classes) for s in wanted}
+    names = stream_names(lay)
+    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, names=names, classes=classes) for s in wanted}
