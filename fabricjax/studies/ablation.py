@@ -42,7 +42,7 @@ STEP_LAYERNORM = "step_layernorm"  # our fusion normalisation (config.FUSION_NOR
 BELOW_PROBE_PP = 10.0  # on recorded data, a row this many points below its probe's test accuracy is said so
 # an input whose within-sequence variance is below this fraction of its total (median over its
 # dimensions, `probe.steadiness`) is steady within a sequence: reported, since the paper's rescale erases it
-STEADY_BELOW = 0.1
+STEADY_BELOW = 0.2
 
 
 def label(modalities: Sequence[str], backbone: str, fusion_norm: str = "sequence_minmax", names: Mapping[str, str] | None = None) -> str:

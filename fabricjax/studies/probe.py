@@ -211,7 +211,8 @@ def run(
     inputs = prepare_inputs(ds.sets, loading.union_modalities(configs), present)
     with threadpool_limits(BLAS_THREADS):
         progress = runner.Progress("probe", len(chosen))
-        out_rows = [_probe_row(r, inputs, labels, present, progress) for r in chosen]
+        names = ds.sets["train"].names if ds.recorded else {}  # recorded data: its own names for its streams
+        out_rows = [_probe_row(r, inputs, labels, present, progress, names) for r in chosen]
 
     doc = {
         **documents.header("probe", command=command, preset=preset, dataset=ds, probe_s=time.perf_counter() - t0),
@@ -221,16 +222,18 @@ def run(
         },
         "splits": present,
         "classes": sorted(np.unique(labels["train"]).tolist()),
-        "inputs": {m: i.to_json() for m, i in inputs.items()},
+        "inputs": {m: {**i.to_json(), "display_name": names.get(m, MODALITY_NAMES[m])} for m, i in inputs.items()},
         "rows": out_rows,
         "samples": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
     }
     return documents.write(results, doc, markdown)
 
 
-def _probe_row(r: StudyRow, inputs: Mapping[str, Input], labels, splits: Sequence[str], progress: runner.Progress) -> dict[str, Any]:
-    """Row `r`'s probe on its inputs' features, concatenated, as the JSON row."""
-    name = r.label
+def _probe_row(r: StudyRow, inputs: Mapping[str, Input], labels, splits: Sequence[str], progress: runner.Progress,
+               names: Mapping[str, str]) -> dict[str, Any]:
+    """Row `r`'s probe on its inputs' features, concatenated, as the JSON row; `names`: the data's
+    names for its streams (recorded data), else the paper's."""
+    name = ablation.label(r.modalities, "attention", names=names) if names else r.label
     progress.start(name)
     t0 = time.perf_counter()
     features = {s: np.concatenate([inputs[m].features[s] for m in r.modalities], axis=1) for s in splits}
@@ -260,7 +263,7 @@ def table(doc: Mapping[str, Any]) -> str:
 
 def inputs_table(doc: Mapping[str, Any]) -> str:
     body = [
-        [MODALITY_NAMES[m], i["step_dims"], i["summary_dims"],
+        [i.get("display_name", MODALITY_NAMES[m]), i["step_dims"], i["summary_dims"],
          f"{i['probe_dims']} (PCA, {100 * i['explained_variance']:.1f} % of the variance)" if i["explained_variance"] is not None else i["probe_dims"],
          f"{i['seconds']:.1f}"]
         for m, i in doc["inputs"].items()
