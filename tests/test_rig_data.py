@@ -114,3 +114,21 @@ def test_label_maps_must_agree(tmp_path):
     archive.write_archive(ds / archive.trial_filename(other.meta), other)
     with pytest.raises(archive.ArchiveError, match="meta.label_map.*differs"):
         data.load_sequences(_config(), ds, workdir=tmp_path / "ws", progress=False)
+
+
+def test_reproduce_on_a_rig_runs_what_its_streams_and_splits_allow(tmp_path):
+    """A camera-less rig without cafe or holdout trials: the ablation and probe keep the rows of its
+    streams, the bandwidth study runs whole, the protocol's studies are skipped, one line each."""
+    from fabricjax.studies import ablation, reproduce
+
+    ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "train"), (2, "val"), (0, "test")])
+    said = []
+    plan = {s.study: s for s in reproduce.fit_plan(reproduce.PLAN, "smoke", ds, tmp_path / "ws", said.append)}
+    assert list(plan) == ["ablation", "probe", "bandwidth"]
+    assert set(plan["ablation"].rows) == {r.name for r in ablation.ROWS if set(r.modalities) <= {"internal", "proprio"}}
+    assert plan["bandwidth"].rows is None
+    text = "\n".join(said)
+    assert len(said) == 5 and "ablation" in said[0] and "rows left out (they need external, flow, image" in said[0]
+    assert "noise       skip  (the paper's protocol: it needs trials of the cafe condition (split cafe)" in text
+    assert "properties  skip  (the paper's protocol: it needs held-out fabrics (split holdout)" in text
+    assert "latents     skip" in text

@@ -151,12 +151,14 @@ def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -
 
     sets, rows = trained.dataset.sets, trained.rows
     names = sets["test"].names
+    twins = {runner.fusion_twin(r.name, STEP_LAYERNORM) for r in chosen}
+    chosen = [r for r in chosen if r.name not in twins]  # a chosen row's twin: reported within that row
     probes = probe.fit_rows(sets, [r.modalities for r in chosen])
     steady = {m: probe.steadiness(a) for m, a in sets["train"].inputs.items()}
     for m, ratio in steady.items():
         if ratio < STEADY_BELOW:
             logging.warning("%s is steady within sequences: its within-sequence variance is %.1f %% of its total (median over its "
-                            "dimensions); the paper's per-sequence [0, 1] rescale erases it, step-LayerNorm fusion keeps it",
+                            "dimensions); the [0, 1] rescale over the sequence erases it, step-LayerNorm fusion keeps it",
                             names.get(m, m), 100 * ratio)
     out = []
     for r in chosen:
@@ -296,7 +298,8 @@ def recorded_table(rows: Sequence[dict[str, Any]]) -> str:
     return documents.markdown_table(header, body)
 
 
-FUSION_NAMES = {"sequence_minmax": "paper's [0, 1] rescale", STEP_LAYERNORM: "step-LayerNorm"}
+# how recorded-data tables name the fusions (config.FUSION_NORMS); the paper's is not named after it there
+FUSION_NAMES = {"sequence_minmax": "[0, 1] rescale over the sequence", STEP_LAYERNORM: "step-LayerNorm"}
 
 
 def recorded_notes(doc: dict[str, Any]) -> list[str]:
@@ -310,7 +313,7 @@ def recorded_notes(doc: dict[str, Any]) -> list[str]:
     for m, ratio in doc["steadiness"].items():
         if ratio < doc["steady_below"]:
             lines.append(f"- {doc['names'].get(m, m)} is steady within sequences: its within-sequence variance is {100 * ratio:.1f} % of "
-                         "its total (median over its dimensions); the paper's [0, 1] rescale erases it, step-LayerNorm keeps it.")
+                         "its total (median over its dimensions); the [0, 1] rescale over the sequence erases it, step-LayerNorm keeps it.")
     return lines + [""] if lines else []
 
 
