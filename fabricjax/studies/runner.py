@@ -220,6 +220,7 @@ def train_rows(
     summary: Callable[[Row], str] = _test_summary,
     check: Callable[[loading.Dataset], None] | None = None,
     progress: Progress | None = None,
+    data_names: bool = False,
 ) -> Trained:
     """Load the data every row needs once, then train each (name, config) row's seeds.
 
@@ -227,12 +228,17 @@ def train_rows(
     loaded. `checkpoints`: keep each row's models (`checkpoint_dir`). `label` names a row in the
     progress log, `summary` says how it did there. `check` looks at the loaded data before any
     training (raise `UserError` for data the study cannot use). `progress`: a log shared with
-    other calls (a study that loads its rows in several parts), else one for these rows."""
+    other calls (a study that loads its rows in several parts), else one for these rows.
+    `data_names`: on recorded data, name each row in the log by its name and the data's own names
+    for its inputs (the rig's microphones and joints), not by `label`."""
     configs = [c for _, c in rows]
     ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
     if check is not None:
         check(ds)
     rows = [(name, dataclasses.replace(config, n_classes=ds.n_classes)) for name, config in rows]  # the data's classes
+    if data_names and ds.recorded:
+        names, inputs = next(iter(ds.sets.values())).names, {n: c.modalities for n, c in rows}
+        label = lambda name: f"{name} ({' + '.join(names.get(m, m) for m in inputs[name])})"  # noqa: E731
     configs = [c for _, c in rows]
     if progress is None:
         progress = Progress(study, len(rows), [row_kind(c) for c in configs])
@@ -361,6 +367,7 @@ def run_study(
         study.name, row_configs, seeds,
         eval_splits=study.eval_splits, split_names=study.split_names, data_dir=data_dir, workdir=workdir,
         checkpoints=study.checkpoints, label=lambda name: labels.get(name, name), summary=study.summary, check=study.check,
+        data_names=True,
     )
     body, figures = study.document(trained, chosen, documents.results_path(results))
     doc = {**documents.header(study.name, command=command, preset=preset, seeds=seeds, dataset=trained.dataset, train_s=trained.train_s), **body}
