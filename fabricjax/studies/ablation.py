@@ -336,7 +336,8 @@ def _recorded_markdown(doc: dict[str, Any]) -> str:
         lines += [f"## Wilcoxon signed-rank: {w['compared']} against {w['baseline']}", "", f"- {w['per_seed']['describe']}",
                   f"- {w['per_sample']['describe']}", ""]
     if "ablation_confusion.png" in doc["figures"]:
-        lines += ["Confusion matrices (proprioception only, optical flow only, where run): `ablation_confusion.png`.", ""]
+        shown = ", ".join(f"{doc['names'].get(m, m)} only" for m in CONFUSION_ROWS if any(r["name"] == m for r in doc["rows"]))
+        lines += [f"Confusion matrices ({shown}): `ablation_confusion.png`.", ""]
     return "\n".join(lines)
 
 
