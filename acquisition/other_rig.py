@@ -4,9 +4,11 @@ import's benchmark on them (`python -m experiments.bench --only=import`).
 The rig is the one issue 26 describes (a public dataset of another tactile sensor): one vibration
 channel at 2.2 kHz (int16 WAV), a 7-joint arm at 100 Hz with angle, velocity and torque (plus a
 column the rig file does not name, as real exports have), no camera, no palm microphone, string
-labels, no recording days. The signals are placeholders with a class-dependent tone, not a model
-of any sensor: they exist to exercise and time the import, and to give a study something
-learnable.
+labels, no recording days. The signals are placeholders, not a model of any sensor, but they
+behave as a low-rate vibration sensor rubbed over a texture does (`vibration`): the class lives in
+the spectral shape of a noisy vibration that changes within a trial, so the tests and the worked
+example see what such a rig gives (a spectrum that varies from step to step in a short window and
+is nearly steady in a long one), not a tone a single bin could read.
 """
 
 from __future__ import annotations
@@ -38,15 +40,43 @@ fields = ["angle", "velocity", "torque"]
 units = ["rad", "rad/s", "N m"]
 """
 EXTRA_COLUMN = "gripper_temperature"  # in every joints.csv, not in the rig file
+# The placeholder vibration (`vibration`): classes' texture frequencies at full stroke speed, spread
+# evenly over this band (below the 1.1 kHz Nyquist), ...
+TEXTURE_BAND_HZ = (150.0, 900.0)
+STROKE_RATE = 1.5  # Hz: strokes per second; the speed follows |sin|, from SLOWEST of full speed up
+SLOWEST = 0.35
+TEXTURE_BANDWIDTH_HZ = 40.0  # ... each a narrow band of noise this wide (not a tone) ...
+SECOND_HARMONIC = 0.5  # ... with a weaker second harmonic (relative amplitude) ...
+BACKGROUND = 0.08  # ... over broadband noise (full-scale RMS, unchanged by the stroke) ...
+GAIN_DB = 6.0  # ... and each trial's level random within +-this (contact pressure), so the level is no cue
 
 
-def write_trial(folder: Path, class_id: int, seconds: float, rng: np.random.Generator) -> None:
+def texture_frequency(class_id: int, n_classes: int) -> float:
+    """Hz at full stroke speed: the class's place in `TEXTURE_BAND_HZ`."""
+    lo, hi = TEXTURE_BAND_HZ
+    return lo + (hi - lo) * class_id / max(n_classes - 1, 1)
+
+
+def vibration(class_id: int, n_classes: int, seconds: float, rng: np.random.Generator) -> np.ndarray:
+    """A placeholder vibration channel (full-scale units) of a fingertip stroking a texture: its
+    frequency is the class's texture frequency times the stroke speed, which varies within every
+    stroke, a narrow band of noise with a second harmonic whose amplitude follows the speed, over
+    broadband noise, at a random trial level."""
+    t = np.arange(int(seconds * VIBRATION_RATE)) / VIBRATION_RATE
+    speed = SLOWEST + (1 - SLOWEST) * np.abs(np.sin(np.pi * STROKE_RATE * t + rng.uniform(0, np.pi)))
+    phase = 2 * np.pi * np.cumsum(texture_frequency(class_id, n_classes) * speed) / VIBRATION_RATE
+    smooth = max(1, int(VIBRATION_RATE / TEXTURE_BANDWIDTH_HZ))  # a moving average: a complex envelope ~this band wide
+    envelope = np.convolve(rng.normal(size=t.size) + 1j * rng.normal(size=t.size), np.ones(smooth) / np.sqrt(smooth), "same")
+    texture = np.real(envelope * (np.exp(1j * phase) + SECOND_HARMONIC * np.exp(2j * phase + 1j * rng.uniform(0, 2 * np.pi))))
+    x = 0.15 * speed * texture / np.sqrt(2) + BACKGROUND * rng.normal(size=t.size)
+    return x * 10 ** (rng.uniform(-GAIN_DB, GAIN_DB) / 20)
+
+
+def write_trial(folder: Path, class_id: int, seconds: float, rng: np.random.Generator, n_classes: int = 20) -> None:
     """One trial folder: vibration.wav and joints.csv."""
     folder.mkdir(parents=True, exist_ok=True)
-    t = np.arange(int(seconds * VIBRATION_RATE)) / VIBRATION_RATE
-    tone = 0.3 * np.sin(2 * np.pi * (120 + 60 * class_id) * t + rng.uniform(0, 2 * np.pi))
-    x = tone + 0.1 * rng.normal(size=t.size)
-    wavfile.write(folder / "vibration.wav", VIBRATION_RATE, np.round(x * 2**14).astype(np.int16))
+    x = vibration(class_id, n_classes, seconds, rng)
+    wavfile.write(folder / "vibration.wav", VIBRATION_RATE, np.round(np.clip(x, -1, 1 - 2**-15) * 2**15).astype(np.int16))
     jt = np.arange(int(seconds * JOINT_RATE)) / JOINT_RATE
     angle = 0.2 * np.sin(2 * np.pi * 1.5 * jt[:, None] + np.arange(N_JOINTS)) + rng.normal(0, 0.01, (jt.size, N_JOINTS))
     velocity = np.gradient(angle, jt, axis=0)
@@ -70,7 +100,7 @@ def write_recordings(root: Path, labels: list[str], trials_per_label: int, secon
     for c, label in enumerate(labels):
         for k in range(trials_per_label):
             rel = f"recordings/{c:02d}_{k:03d}"
-            write_trial(root / rel, c, float(rng.uniform(*seconds)), rng)
+            write_trial(root / rel, c, float(rng.uniform(*seconds)), rng, len(labels))
             rows.append([rel, label, k] + ([splits[k]] if splits else []))
     with open(root / "manifest.csv", "w", newline="") as f:
         w = csv.writer(f)

@@ -17,6 +17,10 @@ by the policy its mapping table names in `clock`:
     "device"   header stamps from the device's own clock (their spacing is exact), shifted onto
                the receive clock by the median offset
 
+Raw audio (AudioData, AudioDataStamped: bytes without a format) takes its format from the
+mapping's `info_topic`; without one, from the bag's AudioInfo topic when the bag has exactly one,
+which is logged and recorded (meta.source.audio_info).
+
 The measured offset of every stamped stream is recorded (meta.import.clocks). A stream whose header
 stamps are zero (a driver that never set them) is placed by receive time instead, with a note.
 """
@@ -28,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from absl import logging
 
 from acquisition import ros_messages as rm
 from acquisition.alignment import align
@@ -41,6 +46,7 @@ DEFAULT_CLOCK = {"camera": "header", "joints": "header", "mic": "receive"}
 # Placing a stream by header stamps that differ from the receive clock by more than one step
 # (20 ms at 50 Hz) would move it by a step or more against the audio.
 DEFAULT_CLOCK_TOLERANCE_S = 1.0 / archive.STEP_RATE
+RAW_AUDIO_TYPES = ("audio_common_msgs/msg/AudioData", "audio_common_msgs/msg/AudioDataStamped")  # bytes, no format
 
 
 class BagError(UserError):
@@ -186,6 +192,11 @@ def read_bag(bag: str | Path, mapping: dict[str, Any]) -> BagStreams:
                     problems.append(f"{topic}: type {' and '.join(wrong)}, expected {' or '.join(expected)}")
             if problems:
                 raise BagError(bag, problems)
+            found = _only_audio_info(mapping, types)
+            for m, topic in found.items():
+                roles[topic] = (f"{m} info", rm.AUDIO_INFO_TYPES)
+                logging.info("%s: the mapping names no info_topic for mics.%s (%s): using the bag's only AudioInfo topic, %s",
+                             bag, m, mapping["mics"][m]["topic"], topic)
             storage = [c for c in _storage_connections(reader) if c.topic in roles]
             store = rm.typestore_for([*reader.connections, *storage])
             messages: dict[str, list] = {t: [] for t in roles}
@@ -213,7 +224,8 @@ def read_bag(bag: str | Path, mapping: dict[str, Any]) -> BagStreams:
     cam = mapping["camera"]
     frame_times, images = _camera(decoded[cam["topic"]], cam, tolerance, problems, clocks)
     joint_times, joints, absent = _joints(decoded[mapping["joints"]["topic"]], mapping["joints"], tolerance, problems, clocks)
-    mics = [_mic(m, mapping["mics"][m], decoded, tolerance, problems, clocks) for m in archive.MIC_NAMES]
+    info_topics = {m: mapping["mics"][m].get("info_topic", found.get(m)) for m in archive.MIC_NAMES}
+    mics = [_mic(m, mapping["mics"][m], info_topics[m], decoded, tolerance, problems, clocks) for m in archive.MIC_NAMES]
     if problems:
         raise BagError(bag, problems)
     return BagStreams(
@@ -221,8 +233,21 @@ def read_bag(bag: str | Path, mapping: dict[str, Any]) -> BagStreams:
         joint_fields_absent=absent, step_rate=cam.get("rate"), clocks=clocks,
         source={"kind": "ros2_bag", "path": str(bag),
                 "topics": {"camera": cam["topic"], "joints": mapping["joints"]["topic"],
-                           **{m: mapping["mics"][m]["topic"] for m in archive.MIC_NAMES}}},
+                           **{m: mapping["mics"][m]["topic"] for m in archive.MIC_NAMES}},
+                **({"audio_info": {m: {"topic": t, "chosen": "the bag's only AudioInfo topic"} for m, t in found.items()}} if found else {})},
     )
+
+
+def _only_audio_info(mapping: dict[str, Any], types: dict[str, set[str]]) -> dict[str, str]:
+    """{microphone: the bag's AudioInfo topic} for each raw-audio microphone whose mapping names no
+    info_topic, when the bag has exactly one AudioInfo topic (else none: which is whose is unknown)."""
+    infos = [t for t, ts in types.items() if ts & set(rm.AUDIO_INFO_TYPES)]
+    if len(infos) != 1:
+        return {}
+    return {
+        m: infos[0] for m in archive.MIC_NAMES
+        if "info_topic" not in mapping["mics"][m] and types.get(mapping["mics"][m]["topic"], set()) & set(RAW_AUDIO_TYPES)
+    }
 
 
 def _decode_each(msgs, decode, topic: str, problems: list[str]) -> list | None:
@@ -308,10 +333,11 @@ def _audio_format(name: str, table: dict, infos: list[dict], problems: list[str]
     return rm.AudioFormat(given["sample_format"], channels, channel, given["rate"])
 
 
-def _mic(name, table, decoded, tolerance, problems, clocks) -> Chunks:
+def _mic(name, table, info_topic, decoded, tolerance, problems, clocks) -> Chunks:
+    """Microphone `name` (mapping table `table`), its format from `info_topic`'s AudioInfo where given."""
     topic = table["topic"]
     msgs = decoded[topic]
-    infos = [rm.info_fields(m) for _, _, m in decoded.get(table.get("info_topic"), [])]
+    infos = [rm.info_fields(m) for _, _, m in decoded.get(info_topic, [])]
     try:
         embedded = [rm.audio_payload(m, t) for _, t, m in msgs]
         infos += [rm.info_fields(i) for _, i in embedded if i is not None]

@@ -50,6 +50,8 @@ class Config:
     backbone: str = "attention"
     seq_len: int = 200  # N, steps per sequence: the paper's 4 s at 50 Hz
     bandwidth_khz: float = 15.0
+    # each microphone's step window [s] at its own rate (features/welch.py): the paper's 2048 samples at 48 kHz
+    mic_window_s: float = archive.WINDOW / archive.AUDIO_RATE
     image_resolution: str = "down"  # "down" = image_size, "full" = the archive's resolution
     image_size: tuple[int, int] = (60, 80)  # the "down" frame size: the paper's 60x80
     flow_sparsify: str = "keep_top"  # FLOW_SPARSIFY
@@ -87,6 +89,8 @@ class Config:
             raise ValueError(f"backbone must be one of {BACKBONES}, got {self.backbone!r}")
         if not 0 < self.bandwidth_khz <= archive.NYQUIST_KHZ:
             raise ValueError(f"bandwidth_khz must be in (0, {archive.NYQUIST_KHZ:g}], got {self.bandwidth_khz}")
+        if not self.mic_window_s > 0:
+            raise ValueError(f"mic_window_s must be a duration in seconds > 0, got {self.mic_window_s}")
         if self.fusion_norm not in FUSION_NORMS:
             raise ValueError(f"fusion_norm must be one of {FUSION_NORMS}, got {self.fusion_norm!r}")
         if self.lr_schedule not in LR_SCHEDULES:

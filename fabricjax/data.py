@@ -40,9 +40,12 @@ and holdout) are counted in an info line: never silent.
 
     inputs   one array per `config.modalities` entry:
       "internal", "external"  float32 (S, N, F)        log10 PSD (welch.py) of the microphone of
-                                                       that role, F = welch.n_bins(config.
-                                                       bandwidth_khz, its rate): 320 at 15 kHz and
-                                                       48 kHz, all 512 at or above its Nyquist
+                                                       that role over its step window (config.
+                                                       mic_window_s at its rate: 2048 samples for
+                                                       the hand), F = welch.n_bins(config.
+                                                       bandwidth_khz, its rate, window): 320 at
+                                                       15 kHz and 48 kHz, all 512 at or above its
+                                                       Nyquist
       "proprio"               float32 (S, N, J * F)    joints x fields: the hand's 6 x (angle,
                                                        velocity, current), archive.N_PROPRIO
       "flow"                  float16 (S, N, 2, h, w)  sparse flow, 3x3 patch means (flow.py);
@@ -55,6 +58,8 @@ and holdout) are counted in an info line: never silent.
     info     (S,): "fabric_id" int32, "day" int32 (-1: no day), "trial" int32, "start" int32
              (first step), "condition" str ("lab"/"cafe"), "trial_key" str (archive file name)
     rates    {audio modality: its microphone's sample rate, Hz} (what `narrow` cuts bands by)
+    names    {modality: how the data names its stream}: a microphone by its name (the rig file's),
+             the joints by theirs and their fields (`stream_names`)
     classes  the class names of the label space, by class (its length is the fabric head's size)
 
 Features are computed once per trial and cached (features/cache.py); only the modalities the
@@ -87,6 +92,7 @@ class SequenceSet:
     labels: dict[str, np.ndarray]
     info: dict[str, np.ndarray]
     rates: Mapping[str, int] = dataclasses.field(default_factory=dict)  # absent: the hand's 48 kHz
+    names: Mapping[str, str] = dataclasses.field(default_factory=dict)  # absent: the paper's (config.MODALITY_NAMES)
     classes: tuple[str, ...] = tuple(catalog.fabric(k).name for k in range(catalog.N_CLASSES))
 
     @property
@@ -171,6 +177,19 @@ def _report_unused(entries: Sequence[dataset_index.IndexEntry], roles, chosen_sp
                      ", ".join(f"{skipped[s]} trials on split {s}" for s in SPLITS if s in skipped), ", ".join(wanted))
 
 
+def stream_names(lay: archive.Layout) -> dict[str, str]:
+    """{modality: how the data names its stream}: a microphone's name, "joints <names> (<fields>)"
+    (first–last of more than three joints), and the camera's inputs."""
+    out = {m.role: m.name for m in lay.mics if m.role is not None}
+    if lay.has_joints:
+        j = lay.joint_names
+        joints = ", ".join(j) if len(j) <= 3 else f"{j[0]}–{j[-1]}"
+        out["proprio"] = f"joints {joints} ({', '.join(lay.joint_fields)})"
+    if lay.image_size is not None:
+        out.update(image="camera image", flow="camera optical flow")
+    return out
+
+
 def first_step(meta: dict) -> int:
     """The first rubbing step of a trial (0 for archives that do not record the closing)."""
     return int(meta.get("closing_steps", 0))
@@ -208,7 +227,13 @@ def _band(x: np.ndarray, modality: str, config: Config, rates: Mapping[str, int]
     microphone's rate (the last axis; all of them at or above its Nyquist); other modalities unchanged."""
     if modality not in archive.MIC_ROLES:
         return x
-    return x[..., : welch.n_bins(config.bandwidth_khz, rates.get(modality, archive.AUDIO_RATE))]
+    rate = rates.get(modality, archive.AUDIO_RATE)
+    return x[..., : welch.n_bins(config.bandwidth_khz, rate, window_of(config, rate))]
+
+
+def window_of(config: Config, rate: int) -> int:
+    """A microphone's step window in samples at `rate` Hz: the config's duration (2048 for the hand)."""
+    return welch.window_samples(config.mic_window_s, rate)
 
 
 def narrow(sets: dict[str, SequenceSet], config: Config) -> dict[str, SequenceSet]:
@@ -220,15 +245,26 @@ def narrow(sets: dict[str, SequenceSet], config: Config) -> dict[str, SequenceSe
     }
 
 
-def _check_bands(config: Config, rates: Mapping[str, int]) -> None:
-    """State a bandwidth above a microphone's Nyquist (the PSD stops there), and refuse two
-    microphones whose bands give the shared audio encoder different bin counts."""
+def _check_bands(config: Config, rates: Mapping[str, int], names: Mapping[str, str]) -> None:
+    """Refuse a step window too short for a spectrum; state a window that gives few bins (a short
+    duration at a low rate) and a bandwidth above a microphone's Nyquist (the PSD stops there);
+    refuse two microphones whose bands give the shared audio encoder different bin counts.
+    `names`: each audio modality's microphone, as the data names it."""
     for m, rate in rates.items():
+        window = window_of(config, rate)
+        ms, full = 1e3 * config.mic_window_s, welch.full_bins(window)
+        if window < welch.MIN_WINDOW:
+            raise UserError(f"mic_window_s={config.mic_window_s:g}: the {names[m]} microphone's window is {window} samples at {rate} Hz, "
+                            f"too short for a Welch spectrum (at least {welch.MIN_WINDOW} samples)")
+        if full < welch.USEFUL_BINS:
+            logging.warning("the %s microphone's %.2f ms step window is %d samples at %d Hz: its PSD has only %d bins (0-%g kHz, "
+                            "%.1f Hz apart); a longer window (--set mic_window_s=...) gives a finer spectrum", names[m], ms, window, rate,
+                            full, archive.nyquist_khz(rate), rate / welch.nperseg(window))
         nyquist = archive.nyquist_khz(rate)
         if config.bandwidth_khz > nyquist:
             logging.warning("bandwidth %g kHz is above the %s microphone's Nyquist (%g kHz at %d Hz): its PSD is capped at "
-                            "0-%g kHz (%d bins)", config.bandwidth_khz, m, nyquist, rate, nyquist, welch.N_BINS)
-    bins = {m: welch.n_bins(config.bandwidth_khz, r) for m, r in rates.items()}
+                            "0-%g kHz (%d bins)", config.bandwidth_khz, names[m], nyquist, rate, nyquist, full)
+    bins = {m: welch.n_bins(config.bandwidth_khz, r, window_of(config, r)) for m, r in rates.items()}
     if len(set(bins.values())) > 1:
         raise UserError(f"the microphones' PSDs have different bin counts at {config.bandwidth_khz:g} kHz ({bins}: rates {dict(rates)}); "
                         "the shared audio encoder needs equal ones: use one microphone, or a bandwidth at or above both Nyquists")
@@ -261,7 +297,8 @@ def load_sequences(
         if s in ("train", "val") and not 0 <= e.meta["label"] < n_classes:
             raise archive.ArchiveError(index.path(e), "meta.label", f"label {e.meta['label']} of a {s} trial is outside the {n_classes} classes 0..{n_classes - 1}")
     rates = check_streams(index, [e for e, _ in chosen], config.modalities)
-    _check_bands(config, rates)
+    lay = archive.layout(chosen[0][0].meta)
+    _check_bands(config, rates, {m: lay.mics[lay.mic(m)].name for m in rates})
     n = config.seq_len
     for e, _ in chosen:
         if n_sequences(e, n) == 0:
@@ -270,7 +307,10 @@ def load_sequences(
                 f"{e.n_steps} steps of which {e.n_steps - first_step(e.meta)} rubbing, fewer than one sequence of N={n} steps",
             )
     members = {s: [e for e, t in chosen if t == s] for s in wanted}
-    features = {m: feature_for(m, config.image_resolution, config.image_size, config.flow_sparsify) for m in config.modalities}
+    features = {
+        m: feature_for(m, config.image_resolution, config.image_size, config.flow_sparsify, window_of(config, rates[m]) if m in rates else archive.WINDOW)
+        for m in config.modalities
+    }
     feats = cache.trial_features(
         index, [e for e, _ in chosen], list(features.values()), workspace.features_dir(workdir),
         workers=workers, progress=progress,
@@ -293,4 +333,5 @@ def load_sequences(
                 )
             inputs[s][m][filled[s] : filled[s] + n_seq] = a
         filled[s] += n_seq
-    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, classes=classes) for s in wanted}
+    names = stream_names(lay)
+    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, names=names, classes=classes) for s in wanted}

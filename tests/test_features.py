@@ -213,3 +213,35 @@ def test_downsample_to_60x80():
     small = images.downsample(frames)
     assert small.shape == (2, 60, 80, 3) and small.dtype == np.uint8
     assert np.all(small == 77)
+
+
+def test_the_papers_window_by_duration_is_todays_feature_bit_for_bit():
+    """The default step window (42.67 ms) at the hand's 48 kHz is 2048 samples: the same feature
+    name and cache key as the paper's fixed window, so cached features stay valid, and the same
+    numbers as slicing the 2048 samples before each window end directly."""
+    from fabricjax import data
+    from fabricjax.config import Config
+
+    cfg = Config.from_preset("smoke")
+    assert data.window_of(cfg, archive.AUDIO_RATE) == archive.WINDOW
+    f = extract.feature_for("internal", window=data.window_of(cfg, archive.AUDIO_RATE))
+    assert f.name == "psd_internal"
+    assert f.params == {"mic": "internal", **welch.SCIPY_KWARGS, "log10_floor": welch.LOG_FLOOR, "version": 1}
+    a = tiny_archive(fabric_id=3, n_steps=12)
+    k = extract.mic_index(a, "internal")
+    direct = np.stack([a.audio[k, e - archive.WINDOW : e] for e in a.window_end[:, k]])
+    np.testing.assert_array_equal(f.compute(a), extract.log_psd(direct))
+    assert f.compute(a).shape == (12, welch.N_BINS)
+
+
+def test_another_window_is_another_feature_with_the_segment_following_it():
+    w = welch.window_samples(0.1, archive.AUDIO_RATE)  # 4800 samples: hop 1197, segments of 2394
+    f = extract.feature_for("internal", window=w)
+    assert f.name == "psd_internal_w4800" and f.params["nperseg"] == 2394 and f.params["noverlap"] == 1197
+    assert extract.feature_named(f.name).params == f.params
+    a = tiny_archive(fabric_id=3, n_steps=12)
+    psd = f.compute(a)
+    assert psd.shape == (12, welch.full_bins(w)) == (12, 1198)
+    x = extract.mic_windows(a, extract.mic_index(a, "internal"), w)
+    ref = scipy.signal.welch((x >> 14).astype(np.float64) / 2**17, **welch.scipy_kwargs(w))[1]
+    np.testing.assert_allclose(psd, np.log10(np.maximum(ref, welch.LOG_FLOOR)), atol=2e-3)

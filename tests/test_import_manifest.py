@@ -183,7 +183,7 @@ def test_the_probe_reads_the_imported_rig(archives, tmp_path):
     doc = probe.run(rows=["proprio", "internal"], preset="smoke", workdir=tmp_path / "ws", data_dir=archives,
                     results=tmp_path / "results", command="test")
     assert doc["splits"] == ["train", "val", "test"] and doc["classes"] == [0, 1, 2]  # no cafe trials: no cafe column filled
-    assert doc["inputs"]["proprio"]["step_dims"] == 7 * 3 and doc["inputs"]["internal"]["step_dims"] == 512
+    assert doc["inputs"]["proprio"]["step_dims"] == 7 * 3 and doc["inputs"]["internal"]["step_dims"] == 24  # 42.67 ms at 2.2 kHz: 94 samples
     assert all(0 <= r["accuracy"]["test"] <= 1 for r in doc["rows"])
     md = (tmp_path / "results" / "probe.md").read_text()
     assert "recorded data" in md and "chance 33.3 %" in md and "(recorded data, read as it is)" in md
@@ -254,9 +254,7 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     assert "image" in lay.modalities() and "flow" in lay.modalities()
 
 
-def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path, caplog):
-    import logging
-
+def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path):
     from scipy.io import wavfile
 
     from fabricjax import data
@@ -272,12 +270,11 @@ def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path, ca
     _run(manifest, tmp_path / "out")
     lay = archive.layout(archive.read_meta(tmp_path / "out" / "felt_trial001_lab.npz")[0])
     assert [(m.name, m.rate, m.role) for m in lay.mics] == [("vibration", 2200, "internal"), ("room", 4400, "external")]
-    config = Config.from_preset("smoke", modalities=("internal", "external"), bandwidth_khz=15.0, seq_len=10)
-    with caplog.at_level(logging.WARNING):
-        sets = data.load_sequences(config, tmp_path / "out", workdir=tmp_path / "ws", progress=False)
-    for mic, rate in (("internal", 2200), ("external", 4400)):  # each band capped at its own Nyquist
-        assert f"above the {mic} microphone's Nyquist ({rate / 2000:g} kHz at {rate} Hz)" in caplog.text
-        assert sets["train"].inputs[mic].shape[2] == welch.N_BINS
+    # one step window (42.67 ms): 94 and 188 samples, bins ~47 Hz apart in both, 21 up to 1 kHz
+    config = Config.from_preset("smoke", modalities=("internal", "external"), bandwidth_khz=1.0, seq_len=10)
+    sets = data.load_sequences(config, tmp_path / "out", workdir=tmp_path / "ws", progress=False)
+    for mic, rate in (("internal", 2200), ("external", 4400)):
+        assert sets["train"].inputs[mic].shape[2] == welch.n_bins(1.0, rate, welch.window_samples(config.mic_window_s, rate)) == 21
     assert sets["train"].rates == {"internal": 2200, "external": 4400}
     # one noise level: the density (per Hz) of the microphone at half the rate is twice as high
     level = {m: np.mean(sets["train"].inputs[m][..., 1:-1]) for m in ("internal", "external")}

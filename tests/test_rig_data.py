@@ -10,6 +10,7 @@ import scipy.signal
 
 from fabricjax import archive, data
 from fabricjax.config import Config
+from fabricjax.errors import UserError
 from fabricjax.features import welch
 from tests.helpers import tiny_dataset
 from tests.test_rig_archive import rig_archive, rig_streams
@@ -42,13 +43,27 @@ def test_rig_sequences_use_the_mics_rate_and_say_the_band_is_capped(tmp_path, ca
     ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "train"), (2, "val"), (0, "test")])
     with caplog.at_level(logging.WARNING):
         sets = data.load_sequences(_config(modalities=("internal", "proprio")), ds, workdir=tmp_path / "ws", progress=False)
-    assert "above the internal microphone's Nyquist (1.1 kHz at 2200 Hz)" in caplog.text
-    assert sets["train"].inputs["internal"].shape[2] == welch.N_BINS  # the whole 0-1.1 kHz band
+    assert "above the vibration microphone's Nyquist (1.1 kHz at 2200 Hz)" in caplog.text
+    # the paper's 42.67 ms at 2.2 kHz: 94 samples, hop 23, 24 bins ~47.8 Hz apart, said once
+    assert caplog.text.count("step window is 94 samples at 2200 Hz: its PSD has only 24 bins") == 1
+    assert sets["train"].inputs["internal"].shape[2] == welch.full_bins(94) == 24  # the whole 0-1.1 kHz band
     assert sets["train"].inputs["proprio"].shape[2] == 7 * 3
     assert sets["train"].classes == ("oak", "pine", "felt") and sets["train"].rates == {"internal": 2200}
     assert set(sets["test"].info["day"].tolist()) == {-1}
     narrowed = data.narrow(sets, _config(modalities=("internal",), bandwidth_khz=0.55))
-    assert narrowed["train"].inputs["internal"].shape[2] == 256 and "proprio" not in narrowed["train"].inputs
+    assert narrowed["train"].inputs["internal"].shape[2] == 12 and "proprio" not in narrowed["train"].inputs
+
+
+def test_a_longer_step_window_is_chosen_by_duration(tmp_path, caplog):
+    """--set mic_window_s: 2048 samples at 2.2 kHz (0.93 s) give the 512 bins of the paper's window length, unwarned."""
+    ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "train"), (2, "val"), (0, "test")])
+    config = _config(modalities=("internal",), mic_window_s=archive.WINDOW / 2200)
+    with caplog.at_level(logging.WARNING):
+        sets = data.load_sequences(config, ds, workdir=tmp_path / "ws", progress=False)
+    assert "its PSD has only" not in caplog.text
+    assert sets["train"].inputs["internal"].shape[2] == welch.N_BINS
+    with pytest.raises(UserError, match=r"mic_window_s=0.001: the vibration microphone's window is 2 samples at 2200 Hz, too short"):
+        data.load_sequences(_config(modalities=("internal",), mic_window_s=0.001), ds, workdir=tmp_path / "ws", progress=False)
 
 
 def test_a_row_needing_a_stream_the_data_lacks_lists_what_it_has(tmp_path):
@@ -65,7 +80,7 @@ def test_mics_at_different_rates_are_refused_for_the_shared_encoder(tmp_path):
     streams = rig_streams(mics=(("vibration", 2200, "internal"), ("room", 2200 * 2, "external")))
     ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "test")], streams=streams)
     with pytest.raises(Exception, match="different bin counts"):
-        data.load_sequences(_config(modalities=("internal", "external"), bandwidth_khz=1.0), ds, workdir=tmp_path / "ws", progress=False)
+        data.load_sequences(_config(modalities=("internal", "external"), bandwidth_khz=1.5), ds, workdir=tmp_path / "ws", progress=False)
 
 
 def test_a_training_label_outside_the_classes_is_an_error(tmp_path):
@@ -99,3 +114,21 @@ def test_label_maps_must_agree(tmp_path):
     archive.write_archive(ds / archive.trial_filename(other.meta), other)
     with pytest.raises(archive.ArchiveError, match="meta.label_map.*differs"):
         data.load_sequences(_config(), ds, workdir=tmp_path / "ws", progress=False)
+
+
+def test_reproduce_on_a_rig_runs_what_its_streams_and_splits_allow(tmp_path):
+    """A camera-less rig without cafe or holdout trials: the ablation and probe keep the rows of its
+    streams, the bandwidth study runs whole, the protocol's studies are skipped, one line each."""
+    from fabricjax.studies import ablation, reproduce
+
+    ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "train"), (2, "val"), (0, "test")])
+    said = []
+    plan = {s.study: s for s in reproduce.fit_plan(reproduce.PLAN, "smoke", ds, tmp_path / "ws", said.append)}
+    assert list(plan) == ["ablation", "probe", "bandwidth"]
+    assert set(plan["ablation"].rows) == {r.name for r in ablation.ROWS if set(r.modalities) <= {"internal", "proprio"}}
+    assert plan["bandwidth"].rows is None
+    text = "\n".join(said)
+    assert len(said) == 5 and "ablation" in said[0] and "rows left out (they need external, flow, image" in said[0]
+    assert "noise       skip  (the paper's protocol: it needs trials of the cafe condition (split cafe)" in text
+    assert "properties  skip  (the paper's protocol: it needs held-out fabrics (split holdout)" in text
+    assert "latents     skip" in text

@@ -96,6 +96,20 @@ def test_audio_common_audio_is_read_bit_exact(tmp_path, kind, table):
     check_fields(archive.validate(a), rec)
 
 
+def test_raw_audio_takes_the_bags_only_audio_info_topic(tmp_path):
+    rec = recording()
+    msgs = _as_audio_common(bag_messages(rec), "AudioData")
+    msgs.append((T0 - 0.2, "/minsound/audio_info", "audio_common_msgs/msg/AudioInfo", _info(48000)))
+    mapping = _mapping(internal={})  # no format, no rate, no info_topic
+    del mapping["mics"]["internal"]["rate"]
+    a = ros_bag.import_bag(write_messages(tmp_path / "bag", msgs), mapping, TRIAL)
+    check_fields(archive.validate(a), rec)
+    assert a.meta["source"]["audio_info"] == {"internal": {"topic": "/minsound/audio_info", "chosen": "the bag's only AudioInfo topic"}}
+    msgs.append((T0 - 0.1, "/palm/audio_info", "audio_common_msgs/msg/AudioInfo", _info(48000)))  # two: whose is whose is unknown
+    with pytest.raises(ros_bag.BagError, match=r"need a sample format"):
+        ros_bag.import_bag(write_messages(tmp_path / "bag2", msgs), mapping, TRIAL)
+
+
 def test_raw_audio_without_a_format_is_a_clear_error(tmp_path):
     rec = recording()
     bag = write_messages(tmp_path / "bag", _as_audio_common(bag_messages(rec), "AudioData"))

@@ -7,7 +7,9 @@ applied when sequences are built and is not part of the key. Arrays, per trial o
     psd_internal, psd_external  float32 (T, 512)         log10 PSD of the microphone whose role is
                                                          internal / external, full band 0 to its
                                                          Nyquist at its own rate (welch.py): 0-24 kHz
-                                                         for the hand
+                                                         for the hand; the paper's 2048-sample window
+    psd_<role>_w<W>             float32 (T, W*511//2048+1) the same over W-sample windows (another
+                                                         duration, or the paper's at another rate)
     proprio                     float32 (T, J * F)       joints (T, J, F) flattened joint-major:
                                                          [j0 field 0, j0 field 1, ..., j1 ...]; the
                                                          hand's 6 x (angle, velocity, current):
@@ -50,20 +52,21 @@ def mic_index(trial: archive.TrialArchive, role: str) -> int:
     return k
 
 
-def mic_windows(trial: archive.TrialArchive, mic: int) -> np.ndarray:
-    """(T, 2048) int32: each step's window of raw words from microphone `mic`.
+def mic_windows(trial: archive.TrialArchive, mic: int, window: int = archive.WINDOW) -> np.ndarray:
+    """(T, window) int32: each step's window of raw words from microphone `mic`, the `window`
+    samples up to its window end (the paper's 2048 by default).
 
-    A window that would start before the first sample (window_end < 2048, only possible at the
+    A window that would start before the first sample (window_end < window, only possible at the
     very start of a recording) is zero-padded on the left.
     """
-    pad = np.concatenate([np.zeros(archive.WINDOW, np.int32), trial.audio[mic]])
-    idx = trial.window_end[:, mic, None] + np.arange(archive.WINDOW)  # shifted by the padding
+    pad = np.concatenate([np.zeros(window, np.int32), trial.audio[mic]])
+    idx = trial.window_end[:, mic, None] + np.arange(window)  # shifted by the padding
     return pad[idx]
 
 
 def log_psd(windows: np.ndarray, rate: int = archive.AUDIO_RATE) -> np.ndarray:
-    """(T, 2048) raw windows of a microphone at `rate` Hz -> (T, 512) float32 log10 PSD over its
-    full band (0 to Nyquist)."""
+    """(T, W) raw windows of a microphone at `rate` Hz -> (T, welch.full_bins(W)) float32 log10
+    PSD over its full band (0 to Nyquist): 512 bins for the paper's 2048-sample windows."""
     n = len(windows)
     padded = np.pad(windows, ((0, -n % PSD_CHUNK), (0, 0)))
     chunks = np.split(padded, len(padded) // PSD_CHUNK)
@@ -71,16 +74,22 @@ def log_psd(windows: np.ndarray, rate: int = archive.AUDIO_RATE) -> np.ndarray:
     return np.concatenate(out)[:n]
 
 
-def _trial_psd(trial: archive.TrialArchive, role: str) -> np.ndarray:
+def _trial_psd(trial: archive.TrialArchive, role: str, window: int) -> np.ndarray:
     k = mic_index(trial, role)
-    return log_psd(mic_windows(trial, k), archive.layout(trial.meta).mics[k].rate)
+    return log_psd(mic_windows(trial, k, window), archive.layout(trial.meta).mics[k].rate)
 
 
-def _psd(role: str) -> Feature:
-    # SCIPY_KWARGS' fs is the hand's 48 kHz; another rig's microphone is analysed at its own rate,
-    # which its archive (and so the cache's archive fingerprint) records
-    params = {"mic": role, **welch.SCIPY_KWARGS, "log10_floor": welch.LOG_FLOOR, "version": 1}
-    return Feature(f"psd_{role}", params, False, True, lambda t: _trial_psd(t, role))
+def _psd(role: str, window: int) -> Feature:
+    """The PSD over `window`-sample windows. The paper's 2048 keeps its name and cache key (its
+    numbers are unchanged); SCIPY_KWARGS' fs is the hand's 48 kHz, while another rig's microphone
+    is analysed at its own rate, which its archive (and so the cache's archive fingerprint)
+    records. Another window is another feature, with its own name and key."""
+    if window == archive.WINDOW:
+        params = {"mic": role, **welch.SCIPY_KWARGS, "log10_floor": welch.LOG_FLOOR, "version": 1}
+        return Feature(f"psd_{role}", params, False, True, lambda t: _trial_psd(t, role, window))
+    kwargs = {k: v for k, v in welch.scipy_kwargs(window).items() if k != "fs"}  # fs: the archive's rate
+    params = {"mic": role, "window": window, **kwargs, "log10_floor": welch.LOG_FLOOR, "version": 1}
+    return Feature(f"psd_{role}_w{window}", params, False, True, lambda t: _trial_psd(t, role, window))
 
 
 def _proprio(trial: archive.TrialArchive) -> np.ndarray:
@@ -88,13 +97,15 @@ def _proprio(trial: archive.TrialArchive) -> np.ndarray:
 
 
 def feature_for(
-    modality: str, image_resolution: str = "down", image_size: tuple[int, int] = images.DOWN_SIZE, flow_sparsify: str = "keep_top"
+    modality: str, image_resolution: str = "down", image_size: tuple[int, int] = images.DOWN_SIZE, flow_sparsify: str = "keep_top",
+    window: int = archive.WINDOW,
 ) -> Feature:
     """The feature behind a model input (a `config.MODALITIES` name); `image_size` is the
     downsampled ("down") frame size, `flow_sparsify` the flow's reading of the paper's filter
-    (`flow.SPARSIFY`: "flow" is the default reading's feature, "flow_<reading>" another's)."""
+    (`flow.SPARSIFY`: "flow" is the default reading's feature, "flow_<reading>" another's),
+    `window` a microphone's step window in samples (`welch.window_samples`)."""
     if modality in archive.MIC_ROLES:
-        return _psd(modality)
+        return _psd(modality, window)
     if modality == "proprio":
         return Feature("proprio", {"version": 1}, False, True, _proprio)
     if modality == "flow":
@@ -117,6 +128,8 @@ def feature_named(name: str) -> Feature:
     not pickle)."""
     if m := re.fullmatch(r"image_(\d+)x(\d+)", name):
         return feature_for("image", "down", (int(m[1]), int(m[2])))
+    if m := re.fullmatch(r"psd_(\w+)_w(\d+)", name):
+        return feature_for(m[1], window=int(m[2]))
     candidates = [feature_for(m) for m in (*archive.MIC_ROLES, "proprio")] + [feature_for("image", "full")]
     candidates += [feature_for("flow", flow_sparsify=mode) for mode in flow.SPARSIFY]
     for f in candidates:

@@ -15,9 +15,13 @@ gives the signed sample, divided by 2**17 it is in units of full scale (+-1). Fl
 to be in full-scale units already. The microphone's large DC offset is removed by the per-segment
 detrend.
 
-Another rig's microphone keeps the same 2048-sample window and segments at its own rate `rate`
-(the archive's `meta.streams.mics[k].rate`): bins then lie at k * rate / 1022 Hz, up to its Nyquist
-rate / 2, and the density is per Hz at that rate. Nothing is resampled.
+Each step's window is a duration, the same at every rate (`window_samples`): the paper's 2048
+samples at 48 kHz, 42.67 ms, unless a config chooses another (`Config.mic_window_s`). At another
+rate `rate` it is round(duration * rate) samples, and the Welch segment follows it: the hop is
+floor(W * 511 / 2048) (511 for the paper's 2048), segments of twice the hop, 3 of them, so the
+bins lie ~47 Hz apart at any rate, up to the microphone's Nyquist rate / 2, and the density is per
+Hz at that rate. Nothing is resampled. A short window at a low rate gives few bins (94 samples at
+2.2 kHz: 24 bins); `data.load_sequences` says so (`USEFUL_BINS`).
 
 Bandwidth truncation keeps the bins whose centre frequency is <= the bandwidth:
     n_bins = floor(bandwidth * nperseg / fs) + 1  ->  2.5 kHz: 54, 10 kHz: 213, 15 kHz: 320, 24 kHz: 512
@@ -49,6 +53,9 @@ NPERSEG = 1022
 NOVERLAP = 511
 N_BINS = NPERSEG // 2 + 1
 N_SEGMENTS = (WINDOW - NOVERLAP) // (NPERSEG - NOVERLAP)
+MIN_HOP = 2  # the shortest hop whose segments still give a spectrum (3 bins) ...
+MIN_WINDOW = -(-MIN_HOP * WINDOW // NOVERLAP)  # ... which a window of 9 samples has
+USEFUL_BINS = 32  # fewer bins than this over a microphone's band are a coarse spectrum, said once when loading
 # 1e-20 full-scale^2/Hz lies ~40 dB below the 18-bit quantisation noise density (~2e-16), so only
 # exact digital silence reaches it.
 LOG_FLOOR = 1e-20
@@ -57,14 +64,39 @@ SCIPY_KWARGS = dict(
 )
 
 
-def n_bins(bandwidth_khz: float, rate: int = AUDIO_RATE) -> int:
-    """Bins kept when the PSD of a microphone at `rate` Hz is truncated at `bandwidth_khz` (centre
-    frequency <= bandwidth), capped at its Nyquist (all bins)."""
-    return min(N_BINS, math.floor(bandwidth_khz * 1000 * NPERSEG / rate) + 1)
+def window_samples(seconds: float, rate: int) -> int:
+    """The samples of a `seconds`-long step window at `rate` Hz (2048 for the paper's at 48 kHz)."""
+    return int(round(seconds * rate))
 
 
-def frequencies(bandwidth_khz: float = NYQUIST_KHZ, rate: int = AUDIO_RATE) -> np.ndarray:
-    return np.arange(n_bins(bandwidth_khz, rate)) * rate / NPERSEG
+def hop(window: int = WINDOW) -> int:
+    """The Welch hop (half a segment) for a `window`-sample window: 511 for the paper's 2048."""
+    return window * NOVERLAP // WINDOW
+
+
+def nperseg(window: int = WINDOW) -> int:
+    return 2 * hop(window)
+
+
+def full_bins(window: int = WINDOW) -> int:
+    """Bins from 0 to Nyquist of a `window`-sample window's PSD: 512 for the paper's 2048."""
+    return hop(window) + 1
+
+
+def n_bins(bandwidth_khz: float, rate: int = AUDIO_RATE, window: int = WINDOW) -> int:
+    """Bins kept when the PSD of a microphone at `rate` Hz (`window`-sample windows) is truncated
+    at `bandwidth_khz` (centre frequency <= bandwidth), capped at its Nyquist (all bins)."""
+    return min(full_bins(window), math.floor(bandwidth_khz * 1000 * nperseg(window) / rate) + 1)
+
+
+def frequencies(bandwidth_khz: float = NYQUIST_KHZ, rate: int = AUDIO_RATE, window: int = WINDOW) -> np.ndarray:
+    return np.arange(n_bins(bandwidth_khz, rate, window)) * rate / nperseg(window)
+
+
+def scipy_kwargs(window: int = WINDOW, rate: int = AUDIO_RATE) -> dict:
+    """`scipy.signal.welch`'s arguments for `window`-sample windows at `rate` Hz (`SCIPY_KWARGS`
+    for the paper's)."""
+    return {**SCIPY_KWARGS, "fs": rate, "nperseg": nperseg(window), "noverlap": hop(window)}
 
 
 def _float():
@@ -77,43 +109,48 @@ def to_full_scale(words: jax.Array) -> jax.Array:
 
 
 def _segments(x: jax.Array) -> jax.Array:
-    """(..., 2048) -> (..., 3, 1022) Welch segments; the hop divides the span into 4 blocks."""
-    hop = NPERSEG - NOVERLAP
-    blocks = x[..., : hop * (N_SEGMENTS + 1)].reshape(*x.shape[:-1], N_SEGMENTS + 1, hop)
+    """(..., W) -> (..., 3, 2 hop) Welch segments (2048 -> 3 x 1022); the hop divides the span into 4 blocks."""
+    h = hop(x.shape[-1])
+    blocks = x[..., : h * (N_SEGMENTS + 1)].reshape(*x.shape[:-1], N_SEGMENTS + 1, h)
     return jnp.concatenate([blocks[..., :-1, :], blocks[..., 1:, :]], axis=-1)
 
 
-_HANN = 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(NPERSEG) / NPERSEG)  # float64, as scipy builds it
+def _hann(n: int) -> np.ndarray:
+    return 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(n) / n)  # periodic, float64, as scipy builds it
 
 
-def _scale(rate: int) -> np.ndarray:
-    """Density scaling per bin: 1 / (fs * sum(w^2)), doubled except at DC and Nyquist (even nfft)."""
-    return np.where((np.arange(N_BINS) == 0) | (np.arange(N_BINS) == N_BINS - 1), 1.0, 2.0) / (rate * np.sum(_HANN**2))
+def _scale(rate: int, n: int) -> np.ndarray:
+    """Density scaling per bin of an `n`-sample segment: 1 / (fs * sum(w^2)), doubled except at DC
+    and Nyquist (even nfft)."""
+    k = np.arange(n // 2 + 1)
+    return np.where((k == 0) | (k == n // 2), 1.0, 2.0) / (rate * np.sum(_hann(n) ** 2))
 
 
 @partial(jax.jit, static_argnames=("bandwidth_khz", "log", "floor", "rate"))
 def welch_psd(
     windows: jax.Array, *, bandwidth_khz: float = 15.0, log: bool = True, floor: float = LOG_FLOOR, rate: int = AUDIO_RATE
 ) -> jax.Array:
-    """(..., 2048) windows of a microphone at `rate` Hz -> (..., n_bins(bandwidth_khz, rate)) PSD,
-    or log10 of it.
+    """(..., W) windows of a microphone at `rate` Hz -> (..., n_bins(bandwidth_khz, rate, W)) PSD,
+    or log10 of it (W: the paper's 2048, or another duration's samples, `window_samples`).
 
     Integer input is converted from SPH0645 words; float input is in full-scale units. Computes
     in float32, or float64 when x64 is enabled (int or float64 input). With `log`, values below
     `floor` are raised to it, so silence maps to log10(floor) instead of -inf.
     """
-    if windows.shape[-1] != WINDOW:
-        raise ValueError(f"windows must have {WINDOW} samples on the last axis, got shape {windows.shape}")
+    w = windows.shape[-1]
+    if w < MIN_WINDOW:
+        raise ValueError(f"windows must have at least {MIN_WINDOW} samples on the last axis, got shape {windows.shape}")
+    n = nperseg(w)
     if jnp.issubdtype(windows.dtype, jnp.integer):
         # Detrend exactly in integers (|n*q - sum q| < 2**31), then scale: a float32 mean of a
         # large DC offset would leave a rounding residue that dominates the lowest bins.
         q = _segments(jnp.right_shift(windows.astype(jnp.int32), SAMPLE_SHIFT))
-        x = (q * NPERSEG - q.sum(axis=-1, keepdims=True)).astype(_float()) / (NPERSEG * FULL_SCALE)
+        x = (q * n - q.sum(axis=-1, keepdims=True)).astype(_float()) / (n * FULL_SCALE)
     else:
         x = _segments(windows)
         x = x - x.mean(axis=-1, keepdims=True)
-    spec = jnp.fft.rfft(x * _HANN.astype(x.dtype), axis=-1)
-    k = n_bins(bandwidth_khz, rate)
+    spec = jnp.fft.rfft(x * _hann(n).astype(x.dtype), axis=-1)
+    k = n_bins(bandwidth_khz, rate, w)
     spec = spec[..., :k]
-    psd = (spec.real**2 + spec.imag**2).mean(axis=-2) * _scale(rate)[:k].astype(x.dtype)
+    psd = (spec.real**2 + spec.imag**2).mean(axis=-2) * _scale(rate, n)[:k].astype(x.dtype)
     return jnp.log10(jnp.maximum(psd, floor)) if log else psd

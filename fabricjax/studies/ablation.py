@@ -11,14 +11,22 @@ Wilcoxon signed-rank tests (per seed and per test sequence, see `runner.paired_t
 proprioception-only and flow-only models' confusion matrices are drawn (results/ablation_confusion.png).
 The simulator is the same for every row: differences from the paper are findings, not tuning targets.
 On recorded data (`--data_dir`, only the rows the data supports, chosen with --rows) the rows are
-compared with each other: no paper column, no checklist of the paper's claims, the data's own classes.
+compared with each other: no paper column, no checklist of the paper's claims, the data's own classes
+and the data's own names for its streams (the rig file's microphones and joints; --rows still names
+inputs by role). Each row is trained under both fusion normalisations and reported under the one
+with the better validation accuracy (mean over seeds; step-LayerNorm on a tie), the other's beside it: another rig may carry
+its cue in a level that is steady within a sequence, which the paper's rescale erases. Each input's
+steadiness (`probe.steadiness`) is reported once, flagged below `STEADY_BELOW`, and the linear probe
+of each row's inputs on the same sequences (`probe.fit_rows`) stands beside it; a row more than
+`BELOW_PROBE_PP` below its probe is said so.
 """
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
+from absl import logging
 
 from fabricjax import catalog, plots, stats
 from fabricjax.config import MODALITY_NAMES
@@ -31,11 +39,16 @@ WILCOXON_PAIR = ("internal", "internal+external")  # (baseline, compared), as in
 PAPER_WILCOXON_P = 0.0254  # the paper's test of that pair
 CONFUSION_ROWS = ("proprio", "flow")
 STEP_LAYERNORM = "step_layernorm"  # our fusion normalisation (config.FUSION_NORMS), beside the paper's sequence_minmax
+BELOW_PROBE_PP = 10.0  # on recorded data, a row this many points below its probe's test accuracy is said so
+# an input whose within-sequence variance is below this fraction of its total (median over its
+# dimensions, `probe.steadiness`) is steady within a sequence: reported, since the paper's rescale erases it
+STEADY_BELOW = 0.2
 
 
-def label(modalities: Sequence[str], backbone: str, fusion_norm: str = "sequence_minmax") -> str:
-    """How the table names a row: 'TCN: Minsound + palm mic', '... (our step-LayerNorm fusion)'."""
-    text = " + ".join(MODALITY_NAMES[m] for m in modalities)
+def label(modalities: Sequence[str], backbone: str, fusion_norm: str = "sequence_minmax", names: Mapping[str, str] | None = None) -> str:
+    """How the table names a row: 'TCN: Minsound + palm mic', '... (our step-LayerNorm fusion)';
+    with `names` (recorded data: modality -> the data's name for its stream) the data's names."""
+    text = " + ".join((names or {}).get(m, MODALITY_NAMES[m]) for m in modalities)
     text = f"TCN: {text}" if backbone == "tcn" else text
     return f"{text} (our step-LayerNorm fusion)" if fusion_norm == STEP_LAYERNORM else text
 
@@ -94,14 +107,17 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
     recorded = trained.dataset.recorded
     base, compared = WILCOXON_PAIR
     tests = runner.paired_tests(rows[base], rows[compared], "test", labels) if base in rows and compared in rows else {}
+    names = test.names if recorded else {}
     panels = [
-        (f"{MODALITY_NAMES[n]} only, {len(seeds)} seeds pooled", np.tile(labels, len(seeds)), rows[n].predictions("test").ravel())
+        (f"{names.get(n, MODALITY_NAMES[n])} only, {len(seeds)} seeds pooled", np.tile(labels, len(seeds)), rows[n].predictions("test").ravel())
         for n in CONFUSION_ROWS
         if n in rows
     ]
     figure = plots.plot_confusions(
         results / "ablation_confusion.png", panels, class_names=trained.dataset.classes if recorded else None
     ) if panels else None
+    if recorded:
+        return _recorded_body(trained, chosen, tests), [figure]
     body = {
         "rows": [
             {
@@ -126,6 +142,46 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
         else None,
     }
     return body, [figure]
+
+
+def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -> dict[str, Any]:
+    """The rows on recorded data: each under the fusion its validation accuracy picks, beside the
+    other fusion and the probe of its inputs; every input's steadiness."""
+    from fabricjax.studies import probe  # the probe's rows are this module's: it imports this module
+
+    sets, rows = trained.dataset.sets, trained.rows
+    names = sets["test"].names
+    twins = {runner.fusion_twin(r.name, STEP_LAYERNORM) for r in chosen}
+    chosen = [r for r in chosen if r.name not in twins]  # a chosen row's twin: reported within that row
+    probes = probe.fit_rows(sets, [r.modalities for r in chosen])
+    steady = {m: probe.steadiness(a) for m, a in sets["train"].inputs.items()}
+    for m, ratio in steady.items():
+        if ratio < STEADY_BELOW:
+            logging.warning("%s is steady within sequences: its within-sequence variance is %.1f %% of its total (median over its "
+                            "dimensions); the [0, 1] rescale over the sequence erases it, step-LayerNorm fusion keeps it",
+                            names.get(m, m), 100 * ratio)
+    out = []
+    for r in chosen:
+        trained_as = [rows[n] for n in (r.name, runner.fusion_twin(r.name, STEP_LAYERNORM)) if n in rows]
+        val = {t.config.fusion_norm: stats.mean_sd(100 * t.accuracy("val"))[0] for t in trained_as}
+        # on a tie, step-LayerNorm: it keeps the steady level the rescale erases, and loses nothing the rescale keeps
+        best = max(trained_as, key=lambda t: (val[t.config.fusion_norm], t.config.fusion_norm == STEP_LAYERNORM))
+        p = probes[frozenset(r.modalities)]
+        out.append({
+            "name": r.name, "backbone": best.config.backbone, "modalities": list(r.modalities),
+            "display_name": label(r.modalities, best.config.backbone, names=names), "fusion_norm": best.config.fusion_norm,
+            "fusion_choice": {
+                "by": "validation accuracy, mean over seeds [%]", "val": val,
+                "test": {t.config.fusion_norm: stats.mean_sd(100 * t.accuracy("test"))[0] for t in trained_as},
+            },
+            "probe": {"C": p["C"], "accuracy": p["accuracy"]},
+            **documents.row_doc(best, ["test"]),
+        })
+    return {
+        "rows": out, "names": dict(names), "steady_below": STEADY_BELOW, "steadiness": steady,
+        "test_samples": documents.samples_doc(sets["test"]),
+        "wilcoxon": {"baseline": WILCOXON_PAIR[0], "compared": WILCOXON_PAIR[1], **{k: documents.wilcoxon_doc(v) for k, v in tests.items()}} if tests else None,
+    }
 
 
 CLEARLY_WORSE_PP = 10.0  # "clearly worse": at least this many points below (the paper: 36)
@@ -224,28 +280,70 @@ def markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def recorded_table(rows: Sequence[dict[str, Any]]) -> str:
+    """Recorded data: each row under its fusion (by validation), the other fusion's test accuracy,
+    its probe's, model − probe and the gap to the best row."""
+    means = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
+    body = []
+    for r, (mean, sd), gap in zip(rows, means, documents.best_gaps([m for m, _ in means])):
+        choice, probe_test = r["fusion_choice"], 100 * r["probe"]["accuracy"]["test"]
+        other = [f"{FUSION_NAMES[f]} {choice['test'][f]:.2f}" for f in choice["test"] if f != r["fusion_norm"]]
+        val = ", ".join(f"{FUSION_NAMES[f]} {v:.2f}" for f, v in choice["val"].items())
+        body.append([
+            "TCN" if r["backbone"] == "tcn" else "Transformer", r["display_name"], f"{FUSION_NAMES[r['fusion_norm']]} (val {val})",
+            f"{mean:.2f} ± {sd:.2f}", ", ".join(other) or "–", f"{probe_test:.2f}", f"{mean - probe_test:+.2f}", gap, f"{r['wall_s']:.1f}",
+        ])
+    header = ["Backbone", "Inputs", "Fusion (by validation)", f"Test accuracy [%] (recorded data, {len(rows[0]['seeds'])} seeds)",
+              "Other fusion, test [%]", "Linear probe, test [%]", "Model − probe [pp]", documents.BEST_GAP, "Train wall time [s]"]
+    return documents.markdown_table(header, body)
+
+
+# how recorded-data tables name the fusions (config.FUSION_NORMS); the paper's is not named after it there
+FUSION_NAMES = {"sequence_minmax": "[0, 1] rescale over the sequence", STEP_LAYERNORM: "step-LayerNorm"}
+
+
+def recorded_notes(doc: dict[str, Any]) -> list[str]:
+    """A line per row more than `BELOW_PROBE_PP` below its probe, and per input steady within sequences."""
+    lines = []
+    for r in doc["rows"]:
+        mean, probe_test = 100 * float(np.mean(r["accuracy"]["test"]["fabric"])), 100 * r["probe"]["accuracy"]["test"]
+        if mean < probe_test - BELOW_PROBE_PP:
+            lines.append(f"- **{r['display_name']}** is {probe_test - mean:.1f} pp below the linear probe of its inputs "
+                         f"({mean:.1f} % against {probe_test:.1f} %): the model does not read what the inputs carry.")
+    for m, ratio in doc["steadiness"].items():
+        if ratio < doc["steady_below"]:
+            lines.append(f"- {doc['names'].get(m, m)} is steady within sequences: its within-sequence variance is {100 * ratio:.1f} % of "
+                         "its total (median over its dimensions); the [0, 1] rescale over the sequence erases it, step-LayerNorm keeps it.")
+    return lines + [""] if lines else []
+
+
 def _recorded_markdown(doc: dict[str, Any]) -> str:
-    """The table of a `--data_dir` run: recorded data, rows compared with each other."""
+    """The table of a `--data_dir` run: recorded data, rows compared with each other and with their probes."""
+    steadiness = ", ".join(f"{doc['names'].get(m, m)} {100 * v:.1f} %" for m, v in doc["steadiness"].items())
     lines = [
         documents.title(doc, TITLE, PAPER),
         "",
         documents.header_markdown(doc),
-        table(doc["rows"], recorded=True),
-        documents.RECORDED_NOTE,
+        recorded_table(doc["rows"]),
+        documents.RECORDED_NOTE + " Each row is trained under both fusion normalisations and shown under the one with the better "
+        "validation accuracy (step-LayerNorm on a tie: it keeps the steady level the rescale erases). The probe is a logistic regression on each sequence's per-dimension mean and SD "
+        f"(`experiments.probe`), on the same sequences. Within-sequence share of each input's variance: {steadiness}.",
         "",
+        *recorded_notes(doc),
     ]
     w = doc["wilcoxon"]
     if w:
         lines += [f"## Wilcoxon signed-rank: {w['compared']} against {w['baseline']}", "", f"- {w['per_seed']['describe']}",
                   f"- {w['per_sample']['describe']}", ""]
     if "ablation_confusion.png" in doc["figures"]:
-        lines += ["Confusion matrices (proprioception only, optical flow only, where run): `ablation_confusion.png`.", ""]
+        shown = ", ".join(f"{doc['names'].get(m, m)} only" for m in CONFUSION_ROWS if any(r["name"] == m for r in doc["rows"]))
+        lines += [f"Confusion matrices ({shown}): `ablation_confusion.png`.", ""]
     return "\n".join(lines)
 
 
 STUDY = runner.Study(
     "ablation", ROWS, n_seeds=5, eval_splits=("test",), split_names=loading.TRAIN_VAL_TEST,
     document=document, checklist=lambda doc: checklist({r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]}),
-    markdown=markdown,
+    markdown=markdown, recorded_fusions=(STEP_LAYERNORM,),
 )
 run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

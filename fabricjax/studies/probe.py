@@ -123,6 +123,41 @@ def prepare(sequences: Mapping[str, np.ndarray]) -> Input:
     return Input(step_dims, 2 * step_dims, features, explained, time.perf_counter() - t0)
 
 
+def steadiness(x: np.ndarray) -> float:
+    """How much an input's dimensions change within sequences compared with across them: per
+    dimension, the mean within-sequence variance over the total (within + the variance of the
+    sequence means), the median over dimensions (constant dimensions left out; 1.0 when all are).
+    Near 0, the input is steady within a sequence: its information is its level, which the paper's
+    per-sequence [0, 1] rescale erases."""
+    summaries = summarise(x).astype(np.float64)
+    d = summaries.shape[1] // 2
+    within, across = (summaries[:, d:] ** 2).mean(axis=0), summaries[:, :d].var(axis=0)
+    total = within + across
+    varying = total > 0
+    return float(np.median(within[varying] / total[varying])) if varying.any() else 1.0
+
+
+def prepare_inputs(sets: Mapping[str, Any], modalities: Sequence[str], splits: Sequence[str]) -> dict[str, Input]:
+    """Each of `modalities`' probe features on `splits` of `sets` (split -> `data.SequenceSet`)."""
+    inputs = {}
+    with threadpool_limits(BLAS_THREADS):
+        for m in modalities:
+            inputs[m] = prepare({s: sets[s].inputs[m] for s in splits})  # every row has the same bandwidth
+            logging.info("probe: %s summaries %s", m, inputs[m].to_json())
+    return inputs
+
+
+def fit_rows(sets: Mapping[str, Any], modality_sets: Sequence[Sequence[str]]) -> dict[frozenset, dict[str, Any]]:
+    """The probe (`fit`) of every distinct set of inputs in `modality_sets`, on the train, val and
+    test splits of `sets`: what a study trained on these sequences sets beside its rows."""
+    splits = list(loading.TRAIN_VAL_TEST)
+    wanted = {frozenset(m): tuple(m) for m in modality_sets}
+    inputs = prepare_inputs(sets, sorted({m for ms in wanted.values() for m in ms}), splits)
+    labels = {s: sets[s].labels["fabric"] for s in splits}
+    with threadpool_limits(BLAS_THREADS):
+        return {k: fit({s: np.concatenate([inputs[m].features[s] for m in ms], axis=1) for s in splits}, labels) for k, ms in wanted.items()}
+
+
 def fit(x: Mapping[str, np.ndarray], labels: Mapping[str, np.ndarray], c_grid: Sequence[float] = C_GRID) -> dict[str, Any]:
     """Logistic regression on the features `x` of every split (fitted on `x["train"]`) for every
     C of `c_grid`, ascending, each fit warm-started from the last; the chosen C is the one with
@@ -173,13 +208,11 @@ def run(
         raise archive.ArchiveError(ds.folder, "label", "the training split holds fewer than two fabrics: nothing to probe")
 
     t0 = time.perf_counter()
+    inputs = prepare_inputs(ds.sets, loading.union_modalities(configs), present)
     with threadpool_limits(BLAS_THREADS):
-        inputs = {}
-        for m in loading.union_modalities(configs):
-            inputs[m] = prepare({s: ds.sets[s].inputs[m] for s in present})  # every row has the same bandwidth
-            logging.info("probe: %s summaries %s", m, inputs[m].to_json())
         progress = runner.Progress("probe", len(chosen))
-        out_rows = [_probe_row(r, inputs, labels, present, progress) for r in chosen]
+        names = ds.sets["train"].names if ds.recorded else {}  # recorded data: its own names for its streams
+        out_rows = [_probe_row(r, inputs, labels, present, progress, names) for r in chosen]
 
     doc = {
         **documents.header("probe", command=command, preset=preset, dataset=ds, probe_s=time.perf_counter() - t0),
@@ -189,16 +222,18 @@ def run(
         },
         "splits": present,
         "classes": sorted(np.unique(labels["train"]).tolist()),
-        "inputs": {m: i.to_json() for m, i in inputs.items()},
+        "inputs": {m: {**i.to_json(), "display_name": names.get(m, MODALITY_NAMES[m])} for m, i in inputs.items()},
         "rows": out_rows,
         "samples": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
     }
     return documents.write(results, doc, markdown)
 
 
-def _probe_row(r: StudyRow, inputs: Mapping[str, Input], labels, splits: Sequence[str], progress: runner.Progress) -> dict[str, Any]:
-    """Row `r`'s probe on its inputs' features, concatenated, as the JSON row."""
-    name = r.label
+def _probe_row(r: StudyRow, inputs: Mapping[str, Input], labels, splits: Sequence[str], progress: runner.Progress,
+               names: Mapping[str, str]) -> dict[str, Any]:
+    """Row `r`'s probe on its inputs' features, concatenated, as the JSON row; `names`: the data's
+    names for its streams (recorded data), else the paper's."""
+    name = ablation.label(r.modalities, "attention", names=names) if names else r.label
     progress.start(name)
     t0 = time.perf_counter()
     features = {s: np.concatenate([inputs[m].features[s] for m in r.modalities], axis=1) for s in splits}
@@ -228,7 +263,7 @@ def table(doc: Mapping[str, Any]) -> str:
 
 def inputs_table(doc: Mapping[str, Any]) -> str:
     body = [
-        [MODALITY_NAMES[m], i["step_dims"], i["summary_dims"],
+        [i.get("display_name", MODALITY_NAMES[m]), i["step_dims"], i["summary_dims"],
          f"{i['probe_dims']} (PCA, {100 * i['explained_variance']:.1f} % of the variance)" if i["explained_variance"] is not None else i["probe_dims"],
          f"{i['seconds']:.1f}"]
         for m, i in doc["inputs"].items()

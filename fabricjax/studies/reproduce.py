@@ -23,6 +23,12 @@ checklist, its Wilcoxon tests), links its figures, sets the probe beside the abl
 machine, the library versions, the code's fingerprint, each study's wall time and the exact
 command that reruns that study alone. On recorded data (`data_dir`) the report, like its studies,
 names the data and compares rows with each other: no paper in its titles or summary.
+
+On recorded data the plan follows what the data has (`fit_plan`): a study's rows that need a
+stream the data lacks are left out, a study none of whose rows it can feed is skipped, and the
+studies of the paper's protocol (`PROTOCOL`: cafe noise needs cafe-split trials, the property study
+held-out fabrics, the latents the property study) are skipped when the data has no such trials,
+each with one line saying why.
 """
 
 from __future__ import annotations
@@ -37,7 +43,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import fabricjax
-from fabricjax import presets, source, workspace
+from fabricjax import archive, dataset_index, presets, source, splits, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
 from fabricjax.studies import ablation, bandwidth, documents, findings, latents, noise, probe, properties
@@ -58,6 +64,8 @@ class Step:
 
 
 PLAN = (Step("ablation", 5), Step("probe"), Step("bandwidth", 5), Step("noise", 10), Step("properties", 5), Step("latents"))
+# The studies that need trials of the paper's protocol: the split they read, and what it is
+PROTOCOL = {"noise": ("cafe", "trials of the cafe condition (split cafe)"), "properties": ("holdout", "held-out fabrics (split holdout)")}
 
 # The manifest the repository publishes (results/reproduce.json): its recorded wall times are the
 # estimate for a run of the same preset before this folder has its own.
@@ -131,6 +139,36 @@ def _latent_checkpoint(out: Path) -> str:
     return rows.get(LATENT_ROW, doc["rows"][-1]["checkpoint"])
 
 
+def fit_plan(plan: Sequence[Step], preset: str, data_dir, workdir, say: Callable[[str], None]) -> list[Step]:
+    """`plan` as recorded data in `data_dir` can run it (module docstring), saying what is left out."""
+    index = dataset_index.load_index(data_dir, workdir)
+    lay = archive.layout(index.entries[0].meta)
+    have = set(lay.modalities())
+    roles = set(splits.assign_roles([e.meta for e in index.entries], presets.get(preset).dataset.splits))
+    out: list[Step] = []
+    for step in plan:
+        if step.study == "latents" and not any(s.study == "properties" for s in out):
+            say("  latents     skip  (it reads the property study's checkpoint, which this data does not train)")
+            continue
+        if step.study in PROTOCOL and PROTOCOL[step.study][0] not in roles:
+            say(f"  {step.study:<11} skip  (the paper's protocol: it needs {PROTOCOL[step.study][1]}, and the data has none)")
+            continue
+        rows = getattr(STUDIES[step.study], "ROWS", None)
+        if rows is None:
+            out.append(step)
+            continue
+        named = [r for r in rows if step.rows is None or r.name in step.rows]
+        fit = tuple(r.name for r in named if set(r.modalities) <= have)
+        lacking = sorted({m for r in named for m in r.modalities} - have)
+        if not fit:
+            say(f"  {step.study:<11} skip  (its rows need {', '.join(lacking)}, which the data lacks: it has {lay.describe()})")
+            continue
+        if len(fit) < len(named):
+            say(f"  {step.study:<11} {len(named) - len(fit)} of its {len(named)} rows left out (they need {', '.join(lacking)}, which the data lacks)")
+        out.append(step if len(fit) == len(named) else dataclasses.replace(step, rows=fit))
+    return out
+
+
 def run(
     *,
     preset: str = "default",
@@ -150,6 +188,8 @@ def run(
     if unknown:
         raise UserError(f"unknown studies {unknown}; choose from {list(STUDIES)}")
     overrides = dict(overrides or {})
+    if data_dir:
+        plan = fit_plan(plan, preset, data_dir, workdir, say)
     out = workspace.results_dir(results, workdir)
     manifest_path = out / MANIFEST
     manifest = _read_json(manifest_path) or {}

@@ -220,6 +220,7 @@ def train_rows(
     summary: Callable[[Row], str] = _test_summary,
     check: Callable[[loading.Dataset], None] | None = None,
     progress: Progress | None = None,
+    data_names: bool = False,
 ) -> Trained:
     """Load the data every row needs once, then train each (name, config) row's seeds.
 
@@ -227,12 +228,17 @@ def train_rows(
     loaded. `checkpoints`: keep each row's models (`checkpoint_dir`). `label` names a row in the
     progress log, `summary` says how it did there. `check` looks at the loaded data before any
     training (raise `UserError` for data the study cannot use). `progress`: a log shared with
-    other calls (a study that loads its rows in several parts), else one for these rows."""
+    other calls (a study that loads its rows in several parts), else one for these rows.
+    `data_names`: on recorded data, name each row in the log by its name and the data's own names
+    for its inputs (the rig's microphones and joints), not by `label`."""
     configs = [c for _, c in rows]
     ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
     if check is not None:
         check(ds)
     rows = [(name, dataclasses.replace(config, n_classes=ds.n_classes)) for name, config in rows]  # the data's classes
+    if data_names and ds.recorded:
+        names, inputs = next(iter(ds.sets.values())).names, {n: c.modalities for n, c in rows}
+        label = lambda name: f"{name} ({' + '.join(names.get(m, m) for m in inputs[name])})"  # noqa: E731
     configs = [c for _, c in rows]
     if progress is None:
         progress = Progress(study, len(rows), [row_kind(c) for c in configs])
@@ -284,7 +290,11 @@ class Study:
     statistics, samples) and the figures it drew into the `results` folder; `checklist(doc)` the
     paper's claims about the table as `findings.Finding`s (skipped on recorded data);
     `markdown(doc)` the table people read. `recorded_settings`: `Config` fields every row sets on
-    recorded data only (the property study's holdouts are the data's own holdout split)."""
+    recorded data only (the property study's holdouts are the data's own holdout split).
+    `recorded_fusions`: other `Config.fusion_norm`s each chosen row is also trained under on
+    recorded data, as the row `<fusion>:<name>` (`fusion_twin`), so that the study can say which
+    fusion the data needs: a cue steady within a sequence, which the paper's rescale erases, is
+    what another rig may carry."""
 
     name: str
     rows: tuple[StudyRow, ...]
@@ -299,6 +309,7 @@ class Study:
     summary: Callable[[Row], str] = _test_summary
     check: Callable[[loading.Dataset], None] | None = None
     recorded_settings: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    recorded_fusions: tuple[str, ...] = ()
 
     def row(self, name: str) -> StudyRow:
         return next(r for r in self.rows if r.name == name)
@@ -310,6 +321,22 @@ class Study:
     def run(self, **kwargs) -> dict[str, Any]:
         """`run_study(self, **kwargs)`."""
         return run_study(self, **kwargs)
+
+
+def fusion_twin(name: str, fusion_norm: str) -> str:
+    """The name of row `name` trained under `fusion_norm` (a study's `recorded_fusions`)."""
+    return f"{fusion_norm}:{name}"
+
+
+def _with_fusion_twins(study: Study, rows: list[tuple[str, Config]]) -> list[tuple[str, Config]]:
+    """`rows` and, for each, its twin under every `study.recorded_fusions` it is not already
+    under, unless that twin is among `rows` itself."""
+    names = {n for n, _ in rows}
+    twins = [
+        (fusion_twin(n, f), dataclasses.replace(c, fusion_norm=f))
+        for n, c in rows for f in study.recorded_fusions if c.fusion_norm != f and fusion_twin(n, f) not in names
+    ]
+    return rows + twins
 
 
 def run_study(
@@ -332,10 +359,15 @@ def run_study(
     chosen = select_rows(study.rows, rows)
     seeds = seed_list(study.n_seeds if n_seeds is None else n_seeds)
     own = dict(study.recorded_settings) if data_dir else {}
+    row_configs = [(r.name, r.config(preset, overrides, own)) for r in chosen]
+    if data_dir:
+        row_configs = _with_fusion_twins(study, row_configs)
+    labels = {r.name: r.label for r in study.rows}
     trained = train_rows(
-        study.name, [(r.name, r.config(preset, overrides, own)) for r in chosen], seeds,
+        study.name, row_configs, seeds,
         eval_splits=study.eval_splits, split_names=study.split_names, data_dir=data_dir, workdir=workdir,
-        checkpoints=study.checkpoints, label=lambda name: study.row(name).label, summary=study.summary, check=study.check,
+        checkpoints=study.checkpoints, label=lambda name: labels.get(name, name), summary=study.summary, check=study.check,
+        data_names=True,
     )
     body, figures = study.document(trained, chosen, documents.results_path(results))
     doc = {**documents.header(study.name, command=command, preset=preset, seeds=seeds, dataset=trained.dataset, train_s=trained.train_s), **body}
