@@ -78,6 +78,7 @@ SHELL_SPECTRAL_SLOPE = 2.0
 # a fraction of that reaches the inner wall through ~3 mm of silicone over the contact patch.
 GAMMA_P0_PA = 1.4 * 101_325.0
 CONTACT_AREA_M2 = 20e-6  # ~5 mm x 4 mm contact patch at 0.1 N
+CONTACT_LENGTH_MM = 5.0  # the patch's length along the rubbing path (the 5 mm of the area above)
 WALL_COUPLING = 0.01  # inner-wall displacement per outer-surface displacement
 CAVITY_VOLUME_M3 = 8e-6  # ~8 cm^3 of air inside the shell
 TEXTURE_PA_PER_UM = GAMMA_P0_PA * CONTACT_AREA_M2 * WALL_COUPLING * 1e-6 / CAVITY_VOLUME_M3  # ~3.5e-3
@@ -188,8 +189,12 @@ VISCOUS_NM_PER_RAD_S = 0.01  # gear-train drag of a moving joint
 # and the current reading has no documented offset drift (its 6.5 mA LSB and the PWM ripple
 # above are the sensor's limits). Day-to-day differences reach the joints through the grasp.
 # [phys] Minsight force proxy: the closing stops when the estimate crosses 0.1 N, so its error
-# shows as grasp force. Minsight's force map is trained to errors of a few hundredths of a newton;
-# we take 4 mN of frame-to-frame noise and 4 mN of per-day bias (reference image re-taken daily).
+# shows as grasp force (`motion.finger_motion` stops on the estimate, the proxy records it). The
+# force map of Insight, Minsight's parent design, is accurate to ~0.03 N in magnitude over 0.03-2 N
+# across many contacts (Sun, Martius, Kuchenbecker, "A soft thumb-sized vision-based sensor with
+# accurate all-round force perception", Nature Machine Intelligence 4, 2022); at one repeated
+# contact near 0.1 N the error splits into frame-to-frame noise and a bias that holds for a day
+# (the reference image is re-taken daily): 4 mN each (SD), a seventh of that figure apiece.
 FORCE_NOISE_N = 0.004
 FORCE_BIAS_N = 0.004
 # [phys] The hanging fabric is folded by hand on the hanger: where the grasp lands the stack is
@@ -198,6 +203,37 @@ FOLD_SPREAD = 0.1
 # [phys] Where the contact centre lands on Minsight's shell: the grasp is force-controlled, not
 # placed, so the patch wanders by about a third of its ~5 mm size between trials (SD, mm).
 CONTACT_OFFSET_MM = 1.5
+
+# --- the rig between sessions (`sim.rig`) ---------------------------------------------------------
+# [phys] The lab's climate on a recording day. An air-conditioned building holds its set point to
+# +-2 F (75 +- 2 F, ASHRAE Standard 55, "Thermal Environmental Conditions for Human Occupancy", and
+# building practice), i.e. 22.8-25.0 C, and indoor relative humidity within the comfort range
+# 30-60 % (ASHRAE Standard 55-1992); each day draws both uniformly in these ranges (the cafe is an
+# indoor room too). The climate is the same for every trial of a day.
+ROOM_TEMPERATURE_C = (22.8, 25.0)
+ROOM_HUMIDITY_PCT = (30.0, 60.0)
+# [phys] Friction of a soft, hygroscopic contact against the climate: Klaassen, Schipper, Masen,
+# "Influence of the relative humidity and the temperature on the in-vivo friction behaviour of
+# human skin", Biotribology 6, 2016: friction grows with the product T x RH, doubling from
+# 25 C / 40 % to 37 C / 80 %; read as linear in T x RH, mu = a + b T RH with b / a = 1 / 960
+# (C %)^-1 (a + 1000 b = 1, a + 2960 b = 2). The silicone fingertip is hydrophobic and only the
+# cloth takes up water, so this skin figure is an upper estimate of the day-to-day change. The
+# catalog's coefficients hold at the centre of the room's climate (`rig.friction_scale`).
+FRICTION_CLIMATE_B_PER_A = 1.0 / 960.0
+# [phys] The silicone's modulus against temperature: rubber elasticity is entropic, G = n k T
+# (Treloar, "The Physics of Rubber Elasticity", 3rd ed., Oxford 1975), so the shells' stiffness
+# scales with the absolute temperature: +0.34 % per K at room temperature. The catalog's and this
+# file's stiffnesses hold at `SILICONE_REFERENCE_K` (the centre of the room's climate). Minsight's
+# force map reads deformation, so a stiffer shell reads low: the closing stops later (`rig`).
+SILICONE_REFERENCE_K = 273.15 + 23.9
+# [phys] Cloth wear: rubbing teases loose fibre ends out of a staple-fibre fabric (the fuzz stage of
+# pilling, Gintis and Mead, "The mechanism of pilling", Textile Research Journal 29, 1959; filament
+# fabrics have no free ends, so fuzz-free cloth stays as it is). The Martindale pilling test
+# (ISO 12945-2) assesses fuzz and pills after 125, 500, 1000 and 2000 rubs: the loose-fibre density
+# is taken to grow linearly with the rubs a spot has had, doubling after `WEAR_DOUBLING_RUBS`.
+# A spot is rubbed in a trial when the grasp lands within a patch length plus a stroke of it: a
+# share (5 + 6) / (40 + 11) of the trials on the 40 mm grasp range, each trial two passes per cycle.
+WEAR_DOUBLING_RUBS = 1000.0
 
 # --- Minsight images --------------------------------------------------------------------------
 SHELL_WIDTH_MM = 30.0  # the 410-pixel image spans ~30 mm of shell interior

@@ -35,7 +35,9 @@ def microphones(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, nz) -> n
         slide = np.interp(t, mot.t, mot.slide_mm)
         normal = np.interp(t, mot.t, mot.normal_n, left=0.0, right=0.0)
         if scene.wants("texture"):
-            contact += grid.rfft(texture.vibration(scene, slide, normal, nz.grasp_mm, scene.rng("texture", "trial")))
+            contact += grid.rfft(texture.vibration(
+                scene, slide, normal, nz.grasp_mm, scene.rng("texture", "trial"), nz.fuzz_scale
+            ))
         if scene.wants("stick_slip"):
             contact += stick_slip.spectrum(scene, mot, grid, scene.rng("stick_slip", "trial"))
     inside += contact * shell.contact_transfer(f) if scene.wants("shell") else contact
