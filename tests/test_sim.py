@@ -277,20 +277,22 @@ def test_the_rigs_day_and_trial_draws_are_deterministic_per_seed_day_and_trial()
 
 
 def test_two_days_close_the_grasp_at_different_forces():
-    """The closing stops on the day's force estimate (bias, silicone), so the true grasp force moves
-    with the day; without the bias and at nominal climate it is the threshold plus the frame's overshoot."""
-    def grasp(day, effects=EFFECTS):
-        scene = Scene(3, day=day, effects=effects)
-        return motion.finger_motion(scene.fabric, 2, nuisance(scene), scene.rng("motion", "trial")).grasp_n
+    """The closing stops on the day's force estimate (its bias, and the day's silicone, which it reads
+    as deformation): the true grasp force lies within one camera frame's closing above
+    (0.1 N - bias) x silicone scale, a target that moves from day to day."""
+    fab = catalog.fabric(6)  # compressible: a frame's closing adds only ~14 mN
 
-    forces = [grasp(d) for d in range(1, 7)]
-    assert np.ptp(forces) > 0.003
-    nz = nuisance(Scene(3, day=1))
-    assert nz.force_bias_n != 0.0
-    lowered = motion.finger_motion(catalog.fabric(3), 2, nz, np.random.default_rng(0)).grasp_n
-    unbiased = motion.finger_motion(catalog.fabric(3), 2, dataclasses.replace(nz, force_bias_n=0.0), np.random.default_rng(0)).grasp_n
-    frame_overshoot = motion.stack_stiffness(catalog.fabric(3), 2 * 0.35 * nz.fold, nz.silicone_scale) * cal.CLOSING_SPEED_MM_S / archive.STEP_RATE
-    assert abs((unbiased - lowered) - nz.force_bias_n * nz.silicone_scale) <= frame_overshoot + 1e-9
+    def window(nz):
+        mot = motion.finger_motion(fab, 2, nz, np.random.default_rng(0))
+        target = (cal.GRASP_FORCE_N - nz.force_bias_n) * nz.silicone_scale
+        return target, mot.grasp_n, mot.contact_stiffness_n_mm * cal.CLOSING_SPEED_MM_S / archive.STEP_RATE
+
+    days = [nuisance(Scene(6, day=d)) for d in range(1, 5)]
+    for nz in (*days, dataclasses.replace(days[0], force_bias_n=0.05)):
+        target, grasp, step = window(nz)
+        assert target - 1e-9 <= grasp < target + step + 1e-9
+    targets = [window(nz)[0] for nz in days]
+    assert np.ptp(targets) > 0.002 and len({round(t, 6) for t in targets}) == len(days)
 
 
 def test_the_climate_moves_friction_and_silicone_and_wear_grows_the_fuzz():

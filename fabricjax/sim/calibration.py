@@ -205,32 +205,36 @@ FOLD_SPREAD = 0.1
 CONTACT_OFFSET_MM = 1.5
 
 # --- the rig between sessions (`sim.rig`) ---------------------------------------------------------
-# [phys] The lab's climate on a recording day. An air-conditioned building holds its set point to
-# +-2 F (75 +- 2 F, ASHRAE Standard 55, "Thermal Environmental Conditions for Human Occupancy", and
-# building practice), i.e. 22.8-25.0 C, and indoor relative humidity within the comfort range
-# 30-60 % (ASHRAE Standard 55-1992); each day draws both uniformly in these ranges (the cafe is an
-# indoor room too). The climate is the same for every trial of a day.
+# [phys] The lab's climate on a recording day. Building climate control holds 75 +- 2 F, i.e.
+# 22.8-25.0 C, after ASHRAE's comfort guidance (ASHRAE Standard 55, "Thermal Environmental
+# Conditions for Human Occupancy"), and indoor relative humidity within the comfort range 30-60 %
+# (ASHRAE Standard 55-1992); each day draws both uniformly in these ranges (the cafe is an indoor
+# room too). The climate is the same for every trial of a day.
 ROOM_TEMPERATURE_C = (22.8, 25.0)
 ROOM_HUMIDITY_PCT = (30.0, 60.0)
-# [phys] Friction of a soft, hygroscopic contact against the climate: Klaassen, Schipper, Masen,
-# "Influence of the relative humidity and the temperature on the in-vivo friction behaviour of
-# human skin", Biotribology 6, 2016: friction grows with the product T x RH, doubling from
-# 25 C / 40 % to 37 C / 80 %; read as linear in T x RH, mu = a + b T RH with b / a = 1 / 960
-# (C %)^-1 (a + 1000 b = 1, a + 2960 b = 2). The silicone fingertip is hydrophobic and only the
-# cloth takes up water, so this skin figure is an upper estimate of the day-to-day change. The
-# catalog's coefficients hold at the centre of the room's climate (`rig.friction_scale`).
+# [phys] Friction of a soft, hygroscopic contact against the climate: the in-vivo skin friction map
+# of Klaassen et al. (Biotribology, 2016; reciprocating tribometer in a climate enclosure, 25-37 C,
+# 40-80 % RH) grows with the product T x RH and doubles from 25 C / 40 % to 37 C / 80 %; Hendriks and
+# Franklin ("Influence of surface roughness, material and climate conditions on the friction of
+# human skin", Tribology Letters 37, 2010) likewise find friction twice as high in a humid climate
+# (21-29 C, 37-92 % RH). Read as linear in T x RH, mu = a + b T RH with b / a = 1 / 960 (C %)^-1
+# (a + 1000 b = 1, a + 2960 b = 2). The silicone fingertip is hydrophobic and only the cloth takes
+# up water, so this skin figure is an upper estimate of the day-to-day change. The catalog's
+# coefficients hold at the centre of the room's climate (`rig.friction_scale`).
 FRICTION_CLIMATE_B_PER_A = 1.0 / 960.0
 # [phys] The silicone's modulus against temperature: rubber elasticity is entropic, G = n k T
 # (Treloar, "The Physics of Rubber Elasticity", 3rd ed., Oxford 1975), so the shells' stiffness
 # scales with the absolute temperature: +0.34 % per K at room temperature. The catalog's and this
 # file's stiffnesses hold at `SILICONE_REFERENCE_K` (the centre of the room's climate). Minsight's
 # force map reads deformation, so a stiffer shell reads low: the closing stops later (`rig`).
-SILICONE_REFERENCE_K = 273.15 + 23.9
+CELSIUS_K = 273.15
+SILICONE_REFERENCE_K = CELSIUS_K + sum(ROOM_TEMPERATURE_C) / 2
 # [phys] Cloth wear: rubbing teases loose fibre ends out of a staple-fibre fabric (the fuzz stage of
 # pilling, Gintis and Mead, "The mechanism of pilling", Textile Research Journal 29, 1959; filament
 # fabrics have no free ends, so fuzz-free cloth stays as it is). The Martindale pilling test
 # (ISO 12945-2) assesses fuzz and pills after 125, 500, 1000 and 2000 rubs: the loose-fibre density
-# is taken to grow linearly with the rubs a spot has had, doubling after `WEAR_DOUBLING_RUBS`.
+# is taken to grow linearly with the rubs a spot has had, doubling after `WEAR_DOUBLING_RUBS`, the
+# middle of those stages (an estimate: the test grades pills, not a fibre density).
 # A spot is rubbed in a trial when the grasp lands within a patch length plus a stroke of it: a
 # share (5 + 6) / (40 + 11) of the trials on the 40 mm grasp range, each trial two passes per cycle.
 WEAR_DOUBLING_RUBS = 1000.0

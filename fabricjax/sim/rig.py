@@ -19,9 +19,6 @@ import numpy as np
 
 from fabricjax.sim import calibration as cal
 
-CELSIUS_K = 273.15
-
-
 def climate(rng: np.random.Generator) -> tuple[float, float]:
     """(temperature C, relative humidity %) of one recording day."""
     return float(rng.uniform(*cal.ROOM_TEMPERATURE_C)), float(rng.uniform(*cal.ROOM_HUMIDITY_PCT))
@@ -39,7 +36,7 @@ def friction_scale(temperature_c: float, humidity_pct: float) -> float:
 
 def silicone_scale(temperature_c: float) -> float:
     """The shells' stiffness relative to nominal: proportional to the absolute temperature."""
-    return (temperature_c + CELSIUS_K) / cal.SILICONE_REFERENCE_K
+    return (temperature_c + cal.CELSIUS_K) / cal.SILICONE_REFERENCE_K
 
 
 def spot_share() -> float:
