@@ -78,7 +78,6 @@ SHELL_SPECTRAL_SLOPE = 2.0
 # a fraction of that reaches the inner wall through ~3 mm of silicone over the contact patch.
 GAMMA_P0_PA = 1.4 * 101_325.0
 CONTACT_AREA_M2 = 20e-6  # ~5 mm x 4 mm contact patch at 0.1 N
-CONTACT_LENGTH_MM = 5.0  # the patch's length along the rubbing path (the 5 mm of the area above)
 WALL_COUPLING = 0.01  # inner-wall displacement per outer-surface displacement
 CAVITY_VOLUME_M3 = 8e-6  # ~8 cm^3 of air inside the shell
 TEXTURE_PA_PER_UM = GAMMA_P0_PA * CONTACT_AREA_M2 * WALL_COUPLING * 1e-6 / CAVITY_VOLUME_M3  # ~3.5e-3
@@ -235,8 +234,8 @@ SILICONE_REFERENCE_K = CELSIUS_K + sum(ROOM_TEMPERATURE_C) / 2
 # (ISO 12945-2) assesses fuzz and pills after 125, 500, 1000 and 2000 rubs: the loose-fibre density
 # is taken to grow linearly with the rubs a spot has had, doubling after `WEAR_DOUBLING_RUBS`, the
 # middle of those stages (an estimate: the test grades pills, not a fibre density).
-# A spot is rubbed in a trial when the grasp lands within a patch length plus a stroke of it: a
-# share (5 + 6) / (40 + 11) of the trials on the 40 mm grasp range, each trial two passes per cycle.
+# A spot is rubbed in a trial when the grasp lands within a patch diameter (of `CONTACT_AREA_M2`) plus
+# a stroke of it: a share (5 + 6) / (40 + 11) of the trials on the 40 mm grasp range, two passes a cycle.
 WEAR_DOUBLING_RUBS = 1000.0
 
 # --- Minsight images --------------------------------------------------------------------------

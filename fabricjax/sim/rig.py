@@ -15,6 +15,8 @@ Without an effect its factor is 1: the catalog's fabric at the calibration's nom
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from fabricjax.sim import calibration as cal
@@ -40,8 +42,9 @@ def silicone_scale(temperature_c: float) -> float:
 
 
 def spot_share() -> float:
-    """Share of the trials whose rubbed stretch covers a given spot of the strip."""
-    rubbed = cal.CONTACT_LENGTH_MM + 2 * cal.RUB_AMPLITUDE_MM
+    """Share of the trials whose rubbed stretch (the contact patch's diameter plus a stroke) covers
+    a given spot of the strip."""
+    rubbed = 2e3 * math.sqrt(cal.CONTACT_AREA_M2 / math.pi) + 2 * cal.RUB_AMPLITUDE_MM
     lo, hi = cal.GRASP_RANGE_MM
     return rubbed / (hi - lo + rubbed)
 
