@@ -1,6 +1,7 @@
 """Flags shared by the study commands; every `Config` field is a sweep dimension.
 
     --seeds --preset --rows --set=field=value (repeatable)   (define_rows, study_command)
+    --preset --rows --set=field=value (repeatable)           (rows_study_command: no seeds)
     --workdir --data_dir --results --cpu_devices             (always)
     --distributed --coordinator_address --num_processes --process_id   (always: a run over several processes)
 
@@ -120,6 +121,20 @@ def study_command(study: Study) -> None:
     def main(argv):
         del argv
         study.run(**rows_kwargs())
+
+    run(main)
+
+
+def rows_study_command(study) -> None:
+    """The whole command line of a deterministic study over named rows (the probe, the day shift):
+    --preset, --rows (from `study.ROWS`) and --set, then `study.run` with them."""
+    define_preset()
+    flags.DEFINE_list("rows", None, f"comma-separated rows, from: {', '.join(r.name for r in study.ROWS)} (default: every row)")
+    define_overrides()
+
+    def main(argv):
+        del argv
+        study.run(preset=FLAGS.preset, rows=FLAGS.rows, overrides=overrides(), **location_kwargs())
 
     run(main)
 

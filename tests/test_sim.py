@@ -1,5 +1,6 @@
 """Scene simulator: determinism, streams and effects on demand, valid archives, physics, no shortcut."""
 
+import dataclasses
 import os
 import signal
 import subprocess
@@ -12,10 +13,11 @@ import scipy.signal
 
 from fabricjax import archive, catalog, dataset_index, presets
 from fabricjax.sim import EFFECTS, Scene, ensure_dataset, simulate
-from fabricjax.sim import acoustics, air_path, ambient, minsight, motion, servo, shell, sph0645, stick_slip, texture, trial
+from fabricjax.sim import acoustics, air_path, ambient, minsight, motion, rig, servo, shell, sph0645, stick_slip, texture, trial
 from fabricjax.sim import calibration as cal
 from fabricjax.sim import dataset as dataset_mod
-from fabricjax.sim.scene import nuisance
+from fabricjax.sim import scene as scene_mod
+from fabricjax.sim.scene import SIMULATOR_VERSION, nuisance
 
 SHORT = dict(cycles=2)
 
@@ -59,6 +61,8 @@ EFFECT_CALLS = {  # effect -> (module, function that only that effect calls)
     "servo_noise": (servo, "source"),
     "ambient": (ambient, "spectra"),
     "sph0645": (sph0645, "self_noise"),
+    "climate": (rig, "climate"),
+    "wear": (rig, "fuzz_scale"),
 }
 
 
@@ -331,3 +335,65 @@ def test_the_microphone_gain_drifts_within_its_datasheet_bound():
     gains = np.array([nuisance(Scene(1, day=day, condition=c)).mic_gain_db for day in range(1, 201) for c in ("lab", "cafe")])
     assert np.abs(gains).max() <= 0.5
     assert gains.std() > 0.15
+
+
+def test_the_rigs_day_and_trial_draws_are_deterministic_per_seed_day_and_trial():
+    def draws(**kw):
+        nz = nuisance(Scene(7, history=4, **kw))
+        return (nz.temperature_c, nz.humidity_pct, nz.force_bias_n, nz.friction_scale, nz.silicone_scale, nz.fuzz_scale, nz.grasp_mm)
+
+    assert draws(day=2, trial=1) == draws(day=2, trial=1)
+    same_day, other_trial = draws(day=2, trial=1), draws(day=2, trial=3)
+    assert same_day[:5] == other_trial[:5] and same_day[6] != other_trial[6]  # the day's state, the trial's grasp
+    assert draws(day=2, trial=1)[:3] != draws(day=3, trial=1)[:3] != draws(day=3, trial=1, seed=1)[:3]
+    lo, hi = cal.ROOM_TEMPERATURE_C
+    assert all(lo <= nuisance(Scene(1, day=d)).temperature_c <= hi for d in range(1, 30))
+
+
+def test_two_days_close_the_grasp_at_different_forces():
+    """The closing stops on the day's force estimate (its bias, and the day's silicone, which it reads
+    as deformation): the true grasp force lies within one camera frame's closing above
+    (0.1 N - bias) x silicone scale, a target that moves from day to day."""
+    fab = catalog.fabric(6)  # compressible: a frame's closing adds only ~14 mN
+
+    def window(nz):
+        mot = motion.finger_motion(fab, 2, nz, np.random.default_rng(0))
+        target = (cal.GRASP_FORCE_N - nz.force_bias_n) * nz.silicone_scale
+        return target, mot.grasp_n, mot.contact_stiffness_n_mm * cal.CLOSING_SPEED_MM_S / archive.STEP_RATE
+
+    days = [nuisance(Scene(6, day=d)) for d in range(1, 5)]
+    for nz in (*days, dataclasses.replace(days[0], force_bias_n=0.05)):
+        target, grasp, step = window(nz)
+        assert target - 1e-9 <= grasp < target + step + 1e-9
+    targets = [window(nz)[0] for nz in days]
+    assert np.ptp(targets) > 0.002 and len({round(t, 6) for t in targets}) == len(days)
+
+
+def test_the_climate_moves_friction_and_silicone_and_wear_grows_the_fuzz():
+    assert rig.friction_scale(*(float(np.mean(r)) for r in (cal.ROOM_TEMPERATURE_C, cal.ROOM_HUMIDITY_PCT))) == pytest.approx(1.0)
+    assert rig.friction_scale(25.0, 60.0) > 1.0 > rig.friction_scale(22.8, 30.0)
+    assert rig.silicone_scale(30.0) / rig.silicone_scale(20.0) == pytest.approx(303.15 / 293.15)
+    assert rig.fuzz_scale(0, 50) == 1.0 < rig.fuzz_scale(6, 50) < rig.fuzz_scale(12, 50)
+    off = nuisance(Scene(1, effects=("texture",), history=10))
+    assert (off.temperature_c, off.friction_scale, off.silicone_scale, off.fuzz_scale) == (None, 1.0, 1.0, 1.0)
+    worn = simulate(Scene(6, effects=("texture", "wear"), history=2000, **SHORT)).audio[0]
+    new = simulate(Scene(6, effects=("texture", "wear"), history=0, **SHORT)).audio[0]
+    assert band_power_db(worn, 4000, 15000) > band_power_db(new, 4000, 15000)  # fibre ends scratch high
+
+
+def test_dataset_scenes_count_the_cloths_earlier_trials():
+    dataset = presets.get("smoke").dataset
+    scenes = {(s.fabric_id, s.day, s.trial): dataset_mod.scene_for(s, dataset, ("audio", "proprio")) for s in dataset.trials()}
+    n = dataset.train_trials_per_day
+    assert scenes[(1, 1, 0)].history == 0 and scenes[(1, 2, 1)].history == n + 1
+    assert scenes[(1, 3, 0)].history == 2 * n  # the test day follows both training days
+    assert scenes[(1, 3, 0)].to_json()["simulator_version"] == SIMULATOR_VERSION
+
+
+def test_an_archive_of_another_simulator_version_is_simulated_again(tmp_path, monkeypatch):
+    scene = Scene(1, cycles=1)
+    path = tmp_path / dataset_mod.filename(scene)
+    archive.write_archive(path, simulate(scene))
+    assert dataset_mod.is_done(path, scene)
+    monkeypatch.setattr(scene_mod, "SIMULATOR_VERSION", SIMULATOR_VERSION + 1)
+    assert not dataset_mod.is_done(path, scene)

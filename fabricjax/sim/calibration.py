@@ -277,8 +277,12 @@ VISCOUS_NM_PER_RAD_S = 0.01  # gear-train drag of a moving joint
 # and the current reading has no documented offset drift (its 6.5 mA LSB and the PWM ripple
 # above are the sensor's limits). Day-to-day differences reach the joints through the grasp.
 # [phys] Minsight force proxy: the closing stops when the estimate crosses 0.1 N, so its error
-# shows as grasp force. Minsight's force map is trained to errors of a few hundredths of a newton;
-# we take 4 mN of frame-to-frame noise and 4 mN of per-day bias (reference image re-taken daily).
+# shows as grasp force (`motion.finger_motion` stops on the estimate, the proxy records it). The
+# force map of Insight, Minsight's parent design, is accurate to ~0.03 N in magnitude over 0.03-2 N
+# across many contacts (Sun, Martius, Kuchenbecker, "A soft thumb-sized vision-based sensor with
+# accurate all-round force perception", Nature Machine Intelligence 4, 2022); at one repeated
+# contact near 0.1 N the error splits into frame-to-frame noise and a bias that holds for a day
+# (the reference image is re-taken daily): 4 mN each (SD), a seventh of that figure apiece.
 FORCE_NOISE_N = 0.004
 FORCE_BIAS_N = 0.004
 # [phys] The hanging fabric is folded by hand on the hanger: where the grasp lands the stack is
@@ -287,6 +291,41 @@ FOLD_SPREAD = 0.1
 # [phys] Where the contact centre lands on Minsight's shell: the grasp is force-controlled, not
 # placed, so the patch wanders by about a third of its ~5 mm size between trials (SD, mm).
 CONTACT_OFFSET_MM = 1.5
+
+# --- the rig between sessions (`sim.rig`) ---------------------------------------------------------
+# [phys] The lab's climate on a recording day. Building climate control holds 75 +- 2 F, i.e.
+# 22.8-25.0 C, after ASHRAE's comfort guidance (ASHRAE Standard 55, "Thermal Environmental
+# Conditions for Human Occupancy"), and indoor relative humidity within the comfort range 30-60 %
+# (ASHRAE Standard 55-1992); each day draws both uniformly in these ranges (the cafe is an indoor
+# room too). The climate is the same for every trial of a day.
+ROOM_TEMPERATURE_C = (22.8, 25.0)
+ROOM_HUMIDITY_PCT = (30.0, 60.0)
+# [phys] Friction of a soft, hygroscopic contact against the climate: the in-vivo skin friction map
+# of Klaassen et al. (Biotribology, 2016; reciprocating tribometer in a climate enclosure, 25-37 C,
+# 40-80 % RH) grows with the product T x RH and doubles from 25 C / 40 % to 37 C / 80 %; Hendriks and
+# Franklin ("Influence of surface roughness, material and climate conditions on the friction of
+# human skin", Tribology Letters 37, 2010) likewise find friction twice as high in a humid climate
+# (21-29 C, 37-92 % RH). Read as linear in T x RH, mu = a + b T RH with b / a = 1 / 960 (C %)^-1
+# (a + 1000 b = 1, a + 2960 b = 2). The silicone fingertip is hydrophobic and only the cloth takes
+# up water, so this skin figure is an upper estimate of the day-to-day change. The catalog's
+# coefficients hold at the centre of the room's climate (`rig.friction_scale`).
+FRICTION_CLIMATE_B_PER_A = 1.0 / 960.0
+# [phys] The silicone's modulus against temperature: rubber elasticity is entropic, G = n k T
+# (Treloar, "The Physics of Rubber Elasticity", 3rd ed., Oxford 1975), so the shells' stiffness
+# scales with the absolute temperature: +0.34 % per K at room temperature. The catalog's and this
+# file's stiffnesses hold at `SILICONE_REFERENCE_K` (the centre of the room's climate). Minsight's
+# force map reads deformation, so a stiffer shell reads low: the closing stops later (`rig`).
+CELSIUS_K = 273.15
+SILICONE_REFERENCE_K = CELSIUS_K + sum(ROOM_TEMPERATURE_C) / 2
+# [phys] Cloth wear: rubbing teases loose fibre ends out of a staple-fibre fabric (the fuzz stage of
+# pilling, Gintis and Mead, "The mechanism of pilling", Textile Research Journal 29, 1959; filament
+# fabrics have no free ends, so fuzz-free cloth stays as it is). The Martindale pilling test
+# (ISO 12945-2) assesses fuzz and pills after 125, 500, 1000 and 2000 rubs: the loose-fibre density
+# is taken to grow linearly with the rubs a spot has had, doubling after `WEAR_DOUBLING_RUBS`, the
+# middle of those stages (an estimate: the test grades pills, not a fibre density).
+# A spot is rubbed in a trial when the grasp lands within a patch diameter (of `CONTACT_AREA_M2`) plus
+# a stroke of it: a share (5 + 6) / (40 + 11) of the trials on the 40 mm grasp range, two passes a cycle.
+WEAR_DOUBLING_RUBS = 1000.0
 
 # --- Minsight images --------------------------------------------------------------------------
 # Sources: [minsight] Andrussow, Sun, Kuchenbecker, Martius, "Minsight: A Fingertip-Sized Vision-Based
@@ -382,10 +421,9 @@ FOLD_ANGLE_SPREAD_RAD = 0.3  # [paper: the hanger is moved between trials] the f
 #   as exp(-dT / T1): T1 ~ 95 K for AlGaInP (red), ~1600 K for GaInN (green, blue) (E. F. Schubert,
 #   Light-Emitting Diodes, 2nd ed., Cambridge University Press 2006, ch. 6), so the red channel drifts
 #   ~1 %/K and the frame's colour with it; the dominant-wavelength shift (< 0.1 nm/K) is negligible
-#   against the camera's broad colour filters. A lab's temperature between days: SD 1 K (rooms are
-#   held within the 20-24 C comfort band of ISO 7730 / ASHRAE 55).
+#   against the camera's broad colour filters. The room's temperature is the day's climate
+#   (`ROOM_TEMPERATURE_C`, section "the rig between sessions"), relative to its centre.
 LED_T1_K = (95.0, 1600.0, 1600.0)
-LAB_TEMPERATURE_DAY_SD_K = 1.0
 # * the LEDs' drive: [phys] series-resistor LEDs on the USB supply, whose VBUS the USB 2.0
 #   specification allows within 4.75-5.25 V; a day's VBUS is drawn within that bound and the current
 #   follows (V - Vf) / R, Vf ~2.0 V (red) and ~3.0 V (green, blue) (full-colour chip LED datasheets).

@@ -22,6 +22,12 @@ from fabricjax.sim.scene import EFFECTS, Scene
 from fabricjax.sim.trial import simulate
 
 
+def history(spec: splits.TrialSpec, dataset: splits.DatasetSpec) -> int:
+    """How many of the dataset's trials rubbed `spec`'s cloth before it: the fabric's trials of
+    earlier days (in day order, whatever the condition) and the earlier trials of its own day."""
+    return sum(1 for t in dataset.trials() if t.fabric_id == spec.fabric_id and (t.day, t.trial) < (spec.day, spec.trial))
+
+
 def scene_for(spec: splits.TrialSpec, dataset: splits.DatasetSpec, streams: Iterable[str], seed: int = 0) -> Scene:
     return Scene(
         fabric_id=spec.fabric_id,
@@ -33,6 +39,7 @@ def scene_for(spec: splits.TrialSpec, dataset: splits.DatasetSpec, streams: Iter
         image_size=tuple(dataset.image_size),
         cycles=dataset.cycles_per_trial,
         seed=seed,
+        history=history(spec, dataset),
     )
 
 
@@ -41,7 +48,8 @@ def filename(scene: Scene) -> str:
 
 
 def is_done(path: Path, scene: Scene) -> bool:
-    """The archive exists, is readable, was made from this scene and has the wanted streams."""
+    """The archive exists, is readable, was made from this scene by this simulator version
+    (`scene.SIMULATOR_VERSION`, part of the scene's JSON) and has the wanted streams."""
     if not path.is_file():
         return False
     try:

@@ -40,7 +40,7 @@ import numpy as np
 from fabricjax import archive, catalog
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.motion import Motion
-from fabricjax.sim.scene import Nuisance, Scene
+from fabricjax.sim.scene import Nuisance, Scene, nuisance
 
 FULL_SIZE = archive.MINSIGHT_SIZE
 R_IN = cal.SKELETON_RADIUS_MM
@@ -61,7 +61,8 @@ class CameraDay:
 def day_state(scene: Scene) -> CameraDay:
     """The camera of `scene`'s day (deterministic per seed, day and condition; see calibration)."""
     rng = scene.rng("minsight_day", "day")
-    d_temp = rng.normal(0.0, cal.LAB_TEMPERATURE_DAY_SD_K)
+    temperature_c = nuisance(scene).temperature_c  # the day's room ("climate"; None: the climate's centre)
+    d_temp = 0.0 if temperature_c is None else temperature_c - float(np.mean(cal.ROOM_TEMPERATURE_C))
     vbus = cal.USB_VBUS_V + rng.uniform(-cal.USB_VBUS_TOLERANCE_V, cal.USB_VBUS_TOLERANCE_V)
     vf, t1 = np.asarray(cal.LED_FORWARD_V), np.asarray(cal.LED_T1_K)
     gain = (vbus - vf) / (cal.USB_VBUS_V - vf) * np.exp(-d_temp / t1)

@@ -1,7 +1,8 @@
 """Finger motion: the paper's exploratory procedure, as kinematics and contact mechanics.
 
 [paper, Finger Movement] Force-controlled closing of thumb and middle finger until Minsight's
-force estimate reaches 0.1 N, then a preprogrammed rubbing motion of `cycles` back-and-forth
+force estimate reaches 0.1 N (the estimate, not the force: its day's bias and the silicone's
+stiffness of the day, which the estimate reads as deformation, move where the closing stops), then a preprogrammed rubbing motion of `cycles` back-and-forth
 strokes with the same commanded speed for every fabric; "the fingers move more slowly when
 finger-fabric friction is high", so trial length varies with friction.
 
@@ -15,6 +16,7 @@ Mechanics, all per fingertip:
   element (shell shear in series with the cloth's stretch) is a play (backlash) operator of width
   delta = mu * F_n / k. The slide position drives the texture, the elastic load drives the joints.
 * Speed droop: a position-controlled servo slows under load, speed / (1 + c * mu * F_n).
+Friction and the shells' stiffness are the catalog's scaled by the day's climate (`Nuisance`).
 """
 
 from __future__ import annotations
@@ -40,21 +42,28 @@ class Motion:
     rubbing_start_s: float
     slip_width_mm: float  # mean delta of the play operator (stick length at each reversal)
     contact_stiffness_n_mm: float  # normal stiffness of shells + stack
+    friction: float  # the trial's Coulomb coefficient (the fabric's, scaled by the day's climate)
+    grasp_n: float  # normal force where the closing stopped
+    force_reading: float  # Minsight's force estimate per newton of true force (1 / shell stiffness scale)
 
 
-def stack_stiffness(fabric: catalog.Fabric, thickness_mm: float) -> float:
-    """Normal stiffness of the shells in series with the fabric stack (linearised at 0.1 N)."""
+def stack_stiffness(fabric: catalog.Fabric, thickness_mm: float, silicone: float = 1.0) -> float:
+    """Normal stiffness of the shells (nominal x `silicone`) in series with the fabric stack
+    (linearised at 0.1 N)."""
+    k_shell = cal.SHELL_NORMAL_STIFFNESS_N_MM * silicone
     if not fabric.is_fabric:
-        return cal.SHELL_NORMAL_STIFFNESS_N_MM
+        return k_shell
     k_stack = cal.GRASP_FORCE_N / max(fabric.compressibility * thickness_mm, 1e-3)
-    return 1.0 / (1.0 / cal.SHELL_NORMAL_STIFFNESS_N_MM + 1.0 / k_stack)
+    return 1.0 / (1.0 / k_shell + 1.0 / k_stack)
 
 
-def shear_stiffness(fabric: catalog.Fabric) -> float:
-    """Tangential stiffness between finger bone and sliding interface: shell shear, cloth stretch."""
+def shear_stiffness(fabric: catalog.Fabric, silicone: float = 1.0) -> float:
+    """Tangential stiffness between finger bone and sliding interface: shell shear (nominal x
+    `silicone`), cloth stretch."""
+    k_shell = cal.SHELL_SHEAR_STIFFNESS_N_MM * silicone
     if not fabric.is_fabric:
-        return cal.SHELL_SHEAR_STIFFNESS_N_MM / 2  # two shells
-    return 1.0 / (1.0 / cal.SHELL_SHEAR_STIFFNESS_N_MM + 1.0 / fabric.stretch_stiffness)
+        return k_shell / 2  # two shells
+    return 1.0 / (1.0 / k_shell + 1.0 / fabric.stretch_stiffness)
 
 
 def play(x: np.ndarray, delta: np.ndarray) -> np.ndarray:
@@ -79,15 +88,17 @@ def play(x: np.ndarray, delta: np.ndarray) -> np.ndarray:
 def finger_motion(fabric: catalog.Fabric, cycles: int, nz: Nuisance, rng: np.random.Generator) -> Motion:
     dt = 1.0 / cal.CONTROL_HZ
     thickness = 2.0 * fabric.thickness_mm * nz.fold  # folded: the hand grips two layers
-    k_n = stack_stiffness(fabric, thickness)
-    # closing, checked once per camera frame
+    k_n = stack_stiffness(fabric, thickness, nz.silicone_scale)
+    # closing, checked once per camera frame, until the estimate (force / silicone scale + the
+    # day's bias) reaches the threshold
+    target_n = max(cal.GRASP_FORCE_N - nz.force_bias_n, 0.0) * nz.silicone_scale
     t_contact = (cal.OPEN_GAP_MM - thickness) / cal.CLOSING_SPEED_MM_S
-    t_reach = t_contact + cal.GRASP_FORCE_N / (k_n * cal.CLOSING_SPEED_MM_S)
+    t_reach = t_contact + target_n / (k_n * cal.CLOSING_SPEED_MM_S)
     frame = 1.0 / archive.STEP_RATE
     t_stop = nz.frame_phase_s + frame * np.ceil((t_reach - nz.frame_phase_s) / frame)
     grasp_force = k_n * cal.CLOSING_SPEED_MM_S * (t_stop - t_contact)
     # rubbing
-    mu = fabric.friction
+    mu = fabric.friction * nz.friction_scale
     rate = cal.CYCLE_HZ * nz.speed / (1.0 + cal.SPEED_DROOP_PER_N * mu * grasp_force)
     t_rub = t_stop + cal.SETTLE_S
     n_rub = int(np.ceil(cycles / rate * 1.1 * cal.CONTROL_HZ))
@@ -107,7 +118,7 @@ def finger_motion(fabric: catalog.Fabric, cycles: int, nz: Nuisance, rng: np.ran
     compression = np.clip(closing - (cal.OPEN_GAP_MM - thickness), 0.0, None)
     normal = k_n * compression + k_n * cal.ARC_MM * (finger / cal.RUB_AMPLITUDE_MM) ** 2 * (t >= t_rub)
     relative = finger * (1.0 if fabric.is_fabric else 2.0)
-    k_t = shear_stiffness(fabric)
+    k_t = shear_stiffness(fabric, nz.silicone_scale)
     delta = mu * normal / k_t
     slide = play(relative, delta)
     return Motion(
@@ -121,4 +132,7 @@ def finger_motion(fabric: catalog.Fabric, cycles: int, nz: Nuisance, rng: np.ran
         rubbing_start_s=float(t_rub),
         slip_width_mm=float(mu * grasp_force / k_t),
         contact_stiffness_n_mm=float(k_n),
+        friction=float(mu),
+        grasp_n=float(grasp_force),
+        force_reading=1.0 / nz.silicone_scale,
     )

@@ -9,7 +9,8 @@ also feel the load and the sensors are real:
   normal force loads the closing joints; a position-controlled servo lags by torque / stiffness
   and draws current torque / k_t, plus gear drag ~ speed;
 * sensors: 12-bit absolute position (no calibration drift), noisy velocity, 6.5 mA current
-  steps, and noise and a per-day bias on Minsight's force proxy.
+  steps, and Minsight's force proxy: the force as the shell's deformation shows it (the day's
+  silicone stiffness, `Motion.force_reading`), plus its per-day bias and frame-to-frame noise.
 Without it: ideal kinematics, idle currents, the true normal force.
 """
 
@@ -50,6 +51,6 @@ def joints_and_force(motion: Motion, frame_t: np.ndarray, nz: Nuisance, rng: np.
         v = v + rng.normal(0.0, cal.VELOCITY_NOISE_RAD_S, v.shape)
         c = c + rng.normal(0.0, cal.CURRENT_NOISE_A, c.shape)
         c = np.maximum(np.round(c / cal.CURRENT_LSB_A), 0) * cal.CURRENT_LSB_A
-        force = force + nz.force_bias_n + rng.normal(0.0, cal.FORCE_NOISE_N, n)
+        force = force * motion.force_reading + nz.force_bias_n + rng.normal(0.0, cal.FORCE_NOISE_N, n)
     joints = np.stack([a, v, c], axis=2).astype(np.float32)
     return joints, force.astype(np.float32)

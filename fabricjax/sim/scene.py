@@ -5,8 +5,9 @@ Randomness is derived, never shared: every effect draws from its own generator, 
 belongs to. Scopes fix what varies together:
 
     hardware  the same robot every day (shell texture, servo signature)
-    fabric    the same cloth every day (its surface profile)
-    day       one recording day: ambient level, microphone DC offset and gain, force-proxy bias
+    fabric    the same cloth every day (its surface profile; its wear follows `Scene.history`)
+    day       one recording day: ambient level, microphone DC offset and gain, force-proxy bias,
+              the room's temperature and humidity
     trial     one trial: grasp position, fold, speed, jitter
 
 So leaving an effect out never changes another effect's draws, and two trials of one day share
@@ -23,12 +24,17 @@ import numpy as np
 
 from fabricjax import archive, catalog
 from fabricjax.sim import calibration as cal
+from fabricjax.sim import rig
 
-EFFECTS = ("texture", "stick_slip", "shell", "air_path", "servo_noise", "ambient", "sph0645", "proprioception")
+EFFECTS = ("texture", "stick_slip", "shell", "air_path", "servo_noise", "ambient", "sph0645", "proprioception", "climate", "wear")
 """Optional physics. The finger motion (the procedure itself) always runs."""
 STREAMS = ("audio", "proprio", "images")
 REQUIRED_STREAMS = ("audio", "proprio")  # the archive format requires audio, joints and force
 SCOPES = ("hardware", "fabric", "day", "trial")
+# The simulator's version, part of every simulated archive's scene (`Scene.to_json`): a dataset
+# written by another version is simulated again (`dataset.is_done`). Raised with every change of
+# what a scene simulates.
+SIMULATOR_VERSION = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -42,6 +48,7 @@ class Scene:
     image_size: tuple[int, int] = archive.MINSIGHT_SIZE
     cycles: int = 50
     seed: int = 0
+    history: int = 0  # trials this fabric's cloth went through before this one (its wear)
 
     def __post_init__(self):
         catalog.fabric(self.fabric_id)
@@ -56,6 +63,8 @@ class Scene:
         missing = [s for s in REQUIRED_STREAMS if s not in self.streams]
         if missing:
             raise ValueError(f"streams {missing} are required by the archive format (audio, joints, force)")
+        if self.history < 0:
+            raise ValueError(f"history counts earlier trials: need >= 0, got {self.history}")
         if self.cycles < 1 or min(self.image_size) < 8:
             raise ValueError(f"need cycles >= 1 and images of at least 8x8, got {self.cycles}, {self.image_size}")
 
@@ -69,7 +78,7 @@ class Scene:
 
     def to_json(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
+        return {**{k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}, "simulator_version": SIMULATOR_VERSION}
 
     def rng(self, name: str, scope: str) -> np.random.Generator:
         """The generator of draw `name` at `scope` (see the module docstring)."""
@@ -96,11 +105,18 @@ class Nuisance:
     speed: float  # servo speed factor
     frame_phase_s: float  # when the first camera frame falls relative to the procedure start
     contact_offset_mm: np.ndarray  # (2,) offset of the contact centre on the Minsight shell
+    temperature_c: float | None  # the room's, per day (None: "climate" not called for)
+    humidity_pct: float | None
+    friction_scale: float  # friction relative to the catalog's (1 without "climate")
+    silicone_scale: float  # the shells' stiffness relative to nominal (1 without "climate")
+    fuzz_scale: float  # the cloth's loose-fibre density relative to new (1 without "wear")
 
 
 def nuisance(scene: Scene) -> Nuisance:
+    """The scene's day and trial draws, and what the rig's state ("climate", "wear") makes of them."""
     day = scene.rng("nuisance", "day")
     trial = scene.rng("nuisance", "trial")
+    climate = rig.climate(scene.rng("climate", "day")) if scene.wants("climate") else (None, None)
     if scene.condition == "lab":
         level = day.uniform(*cal.LAB_DB_A)
         level = float(np.clip(level + trial.uniform(-0.3, 0.3), *cal.LAB_DB_A))
@@ -118,4 +134,9 @@ def nuisance(scene: Scene) -> Nuisance:
         speed=float(1.0 + trial.normal(0.0, cal.SPEED_JITTER)),
         frame_phase_s=float(trial.uniform(0.0, 1.0 / archive.STEP_RATE)),
         contact_offset_mm=trial.normal(0.0, cal.CONTACT_OFFSET_MM, 2),
+        temperature_c=climate[0],
+        humidity_pct=climate[1],
+        friction_scale=rig.friction_scale(*climate) if climate[0] is not None else 1.0,
+        silicone_scale=rig.silicone_scale(climate[0]) if climate[0] is not None else 1.0,
+        fuzz_scale=rig.fuzz_scale(scene.history, scene.cycles) if scene.wants("wear") else 1.0,
     )

@@ -28,7 +28,7 @@ def asperity_um(scene: Scene) -> float:
 
 def events(scene: Scene, motion: Motion, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Event times (s) and signed peak pressures (Pa)."""
-    mu = scene.fabric.friction
+    mu = motion.friction
     rough = asperity_um(scene) / cal.SLIP_REF_ROUGHNESS_UM
     slid = np.abs(np.diff(motion.slide_mm, prepend=motion.slide_mm[0]))
     expected = np.cumsum(cal.SLIPS_PER_MM * mu * slid)

@@ -2,7 +2,7 @@
 
 [FACTS, texture vibration] A finger sliding at speed v over a texture of spatial period lambda
 vibrates at f = v / lambda; a change of speed scales the whole spectrum; roughness raises the
-broadband power; free-exploration spectra fall as 1/f^s. All three follow from sampling one
+broadband power; free-exploration spectra fall as 1/f^s. All three follow from reading one
 spatial profile h(x) at the slide position x(t): nothing here is written in time-frequency terms.
 
 The profile of a cloth strip (fixed per fabric, the same every day) is the sum of
@@ -10,7 +10,8 @@ The profile of a cloth strip (fixed per fabric, the same every day) is the sum o
 * random roughness with a 1/k^s height spectrum (s = `spectral_slope`),
 * fuzz: loose fibre ends, narrow bumps at random places (density ~ `fuzz`),
 scaled to `roughness_um` RMS and modulated slowly along the strip, so that the per-trial grasp
-position changes the local phase and roughness a little. Class 0 rubs only the silicone skin's
+position changes the local phase and roughness a little. The fuzz is kept apart so that the
+cloth's wear (`Nuisance.fuzz_scale`) can scale it. Class 0 rubs only the silicone skin's
 micro-texture. The cavity pressure is proportional to the skin displacement (see calibration:
 adiabatic cavity), scaled by the contact force relative to the 0.1 N grasp.
 """
@@ -27,8 +28,10 @@ from fabricjax.sim.scene import Scene
 
 
 @functools.lru_cache(maxsize=32)
-def surface_profile(fabric_id: int, seed: int) -> np.ndarray:
-    """Height (um) of the fabric's cloth strip on a `PROFILE_DX_MM` grid (cached: pure in its inputs)."""
+def surface_profile(fabric_id: int, seed: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """Height (um) of the fabric's new cloth strip on a `PROFILE_DX_MM` grid, as (weave and
+    roughness, fuzz; None for a fabric without loose fibres): the strip's height is their sum, the
+    fuzz scaled by wear (cached: pure in its inputs)."""
     fab = catalog.fabric(fabric_id)
     rng = Scene(fabric_id, seed=seed).rng("surface", "fabric")
     n = int(round(cal.PROFILE_LEN_MM / cal.PROFILE_DX_MM))
@@ -52,16 +55,17 @@ def surface_profile(fabric_id: int, seed: int) -> np.ndarray:
         phases = rng.uniform(0, 2 * np.pi, len(harmonics))
         weave = sum(w * np.cos(2 * np.pi * m * xw / lam + p) for m, w, p in zip(harmonics, weights, phases))
         h += weave * (weave_share / weave.std())
+    fuzz = None
     if fab.fuzz > 0:
         count = rng.poisson(cal.FUZZ_FIBRES_PER_MM * fab.fuzz * cal.PROFILE_LEN_MM)
         spikes = np.zeros(n)
         np.add.at(spikes, rng.integers(0, n, count), rng.exponential(1.0, count))
         sigma = cal.FUZZ_FIBRE_WIDTH_MM / 2
         bumps = np.fft.irfft(np.fft.rfft(spikes) * np.exp(-0.5 * (2 * np.pi * k * sigma) ** 2), n)
-        h += cal.FUZZ_HEIGHT * fab.fuzz * bumps / max(bumps.max(), 1e-12)
+        fuzz = cal.FUZZ_HEIGHT * fab.fuzz * bumps / max(bumps.max(), 1e-12)
     local = np.fft.irfft(rng.standard_normal(len(k)) * (k < 0.1), n)
-    local = 1.0 + cal.LOCAL_ROUGHNESS_SPREAD * local / max(np.abs(local).max(), 1e-12)
-    return (rough_um * h * local).astype(np.float64)
+    local = rough_um * (1.0 + cal.LOCAL_ROUGHNESS_SPREAD * local / max(np.abs(local).max(), 1e-12))
+    return (h * local).astype(np.float64), None if fuzz is None else (fuzz * local).astype(np.float64)
 
 
 def sample_profile(profile: np.ndarray, position_mm: np.ndarray) -> np.ndarray:
@@ -72,9 +76,14 @@ def sample_profile(profile: np.ndarray, position_mm: np.ndarray) -> np.ndarray:
     return profile[i] * (1 - w) + profile[i + 1] * w
 
 
-def vibration(scene: Scene, slide_mm: np.ndarray, normal_n: np.ndarray, grasp_mm: float, rng: np.random.Generator) -> np.ndarray:
-    """Cavity pressure (Pa) from the texture, given the slide position and normal force per sample."""
-    profile = surface_profile(scene.fabric_id, scene.seed)
+def vibration(
+    scene: Scene, slide_mm: np.ndarray, normal_n: np.ndarray, grasp_mm: float, rng: np.random.Generator,
+    fuzz_scale: float = 1.0,
+) -> np.ndarray:
+    """Cavity pressure (Pa) from the texture, given the slide position and normal force per sample,
+    on the strip whose fuzz the wear has scaled by `fuzz_scale`."""
+    base, fuzz = surface_profile(scene.fabric_id, scene.seed)
+    profile = base if fuzz is None else base + fuzz_scale * fuzz
     steps = max(int(scene.cycles * 2), 2)
     creep = np.cumsum(rng.normal(0.0, cal.CLOTH_CREEP_MM_PER_CYCLE / np.sqrt(2), steps))
     creep = np.interp(np.linspace(0, steps - 1, len(slide_mm)), np.arange(steps), creep)

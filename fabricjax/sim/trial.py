@@ -33,12 +33,16 @@ def middle_grasp_mm(grasp_mm: float, rng: np.random.Generator) -> float:
     return float(lo + (grasp_mm + 2 * rng.uniform(*cal.FOLD_LINE_MM) - lo) % (hi - lo))
 
 
-def contact(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, slide_normal, grasp_mm: float, names: tuple[str, str]) -> np.ndarray:
+def contact(
+    scene: Scene, mot: motion.Motion, grid: acoustics.Grid, slide_normal, grasp_mm: float, names: tuple[str, str],
+    fuzz_scale: float,
+) -> np.ndarray:
     """Spectrum (cavity-equivalent Pa) of one fingertip's contact: texture (read along `slide_normal`, the
-    slide position and normal force per audio sample) and stick-slip, as the scene calls for."""
+    slide position and normal force per audio sample, on the strip as worn by `fuzz_scale`) and stick-slip,
+    as the scene calls for."""
     spec = np.zeros(len(grid.f), np.complex128)
     if scene.wants("texture"):
-        spec += grid.rfft(texture.vibration(scene, *slide_normal, grasp_mm, scene.rng(names[0], "trial")))
+        spec += grid.rfft(texture.vibration(scene, *slide_normal, grasp_mm, scene.rng(names[0], "trial"), fuzz_scale))
     if scene.wants("stick_slip"):
         spec += stick_slip.spectrum(scene, mot, grid, scene.rng(names[1], "trial"))
     return spec
@@ -54,13 +58,13 @@ def sound_sources(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, nz) ->
         t = grid.t
         slide = np.interp(t, mot.t, mot.slide_mm)
         normal = np.interp(t, mot.t, mot.normal_n, left=0.0, right=0.0)
-        thumb = contact(scene, mot, grid, (slide, normal), nz.grasp_mm, ("texture", "stick_slip"))
+        thumb = contact(scene, mot, grid, (slide, normal), nz.grasp_mm, ("texture", "stick_slip"), nz.fuzz_scale)
         wall = shell.contact_transfer(f) if scene.wants("shell") else 1.0
         paths = air_path.palm_transfers(f, wall) if scene.wants("air_path") else None
         out["thumb contact"] = (thumb * wall, None if paths is None else thumb * paths["thumb"])
         if paths is not None and scene.fabric.is_fabric:
             grasp = middle_grasp_mm(nz.grasp_mm, scene.rng("middle_patch", "trial"))
-            middle = contact(scene, mot, grid, (-slide, normal), grasp, ("texture_middle", "stick_slip_middle"))  # opposite phase
+            middle = contact(scene, mot, grid, (-slide, normal), grasp, ("texture_middle", "stick_slip_middle"), nz.fuzz_scale)  # opposite phase
             out["middle contact"] = (None, middle * paths["middle"])
             out["cloth"] = (None, (thumb - middle) * paths["cloth"])
         elif paths is not None:  # no cloth: the two shells rub each other, one contact indents both

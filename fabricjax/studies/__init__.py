@@ -2,6 +2,8 @@
 
     ablation     modality ablation, 13 rows incl. TCN (Table ablation_table) + 9 step-LayerNorm variants
     probe        a linear probe of each ablation row's inputs: what they carry before any model
+    day_shift    per input: the per-trial variation the fabric, the day and the trial explain, and the
+                 probe's training-day against new-day accuracy
     bandwidth    PSD bandwidth 2.5 / 10 / 15 / 24 kHz (Table bandwidth_classification)
     noise        cafe-noise test set, Wilcoxon against the preceding row (Table new_noise_results)
     properties   property heads on training and holdout fabrics (Table property_perception)

@@ -4,16 +4,18 @@
     python -m experiments.reproduce --results=results    # regenerates the report published in the repository
 
 The plan (`PLAN`, data): the modality ablation (5 seeds), the linear probe of every ablation
-row's inputs (no seeds: deterministic, and cheap), the PSD bandwidth (5), cafe noise (10, as the
-paper), property perception (5, saving its checkpoints) and the latent t-SNE from the property
-study's Minsound + Minsight checkpoint. The dataset is simulated once (or read from
+row's inputs (no seeds: deterministic, and cheap), the day shift of every input (what the fabric,
+the day and the trial explain, beside the probe's training-day and new-day accuracy; no seeds),
+the PSD bandwidth (5), cafe noise (10, as the paper), property perception (5, saving its
+checkpoints) and the latent t-SNE from the property study's Minsound + Minsight checkpoint. The dataset is simulated once (or read from
 `data_dir`), features and compiled programs are cached, checkpoints resume, so every study after
 the first pays only for its training.
 
 A study is skipped when it is up to date: the manifest `reproduce.json` in the results folder
 records, per study, a key over what decides its numbers (the study and its seeds and rows, the
 preset, the config overrides, the data folder, the source of the `fabricjax` package and, for
-the latents, the key of the property study it reads) and its outputs exist. Change any of those
+a study that reads another's results (`UPSTREAM`: the latents the property study's checkpoint,
+the day shift the probe's accuracies), that study's key) and its outputs exist. Change any of those
 and that study (and what depends on it) runs again. The manifest is rewritten after every
 study, so an interrupted run picks up where it stopped.
 
@@ -46,9 +48,14 @@ import fabricjax
 from fabricjax import archive, dataset_index, presets, source, splits, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, documents, findings, latents, noise, probe, properties
+from fabricjax.studies import ablation, bandwidth, day_shift, documents, findings, latents, noise, probe, properties
 
-STUDIES = {"ablation": ablation, "probe": probe, "bandwidth": bandwidth, "noise": noise, "properties": properties, "latents": latents}
+STUDIES = {
+    "ablation": ablation, "probe": probe, "day_shift": day_shift, "bandwidth": bandwidth, "noise": noise,
+    "properties": properties, "latents": latents,
+}
+UPSTREAM = {"latents": "properties", "day_shift": "probe"}  # a study -> the study whose results it reads
+UNSEEDED = ("probe", "day_shift")  # deterministic studies of no paper table: no seeds, no claims
 LATENT_ROW = properties.ROWS[-1].name  # the paper's figure: the Minsound + Minsight model
 MANIFEST = "reproduce.json"
 REPORT = "REPORT.md"
@@ -59,11 +66,14 @@ class Step:
     """One study of the plan: its name (a key of `STUDIES`), seed count and rows (None: all)."""
 
     study: str
-    seeds: int | None = None  # None for the probe (deterministic) and the latents (the property study's checkpoint)
+    seeds: int | None = None  # None for `UNSEEDED` (deterministic) and the latents (the property study's checkpoint)
     rows: tuple[str, ...] | None = None
 
 
-PLAN = (Step("ablation", 5), Step("probe"), Step("bandwidth", 5), Step("noise", 10), Step("properties", 5), Step("latents"))
+PLAN = (
+    Step("ablation", 5), Step("probe"), Step("day_shift"), Step("bandwidth", 5), Step("noise", 10), Step("properties", 5),
+    Step("latents"),
+)
 # The studies that need trials of the paper's protocol: the split they read, and what it is
 PROTOCOL = {"noise": ("cafe", "trials of the cafe condition (split cafe)"), "properties": ("holdout", "held-out fabrics (split holdout)")}
 
@@ -196,8 +206,9 @@ def run(
     code = source.fingerprint()
 
     keys = {}
-    for step in plan:  # the latents read the property study's checkpoint: its key is theirs too
-        upstream = keys.get("properties", manifest.get("properties", {}).get("key", "")) if step.study == "latents" else ""
+    for step in plan:  # a study that reads another's results has that study's key in its own
+        up = UPSTREAM.get(step.study)
+        upstream = keys.get(up, manifest.get(up, {}).get("key", "")) if up else ""
         keys[step.study] = step_key(step, preset, overrides, data_dir, code, upstream)
     todo = [s for s in plan if force or manifest.get(s.study, {}).get("key") != keys[s.study] or not all(p.exists() for p in _outputs(s.study, out))]
 
@@ -276,7 +287,7 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
     summary = []
     for study in studies:
         doc = docs[study] or {}
-        if study == "probe":  # not a table of the paper: no claims to check, no seeds
+        if study in UNSEEDED:  # not a table of the paper: no claims to check, no seeds
             seeds, claims = "– (deterministic)", "– (not in the paper)"
         else:
             held, evaluated = findings.count([findings.Finding.from_json(f) for f in doc.get("findings", [])])

@@ -1,0 +1,186 @@
+"""What a new recording day changes in each input: the per-trial variation the fabric, the day and
+the trial explain, beside the linear probe's accuracy on the training days and on the new day.
+
+    python -m experiments.day_shift                       # default preset, every input
+    python -m experiments.day_shift --rows=image,proprio --data_dir=DIR
+
+The paper splits by recording day so that a model cannot lean on what a day shares; this study
+says, before any model, what the test day differs in. For every model input (`ROWS`: Minsound,
+the palm microphone, proprioception, optical flow, the Minsight image), as the probe reads it
+(`probe.summarise`: each dimension's mean and SD over a sequence's steps), each lab trial's
+summary is the mean of its sequences' summaries. Each dimension is standardised over the trials
+and its sum of squares split, for fabric f and day d:
+
+    fabric        between the fabrics' means
+    day           between the days' means of what the fabric leaves (fabric first, then day:
+                  exact for any trial counts, the textbook two-way split when they are balanced)
+    fabric x day  the rest between the (fabric, day) cells' means: the day's effect that differs by fabric
+    trial         within a cell: the trial-to-trial variation of one fabric on one day
+
+The shares are averaged over the input's dimensions (every standardised dimension weighs the
+same). Trials are every lab trial of the training and test days (`loading.TRAIN_VAL_TEST`), in
+the classes of the data. The probe's validation (whole trials of the training days) and test (the
+new day) accuracy per input come from the probe's own results file in the same results folder
+(`python -m experiments.probe`, which `reproduce` runs first); where it is missing or ran on
+other data, the table says so instead of numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from fabricjax import archive
+from fabricjax.config import MODALITY_NAMES
+from fabricjax.studies import documents, loading, probe, runner
+from fabricjax.studies.runner import StudyRow
+
+TITLE, PAPER = "Day shift: what the fabric, the day and the trial explain in each input", "not in the paper"
+ROWS = tuple(StudyRow(m, {"modalities": (m,)}, MODALITY_NAMES[m]) for m in ("internal", "external", "proprio", "flow", "image"))
+SHARES = ("fabric", "day", "fabric x day", "trial")
+
+
+def trial_summaries(x: np.ndarray, trial_key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(trials, 2 D) float64: the mean over each trial's sequences of `probe.summarise`, and the
+    index of each trial's first sequence (to read its fabric and day)."""
+    keys, first, inverse = np.unique(trial_key, return_index=True, return_inverse=True)
+    summaries = probe.summarise(x).astype(np.float64)
+    out = np.zeros((len(keys), summaries.shape[1]))
+    np.add.at(out, inverse, summaries)
+    return out / np.bincount(inverse, minlength=len(keys))[:, None], first
+
+
+def _between(x: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(per-row group means, sum of squares of the group means about 0, per dimension)."""
+    _, inverse = np.unique(groups, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    counts = np.bincount(inverse)
+    means = np.zeros((len(counts), x.shape[1]))
+    np.add.at(means, inverse, x)
+    means /= counts[:, None]
+    return means[inverse], (counts[:, None] * means**2).sum(axis=0)
+
+
+def variance_shares(x: np.ndarray, fabric: np.ndarray, day: np.ndarray) -> dict[str, float]:
+    """Shares of the per-trial variation of `x` (trials, dims) by fabric, day, fabric x day and
+    trial (see the module docstring), averaged over the dimensions that vary; they sum to 1."""
+    x = x[:, x.std(axis=0) > 0]
+    if x.shape[1] == 0:
+        return {k: float("nan") for k in SHARES}
+    x = (x - x.mean(axis=0)) / x.std(axis=0)
+    fabric_means, ss_fabric = _between(x, fabric)
+    left = x - fabric_means
+    _, ss_day = _between(left, day)
+    cell_means, ss_cells = _between(left, np.stack([fabric, day], axis=1))
+    ss_trial = ((left - cell_means) ** 2).sum(axis=0)
+    total = (x**2).sum(axis=0)
+    parts = {"fabric": ss_fabric, "day": ss_day, "fabric x day": ss_cells - ss_day, "trial": ss_trial}
+    return {k: float(np.mean(v / total)) for k, v in parts.items()}
+
+
+def probe_accuracy(results, folder: str) -> tuple[dict[str, dict[str, float | None]], str | None]:
+    """Each input's single-input probe accuracy on val and test from results/probe.json, and why
+    there is none (None when the probe ran on the same data folder)."""
+    path = documents.results_path(results) / "probe.json"
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}, f"no probe results in {path.parent} (run `python -m experiments.probe` on the same data)"
+    if doc.get("dataset", {}).get("folder") != folder:
+        return {}, f"the probe in {path} ran on other data (`{doc.get('dataset', {}).get('folder')}`)"
+    out = {}
+    for r in ROWS:
+        row = probe.row_for(r.modalities, doc["rows"])
+        if row is not None:
+            out[r.name] = {s: row["accuracy"].get(s) for s in ("val", "test")}
+    return out, None
+
+
+def run(
+    *,
+    preset: str = "default",
+    rows: Sequence[str] | None = None,
+    overrides: dict[str, Any] | None = None,
+    workdir=None,
+    data_dir=None,
+    results="results",
+    command: str | None = None,
+) -> dict[str, Any]:
+    """The shares and the probe's gap for the chosen inputs (all by default); writes
+    results/day_shift.{md,json} and returns the JSON."""
+    overrides = runner.check_overrides("day_shift", overrides, ROWS, "choose them with --rows")
+    chosen = runner.select_rows(ROWS, rows)
+    configs = [r.config(preset, overrides) for r in chosen]
+    ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST)
+    present = [s for s in loading.TRAIN_VAL_TEST if len(ds.sets[s])]
+    info = {k: np.concatenate([ds.sets[s].info[k] for s in present]) for k in ("fabric_id", "day", "trial_key")}
+    if len(np.unique(info["day"])) < 2:
+        raise archive.ArchiveError(ds.folder, "day", "the lab trials come from fewer than two days: there is no day to tell apart")
+    accuracy, no_probe = probe_accuracy(results, str(ds.folder))
+
+    t0 = time.perf_counter()
+    progress = runner.Progress("day_shift", len(chosen))
+    out_rows = []
+    for r in chosen:
+        progress.start(r.label)
+        t1 = time.perf_counter()
+        m = r.modalities[0]
+        per_split = [trial_summaries(ds.sets[s].inputs[m], ds.sets[s].info["trial_key"]) for s in present]  # a trial lies in one split
+        x = np.concatenate([x for x, _ in per_split])
+        labels = {k: np.concatenate([ds.sets[s].info[k][first] for s, (_, first) in zip(present, per_split)]) for k in ("fabric_id", "day")}
+        shares = variance_shares(x, labels["fabric_id"], labels["day"])
+        out_rows.append({
+            "name": r.name, "display_name": r.label, "summary_dims": int(x.shape[1]), "shares": shares,
+            "probe": accuracy.get(r.name), "wall_s": time.perf_counter() - t1,
+        })
+        progress.finish(r.label, time.perf_counter() - t1, f"fabric {100 * shares['fabric']:.0f} %, day {100 * shares['day']:.0f} %")
+
+    doc = {
+        **documents.header("day_shift", command=command, preset=preset, dataset=ds, study_s=time.perf_counter() - t0),
+        "splits": present,
+        "trials": int(len(np.unique(info["trial_key"]))),
+        "days": sorted(int(d) for d in np.unique(info["day"])),
+        "fabrics": len(np.unique(info["fabric_id"])),
+        "probe_missing": no_probe,
+        "rows": out_rows,
+    }
+    return documents.write(results, doc, markdown)
+
+
+def _pct(x: float | None) -> str:
+    return "–" if x is None or np.isnan(x) else f"{100 * x:.1f}"
+
+
+def table(doc: Mapping[str, Any]) -> str:
+    """One line per input: the four shares, then the probe's validation and test accuracy and their gap."""
+    body = []
+    for r in doc["rows"]:
+        p = r["probe"] or {}
+        val, test = p.get("val"), p.get("test")
+        gap = "–" if val is None or test is None else f"{100 * (test - val):+.1f}"
+        body.append([r["display_name"], r["summary_dims"], *[_pct(r["shares"][k]) for k in SHARES], _pct(val), _pct(test), gap])
+    header = ["Input", "Summary dims", "Fabric [%]", "Day [%]", "Fabric x day [%]", "Trial [%]",
+              "Probe, validation (training days) [%]", "Probe, test (new day) [%]", "Test − validation [pp]"]
+    return documents.markdown_table(header, body)
+
+
+def markdown(doc: Mapping[str, Any]) -> str:
+    lines = [
+        documents.title(doc, "Day shift: what the fabric, the day and the trial explain in each input"),
+        "",
+        documents.header_markdown(doc, f"{doc['study_s']:.0f} s in all; {documents.data_time_markdown(doc['dataset'])}"),
+        f"Every lab trial of days {', '.join(map(str, doc['days']))} ({doc['trials']} trials, {doc['fabrics']} fabrics): each "
+        "input's per-sequence summaries as the linear probe reads them (each dimension's mean and SD over the steps), "
+        "averaged per trial, each dimension standardised over the trials; the shares split its sum of squares into "
+        "fabric, day (after the fabric), fabric x day and trial (within one fabric and day), averaged over the "
+        "dimensions. A large day share is what a model can learn about a day and lose on a new one; the probe's "
+        "validation and test accuracy show whether it does.",
+        "",
+        table(doc),
+    ]
+    if doc["probe_missing"]:
+        lines += [f"Probe columns: {doc['probe_missing']}.", ""]
+    return "\n".join(lines)
