@@ -95,3 +95,18 @@ def test_decide_on_the_smoke_preset_writes_its_reports_and_the_stream_applies_th
     lines = []
     s = stream.run(preset="smoke", workdir=tmp_path / "ws", results=results, realtime=False, print_every=0, out=lines.append)
     assert s["temperature"] == pytest.approx(m["temperature"]) and any("sequential decision" in x for x in lines)
+
+
+@pytest.mark.slow
+def test_reproduce_runs_decide_on_the_ablations_checkpoint(tmp_path):
+    from fabricjax.studies import reproduce
+
+    plan = (reproduce.Step("ablation", 1, ("internal",)), reproduce.Step("decide", rows=("internal",)))
+    said = []
+    reproduce.run(preset="smoke", plan=plan, overrides=dict(epochs=1, width=16, n_layers=1), workdir=tmp_path / "ws",
+                  results=tmp_path / "out", say=said.append)
+    ablation = json.loads((tmp_path / "out" / "ablation.json").read_text())
+    doc = json.loads((tmp_path / "out" / "decide.json").read_text())
+    assert [m["checkpoint"] for m in doc["models"]] == [ablation["rows"][0]["checkpoint"]]
+    assert doc["models"][0]["name"] == "internal" and "--checkpoint=" in doc["command"]
+    assert f"## {reproduce.title('decide')}" in (tmp_path / "out" / "REPORT.md").read_text()
