@@ -110,3 +110,20 @@ def test_reproduce_runs_decide_on_the_ablations_checkpoint(tmp_path):
     assert [m["checkpoint"] for m in doc["models"]] == [ablation["rows"][0]["checkpoint"]]
     assert doc["models"][0]["name"] == "internal" and "--checkpoint=" in doc["command"]
     assert f"## {reproduce.title('decide')}" in (tmp_path / "out" / "REPORT.md").read_text()
+
+
+@pytest.mark.slow
+def test_decide_on_recorded_data_uses_its_label_map_splits_and_unknown_labels(tmp_path):
+    """A rig's own classes (oak, pine, felt), its own split names in meta, felt never trained and
+    named the unknown by --unknown_labels; no cafe split: reported without one."""
+    from fabricjax.studies import decide
+    from tests.test_rig_data import _rig_dataset
+
+    trials = [(0, "train"), (1, "train")] * 3 + [(0, "val"), (1, "val"), (0, "test"), (1, "test"), (2, "test")]
+    ds = _rig_dataset(tmp_path / "ds", trials)
+    doc = decide.run(preset="smoke", overrides={"modalities": ("internal",), "epochs": 1}, data_dir=ds, unknown_labels=[2],
+                     workdir=tmp_path / "ws", results=tmp_path / "out")
+    m = doc["models"][0]
+    assert doc["dataset"]["classes"] == ["oak", "pine", "felt"] and list(m["splits"]) == ["test"]
+    assert m["unknown"]["fabrics"] == [2] and m["unknown"]["unknown_sequences"] == 3 and m["unknown"]["known_sequences"] == 6
+    assert "on recorded data" in (tmp_path / "out" / "decide.md").read_text()
