@@ -46,16 +46,26 @@ EVAL_SPLITS = ("test", "cafe")
 BATCH = 64  # sequences per forward pass
 
 
-def outputs(graphdef, params, ss: data.SequenceSet, modalities) -> tuple[np.ndarray, np.ndarray]:
-    """(fabric logits (N, classes), pooled latents (N, D)) of every sequence of `ss`."""
-    run = jax.jit(lambda p, x: (nnx.merge(graphdef, p)(x)["fabric"], nnx.merge(graphdef, p).latents(x).mean(axis=1)))
+def encoder(graphdef):
+    """`run(params, inputs)`: (fabric logits, pooled latents) of a batch, jitted once per model."""
+
+    def run(params, x):
+        model = nnx.merge(graphdef, params)
+        return model(x)["fabric"], model.latents(x).mean(axis=1)
+
+    return jax.jit(run)
+
+
+def outputs(run, params, ss: data.SequenceSet, modalities) -> tuple[np.ndarray, np.ndarray]:
+    """(fabric logits (N, classes), pooled latents (N, D)) of every sequence of `ss` by `run`
+    (`encoder`), in batches of `BATCH` (the last one padded, so one compiled shape serves all)."""
     logits, latents = [], []
     for i in range(0, len(ss), BATCH):
-        lo, la = run(params, {m: ss.inputs[m][i : i + BATCH] for m in modalities})
-        logits.append(np.asarray(lo, np.float64))
-        latents.append(np.asarray(la, np.float64))
-    if not logits:
-        return np.zeros((0, 0)), np.zeros((0, 0))
+        n = min(BATCH, len(ss) - i)
+        x = {m: np.concatenate([ss.inputs[m][i : i + n], np.repeat(ss.inputs[m][i : i + 1], BATCH - n, axis=0)]) for m in modalities}
+        lo, la = run(params, x)
+        logits.append(np.asarray(lo, np.float64)[:n])
+        latents.append(np.asarray(la, np.float64)[:n])
     return np.concatenate(logits), np.concatenate(latents)
 
 
@@ -89,14 +99,15 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, workdir=None, data_di
         if need not in sets:
             raise archive.ArchiveError(ds.folder, "<folder>", f"no {need}-split trials: the decision study needs train, val and test")
 
+    encode = encoder(graphdef)
     temperatures = {}
     for i, s in enumerate(seeds):
-        logits, _ = outputs(graphdef, checkpoint.select_seed(state["best_params"], i), sets["val"], config.modalities)
+        logits, _ = outputs(encode, checkpoint.select_seed(state["best_params"], i), sets["val"], config.modalities)
         temperatures[s] = confidence.fit_temperature(logits, sets["val"].labels["fabric"])
     confidence.save_temperatures(checkpoint_dir, temperatures, "val")
     seed, t = seeds[index], temperatures[seeds[index]]
     params = checkpoint.select_seed(state["best_params"], index)
-    out = {name: outputs(graphdef, params, ss, config.modalities) for name, ss in sets.items()}
+    out = {name: outputs(encode, params, ss, config.modalities) for name, ss in sets.items()}
     mahalanobis = confidence.Mahalanobis.fit(out["train"][1], sets["train"].labels["fabric"])
     known_val = mahalanobis.score(out["val"][1])
     _, reject_above = confidence.false_accept_rate(known_val, known_val)
