@@ -137,7 +137,7 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, workdir=None, data_di
             "max_probability": (1 - known_cal.max(-1), 1 - unk_cal.max(-1)),
             "mahalanobis": (mahalanobis.score(out["test"][1]), mahalanobis.score(out["holdout"][1])),
         }
-        unknown_doc = {"fabrics": list(unknown), "known_sequences": len(known_cal), "unknown_sequences": len(unk_cal), "scores": {}}
+        unknown_doc = {"fabrics": sorted(set(sets["holdout"].info["fabric_id"].tolist())), "known_sequences": len(known_cal), "unknown_sequences": len(unk_cal), "scores": {}}
         for name, (k, u) in scores.items():
             far, _ = confidence.false_accept_rate(k, u)
             unknown_doc["scores"][name] = {"auroc": confidence.auroc(k, u), "false_accept_at_recall": far,
