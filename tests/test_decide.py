@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from fabricjax import confidence
+from tests.helpers import read_rrd
 
 
 def overconfident(n=4000, classes=5, sharpen=3.0, seed=0):
@@ -93,8 +94,13 @@ def test_decide_on_the_smoke_preset_writes_its_reports_and_the_stream_applies_th
     assert all(0 <= v["auroc"] <= 1 for v in m["unknown"]["scores"].values())
     assert confidence.load_temperature(m["checkpoint"], m["seed"]) == pytest.approx(m["temperature"])
     lines = []
-    s = stream.run(preset="smoke", workdir=tmp_path / "ws", results=results, realtime=False, print_every=0, out=lines.append)
+    s = stream.run(preset="smoke", workdir=tmp_path / "ws", results=results, realtime=False, print_every=0, out=lines.append,
+                   view_save=tmp_path / "s.rrd")
     assert s["temperature"] == pytest.approx(m["temperature"]) and any("sequential decision" in x for x in lines)
+    # the accumulated posterior, once per non-overlapping window after the first full one
+    windows = (s["steps"] - s["window_steps"]) // s["window_steps"] + 1
+    assert len(read_rrd(tmp_path / "s.rrd")["/prediction/posterior"]["steps"]) == s["decided_steps"]
+    assert s["decision"] is None or 1 <= s["decision"]["windows"] <= windows
 
 
 @pytest.mark.slow
