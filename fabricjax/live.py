@@ -205,6 +205,6 @@ def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config, float]:
     fitted for that seed (`confidence.load_temperature`), 1 where none was."""
     from fabricjax import checkpoint, train
 
-    graphdef, state, config, seeds = train.restore(directory)
-    t = confidence.load_temperature(directory, seeds[0])
-    return graphdef, checkpoint.select_seed(state["best_params"], 0), config, 1.0 if t is None else t
+    restored = train.restore(directory)
+    t = confidence.load_temperature(directory, restored.seeds[0])
+    return restored.graphdef, checkpoint.select_seed(restored.state["best_params"], 0), restored.config, 1.0 if t is None else t

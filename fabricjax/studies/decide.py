@@ -90,7 +90,8 @@ def _calibration(probs: dict[str, np.ndarray], labels: np.ndarray) -> dict[str, 
 def evaluate_model(checkpoint_dir, *, unknown_labels=None, workdir=None, data_dir=None, results="results") -> dict[str, Any]:
     """One model's calibration, decision curves and unknown scores (module docstring); writes its
     temperatures beside the checkpoint."""
-    graphdef, state, config, seeds = train.restore(checkpoint_dir)
+    restored = train.restore(checkpoint_dir)
+    graphdef, state, config, seeds = restored.graphdef, restored.state, restored.config, restored.seeds
     if not config.fabric_head:
         raise UserError(f"{checkpoint_dir}: the decision study needs a model with a fabric head; this checkpoint's has none (a property model)")
     index = int(np.argmax(np.asarray(state["best_val"], np.float64)))
