@@ -165,11 +165,7 @@ def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
     trial = archive.read_archive(path, images=True)
     streamer = None
     if checkpoint is not None:
-        graphdef, params, config = live.restore_model(checkpoint)
-        try:
-            streamer = live.Streamer(graphdef, params, config)
-        except ValueError as e:
-            raise UserError(f"{checkpoint}: {e}") from None
+        streamer = live.Streamer(*live.restore_model(checkpoint))
     rec = open_recording(save)
     summary = log_trial(rec, trial, streamer)
     rec.flush()
