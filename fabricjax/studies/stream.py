@@ -75,6 +75,12 @@ def run(
     are logged as they come (`fabricjax.view`); the logging runs between the timed updates, so
     the latencies are the model's, but in real time it can make steps late.
     """
+    watch = view or view_save is not None
+    if watch:
+        from fabricjax import view as trial_view
+
+        if view_save is None:
+            trial_view.require_display("--view_save")
     if checkpoint_dir is not None:
         graphdef, params, config = live.restore_model(checkpoint_dir)
     else:
@@ -82,13 +88,10 @@ def run(
     if archive_path is None:
         folder = data_dir or sim.ensure_dataset(config.preset, workdir, streams=("audio", "proprio"), progress=False)
         archive_path = first_test_trial(folder, workdir)
-    watch = view or view_save is not None
     trial = archive.read_archive(archive_path, images=watch)
     streamer = live.Streamer(graphdef, params, config)
     label = int(trial.meta["label"])
     if watch:
-        from fabricjax import view as trial_view
-
         rec = trial_view.open_recording(view_save)
         viewer = trial_view.TrialView(rec, label)
     out(f"{archive_path}: {live.class_name(label)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
