@@ -243,7 +243,7 @@ def markdown(doc: dict[str, Any]) -> str:
         lines += ["## Holdout classes and their neighbours in latent space", "",
                   *[f"- {f.evidence}" for f in checklist(doc["neighbours"])], ""]
     else:
-        lines += ["## Findings checklist (the paper's reading of its figure)", "", findings.markdown(doc["findings"])]
+        lines += ["## Findings checklist (the paper's reading of its figure)", "", findings.markdown(doc["findings"], counted=not documents.counts_no_claims(doc))]
     return "\n".join(lines)
 
 
