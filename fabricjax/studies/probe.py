@@ -98,6 +98,13 @@ class Input:
     explained_variance: float | None  # fraction of the standardised summaries' variance the PCA keeps
     seconds: float
 
+    def describe(self, modality: str) -> str:
+        """One line in words: the input's dimensions from step to probe, and the time it took."""
+        dims = self.to_json()
+        kept = "" if self.explained_variance is None else f" (PCA keeping {100 * self.explained_variance:.1f} % of the variance)"
+        return (f"{modality}: {dims['step_dims']} values per step, {dims['summary_dims']} per sequence summary, "
+                f"{dims['probe_dims']} into the probe{kept}; {self.seconds:.2f} s")
+
     def to_json(self) -> dict[str, Any]:
         return {
             "step_dims": self.step_dims, "summary_dims": self.summary_dims,
@@ -177,7 +184,7 @@ def run(
         inputs = {}
         for m in loading.union_modalities(configs):
             inputs[m] = prepare({s: ds.sets[s].inputs[m] for s in present})  # every row has the same bandwidth
-            logging.info("probe: %s summaries %s", m, inputs[m].to_json())
+            logging.info("probe: %s", inputs[m].describe(m))
         progress = runner.Progress("probe", len(chosen))
         out_rows = [_probe_row(r, inputs, labels, present, progress) for r in chosen]
 

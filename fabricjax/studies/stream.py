@@ -56,7 +56,7 @@ def run(
     preset: str = "default",
     overrides: Mapping[str, Any] | None = None,
     realtime: bool = True,
-    print_every: int = 1,
+    print_every: int = 0,
     workdir=None,
     data_dir=None,
     results="results",
