@@ -355,14 +355,17 @@ def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_p
     kw = dict(preset="smoke", plan=SMOKE_PLAN, overrides=TINY, workdir=workdir, results=tmp_path, say=said.append)
     first = reproduce.run(**kw)
     assert list(first) == [s.study for s in SMOKE_PLAN]
-    assert "estimated time" in said[0] and all(f"{s.study:<11} run" in said[0] for s in SMOKE_PLAN)
+    assert all(f"{s.study:<11} run" in said[0] for s in SMOKE_PLAN)
+    assert f"estimated time: none for probe, bandwidth, properties, latents: no earlier run of the smoke preset in {tmp_path}" in said[0]
     text = (tmp_path / "REPORT.md").read_text()
     for s in SMOKE_PLAN:
         assert f"## {reproduce.title(s.study)}" in text
     assert text.count("Rerun alone: `python -m experiments.") == 4 and "`python -m experiments.bandwidth --seeds=1 --preset=smoke --rows=2.5" in text
     assert "`python -m experiments.probe --preset=smoke --rows=proprio --set=" in text and "| – (deterministic) | – (not in the paper) |" in text
     assert "--checkpoint=" in text and "![bandwidth.png](bandwidth.png)" in text and "(latents.png)" in text
-    assert text.count("evaluated claims reproduced") == 3  # every paper study's checklist is in the report (the probe has none)
+    # every paper study's checklist is in the report (the probe has none), not counted: smoke checks the install
+    assert text.count(findings.NOT_COUNTED) == 3 and "evaluated claims reproduced" not in text
+    assert presets.INSTALL_CHECK_NOTE in text.split("\n")[2] and text.count("| not counted (install check) |") == 3
     outputs = {p.name: p.stat().st_ino for p in tmp_path.iterdir() if p.name not in ("REPORT.md", "reproduce.json")}
     assert {"probe.md", "probe.json", "bandwidth.md", "bandwidth.png", "properties.json", "latents.png", "latents.md"} <= set(outputs)
 

@@ -174,7 +174,13 @@ def run(
     if todo and not data_dir and not (workspace.dataset_dir(preset, workdir) / workspace.INDEX_NAME).exists():
         data_note = ", plus simulating the dataset and its features once (README gives the time)"
     if None in total:
-        lines.append(f"  estimated time: unknown (no earlier run of the {preset} preset recorded its wall times){data_note}")
+        unknown = ", ".join(s.study for s, t in zip(todo, total) if t is None)
+        published_presets = sorted({e.get("preset") for e in published.values() if isinstance(e, dict)} - {None})
+        lines.append(
+            f"  estimated time: none for {unknown}: no earlier run of the {preset} preset in {out} recorded its wall time, "
+            f"and the repository publishes those of the {', '.join(published_presets) or 'no'} preset; this run records "
+            f"its own, so the next one has an estimate{data_note}"
+        )
     else:
         lines.append(f"  estimated time: {_minutes(known)}{data_note} (scaled from an earlier run's wall times; other machines differ)")
     say("\n".join(lines))
