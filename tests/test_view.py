@@ -106,6 +106,7 @@ def test_record_view_save_logs_the_trial_as_it_is_recorded(checkpoint, tmp_path)
     args = ["--fabric=12", "--trials=1", "--cycles=2", "--simulate", f"--out={tmp_path}", f"--view_save={tmp_path / 'rec.rrd'}", f"--checkpoint={checkpoint}"]
     out = subprocess.run([sys.executable, "-m", "acquisition.record", *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
+    assert "connection ended" not in out.stderr + out.stdout  # the simulated Pi's end of stream is no news
     trial = archive.read_archive(next(tmp_path.glob("*.npz")), images=False)
     read = read_rrd(tmp_path / "rec.rrd")
     assert set(read) == SENSORS | WAVES | PREDICTION
