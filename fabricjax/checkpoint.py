@@ -59,7 +59,8 @@ def open_existing(directory: str | os.PathLike) -> ocp.CheckpointManager:
     path = os.path.abspath(directory)
     if not os.path.isdir(path):
         raise NoCheckpoint(f"no checkpoint at {path}: {'no such folder' if not os.path.exists(path) else 'not a folder'}")
-    mngr = ocp.CheckpointManager(path, options=ocp.CheckpointManagerOptions(read_only=True, create=False))
+    # create=False and no save: nothing is written (orbax's read_only mode says as much in two warnings)
+    mngr = ocp.CheckpointManager(path, options=ocp.CheckpointManagerOptions(create=False))
     if mngr.latest_step() is None:
         inside = sorted(str(p) for p in Path(path).glob("*/") if p.is_dir() and _holds_steps(p))
         hint = f"; checkpoint folders inside it: {', '.join(inside)}" if inside else " (a checkpoint folder holds numbered step folders)"

@@ -162,8 +162,9 @@ def _report_unused(entries: Sequence[dataset_index.IndexEntry], roles, chosen_sp
     outside = [e for e, r in zip(entries, roles) if r in ("test", "cafe") and chosen_split(e, r) is None and e.meta["label"] >= n_classes]
     new = [e for e in outside if "label_map" not in e.meta and e.meta["fabric_id"] in catalog.NEW_FABRICS]
     if new:  # the hand's test day, by design: what they are, not a warning
-        logging.info("the test day's new fabrics %s (%d trials) have no training trials: they are the property study's "
-                     "holdouts, not classes of the fabric classifier", ", ".join(map(str, sorted({e.meta["fabric_id"] for e in new}))), len(new))
+        logging.info("the test day's new fabrics %s (%d test trial%s) have no training trials: they are the property study's "
+                     "holdouts, not classes of the fabric classifier", ", ".join(map(str, sorted({e.meta["fabric_id"] for e in new}))),
+                     len(new), "s" * (len(new) != 1))
     outside = [e for e in outside if e not in new]
     if outside:
         labels = sorted({e.meta["label"] for e in outside})

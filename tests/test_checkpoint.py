@@ -167,8 +167,10 @@ def test_a_path_without_a_checkpoint_is_one_line_and_creates_nothing(uninterrupt
         restore(tmp_path / "typo")
     assert not (tmp_path / "typo").exists()
     parent = workdir.parent
+    before = sorted(parent.rglob("*"))
     with pytest.raises(checkpoint.NoCheckpoint, match=f"no checkpoint in {parent}; checkpoint folders inside it: .*{workdir.name}"):
         restore(parent)
+    assert sorted(parent.rglob("*")) == before
 
 
 def test_a_checkpoint_made_for_another_job_is_refused_naming_both(uninterrupted, tmp_path):

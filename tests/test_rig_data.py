@@ -81,7 +81,7 @@ def test_unused_trials_are_reported(tmp_path, caplog):
     warnings = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
     assert len(warnings) == 1 and "1 trials belong to no split and are not used (days 7" in warnings[0]
     # the hand's new fabric on the test day is said as what it is, not warned about
-    assert "the test day's new fabrics 22 (1 trials) have no training trials: they are the property study's holdouts" in caplog.text
+    assert "the test day's new fabrics 22 (1 test trial) have no training trials: they are the property study's holdouts" in caplog.text
     assert len(sets["test"]) > 0
 
 
