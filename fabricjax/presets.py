@@ -10,8 +10,8 @@ Python or from the command line (`--set field=value`).
 
     smoke    seconds: the check that an install works, and the tests' data. 6 fabrics (5 of the
              classifier's classes and one new fabric), 3 rubbing cycles per trial, N=20, a tiny
-             model trained briskly (75 steps, a 5-step warm-up) so that Minsound lands well above
-             chance: "it learns" is the proof. XLA compilation dominates its time; its reports say
+             model trained briskly (15 epochs of minibatches of 8, a 5-step warm-up) so that Minsound
+             lands well above chance: "it learns" is the proof. XLA compilation dominates its time; its reports say
              that they check the install and count none of the paper's claims (`install_check`).
     default  the README's main command (22-row ablation x 5 seeds) on a 2-core laptop CPU, at the
              paper's data scale: all 24 fabrics, 6 training trials per day, 2 test and 2 cafe
