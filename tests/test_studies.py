@@ -57,6 +57,9 @@ def test_the_smoke_preset_learns_and_says_it_checks_the_install(workdir, tmp_pat
     labels = doc["test_samples"]["labels"]["fabric"]
     chance = 1 / len(set(labels))
     assert doc["rows"][0]["accuracy"]["test"]["fabric"][0] >= 2 * chance
+    # the classifier has the smoke data's classes, no other, and predicts only those
+    assert doc["rows"][0]["config"]["n_classes"] == len(set(labels)) == 5
+    assert set(doc["rows"][0]["predictions"]["test"]["fabric"][0]) <= set(labels)
     md = (tmp_path / "ablation.md").read_text()
     assert presets.INSTALL_CHECK_NOTE in md.split("\n")[2] and findings.NOT_COUNTED in md
     assert "evaluated claims reproduced" not in md
@@ -163,8 +166,8 @@ def property_run(workdir, tmp_path_factory):
 
 def test_properties_report_training_and_holdout_fabrics_and_checkpoint(property_run):
     doc, results = property_run
-    assert doc["fabrics"]["holdout"] == [1, 10, 21]  # the smoke preset's holdouts
-    assert 0 in doc["fabrics"]["test"] and not {1, 10, 21} & set(doc["fabrics"]["test"])
+    assert doc["fabrics"]["holdout"] == [1, 21]  # the smoke preset's holdouts
+    assert 0 in doc["fabrics"]["test"] and not {1, 21} & set(doc["fabrics"]["test"])
     (row,) = doc["rows"]
     for split in ("test", "holdout"):
         assert set(row["accuracy"][split]) == {"stretchiness", "roughness", "thickness"}
@@ -177,7 +180,7 @@ def test_properties_report_training_and_holdout_fabrics_and_checkpoint(property_
 def test_latents_from_the_property_checkpoint(property_run, workdir, tmp_path):
     doc, _ = property_run
     out = latents.run(doc["rows"][0]["checkpoint"], workdir=workdir, results=tmp_path, command="test")
-    assert [p["fabric_id"] for p in out["points"]] == [1, 4, 10, 12, 21]  # fabrics of the smoke preset but 0
+    assert [p["fabric_id"] for p in out["points"]] == [1, 2, 3, 4, 21]  # fabrics of the smoke preset but 0
     assert out["seed"] == out["checkpoint_seeds"][int(np.argmax(out["best_val_per_seed"]))]
     assert np.isfinite([p["xy"] for p in out["points"]]).all()
     assert (tmp_path / "latents.png").stat().st_size > 0
