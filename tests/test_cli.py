@@ -36,6 +36,12 @@ def test_help_lists_the_project_flags_and_exits_0():
     assert "libtpu" not in out.stdout + out.stderr
 
 
+@pytest.mark.parametrize("module", ["experiments.psds", "experiments.stream", "experiments.latents", "experiments.probe"])
+def test_every_command_takes_a_workdir(module):
+    out = subprocess.run([sys.executable, "-m", module, "--help"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and "--workdir" in out.stdout, out.stderr
+
+
 def damaged_folder(tmp_path):
     folder = tmp_path / "damaged"
     folder.mkdir()
