@@ -179,8 +179,14 @@ def replay(
 
 def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config]:
     """(graphdef, best-validation params of the first seed, config) of a `train_and_evaluate`
-    checkpoint, under the config saved with it."""
+    checkpoint, under the config saved with it; a checkpoint of a model that cannot stream (no
+    fabric head, or inputs other than `STREAMABLE`) is a `checkpoint.WrongCheckpoint`."""
     from fabricjax import checkpoint, train
 
-    graphdef, state, config, _ = train.restore(directory)
-    return graphdef, checkpoint.select_seed(state["best_params"], 0), config
+    restored = train.restore(directory)
+    for_ = restored.trained_for
+    checkpoint.require(
+        directory, for_, "streaming", f"a model with a fabric head over inputs from {'/'.join(STREAMABLE)}",
+        "fabric" in for_["heads"] and set(for_["inputs"]) <= set(STREAMABLE),
+    )
+    return restored.graphdef, checkpoint.select_seed(restored.state["best_params"], 0), restored.config
