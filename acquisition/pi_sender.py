@@ -25,7 +25,8 @@ def main(argv):
         periods = simulated_devices.paced_periods(simulated_signals.trial_signals(FLAGS.fabric, n_cycles=FLAGS.cycles).audio)
     else:
         periods = wire.arecord_periods(FLAGS.device)
-    print(wire.serve(periods, FLAGS.host, FLAGS.port))
+    sent = wire.serve(periods, FLAGS.host, FLAGS.port)
+    print(f"pi_sender: {sent['ended']}; sent {sent['sent']} packets, dropped {sent['dropped']}, {sent['frames']} frames")
 
 
 if __name__ == "__main__":

@@ -117,12 +117,11 @@ def watcher():
         return None
     from fabricjax import live, view
 
+    if not FLAGS.view_save:
+        view.require_display("--view_save")
     streamer = None
     if FLAGS.checkpoint:
-        try:
-            streamer = live.Streamer(*live.restore_model(FLAGS.checkpoint))
-        except ValueError as e:
-            raise UserError(f"{FLAGS.checkpoint}: {e}") from None
+        streamer = live.Streamer(*live.restore_model(FLAGS.checkpoint))
         streamer.warmup()
 
     def for_trial(trial: int) -> Watcher:

@@ -17,7 +17,6 @@ import select
 import socket
 import struct
 import subprocess
-import sys
 from typing import Callable, Iterable
 
 RATE = 48000  # fabricjax.archive.AUDIO_RATE, repeated because this module is stdlib-only (tested equal)
@@ -59,12 +58,15 @@ def serve(
     """Accept one receiver and stream `periods` to it until they end or the connection drops.
 
     A `None` period is one the source lost (an ALSA overrun): its frames are skipped, not sent.
-    Returns counts of sent and dropped packets."""
+    Returns counts of sent and dropped packets, and how the stream ended: "source ended", or the
+    connection's error when the receiver went away (a normal end on the Pi side, which the
+    caller reports if it wants: a simulated rig closes it after every trial)."""
     if listener is None:
         listener = socket.create_server((host, port))
     conn, _ = listener.accept()
     conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
     seq = frame = sent = dropped = 0
+    ended = "source ended"
     try:
         for block in periods:
             n = PERIOD if block is None else len(block) // FRAME_BYTES
@@ -75,8 +77,8 @@ def serve(
                 dropped += 1
             seq, frame = seq + 1, frame + n
     except OSError as e:  # the laptop went away: a normal end on the Pi side
-        print(f"pi_sender: connection ended: {e}", file=sys.stderr)
+        ended = f"connection ended: {e}"
     finally:
         conn.close()
         listener.close()
-    return {"sent": sent, "dropped": dropped, "frames": frame}
+    return {"sent": sent, "dropped": dropped, "frames": frame, "ended": ended}

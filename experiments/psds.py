@@ -1,26 +1,27 @@
 """Mean Minsound PSD per class plus the cafe noise as Minsound hears it (the paper's Fig. psds).
 
-    python -m experiments.psds [--preset=default] [--results=DIR]
+    python -m experiments.psds [--preset=default] [--workdir=DIR] [--results=DIR]
 
 One trial per class (day 1, trial 0, lab) of the preset is simulated exactly as in its dataset
 (same scenes and seeds, so the audio is bit-identical to the archives); the PSD is Welch's over
 each step's 2048-sample window (scipy.signal.welch with `welch.SCIPY_KWARGS`: 512 bins), averaged over the
 trial. The black curve is a minute of cafe noise recorded by Minsound with the hand at rest.
+The legend names each class by its fabric (`plots.class_label`), as the other figures do.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.signal
-from absl import flags
+from absl import flags as absl_flags
 
-from fabricjax import archive, catalog, cli, plots, presets, workspace
+from experiments import flags
+from fabricjax import archive, catalog, plots, presets
 from fabricjax.features import welch
 from fabricjax.sim import Scene, scene_for, simulate
 
-FLAGS = flags.FLAGS
-flags.DEFINE_string("preset", "default", "dataset preset whose trials are shown")
-flags.DEFINE_string("results", None, "folder for psds.png (default: <workspace>/results)")
+FLAGS = absl_flags.FLAGS
+flags.define_preset()
 
 
 def mean_psd(audio_row: np.ndarray, window_end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -37,7 +38,7 @@ def class_psds(preset_name: str) -> tuple[np.ndarray, dict[str, np.ndarray], np.
     psds = {}
     for spec in sorted(specs, key=lambda s: s.fabric_id):
         arch = simulate(scene_for(spec, dataset, ("audio", "proprio")))
-        f, psds[f"class {spec.fabric_id}"] = mean_psd(arch.audio[0], arch.window_end[:, 0])
+        f, psds[plots.class_label(spec.fabric_id)] = mean_psd(arch.audio[0], arch.window_end[:, 0])
     cafe_day = dataset.splits.cafe_days[0]
     noise = simulate(Scene(0, day=cafe_day, condition="cafe", effects=("ambient", "shell", "sph0645"), cycles=120))
     return f, psds, mean_psd(noise.audio[0], noise.window_end[:, 0])[1]
@@ -46,9 +47,8 @@ def class_psds(preset_name: str) -> tuple[np.ndarray, dict[str, np.ndarray], np.
 def main(argv):
     del argv
     f, psds, noise = class_psds(FLAGS.preset)
-    path = plots.plot_psds(workspace.results_dir(FLAGS.results) / "psds.png", f, psds, noise=noise)
-    print(f"wrote {path}")
+    plots.plot_psds(flags.results_dir() / "psds.png", f, psds, noise=noise)  # listed by flags.run
 
 
 if __name__ == "__main__":
-    cli.run(main)
+    flags.run(main)

@@ -3,6 +3,7 @@
     python -m experiments.stream                                  # quick default-preset model, first test trial
     python -m experiments.stream --archive=PATH --checkpoint=DIR  # any trial, any streamable checkpoint
     python -m experiments.stream --realtime=false                 # as fast as possible
+    python -m experiments.stream --print_every=10                 # also every 10th step's prediction
     python -m experiments.stream --view                           # watch it in Rerun (pip install -e ".[viz]")
     python -m experiments.stream --view_save=stream.rrd           # or keep it as a Rerun recording
     python -m experiments.stream --set=modalities=internal,proprio --set=epochs=4   # another quick model
@@ -22,7 +23,7 @@ absl_flags.DEFINE_string("checkpoint", None, "checkpoint directory of a train_an
 flags.define_preset()
 flags.define_overrides()
 absl_flags.DEFINE_bool("realtime", True, "replay at 50 Hz; false: as fast as possible")
-absl_flags.DEFINE_integer("print_every", 1, "print every k-th step (0: summary only)")
+absl_flags.DEFINE_integer("print_every", 0, "also print every k-th step's prediction (default 0: the summary only)", lower_bound=0)
 absl_flags.DEFINE_bool("view", False, "stream the trial's sensors and each step's prediction, confidence and latency to the Rerun viewer")
 absl_flags.DEFINE_string("view_save", None, "log what --view shows to this .rrd file instead (no viewer needed)")
 

@@ -3,18 +3,28 @@
 A checkpoint step is the number of finished epochs. The config and seeds are saved next to the
 state, so restoring under a different config fails loudly instead of silently mixing runs. Orbax
 has no restore of one index along an axis: one seed is the stacked restore, sliced.
+
+The meta also says what the model was trained for (`trained_for`: its heads, classes, inputs and
+the fabrics it never saw), so that a command reading a checkpoint can refuse one made for another
+job (`require`) in one line. A restore places every array on this process's devices (`on_devices`),
+whatever the device and process count of the run that saved it. Reading opens a checkpoint folder
+without creating anything (`open_existing`): a path holding no checkpoint is a one-line error.
 """
 
 from __future__ import annotations
 
 import os
-from typing import Any
+from pathlib import Path
+from typing import Any, Mapping, Sequence
 
 import jax
+import numpy as np
 import orbax.checkpoint as ocp
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from fabricjax.config import Config
 from fabricjax.errors import UserError
+from fabricjax.model import head_sizes
 
 
 # The layout of the saved training state; bumped whenever it changes (2: the optimiser state holds
@@ -27,18 +37,73 @@ class CheckpointMismatch(UserError):
     """A checkpoint directory holds a run made with another config or other seeds."""
 
 
+class NoCheckpoint(UserError, FileNotFoundError):
+    """A path given as a checkpoint holds none."""
+
+
+class WrongCheckpoint(UserError):
+    """A checkpoint made for another job than the one a command does with it."""
+
+
 def manager(directory: str | os.PathLike, max_to_keep: int = 2) -> ocp.CheckpointManager:
+    """The checkpoints of a training run in `directory` (created), to save and resume."""
     return ocp.CheckpointManager(
         os.path.abspath(directory), options=ocp.CheckpointManagerOptions(max_to_keep=max_to_keep)
     )
 
 
-def meta(config: Config, seeds, shapes: dict[str, tuple[int, ...]]) -> dict[str, Any]:
-    """What identifies a run: its config, its seeds, the per-step input shapes and the state's layout."""
+def open_existing(directory: str | os.PathLike) -> ocp.CheckpointManager:
+    """The checkpoints in `directory`, only read; a path holding none (absent, a file, an empty or
+    other folder such as the parent of checkpoint folders) is a `NoCheckpoint` naming the path and,
+    for a parent, the checkpoint folders inside it. Nothing is created."""
+    path = os.path.abspath(directory)
+    if not os.path.isdir(path):
+        raise NoCheckpoint(f"no checkpoint at {path}: {'no such folder' if not os.path.exists(path) else 'not a folder'}")
+    # create=False and no save: nothing is written (orbax's read_only mode says as much in two warnings)
+    mngr = ocp.CheckpointManager(path, options=ocp.CheckpointManagerOptions(create=False))
+    if mngr.latest_step() is None:
+        inside = sorted(str(p) for p in Path(path).glob("*/") if p.is_dir() and _holds_steps(p))
+        hint = f"; checkpoint folders inside it: {', '.join(inside)}" if inside else " (a checkpoint folder holds numbered step folders)"
+        raise NoCheckpoint(f"no checkpoint in {path}{hint}")
+    return mngr
+
+
+def _holds_steps(folder: Path) -> bool:
+    return any(p.is_dir() and p.name.isdigit() and (p / "meta").exists() for p in folder.iterdir())
+
+
+def meta(config: Config, seeds, shapes: dict[str, tuple[int, ...]], classes: Sequence[str] | None = None) -> dict[str, Any]:
+    """What identifies a run (its config, its seeds, the per-step input shapes and the state's
+    layout) and what it was trained for (`trained_for`, with the data's class names `classes`)."""
     return {
         "config": config.to_json(), "seeds": [int(s) for s in seeds], "shapes": {k: list(v) for k, v in shapes.items()},
-        "state_version": STATE_VERSION,
+        "state_version": STATE_VERSION, "trained_for": trained_for(config, classes),
     }
+
+
+def trained_for(config: Config, classes: Sequence[str] | None = None) -> dict[str, Any]:
+    """What a model is for: its heads, its fabric classes (count and names, the data's label map),
+    its inputs, its dataset preset and the fabrics excluded from its training (never seen)."""
+    return {
+        "heads": list(head_sizes(config)), "n_classes": config.n_classes if config.fabric_head else None,
+        "classes": None if classes is None or not config.fabric_head else list(classes),
+        "inputs": list(config.modalities), "preset": config.preset, "unseen_fabrics": sorted(config.exclude_fabrics),
+    }
+
+
+def describe(for_: Mapping[str, Any]) -> str:
+    """`trained_for` in words, for an error message."""
+    heads = "+".join(for_["heads"]) or "no"
+    classes = f" ({for_['n_classes']} classes)" if for_.get("n_classes") else ""
+    unseen = ", ".join(map(str, for_["unseen_fabrics"])) or "none"
+    return f"heads {heads}{classes}, inputs {'+'.join(for_['inputs'])}, preset {for_['preset']}, fabrics never seen: {unseen}"
+
+
+def require(directory, for_: Mapping[str, Any], job: str, expected: str, ok: bool) -> None:
+    """Raise `WrongCheckpoint` unless `ok`: `job` needs `expected`, and the checkpoint in
+    `directory` holds a model trained for `for_`."""
+    if not ok:
+        raise WrongCheckpoint(f"{job} needs {expected}; the checkpoint in {directory} holds a model with {describe(for_)}")
 
 
 def save(mngr: ocp.CheckpointManager, step: int, state, run_meta: dict[str, Any]) -> None:
@@ -81,11 +146,20 @@ def _norm(v):
     return v
 
 
+def on_devices(abstract_state):
+    """`abstract_state` (arrays' shapes and dtypes) placed whole on every device of this run
+    (replicated), whatever devices and processes the saved arrays were on: orbax then reshards on
+    restore instead of refusing another topology."""
+    everywhere = NamedSharding(Mesh(np.asarray(jax.devices()), ("all",)), PartitionSpec())
+    return jax.tree.map(lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=everywhere), abstract_state)
+
+
 def restore(mngr: ocp.CheckpointManager, abstract_state, expected_meta: dict[str, Any], step: int | None = None):
-    """(stacked state, step) of the latest (or given) step, after checking the run's identity."""
+    """(stacked state, step) of the latest (or given) step, after checking the run's identity;
+    arrays come back with `abstract_state`'s shardings (`on_devices` for any of this run's devices)."""
     step = mngr.latest_step() if step is None else step
     if step is None:
-        raise FileNotFoundError(f"no checkpoint in {mngr.directory}")
+        raise NoCheckpoint(f"no checkpoint in {mngr.directory}")
     check_meta(mngr.directory, read_meta(mngr, step), expected_meta)
     out = mngr.restore(step, args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract_state)))
     return out["state"], step

@@ -8,6 +8,9 @@
   TPU plugin installed, or JAX_PLATFORMS set, JAX chooses as usual: a real GPU is never hidden.
 * `--help` lists the project's own flags (those of the command and of `experiments.flags`), not
   absl's, orbax's and JAX's (`--helpfull` still shows everything), and exits 0.
+* Log lines: INFO lines of other libraries (orbax's per-save lines, absl's) are dropped unless
+  `--verbosity` is given; warnings always show. Log lines go out through `tqdm.write`, so they never
+  share a line with a progress bar (the bar is cleared, the line written, the bar redrawn).
 * A user's mistake (a bad flag value, or a `fabricjax.errors.UserError` such as a damaged archive,
   an empty data folder or an unknown row) ends in one line `error: <message>` on stderr and exit
   status 2; `--verbosity=1` (absl's debug level) shows its traceback. Anything else is a bug and
@@ -18,11 +21,13 @@ from __future__ import annotations
 
 import importlib.metadata
 import importlib.util
+import logging as std_logging
 import os
 import sys
 from typing import Callable, Mapping, Sequence
 
 from absl import app, flags, logging
+from tqdm import tqdm
 
 from fabricjax import runtime
 from fabricjax.errors import UserError
@@ -89,6 +94,39 @@ def _parse(argv: list[str]) -> list[str]:
         fail(f"{e} (--help lists the flags)")
 
 
+class _BelowProgressBars:
+    """A stream for log lines that writes them through `tqdm.write`, above any active progress bar."""
+
+    def write(self, text: str) -> None:
+        tqdm.write(text, file=sys.stderr, end="")
+
+    def flush(self) -> None:
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        """At exit, logging closes its handlers' streams: stderr stays open."""
+
+
+_PROJECT_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+_PROJECT_DIRS = tuple(os.path.join(_PROJECT_ROOT, p) + os.sep for p in PROJECT_PACKAGES)
+
+
+def _shown(record: std_logging.LogRecord) -> bool:
+    """Without --verbosity: warnings and errors, and the project's own INFO lines."""
+    return record.levelno >= std_logging.WARNING or os.path.abspath(record.pathname).startswith(_PROJECT_DIRS) or (
+        record.pathname == sys.argv[0]
+    )
+
+
+def quiet_logs() -> None:
+    """The log setup of the module docstring: other libraries' INFO lines off unless --verbosity
+    asks, every line written above the progress bars."""
+    handler = logging.get_absl_handler()
+    handler.python_handler.stream = _BelowProgressBars()
+    if not FLAGS["verbosity"].present:
+        handler.addFilter(_shown)
+
+
 def run(main: Callable[[list[str]], object], before: Callable[[], None] = runtime.configure_jax) -> None:
     """`absl.app.run(main)` as described in the module docstring; `before` runs after the flags
     are parsed and before `main`: the process's JAX setup (`runtime.configure_jax`, or a call of it
@@ -96,6 +134,7 @@ def run(main: Callable[[list[str]], object], before: Callable[[], None] = runtim
     choose_platforms()
 
     def start(argv):
+        quiet_logs()
         before()
         try:
             return main(argv)

@@ -202,9 +202,16 @@ def replay(
 def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config, float]:
     """(graphdef, best-validation params of the first seed, config, temperature) of a
     `train_and_evaluate` checkpoint, under the config saved with it; the temperature is the one
-    fitted for that seed (`confidence.load_temperature`), 1 where none was."""
+    fitted for that seed (`confidence.load_temperature`), 1 where none was. A checkpoint of a model
+    that cannot stream (no fabric head, or inputs other than `STREAMABLE`) is a
+    `checkpoint.WrongCheckpoint`."""
     from fabricjax import checkpoint, train
 
     restored = train.restore(directory)
+    for_ = restored.trained_for
+    checkpoint.require(
+        directory, for_, "streaming", f"a model with a fabric head over inputs from {'/'.join(STREAMABLE)}",
+        "fabric" in for_["heads"] and set(for_["inputs"]) <= set(STREAMABLE),
+    )
     t = confidence.load_temperature(directory, restored.seeds[0])
     return restored.graphdef, checkpoint.select_seed(restored.state["best_params"], 0), restored.config, 1.0 if t is None else t

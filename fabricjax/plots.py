@@ -145,7 +145,7 @@ def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[S
 def plot_seed_bars(path, groups: Sequence[str], series: dict[str, tuple[Sequence[np.ndarray], Sequence[float | None]]], title: str) -> Path:
     """Grouped bars of mean accuracy [%] with every seed's value as a dot: per split (`series`:
     split -> (per-seed values per group, the paper's mean per group or None)); the paper's mean
-    is a black bar-wide tick."""
+    is a black bar-wide tick, named in the legend with its split ("cafe test, paper (mean)")."""
     fig, ax = plt.subplots(figsize=(1.9 * len(groups) + 4.4, 4.4), layout="constrained")
     width = 0.8 / len(series)
     for i, (split, (per_seed, paper)) in enumerate(series.items()):
@@ -157,8 +157,8 @@ def plot_seed_bars(path, groups: Sequence[str], series: dict[str, tuple[Sequence
         for x, p in zip(xs, paper):
             if p is not None:
                 ax.hlines(p, x - width * 0.46, x + width * 0.46, color="black", lw=2, zorder=4)
-    if any(p is not None for _, paper in series.values() for p in paper):
-        ax.hlines([], 0, 0, color="black", lw=2, label="paper (mean)")
+        if any(p is not None for p in paper):
+            ax.hlines([], 0, 0, color="black", lw=2, label=f"{name}, paper (mean)")
     ax.set_xticks(range(len(groups)), groups, fontsize=8)
     ax.set(ylabel="accuracy [%]", title=title, ylim=(0, 100))
     ax.grid(alpha=0.3, axis="y")
@@ -166,15 +166,22 @@ def plot_seed_bars(path, groups: Sequence[str], series: dict[str, tuple[Sequence
     return _save(fig, path)
 
 
+def clipped_errors(means: np.ndarray, sds: np.ndarray, low: float = 0.0, high: float = 100.0) -> np.ndarray:
+    """(2, n) error bar extents (below, above) of mean ± SD, clipped to the range [low, high] an
+    accuracy can take."""
+    return np.stack([np.minimum(sds, means - low), np.minimum(sds, high - means)]).clip(min=0.0)
+
+
 def plot_pareto(path, points: Sequence[dict], x_keys: Sequence[tuple[str, str]], highlight: str | None = None) -> Path:
-    """Accuracy (mean ± SD) against each cost in `x_keys` [(key, axis label with unit)]; the
-    Pareto front (no point both cheaper and more accurate) is drawn, `highlight` is marked."""
+    """Accuracy (mean ± SD, the bars clipped to 0-100 %) against each cost in `x_keys` [(key, axis
+    label with unit)]; the Pareto front (no point both cheaper and more accurate) is drawn,
+    `highlight` is marked."""
     fig, axes = plt.subplots(1, len(x_keys), figsize=(6.2 * len(x_keys), 4.8), squeeze=False)
     for ax, (key, label) in zip(axes[0], x_keys):
         xs = np.array([p[key] for p in points], float)
         ys = np.array([p["accuracy_mean"] for p in points], float)
         es = np.array([p.get("accuracy_sd", 0.0) for p in points], float)
-        ax.errorbar(xs, ys, yerr=es, fmt="o", color="tab:blue", ecolor="lightgrey", capsize=2)
+        ax.errorbar(xs, ys, yerr=clipped_errors(ys, es), fmt="o", color="tab:blue", ecolor="lightgrey", capsize=2)
         order = np.lexsort((-ys, xs))
         front, best = [], -np.inf
         for i in order:
@@ -206,7 +213,8 @@ def plot_pareto(path, points: Sequence[dict], x_keys: Sequence[tuple[str, str]],
 
 
 def plot_psds(path, freqs_hz: np.ndarray, psds: dict[str, np.ndarray], noise: np.ndarray | None = None) -> Path:
-    """Mean internal-microphone PSD per class, with the cafe noise in black (the paper's Fig. psds)."""
+    """Mean internal-microphone PSD per class (`psds`: legend name -> PSD), with the cafe noise in
+    black (the paper's Fig. psds)."""
     fig, ax = plt.subplots(figsize=(8, 5))
     cmap = plt.get_cmap("turbo")
     for i, (name, p) in enumerate(psds.items()):

@@ -409,7 +409,7 @@ def train_and_evaluate(
     keys = sharding.put(seed_keys(seeds), per_seed)
 
     mngr = checkpoint.manager(workdir) if workdir is not None else None
-    run_meta = checkpoint.meta(config, seeds, trainer.shapes)
+    run_meta = checkpoint.meta(config, seeds, trainer.shapes, getattr(data_sets["train"], "classes", None))
     if mngr is not None and mngr.latest_step() is not None:
         abstract = jax.tree.map(
             lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=per_seed), jax.eval_shape(init, keys)
@@ -444,21 +444,24 @@ def train_and_evaluate(
 
 class Restored(NamedTuple):
     """A `train_and_evaluate` checkpoint: the model's graphdef, its state (all seeds stacked, or
-    one seed's), and the run's config and seeds as saved with it."""
+    one seed's), the run's config and seeds as saved with it, and what the model was trained for
+    (`checkpoint.trained_for`)."""
 
     graphdef: Any
     state: dict[str, Any]
     config: Config
     seeds: list[int]
+    trained_for: dict[str, Any]
 
 
 def restore(directory: str | os.PathLike, config: Config | None = None, seed: int | None = None) -> Restored:
     """The run saved by `train_and_evaluate` in `directory`: all seeds stacked, or the one `seed`
     (a seed value). `config` None restores under the config saved with the run; a given config
-    must be the saved one (else `checkpoint.CheckpointMismatch`)."""
-    mngr = checkpoint.manager(directory)
-    if mngr.latest_step() is None:
-        raise FileNotFoundError(f"no checkpoint in {os.path.abspath(directory)}")
+    must be the saved one (else `checkpoint.CheckpointMismatch`). A path holding no checkpoint is a
+    `checkpoint.NoCheckpoint` and creates nothing; the arrays come back on this run's devices,
+    whatever the device and process count of the run that saved them. `Restored.trained_for` says
+    what the model is for (`checkpoint.trained_for`)."""
+    mngr = checkpoint.open_existing(directory)
     saved = checkpoint.read_meta(mngr)
     config = Config.from_json(saved["config"]) if config is None else config
     shapes = {k: tuple(v) for k, v in saved["shapes"].items()}
@@ -466,9 +469,10 @@ def restore(directory: str | os.PathLike, config: Config | None = None, seed: in
     checkpoint.check_meta(mngr.directory, saved, expected)
     trainer = make_trainer(config, shapes)
     abstract = jax.eval_shape(jax.vmap(trainer.init), jax.ShapeDtypeStruct((len(saved["seeds"]), 2), jnp.uint32))
-    state, _ = checkpoint.restore(mngr, abstract, expected)
+    state, _ = checkpoint.restore(mngr, checkpoint.on_devices(abstract), expected)
+    for_ = saved.get("trained_for") or checkpoint.trained_for(config)  # older checkpoints: from their config
     if seed is None:
-        return Restored(trainer.graphdef, state, config, saved["seeds"])
+        return Restored(trainer.graphdef, state, config, saved["seeds"], for_)
     if seed not in saved["seeds"]:
         raise KeyError(f"seed {seed} is not in the checkpoint in {mngr.directory} (seeds {saved['seeds']})")
-    return Restored(trainer.graphdef, checkpoint.select_seed(state, saved["seeds"].index(seed)), config, saved["seeds"])
+    return Restored(trainer.graphdef, checkpoint.select_seed(state, saved["seeds"].index(seed)), config, saved["seeds"], for_)

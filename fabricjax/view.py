@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import sys
 from typing import Any
 
 import numpy as np
@@ -55,9 +56,23 @@ def rerun():
     return rr
 
 
-def open_recording(save: str | os.PathLike | None = None):
-    """A Rerun recording stream: into the .rrd file `save`, else to a viewer (spawned if none runs)."""
+def require_display(save_flag: str) -> None:
+    """Raise a one-line `UserError` naming `save_flag` (the command's flag that saves an .rrd file
+    instead) when the Rerun viewer cannot open a window: on Linux, neither DISPLAY nor
+    WAYLAND_DISPLAY is set, and a spawned viewer would fail while the logging waits for it forever."""
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise UserError(
+            f"the Rerun viewer needs a display and this session has none (neither DISPLAY nor WAYLAND_DISPLAY is set): "
+            f"save a recording with {save_flag}=FILE.rrd and open it where there is a screen with `rerun FILE.rrd`"
+        )
+
+
+def open_recording(save: str | os.PathLike | None = None, save_flag: str = "--view_save"):
+    """A Rerun recording stream: into the .rrd file `save`, else to a viewer (spawned if none runs;
+    without a display, `require_display`'s error naming `save_flag`)."""
     rr = rerun()
+    if save is None:
+        require_display(save_flag)
     rec = rr.RecordingStream(APPLICATION_ID)
     if save is not None:
         rec.save(str(save))
@@ -168,15 +183,13 @@ def log_trial(rec, trial: archive.TrialArchive, streamer: live.Streamer | None =
 def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
     """`experiments.view`: one trial archive (frames included when recorded), with a streamable
     checkpoint's predictions over it, to `save` (.rrd) or a viewer."""
+    if save is None:
+        require_display("--save")
     trial = archive.read_archive(path, images=True)
     streamer = None
     if checkpoint is not None:
-        graphdef, params, config, temperature = live.restore_model(checkpoint)
-        try:
-            streamer = live.Streamer(graphdef, params, config, temperature)
-        except ValueError as e:
-            raise UserError(f"{checkpoint}: {e}") from None
-    rec = open_recording(save)
+        streamer = live.Streamer(*live.restore_model(checkpoint))
+    rec = open_recording(save, save_flag="--save")
     summary = log_trial(rec, trial, streamer)
     rec.flush()
     return {"archive": str(path), "steps": trial.n_steps, "frames": trial.images is not None, "rrd": None if save is None else str(save), **summary}

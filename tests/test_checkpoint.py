@@ -1,4 +1,7 @@
 import dataclasses
+import os
+import subprocess
+import sys
 
 import jax
 import numpy as np
@@ -36,8 +39,10 @@ def uninterrupted(tmp_path_factory):
 
 def test_restore_one_seed_gives_identical_predictions(uninterrupted):
     workdir, res = uninterrupted
-    graphdef, state, config, seeds = restore(workdir, TINY, seed=7)
+    graphdef, state, config, seeds, trained_for = restore(workdir, TINY, seed=7)
     assert config == TINY and seeds == SEEDS
+    assert trained_for == {"heads": ["fabric"], "n_classes": TINY.n_classes, "classes": None, "inputs": ["internal"],
+                           "preset": "smoke", "unseen_fabrics": []}
     test = data_sets()["test"]["inputs"]
     restored = make_predict(graphdef)(state["best_params"], test)["fabric"]
     trained = make_predict(res.graphdef)(res.params(1), test)["fabric"]
@@ -113,3 +118,75 @@ def test_a_studys_checkpoint_folder_changes_with_the_code(monkeypatch, tmp_path)
     assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 2], tmp_path)
     monkeypatch.setattr(source, "fingerprint", lambda: "other code")
     assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], tmp_path)
+
+
+# Restores the checkpoint in argv[1] in a process with argv[2] CPU devices, or with argv[3] set
+# first trains one there (on those devices), and prints a seed's test logits' sum.
+ON_DEVICES = """
+import sys
+import jax
+jax.config.update("jax_disable_most_optimizations", True)
+import numpy as np
+sys.path.insert(0, {tests!r})
+from test_checkpoint import SEEDS, TINY, data_sets
+from fabricjax.model import make_predict
+from fabricjax.train import restore, train_and_evaluate
+assert jax.device_count() == int(sys.argv[2])
+if len(sys.argv) > 3:
+    train_and_evaluate(TINY, data_sets(), SEEDS, workdir=sys.argv[1])
+graphdef, state, *_ = restore(sys.argv[1], seed=7)
+print("logits", repr(np.asarray(make_predict(graphdef)(state["best_params"], data_sets()["test"]["inputs"])["fabric"]).tolist()))
+"""
+
+
+def on_devices(folder, devices: int, train: bool = False) -> np.ndarray:
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    env.update(JAX_PLATFORMS="cpu", XLA_FLAGS=f"--xla_force_host_platform_device_count={devices}")
+    code = ON_DEVICES.format(tests=os.path.dirname(__file__))
+    args = [sys.executable, "-c", code, str(folder), str(devices)] + (["train"] if train else [])
+    out = subprocess.run(args, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    return np.asarray(eval(out.stdout.split("logits", 1)[1]))
+
+
+def test_a_checkpoint_restores_on_another_device_count(uninterrupted, tmp_path):
+    """Saved on this process's one device, restored on two; saved on two, restored on one."""
+    assert jax.device_count() == 1
+    workdir, res = uninterrupted
+    test = data_sets()["test"]["inputs"]
+    trained = np.asarray(make_predict(res.graphdef)(res.params(1), test)["fabric"])
+    np.testing.assert_allclose(on_devices(workdir, 2), trained, rtol=1e-6)
+    two = on_devices(tmp_path / "two", 2, train=True)
+    graphdef, state, *_ = restore(tmp_path / "two", seed=7)
+    np.testing.assert_allclose(np.asarray(make_predict(graphdef)(state["best_params"], test)["fabric"]), two, rtol=1e-6)
+
+
+def test_a_path_without_a_checkpoint_is_one_line_and_creates_nothing(uninterrupted, tmp_path):
+    workdir, _ = uninterrupted
+    with pytest.raises(checkpoint.NoCheckpoint, match=f"no checkpoint at {tmp_path / 'typo'}: no such folder"):
+        restore(tmp_path / "typo")
+    assert not (tmp_path / "typo").exists()
+    parent = workdir.parent
+    before = sorted(parent.rglob("*"))
+    with pytest.raises(checkpoint.NoCheckpoint, match=f"no checkpoint in {parent}; checkpoint folders inside it: .*{workdir.name}"):
+        restore(parent)
+    assert sorted(parent.rglob("*")) == before
+
+
+def test_a_checkpoint_made_for_another_job_is_refused_naming_both(uninterrupted, tmp_path):
+    """Streaming needs a fabric head; latents a model that never saw the property holdouts."""
+    from fabricjax import live
+    from fabricjax.studies import latents
+
+    properties_only = dataclasses.replace(TINY, fabric_head=False, property_heads=True, epochs=1)
+    sets = {k: synthetic.data_set(properties_only, 8, seed=i) for i, k in enumerate(["train", "val"])}
+    train_and_evaluate(properties_only, sets, [0], workdir=tmp_path / "properties")
+    with pytest.raises(checkpoint.WrongCheckpoint, match=(
+        rf"streaming needs a model with a fabric head .*; the checkpoint in {tmp_path / 'properties'} holds a model with "
+        r"heads stretchiness\+roughness\+thickness, inputs internal")):
+        live.restore_model(tmp_path / "properties")
+    workdir, _ = uninterrupted  # trained on every fabric
+    with pytest.raises(checkpoint.WrongCheckpoint, match=r"latents needs a model that never saw the holdout fabrics 1, 10, 21, 22, 23 .*"
+                                                         r"heads fabric \(21 classes\), inputs internal, preset smoke, fabrics never seen: none"):
+        latents.run(workdir, results=tmp_path / "results")
+    assert not (tmp_path / "results").exists()

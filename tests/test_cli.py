@@ -36,6 +36,12 @@ def test_help_lists_the_project_flags_and_exits_0():
     assert "libtpu" not in out.stdout + out.stderr
 
 
+@pytest.mark.parametrize("module", ["experiments.psds", "experiments.stream", "experiments.latents", "experiments.probe"])
+def test_every_command_takes_a_workdir(module):
+    out = subprocess.run([sys.executable, "-m", module, "--help"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and "--workdir" in out.stdout, out.stderr
+
+
 def damaged_folder(tmp_path):
     folder = tmp_path / "damaged"
     folder.mkdir()
@@ -113,3 +119,37 @@ def test_progress_names_rows_as_the_table_does():
 def test_results_default_to_the_workspace(tmp_path):
     assert workspace.results_dir(None, tmp_path) == tmp_path / "results" and (tmp_path / "results").is_dir()
     assert workspace.results_dir(tmp_path / "mine", tmp_path) == tmp_path / "mine"
+
+
+# A command that saves an orbax checkpoint and logs a line of its own while a progress bar runs.
+LOGS = """
+import sys
+import numpy as np
+from absl import logging
+from tqdm import tqdm
+from fabricjax import checkpoint, cli
+
+def main(argv):
+    mngr = checkpoint.manager(sys.argv[1])
+    mngr.save(1, args=checkpoint.ocp.args.Composite(state=checkpoint.ocp.args.StandardSave({{"w": np.ones(3)}})))
+    mngr.wait_until_finished()
+    bar = tqdm(total=2, desc="bar", file=sys.stderr)
+    bar.update(1)
+    exec(compile("from absl import logging; logging.info('ours')", {ours!r}, "exec"))
+    bar.close()
+
+cli.run(main)
+"""
+
+
+@pytest.mark.parametrize("verbosity", [None, "--verbosity=0"])
+def test_other_libraries_info_lines_are_off_unless_asked_and_log_lines_never_share_a_bar_s_line(verbosity, tmp_path):
+    code = LOGS.format(ours=str(ROOT / "fabricjax" / "a_module.py"))
+    args = [sys.executable, "-c", code, str(tmp_path / "ckpt")] + ([verbosity] if verbosity else [])
+    out = subprocess.run(args, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    lines = [segment for line in out.stderr.split("\n") for segment in line.split("\r")]
+    ours = [s for s in lines if "] ours" in s]
+    assert len(ours) == 1 and ours[0].startswith("I") and "bar" not in ours[0]
+    orbax = [s for s in lines if "orbax" in s or "checkpoint_manager" in s]
+    assert bool(orbax) == (verbosity is not None), out.stderr[-2000:]

@@ -27,3 +27,17 @@ def test_figures_are_written(tmp_path):
     for p in (p1, p2, p3, p4):
         assert p.stat().st_size > 5000 and p.read_bytes()[:4] == b"\x89PNG"
     assert sorted(q.name for q in tmp_path.iterdir()) == ["cm.png", "pareto.png", "psd.png", "tsne.png"]
+
+
+def test_accuracy_error_bars_stop_at_0_and_100_percent():
+    below, above = plots.clipped_errors(np.array([3.0, 50.0, 99.0]), np.array([5.0, 5.0, 5.0]))
+    assert below.tolist() == [3.0, 5.0, 5.0] and above.tolist() == [5.0, 5.0, 1.0]
+
+
+def test_the_paper_tick_is_named_with_its_split(monkeypatch, tmp_path):
+    """The noise figure's paper means are the cafe test's: the legend says so."""
+    drawn = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: drawn.append([t.get_text() for t in fig.axes[0].get_legend().get_texts()]))
+    plots.plot_seed_bars(tmp_path / "x.png", ["a", "b"], {"test": ([np.ones(2), np.ones(2)], [None, None]),
+                                                          "cafe": ([np.ones(2), np.ones(2)], [40.0, None])}, "title")
+    assert "cafe test, paper (mean)" in drawn[0] and not any(t.startswith("paper") for t in drawn[0])

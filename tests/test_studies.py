@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from fabricjax import data, sim, source, stats, train
+from fabricjax import data, presets, sim, source, stats, train
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, documents, latents, noise, probe, properties, reproduce, runner, sweep
+from fabricjax.studies import ablation, bandwidth, documents, findings, latents, noise, probe, properties, reproduce, runner, sweep
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
 TINY = dict(epochs=1, width=16, n_layers=1)
@@ -48,6 +48,22 @@ def test_ablation_writes_table_statistics_and_confusions(workdir, tmp_path):
     md = (tmp_path / "ablation.md").read_text()
     assert "95.06 ± 1.85" in md and "smallest attainable p" in md and "command: `test`" in md
     assert json.loads((tmp_path / "ablation.json").read_text())["preset"] == "smoke"
+
+
+def test_the_smoke_preset_learns_and_says_it_checks_the_install(workdir, tmp_path):
+    """The newcomer's proof that the install works: the smoke preset's own recipe puts Minsound
+    well above chance (twice chance over the classes its test day has), and its report says that
+    it checks the install and counts none of the paper's claims."""
+    doc = ablation.run(n_seeds=1, rows=["internal"], preset="smoke", workdir=workdir, results=tmp_path, command="test")
+    labels = doc["test_samples"]["labels"]["fabric"]
+    chance = 1 / len(set(labels))
+    assert doc["rows"][0]["accuracy"]["test"]["fabric"][0] >= 2 * chance
+    # the classifier has the smoke data's classes, no other, and predicts only those
+    assert doc["rows"][0]["config"]["n_classes"] == len(set(labels)) == 5
+    assert set(doc["rows"][0]["predictions"]["test"]["fabric"][0]) <= set(labels)
+    md = (tmp_path / "ablation.md").read_text()
+    assert presets.INSTALL_CHECK_NOTE in md.split("\n")[2] and findings.NOT_COUNTED in md
+    assert "evaluated claims reproduced" not in md
 
 
 def test_ablation_rerun_gives_identical_per_seed_accuracies(workdir, tmp_path):
@@ -154,8 +170,8 @@ def property_run(workdir, tmp_path_factory):
 
 def test_properties_report_training_and_holdout_fabrics_and_checkpoint(property_run):
     doc, results = property_run
-    assert doc["fabrics"]["holdout"] == [1, 10, 21]  # the smoke preset's holdouts
-    assert 0 in doc["fabrics"]["test"] and not {1, 10, 21} & set(doc["fabrics"]["test"])
+    assert doc["fabrics"]["holdout"] == [1, 21]  # the smoke preset's holdouts
+    assert 0 in doc["fabrics"]["test"] and not {1, 21} & set(doc["fabrics"]["test"])
     (row,) = doc["rows"]
     for split in ("test", "holdout"):
         assert set(row["accuracy"][split]) == {"stretchiness", "roughness", "thickness"}
@@ -168,7 +184,7 @@ def test_properties_report_training_and_holdout_fabrics_and_checkpoint(property_
 def test_latents_from_the_property_checkpoint(property_run, workdir, tmp_path):
     doc, _ = property_run
     out = latents.run(doc["rows"][0]["checkpoint"], workdir=workdir, results=tmp_path, command="test")
-    assert [p["fabric_id"] for p in out["points"]] == [1, 4, 10, 12, 21]  # fabrics of the smoke preset but 0
+    assert [p["fabric_id"] for p in out["points"]] == [1, 2, 3, 4, 21]  # fabrics of the smoke preset but 0
     assert out["seed"] == out["checkpoint_seeds"][int(np.argmax(out["best_val_per_seed"]))]
     assert np.isfinite([p["xy"] for p in out["points"]]).all()
     assert (tmp_path / "latents.png").stat().st_size > 0
@@ -346,14 +362,17 @@ def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_p
     kw = dict(preset="smoke", plan=SMOKE_PLAN, overrides=TINY, workdir=workdir, results=tmp_path, say=said.append)
     first = reproduce.run(**kw)
     assert list(first) == [s.study for s in SMOKE_PLAN]
-    assert "estimated time" in said[0] and all(f"{s.study:<11} run" in said[0] for s in SMOKE_PLAN)
+    assert all(f"{s.study:<11} run" in said[0] for s in SMOKE_PLAN)
+    assert f"estimated time: none for probe, bandwidth, properties, latents: no earlier run of the smoke preset in {tmp_path}" in said[0]
     text = (tmp_path / "REPORT.md").read_text()
     for s in SMOKE_PLAN:
         assert f"## {reproduce.title(s.study)}" in text
     assert text.count("Rerun alone: `python -m experiments.") == 4 and "`python -m experiments.bandwidth --seeds=1 --preset=smoke --rows=2.5" in text
     assert "`python -m experiments.probe --preset=smoke --rows=proprio --set=" in text and "| – (deterministic) | – (not in the paper) |" in text
     assert "--checkpoint=" in text and "![bandwidth.png](bandwidth.png)" in text and "(latents.png)" in text
-    assert text.count("evaluated claims reproduced") == 3  # every paper study's checklist is in the report (the probe has none)
+    # every paper study's checklist is in the report (the probe has none), not counted: smoke checks the install
+    assert text.count(findings.NOT_COUNTED) == 3 and "evaluated claims reproduced" not in text
+    assert presets.INSTALL_CHECK_NOTE in text.split("\n")[2] and text.count("| not counted (install check) |") == 3
     outputs = {p.name: p.stat().st_ino for p in tmp_path.iterdir() if p.name not in ("REPORT.md", "reproduce.json")}
     assert {"probe.md", "probe.json", "bandwidth.md", "bandwidth.png", "properties.json", "latents.png", "latents.md"} <= set(outputs)
 

@@ -106,8 +106,26 @@ def test_record_view_save_logs_the_trial_as_it_is_recorded(checkpoint, tmp_path)
     args = ["--fabric=12", "--trials=1", "--cycles=2", "--simulate", f"--out={tmp_path}", f"--view_save={tmp_path / 'rec.rrd'}", f"--checkpoint={checkpoint}"]
     out = subprocess.run([sys.executable, "-m", "acquisition.record", *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
+    assert "connection ended" not in out.stderr + out.stdout  # the simulated Pi's end of stream is no news
     trial = archive.read_archive(next(tmp_path.glob("*.npz")), images=False)
     read = read_rrd(tmp_path / "rec.rrd")
     assert set(read) == SENSORS | WAVES | PREDICTION
     assert read["/force"]["steps"] == list(range(trial.n_steps))
     assert read["/prediction/confidence"]["steps"] == list(range(CONFIG.seq_len - 1, trial.n_steps))
+
+
+@pytest.mark.parametrize("module, args, save_flag", [
+    ("experiments.view", ["{trial}"], "--save"),
+    ("experiments.stream", ["--view", "--preset=smoke", "--workdir={tmp}"], "--view_save"),
+    ("acquisition.record", ["--view", "--simulate", "--fabric=12", "--trials=1", "--cycles=2", "--out={tmp}/rec"], "--view_save"),
+])
+def test_viewing_without_a_display_is_one_line_naming_the_save_flag(smoke_trial, tmp_path, module, args, save_flag):
+    """No command waits for a viewer that cannot open: before any work, one line and status 2."""
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["PYTHONPATH"] = str(ROOT)
+    args = [a.format(trial=smoke_trial[0], tmp=tmp_path) for a in args]
+    out = subprocess.run([sys.executable, "-m", module, *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2, out.stderr[-2000:]
+    [line] = out.stderr.strip().splitlines()
+    assert line.startswith("error: the Rerun viewer needs a display") and f"{save_flag}=FILE.rrd" in line
+    assert not (tmp_path / "rec").exists()

@@ -122,7 +122,7 @@ def ensure_dataset(
                 f"about {_gb(need)} on disk, on {workers} processes. This happens once; later runs reuse the archives.",
                 flush=True,
             )
-    bar = tqdm(total=len(scenes), initial=len(scenes) - len(jobs), desc=f"simulate {preset_name}", unit="trial", disable=not progress)
+    bar = tqdm(total=len(scenes), initial=len(scenes) - len(jobs), desc=f"simulate {preset_name}", unit="trial", disable=not progress or not jobs)
     with bar:
         parallel.run_jobs(_write, jobs, workers, bar.update)
     dataset_index.build_index(folder)

@@ -258,7 +258,7 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
         "## Findings checklist (the paper's claims about this table)",
         "",
-        findings.markdown(doc["findings"]),
+        findings.markdown(doc["findings"], counted=not documents.counts_no_claims(doc)),
     ]
     w = doc["wilcoxon"]
     if w:

@@ -38,7 +38,6 @@ from flax import nnx
 
 from fabricjax import archive, catalog, checkpoint, confidence, data, plots, train
 from fabricjax.config import MODALITY_NAMES
-from fabricjax.errors import UserError
 from fabricjax.studies import cost, documents, loading, stream
 
 TITLE, PAPER = "Deciding on the robot", "not in the paper"
@@ -92,8 +91,8 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, workdir=None, data_di
     temperatures beside the checkpoint."""
     restored = train.restore(checkpoint_dir)
     graphdef, state, config, seeds = restored.graphdef, restored.state, restored.config, restored.seeds
-    if not config.fabric_head:
-        raise UserError(f"{checkpoint_dir}: the decision study needs a model with a fabric head; this checkpoint's has none (a property model)")
+    checkpoint.require(checkpoint_dir, restored.trained_for, "the decision study", "a model with a fabric head",
+                       "fabric" in restored.trained_for["heads"])
     index = int(np.argmax(np.asarray(state["best_val"], np.float64)))
     unknown = unknown_fabrics(config, bool(data_dir), unknown_labels)
     data_config = dataclasses.replace(config, exclude_fabrics=unknown)

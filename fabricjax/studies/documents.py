@@ -22,7 +22,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from fabricjax import data, runtime, stats, workspace
+from fabricjax import data, presets, runtime, stats, workspace
 from fabricjax.atomic import atomic_open
 from fabricjax.studies.loading import Dataset
 from fabricjax.studies.runner import Row
@@ -236,10 +236,18 @@ def recorded(doc: dict[str, Any]) -> bool:
 
 def title(doc: dict[str, Any], study: str, paper: str | None = None) -> str:
     """A study's heading: on recorded data it names the data, not what of the paper (`paper`, e.g.
-    "Table ablation_table"; None: nothing of the paper's) it reproduces."""
+    "Table ablation_table"; None: nothing of the paper's) it reproduces; on an install-check
+    preset (smoke) it is followed by the note that says so."""
     if recorded(doc):
         return f"# {study} on recorded data"
-    return f"# {study} (the paper's {paper})" if paper else f"# {study}"
+    heading = f"# {study} (the paper's {paper})" if paper else f"# {study}"
+    return heading + (f"\n\n> {presets.INSTALL_CHECK_NOTE}" if counts_no_claims(doc) else "")
+
+
+def counts_no_claims(doc: dict[str, Any]) -> bool:
+    """The results are of an install-check preset (`presets.install_check`): the paper's claims are
+    shown as checks that run, never counted."""
+    return presets.install_check(doc.get("preset"))
 
 
 BEST_GAP = "Row − best row [pp]"  # the column recorded-data tables have instead of the paper's

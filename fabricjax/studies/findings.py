@@ -71,12 +71,14 @@ def count(findings: Sequence[Finding]) -> tuple[int, int]:
     return sum(f.holds is True for f in findings), sum(f.holds is not None for f in findings)
 
 
-def markdown(findings: Sequence[Finding | Mapping[str, Any]]) -> str:
-    """A table: claim, verdict, evidence (findings as objects or as their JSON)."""
+def markdown(findings: Sequence[Finding | Mapping[str, Any]], counted: bool = True) -> str:
+    """A table: claim, verdict, evidence (findings as objects or as their JSON), under the count of
+    claims reproduced, or (not `counted`: an install check) the note that none is counted."""
     findings = [f if isinstance(f, Finding) else Finding.from_json(f) for f in findings]
     rows = [[f.claim, f"**{f.verdict}**" if f.holds else f.verdict, f.evidence] for f in findings]
     n_true, n_eval = count(findings)
-    return f"{n_true} of {n_eval} evaluated claims reproduced.\n\n" + documents.markdown_table(["Paper's claim", "Ours", "Evidence (per-seed results)"], rows)
+    tally = f"{n_true} of {n_eval} evaluated claims reproduced." if counted else NOT_COUNTED
+    return f"{tally}\n\n" + documents.markdown_table(["Paper's claim", "Ours", "Evidence (per-seed results)"], rows)
 
 
 def claims_markdown(doc: dict[str, Any], claims: str = "the paper's claims about this table") -> list[str]:
@@ -84,4 +86,7 @@ def claims_markdown(doc: dict[str, Any], claims: str = "the paper's claims about
     data, which has no paper to check, the note that its rows are compared with each other."""
     if documents.recorded(doc):
         return [documents.RECORDED_NOTE, ""]
-    return [f"## Findings checklist ({claims})", "", markdown(doc["findings"])]
+    return [f"## Findings checklist ({claims})", "", markdown(doc["findings"], counted=not documents.counts_no_claims(doc))]
+
+
+NOT_COUNTED = "Not counted: an install check runs the paper's checks on data too small to test its claims."

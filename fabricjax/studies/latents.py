@@ -79,7 +79,14 @@ def tsne(points: np.ndarray, seed: int = 0) -> tuple[np.ndarray, float | None]:
 
 def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None, results="results", command: str | None = None) -> dict[str, Any]:
     """Restore, encode, embed, plot: writes results/latents.{png,json}; returns the JSON."""
-    graphdef, state, config, seeds = train.restore(checkpoint_dir)  # under the checkpoint's own config
+    graphdef, state, config, seeds, for_ = train.restore(checkpoint_dir)  # under the checkpoint's own config
+    if data_dir is None:  # the simulated hand's holdouts: the model must not have trained on them
+        trained_holdouts = sorted(set(catalog.PROPERTY_HOLDOUTS) - set(catalog.NEW_FABRICS) - set(for_["unseen_fabrics"]))
+        checkpoint.require(
+            checkpoint_dir, for_, "latents",
+            f"a model that never saw the holdout fabrics {', '.join(map(str, catalog.PROPERTY_HOLDOUTS))} "
+            "(a properties-study checkpoint, listed in its properties.md)", not trained_holdouts,
+        )
     best_val = np.asarray(state["best_val"], np.float64)
     if seed is None:
         index = int(np.argmax(best_val))
@@ -236,7 +243,7 @@ def markdown(doc: dict[str, Any]) -> str:
         lines += ["## Holdout classes and their neighbours in latent space", "",
                   *[f"- {f.evidence}" for f in checklist(doc["neighbours"])], ""]
     else:
-        lines += ["## Findings checklist (the paper's reading of its figure)", "", findings.markdown(doc["findings"])]
+        lines += ["## Findings checklist (the paper's reading of its figure)", "", findings.markdown(doc["findings"], counted=not documents.counts_no_claims(doc))]
     return "\n".join(lines)
 
 

@@ -98,6 +98,13 @@ class Input:
     explained_variance: float | None  # fraction of the standardised summaries' variance the PCA keeps
     seconds: float
 
+    def describe(self, modality: str) -> str:
+        """One line in words: the input's dimensions from step to probe, and the time it took."""
+        dims = self.to_json()
+        kept = "" if self.explained_variance is None else f" (PCA keeping {100 * self.explained_variance:.1f} % of the variance)"
+        return (f"{modality}: {dims['step_dims']} values per step, {dims['summary_dims']} per sequence summary, "
+                f"{dims['probe_dims']} into the probe{kept}; {self.seconds:.2f} s")
+
     def to_json(self) -> dict[str, Any]:
         return {
             "step_dims": self.step_dims, "summary_dims": self.summary_dims,
@@ -143,7 +150,7 @@ def prepare_inputs(sets: Mapping[str, Any], modalities: Sequence[str], splits: S
     with threadpool_limits(BLAS_THREADS):
         for m in modalities:
             inputs[m] = prepare({s: sets[s].inputs[m] for s in splits})  # every row has the same bandwidth
-            logging.info("probe: %s summaries %s", m, inputs[m].to_json())
+            logging.info("probe: %s", inputs[m].describe(m))
     return inputs
 
 

@@ -249,7 +249,13 @@ def run(
     if todo and not data_dir and not (workspace.dataset_dir(preset, workdir) / workspace.INDEX_NAME).exists():
         data_note = ", plus simulating the dataset and its features once (README gives the time)"
     if None in total:
-        lines.append(f"  estimated time: unknown (no earlier run of the {preset} preset recorded its wall times){data_note}")
+        unknown = ", ".join(s.study for s, t in zip(todo, total) if t is None)
+        published_presets = sorted({e.get("preset") for e in published.values() if isinstance(e, dict)} - {None})
+        lines.append(
+            f"  estimated time: none for {unknown}: no earlier run of the {preset} preset in {out} recorded its wall time, "
+            f"and the repository publishes those of the {', '.join(published_presets) or 'no'} preset; this run records "
+            f"its own, so the next one has an estimate{data_note}"
+        )
     else:
         lines.append(f"  estimated time: {_minutes(known)}{data_note} (scaled from an earlier run's wall times; other machines differ)")
     say("\n".join(lines))
@@ -325,7 +331,7 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
         else:
             held, evaluated = findings.count([findings.Finding.from_json(f) for f in doc.get("findings", [])])
             seeds = len(doc["seeds"]) if study != "latents" and doc.get("seeds") else "1 (best of the property study's)"
-            claims = f"{held} of {evaluated}"
+            claims = f"{held} of {evaluated}" if not presets.install_check(preset) else "not counted (install check)"
         summary.append([f"[{title(study, recorded)}](#{_anchor(title(study, recorded))})", seeds, *([] if recorded else [claims]),
                         _minutes(manifest[study]["wall_s"]), manifest[study]["finished"]])
     if recorded:
@@ -333,6 +339,8 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
         data_note, numbers = "feature extraction, done once, is", documents.RECORDED_NOTE
     else:
         heading = f"# Reproduction report: every table and figure of the paper on the {preset} preset"
+        if presets.install_check(preset):
+            heading += f"\n\n> {presets.INSTALL_CHECK_NOTE}"
         data_note = "data simulation and feature extraction, done once, are"
         numbers = ("The simulator is the same for every study and was never tuned to a table: differences from the paper "
                    "are findings.")

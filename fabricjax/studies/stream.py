@@ -6,6 +6,7 @@ results/stream.json. The streaming itself is `fabricjax.live`.
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, Callable, Mapping
 
 import numpy as np
@@ -36,6 +37,7 @@ def quick_model(preset: str, overrides: Mapping[str, Any] | None = None, *, work
     restores it instead of training again."""
     config = Config.from_preset(preset, **{"modalities": QUICK_MODALITIES, **(overrides or {})})
     ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir)
+    config = dataclasses.replace(config, n_classes=ds.n_classes)  # the data's classes
     directory = runner.checkpoint_dir("stream", "quick", config, [0], workdir)
     row = runner.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
     return row.results.graphdef, row.results.params(0), config, directory
@@ -58,7 +60,7 @@ def run(
     preset: str = "default",
     overrides: Mapping[str, Any] | None = None,
     realtime: bool = True,
-    print_every: int = 1,
+    print_every: int = 0,
     workdir=None,
     data_dir=None,
     results="results",
@@ -77,6 +79,12 @@ def run(
     are logged as they come (`fabricjax.view`); the logging runs between the timed updates, so
     the latencies are the model's, but in real time it can make steps late.
     """
+    watch = view or view_save is not None
+    if watch:
+        from fabricjax import view as trial_view
+
+        if view_save is None:
+            trial_view.require_display("--view_save")
     if checkpoint_dir is not None:
         graphdef, params, config, temperature = live.restore_model(checkpoint_dir)
     else:
@@ -85,13 +93,10 @@ def run(
     if archive_path is None:
         folder = data_dir or sim.ensure_dataset(config.preset, workdir, streams=("audio", "proprio"), progress=False)
         archive_path = first_test_trial(folder, workdir)
-    watch = view or view_save is not None
     trial = archive.read_archive(archive_path, images=watch)
     streamer = live.Streamer(graphdef, params, config, temperature)
     label = int(trial.meta["label"])
     if watch:
-        from fabricjax import view as trial_view
-
         rec = trial_view.open_recording(view_save)
         viewer = trial_view.TrialView(rec, label)
     out(f"{archive_path}: {live.class_name(label)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
