@@ -204,6 +204,11 @@ def test_generation_killed_midway_resumes_and_keeps_finished_archives(tmp_path):
     ensure_dataset("smoke", workdir=tmp_path, streams=("audio", "proprio", "images"), progress=False, workers=1)
     arch = archive.read_archive(folder / sorted(after)[0])
     assert arch.images is not None and list(arch.images.shape[1:3]) == list(presets.get("smoke").dataset.image_size)
+    # a trial the preset no longer has (an older preset's fabric) is removed, not indexed
+    foreign = folder / "fabric12_day1_trial00_lab.npz"
+    foreign.write_bytes((folder / sorted(after)[0]).read_bytes())
+    ensure_dataset("smoke", workdir=tmp_path, streams=("audio", "proprio", "images"), progress=False, workers=1)
+    assert not foreign.exists() and len(dataset_index.load_index(folder, tmp_path).entries) == n_total
 
 
 def test_parallel_generation_writes_the_same_archives_as_serial(tmp_path):

@@ -97,7 +97,8 @@ def ensure_dataset(
     workers: int | None = None,
     seed: int = 0,
 ) -> Path:
-    """Generate the missing archives of `preset_name` into `workspace.dataset_dir` and index them.
+    """Generate the missing archives of `preset_name` into `workspace.dataset_dir` and index them;
+    archives there that no trial of the preset produces (a preset that changed) are removed.
 
     Trials are simulated in a process pool of `workers` (default: one per core). Each archive is
     a function of its scene alone (every draw is seeded by the scene), so the pool's order
@@ -109,6 +110,11 @@ def ensure_dataset(
     for stale in folder.glob(".*.partial"):
         stale.unlink()
     scenes = [scene_for(spec, dataset, streams, seed) for spec in dataset.trials()]
+    wanted = {filename(s) for s in scenes}
+    for foreign in sorted(p for p in folder.glob("*.npz") if p.name not in wanted):
+        foreign.unlink()  # the simulator's own folder: a trial the preset no longer has (e.g. an older smoke preset's fabrics)
+        if progress:
+            print(f"removed {foreign}: the preset {preset_name!r} has no such trial", flush=True)
     jobs = [(s, str(folder / filename(s))) for s in scenes if not is_done(folder / filename(s), s)]
     workers = workers or os.cpu_count() or 1
     if jobs:
