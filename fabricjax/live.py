@@ -21,6 +21,12 @@ steps only fill the window (the same update runs, its prediction is not reported
 Per-step latency is host-to-host: from the step's raw data in hand (slicing its windows out of
 the recording, as a live reader would out of its ring buffer) to the class probabilities on the
 host. Only audio and proprioception stream; image and flow models are rejected.
+
+The probabilities are calibrated by the model's temperature (`confidence`, fitted by
+`experiments.decide` and kept beside the checkpoint; 1 where none was fitted). `replay` also
+accumulates the evidence of successive non-overlapping windows (every N-th step once the window is
+full) into a posterior (`confidence.Accumulator`) and names the step at which the sequential rule
+would decide (the best class's posterior reaching `confidence.DECISION_THRESHOLD`).
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from fabricjax import archive, catalog, stats
+from fabricjax import archive, catalog, confidence, stats
 from fabricjax.config import Config
 from fabricjax.features import welch
 
@@ -48,18 +54,21 @@ class StepResult:
     time_s: float  # since the trial's first step
     probs: np.ndarray | None  # None while the window fills
     latency_ms: float
+    posterior: np.ndarray | None = None  # accumulated over the non-overlapping windows so far
+    windows: int = 0  # windows accumulated
+    decided: bool = False  # the sequential rule has decided at this step or before
 
 
 class Streamer:
     """A model and its rolling window; `update` consumes one step."""
 
-    def __init__(self, graphdef: nnx.GraphDef, params, config: Config):
+    def __init__(self, graphdef: nnx.GraphDef, params, config: Config, temperature: float = 1.0):
         bad = [m for m in config.modalities if m not in STREAMABLE]
         if bad:
             raise ValueError(f"streaming supports the modalities {STREAMABLE}; the model uses {bad}")
         if not config.fabric_head:
             raise ValueError("streaming classifies fabrics: the model needs its fabric head")
-        self.config = config
+        self.config, self.temperature = config, float(temperature)
         self.n = config.seq_len
         self.mics = [archive.MIC_NAMES.index(m) for m in config.modalities if m in archive.MIC_NAMES]
         # Everything on one device: restored parameters may carry the training mesh's sharding, and
@@ -68,7 +77,7 @@ class Streamer:
         self.params = jax.device_put(params, self.device)
         bins = welch.n_bins(config.bandwidth_khz)
         self._empty = {m: np.zeros((self.n, archive.N_PROPRIO if m == "proprio" else bins), np.float32) for m in config.modalities}
-        self._update = jax.jit(functools.partial(_update, graphdef, config), donate_argnums=1)
+        self._update = jax.jit(functools.partial(_update, graphdef, config, self.temperature), donate_argnums=1)
         self.reset()
 
     def reset(self) -> None:
@@ -90,8 +99,8 @@ class Streamer:
         return probs if self.steps >= self.n else None
 
 
-def _update(graphdef, config: Config, params, window, mic_windows, joints):
-    """(new window, class probabilities of the model over it)."""
+def _update(graphdef, config: Config, temperature: float, params, window, mic_windows, joints):
+    """(new window, calibrated class probabilities of the model over it)."""
     psd = welch.welch_psd(mic_windows, bandwidth_khz=config.bandwidth_khz) if mic_windows.shape[0] else None
     mic = 0
     new = {}
@@ -102,7 +111,7 @@ def _update(graphdef, config: Config, params, window, mic_windows, joints):
             x, mic = psd[mic], mic + 1
         new[m] = jnp.concatenate([window[m][1:], x[None]])
     logits = nnx.merge(graphdef, params)({m: w[None] for m, w in new.items()})["fabric"][0]
-    return new, jax.nn.softmax(logits)
+    return new, jax.nn.softmax(logits / temperature)
 
 
 def step_windows(trial: archive.TrialArchive, step: int, mics: list[int]) -> np.ndarray:
@@ -131,13 +140,16 @@ def replay(
     """Feed a recorded trial to `streamer` step by step (at the trial's step rate, meta
     streams.steps.rate, when `realtime`, else as fast as possible) after one warm-up update, and
     summarise: time to the first correct decision, accuracy over decided steps, per-step latency
-    p50 / p99 and, in real time, the steps whose result came after the end of their slot (20 ms at
-    50 Hz; this also counts the OS waking the sleeping loop late)."""
+    p50 / p99, in real time the steps whose result came after the end of their slot (20 ms at
+    50 Hz; this also counts the OS waking the sleeping loop late), and the sequential decision
+    over the accumulated windows (`decision`: its step, time, class, posterior; None if the trial
+    ended first)."""
     label = int(trial.meta["label"])
     n_steps = min(trial.n_steps, max_steps or trial.n_steps)
     stamps = trial.timestamps - trial.timestamps[0]
     period = 1.0 / archive.layout(trial.meta).step_rate  # an imported 30 fps camera: 33 ms
     seconds, correct, first_correct, late = [], [], None, 0
+    evidence, decision = confidence.Accumulator(confidence.DECISION_THRESHOLD), None
     streamer.warmup()
     start = time.perf_counter()
     for t in range(n_steps):
@@ -157,8 +169,15 @@ def replay(
             correct.append(ok)
             if ok and first_correct is None:
                 first_correct = t
+            if (streamer.steps - streamer.n) % streamer.n == 0:  # a window not overlapping the ones before
+                evidence.add(probs)
+                if decision is None and evidence.decided:
+                    k = int(np.argmax(evidence.posterior))
+                    decision = {"step": t, "time_s": float(stamps[t] + period), "windows": evidence.windows, "class": k,
+                                "fabric": class_name(k), "posterior": float(evidence.posterior[k]), "correct": k == label}
         if on_step is not None:
-            on_step(StepResult(t, float(stamps[t]), probs, ms))
+            on_step(StepResult(t, float(stamps[t]), probs, ms, None if evidence.log_post is None else evidence.posterior,
+                               evidence.windows, decision is not None))
     latency = stats.percentiles_ms(seconds) if seconds else {"p50_ms": None, "p99_ms": None}
     return {
         "label": label,
@@ -174,13 +193,18 @@ def replay(
         "latency_max_ms": 1e3 * max(seconds) if seconds else None,
         "realtime": realtime,
         "late_steps": late if realtime else None,
+        "temperature": streamer.temperature,
+        "decision_threshold": confidence.DECISION_THRESHOLD,
+        "decision": decision,
     }
 
 
-def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config]:
-    """(graphdef, best-validation params of the first seed, config) of a `train_and_evaluate`
-    checkpoint, under the config saved with it; a checkpoint of a model that cannot stream (no
-    fabric head, or inputs other than `STREAMABLE`) is a `checkpoint.WrongCheckpoint`."""
+def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config, float]:
+    """(graphdef, best-validation params of the first seed, config, temperature) of a
+    `train_and_evaluate` checkpoint, under the config saved with it; the temperature is the one
+    fitted for that seed (`confidence.load_temperature`), 1 where none was. A checkpoint of a model
+    that cannot stream (no fabric head, or inputs other than `STREAMABLE`) is a
+    `checkpoint.WrongCheckpoint`."""
     from fabricjax import checkpoint, train
 
     restored = train.restore(directory)
@@ -189,4 +213,5 @@ def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config]:
         directory, for_, "streaming", f"a model with a fabric head over inputs from {'/'.join(STREAMABLE)}",
         "fabric" in for_["heads"] and set(for_["inputs"]) <= set(STREAMABLE),
     )
-    return restored.graphdef, checkpoint.select_seed(restored.state["best_params"], 0), restored.config
+    t = confidence.load_temperature(directory, restored.seeds[0])
+    return restored.graphdef, checkpoint.select_seed(restored.state["best_params"], 0), restored.config, 1.0 if t is None else t

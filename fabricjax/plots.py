@@ -225,3 +225,51 @@ def plot_psds(path, freqs_hz: np.ndarray, psds: dict[str, np.ndarray], noise: np
     ax.legend(fontsize=6, ncol=3)
     ax.grid(alpha=0.3, which="both")
     return _save(fig, path)
+
+
+def plot_decide(path, models: Sequence[Mapping]) -> Path:
+    """Per model of the decision study (`fabricjax.studies.decide`), one row of three panels: the
+    reliability diagram of its test split before and after temperature scaling (and of its cafe
+    split after), accuracy against mean touch time to decision of the sequential rule (one point
+    per posterior threshold, test and cafe, the cost study's fixed-N points beside them), and the
+    ROC of telling unknown fabrics from known ones by each unknown score."""
+    fig, axes = plt.subplots(len(models), 3, figsize=(15, 4.4 * len(models)), layout="constrained", squeeze=False)
+    styles = {"test": "tab:blue", "cafe": "tab:orange"}
+    for (rel, cur, roc), m in zip(axes, models):
+        rel.plot([0, 1], [0, 1], color="grey", lw=0.8, ls=":")
+        for split, d in m["splits"].items():
+            for when, ls in (("before", "--"), ("after", "-")):
+                if split == "cafe" and when == "before":
+                    continue
+                r = d["calibration"][when]["reliability"]
+                pts = [(c, a) for c, a in zip(r["confidence"], r["accuracy"]) if c is not None]
+                rel.plot(*zip(*pts), ls, marker="o", ms=3, color=styles.get(split),
+                         label=f"{split} {when} (ECE {100 * d['calibration'][when]['ece']:.1f} %)")
+        rel.set(xlabel="confidence (max probability)", ylabel="accuracy", title=f"{m['name']}: reliability, T = {m['temperature']:.2f}",
+                xlim=(0, 1), ylim=(0, 1.02))
+        rel.legend(fontsize=8)
+        for split, d in m["splits"].items():
+            c = d["curve"]
+            cur.plot([x["mean_touch_s"] for x in c], [100 * x["accuracy"] for x in c], "-o", ms=4, color=styles.get(split),
+                     label=f"{split}: sequential rule")
+            for x in c[:: max(1, len(c) // 4)]:
+                cur.annotate(f"{x['threshold']:g}", (x["mean_touch_s"], 100 * x["accuracy"]), fontsize=7, textcoords="offset points", xytext=(3, -9))
+        if m.get("cost_points"):
+            cur.plot([p["touch_s"] for p in m["cost_points"]], [100 * p["accuracy"] for p in m["cost_points"]], "ks", ms=5,
+                     label="cost study: fixed N (test)")
+        cur.set(xlabel="mean touch time to decision [s]", ylabel="accuracy [%]", title="when to stop rubbing (labels: posterior threshold)")
+        cur.legend(fontsize=8)
+        roc.plot([0, 1], [0, 1], color="grey", lw=0.8, ls=":")
+        u = m.get("unknown")
+        if u:
+            for name, s in u["scores"].items():
+                k, v = np.asarray(s["known"]), np.asarray(s["unknown"])
+                cuts = np.unique(np.concatenate([k, v, [np.inf]]))[::-1]
+                roc.plot([np.mean(k >= t) for t in cuts], [np.mean(v >= t) for t in cuts],
+                         label=f"{name.replace('_', ' ')} (AUROC {s['auroc']:.2f})")
+            roc.legend(fontsize=8)
+            roc.set_title(f"unknown fabrics {', '.join(map(str, u['fabrics']))}")
+        else:
+            roc.set_title("unknown fabrics: none in the data")
+        roc.set(xlabel="known sequences flagged", ylabel="unknown sequences flagged", xlim=(0, 1), ylim=(0, 1.02))
+    return _save(fig, path)

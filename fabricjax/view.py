@@ -110,7 +110,7 @@ class TrialView:
         import jax
 
         self.rr, self.rec, self.label = rerun(), rec, label
-        self.previous_frame = None
+        self.previous_frame, self.decided = None, False
         self.spectrogram = np.full((len(archive.MIC_NAMES), welch.N_BINS, SPECTROGRAM_STEPS), np.nan, np.float32)
         self.psd = jax.jit(lambda w: welch.welch_psd(w, bandwidth_khz=archive.NYQUIST_KHZ))
 
@@ -161,6 +161,12 @@ class TrialView:
         rec.log("prediction/confidence", rr.Scalars(float(r.probs[k])))
         mark = "" if self.label is None else (" (correct)" if k == self.label else " (wrong)")
         rec.log("prediction/class", rr.TextLog(f"{live.class_name(k)} p={r.probs[k]:.2f}{mark}"))
+        if r.posterior is not None:  # the sequential rule's evidence over the windows so far
+            j = int(np.argmax(r.posterior))
+            rec.log("prediction/posterior", rr.Scalars(float(r.posterior[j])))
+            if r.decided and not self.decided:
+                rec.log("prediction/decision", rr.TextLog(f"decided: {live.class_name(j)} posterior {r.posterior[j]:.3f} after {r.windows} windows"))
+            self.decided = r.decided
 
 
 def log_trial(rec, trial: archive.TrialArchive, streamer: live.Streamer | None = None) -> dict[str, Any]:

@@ -36,7 +36,7 @@ def test_help_lists_the_project_flags_and_exits_0():
     assert "libtpu" not in out.stdout + out.stderr
 
 
-@pytest.mark.parametrize("module", ["experiments.psds", "experiments.stream", "experiments.latents", "experiments.probe"])
+@pytest.mark.parametrize("module", ["experiments.psds", "experiments.stream", "experiments.latents", "experiments.probe", "experiments.decide"])
 def test_every_command_takes_a_workdir(module):
     out = subprocess.run([sys.executable, "-m", module, "--help"], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and "--workdir" in out.stdout, out.stderr

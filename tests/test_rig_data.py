@@ -126,11 +126,12 @@ def test_reproduce_on_a_rig_runs_what_its_streams_and_splits_allow(tmp_path):
     ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "train"), (2, "val"), (0, "test")])
     said = []
     plan = {s.study: s for s in reproduce.fit_plan(reproduce.PLAN, "smoke", ds, tmp_path / "ws", said.append)}
-    assert list(plan) == ["ablation", "probe", "bandwidth"]
+    assert list(plan) == ["ablation", "probe", "day_shift", "bandwidth", "decide"]
+    assert plan["decide"].rows == ("internal",)  # of its rows, the one the ablation trains here
     assert set(plan["ablation"].rows) == {r.name for r in ablation.ROWS if set(r.modalities) <= {"internal", "proprio"}}
     assert plan["bandwidth"].rows is None
     text = "\n".join(said)
-    assert len(said) == 5 and "ablation" in said[0] and "rows left out (they need external, flow, image" in said[0]
+    assert len(said) == 6 and "ablation" in said[0] and "rows left out (they need external, flow, image" in said[0]
     assert "noise       skip  (the paper's protocol: it needs trials of the cafe condition (split cafe)" in text
     assert "properties  skip  (the paper's protocol: it needs held-out fabrics (split holdout)" in text
     assert "latents     skip" in text

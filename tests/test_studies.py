@@ -2,6 +2,7 @@
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -66,9 +67,12 @@ def test_the_smoke_preset_learns_and_says_it_checks_the_install(workdir, tmp_pat
 
 
 def test_ablation_rerun_gives_identical_per_seed_accuracies(workdir, tmp_path):
-    """The main command twice on one machine: the same per-seed accuracies, to the last bit."""
+    """The main command twice on one machine, training afresh (its checkpoints removed): the same
+    per-seed accuracies, to the last bit."""
     rows = ["internal", f"{ablation.STEP_LAYERNORM}:internal+external"]
     first = ablation.run(n_seeds=2, rows=rows, **run_kwargs(workdir, tmp_path / "a"))
+    for r in first["rows"]:
+        shutil.rmtree(r["checkpoint"])
     second = ablation.run(n_seeds=2, rows=rows, **run_kwargs(workdir, tmp_path / "b"))
     for a, b in zip(first["rows"], second["rows"]):
         assert a["accuracy"] == b["accuracy"] and a["predictions"] == b["predictions"]

@@ -8,6 +8,7 @@
     noise        cafe-noise test set, Wilcoxon against the preceding row (Table new_noise_results)
     properties   property heads on training and holdout fabrics (Table property_perception)
     latents      t-SNE of per-trial mean latents from a restored checkpoint (Fig. latent_features)
+    decide       restored checkpoints: calibration, when to stop rubbing, unknown fabrics (not in the paper)
     bench        every speed benchmark side by side (results/bench.json, the README's table)
     stream       live classification of one trial (results/stream.json)
 

@@ -9,6 +9,8 @@ Each row trains all seeds in one vmapped program and reports mean ± SD test acc
 paper's number and the difference. Internal audio is compared with internal + palm audio by
 Wilcoxon signed-rank tests (per seed and per test sequence, see `runner.paired_tests`), and the
 proprioception-only and flow-only models' confusion matrices are drawn (results/ablation_confusion.png).
+Each row's models are kept as a checkpoint (its row's "checkpoint" in the results JSON), which
+`experiments.decide` restores.
 The simulator is the same for every row: differences from the paper are findings, not tuning targets.
 On recorded data (`--data_dir`, only the rows the data supports, chosen with --rows) the rows are
 compared with each other: no paper column, no checklist of the paper's claims, the data's own classes
@@ -344,6 +346,6 @@ def _recorded_markdown(doc: dict[str, Any]) -> str:
 STUDY = runner.Study(
     "ablation", ROWS, n_seeds=5, eval_splits=("test",), split_names=loading.TRAIN_VAL_TEST,
     document=document, checklist=lambda doc: checklist({r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]}),
-    markdown=markdown, recorded_fusions=(STEP_LAYERNORM,),
+    markdown=markdown, recorded_fusions=(STEP_LAYERNORM,), checkpoints=True,
 )
 run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

@@ -138,7 +138,7 @@ def pareto_front(points: Sequence[dict], key: str) -> list[str]:
     return front
 
 
-def _steps(folder, workdir=None) -> tuple[int, float]:
+def steps_and_rate(folder, workdir=None) -> tuple[int, float]:
     """The shortest trial's steps and the data's step rate [Hz] (50 on the hand; a rig's own):
     touch time is N steps at it, so trials stepping at different rates have none."""
     entries = dataset_index.load_index(folder, workdir).entries
@@ -197,7 +197,7 @@ def run(
     base = Config.from_preset(preset, **{"backbone": backbones[0], "modalities": tuple(modality_sets[0]), **(overrides or {})})
     first = loading.load_dataset(base, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST)
     base = dataclasses.replace(base, n_classes=first.n_classes)  # the data's classes
-    max_len, step_rate = _steps(first.folder, workdir)
+    max_len, step_rate = steps_and_rate(first.folder, workdir)
     paper = paper and not first.recorded  # recorded data is compared with itself, not with the paper's configuration
     points, paper_name = sweep_points(
         base, seq_lens, backbones, widths, bandwidths, [tuple(m) for m in modality_sets], paper=paper, max_len=max_len

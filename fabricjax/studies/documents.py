@@ -193,10 +193,12 @@ def command_markdown(command: str | None) -> str:
 
 
 def row_doc(row: Row, splits: Sequence[str]) -> dict[str, Any]:
-    """A row's config, wall time and, per seed, accuracies and per-sample predictions of every head."""
+    """A row's config, checkpoint (None where the study keeps no models), wall time and, per seed,
+    accuracies and per-sample predictions of every head."""
     ev = row.results.metrics["eval"]
     return {
         "config": row.config.to_json(),
+        "checkpoint": None if row.checkpoint is None else str(row.checkpoint),
         "seeds": list(row.results.seeds),
         "wall_s": row.seconds,
         "best_epoch": np.asarray(row.results.metrics["best_epoch"]).tolist(),

@@ -7,7 +7,9 @@ The plan (`PLAN`, data): the modality ablation (5 seeds), the linear probe of ev
 row's inputs (no seeds: deterministic, and cheap), the day shift of every input (what the fabric,
 the day and the trial explain, beside the probe's training-day and new-day accuracy; no seeds),
 the PSD bandwidth (5), cafe noise (10, as the paper), property perception (5, saving its
-checkpoints) and the latent t-SNE from the property study's Minsound + Minsight checkpoint. The dataset is simulated once (or read from
+checkpoints) and the latent t-SNE from the property study's Minsound + Minsight checkpoint, then the
+decision study (calibration, when to stop rubbing, unknown fabrics) on the ablation's checkpoints
+of the row the paper calls best and of Minsound alone (`DECIDE_ROWS`; no training). The dataset is simulated once (or read from
 `data_dir`), features and compiled programs are cached, checkpoints resume, so every study after
 the first pays only for its training.
 
@@ -15,7 +17,7 @@ A study is skipped when it is up to date: the manifest `reproduce.json` in the r
 records, per study, a key over what decides its numbers (the study and its seeds and rows, the
 preset, the config overrides, the data folder, the source of the `fabricjax` package and, for
 a study that reads another's results (`UPSTREAM`: the latents the property study's checkpoint,
-the day shift the probe's accuracies), that study's key) and its outputs exist. Change any of those
+the day shift the probe's accuracies, the decision study the ablation's checkpoints), that study's key) and its outputs exist. Change any of those
 and that study (and what depends on it) runs again. The manifest is rewritten after every
 study, so an interrupted run picks up where it stopped.
 
@@ -29,7 +31,7 @@ names the data and compares rows with each other: no paper in its titles or summ
 On recorded data the plan follows what the data has (`fit_plan`): a study's rows that need a
 stream the data lacks are left out, a study none of whose rows it can feed is skipped, and the
 studies of the paper's protocol (`PROTOCOL`: cafe noise needs cafe-split trials, the property study
-held-out fabrics, the latents the property study) are skipped when the data has no such trials,
+held-out fabrics, the latents the property study, the decision study the ablation) are skipped when the data has no such trials,
 each with one line saying why.
 """
 
@@ -48,15 +50,18 @@ import fabricjax
 from fabricjax import archive, dataset_index, presets, source, splits, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, day_shift, documents, findings, latents, noise, probe, properties
+from fabricjax.studies import ablation, bandwidth, day_shift, decide, documents, findings, latents, noise, probe, properties
 
 STUDIES = {
     "ablation": ablation, "probe": probe, "day_shift": day_shift, "bandwidth": bandwidth, "noise": noise,
-    "properties": properties, "latents": latents,
+    "properties": properties, "latents": latents, "decide": decide,
 }
-UPSTREAM = {"latents": "properties", "day_shift": "probe"}  # a study -> the study whose results it reads
+UPSTREAM = {"latents": "properties", "day_shift": "probe", "decide": "ablation"}  # a study -> the study whose results it reads
 UNSEEDED = ("probe", "day_shift")  # deterministic studies of no paper table: no seeds, no claims
 LATENT_ROW = properties.ROWS[-1].name  # the paper's figure: the Minsound + Minsight model
+# the decision study's models: the ablation row the paper calls best (its highest mean) and Minsound alone
+DECIDE_ROWS = (max(ablation.PAPER_ROWS, key=lambda r: r.paper["mean"]).name, "internal")
+CHECKPOINT_STUDIES = ("latents", "decide")  # studies of another study's checkpoints: run by --checkpoint, no seeds or rows flags
 MANIFEST = "reproduce.json"
 REPORT = "REPORT.md"
 
@@ -66,13 +71,13 @@ class Step:
     """One study of the plan: its name (a key of `STUDIES`), seed count and rows (None: all)."""
 
     study: str
-    seeds: int | None = None  # None for `UNSEEDED` (deterministic) and the latents (the property study's checkpoint)
+    seeds: int | None = None  # None for `UNSEEDED` (deterministic) and the studies of another's checkpoints (latents, decide)
     rows: tuple[str, ...] | None = None
 
 
 PLAN = (
     Step("ablation", 5), Step("probe"), Step("day_shift"), Step("bandwidth", 5), Step("noise", 10), Step("properties", 5),
-    Step("latents"),
+    Step("latents"), Step("decide", rows=DECIDE_ROWS),
 )
 # The studies that need trials of the paper's protocol: the split they read, and what it is
 PROTOCOL = {"noise": ("cafe", "trials of the cafe condition (split cafe)"), "properties": ("holdout", "held-out fabrics (split holdout)")}
@@ -98,9 +103,10 @@ def step_key(step: Step, preset: str, overrides: Mapping[str, Any], data_dir, co
 
 def command(step: Step, preset: str, overrides: Mapping[str, Any], results: Path, checkpoint: str | None = None,
             data_dir=None, workdir=None) -> str:
-    """The command that reruns `step` alone, as a user would type it."""
+    """The command that reruns `step` alone, as a user would type it (`checkpoint`: the
+    checkpoint folders, comma-separated, of a study of another's checkpoints)."""
     args = [f"python -m experiments.{step.study}"]
-    if step.study == "latents":
+    if step.study in CHECKPOINT_STUDIES:
         args.append(f"--checkpoint={checkpoint}")
     else:
         args += [f"--seeds={step.seeds}"] * bool(step.seeds) + [f"--preset={preset}"] + ([f"--rows={','.join(step.rows)}"] if step.rows else [])
@@ -141,6 +147,16 @@ def _outputs(study: str, out: Path) -> list[Path]:
     return [out / f"{study}.md", out / f"{study}.json", *[out / f for f in doc.get("figures", [])]]
 
 
+def _decide_checkpoints(out: Path, rows: Sequence[str]) -> tuple[list[str], list[str]]:
+    """(checkpoint folders, row names) of the ablation's rows among `rows` that it kept models of."""
+    doc = _read_json(out / "ablation.json")
+    have = {r["name"]: r.get("checkpoint") for r in (doc or {}).get("rows", [])}
+    chosen = [r for r in rows if have.get(r)]
+    if not chosen:
+        raise UserError(f"{out / 'ablation.json'}: field 'rows': the decision study needs the ablation's checkpoints of {list(rows)}; run it first")
+    return [have[r] for r in chosen], chosen
+
+
 def _latent_checkpoint(out: Path) -> str:
     doc = _read_json(out / "properties.json")
     if not doc or not doc.get("rows"):
@@ -159,6 +175,14 @@ def fit_plan(plan: Sequence[Step], preset: str, data_dir, workdir, say: Callable
     for step in plan:
         if step.study == "latents" and not any(s.study == "properties" for s in out):
             say("  latents     skip  (it reads the property study's checkpoint, which this data does not train)")
+            continue
+        if step.study == "decide":
+            ablated = next((s for s in out if s.study == "ablation"), None)
+            fit = tuple(r for r in step.rows or () if ablated is not None and (ablated.rows is None or r in ablated.rows))
+            if not fit:
+                say("  decide      skip  (it reads the ablation's checkpoints of its rows, which this data does not train)")
+                continue
+            out.append(dataclasses.replace(step, rows=fit))
             continue
         if step.study in PROTOCOL and PROTOCOL[step.study][0] not in roles:
             say(f"  {step.study:<11} skip  (the paper's protocol: it needs {PROTOCOL[step.study][1]}, and the data has none)")
@@ -240,11 +264,18 @@ def run(
     for step in todo:
         say(f"reproduce: {step.study} ...")
         t0 = time.perf_counter()
-        checkpoint = _latent_checkpoint(out) if step.study == "latents" else None
+        checkpoint = names = None
+        if step.study == "latents":
+            checkpoint = _latent_checkpoint(out)
+        elif step.study == "decide":
+            folders, names = _decide_checkpoints(out, step.rows)
+            checkpoint = ",".join(folders)
         cmd = command(step, preset, overrides, out, checkpoint, data_dir, workdir)
         kwargs = dict(workdir=workdir, data_dir=data_dir, results=out, command=cmd)
         if step.study == "latents":
             latents.run(checkpoint, **kwargs)
+        elif step.study == "decide":
+            decide.run(folders, names=names, **kwargs)
         else:
             seeds = {"n_seeds": step.seeds} if step.seeds else {}
             STUDIES[step.study].run(**seeds, preset=preset, rows=step.rows, overrides=overrides, **kwargs)
@@ -295,6 +326,8 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
         doc = docs[study] or {}
         if study in UNSEEDED:  # not a table of the paper: no claims to check, no seeds
             seeds, claims = "– (deterministic)", "– (not in the paper)"
+        elif study == "decide":  # not in the paper: the ablation's models, each its best seed
+            seeds, claims = "1 per model (best of the ablation's)", "– (not in the paper)"
         else:
             held, evaluated = findings.count([findings.Finding.from_json(f) for f in doc.get("findings", [])])
             seeds = len(doc["seeds"]) if study != "latents" and doc.get("seeds") else "1 (best of the property study's)"

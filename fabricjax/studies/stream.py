@@ -11,18 +11,20 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from fabricjax import archive, catalog, dataset_index, live, sim, splits
+from fabricjax import archive, catalog, confidence, dataset_index, live, sim, splits
 from fabricjax.config import Config
 from fabricjax.studies import documents, loading, runner
 
 
 def format_step(r: live.StepResult, label: int) -> str:
-    """One line of the live printout: running prediction, confidence and latency."""
+    """One line of the live printout: running prediction, its calibrated confidence, the posterior
+    accumulated over the windows so far (and whether the sequential rule has decided), latency."""
     if r.probs is None:
         return f"step {r.step:5d}  {r.time_s:6.2f} s  filling window  {r.latency_ms:6.2f} ms"
-    k = int(np.argmax(r.probs))
+    k, j = int(np.argmax(r.probs)), int(np.argmax(r.posterior))
     mark = "correct" if k == label else "wrong"
-    return f"step {r.step:5d}  {r.time_s:6.2f} s  {live.class_name(k):<28s} p={r.probs[k]:.2f}  {mark:<7s} {r.latency_ms:6.2f} ms"
+    post = f"posterior {live.class_name(j)} {r.posterior[j]:.3f} ({r.windows} windows){'  decided' if r.decided else ''}"
+    return f"step {r.step:5d}  {r.time_s:6.2f} s  {live.class_name(k):<28s} p={r.probs[k]:.2f}  {mark:<7s} {r.latency_ms:6.2f} ms  {post}"
 
 
 # The quick model's inputs unless overridden: both microphones, what the streamer updates per step.
@@ -84,20 +86,22 @@ def run(
         if view_save is None:
             trial_view.require_display("--view_save")
     if checkpoint_dir is not None:
-        graphdef, params, config = live.restore_model(checkpoint_dir)
+        graphdef, params, config, temperature = live.restore_model(checkpoint_dir)
     else:
         graphdef, params, config, checkpoint_dir = quick_model(preset, overrides, workdir=workdir, data_dir=data_dir)
+        temperature = confidence.load_temperature(checkpoint_dir, 0) or 1.0
     if archive_path is None:
         folder = data_dir or sim.ensure_dataset(config.preset, workdir, streams=("audio", "proprio"), progress=False)
         archive_path = first_test_trial(folder, workdir)
     trial = archive.read_archive(archive_path, images=watch)
-    streamer = live.Streamer(graphdef, params, config)
+    streamer = live.Streamer(graphdef, params, config, temperature)
     label = int(trial.meta["label"])
     if watch:
         rec = trial_view.open_recording(view_save)
         viewer = trial_view.TrialView(rec, label)
     out(f"{archive_path}: {live.class_name(label)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
-        f"N={streamer.n} steps ({streamer.n / archive.STEP_RATE:.2f} s), {'+'.join(config.modalities)}")
+        f"N={streamer.n} steps ({streamer.n / archive.STEP_RATE:.2f} s), {'+'.join(config.modalities)}, "
+        f"temperature {temperature:.3f}{'' if temperature != 1.0 else ' (none fitted: python -m experiments.decide)'}")
 
     def show(r: live.StepResult) -> None:
         if print_every and (r.step % print_every == 0 or r.step == trial.n_steps - 1):
@@ -109,7 +113,12 @@ def run(
     summary = live.replay(streamer, trial, realtime=realtime, on_step=show)
     if watch:
         rec.flush()
-    first, step = summary["time_to_first_correct_s"], summary["first_correct_step"]
+    first, step, d = summary["time_to_first_correct_s"], summary["first_correct_step"], summary["decision"]
+    out(
+        f"sequential decision (posterior {confidence.DECISION_THRESHOLD:g}): "
+        + ("none before the trial ended" if d is None else
+           f"{d['fabric']} ({'correct' if d['correct'] else 'wrong'}) at {d['time_s']:.2f} s (step {d['step']}, {d['windows']} windows, posterior {d['posterior']:.3f})")
+    )
     out(
         f"first correct decision: {'never' if first is None else f'{first:.2f} s (step {step})'}; "
         f"accuracy over {summary['decided_steps']} decided steps {100 * (summary['accuracy_over_decided_steps'] or 0):.1f} %; "
