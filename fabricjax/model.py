@@ -82,17 +82,49 @@ def rescale_unit(x: jax.Array, axis: int = 1) -> jax.Array:
     return jnp.where(hi > lo, (x - lo) / jnp.maximum(hi - lo, RESCALE_EPS), 0.0)
 
 
-def dense(a: int, b: int, *, dtype, rngs: nnx.Rngs) -> nnx.Linear:
-    """A float32-parameter linear layer whose product takes its inputs in `dtype` (the compute dtype)
-    and accumulates and returns float32 (`preferred_element_type`): bfloat16 halves the matrix
-    product's operand traffic where the CPU has bfloat16 units, while sums, activations and
-    everything after the product stay float32."""
-    return nnx.Linear(a, b, dtype=dtype, preferred_element_type=jnp.float32, rngs=rngs)
-
-
 def matmul(x: jax.Array, w: jax.Array, dtype) -> jax.Array:
-    """`x @ w` with both operands in the compute `dtype`, accumulated and returned in float32 (as `dense`)."""
-    return jnp.matmul(x.astype(dtype), w.astype(dtype), preferred_element_type=jnp.float32)
+    """(..., K) @ (K, M) with both operands in the compute `dtype`, accumulated and returned in
+    float32, forward and backward (`_low_matmul`); float32 is the plain product."""
+    if jnp.dtype(dtype) == jnp.float32:
+        return x.astype(jnp.float32) @ w.astype(jnp.float32)
+    return _low_matmul(x.astype(dtype), w.astype(dtype))
+
+
+@jax.custom_vjp
+def _low_matmul(x: jax.Array, w: jax.Array) -> jax.Array:
+    """`x @ w` of low-precision operands, float32 out. The VJP is written out so that the backward
+    products take the cotangent in the operands' dtype too: autodiff's form would multiply the
+    float32 cotangent with the operands converted to float32, the slow product again."""
+    return jnp.matmul(x, w, preferred_element_type=jnp.float32)
+
+
+def _low_matmul_fwd(x, w):
+    return _low_matmul(x, w), (x, w)
+
+
+def _low_matmul_bwd(saved, dy):
+    x, w = saved
+    dy = dy.astype(x.dtype)
+    dx = jnp.matmul(dy, w.T, preferred_element_type=jnp.float32)
+    dw = jnp.matmul(x.reshape(-1, x.shape[-1]).T, dy.reshape(-1, dy.shape[-1]), preferred_element_type=jnp.float32)
+    return dx.astype(x.dtype), dw.astype(w.dtype)
+
+
+_low_matmul.defvjp(_low_matmul_fwd, _low_matmul_bwd)
+
+
+class Dense(nnx.Linear):
+    """`nnx.Linear` (float32 parameters) whose product takes its inputs in the layer's `dtype`
+    (the compute dtype) and accumulates and returns float32 (`matmul`): bfloat16 halves the
+    product's operand traffic and runs on the CPU's bfloat16 units where it has them, while the
+    bias, activations and everything after the product stay float32."""
+
+    def __call__(self, x: jax.Array) -> jax.Array:
+        return matmul(x, self.kernel[...], self.dtype or jnp.float32) + self.bias[...]
+
+
+def dense(a: int, b: int, *, dtype, rngs: nnx.Rngs) -> Dense:
+    return Dense(a, b, dtype=dtype, rngs=rngs)
 
 
 class MLP(nnx.Module):
