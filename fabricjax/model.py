@@ -481,11 +481,12 @@ class FabricNet(nnx.Module):
 
 
 def training_layout(inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
-    """A training set's inputs as training reads them: frames ("image", (S, N, H, W, C)) as rows
-    ("image_rows", (S, H*W, C, N): `features.images.to_rows`), so that each minibatch's rotation
-    moves whole rows (`FabricNet.image_features`); other inputs unchanged. `train_and_evaluate`
-    does it once, on the whole set, before it goes to the devices: done per minibatch inside the
-    step, XLA fused the transpose into the rotation's gathers."""
+    """A data set's inputs as training and its evaluation read them: frames ("image", (S, N, H, W,
+    C)) as rows ("image_rows", (S, H*W, C, N): `features.images.to_rows`), so that each minibatch's
+    rotation moves whole rows (`FabricNet.image_features`) and evaluation runs the same compiled
+    image path; other inputs unchanged. `train_and_evaluate` does it once per set, on the whole
+    set, before it goes to the devices: done per minibatch inside the step, XLA fused the
+    transpose into the rotation's gathers."""
     if "image" not in inputs:
         return dict(inputs)
     from fabricjax.features import images
