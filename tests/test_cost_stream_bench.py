@@ -205,3 +205,37 @@ def test_bench_rejects_unknown_names(tmp_path):
         bench.run(only=["nope"], results=tmp_path)
     with pytest.raises(ValueError, match="acquisition benchmark needs its function"):
         bench.run(only=["acquisition"], results=tmp_path)
+
+
+def test_comparison_times_every_dtype_against_every_twin_variant(monkeypatch):
+    """`compare_with_torch`'s bookkeeping with a stand-in twin (torch is optional): ours in each
+    compute dtype against eager and compiled variants, each in float32 and under autocast; a
+    variant that fails to build is recorded, the fastest one is the reference of every ratio."""
+    from fabricjax import torch_twin
+
+    seconds = {(None, False): 0.4, (None, True): 0.2, ("default", False): 0.3, ("default", True): 0.25}
+
+    def runner(*args, compile_mode=None, autocast=False, **kw):
+        if compile_mode == "broken":
+            raise RuntimeError("no C++ compiler\nmore")
+        return lambda: seconds[(compile_mode, autocast)]
+
+    monkeypatch.setattr(torch_twin, "require", lambda: type("T", (), {"get_num_threads": staticmethod(lambda: 2)}))
+    monkeypatch.setattr(torch_twin, "adamw_impl", lambda: "fused")
+    monkeypatch.setattr(torch_twin, "train_step_runner", runner)
+    monkeypatch.setattr(torch_twin, "inference_runner", runner)
+    cfg = Config(preset="smoke", modalities=("internal", "proprio"), seq_len=6, **TINY)
+    out = program_timing.compare_with_torch(
+        cfg, seeds=(1, 2), batch=4, seq_len=6, psd_bins=8, steps=1, rounds=2, inference_rounds=1, inference_calls=2, pause_s=0.0,
+        compile_modes=("default", "broken"),
+    )
+    for t in (out["training"]["1_seed"], out["training"]["2_seed"]):
+        assert t["torch_variant"] == "eager +bf16 autocast" and t["torch_s_per_step"] == 0.2
+        assert set(t["ours"]) == set(program_timing.DTYPES)
+        assert all(v["ratio"] == pytest.approx(v["s_per_step"] / 0.2, rel=1e-6) for v in t["ours"].values())
+        assert "error" in t["torch_variants"]["compiled:broken +bf16 autocast"]
+        assert set(t["torch_variants"]["compiled:default"]["ratio"]) == set(program_timing.DTYPES)
+    assert "per_seed_vs_1_seed" in out["training"]["2_seed"]["ours"]["bfloat16"]
+    i = out["inference"]
+    assert i["torch_variant"] == "eager +bf16 autocast" and set(i["ours"]) == set(program_timing.DTYPES)
+    assert i["ours"]["float32"]["ratio_p50"] == pytest.approx(i["ours"]["float32"]["p50_ms"] / 200.0)
