@@ -41,6 +41,12 @@ FLOW_SPARSIFY = ("keep_top", "drop_top")
 # no-contact reference (Andrussow et al.; FACTS.md). The reference removes the LEDs' fixed colour
 # field, so the paper's rotation turns the shell's deformation and not the camera's own lighting.
 IMAGE_REFERENCES = ("none", "training_mean")
+# The dtype of the model's matrix-product and convolution inputs (`model.dense`): products
+# accumulate in float32, and parameters, optimiser state, LayerNorms, softmax, the [0, 1] rescale,
+# the loss and every statistic stay float32 whatever it is. bfloat16 runs on the bfloat16 dot
+# units of CPUs that have them (x86 `avx512_bf16` / AMX, Arm `bf16`); float16 is kept for the
+# stability tests' overflow cases.
+COMPUTE_DTYPES = ("float32", "bfloat16", "float16")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +74,7 @@ class Config:
     fabric_head: bool = True
     n_classes: int = catalog.N_CLASSES  # the fabric head's classes: the dataset's label map (studies set it from the data)
     property_heads: bool = False
-    compute_dtype: str = "float32"
+    compute_dtype: str = "float32"  # COMPUTE_DTYPES
     # training
     epochs: int = 40
     batch_size: int = 32
@@ -99,6 +105,8 @@ class Config:
             raise ValueError(f"flow_sparsify must be one of {FLOW_SPARSIFY}, got {self.flow_sparsify!r}")
         if self.image_reference not in IMAGE_REFERENCES:
             raise ValueError(f"image_reference must be one of {IMAGE_REFERENCES}, got {self.image_reference!r}")
+        if self.compute_dtype not in COMPUTE_DTYPES:
+            raise ValueError(f"compute_dtype must be one of {COMPUTE_DTYPES}, got {self.compute_dtype!r}")
         if self.image_resolution not in ("down", "full"):
             raise ValueError(f"image_resolution must be 'down' or 'full', got {self.image_resolution!r}")
         if not (self.fabric_head or self.property_heads):

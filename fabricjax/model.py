@@ -82,6 +82,51 @@ def rescale_unit(x: jax.Array, axis: int = 1) -> jax.Array:
     return jnp.where(hi > lo, (x - lo) / jnp.maximum(hi - lo, RESCALE_EPS), 0.0)
 
 
+def matmul(x: jax.Array, w: jax.Array, dtype) -> jax.Array:
+    """(..., K) @ (K, M) with both operands in the compute `dtype`, accumulated and returned in
+    float32, forward and backward (`_low_matmul`); float32 is the plain product."""
+    if jnp.dtype(dtype) == jnp.float32:
+        return x.astype(jnp.float32) @ w.astype(jnp.float32)
+    return _low_matmul(x.astype(dtype), w.astype(dtype))
+
+
+@jax.custom_vjp
+def _low_matmul(x: jax.Array, w: jax.Array) -> jax.Array:
+    """`x @ w` of low-precision operands, float32 out. The VJP is written out so that the backward
+    products take the cotangent in the operands' dtype too: autodiff's form would multiply the
+    float32 cotangent with the operands converted to float32, the slow product again."""
+    return jnp.matmul(x, w, preferred_element_type=jnp.float32)
+
+
+def _low_matmul_fwd(x, w):
+    return _low_matmul(x, w), (x, w)
+
+
+def _low_matmul_bwd(saved, dy):
+    x, w = saved
+    dy = dy.astype(x.dtype)
+    dx = jnp.matmul(dy, w.T, preferred_element_type=jnp.float32)
+    dw = jnp.matmul(x.reshape(-1, x.shape[-1]).T, dy.reshape(-1, dy.shape[-1]), preferred_element_type=jnp.float32)
+    return dx.astype(x.dtype), dw.astype(w.dtype)
+
+
+_low_matmul.defvjp(_low_matmul_fwd, _low_matmul_bwd)
+
+
+class Dense(nnx.Linear):
+    """`nnx.Linear` (float32 parameters) whose product takes its inputs in the layer's `dtype`
+    (the compute dtype) and accumulates and returns float32 (`matmul`): bfloat16 halves the
+    product's operand traffic and runs on the CPU's bfloat16 units where it has them, while the
+    bias, activations and everything after the product stay float32."""
+
+    def __call__(self, x: jax.Array) -> jax.Array:
+        return matmul(x, self.kernel[...], self.dtype or jnp.float32) + self.bias[...]
+
+
+def dense(a: int, b: int, *, dtype, rngs: nnx.Rngs) -> Dense:
+    return Dense(a, b, dtype=dtype, rngs=rngs)
+
+
 class MLP(nnx.Module):
     """Linear layers with GELU between them and after the last (features feed the backbone).
 
@@ -95,7 +140,7 @@ class MLP(nnx.Module):
     def __init__(self, sizes: tuple[int, ...], *, dtype, rngs: nnx.Rngs, input_norm: bool = False):
         self.input_norm = nnx.LayerNorm(sizes[0], rngs=rngs) if input_norm else None
         self.layers = nnx.List(
-            [nnx.Linear(a, b, dtype=dtype, rngs=rngs) for a, b in zip(sizes[:-1], sizes[1:])]
+            [dense(a, b, dtype=dtype, rngs=rngs) for a, b in zip(sizes[:-1], sizes[1:])]
         )
 
     def __call__(self, x):
@@ -120,10 +165,7 @@ class MLP(nnx.Module):
         var = jnp.maximum((x * x).mean(-1, keepdims=True) - mean * mean, 0.0)  # as nnx.LayerNorm
         x = (x - mean) * jax.lax.rsqrt(var + norm.epsilon)
         kernel, scale, shift = layer.kernel[...], norm.scale[...], norm.bias[...]
-        dtype = layer.dtype or jnp.float32
-        w = (scale[:, None] * kernel).astype(dtype)
-        b = (shift @ kernel + layer.bias[...]).astype(dtype)
-        return x.astype(dtype) @ w + b
+        return matmul(x, scale[:, None] * kernel, layer.dtype or jnp.float32) + (shift @ kernel + layer.bias[...])
 
 
 class ConvEncoder(nnx.Module):
@@ -143,7 +185,7 @@ class ConvEncoder(nnx.Module):
             raise ValueError(f"at most {len(self.PATCHES)} CNN layers, got {features}")
         sizes = (in_channels, *features)
         self.layers = nnx.List(
-            [nnx.Linear(p * p * a, b, dtype=dtype, rngs=rngs) for p, a, b in zip(self.PATCHES, sizes[:-1], sizes[1:])]
+            [dense(p * p * a, b, dtype=dtype, rngs=rngs) for p, a, b in zip(self.PATCHES, sizes[:-1], sizes[1:])]
         )
 
     def __call__(self, x):  # (M, H, W, C)
@@ -161,7 +203,7 @@ class ConvEncoder(nnx.Module):
         without the transpose into frames."""
         first = self.layers[0]
         dtype = first.dtype or jnp.float32
-        y = patch_product(rows.astype(dtype), first.kernel[...].astype(dtype)) + first.bias[...].astype(dtype)[:, None]
+        y = patch_product(rows.astype(dtype), first.kernel[...].astype(dtype)) + first.bias[...][:, None]
         b, cells, f, n = y.shape
         return self.after_first(jax.nn.relu(jnp.moveaxis(y, 3, 1).reshape(b * n, *grid, f)))
 
@@ -188,14 +230,16 @@ def _patches(x: jax.Array, p: int) -> jax.Array:
 @jax.custom_vjp
 def patch_product(rows: jax.Array, kernel: jax.Array) -> jax.Array:
     """(B, cells, J, N) patch rows times a (J, F) kernel -> (B, cells, F, N): each cell's (F, J) @
-    (J, N) product, batched over (B, cells).
+    (J, N) product, batched over (B, cells), accumulated and returned in float32 whatever the
+    operands' (compute) dtype.
 
     Batched so that every product is a plain matrix product on XLA's CPU backend: the same
     contraction as one (B*cells*N, J) @ (J, F) product needs the rows transposed first. The VJP
     is written out for the same reason: the kernel's gradient as each cell's rows @ dy^T (with the
     small dy transposed) runs as plain products, where autodiff's form contracted both operands'
     minor axis and took most of the first layer's time."""
-    return jnp.einsum("bckj,bcjn->bckn", jnp.broadcast_to(kernel.T, (*rows.shape[:2], *kernel.T.shape)), rows)
+    kernel_t = jnp.broadcast_to(kernel.T, (*rows.shape[:2], *kernel.T.shape))
+    return jnp.einsum("bckj,bcjn->bckn", kernel_t, rows, preferred_element_type=jnp.float32)
 
 
 def _patch_product_fwd(rows, kernel):
@@ -204,9 +248,11 @@ def _patch_product_fwd(rows, kernel):
 
 def _patch_product_bwd(saved, dy):
     rows, kernel = saved
-    d_rows = jnp.einsum("bckj,bckn->bcjn", jnp.broadcast_to(kernel.T, (*rows.shape[:2], *kernel.T.shape)), dy)
-    d_kernel = jnp.einsum("bcjn,bcnk->bcjk", rows, jnp.swapaxes(dy, 2, 3)).sum((0, 1))
-    return d_rows, d_kernel
+    dy = dy.astype(kernel.dtype)  # the products' operands in the compute dtype, as forward
+    kernel_t = jnp.broadcast_to(kernel.T, (*rows.shape[:2], *kernel.T.shape))
+    d_rows = jnp.einsum("bckj,bckn->bcjn", kernel_t, dy, preferred_element_type=jnp.float32)
+    d_kernel = jnp.einsum("bcjn,bcnk->bcjk", rows, jnp.swapaxes(dy, 2, 3), preferred_element_type=jnp.float32).sum((0, 1))
+    return d_rows.astype(rows.dtype), d_kernel.astype(kernel.dtype)
 
 
 patch_product.defvjp(_patch_product_fwd, _patch_product_bwd)
@@ -221,10 +267,11 @@ def self_attention(q: jax.Array, k: jax.Array, v: jax.Array) -> jax.Array:
     (B, H, T, T) weights, with the max shift outside the gradient: softmax is shift-invariant)
     does less work per training step.
     """
-    # float32 scores even under float16 compute: a float16 product overflows to inf above 65504
+    # q, k, v in the compute dtype; scores, softmax and output float32 (a float16 product would
+    # overflow to inf above 65504)
     scores = jnp.einsum("bhtd,bhsd->bhts", q * q.shape[-1] ** -0.5, k, preferred_element_type=jnp.float32)
     e = jnp.exp(scores - jax.lax.stop_gradient(scores.max(axis=-1, keepdims=True)))
-    return jnp.einsum("bhts,bhsd->bhtd", e.astype(v.dtype), v) / e.sum(axis=-1, keepdims=True).astype(v.dtype)
+    return jnp.einsum("bhts,bhsd->bhtd", e.astype(v.dtype), v, preferred_element_type=jnp.float32) / e.sum(axis=-1, keepdims=True)
 
 
 class AttentionBlock(nnx.Module):
@@ -241,20 +288,20 @@ class AttentionBlock(nnx.Module):
             raise ValueError(f"width {width} is not divisible by n_heads {n_heads}")
         self.n_heads = n_heads
         self.norm1 = nnx.LayerNorm(width, rngs=rngs)
-        self.qkv = nnx.Linear(width, 3 * width, dtype=dtype, rngs=rngs)
-        self.proj = nnx.Linear(width, width, dtype=dtype, rngs=rngs)
+        self.qkv = dense(width, 3 * width, dtype=dtype, rngs=rngs)
+        self.proj = dense(width, width, dtype=dtype, rngs=rngs)
         self.norm2 = nnx.LayerNorm(width, rngs=rngs)
-        self.ff1 = nnx.Linear(width, ffn, dtype=dtype, rngs=rngs)
-        self.ff2 = nnx.Linear(ffn, width, dtype=dtype, rngs=rngs)
+        self.ff1 = dense(width, ffn, dtype=dtype, rngs=rngs)
+        self.ff2 = dense(ffn, width, dtype=dtype, rngs=rngs)
         self.dropout = nnx.Dropout(dropout)
 
     def __call__(self, x, rngs):
         b, t, w = x.shape
         h = self.norm1(x)
         dtype = self.qkv.dtype or jnp.float32
-        kernel, bias = self.qkv.kernel[...].astype(dtype), self.qkv.bias[...].astype(dtype)
+        kernel, bias = self.qkv.kernel[...], self.qkv.bias[...]
         heads = lambda i: jnp.swapaxes(  # noqa: E731
-            (h.astype(dtype) @ kernel[:, i * w : (i + 1) * w] + bias[i * w : (i + 1) * w]).reshape(b, t, self.n_heads, -1), 1, 2
+            (matmul(h, kernel[:, i * w : (i + 1) * w], dtype) + bias[i * w : (i + 1) * w]).astype(dtype).reshape(b, t, self.n_heads, -1), 1, 2
         )
         a = jnp.swapaxes(self_attention(heads(0), heads(1), heads(2)), 1, 2).reshape(b, t, w)
         x = x + self.dropout(self.proj(a), deterministic=rngs is None, rngs=rngs)
@@ -286,10 +333,9 @@ def causal_conv(conv: nnx.Conv, x: jax.Array) -> jax.Array:
     kernel = conv.kernel[...]  # (taps, in, out)
     (dilation,) = np.atleast_1d(conv.kernel_dilation)
     taps, steps = kernel.shape[0], x.shape[-2]
-    dtype = conv.dtype or jnp.float32
     padded = jnp.pad(x, [(0, 0)] * (x.ndim - 2) + [((taps - 1) * dilation, 0), (0, 0)])
     shifted = jnp.concatenate([padded[..., j * dilation : j * dilation + steps, :] for j in range(taps)], axis=-1)
-    return shifted.astype(dtype) @ kernel.reshape(-1, kernel.shape[-1]).astype(dtype) + conv.bias[...].astype(dtype)
+    return matmul(shifted, kernel.reshape(-1, kernel.shape[-1]), conv.dtype or jnp.float32) + conv.bias[...]
 
 
 class FabricNet(nnx.Module):
@@ -339,7 +385,7 @@ class FabricNet(nnx.Module):
         # discards every feature's steady level (a palm microphone's loudness, a joint's load),
         # so our variant normalises each step's concatenated features instead (LayerNorm).
         self.fusion_norm = nnx.LayerNorm(dims, rngs=rngs) if config.fusion_norm == "step_layernorm" else None
-        self.embed = nnx.Linear(dims, width, dtype=dtype, rngs=rngs)
+        self.embed = dense(dims, width, dtype=dtype, rngs=rngs)
         self.position = nnx.Param(nnx.initializers.normal(0.02)(rngs.params(), (config.seq_len, width)))
         if config.backbone == "attention":
             blocks = [
@@ -350,7 +396,7 @@ class FabricNet(nnx.Module):
             blocks = [TCNBlock(width, 2**i, config.dropout, dtype=dtype, rngs=rngs) for i in range(config.n_layers)]
         self.blocks = nnx.List(blocks)
         self.norm = nnx.LayerNorm(width, rngs=rngs)
-        self.hidden = nnx.Linear(width, width, dtype=dtype, rngs=rngs)
+        self.hidden = dense(width, width, dtype=dtype, rngs=rngs)
         self.heads = nnx.Dict({k: nnx.Linear(width, n, rngs=rngs) for k, n in head_sizes(config).items()})
         self.dropout = nnx.Dropout(config.dropout)
 
@@ -374,7 +420,7 @@ class FabricNet(nnx.Module):
             elif m == "proprio":
                 x = self.proprio(x)
             else:
-                x = self.audio(x.astype(self.dtype))
+                x = self.audio(x)  # standardised in float32 first: log-PSD levels near -10 lose their detail in bfloat16
             parts.append(x.reshape(b, n, -1))
         fused = jnp.concatenate(parts, axis=-1)
         return rescale_unit(fused) if self.fusion_norm is None else self.fusion_norm(fused.astype(jnp.float32))
@@ -420,7 +466,7 @@ class FabricNet(nnx.Module):
         n = x.shape[1]
         if n > self.position.shape[0]:
             raise ValueError(f"sequence of {n} steps exceeds the model's {self.position.shape[0]}")
-        x = self.embed(x.astype(self.dtype)) + self.position[:n].astype(self.dtype)
+        x = self.embed(x) + self.position[:n]
         x = self.dropout(x, deterministic=rngs is None, rngs=rngs)
         for block in self.blocks:
             x = block(x, rngs)
@@ -435,11 +481,12 @@ class FabricNet(nnx.Module):
 
 
 def training_layout(inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
-    """A training set's inputs as training reads them: frames ("image", (S, N, H, W, C)) as rows
-    ("image_rows", (S, H*W, C, N): `features.images.to_rows`), so that each minibatch's rotation
-    moves whole rows (`FabricNet.image_features`); other inputs unchanged. `train_and_evaluate`
-    does it once, on the whole set, before it goes to the devices: done per minibatch inside the
-    step, XLA fused the transpose into the rotation's gathers."""
+    """A data set's inputs as training and its evaluation read them: frames ("image", (S, N, H, W,
+    C)) as rows ("image_rows", (S, H*W, C, N): `features.images.to_rows`), so that each minibatch's
+    rotation moves whole rows (`FabricNet.image_features`) and evaluation runs the same compiled
+    image path; other inputs unchanged. `train_and_evaluate` does it once per set, on the whole
+    set, before it goes to the devices: done per minibatch inside the step, XLA fused the
+    transpose into the rotation's gathers."""
     if "image" not in inputs:
         return dict(inputs)
     from fabricjax.features import images

@@ -11,9 +11,11 @@ short epochs would overstate the cost of a step.
 `compare_with_torch` times ours and the optional PyTorch twin (`fabricjax.torch_twin`), eager and
 `torch.compile`d, interleaved in one process and reports the ratios.
 
-How close a program comes to the machine: `xla_flops` counts a compiled program's FLOPs with XLA's
-own cost analysis, `matmul_peak` measures the practical peak (a dense float32 matmul over the same
-devices), and `utilisation` divides the two rates.
+Ours runs in each compute dtype (`Config.compute_dtype`, `DTYPES`), the twin in float32 and under
+its bfloat16 autocast. How close a program comes to the machine: `xla_flops` counts a compiled
+program's FLOPs with XLA's own cost analysis, `matmul_peak` measures the practical peak of one
+operand dtype (a dense matmul over the same devices, accumulating in float32), and `utilisation`
+divides the rates, against the float32 and the bfloat16 peak alike.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import time
 from typing import Any, Callable, Sequence
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from fabricjax import sharding, stats, synthetic
@@ -32,7 +35,8 @@ from fabricjax.model import feature_shapes, make_predict_one, training_layout
 from fabricjax.train import make_trainer, seed_keys, select
 
 STEPS_PER_EPOCH = 16
-MATMUL_N = 2048  # the practical peak's matmul: (N x N) @ (N x N) float32, large enough to run at the BLAS's best
+MATMUL_N = 2048  # the practical peak's matmul: (N x N) @ (N x N), large enough to run at the BLAS's best
+DTYPES = ("float32", "bfloat16")  # the compute dtypes the benchmarks time ours in, and the peaks they measure
 
 
 def xla_flops(jitted, *args) -> float:
@@ -52,16 +56,17 @@ def xla_flops(jitted, *args) -> float:
     return per_device * len(devices)
 
 
-def matmul_peak(n: int = MATMUL_N, repeats: int = 5) -> dict[str, Any]:
-    """The practical float32 peak of the devices: a jitted (n x n) @ (n x n) matmul, its rows split
+def matmul_peak(n: int = MATMUL_N, repeats: int = 5, dtype: str = "float32") -> dict[str, Any]:
+    """The practical peak of the devices for `dtype` operands: a jitted (n x n) @ (n x n) matmul
+    accumulating in float32 (`preferred_element_type`, as the model's products), its rows split
     over every JAX device (as training splits its batch), timed after warm-up, best of `repeats`.
     Its FLOPs are XLA's count (`xla_flops`), so a utilisation divides like by like."""
     devices = jax.devices()
     n = -(-n // len(devices)) * len(devices)  # rows divide evenly over the devices
     mesh = jax.sharding.Mesh(np.asarray(devices), ("rows",))
-    a = jax.device_put(jax.random.normal(jax.random.PRNGKey(0), (n, n), np.float32), jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("rows")))
-    b = jax.device_put(jax.random.normal(jax.random.PRNGKey(1), (n, n), np.float32), jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec()))
-    matmul = jax.jit(lambda x, y: x @ y)
+    a = jax.device_put(jax.random.normal(jax.random.PRNGKey(0), (n, n), dtype), jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("rows")))
+    b = jax.device_put(jax.random.normal(jax.random.PRNGKey(1), (n, n), dtype), jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec()))
+    matmul = jax.jit(lambda x, y: jnp.dot(x, y, preferred_element_type=jnp.float32))
     flops = xla_flops(matmul, a, b)
     jax.block_until_ready(matmul(a, b))  # compile and warm up
 
@@ -71,13 +76,14 @@ def matmul_peak(n: int = MATMUL_N, repeats: int = 5) -> dict[str, Any]:
         return time.perf_counter() - t
 
     seconds = min(once() for _ in range(repeats))
-    return {"n": n, "devices": len(devices), "flops": flops, "seconds": seconds, "gflop_per_s": flops / seconds / 1e9}
+    return {"n": n, "devices": len(devices), "dtype": dtype, "flops": flops, "seconds": seconds, "gflop_per_s": flops / seconds / 1e9}
 
 
-def utilisation(flops: float, seconds: float, peak_gflop_per_s: float) -> dict[str, float]:
-    """FLOPs of one step or call taking `seconds`: achieved GFLOP/s and its fraction of the matmul peak."""
+def utilisation(flops: float, seconds: float, peaks: dict[str, float]) -> dict[str, Any]:
+    """FLOPs of one step or call taking `seconds`: achieved GFLOP/s and its fraction of each matmul
+    peak (`peaks`: operand dtype -> GFLOP/s, `matmul_peak`)."""
     achieved = flops / seconds / 1e9
-    return {"flops_per_step": flops, "gflop_per_s": achieved, "fraction_of_matmul_peak": achieved / peak_gflop_per_s}
+    return {"flops_per_step": flops, "gflop_per_s": achieved, "fraction_of_peak": {k: achieved / v for k, v in peaks.items()}}
 
 
 def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_bins: int, steps: int, image_hw: tuple[int, int] | None = None):
@@ -217,9 +223,10 @@ def compare_rows(
 COMPARE_CONFIG = Config.from_preset("paper", modalities=("internal", "external", "proprio"))
 
 
-def _variant(compile_mode: str | None) -> str:
-    """A twin variant's name in the results: "eager" or "compiled:MODE"."""
-    return "eager" if compile_mode is None else f"compiled:{compile_mode}"
+def _variant(compile_mode: str | None, autocast: bool = False) -> str:
+    """A twin variant's name in the results: "eager" or "compiled:MODE", "+bf16 autocast" under
+    `torch.autocast` to bfloat16."""
+    return ("eager" if compile_mode is None else f"compiled:{compile_mode}") + (" +bf16 autocast" if autocast else "")
 
 
 def _build(make: Callable[[], Callable[[], float]], tolerate: bool) -> tuple[Callable[[], float] | None, dict[str, Any]]:
@@ -250,6 +257,11 @@ def _interleave(runs: dict[str, Callable[[], Any]], rounds: int, pause_s: float)
     return out
 
 
+def _ours(dtype: str) -> str:
+    """Our side's name in a comparison: "ours:DTYPE" (its compute dtype)."""
+    return f"ours:{dtype}"
+
+
 def compare_with_torch(
     config: Config | None = None,
     *,
@@ -263,91 +275,101 @@ def compare_with_torch(
     inference_calls: int = 20,
     pause_s: float = 1.0,
     compile_modes: Sequence[str] | None = None,
+    dtypes: Sequence[str] = DTYPES,
 ) -> dict[str, Any]:
-    """Our training step and inference against the PyTorch twin's, interleaved in one process.
+    """Our training step and inference, in each compute dtype of `dtypes`, against the PyTorch
+    twin's, interleaved in one process.
 
     The twin runs eager and `torch.compile`d in each of `compile_modes` (default
-    `torch_twin.COMPILE_MODES`), every variant with the fastest AdamW (`torch_twin.adamw_impl`);
-    a mode that fails to compile is recorded with its error and left out. Every program is built
-    and warmed up first (compile time recorded apart, `build_and_warmup_s`); then each round times
-    ours and every twin variant back to back for every seed count (the order reversed every other
-    round), so machine load hits all alike. Ours trains `n` seeds in one vmapped program, the twin
-    `n` models one after another. Ratios are ours / the fastest twin variant by median time
-    (below 1: we are faster; `torch_variant` names it, `torch_variants` holds every variant and
-    its own ratio): `ratio` is the median of the per-round ratios, `ratio_of_medians` the ratio of
-    the median times. Inference alternates blocks of `inference_calls` single-sequence calls,
-    fastest variant by p50. The build times are an upper bound for the first compiled variant and
-    may be near zero for later ones of the same shapes, which reuse its graphs (torch's in-process
-    and on-disk caches, as JAX's compilation cache serves ours). `pause_s` separates the sides: a step run right after the
-    other side's is slower (caches and the CPU's clock still busy with it). Needs torch (`pip install -e
-    ".[compare]"`; ImportError without it): the twin (`fabricjax.torch_twin`) imports torch when
-    called, never at module import.
+    `torch_twin.COMPILE_MODES`), each in float32 and under `torch.autocast` to bfloat16 (its own
+    mixed precision, the fair peer of our bfloat16), every variant with the fastest AdamW
+    (`torch_twin.adamw_impl`); a variant that fails to build is recorded with its error and left
+    out. Every program is built and warmed up first (compile time recorded apart,
+    `build_and_warmup_s`); then each round times every side back to back for every seed count
+    (the order reversed every other round), so machine load hits all alike. Ours trains `n` seeds
+    in one vmapped program, the twin `n` models one after another. Ratios are ours (per dtype,
+    under "ours") / the fastest twin variant by median time (below 1: we are faster;
+    `torch_variant` names it, `torch_variants` holds every variant and our ratio to it per dtype):
+    `ratio` is the median of the per-round ratios, `ratio_of_medians` the ratio of the median
+    times. Inference alternates blocks of `inference_calls` single-sequence calls, fastest variant
+    by p50. The build times are an upper bound for the first compiled variant and may be near zero
+    for later ones of the same shapes, which reuse its graphs (torch's in-process and on-disk
+    caches, as JAX's compilation cache serves ours). `pause_s` separates the sides: a step run
+    right after the other side's is slower (caches and the CPU's clock still busy with it). Needs
+    torch (`pip install -e ".[compare]"`; ImportError without it): the twin
+    (`fabricjax.torch_twin`) imports torch when called, never at module import.
     """
     from fabricjax import torch_twin as twin
 
     torch = twin.require()
     config = config or COMPARE_CONFIG
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
-    modes = (None, *(twin.COMPILE_MODES if compile_modes is None else compile_modes))
+    ours = {d: dataclasses.replace(cfg, compute_dtype=d) for d in dtypes}
+    mine = {_ours(d) for d in dtypes}
+    variants = [(mode, autocast) for mode in (None, *(twin.COMPILE_MODES if compile_modes is None else compile_modes)) for autocast in (False, True)]
     training: dict[str, Any] = {}
     per_round: dict[int, dict[str, np.ndarray]] = {}
     setup: dict[int, dict[str, dict]] = {}
     for n in seeds:  # one seed count at a time, so only its programs hold memory
         runs, built = {}, {}
-        runs["ours"], built["ours"] = _build(lambda: train_step_runner(cfg, n, batch=batch, seq_len=seq_len, psd_bins=psd_bins, steps=steps), tolerate=False)
-        for mode in modes:
-            make = functools.partial(twin.train_step_runner, cfg, n_seeds=n, batch=batch, n_bins=psd_bins, steps=steps, compile_mode=mode)
-            run, built[_variant(mode)] = _build(make, tolerate=mode is not None)
+        for d, c in ours.items():
+            runs[_ours(d)], built[_ours(d)] = _build(lambda c=c: train_step_runner(c, n, batch=batch, seq_len=seq_len, psd_bins=psd_bins, steps=steps), tolerate=False)
+        for mode, autocast in variants:
+            make = functools.partial(twin.train_step_runner, cfg, n_seeds=n, batch=batch, n_bins=psd_bins, steps=steps, compile_mode=mode, autocast=autocast)
+            run, built[_variant(mode, autocast)] = _build(make, tolerate=mode is not None or autocast)
             if run is not None:
-                runs[_variant(mode)] = run
+                runs[_variant(mode, autocast)] = run
         per_round[n] = {k: np.asarray(v) for k, v in _interleave(runs, rounds, pause_s).items()}
         setup[n] = built
         del runs
     for n in seeds:
         t, built = per_round[n], setup[n]
-        o = t["ours"]
-        variants = {v: {**built_v, **({"s_per_step": float(np.median(t[v])), "min_s": float(t[v].min()), "ratio": float(np.median(o / t[v])), "rounds": t[v].tolist()} if v in t else {})}
-                    for v, built_v in built.items() if v != "ours"}
-        fastest = min((v for v in t if v != "ours"), key=lambda v: np.median(t[v]))
+        fastest = min((v for v in t if v not in mine), key=lambda v: np.median(t[v]))
         f = t[fastest]
         training[f"{n}_seed"] = {
-            "ours_s_per_step": float(np.median(o)),
+            "ours": {
+                d: {
+                    "s_per_step": float(np.median(t[_ours(d)])), "min_s": float(t[_ours(d)].min()),
+                    "ratio": float(np.median(t[_ours(d)] / f)), "ratio_of_medians": float(np.median(t[_ours(d)]) / np.median(f)),
+                    "ratio_of_mins": float(t[_ours(d)].min() / f.min()), "build_and_warmup_s": built[_ours(d)]["build_and_warmup_s"],
+                    "rounds": t[_ours(d)].tolist(),
+                    **({"per_seed_vs_1_seed": float(np.median(t[_ours(d)] / (n * per_round[1][_ours(d)])))} if n > 1 and 1 in seeds else {}),
+                }
+                for d in dtypes
+            },
             "torch_s_per_step": float(np.median(f)),
             "torch_variant": fastest,
-            "ours_min_s": float(o.min()),
             "torch_min_s": float(f.min()),
-            "ratio": float(np.median(o / f)),
-            "ratio_of_medians": float(np.median(o) / np.median(f)),
-            "ratio_of_mins": float(o.min() / f.min()),
-            "ours_build_and_warmup_s": built["ours"]["build_and_warmup_s"],
-            "rounds": {"ours": o.tolist(), "torch": f.tolist()},
-            "torch_variants": variants,
+            "torch_rounds": f.tolist(),
+            "torch_variants": {
+                v: {**b, **({"s_per_step": float(np.median(t[v])), "min_s": float(t[v].min()), "rounds": t[v].tolist(),
+                             "ratio": {d: float(np.median(t[_ours(d)] / t[v])) for d in dtypes}} if v in t else {})}
+                for v, b in built.items() if v not in mine
+            },
         }
-    if 1 in seeds:
-        for n in seeds:
-            if n > 1:
-                # Our vmapped n seeds against n times one seed of ours (1.0: vmapping is free).
-                training[f"{n}_seed"]["ours_per_seed_vs_1_seed"] = float(np.median(per_round[n]["ours"] / (n * per_round[1]["ours"])))
     runs, built = {}, {}
-    runs["ours"], built["ours"] = _build(lambda: inference_runner(cfg, seq_len=seq_len, psd_bins=psd_bins), tolerate=False)
-    for mode in modes:
-        run, built[_variant(mode)] = _build(functools.partial(twin.inference_runner, cfg, n_bins=psd_bins, compile_mode=mode), tolerate=mode is not None)
+    for d, c in ours.items():
+        runs[_ours(d)], built[_ours(d)] = _build(lambda c=c: inference_runner(c, seq_len=seq_len, psd_bins=psd_bins), tolerate=False)
+    for mode, autocast in variants:
+        make = functools.partial(twin.inference_runner, cfg, n_bins=psd_bins, compile_mode=mode, autocast=autocast)
+        run, built[_variant(mode, autocast)] = _build(make, tolerate=mode is not None or autocast)
         if run is not None:
-            runs[_variant(mode)] = run
+            runs[_variant(mode, autocast)] = run
     blocks = {side: (lambda run=run: [run() for _ in range(inference_calls)]) for side, run in runs.items()}
     lat = {side: [s for block in v for s in block] for side, v in _interleave(blocks, inference_rounds, pause_s).items()}
     p = {k: stats.percentiles_ms(v) for k, v in lat.items()}
-    fastest = min((v for v in p if v != "ours"), key=lambda v: p[v]["p50_ms"])
+    fastest = min((v for v in p if v not in mine), key=lambda v: p[v]["p50_ms"])
     inference = {
-        "ours_p50_ms": p["ours"]["p50_ms"],
-        "ours_p99_ms": p["ours"]["p99_ms"],
+        "ours": {
+            d: {**p[_ours(d)], "ratio_p50": p[_ours(d)]["p50_ms"] / p[fastest]["p50_ms"], "build_and_warmup_s": built[_ours(d)]["build_and_warmup_s"]}
+            for d in dtypes
+        },
         "torch_p50_ms": p[fastest]["p50_ms"],
         "torch_p99_ms": p[fastest]["p99_ms"],
         "torch_variant": fastest,
-        "ratio_p50": p["ours"]["p50_ms"] / p[fastest]["p50_ms"],
-        "ours_build_and_warmup_s": built["ours"]["build_and_warmup_s"],
         "torch_variants": {
-            v: {**b, **({**p[v], "ratio_p50": p["ours"]["p50_ms"] / p[v]["p50_ms"]} if v in p else {})} for v, b in built.items() if v != "ours"
+            v: {**b, **({**p[v], "ratio_p50": {d: p[_ours(d)]["p50_ms"] / p[v]["p50_ms"] for d in dtypes}} if v in p else {})}
+            for v, b in built.items() if v not in mine
         },
     }
     return {

@@ -253,13 +253,23 @@ def compiled(model, compile_mode: str | None):
     return torch.compile(model, mode=compile_mode)
 
 
+def mixed_precision(autocast: bool):
+    """`torch.autocast` to bfloat16 on the CPU when `autocast` (PyTorch's own mixed precision:
+    matrix products and convolutions in bfloat16, float32 parameters), else a no-op context."""
+    import torch
+
+    return torch.autocast("cpu", dtype=torch.bfloat16, enabled=autocast)
+
+
 def train_step_runner(
-    config: Config, *, n_seeds: int = 1, batch: int = 32, n_bins: int = 320, steps: int = 4, compile_mode: str | None = None
+    config: Config, *, n_seeds: int = 1, batch: int = 32, n_bins: int = 320, steps: int = 4, compile_mode: str | None = None,
+    autocast: bool = False,
 ) -> Callable[[], float]:
     """A warmed-up callable that runs `steps` training steps of `n_seeds` models one after another
     (each step: every seed in turn) and returns seconds per step. With `compile_mode` each model's
-    forward (and with it, through AOTAutograd, its backward) is `torch.compile`d; gradient clipping
-    and the AdamW step (`adamw_impl`) stay eager, as fused kernels already."""
+    forward (and with it, through AOTAutograd, its backward) is `torch.compile`d; with `autocast`
+    the forward and loss run under `mixed_precision`; gradient clipping and the AdamW step
+    (`adamw_impl`) stay eager and float32, as fused kernels already."""
     import torch
     from torch.nn import functional as F
 
@@ -272,7 +282,9 @@ def train_step_runner(
     def step():
         for model, forward, opt in zip(models, forwards, opts):
             opt.zero_grad(set_to_none=True)
-            F.cross_entropy(forward(inputs), labels, ignore_index=-1).backward()
+            with mixed_precision(autocast):
+                loss = F.cross_entropy(forward(inputs), labels, ignore_index=-1)
+            loss.backward()
             _clip_by_global_norm(model.parameters(), 1.0)
             opt.step()
 
@@ -295,16 +307,16 @@ def bench_train_step(config: Config, *, n_seeds: int = 1, batch: int = 32, n_bin
     return {"seconds_per_step": s, "sequences_per_second_per_seed": batch / (s / n_seeds), "n_seeds": n_seeds, "threads": torch.get_num_threads()}
 
 
-def inference_runner(config: Config, *, n_bins: int = 320, compile_mode: str | None = None) -> Callable[[], float]:
+def inference_runner(config: Config, *, n_bins: int = 320, compile_mode: str | None = None, autocast: bool = False) -> Callable[[], float]:
     """A warmed-up callable returning the seconds of one eval-mode forward pass on one sequence
-    (`compile_mode` as in `train_step_runner`)."""
+    (`compile_mode` and `autocast` as in `train_step_runner`)."""
     import torch
 
     model = compiled(build(config, n_bins).eval(), compile_mode)
     inputs, _ = _batch(config, 1, n_bins)
 
     def run() -> float:
-        with torch.inference_mode():
+        with torch.inference_mode(), mixed_precision(autocast):
             t0 = time.perf_counter()
             model(inputs)
             return time.perf_counter() - t0

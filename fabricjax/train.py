@@ -211,7 +211,7 @@ class Trainer:
         """`n_epochs` more epochs in one scan, with best-validation selection: (state, per-epoch summary),
         the summary of `train_epoch` plus the validation accuracy per head ("val_accuracy"), each with
         a leading epoch axis (the scan's outputs: they leave the device with the state).
-        `data["train"]` is in training's layout (`model.training_layout`)."""
+        Every set is in training's layout (`model.training_layout`)."""
 
         def epoch(state, _):
             e = state["epoch"]
@@ -403,8 +403,9 @@ def train_and_evaluate(
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
     trainer, init, run, finish = _programs(config, shapes, n_train, augment, mesh)
     per_seed = sharding.by_seed(mesh)
-    # once per training, not per `run` call (studies write curves, so they run one epoch per call)
-    data = {**data, "train": {**data["train"], "inputs": training_layout(data["train"]["inputs"])}}
+    # once per training, not per `run` call (studies write curves, so they run one epoch per call);
+    # every set, so that training and evaluation compile one image path (`FabricNet.image_features`)
+    data = jax.tree.map(lambda ds: {**ds, "inputs": training_layout(ds["inputs"])}, data, is_leaf=lambda x: isinstance(x, Mapping) and "inputs" in x)
     data = sharding.put(data, sharding.replicated(mesh))
     keys = sharding.put(seed_keys(seeds), per_seed)
 

@@ -136,16 +136,20 @@ def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
     saved = json.loads((tmp_path / "bench.json").read_text())
     assert set(saved["benchmarks"]) == set(bench.BENCHMARKS) and saved["machine"]["cores"] > 0
     b = saved["benchmarks"]
-    assert b["training"]["ours_5_seed"]["n_seeds"] == 5 and b["welch"]["speedup_vs_scipy"] > 0
+    assert set(b["training"]["ours_5_seed"]) == set(b["inference"]["ours"]) == set(program_timing.DTYPES)
+    assert b["training"]["ours_5_seed"]["bfloat16"]["n_seeds"] == 5 and b["welch"]["speedup_vs_scipy"] > 0
     assert b["streaming"]["decided_steps"] > 0 and b["extraction"]["peak_rss_mb"] > 0
     assert b["import"]["trials"] == 20 and b["import"]["wall_s"] > 0
     assert "missed_deadlines" in b["acquisition"] and b["simulator"]["realtime_factor"] > 0
-    assert saved["matmul_peak"]["gflop_per_s"] > 0
-    assert b["training"]["ours_5_seed"]["xla"]["flops_per_step"] > b["training"]["ours_1_seed"]["xla"]["flops_per_step"] > 0
-    assert 0 < b["inference"]["ours"]["xla"]["fraction_of_matmul_peak"]
+    assert all(saved["matmul_peak"][d]["gflop_per_s"] > 0 for d in program_timing.DTYPES)
+    for d in program_timing.DTYPES:
+        assert b["training"]["ours_5_seed"][d]["xla"]["flops_per_step"] > b["training"]["ours_1_seed"][d]["xla"]["flops_per_step"] > 0
+        assert set(b["inference"]["ours"][d]["xla"]["fraction_of_peak"]) == set(program_timing.DTYPES)
+        assert f"{d} (batch 8, N=12)" in lines[-1] and f"sequence, {d}, p50" in lines[-1]
     if doc["torch"] is not None:
-        assert {"ratio_1_seed", "ratio_5_seed"} <= set(b["training"]) and "ratio_p50" in b["inference"]
+        assert all("ratio" in b["training"]["ours_1_seed"][d] and "ratio_p50" in b["inference"]["ours"][d] for d in program_timing.DTYPES)
         assert b["training"]["torch_1_seed"]["variant"] in b["training"]["interleaved"]["training"]["1_seed"]["torch_variants"]
+        assert "eager +bf16 autocast" in b["training"]["interleaved"]["training"]["1_seed"]["torch_variants"]
     else:
         assert "skipped" in doc["torch_note"]
     assert "| benchmark |" in lines[-1] and (tmp_path / "bench.md").exists()
@@ -156,33 +160,42 @@ def test_xla_flops_utilisation_and_matmul_peak_are_positive():
     a, b = jax.numpy.ones((32, 16)), jax.numpy.ones((16, 8))
     flops = program_timing.xla_flops(f, a, b)
     assert np.isfinite(flops) and flops >= 2 * 32 * 16 * 8  # at least the matmul's multiply-adds
-    peak = program_timing.matmul_peak(n=128, repeats=2)
-    # Rows split over every device: the per-device counts add up to the whole matmul's.
-    assert peak["flops"] == pytest.approx(2 * 128**3, rel=0.01) and peak["devices"] == len(jax.devices())
-    assert np.isfinite(peak["gflop_per_s"]) and peak["gflop_per_s"] > 0
-    use = program_timing.utilisation(flops, 1e-4, peak["gflop_per_s"])
-    assert all(np.isfinite(v) and v > 0 for v in use.values())
-    assert use["fraction_of_matmul_peak"] == pytest.approx(use["gflop_per_s"] / peak["gflop_per_s"])
+    peaks = {d: program_timing.matmul_peak(n=128, repeats=2, dtype=d) for d in program_timing.DTYPES}
+    for d, peak in peaks.items():
+        # Rows split over every device: the per-device counts add up to the whole matmul's.
+        assert peak["flops"] == pytest.approx(2 * 128**3, rel=0.01) and peak["devices"] == len(jax.devices()) and peak["dtype"] == d
+        assert np.isfinite(peak["gflop_per_s"]) and peak["gflop_per_s"] > 0
+    use = program_timing.utilisation(flops, 1e-4, {d: p["gflop_per_s"] for d, p in peaks.items()})
+    assert np.isfinite(use["gflop_per_s"]) and use["gflop_per_s"] > 0
+    for d, p in peaks.items():
+        assert use["fraction_of_peak"][d] == pytest.approx(use["gflop_per_s"] / p["gflop_per_s"])
 
 
 def test_bench_table_names_the_fastest_variant_and_a_failed_compile():
-    xla = {"flops_per_step": 2e9, "gflop_per_s": 20.0, "fraction_of_matmul_peak": 0.25}
+    xla = {"flops_per_step": 2e9, "gflop_per_s": 20.0, "fraction_of_peak": {"float32": 0.25, "bfloat16": 0.125}}
     failed = {"error": "BackendCompilerFailed: no C++ compiler"}
-    training = {"1_seed": {"torch_variants": {"eager": {"build_and_warmup_s": 1.0, "s_per_step": 0.2, "ratio": 0.5}, "compiled:default": failed}}}
+    eager = {"build_and_warmup_s": 1.0, "s_per_step": 0.2, "ratio": {"float32": 0.5, "bfloat16": 0.4}}
+    training = {"1_seed": {"torch_variants": {"eager": eager, "compiled:default": failed}}}
+    peak = {"n": 2048, "devices": 2}
     doc = {
         "command": "test", "quick": False, "torch": "2.13.0", "machine": {"cpu": "cpu", "cores": 2, "jax": "0.10"},
-        "matmul_peak": {"n": 2048, "devices": 2, "gflop_per_s": 80.0},
+        "matmul_peak": {"float32": {**peak, "gflop_per_s": 80.0}, "bfloat16": {**peak, "gflop_per_s": 160.0}},
         "benchmarks": {
             "training": {
-                "workload": {"batch": 32, "seq_len": 200}, "ours_1_seed": {"seconds_per_step": 0.1, "xla": xla},
-                "torch_1_seed": {"variant": "eager", "seconds_per_step": 0.2}, "ratio_1_seed": 0.5,
+                "workload": {"batch": 32, "seq_len": 200},
+                "ours_1_seed": {"float32": {"seconds_per_step": 0.1, "ratio": 0.5, "xla": xla}, "bfloat16": {"seconds_per_step": 0.08, "ratio": 0.4, "xla": xla}},
+                "torch_1_seed": {"variant": "eager", "seconds_per_step": 0.2},
                 "interleaved": {"torch_adamw": "fused", "training": training},
             },
-            "inference": {"workload": {"seq_len": 200}, "ours": {"p50_ms": 3.0, "p99_ms": 9.0, "xla": xla}},
+            "inference": {"workload": {"seq_len": 200}, "ours": {"float32": {"p50_ms": 3.0, "p99_ms": 9.0, "xla": xla}}},
         },
     }
     table = bench.markdown(doc)
-    assert "| eager 200 ms | 0.50 | 2 | 20 (25 %) |" in table and "80.0 GFLOP/s on the same 2 devices" in table
+    assert "| training step, 1 seed, float32 (batch 32, N=200) | 100 ms | eager 200 ms | 0.50 | 2 | 20 (25 % / 12 %) |" in table
+    assert "| training step, 1 seed, bfloat16 (batch 32, N=200) | 80 ms | eager 200 ms | 0.40 |" in table
+    assert "float32 operands (80.0 GFLOP/s) and bfloat16 operands (160.0 GFLOP/s)" in table and "on the same 2 devices" in table
+    assert "| training, 1 seed | eager | 200 ms | float32 0.50, bfloat16 0.40 | 1.0 s |" in table
+    assert "| inference, one 200-step sequence, float32, p50 / p99 | 3.00 / 9.00 ms | n/a |" in table
     assert "| training, 1 seed | compiled:default | n/a |  | failed: BackendCompilerFailed: no C++ compiler |" in table
     assert "AdamW fused" in table
 
@@ -192,3 +205,37 @@ def test_bench_rejects_unknown_names(tmp_path):
         bench.run(only=["nope"], results=tmp_path)
     with pytest.raises(ValueError, match="acquisition benchmark needs its function"):
         bench.run(only=["acquisition"], results=tmp_path)
+
+
+def test_comparison_times_every_dtype_against_every_twin_variant(monkeypatch):
+    """`compare_with_torch`'s bookkeeping with a stand-in twin (torch is optional): ours in each
+    compute dtype against eager and compiled variants, each in float32 and under autocast; a
+    variant that fails to build is recorded, the fastest one is the reference of every ratio."""
+    from fabricjax import torch_twin
+
+    seconds = {(None, False): 0.4, (None, True): 0.2, ("default", False): 0.3, ("default", True): 0.25}
+
+    def runner(*args, compile_mode=None, autocast=False, **kw):
+        if compile_mode == "broken":
+            raise RuntimeError("no C++ compiler\nmore")
+        return lambda: seconds[(compile_mode, autocast)]
+
+    monkeypatch.setattr(torch_twin, "require", lambda: type("T", (), {"get_num_threads": staticmethod(lambda: 2)}))
+    monkeypatch.setattr(torch_twin, "adamw_impl", lambda: "fused")
+    monkeypatch.setattr(torch_twin, "train_step_runner", runner)
+    monkeypatch.setattr(torch_twin, "inference_runner", runner)
+    cfg = Config(preset="smoke", modalities=("internal", "proprio"), seq_len=6, **TINY)
+    out = program_timing.compare_with_torch(
+        cfg, seeds=(1, 2), batch=4, seq_len=6, psd_bins=8, steps=1, rounds=2, inference_rounds=1, inference_calls=2, pause_s=0.0,
+        compile_modes=("default", "broken"),
+    )
+    for t in (out["training"]["1_seed"], out["training"]["2_seed"]):
+        assert t["torch_variant"] == "eager +bf16 autocast" and t["torch_s_per_step"] == 0.2
+        assert set(t["ours"]) == set(program_timing.DTYPES)
+        assert all(v["ratio"] == pytest.approx(v["s_per_step"] / 0.2, rel=1e-6) for v in t["ours"].values())
+        assert "error" in t["torch_variants"]["compiled:broken +bf16 autocast"]
+        assert set(t["torch_variants"]["compiled:default"]["ratio"]) == set(program_timing.DTYPES)
+    assert "per_seed_vs_1_seed" in out["training"]["2_seed"]["ours"]["bfloat16"]
+    i = out["inference"]
+    assert i["torch_variant"] == "eager +bf16 autocast" and set(i["ours"]) == set(program_timing.DTYPES)
+    assert i["ours"]["float32"]["ratio_p50"] == pytest.approx(i["ours"]["float32"]["p50_ms"] / 200.0)

@@ -135,3 +135,38 @@ def test_patch_product_and_its_written_out_gradient_are_the_plain_product():
     dy = jnp.asarray(rng.normal(size=(3, 4, 2, 5)).astype(np.float32))
     for got, want in zip(jax.vjp(patch_product, rows, kernel)[1](dy), jax.vjp(plain, rows, kernel)[1](dy)):
         np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)
+
+
+def _dot_dtypes(jaxpr) -> list[tuple[tuple[str, ...], str]]:
+    """(operand dtypes, output dtype) of every dot_general in a jaxpr, nested ones included."""
+    found = []
+    for eqn in jaxpr.eqns:
+        if eqn.primitive.name == "dot_general":
+            found.append((tuple(str(v.aval.dtype) for v in eqn.invars), str(eqn.outvars[0].aval.dtype)))
+        for sub in jax.core.jaxprs_in_params(eqn.params):
+            found += _dot_dtypes(sub)
+    return found
+
+
+@pytest.mark.parametrize("backbone", ["attention", "tcn"])
+def test_bfloat16_compute_multiplies_in_bfloat16_and_accumulates_in_float32(backbone):
+    """Under compute_dtype="bfloat16" the encoders', backbone's and hidden layer's products (forward
+    and backward, image rows and frames) take bfloat16 operands and return float32; parameters and
+    logits stay float32. The float32 heads, the folded LayerNorm shift and the attention's backward
+    products multiply in float32."""
+    cfg = Config(modalities=MODALITIES, backbone=backbone, compute_dtype="bfloat16", **TINY)
+    inputs = synthetic.data_set(cfg, 2, image_hw=(30, 40))["inputs"]
+    graphdef, params = nnx.split(build(cfg, inputs))
+    assert {str(x.dtype) for x in jax.tree.leaves(params)} == {"float32"}
+
+    def loss(p, x):
+        logits = nnx.merge(graphdef, p)(x, rngs=nnx.Rngs(dropout=1, augment=2))
+        return sum(v.sum() for v in logits.values()), logits
+
+    jaxpr = jax.make_jaxpr(jax.grad(loss, has_aux=True))(params, inputs).jaxpr
+    dots = _dot_dtypes(jaxpr) + _dot_dtypes(jax.make_jaxpr(lambda p, x: nnx.merge(graphdef, p)(x))(params, inputs).jaxpr)
+    assert all(out == "float32" for _, out in dots)
+    low = [d for d, _ in dots if d == ("bfloat16", "bfloat16")]
+    assert len(low) >= 0.75 * len(dots), dots
+    logits = nnx.merge(graphdef, params)(inputs)
+    assert all(v.dtype == jnp.float32 and np.isfinite(v).all() for v in logits.values())

@@ -9,7 +9,8 @@ normalisations (it survives the paper's per-sequence [0, 1] rescale) and the sta
 per-step LayerNorm (the rescale removes a steady level by design), on held-out sequences; image
 rows train with the paper's rotation augmentation, and the image cue (a centred disc brightening
 over a fixed, strongly coloured field, like the LEDs' light in a Minsight frame) is
-rotation-invariant, so the augmentation must not stop the model from learning it.
+rotation-invariant, so the augmentation must not stop the model from learning it. Every case
+runs under both compute dtypes (`Config.compute_dtype`); the bfloat16 ones are marked slow.
 """
 
 import numpy as np
@@ -30,8 +31,11 @@ CASES = [
 ]
 
 
-def held_out_accuracy(modality: str, kind: str, norm: str) -> float:
-    config = Config.from_preset("smoke", modalities=(modality,), fusion_norm=norm, **RECIPE)
+DTYPES = [pytest.param("float32"), pytest.param("bfloat16", marks=pytest.mark.slow)]
+
+
+def held_out_accuracy(modality: str, kind: str, norm: str, dtype: str) -> float:
+    config = Config.from_preset("smoke", modalities=(modality,), fusion_norm=norm, compute_dtype=dtype, **RECIPE)
     sets = {
         split: synthetic.planted_cue(config, modality, kind, n, n_classes=N_CLASSES, seed=seed)
         for split, n, seed in (("train", 256, 0), ("val", 64, 1), ("test", 128, 2))
@@ -40,11 +44,12 @@ def held_out_accuracy(modality: str, kind: str, norm: str) -> float:
     return float(results.metrics["eval"]["test"]["accuracy"]["fabric"][0])
 
 
+@pytest.mark.parametrize("dtype", DTYPES)
 @pytest.mark.parametrize("modality,kind,norm", CASES, ids=["-".join(c) for c in CASES])
-def test_the_model_learns_a_planted_cue(modality, kind, norm):
-    accuracy = held_out_accuracy(modality, kind, norm)
+def test_the_model_learns_a_planted_cue(modality, kind, norm, dtype):
+    accuracy = held_out_accuracy(modality, kind, norm, dtype)
     assert accuracy >= PASS, (
-        f"{modality} with fusion_norm={norm}: {accuracy:.0%} on held-out sequences with a {kind} cue "
+        f"{modality} with fusion_norm={norm}, {dtype}: {accuracy:.0%} on held-out sequences with a {kind} cue "
         f"(chance {1 / N_CLASSES:.0%}, pass {PASS:.0%}): the model cannot read this stream"
     )
 

@@ -217,8 +217,8 @@ def test_silent_and_saturated_microphones_through_load_sequences_and_training(tm
     np.testing.assert_array_equal(external[3:], FLOOR)
     np.testing.assert_array_equal(external[0], FLOOR)  # window_end 0: all padding
     assert (external[1:3] > FLOOR).any(axis=1).all()
-    out = one_step(TINY, sets["train"])
-    check_step(out)
+    for dtype in ("float32", "bfloat16"):
+        check_step(one_step(dataclasses.replace(TINY, compute_dtype=dtype), sets["train"]))
 
 
 def _variants(n=6):
@@ -241,10 +241,11 @@ def _variants(n=6):
 CASES = ["random", "constant_over_time", "half_constant_dims", "all_equal_psds", "floor_psds", "huge_inputs"]
 
 
+@pytest.mark.parametrize("dtype", ["float32", "bfloat16"])
 @pytest.mark.parametrize("case", CASES)
-def test_hard_features_give_finite_loss_gradients_and_step(case):
+def test_hard_features_give_finite_loss_gradients_and_step(case, dtype):
     inputs, labels = _variants()
-    out = one_step(TINY, {"inputs": inputs[case], "labels": labels})
+    out = one_step(dataclasses.replace(TINY, compute_dtype=dtype), {"inputs": inputs[case], "labels": labels})
     check_step(out)
     if case in ("constant_over_time", "all_equal_psds", "floor_psds"):
         # features constant over the sequence rescale to 0 and teach the encoder nothing

@@ -48,6 +48,7 @@ def test_ablation_writes_table_statistics_and_confusions(workdir, tmp_path):
     md = (tmp_path / "ablation.md").read_text()
     assert "95.06 ± 1.85" in md and "smallest attainable p" in md and "command: `test`" in md
     assert json.loads((tmp_path / "ablation.json").read_text())["preset"] == "smoke"
+    assert doc["compute_dtype"] == ["float32"] and "matrix products in float32 with float32 accumulation" in md
 
 
 def test_the_smoke_preset_learns_and_says_it_checks_the_install(workdir, tmp_path):

@@ -84,3 +84,20 @@ def test_compiled_twin_computes_the_eager_twins_outputs():
 def test_fastest_adamw_is_named():
     # The compare extra asks torch >= 2.5, which has fused AdamW on CPU.
     assert torch_twin.adamw_impl() == "fused"
+
+
+def test_twin_under_bfloat16_autocast_runs_and_stays_near_float32():
+    """The twin's bfloat16 autocast (the benchmarks' peer of our bfloat16 compute) changes the
+    arithmetic, not the function: logits within bfloat16's rounding of float32's; its runners run."""
+    cfg = Config(modalities=("internal", "proprio"), **SMALL)
+    model = torch_twin.build(cfg, n_bins=20).eval()
+    inputs, _ = torch_twin._batch(cfg, 3, 20)
+    with torch.inference_mode():
+        full = model(inputs).numpy()
+        with torch_twin.mixed_precision(True):
+            low = model(inputs).float().numpy()
+        with torch_twin.mixed_precision(False):
+            np.testing.assert_array_equal(model(inputs).numpy(), full)
+    np.testing.assert_allclose(low, full, atol=0.05 * float(np.abs(full).max()))
+    assert torch_twin.train_step_runner(cfg, n_seeds=1, batch=4, n_bins=20, steps=1, autocast=True)() > 0
+    assert torch_twin.inference_runner(cfg, n_bins=20, autocast=True)() > 0

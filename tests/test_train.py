@@ -12,7 +12,7 @@ from flax import nnx
 
 from fabricjax import sharding, synthetic, train
 from fabricjax.config import Config
-from fabricjax.model import FabricNet, training_layout
+from fabricjax.model import FabricNet, make_predict, training_layout
 from fabricjax.train import make_trainer, masked_accuracy, masked_cross_entropy, train_and_evaluate
 from tests import helpers
 
@@ -182,6 +182,9 @@ def test_image_rows_rotate_the_frame_minus_the_reference_in_training_only():
     np.testing.assert_allclose(still.image_features({"image": frames}, nnx.Rngs(dropout=0, augment=1)), evaluation, atol=1e-5)
     res = train_and_evaluate(cfg, sets, seeds=[0])
     assert np.isfinite(res.metrics["train_loss"]).all()
+    # training evaluates on rows (one compiled image path): the predictions of the model on frames
+    on_frames = make_predict(res.graphdef)(res.params(0), {"image": jnp.asarray(sets["val"]["inputs"]["image"])})["fabric"]
+    np.testing.assert_array_equal(res.metrics["eval"]["val"]["predictions"]["fabric"][0], np.argmax(on_frames, -1))
 
 
 def test_image_configs_reuse_their_cached_programs():

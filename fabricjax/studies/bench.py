@@ -7,12 +7,14 @@ Benchmarks (names for --only):
     extraction   cold feature extraction (audio PSDs + proprioception) of the smoke dataset and the
                  peak memory of a fresh process doing it; paper scale extrapolated linearly in steps
     training     training step of the audio + proprioception model (batch 32, N=200, 320 bins,
-                 the paper's width 64 / 3 layers): ours for 1 and 5 vmapped seeds (--train_seeds), the PyTorch
-                 twin's for 1 seed and 5 seeds one after another, eager and torch.compiled
+                 the paper's width 64 / 3 layers): ours in float32 and bfloat16 compute (`program_timing.DTYPES`)
+                 for 1 and 5 vmapped seeds (--train_seeds), the PyTorch twin's for 1 seed and 5 seeds one after
+                 another, eager and torch.compiled, each in float32 and under its bfloat16 autocast
     camera       a camera row's training step against an audio row's (target: at most 1.5x), the
                  ablation's rows on the default preset (batch 16, N=50, 30x40 frames, 5 vmapped seeds),
                  interleaved: audio (Minsound), image, and image without the rotation augmentation
-    inference    one 200-step sequence, p50 / p99: ours (jitted `predict_one`) and the twin's (eager, compiled)
+    inference    one 200-step sequence, p50 / p99: ours (jitted `predict_one`, each compute dtype) and the
+                 twin's (eager, compiled; float32 and bfloat16 autocast)
     streaming    per-step update of `fabricjax.live` (newest PSDs + model over N=200 steps)
                  on a simulated trial replayed as fast as possible
     acquisition  the 50 Hz recording loop against the simulated devices: step times, deadline misses
@@ -27,7 +29,8 @@ median of the per-round ratios for training), theirs being the fastest of the tw
 (eager, each `torch.compile` mode; every variant and its compile time in bench.json), and scipy /
 ours for the Welch speed-up. Training and inference also say how close ours comes to the machine:
 FLOPs per step by XLA's cost analysis of the compiled program, the GFLOP/s that makes, and its
-fraction of a dense float32 matmul's GFLOP/s measured in the same run (`program_timing.matmul_peak`). The
+fraction of a dense matmul's GFLOP/s with float32 and with bfloat16 operands (float32
+accumulation), both measured in the same run (`program_timing.matmul_peak`). The
 PyTorch twin (`fabricjax.torch_twin`, `pip install -e ".[compare]"`) is optional: without torch
 the comparison is skipped with a note. Nothing here asserts a time.
 """
@@ -134,28 +137,35 @@ def _interleaved(quick: bool, w: Workload) -> dict:
     )
 
 
-def bench_training(quick: bool, w: Workload, compared: dict | None, peak: dict) -> dict:
-    """Seconds per step, 1 and 5 seeds; beside the twin's fastest variant (median of per-round
-    ratios) when compared; ours' FLOPs per step and their share of the matmul `peak`."""
+def bench_training(quick: bool, w: Workload, compared: dict | None, peaks: dict) -> dict:
+    """Seconds per step, 1 and 5 seeds, per compute dtype; beside the twin's fastest variant (median
+    of per-round ratios) when compared; ours' FLOPs per step and their share of each matmul peak."""
     out: dict[str, Any] = {"workload": w.describe()}
+    gflops = {d: p["gflop_per_s"] for d, p in peaks.items()}
     for n in w.seeds:
-        if compared is None:
-            out[f"ours_{n}_seed"] = program_timing.bench_train_step(
-                w.model, n, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins, steps=2 if quick else program_timing.STEPS_PER_EPOCH, repeats=2 if quick else 3
-            )
-        else:
+        ours = out[f"ours_{n}_seed"] = {}
+        for d in program_timing.DTYPES:
+            model = dataclasses.replace(w.model, compute_dtype=d)
+            if compared is None:
+                ours[d] = program_timing.bench_train_step(
+                    model, n, batch=w.batch, seq_len=model.seq_len, psd_bins=w.bins, steps=2 if quick else program_timing.STEPS_PER_EPOCH, repeats=2 if quick else 3
+                )
+            else:
+                c = compared["training"][f"{n}_seed"]["ours"][d]
+                ours[d] = {"n_seeds": n, "seconds_per_step": c["s_per_step"], "sequences_per_s_per_seed": w.batch / c["s_per_step"], "ratio": c["ratio"]}
+            flops = program_timing.train_step_flops(model, n, batch=w.batch, seq_len=model.seq_len, psd_bins=w.bins)
+            ours[d]["xla"] = program_timing.utilisation(flops, ours[d]["seconds_per_step"], gflops)
+        if compared is not None:
             c = compared["training"][f"{n}_seed"]
-            out[f"ours_{n}_seed"] = {"n_seeds": n, "seconds_per_step": c["ours_s_per_step"], "sequences_per_s_per_seed": w.batch / c["ours_s_per_step"]}
             out[f"torch_{n}_seed"] = {
                 "n_seeds": n, "variant": c["torch_variant"], "seconds_per_step": c["torch_s_per_step"],
                 "sequences_per_s_per_seed": w.batch * n / c["torch_s_per_step"],
             }
-            out[f"ratio_{n}_seed"] = c["ratio"]
-        flops = program_timing.train_step_flops(w.model, n, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins)
-        out[f"ours_{n}_seed"]["xla"] = program_timing.utilisation(flops, out[f"ours_{n}_seed"]["seconds_per_step"], peak["gflop_per_s"])
     for n in w.seeds:
         if n > 1:  # our n vmapped seeds against n times one seed of ours (1.0: vmapping is free)
-            out[f"ours_{n}_over_1_per_seed"] = out[f"ours_{n}_seed"]["seconds_per_step"] / (n * out["ours_1_seed"]["seconds_per_step"])
+            out[f"ours_{n}_over_1_per_seed"] = {
+                d: out[f"ours_{n}_seed"][d]["seconds_per_step"] / (n * out["ours_1_seed"][d]["seconds_per_step"]) for d in program_timing.DTYPES
+            }
     # How training splits each seed count over the devices: {"seed": devices over seeds, "batch": over samples}.
     out["mesh"] = {str(n): dict(sharding.training_mesh(n, w.batch).shape) for n in w.seeds}
     if compared is not None:
@@ -189,20 +199,25 @@ def bench_camera(quick: bool) -> dict:
     }
 
 
-def bench_inference(quick: bool, w: Workload, compared: dict | None, peak: dict) -> dict:
-    out: dict[str, Any] = {"workload": w.describe()}
-    if compared is None:
-        out["ours"] = program_timing.bench_inference(w.model, seq_len=w.model.seq_len, psd_bins=w.bins, repeats=30 if quick else 200)
-    else:
+def bench_inference(quick: bool, w: Workload, compared: dict | None, peaks: dict) -> dict:
+    """p50 / p99 of one sequence per compute dtype, beside the twin's fastest variant when compared."""
+    out: dict[str, Any] = {"workload": w.describe(), "ours": {}}
+    gflops = {d: p["gflop_per_s"] for d, p in peaks.items()}
+    for d in program_timing.DTYPES:
+        model = dataclasses.replace(w.model, compute_dtype=d)
+        if compared is None:
+            out["ours"][d] = program_timing.bench_inference(model, seq_len=model.seq_len, psd_bins=w.bins, repeats=30 if quick else 200)
+        else:
+            c = compared["inference"]["ours"][d]
+            out["ours"][d] = {"p50_ms": c["p50_ms"], "p99_ms": c["p99_ms"], "ratio_p50": c["ratio_p50"]}
+        # At p50: the typical call's rate (p99 is the machine's hiccups, not the program's work). One
+        # sequence runs on one device, so its share is of a peak that every device makes together.
+        flops = program_timing.inference_flops(model, seq_len=model.seq_len, psd_bins=w.bins)
+        out["ours"][d]["xla"] = program_timing.utilisation(flops, out["ours"][d]["p50_ms"] / 1e3, gflops)
+    if compared is not None:
         c = compared["inference"]
-        out["ours"] = {"p50_ms": c["ours_p50_ms"], "p99_ms": c["ours_p99_ms"]}
         out["torch"] = {"variant": c["torch_variant"], "p50_ms": c["torch_p50_ms"], "p99_ms": c["torch_p99_ms"]}
-        out["ratio_p50"] = c["ratio_p50"]
-        out["interleaved"] = {k: c[k] for k in ("ours_build_and_warmup_s", "torch_variants")}
-    # At p50: the typical call's rate (p99 is the machine's hiccups, not the program's work). One
-    # sequence runs on one device, so its share is of a peak that every device makes together.
-    flops = program_timing.inference_flops(w.model, seq_len=w.model.seq_len, psd_bins=w.bins)
-    out["ours"]["xla"] = program_timing.utilisation(flops, out["ours"]["p50_ms"] / 1e3, peak["gflop_per_s"])
+        out["interleaved"] = {"torch_variants": c["torch_variants"], "build_and_warmup_s": {d: v["build_and_warmup_s"] for d, v in c["ours"].items()}}
     return out
 
 
@@ -255,9 +270,9 @@ def run(
     compared: dict[str, Any] = {}
     peak: dict[str, Any] = {}
 
-    def matmul_peak():  # measured once, in this process, for the training and the inference entry
+    def matmul_peak():  # measured once per operand dtype, in this process, for the training and the inference entry
         if not peak:
-            peak.update(program_timing.matmul_peak(repeats=2 if quick else 5))
+            peak.update({d: program_timing.matmul_peak(repeats=2 if quick else 5, dtype=d) for d in program_timing.DTYPES})
         return peak
 
     def comparison():  # one interleaved run serves both the training and the inference entry
@@ -304,21 +319,21 @@ def markdown(doc: dict[str, Any]) -> str:
     if "training" in b:
         t = b["training"]
         for n in sorted(int(hit.group(1)) for k in t if (hit := re.fullmatch(r"ours_(\d+)_seed", k))):
-            ours = t[f"ours_{n}_seed"]
             theirs = t.get(f"torch_{n}_seed", {})
             mesh = t.get("mesh", {}).get(str(n), {})
             split = ", ".join(f"{k} over {v} devices" for k, v in mesh.items() if v > 1)
-            what = f"training step, {n} seed" + (("s vmapped" if n > 1 else "") + (f", {split}" if split else "")) + (
-                f" (batch {t['workload']['batch']}, N={t['workload']['seq_len']})"
-            )
             secs = theirs.get("seconds_per_step")
-            rows.append([
-                what, f"{ours['seconds_per_step'] * 1e3:.0f} ms",
-                f"{theirs['variant']} {secs * 1e3:.0f} ms" + (" (in sequence)" if n > 1 else "") if secs else "n/a",
-                _ratio(t.get(f"ratio_{n}_seed")), *_machine(ours.get("xla")),
-            ])
+            for dtype, ours in t[f"ours_{n}_seed"].items():
+                what = f"training step, {n} seed" + (("s vmapped" if n > 1 else "") + (f", {split}" if split else "")) + (
+                    f", {dtype} (batch {t['workload']['batch']}, N={t['workload']['seq_len']})"
+                )
+                rows.append([
+                    what, f"{ours['seconds_per_step'] * 1e3:.0f} ms",
+                    f"{theirs['variant']} {secs * 1e3:.0f} ms" + (" (in sequence)" if n > 1 else "") if secs else "n/a",
+                    _ratio(ours.get("ratio")), *_machine(ours.get("xla")),
+                ])
             for name, v in t.get("interleaved", {}).get("training", {}).get(f"{n}_seed", {}).get("torch_variants", {}).items():
-                variants.append([f"training, {n} seed" + ("s" if n > 1 else ""), name, _ms(v.get("s_per_step") and v["s_per_step"] * 1e3, 0), _ratio(v.get("ratio")), _built(v)])
+                variants.append([f"training, {n} seed" + ("s" if n > 1 else ""), name, _ms(v.get("s_per_step") and v["s_per_step"] * 1e3, 0), _ratios(v.get("ratio")), _built(v)])
     if "camera" in b:
         c = b["camera"]
         r, w = c["rows"], c["workload"]
@@ -331,15 +346,16 @@ def markdown(doc: dict[str, Any]) -> str:
     if "inference" in b:
         i = b["inference"]
         theirs = i.get("torch")
-        rows.append([
-            f"inference, one {i['workload']['seq_len']}-step sequence, p50 / p99",
-            f"{i['ours']['p50_ms']:.2f} / {i['ours']['p99_ms']:.2f} ms",
-            f"{theirs['variant']} {theirs['p50_ms']:.2f} / {theirs['p99_ms']:.2f} ms" if theirs else "n/a",
-            _ratio(i.get("ratio_p50")), *_machine(i["ours"].get("xla")),
-        ])
+        for dtype, ours in i["ours"].items():
+            rows.append([
+                f"inference, one {i['workload']['seq_len']}-step sequence, {dtype}, p50 / p99",
+                f"{ours['p50_ms']:.2f} / {ours['p99_ms']:.2f} ms",
+                f"{theirs['variant']} {theirs['p50_ms']:.2f} / {theirs['p99_ms']:.2f} ms" if theirs else "n/a",
+                _ratio(ours.get("ratio_p50")), *_machine(ours.get("xla")),
+            ])
         for name, v in i.get("interleaved", {}).get("torch_variants", {}).items():
             timing = f"{v['p50_ms']:.2f} / {v['p99_ms']:.2f} ms" if "p50_ms" in v else "n/a"
-            variants.append(["inference, p50 / p99", name, timing, _ratio(v.get("ratio_p50")), _built(v)])
+            variants.append(["inference, p50 / p99", name, timing, _ratios(v.get("ratio_p50")), _built(v)])
     if "streaming" in b:
         s = b["streaming"]
         rows.append([f"streaming update per step (N={s['workload']['seq_len']}), p50 / p99", f"{s['latency_p50_ms']:.2f} / {s['latency_p99_ms']:.2f} ms", "target p99 <= 20 ms", ""])
@@ -378,28 +394,32 @@ def markdown(doc: dict[str, Any]) -> str:
         ". Ratio: ours / the fastest PyTorch variant's time (named in the reference column)." if doc["torch"] else "."
     )
     if "matmul_peak" in doc:
-        p = doc["matmul_peak"]
+        peaks = doc["matmul_peak"]
+        p = next(iter(peaks.values()))
         head += (
-            f" GFLOP: XLA's cost analysis of our compiled step or call; % peak: its GFLOP/s over a {p['n']}x{p['n']} float32 "
-            f"matmul's {p['gflop_per_s']:.1f} GFLOP/s on the same {p['devices']} device{'s' if p['devices'] > 1 else ''}, measured in this run."
+            f" Rows name our compute dtype (`compute_dtype`: matrix products' inputs, float32 accumulation). GFLOP: XLA's cost analysis of "
+            f"our compiled step or call; % peak: its GFLOP/s over a {p['n']}x{p['n']} matmul's with "
+            + " and ".join(f"{d} operands ({v['gflop_per_s']:.1f} GFLOP/s)" for d, v in peaks.items())
+            + f", float32 accumulation, on the same {p['devices']} device{'s' if p['devices'] > 1 else ''}, measured in this run."
         )
-    cols = ["benchmark", "fabricjax", "reference", "ratio", "GFLOP", "GFLOP/s (% peak)"]
+    cols = ["benchmark", "fabricjax", "reference", "ratio", "GFLOP", "GFLOP/s (% peak: " + " / ".join(doc.get("matmul_peak", {})) + ")"]
     text = head + "\n\n" + documents.markdown_table(cols, [r + [""] * (len(cols) - len(r)) for r in rows])
     if variants:
         adamw = b.get("training", {}).get("interleaved", {}).get("torch_adamw")
         text += (
-            "\nEvery PyTorch variant" + (f" (AdamW {adamw})" if adamw else "") + "; build + compile: seconds to build it and run its "
-            "first, compiling calls, not in its times.\n\n"
+            "\nEvery PyTorch variant" + (f" (AdamW {adamw})" if adamw else "") + "; ratio: ours / its time, per our compute dtype; build + "
+            "compile: seconds to build it and run its first, compiling calls, not in its times.\n\n"
             + documents.markdown_table(["workload", "PyTorch variant", "time", "ratio", "build + compile"], variants)
         )
     return text
 
 
 def _machine(xla: dict | None) -> list[str]:
-    """The GFLOP and GFLOP/s (% of the matmul peak) cells of a row."""
+    """The GFLOP and GFLOP/s (% of each matmul peak) cells of a row."""
     if xla is None:
         return ["", ""]
-    return [f"{xla['flops_per_step'] / 1e9:.3g}", f"{xla['gflop_per_s']:.3g} ({100 * xla['fraction_of_matmul_peak']:.0f} %)"]
+    shares = " / ".join(f"{100 * f:.0f} %" for f in xla["fraction_of_peak"].values())
+    return [f"{xla['flops_per_step'] / 1e9:.3g}", f"{xla['gflop_per_s']:.3g} ({shares})"]
 
 
 def _built(variant: dict) -> str:
@@ -413,3 +433,8 @@ def _ms(x, digits: int) -> str:
 
 def _ratio(r) -> str:
     return "" if r is None else f"{r:.2f}"
+
+
+def _ratios(by_dtype: dict | None) -> str:
+    """Our ratios to one twin variant, one per compute dtype."""
+    return "" if by_dtype is None else ", ".join(f"{d} {r:.2f}" for d, r in by_dtype.items())

@@ -18,7 +18,7 @@ import os
 import platform
 import subprocess
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
@@ -116,10 +116,14 @@ def utc_now() -> str:
     return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
 
 
-def header(study: str, *, command: str | None, seeds: Sequence[int] | None = None, dataset: Dataset | None = None, **fields) -> dict[str, Any]:
+def header(
+    study: str, *, command: str | None, seeds: Sequence[int] | None = None, dataset: Dataset | None = None,
+    compute_dtypes: Iterable[str] | None = None, **fields,
+) -> dict[str, Any]:
     """The first fields of every results JSON: what ran (`study`; `command`: the command line,
     None when called from Python), from which code, when and on which machine, then the study's
-    own `fields` (its preset, the seeds, the dataset it read as `dataset_doc`, its times, ...)."""
+    own `fields` (its preset, the seeds, the dataset it read as `dataset_doc`, the compute dtypes
+    its models trained in (`Config.compute_dtype`), its times, ...)."""
     doc = {
         "study": study,
         "command": command,
@@ -131,6 +135,8 @@ def header(study: str, *, command: str | None, seeds: Sequence[int] | None = Non
         doc["seeds"] = list(seeds)
     if dataset is not None:
         doc["dataset"] = dataset_doc(dataset)
+    if compute_dtypes is not None:
+        doc["compute_dtype"] = sorted(set(compute_dtypes))
     return {**doc, **fields}
 
 
@@ -145,6 +151,8 @@ def header_markdown(doc: dict[str, Any], time: str | None = None) -> str:
     if "seeds" in doc:
         seeds = doc["seeds"]
         lines.append(f"- seeds: {len(seeds)} ({seeds[0]}-{seeds[-1]}), mean ± SD (sample SD) over seeds")
+    if "compute_dtype" in doc:
+        lines.append(f"- arithmetic: matrix products in {' and '.join(doc['compute_dtype'])} with float32 accumulation; parameters, normalisations, losses and statistics in float32")
     lines.append(machine_markdown(doc["machine"]))
     if time is None and "train_s" in doc:
         time = f"training {doc['train_s']:.0f} s in all (per row below, compilation included); {data_time_markdown(doc['dataset'])}"

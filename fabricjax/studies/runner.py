@@ -370,7 +370,8 @@ def run_study(
         data_names=True,
     )
     body, figures = study.document(trained, chosen, documents.results_path(results))
-    doc = {**documents.header(study.name, command=command, preset=preset, seeds=seeds, dataset=trained.dataset, train_s=trained.train_s), **body}
+    dtypes = (config.compute_dtype for _, config in row_configs)
+    doc = {**documents.header(study.name, command=command, preset=preset, seeds=seeds, dataset=trained.dataset, compute_dtypes=dtypes, train_s=trained.train_s), **body}
     # the checklist holds the paper's claims: recorded data is not the paper's
     doc["findings"] = [] if trained.dataset.recorded else [f.to_json() for f in study.checklist(doc)]
     return documents.write(results, doc, study.markdown, figures)
