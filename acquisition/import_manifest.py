@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import os
 import shutil
 import tempfile
@@ -262,10 +263,10 @@ def _import_one(job: Job) -> None:
             f.write(str(e))
 
 
-def _exit_with_parent() -> None:
-    """A worker's initializer: the worker ends when the importing process is gone (killed), rather
-    than living on as an orphan."""
-    parent = os.getppid()
+def _exit_with_parent(parent: int) -> None:
+    """A worker's initializer: the worker ends when the importing process `parent` is gone (killed),
+    rather than living on as an orphan. The parent's pid comes from the parent itself: a worker
+    still starting when the parent is killed would otherwise take its new parent for the importer."""
 
     def watch() -> None:
         while os.getppid() == parent:
@@ -419,7 +420,7 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
         staged = [dataclasses.replace(j, target=str(staging / Path(j.target).name)) for j in todo]
         n = max(1, min(workers or os.cpu_count() or 1, len(todo)))
         with tqdm(total=len(todo), desc=f"import ({n} processes)", unit="trial", disable=not progress) as bar:
-            parallel.run_jobs(_import_one, staged, n, bar.update, initializer=_exit_with_parent)
+            parallel.run_jobs(_import_one, staged, n, bar.update, initializer=functools.partial(_exit_with_parent, os.getpid()))
         failed = [Path(j.target + ".error").read_text() for j in staged if Path(j.target + ".error").exists()]
         if failed:
             raise ImportProblems(failed + ([f"{out}: nothing was written ({len(failed)} trials failed)"] if len(failed) > 1 else []))
