@@ -100,7 +100,10 @@ SLIP_SPREAD = 0.5  # log-normal sigma of click amplitudes
 # --- air paths: what each microphone hears of the contacts -------------------------------------
 # Geometry [hw, estimates for the ISyHand: the paper gives no drawing with dimensions]: the pinch
 # point on the fold is the origin, the pinch axis (thumb to middle finger, normal to the cloth) is x.
-# Each fingertip's centre lies half a shell width plus half the folded stack from the cloth; the
+# Each fingertip's centre lies half a shell width plus half the folded stack from the cloth: the
+# 15 mm below is half the 30 mm width estimated before the shell's published radius (11.8 mm,
+# `SHELL_OUTER_RADIUS_MM`) was known; with it the centres sit ~12.3 mm from the pinch, which moves
+# the palm's distances to the fingertips by < 2 mm (< 0.2 dB at 7-9 cm), not yet simulated. The
 # palm microphone sits "on the side of the palm" [paper] ~8 cm from the pinch, below and behind it.
 THUMB_TIP_M = (-0.015, 0.0, 0.0)  # Minsound's shell (and its microphone) on the thumb
 MIDDLE_TIP_M = (0.015, 0.0, 0.0)  # Minsight's shell on the middle finger
@@ -206,8 +209,8 @@ ROOM_T60_S = 0.6
 #   65-75 dB(A)), broadband, 0.3 s long; rate an estimate.
 # With these rates a trial of ~30 s holds an event about one time in three, and the events' long-term
 # level (~34 dB(A)) stays a few dB above the meter's 29-31 dB: the paper's reading is the floor between
-# events. Each day draws its activity (a log-normal factor on every rate, sigma 0.7: a quiet day has a
-# quarter, a busy one four times the mean rate); each event's distance is uniform in 2-8 m (the far
+# events. Each day draws its activity (a log-normal factor on every rate, sigma 0.7 [an estimate]: a
+# quiet day has a quarter, a busy one four times the mean rate); each event's distance is uniform in 2-8 m (the far
 # side of the hand's bench to the far side of the room); its level at the hand is the direct plus the
 # reverberant field (Hopkins-Stryker), its sound reaches the two microphones through the room's
 # responses (beyond the 0.9 m critical distance the reverberant field dominates).

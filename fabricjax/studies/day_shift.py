@@ -111,11 +111,9 @@ def run(
 ) -> dict[str, Any]:
     """The shares and the probe's gap for the chosen inputs (all by default); writes
     results/day_shift.{md,json} and returns the JSON."""
-    overrides = runner.check_overrides("day_shift", overrides, ROWS, "choose them with --rows")
-    chosen = runner.select_rows(ROWS, rows)
-    configs = [r.config(preset, overrides) for r in chosen]
-    ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST)
-    present = [s for s in loading.TRAIN_VAL_TEST if len(ds.sets[s])]
+    chosen, _, ds, present = runner.load_chosen_rows(
+        "day_shift", ROWS, rows, preset, overrides, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST
+    )
     info = {k: np.concatenate([ds.sets[s].info[k] for s in present]) for k in ("fabric_id", "day", "trial_key")}
     if len(np.unique(info["day"])) < 2:
         raise archive.ArchiveError(ds.folder, "day", "the lab trials come from fewer than two days: there is no day to tell apart")

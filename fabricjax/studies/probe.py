@@ -202,11 +202,9 @@ def run(
     command: str | None = None,
 ) -> dict[str, Any]:
     """Probe the chosen rows' inputs (all by default) and write results/probe.{md,json}; returns the JSON."""
-    overrides = runner.check_overrides("probe", overrides, ROWS, "choose them with --rows")
-    chosen = runner.select_rows(ROWS, rows)
-    configs = [r.config(preset, overrides) for r in chosen]
-    ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=SPLITS)
-    present = [s for s in SPLITS if len(ds.sets[s])]
+    chosen, configs, ds, present = runner.load_chosen_rows(
+        "probe", ROWS, rows, preset, overrides, data_dir=data_dir, workdir=workdir, split_names=SPLITS
+    )
     for split in ("train", "val"):
         if split not in present:
             raise archive.ArchiveError(ds.folder, "<folder>", f"no {split} sequences (check days and conditions): the probe fits on train and chooses C on val")
