@@ -163,14 +163,20 @@ SHELL_TL_MIN_DB = 3.0  # leaks around the base and the stiffness-controlled regi
 SHELL_TL_MAX_DB = 40.0  # flanking through the aluminium skeleton
 
 # --- servo noise (heard by both microphones, also in class 0) ---------------------------------------
-GEAR_RATIO = 345.0  # [hw] STS3215
-GEAR_TEETH = 10  # first-stage pinion: mesh frequency = motor rev/s * teeth
-SERVO_TONE_PA = 0.006  # gear-mesh tone at 1 rad/s joint speed, as heard inside the shell (~50 dB)
-SERVO_BROADBAND_PA = 0.004  # motor/gear broadband noise at 1 rad/s
-SERVO_HOLD_PA = 0.001  # holding servos' PWM hum (always present, ~34 dB)
-SERVO_LOAD_REF_NM = 0.01  # torque at which the gear noise doubles
-SERVO_STRUCTURE_BAND_HZ = (150.0, 6000.0)  # structure-borne band into the Minsound cavity
-SERVO_PALM_GAIN_DB = -10.0  # airborne at the palm (the servos sit in the palm) vs structure-borne
+# [estimates] No published acoustic measurement of the STS3215 or of a comparable serial-bus or
+# micro servo was found: the STS3215's datasheet gives speed, torque and current, no noise, and the
+# published robot-noise figures are whole-robot airborne levels at an unstated distance, not what
+# reaches a sealed fingertip cavity through the skeleton. Only the gear ratio is the datasheet's; the
+# levels (dB SPL inside the shell), the pinion, the load reference, the band and the palm's share are
+# order-of-magnitude estimates.
+GEAR_RATIO = 345.0  # [hw] STS3215 datasheet
+GEAR_TEETH = 10  # [estimate] first-stage pinion: mesh frequency = motor rev/s * teeth
+SERVO_TONE_PA = 0.006  # [estimate] gear-mesh tone at 1 rad/s joint speed, as heard inside the shell (~50 dB)
+SERVO_BROADBAND_PA = 0.004  # [estimate] motor/gear broadband noise at 1 rad/s
+SERVO_HOLD_PA = 0.001  # [estimate] holding servos' PWM hum (always present, ~34 dB)
+SERVO_LOAD_REF_NM = 0.01  # [estimate] torque at which the gear noise doubles
+SERVO_STRUCTURE_BAND_HZ = (150.0, 6000.0)  # [estimate] structure-borne band into the Minsound cavity
+SERVO_PALM_GAIN_DB = -10.0  # [estimate] airborne at the palm (the servos sit in the palm) vs structure-borne
 
 # --- ambient sound: the room, its events and the cafe loudspeaker -----------------------------
 # [paper, Robustness] Sound meter (Sauter SU 130, A-weighted) near the palm microphone: lab 29-31 dB,
@@ -207,6 +213,12 @@ ROOM_T60_S = 0.6
 #   below 500 Hz; ISO 717-2 reference spectra); rate an estimate;
 # * door: a door closing, an impact of ~70 dB(A) at 1 m (an estimate: a door closed normally,
 #   65-75 dB(A)), broadband, 0.3 s long; rate an estimate.
+# No published counts of voices, footsteps or door closings per hour in a laboratory or office were
+# found (surveys of occupied offices, e.g. "Sound in occupied open-plan offices: objective metrics with
+# a review of historical perspectives", arXiv:2305.01762, 2023, report levels and their LA10 - LA90
+# spread, not events), nor a footstep or door level at 1 m in the same room (ISO 717-2 rates a floor's
+# impact insulation with a standard tapping machine, not a person's step): rates, the step and door
+# levels, the day's activity spread and the distances stay estimates.
 # With these rates a trial of ~30 s holds an event about one time in three, and the events' long-term
 # level (~34 dB(A)) stays a few dB above the meter's 29-31 dB: the paper's reading is the floor between
 # events. Each day draws its activity (a log-normal factor on every rate, sigma 0.7 [an estimate]: a
@@ -235,12 +247,23 @@ DOOR_DECAY_SHARE = 1 / 3  # the door's impact decays with a time constant of a t
 # and the 125 Hz and 8 kHz octaves from Byrne et al. 1994's universal LTASS (125 Hz ~3 dB below the
 # 250 Hz octave; flat from 4 to 8 kHz). Only the shape is used; the level is the paper's.
 SPEECH_OCTAVE_DB = {125: 57.5, 250: 60.5, 500: 62.0, 1000: 56.0, 2000: 50.0, 4000: 45.0, 8000: 45.0}
-BABBLE_MODULATION = 0.25  # residual syllabic modulation of many overlapping talkers
-CLATTER_PER_S = 1.5  # cups, plates, cutlery
+# [estimate] The babble's residual syllabic modulation: the summed envelope of N independent talkers
+# fluctuates about 1 / sqrt(N) as much as one talker's, so it shrinks as the room fills; 0.25 is many
+# talkers (~16 at a single talker's full modulation). Neither the paper's recording's talker count nor
+# a published modulation depth of coffee-shop noise was found.
+BABBLE_MODULATION = 0.25
+# [estimates] Clatter of cups, plates and cutlery: rate, ring band, decay and peak level. The one
+# published figure found, dish handling in a home kitchen ("Common Transient Sounds: The Kitchen is a
+# Very Noisy Place", The Hearing Review, January 1995), has instantaneous peaks usually above 80 dB
+# against a sound-meter reading of 70-75 dB(A): peaks at least 5-10 dB above the meter's average, a
+# bound the 12 dB below is consistent with, not a value for a cafe; restaurant surveys report
+# equivalent levels, not clatter events.
+CLATTER_PER_S = 1.5
 CLATTER_RING_HZ = (2000.0, 7000.0)
 CLATTER_DECAY_S = 0.015
 CLATTER_PEAK_DB = 12.0  # clatter peaks above the babble RMS
-# [estimate; the paper does not place the loudspeaker] A loudspeaker on a table 0.5-2 m from the hand,
+# [estimate; the paper does not place the loudspeaker, and no description of its noise playback beyond
+# "while playing audible noise" was found] A loudspeaker on a table 0.5-2 m from the hand,
 # in a direction drawn per cafe day; a small box radiates with directivity Q ~ 2 towards the hand
 # (Beranek, Acoustics, 1954, Ch. 4: a closed box is omnidirectional at low and beamed at high
 # frequencies). Its direct sound reaches each microphone along its own path and delay; the
