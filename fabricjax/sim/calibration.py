@@ -216,9 +216,10 @@ ROOM_T60_S = 0.6
 # No published counts of voices, footsteps or door closings per hour in a laboratory or office were
 # found (surveys of occupied offices, e.g. "Sound in occupied open-plan offices: objective metrics with
 # a review of historical perspectives", arXiv:2305.01762, 2023, report levels and their LA10 - LA90
-# spread, not events), nor a footstep or door level at 1 m in the same room (ISO 717-2 rates a floor's
-# impact insulation with a standard tapping machine, not a person's step): rates, the step and door
-# levels, the day's activity spread and the distances stay estimates.
+# spread, not events), nor a footstep or door level at 1 m in the same room (ISO 717-2 and EN 16205,
+# Laboratory measurement of walking noise on floors, rate floors and coverings under a standard
+# tapping machine, not a person's step): rates, the step and door levels, the day's activity spread
+# and the distances stay estimates.
 # With these rates a trial of ~30 s holds an event about one time in three, and the events' long-term
 # level (~34 dB(A)) stays a few dB above the meter's 29-31 dB: the paper's reading is the floor between
 # events. Each day draws its activity (a log-normal factor on every rate, sigma 0.7 [an estimate]: a
