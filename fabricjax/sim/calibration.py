@@ -223,7 +223,12 @@ ROOM_T60_S = 0.6
 # With these rates a trial of ~30 s holds an event about one time in three, and the events' long-term
 # level (~34 dB(A)) stays a few dB above the meter's 29-31 dB: the paper's reading is the floor between
 # events. Each day draws its activity (a log-normal factor on every rate, sigma 0.7 [an estimate]: a
-# quiet day has a quarter, a busy one four times the mean rate); each event's distance is uniform in 2-8 m (the far
+# quiet day has a quarter, a busy one four times the mean rate). The nearest published day-to-day
+# spread, an intensive care unit's 8-h day-shift level over one week, 52.0 +- 1.75 dB(A) (Naef et al.,
+# Characterization of sound pressure levels and sound sources in the intensive care unit: a 1 week
+# observational study, Frontiers in Medicine 10, 2023), is 1.75 / (10 log10 e) = 0.40 in log-activity
+# if occupancy sets the level: a lower bound for a university lab, whose occupancy is far less regular
+# than a ward's round-the-clock staffing. Each event's distance is uniform in 2-8 m (the far
 # side of the hand's bench to the far side of the room); its level at the hand is the direct plus the
 # reverberant field (Hopkins-Stryker), its sound reaches the two microphones through the room's
 # responses (beyond the 0.9 m critical distance the reverberant field dominates).
