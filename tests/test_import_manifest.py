@@ -145,6 +145,31 @@ def test_rig_file_mistakes_are_named(tmp_path):
     bad.write_text('[[mics]]\nname = "v"\nfile = "v.wav"\n')
     with pytest.raises(UserError, match=r"steps\.rate: missing: without a camera or joints"):
         rig.load_rig(bad)
+    for value in ("0", "-1.5", '"0.5"', "true", "nan", "inf"):
+        bad.write_text(f'[[mics]]\nname = "v"\nfile = "v.wav"\n[steps]\nrate = 50\nmic_window_s = {value}\n')
+        with pytest.raises(UserError, match=r"rig\.toml: steps\.mic_window_s: must be a duration in seconds > 0, got"):
+            rig.load_rig(bad)
+    bad.write_text('[[mics]]\nname = "v"\nfile = "v.wav"\n[steps]\nrate = 50\nwindow = 0.5\n')
+    with pytest.raises(UserError, match=r"rig\.toml: steps\.window: unknown key \(known: rate, mic_window_s\)"):
+        rig.load_rig(bad)
+
+
+def test_the_rig_files_step_window_is_recorded_and_loads_by_default(tmp_path):
+    """steps.mic_window_s: in every archive's meta, full from the first step, and the window the
+    default config loads (3072 samples at 2.2 kHz: 767 bins)."""
+    from fabricjax import data
+    from fabricjax.config import Config
+    from fabricjax.features import welch
+
+    window_s = archive.WINDOW * 1.5 / other_rig.VIBRATION_RATE
+    toml = other_rig.RIG_TOML.replace(f"rate = {other_rig.STEP_RATE}\n", f"rate = {other_rig.STEP_RATE}\nmic_window_s = {window_s!r}\n")
+    _run(_rig_manifest(tmp_path / "rig", toml), tmp_path / "out")
+    a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")
+    assert archive.layout(a.meta).mic_window_s == window_s
+    assert a.window_end[0, 0] >= 1.5 * archive.WINDOW  # the longer window is full at the first step
+    config = Config.from_preset("smoke", modalities=("internal",), seq_len=4)
+    sets = data.load_sequences(config, tmp_path / "out", workdir=tmp_path / "ws", progress=False, split_names=("train",))
+    assert sets["train"].window_s == window_s and sets["train"].inputs["internal"].shape[2] == welch.full_bins(3072) == 767
 
 
 @pytest.mark.slow  # ~1-3 min on 2 shared cores: import and two smoke-size rows

@@ -196,7 +196,7 @@ def run(
     seeds = runner.seed_list(n_seeds)
     base = Config.from_preset(preset, **{"backbone": backbones[0], "modalities": tuple(modality_sets[0]), **(overrides or {})})
     first = loading.load_dataset(base, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST)
-    base = dataclasses.replace(base, n_classes=first.n_classes)  # the data's classes
+    base = first.fit(base)  # the data's classes and step window
     max_len, step_rate = steps_and_rate(first.folder, workdir)
     paper = paper and not first.recorded  # recorded data is compared with itself, not with the paper's configuration
     points, paper_name = sweep_points(

@@ -6,7 +6,6 @@ results/stream.json. The streaming itself is `fabricjax.live`.
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, Callable, Mapping
 
 import numpy as np
@@ -37,7 +36,7 @@ def quick_model(preset: str, overrides: Mapping[str, Any] | None = None, *, work
     restores it instead of training again."""
     config = Config.from_preset(preset, **{"modalities": QUICK_MODALITIES, **(overrides or {})})
     ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir)
-    config = dataclasses.replace(config, n_classes=ds.n_classes)  # the data's classes
+    config = ds.fit(config)  # the data's classes and step window
     directory = runner.checkpoint_dir("stream", "quick", config, [0], workdir)
     row = runner.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
     return row.results.graphdef, row.results.params(0), config, directory
