@@ -127,12 +127,21 @@ def classes_of(index: dataset_index.DatasetIndex) -> tuple[str, ...]:
     if len(maps) > 1:
         a, b = list(maps.values())[:2]
         raise archive.ArchiveError(index.path(b), "meta.label_map", f"differs from the label map of {a.file} (one dataset, one label map)")
-    label_map = index.entries[0].meta.get("label_map")
-    if label_map is None:
+    named = label_classes(index.entries[0].meta)
+    if named is None:
         catalog_classes = SequenceSet.__dataclass_fields__["classes"].default
         highest = max((e.meta["label"] for e in index.entries if e.meta["label"] < len(catalog_classes)), default=len(catalog_classes) - 1)
         return catalog_classes[: highest + 1]
-    return tuple(" / ".join(sorted(n for n, c in label_map.items() if c == k)) for k in range(archive.n_classes(index.entries[0].meta)))
+    return named
+
+
+def label_classes(meta: dict) -> tuple[str, ...] | None:
+    """The class names of a trial's label map by class (names sharing a class joined by " / "),
+    None for a trial without one (the catalog's classes)."""
+    label_map = meta.get("label_map")
+    if label_map is None:
+        return None
+    return tuple(" / ".join(sorted(n for n, c in label_map.items() if c == k)) for k in range(archive.n_classes(meta)))
 
 
 def json_key(x) -> str:
