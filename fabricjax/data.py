@@ -214,6 +214,13 @@ def stream_names(lay: archive.Layout) -> dict[str, str]:
     return out
 
 
+def inputs_name(modalities: Sequence[str], names: Mapping[str, str] | None = None) -> str:
+    """How tables, figures and printouts name a set of model inputs: by the data's names for its
+    streams (`SequenceSet.names`, recorded data: the rig file's microphones and joints) where
+    given, else by the paper's sensors (`config.MODALITY_NAMES`), e.g. "Minsound + proprioception"."""
+    return " + ".join((names or {}).get(m, MODALITY_NAMES[m]) for m in modalities)
+
+
 def first_step(meta: dict) -> int:
     """The first rubbing step of a trial (0 for archives that do not record the closing)."""
     return int(meta.get("closing_steps", 0))

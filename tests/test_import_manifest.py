@@ -418,6 +418,10 @@ def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs
                          results=tmp_path / "results", command="test")
     # class 1 (felt) trains, as the data says: the catalog's holdout ids (1, 10, 21-23) are not a rig's classes
     assert doc["dataset"]["trials"]["train"] == 6 and doc["fabrics"] == {"test": [0, 1, 2], "holdout": [3]}
+    arm = f"joints arm_0–arm_{other_rig.N_JOINTS - 1} (angle, velocity, torque)"
+    assert doc["dataset"]["names"] == {"internal": "vibration", "proprio": arm}  # the rig file's names, in the results
+    pmd = (tmp_path / "results" / "properties.md").read_text()
+    assert f"holdout fabrics: vibration + {arm} [%]" in pmd and "Minsound" not in pmd.replace("`", " ").split("Checkpoint")[0]
     ld = latents.run(doc["rows"][0]["checkpoint"], workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test")
     assert ld["holdouts"] == [3] and [p["fabric_id"] for p in ld["points"]] == [0, 1, 2, 3] and ld["findings"] == []
     assert [(p["holdout"], p["chance"]) for p in ld["neighbours"]["pairs"]] == [(3, pytest.approx(1 / 3))]  # roughness 0 as felt only

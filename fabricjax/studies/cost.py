@@ -257,13 +257,13 @@ def markdown(doc: dict[str, Any]) -> str:
     ]
     header = ["point", "N", "touch [s]", "backbone", "width", "band [kHz]", "modalities", "params",
               "test acc [%]", "train [s]", "p50 [ms]", "p99 [ms]", "front"]
-    rows = []
+    rows, names = [], documents.stream_names(doc)
     for r in doc["points"]:
         front = "".join(t for t, k in (("T", "touch_s"), ("L", "latency_p50_ms")) if r["name"] in doc["pareto_front"][k])
         name = f"**{r['name']}**" if r["name"] == doc["paper_point"] else r["name"]
         rows.append([
             name, r["seq_len"], f"{r['touch_s']:.2f}", r["backbone"], r["width"], f"{r['bandwidth_khz']:g}",
-            "+".join(r["modalities"]), f"{r['params']:,}", f"{r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f}",
+            data.inputs_name(r["modalities"], names) if names else "+".join(r["modalities"]), f"{r['params']:,}", f"{r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f}",
             f"{r['train_s']:.0f}", f"{r['latency_p50_ms']:.2f}", f"{r['latency_p99_ms']:.2f}", front,
         ])
     return "\n".join(lines) + documents.markdown_table(header, rows)
