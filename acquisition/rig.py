@@ -214,7 +214,7 @@ def align_rig(
         usable &= (jk >= 0) & (times <= joint_times[-1])
     if not usable.any():
         raise RecordingImportError(where, "steps", "no step has a full window of every microphone and a joint reading "
-                                   f"(microphones need {archive.WINDOW} samples at their own rate before the first step)")
+                                   f"(microphones need {archive.WINDOW} samples, or the rig file's mic_window_s where longer, at their own rate before the first step)")
     keep = np.flatnonzero(usable)
     first, last = int(keep[0]), int(keep[-1])
     if not usable[first : last + 1].all():

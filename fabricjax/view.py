@@ -186,6 +186,9 @@ def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
     if save is None:
         require_display("--save")
     trial = archive.read_archive(path, images=True)
+    lay = archive.layout(trial.meta)
+    if lay.mics != live.HAND.mics or (lay.joint_names, lay.joint_fields) != (live.HAND.joint_names, live.HAND.joint_fields) or not lay.force:
+        raise UserError(f"{path}: meta.streams: the viewer shows the hand's streams ({live.HAND.describe()}); this trial has {lay.describe()}")
     streamer = None
     if checkpoint is not None:
         streamer = live.Streamer(*live.restore_model(checkpoint), layout=archive.layout(trial.meta))
