@@ -299,7 +299,7 @@ def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path):
     config = Config.from_preset("smoke", modalities=("internal", "external"), bandwidth_khz=1.0, seq_len=10)
     sets = data.load_sequences(config, tmp_path / "out", workdir=tmp_path / "ws", progress=False)
     for mic, rate in (("internal", 2200), ("external", 4400)):
-        assert sets["train"].inputs[mic].shape[2] == welch.n_bins(1.0, rate, welch.window_samples(config.mic_window_s, rate)) == 21
+        assert sets["train"].inputs[mic].shape[2] == welch.n_bins(1.0, rate, data.window_of(config, rate)) == 21
     assert sets["train"].rates == {"internal": 2200, "external": 4400}
     # one noise level: the density (per Hz) of the microphone at half the rate is twice as high
     level = {m: np.mean(sets["train"].inputs[m][..., 1:-1]) for m in ("internal", "external")}
