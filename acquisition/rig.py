@@ -5,6 +5,10 @@ A rig file (TOML) says what one trial folder holds (WORKSPACE.md, "Recordings fr
     [steps]
     rate = 50                      # Hz: the step clock when there is no camera (omit it to step
                                    # at the joint stream's timestamps)
+    mic_window_s = 0.5             # optional: every microphone's step window in seconds (each
+                                   # step's PSD), recorded in the archives and used when the data
+                                   # is loaded unless `--set mic_window_s` says otherwise (omitted:
+                                   # the paper's 2048 samples at 48 kHz, 42.67 ms)
     [[mics]]                       # any number, each a mono WAV at its own rate
     name = "vibration"
     file = "vibration.wav"
@@ -20,7 +24,8 @@ A rig file (TOML) says what one trial folder holds (WORKSPACE.md, "Recordings fr
 
 Alignment is the recorder's rule (`acquisition.alignment`): at each step, each microphone's
 window ends after the last sample at or before it, the joints are the latest reading at or before
-it; steps before every microphone holds a full 2048-sample window at its own rate, before the
+it; steps before every microphone holds a full window at its own rate (2048 samples, or the rig
+file's mic_window_s where that is longer), before the
 first joint reading, or after any stream's end are dropped and counted in meta.import; a hole in
 the joints longer than `alignment.HOLE_STEPS` steps, where steps hold the last reading, is listed
 in meta.import.joint_gaps. Timestamps are seconds (times spanning far more than the audio are an
@@ -45,6 +50,7 @@ from acquisition.mapping_file import read_toml
 from acquisition.readers import read_camera, read_wav
 from acquisition.recording import RecordingImportError, Stream
 from fabricjax import archive
+from fabricjax.features import welch
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,6 +71,7 @@ class Rig:
     joint_units: tuple[str, ...]
     camera: bool
     step_rate: float | None
+    mic_window_s: float | None = None  # the microphones' step window [s], None: not declared
 
 
 def load_rig(path: str | Path) -> Rig:
@@ -96,6 +103,12 @@ def load_rig(path: str | Path) -> Rig:
     rate = steps.get("rate")
     if rate is not None and (not isinstance(rate, (int, float)) or rate <= 0):
         raise RecordingImportError(path, "steps.rate", f"must be a rate in Hz > 0, got {rate!r}")
+    window = steps.get("mic_window_s")
+    if window is not None and (isinstance(window, bool) or not isinstance(window, (int, float)) or not 0 < window < float("inf")):
+        raise RecordingImportError(path, "steps.mic_window_s", f"must be a duration in seconds > 0, got {window!r}")
+    unknown = set(steps) - {"rate", "mic_window_s"}
+    if unknown:
+        raise RecordingImportError(path, f"steps.{sorted(unknown)[0]}", "unknown key (known: rate, mic_window_s)")
     camera = "camera" in doc
     if not camera and rate is None and joints is None:
         raise RecordingImportError(path, "steps.rate", "missing: without a camera or joints, steps need a declared rate")
@@ -109,6 +122,7 @@ def load_rig(path: str | Path) -> Rig:
         joint_units=tuple(joints["units"]) if joints else (),
         camera=camera,
         step_rate=None if rate is None else float(rate),
+        mic_window_s=None if window is None else float(window),
     )
 
 
@@ -192,7 +206,7 @@ def align_rig(
     for mic in mics:
         k = np.searchsorted(mic.times, times, side="right") - 1
         end = np.where(k >= 0, mic.counts[np.maximum(k, 0)], 0)
-        usable &= end >= archive.WINDOW
+        usable &= end >= max(archive.WINDOW, welch.window_samples(rig.mic_window_s or 0, int(mic.rate)))
         usable &= times <= mic.times[-1]  # after its last sample a window would be stale
         ends.append(end)
     if joint_times is not None:
@@ -200,7 +214,7 @@ def align_rig(
         usable &= (jk >= 0) & (times <= joint_times[-1])
     if not usable.any():
         raise RecordingImportError(where, "steps", "no step has a full window of every microphone and a joint reading "
-                                   f"(microphones need {archive.WINDOW} samples at their own rate before the first step)")
+                                   f"(microphones need {archive.WINDOW} samples, or the rig file's mic_window_s where longer, at their own rate before the first step)")
     keep = np.flatnonzero(usable)
     first, last = int(keep[0]), int(keep[-1])
     if not usable[first : last + 1].all():
@@ -215,7 +229,7 @@ def align_rig(
         "joints": {"names": list(rig.joint_names), "fields": list(rig.joint_fields), "units": list(rig.joint_units)} if rig.joints_file else None,
         "camera": None if images is None else {"image_size": [int(images.shape[1]), int(images.shape[2])]},
         "force": None,
-        "steps": {"clock": clock, "rate": round(rate, 6)},
+        "steps": {"clock": clock, "rate": round(rate, 6)} | ({} if rig.mic_window_s is None else {"mic_window_s": rig.mic_window_s}),
         "audio_format": archive.AUDIO_FORMAT,
     }
     notes = {"steps_dropped_before_start": first, "steps_dropped_at_end": n - 1 - last, "ignored_columns": ignored_columns}

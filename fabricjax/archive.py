@@ -34,6 +34,9 @@ another) and with NaN in the fields an optional top-level meta.joint_fields_abse
                   model input it feeds)}], "joints": {"names", "fields", "units"} | null,
                   "camera": {"image_size": [H, W]} | null, "force": "N" | null,
                   "steps": {"clock": "camera" | "rate" | "joints", "rate": Hz}}
+                 steps.mic_window_s (optional): every microphone's step window in seconds, the rig
+                  file's choice, which loading uses unless the config sets one (absent: the paper's
+                  2048 samples at 48 kHz, 42.67 ms)
                  joints.absent (optional, default []): fields the recording lacks, e.g. velocity
                   and current of a position-only ROS JointState; they are NaN in `joints`, never
                   zeros (which would read as a still, unpowered joint), and the proprio input is
@@ -183,6 +186,7 @@ class Layout:
     force: bool
     step_clock: str
     step_rate: float
+    mic_window_s: float | None = None  # the microphones' step window [s] the data declares (None: not declared)
 
     @property
     def has_joints(self) -> bool:
@@ -239,6 +243,7 @@ def layout(meta: dict[str, Any]) -> Layout:
         joint_fields_absent=tuple(j.get("absent", ())),
         image_size=None if cam is None else (int(cam["image_size"][0]), int(cam["image_size"][1])),
         force=s["force"] is not None, step_clock=s["steps"]["clock"], step_rate=float(s["steps"]["rate"]),
+        mic_window_s=s["steps"].get("mic_window_s"),
     )
 
 
@@ -390,6 +395,9 @@ def _check_streams(streams: dict[str, Any], path) -> None:
     steps = streams["steps"]
     need(isinstance(steps, dict) and steps.get("clock") in STEP_CLOCKS, "steps.clock", f"must be one of {STEP_CLOCKS}")
     _check_rate(steps.get("rate"), path, "meta.streams.steps.rate")
+    window = steps.get("mic_window_s")
+    need(window is None or (_is(window, (int, float)) and window > 0), "steps.mic_window_s",
+         f"must be a duration in seconds > 0, got {json.dumps(window)[:60]}")
 
 
 def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:

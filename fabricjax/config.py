@@ -27,6 +27,7 @@ AUDIO_MODALITIES = archive.MIC_NAMES  # a microphone's PSD is the modality of th
 # How tables and figures name each modality (the sensors of the paper).
 MODALITY_NAMES = {"image": "Minsight image", "flow": "optical flow", "internal": "Minsound", "external": "palm mic", "proprio": "proprioception"}
 BACKBONES = ("attention", "tcn")
+PAPER_WINDOW_S = archive.WINDOW / archive.AUDIO_RATE  # the paper's step window: 2048 samples at 48 kHz, 42.67 ms
 # How the concatenated per-step features are normalised before the backbone: the paper's rescale of
 # each dimension to [0, 1] over the sequence, or our variant, a LayerNorm over each step's features
 # (keeps each feature's steady level, which the rescale discards).
@@ -56,8 +57,9 @@ class Config:
     backbone: str = "attention"
     seq_len: int = 200  # N, steps per sequence: the paper's 4 s at 50 Hz
     bandwidth_khz: float = 15.0
-    # each microphone's step window [s] at its own rate (features/welch.py): the paper's 2048 samples at 48 kHz
-    mic_window_s: float = archive.WINDOW / archive.AUDIO_RATE
+    # each microphone's step window [s] at its own rate (features/welch.py); None: the dataset's own (a rig
+    # file's steps.mic_window_s, recorded in the archives), else PAPER_WINDOW_S. A value set here wins over the data's.
+    mic_window_s: float | None = None
     image_resolution: str = "down"  # "down" = image_size, "full" = the archive's resolution
     image_size: tuple[int, int] = (60, 80)  # the "down" frame size: the paper's 60x80
     flow_sparsify: str = "keep_top"  # FLOW_SPARSIFY
@@ -95,8 +97,8 @@ class Config:
             raise ValueError(f"backbone must be one of {BACKBONES}, got {self.backbone!r}")
         if not 0 < self.bandwidth_khz <= archive.NYQUIST_KHZ:
             raise ValueError(f"bandwidth_khz must be in (0, {archive.NYQUIST_KHZ:g}], got {self.bandwidth_khz}")
-        if not self.mic_window_s > 0:
-            raise ValueError(f"mic_window_s must be a duration in seconds > 0, got {self.mic_window_s}")
+        if self.mic_window_s is not None and not 0 < self.mic_window_s < float("inf"):
+            raise ValueError(f"mic_window_s must be a duration in seconds > 0 (or none: the data's), got {self.mic_window_s}")
         if self.fusion_norm not in FUSION_NORMS:
             raise ValueError(f"fusion_norm must be one of {FUSION_NORMS}, got {self.fusion_norm!r}")
         if self.lr_schedule not in LR_SCHEDULES:
@@ -168,6 +170,8 @@ def format_override(field: str, value: Any) -> str:
 
 def _parse(kind, raw: str) -> Any:
     origin, args = typing.get_origin(kind), typing.get_args(kind)
+    if type(None) in args:  # an optional field: "none" unsets it
+        return None if raw.lower() == "none" else _parse(next(a for a in args if a is not type(None)), raw)
     if origin is tuple:
         items = [x.strip() for x in raw.split(",") if x.strip()]
         if args[-1] is not Ellipsis and len(items) != len(args):

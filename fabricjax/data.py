@@ -40,9 +40,9 @@ and holdout) are counted in an info line: never silent.
 
     inputs   one array per `config.modalities` entry:
       "internal", "external"  float32 (S, N, F)        log10 PSD (welch.py) of the microphone of
-                                                       that role over its step window (config.
-                                                       mic_window_s at its rate: 2048 samples for
-                                                       the hand), F = welch.n_bins(config.
+                                                       that role over its step window (`window_s`
+                                                       at its rate: 2048 samples for the hand),
+                                                       F = welch.n_bins(config.
                                                        bandwidth_khz, its rate, window): 320 at
                                                        15 kHz and 48 kHz, all 512 at or above its
                                                        Nyquist
@@ -61,6 +61,9 @@ and holdout) are counted in an info line: never silent.
     names    {modality: how the data names its stream}: a microphone by its name (the rig file's),
              the joints by theirs and their fields (`stream_names`)
     classes  the class names of the label space, by class (its length is the fabric head's size)
+    window_s every microphone's step window in seconds (`step_window_s`): `config.mic_window_s` when
+             set, else the one the data declares (a rig file's `steps.mic_window_s`, the same in every
+             trial), else the paper's 2048 samples at 48 kHz (`config.PAPER_WINDOW_S`)
 
 Features are computed once per trial and cached (features/cache.py); only the modalities the
 config asks for are computed, and frames are never read for an audio / proprioception config.
@@ -77,7 +80,7 @@ import numpy as np
 from absl import logging
 
 from fabricjax import archive, catalog, dataset_index, presets, splits, workspace
-from fabricjax.config import MODALITY_NAMES, Config
+from fabricjax.config import MODALITY_NAMES, PAPER_WINDOW_S, Config
 from fabricjax.errors import UserError
 from fabricjax.features import cache, welch
 from fabricjax.features.extract import feature_for
@@ -94,6 +97,7 @@ class SequenceSet:
     rates: Mapping[str, int] = dataclasses.field(default_factory=dict)  # absent: the hand's 48 kHz
     names: Mapping[str, str] = dataclasses.field(default_factory=dict)  # absent: the paper's (config.MODALITY_NAMES)
     classes: tuple[str, ...] = tuple(catalog.fabric(k).name for k in range(catalog.N_CLASSES))
+    window_s: float = PAPER_WINDOW_S  # the microphones' step window [s] (`step_window_s`)
 
     @property
     def n_classes(self) -> int:
@@ -123,12 +127,21 @@ def classes_of(index: dataset_index.DatasetIndex) -> tuple[str, ...]:
     if len(maps) > 1:
         a, b = list(maps.values())[:2]
         raise archive.ArchiveError(index.path(b), "meta.label_map", f"differs from the label map of {a.file} (one dataset, one label map)")
-    label_map = index.entries[0].meta.get("label_map")
-    if label_map is None:
+    named = label_classes(index.entries[0].meta)
+    if named is None:
         catalog_classes = SequenceSet.__dataclass_fields__["classes"].default
         highest = max((e.meta["label"] for e in index.entries if e.meta["label"] < len(catalog_classes)), default=len(catalog_classes) - 1)
         return catalog_classes[: highest + 1]
-    return tuple(" / ".join(sorted(n for n, c in label_map.items() if c == k)) for k in range(archive.n_classes(index.entries[0].meta)))
+    return named
+
+
+def label_classes(meta: dict) -> tuple[str, ...] | None:
+    """The class names of a trial's label map by class (names sharing a class joined by " / "),
+    None for a trial without one (the catalog's classes)."""
+    label_map = meta.get("label_map")
+    if label_map is None:
+        return None
+    return tuple(" / ".join(sorted(n for n, c in label_map.items() if c == k)) for k in range(archive.n_classes(meta)))
 
 
 def json_key(x) -> str:
@@ -201,6 +214,13 @@ def stream_names(lay: archive.Layout) -> dict[str, str]:
     return out
 
 
+def inputs_name(modalities: Sequence[str], names: Mapping[str, str] | None = None) -> str:
+    """How tables, figures and printouts name a set of model inputs: by the data's names for its
+    streams (`SequenceSet.names`, recorded data: the rig file's microphones and joints) where
+    given, else by the paper's sensors (`config.MODALITY_NAMES`), e.g. "Minsound + proprioception"."""
+    return " + ".join((names or {}).get(m, MODALITY_NAMES[m]) for m in modalities)
+
+
 def first_step(meta: dict) -> int:
     """The first rubbing step of a trial (0 for archives that do not record the closing)."""
     return int(meta.get("closing_steps", 0))
@@ -229,29 +249,49 @@ def _describe(entries: list[dataset_index.IndexEntry], n: int) -> tuple[dict, di
 
 def _sequences(feature: np.ndarray, modality: str, start: int, n_seq: int, n: int, config: Config, rates: Mapping[str, int]) -> np.ndarray:
     """A trial's (T, ...) feature -> (n_seq, n, ...) view from step `start`, the remainder dropped."""
-    x = _band(feature[start : start + n_seq * n], modality, config, rates)
+    x = _band(feature[start : start + n_seq * n], modality, config.bandwidth_khz, rates, config.mic_window_s)
     return x.reshape(n_seq, n, *x.shape[1:])
 
 
-def _band(x: np.ndarray, modality: str, config: Config, rates: Mapping[str, int]) -> np.ndarray:
-    """A feature cut to the config's bandwidth: a PSD's first `welch.n_bins` bins at its
-    microphone's rate (the last axis; all of them at or above its Nyquist); other modalities unchanged."""
+def _band(x: np.ndarray, modality: str, bandwidth_khz: float, rates: Mapping[str, int], window_s: float) -> np.ndarray:
+    """A feature cut to a bandwidth: a PSD's first `welch.n_bins` bins at its microphone's rate
+    and `window_s` windows (the last axis; all of them at or above its Nyquist); other modalities unchanged."""
     if modality not in archive.MIC_ROLES:
         return x
     rate = rates.get(modality, archive.AUDIO_RATE)
-    return x[..., : welch.n_bins(config.bandwidth_khz, rate, window_of(config, rate))]
+    return x[..., : welch.n_bins(bandwidth_khz, rate, welch.window_samples(window_s, rate))]
 
 
 def window_of(config: Config, rate: int) -> int:
-    """A microphone's step window in samples at `rate` Hz: the config's duration (2048 for the hand)."""
-    return welch.window_samples(config.mic_window_s, rate)
+    """A microphone's step window in samples at `rate` Hz: the config's duration (2048 for the hand;
+    a config that leaves it to the data, mic_window_s None, and has not been fitted to one gets the paper's)."""
+    return welch.window_samples(PAPER_WINDOW_S if config.mic_window_s is None else config.mic_window_s, rate)
+
+
+def step_window_s(config: Config, index: dataset_index.DatasetIndex, entries: Sequence[dataset_index.IndexEntry]) -> float:
+    """The microphones' step window [s]: `config.mic_window_s` when set (it wins over the data's,
+    said once where they differ), else the one the trials declare (`Layout.mic_window_s`: every
+    trial the same, else an error naming the first that differs), else the paper's."""
+    declared: dict[float | None, dataset_index.IndexEntry] = {}
+    for e in entries:
+        declared.setdefault(archive.layout(e.meta).mic_window_s, e)
+    if len(declared) > 1:
+        (a, ea), (b, eb) = list(declared.items())[:2]
+        raise archive.ArchiveError(index.path(eb), "meta.streams.steps.mic_window_s",
+                                   f"{'absent' if b is None else f'{b:g} s'}, but {'absent' if a is None else f'{a:g} s'} in {ea.file} (one step window per dataset)")
+    data_s = next(iter(declared))
+    if config.mic_window_s is None:
+        return PAPER_WINDOW_S if data_s is None else float(data_s)
+    if data_s is not None and data_s != config.mic_window_s:
+        logging.info("mic_window_s=%g s (the config's) is used, not the %g s the data declares", config.mic_window_s, data_s)
+    return config.mic_window_s
 
 
 def narrow(sets: dict[str, SequenceSet], config: Config) -> dict[str, SequenceSet]:
     """Sets loaded for several rows (the union of their modalities, the widest bandwidth) as one
     row's: its modalities only, PSDs cut to its bandwidth. Views, no copies."""
     return {
-        k: dataclasses.replace(s, inputs={m: _band(a, m, config, s.rates) for m, a in s.inputs.items() if m in config.modalities})
+        k: dataclasses.replace(s, inputs={m: _band(a, m, config.bandwidth_khz, s.rates, s.window_s) for m, a in s.inputs.items() if m in config.modalities})
         for k, s in sets.items()
     }
 
@@ -269,7 +309,7 @@ def _check_bands(config: Config, rates: Mapping[str, int], names: Mapping[str, s
                             f"too short for a Welch spectrum (at least {welch.MIN_WINDOW} samples)")
         if full < welch.USEFUL_BINS:
             logging.warning("the %s microphone's %.2f ms step window is %d samples at %d Hz: its PSD has only %d bins (0-%g kHz, "
-                            "%.1f Hz apart); a longer window (--set mic_window_s=...) gives a finer spectrum", names[m], ms, window, rate,
+                            "%.1f Hz apart); a longer window (--set mic_window_s=..., or the rig file's steps.mic_window_s) gives a finer spectrum", names[m], ms, window, rate,
                             full, archive.nyquist_khz(rate), rate / welch.nperseg(window))
         nyquist = archive.nyquist_khz(rate)
         if config.bandwidth_khz > nyquist:
@@ -308,6 +348,7 @@ def load_sequences(
         if s in ("train", "val") and not 0 <= e.meta["label"] < n_classes:
             raise archive.ArchiveError(index.path(e), "meta.label", f"label {e.meta['label']} of a {s} trial is outside the {n_classes} classes 0..{n_classes - 1}")
     rates = check_streams(index, [e for e, _ in chosen], config.modalities)
+    config = dataclasses.replace(config, mic_window_s=step_window_s(config, index, [e for e, _ in chosen]))
     lay = archive.layout(chosen[0][0].meta)
     _check_bands(config, rates, {m: lay.mics[lay.mic(m)].name for m in rates})
     n = config.seq_len
@@ -345,4 +386,5 @@ def load_sequences(
             inputs[s][m][filled[s] : filled[s] + n_seq] = a
         filled[s] += n_seq
     names = stream_names(lay)
-    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, names=names, classes=classes) for s in wanted}
+    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, names=names, classes=classes, window_s=config.mic_window_s)
+            for s in wanted}

@@ -6,9 +6,11 @@
 The command (`python -m experiments.stream`: a quick model or a checkpoint, a trial, the live
 printout and results/stream.json) is `fabricjax.studies.stream`.
 
-Every step brings one 2048-sample window per microphone and the `archive.N_PROPRIO` joint values.
-One jitted update computes the Welch PSD of just those windows (`welch_psd` on a (mics, 2048)
-batch, at the config's bandwidth), shifts the (N, F) windows by one step on the device (the oldest
+Every step brings one window per microphone, the config's step window at that microphone's rate
+(`data.window_of`: 2048 samples for the hand), and the joint values (the hand's `archive.N_PROPRIO`,
+or the data's joints x fields: the `layout` the streamer is given). One jitted update computes the
+Welch PSD of just those windows (`welch_psd` of each microphone's window at its rate, at the
+config's bandwidth), shifts the (N, F) windows by one step on the device (the oldest
 step drops out, buffers donated), and runs the model over the window. Nothing of the window is recomputed:
 the PSD of a step is computed once, when it arrives, and equals the batch feature of
 `features.extract.log_psd` for that step. The model itself does run over the whole window each
@@ -41,11 +43,12 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from fabricjax import archive, catalog, confidence, stats
+from fabricjax import archive, catalog, confidence, data, stats
 from fabricjax.config import Config
 from fabricjax.features import welch
 
 STREAMABLE = ("internal", "external", "proprio")
+HAND = archive.layout({"format_version": archive.FORMAT_VERSION, "streams": archive.hand_streams(None)})  # the paper's hand's streams
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,9 +63,11 @@ class StepResult:
 
 
 class Streamer:
-    """A model and its rolling window; `update` consumes one step."""
+    """A model and its rolling window; `update` consumes one step. `layout`: the streams of the
+    trials it is fed (`archive.layout` of their meta; default the hand's), which give each
+    microphone's row and rate and the joint values per step."""
 
-    def __init__(self, graphdef: nnx.GraphDef, params, config: Config, temperature: float = 1.0):
+    def __init__(self, graphdef: nnx.GraphDef, params, config: Config, temperature: float = 1.0, layout: archive.Layout = HAND):
         bad = [m for m in config.modalities if m not in STREAMABLE]
         if bad:
             raise ValueError(f"streaming supports the modalities {STREAMABLE}; the model uses {bad}")
@@ -70,14 +75,21 @@ class Streamer:
             raise ValueError("streaming classifies fabrics: the model needs its fabric head")
         self.config, self.temperature = config, float(temperature)
         self.n = config.seq_len
-        self.mics = [archive.MIC_NAMES.index(m) for m in config.modalities if m in archive.MIC_NAMES]
+        self.mics = [layout.mic(m) for m in config.modalities if m in archive.MIC_ROLES]
+        if None in self.mics:
+            raise ValueError(f"the model reads {'+'.join(config.modalities)}; the data has {layout.describe()}")
+        self.rates = tuple(layout.mics[k].rate for k in self.mics)
+        self.windows = tuple(data.window_of(config, r) for r in self.rates)  # samples per step, each mic at its rate
+        self.joint_shape = (len(layout.joint_names), len(layout.joint_fields))
         # Everything on one device: restored parameters may carry the training mesh's sharding, and
         # a sharding that changed between steps would recompile the update mid-stream.
         self.device = jax.devices()[0]
         self.params = jax.device_put(params, self.device)
-        bins = welch.n_bins(config.bandwidth_khz)
-        self._empty = {m: np.zeros((self.n, archive.N_PROPRIO if m == "proprio" else bins), np.float32) for m in config.modalities}
-        self._update = jax.jit(functools.partial(_update, graphdef, config, self.temperature), donate_argnums=1)
+        width = dict(zip([m for m in config.modalities if m in archive.MIC_ROLES],
+                         (welch.n_bins(config.bandwidth_khz, r, w) for r, w in zip(self.rates, self.windows))))
+        width["proprio"] = int(np.prod(self.joint_shape))
+        self._empty = {m: np.zeros((self.n, width[m]), np.float32) for m in config.modalities}
+        self._update = jax.jit(functools.partial(_update, graphdef, config, self.temperature, self.rates), donate_argnums=1)
         self.reset()
 
     def reset(self) -> None:
@@ -87,45 +99,47 @@ class Streamer:
     def warmup(self) -> None:
         """Compile the update and run it twice (first window and steady state), then reset."""
         for _ in range(2):
-            self.update(np.zeros((len(self.mics), archive.WINDOW), np.int32), np.zeros((archive.N_JOINTS, archive.N_JOINT_FIELDS), np.float32))
+            self.update([np.zeros(w, np.int32) for w in self.windows], np.zeros(self.joint_shape, np.float32))
         self.reset()
 
-    def update(self, mic_windows: np.ndarray, joints: np.ndarray) -> np.ndarray | None:
-        """Push one step ((mics, 2048) int32 raw words of the model's microphones, (6, 3) joints);
-        returns the class probabilities once the window is full, else None."""
+    def update(self, mic_windows: list[np.ndarray], joints: np.ndarray) -> np.ndarray | None:
+        """Push one step (each of the model's microphones' int32 raw words over its window, `windows`:
+        2048 for the hand; (joints, fields) values, the hand's (6, 3)); returns the class
+        probabilities once the window is full, else None."""
         self.window, probs = self._update(self.params, self.window, mic_windows, joints)
         self.steps += 1
         probs = np.asarray(probs)  # waits for the step, full window or not
         return probs if self.steps >= self.n else None
 
 
-def _update(graphdef, config: Config, temperature: float, params, window, mic_windows, joints):
+def _update(graphdef, config: Config, temperature: float, rates: tuple[int, ...], params, window, mic_windows, joints):
     """(new window, calibrated class probabilities of the model over it)."""
-    psd = welch.welch_psd(mic_windows, bandwidth_khz=config.bandwidth_khz) if mic_windows.shape[0] else None
-    mic = 0
+    psds = iter([welch.welch_psd(w, bandwidth_khz=config.bandwidth_khz, rate=r) for w, r in zip(mic_windows, rates)])
     new = {}
     for m in config.modalities:
-        if m == "proprio":
-            x = joints.reshape(-1).astype(jnp.float32)
-        else:
-            x, mic = psd[mic], mic + 1
+        x = joints.reshape(-1).astype(jnp.float32) if m == "proprio" else next(psds)
         new[m] = jnp.concatenate([window[m][1:], x[None]])
     logits = nnx.merge(graphdef, params)({m: w[None] for m, w in new.items()})["fabric"][0]
     return new, jax.nn.softmax(logits / temperature)
 
 
-def step_windows(trial: archive.TrialArchive, step: int, mics: list[int]) -> np.ndarray:
-    """(len(mics), 2048) int32: the step's raw window of each microphone, zero-padded on the left
-    at the very start of a recording (as `features.extract.mic_windows`)."""
-    out = np.zeros((len(mics), archive.WINDOW), np.int32)
-    for i, mic in enumerate(mics):
+def step_windows(trial: archive.TrialArchive, step: int, mics: list[int], windows: list[int]) -> list[np.ndarray]:
+    """The step's raw int32 window of each microphone `mics[i]`, `windows[i]` samples (a
+    streamer's `windows`), zero-padded on the left at the very start of a recording (as
+    `features.extract.mic_windows`)."""
+    out = []
+    for mic, w in zip(mics, windows):
         end = int(trial.window_end[step, mic])
-        part = trial.audio[mic, max(0, end - archive.WINDOW) : end]
-        out[i, archive.WINDOW - len(part) :] = part
+        part = trial.audio[mic, max(0, end - w) : end]
+        out.append(np.concatenate([np.zeros(w - len(part), np.int32), part]))
     return out
 
 
-def class_name(label: int) -> str:
+def class_name(label: int, meta: dict | None = None) -> str:
+    """A class's name: from the label map of a trial's `meta` where it has one, else the catalog's fabric."""
+    named = None if meta is None else data.label_classes(meta)
+    if named is not None:
+        return named[label] if 0 <= label < len(named) else f"class {label}"
     return catalog.fabric(label).name if 0 <= label < catalog.N_CLASSES else f"class {label}"
 
 
@@ -158,7 +172,8 @@ def replay(
             if wait > 0:
                 time.sleep(wait)
         t0 = time.perf_counter()
-        probs = streamer.update(step_windows(trial, t, streamer.mics), trial.joints[t])
+        joints = np.zeros(streamer.joint_shape, np.float32) if trial.joints is None else trial.joints[t]  # a rig without joints
+        probs = streamer.update(step_windows(trial, t, streamer.mics, streamer.windows), joints)
         done = time.perf_counter()
         ms = 1e3 * (done - t0)
         if realtime and done > start + (t + 1) * period:
@@ -174,14 +189,14 @@ def replay(
                 if decision is None and evidence.decided:
                     k = int(np.argmax(evidence.posterior))
                     decision = {"step": t, "time_s": float(stamps[t] + period), "windows": evidence.windows, "class": k,
-                                "fabric": class_name(k), "posterior": float(evidence.posterior[k]), "correct": k == label}
+                                "fabric": class_name(k, trial.meta), "posterior": float(evidence.posterior[k]), "correct": k == label}
         if on_step is not None:
             on_step(StepResult(t, float(stamps[t]), probs, ms, None if evidence.log_post is None else evidence.posterior,
                                evidence.windows, decision is not None))
     latency = stats.percentiles_ms(seconds) if seconds else {"p50_ms": None, "p99_ms": None}
     return {
         "label": label,
-        "fabric": class_name(label),
+        "fabric": class_name(label, trial.meta),
         "steps": n_steps,
         "window_steps": streamer.n,
         "decided_steps": len(correct),

@@ -98,7 +98,7 @@ def archive_step(trial: archive.TrialArchive, t: int) -> Step:
     """Step `t` of a recorded trial, as it came in."""
     new = archive.WINDOW if t == 0 else int(trial.window_end[t, 0] - trial.window_end[t - 1, 0])
     return Step(
-        t, float(trial.timestamps[t] - trial.timestamps[0]), live.step_windows(trial, t, list(range(len(archive.MIC_NAMES)))),
+        t, float(trial.timestamps[t] - trial.timestamps[0]), np.stack(live.step_windows(trial, t, [0, 1], [archive.WINDOW] * 2)),
         min(max(new, 0), archive.WINDOW), trial.joints[t], float(trial.force[t]), None if trial.images is None else trial.images[t],
     )
 
@@ -106,10 +106,10 @@ def archive_step(trial: archive.TrialArchive, t: int) -> Step:
 class TrialView:
     """Logs steps (and a model's results on them) to a Rerun recording stream `rec`."""
 
-    def __init__(self, rec, label: int | None = None):
+    def __init__(self, rec, label: int | None = None, meta: dict | None = None):
         import jax
 
-        self.rr, self.rec, self.label = rerun(), rec, label
+        self.rr, self.rec, self.label, self.meta = rerun(), rec, label, meta  # meta: the trial's, whose label map names the classes
         self.previous_frame, self.decided = None, False
         self.spectrogram = np.full((len(archive.MIC_NAMES), welch.N_BINS, SPECTROGRAM_STEPS), np.nan, np.float32)
         self.psd = jax.jit(lambda w: welch.welch_psd(w, bandwidth_khz=archive.NYQUIST_KHZ))
@@ -160,19 +160,19 @@ class TrialView:
         rec.log("prediction/probabilities", rr.BarChart(np.asarray(r.probs, np.float32)))
         rec.log("prediction/confidence", rr.Scalars(float(r.probs[k])))
         mark = "" if self.label is None else (" (correct)" if k == self.label else " (wrong)")
-        rec.log("prediction/class", rr.TextLog(f"{live.class_name(k)} p={r.probs[k]:.2f}{mark}"))
+        rec.log("prediction/class", rr.TextLog(f"{live.class_name(k, self.meta)} p={r.probs[k]:.2f}{mark}"))
         if r.posterior is not None:  # the sequential rule's evidence over the windows so far
             j = int(np.argmax(r.posterior))
             rec.log("prediction/posterior", rr.Scalars(float(r.posterior[j])))
             if r.decided and not self.decided:
-                rec.log("prediction/decision", rr.TextLog(f"decided: {live.class_name(j)} posterior {r.posterior[j]:.3f} after {r.windows} windows"))
+                rec.log("prediction/decision", rr.TextLog(f"decided: {live.class_name(j, self.meta)} posterior {r.posterior[j]:.3f} after {r.windows} windows"))
             self.decided = r.decided
 
 
 def log_trial(rec, trial: archive.TrialArchive, streamer: live.Streamer | None = None) -> dict[str, Any]:
     """Log a recorded trial, and `streamer`'s predictions over it (as fast as it runs); returns the
     streaming summary (`live.replay`), or {} without a model."""
-    view = TrialView(rec, int(trial.meta["label"]))
+    view = TrialView(rec, int(trial.meta["label"]), trial.meta)
     for t in range(trial.n_steps):
         view.log_step(archive_step(trial, t))
     if streamer is None:
@@ -186,9 +186,12 @@ def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
     if save is None:
         require_display("--save")
     trial = archive.read_archive(path, images=True)
+    lay = archive.layout(trial.meta)
+    if lay.mics != live.HAND.mics or (lay.joint_names, lay.joint_fields) != (live.HAND.joint_names, live.HAND.joint_fields) or not lay.force:
+        raise UserError(f"{path}: meta.streams: the viewer shows the hand's streams ({live.HAND.describe()}); this trial has {lay.describe()}")
     streamer = None
     if checkpoint is not None:
-        streamer = live.Streamer(*live.restore_model(checkpoint))
+        streamer = live.Streamer(*live.restore_model(checkpoint), layout=archive.layout(trial.meta))
     rec = open_recording(save, save_flag="--save")
     summary = log_trial(rec, trial, streamer)
     rec.flush()

@@ -11,7 +11,7 @@ import pytest
 
 from acquisition.other_rig import bench_import
 from acquisition.simulated_signals import bench_acquisition
-from fabricjax import archive, program_timing, live, sim, train
+from fabricjax import archive, catalog, program_timing, live, sim, train
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.features.extract import log_psd, mic_windows
@@ -85,10 +85,10 @@ def test_cost_run_writes_table_json_and_pareto_png(smoke_workdir, tmp_path):
     assert (tmp_path / "cost_pareto.png").read_bytes()[:8] == PNG
 
 
-def _tiny_streamer(config):
-    shapes = {m: (18,) if m == "proprio" else (welch.n_bins(config.bandwidth_khz),) for m in config.modalities}
+def _tiny_streamer(config, shapes=None, layout=live.HAND):
+    shapes = shapes or {m: (18,) if m == "proprio" else (welch.n_bins(config.bandwidth_khz),) for m in config.modalities}
     trainer = train.make_trainer(config, shapes)
-    return live.Streamer(trainer.graphdef, jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"], config)
+    return live.Streamer(trainer.graphdef, jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"], config, layout=layout)
 
 
 def test_streaming_psd_of_the_newest_step_equals_the_batch_feature(smoke_workdir):
@@ -97,7 +97,7 @@ def test_streaming_psd_of_the_newest_step_equals_the_batch_feature(smoke_workdir
     config = Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=8, bandwidth_khz=10.0, **TINY)
     s = _tiny_streamer(config)
     extra = 3
-    probs = [s.update(live.step_windows(trial, t, s.mics), trial.joints[t]) for t in range(config.seq_len + extra)]
+    probs = [s.update(live.step_windows(trial, t, s.mics, s.windows), trial.joints[t]) for t in range(config.seq_len + extra)]
     assert all(p is None for p in probs[: config.seq_len - 1])
     assert all(p.shape == (21,) and np.isclose(p.sum(), 1, atol=1e-5) for p in probs[config.seq_len - 1 :])
     k = welch.n_bins(10.0)
@@ -106,6 +106,29 @@ def test_streaming_psd_of_the_newest_step_equals_the_batch_feature(smoke_workdir
         batch = log_psd(mic_windows(trial, mic))[steps, :k]
         np.testing.assert_allclose(np.asarray(s.window[m]), batch, rtol=0, atol=1e-5)
     np.testing.assert_array_equal(np.asarray(s.window["proprio"]), trial.joints[steps].reshape(config.seq_len, 18))
+
+
+def test_streaming_a_rig_uses_the_window_by_duration_at_its_mics_rate():
+    """A rig's 2.2 kHz vibration microphone and 7 x 3 joints, a 0.3 s step window: each step's PSD is
+    the batch feature's (the loader's window, `data.window_of`), the joints its 21 values, and the
+    classes the trial's label map."""
+    from fabricjax import data
+    from fabricjax.features import extract
+    from tests.test_rig_archive import rig_archive
+
+    trial = rig_archive(n_steps=12)
+    lay = archive.layout(trial.meta)
+    config = Config(preset="smoke", modalities=("internal", "proprio"), seq_len=4, mic_window_s=0.3, n_classes=3, **TINY)
+    window = data.window_of(config, 2200)
+    assert window == 660
+    s = _tiny_streamer(config, {"internal": (welch.full_bins(window),), "proprio": (21,)}, lay)
+    assert s.windows == (window,) and s.mics == [0]
+    probs = [s.update(live.step_windows(trial, t, s.mics, s.windows), trial.joints[t]) for t in range(6)]
+    assert probs[-1].shape == (3,)
+    batch = extract.feature_for("internal", window=window).compute(trial)[2:6]
+    np.testing.assert_allclose(np.asarray(s.window["internal"]), batch[:, : welch.n_bins(config.bandwidth_khz, 2200, window)], rtol=0, atol=1e-5)
+    np.testing.assert_array_equal(np.asarray(s.window["proprio"]), trial.joints[2:6].reshape(4, 21))
+    assert live.class_name(2, trial.meta) == "felt" and live.class_name(2) == catalog.fabric(2).name
 
 
 def test_streamer_rejects_camera_models():

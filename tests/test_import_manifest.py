@@ -145,6 +145,31 @@ def test_rig_file_mistakes_are_named(tmp_path):
     bad.write_text('[[mics]]\nname = "v"\nfile = "v.wav"\n')
     with pytest.raises(UserError, match=r"steps\.rate: missing: without a camera or joints"):
         rig.load_rig(bad)
+    for value in ("0", "-1.5", '"0.5"', "true", "nan", "inf"):
+        bad.write_text(f'[[mics]]\nname = "v"\nfile = "v.wav"\n[steps]\nrate = 50\nmic_window_s = {value}\n')
+        with pytest.raises(UserError, match=r"rig\.toml: steps\.mic_window_s: must be a duration in seconds > 0, got"):
+            rig.load_rig(bad)
+    bad.write_text('[[mics]]\nname = "v"\nfile = "v.wav"\n[steps]\nrate = 50\nwindow = 0.5\n')
+    with pytest.raises(UserError, match=r"rig\.toml: steps\.window: unknown key \(known: rate, mic_window_s\)"):
+        rig.load_rig(bad)
+
+
+def test_the_rig_files_step_window_is_recorded_and_loads_by_default(tmp_path):
+    """steps.mic_window_s: in every archive's meta, full from the first step, and the window the
+    default config loads (3072 samples at 2.2 kHz: 767 bins)."""
+    from fabricjax import data
+    from fabricjax.config import Config
+    from fabricjax.features import welch
+
+    window_s = archive.WINDOW * 1.5 / other_rig.VIBRATION_RATE
+    toml = other_rig.RIG_TOML.replace(f"rate = {other_rig.STEP_RATE}\n", f"rate = {other_rig.STEP_RATE}\nmic_window_s = {window_s!r}\n")
+    _run(_rig_manifest(tmp_path / "rig", toml), tmp_path / "out")
+    a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")
+    assert archive.layout(a.meta).mic_window_s == window_s
+    assert a.window_end[0, 0] >= 1.5 * archive.WINDOW  # the longer window is full at the first step
+    config = Config.from_preset("smoke", modalities=("internal",), seq_len=4)
+    sets = data.load_sequences(config, tmp_path / "out", workdir=tmp_path / "ws", progress=False, split_names=("train",))
+    assert sets["train"].window_s == window_s and sets["train"].inputs["internal"].shape[2] == welch.full_bins(3072) == 767
 
 
 @pytest.mark.slow  # ~1-3 min on 2 shared cores: import and two smoke-size rows
@@ -274,7 +299,7 @@ def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path):
     config = Config.from_preset("smoke", modalities=("internal", "external"), bandwidth_khz=1.0, seq_len=10)
     sets = data.load_sequences(config, tmp_path / "out", workdir=tmp_path / "ws", progress=False)
     for mic, rate in (("internal", 2200), ("external", 4400)):
-        assert sets["train"].inputs[mic].shape[2] == welch.n_bins(1.0, rate, welch.window_samples(config.mic_window_s, rate)) == 21
+        assert sets["train"].inputs[mic].shape[2] == welch.n_bins(1.0, rate, data.window_of(config, rate)) == 21
     assert sets["train"].rates == {"internal": 2200, "external": 4400}
     # one noise level: the density (per Hz) of the microphone at half the rate is twice as high
     level = {m: np.mean(sets["train"].inputs[m][..., 1:-1]) for m in ("internal", "external")}
@@ -393,6 +418,10 @@ def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs
                          results=tmp_path / "results", command="test")
     # class 1 (felt) trains, as the data says: the catalog's holdout ids (1, 10, 21-23) are not a rig's classes
     assert doc["dataset"]["trials"]["train"] == 6 and doc["fabrics"] == {"test": [0, 1, 2], "holdout": [3]}
+    arm = f"joints arm_0–arm_{other_rig.N_JOINTS - 1} (angle, velocity, torque)"
+    assert doc["dataset"]["names"] == {"internal": "vibration", "proprio": arm}  # the rig file's names, in the results
+    pmd = (tmp_path / "results" / "properties.md").read_text()
+    assert f"holdout fabrics: vibration + {arm} [%]" in pmd and "Minsound" not in pmd.replace("`", " ").split("Checkpoint")[0]
     ld = latents.run(doc["rows"][0]["checkpoint"], workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test")
     assert ld["holdouts"] == [3] and [p["fabric_id"] for p in ld["points"]] == [0, 1, 2, 3] and ld["findings"] == []
     assert [(p["holdout"], p["chance"]) for p in ld["neighbours"]["pairs"]] == [(3, pytest.approx(1 / 3))]  # roughness 0 as felt only

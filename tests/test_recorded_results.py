@@ -3,6 +3,7 @@ each other, and nothing of the paper's numbers, its claims checklist or the simu
 documents are built by hand (no training)."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -15,7 +16,9 @@ MACHINE = {"cpu": "test cpu", "vector_units": [], "cores": 2, "jax": "0", "jax_b
            "platform": "test platform", "python": "3"}
 DATASET = {"folder": "rig_archives", "source": "recorded", "generate_s": 0.0, "load_s": 3.0,
            "sequences": {"train": 90, "val": 45, "test": 40}, "trials": {"train": 6, "val": 3, "test": 3},
-           "classes": ["cotton canvas", "felt", "oak"]}
+           "classes": ["cotton canvas", "felt", "oak"], "names": {"internal": "vibration", "proprio": "joints arm_0–arm_6 (angle, velocity, torque)", "image": "camera image"}}
+PAPER_SENSORS = ("minsound", "palm mic", "proprioception", "minsight")  # never on recorded data: the data's names instead
+ARM = "joints arm_0–arm_6 (angle, velocity, torque)"
 
 
 def _doc(study, rows, **fields):
@@ -52,7 +55,7 @@ def _properties_doc():
 
 @pytest.mark.parametrize("study, doc, best_gap, other_gap", [
     (bandwidth, _bandwidth_doc(), "| 1.1 | 512 | 90.00 ± 0.00 | 90.00 ± 0.00 | +0.00 |", "| 0.55 | 512 | 80.00 ± 0.00 | 70.00 ± 0.00 | -20.00 |"),
-    (noise, _noise_doc(), "| Minsound + proprioception | 80.00 ± 0.00 | +0.00 |", "| Minsound | 60.00 ± 0.00 | -20.00 |"),
+    (noise, _noise_doc(), f"| vibration + {ARM} | 80.00 ± 0.00 | +0.00 |", "| vibration | 60.00 ± 0.00 | -20.00 |"),
     (properties, _properties_doc(), "75.00 ± 0.00 / +0.00", "50.00 ± 0.00 / -25.00"),
 ])
 def test_recorded_results_compare_rows_not_the_paper(study, doc, best_gap, other_gap):
@@ -61,15 +64,29 @@ def test_recorded_results_compare_rows_not_the_paper(study, doc, best_gap, other
     assert "recorded data `rig_archives` (3 classes, chance 33.3 %)" in md and "(recorded data, read as it is)" in md
     assert documents.RECORDED_NOTE in md and best_gap in md and other_gap in md
     assert "paper" not in md.lower() and "simulat" not in md.lower() and "checklist" not in md.lower()
+    prose = re.sub(r"`[^`]*`", "", md).lower()  # paths (a checkpoint's folder is named by its --rows name) aside
+    assert not [w for w in PAPER_SENSORS if w in prose]  # the rig's streams, not the hand's sensors
+
+
+def test_recorded_results_name_rows_by_the_datas_streams():
+    noise_md, properties_md = noise.markdown(_noise_doc()), properties.markdown(_properties_doc())
+    assert f"- vibration + {ARM} vs vibration: p = 0.5 (exact)" in noise_md
+    assert f"holdout fabrics: vibration + {ARM} [%]" in properties_md and f"| vibration + {ARM} | 1.0 | `ckpt/minsound` |" in properties_md
+    assert f"| training fabrics: vibration + {ARM} + camera image [%] (recorded data / row − best row [pp]) |" in properties_md
+    simulated = {**_noise_doc(), "dataset": {**DATASET, "source": "simulated"}}
+    assert documents.stream_names(simulated) == {} and noise.display_name("internal+proprio") == "Minsound + proprioception"
 
 
 def test_recorded_plots_have_no_paper_marks(tmp_path, monkeypatch):
     titles = []
-    save = plots._save
+    save, save_bars = plots._save, plots.plot_seed_bars
     monkeypatch.setattr(plots, "_save", lambda fig, path: titles.append(fig.axes[0].get_title()) or save(fig, path))
     assert bandwidth.plot(tmp_path / "bw.png", _bandwidth_doc()["rows"], "vibration").read_bytes()[:4] == b"\x89PNG"
     assert titles == ["vibration accuracy against PSD bandwidth"]  # the rig's microphone, not Minsound
-    assert noise.plot(tmp_path / "noise.png", _noise_doc()["rows"]).read_bytes()[:4] == b"\x89PNG"
+    ticks = []
+    monkeypatch.setattr(plots, "plot_seed_bars", lambda path, groups, series, title: ticks.extend(groups) or save_bars(path, groups, series, title))
+    assert noise.plot(tmp_path / "noise.png", _noise_doc()["rows"], DATASET["names"]).read_bytes()[:4] == b"\x89PNG"
+    assert ticks == ["vibration", f"vibration\n+ {ARM}"]
 
 
 def _latents_doc(neighbours):
@@ -117,6 +134,7 @@ def test_recorded_cost_has_no_paper_point_and_steps_at_the_datas_rate():
     assert "recorded data `rig_archives` (3 classes, chance 33.3 %)" in md and "shortest trial 60 steps" in md
     assert "touch time: N steps at 30 Hz" in md and documents.RECORDED_NOTE in md and "| 0.83 |" in md
     assert "paper" not in md.lower() and "**" not in md and "simulat" not in md.lower()
+    assert "| att N25 | 25 | 0.83 | attention | 16 | 1.1 | vibration |" in md  # the rig's microphone, not the role
 
 
 def test_the_report_of_recorded_data_names_no_paper(tmp_path):

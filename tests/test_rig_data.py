@@ -66,6 +66,50 @@ def test_a_longer_step_window_is_chosen_by_duration(tmp_path, caplog):
         data.load_sequences(_config(modalities=("internal",), mic_window_s=0.001), ds, workdir=tmp_path / "ws", progress=False)
 
 
+def _declaring(window_s):
+    streams = rig_streams()
+    streams["steps"]["mic_window_s"] = window_s
+    return streams
+
+
+def test_the_data_declares_its_step_window_and_set_overrides_it(tmp_path, caplog):
+    """A rig file's steps.mic_window_s, recorded in the archives, is the window a config that leaves
+    it unset (the default) loads with; an explicit mic_window_s wins, said once."""
+    ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "train"), (2, "val"), (0, "test")], streams=_declaring(archive.WINDOW / 2200))
+    sets = data.load_sequences(_config(modalities=("internal",)), ds, workdir=tmp_path / "ws", progress=False)
+    assert sets["train"].window_s == pytest.approx(archive.WINDOW / 2200)
+    assert sets["train"].inputs["internal"].shape[2] == welch.N_BINS  # 2048 samples at 2.2 kHz
+    assert data.narrow(sets, _config(modalities=("internal",), bandwidth_khz=0.55))["train"].inputs["internal"].shape[2] == 256
+    with caplog.at_level(logging.INFO):
+        short = data.load_sequences(_config(modalities=("internal",), mic_window_s=0.0427), ds, workdir=tmp_path / "ws", progress=False)
+    assert short["train"].window_s == 0.0427 and short["train"].inputs["internal"].shape[2] == welch.full_bins(94) == 24
+    assert caplog.text.count("mic_window_s=0.0427 s (the config's) is used, not the 0.930909 s the data declares") == 1
+
+
+def test_trials_declaring_different_step_windows_are_refused(tmp_path):
+    ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "train")], streams=_declaring(0.5))
+    a = rig_archive(n_steps=60, streams=_declaring(0.25), split="test")
+    a.meta.update(label=2, fabric_id=2, trial=9)
+    archive.write_archive(ds / archive.trial_filename(a.meta), a)
+    with pytest.raises(archive.ArchiveError, match=r"meta\.streams\.steps\.mic_window_s': 0\.5 s, but 0\.25 s in felt_trial009_lab\.npz \(one step window per dataset\)"):
+        data.load_sequences(_config(modalities=("internal",)), ds, workdir=tmp_path / "ws", progress=False)
+
+
+@pytest.mark.parametrize("bad", [0, -0.1, "0.5", True, float("nan")])
+def test_a_bad_declared_step_window_names_the_field(tmp_path, bad):
+    a = rig_archive(streams=_declaring(bad))
+    with pytest.raises(archive.ArchiveError, match=r"meta\.streams\.steps\.mic_window_s': must be a duration in seconds > 0"):
+        archive.validate_meta(a.meta, tmp_path / "t.npz")
+
+
+def test_the_papers_hand_loads_with_its_2048_sample_window(tmp_path):
+    """The hand's archives declare no window: the default config loads the paper's 2048 samples at 48 kHz."""
+    ds = tiny_dataset(tmp_path / "hand", [(0, 1, 0, "lab"), (1, 1, 0, "lab")], n_steps=12, images=None)
+    sets = data.load_sequences(_config(modalities=("internal",), seq_len=4), ds, workdir=tmp_path / "ws", progress=False, split_names=("train",))
+    assert Config().mic_window_s is None and sets["train"].window_s == archive.WINDOW / archive.AUDIO_RATE
+    assert data.window_of(Config(), archive.AUDIO_RATE) == welch.window_samples(sets["train"].window_s, archive.AUDIO_RATE) == archive.WINDOW
+
+
 def test_a_row_needing_a_stream_the_data_lacks_lists_what_it_has(tmp_path):
     ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "test")])
     with pytest.raises(archive.ArchiveError) as e:

@@ -129,3 +129,14 @@ def test_viewing_without_a_display_is_one_line_naming_the_save_flag(smoke_trial,
     [line] = out.stderr.strip().splitlines()
     assert line.startswith("error: the Rerun viewer needs a display") and f"{save_flag}=FILE.rrd" in line
     assert not (tmp_path / "rec").exists()
+
+
+def test_viewing_another_rigs_trial_is_one_line_saying_what_it_has(tmp_path):
+    from fabricjax.errors import UserError
+    from tests.test_rig_archive import rig_archive
+
+    path = tmp_path / "rig.npz"
+    archive.write_archive(path, rig_archive())
+    with pytest.raises(UserError, match=r"rig\.npz: meta\.streams: the viewer shows the hand's streams .*; this trial has microphones: vibration \(2200 Hz"):
+        view.view_archive(path, save=tmp_path / "rig.rrd")
+    assert not (tmp_path / "rig.rrd").exists()

@@ -16,7 +16,8 @@ to be in full-scale units already. The microphone's large DC offset is removed b
 detrend.
 
 Each step's window is a duration, the same at every rate (`window_samples`): the paper's 2048
-samples at 48 kHz, 42.67 ms, unless a config chooses another (`Config.mic_window_s`). At another
+samples at 48 kHz, 42.67 ms, unless the data (a rig file) or a config chooses another
+(`data.step_window_s`, `Config.mic_window_s`). At another
 rate `rate` it is round(duration * rate) samples, and the Welch segment follows it: the hop is
 floor(W * 511 / 2048) (511 for the paper's 2048), segments of twice the hop, 3 of them, so the
 bins lie ~47 Hz apart at any rate, up to the microphone's Nyquist rate / 2, and the density is per

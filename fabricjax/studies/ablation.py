@@ -30,7 +30,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import catalog, plots, stats
+from fabricjax import catalog, data, plots, stats
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.studies import documents, findings, loading, runner
 from fabricjax.studies.runner import StudyRow
@@ -50,7 +50,7 @@ STEADY_BELOW = 0.2
 def label(modalities: Sequence[str], backbone: str, fusion_norm: str = "sequence_minmax", names: Mapping[str, str] | None = None) -> str:
     """How the table names a row: 'TCN: Minsound + palm mic', '... (our step-LayerNorm fusion)';
     with `names` (recorded data: modality -> the data's name for its stream) the data's names."""
-    text = " + ".join((names or {}).get(m, MODALITY_NAMES[m]) for m in modalities)
+    text = data.inputs_name(modalities, names)
     text = f"TCN: {text}" if backbone == "tcn" else text
     return f"{text} (our step-LayerNorm fusion)" if fusion_norm == STEP_LAYERNORM else text
 
@@ -111,7 +111,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
     tests = runner.paired_tests(rows[base], rows[compared], "test", labels) if base in rows and compared in rows else {}
     names = test.names if recorded else {}
     panels = [
-        (f"{names.get(n, MODALITY_NAMES[n])} only, {len(seeds)} seeds pooled", np.tile(labels, len(seeds)), rows[n].predictions("test").ravel())
+        (f"{data.inputs_name((n,), names)} only, {len(seeds)} seeds pooled", np.tile(labels, len(seeds)), rows[n].predictions("test").ravel())
         for n in CONFUSION_ROWS
         if n in rows
     ]

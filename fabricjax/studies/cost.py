@@ -196,7 +196,7 @@ def run(
     seeds = runner.seed_list(n_seeds)
     base = Config.from_preset(preset, **{"backbone": backbones[0], "modalities": tuple(modality_sets[0]), **(overrides or {})})
     first = loading.load_dataset(base, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST)
-    base = dataclasses.replace(base, n_classes=first.n_classes)  # the data's classes
+    base = first.fit(base)  # the data's classes and step window
     max_len, step_rate = steps_and_rate(first.folder, workdir)
     paper = paper and not first.recorded  # recorded data is compared with itself, not with the paper's configuration
     points, paper_name = sweep_points(
@@ -257,13 +257,13 @@ def markdown(doc: dict[str, Any]) -> str:
     ]
     header = ["point", "N", "touch [s]", "backbone", "width", "band [kHz]", "modalities", "params",
               "test acc [%]", "train [s]", "p50 [ms]", "p99 [ms]", "front"]
-    rows = []
+    rows, names = [], documents.stream_names(doc)
     for r in doc["points"]:
         front = "".join(t for t, k in (("T", "touch_s"), ("L", "latency_p50_ms")) if r["name"] in doc["pareto_front"][k])
         name = f"**{r['name']}**" if r["name"] == doc["paper_point"] else r["name"]
         rows.append([
             name, r["seq_len"], f"{r['touch_s']:.2f}", r["backbone"], r["width"], f"{r['bandwidth_khz']:g}",
-            "+".join(r["modalities"]), f"{r['params']:,}", f"{r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f}",
+            data.inputs_name(r["modalities"], names) if names else "+".join(r["modalities"]), f"{r['params']:,}", f"{r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f}",
             f"{r['train_s']:.0f}", f"{r['latency_p50_ms']:.2f}", f"{r['latency_p99_ms']:.2f}", front,
         ])
     return "\n".join(lines) + documents.markdown_table(header, rows)

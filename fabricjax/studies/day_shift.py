@@ -33,13 +33,12 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax import archive
-from fabricjax.config import MODALITY_NAMES
+from fabricjax import archive, data
 from fabricjax.studies import documents, loading, probe, runner
 from fabricjax.studies.runner import StudyRow
 
 TITLE, PAPER = "Day shift: what the fabric, the day and the trial explain in each input", "not in the paper"
-ROWS = tuple(StudyRow(m, {"modalities": (m,)}, MODALITY_NAMES[m]) for m in ("internal", "external", "proprio", "flow", "image"))
+ROWS = tuple(StudyRow(m, {"modalities": (m,)}, data.inputs_name((m,))) for m in ("internal", "external", "proprio", "flow", "image"))
 SHARES = ("fabric", "day", "fabric x day", "trial")
 
 
@@ -122,8 +121,10 @@ def run(
     t0 = time.perf_counter()
     progress = runner.Progress("day_shift", len(chosen))
     out_rows = []
+    names = ds.sets[present[0]].names if ds.recorded else {}  # recorded data: its own names for its streams
     for r in chosen:
-        progress.start(r.label)
+        display = data.inputs_name(r.modalities, names)
+        progress.start(display)
         t1 = time.perf_counter()
         m = r.modalities[0]
         per_split = [trial_summaries(ds.sets[s].inputs[m], ds.sets[s].info["trial_key"]) for s in present]  # a trial lies in one split
@@ -131,10 +132,10 @@ def run(
         labels = {k: np.concatenate([ds.sets[s].info[k][first] for s, (_, first) in zip(present, per_split)]) for k in ("fabric_id", "day")}
         shares = variance_shares(x, labels["fabric_id"], labels["day"])
         out_rows.append({
-            "name": r.name, "display_name": r.label, "summary_dims": int(x.shape[1]), "shares": shares,
+            "name": r.name, "display_name": display, "summary_dims": int(x.shape[1]), "shares": shares,
             "probe": accuracy.get(r.name), "wall_s": time.perf_counter() - t1,
         })
-        progress.finish(r.label, time.perf_counter() - t1, f"fabric {100 * shares['fabric']:.0f} %, day {100 * shares['day']:.0f} %")
+        progress.finish(display, time.perf_counter() - t1, f"fabric {100 * shares['fabric']:.0f} %, day {100 * shares['day']:.0f} %")
 
     doc = {
         **documents.header("day_shift", command=command, preset=preset, dataset=ds, study_s=time.perf_counter() - t0),

@@ -37,7 +37,6 @@ import numpy as np
 from flax import nnx
 
 from fabricjax import archive, catalog, checkpoint, confidence, data, plots, train
-from fabricjax.config import MODALITY_NAMES
 from fabricjax.studies import cost, documents, loading, stream
 
 TITLE, PAPER = "Deciding on the robot", "not in the paper"
@@ -207,7 +206,7 @@ def _pct(x) -> str:
 def markdown(doc: dict[str, Any]) -> str:
     lines = [documents.title(doc, TITLE), "", documents.header_markdown(doc).rstrip("\n"), ""]
     for m in doc["models"]:
-        names = " + ".join(MODALITY_NAMES.get(x, x) for x in m["config"]["modalities"])
+        names = data.inputs_name(m["config"]["modalities"], documents.stream_names(doc))
         lines += [f"## {m['name']} ({names})", "",
                   f"- checkpoint: `{m['checkpoint']}`, seed {m['seed']} (best by validation of {m['seeds']}); "
                   f"temperature {m['temperature']:.3f} (fitted on the validation split; written beside the checkpoint)",

@@ -233,7 +233,14 @@ def dataset_doc(ds: Dataset) -> dict[str, Any]:
         "sequences": {k: len(v) for k, v in ds.sets.items()},
         "trials": {k: c["trials"] for k, c in ds.split_counts().items()},
         "classes": list(ds.classes),
+        **({"names": dict(next(iter(ds.sets.values())).names)} if ds.recorded else {}),  # how the data names its streams
     }
+
+
+def stream_names(doc: dict[str, Any]) -> dict[str, str]:
+    """{modality: the data's name for its stream} of a results document on recorded data (the rig
+    file's microphones and joints, `data.inputs_name` names rows by them); {} otherwise: the paper's names."""
+    return dict(doc.get("dataset", {}).get("names", {})) if recorded(doc) else {}
 
 
 def recorded(doc: dict[str, Any]) -> bool:

@@ -32,7 +32,6 @@ from flax import nnx
 from sklearn.manifold import TSNE
 
 from fabricjax import catalog, checkpoint, data, plots, train
-from fabricjax.config import MODALITY_NAMES
 from fabricjax.errors import UserError
 from fabricjax.studies import documents, findings, loading
 
@@ -107,7 +106,7 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
     agreement = neighbour_agreement(points, fabrics, known, holdouts)
     png = plots.plot_latents(
         documents.results_path(results) / "latents.png", xy, fabrics, known, holdouts,
-        title=f"t-SNE of per-trial mean latents ({' + '.join(MODALITY_NAMES[m] for m in config.modalities)}, seed {seeds[index]}; holdouts outlined)",
+        title=f"t-SNE of per-trial mean latents ({data.inputs_name(config.modalities, ds.sets['test'].names if ds.recorded else None)}, seed {seeds[index]}; holdouts outlined)",
         neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
     )
     doc = {

@@ -46,6 +46,16 @@ class Dataset:
         return len(self.classes)
 
     @property
+    def window_s(self) -> float:
+        """The microphones' step window [s] the sequences were cut with (`data.step_window_s`)."""
+        return next(iter(self.sets.values())).window_s
+
+    def fit(self, config: Config) -> Config:
+        """`config` as trained on this data: its classes (the fabric head's size) and its
+        microphones' step window, so a checkpoint's config says what its features were."""
+        return dataclasses.replace(config, n_classes=self.n_classes, mic_window_s=self.window_s)
+
+    @property
     def recorded(self) -> bool:
         return self.source == "recorded"
 

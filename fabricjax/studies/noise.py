@@ -8,17 +8,18 @@ with the preceding one by Wilcoxon signed-rank tests on the cafe split, paired p
 over 10 seeds: p >= 2 / 2^10 = 0.002) and per cafe sequence pooled over seeds (`runner.paired_tests`).
 The paper's claims about the table are checked by `checklist`; results/noise.png shows every
 seed's lab and cafe accuracy per row. On recorded data (`--data_dir`, its cafe split) the rows are
-compared with each other instead (`documents.recorded`).
+compared with each other instead (`documents.recorded`), and the table, the tests and the figure
+name each row by the data's names for its streams (`data.inputs_name`: the rig file's microphones
+and joints); --rows still names rows by role (internal, internal+proprio, ...).
 """
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax import plots, stats
-from fabricjax.config import MODALITY_NAMES
+from fabricjax import data, plots, stats
 from fabricjax.errors import UserError
 from fabricjax.studies import documents, findings, loading, runner
 from fabricjax.studies.runner import StudyRow
@@ -29,8 +30,9 @@ SPLIT = "cafe"
 SIGNIFICANCE = 0.05  # the level at which the checklist calls a per-seed Wilcoxon test significant
 
 
-def display_name(row_name: str) -> str:
-    return " + ".join(MODALITY_NAMES[m] for m in row_name.split("+"))
+def display_name(row_name: str, names: Mapping[str, str] | None = None) -> str:
+    """A row's inputs by name: the data's (`names`, recorded data) else the paper's sensors."""
+    return data.inputs_name(row_name.split("+"), names)
 
 
 def _row(modalities: tuple[str, ...], mean: float, sd: float, p: str | None) -> StudyRow:
@@ -63,7 +65,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
             **documents.row_doc(row, [SPLIT, "test"]),
         })
         previous = row
-    figure = plot(results / "noise.png", out_rows)
+    figure = plot(results / "noise.png", out_rows, trained.dataset.sets[SPLIT].names if recorded else None)
     return {"rows": out_rows, "cafe_samples": documents.samples_doc(trained.dataset.sets[SPLIT])}, [figure]
 
 
@@ -94,13 +96,14 @@ def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
     return out
 
 
-def plot(path, rows: Sequence[dict[str, Any]]):
-    """Lab-test and cafe accuracy per row, every seed a dot, the paper's cafe mean a tick (none on recorded data)."""
+def plot(path, rows: Sequence[dict[str, Any]], names: Mapping[str, str] | None = None):
+    """Lab-test and cafe accuracy per row, every seed a dot, the paper's cafe mean a tick (none on
+    recorded data); rows named by `names` (recorded data: the data's names for its streams)."""
     series = {
         "test": ([100 * np.asarray(r["accuracy"]["test"]["fabric"]) for r in rows], [None] * len(rows)),
         SPLIT: ([100 * np.asarray(r["accuracy"][SPLIT]["fabric"]) for r in rows], [r["paper"]["mean"] if "paper" in r else None for r in rows]),
     }
-    groups = [display_name(r["name"]).replace(" + ", "\n+ ") for r in rows]
+    groups = [display_name(r["name"], names).replace(" + ", "\n+ ") for r in rows]
     return plots.plot_seed_bars(path, groups, series, f"Trained in the lab, tested in a cafe ({len(rows[0]['seeds'])} seeds)")
 
 
@@ -108,9 +111,10 @@ def _p(w: dict[str, Any] | None) -> str:
     return "–" if w is None else f"{w['p_value']:.4g} (floor {w['min_attainable_p']:.2g}, {w['method']})"
 
 
-def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
+def table(rows: Sequence[dict[str, Any]], recorded: bool = False, names: Mapping[str, str] | None = None) -> str:
     """Cafe accuracy per row beside the paper's (on recorded data: beside the best row's), the
-    tests against the preceding row, and the lab test day's accuracy."""
+    tests against the preceding row, and the lab test day's accuracy; rows named by `names`
+    (recorded data: the data's names for its streams) else the paper's sensors."""
     cafe = [stats.mean_sd(100 * np.asarray(r["accuracy"][SPLIT]["fabric"])) for r in rows]
     gaps = documents.best_gaps([m for m, _ in cafe])
     body = []
@@ -123,7 +127,7 @@ def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
         else:
             p = r["paper"]
             compared = [f"{p['mean']:.2f} ± {p['sd']:.2f}", f"{mean - p['mean']:+.2f}", *tests, p["p"] or "–"]
-        body.append([display_name(r["name"]), f"{mean:.2f} ± {sd:.2f}", *compared, f"{lab[0]:.2f} ± {lab[1]:.2f}", f"{r['wall_s']:.1f}"])
+        body.append([display_name(r["name"], names), f"{mean:.2f} ± {sd:.2f}", *compared, f"{lab[0]:.2f} ± {lab[1]:.2f}", f"{r['wall_s']:.1f}"])
     tests = ["p per seed", "p per sequence"]
     compared = [documents.BEST_GAP, *tests] if recorded else ["Paper [%]", "Ours − paper [pp]", *tests, "Paper p"]
     ours = "recorded data" if recorded else "ours"
@@ -131,12 +135,12 @@ def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
 
 
 def markdown(doc: dict[str, Any]) -> str:
-    recorded = documents.recorded(doc)
-    lines = [documents.title(doc, TITLE, PAPER), "", documents.header_markdown(doc), table(doc["rows"], recorded),
+    recorded, names = documents.recorded(doc), documents.stream_names(doc)
+    lines = [documents.title(doc, TITLE, PAPER), "", documents.header_markdown(doc), table(doc["rows"], recorded, names),
              "Tests, each row against the preceding one on the cafe split:", ""]
     for r in doc["rows"]:
         for w in (r["wilcoxon"] or {}).values():
-            lines.append(f"- {display_name(r['name'])} vs {display_name(r['against'])}: {w['describe']}")
+            lines.append(f"- {display_name(r['name'], names)} vs {display_name(r['against'], names)}: {w['describe']}")
     caveat = "per-sequence test treats sequences of one trial and of different seeds as independent, which they are not: read it as descriptive."
     lines += ["", f"The {caveat}" if recorded else f"The per-seed test is the one comparable to the paper's; the {caveat}", ""]
     lines += findings.claims_markdown(doc)

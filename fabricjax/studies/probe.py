@@ -35,8 +35,7 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.preprocessing import StandardScaler
 from threadpoolctl import threadpool_limits
 
-from fabricjax import archive, stats
-from fabricjax.config import MODALITY_NAMES
+from fabricjax import archive, data, stats
 from fabricjax.studies import ablation, documents, loading, runner
 from fabricjax.studies.runner import StudyRow
 
@@ -227,7 +226,7 @@ def run(
         },
         "splits": present,
         "classes": sorted(np.unique(labels["train"]).tolist()),
-        "inputs": {m: {**i.to_json(), "display_name": names.get(m, MODALITY_NAMES[m])} for m, i in inputs.items()},
+        "inputs": {m: {**i.to_json(), "display_name": data.inputs_name((m,), names)} for m, i in inputs.items()},
         "rows": out_rows,
         "samples": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
     }
@@ -268,7 +267,7 @@ def table(doc: Mapping[str, Any]) -> str:
 
 def inputs_table(doc: Mapping[str, Any]) -> str:
     body = [
-        [i.get("display_name", MODALITY_NAMES[m]), i["step_dims"], i["summary_dims"],
+        [i.get("display_name", data.inputs_name((m,))), i["step_dims"], i["summary_dims"],
          f"{i['probe_dims']} (PCA, {100 * i['explained_variance']:.1f} % of the variance)" if i["explained_variance"] is not None else i["probe_dims"],
          f"{i['seconds']:.1f}"]
         for m, i in doc["inputs"].items()

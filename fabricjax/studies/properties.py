@@ -12,7 +12,9 @@ evaluated split is reported too, since the levels are not balanced.
 
 The paper's claims about the table are checked by `checklist` on the holdout fabrics. On recorded
 data (`--data_dir`) the rows are compared with each other instead (`documents.recorded`), and the
-holdouts are the trials of its holdout split (no class is excluded by the catalog's fabric ids).
+holdouts are the trials of its holdout split (no class is excluded by the catalog's fabric ids);
+the tables name each row by the data's names for its inputs (`data.inputs_name`: the rig file's
+microphones and joints), while --rows still takes the row names (minsound, minsound+minsight).
 
 The trained models (all seeds) are saved as an orbax checkpoint per row; `experiments.latents
 --checkpoint=DIR` restores one for the t-SNE figure.
@@ -98,14 +100,20 @@ def majority_rate(labels: np.ndarray) -> float | None:
     return None if known.size == 0 else 100.0 * np.bincount(known).max() / known.size
 
 
+def row_title(row: dict[str, Any], names: dict[str, str]) -> str:
+    """How the tables name a row: by the data's names for its inputs on recorded data (`names`,
+    `documents.stream_names`), else by the paper's (the row's name)."""
+    return data.inputs_name(row["modalities"], names) if names else row["name"]
+
+
 def table(doc: dict[str, Any]) -> str:
     """One line per property: chance, then ours and the paper's per split and row (on recorded
     data ours and each row beside the best row on that split)."""
-    recorded = documents.recorded(doc)
+    recorded, names = documents.recorded(doc), documents.stream_names(doc)
     header = ["Property", "Chance [%]"]
     for split, title in SPLITS.items():
         header.append(f"Majority level, {title} [%]")
-        header += [f"{title}: {r['name']} [%] ({'recorded data / row − best row [pp]' if recorded else 'ours / paper'})" for r in doc["rows"]]
+        header += [f"{title}: {row_title(r, names)} [%] ({'recorded data / row − best row [pp]' if recorded else 'ours / paper'})" for r in doc["rows"]]
     body = []
     for p in PROPERTIES:
         line = [p, f"{doc['chance'][p]:.2f}"]
@@ -137,7 +145,7 @@ def markdown(doc: dict[str, Any]) -> str:
         table(doc),
         "| Row | Train wall time [s] | Checkpoint (all seeds) |",
         "|---|---|---|",
-        *[f"| {r['name']} | {r['wall_s']:.1f} | `{r['checkpoint']}` |" for r in doc["rows"]],
+        *[f"| {row_title(r, documents.stream_names(doc))} | {r['wall_s']:.1f} | `{r['checkpoint']}` |" for r in doc["rows"]],
         "",
     ]
     lines += findings.claims_markdown(doc, "the paper's claims about this table, on the holdout fabrics")

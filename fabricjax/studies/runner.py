@@ -249,10 +249,10 @@ def train_rows(
     ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
     if check is not None:
         check(ds)
-    rows = [(name, dataclasses.replace(config, n_classes=ds.n_classes)) for name, config in rows]  # the data's classes
+    rows = [(name, ds.fit(config)) for name, config in rows]  # the data's classes and step window
     if data_names and ds.recorded:
         names, inputs = next(iter(ds.sets.values())).names, {n: c.modalities for n, c in rows}
-        label = lambda name: f"{name} ({' + '.join(names.get(m, m) for m in inputs[name])})"  # noqa: E731
+        label = lambda name: f"{name} ({data.inputs_name(inputs[name], names)})"  # noqa: E731
     configs = [c for _, c in rows]
     if progress is None:
         progress = Progress(study, len(rows), [row_kind(c) for c in configs])

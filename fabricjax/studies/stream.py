@@ -6,7 +6,6 @@ results/stream.json. The streaming itself is `fabricjax.live`.
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, Callable, Mapping
 
 import numpy as np
@@ -16,15 +15,16 @@ from fabricjax.config import Config
 from fabricjax.studies import documents, loading, runner
 
 
-def format_step(r: live.StepResult, label: int) -> str:
+def format_step(r: live.StepResult, label: int, meta: dict | None = None) -> str:
     """One line of the live printout: running prediction, its calibrated confidence, the posterior
-    accumulated over the windows so far (and whether the sequential rule has decided), latency."""
+    accumulated over the windows so far (and whether the sequential rule has decided), latency;
+    classes named by the trial's `meta` (its label map, else the catalog's)."""
     if r.probs is None:
         return f"step {r.step:5d}  {r.time_s:6.2f} s  filling window  {r.latency_ms:6.2f} ms"
     k, j = int(np.argmax(r.probs)), int(np.argmax(r.posterior))
     mark = "correct" if k == label else "wrong"
-    post = f"posterior {live.class_name(j)} {r.posterior[j]:.3f} ({r.windows} windows){'  decided' if r.decided else ''}"
-    return f"step {r.step:5d}  {r.time_s:6.2f} s  {live.class_name(k):<28s} p={r.probs[k]:.2f}  {mark:<7s} {r.latency_ms:6.2f} ms  {post}"
+    post = f"posterior {live.class_name(j, meta)} {r.posterior[j]:.3f} ({r.windows} windows){'  decided' if r.decided else ''}"
+    return f"step {r.step:5d}  {r.time_s:6.2f} s  {live.class_name(k, meta):<28s} p={r.probs[k]:.2f}  {mark:<7s} {r.latency_ms:6.2f} ms  {post}"
 
 
 # The quick model's inputs unless overridden: both microphones, what the streamer updates per step.
@@ -37,7 +37,7 @@ def quick_model(preset: str, overrides: Mapping[str, Any] | None = None, *, work
     restores it instead of training again."""
     config = Config.from_preset(preset, **{"modalities": QUICK_MODALITIES, **(overrides or {})})
     ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir)
-    config = dataclasses.replace(config, n_classes=ds.n_classes)  # the data's classes
+    config = ds.fit(config)  # the data's classes and step window
     directory = runner.checkpoint_dir("stream", "quick", config, [0], workdir)
     row = runner.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
     return row.results.graphdef, row.results.params(0), config, directory
@@ -94,18 +94,18 @@ def run(
         folder = data_dir or sim.ensure_dataset(config.preset, workdir, streams=("audio", "proprio"), progress=False)
         archive_path = first_test_trial(folder, workdir)
     trial = archive.read_archive(archive_path, images=watch)
-    streamer = live.Streamer(graphdef, params, config, temperature)
+    streamer = live.Streamer(graphdef, params, config, temperature, layout=archive.layout(trial.meta))
     label = int(trial.meta["label"])
     if watch:
         rec = trial_view.open_recording(view_save)
-        viewer = trial_view.TrialView(rec, label)
-    out(f"{archive_path}: {live.class_name(label)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
+        viewer = trial_view.TrialView(rec, label, trial.meta)
+    out(f"{archive_path}: {live.class_name(label, trial.meta)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
         f"N={streamer.n} steps ({streamer.n / archive.STEP_RATE:.2f} s), {'+'.join(config.modalities)}, "
         f"temperature {temperature:.3f}{'' if temperature != 1.0 else ' (none fitted: python -m experiments.decide)'}")
 
     def show(r: live.StepResult) -> None:
         if print_every and (r.step % print_every == 0 or r.step == trial.n_steps - 1):
-            out(format_step(r, label))
+            out(format_step(r, label, trial.meta))
         if watch:
             viewer.log_step(trial_view.archive_step(trial, r.step))
             viewer.log_prediction(r)

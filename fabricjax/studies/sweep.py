@@ -118,8 +118,9 @@ def _pct(values) -> tuple[float, float]:
     return stats.mean_sd(100 * np.asarray(values, np.float64))
 
 
-def entry(trained: runner.Row, fields: Mapping[str, Any], row: StudyRow, test, latency_repeats: int) -> dict[str, Any]:
-    """One (point, row): accuracies (per seed and mean ± SD, %), cost, config and curves."""
+def entry(trained: runner.Row, fields: Mapping[str, Any], row: StudyRow, test, latency_repeats: int, recorded: bool = False) -> dict[str, Any]:
+    """One (point, row): accuracies (per seed and mean ± SD, %), cost, config and curves; on
+    `recorded` data the row is named by the data's names for its inputs (`test.names`)."""
     val_mean, val_sd = _pct(trained.accuracy("val", HEAD))
     test_mean, test_sd = _pct(trained.accuracy("test", HEAD))
     last_train = np.asarray(trained.results.metrics["epochs"][f"train/accuracy/{HEAD}"], np.float64)[:, -1]
@@ -129,7 +130,7 @@ def entry(trained: runner.Row, fields: Mapping[str, Any], row: StudyRow, test, l
         "point": point_name(fields),
         "fields": dict(fields),
         "row": row.name,
-        "display_name": row.label,
+        "display_name": ablation.label(row.modalities, trained.config.backbone, trained.config.fusion_norm, test.names) if recorded else row.label,
         "val_mean": val_mean,
         "val_sd": val_sd,
         "test_mean": test_mean,
@@ -201,7 +202,7 @@ def run(
             head = documents.header("sweep", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=0.0)
         loads.append({**{f: getattr(group[0][1], f) for f in loading.SEQUENCE_FIELDS}, **documents.dataset_doc(study.dataset)})
         for name, _, fields, row in group:
-            entries[name] = entry(study.rows[name], fields, row, study.dataset.sets["test"], latency_repeats)
+            entries[name] = entry(study.rows[name], fields, row, study.dataset.sets["test"], latency_repeats, study.dataset.recorded)
         del study  # frees these sequences before the next load
 
     flat = [entries[name] for name, _, _, _ in units]  # grid order, then the table's row order
