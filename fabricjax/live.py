@@ -7,7 +7,7 @@ The command (`python -m experiments.stream`: a quick model or a checkpoint, a tr
 printout and results/stream.json) is `fabricjax.studies.stream`.
 
 Every step brings one 2048-sample window per microphone and the `archive.N_PROPRIO` joint values.
-One update, compiled ahead of time with the model's parameters closed over, computes the Welch PSD of just those windows (`welch_psd` on a (mics, 2048)
+One jitted update computes the Welch PSD of just those windows (`welch_psd` on a (mics, 2048)
 batch, at the config's bandwidth), shifts the (N, F) windows by one step on the device (the oldest
 step drops out, buffers donated), and runs the model over the window. Nothing of the window is recomputed:
 the PSD of a step is computed once, when it arrives, and equals the batch feature of
@@ -74,17 +74,11 @@ class Streamer:
         # Everything on one device: restored parameters may carry the training mesh's sharding, and
         # a sharding that changed between steps would recompile the update mid-stream.
         self.device = jax.devices()[0]
+        self.params = jax.device_put(params, self.device)
         bins = welch.n_bins(config.bandwidth_khz)
         self._empty = {m: np.zeros((self.n, archive.N_PROPRIO if m == "proprio" else bins), np.float32) for m in config.modalities}
+        self._update = jax.jit(functools.partial(_update, graphdef, config, self.temperature), donate_argnums=1)
         self.reset()
-        # Compiled ahead of time for this window, with the parameters closed over (as
-        # `model.compile_predict_one`): a step dispatches only the window and the step's raw data.
-        update = functools.partial(_update, graphdef, config, self.temperature, jax.device_put(params, self.device))
-        self._update = jax.jit(update, donate_argnums=0).lower(self.window, *self._step_zeros()).compile()
-
-    def _step_zeros(self) -> tuple[np.ndarray, np.ndarray]:
-        """A step of silence and resting joints, of the shapes and dtypes `update` takes."""
-        return np.zeros((len(self.mics), archive.WINDOW), np.int32), np.zeros((archive.N_JOINTS, archive.N_JOINT_FIELDS), np.float32)
 
     def reset(self) -> None:
         """An empty window."""
@@ -93,13 +87,13 @@ class Streamer:
     def warmup(self) -> None:
         """Compile the update and run it twice (first window and steady state), then reset."""
         for _ in range(2):
-            self.update(*self._step_zeros())
+            self.update(np.zeros((len(self.mics), archive.WINDOW), np.int32), np.zeros((archive.N_JOINTS, archive.N_JOINT_FIELDS), np.float32))
         self.reset()
 
     def update(self, mic_windows: np.ndarray, joints: np.ndarray) -> np.ndarray | None:
         """Push one step ((mics, 2048) int32 raw words of the model's microphones, (6, 3) joints);
         returns the class probabilities once the window is full, else None."""
-        self.window, probs = self._update(self.window, np.asarray(mic_windows, np.int32), np.asarray(joints, np.float32))
+        self.window, probs = self._update(self.params, self.window, mic_windows, joints)
         self.steps += 1
         probs = np.asarray(probs)  # waits for the step, full window or not
         return probs if self.steps >= self.n else None
