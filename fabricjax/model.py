@@ -21,7 +21,7 @@ Only the encoders named in `config.modalities` are built.
 
 from __future__ import annotations
 
-from typing import Mapping
+from typing import Any, Mapping
 
 import jax
 import jax.numpy as jnp
@@ -506,12 +506,22 @@ def make_predict(graphdef: nnx.GraphDef):
     return jax.jit(predict)
 
 
-def make_predict_one(graphdef: nnx.GraphDef):
-    """`predict_one(params, inputs)`: logits per head for one sequence (N, ...), e.g. live on the
-    robot; jitted, closing over `graphdef` like `make_predict`."""
+def compile_predict_one(graphdef: nnx.GraphDef, params, example: Mapping[str, Any], device: jax.Device | None = None) -> jax.stages.Compiled:
+    """`predict_one(inputs)`: logits per head for one sequence {modality: (N, ...)} of `example`'s
+    shapes and dtypes, e.g. live on the robot; the production single-sequence path.
 
-    def predict_one(params, inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
+    Compiled ahead of time (`jax.jit(...).lower(...).compile()`) for one `device` (default: the
+    first) with `params` (a plain pytree, `nnx.to_pure_dict`) closed over: a call dispatches only
+    the inputs, never the parameter pytree, checks no cache and hashes no graphdef, and XLA
+    compiles against the fixed weights. Same function as `nnx.merge(graphdef, params)` on a batch
+    of one. A call with other shapes or dtypes than `example`'s is a TypeError (compile again)."""
+    device = device or jax.devices()[0]
+    params = jax.device_put(params, device)
+
+    def predict_one(inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
         logits = nnx.merge(graphdef, params)(jax.tree.map(lambda a: a[None], inputs))
         return jax.tree.map(lambda a: a[0], logits)
 
-    return jax.jit(predict_one)
+    placed = jax.sharding.SingleDeviceSharding(device)
+    shapes = {m: jax.ShapeDtypeStruct(np.shape(a), jax.dtypes.canonicalize_dtype(a.dtype), sharding=placed) for m, a in example.items()}
+    return jax.jit(predict_one).lower(shapes).compile()

@@ -2,7 +2,7 @@
 the cost study).
 
 They time the real programs: `Trainer.train_epoch` (a scan over minibatches, vmapped over seeds,
-buffers donated) and the jitted `predict_one` (`predict_one_timer`), on synthetic data of the paper's shapes (320 PSD
+buffers donated) and the compiled `predict_one` (`predict_one_timer`), on synthetic data of the paper's shapes (320 PSD
 bins = 15 kHz of 512, N=200 steps). Compilation is excluded; nothing here asserts a time.
 
 An epoch is timed as one call of `STEPS_PER_EPOCH` steps, as training runs it (one call per epoch
@@ -31,7 +31,7 @@ import numpy as np
 
 from fabricjax import sharding, stats, synthetic
 from fabricjax.config import Config
-from fabricjax.model import feature_shapes, make_predict_one, training_layout
+from fabricjax.model import compile_predict_one, feature_shapes, training_layout
 from fabricjax.train import make_trainer, seed_keys, select
 
 STEPS_PER_EPOCH = 16
@@ -48,7 +48,11 @@ def xla_flops(jitted, *args) -> float:
     machine does it). `cost_analysis()` is a dict in recent JAX, a list of dicts (one per module)
     in older ones. A loop's body is counted once, whatever its trip count: time a program
     without a loop, or one with a single trip, to count a step."""
-    compiled = jitted.lower(*args).compile()
+    return compiled_flops(jitted.lower(*args).compile())
+
+
+def compiled_flops(compiled: jax.stages.Compiled) -> float:
+    """FLOPs of one call of an ahead-of-time compiled program, as `xla_flops` counts them."""
     costs = compiled.cost_analysis()
     per_device = sum(float(c.get("flops", 0.0)) for c in (costs if isinstance(costs, (list, tuple)) else [costs]))
     shardings = jax.tree.leaves((compiled.input_shardings, compiled.output_shardings))
@@ -145,15 +149,16 @@ def train_step_flops(config: Config, n_seeds: int, batch: int = 32, seq_len: int
 
 
 def predict_one_timer(graphdef, params, inputs, warmup: int = 3) -> Callable[[], float]:
-    """A compiled, warmed-up (`warmup` calls) callable returning the seconds of one jitted
-    `predict_one` call (`model.make_predict_one`) on one sequence `inputs` {modality: (N, ...)}:
+    """A warmed-up (`warmup` calls) callable returning the seconds of one `predict_one` call (the
+    ahead-of-time compiled `model.compile_predict_one`) on one sequence `inputs` {modality: (N, ...)}:
     inputs already on the device, dropout off, logits fetched to the host."""
-    predict_one = make_predict_one(graphdef)
-    one = {m: jax.device_put(a) for m, a in inputs.items()}
+    device = jax.devices()[0]
+    one = {m: jax.device_put(a, device) for m, a in inputs.items()}
+    predict_one = compile_predict_one(graphdef, params, one, device)
 
     def run() -> float:
         t = time.perf_counter()
-        jax.device_get(predict_one(params, one))
+        jax.device_get(predict_one(one))
         return time.perf_counter() - t
 
     for _ in range(warmup):
@@ -178,7 +183,7 @@ def inference_runner(config: Config, seq_len: int = 200, psd_bins: int = 320) ->
 def inference_flops(config: Config, seq_len: int = 200, psd_bins: int = 320) -> float:
     """FLOPs of one `predict_one` call (`xla_flops`) on the sequence `inference_runner` times."""
     graphdef, params, inputs = _inference_program(config, seq_len, psd_bins)
-    return xla_flops(make_predict_one(graphdef), params, inputs)
+    return compiled_flops(compile_predict_one(graphdef, params, inputs))
 
 
 def bench_inference(config: Config, seq_len: int = 200, psd_bins: int = 320, repeats: int = 200) -> dict[str, float]:

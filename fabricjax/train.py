@@ -306,9 +306,8 @@ def input_statistics(config: Config, train_set, chunk: int = 256) -> dict[str, j
         axis = STANDARDISED[m] % (x.ndim - 2) + 2  # the channel axis of (S, N, ...)
         total, total_sq, count = 0.0, 0.0, 0
         for start in range(0, max(len(x), 1), chunk):
-            part = np.moveaxis(np.asarray(x[start : start + chunk], np.float64), axis, -1)
-            part = part.reshape(-1, *part.shape[2:])  # (sequences x steps, positions..., channels)
-            total, total_sq, count = total + part.sum(0), total_sq + (part * part).sum(0), count + len(part)
+            part = np.asarray(x[start : start + chunk])
+            total, total_sq, count = (a + b for a, b in zip((total, total_sq, count), _sums(part, axis)))
         mean, mean_sq = total / max(count, 1), total_sq / max(count, 1)  # per position and channel
         positions = tuple(range(mean.ndim - 1))
         if per_position_shift(config, m):  # spread about each position's own mean
@@ -319,6 +318,22 @@ def input_statistics(config: Config, train_set, chunk: int = 256) -> dict[str, j
         stats[f"{m}_shift"] = jnp.asarray(mean, jnp.float32)
         stats[f"{m}_scale"] = jnp.asarray(1.0 / np.maximum(np.sqrt(variance), 1e-6), jnp.float32)
     return stats
+
+
+def _sums(part: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Sums of `part` (S, N, ...) and of its squares over sequences and steps, float64, with the
+    channel `axis` moved last, and the count S x N. 8-bit frames are summed in integers (squares
+    fit uint16, sums int64) and converted after: every partial sum is an integer below 2**53, so
+    float64 summation is exact too and the two agree bit for bit, at a fraction of the float64
+    copy's time and memory."""
+    if part.dtype == np.uint8:
+        flat = part.reshape(-1, *part.shape[2:])
+        wide = flat.astype(np.uint16)
+        sums = (np.moveaxis(a, axis - 2, -1).astype(np.float64) for a in (flat.sum(0, dtype=np.int64), (wide * wide).sum(0, dtype=np.int64)))
+        return (*sums, len(flat))
+    part = np.moveaxis(np.asarray(part, np.float64), axis, -1)
+    part = part.reshape(-1, *part.shape[2:])  # (sequences x steps, positions..., channels)
+    return part.sum(0), (part * part).sum(0), len(part)
 
 
 def with_input_statistics(state: dict[str, Any], stats: Mapping[str, jax.Array]) -> dict[str, Any]:

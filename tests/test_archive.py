@@ -4,6 +4,7 @@ import os
 import signal
 import subprocess
 import sys
+import zipfile
 
 import numpy as np
 import pytest
@@ -23,6 +24,26 @@ def test_round_trip(tmp_path):
     # loadable without pickle by plain numpy
     with np.load(p, allow_pickle=False) as z:
         assert json.loads(str(z["meta"][()]))["fabric_id"] == 4
+
+
+def test_members_up_to_the_free_inflation_are_deflated_larger_ones_stored_and_both_read_back(tmp_path, monkeypatch):
+    a = tiny_archive()
+    small = archive.write_archive(tmp_path / "small.npz", a)
+    limit = min(a.images.nbytes, a.audio.nbytes) - 1  # frames and audio now count as large, the rest small
+    monkeypatch.setattr(archive, "FREE_INFLATION", limit)
+    large = archive.write_archive(tmp_path / "large.npz", a)
+    types = {p.name: {i.filename: i.compress_type for i in zipfile.ZipFile(p).infolist()} for p in (small, large)}
+    assert set(types["small.npz"].values()) == {zipfile.ZIP_DEFLATED}
+    assert {k: v == zipfile.ZIP_STORED for k, v in types["large.npz"].items()} == {
+        f"{k}.npy": np.asarray(v).nbytes > limit for k, v in npz_fields(a).items()
+    }
+    assert sum(types["large.npz"][f"{k}.npy"] == zipfile.ZIP_DEFLATED for k in ("joints", "timestamps")) == 2
+    plain = tmp_path / "plain.npz"  # as archives were written before: every member stored
+    np.savez(plain, **npz_fields(a))
+    for p in (small, large, plain):
+        b = archive.read_archive(p)
+        for k, v in a.arrays().items():
+            np.testing.assert_array_equal(getattr(b, k), v)
 
 
 def test_images_optional_and_skippable(tmp_path):
@@ -122,13 +143,12 @@ sys.path.insert(0, {root!r})
 from fabricjax import archive, workspace
 from tests.helpers import tiny_archive
 a = tiny_archive(n_steps=400, images=(120, 160))
-orig = np.savez
-def slow_savez(f, **kw):
+def slow_write(f, arrays, deflate):
     f.write(b"PK" + b"x" * 1_000_000)
     f.flush()
     print("writing", flush=True)
     import time; time.sleep(60)
-np.savez = slow_savez
+archive.write_npz = slow_write
 archive.write_archive({out!r}, a)
 """
 

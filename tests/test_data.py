@@ -1,5 +1,6 @@
 import dataclasses
 import os
+import zipfile
 
 import numpy as np
 import pytest
@@ -191,3 +192,19 @@ def test_an_archive_error_in_a_feature_worker_reaches_the_caller(tmp_path):
     folder = tiny_dataset(tmp_path / "ds", [(4, 1, 0, "lab"), (4, 1, 1, "lab")], images=None)
     with pytest.raises(archive.ArchiveError, match="fabric04_day1_trial0.*images.*absent"):
         data.load_sequences(_config(modalities=("flow",)), folder, workdir=tmp_path / "ws", progress=False, workers=2)
+
+
+def test_the_feature_cache_deflates_8_and_16_bit_features_and_stores_float32(tmp_path):
+    from fabricjax.features import cache
+
+    rng = np.random.default_rng(0)
+    arrays = {"frames": rng.integers(0, 8, (50, 6, 8, 3)).astype(np.uint8), "flow": np.zeros((50, 2, 4, 5), np.float16),
+              "psd": rng.normal(size=(50, 24)).astype(np.float32)}
+    for name, a in arrays.items():
+        path = tmp_path / f"{name}.npz"
+        cache.save(path, "fp", a)
+        members = {i.filename: i.compress_type for i in zipfile.ZipFile(path).infolist()}
+        assert members["data.npy"] == (zipfile.ZIP_STORED if a.dtype == np.float32 else zipfile.ZIP_DEFLATED)
+        loaded = cache.load(path, "fp")
+        assert loaded.dtype == a.dtype and np.array_equal(loaded, a)
+        assert cache.load(path, "another archive version") is None

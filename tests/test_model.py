@@ -8,7 +8,7 @@ from flax import nnx
 
 from fabricjax import catalog, synthetic
 from fabricjax.config import MODALITIES, Config
-from fabricjax.model import FabricNet, causal_conv, feature_shapes, make_predict, make_predict_one, patch_product, rescale_unit, self_attention
+from fabricjax.model import FabricNet, causal_conv, feature_shapes, compile_predict_one, make_predict, patch_product, rescale_unit, self_attention
 
 TINY = dict(preset="smoke", width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(4, 8), seq_len=10)
 COMBOS = [c for r in range(1, len(MODALITIES) + 1) for c in itertools.combinations(MODALITIES, r)]
@@ -84,14 +84,21 @@ def test_constant_inputs_give_finite_logits_and_gradients():
     assert all(np.isfinite(g).all() for g in jax.tree.leaves(grads))
 
 
-def test_predict_one_matches_batch():
-    cfg = Config(modalities=("internal", "proprio"), **TINY)
+@pytest.mark.parametrize("compute_dtype", ["float32", "bfloat16"])
+def test_compiled_predict_one_matches_the_models_apply(compute_dtype):
+    cfg = Config(modalities=("internal", "proprio"), compute_dtype=compute_dtype, **TINY)
     inputs = synthetic.data_set(cfg, 3)["inputs"]
     graphdef, params = nnx.split(build(cfg, inputs))
     params = nnx.to_pure_dict(params)
+    applied = nnx.merge(graphdef, params)(inputs)
     batch = make_predict(graphdef)(params, inputs)
-    one = make_predict_one(graphdef)(params, {k: v[1] for k, v in inputs.items()})
-    np.testing.assert_allclose(one["fabric"], batch["fabric"][1], rtol=1e-5, atol=1e-6)
+    one = {k: v[1] for k, v in inputs.items()}
+    predict_one = compile_predict_one(graphdef, params, one)
+    for head, logits in applied.items():
+        np.testing.assert_allclose(predict_one(one)[head], logits[1], rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(batch[head][1], logits[1], rtol=1e-5, atol=1e-6)
+    with pytest.raises(TypeError):  # compiled for one sequence's shapes
+        predict_one({k: v[:, :-1] for k, v in inputs.items()})
 
 
 def test_mismatched_audio_bins_and_missing_modalities_are_clear_errors():

@@ -230,3 +230,16 @@ def test_pixel_and_flow_standardisation_is_per_channel_over_the_training_split()
     np.testing.assert_allclose(ref["image_shift"], pixels.mean(0), rtol=1e-5)
     np.testing.assert_allclose(ref["image_scale"], 1 / (pixels - pixels.mean(0)).reshape(-1, 3).std(0), rtol=1e-4)
     np.testing.assert_allclose(ref["flow_scale"], stats["flow_scale"])
+
+
+@pytest.mark.parametrize("reference", ["none", "training_mean"])
+def test_frame_statistics_summed_in_integers_equal_the_float64_path_bit_for_bit(reference):
+    """8-bit frames take the integer sums (`train._sums`); the same frames as float64 take the float
+    path: the statistics are identical, not merely close."""
+    cfg = Config(preset="smoke", modalities=("image",), epochs=1, batch_size=8, seq_len=4, image_reference=reference)
+    ds = synthetic.data_set(cfg, 10, image_hw=(6, 8))
+    assert ds["inputs"]["image"].dtype == np.uint8
+    as_float = {**ds, "inputs": {"image": ds["inputs"]["image"].astype(np.float64)}}
+    ints, floats = train.input_statistics(cfg, ds, chunk=3), train.input_statistics(cfg, as_float, chunk=3)
+    for k in ("image_shift", "image_scale"):
+        np.testing.assert_array_equal(ints[k], floats[k])

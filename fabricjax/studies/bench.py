@@ -13,7 +13,7 @@ Benchmarks (names for --only):
     camera       a camera row's training step against an audio row's (target: at most 1.5x), the
                  ablation's rows on the default preset (batch 16, N=50, 30x40 frames, 5 vmapped seeds),
                  interleaved: audio (Minsound), image, and image without the rotation augmentation
-    inference    one 200-step sequence, p50 / p99: ours (jitted `predict_one`, each compute dtype) and the
+    inference    one 200-step sequence, p50 / p99: ours (`predict_one` compiled ahead of time, each compute dtype) and the
                  twin's (eager, compiled; float32 and bfloat16 autocast)
     streaming    per-step update of `fabricjax.live` (newest PSDs + model over N=200 steps)
                  on a simulated trial replayed as fast as possible

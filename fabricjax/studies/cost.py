@@ -27,7 +27,7 @@ backbone and modality set are the first of their flags. Lengths longer than the 
 
 Per point: test accuracy (mean ± SD over seeds; all seeds train in one vmapped program), training
 wall time of that program (compilation included, no checkpoints, so a rerun measures afresh),
-inference latency of one test sequence (jitted `predict_one` after warm-up, result on the host,
+inference latency of one test sequence (`predict_one` compiled ahead of time after warm-up, result on the host,
 p50 / p99), parameter count. Sequences do not overlap, so a longer N also means fewer training
 sequences (T // N per trial): the accuracy-versus-N curve shows both effects, as in the paper's
 protocol.
@@ -110,7 +110,7 @@ def sweep_points(
 
 
 def inference_latency(graphdef, params, inputs: dict[str, np.ndarray], repeats: int, warmup: int = 5) -> dict[str, float]:
-    """p50 / p99 ms of jitted `predict_one` on one sequence, result fetched to the host (`program_timing.predict_one_timer`)."""
+    """p50 / p99 ms of `predict_one` compiled ahead of time on one sequence, result fetched to the host (`program_timing.predict_one_timer`)."""
     run = program_timing.predict_one_timer(graphdef, params, inputs, warmup=warmup)
     return {f"latency_{k}": v for k, v in stats.percentiles_ms([run() for _ in range(repeats)]).items()}
 
@@ -247,7 +247,7 @@ def markdown(doc: dict[str, Any]) -> str:
         f"- base point: {base['backbone']}, N={base['seq_len']}, width {base['width']}, {base['bandwidth_khz']:g} kHz, "
         f"{'+'.join(base['modalities'])}, {base['n_layers']} layers, {base['epochs']} epochs; one factor varied at a time",
         f"- touch time: N steps at {d['step_rate']:g} Hz; train: wall time of the multi-seed program incl. compilation; "
-        "latency: jitted `predict_one` on one test sequence after warm-up (p50 / p99 of repeated calls)",
+        "latency: `predict_one` compiled ahead of time on one test sequence after warm-up (p50 / p99 of repeated calls)",
         f"- Pareto front (marked T for touch time, L for latency): "
         f"{', '.join(doc['pareto_front']['touch_s'])} | {', '.join(doc['pareto_front']['latency_p50_ms'])}",
         f"- figure: `{doc['figures'][0]}`" + ("; **bold**: the paper's configuration on this preset" if doc["paper_point"] else ""),

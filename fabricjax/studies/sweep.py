@@ -244,7 +244,7 @@ def markdown(doc: dict[str, Any]) -> str:
     lines += [
         "- val / test: the best-validation model's accuracy, mean ± SD over seeds; train, last epoch: training accuracy "
         "of the last epoch, counted on minibatches with dropout on; train [s]: wall time of the row's multi-seed program, "
-        "compilation included; latency: jitted `predict_one` on one test sequence after warm-up, first seed's model",
+        "compilation included; latency: `predict_one` compiled ahead of time on one test sequence after warm-up, first seed's model",
         "",
         f"**Best point by validation accuracy averaged over the {n_rows} rows: `{best['name']}`**, "
         f"mean validation {best['val_mean_over_rows']:.2f} %, mean test {best['test_mean_over_rows']:.2f} %, "
