@@ -6,7 +6,7 @@
     python -m experiments.bench --only=training --train_seeds=1,4,5 --cpu_devices=1 --results=/tmp/b
                                                       # other seed counts, on one CPU device sharing the cores
 
-The benchmarks (names for --only) and what they measure: fabricjax/studies/bench.py.
+The benchmarks (names for --only) and what they measure: fabricjax/bench/suite.py.
 """
 
 from __future__ import annotations
@@ -18,11 +18,11 @@ from absl import app, flags as absl_flags
 from acquisition.other_rig import bench_import
 from acquisition.simulated_signals import bench_acquisition
 from experiments import flags
-from fabricjax.studies import bench
+from fabricjax.bench import suite as bench
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_list("only", None, f"benchmarks to run (default all): {','.join(bench.BENCHMARKS)}")
-absl_flags.DEFINE_bool("quick", False, "a small model (studies/bench.QUICK_WORKLOAD), smaller sizes and fewer repeats: a smoke check")
+absl_flags.DEFINE_bool("quick", False, "a small model (fabricjax/bench/suite.QUICK_WORKLOAD), smaller sizes and fewer repeats: a smoke check")
 absl_flags.DEFINE_list(
     "train_seeds", ["1", "5"],
     "seed counts of the training benchmark (must include 1); each is split over the CPU devices as training "

@@ -27,7 +27,7 @@ from fabricjax.config import Config, parse_override
 from fabricjax.errors import UserError
 
 if TYPE_CHECKING:
-    from fabricjax.studies.runner import Study
+    from fabricjax.studies.common.runner import Study
 
 FLAGS = flags.FLAGS
 

@@ -4,7 +4,7 @@
     report = replay(streamer, trial, realtime=True)   # a TrialArchive, step by step at 50 Hz
 
 The command (`python -m experiments.stream`: a quick model or a checkpoint, a trial, the live
-printout and results/stream.json) is `fabricjax.studies.stream`.
+printout and results/stream.json) is `fabricjax.studies.tools.stream`.
 
 Every step brings one 2048-sample window per microphone and the `archive.N_PROPRIO` joint values.
 One jitted update computes the Welch PSD of just those windows (`welch_psd` on a (mics, 2048)

@@ -261,7 +261,7 @@ patch_product.defvjp(_patch_product_fwd, _patch_product_bwd)
 def self_attention(q: jax.Array, k: jax.Array, v: jax.Array) -> jax.Array:
     """Softmax attention of head-major (B, H, T, D) projections -> (B, H, T, D).
 
-    Formulation chosen for XLA's CPU backend (timed with `fabricjax.program_timing`): head-major
+    Formulation chosen for XLA's CPU backend (timed with `fabricjax.bench.program_timing`): head-major
     einsums batch well under the seed `vmap`, where `jax.nn.dot_product_attention` cost more per
     seed; and normalising after the value product (divide the (B, H, T, D) output, not the
     (B, H, T, T) weights, with the max shift outside the gradient: softmax is shift-invariant)

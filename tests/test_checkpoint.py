@@ -7,7 +7,8 @@ import jax
 import numpy as np
 import pytest
 
-from fabricjax import checkpoint, synthetic
+from fabricjax import checkpoint
+from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.model import make_predict
 from fabricjax.train import restore, train_and_evaluate
@@ -110,7 +111,7 @@ def test_a_studys_checkpoint_folder_changes_with_the_code(monkeypatch, tmp_path)
     """A rerun after a change to the code trains afresh: the folder is tagged with the source's
     fingerprint, not only the config and seeds (a change in how training rounds leaves both alike)."""
     from fabricjax import source
-    from fabricjax.studies import runner
+    from fabricjax.studies.common import runner
 
     cfg = Config.from_preset("smoke")
     folder = runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], tmp_path)
@@ -176,7 +177,7 @@ def test_a_path_without_a_checkpoint_is_one_line_and_creates_nothing(uninterrupt
 def test_a_checkpoint_made_for_another_job_is_refused_naming_both(uninterrupted, tmp_path):
     """Streaming needs a fabric head; latents a model that never saw the property holdouts."""
     from fabricjax import live
-    from fabricjax.studies import latents
+    from fabricjax.studies.paper import latents
 
     properties_only = dataclasses.replace(TINY, fabric_head=False, property_heads=True, epochs=1)
     sets = {k: synthetic.data_set(properties_only, 8, seed=i) for i, k in enumerate(["train", "val"])}

@@ -11,12 +11,14 @@ import pytest
 
 from acquisition.other_rig import bench_import
 from acquisition.simulated_signals import bench_acquisition
-from fabricjax import archive, program_timing, live, sim, train
+from fabricjax import archive, live, sim, train
+from fabricjax.bench import program_timing
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.features.extract import log_psd, mic_windows
-from fabricjax.studies import bench, cost
-from fabricjax.studies import stream as stream_command
+from fabricjax.bench import suite as bench
+from fabricjax.studies.extra import cost
+from fabricjax.studies.tools import stream as stream_command
 
 PNG = b"\x89PNG\r\n\x1a\n"
 TINY = dict(width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16))
@@ -211,7 +213,7 @@ def test_comparison_times_every_dtype_against_every_twin_variant(monkeypatch):
     """`compare_with_torch`'s bookkeeping with a stand-in twin (torch is optional): ours in each
     compute dtype against eager and compiled variants, each in float32 and under autocast; a
     variant that fails to build is recorded, the fastest one is the reference of every ratio."""
-    from fabricjax import torch_twin
+    from fabricjax.bench import torch_twin
 
     seconds = {(None, False): 0.4, (None, True): 0.2, ("default", False): 0.3, ("default", True): 0.25}
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fabricjax import curves, sim, workspace
-from fabricjax.studies import ablation
+from fabricjax.studies.paper import ablation
 from fabricjax.train import train_and_evaluate
 from tests.test_train import TINY, data_sets
 

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from fabricjax import sim
-from fabricjax.studies import day_shift, palm, reproduce
+from fabricjax.studies.extra import day_shift, palm
+from fabricjax.studies.tools import reproduce
 
 TINY = dict(epochs=1, width=16, n_layers=1)
 

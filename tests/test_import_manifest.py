@@ -149,7 +149,7 @@ def test_rig_file_mistakes_are_named(tmp_path):
 
 @pytest.mark.slow  # ~1-3 min on 2 shared cores: import and two smoke-size rows
 def test_a_study_trains_and_tests_on_the_imported_rig(archives, tmp_path, capsys):
-    from fabricjax.studies import ablation
+    from fabricjax.studies.paper import ablation
 
     names = sorted(p.name for p in archives.iterdir())
     doc = ablation.run(n_seeds=1, rows=["proprio", "internal+proprio"], preset="smoke", workdir=tmp_path / "ws",
@@ -169,7 +169,7 @@ def test_a_study_trains_and_tests_on_the_imported_rig(archives, tmp_path, capsys
 
 
 def test_a_row_the_rig_cannot_feed_is_refused_before_training(archives, tmp_path):
-    from fabricjax.studies import ablation
+    from fabricjax.studies.paper import ablation
 
     with pytest.raises(archive.ArchiveError, match=r"field 'audio': absent: the data has no external \(palm mic\).*it has microphones: vibration"):
         ablation.run(n_seeds=1, rows=["internal+external"], preset="smoke", workdir=tmp_path / "ws", data_dir=archives,
@@ -178,7 +178,7 @@ def test_a_row_the_rig_cannot_feed_is_refused_before_training(archives, tmp_path
 
 
 def test_the_probe_reads_the_imported_rig(archives, tmp_path):
-    from fabricjax.studies import probe
+    from fabricjax.studies.extra import probe
 
     doc = probe.run(rows=["proprio", "internal"], preset="smoke", workdir=tmp_path / "ws", data_dir=archives,
                     results=tmp_path / "results", command="test")
@@ -191,14 +191,15 @@ def test_the_probe_reads_the_imported_rig(archives, tmp_path):
 
 
 def test_the_bandwidth_plot_names_the_rigs_microphone(archives, tmp_path):
-    from fabricjax.studies import bandwidth, loading
+    from fabricjax.studies.common import loading
+    from fabricjax.studies.paper import bandwidth
 
     assert bandwidth.microphone(loading.Dataset({}, archives, "recorded", 0.0, 0.0, tmp_path / "ws")) == "vibration"
     assert bandwidth.microphone(loading.Dataset({}, archives, "simulated", 0.0, 0.0)) == "Minsound"
 
 
 def test_import_benchmark_entry_and_row(tmp_path):
-    from fabricjax.studies import bench
+    from fabricjax.bench import suite as bench
 
     doc = bench.run(only=["import"], results=tmp_path, command="test", out=lambda s: None,
                     importer=lambda trials: other_rig.bench_import(trials=20, seconds=(2.0, 3.0), workers=1))
@@ -369,7 +370,7 @@ def _run_hand(manifest, out, **kw):
 
 @pytest.mark.slow  # ~1-2 min on 2 shared cores: one smoke-size point
 def test_the_cost_study_reads_the_imported_rig_without_the_paper_point(archives, tmp_path):
-    from fabricjax.studies import cost
+    from fabricjax.studies.extra import cost
 
     doc = cost.run(n_seeds=1, preset="smoke", seq_lens=(10,), backbones=("attention",), widths=(), bandwidths=(), modality_sets=[("internal",)],
                    latency_repeats=2, workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test")
@@ -381,7 +382,7 @@ def test_the_cost_study_reads_the_imported_rig_without_the_paper_point(archives,
 
 @pytest.mark.slow  # ~1-2 min on 2 shared cores: one smoke-size property row and its t-SNE
 def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs_fabrics(tmp_path):
-    from fabricjax.studies import latents, properties
+    from fabricjax.studies.paper import latents, properties
 
     labels = [*LABELS, "silk"]
     manifest = other_rig.write_recordings(tmp_path / "rig", labels, 4, seconds=(3.0, 3.5), splits=SPLITS)

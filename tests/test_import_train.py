@@ -6,7 +6,7 @@ import pytest
 
 from acquisition import ros_bag
 from fabricjax import archive, presets
-from fabricjax.studies import ablation
+from fabricjax.studies.paper import ablation
 
 pytest.importorskip("rosbags")
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from flax import nnx
 
-from fabricjax import catalog, synthetic
+from fabricjax import catalog
+from fabricjax.bench import synthetic
 from fabricjax.config import MODALITIES, Config
 from fabricjax.model import FabricNet, causal_conv, feature_shapes, make_predict, make_predict_one, patch_product, rescale_unit, self_attention
 

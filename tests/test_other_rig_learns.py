@@ -10,7 +10,7 @@ dataset of the issue's size gives in two."""
 import pytest
 
 from acquisition import import_manifest, other_rig
-from fabricjax.studies import ablation
+from fabricjax.studies.paper import ablation
 
 LABELS = ["cotton canvas", "felt", "oak"]
 

@@ -7,7 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax.studies import ablation, probe, reproduce
+from fabricjax.studies.extra import probe
+from fabricjax.studies.paper import ablation
+from fabricjax.studies.tools import reproduce
 
 N_CLASSES, PER_CLASS, N_STEPS = 6, 60, 10
 SPLIT_SEEDS = {"train": 1, "val": 2, "test": 3}

@@ -35,11 +35,12 @@ from hypothesis.extra import numpy as hnp
 from scipy import stats as sps
 from threadpoolctl import threadpool_limits
 
-from fabricjax import archive, catalog, data, sim, stats, synthetic, train
+from fabricjax import archive, catalog, data, sim, stats, train
+from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.features import extract, welch
 from fabricjax.model import self_attention
-from fabricjax.studies import latents
+from fabricjax.studies.paper import latents
 from tests.helpers import tiny_archive
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -14,7 +14,10 @@ from scipy import stats as sps
 from fabricjax import data, presets, sim, source, stats, train
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, documents, findings, latents, noise, probe, properties, reproduce, runner, sweep
+from fabricjax.studies.common import documents, findings, runner
+from fabricjax.studies.extra import probe, sweep
+from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
+from fabricjax.studies.tools import reproduce
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
 TINY = dict(epochs=1, width=16, n_layers=1)
@@ -308,7 +311,7 @@ def test_the_ablation_row_counts_the_docs_state_are_the_code_s():
     assert tcn == 1 and len(ablation.ROWS) == paper + variants
     repo = Path(__file__).parents[1]
     said = {
-        "fabricjax/studies/ablation.py": [f"{paper - tcn} transformer rows and the TCN row, and {variants} of them again"],
+        "fabricjax/studies/paper/ablation.py": [f"{paper - tcn} transformer rows and the TCN row, and {variants} of them again"],
         "fabricjax/studies/__init__.py": [f"{paper} rows incl. TCN (Table ablation_table) + {variants} step-LayerNorm variants"],
         "experiments/ablation.py": [f"its {paper} rows and our {variants} fusion-variant rows"],
         "README.md": [f"{paper - tcn} transformer rows + TCN, and {variants} rows again", f"{len(ablation.ROWS)} rows in all",
@@ -407,7 +410,7 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
 
 
 def test_palm_variance_shares_recover_planted_effects():
-    from fabricjax.studies import palm
+    from fabricjax.studies.extra import palm
 
     rng = np.random.default_rng(0)
     fabric, day = rng.normal(0, 3.0, (6, 1, 1, 1)), rng.normal(0, 1.0, (1, 4, 1, 1))
@@ -429,7 +432,7 @@ def test_palm_physics_on_smoke_scenes(tmp_path):
     """Short scenes: the lab floor and the cafe loudspeaker reach the palm at the paper's 29-31 and
     47-55 dB(A), the thumb's contact is far louder inside Minsound than the fabric is at the palm, and
     the file is written."""
-    from fabricjax.studies import palm
+    from fabricjax.studies.extra import palm
 
     doc = palm.run(preset="smoke", cycles=1, results=tmp_path)
     lab, cafe = doc["sources"]["lab"], doc["sources"]["cafe"]

@@ -15,7 +15,9 @@ import pytest
 from fabricjax import sim
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, loading, sweep
+from fabricjax.studies.common import loading
+from fabricjax.studies.extra import sweep
+from fabricjax.studies.paper import ablation
 
 REPO = Path(__file__).parents[1]
 ENV = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_DISABLE_MOST_OPTIMIZATIONS": "1"}

@@ -1,4 +1,4 @@
-"""The PyTorch twin (fabricjax/torch_twin.py) computes our model's function: equal weights, equal logits.
+"""The PyTorch twin (fabricjax/bench/torch_twin.py) computes our model's function: equal weights, equal logits.
 
 Skipped where torch is not installed (it is an optional extra used only by the benchmarks).
 """
@@ -9,8 +9,9 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from fabricjax import torch_twin  # noqa: E402
-from fabricjax import catalog, synthetic  # noqa: E402
+from fabricjax.bench import torch_twin  # noqa: E402
+from fabricjax import catalog  # noqa: E402
+from fabricjax.bench import synthetic
 from fabricjax.config import Config  # noqa: E402
 from fabricjax.model import feature_shapes, make_predict  # noqa: E402
 from fabricjax.train import make_trainer, select  # noqa: E402

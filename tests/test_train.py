@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from flax import nnx
 
-from fabricjax import sharding, synthetic, train
+from fabricjax import sharding, train
+from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.model import FabricNet, make_predict, training_layout
 from fabricjax.train import make_trainer, masked_accuracy, masked_cross_entropy, train_and_evaluate

@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fabricjax import archive, presets, synthetic, view
+from fabricjax import archive, presets, view
+from fabricjax.bench import synthetic
 from fabricjax.features import welch
 from fabricjax.sim.dataset import scene_for
 from fabricjax.sim.trial import simulate
-from fabricjax.studies import stream as stream_command
+from fabricjax.studies.tools import stream as stream_command
 from fabricjax.train import train_and_evaluate
 from tests.helpers import read_rrd
 from tests.test_train import TINY

@@ -1,4 +1,4 @@
-"""Timing helpers for the training step and for inference (used by `fabricjax.studies.bench` and
+"""Timing helpers for the training step and for inference (used by `fabricjax.bench.suite` and
 the cost study).
 
 They time the real programs: `Trainer.train_epoch` (a scan over minibatches, vmapped over seeds,
@@ -8,7 +8,7 @@ bins = 15 kHz of 512, N=200 steps). Compilation is excluded; nothing here assert
 An epoch is timed as one call of `STEPS_PER_EPOCH` steps, as training runs it (one call per epoch
 or per run). Each call of a compiled program gets its scratch memory fresh from the OS, so very
 short epochs would overstate the cost of a step.
-`compare_with_torch` times ours and the optional PyTorch twin (`fabricjax.torch_twin`), eager and
+`compare_with_torch` times ours and the optional PyTorch twin (`fabricjax.bench.torch_twin`), eager and
 `torch.compile`d, interleaved in one process and reports the ratios.
 
 Ours runs in each compute dtype (`Config.compute_dtype`, `DTYPES`), the twin in float32 and under
@@ -29,7 +29,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fabricjax import sharding, stats, synthetic
+from fabricjax import sharding, stats
+from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.model import feature_shapes, make_predict_one, training_layout
 from fabricjax.train import make_trainer, seed_keys, select
@@ -297,9 +298,9 @@ def compare_with_torch(
     caches, as JAX's compilation cache serves ours). `pause_s` separates the sides: a step run
     right after the other side's is slower (caches and the CPU's clock still busy with it). Needs
     torch (`pip install -e ".[compare]"`; ImportError without it): the twin
-    (`fabricjax.torch_twin`) imports torch when called, never at module import.
+    (`fabricjax.bench.torch_twin`) imports torch when called, never at module import.
     """
-    from fabricjax import torch_twin as twin
+    from fabricjax.bench import torch_twin as twin
 
     torch = twin.require()
     config = config or COMPARE_CONFIG

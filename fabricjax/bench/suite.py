@@ -31,7 +31,7 @@ ours for the Welch speed-up. Training and inference also say how close ours come
 FLOPs per step by XLA's cost analysis of the compiled program, the GFLOP/s that makes, and its
 fraction of a dense matmul's GFLOP/s with float32 and with bfloat16 operands (float32
 accumulation), both measured in the same run (`program_timing.matmul_peak`). The
-PyTorch twin (`fabricjax.torch_twin`, `pip install -e ".[compare]"`) is optional: without torch
+PyTorch twin (`fabricjax.bench.torch_twin`, `pip install -e ".[compare]"`) is optional: without torch
 the comparison is skipped with a note. Nothing here asserts a time.
 """
 
@@ -47,12 +47,12 @@ from typing import Any, Callable, Sequence
 import jax
 from absl import logging
 
-from fabricjax import archive, program_timing, dataset_index, live, presets, sharding, sim, torch_twin, train
+from fabricjax import archive, dataset_index, live, presets, sharding, sim, train
+from fabricjax.bench import feature_timing, program_timing, sim_throughput, torch_twin
 from fabricjax.config import Config
-from fabricjax.features import timing as feature_timing
 from fabricjax.features import welch
 from fabricjax.sim import calibration as sim_calibration
-from fabricjax.studies import documents
+from fabricjax.studies.common import documents
 
 BENCHMARKS = ("simulator", "welch", "extraction", "training", "camera", "inference", "streaming", "acquisition", "import")
 PASSED_IN = ("acquisition", "import")  # benchmarks of the acquisition package, which this library does not import
@@ -101,7 +101,7 @@ def _torch_twin():
 
 
 def bench_simulator(quick: bool) -> dict:
-    return sim.bench_throughput(seconds=5.0 if quick else 30.0)
+    return sim_throughput.bench_throughput(seconds=5.0 if quick else 30.0)
 
 
 def bench_welch(quick: bool) -> dict:

@@ -24,8 +24,8 @@ import numpy as np
 
 from fabricjax import data, presets, runtime, stats, workspace
 from fabricjax.atomic import atomic_open
-from fabricjax.studies.loading import Dataset
-from fabricjax.studies.runner import Row
+from fabricjax.studies.common.loading import Dataset
+from fabricjax.studies.common.runner import Row
 
 
 # CPU features XLA:CPU compiles for: hosts that differ in them may round (and run) the same

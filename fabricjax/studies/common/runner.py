@@ -27,10 +27,10 @@ from absl import logging
 from fabricjax import checkpoint, data, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies import loading
+from fabricjax.studies.common import loading
 
 if TYPE_CHECKING:
-    from fabricjax.studies.findings import Finding
+    from fabricjax.studies.common.findings import Finding
 
 
 def seed_list(n_seeds: int) -> tuple[int, ...]:
@@ -367,7 +367,7 @@ def run_study(
 ) -> dict[str, Any]:
     """Train the chosen `rows` of `study` (all by default) with `n_seeds` seeds (the study's count
     by default), check the paper's claims and write results/<study>.md and .json; returns the JSON."""
-    from fabricjax.studies import documents  # the results layer builds on this module's `Row`
+    from fabricjax.studies.common import documents  # the results layer builds on this module's `Row`
 
     overrides = check_overrides(study.name, overrides, study.rows, study.choose_rows)
     chosen = select_rows(study.rows, rows)

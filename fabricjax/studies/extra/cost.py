@@ -43,9 +43,10 @@ import jax
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, program_timing, data, dataset_index, plots, stats
+from fabricjax import archive, data, dataset_index, plots, stats
+from fabricjax.bench import program_timing
 from fabricjax.config import Config
-from fabricjax.studies import documents, loading, runner
+from fabricjax.studies.common import documents, loading, runner
 
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
 MODALITY_ABBREVIATIONS = {"internal": "int", "external": "ext", "proprio": "prop", "flow": "flow", "image": "img"}

@@ -35,8 +35,9 @@ import numpy as np
 
 from fabricjax import archive
 from fabricjax.config import MODALITY_NAMES
-from fabricjax.studies import documents, loading, probe, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, loading, runner
+from fabricjax.studies.extra import probe
+from fabricjax.studies.common.runner import StudyRow
 
 TITLE, PAPER = "Day shift: what the fabric, the day and the trial explain in each input", "not in the paper"
 ROWS = tuple(StudyRow(m, {"modalities": (m,)}, MODALITY_NAMES[m]) for m in ("internal", "external", "proprio", "flow", "image"))

@@ -38,7 +38,9 @@ from flax import nnx
 
 from fabricjax import archive, catalog, checkpoint, confidence, data, plots, train
 from fabricjax.config import MODALITY_NAMES
-from fabricjax.studies import cost, documents, loading, stream
+from fabricjax.studies.common import documents, loading
+from fabricjax.studies.extra import cost
+from fabricjax.studies.tools import stream
 
 TITLE, PAPER = "Deciding on the robot", "not in the paper"
 THRESHOLDS = (0.5, 0.7, 0.8, 0.9, 0.95, 0.99, 0.999, 0.9999)  # posterior thresholds of the sequential rule

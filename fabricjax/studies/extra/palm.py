@@ -36,7 +36,7 @@ from tqdm import tqdm
 from fabricjax import archive, catalog, presets
 from fabricjax.sim import EFFECTS, Scene, acoustics, air_path, ambient, shell, simulate, sph0645, trial
 from fabricjax.sim import calibration as cal
-from fabricjax.studies import documents
+from fabricjax.studies.common import documents
 
 CYCLES = 3
 TRIALS = 2
@@ -211,7 +211,7 @@ def markdown(doc: dict[str, Any]) -> str:
         f"{doc['cafe_days']}, {doc['trials']} trials per day, {doc['cycles']} rubbing cycles per trial (levels over the rubbing), "
         f"seed {doc['seed']}; {doc['wall_s']:.0f} s",
         "",
-        "How each number is made: `fabricjax/studies/palm.py`; where each simulator magnitude comes from: "
+        "How each number is made: `fabricjax/studies/extra/palm.py`; where each simulator magnitude comes from: "
         "`fabricjax/sim/calibration.py` (\"air paths\", \"ambient sound\", \"servo noise\"). Levels in dB SPL at the microphone's "
         "port per octave band and A-weighted over 50 Hz-15 kHz.",
         "",

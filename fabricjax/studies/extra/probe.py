@@ -37,8 +37,9 @@ from threadpoolctl import threadpool_limits
 
 from fabricjax import archive, stats
 from fabricjax.config import MODALITY_NAMES
-from fabricjax.studies import ablation, documents, loading, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, loading, runner
+from fabricjax.studies.paper import ablation
+from fabricjax.studies.common.runner import StudyRow
 
 TITLE, PAPER = "Linear probe of every ablation row's inputs", "not in the paper"
 SPLITS = (*loading.TRAIN_VAL_TEST, "cafe")  # the ablation's, and the cafe condition where the data has it

@@ -32,8 +32,8 @@ from absl import logging
 
 from fabricjax import catalog, plots, stats
 from fabricjax.config import MODALITY_NAMES
-from fabricjax.studies import documents, findings, loading, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, findings, loading, runner
+from fabricjax.studies.common.runner import StudyRow
 
 TITLE, PAPER = "Modality ablation", "Table ablation_table"  # how results name the study, and what of the paper it reproduces
 
@@ -149,7 +149,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
 def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -> dict[str, Any]:
     """The rows on recorded data: each under the fusion its validation accuracy picks, beside the
     other fusion and the probe of its inputs; every input's steadiness."""
-    from fabricjax.studies import probe  # the probe's rows are this module's: it imports this module
+    from fabricjax.studies.extra import probe  # the probe's rows are this module's: it imports this module
 
     sets, rows = trained.dataset.sets, trained.rows
     names = sets["test"].names

@@ -21,8 +21,8 @@ import numpy as np
 from fabricjax import archive, dataset_index, plots, stats
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.features import welch
-from fabricjax.studies import documents, findings, loading, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, findings, loading, runner
+from fabricjax.studies.common.runner import StudyRow
 
 TITLE, PAPER = "PSD bandwidth", "Table bandwidth_classification"  # how results name the study, and what of the paper it reproduces
 

@@ -34,7 +34,7 @@ from sklearn.manifold import TSNE
 from fabricjax import catalog, checkpoint, data, plots, train
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.errors import UserError
-from fabricjax.studies import documents, findings, loading
+from fabricjax.studies.common import documents, findings, loading
 
 TITLE, PAPER = "Latent space", "Fig. latent_features"
 BATCH = 32  # sequences per latent evaluation

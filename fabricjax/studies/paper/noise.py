@@ -20,8 +20,8 @@ import numpy as np
 from fabricjax import plots, stats
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.errors import UserError
-from fabricjax.studies import documents, findings, loading, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, findings, loading, runner
+from fabricjax.studies.common.runner import StudyRow
 
 TITLE, PAPER = "Cafe noise", "Table new_noise_results"  # how results name the study, and what of the paper it reproduces
 

@@ -25,8 +25,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from fabricjax import catalog, data, stats
-from fabricjax.studies import documents, findings, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, findings, runner
+from fabricjax.studies.common.runner import StudyRow
 
 TITLE, PAPER = "Property perception", "Table property_perception"  # how results name the study, and what of the paper it reproduces
 

@@ -50,7 +50,9 @@ import fabricjax
 from fabricjax import archive, dataset_index, presets, source, splits, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, day_shift, decide, documents, findings, latents, noise, probe, properties
+from fabricjax.studies.common import documents, findings
+from fabricjax.studies.extra import day_shift, decide, probe
+from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
 
 STUDIES = {
     "ablation": ablation, "probe": probe, "day_shift": day_shift, "bandwidth": bandwidth, "noise": noise,

@@ -13,7 +13,7 @@ import numpy as np
 
 from fabricjax import archive, catalog, confidence, dataset_index, live, sim, splits
 from fabricjax.config import Config
-from fabricjax.studies import documents, loading, runner
+from fabricjax.studies.common import documents, loading, runner
 
 
 def format_step(r: live.StepResult, label: int) -> str:
