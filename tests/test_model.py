@@ -9,7 +9,8 @@ from flax import nnx
 from fabricjax import catalog
 from fabricjax.bench import synthetic
 from fabricjax.config import MODALITIES, Config
-from fabricjax.model import FabricNet, causal_conv, feature_shapes, make_predict, make_predict_one, patch_product, rescale_unit, self_attention
+from fabricjax.inputs import feature_shapes
+from fabricjax.model import FabricNet, causal_conv, make_predict, make_predict_one, patch_product, rescale_unit, self_attention
 
 TINY = dict(preset="smoke", width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(4, 8), seq_len=10)
 COMBOS = [c for r in range(1, len(MODALITIES) + 1) for c in itertools.combinations(MODALITIES, r)]

@@ -411,13 +411,16 @@ sys.path.insert(0, {root!r})
 from fabricjax import runtime
 runtime.configure_jax()
 from tests.test_stability import RESUME, resume_sets
-from fabricjax.train import train_and_evaluate
+from fabricjax import train
 
-def slow(key, inputs):  # identity, but every minibatch takes 0.3 s: a kill lands inside an epoch
+loss = train.Trainer.loss
+
+def slow_loss(self, params, batch, key):  # the same loss, but every minibatch takes 0.3 s: a kill lands inside an epoch
     jax.debug.callback(lambda: time.sleep(0.3))
-    return inputs
+    return loss(self, params, batch, key)
 
-train_and_evaluate(RESUME, resume_sets(), [0, 1], workdir={workdir!r}, save_every=1, augment=slow,
+train.Trainer.loss = slow_loss
+train.train_and_evaluate(RESUME, resume_sets(), [0, 1], workdir={workdir!r}, save_every=1,
                    on_save=lambda e: print("saved", e, flush=True))
 """
 

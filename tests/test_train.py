@@ -13,7 +13,8 @@ from flax import nnx
 from fabricjax import sharding, train
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
-from fabricjax.model import FabricNet, make_predict, training_layout
+from fabricjax.inputs import input_statistics, training_layout
+from fabricjax.model import FabricNet, make_predict
 from fabricjax.train import make_trainer, masked_accuracy, masked_cross_entropy, train_and_evaluate
 from tests import helpers
 
@@ -152,7 +153,7 @@ def test_image_rows_rotate_the_frame_minus_the_reference_in_training_only():
     angle; evaluation never turns, on frames or on rows; without `augment_rotation` nothing turns."""
     cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4, 8), "property_heads": False})
     sets = {k: synthetic.data_set(cfg, 8, image_hw=(12, 16), seed=i) for i, k in enumerate(["train", "val"])}
-    stats = train.input_statistics(cfg, sets["train"])
+    stats = input_statistics(cfg, sets["train"])
     assert stats["image_shift"].shape == (12, 16, 3) and stats["image_scale"].shape == (3,)
 
     def built(config):
@@ -194,8 +195,8 @@ def test_image_configs_reuse_their_cached_programs():
     cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "property_heads": False})
     mesh = sharding.training_mesh(1, cfg.batch_size)
     shapes = (("image", (12, 16, 3)),)
-    first = train._programs(cfg, shapes, 24, None, mesh)
-    assert train._programs(cfg, shapes, 24, None, mesh) is first
+    first = train._programs(cfg, shapes, 24, mesh)
+    assert train._programs(cfg, shapes, 24, mesh) is first
 
 
 def test_joint_standardisation_comes_from_the_training_split_and_stays_fixed():
@@ -212,12 +213,12 @@ def test_joint_standardisation_comes_from_the_training_split_and_stays_fixed():
 
 
 def test_pixel_and_flow_standardisation_is_per_channel_over_the_training_split():
-    """Camera inputs are centred and scaled per colour channel / flow component (model.STANDARDISED),
+    """Camera inputs are centred and scaled per colour channel / flow component (inputs.STANDARDISED),
     accumulated in chunks: equal to NumPy's statistics over every sequence, step and position."""
     cfg = Config(preset="smoke", modalities=("image", "flow"), epochs=1, batch_size=8, seq_len=4, image_reference="none")
     ds = synthetic.data_set(cfg, 10, image_hw=(6, 8), flow_hw=(3, 4))
     ds["inputs"]["flow"][:, :, 1] *= 1e-3  # a nearly silent component is scaled up, never divided by 0
-    stats = train.input_statistics(cfg, ds, chunk=3)
+    stats = input_statistics(cfg, ds, chunk=3)
     image = ds["inputs"]["image"].astype(np.float64).reshape(-1, 3)
     flow = np.moveaxis(ds["inputs"]["flow"].astype(np.float64), 2, -1).reshape(-1, 2)
     np.testing.assert_allclose(stats["image_shift"], image.mean(0), rtol=1e-5)
@@ -226,7 +227,7 @@ def test_pixel_and_flow_standardisation_is_per_channel_over_the_training_split()
     np.testing.assert_allclose(stats["flow_scale"], 1 / flow.std(0), rtol=1e-4)
     assert set(stats) == {"image_shift", "image_scale", "flow_shift", "flow_scale"}
     # read from a reference frame: the training mean frame, and the spread about it per colour
-    ref = train.input_statistics(dataclasses.replace(cfg, image_reference="training_mean"), ds, chunk=3)
+    ref = input_statistics(dataclasses.replace(cfg, image_reference="training_mean"), ds, chunk=3)
     pixels = ds["inputs"]["image"].astype(np.float64).reshape(-1, 6, 8, 3)
     np.testing.assert_allclose(ref["image_shift"], pixels.mean(0), rtol=1e-5)
     np.testing.assert_allclose(ref["image_scale"], 1 / (pixels - pixels.mean(0)).reshape(-1, 3).std(0), rtol=1e-4)

@@ -32,7 +32,8 @@ import numpy as np
 from fabricjax import sharding, stats
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
-from fabricjax.model import feature_shapes, make_predict_one, training_layout
+from fabricjax.inputs import feature_shapes, training_layout
+from fabricjax.model import make_predict_one
 from fabricjax.train import make_trainer, seed_keys, select
 
 STEPS_PER_EPOCH = 16
