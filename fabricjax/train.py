@@ -291,7 +291,7 @@ def _programs(config: Config, shapes: tuple, n_train: int, mesh):
     """Jitted, seed-vmapped, seed-sharded init / run(n epochs) / finish, cached so that reruns of
     a config (a resume, another data set of the same shapes) reuse the compiled programs."""
     trainer = make_trainer(config, dict(shapes), mesh, n_train)
-    per_seed = sharding.by_seed(mesh)
+    per_seed = sharding.replicated(mesh)
     init = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)
     finish = jax.jit(sharding.vmap_seeds(trainer.finish, in_axes=(0, None)), out_shardings=per_seed)
     run = functools.lru_cache(
@@ -351,11 +351,11 @@ def train_and_evaluate(
     seeds = tuple(int(s) for s in seeds)
     evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
     data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals)
-    mesh = sharding.training_mesh(len(seeds), config.batch_size)
+    mesh = sharding.training_mesh(config.batch_size)
     shapes = tuple(sorted(feature_shapes(data["train"]["inputs"]).items()))
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
     trainer, init, run, finish = _programs(config, shapes, n_train, mesh)
-    per_seed = sharding.by_seed(mesh)
+    per_seed = sharding.replicated(mesh)
     # once per training, not per `run` call (studies write curves, so they run one epoch per call);
     # every set, so that training and evaluation compile one image path (`FabricNet.image_features`)
     data = jax.tree.map(lambda ds: {**ds, "inputs": training_layout(ds["inputs"])}, data, is_leaf=lambda x: isinstance(x, Mapping) and "inputs" in x)

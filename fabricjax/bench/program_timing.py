@@ -92,13 +92,13 @@ def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_b
     """The jitted, vmapped `Trainer.train_epoch` and its arguments (carry, keys, data), placed as
     training places them (`sharding.training_mesh`)."""
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
-    mesh = sharding.training_mesh(n_seeds, batch)
+    mesh = sharding.training_mesh(batch)
     frames = {} if image_hw is None else {"image_hw": tuple(image_hw)}  # None: synthetic's own frame size
     data = synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins, **frames)
     chosen = select(cfg, data)
     trainer = make_trainer(cfg, feature_shapes(chosen["inputs"]), mesh=mesh, n_train=batch * steps)
     train = jax.device_put({**chosen, "inputs": training_layout(chosen["inputs"])}, sharding.replicated(mesh))
-    per_seed = sharding.by_seed(mesh)
+    per_seed = sharding.replicated(mesh)
     states = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)(jax.device_put(seed_keys(range(n_seeds)), per_seed))
     epoch = jax.jit(sharding.vmap_seeds(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0)
     return epoch, (states["params"], states["opt_state"]), states["key"], train
@@ -112,7 +112,7 @@ def train_step_runner(
     `Trainer.train_epoch` scan, parameters and optimiser state donated) and returns seconds per step.
 
     Seeds and samples are split over the devices as in training (`sharding.training_mesh`): with
-    one CPU device per core (`sharding.use_cpu_cores`), seeds or each minibatch's samples run on
+    one CPU device per core (`runtime.use_cpu_cores`), seeds or each minibatch's samples run on
     separate cores. `image_hw` is the size of the synthetic camera frames (image rows only; None: `synthetic.data_set`'s)."""
     epoch, first, keys, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps, image_hw)
     carry = [first]

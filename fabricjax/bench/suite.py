@@ -166,8 +166,8 @@ def bench_training(quick: bool, w: Workload, compared: dict | None, peaks: dict)
             out[f"ours_{n}_over_1_per_seed"] = {
                 d: out[f"ours_{n}_seed"][d]["seconds_per_step"] / (n * out["ours_1_seed"][d]["seconds_per_step"]) for d in program_timing.DTYPES
             }
-    # How training splits each seed count over the devices: {"seed": devices over seeds, "batch": over samples}.
-    out["mesh"] = {str(n): dict(sharding.training_mesh(n, w.batch).shape) for n in w.seeds}
+    # How training splits each minibatch's samples over the devices: {"batch": devices}.
+    out["mesh"] = dict(sharding.training_mesh(w.batch).shape)
     if compared is not None:
         out["interleaved"] = {k: compared[k] for k in ("rounds", "steps_per_timing", "torch_threads", "torch_adamw", "training")}
     return out
