@@ -27,7 +27,7 @@ from absl import logging
 from fabricjax import checkpoint, data, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies.common import loading
+from fabricjax.studies.common import documents, loading
 
 if TYPE_CHECKING:
     from fabricjax.studies.common.findings import Finding
@@ -177,6 +177,21 @@ class Row:
 
     def predictions(self, split: str, head: str = "fabric") -> np.ndarray:
         return np.asarray(self.results.metrics["eval"][split]["predictions"][head])
+
+    def doc(self, splits: Sequence[str]) -> dict[str, Any]:
+        """The row's config, checkpoint (None where the study keeps no models), wall time and, per
+        seed, accuracies and per-sample predictions of every head."""
+        ev = self.results.metrics["eval"]
+        return {
+            "config": self.config.to_json(),
+            "checkpoint": None if self.checkpoint is None else str(self.checkpoint),
+            "seeds": list(self.results.seeds),
+            "wall_s": self.seconds,
+            "best_epoch": np.asarray(self.results.metrics["best_epoch"]).tolist(),
+            "epochs": {t: [[None if np.isnan(x) else float(x) for x in s] for s in v] for t, v in self.results.metrics["epochs"].items()},
+            "accuracy": {s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()} for s in ("val", *splits)},
+            "predictions": {s: {h: np.asarray(p).tolist() for h, p in ev[s]["predictions"].items()} for s in splits},
+        }
 
 
 def train_row(
@@ -367,7 +382,6 @@ def run_study(
 ) -> dict[str, Any]:
     """Train the chosen `rows` of `study` (all by default) with `n_seeds` seeds (the study's count
     by default), check the paper's claims and write results/<study>.md and .json; returns the JSON."""
-    from fabricjax.studies.common import documents  # the results layer builds on this module's `Row`
 
     overrides = check_overrides(study.name, overrides, study.rows, study.choose_rows)
     chosen = select_rows(study.rows, rows)

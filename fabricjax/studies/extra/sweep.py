@@ -125,7 +125,7 @@ def entry(trained: runner.Row, fields: Mapping[str, Any], row: StudyRow, test, l
     val_mean, val_sd = _pct(trained.accuracy("val", HEAD))
     test_mean, test_sd = _pct(trained.accuracy("test", HEAD))
     last_train = np.asarray(trained.results.metrics["epochs"][f"train/accuracy/{HEAD}"], np.float64)[:, -1]
-    record = documents.row_doc(trained, ["test"])
+    record = trained.doc(["test"])
     del record["predictions"]  # per-sample predictions are the ablation's; here they would multiply by the points
     return {
         "point": point_name(fields),

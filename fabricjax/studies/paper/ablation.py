@@ -129,7 +129,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
                 "display_name": r.label,
                 "fusion_norm": r.settings["fusion_norm"],
                 **({} if recorded else {"paper_mean": r.paper["mean"], "paper_sd": r.paper["sd"]}),
-                **documents.row_doc(rows[r.name], ["test"]),
+                **rows[r.name].doc(["test"]),
             }
             for r in chosen
         ],
@@ -177,7 +177,7 @@ def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -
                 "test": {t.config.fusion_norm: stats.mean_sd(100 * t.accuracy("test"))[0] for t in trained_as},
             },
             "probe": {"C": p["C"], "accuracy": p["accuracy"]},
-            **documents.row_doc(best, ["test"]),
+            **best.doc(["test"]),
         })
     return {
         "rows": out, "names": dict(names), "steady_below": STEADY_BELOW, "steadiness": steady,

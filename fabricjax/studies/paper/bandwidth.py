@@ -53,7 +53,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
         out_rows.append({
             "name": r.name, "bandwidth_khz": khz, "psd_bins": welch.n_bins(khz, test.rates.get("internal", archive.AUDIO_RATE)),
             **({} if recorded else {"paper": dict(r.paper)}),
-            **documents.row_doc(trained.rows[r.name], ["test"]),
+            **trained.rows[r.name].doc(["test"]),
         })
     mic = microphone(trained.dataset)
     figure = plot(results / "bandwidth.png", out_rows, mic)

@@ -60,7 +60,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
             **({} if recorded else {"paper": dict(r.paper)}),
             "against": previous.name if previous is not None else None,
             "wilcoxon": {k: documents.wilcoxon_doc(v) for k, v in tests.items()} or None,
-            **documents.row_doc(row, [SPLIT, "test"]),
+            **row.doc([SPLIT, "test"]),
         })
         previous = row
     figure = plot(results / "noise.png", out_rows)
