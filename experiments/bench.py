@@ -32,14 +32,13 @@ absl_flags.DEFINE_list(
 
 def main(argv):
     del argv
-    loc = flags.location_kwargs()
     seeds = tuple(sorted({int(s) for s in FLAGS.train_seeds}))
     if 1 not in seeds or min(seeds) < 1:
         raise app.UsageError(f"--train_seeds must be positive and include 1, got {FLAGS.train_seeds}")
     workload = dataclasses.replace(bench.QUICK_WORKLOAD if FLAGS.quick else bench.Workload(), seeds=seeds)
     bench.run(
-        only=FLAGS.only, quick=FLAGS.quick, workload=workload, workdir=loc["workdir"], results=loc["results"],
-        command=loc["command"], acquisition=bench_acquisition, importer=bench_import,
+        only=FLAGS.only, quick=FLAGS.quick, workload=workload, acquisition=bench_acquisition, importer=bench_import,
+        where=flags.location(),
     )
 
 

@@ -39,7 +39,7 @@ def main(argv):
         paper=FLAGS.paper,
         overrides=flags.overrides(),
         latency_repeats=FLAGS.latency_repeats,
-        **flags.location_kwargs(),
+        where=flags.location(),
     )
 
 

@@ -26,7 +26,7 @@ def main(argv):
         unknown = [int(x) for x in UNKNOWN.value]
     except ValueError:
         raise UserError(f"--unknown_labels: {UNKNOWN.value} are not all integers (fabric ids)") from None
-    decide.run(CHECKPOINT.value, preset=flags.FLAGS.preset, overrides=flags.overrides(), unknown_labels=unknown, **flags.location_kwargs())
+    decide.run(CHECKPOINT.value, preset=flags.FLAGS.preset, overrides=flags.overrides(), unknown_labels=unknown, where=flags.location())
 
 
 if __name__ == "__main__":

@@ -14,7 +14,7 @@ SEED = absl_flags.DEFINE_integer("seed", None, "seed to use (default: the one wi
 
 def main(argv):
     del argv
-    latents.run(CHECKPOINT.value, seed=SEED.value, **flags.location_kwargs())
+    latents.run(CHECKPOINT.value, seed=SEED.value, where=flags.location())
 
 
 if __name__ == "__main__":

@@ -17,8 +17,7 @@ CYCLES = absl_flags.DEFINE_integer("cycles", palm.CYCLES, "rubbing cycles per si
 
 def main(argv):
     del argv
-    loc = flags.location_kwargs()
-    palm.run(preset=absl_flags.FLAGS.preset, cycles=CYCLES.value, command=loc["command"], results=loc["results"])
+    palm.run(preset=absl_flags.FLAGS.preset, cycles=CYCLES.value, where=flags.location())
 
 
 if __name__ == "__main__":

@@ -26,9 +26,7 @@ def main(argv):
         if unknown:
             raise UserError(f"--studies: unknown {unknown}; choose from {known}")
         plan = tuple(s for s in plan if s.study in STUDIES.value)
-    loc = flags.location_kwargs()
-    reproduce.run(preset=absl_flags.FLAGS.preset, plan=plan, overrides=flags.overrides(), workdir=loc["workdir"],
-                  data_dir=loc["data_dir"], results=loc["results"], force=FORCE.value, command_line=loc["command"])
+    reproduce.run(preset=absl_flags.FLAGS.preset, plan=plan, overrides=flags.overrides(), force=FORCE.value, where=flags.location())
 
 
 if __name__ == "__main__":

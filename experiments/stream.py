@@ -30,7 +30,6 @@ absl_flags.DEFINE_string("view_save", None, "log what --view shows to this .rrd 
 
 def main(argv):
     del argv
-    loc = flags.location_kwargs()
     stream.run(
         archive_path=FLAGS.archive,
         checkpoint_dir=FLAGS.checkpoint,
@@ -40,7 +39,7 @@ def main(argv):
         print_every=FLAGS.print_every,
         view=FLAGS.view,
         view_save=FLAGS.view_save,
-        **loc,
+        where=flags.location(),
     )
 
 

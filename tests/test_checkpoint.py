@@ -132,6 +132,7 @@ sys.path.insert(0, {tests!r})
 from test_checkpoint import SEEDS, TINY, data_sets
 from fabricjax.model import make_predict
 from fabricjax.train import restore, train_and_evaluate
+from fabricjax.workspace import Location
 assert jax.device_count() == int(sys.argv[2])
 if len(sys.argv) > 3:
     train_and_evaluate(TINY, data_sets(), SEEDS, workdir=sys.argv[1])
@@ -189,5 +190,5 @@ def test_a_checkpoint_made_for_another_job_is_refused_naming_both(uninterrupted,
     workdir, _ = uninterrupted  # trained on every fabric
     with pytest.raises(checkpoint.WrongCheckpoint, match=r"latents needs a model that never saw the holdout fabrics 1, 10, 21, 22, 23 .*"
                                                          r"heads fabric \(21 classes\), inputs internal, preset smoke, fabrics never seen: none"):
-        latents.run(workdir, results=tmp_path / "results")
+        latents.run(workdir, where=Location(results=tmp_path / "results"))
     assert not (tmp_path / "results").exists()

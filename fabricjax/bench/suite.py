@@ -53,6 +53,7 @@ from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.sim import calibration as sim_calibration
 from fabricjax.studies.common import documents
+from fabricjax.workspace import Location
 
 BENCHMARKS = ("simulator", "welch", "extraction", "training", "camera", "inference", "streaming", "acquisition", "import")
 PASSED_IN = ("acquisition", "import")  # benchmarks of the acquisition package, which this library does not import
@@ -241,12 +242,10 @@ def run(
     only: Sequence[str] | None = None,
     quick: bool = False,
     workload: Workload = Workload(),
-    workdir=None,
-    results="results",
-    command: str | None = None,
     out: Callable[[str], None] = print,
     acquisition: Callable[..., dict] | None = None,
     importer: Callable[..., dict] | None = None,
+    where: Location = Location(),
 ) -> dict[str, Any]:
     """Run the chosen benchmarks (all by default) in order; write results/bench.json and bench.md.
 
@@ -285,7 +284,7 @@ def run(
     jobs = {
         "simulator": lambda: bench_simulator(quick),
         "welch": lambda: bench_welch(quick),
-        "extraction": lambda: bench_extraction(quick, workdir),
+        "extraction": lambda: bench_extraction(quick, where.workdir),
         "training": lambda: bench_training(quick, workload, comparison(), matmul_peak()),
         "camera": lambda: bench_camera(quick),
         "inference": lambda: bench_inference(quick, workload, comparison(), matmul_peak()),
@@ -293,7 +292,7 @@ def run(
         "acquisition": lambda: acquisition(seconds=3.0 if quick else 10.0),
         "import": lambda: importer(trials=100 if quick else 1000),
     }
-    doc = documents.header("bench", command=command, quick=quick, torch=_torch_version(twin), benchmarks={})
+    doc = documents.header("bench", command=where.command, quick=quick, torch=_torch_version(twin), benchmarks={})
     if note:
         doc["torch_note"] = note
     for name in (b for b in BENCHMARKS if b in chosen):
@@ -304,7 +303,7 @@ def run(
     if peak:
         doc["matmul_peak"] = peak
     out(markdown(doc))
-    return documents.write(results, doc, markdown)
+    return documents.write(where.results_dir(), doc, markdown)
 
 
 def _torch_version(twin) -> str | None:

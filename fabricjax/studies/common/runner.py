@@ -28,6 +28,7 @@ from fabricjax import checkpoint, data, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, loading
+from fabricjax.workspace import Location
 
 if TYPE_CHECKING:
     from fabricjax.studies.common.findings import Finding
@@ -375,10 +376,7 @@ def run_study(
     preset: str = "default",
     rows: Sequence[str] | None = None,
     overrides: Mapping[str, Any] | None = None,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
+    where: Location = Location(),
 ) -> dict[str, Any]:
     """Train the chosen `rows` of `study` (all by default) with `n_seeds` seeds (the study's count
     by default), check the paper's claims and write results/<study>.md and .json; returns the JSON."""
@@ -386,20 +384,20 @@ def run_study(
     overrides = check_overrides(study.name, overrides, study.rows, study.choose_rows)
     chosen = select_rows(study.rows, rows)
     seeds = seed_list(study.n_seeds if n_seeds is None else n_seeds)
-    own = dict(study.recorded_settings) if data_dir else {}
+    own = dict(study.recorded_settings) if where.data_dir else {}
     row_configs = [(r.name, r.config(preset, overrides, own)) for r in chosen]
-    if data_dir:
+    if where.data_dir:
         row_configs = _with_fusion_twins(study, row_configs)
     labels = {r.name: r.label for r in study.rows}
     trained = train_rows(
         study.name, row_configs, seeds,
-        eval_splits=study.eval_splits, split_names=study.split_names, data_dir=data_dir, workdir=workdir,
+        eval_splits=study.eval_splits, split_names=study.split_names, data_dir=where.data_dir, workdir=where.workdir,
         checkpoints=study.checkpoints, label=lambda name: labels.get(name, name), summary=study.summary, check=study.check,
         data_names=True,
     )
-    body, figures = study.document(trained, chosen, documents.results_path(results))
+    body, figures = study.document(trained, chosen, where.results_dir())
     dtypes = (config.compute_dtype for _, config in row_configs)
-    doc = {**documents.header(study.name, command=command, preset=preset, seeds=seeds, dataset=trained.dataset, compute_dtypes=dtypes, train_s=trained.train_s), **body}
+    doc = {**documents.header(study.name, command=where.command, preset=preset, seeds=seeds, dataset=trained.dataset, compute_dtypes=dtypes, train_s=trained.train_s), **body}
     # the checklist holds the paper's claims: recorded data is not the paper's
     doc["findings"] = [] if trained.dataset.recorded else [f.to_json() for f in study.checklist(doc)]
-    return documents.write(results, doc, study.markdown, figures)
+    return documents.write(where.results_dir(), doc, study.markdown, figures)

@@ -38,6 +38,7 @@ from fabricjax.config import MODALITY_NAMES
 from fabricjax.studies.common import documents, loading, runner
 from fabricjax.studies.extra import probe
 from fabricjax.studies.common.runner import StudyRow
+from fabricjax.workspace import Location
 
 TITLE, PAPER = "Day shift: what the fabric, the day and the trial explain in each input", "not in the paper"
 ROWS = tuple(StudyRow(m, {"modalities": (m,)}, MODALITY_NAMES[m]) for m in ("internal", "external", "proprio", "flow", "image"))
@@ -105,20 +106,17 @@ def run(
     preset: str = "default",
     rows: Sequence[str] | None = None,
     overrides: dict[str, Any] | None = None,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
+    where: Location = Location(),
 ) -> dict[str, Any]:
     """The shares and the probe's gap for the chosen inputs (all by default); writes
     results/day_shift.{md,json} and returns the JSON."""
     chosen, _, ds, present = runner.load_chosen_rows(
-        "day_shift", ROWS, rows, preset, overrides, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST
+        "day_shift", ROWS, rows, preset, overrides, data_dir=where.data_dir, workdir=where.workdir, split_names=loading.TRAIN_VAL_TEST
     )
     info = {k: np.concatenate([ds.sets[s].info[k] for s in present]) for k in ("fabric_id", "day", "trial_key")}
     if len(np.unique(info["day"])) < 2:
         raise archive.ArchiveError(ds.folder, "day", "the lab trials come from fewer than two days: there is no day to tell apart")
-    accuracy, no_probe = probe_accuracy(results, str(ds.folder))
+    accuracy, no_probe = probe_accuracy(where.results_dir(), str(ds.folder))
 
     t0 = time.perf_counter()
     progress = runner.Progress("day_shift", len(chosen))
@@ -138,7 +136,7 @@ def run(
         progress.finish(r.label, time.perf_counter() - t1, f"fabric {100 * shares['fabric']:.0f} %, day {100 * shares['day']:.0f} %")
 
     doc = {
-        **documents.header("day_shift", command=command, preset=preset, dataset=ds, study_s=time.perf_counter() - t0),
+        **documents.header("day_shift", command=where.command, preset=preset, dataset=ds, study_s=time.perf_counter() - t0),
         "splits": present,
         "trials": int(len(np.unique(info["trial_key"]))),
         "days": sorted(int(d) for d in np.unique(info["day"])),
@@ -146,7 +144,7 @@ def run(
         "probe_missing": no_probe,
         "rows": out_rows,
     }
-    return documents.write(results, doc, markdown)
+    return documents.write(where.results_dir(), doc, markdown)
 
 
 def _pct(x: float | None) -> str:

@@ -37,6 +37,7 @@ from fabricjax import archive, catalog, presets
 from fabricjax.sim import EFFECTS, Scene, acoustics, air_path, ambient, shell, simulate, sph0645, trial
 from fabricjax.sim import calibration as cal
 from fabricjax.studies.common import documents
+from fabricjax.workspace import Location
 
 CYCLES = 3
 TRIALS = 2
@@ -284,7 +285,7 @@ def markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def run(preset: str = "default", cycles: int = CYCLES, command: str | None = None, results=None) -> dict[str, Any]:
+def run(preset: str = "default", cycles: int = CYCLES, where: Location = Location()) -> dict[str, Any]:
     """Measure, then write results/palm_physics.md and .json atomically."""
-    doc = {**documents.header("palm_physics", command=command), **measure(preset, cycles)}
-    return documents.write(results, doc, markdown)
+    doc = {**documents.header("palm_physics", command=where.command), **measure(preset, cycles)}
+    return documents.write(where.results_dir(), doc, markdown)

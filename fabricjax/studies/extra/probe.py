@@ -40,6 +40,7 @@ from fabricjax.config import MODALITY_NAMES
 from fabricjax.studies.common import documents, loading, runner
 from fabricjax.studies.paper import ablation
 from fabricjax.studies.common.runner import StudyRow
+from fabricjax.workspace import Location
 
 TITLE, PAPER = "Linear probe of every ablation row's inputs", "not in the paper"
 SPLITS = (*loading.TRAIN_VAL_TEST, "cafe")  # the ablation's, and the cafe condition where the data has it
@@ -197,14 +198,11 @@ def run(
     preset: str = "default",
     rows: Sequence[str] | None = None,
     overrides: dict[str, Any] | None = None,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
+    where: Location = Location(),
 ) -> dict[str, Any]:
     """Probe the chosen rows' inputs (all by default) and write results/probe.{md,json}; returns the JSON."""
     chosen, configs, ds, present = runner.load_chosen_rows(
-        "probe", ROWS, rows, preset, overrides, data_dir=data_dir, workdir=workdir, split_names=SPLITS
+        "probe", ROWS, rows, preset, overrides, data_dir=where.data_dir, workdir=where.workdir, split_names=SPLITS
     )
     for split in ("train", "val"):
         if split not in present:
@@ -221,7 +219,7 @@ def run(
         out_rows = [_probe_row(r, inputs, labels, present, progress, names) for r in chosen]
 
     doc = {
-        **documents.header("probe", command=command, preset=preset, dataset=ds, probe_s=time.perf_counter() - t0),
+        **documents.header("probe", command=where.command, preset=preset, dataset=ds, probe_s=time.perf_counter() - t0),
         "method": {
             "summaries": ["mean", "sd"], "pca_above_step_dims": PCA_ABOVE, "pca_dims": PCA_DIMS,
             "c_grid": list(C_GRID), "solver": "lbfgs", "max_iter": MAX_ITER,
@@ -232,7 +230,7 @@ def run(
         "rows": out_rows,
         "samples": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
     }
-    return documents.write(results, doc, markdown)
+    return documents.write(where.results_dir(), doc, markdown)
 
 
 def _probe_row(r: StudyRow, inputs: Mapping[str, Input], labels, splits: Sequence[str], progress: runner.Progress,
