@@ -38,7 +38,8 @@ FLOW_SPARSIFY = ("keep_top", "drop_top")
 # What the image encoder's input is measured from (model.FabricNet.standardise): nothing (each colour
 # channel centred on its training mean, as the paper's pipeline reads the frame) or a reference frame,
 # the training split's mean frame per pixel, as Minsight's own force network reads the frame minus a
-# no-contact reference (Andrussow et al.; FACTS.md). The reference removes the LEDs' fixed colour
+# no-contact reference (Andrussow et al., "Minsight: A Fingertip-Sized Vision-Based Tactile Sensor for
+# Robotic Manipulation", Advanced Intelligent Systems, 2023). The reference removes the LEDs' fixed colour
 # field, so the paper's rotation turns the shell's deformation and not the camera's own lighting.
 IMAGE_REFERENCES = ("none", "training_mean")
 # The dtype of the model's matrix-product and convolution inputs (`model.dense`): products

@@ -98,8 +98,7 @@ def training_layout(inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
     C)) as rows ("image_rows", (S, H*W, C, N): `features.images.to_rows`), so that each minibatch's
     rotation moves whole rows (`FabricNet.image_features`) and evaluation runs the same compiled
     image path; other inputs unchanged. `train_and_evaluate` does it once per set, on the whole
-    set, before it goes to the devices: done per minibatch inside the step, XLA fused the
-    transpose into the rotation's gathers."""
+    set, before it goes to the devices, so that the transpose stays out of the training step."""
     if "image" not in inputs:
         return dict(inputs)
     return {("image_rows" if k == "image" else k): images.to_rows(v) if k == "image" else v for k, v in inputs.items()}

@@ -145,9 +145,8 @@ class ConvEncoder(nnx.Module):
     global mean pool: resolution-independent per-frame features.
 
     Why kernel = stride: XLA's CPU convolutions with a handful of channels run far below its matrix
-    product speed, and a non-overlapping convolution is a reshape plus one matrix product (2.5x
-    faster forward + backward than 5x5/4 and 3x3/2 convolutions on 800 60x80 frames). Frames come
-    200 per sequence, so this encoder is what the camera rows' training time is made of.
+    product speed, and a non-overlapping convolution is a reshape plus one matrix product. Frames
+    come 200 per sequence, so this encoder is what the camera rows' training time is made of.
     """
 
     PATCHES = (5, 2, 2, 2)
@@ -301,7 +300,7 @@ def causal_conv(conv: nnx.Conv, x: jax.Array) -> jax.Array:
     """`conv(x)` (a causal, dilated 1-D `nnx.Conv`) as one product of the kernel with its shifted inputs.
 
     Same function and parameters, but vmapped over seeds a convolution becomes a grouped one, which
-    XLA:CPU runs as a slow loop (~1 GFLOP/s); the product runs on its matrix kernels."""
+    XLA:CPU runs as a slow loop; the product runs on its matrix kernels."""
     kernel = conv.kernel[...]  # (taps, in, out)
     (dilation,) = np.atleast_1d(conv.kernel_dilation)
     taps, steps = kernel.shape[0], x.shape[-2]
@@ -341,7 +340,7 @@ class FabricNet(nnx.Module):
         # Minsight frames are read as the difference to a reference frame (`config.image_reference`,
         # the training split's mean frame): without it the LEDs' fixed colour field dominates every
         # frame, and under the paper's rotation it turns with the angle, a nuisance far larger than
-        # the deformation that tells fabrics apart (the image row stayed at chance in training).
+        # the deformation that tells fabrics apart.
         for m in STANDARDISED:
             if m in self.modalities:
                 n = standardised_channels(m, shapes[m])
@@ -456,7 +455,7 @@ def make_predict(graphdef: nnx.GraphDef):
     """`predict(params, inputs)`: logits per head for a batch (B, N, ...) of sequences, jitted;
     `params` a plain pytree (`nnx.to_pure_dict`). Make it once per model and keep it: the jitted
     function closes over `graphdef`, so a call hashes no graphdef (a static `GraphDef` argument
-    is hashed on every call, ~0.1-0.3 ms on a CPU, more than a single-sequence forward pass)."""
+    is hashed on every call, a cost of the order of a single-sequence forward pass)."""
 
     def predict(params, inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
         return nnx.merge(graphdef, params)(inputs)

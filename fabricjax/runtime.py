@@ -37,9 +37,9 @@ def unroll_threefry_on_cpu() -> bool:
     whether that lowering is in place (idempotent).
 
     JAX's CPU lowering rolls the 20 rounds into a `while` loop (to save compile time), which runs
-    as a chain of small unfused kernels: dropout masks then cost ~10% of a CPU training step.
-    The unrolled lowering is one fused kernel, ~6x cheaper, and yields the same bits (same
-    function, only its lowering differs). Private JAX API: if it moves, keep JAX's default.
+    as a chain of small unfused kernels, a visible share of a CPU training step for the dropout
+    masks. The unrolled lowering is one fused kernel and yields the same bits (same function,
+    only its lowering differs). Private JAX API: if it moves, keep JAX's default.
     """
     global _threefry_unrolled
     if _threefry_unrolled is None:
@@ -56,7 +56,7 @@ def unroll_threefry_on_cpu() -> bool:
 
 def use_compilation_cache(directory: str | os.PathLike) -> None:
     """Keep XLA's compiled programs in `directory` (every study row is one program per config,
-    ~15-20 s to compile on a 2-core CPU)."""
+    whose compilation a rerun then skips)."""
     import jax
 
     jax.config.update("jax_compilation_cache_dir", str(directory))

@@ -10,8 +10,8 @@ every process in a multi-process run (`fabricjax.sharding`). Parameters are
 plain pytrees (`nnx.to_pure_dict`); the module is rebuilt with `nnx.merge` inside the loss.
 
 Optimiser: AdamW (decoupled weight decay on weight matrices only, not on biases, LayerNorm scales)
-after a global-norm clip at 1.0; the learning rate rises linearly over `warmup_steps` (without the
-warm-up, a few seeds of some rows collapsed to chance in their first epochs) and is scaled by a
+after a global-norm clip at 1.0; the learning rate rises linearly over `warmup_steps` (the first updates
+stay small while Adam's moment estimates settle) and is scaled by a
 factor over the whole run (`decay_schedule`): none for `lr_schedule="constant"`, a cosine from 1
 to 0 for `"cosine"`. The whole schedule is the optax chain of `make_optimizer`. Best-validation selection keeps the parameters of the epoch with the highest
 validation accuracy (the earliest on ties) inside the scan with a tree select, so it costs no host
