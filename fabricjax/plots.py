@@ -98,7 +98,10 @@ def plot_latents(
         )
         ax.annotate(str(fid), (x, y), fontsize=9 if held else 8, weight="bold" if held else "normal", xytext=(5, 4), textcoords="offset points")
     handles = [plt.Line2D([], [], ls="", marker="o", color=colours[k], label=f"stretchiness {('low', 'high')[k]}") for k in (0, 1)]
-    handles += [plt.Line2D([], [], ls="", marker=m, color="grey", label=f"roughness {i} ({'very smooth' if i == 0 else 'very rough' if i == 4 else ''})".replace(" ()", "")) for i, m in enumerate(_ROUGH_MARKERS)]
+    handles += [
+        plt.Line2D([], [], ls="", marker=m, color="grey", label=f"roughness {i} ({'very smooth' if i == 0 else 'very rough' if i == 4 else ''})".replace(" ()", ""))
+        for i, m in enumerate(_ROUGH_MARKERS)
+    ]
     handles += [plt.Line2D([], [], ls="", marker="o", color="grey", ms=ms, label=f"thickness {t}") for t, ms in zip(("thin", "medium", "thick"), (7, 10, 13))]
     handles += [plt.Line2D([], [], ls="", marker="o", mfc="white", mec="black", mew=2, label="holdout fabric (not trained on)")]
     if neighbours:

@@ -12,6 +12,7 @@ from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.model import make_predict
 from fabricjax.train import restore, train_and_evaluate
+from fabricjax.workspace import Location
 
 TINY = Config(
     preset="smoke", modalities=("internal",), width=16, n_layers=1, ffn=32,
@@ -132,7 +133,6 @@ sys.path.insert(0, {tests!r})
 from test_checkpoint import SEEDS, TINY, data_sets
 from fabricjax.model import make_predict
 from fabricjax.train import restore, train_and_evaluate
-from fabricjax.workspace import Location
 assert jax.device_count() == int(sys.argv[2])
 if len(sys.argv) > 3:
     train_and_evaluate(TINY, data_sets(), SEEDS, workdir=sys.argv[1])

@@ -9,9 +9,8 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from fabricjax.bench import torch_twin  # noqa: E402
 from fabricjax import catalog  # noqa: E402
-from fabricjax.bench import synthetic
+from fabricjax.bench import synthetic, torch_twin  # noqa: E402
 from fabricjax.config import Config  # noqa: E402
 from fabricjax.inputs import feature_shapes  # noqa: E402
 from fabricjax.model import make_predict  # noqa: E402
