@@ -7,7 +7,7 @@ the trial explain, beside the linear probe's accuracy on the training days and o
 The paper splits by recording day so that a model cannot lean on what a day shares; this study
 says, before any model, what the test day differs in. For every model input (`ROWS`: Minsound,
 the palm microphone, proprioception, optical flow, the Minsight image), as the probe reads it
-(`probe.summarise`: each dimension's mean and SD over a sequence's steps), each lab trial's
+(`linear_probe.summarise`: each dimension's mean and SD over a sequence's steps), each lab trial's
 summary is the mean of its sequences' summaries. Each dimension is standardised over the trials
 and its sum of squares split, for fabric f and day d:
 
@@ -35,7 +35,7 @@ import numpy as np
 
 from fabricjax import archive
 from fabricjax.config import MODALITY_NAMES
-from fabricjax.studies.common import documents, loading, runner
+from fabricjax.studies.common import documents, linear_probe, loading, runner
 from fabricjax.studies.extra import probe
 from fabricjax.studies.common.runner import StudyRow
 from fabricjax.workspace import Location
@@ -46,10 +46,10 @@ SHARES = ("fabric", "day", "fabric x day", "trial")
 
 
 def trial_summaries(x: np.ndarray, trial_key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(trials, 2 D) float64: the mean over each trial's sequences of `probe.summarise`, and the
+    """(trials, 2 D) float64: the mean over each trial's sequences of `linear_probe.summarise`, and the
     index of each trial's first sequence (to read its fabric and day)."""
     keys, first, inverse = np.unique(trial_key, return_index=True, return_inverse=True)
-    summaries = probe.summarise(x).astype(np.float64)
+    summaries = linear_probe.summarise(x).astype(np.float64)
     out = np.zeros((len(keys), summaries.shape[1]))
     np.add.at(out, inverse, summaries)
     return out / np.bincount(inverse, minlength=len(keys))[:, None], first
