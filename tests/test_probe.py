@@ -23,7 +23,7 @@ def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
 
 
 def test_summaries_are_the_mean_and_sd_over_steps_of_every_dimension(monkeypatch):
-    monkeypatch.setattr(probe, "SUMMARY_CHUNK", 2)  # several chunks and a partial last one
+    monkeypatch.setattr(linear_probe, "SUMMARY_CHUNK", 2)  # several chunks and a partial last one
     rng = np.random.default_rng(0)
     for x in (rng.integers(0, 256, (5, 4, 3, 2, 3), dtype=np.uint8), rng.normal(size=(5, 4, 2, 3, 2)).astype(np.float16)):
         flat = x.reshape(5, 4, -1).astype(np.float64)
