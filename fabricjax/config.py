@@ -1,8 +1,9 @@
 """One experiment's configuration: which data, which features, which model, how to train.
 
 Configs are code. `Config()`'s defaults are the paper's (its dataset preset, N=200, its model and
-training); `Config.from_preset(name, **overrides)` starts from a named preset (`presets.py`) and
-sets any field on top. Every field is overridable from the command line as `--set field=value`,
+training). A preset reaches a config one way, its `preset` field: `Config(preset=name, **fields)`
+(or `Config.from_preset(name, **fields)`) is the named preset (`presets.py`), its dataset and its
+training fields, with `fields` on top. Every field is overridable from the command line as `--set field=value`,
 typed and checked against the field's annotation (`parse_override`). A config is hashable and
 JSON-serialisable (`to_json`), which is how checkpoints and caches recognise the config they were
 made with.
@@ -11,6 +12,7 @@ made with.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import typing
 from typing import Any
@@ -50,9 +52,25 @@ IMAGE_REFERENCES = ("none", "training_mean")
 COMPUTE_DTYPES = ("float32", "bfloat16", "float16")
 
 
+def _preset_fields_first(cls):
+    """`cls(preset=name, **fields)` takes the fields preset `name` sets (`presets.Preset.training`)
+    before its own defaults, with `fields` on top: building a config directly and through
+    `from_preset` give the same config. A config built from all its fields (`dataclasses.replace`,
+    `from_json`) is those fields."""
+    init = cls.__init__
+
+    @functools.wraps(init)
+    def __init__(self, preset: str = "paper", **fields):
+        init(self, preset=preset, **{**presets.get(preset).training, **fields})
+
+    cls.__init__ = __init__
+    return cls
+
+
+@_preset_fields_first
 @dataclasses.dataclass(frozen=True)
 class Config:
-    preset: str = "paper"  # the dataset (presets.PRESETS); `from_preset` also applies its training fields
+    preset: str = "paper"  # the dataset and training preset (presets.PRESETS)
     modalities: tuple[str, ...] = ("internal",)
     backbone: str = "attention"
     seq_len: int = 200  # N, steps per sequence: the paper's 4 s at 50 Hz
@@ -81,7 +99,7 @@ class Config:
     batch_size: int = 32
     learning_rate: float = 1e-3
     lr_schedule: str = "constant"  # LR_SCHEDULES, after the warm-up
-    warmup_steps: int = 100  # linear warm-up from 0: without it a few seeds collapse to chance early
+    warmup_steps: int = 100  # linear warm-up from 0: the first updates stay small while Adam's moments settle
     weight_decay: float = 1e-4
     augment_rotation: bool = True  # the paper's image augmentation (features/images.py), applied to the model's input
     image_reference: str = "training_mean"  # IMAGE_REFERENCES
@@ -116,14 +134,14 @@ class Config:
             raise ValueError(f"n_classes must be at least 2, got {self.n_classes}")
         if self.seq_len < 1:
             raise ValueError(f"seq_len must be at least 1, got {self.seq_len}")
-        presets.get(self.preset)  # raises on an unknown preset
 
     @classmethod
     def from_preset(cls, name: str, **overrides) -> "Config":
-        """The preset's training fields on `Config`'s defaults, with `overrides` on top."""
+        """`Config(preset=name, **overrides)`: the preset's training fields on `Config`'s defaults,
+        with `overrides` on top; the preset itself is chosen by name, not overridden as a field."""
         if "preset" in overrides:
             raise UserError(f"the preset is chosen by name (--preset={overrides['preset']}), not overridden as a field")
-        return cls(preset=name, **{**presets.get(name).training, **overrides})
+        return cls(preset=name, **overrides)
 
     def to_json(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
