@@ -91,7 +91,7 @@ def check_overrides(study: str, overrides: Mapping | None, rows: Sequence[StudyR
 
 def load_chosen_rows(
     study: str, all_rows: Sequence[StudyRow], names: Sequence[str] | None, preset: str, overrides: Mapping | None,
-    *, data_dir, workdir, split_names: Sequence[str],
+    where: Location, split_names: Sequence[str],
 ) -> tuple[list[StudyRow], list[Config], loading.Dataset, list[str]]:
     """What a study without training (the probe, the day shift) reads: the chosen rows of
     `all_rows` (all for None), their configs, the sequences they use on `split_names`, and the
@@ -99,7 +99,7 @@ def load_chosen_rows(
     overrides = check_overrides(study, overrides, all_rows, "choose them with --rows")
     chosen = select_rows(all_rows, names)
     configs = [r.config(preset, overrides) for r in chosen]
-    ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
+    ds = loading.load_for_rows(configs, data_dir=where.data_dir, workdir=where.workdir, split_names=split_names)
     return chosen, configs, ds, [s for s in split_names if len(ds.sets[s])]
 
 

@@ -110,9 +110,7 @@ def run(
 ) -> dict[str, Any]:
     """The shares and the probe's gap for the chosen inputs (all by default); writes
     results/day_shift.{md,json} and returns the JSON."""
-    chosen, _, ds, present = runner.load_chosen_rows(
-        "day_shift", ROWS, rows, preset, overrides, data_dir=where.data_dir, workdir=where.workdir, split_names=loading.TRAIN_VAL_TEST
-    )
+    chosen, _, ds, present = runner.load_chosen_rows("day_shift", ROWS, rows, preset, overrides, where, loading.TRAIN_VAL_TEST)
     info = {k: np.concatenate([ds.sets[s].info[k] for s in present]) for k in ("fabric_id", "day", "trial_key")}
     if len(np.unique(info["day"])) < 2:
         raise archive.ArchiveError(ds.folder, "day", "the lab trials come from fewer than two days: there is no day to tell apart")

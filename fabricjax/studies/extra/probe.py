@@ -65,9 +65,7 @@ def run(
     where: Location = Location(),
 ) -> dict[str, Any]:
     """Probe the chosen rows' inputs (all by default) and write results/probe.{md,json}; returns the JSON."""
-    chosen, configs, ds, present = runner.load_chosen_rows(
-        "probe", ROWS, rows, preset, overrides, data_dir=where.data_dir, workdir=where.workdir, split_names=SPLITS
-    )
+    chosen, configs, ds, present = runner.load_chosen_rows("probe", ROWS, rows, preset, overrides, where, SPLITS)
     for split in ("train", "val"):
         if split not in present:
             raise archive.ArchiveError(ds.folder, "<folder>", f"no {split} sequences (check days and conditions): the probe fits on train and chooses C on val")
