@@ -19,8 +19,9 @@ from fabricjax.train import make_trainer, masked_accuracy, masked_cross_entropy,
 from tests import helpers
 
 TINY = Config(
-    preset="smoke", modalities=("internal", "proprio"), width=16, n_layers=1, ffn=32,
-    audio_hidden=(16, 8), proprio_hidden=(16, 8), seq_len=8, epochs=3, batch_size=8, property_heads=True,
+    preset="smoke", modalities=("internal", "proprio"), width=16, n_layers=1, ffn=32, cnn_features=(16, 32, 64),
+    audio_hidden=(16, 8), proprio_hidden=(16, 8), seq_len=8, epochs=3, batch_size=8, learning_rate=1e-3, warmup_steps=100,
+    property_heads=True,
 )
 
 
