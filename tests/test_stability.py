@@ -166,7 +166,8 @@ def _hard_signal_archive(fabric_id, day, trial, condition, seed):
 
 TINY = Config(
     preset="smoke", modalities=("internal", "external", "proprio"), width=16, n_heads=4, n_layers=1, ffn=32,
-    audio_hidden=(16, 8), proprio_hidden=(16, 8), seq_len=N, batch_size=6, property_heads=True,
+    audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(16, 32, 64), seq_len=N, batch_size=6, property_heads=True,
+    epochs=40, learning_rate=1e-3,
     warmup_steps=0,  # one optimiser step must move the parameters (a warm-up starts at rate 0)
 )
 
