@@ -6,7 +6,7 @@
     python -m experiments.bench --only=training --train_seeds=1,4,5 --cpu_devices=1 --results=/tmp/b
                                                       # other seed counts, on one CPU device sharing the cores
 
-The benchmarks (names for --only) and what they measure: fabricjax/studies/bench.py.
+The benchmarks (names for --only) and what they measure: fabricjax/bench/suite.py.
 """
 
 from __future__ import annotations
@@ -18,11 +18,11 @@ from absl import app, flags as absl_flags
 from acquisition.other_rig import bench_import
 from acquisition.simulated_signals import bench_acquisition
 from experiments import flags
-from fabricjax.studies import bench
+from fabricjax.bench import suite as bench
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_list("only", None, f"benchmarks to run (default all): {','.join(bench.BENCHMARKS)}")
-absl_flags.DEFINE_bool("quick", False, "a small model (studies/bench.QUICK_WORKLOAD), smaller sizes and fewer repeats: a smoke check")
+absl_flags.DEFINE_bool("quick", False, "a small model (fabricjax/bench/suite.QUICK_WORKLOAD), smaller sizes and fewer repeats: a smoke check")
 absl_flags.DEFINE_list(
     "train_seeds", ["1", "5"],
     "seed counts of the training benchmark (must include 1); each is split over the CPU devices as training "
@@ -32,14 +32,13 @@ absl_flags.DEFINE_list(
 
 def main(argv):
     del argv
-    loc = flags.location_kwargs()
     seeds = tuple(sorted({int(s) for s in FLAGS.train_seeds}))
     if 1 not in seeds or min(seeds) < 1:
         raise app.UsageError(f"--train_seeds must be positive and include 1, got {FLAGS.train_seeds}")
     workload = dataclasses.replace(bench.QUICK_WORKLOAD if FLAGS.quick else bench.Workload(), seeds=seeds)
     bench.run(
-        only=FLAGS.only, quick=FLAGS.quick, workload=workload, workdir=loc["workdir"], results=loc["results"],
-        command=loc["command"], acquisition=bench_acquisition, importer=bench_import,
+        only=FLAGS.only, quick=FLAGS.quick, workload=workload, acquisition=bench_acquisition, importer=bench_import,
+        where=flags.location(),
     )
 
 

@@ -1,4 +1,4 @@
-"""Calibrated confidence, when to stop rubbing, unknown fabrics (see fabricjax/studies/decide.py).
+"""Calibrated confidence, when to stop rubbing, unknown fabrics (see fabricjax/studies/extra/decide.py).
 
     python -m experiments.decide --checkpoint=DIR[,DIR...]   # checkpoints of training studies (ablation, properties, ...)
     python -m experiments.decide                             # the quick model of --preset `experiments.stream` uses
@@ -12,7 +12,7 @@ from absl import flags as absl_flags
 
 from experiments import flags
 from fabricjax.errors import UserError
-from fabricjax.studies import decide
+from fabricjax.studies.extra import decide
 
 CHECKPOINT = absl_flags.DEFINE_list("checkpoint", [], "checkpoint directories (default: a quick model of --preset, as experiments.stream)")
 UNKNOWN = absl_flags.DEFINE_list("unknown_labels", [], "fabric ids (archives' meta.fabric_id) whose test trials are the unknowns, beside the model's excluded fabrics")
@@ -26,7 +26,7 @@ def main(argv):
         unknown = [int(x) for x in UNKNOWN.value]
     except ValueError:
         raise UserError(f"--unknown_labels: {UNKNOWN.value} are not all integers (fabric ids)") from None
-    decide.run(CHECKPOINT.value, preset=flags.FLAGS.preset, overrides=flags.overrides(), unknown_labels=unknown, **flags.location_kwargs())
+    decide.run(CHECKPOINT.value, preset=flags.FLAGS.preset, overrides=flags.overrides(), unknown_labels=unknown, where=flags.location())
 
 
 if __name__ == "__main__":

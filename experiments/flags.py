@@ -27,7 +27,7 @@ from fabricjax.config import Config, parse_override
 from fabricjax.errors import UserError
 
 if TYPE_CHECKING:
-    from fabricjax.studies.runner import Study
+    from fabricjax.studies.common.runner import Study
 
 FLAGS = flags.FLAGS
 
@@ -134,7 +134,7 @@ def rows_study_command(study) -> None:
 
     def main(argv):
         del argv
-        study.run(preset=FLAGS.preset, rows=FLAGS.rows, overrides=overrides(), **location_kwargs())
+        study.run(preset=FLAGS.preset, rows=FLAGS.rows, overrides=overrides(), where=location())
 
     run(main)
 
@@ -163,12 +163,12 @@ def overrides() -> dict[str, Any]:
 
 def rows_kwargs() -> dict[str, Any]:
     """The keyword arguments of `runner.run_study` (and `sweep.run`) from the parsed flags."""
-    return dict(n_seeds=FLAGS.seeds, preset=FLAGS.preset, rows=FLAGS.rows, overrides=overrides(), **location_kwargs())
+    return dict(n_seeds=FLAGS.seeds, preset=FLAGS.preset, rows=FLAGS.rows, overrides=overrides(), where=location())
 
 
-def location_kwargs() -> dict[str, Any]:
+def location() -> workspace.Location:
     """Where data and results live, and the command line (recorded in every results file)."""
-    return dict(workdir=FLAGS.workdir, data_dir=FLAGS.data_dir, results=results_dir(), command=command_line())
+    return workspace.Location(workdir=FLAGS.workdir, data_dir=FLAGS.data_dir, results=results_dir(), command=command_line())
 
 
 def command_line() -> str:

@@ -1,4 +1,4 @@
-"""t-SNE of per-trial mean latents from a checkpoint (see fabricjax/studies/latents.py).
+"""t-SNE of per-trial mean latents from a checkpoint (see fabricjax/studies/paper/latents.py).
 
     python -m experiments.latents --checkpoint=DIR [--seed=N]    # DIR: listed in results/properties.md
 """
@@ -6,7 +6,7 @@
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies import latents
+from fabricjax.studies.paper import latents
 
 CHECKPOINT = absl_flags.DEFINE_string("checkpoint", None, "checkpoint directory written by a training study", required=True)
 SEED = absl_flags.DEFINE_integer("seed", None, "seed to use (default: the one with the best validation score)")
@@ -14,7 +14,7 @@ SEED = absl_flags.DEFINE_integer("seed", None, "seed to use (default: the one wi
 
 def main(argv):
     del argv
-    latents.run(CHECKPOINT.value, seed=SEED.value, **flags.location_kwargs())
+    latents.run(CHECKPOINT.value, seed=SEED.value, where=flags.location())
 
 
 if __name__ == "__main__":

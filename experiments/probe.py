@@ -1,11 +1,11 @@
-"""A linear probe per row of the modality ablation: what each input carries before any model (see fabricjax/studies/probe.py).
+"""A linear probe per row of the modality ablation: what each input carries before any model (see fabricjax/studies/extra/probe.py).
 
     python -m experiments.probe                     # default preset, into workspace/results/
     python -m experiments.probe --results=results   # regenerates the table published in the repository
 """
 
 from experiments import flags
-from fabricjax.studies import probe
+from fabricjax.studies.extra import probe
 
 if __name__ == "__main__":
     flags.rows_study_command(probe)

@@ -1,4 +1,4 @@
-"""Every study of the paper in order, skipping those up to date, and one report (see fabricjax/studies/reproduce.py).
+"""Every study of the paper in order, skipping those up to date, and one report (see fabricjax/studies/tools/reproduce.py).
 
     python -m experiments.reproduce                      # default preset, into workspace/results/REPORT.md
     python -m experiments.reproduce --results=results    # regenerates the repository's results/REPORT.md
@@ -9,7 +9,7 @@ from absl import flags as absl_flags
 
 from experiments import flags
 from fabricjax.errors import UserError
-from fabricjax.studies import reproduce
+from fabricjax.studies.tools import reproduce
 
 flags.define_preset()
 flags.define_overrides()
@@ -26,9 +26,7 @@ def main(argv):
         if unknown:
             raise UserError(f"--studies: unknown {unknown}; choose from {known}")
         plan = tuple(s for s in plan if s.study in STUDIES.value)
-    loc = flags.location_kwargs()
-    reproduce.run(preset=absl_flags.FLAGS.preset, plan=plan, overrides=flags.overrides(), workdir=loc["workdir"],
-                  data_dir=loc["data_dir"], results=loc["results"], force=FORCE.value, command_line=loc["command"])
+    reproduce.run(preset=absl_flags.FLAGS.preset, plan=plan, overrides=flags.overrides(), force=FORCE.value, where=flags.location())
 
 
 if __name__ == "__main__":

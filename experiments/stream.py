@@ -1,4 +1,4 @@
-"""Live classification of one trial at 50 Hz (fabricjax/studies/stream.py; the streaming: fabricjax/live.py).
+"""Live classification of one trial at 50 Hz (fabricjax/studies/tools/stream.py; the streaming: fabricjax/live.py).
 
     python -m experiments.stream                                  # quick default-preset model, first test trial
     python -m experiments.stream --archive=PATH --checkpoint=DIR  # any trial, any streamable checkpoint
@@ -15,7 +15,7 @@ default preset) and checkpointed under the workspace; later runs restore it.
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies import stream
+from fabricjax.studies.tools import stream
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_string("archive", None, "trial archive to replay (default: the first test-day trial of the model's dataset)")
@@ -30,7 +30,6 @@ absl_flags.DEFINE_string("view_save", None, "log what --view shows to this .rrd 
 
 def main(argv):
     del argv
-    loc = flags.location_kwargs()
     stream.run(
         archive_path=FLAGS.archive,
         checkpoint_dir=FLAGS.checkpoint,
@@ -40,7 +39,7 @@ def main(argv):
         print_every=FLAGS.print_every,
         view=FLAGS.view,
         view_save=FLAGS.view_save,
-        **loc,
+        where=flags.location(),
     )
 
 

@@ -1,4 +1,4 @@
-"""A variant of a training study against its baseline, row by row (see fabricjax/studies/variant.py).
+"""A variant of a training study against its baseline, row by row (see fabricjax/studies/tools/variant.py).
 
     python -m experiments.ablation --seeds=5 --set=compute_dtype=bfloat16 --results=results/bfloat16
     python -m experiments.variant --baseline=results/ablation.json --variant=results/bfloat16/ablation.json \\
@@ -8,7 +8,7 @@
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies import variant
+from fabricjax.studies.tools import variant
 
 BASELINE = absl_flags.DEFINE_string("baseline", None, "the baseline's results JSON (e.g. results/ablation.json)", required=True)
 VARIANT = absl_flags.DEFINE_string("variant", None, "the variant's results JSON, the same study rerun with --set changes", required=True)
@@ -16,8 +16,7 @@ VARIANT = absl_flags.DEFINE_string("variant", None, "the variant's results JSON,
 
 def main(argv):
     del argv
-    loc = flags.location_kwargs()
-    variant.run(BASELINE.value, VARIANT.value, results=loc["results"], command=loc["command"])
+    variant.run(BASELINE.value, VARIANT.value, where=flags.location())
 
 
 if __name__ == "__main__":

@@ -1,8 +1,9 @@
 """One experiment's configuration: which data, which features, which model, how to train.
 
 Configs are code. `Config()`'s defaults are the paper's (its dataset preset, N=200, its model and
-training); `Config.from_preset(name, **overrides)` starts from a named preset (`presets.py`) and
-sets any field on top. Every field is overridable from the command line as `--set field=value`,
+training). A preset reaches a config one way, its `preset` field: `Config(preset=name, **fields)`
+(or `Config.from_preset(name, **fields)`) is the named preset (`presets.py`), its dataset and its
+training fields, with `fields` on top. Every field is overridable from the command line as `--set field=value`,
 typed and checked against the field's annotation (`parse_override`). A config is hashable and
 JSON-serialisable (`to_json`), which is how checkpoints and caches recognise the config they were
 made with.
@@ -11,6 +12,7 @@ made with.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import typing
 from typing import Any
@@ -39,7 +41,8 @@ FLOW_SPARSIFY = ("keep_top", "drop_top")
 # What the image encoder's input is measured from (model.FabricNet.standardise): nothing (each colour
 # channel centred on its training mean, as the paper's pipeline reads the frame) or a reference frame,
 # the training split's mean frame per pixel, as Minsight's own force network reads the frame minus a
-# no-contact reference (Andrussow et al.; FACTS.md). The reference removes the LEDs' fixed colour
+# no-contact reference (Andrussow et al., "Minsight: A Fingertip-Sized Vision-Based Tactile Sensor for
+# Robotic Manipulation", Advanced Intelligent Systems, 2023). The reference removes the LEDs' fixed colour
 # field, so the paper's rotation turns the shell's deformation and not the camera's own lighting.
 IMAGE_REFERENCES = ("none", "training_mean")
 # The dtype of the model's matrix-product and convolution inputs (`model.dense`): products
@@ -50,9 +53,25 @@ IMAGE_REFERENCES = ("none", "training_mean")
 COMPUTE_DTYPES = ("float32", "bfloat16", "float16")
 
 
+def _preset_fields_first(cls):
+    """`cls(preset=name, **fields)` takes the fields preset `name` sets (`presets.Preset.training`)
+    before its own defaults, with `fields` on top: building a config directly and through
+    `from_preset` give the same config. A config built from all its fields (`dataclasses.replace`,
+    `from_json`) is those fields."""
+    init = cls.__init__
+
+    @functools.wraps(init)
+    def __init__(self, preset: str = "paper", **fields):
+        init(self, preset=preset, **{**presets.get(preset).training, **fields})
+
+    cls.__init__ = __init__
+    return cls
+
+
+@_preset_fields_first
 @dataclasses.dataclass(frozen=True)
 class Config:
-    preset: str = "paper"  # the dataset (presets.PRESETS); `from_preset` also applies its training fields
+    preset: str = "paper"  # the dataset and training preset (presets.PRESETS)
     modalities: tuple[str, ...] = ("internal",)
     backbone: str = "attention"
     seq_len: int = 200  # N, steps per sequence: the paper's 4 s at 50 Hz
@@ -82,7 +101,7 @@ class Config:
     batch_size: int = 32
     learning_rate: float = 1e-3
     lr_schedule: str = "constant"  # LR_SCHEDULES, after the warm-up
-    warmup_steps: int = 100  # linear warm-up from 0: without it a few seeds collapse to chance early
+    warmup_steps: int = 100  # linear warm-up from 0: the first updates stay small while Adam's moments settle
     weight_decay: float = 1e-4
     augment_rotation: bool = True  # the paper's image augmentation (features/images.py), applied to the model's input
     image_reference: str = "training_mean"  # IMAGE_REFERENCES
@@ -117,14 +136,14 @@ class Config:
             raise ValueError(f"n_classes must be at least 2, got {self.n_classes}")
         if self.seq_len < 1:
             raise ValueError(f"seq_len must be at least 1, got {self.seq_len}")
-        presets.get(self.preset)  # raises on an unknown preset
 
     @classmethod
     def from_preset(cls, name: str, **overrides) -> "Config":
-        """The preset's training fields on `Config`'s defaults, with `overrides` on top."""
+        """`Config(preset=name, **overrides)`: the preset's training fields on `Config`'s defaults,
+        with `overrides` on top; the preset itself is chosen by name, not overridden as a field."""
         if "preset" in overrides:
             raise UserError(f"the preset is chosen by name (--preset={overrides['preset']}), not overridden as a field")
-        return cls(preset=name, **{**presets.get(name).training, **overrides})
+        return cls(preset=name, **overrides)
 
     def to_json(self) -> dict[str, Any]:
         return dataclasses.asdict(self)

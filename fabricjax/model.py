@@ -13,7 +13,7 @@ Inputs are a dict keyed by modality, every array with leading (batch, steps):
     proprio              float (B, N, archive.N_PROPRIO): 6 joints x angle, velocity, current
     image                uint8 (B, N, H, W, 3)
     image_rows           uint8 (B, H*W, 3, N)  the same frames as pixel rows, instead of "image":
-                                              how training holds its set (`training_layout`)
+                                              how training holds its set (`inputs.training_layout`)
     flow                 float (B, N, 2, h, w)
 The CNNs end in a global mean pool, so any image/flow resolution works with the same weights.
 Only the encoders named in `config.modalities` are built.
@@ -30,32 +30,9 @@ from flax import nnx
 
 from fabricjax import catalog
 from fabricjax.config import AUDIO_MODALITIES, MODALITIES, Config
+from fabricjax.inputs import STANDARDISED, channel_shape, shift_shape, standardised_channels
 
 RESCALE_EPS = 1e-6
-# Inputs standardised per channel with fixed training-split statistics, and the axis of a per-step
-# input (no batch or step axes) that holds their channels: joint values, colour, flow component.
-STANDARDISED = {"proprio": -1, "image": -1, "flow": 0}
-
-
-def standardised_channels(modality: str, step_shape: tuple[int, ...]) -> int:
-    return step_shape[STANDARDISED[modality]]
-
-
-def per_position_shift(config: Config, modality: str) -> bool:
-    """Whether `modality`'s shift is a whole reference frame (one value per pixel and colour,
-    `config.image_reference`) rather than one value per channel."""
-    return modality == "image" and config.image_reference == "training_mean"
-
-
-def shift_shape(config: Config, modality: str, step_shape: tuple[int, ...]) -> tuple[int, ...]:
-    return tuple(step_shape) if per_position_shift(config, modality) else (standardised_channels(modality, step_shape),)
-
-
-def channel_shape(modality: str, ndim: int) -> tuple[int, ...]:
-    """Broadcast shape of per-channel statistics against a (M, ...) batch of `ndim` per-step axes."""
-    shape = [1] * (ndim + 1)
-    shape[STANDARDISED[modality] % ndim + 1] = -1
-    return tuple(shape)
 
 
 def head_sizes(config: Config) -> dict[str, int]:
@@ -65,11 +42,6 @@ def head_sizes(config: Config) -> dict[str, int]:
     if config.property_heads:
         heads.update(catalog.PROPERTY_LEVELS)
     return heads
-
-
-def feature_shapes(inputs: Mapping[str, jax.Array]) -> dict[str, tuple[int, ...]]:
-    """Per-step shapes of a batch (drop the leading batch and step axes): what the model is built for."""
-    return {k: tuple(v.shape[2:]) for k, v in inputs.items()}
 
 
 def rescale_unit(x: jax.Array, axis: int = 1) -> jax.Array:
@@ -173,9 +145,8 @@ class ConvEncoder(nnx.Module):
     global mean pool: resolution-independent per-frame features.
 
     Why kernel = stride: XLA's CPU convolutions with a handful of channels run far below its matrix
-    product speed, and a non-overlapping convolution is a reshape plus one matrix product (2.5x
-    faster forward + backward than 5x5/4 and 3x3/2 convolutions on 800 60x80 frames). Frames come
-    200 per sequence, so this encoder is what the camera rows' training time is made of.
+    product speed, and a non-overlapping convolution is a reshape plus one matrix product. Frames
+    come 200 per sequence, so this encoder is what the camera rows' training time is made of.
     """
 
     PATCHES = (5, 2, 2, 2)
@@ -261,7 +232,7 @@ patch_product.defvjp(_patch_product_fwd, _patch_product_bwd)
 def self_attention(q: jax.Array, k: jax.Array, v: jax.Array) -> jax.Array:
     """Softmax attention of head-major (B, H, T, D) projections -> (B, H, T, D).
 
-    Formulation chosen for XLA's CPU backend (timed with `fabricjax.program_timing`): head-major
+    Formulation chosen for XLA's CPU backend (timed with `fabricjax.bench.program_timing`): head-major
     einsums batch well under the seed `vmap`, where `jax.nn.dot_product_attention` cost more per
     seed; and normalising after the value product (divide the (B, H, T, D) output, not the
     (B, H, T, T) weights, with the max shift outside the gradient: softmax is shift-invariant)
@@ -329,7 +300,7 @@ def causal_conv(conv: nnx.Conv, x: jax.Array) -> jax.Array:
     """`conv(x)` (a causal, dilated 1-D `nnx.Conv`) as one product of the kernel with its shifted inputs.
 
     Same function and parameters, but vmapped over seeds a convolution becomes a grouped one, which
-    XLA:CPU runs as a slow loop (~1 GFLOP/s); the product runs on its matrix kernels."""
+    XLA:CPU runs as a slow loop; the product runs on its matrix kernels."""
     kernel = conv.kernel[...]  # (taps, in, out)
     (dilation,) = np.atleast_1d(conv.kernel_dilation)
     taps, steps = kernel.shape[0], x.shape[-2]
@@ -339,7 +310,7 @@ def causal_conv(conv: nnx.Conv, x: jax.Array) -> jax.Array:
 
 
 class FabricNet(nnx.Module):
-    """The classifier. `shapes` are the per-step input shapes (see `feature_shapes`)."""
+    """The classifier. `shapes` are the per-step input shapes (see `inputs.feature_shapes`)."""
 
     def __init__(self, config: Config, shapes: Mapping[str, tuple[int, ...]], *, rngs: nnx.Rngs):
         missing = [m for m in config.modalities if m not in shapes]
@@ -361,7 +332,7 @@ class FabricNet(nnx.Module):
             else None
         )
         # Fixed input standardisation (no gradient, no decay), set from the training split by
-        # `train.with_input_statistics`: joint values span four orders of magnitude (currents ~1e-3 A
+        # `inputs.with_input_statistics`: joint values span four orders of magnitude (currents ~1e-3 A
         # apart, velocities ~1 rad/s) and their absolute levels carry the load; camera pixels (0-255)
         # and sparse flow (mostly exact zeros) must be centred and scaled before a handful of ReLU
         # channels, or most units start on one side of zero for every input and the rows never
@@ -369,7 +340,7 @@ class FabricNet(nnx.Module):
         # Minsight frames are read as the difference to a reference frame (`config.image_reference`,
         # the training split's mean frame): without it the LEDs' fixed colour field dominates every
         # frame, and under the paper's rotation it turns with the angle, a nuisance far larger than
-        # the deformation that tells fabrics apart (the image row stayed at chance in training).
+        # the deformation that tells fabrics apart.
         for m in STANDARDISED:
             if m in self.modalities:
                 n = standardised_channels(m, shapes[m])
@@ -428,7 +399,7 @@ class FabricNet(nnx.Module):
     def image_features(self, inputs: Mapping[str, jax.Array], rngs: nnx.Rngs | None) -> jax.Array:
         """Per-step image features (B, N, F). Evaluation on frames ("image"): standardise, then the
         CNN. Training (`rngs` given), or frames already as rows ("image_rows", how training holds
-        its set: `training_layout`): standardise the rows, turn each sequence by its angle
+        its set: `inputs.training_layout`): standardise the rows, turn each sequence by its angle
         (`features.images.rotate_rows`, when `rotate_images`), taking the rotated frame's pixels
         in the first layer's patch order, and feed those rows to the CNN (`ConvEncoder.from_rows`):
         the same function as rotating the frames and running the CNN on them."""
@@ -480,25 +451,11 @@ class FabricNet(nnx.Module):
         return {k: head(h).astype(jnp.float32) for k, head in self.heads.items()}
 
 
-def training_layout(inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
-    """A data set's inputs as training and its evaluation read them: frames ("image", (S, N, H, W,
-    C)) as rows ("image_rows", (S, H*W, C, N): `features.images.to_rows`), so that each minibatch's
-    rotation moves whole rows (`FabricNet.image_features`) and evaluation runs the same compiled
-    image path; other inputs unchanged. `train_and_evaluate` does it once per set, on the whole
-    set, before it goes to the devices: done per minibatch inside the step, XLA fused the
-    transpose into the rotation's gathers."""
-    if "image" not in inputs:
-        return dict(inputs)
-    from fabricjax.features import images
-
-    return {("image_rows" if k == "image" else k): images.to_rows(v) if k == "image" else v for k, v in inputs.items()}
-
-
 def make_predict(graphdef: nnx.GraphDef):
     """`predict(params, inputs)`: logits per head for a batch (B, N, ...) of sequences, jitted;
     `params` a plain pytree (`nnx.to_pure_dict`). Make it once per model and keep it: the jitted
     function closes over `graphdef`, so a call hashes no graphdef (a static `GraphDef` argument
-    is hashed on every call, ~0.1-0.3 ms on a CPU, more than a single-sequence forward pass)."""
+    is hashed on every call, a cost of the order of a single-sequence forward pass)."""
 
     def predict(params, inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
         return nnx.merge(graphdef, params)(inputs)

@@ -98,7 +98,10 @@ def plot_latents(
         )
         ax.annotate(str(fid), (x, y), fontsize=9 if held else 8, weight="bold" if held else "normal", xytext=(5, 4), textcoords="offset points")
     handles = [plt.Line2D([], [], ls="", marker="o", color=colours[k], label=f"stretchiness {('low', 'high')[k]}") for k in (0, 1)]
-    handles += [plt.Line2D([], [], ls="", marker=m, color="grey", label=f"roughness {i} ({'very smooth' if i == 0 else 'very rough' if i == 4 else ''})".replace(" ()", "")) for i, m in enumerate(_ROUGH_MARKERS)]
+    handles += [
+        plt.Line2D([], [], ls="", marker=m, color="grey", label=f"roughness {i} ({'very smooth' if i == 0 else 'very rough' if i == 4 else ''})".replace(" ()", ""))
+        for i, m in enumerate(_ROUGH_MARKERS)
+    ]
     handles += [plt.Line2D([], [], ls="", marker="o", color="grey", ms=ms, label=f"thickness {t}") for t, ms in zip(("thin", "medium", "thick"), (7, 10, 13))]
     handles += [plt.Line2D([], [], ls="", marker="o", mfc="white", mec="black", mew=2, label="holdout fabric (not trained on)")]
     if neighbours:
@@ -228,7 +231,7 @@ def plot_psds(path, freqs_hz: np.ndarray, psds: dict[str, np.ndarray], noise: np
 
 
 def plot_decide(path, models: Sequence[Mapping]) -> Path:
-    """Per model of the decision study (`fabricjax.studies.decide`), one row of three panels: the
+    """Per model of the decision study (`fabricjax.studies.extra.decide`), one row of three panels: the
     reliability diagram of its test split before and after temperature scaling (and of its cafe
     split after), accuracy against mean touch time to decision of the sequential rule (one point
     per posterior threshold, test and cafe, the cost study's fixed-N points beside them), and the

@@ -21,14 +21,12 @@ Python or from the command line (`--set field=value`).
              308x410 frames, rendered at twice the size (120x160) and area-averaged down
              (`sim.minsight`). Two render pixels per output pixel resolve what reaches a 60x80
              pixel (the contact patch spans a few output pixels; the shell's 75 um grain averages
-             out either way); rendering each frame at 308x410 instead costs ~26x as much, hours
-             for the dataset on two cores.
+             out either way); rendering each frame at 308x410 instead costs many times as much
+             (the paper preset's frames).
              Optical flow is computed on the 60x80 frames (pooled 3x3 to 20x27) instead of at
              308x410, which keeps the camera rows within a laptop's time and disk. The model is narrower than the paper's, with small CNNs, and
-             its recipe (width, epochs, ...) is the best point by validation accuracy averaged over
-             the ablation's rows, among the points of the published recipe sweep
-             (results/sweep.md, `python -m experiments.sweep`) whose training fits the main
-             command's time budget. Image rows read 30x40 frames (the paper's 60x80 in the paper
+             its recipe (width, epochs, ...) is one whose training fits the main command's time
+             budget; the recipe sweep (`python -m experiments.sweep`) compares it with other points. Image rows read 30x40 frames (the paper's 60x80 in the paper
              preset): the paper's per-sequence rotation is a gather whose cost grows with the frame.
     paper    the paper's scale and model: 6 trials per day, 50 cycles (~30 s, ~1500 steps), N=200,
              Minsight at 308x410 (flow 102x137), `Config`'s defaults: a GPU job.

@@ -10,7 +10,7 @@ What it sets:
 * `distributed`: this process joins a run over several processes (hosts) first
   (`join_processes`), before JAX starts a backend;
 * always: the unrolled `threefry2x32` lowering on CPU (`unroll_threefry_on_cpu`);
-* `cpu_devices`: JAX's CPU device count (`sharding.use_cpu_cores`; `available_cores()`: one per core), which
+* `cpu_devices`: JAX's CPU device count (`use_cpu_cores`; `available_cores()`: one per core), which
   must come before JAX starts its CPU backend; None leaves JAX's choice (one CPU device, or
   XLA_FLAGS / JAX_NUM_CPU_DEVICES);
 * `compilation_cache_dir`: XLA's persistent compilation cache there (programs that took >= 1 s to
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 import sys
+import warnings
 from typing import Any, Mapping
 
 MIN_CACHED_COMPILE_S = 1.0  # programs compiling faster than this are not worth a cache file
@@ -36,9 +37,9 @@ def unroll_threefry_on_cpu() -> bool:
     whether that lowering is in place (idempotent).
 
     JAX's CPU lowering rolls the 20 rounds into a `while` loop (to save compile time), which runs
-    as a chain of small unfused kernels: dropout masks then cost ~10% of a CPU training step.
-    The unrolled lowering is one fused kernel, ~6x cheaper, and yields the same bits (same
-    function, only its lowering differs). Private JAX API: if it moves, keep JAX's default.
+    as a chain of small unfused kernels, a visible share of a CPU training step for the dropout
+    masks. The unrolled lowering is one fused kernel and yields the same bits (same function,
+    only its lowering differs). Private JAX API: if it moves, keep JAX's default.
     """
     global _threefry_unrolled
     if _threefry_unrolled is None:
@@ -55,7 +56,7 @@ def unroll_threefry_on_cpu() -> bool:
 
 def use_compilation_cache(directory: str | os.PathLike) -> None:
     """Keep XLA's compiled programs in `directory` (every study row is one program per config,
-    ~15-20 s to compile on a 2-core CPU)."""
+    whose compilation a rerun then skips)."""
     import jax
 
     jax.config.update("jax_compilation_cache_dir", str(directory))
@@ -88,6 +89,25 @@ def available_cores() -> int:
     return len(os.sched_getaffinity(0))
 
 
+def use_cpu_cores(n: int | None = None) -> int:
+    """Expose `n` CPU devices (default: one per core this process may run on); returns the count.
+
+    Only possible before JAX starts its CPU backend (before any JAX computation); a count already
+    chosen with XLA_FLAGS=--xla_force_host_platform_device_count or JAX_NUM_CPU_DEVICES wins. A
+    count of 1 keeps the single device."""
+    import jax
+
+    if "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", "") or os.environ.get("JAX_NUM_CPU_DEVICES"):
+        return len(jax.devices("cpu"))
+    n = n or available_cores()
+    try:
+        jax.config.update("jax_num_cpu_devices", n)
+    except RuntimeError:  # JAX has started
+        if len(jax.devices("cpu")) != n:
+            warnings.warn(f"JAX already started with {len(jax.devices('cpu'))} CPU device(s); use_cpu_cores({n}) comes too late")
+    return len(jax.devices("cpu"))
+
+
 def configure_jax(
     *,
     cpu_devices: int | None = None,
@@ -101,8 +121,6 @@ def configure_jax(
         join_processes(**distributed)
     unroll_threefry_on_cpu()
     if cpu_devices is not None:
-        from fabricjax import sharding
-
-        sharding.use_cpu_cores(cpu_devices)
+        use_cpu_cores(cpu_devices)
     if compilation_cache_dir is not None:
         use_compilation_cache(compilation_cache_dir)

@@ -2,7 +2,7 @@
 
 A config names what a run computes, not the code that computes it: a change in how training
 rounds (the image rotation's, for one) moves results and leaves every config as it was. Results
-(`studies.reproduce`) and the studies' checkpoint folders (`studies.runner.checkpoint_dir`) are
+(`studies.tools.reproduce`) and the studies' checkpoint folders (`studies.common.runner.checkpoint_dir`) are
 keyed with this fingerprint, so that other code reruns instead of reusing what older code made.
 """
 

@@ -10,8 +10,8 @@ every process in a multi-process run (`fabricjax.sharding`). Parameters are
 plain pytrees (`nnx.to_pure_dict`); the module is rebuilt with `nnx.merge` inside the loss.
 
 Optimiser: AdamW (decoupled weight decay on weight matrices only, not on biases, LayerNorm scales)
-after a global-norm clip at 1.0; the learning rate rises linearly over `warmup_steps` (without the
-warm-up, a few seeds of some rows collapsed to chance in their first epochs) and is scaled by a
+after a global-norm clip at 1.0; the learning rate rises linearly over `warmup_steps` (the first updates
+stay small while Adam's moment estimates settle) and is scaled by a
 factor over the whole run (`decay_schedule`): none for `lr_schedule="constant"`, a cosine from 1
 to 0 for `"cosine"`. The whole schedule is the optax chain of `make_optimizer`. Best-validation selection keeps the parameters of the epoch with the highest
 validation accuracy (the earliest on ties) inside the scan with a tree select, so it costs no host
@@ -34,17 +34,14 @@ from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 import optax
 from flax import nnx
 from jax.sharding import Mesh
 
 from fabricjax import checkpoint, curves, runtime, sharding
 from fabricjax.config import Config
-from fabricjax.model import STANDARDISED, FabricNet, feature_shapes, head_sizes, per_position_shift, training_layout
-
-Augment = Callable[[jax.Array, dict[str, jax.Array]], dict[str, jax.Array]]
-
+from fabricjax.inputs import feature_shapes, input_statistics, training_layout, with_input_statistics
+from fabricjax.model import FabricNet, head_sizes
 
 def select(config: Config, ds) -> dict[str, dict[str, jax.Array]]:
     """The arrays of `ds` this config uses: its modalities and its heads' labels."""
@@ -126,7 +123,6 @@ class Trainer:
     graphdef: Any
     tx: optax.GradientTransformation
     total_steps: int  # of the whole run: the learning-rate schedule's length (`make_optimizer`)
-    augment: Augment | None
     mesh: Mesh | None = None  # splits minibatch samples over its "batch" devices (`sharding.split_samples`)
 
     def init(self, key: jax.Array) -> dict[str, Any]:
@@ -162,7 +158,7 @@ class Trainer:
     def train_epoch(self, params, opt_state, key, train, epoch=0):
         """One pass over shuffled minibatches (remainder dropped) in a scan: (params, opt_state, summary).
 
-        `train` is in the layout training holds its set in (`model.training_layout`: frames as
+        `train` is in the layout training holds its set in (`inputs.training_layout`: frames as
         rows; `train_and_evaluate` converts it once per training). `epoch` (0-based) places the pass in the run for the learning-rate schedule. `summary` is
         the epoch's mean loss ("train_loss"), the accuracy per head over the minibatches as they
         were trained ("train_accuracy", counted from the logits of the training steps themselves:
@@ -177,8 +173,6 @@ class Trainer:
             params, opt_state = carry
             idx, k = xs
             mb = sharding.split_samples(jax.tree.map(lambda a: a[idx], train), self.mesh)
-            if self.augment is not None:
-                mb = {**mb, "inputs": self.augment(jax.random.fold_in(k, 1), mb["inputs"])}
             (loss, logits), grads = jax.value_and_grad(self.loss, has_aux=True)(params, mb, k)
             updates, opt_state = self.tx.update(grads, opt_state, params)
             return (optax.apply_updates(params, updates), opt_state), (loss, _correct_and_known(logits, mb["labels"]))
@@ -211,7 +205,7 @@ class Trainer:
         """`n_epochs` more epochs in one scan, with best-validation selection: (state, per-epoch summary),
         the summary of `train_epoch` plus the validation accuracy per head ("val_accuracy"), each with
         a leading epoch axis (the scan's outputs: they leave the device with the state).
-        Every set is in training's layout (`model.training_layout`)."""
+        Every set is in training's layout (`inputs.training_layout`)."""
 
         def epoch(state, _):
             e = state["epoch"]
@@ -248,7 +242,7 @@ class Trainer:
 
 
 def make_trainer(
-    config: Config, shapes: Mapping[str, tuple[int, ...]], augment: Augment | None = None, mesh: Mesh | None = None,
+    config: Config, shapes: Mapping[str, tuple[int, ...]], mesh: Mesh | None = None,
     n_train: int | None = None,
 ) -> Trainer:
     """The pieces of a run of `config` on inputs of per-sample `shapes` and `n_train` training
@@ -257,7 +251,7 @@ def make_trainer(
     shapes = {m: tuple(shapes[m]) for m in config.modalities}
     graphdef = nnx.split(nnx.eval_shape(lambda: FabricNet(config, shapes, rngs=nnx.Rngs(0))))[0]
     steps = total_steps(config, config.batch_size if n_train is None else n_train)
-    return Trainer(config, shapes, graphdef, make_optimizer(config, steps), steps, augment, mesh)
+    return Trainer(config, shapes, graphdef, make_optimizer(config, steps), steps, mesh)
 
 
 def pad(ds, multiple: int):
@@ -291,66 +285,12 @@ def unpad(metrics, sizes: Mapping[str, int]):
     }
 
 
-def input_statistics(config: Config, train_set, chunk: int = 256) -> dict[str, jax.Array]:
-    """The model's fixed input standardisation (`model.STANDARDISED`) from the (unpadded) training
-    split: per channel, the mean and 1 / SD over every sequence, step and position; for images
-    read from a reference frame (`model.per_position_shift`), the mean frame (per pixel and colour)
-    and 1 / SD of the frames' difference to it, per colour. Accumulated on the host in float64 over
-    chunks of sequences, so a camera split (GBs of uint8 frames) is never copied whole into float32."""
-    inputs = train_set["inputs"] if isinstance(train_set, Mapping) else train_set.inputs
-    stats = {}
-    for m in config.modalities:
-        if m not in STANDARDISED:
-            continue
-        x = inputs[m]
-        axis = STANDARDISED[m] % (x.ndim - 2) + 2  # the channel axis of (S, N, ...)
-        total, total_sq, count = 0.0, 0.0, 0
-        for start in range(0, max(len(x), 1), chunk):
-            part = np.asarray(x[start : start + chunk])
-            total, total_sq, count = (a + b for a, b in zip((total, total_sq, count), _sums(part, axis)))
-        mean, mean_sq = total / max(count, 1), total_sq / max(count, 1)  # per position and channel
-        positions = tuple(range(mean.ndim - 1))
-        if per_position_shift(config, m):  # spread about each position's own mean
-            variance = np.maximum(mean_sq - mean * mean, 0.0).mean(positions)
-        else:
-            mean, mean_sq = mean.mean(positions), mean_sq.mean(positions)
-            variance = np.maximum(mean_sq - mean * mean, 0.0)
-        stats[f"{m}_shift"] = jnp.asarray(mean, jnp.float32)
-        stats[f"{m}_scale"] = jnp.asarray(1.0 / np.maximum(np.sqrt(variance), 1e-6), jnp.float32)
-    return stats
-
-
-def _sums(part: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, int]:
-    """Sums of `part` (S, N, ...) and of its squares over sequences and steps, float64, with the
-    channel `axis` moved last, and the count S x N. 8-bit frames are summed in integers (squares
-    fit uint16, sums int64) and converted after: every partial sum is an integer below 2**53, so
-    float64 summation is exact too and the two agree bit for bit, at a fraction of the float64
-    copy's time and memory."""
-    if part.dtype == np.uint8:
-        flat = part.reshape(-1, *part.shape[2:])
-        wide = flat.astype(np.uint16)
-        sums = (np.moveaxis(a, axis - 2, -1).astype(np.float64) for a in (flat.sum(0, dtype=np.int64), (wide * wide).sum(0, dtype=np.int64)))
-        return (*sums, len(flat))
-    part = np.moveaxis(np.asarray(part, np.float64), axis, -1)
-    part = part.reshape(-1, *part.shape[2:])  # (sequences x steps, positions..., channels)
-    return part.sum(0), (part * part).sum(0), len(part)
-
-
-def with_input_statistics(state: dict[str, Any], stats: Mapping[str, jax.Array]) -> dict[str, Any]:
-    """`state` (one seed's, or stacked over seeds) with the input statistics written into its parameters."""
-
-    def put(params):
-        return {**params, **{k: jnp.broadcast_to(v, params[k].shape).astype(params[k].dtype) for k, v in stats.items()}}
-
-    return {**state, "params": put(state["params"]), "best_params": put(state["best_params"])}
-
-
 @functools.lru_cache(maxsize=8)
-def _programs(config: Config, shapes: tuple, n_train: int, augment: Augment | None, mesh):
+def _programs(config: Config, shapes: tuple, n_train: int, mesh):
     """Jitted, seed-vmapped, seed-sharded init / run(n epochs) / finish, cached so that reruns of
     a config (a resume, another data set of the same shapes) reuse the compiled programs."""
-    trainer = make_trainer(config, dict(shapes), augment, mesh, n_train)
-    per_seed = sharding.by_seed(mesh)
+    trainer = make_trainer(config, dict(shapes), mesh, n_train)
+    per_seed = sharding.replicated(mesh)
     init = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)
     finish = jax.jit(sharding.vmap_seeds(trainer.finish, in_axes=(0, None)), out_shardings=per_seed)
     run = functools.lru_cache(
@@ -392,7 +332,6 @@ def train_and_evaluate(
     workdir: str | os.PathLike | None = None,
     save_every: int | None = None,
     on_save: Callable[[int], None] | None = None,
-    augment: Augment | None = None,
     log_dir: str | os.PathLike | None = None,
 ) -> Results:
     """Train one model per seed in a single program and evaluate it on every set.
@@ -400,9 +339,7 @@ def train_and_evaluate(
     `data_sets` holds "train", "val" and any number of evaluation sets ("test", "cafe", ...).
     With `workdir` (this run's checkpoint directory) the state is saved every `save_every`
     epochs (default: at the end) and a rerun resumes from the latest checkpoint; `on_save(epoch)`
-    is called after each durable save. `augment(key, inputs)`, if given, transforms each training
-    minibatch's inputs before the loss; they hold frames as rows there ("image_rows",
-    `model.training_layout`).
+    is called after each durable save.
 
     The per-epoch curves (`curves.tags`: loss, accuracies per head, learning rate, epoch wall
     time) come back in `metrics["epochs"]` as {tag: (seeds, epochs)} arrays, NaN for epochs a
@@ -413,11 +350,11 @@ def train_and_evaluate(
     seeds = tuple(int(s) for s in seeds)
     evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
     data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals)
-    mesh = sharding.training_mesh(len(seeds), config.batch_size)
+    mesh = sharding.training_mesh(config.batch_size)
     shapes = tuple(sorted(feature_shapes(data["train"]["inputs"]).items()))
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
-    trainer, init, run, finish = _programs(config, shapes, n_train, augment, mesh)
-    per_seed = sharding.by_seed(mesh)
+    trainer, init, run, finish = _programs(config, shapes, n_train, mesh)
+    per_seed = sharding.replicated(mesh)
     # once per training, not per `run` call (studies write curves, so they run one epoch per call);
     # every set, so that training and evaluation compile one image path (`FabricNet.image_features`)
     data = jax.tree.map(lambda ds: {**ds, "inputs": training_layout(ds["inputs"])}, data, is_leaf=lambda x: isinstance(x, Mapping) and "inputs" in x)

@@ -2,12 +2,28 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 from pathlib import Path
 
 ENV_VAR = "FABRICJAX_WORKDIR"
 INDEX_NAME = "index.json"
+
+
+@dataclasses.dataclass(frozen=True)
+class Location:
+    """Where a run reads and writes, and the command its results files record. Every default is the
+    workspace's: `Location()` reads the preset's simulated dataset and writes <workspace>/results."""
+
+    workdir: str | os.PathLike | None = None  # the workspace root (`root`)
+    data_dir: str | os.PathLike | None = None  # recorded trial archives, only read; None: the preset's simulated dataset
+    results: str | os.PathLike | None = None  # where results files go; None: <workspace>/results
+    command: str | None = None  # the command line that started the run; None: called from Python
+
+    def results_dir(self) -> Path:
+        """The results folder (created)."""
+        return results_dir(self.results, self.workdir)
 
 
 def root(workdir: str | os.PathLike | None = None) -> Path:

@@ -16,7 +16,8 @@ import os
 import numpy as np
 import pytest
 
-from fabricjax import archive, checkpoint, data, dataset_index, synthetic, train, workspace
+from fabricjax import archive, checkpoint, data, dataset_index, train, workspace
+from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from tests.helpers import npz_fields, tiny_archive, tiny_dataset
 

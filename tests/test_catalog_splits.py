@@ -56,6 +56,8 @@ def test_config_validation_and_json():
     assert config.Config.from_json(c.to_json()) == c
     assert c.seq_len == 20 and c.width == 16 and config.Config.from_preset("default").seq_len == 50
     assert config.Config.from_preset("smoke", seq_len=8, width=4).seq_len == 8  # overrides win over the preset
+    # one route from a preset to a config: built directly, a preset's config has its training too
+    assert config.Config(preset="default", epochs=3) == config.Config.from_preset("default", epochs=3) != config.Config(epochs=3)
     with pytest.raises(ValueError, match="modalities"):
         config.Config(modalities=("nose",))
     with pytest.raises(ValueError, match="preset"):

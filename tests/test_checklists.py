@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from fabricjax import catalog
-from fabricjax.studies import bandwidth, latents, noise, properties, findings
+from fabricjax.studies.common import findings
+from fabricjax.studies.paper import bandwidth, latents, noise, properties
 
 
 def _pct(values):

@@ -7,10 +7,12 @@ import jax
 import numpy as np
 import pytest
 
-from fabricjax import checkpoint, synthetic
+from fabricjax import checkpoint
+from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.model import make_predict
 from fabricjax.train import restore, train_and_evaluate
+from fabricjax.workspace import Location
 
 TINY = Config(
     preset="smoke", modalities=("internal",), width=16, n_layers=1, ffn=32,
@@ -110,7 +112,7 @@ def test_a_studys_checkpoint_folder_changes_with_the_code(monkeypatch, tmp_path)
     """A rerun after a change to the code trains afresh: the folder is tagged with the source's
     fingerprint, not only the config and seeds (a change in how training rounds leaves both alike)."""
     from fabricjax import source
-    from fabricjax.studies import runner
+    from fabricjax.studies.common import runner
 
     cfg = Config.from_preset("smoke")
     folder = runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], tmp_path)
@@ -176,7 +178,7 @@ def test_a_path_without_a_checkpoint_is_one_line_and_creates_nothing(uninterrupt
 def test_a_checkpoint_made_for_another_job_is_refused_naming_both(uninterrupted, tmp_path):
     """Streaming needs a fabric head; latents a model that never saw the property holdouts."""
     from fabricjax import live
-    from fabricjax.studies import latents
+    from fabricjax.studies.paper import latents
 
     properties_only = dataclasses.replace(TINY, fabric_head=False, property_heads=True, epochs=1)
     sets = {k: synthetic.data_set(properties_only, 8, seed=i) for i, k in enumerate(["train", "val"])}
@@ -188,5 +190,5 @@ def test_a_checkpoint_made_for_another_job_is_refused_naming_both(uninterrupted,
     workdir, _ = uninterrupted  # trained on every fabric
     with pytest.raises(checkpoint.WrongCheckpoint, match=r"latents needs a model that never saw the holdout fabrics 1, 10, 21, 22, 23 .*"
                                                          r"heads fabric \(21 classes\), inputs internal, preset smoke, fabrics never seen: none"):
-        latents.run(workdir, results=tmp_path / "results")
+        latents.run(workdir, where=Location(results=tmp_path / "results"))
     assert not (tmp_path / "results").exists()

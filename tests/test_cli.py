@@ -12,7 +12,8 @@ import pytest
 from fabricjax import cli
 from fabricjax import workspace
 from fabricjax.config import Config
-from fabricjax.studies import ablation, runner
+from fabricjax.studies.common import runner
+from fabricjax.studies.paper import ablation
 
 ROOT = Path(__file__).parents[1]
 

@@ -11,12 +11,15 @@ import pytest
 
 from acquisition.other_rig import bench_import
 from acquisition.simulated_signals import bench_acquisition
-from fabricjax import archive, catalog, program_timing, live, sim, train
+from fabricjax import archive, catalog, live, sim, train
+from fabricjax.bench import program_timing
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.features.extract import log_psd, mic_windows
-from fabricjax.studies import bench, cost
-from fabricjax.studies import stream as stream_command
+from fabricjax.bench import suite as bench
+from fabricjax.studies.extra import cost
+from fabricjax.studies.tools import stream as stream_command
+from fabricjax.workspace import Location
 
 PNG = b"\x89PNG\r\n\x1a\n"
 TINY = dict(width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16))
@@ -69,8 +72,7 @@ def test_pareto_front_keeps_only_undominated_points():
 def test_cost_run_writes_table_json_and_pareto_png(smoke_workdir, tmp_path):
     doc = cost.run(
         n_seeds=2, preset="smoke", seq_lens=(20,), backbones=("attention",), widths=(), bandwidths=(),
-        modality_sets=[("internal", "external")], latency_repeats=3, workdir=smoke_workdir, results=tmp_path,
-        command="test",
+        modality_sets=[("internal", "external")], latency_repeats=3, where=Location(workdir=smoke_workdir, results=tmp_path, command="test"),
     )
     assert [p["group"] for p in doc["points"]] == ["N x backbone", "paper"]
     assert doc["paper_point"] == doc["points"][1]["name"]
@@ -138,12 +140,12 @@ def test_streamer_rejects_camera_models():
 
 def test_stream_run_trains_a_quick_model_then_restores_it(smoke_workdir, tmp_path):
     lines = []
-    doc = stream_command.run(preset="smoke", realtime=False, print_every=5, workdir=smoke_workdir, results=tmp_path, out=lines.append)
+    doc = stream_command.run(preset="smoke", realtime=False, print_every=5, where=Location(workdir=smoke_workdir, results=tmp_path), out=lines.append)
     assert doc["decided_steps"] == doc["steps"] - doc["window_steps"] + 1 > 0
     assert doc["latency_p99_ms"] >= doc["latency_p50_ms"] > 0 and doc["late_steps"] is None
     assert any("p=" in line and "ms" in line for line in lines) and lines[-1].startswith("first correct decision")
     assert json.loads((tmp_path / "stream.json").read_text())["archive"] == doc["archive"]
-    again = stream_command.run(checkpoint_dir=doc["checkpoint"], realtime=False, print_every=0, workdir=smoke_workdir, results=tmp_path, out=lines.append)
+    again = stream_command.run(checkpoint_dir=doc["checkpoint"], realtime=False, print_every=0, where=Location(workdir=smoke_workdir, results=tmp_path), out=lines.append)
     assert again["config"] == doc["config"]
     assert again["accuracy_over_decided_steps"] == doc["accuracy_over_decided_steps"]
 
@@ -153,7 +155,7 @@ def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
     workload = bench.Workload(Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=12, **TINY), batch=8, bins=24)
     lines = []
     doc = bench.run(
-        quick=True, workload=workload, workdir=smoke_workdir, results=tmp_path, command="test", out=lines.append, acquisition=bench_acquisition,
+        quick=True, workload=workload, where=Location(workdir=smoke_workdir, results=tmp_path, command="test"), out=lines.append, acquisition=bench_acquisition,
         importer=lambda trials: bench_import(trials=20, seconds=(2.0, 3.0)),
     )
     saved = json.loads((tmp_path / "bench.json").read_text())
@@ -225,16 +227,16 @@ def test_bench_table_names_the_fastest_variant_and_a_failed_compile():
 
 def test_bench_rejects_unknown_names(tmp_path):
     with pytest.raises(ValueError, match="unknown benchmarks"):
-        bench.run(only=["nope"], results=tmp_path)
+        bench.run(only=["nope"], where=Location(results=tmp_path))
     with pytest.raises(ValueError, match="acquisition benchmark needs its function"):
-        bench.run(only=["acquisition"], results=tmp_path)
+        bench.run(only=["acquisition"], where=Location(results=tmp_path))
 
 
 def test_comparison_times_every_dtype_against_every_twin_variant(monkeypatch):
     """`compare_with_torch`'s bookkeeping with a stand-in twin (torch is optional): ours in each
     compute dtype against eager and compiled variants, each in float32 and under autocast; a
     variant that fails to build is recorded, the fastest one is the reference of every ratio."""
-    from fabricjax import torch_twin
+    from fabricjax.bench import torch_twin
 
     seconds = {(None, False): 0.4, (None, True): 0.2, ("default", False): 0.3, ("default", True): 0.25}
 

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from fabricjax import curves, sim, workspace
-from fabricjax.studies import ablation
+from fabricjax.studies.paper import ablation
 from fabricjax.train import train_and_evaluate
+from fabricjax.workspace import Location
 from tests.test_train import TINY, data_sets
 
 pytest.importorskip("tensorboardX")
@@ -88,7 +89,7 @@ def test_a_smoke_study_leaves_event_files_equal_to_the_curves_it_returns(tmp_pat
     sim.ensure_dataset("smoke", tmp_path, streams=("audio", "proprio"), progress=False)
     doc = ablation.run(
         n_seeds=2, rows=["internal"], preset="smoke", overrides=dict(epochs=2, width=16, n_layers=1),
-        workdir=tmp_path, results=tmp_path / "results", command="test",
+        where=Location(workdir=tmp_path, results=tmp_path / "results", command="test"),
     )
     row = json.loads((tmp_path / "results" / "ablation.json").read_text())["rows"][0]
     assert row["epochs"] == doc["rows"][0]["epochs"]

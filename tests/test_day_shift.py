@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from fabricjax import sim
-from fabricjax.studies import day_shift, palm, reproduce
+from fabricjax.studies.extra import day_shift, palm
+from fabricjax.studies.tools import reproduce
+from fabricjax.workspace import Location
 
 TINY = dict(epochs=1, width=16, n_layers=1)
 
@@ -52,7 +54,7 @@ def workdir(tmp_path_factory):
 @pytest.mark.slow
 def test_day_shift_runs_after_the_probe_in_reproduce_and_shows_its_gap(workdir, tmp_path):
     plan = (reproduce.Step("probe", rows=("proprio", "internal")), reproduce.Step("day_shift", rows=("proprio", "internal")))
-    reproduce.run(preset="smoke", plan=plan, overrides=TINY, workdir=workdir, results=tmp_path, say=lambda s: None)
+    reproduce.run(preset="smoke", plan=plan, overrides=TINY, where=Location(workdir=workdir, results=tmp_path), say=lambda s: None)
     doc = json.loads((tmp_path / "day_shift.json").read_text())
     probe_doc = json.loads((tmp_path / "probe.json").read_text())
     assert [r["name"] for r in doc["rows"]] == ["internal", "proprio"]  # the table's order and doc["days"] == [1, 2, 3] and doc["probe_missing"] is None
@@ -74,7 +76,7 @@ def test_day_shift_reads_a_recorded_folder_and_says_when_the_probe_is_missing(wo
     for archive in sim.ensure_dataset("smoke", workdir, streams=("audio", "proprio"), progress=False).glob("*.npz"):
         os.link(archive, folder / archive.name)
     before = sorted((p.name, p.stat().st_mtime_ns) for p in folder.rglob("*"))
-    doc = day_shift.run(preset="smoke", rows=["external"], workdir=workdir, data_dir=folder, results=tmp_path / "results", command="test")
+    doc = day_shift.run(preset="smoke", rows=["external"], where=Location(workdir=workdir, data_dir=folder, results=tmp_path / "results", command="test"))
     assert doc["dataset"]["source"] == "recorded" and doc["rows"][0]["probe"] is None and "no probe results" in doc["probe_missing"]
     md = (tmp_path / "results" / "day_shift.md").read_text()
     assert md.startswith("# Day shift") and "on recorded data" in md and "Probe columns: no probe results" in md

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from fabricjax import confidence
+from fabricjax.workspace import Location
 from tests.helpers import read_rrd
 
 
@@ -84,17 +85,18 @@ def test_temperatures_round_trip_beside_a_checkpoint_and_bad_ones_are_one_line_e
 
 @pytest.mark.slow
 def test_decide_on_the_smoke_preset_writes_its_reports_and_the_stream_applies_the_temperature(tmp_path):
-    from fabricjax.studies import decide, stream
+    from fabricjax.studies.extra import decide
+    from fabricjax.studies.tools import stream
 
     results = tmp_path / "results"
-    doc = decide.run(preset="smoke", workdir=tmp_path / "ws", results=results)
+    doc = decide.run(preset="smoke", where=Location(workdir=tmp_path / "ws", results=results))
     m = doc["models"][0]
     assert {p.name for p in results.iterdir()} >= {"decide.md", "decide.json", "decide.png"}
     assert set(m["splits"]) == {"test", "cafe"} and m["unknown"]["fabrics"] == [21]  # the smoke preset's one new fabric
     assert all(0 <= v["auroc"] <= 1 for v in m["unknown"]["scores"].values())
     assert confidence.load_temperature(m["checkpoint"], m["seed"]) == pytest.approx(m["temperature"])
     lines = []
-    s = stream.run(preset="smoke", workdir=tmp_path / "ws", results=results, realtime=False, print_every=0, out=lines.append,
+    s = stream.run(preset="smoke", where=Location(workdir=tmp_path / "ws", results=results), realtime=False, print_every=0, out=lines.append,
                    view_save=tmp_path / "s.rrd")
     assert s["temperature"] == pytest.approx(m["temperature"]) and any("sequential decision" in x for x in lines)
     # the accumulated posterior, once per non-overlapping window after the first full one
@@ -105,12 +107,11 @@ def test_decide_on_the_smoke_preset_writes_its_reports_and_the_stream_applies_th
 
 @pytest.mark.slow
 def test_reproduce_runs_decide_on_the_ablations_checkpoint(tmp_path):
-    from fabricjax.studies import reproduce
+    from fabricjax.studies.tools import reproduce
 
     plan = (reproduce.Step("ablation", 1, ("internal",)), reproduce.Step("decide", rows=("internal",)))
     said = []
-    reproduce.run(preset="smoke", plan=plan, overrides=dict(epochs=1, width=16, n_layers=1), workdir=tmp_path / "ws",
-                  results=tmp_path / "out", say=said.append)
+    reproduce.run(preset="smoke", plan=plan, overrides=dict(epochs=1, width=16, n_layers=1), where=Location(workdir=tmp_path / "ws", results=tmp_path / "out"), say=said.append)
     ablation = json.loads((tmp_path / "out" / "ablation.json").read_text())
     doc = json.loads((tmp_path / "out" / "decide.json").read_text())
     assert [m["checkpoint"] for m in doc["models"]] == [ablation["rows"][0]["checkpoint"]]
@@ -122,13 +123,12 @@ def test_reproduce_runs_decide_on_the_ablations_checkpoint(tmp_path):
 def test_decide_on_recorded_data_uses_its_label_map_splits_and_unknown_labels(tmp_path):
     """A rig's own classes (oak, pine, felt), its own split names in meta, felt never trained and
     named the unknown by --unknown_labels; no cafe split: reported without one."""
-    from fabricjax.studies import decide
+    from fabricjax.studies.extra import decide
     from tests.test_rig_data import _rig_dataset
 
     trials = [(0, "train"), (1, "train")] * 3 + [(0, "val"), (1, "val"), (0, "test"), (1, "test"), (2, "test")]
     ds = _rig_dataset(tmp_path / "ds", trials)
-    doc = decide.run(preset="smoke", overrides={"modalities": ("internal",), "epochs": 1}, data_dir=ds, unknown_labels=[2],
-                     workdir=tmp_path / "ws", results=tmp_path / "out")
+    doc = decide.run(preset="smoke", overrides={"modalities": ("internal",), "epochs": 1}, where=Location(data_dir=ds, workdir=tmp_path / "ws", results=tmp_path / "out"), unknown_labels=[2])
     m = doc["models"][0]
     assert doc["dataset"]["classes"] == ["oak", "pine", "felt"] and list(m["splits"]) == ["test"]
     assert m["unknown"]["fabrics"] == [2] and m["unknown"]["unknown_sequences"] == 3 and m["unknown"]["known_sequences"] == 6

@@ -19,7 +19,7 @@ import jax
 jax.config.update("jax_disable_most_optimizations", True)
 from fabricjax import runtime
 runtime.configure_jax(distributed=json.loads(sys.argv[1]))
-from fabricjax.studies import documents
+from fabricjax.studies.common import documents
 import numpy as np
 sys.path.insert(0, {tests!r})
 from test_train import TINY, data_sets

@@ -15,6 +15,7 @@ import pytest
 from acquisition import import_manifest, other_rig
 from fabricjax import archive
 from fabricjax.errors import UserError
+from fabricjax.workspace import Location
 
 LABELS = ["cotton canvas", "felt", "oak"]
 SPLITS = {0: "train", 1: "train", 2: "val", 3: "test"}
@@ -174,11 +175,10 @@ def test_the_rig_files_step_window_is_recorded_and_loads_by_default(tmp_path):
 
 @pytest.mark.slow  # ~1-3 min on 2 shared cores: import and two smoke-size rows
 def test_a_study_trains_and_tests_on_the_imported_rig(archives, tmp_path, capsys):
-    from fabricjax.studies import ablation
+    from fabricjax.studies.paper import ablation
 
     names = sorted(p.name for p in archives.iterdir())
-    doc = ablation.run(n_seeds=1, rows=["proprio", "internal+proprio"], preset="smoke", workdir=tmp_path / "ws",
-                       data_dir=archives, results=tmp_path / "results", command="test")
+    doc = ablation.run(n_seeds=1, rows=["proprio", "internal+proprio"], preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"))
     assert sorted(p.name for p in archives.iterdir()) == names  # the data folder is only read: no invented files
     printed = capsys.readouterr().out
     assert "recorded data" in printed and "train 6 trials /" in printed and "val 3 trials /" in printed and "test 3 trials /" in printed
@@ -194,19 +194,17 @@ def test_a_study_trains_and_tests_on_the_imported_rig(archives, tmp_path, capsys
 
 
 def test_a_row_the_rig_cannot_feed_is_refused_before_training(archives, tmp_path):
-    from fabricjax.studies import ablation
+    from fabricjax.studies.paper import ablation
 
     with pytest.raises(archive.ArchiveError, match=r"field 'audio': absent: the data has no external \(palm mic\).*it has microphones: vibration"):
-        ablation.run(n_seeds=1, rows=["internal+external"], preset="smoke", workdir=tmp_path / "ws", data_dir=archives,
-                     results=tmp_path / "results", command="test")
+        ablation.run(n_seeds=1, rows=["internal+external"], preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"))
     assert not (tmp_path / "results" / "ablation.md").exists()
 
 
 def test_the_probe_reads_the_imported_rig(archives, tmp_path):
-    from fabricjax.studies import probe
+    from fabricjax.studies.extra import probe
 
-    doc = probe.run(rows=["proprio", "internal"], preset="smoke", workdir=tmp_path / "ws", data_dir=archives,
-                    results=tmp_path / "results", command="test")
+    doc = probe.run(rows=["proprio", "internal"], preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"))
     assert doc["splits"] == ["train", "val", "test"] and doc["classes"] == [0, 1, 2]  # no cafe trials: no cafe column filled
     assert doc["inputs"]["proprio"]["step_dims"] == 7 * 3 and doc["inputs"]["internal"]["step_dims"] == 24  # 42.67 ms at 2.2 kHz: 94 samples
     assert all(0 <= r["accuracy"]["test"] <= 1 for r in doc["rows"])
@@ -216,22 +214,23 @@ def test_the_probe_reads_the_imported_rig(archives, tmp_path):
 
 
 def test_the_bandwidth_plot_names_the_rigs_microphone(archives, tmp_path):
-    from fabricjax.studies import bandwidth, loading
+    from fabricjax.studies.common import loading
+    from fabricjax.studies.paper import bandwidth
 
     assert bandwidth.microphone(loading.Dataset({}, archives, "recorded", 0.0, 0.0, tmp_path / "ws")) == "vibration"
     assert bandwidth.microphone(loading.Dataset({}, archives, "simulated", 0.0, 0.0)) == "Minsound"
 
 
 def test_import_benchmark_entry_and_row(tmp_path):
-    from fabricjax.studies import bench
+    from fabricjax.bench import suite as bench
 
-    doc = bench.run(only=["import"], results=tmp_path, command="test", out=lambda s: None,
+    doc = bench.run(only=["import"], where=Location(results=tmp_path, command="test"), out=lambda s: None,
                     importer=lambda trials: other_rig.bench_import(trials=20, seconds=(2.0, 3.0), workers=1))
     entry = doc["benchmarks"]["import"]
     assert entry["trials"] == 20 and entry["steps"] > 0 and entry["wall_s"] > 0
     assert "batch import, 20 trials of 2-3 s" in (tmp_path / "bench.md").read_text()
     with pytest.raises(ValueError, match="the import benchmark needs its function"):
-        bench.run(only=["import"], results=tmp_path, command="test", out=lambda s: None)
+        bench.run(only=["import"], where=Location(results=tmp_path, command="test"), out=lambda s: None)
 
 
 def _rig_manifest(root, rig_toml, labels=LABELS[:1], trials=1, seconds=(2.0, 2.0), splits=None):
@@ -394,10 +393,10 @@ def _run_hand(manifest, out, **kw):
 
 @pytest.mark.slow  # ~1-2 min on 2 shared cores: one smoke-size point
 def test_the_cost_study_reads_the_imported_rig_without_the_paper_point(archives, tmp_path):
-    from fabricjax.studies import cost
+    from fabricjax.studies.extra import cost
 
     doc = cost.run(n_seeds=1, preset="smoke", seq_lens=(10,), backbones=("attention",), widths=(), bandwidths=(), modality_sets=[("internal",)],
-                   latency_repeats=2, workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test")
+                   latency_repeats=2, where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"))
     assert doc["paper_point"] is None and "paper" not in {p["group"] for p in doc["points"]}
     assert doc["dataset"]["step_rate"] == other_rig.STEP_RATE and all(p["touch_s"] == p["seq_len"] / other_rig.STEP_RATE for p in doc["points"])
     md = (tmp_path / "results" / "cost.md").read_text()
@@ -406,7 +405,7 @@ def test_the_cost_study_reads_the_imported_rig_without_the_paper_point(archives,
 
 @pytest.mark.slow  # ~1-2 min on 2 shared cores: one smoke-size property row and its t-SNE
 def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs_fabrics(tmp_path):
-    from fabricjax.studies import latents, properties
+    from fabricjax.studies.paper import latents, properties
 
     labels = [*LABELS, "silk"]
     manifest = other_rig.write_recordings(tmp_path / "rig", labels, 4, seconds=(3.0, 3.5), splits=SPLITS)
@@ -414,15 +413,14 @@ def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs
     _edit_manifest(manifest, manifest, lambda rows: [r + ["roughness"] if i == 0 else r[:3] + ["holdout" if r[1] == "silk" else r[3], roughness[r[1]]]
                                                      for i, r in enumerate(rows)])
     _run(manifest, tmp_path / "out")
-    doc = properties.run(n_seeds=1, rows=["minsound"], preset="smoke", workdir=tmp_path / "ws", data_dir=tmp_path / "out",
-                         results=tmp_path / "results", command="test")
+    doc = properties.run(n_seeds=1, rows=["minsound"], preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test"))
     # class 1 (felt) trains, as the data says: the catalog's holdout ids (1, 10, 21-23) are not a rig's classes
     assert doc["dataset"]["trials"]["train"] == 6 and doc["fabrics"] == {"test": [0, 1, 2], "holdout": [3]}
     arm = f"joints arm_0–arm_{other_rig.N_JOINTS - 1} (angle, velocity, torque)"
     assert doc["dataset"]["names"] == {"internal": "vibration", "proprio": arm}  # the rig file's names, in the results
     pmd = (tmp_path / "results" / "properties.md").read_text()
     assert f"holdout fabrics: vibration + {arm} [%]" in pmd and "Minsound" not in pmd.replace("`", " ").split("Checkpoint")[0]
-    ld = latents.run(doc["rows"][0]["checkpoint"], workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test")
+    ld = latents.run(doc["rows"][0]["checkpoint"], where=Location(workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test"))
     assert ld["holdouts"] == [3] and [p["fabric_id"] for p in ld["points"]] == [0, 1, 2, 3] and ld["findings"] == []
     assert [(p["holdout"], p["chance"]) for p in ld["neighbours"]["pairs"]] == [(3, pytest.approx(1 / 3))]  # roughness 0 as felt only
     md = (tmp_path / "results" / "latents.md").read_text()

@@ -6,7 +6,8 @@ import pytest
 
 from acquisition import ros_bag
 from fabricjax import archive, presets
-from fabricjax.studies import ablation
+from fabricjax.studies.paper import ablation
+from fabricjax.workspace import Location
 
 pytest.importorskip("rosbags")
 
@@ -22,7 +23,7 @@ def test_smoke_study_trains_on_imported_bags(tmp_path):
         a = ros_bag.import_bag(bag, MAPPING, trial)
         archive.write_archive(data / archive.trial_filename(a.meta), a)
     doc = ablation.run(n_seeds=1, rows=["internal"], preset="smoke", overrides=dict(epochs=1, width=16, n_layers=1),
-                       workdir=tmp_path / "ws", data_dir=data, results=tmp_path / "results", command="test")
+                       where=Location(workdir=tmp_path / "ws", data_dir=data, results=tmp_path / "results", command="test"))
     acc = doc["rows"][0]["accuracy"]["test"]["fabric"]
     assert len(acc) == 1 and np.isfinite(acc).all()
 
@@ -39,6 +40,6 @@ def test_smoke_study_trains_on_bags_recorded_as_a_ros2_lab_records(tmp_path):
         a = ros_bag.import_bag(bag, LAB_MAPPING, trial, resample=True)
         archive.read_archive(archive.write_archive(data / archive.trial_filename(a.meta), a))
     doc = ablation.run(n_seeds=1, rows=["internal"], preset="smoke", overrides=dict(epochs=1, width=16, n_layers=1),
-                       workdir=tmp_path / "ws", data_dir=data, results=tmp_path / "results", command="test")
+                       where=Location(workdir=tmp_path / "ws", data_dir=data, results=tmp_path / "results", command="test"))
     acc = doc["rows"][0]["accuracy"]["test"]["fabric"]
     assert len(acc) == 1 and np.isfinite(acc).all()

@@ -31,7 +31,7 @@ def test_no_library_module_imports_the_commands():
     out = subprocess.run([sys.executable, "-c", CODE], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-3000:]
     doc = json.loads(out.stdout.strip().splitlines()[-1])
-    assert {"fabricjax.cli", "fabricjax.runtime", "fabricjax.torch_twin", "fabricjax.studies.bench", "fabricjax.studies.stream"} <= set(doc["modules"])
+    assert {"fabricjax.cli", "fabricjax.runtime", "fabricjax.bench.torch_twin", "fabricjax.bench.suite", "fabricjax.studies.tools.stream"} <= set(doc["modules"])
     assert doc["experiments"] == [], doc["experiments"]
     assert not doc["threefry_configured"]  # importing the library leaves JAX as it is
 

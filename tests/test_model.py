@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 from flax import nnx
 
-from fabricjax import catalog, synthetic
+from fabricjax import catalog
+from fabricjax.bench import synthetic
 from fabricjax.config import MODALITIES, Config
-from fabricjax.model import FabricNet, causal_conv, feature_shapes, compile_predict_one, make_predict, patch_product, rescale_unit, self_attention
+from fabricjax.inputs import feature_shapes
+from fabricjax.model import FabricNet, causal_conv, compile_predict_one, make_predict, patch_product, rescale_unit, self_attention
 
 TINY = dict(preset="smoke", width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(4, 8), seq_len=10)
 COMBOS = [c for r in range(1, len(MODALITIES) + 1) for c in itertools.combinations(MODALITIES, r)]

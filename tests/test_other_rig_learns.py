@@ -10,7 +10,8 @@ dataset of the issue's size gives in two."""
 import pytest
 
 from acquisition import import_manifest, other_rig
-from fabricjax.studies import ablation
+from fabricjax.studies.paper import ablation
+from fabricjax.workspace import Location
 
 LABELS = ["cotton canvas", "felt", "oak"]
 
@@ -23,8 +24,8 @@ def _archives(root, trials, seconds):
 
 
 def _vibration_row(tmp_path, preset, trials, seconds, epochs, seeds):
-    doc = ablation.run(n_seeds=seeds, rows=["internal"], preset=preset, overrides={"epochs": epochs}, workdir=tmp_path / "ws",
-                       data_dir=_archives(tmp_path, trials, seconds), results=tmp_path / "results")
+    doc = ablation.run(n_seeds=seeds, rows=["internal"], preset=preset, overrides={"epochs": epochs},
+                       where=Location(workdir=tmp_path / "ws", data_dir=_archives(tmp_path, trials, seconds), results=tmp_path / "results"))
     (row,) = doc["rows"]
     return doc, row
 

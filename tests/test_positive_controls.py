@@ -16,7 +16,8 @@ runs under both compute dtypes (`Config.compute_dtype`); the bfloat16 ones are m
 import numpy as np
 import pytest
 
-from fabricjax import synthetic, train
+from fabricjax import train
+from fabricjax.bench import synthetic
 from fabricjax.config import Config
 
 N_CLASSES = 4  # chance: 25 %

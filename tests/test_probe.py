@@ -7,7 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax.studies import ablation, probe, reproduce
+from fabricjax.studies.common import linear_probe
+from fabricjax.studies.extra import probe
+from fabricjax.studies.paper import ablation
+from fabricjax.studies.tools import reproduce
 
 N_CLASSES, PER_CLASS, N_STEPS = 6, 60, 10
 SPLIT_SEEDS = {"train": 1, "val": 2, "test": 3}
@@ -20,15 +23,15 @@ def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
 
 
 def test_summaries_are_the_mean_and_sd_over_steps_of_every_dimension(monkeypatch):
-    monkeypatch.setattr(probe, "SUMMARY_CHUNK", 2)  # several chunks and a partial last one
+    monkeypatch.setattr(linear_probe, "SUMMARY_CHUNK", 2)  # several chunks and a partial last one
     rng = np.random.default_rng(0)
     for x in (rng.integers(0, 256, (5, 4, 3, 2, 3), dtype=np.uint8), rng.normal(size=(5, 4, 2, 3, 2)).astype(np.float16)):
         flat = x.reshape(5, 4, -1).astype(np.float64)
-        got = probe.summarise(x)
+        got = linear_probe.summarise(x)
         assert got.dtype == np.float32 and got.shape == (5, 2 * flat.shape[2])
         np.testing.assert_allclose(got, np.concatenate([flat.mean(1), flat.std(1)], axis=1), rtol=1e-5, atol=1e-5)
-    assert probe.summarise(np.zeros((0, 4, 18), np.float32)).shape == (0, 36)  # an empty split
-    assert np.isfinite(probe.summarise(np.full((3, 1, 5), 7.0, np.float32))).all()  # one step: SD 0, finite
+    assert linear_probe.summarise(np.zeros((0, 4, 18), np.float32)).shape == (0, 36)  # an empty split
+    assert np.isfinite(linear_probe.summarise(np.full((3, 1, 5), 7.0, np.float32))).all()  # one step: SD 0, finite
 
 
 def _stream(split: str, level: float) -> tuple[dict[str, np.ndarray], np.ndarray]:
@@ -49,9 +52,9 @@ def _stream(split: str, level: float) -> tuple[dict[str, np.ndarray], np.ndarray
 
 def _probe(level: float, modality: str) -> dict:
     streams = {s: _stream(s, level) for s in SPLIT_SEEDS}
-    inp = probe.prepare({s: x[modality] for s, (x, _) in streams.items()})
+    inp = linear_probe.prepare({s: x[modality] for s, (x, _) in streams.items()})
     assert (inp.explained_variance is not None) == (modality == "image")  # the image input goes through the PCA
-    return probe.fit(inp.features, {s: y for s, (_, y) in streams.items()})
+    return linear_probe.fit(inp.features, {s: y for s, (_, y) in streams.items()})
 
 
 @pytest.mark.parametrize("modality", ["proprio", "image"])
@@ -63,7 +66,7 @@ def test_a_planted_class_level_is_found_and_pure_noise_is_at_chance(modality):
     n_test = N_CLASSES * PER_CLASS
     assert abs(noise["accuracy"]["test"] - chance) < 5 * np.sqrt(chance * (1 - chance) / n_test), noise["accuracy"]
     assert noise["accuracy"]["train"] > noise["accuracy"]["test"]  # the noise is fitted on train, and read nowhere else
-    assert [e["C"] for e in planted["per_c"]] == sorted(probe.C_GRID) and planted["C"] in probe.C_GRID
+    assert [e["C"] for e in planted["per_c"]] == sorted(linear_probe.C_GRID) and planted["C"] in linear_probe.C_GRID
     assert planted["accuracy"]["val"] == max(e["accuracy"]["val"] for e in planted["per_c"])
     assert len(planted["predictions"]["test"]) == n_test and "train" not in planted["predictions"]
 

@@ -10,7 +10,10 @@ import pytest
 
 from fabricjax import data, plots
 from fabricjax.errors import UserError
-from fabricjax.studies import bandwidth, cost, documents, latents, noise, properties, reproduce
+from fabricjax.studies.common import documents
+from fabricjax.studies.extra import cost
+from fabricjax.studies.paper import bandwidth, latents, noise, properties
+from fabricjax.studies.tools import reproduce
 
 MACHINE = {"cpu": "test cpu", "vector_units": [], "cores": 2, "jax": "0", "jax_backend": "cpu", "devices": [0],
            "platform": "test platform", "python": "3"}

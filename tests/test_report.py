@@ -1,6 +1,6 @@
 import json
 
-from fabricjax.studies import documents
+from fabricjax.studies.common import documents
 
 
 def test_markdown_table_escapes_and_aligns():

@@ -157,8 +157,8 @@ def test_a_trivial_level_statistic_does_not_identify_the_fabric():
     rows = []
     for fid in range(catalog.N_CLASSES):
         for day, trials in ((1, 2), (2, 2), (3, 2)):
-            for trial in range(trials):
-                a = simulate(Scene(fid, day=day, trial=trial, cycles=2))
+            for k in range(trials):
+                a = simulate(Scene(fid, day=day, trial=k, cycles=2))
                 x = (a.audio[0] >> 14).astype(np.float64)
                 f, psd = scipy.signal.welch(x, fs=archive.AUDIO_RATE, nperseg=1022)
                 shape = np.log(psd[(f >= 50) & (f <= 15_000)])

@@ -35,11 +35,12 @@ from hypothesis.extra import numpy as hnp
 from scipy import stats as sps
 from threadpoolctl import threadpool_limits
 
-from fabricjax import archive, catalog, data, sim, stats, synthetic, train
+from fabricjax import archive, catalog, data, sim, stats, train
+from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.features import extract, welch
 from fabricjax.model import self_attention
-from fabricjax.studies import latents
+from fabricjax.studies.paper import latents
 from tests.helpers import tiny_archive
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -165,7 +166,8 @@ def _hard_signal_archive(fabric_id, day, trial, condition, seed):
 
 TINY = Config(
     preset="smoke", modalities=("internal", "external", "proprio"), width=16, n_heads=4, n_layers=1, ffn=32,
-    audio_hidden=(16, 8), proprio_hidden=(16, 8), seq_len=N, batch_size=6, property_heads=True,
+    audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(16, 32, 64), seq_len=N, batch_size=6, property_heads=True,
+    epochs=40, learning_rate=1e-3,
     warmup_steps=0,  # one optimiser step must move the parameters (a warm-up starts at rate 0)
 )
 
@@ -410,13 +412,16 @@ sys.path.insert(0, {root!r})
 from fabricjax import runtime
 runtime.configure_jax()
 from tests.test_stability import RESUME, resume_sets
-from fabricjax.train import train_and_evaluate
+from fabricjax import train
 
-def slow(key, inputs):  # identity, but every minibatch takes 0.3 s: a kill lands inside an epoch
+loss = train.Trainer.loss
+
+def slow_loss(self, params, batch, key):  # the same loss, but every minibatch takes 0.3 s: a kill lands inside an epoch
     jax.debug.callback(lambda: time.sleep(0.3))
-    return inputs
+    return loss(self, params, batch, key)
 
-train_and_evaluate(RESUME, resume_sets(), [0, 1], workdir={workdir!r}, save_every=1, augment=slow,
+train.Trainer.loss = slow_loss
+train.train_and_evaluate(RESUME, resume_sets(), [0, 1], workdir={workdir!r}, save_every=1,
                    on_save=lambda e: print("saved", e, flush=True))
 """
 

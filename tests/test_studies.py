@@ -14,7 +14,11 @@ from scipy import stats as sps
 from fabricjax import data, presets, sim, source, stats, train
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, documents, findings, latents, noise, probe, properties, reproduce, runner, sweep
+from fabricjax.studies.common import documents, findings, runner
+from fabricjax.studies.extra import probe, sweep
+from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
+from fabricjax.studies.tools import reproduce
+from fabricjax.workspace import Location
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
 TINY = dict(epochs=1, width=16, n_layers=1)
@@ -29,7 +33,7 @@ def workdir(tmp_path_factory):
 
 
 def run_kwargs(workdir, results, **kw):
-    return dict(preset="smoke", overrides=TINY, workdir=workdir, results=results, command="test", **kw)
+    return dict(preset="smoke", overrides=TINY, where=Location(workdir=workdir, results=results, command="test"), **kw)
 
 
 def test_ablation_writes_table_statistics_and_confusions(workdir, tmp_path):
@@ -55,7 +59,7 @@ def test_the_smoke_preset_learns_and_says_it_checks_the_install(workdir, tmp_pat
     """The newcomer's proof that the install works: the smoke preset's own recipe puts Minsound
     well above chance (twice chance over the classes its test day has), and its report says that
     it checks the install and counts none of the paper's claims."""
-    doc = ablation.run(n_seeds=1, rows=["internal"], preset="smoke", workdir=workdir, results=tmp_path, command="test")
+    doc = ablation.run(n_seeds=1, rows=["internal"], preset="smoke", where=Location(workdir=workdir, results=tmp_path, command="test"))
     labels = doc["test_samples"]["labels"]["fabric"]
     chance = 1 / len(set(labels))
     assert doc["rows"][0]["accuracy"]["test"]["fabric"][0] >= 2 * chance
@@ -184,14 +188,14 @@ def test_properties_report_training_and_holdout_fabrics_and_checkpoint(property_
 
 def test_latents_from_the_property_checkpoint(property_run, workdir, tmp_path):
     doc, _ = property_run
-    out = latents.run(doc["rows"][0]["checkpoint"], workdir=workdir, results=tmp_path, command="test")
+    out = latents.run(doc["rows"][0]["checkpoint"], where=Location(workdir=workdir, results=tmp_path, command="test"))
     assert [p["fabric_id"] for p in out["points"]] == [1, 2, 3, 4, 21]  # fabrics of the smoke preset but 0
     assert out["seed"] == out["checkpoint_seeds"][int(np.argmax(out["best_val_per_seed"]))]
     assert np.isfinite([p["xy"] for p in out["points"]]).all()
     assert (tmp_path / "latents.png").stat().st_size > 0
     assert out["findings"] and (tmp_path / "latents.md").read_text().startswith("# Latent space")
     with pytest.raises(UserError, match="seed 7"):
-        latents.run(doc["rows"][0]["checkpoint"], seed=7, workdir=workdir, results=tmp_path)
+        latents.run(doc["rows"][0]["checkpoint"], seed=7, where=Location(workdir=workdir, results=tmp_path))
 
 
 def test_tsne_is_finite_for_identical_and_few_points():
@@ -287,7 +291,7 @@ def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp
     fails in one line naming the field and the rows, before any data is read."""
     settings, run = STUDIES_WITH_ROWS[study]
     with pytest.raises(UserError, match=f"the {study} study sets {field} per row itself \\((every one of its {len(settings)} rows|rows .+)\\); choose") as e:
-        run(preset="smoke", overrides={field: Config.__dataclass_fields__[field].default}, workdir=tmp_path / "nothing", results=tmp_path)
+        run(preset="smoke", overrides={field: Config.__dataclass_fields__[field].default}, where=Location(workdir=tmp_path / "nothing", results=tmp_path))
     assert "\n" not in str(e.value)
     assert not (tmp_path / "nothing").exists()
 
@@ -308,7 +312,7 @@ def test_the_ablation_row_counts_the_docs_state_are_the_code_s():
     assert tcn == 1 and len(ablation.ROWS) == paper + variants
     repo = Path(__file__).parents[1]
     said = {
-        "fabricjax/studies/ablation.py": [f"{paper - tcn} transformer rows and the TCN row, and {variants} of them again"],
+        "fabricjax/studies/paper/ablation.py": [f"{paper - tcn} transformer rows and the TCN row, and {variants} of them again"],
         "fabricjax/studies/__init__.py": [f"{paper} rows incl. TCN (Table ablation_table) + {variants} step-LayerNorm variants"],
         "experiments/ablation.py": [f"its {paper} rows and our {variants} fusion-variant rows"],
         "README.md": [f"{paper - tcn} transformer rows + TCN, and {variants} rows again", f"{len(ablation.ROWS)} rows in all",
@@ -348,7 +352,7 @@ def test_camera_rows(workdir, tmp_path):
     assert [r["name"] for r in doc["rows"]] == ["flow", "proprio", "image+internal"] and doc["wilcoxon"] is None  # the table's order
     assert (tmp_path / "ablation_confusion.png").stat().st_size > 0
     doc = properties.run(n_seeds=1, rows=["minsound+minsight"], **run_kwargs(workdir, tmp_path))
-    out = latents.run(doc["rows"][0]["checkpoint"], workdir=workdir, results=tmp_path)
+    out = latents.run(doc["rows"][0]["checkpoint"], where=Location(workdir=workdir, results=tmp_path))
     assert np.isfinite([p["xy"] for p in out["points"]]).all()
 
 
@@ -360,7 +364,7 @@ SMOKE_PLAN = (reproduce.Step("probe", rows=("proprio",)), reproduce.Step("bandwi
 
 def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_path):
     said = []
-    kw = dict(preset="smoke", plan=SMOKE_PLAN, overrides=TINY, workdir=workdir, results=tmp_path, say=said.append)
+    kw = dict(preset="smoke", plan=SMOKE_PLAN, overrides=TINY, where=Location(workdir=workdir, results=tmp_path), say=said.append)
     first = reproduce.run(**kw)
     assert list(first) == [s.study for s in SMOKE_PLAN]
     assert all(f"{s.study:<11} run" in said[0] for s in SMOKE_PLAN)
@@ -407,7 +411,7 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
 
 
 def test_palm_variance_shares_recover_planted_effects():
-    from fabricjax.studies import palm
+    from fabricjax.studies.extra import palm
 
     rng = np.random.default_rng(0)
     fabric, day = rng.normal(0, 3.0, (6, 1, 1, 1)), rng.normal(0, 1.0, (1, 4, 1, 1))
@@ -429,9 +433,9 @@ def test_palm_physics_on_smoke_scenes(tmp_path):
     """Short scenes: the lab floor and the cafe loudspeaker reach the palm at the paper's 29-31 and
     47-55 dB(A), the thumb's contact is far louder inside Minsound than the fabric is at the palm, and
     the file is written."""
-    from fabricjax.studies import palm
+    from fabricjax.studies.extra import palm
 
-    doc = palm.run(preset="smoke", cycles=1, results=tmp_path)
+    doc = palm.run(preset="smoke", cycles=1, where=Location(results=tmp_path))
     lab, cafe = doc["sources"]["lab"], doc["sources"]["cafe"]
     assert all(29.0 <= v["room floor"]["palm"][-1] <= 31.0 for v in lab.values())
     assert all(47.0 <= v["cafe loudspeaker"]["palm"][-1] <= 55.0 for v in cafe.values())

@@ -15,7 +15,10 @@ import pytest
 from fabricjax import sim
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, loading, sweep
+from fabricjax.studies.common import loading
+from fabricjax.studies.extra import sweep
+from fabricjax.studies.paper import ablation
+from fabricjax.workspace import Location
 
 REPO = Path(__file__).parents[1]
 ENV = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_DISABLE_MOST_OPTIMIZATIONS": "1"}
@@ -38,7 +41,7 @@ def swept(workdir, tmp_path_factory):
     results = tmp_path_factory.mktemp("sweep_results")
     doc = sweep.run(
         grid={"epochs": (1, 2)}, n_seeds=1, preset="smoke", rows=ROWS, overrides=FIXED, latency_repeats=3,
-        workdir=workdir, results=results, command="test",
+        where=Location(workdir=workdir, results=results, command="test"),
     )
     return doc, results
 
@@ -90,7 +93,7 @@ def test_a_malformed_grid_is_a_one_line_error_naming_the_flag(texts, problem):
 ])
 def test_a_grid_the_sweep_cannot_run_fails_in_one_line_before_any_data_is_read(grid, overrides, problem, tmp_path):
     with pytest.raises(UserError) as e:
-        sweep.run(grid=grid, preset="smoke", rows=ROWS, overrides=overrides, workdir=tmp_path / "nothing", results=tmp_path)
+        sweep.run(grid=grid, preset="smoke", rows=ROWS, overrides=overrides, where=Location(workdir=tmp_path / "nothing", results=tmp_path))
     assert problem in str(e.value) and "\n" not in str(e.value)
     assert not (tmp_path / "nothing").exists() and not list(tmp_path.iterdir())
 

@@ -1,4 +1,4 @@
-"""The PyTorch twin (fabricjax/torch_twin.py) computes our model's function: equal weights, equal logits.
+"""The PyTorch twin (fabricjax/bench/torch_twin.py) computes our model's function: equal weights, equal logits.
 
 Skipped where torch is not installed (it is an optional extra used only by the benchmarks).
 """
@@ -9,10 +9,11 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from fabricjax import torch_twin  # noqa: E402
-from fabricjax import catalog, synthetic  # noqa: E402
+from fabricjax import catalog  # noqa: E402
+from fabricjax.bench import synthetic, torch_twin  # noqa: E402
 from fabricjax.config import Config  # noqa: E402
-from fabricjax.model import feature_shapes, make_predict  # noqa: E402
+from fabricjax.inputs import feature_shapes  # noqa: E402
+from fabricjax.model import make_predict  # noqa: E402
 from fabricjax.train import make_trainer, select  # noqa: E402
 
 SMALL = dict(preset="smoke", width=32, n_heads=4, n_layers=2, ffn=48, audio_hidden=(40, 24), proprio_hidden=(24, 16), seq_len=30)

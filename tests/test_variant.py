@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from fabricjax.errors import UserError
-from fabricjax.studies import variant
+from fabricjax.studies.tools import variant
+from fabricjax.workspace import Location
 
 
 def _row(name, test, val, dtype="float32", wall_s=10.0):
@@ -30,7 +31,7 @@ def test_paired_differences_and_their_sd(tmp_path):
     base = _write(tmp_path / "a.json", _doc([_row("internal", [0.5, 0.6, 0.7], [0.4, 0.4, 0.4]), _row("image", [0.1] * 3, [0.1] * 3)]))
     var = _write(tmp_path / "b.json", _doc([_row("internal", [0.6, 0.6, 0.9], [0.4, 0.5, 0.6], "bfloat16", 8.0),
                                             _row("image", [0.1] * 3, [0.1] * 3, "bfloat16"), _row("flow", [0.2] * 3, [0.2] * 3, "bfloat16")]))
-    doc = variant.run(base, var, results=tmp_path / "out", command=None)
+    doc = variant.run(base, var, where=Location(results=tmp_path / "out"))
     internal, image = doc["rows"]
     d = np.array([0.1, 0.0, 0.2])
     assert internal["test"]["difference"] == pytest.approx(d.mean())

@@ -9,12 +9,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fabricjax import archive, presets, synthetic, view
+from fabricjax import archive, presets, view
+from fabricjax.bench import synthetic
 from fabricjax.features import welch
 from fabricjax.sim.dataset import scene_for
 from fabricjax.sim.trial import simulate
-from fabricjax.studies import stream as stream_command
+from fabricjax.studies.tools import stream as stream_command
 from fabricjax.train import train_and_evaluate
+from fabricjax.workspace import Location
 from tests.helpers import read_rrd
 from tests.test_train import TINY
 
@@ -92,7 +94,7 @@ def test_without_the_sdk_a_one_line_error_says_what_to_install(smoke_trial, tmp_
 def test_stream_view_save_logs_each_steps_sensors_and_result(smoke_trial, checkpoint, tmp_path):
     path, trial = smoke_trial
     doc = stream_command.run(
-        archive_path=path, checkpoint_dir=checkpoint, realtime=False, print_every=0, results=tmp_path,
+        archive_path=path, checkpoint_dir=checkpoint, realtime=False, print_every=0, where=Location(results=tmp_path),
         out=lambda line: None, view_save=tmp_path / "stream.rrd",
     )
     read = read_rrd(tmp_path / "stream.rrd")

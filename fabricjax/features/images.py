@@ -36,7 +36,7 @@ def to_rows(frames):
     The layout the rotation wants: a sequence's frames share one angle, so rotating it moves whole
     rows (`rotate_rows`), which XLA's CPU backend gathers as contiguous copies; the same bilinear
     gathers of 3-value pixels, frame by frame, were most of a camera row's training step.
-    Training holds its set in this layout (`model.training_layout`)."""
+    Training holds its set in this layout (`inputs.training_layout`)."""
     *lead, n, h, w, c = frames.shape
     return jnp.moveaxis(jnp.reshape(frames, (*lead, n, h * w, c)), -3, -1)
 

@@ -36,7 +36,7 @@ integers, so the SPH0645's DC offset leaves no float32 residue in the lowest bin
 float32 is off by ~3e-3 there).
 
 The framing uses a reshape (the hop, 511, divides the 3 segments' span 2044 into 4 blocks), so no
-gather is needed; `fabricjax.features.timing` times it against `jax.scipy.signal.welch`.
+gather is needed; `fabricjax.bench.feature_timing` times it against `jax.scipy.signal.welch`.
 """
 
 from __future__ import annotations

@@ -12,9 +12,8 @@ docstring states what it models and where that comes from; every constant lives 
 there). The time base and word format shared with recorded trials are `fabricjax.archive`'s.
 """
 
-from fabricjax.sim.throughput import bench_throughput
 from fabricjax.sim.dataset import ensure_dataset, scene_for
 from fabricjax.sim.scene import EFFECTS, REQUIRED_STREAMS, STREAMS, Scene
 from fabricjax.sim.trial import simulate
 
-__all__ = ["EFFECTS", "REQUIRED_STREAMS", "STREAMS", "Scene", "bench_throughput", "ensure_dataset", "scene_for", "simulate"]
+__all__ = ["EFFECTS", "REQUIRED_STREAMS", "STREAMS", "Scene", "ensure_dataset", "scene_for", "simulate"]

@@ -69,7 +69,8 @@ class NotEnoughDisk(UserError):
 
 
 def trial_bytes(dataset: splits.DatasetSpec, images: bool) -> int:
-    """About how many bytes one simulated trial archive of `dataset` takes (uncompressed .npz).
+    """About how many bytes one simulated trial archive of `dataset` takes before its members are
+    deflated (`archive.write_npz`): an upper bound, for the free-disk check.
 
     A trial lasts its cycles at the commanded rate, ~12 % slower on average under load (the servo
     droop of calibration.SPEED_DROOP_PER_N), plus ~1 s of closing and pauses."""
@@ -125,7 +126,7 @@ def ensure_dataset(
         if progress:
             print(
                 f"Simulating {len(jobs)} of {len(scenes)} trials of preset {preset_name!r} ({', '.join(streams)}) into {folder}: "
-                f"about {_gb(need)} on disk, on {workers} processes. This happens once; later runs reuse the archives.",
+                f"at most {_gb(need)} on disk (less: members are deflated), on {workers} processes. This happens once; later runs reuse the archives.",
                 flush=True,
             )
     bar = tqdm(total=len(scenes), initial=len(scenes) - len(jobs), desc=f"simulate {preset_name}", unit="trial", disable=not progress or not jobs)

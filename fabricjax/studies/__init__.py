@@ -1,27 +1,35 @@
-"""The paper's experiments as library functions; `experiments/` holds their thin command lines.
+"""The studies as library functions; `experiments/` holds their thin command lines.
+
+The paper's tables and figures (`paper/`):
 
     ablation     modality ablation, 13 rows incl. TCN (Table ablation_table) + 9 step-LayerNorm variants
-    probe        a linear probe of each ablation row's inputs: what they carry before any model
-    day_shift    per input: the per-trial variation the fabric, the day and the trial explain, and the
-                 probe's training-day against new-day accuracy
     bandwidth    PSD bandwidth 2.5 / 10 / 15 / 24 kHz (Table bandwidth_classification)
     noise        cafe-noise test set, Wilcoxon against the preceding row (Table new_noise_results)
     properties   property heads on training and holdout fabrics (Table property_perception)
     latents      t-SNE of per-trial mean latents from a restored checkpoint (Fig. latent_features)
-    decide       restored checkpoints: calibration, when to stop rubbing, unknown fabrics (not in the paper)
-    bench        every speed benchmark side by side (results/bench.json, the README's table)
-    stream       live classification of one trial (results/stream.json)
 
-    reproduce    every table and figure above in order, skipping those up to date, into REPORT.md
+Our studies beyond the paper (`extra/`):
+
+    probe        a linear probe of each ablation row's inputs: what they carry before any model
+    day_shift    per input: the per-trial variation the fabric, the day and the trial explain, and the
+                 probe's training-day against new-day accuracy
+    decide       restored checkpoints: calibration, when to stop rubbing, unknown fabrics
     cost         accuracy against touch time, training time and inference latency
     sweep        a recipe grid over Config fields on the ablation's rows, best point by mean validation
     palm         the palm microphone by physics: source levels at the palm, day against fabric (no model)
 
-Each study's `run(...)` trains or measures, writes results/<study>.md and .json and returns the
-JSON document. The four training studies of the paper's tables (ablation, bandwidth, noise,
-properties) are data: a `runner.Study` of `runner.StudyRow`s (name, the `Config` fields the row
-sets, its label, the paper's numbers), run by `runner.run_study`. What they share, one concept
-per module:
+Tools (`tools/`):
+
+    reproduce    every study of the paper's plan in order, skipping those up to date, into REPORT.md
+    stream       live classification of one trial (results/stream.json)
+
+The speed benchmarks are a package of their own, `fabricjax.bench`.
+
+Each study's `run(...)` trains or measures, writes <study>.md and .json into its results folder
+and returns the JSON document. The four training studies of the paper's tables (ablation,
+bandwidth, noise, properties) are data: a `runner.Study` of `runner.StudyRow`s (name, the
+`Config` fields the row sets, its label, the paper's numbers), run by `runner.run_study`. What
+the studies share (`common/`), one concept per module:
 
     loading      the data a study needs, loaded once for all its rows
     runner       Study / StudyRow and run_study; named rows -> trained seeds (`train_rows`), progress

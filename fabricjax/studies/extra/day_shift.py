@@ -7,7 +7,7 @@ the trial explain, beside the linear probe's accuracy on the training days and o
 The paper splits by recording day so that a model cannot lean on what a day shares; this study
 says, before any model, what the test day differs in. For every model input (`ROWS`: Minsound,
 the palm microphone, proprioception, optical flow, the Minsight image), as the probe reads it
-(`probe.summarise`: each dimension's mean and SD over a sequence's steps), each lab trial's
+(`linear_probe.summarise`: each dimension's mean and SD over a sequence's steps), each lab trial's
 summary is the mean of its sequences' summaries. Each dimension is standardised over the trials
 and its sum of squares split, for fabric f and day d:
 
@@ -34,8 +34,10 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from fabricjax import archive, data
-from fabricjax.studies import documents, loading, probe, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, linear_probe, loading, runner
+from fabricjax.studies.extra import probe
+from fabricjax.studies.common.runner import StudyRow
+from fabricjax.workspace import Location
 
 TITLE, PAPER = "Day shift: what the fabric, the day and the trial explain in each input", "not in the paper"
 ROWS = tuple(StudyRow(m, {"modalities": (m,)}, data.inputs_name((m,))) for m in ("internal", "external", "proprio", "flow", "image"))
@@ -43,10 +45,10 @@ SHARES = ("fabric", "day", "fabric x day", "trial")
 
 
 def trial_summaries(x: np.ndarray, trial_key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(trials, 2 D) float64: the mean over each trial's sequences of `probe.summarise`, and the
+    """(trials, 2 D) float64: the mean over each trial's sequences of `linear_probe.summarise`, and the
     index of each trial's first sequence (to read its fabric and day)."""
     keys, first, inverse = np.unique(trial_key, return_index=True, return_inverse=True)
-    summaries = probe.summarise(x).astype(np.float64)
+    summaries = linear_probe.summarise(x).astype(np.float64)
     out = np.zeros((len(keys), summaries.shape[1]))
     np.add.at(out, inverse, summaries)
     return out / np.bincount(inverse, minlength=len(keys))[:, None], first
@@ -103,20 +105,15 @@ def run(
     preset: str = "default",
     rows: Sequence[str] | None = None,
     overrides: dict[str, Any] | None = None,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
+    where: Location = Location(),
 ) -> dict[str, Any]:
     """The shares and the probe's gap for the chosen inputs (all by default); writes
     results/day_shift.{md,json} and returns the JSON."""
-    chosen, _, ds, present = runner.load_chosen_rows(
-        "day_shift", ROWS, rows, preset, overrides, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST
-    )
+    chosen, _, ds, present = runner.load_chosen_rows("day_shift", ROWS, rows, preset, overrides, where, loading.TRAIN_VAL_TEST)
     info = {k: np.concatenate([ds.sets[s].info[k] for s in present]) for k in ("fabric_id", "day", "trial_key")}
     if len(np.unique(info["day"])) < 2:
         raise archive.ArchiveError(ds.folder, "day", "the lab trials come from fewer than two days: there is no day to tell apart")
-    accuracy, no_probe = probe_accuracy(results, str(ds.folder))
+    accuracy, no_probe = probe_accuracy(where.results_dir(), str(ds.folder))
 
     t0 = time.perf_counter()
     progress = runner.Progress("day_shift", len(chosen))
@@ -138,7 +135,7 @@ def run(
         progress.finish(display, time.perf_counter() - t1, f"fabric {100 * shares['fabric']:.0f} %, day {100 * shares['day']:.0f} %")
 
     doc = {
-        **documents.header("day_shift", command=command, preset=preset, dataset=ds, study_s=time.perf_counter() - t0),
+        **documents.header("day_shift", command=where.command, preset=preset, dataset=ds, study_s=time.perf_counter() - t0),
         "splits": present,
         "trials": int(len(np.unique(info["trial_key"]))),
         "days": sorted(int(d) for d in np.unique(info["day"])),
@@ -146,7 +143,7 @@ def run(
         "probe_missing": no_probe,
         "rows": out_rows,
     }
-    return documents.write(results, doc, markdown)
+    return documents.write(where.results_dir(), doc, markdown)
 
 
 def _pct(x: float | None) -> str:

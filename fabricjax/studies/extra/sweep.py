@@ -33,8 +33,11 @@ import numpy as np
 from fabricjax import stats
 from fabricjax.config import Config, format_override, parse_override
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, cost, documents, loading, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, loading, runner
+from fabricjax.studies.extra import cost
+from fabricjax.studies.paper import ablation
+from fabricjax.studies.common.runner import StudyRow
+from fabricjax.workspace import Location
 
 # The separators between a --grid field's values: ';' always (needed when the field is a tuple,
 # whose own items are comma-separated, e.g. cnn_features=4,8;8,16), ',' for a scalar field
@@ -124,7 +127,7 @@ def entry(trained: runner.Row, fields: Mapping[str, Any], row: StudyRow, test, l
     val_mean, val_sd = _pct(trained.accuracy("val", HEAD))
     test_mean, test_sd = _pct(trained.accuracy("test", HEAD))
     last_train = np.asarray(trained.results.metrics["epochs"][f"train/accuracy/{HEAD}"], np.float64)[:, -1]
-    record = documents.row_doc(trained, ["test"])
+    record = trained.doc(["test"])
     del record["predictions"]  # per-sample predictions are the ablation's; here they would multiply by the points
     return {
         "point": point_name(fields),
@@ -170,10 +173,7 @@ def run(
     rows: Sequence[str] | None = None,
     overrides: dict[str, Any] | None = None,
     latency_repeats: int = 100,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
+    where: Location = Location(),
 ) -> dict[str, Any]:
     """Train every grid point on every chosen row of the ablation (all by default); write
     results/sweep.{md,json}; return the JSON."""
@@ -196,10 +196,10 @@ def run(
     for group in by_key.values():
         study = runner.train_rows(
             "sweep", [(name, config) for name, config, _, _ in group], seeds, eval_splits=["test"], split_names=loading.TRAIN_VAL_TEST,
-            data_dir=data_dir, workdir=workdir, label=labels.__getitem__, summary=summary, progress=progress,
+            data_dir=where.data_dir, workdir=where.workdir, label=labels.__getitem__, summary=summary, progress=progress,
         )
         if head is None:
-            head = documents.header("sweep", command=command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=0.0)
+            head = documents.header("sweep", command=where.command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=0.0)
         loads.append({**{f: getattr(group[0][1], f) for f in loading.SEQUENCE_FIELDS}, **documents.dataset_doc(study.dataset)})
         for name, _, fields, row in group:
             entries[name] = entry(study.rows[name], fields, row, study.dataset.sets["test"], latency_repeats, study.dataset.recorded)
@@ -219,7 +219,7 @@ def run(
         "points": points,
         "entries": flat,
     }
-    return documents.write(results, doc, markdown)
+    return documents.write(where.results_dir(), doc, markdown)
 
 
 def _values(values: Sequence[Any]) -> str:

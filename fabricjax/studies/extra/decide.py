@@ -37,7 +37,10 @@ import numpy as np
 from flax import nnx
 
 from fabricjax import archive, catalog, checkpoint, confidence, data, plots, train
-from fabricjax.studies import cost, documents, loading, stream
+from fabricjax.studies.common import documents, loading
+from fabricjax.studies.extra import cost
+from fabricjax.studies.tools import stream
+from fabricjax.workspace import Location
 
 TITLE, PAPER = "Deciding on the robot", "not in the paper"
 THRESHOLDS = (0.5, 0.7, 0.8, 0.9, 0.95, 0.99, 0.999, 0.9999)  # posterior thresholds of the sequential rule
@@ -85,7 +88,7 @@ def _calibration(probs: dict[str, np.ndarray], labels: np.ndarray) -> dict[str, 
     return {k: {"ece": confidence.ece(p, labels), "reliability": confidence.reliability(p, labels)} for k, p in probs.items()}
 
 
-def evaluate_model(checkpoint_dir, *, unknown_labels=None, workdir=None, data_dir=None, results="results") -> dict[str, Any]:
+def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Location()) -> dict[str, Any]:
     """One model's calibration, decision curves and unknown scores (module docstring); writes its
     temperatures beside the checkpoint."""
     restored = train.restore(checkpoint_dir)
@@ -93,9 +96,9 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, workdir=None, data_di
     checkpoint.require(checkpoint_dir, restored.trained_for, "the decision study", "a model with a fabric head",
                        "fabric" in restored.trained_for["heads"])
     index = int(np.argmax(np.asarray(state["best_val"], np.float64)))
-    unknown = unknown_fabrics(config, bool(data_dir), unknown_labels)
+    unknown = unknown_fabrics(config, bool(where.data_dir), unknown_labels)
     data_config = dataclasses.replace(config, exclude_fabrics=unknown)
-    ds = loading.load_dataset(data_config, data_dir=data_dir, workdir=workdir, split_names=("train", "val", *EVAL_SPLITS, "holdout"))
+    ds = loading.load_dataset(data_config, data_dir=where.data_dir, workdir=where.workdir, split_names=("train", "val", *EVAL_SPLITS, "holdout"))
     sets = {k: v for k, v in ds.sets.items() if len(v)}
     for need in ("train", "val", "test"):
         if need not in sets:
@@ -113,7 +116,7 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, workdir=None, data_di
     mahalanobis = confidence.Mahalanobis.fit(out["train"][1], sets["train"].labels["fabric"])
     known_val = mahalanobis.score(out["val"][1])
     _, reject_above = confidence.false_accept_rate(known_val, known_val)
-    window_s = config.seq_len / cost.steps_and_rate(ds.folder, workdir)[1]
+    window_s = config.seq_len / cost.steps_and_rate(ds.folder, where.workdir)[1]
 
     splits_doc = {}
     for split in EVAL_SPLITS:
@@ -153,7 +156,7 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, workdir=None, data_di
         "checkpoint": str(checkpoint_dir), "config": config.to_json(), "seeds": list(seeds), "seed": seed,
         "temperatures": {str(s): v for s, v in temperatures.items()}, "temperature": t,
         "window_s": window_s, "splits": splits_doc, "unknown": unknown_doc, "dataset": documents.dataset_doc(ds),
-        "cost_points": _cost_points(results, config.modalities),
+        "cost_points": _cost_points(where.results_dir(), config.modalities),
     }
 
 
@@ -181,22 +184,22 @@ def _cost_points(results, modalities) -> list[dict[str, float]] | None:
 
 
 def run(checkpoint_dirs: Sequence = (), *, names: Sequence[str] | None = None, unknown_labels=None, preset: str = "default",
-        overrides=None, workdir=None, data_dir=None, results="results", command: str | None = None) -> dict[str, Any]:
+        overrides=None, where: Location = Location()) -> dict[str, Any]:
     """Evaluate every checkpoint (named by `names`, default by inputs; none given: the quick model
     of `preset` with `overrides`, as `experiments.stream`) and write results/decide.{md,json,png}."""
     if not checkpoint_dirs:
-        checkpoint_dirs = [stream.quick_model(preset, overrides, workdir=workdir, data_dir=data_dir)[3]]
+        checkpoint_dirs = [stream.quick_model(preset, overrides, workdir=where.workdir, data_dir=where.data_dir)[3]]
     models = []
     for i, d in enumerate(checkpoint_dirs):
-        m = evaluate_model(d, unknown_labels=unknown_labels, workdir=workdir, data_dir=data_dir, results=results)
+        m = evaluate_model(d, unknown_labels=unknown_labels, where=where)
         m["name"] = names[i] if names else "+".join(m["config"]["modalities"])
         models.append(m)
-    png = plots.plot_decide(documents.results_path(results) / "decide.png", models)
-    doc = {**documents.header("decide", command=command, preset=models[0]["config"]["preset"]), "dataset": models[0].pop("dataset"),
+    png = plots.plot_decide(where.results_dir() / "decide.png", models)
+    doc = {**documents.header("decide", command=where.command, preset=models[0]["config"]["preset"]), "dataset": models[0].pop("dataset"),
            "thresholds": list(THRESHOLDS), "models": models}
     for m in models[1:]:
         m.pop("dataset")
-    return documents.write(results, doc, markdown, [png])
+    return documents.write(where.results_dir(), doc, markdown, [png])
 
 
 def _pct(x) -> str:

@@ -21,8 +21,8 @@ import numpy as np
 from fabricjax import archive, dataset_index, plots, stats
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.features import welch
-from fabricjax.studies import documents, findings, loading, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, findings, loading, runner
+from fabricjax.studies.common.runner import StudyRow
 
 TITLE, PAPER = "PSD bandwidth", "Table bandwidth_classification"  # how results name the study, and what of the paper it reproduces
 
@@ -53,7 +53,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
         out_rows.append({
             "name": r.name, "bandwidth_khz": khz, "psd_bins": welch.n_bins(khz, test.rates.get("internal", archive.AUDIO_RATE)),
             **({} if recorded else {"paper": dict(r.paper)}),
-            **documents.row_doc(trained.rows[r.name], ["test"]),
+            **trained.rows[r.name].doc(["test"]),
         })
     mic = microphone(trained.dataset)
     figure = plot(results / "bandwidth.png", out_rows, mic)

@@ -27,10 +27,11 @@ from absl import logging
 from fabricjax import checkpoint, data, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies import loading
+from fabricjax.studies.common import documents, loading
+from fabricjax.workspace import Location
 
 if TYPE_CHECKING:
-    from fabricjax.studies.findings import Finding
+    from fabricjax.studies.common.findings import Finding
 
 
 def seed_list(n_seeds: int) -> tuple[int, ...]:
@@ -90,7 +91,7 @@ def check_overrides(study: str, overrides: Mapping | None, rows: Sequence[StudyR
 
 def load_chosen_rows(
     study: str, all_rows: Sequence[StudyRow], names: Sequence[str] | None, preset: str, overrides: Mapping | None,
-    *, data_dir, workdir, split_names: Sequence[str],
+    where: Location, split_names: Sequence[str],
 ) -> tuple[list[StudyRow], list[Config], loading.Dataset, list[str]]:
     """What a study without training (the probe, the day shift) reads: the chosen rows of
     `all_rows` (all for None), their configs, the sequences they use on `split_names`, and the
@@ -98,7 +99,7 @@ def load_chosen_rows(
     overrides = check_overrides(study, overrides, all_rows, "choose them with --rows")
     chosen = select_rows(all_rows, names)
     configs = [r.config(preset, overrides) for r in chosen]
-    ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
+    ds = loading.load_for_rows(configs, data_dir=where.data_dir, workdir=where.workdir, split_names=split_names)
     return chosen, configs, ds, [s for s in split_names if len(ds.sets[s])]
 
 
@@ -177,6 +178,21 @@ class Row:
 
     def predictions(self, split: str, head: str = "fabric") -> np.ndarray:
         return np.asarray(self.results.metrics["eval"][split]["predictions"][head])
+
+    def doc(self, splits: Sequence[str]) -> dict[str, Any]:
+        """The row's config, checkpoint (None where the study keeps no models), wall time and, per
+        seed, accuracies and per-sample predictions of every head."""
+        ev = self.results.metrics["eval"]
+        return {
+            "config": self.config.to_json(),
+            "checkpoint": None if self.checkpoint is None else str(self.checkpoint),
+            "seeds": list(self.results.seeds),
+            "wall_s": self.seconds,
+            "best_epoch": np.asarray(self.results.metrics["best_epoch"]).tolist(),
+            "epochs": {t: [[None if np.isnan(x) else float(x) for x in s] for s in v] for t, v in self.results.metrics["epochs"].items()},
+            "accuracy": {s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()} for s in ("val", *splits)},
+            "predictions": {s: {h: np.asarray(p).tolist() for h, p in ev[s]["predictions"].items()} for s in splits},
+        }
 
 
 def train_row(
@@ -360,32 +376,28 @@ def run_study(
     preset: str = "default",
     rows: Sequence[str] | None = None,
     overrides: Mapping[str, Any] | None = None,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
+    where: Location = Location(),
 ) -> dict[str, Any]:
     """Train the chosen `rows` of `study` (all by default) with `n_seeds` seeds (the study's count
     by default), check the paper's claims and write results/<study>.md and .json; returns the JSON."""
-    from fabricjax.studies import documents  # the results layer builds on this module's `Row`
 
     overrides = check_overrides(study.name, overrides, study.rows, study.choose_rows)
     chosen = select_rows(study.rows, rows)
     seeds = seed_list(study.n_seeds if n_seeds is None else n_seeds)
-    own = dict(study.recorded_settings) if data_dir else {}
+    own = dict(study.recorded_settings) if where.data_dir else {}
     row_configs = [(r.name, r.config(preset, overrides, own)) for r in chosen]
-    if data_dir:
+    if where.data_dir:
         row_configs = _with_fusion_twins(study, row_configs)
     labels = {r.name: r.label for r in study.rows}
     trained = train_rows(
         study.name, row_configs, seeds,
-        eval_splits=study.eval_splits, split_names=study.split_names, data_dir=data_dir, workdir=workdir,
+        eval_splits=study.eval_splits, split_names=study.split_names, data_dir=where.data_dir, workdir=where.workdir,
         checkpoints=study.checkpoints, label=lambda name: labels.get(name, name), summary=study.summary, check=study.check,
         data_names=True,
     )
-    body, figures = study.document(trained, chosen, documents.results_path(results))
+    body, figures = study.document(trained, chosen, where.results_dir())
     dtypes = (config.compute_dtype for _, config in row_configs)
-    doc = {**documents.header(study.name, command=command, preset=preset, seeds=seeds, dataset=trained.dataset, compute_dtypes=dtypes, train_s=trained.train_s), **body}
+    doc = {**documents.header(study.name, command=where.command, preset=preset, seeds=seeds, dataset=trained.dataset, compute_dtypes=dtypes, train_s=trained.train_s), **body}
     # the checklist holds the paper's claims: recorded data is not the paper's
     doc["findings"] = [] if trained.dataset.recorded else [f.to_json() for f in study.checklist(doc)]
-    return documents.write(results, doc, study.markdown, figures)
+    return documents.write(where.results_dir(), doc, study.markdown, figures)

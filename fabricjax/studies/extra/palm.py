@@ -36,7 +36,8 @@ from tqdm import tqdm
 from fabricjax import archive, catalog, presets
 from fabricjax.sim import EFFECTS, Scene, acoustics, air_path, ambient, shell, simulate, sph0645, trial
 from fabricjax.sim import calibration as cal
-from fabricjax.studies import documents
+from fabricjax.studies.common import documents
+from fabricjax.workspace import Location
 
 CYCLES = 3
 TRIALS = 2
@@ -211,7 +212,7 @@ def markdown(doc: dict[str, Any]) -> str:
         f"{doc['cafe_days']}, {doc['trials']} trials per day, {doc['cycles']} rubbing cycles per trial (levels over the rubbing), "
         f"seed {doc['seed']}; {doc['wall_s']:.0f} s",
         "",
-        "How each number is made: `fabricjax/studies/palm.py`; where each simulator magnitude comes from: "
+        "How each number is made: `fabricjax/studies/extra/palm.py`; where each simulator magnitude comes from: "
         "`fabricjax/sim/calibration.py` (\"air paths\", \"ambient sound\", \"servo noise\"). Levels in dB SPL at the microphone's "
         "port per octave band and A-weighted over 50 Hz-15 kHz.",
         "",
@@ -284,7 +285,7 @@ def markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def run(preset: str = "default", cycles: int = CYCLES, command: str | None = None, results=None) -> dict[str, Any]:
+def run(preset: str = "default", cycles: int = CYCLES, where: Location = Location()) -> dict[str, Any]:
     """Measure, then write results/palm_physics.md and .json atomically."""
-    doc = {**documents.header("palm_physics", command=command), **measure(preset, cycles)}
-    return documents.write(results, doc, markdown)
+    doc = {**documents.header("palm_physics", command=where.command), **measure(preset, cycles)}
+    return documents.write(where.results_dir(), doc, markdown)

@@ -12,7 +12,8 @@ import numpy as np
 
 from fabricjax import archive, catalog, confidence, dataset_index, live, sim, splits
 from fabricjax.config import Config
-from fabricjax.studies import documents, loading, runner
+from fabricjax.studies.common import documents, loading, runner
+from fabricjax.workspace import Location
 
 
 def format_step(r: live.StepResult, label: int, meta: dict | None = None) -> str:
@@ -61,13 +62,10 @@ def run(
     overrides: Mapping[str, Any] | None = None,
     realtime: bool = True,
     print_every: int = 0,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
     out: Callable[[str], None] = print,
     view: bool = False,
     view_save=None,
+    where: Location = Location(),
 ) -> dict:
     """Classify one trial live and write results/stream.json; returns its document.
 
@@ -88,11 +86,11 @@ def run(
     if checkpoint_dir is not None:
         graphdef, params, config, temperature = live.restore_model(checkpoint_dir)
     else:
-        graphdef, params, config, checkpoint_dir = quick_model(preset, overrides, workdir=workdir, data_dir=data_dir)
+        graphdef, params, config, checkpoint_dir = quick_model(preset, overrides, workdir=where.workdir, data_dir=where.data_dir)
         temperature = confidence.load_temperature(checkpoint_dir, 0) or 1.0
     if archive_path is None:
-        folder = data_dir or sim.ensure_dataset(config.preset, workdir, streams=("audio", "proprio"), progress=False)
-        archive_path = first_test_trial(folder, workdir)
+        folder = where.data_dir or sim.ensure_dataset(config.preset, where.workdir, streams=("audio", "proprio"), progress=False)
+        archive_path = first_test_trial(folder, where.workdir)
     trial = archive.read_archive(archive_path, images=watch)
     streamer = live.Streamer(graphdef, params, config, temperature, layout=archive.layout(trial.meta))
     label = int(trial.meta["label"])
@@ -126,7 +124,7 @@ def run(
         + (f"; {summary['late_steps']} of {summary['steps']} results came after their 20 ms slot" if realtime else "")
     )
     doc = {
-        **documents.header("stream", command=command, archive=str(archive_path), checkpoint=str(checkpoint_dir), config=config.to_json()),
+        **documents.header("stream", command=where.command, archive=str(archive_path), checkpoint=str(checkpoint_dir), config=config.to_json()),
         **summary,
     }
-    return documents.write(results, doc, None)
+    return documents.write(where.results_dir(), doc, None)

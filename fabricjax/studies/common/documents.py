@@ -6,7 +6,7 @@ its JSON document on `header` (study, command, code, machine, date, and the fiel
 preset, seeds, dataset, ...), says where its numbers come from in Markdown with `header_markdown`
 and writes results/<study>.md and .json atomically with `write`, which also records the figures
 it drew under one key, "figures". Tables are `markdown_table`; per-row and per-sample records of a
-trained row are `row_doc` and `samples_doc`. The paper's claims checked on a study's rows live in
+trained row are `runner.Row.doc` and `samples_doc`. The paper's claims checked on a study's rows live in
 `findings`; REPORT.md, which gathers every study, is `reproduce`'s."""
 
 from __future__ import annotations
@@ -24,8 +24,7 @@ import numpy as np
 
 from fabricjax import data, presets, runtime, stats, workspace
 from fabricjax.atomic import atomic_open
-from fabricjax.studies.loading import Dataset
-from fabricjax.studies.runner import Row
+from fabricjax.studies.common.loading import Dataset
 
 
 # CPU features XLA:CPU compiles for: hosts that differ in them may round (and run) the same
@@ -198,22 +197,6 @@ def machine_markdown(m: dict[str, Any]) -> str:
 
 def command_markdown(command: str | None) -> str:
     return f"- command: `{command}`" if command else "- command: none (called from Python)"
-
-
-def row_doc(row: Row, splits: Sequence[str]) -> dict[str, Any]:
-    """A row's config, checkpoint (None where the study keeps no models), wall time and, per seed,
-    accuracies and per-sample predictions of every head."""
-    ev = row.results.metrics["eval"]
-    return {
-        "config": row.config.to_json(),
-        "checkpoint": None if row.checkpoint is None else str(row.checkpoint),
-        "seeds": list(row.results.seeds),
-        "wall_s": row.seconds,
-        "best_epoch": np.asarray(row.results.metrics["best_epoch"]).tolist(),
-        "epochs": {t: [[None if np.isnan(x) else float(x) for x in s] for s in v] for t, v in row.results.metrics["epochs"].items()},
-        "accuracy": {s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()} for s in ("val", *splits)},
-        "predictions": {s: {h: np.asarray(p).tolist() for h, p in ev[s]["predictions"].items()} for s in splits},
-    }
 
 
 def samples_doc(ss: data.SequenceSet) -> dict[str, Any]:

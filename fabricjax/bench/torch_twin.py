@@ -12,7 +12,7 @@ twin keeps a constant learning rate, which costs the same per step as our warm-u
 its `state_dict`, so the two can be checked for equal logits (tests/test_torch_twin.py).
 Optional: install with `pip install -e ".[compare]"`. Importing this module does not import
 torch; every function that needs it imports it when called (ImportError without torch), so
-`fabricjax.program_timing.compare_with_torch` and the bench suite use it only where torch is installed.
+`fabricjax.bench.program_timing.compare_with_torch` and the bench suite use it only where torch is installed.
 
 The strongest PyTorch we know to write: the runners take `compile_mode` (None: eager; else a
 `torch.compile` mode, `COMPILE_MODES`), and the optimiser is the fastest AdamW implementation

@@ -13,7 +13,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax.studies import documents
+from fabricjax.studies.common import documents
 
 
 @dataclasses.dataclass(frozen=True)

@@ -43,9 +43,11 @@ import jax
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, program_timing, data, dataset_index, plots, stats
+from fabricjax import archive, data, dataset_index, plots, stats
+from fabricjax.bench import program_timing
 from fabricjax.config import Config
-from fabricjax.studies import documents, loading, runner
+from fabricjax.studies.common import documents, loading, runner
+from fabricjax.workspace import Location
 
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
 MODALITY_ABBREVIATIONS = {"internal": "int", "external": "ext", "proprio": "prop", "flow": "flow", "image": "img"}
@@ -185,19 +187,16 @@ def run(
     paper: bool = True,
     overrides: dict[str, Any] | None = None,
     latency_repeats: int = 100,
-    workdir=None,
-    data_dir=None,
-    results="results",
-    command: str | None = None,
+    where: Location = Location(),
 ) -> dict[str, Any]:
     """Train every point of the sweep; write results/cost.{md,json} and cost_pareto.png; return the JSON."""
     if not backbones or not modality_sets:
         raise ValueError("need at least one backbone and one modality set (the base point's)")
     seeds = runner.seed_list(n_seeds)
     base = Config.from_preset(preset, **{"backbone": backbones[0], "modalities": tuple(modality_sets[0]), **(overrides or {})})
-    first = loading.load_dataset(base, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST)
+    first = loading.load_dataset(base, data_dir=where.data_dir, workdir=where.workdir, split_names=loading.TRAIN_VAL_TEST)
     base = first.fit(base)  # the data's classes and step window
-    max_len, step_rate = steps_and_rate(first.folder, workdir)
+    max_len, step_rate = steps_and_rate(first.folder, where.workdir)
     paper = paper and not first.recorded  # recorded data is compared with itself, not with the paper's configuration
     points, paper_name = sweep_points(
         base, seq_lens, backbones, widths, bandwidths, [tuple(m) for m in modality_sets], paper=paper, max_len=max_len
@@ -212,7 +211,7 @@ def run(
         n = p.config.seq_len
         if n != loaded_n:  # every point of one N shares the sequences, loaded once at the widest band
             load = dataclasses.replace(base, seq_len=n, modalities=union, bandwidth_khz=widest)
-            sets = loading.load_dataset(load, data_dir=data_dir, workdir=workdir, split_names=loading.TRAIN_VAL_TEST).sets
+            sets = loading.load_dataset(load, data_dir=where.data_dir, workdir=where.workdir, split_names=loading.TRAIN_VAL_TEST).sets
             loaded_n = n
         progress.start(p.name)
         r = measure(p, sets, seeds, latency_repeats, step_rate)
@@ -221,7 +220,7 @@ def run(
     order = {p.name: i for i, p in enumerate(points)}
     rows.sort(key=lambda r: order[r["name"]])
     fronts = {key: pareto_front(rows, key) for key, _ in X_AXES}
-    doc = documents.header("cost", command=command, preset=preset, seeds=seeds, dataset=first)
+    doc = documents.header("cost", command=where.command, preset=preset, seeds=seeds, dataset=first)
     doc["dataset"].update(shortest_trial_steps=max_len, step_rate=step_rate)
     doc = {
         **doc,
@@ -232,8 +231,8 @@ def run(
         "total_s": time.perf_counter() - t_all,
         "points": rows,
     }
-    figure = plots.plot_pareto(documents.results_path(results) / "cost_pareto.png", rows, X_AXES, highlight=paper_name)
-    return documents.write(results, doc, markdown, [figure])
+    figure = plots.plot_pareto(where.results_dir() / "cost_pareto.png", rows, X_AXES, highlight=paper_name)
+    return documents.write(where.results_dir(), doc, markdown, [figure])
 
 
 def markdown(doc: dict[str, Any]) -> str:

@@ -50,7 +50,10 @@ import fabricjax
 from fabricjax import archive, dataset_index, presets, source, splits, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
-from fabricjax.studies import ablation, bandwidth, day_shift, decide, documents, findings, latents, noise, probe, properties
+from fabricjax.studies.common import documents, findings
+from fabricjax.studies.extra import day_shift, decide, probe
+from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
+from fabricjax.workspace import Location
 
 STUDIES = {
     "ablation": ablation, "probe": probe, "day_shift": day_shift, "bandwidth": bandwidth, "noise": noise,
@@ -208,15 +211,14 @@ def run(
     preset: str = "default",
     plan: Sequence[Step] = PLAN,
     overrides: Mapping[str, Any] | None = None,
-    workdir=None,
-    data_dir=None,
-    results=None,
     force: bool = False,
-    command_line: str = "python -m experiments.reproduce",
+    where: Location = Location(command="python -m experiments.reproduce"),
     say: Callable[[str], None] = print,
 ) -> dict[str, Any]:
     """Run every study of `plan` that is not up to date (all with `force`), then write REPORT.md
-    from every study's results; returns the manifest."""
+    from every study's results; returns the manifest. `where.command` is the command REPORT.md
+    names for the whole run."""
+    workdir, data_dir = where.workdir, where.data_dir
     presets.get(preset)  # an unknown preset is a one-line error before anything runs
     unknown = [s.study for s in plan if s.study not in STUDIES]
     if unknown:
@@ -224,7 +226,7 @@ def run(
     overrides = dict(overrides or {})
     if data_dir:
         plan = fit_plan(plan, preset, data_dir, workdir, say)
-    out = workspace.results_dir(results, workdir)
+    out = where.results_dir()
     manifest_path = out / MANIFEST
     manifest = _read_json(manifest_path) or {}
     code = source.fingerprint()
@@ -271,7 +273,7 @@ def run(
             folders, names = _decide_checkpoints(out, step.rows)
             checkpoint = ",".join(folders)
         cmd = command(step, preset, overrides, out, checkpoint, data_dir, workdir)
-        kwargs = dict(workdir=workdir, data_dir=data_dir, results=out, command=cmd)
+        kwargs = dict(where=dataclasses.replace(where, results=out, command=cmd))
         if step.study == "latents":
             latents.run(checkpoint, **kwargs)
         elif step.study == "decide":
@@ -288,7 +290,7 @@ def run(
         }
         documents.write_json(manifest_path, manifest)
         say(f"reproduce: {step.study} done in {_minutes(wall)}")
-    write_report(out / REPORT, manifest, preset, code, command_line, time.perf_counter() - t_all, len(todo))
+    write_report(out / REPORT, manifest, preset, code, where.command, time.perf_counter() - t_all, len(todo))
     say(f"reproduce: wrote {out / REPORT}")
     return {s.study: manifest[s.study] for s in plan}
 

@@ -26,7 +26,8 @@ import numpy as np
 
 from fabricjax import stats
 from fabricjax.errors import UserError
-from fabricjax.studies import documents
+from fabricjax.studies.common import documents
+from fabricjax.workspace import Location
 
 STUDY = "variant"
 SPLITS = ("val", "test")
@@ -154,9 +155,9 @@ def markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(baseline: Path | str, variant: Path | str, *, results, command: str | None = None) -> dict[str, Any]:
-    """Compare and write results/variant.md and .json."""
-    doc = compare(baseline, variant, command=command)
-    documents.write(results, doc, markdown)
+def run(baseline: Path | str, variant: Path | str, *, where: Location = Location()) -> dict[str, Any]:
+    """Compare and write variant.md and .json into `where`'s results folder."""
+    doc = compare(baseline, variant, command=where.command)
+    documents.write(where.results_dir(), doc, markdown)
     print(markdown(doc))
     return doc

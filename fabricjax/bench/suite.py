@@ -31,7 +31,7 @@ ours for the Welch speed-up. Training and inference also say how close ours come
 FLOPs per step by XLA's cost analysis of the compiled program, the GFLOP/s that makes, and its
 fraction of a dense matmul's GFLOP/s with float32 and with bfloat16 operands (float32
 accumulation), both measured in the same run (`program_timing.matmul_peak`). The
-PyTorch twin (`fabricjax.torch_twin`, `pip install -e ".[compare]"`) is optional: without torch
+PyTorch twin (`fabricjax.bench.torch_twin`, `pip install -e ".[compare]"`) is optional: without torch
 the comparison is skipped with a note. Nothing here asserts a time.
 """
 
@@ -47,12 +47,13 @@ from typing import Any, Callable, Sequence
 import jax
 from absl import logging
 
-from fabricjax import archive, program_timing, dataset_index, live, presets, sharding, sim, torch_twin, train
+from fabricjax import archive, dataset_index, live, presets, sharding, sim, train
+from fabricjax.bench import feature_timing, program_timing, sim_throughput, torch_twin
 from fabricjax.config import Config
-from fabricjax.features import timing as feature_timing
 from fabricjax.features import welch
 from fabricjax.sim import calibration as sim_calibration
-from fabricjax.studies import documents
+from fabricjax.studies.common import documents
+from fabricjax.workspace import Location
 
 BENCHMARKS = ("simulator", "welch", "extraction", "training", "camera", "inference", "streaming", "acquisition", "import")
 PASSED_IN = ("acquisition", "import")  # benchmarks of the acquisition package, which this library does not import
@@ -101,7 +102,7 @@ def _torch_twin():
 
 
 def bench_simulator(quick: bool) -> dict:
-    return sim.bench_throughput(seconds=5.0 if quick else 30.0)
+    return sim_throughput.bench_throughput(seconds=5.0 if quick else 30.0)
 
 
 def bench_welch(quick: bool) -> dict:
@@ -166,8 +167,8 @@ def bench_training(quick: bool, w: Workload, compared: dict | None, peaks: dict)
             out[f"ours_{n}_over_1_per_seed"] = {
                 d: out[f"ours_{n}_seed"][d]["seconds_per_step"] / (n * out["ours_1_seed"][d]["seconds_per_step"]) for d in program_timing.DTYPES
             }
-    # How training splits each seed count over the devices: {"seed": devices over seeds, "batch": over samples}.
-    out["mesh"] = {str(n): dict(sharding.training_mesh(n, w.batch).shape) for n in w.seeds}
+    # How training splits each minibatch's samples over the devices: {"batch": devices}.
+    out["mesh"] = dict(sharding.training_mesh(w.batch).shape)
     if compared is not None:
         out["interleaved"] = {k: compared[k] for k in ("rounds", "steps_per_timing", "torch_threads", "torch_adamw", "training")}
     return out
@@ -241,12 +242,10 @@ def run(
     only: Sequence[str] | None = None,
     quick: bool = False,
     workload: Workload = Workload(),
-    workdir=None,
-    results="results",
-    command: str | None = None,
     out: Callable[[str], None] = print,
     acquisition: Callable[..., dict] | None = None,
     importer: Callable[..., dict] | None = None,
+    where: Location = Location(),
 ) -> dict[str, Any]:
     """Run the chosen benchmarks (all by default) in order; write results/bench.json and bench.md.
 
@@ -285,7 +284,7 @@ def run(
     jobs = {
         "simulator": lambda: bench_simulator(quick),
         "welch": lambda: bench_welch(quick),
-        "extraction": lambda: bench_extraction(quick, workdir),
+        "extraction": lambda: bench_extraction(quick, where.workdir),
         "training": lambda: bench_training(quick, workload, comparison(), matmul_peak()),
         "camera": lambda: bench_camera(quick),
         "inference": lambda: bench_inference(quick, workload, comparison(), matmul_peak()),
@@ -293,7 +292,7 @@ def run(
         "acquisition": lambda: acquisition(seconds=3.0 if quick else 10.0),
         "import": lambda: importer(trials=100 if quick else 1000),
     }
-    doc = documents.header("bench", command=command, quick=quick, torch=_torch_version(twin), benchmarks={})
+    doc = documents.header("bench", command=where.command, quick=quick, torch=_torch_version(twin), benchmarks={})
     if note:
         doc["torch_note"] = note
     for name in (b for b in BENCHMARKS if b in chosen):
@@ -304,7 +303,7 @@ def run(
     if peak:
         doc["matmul_peak"] = peak
     out(markdown(doc))
-    return documents.write(results, doc, markdown)
+    return documents.write(where.results_dir(), doc, markdown)
 
 
 def _torch_version(twin) -> str | None:

@@ -18,8 +18,8 @@ and the data's own names for its streams (the rig file's microphones and joints;
 inputs by role). Each row is trained under both fusion normalisations and reported under the one
 with the better validation accuracy (mean over seeds; step-LayerNorm on a tie), the other's beside it: another rig may carry
 its cue in a level that is steady within a sequence, which the paper's rescale erases. Each input's
-steadiness (`probe.steadiness`) is reported once, flagged below `STEADY_BELOW`, and the linear probe
-of each row's inputs on the same sequences (`probe.fit_rows`) stands beside it; a row more than
+steadiness (`linear_probe.steadiness`) is reported once, flagged below `STEADY_BELOW`, and the linear probe
+of each row's inputs on the same sequences (`linear_probe.fit_rows`) stands beside it; a row more than
 `BELOW_PROBE_PP` below its probe is said so.
 """
 
@@ -32,8 +32,8 @@ from absl import logging
 
 from fabricjax import catalog, data, plots, stats
 from fabricjax.config import MODALITY_NAMES
-from fabricjax.studies import documents, findings, loading, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, findings, linear_probe, loading, runner
+from fabricjax.studies.common.runner import StudyRow
 
 TITLE, PAPER = "Modality ablation", "Table ablation_table"  # how results name the study, and what of the paper it reproduces
 
@@ -43,7 +43,7 @@ CONFUSION_ROWS = ("proprio", "flow")
 STEP_LAYERNORM = "step_layernorm"  # our fusion normalisation (config.FUSION_NORMS), beside the paper's sequence_minmax
 BELOW_PROBE_PP = 10.0  # on recorded data, a row this many points below its probe's test accuracy is said so
 # an input whose within-sequence variance is below this fraction of its total (median over its
-# dimensions, `probe.steadiness`) is steady within a sequence: reported, since the paper's rescale erases it
+# dimensions, `linear_probe.steadiness`) is steady within a sequence: reported, since the paper's rescale erases it
 STEADY_BELOW = 0.2
 
 
@@ -129,7 +129,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
                 "display_name": r.label,
                 "fusion_norm": r.settings["fusion_norm"],
                 **({} if recorded else {"paper_mean": r.paper["mean"], "paper_sd": r.paper["sd"]}),
-                **documents.row_doc(rows[r.name], ["test"]),
+                **rows[r.name].doc(["test"]),
             }
             for r in chosen
         ],
@@ -149,14 +149,12 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
 def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -> dict[str, Any]:
     """The rows on recorded data: each under the fusion its validation accuracy picks, beside the
     other fusion and the probe of its inputs; every input's steadiness."""
-    from fabricjax.studies import probe  # the probe's rows are this module's: it imports this module
-
     sets, rows = trained.dataset.sets, trained.rows
     names = sets["test"].names
     twins = {runner.fusion_twin(r.name, STEP_LAYERNORM) for r in chosen}
     chosen = [r for r in chosen if r.name not in twins]  # a chosen row's twin: reported within that row
-    probes = probe.fit_rows(sets, [r.modalities for r in chosen])
-    steady = {m: probe.steadiness(a) for m, a in sets["train"].inputs.items()}
+    probes = linear_probe.fit_rows(sets, [r.modalities for r in chosen])
+    steady = {m: linear_probe.steadiness(a) for m, a in sets["train"].inputs.items()}
     for m, ratio in steady.items():
         if ratio < STEADY_BELOW:
             logging.warning("%s is steady within sequences: its within-sequence variance is %.1f %% of its total (median over its "
@@ -177,7 +175,7 @@ def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -
                 "test": {t.config.fusion_norm: stats.mean_sd(100 * t.accuracy("test"))[0] for t in trained_as},
             },
             "probe": {"C": p["C"], "accuracy": p["accuracy"]},
-            **documents.row_doc(best, ["test"]),
+            **best.doc(["test"]),
         })
     return {
         "rows": out, "names": dict(names), "steady_below": STEADY_BELOW, "steadiness": steady,

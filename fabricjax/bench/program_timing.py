@@ -1,4 +1,4 @@
-"""Timing helpers for the training step and for inference (used by `fabricjax.studies.bench` and
+"""Timing helpers for the training step and for inference (used by `fabricjax.bench.suite` and
 the cost study).
 
 They time the real programs: `Trainer.train_epoch` (a scan over minibatches, vmapped over seeds,
@@ -8,7 +8,7 @@ bins = 15 kHz of 512, N=200 steps). Compilation is excluded; nothing here assert
 An epoch is timed as one call of `STEPS_PER_EPOCH` steps, as training runs it (one call per epoch
 or per run). Each call of a compiled program gets its scratch memory fresh from the OS, so very
 short epochs would overstate the cost of a step.
-`compare_with_torch` times ours and the optional PyTorch twin (`fabricjax.torch_twin`), eager and
+`compare_with_torch` times ours and the optional PyTorch twin (`fabricjax.bench.torch_twin`), eager and
 `torch.compile`d, interleaved in one process and reports the ratios.
 
 Ours runs in each compute dtype (`Config.compute_dtype`, `DTYPES`), the twin in float32 and under
@@ -29,9 +29,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fabricjax import sharding, stats, synthetic
+from fabricjax import sharding, stats
+from fabricjax.bench import synthetic
 from fabricjax.config import Config
-from fabricjax.model import compile_predict_one, feature_shapes, training_layout
+from fabricjax.inputs import feature_shapes, training_layout
+from fabricjax.model import compile_predict_one
 from fabricjax.train import make_trainer, seed_keys, select
 
 STEPS_PER_EPOCH = 16
@@ -94,13 +96,13 @@ def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_b
     """The jitted, vmapped `Trainer.train_epoch` and its arguments (carry, keys, data), placed as
     training places them (`sharding.training_mesh`)."""
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
-    mesh = sharding.training_mesh(n_seeds, batch)
+    mesh = sharding.training_mesh(batch)
     frames = {} if image_hw is None else {"image_hw": tuple(image_hw)}  # None: synthetic's own frame size
     data = synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins, **frames)
     chosen = select(cfg, data)
     trainer = make_trainer(cfg, feature_shapes(chosen["inputs"]), mesh=mesh, n_train=batch * steps)
     train = jax.device_put({**chosen, "inputs": training_layout(chosen["inputs"])}, sharding.replicated(mesh))
-    per_seed = sharding.by_seed(mesh)
+    per_seed = sharding.replicated(mesh)
     states = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)(jax.device_put(seed_keys(range(n_seeds)), per_seed))
     epoch = jax.jit(sharding.vmap_seeds(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0)
     return epoch, (states["params"], states["opt_state"]), states["key"], train
@@ -114,7 +116,7 @@ def train_step_runner(
     `Trainer.train_epoch` scan, parameters and optimiser state donated) and returns seconds per step.
 
     Seeds and samples are split over the devices as in training (`sharding.training_mesh`): with
-    one CPU device per core (`sharding.use_cpu_cores`), seeds or each minibatch's samples run on
+    one CPU device per core (`runtime.use_cpu_cores`), seeds or each minibatch's samples run on
     separate cores. `image_hw` is the size of the synthetic camera frames (image rows only; None: `synthetic.data_set`'s)."""
     epoch, first, keys, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps, image_hw)
     carry = [first]
@@ -302,9 +304,9 @@ def compare_with_torch(
     caches, as JAX's compilation cache serves ours). `pause_s` separates the sides: a step run
     right after the other side's is slower (caches and the CPU's clock still busy with it). Needs
     torch (`pip install -e ".[compare]"`; ImportError without it): the twin
-    (`fabricjax.torch_twin`) imports torch when called, never at module import.
+    (`fabricjax.bench.torch_twin`) imports torch when called, never at module import.
     """
-    from fabricjax import torch_twin as twin
+    from fabricjax.bench import torch_twin as twin
 
     torch = twin.require()
     config = config or COMPARE_CONFIG

@@ -27,8 +27,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from fabricjax import catalog, data, stats
-from fabricjax.studies import documents, findings, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, findings, runner
+from fabricjax.studies.common.runner import StudyRow
 
 TITLE, PAPER = "Property perception", "Table property_perception"  # how results name the study, and what of the paper it reproduces
 
@@ -56,7 +56,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
     the fabrics of each evaluated split; the paper's numbers."""
     ds = trained.dataset
     out_rows = [
-        {"name": r.name, "modalities": list(r.modalities), **documents.row_doc(trained.rows[r.name], list(SPLITS))}
+        {"name": r.name, "modalities": list(r.modalities), **trained.rows[r.name].doc(list(SPLITS))}
         for r in chosen
     ]
     paper = {p: {f"{split}_{r.name}": r.paper[split][p] for r in ROWS for split in ("train", "holdout")} for p in PROPERTIES}

@@ -21,8 +21,8 @@ import numpy as np
 
 from fabricjax import data, plots, stats
 from fabricjax.errors import UserError
-from fabricjax.studies import documents, findings, loading, runner
-from fabricjax.studies.runner import StudyRow
+from fabricjax.studies.common import documents, findings, loading, runner
+from fabricjax.studies.common.runner import StudyRow
 
 TITLE, PAPER = "Cafe noise", "Table new_noise_results"  # how results name the study, and what of the paper it reproduces
 
@@ -62,7 +62,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
             **({} if recorded else {"paper": dict(r.paper)}),
             "against": previous.name if previous is not None else None,
             "wilcoxon": {k: documents.wilcoxon_doc(v) for k, v in tests.items()} or None,
-            **documents.row_doc(row, [SPLIT, "test"]),
+            **row.doc([SPLIT, "test"]),
         })
         previous = row
     figure = plot(results / "noise.png", out_rows, trained.dataset.sets[SPLIT].names if recorded else None)

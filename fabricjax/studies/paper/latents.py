@@ -33,7 +33,8 @@ from sklearn.manifold import TSNE
 
 from fabricjax import catalog, checkpoint, data, plots, train
 from fabricjax.errors import UserError
-from fabricjax.studies import documents, findings, loading
+from fabricjax.studies.common import documents, findings, loading
+from fabricjax.workspace import Location
 
 TITLE, PAPER = "Latent space", "Fig. latent_features"
 BATCH = 32  # sequences per latent evaluation
@@ -76,10 +77,10 @@ def tsne(points: np.ndarray, seed: int = 0) -> tuple[np.ndarray, float | None]:
     return xy, perplexity
 
 
-def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None, results="results", command: str | None = None) -> dict[str, Any]:
+def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()) -> dict[str, Any]:
     """Restore, encode, embed, plot: writes results/latents.{png,json}; returns the JSON."""
     graphdef, state, config, seeds, for_ = train.restore(checkpoint_dir)  # under the checkpoint's own config
-    if data_dir is None:  # the simulated hand's holdouts: the model must not have trained on them
+    if where.data_dir is None:  # the simulated hand's holdouts: the model must not have trained on them
         trained_holdouts = sorted(set(catalog.PROPERTY_HOLDOUTS) - set(catalog.NEW_FABRICS) - set(for_["unseen_fabrics"]))
         checkpoint.require(
             checkpoint_dir, for_, "latents",
@@ -95,7 +96,7 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
         raise UserError(f"seed {seed} is not in the checkpoint in {checkpoint_dir} (seeds {seeds})")
     params = checkpoint.select_seed(state["best_params"], index)
 
-    ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir, split_names=("test", "holdout"))
+    ds = loading.load_dataset(config, data_dir=where.data_dir, workdir=where.workdir, split_names=("test", "holdout"))
     test_day = _concat([ds.sets["test"], ds.sets["holdout"]])
     if ds.recorded:
         known, holdouts = recorded_fabrics(test_day, ds.classes), sorted(set(ds.sets["holdout"].info["fabric_id"].tolist()))
@@ -105,12 +106,12 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
     xy, perplexity = tsne(points)
     agreement = neighbour_agreement(points, fabrics, known, holdouts)
     png = plots.plot_latents(
-        documents.results_path(results) / "latents.png", xy, fabrics, known, holdouts,
+        where.results_dir() / "latents.png", xy, fabrics, known, holdouts,
         title=f"t-SNE of per-trial mean latents ({data.inputs_name(config.modalities, ds.sets['test'].names if ds.recorded else None)}, seed {seeds[index]}; holdouts outlined)",
         neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
     )
     doc = {
-        **documents.header("latents", command=command, preset=config.preset, dataset=ds),
+        **documents.header("latents", command=where.command, preset=config.preset, dataset=ds),
         "checkpoint": str(checkpoint_dir),
         "config": config.to_json(),
         "checkpoint_seeds": seeds,
@@ -126,7 +127,7 @@ def run(checkpoint_dir, *, seed: int | None = None, workdir=None, data_dir=None,
         # the checklist holds the paper's reading of its figure: recorded data is not the paper's
         "findings": [] if ds.recorded else [f.to_json() for f in checklist(agreement)],
     }
-    return documents.write(results, doc, markdown, [png])
+    return documents.write(where.results_dir(), doc, markdown, [png])
 
 
 def catalog_fabrics(ids) -> dict[int, tuple[str, dict[str, int | None]]]:

@@ -1,0 +1,1 @@
+"""Studies beyond the paper's tables: probe, day_shift, decide, cost, sweep, palm."""
