@@ -5,7 +5,7 @@ n_epochs)`, `Trainer.finish(state, data)`), each `jax.jit(jax.vmap(...))`ed over
 data lives on the device; one epoch is a `lax.scan` over shuffled minibatches and the epoch loop
 is a `lax.scan` too, so epochs run without the host, which reads back only each chunk's curves
 (one chunk for the whole run unless checkpoints or curve files split the scan, see below). Seeds
-are `jax.vmap`ped; seeds, else each minibatch's samples, are split over the devices, those of
+are `jax.vmap`ped and stay together; each minibatch's samples are split over the devices, those of
 every process in a multi-process run (`fabricjax.sharding`). Parameters are
 plain pytrees (`nnx.to_pure_dict`); the module is rebuilt with `nnx.merge` inside the loss.
 
