@@ -50,9 +50,9 @@ def read(path: Path | str) -> dict[str, Any]:
     return doc
 
 
-def _same(field: str, baseline: dict[str, Any], variant: dict[str, Any], variant_path: Path) -> None:
-    if baseline[field] != variant[field]:
-        raise UserError(f"{variant_path}: field '{field}' is {variant[field]!r} against the baseline's {baseline[field]!r}: "
+def _same(field: str, baseline_value: Any, variant_value: Any, variant_path: Path) -> None:
+    if baseline_value != variant_value:
+        raise UserError(f"{variant_path}: field '{field}' is {variant_value!r} against the baseline's {baseline_value!r}: "
                         "a variant must be the same study on the same data and seeds")
 
 
@@ -90,11 +90,9 @@ def compare(baseline_path: Path | str, variant_path: Path | str, *, command: str
     baseline_path, variant_path = Path(baseline_path), Path(variant_path)
     baseline, variant = read(baseline_path), read(variant_path)
     for field in ("study", "seeds", "preset"):
-        _same(field, baseline, variant, variant_path)
+        _same(field, baseline[field], variant[field], variant_path)
     for field in ("folder", "sequences"):
-        if baseline["dataset"].get(field) != variant["dataset"].get(field):
-            raise UserError(f"{variant_path}: field 'dataset.{field}' is {variant['dataset'].get(field)!r} against the baseline's "
-                            f"{baseline['dataset'].get(field)!r}: a variant must be the same study on the same data and seeds")
+        _same(f"dataset.{field}", baseline["dataset"].get(field), variant["dataset"].get(field), variant_path)
     by_name = {r["name"]: r for r in baseline["rows"]}
     pairs = [(by_name[r["name"]], r) for r in variant["rows"] if r["name"] in by_name]
     if not pairs:
