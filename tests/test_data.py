@@ -208,3 +208,21 @@ def test_the_feature_cache_deflates_8_and_16_bit_features_and_stores_float32(tmp
         loaded = cache.load(path, "fp")
         assert loaded.dtype == a.dtype and np.array_equal(loaded, a)
         assert cache.load(path, "another archive version") is None
+
+
+def test_feature_workers_run_jax_on_the_cpu_even_once_jax_is_imported():
+    """A feature worker imports JAX before its initializer runs (unpickling the job imports the
+    module); on a GPU machine, JAX then read the platforms already, and every worker claimed the
+    GPU's memory. The initializer must put such a JAX on the CPU."""
+    import subprocess
+    import sys
+
+    code = (
+        "import os; os.environ.pop('JAX_PLATFORMS', None)\n"
+        "import jax\n"
+        "from fabricjax.features import cache\n"
+        "cache._one_thread_per_worker()\n"
+        "print(jax.config.jax_platforms, jax.default_backend())\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["cpu", "cpu"]

@@ -24,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import sys
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -104,9 +105,16 @@ def _compute_and_drop(job) -> None:
 
 
 def _one_thread_per_worker() -> None:
-    """Pool initializer: each process computes one trial at a time on one core."""
+    """Pool initializer: each process computes one trial at a time on one core, on the CPU.
+
+    On a GPU machine every worker would otherwise start JAX's GPU backend and claim most of the
+    GPU's memory (JAX preallocates), so all but the first run out of it. The worker has imported
+    JAX already (unpickling this function imports the module), and JAX read JAX_PLATFORMS at its
+    import: the platform is set in its config too."""
     os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_multi_thread_eigen=false").strip()
     os.environ["JAX_PLATFORMS"] = "cpu"
+    if "jax" in sys.modules:
+        sys.modules["jax"].config.update("jax_platforms", "cpu")
     import cv2
 
     cv2.setNumThreads(1)
