@@ -7,6 +7,7 @@ by, and the layout training holds its sets in.
     input_statistics      those parameters' values from the training split
     with_input_statistics a training state with them written into its parameters
     training_layout       a set's inputs as training and its evaluation read them (frames as rows)
+    training_input        one input of it
     feature_shapes        the per-step shapes a model is built for
 
 `data` produces the arrays, `model` reads them; `train` uses both through this module.
@@ -20,6 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from fabricjax import memo
 from fabricjax.config import Config
 from fabricjax.features import images
 
@@ -66,21 +68,30 @@ def input_statistics(config: Config, train_set, chunk: int = 256) -> dict[str, j
         if m not in STANDARDISED:
             continue
         x = inputs[m]
-        axis = STANDARDISED[m] % (x.ndim - 2) + 2  # the channel axis of (S, N, ...)
-        total, total_sq, count = 0.0, 0.0, 0
-        for start in range(0, max(len(x), 1), chunk):
-            part = np.asarray(x[start : start + chunk])
-            total, total_sq, count = (a + b for a, b in zip((total, total_sq, count), _sums(part, axis)))
-        mean, mean_sq = total / max(count, 1), total_sq / max(count, 1)  # per position and channel
-        positions = tuple(range(mean.ndim - 1))
-        if per_position_shift(config, m):  # spread about each position's own mean
-            variance = np.maximum(mean_sq - mean * mean, 0.0).mean(positions)
-        else:
-            mean, mean_sq = mean.mean(positions), mean_sq.mean(positions)
-            variance = np.maximum(mean_sq - mean * mean, 0.0)
+        axis, per_position = STANDARDISED[m] % (x.ndim - 2) + 2, per_position_shift(config, m)  # the channel axis of (S, N, ...)
+        mean, variance = _STATISTICS.get(x, (axis, per_position, chunk), lambda: _moments(x, axis, per_position, chunk))
         stats[f"{m}_shift"] = jnp.asarray(mean, jnp.float32)
         stats[f"{m}_scale"] = jnp.asarray(1.0 / np.maximum(np.sqrt(variance), 1e-6), jnp.float32)
     return stats
+
+
+# The statistics of a loaded training array, kept for the study's next row on it (`memo`).
+_STATISTICS = memo.ByArray(max_entries=16)
+
+
+def _moments(x, axis: int, per_position: bool, chunk: int) -> tuple[np.ndarray, np.ndarray]:
+    """(mean, variance) of `x` (S, N, ...) about each channel's mean, or each position's
+    (`per_position`), summed over chunks of `chunk` sequences along the channel `axis`."""
+    total, total_sq, count = 0.0, 0.0, 0
+    for start in range(0, max(len(x), 1), chunk):
+        part = np.asarray(x[start : start + chunk])
+        total, total_sq, count = (a + b for a, b in zip((total, total_sq, count), _sums(part, axis)))
+    mean, mean_sq = total / max(count, 1), total_sq / max(count, 1)  # per position and channel
+    positions = tuple(range(mean.ndim - 1))
+    if per_position:  # spread about each position's own mean
+        return mean, np.maximum(mean_sq - mean * mean, 0.0).mean(positions)
+    mean, mean_sq = mean.mean(positions), mean_sq.mean(positions)
+    return mean, np.maximum(mean_sq - mean * mean, 0.0)
 
 
 def _sums(part: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, int]:
@@ -113,7 +124,11 @@ def training_layout(inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
     C)) as rows ("image_rows", (S, H*W, C, N): `features.images.to_rows`), so that each minibatch's
     rotation moves whole rows (`FabricNet.image_features`) and evaluation runs the same compiled
     image path; other inputs unchanged. `train_and_evaluate` does it once per set, on the whole
-    set, before it goes to the devices, so that the transpose stays out of the training step."""
-    if "image" not in inputs:
-        return dict(inputs)
-    return {("image_rows" if k == "image" else k): images.to_rows(v) if k == "image" else v for k, v in inputs.items()}
+    set, on the host (NumPy in, NumPy out), before it goes to the devices, so that the transpose
+    stays out of the training step."""
+    return dict(training_input(m, a) for m, a in inputs.items())
+
+
+def training_input(modality: str, array) -> tuple[str, Any]:
+    """One input as `training_layout` holds it: (its name there, the array)."""
+    return ("image_rows", images.to_rows(array)) if modality == "image" else (modality, array)

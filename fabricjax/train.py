@@ -34,25 +34,27 @@ from typing import Any, Callable, Mapping, NamedTuple, Sequence
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from flax import nnx
-from jax.sharding import Mesh
+from jax.sharding import Mesh, NamedSharding
 
-from fabricjax import checkpoint, curves, runtime, sharding
+from fabricjax import checkpoint, curves, memo, runtime, sharding
 from fabricjax.config import Config
-from fabricjax.inputs import feature_shapes, input_statistics, training_layout, with_input_statistics
+from fabricjax.inputs import feature_shapes, input_statistics, training_input, with_input_statistics
 from fabricjax.model import FabricNet, head_sizes
 
-def select(config: Config, ds) -> dict[str, dict[str, jax.Array]]:
-    """The arrays of `ds` this config uses: its modalities and its heads' labels."""
+def select(config: Config, ds) -> dict[str, dict[str, np.ndarray]]:
+    """The arrays of `ds` this config uses, on the host: its modalities and its heads' labels
+    (int32)."""
     inputs = ds["inputs"] if isinstance(ds, Mapping) else ds.inputs
     labels = ds["labels"] if isinstance(ds, Mapping) else ds.labels
     missing = [m for m in config.modalities if m not in inputs] + [h for h in head_sizes(config) if h not in labels]
     if missing:
         raise ValueError(f"data set lacks {missing} (has inputs {sorted(inputs)}, labels {sorted(labels)})")
     return {
-        "inputs": {m: jnp.asarray(inputs[m]) for m in config.modalities},
-        "labels": {h: jnp.asarray(labels[h], jnp.int32) for h in head_sizes(config)},
+        "inputs": {m: np.asarray(inputs[m]) for m in config.modalities},
+        "labels": {h: np.asarray(labels[h], np.int32) for h in head_sizes(config)},
     }
 
 
@@ -254,24 +256,45 @@ def make_trainer(
     return Trainer(config, shapes, graphdef, make_optimizer(config, steps), steps, mesh)
 
 
-def pad(ds, multiple: int):
-    """Pad a set to whole minibatches with zero inputs and unknown (-1) labels, which every metric ignores."""
-    n = jax.tree.leaves(ds["labels"])[0].shape[0]
-    extra = -n % multiple
-    widths = lambda a: [(0, extra)] + [(0, 0)] * (a.ndim - 1)  # noqa: E731
-    return {
-        "inputs": jax.tree.map(lambda a: jnp.pad(a, widths(a)), ds["inputs"]),
-        "labels": jax.tree.map(lambda a: jnp.pad(a, widths(a), constant_values=-1), ds["labels"]),
+def padded(a: np.ndarray, multiple: int, fill) -> np.ndarray:
+    """`a` with rows of `fill` appended up to a whole number of `multiple` rows: evaluation sets
+    run in whole minibatches, with zero inputs and unknown (-1) labels, which every metric ignores."""
+    extra = -len(a) % multiple
+    return np.concatenate([a, np.full((extra, *a.shape[1:]), fill, a.dtype)]) if extra else a
+
+
+# Inputs as runs read them (padded, in training's layout, on the devices), kept from one run to the
+# next: the rows of a study share their arrays (`memo`). Six entries: a camera input's three sets twice.
+_PLACED = memo.ByArray(max_entries=6)
+
+
+def _placed(a: np.ndarray, modality: str, multiple: int | None, to: NamedSharding) -> tuple[str, jax.Array]:
+    """(the input's name in training's layout, the array on `to`'s devices), padded to whole
+    minibatches of `multiple` where one is given (evaluation sets)."""
+
+    def make():
+        name, array = training_input(modality, a if multiple is None else padded(a, multiple, 0))
+        return name, sharding.put(array, to)
+
+    return _PLACED.get(a, (modality, multiple, to), make)
+
+
+def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None, to: NamedSharding):
+    """(the run's data on `to`'s devices, evaluation set sizes): each set's inputs in training's
+    layout (`inputs.training_input`), evaluation sets padded to whole minibatches. Built on the
+    host with NumPy (copies of a camera row's GB of frames compile nothing that way), and large
+    inputs are kept on the devices for the next run on the same arrays (`_placed`)."""
+    sets = {k: select(config, v) for k, v in {"train": train_set, "val": val_set, **(eval_sets or {})}.items()}
+    sizes = {k: len(jax.tree.leaves(v["labels"])[0]) for k, v in sets.items() if k != "train"}
+    multiple = lambda k: None if k == "train" else config.batch_size  # noqa: E731
+    placed = {
+        k: {
+            "inputs": dict(_placed(a, m, multiple(k), to) for m, a in v["inputs"].items()),
+            "labels": sharding.put({h: a if multiple(k) is None else padded(a, multiple(k), -1) for h, a in v["labels"].items()}, to),
+        }
+        for k, v in sets.items()
     }
-
-
-def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None = None):
-    """(device-ready data, evaluation set sizes): evaluation sets are padded to whole minibatches."""
-    evals = {"val": val_set, **(eval_sets or {})}
-    evals = {k: select(config, v) for k, v in evals.items()}
-    sizes = {k: int(jax.tree.leaves(v["labels"])[0].shape[0]) for k, v in evals.items()}
-    evals = {k: pad(v, config.batch_size) for k, v in evals.items()}
-    return {"train": select(config, train_set), "val": evals.pop("val"), "eval": evals}, sizes
+    return {"train": placed.pop("train"), "val": placed.pop("val"), "eval": placed}, sizes
 
 
 def unpad(metrics, sizes: Mapping[str, int]):
@@ -349,16 +372,14 @@ def train_and_evaluate(
     """
     seeds = tuple(int(s) for s in seeds)
     evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
-    data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals)
     mesh = sharding.training_mesh(config.batch_size)
-    shapes = tuple(sorted(feature_shapes(data["train"]["inputs"]).items()))
+    per_seed = sharding.replicated(mesh)
+    # in training's layout once per training, not per `run` call (studies write curves, so they run one
+    # epoch per call); every set, so that training and evaluation compile one image path (`FabricNet.image_features`)
+    data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals, sharding.replicated(mesh))
+    shapes = tuple(sorted(feature_shapes(select(config, data_sets["train"])["inputs"]).items()))
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
     trainer, init, run, finish = _programs(config, shapes, n_train, mesh)
-    per_seed = sharding.replicated(mesh)
-    # once per training, not per `run` call (studies write curves, so they run one epoch per call);
-    # every set, so that training and evaluation compile one image path (`FabricNet.image_features`)
-    data = jax.tree.map(lambda ds: {**ds, "inputs": training_layout(ds["inputs"])}, data, is_leaf=lambda x: isinstance(x, Mapping) and "inputs" in x)
-    data = sharding.put(data, sharding.replicated(mesh))
     keys = sharding.put(seed_keys(seeds), per_seed)
 
     mngr = checkpoint.manager(workdir) if workdir is not None else None

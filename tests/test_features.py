@@ -245,3 +245,12 @@ def test_another_window_is_another_feature_with_the_segment_following_it():
     x = extract.mic_windows(a, extract.mic_index(a, "internal"), w)
     ref = scipy.signal.welch((x >> 14).astype(np.float64) / 2**17, **welch.scipy_kwargs(w))[1]
     np.testing.assert_allclose(psd, np.log10(np.maximum(ref, welch.LOG_FLOOR)), atol=2e-3)
+
+
+def test_rows_on_the_host_equal_the_device_layout():
+    """`to_rows` of NumPy frames (blocks of sequences on the host) is the jnp transpose, over
+    several blocks and leading axes."""
+    frames = np.random.default_rng(0).integers(0, 256, (2, 70, 5, 3, 4, 3), np.uint8)
+    host = images.to_rows(frames)
+    assert isinstance(host, np.ndarray) and len(frames.reshape(-1, 5, 3, 4, 3)) > images.HOST_BLOCK
+    np.testing.assert_array_equal(host, np.asarray(images.to_rows(jnp.asarray(frames))))
