@@ -264,8 +264,18 @@ def padded(a: np.ndarray, multiple: int, fill) -> np.ndarray:
 
 
 # Inputs as runs read them (padded, in training's layout, on the devices), kept from one run to the
-# next: the rows of a study share their arrays (`memo`). Six entries: a camera input's three sets twice.
-_PLACED = memo.ByArray(max_entries=6)
+# next: the rows of a study share their arrays (`memo`), within `_placement_budget`.
+_PLACED = memo.ByArray(max_entries=12, size=lambda placed: sum(s.data.nbytes for s in placed[1].addressable_shards))
+
+
+def _placement_budget(to: NamedSharding) -> int:
+    """What kept inputs may hold, every device's copy counted: a quarter of the memory they live
+    in, the host's for CPU devices (on the default preset: the camera, flow and both microphones'
+    sets), else a quarter of each accelerator's."""
+    limits = [(d.memory_stats() or {}).get("bytes_limit") for d in to.addressable_devices]
+    if None in limits:
+        return memo.memory_budget(0.25)
+    return min(limits) // 4 * len(limits)
 
 
 def _placed(a: np.ndarray, modality: str, multiple: int | None, to: NamedSharding) -> tuple[str, jax.Array]:
@@ -276,6 +286,7 @@ def _placed(a: np.ndarray, modality: str, multiple: int | None, to: NamedShardin
         name, array = training_input(modality, a if multiple is None else padded(a, multiple, 0))
         return name, sharding.put(array, to)
 
+    _PLACED.max_bytes = _placement_budget(to)
     return _PLACED.get(a, (modality, multiple, to), make)
 
 

@@ -32,6 +32,15 @@ def test_a_value_is_made_once_per_array_and_key_and_dies_with_the_array(hold_eve
     assert len(cache) == 0  # entries die with their arrays
 
 
+def test_views_of_one_array_share_entries_and_the_byte_budget_holds(hold_everything):
+    cache = memo.ByArray(max_entries=10, max_bytes=10, size=lambda value: value)
+    a = np.zeros((4, 6))
+    assert cache.get(a[:, :3], "k", lambda: 6) == 6
+    assert cache.get(a[:, :3], "k", lambda: 7) == 6  # another view object, the same part of `a`
+    assert cache.get(a[:, :2], "k", lambda: 5) == 5  # another part: its own entry; 11 bytes > 10
+    assert len(cache) == 1 and cache.nbytes == 5
+
+
 def test_small_arrays_and_device_arrays_are_recomputed():
     made = []
     cache = memo.ByArray(max_entries=4)
