@@ -4,8 +4,8 @@ share instead of recomputing (a camera row's frames on the devices, their input 
 A study trains many rows on the arrays it loaded once: every camera row reads the same GB of
 frames, which training moves onto every device in its own layout (~8 s a row) and whose
 statistics it sums (~1 s). An entry is keyed by the array's identity (a view's: its root array's,
-with the view's offset, shape and strides, so that a new view of the same part, such as a row's cut
-of a loaded array, is found again) and the caller's key, and dies with the root array (a weak reference),
+with the view's offset, shape and strides, so that the PSD cut to a row's bandwidth, a new view
+each row, is found again) and the caller's key, and dies with the root array (a weak reference),
 so a new data set never meets an old entry. Loaded data sets are read-only: nothing in fabricjax
 writes into one. Arrays under `MIN_BYTES` are not worth holding and are recomputed each time.
 """

@@ -263,18 +263,15 @@ def padded(a: np.ndarray, multiple: int, fill) -> np.ndarray:
     return np.concatenate([a, np.full((extra, *a.shape[1:]), fill, a.dtype)]) if extra else a
 
 
-# Frames as runs read them (padded, as pixel rows, on the devices), kept from one run to the next: a
-# study's camera rows share them (`memo`), within `_placement_budget`. Frames only: their layout is a
-# copy of GBs (~5 s a row), where other inputs are placed anew in under a second, and keeping those
-# too, within the same budget, pushed the frames out between the main command's camera rows.
-KEPT_ON_DEVICE = ("image",)
-_PLACED = memo.ByArray(max_entries=6, size=lambda placed: sum(s.data.nbytes for s in placed[1].addressable_shards))
+# Inputs as runs read them (padded, in training's layout, on the devices), kept from one run to the
+# next: the rows of a study share their arrays (`memo`), within `_placement_budget`.
+_PLACED = memo.ByArray(max_entries=12, size=lambda placed: sum(s.data.nbytes for s in placed[1].addressable_shards))
 
 
 def _placement_budget(to: NamedSharding) -> int:
     """What kept inputs may hold, every device's copy counted: a quarter of the memory they live
-    in, the host's for CPU devices (on the default preset: the camera's three sets), else a
-    quarter of each accelerator's."""
+    in, the host's for CPU devices (on the default preset: the camera, flow and both microphones'
+    sets), else a quarter of each accelerator's."""
     limits = [(d.memory_stats() or {}).get("bytes_limit") for d in to.addressable_devices]
     if None in limits:
         return memo.memory_budget(0.25)
@@ -289,8 +286,6 @@ def _placed(a: np.ndarray, modality: str, multiple: int | None, to: NamedShardin
         name, array = training_input(modality, a if multiple is None else padded(a, multiple, 0))
         return name, sharding.put(array, to)
 
-    if modality not in KEPT_ON_DEVICE:
-        return make()
     _PLACED.max_bytes = _placement_budget(to)
     return _PLACED.get(a, (modality, multiple, to), make)
 
@@ -298,8 +293,8 @@ def _placed(a: np.ndarray, modality: str, multiple: int | None, to: NamedShardin
 def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None, to: NamedSharding):
     """(the run's data on `to`'s devices, evaluation set sizes): each set's inputs in training's
     layout (`inputs.training_input`), evaluation sets padded to whole minibatches. Built on the
-    host with NumPy (copies of a camera row's GB of frames compile nothing that way), and the
-    frames are kept on the devices for the next run on the same arrays (`_placed`)."""
+    host with NumPy (copies of a camera row's GB of frames compile nothing that way), and large
+    inputs are kept on the devices for the next run on the same arrays (`_placed`)."""
     sets = {k: select(config, v) for k, v in {"train": train_set, "val": val_set, **(eval_sets or {})}.items()}
     sizes = {k: len(jax.tree.leaves(v["labels"])[0]) for k, v in sets.items() if k != "train"}
     multiple = lambda k: None if k == "train" else config.batch_size  # noqa: E731
