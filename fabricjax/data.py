@@ -385,6 +385,9 @@ def load_sequences(
                 )
             inputs[s][m][filled[s] : filled[s] + n_seq] = a
         filled[s] += n_seq
+    for arrays in inputs.values():  # read-only from here: training keeps what it derives from them (`fabricjax.memo`)
+        for a in arrays.values():
+            a.flags.writeable = False
     names = stream_names(lay)
     return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, names=names, classes=classes, window_s=config.mic_window_s)
             for s in wanted}

@@ -6,8 +6,8 @@ frames, which training moves onto every device in its own layout (~8 s a row) an
 statistics it sums (~1 s). An entry is keyed by the array's identity (a view's: its root array's,
 with the view's offset, shape and strides, so that the PSD cut to a row's bandwidth, a new view
 each row, is found again) and the caller's key, and dies with the root array (a weak reference),
-so a new data set never meets an old entry. Loaded data sets are read-only: nothing in fabricjax
-writes into one. Arrays under `MIN_BYTES` are not worth holding and are recomputed each time.
+so a new data set never meets an old entry. Loaded data sets are read-only (`data.load_sequences`
+marks their arrays so): an array changed in place would meet its old entries. Arrays under `MIN_BYTES` are not worth holding and are recomputed each time.
 """
 
 from __future__ import annotations

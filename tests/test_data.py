@@ -226,3 +226,12 @@ def test_feature_workers_run_jax_on_the_cpu_even_once_jax_is_imported():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["cpu", "cpu"]
+
+
+def test_loaded_sequences_are_read_only(dataset, tmp_path):
+    """Training keeps what it derives from loaded arrays (`fabricjax.memo`): they must not change in place."""
+    sets = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws", progress=False)
+    for s in sets.values():
+        for a in s.inputs.values():
+            with pytest.raises(ValueError, match="read-only"):
+                a[...] = 0
