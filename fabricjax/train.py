@@ -270,8 +270,7 @@ _PLACED = memo.ByArray(max_entries=12, size=lambda placed: sum(s.data.nbytes for
 
 def _placement_budget(to: NamedSharding) -> int:
     """What kept inputs may hold, every device's copy counted: a quarter of the memory they live
-    in, the host's for CPU devices (on the default preset: the camera, flow and both microphones'
-    sets), else a quarter of each accelerator's."""
+    in, the host's for CPU devices, else a quarter of each accelerator's."""
     limits = [(d.memory_stats() or {}).get("bytes_limit") for d in to.addressable_devices]
     if None in limits:
         return memo.memory_budget(0.25)
@@ -387,7 +386,7 @@ def train_and_evaluate(
     per_seed = sharding.replicated(mesh)
     # in training's layout once per training, not per `run` call (studies write curves, so they run one
     # epoch per call); every set, so that training and evaluation compile one image path (`FabricNet.image_features`)
-    data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals, sharding.replicated(mesh))
+    data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals, per_seed)  # replicated, like the state
     shapes = tuple(sorted(feature_shapes(select(config, data_sets["train"])["inputs"]).items()))
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
     trainer, init, run, finish = _programs(config, shapes, n_train, mesh)
