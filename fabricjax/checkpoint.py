@@ -28,9 +28,9 @@ from fabricjax.model import head_sizes
 
 
 # The layout of the saved training state; bumped whenever it changes (2: the optimiser state holds
-# the cosine decay's own step counter), so a checkpoint of another layout is refused by name
+# the cosine decay's own step counter; 3: Adam's moments are one flat vector), so a checkpoint of another layout is refused by name
 # instead of failing inside orbax, and a study's checkpoint folder (tagged with it) starts afresh.
-STATE_VERSION = 2
+STATE_VERSION = 3
 
 
 class CheckpointMismatch(UserError):
@@ -107,7 +107,13 @@ def require(directory, for_: Mapping[str, Any], job: str, expected: str, ok: boo
 
 
 def save(mngr: ocp.CheckpointManager, step: int, state, run_meta: dict[str, Any]) -> None:
-    """Save and wait: callers treat a returned save as durable (e.g. before a kill)."""
+    """Save and wait: callers treat a returned save as durable (e.g. before a kill).
+
+    The state is copied to the host first: orbax saves a device array from each device's shard,
+    and compiled a slicing program per array shape and device to do so (1.2 s at a run's first save,
+    against 0.05 s from host copies, for a camera row's state on 2 CPU devices). A restore places
+    the arrays on the devices whichever way they were saved (`restore`)."""
+    state = jax.device_get(state)
     mngr.save(step, args=ocp.args.Composite(state=ocp.args.StandardSave(state), meta=ocp.args.JsonSave(run_meta)))
     mngr.wait_until_finished()
 

@@ -1,7 +1,7 @@
 """Pure, jitted multi-seed training (purejaxrl style), with one entry point: `train_and_evaluate`.
 
 A run is three pure functions of one seed's state (`Trainer.init(key)`, `Trainer.run(state, data,
-n_epochs)`, `Trainer.finish(state, data)`), each `jax.jit(jax.vmap(...))`ed over the seeds. The
+n_epochs)`, `Trainer.finish(state, sets)`), each `jax.jit(jax.vmap(...))`ed over the seeds. The
 data lives on the device; one epoch is a `lax.scan` over shuffled minibatches and the epoch loop
 is a `lax.scan` too, so epochs run without the host, which reads back only each chunk's curves
 (one chunk for the whole run unless checkpoints or curve files split the scan, see below). Seeds
@@ -84,9 +84,17 @@ def learning_rate(config: Config, total_steps: int, step: jax.Array) -> jax.Arra
 def make_optimizer(config: Config, total_steps: int) -> optax.GradientTransformation:
     """The whole learning-rate schedule lives here, counted by optax's own step counters: a
     global-norm clip at 1.0, AdamW with the warm-up (`warmup_schedule`; weight decay on weight
-    matrices only), then the decay over `total_steps` (`decay_schedule`) scaling AdamW's step."""
+    matrices only), then the decay over `total_steps` (`decay_schedule`) scaling AdamW's step.
+
+    AdamW is `optax.adamw`'s own chain, with the clip and Adam's moments on all parameters as one
+    flat vector (`optax.flatten`): per parameter array they were a few hundred small kernels a
+    step, which XLA compiled one by one (about a second of every row's compilation on CPU)."""
     decay_mask = lambda params: jax.tree.map(lambda p: p.ndim > 1, params)  # noqa: E731
-    chain = [optax.clip_by_global_norm(1.0), optax.adamw(warmup_schedule(config), weight_decay=config.weight_decay, mask=decay_mask)]
+    chain = [
+        optax.flatten(optax.chain(optax.clip_by_global_norm(1.0), optax.scale_by_adam())),
+        optax.add_decayed_weights(config.weight_decay, decay_mask),
+        optax.scale_by_learning_rate(warmup_schedule(config)),
+    ]
     decay = decay_schedule(config, total_steps)
     if decay is not None:
         chain.append(optax.scale_by_schedule(decay))
@@ -205,9 +213,11 @@ class Trainer:
 
     def run(self, state, data, n_epochs: int):
         """`n_epochs` more epochs in one scan, with best-validation selection: (state, per-epoch summary),
-        the summary of `train_epoch` plus the validation accuracy per head ("val_accuracy"), each with
-        a leading epoch axis (the scan's outputs: they leave the device with the state).
-        Every set is in training's layout (`inputs.training_layout`)."""
+        the summary of `train_epoch` plus the validation accuracy and predictions per head
+        ("val_accuracy", "val_predictions"), each with a leading epoch axis (the scan's outputs:
+        they leave the device with the state; the best epoch's predictions are the validation
+        results, see `BestEpochValidation`). Every set is in training's layout
+        (`inputs.training_layout`)."""
 
         def epoch(state, _):
             e = state["epoch"]
@@ -215,8 +225,8 @@ class Trainer:
                 state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), data["train"], e
             )
             loss = summary["train_loss"]
-            val_accuracy = self.evaluate(params, data["val"])["accuracy"]
-            val = self.selection_metric(val_accuracy)
+            validation = self.evaluate(params, data["val"])
+            val = self.selection_metric(validation["accuracy"])
             better = val > state["best_val"]
             hist = state["history"]
             return {
@@ -228,13 +238,13 @@ class Trainer:
                 "epoch": e + 1,
                 "key": state["key"],
                 "history": {"train_loss": hist["train_loss"].at[e].set(loss), "val_acc": hist["val_acc"].at[e].set(val)},
-            }, {**summary, "val_accuracy": val_accuracy}
+            }, {**summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]}
 
         return jax.lax.scan(epoch, state, length=n_epochs)
 
-    def finish(self, state, data) -> dict[str, Any]:
-        """Metrics of a finished run: learning curves and the best-validation model on every set."""
-        sets = {"val": data["val"], **data["eval"]}
+    def finish(self, state, sets) -> dict[str, Any]:
+        """Metrics of a finished run: learning curves and the best-validation model on `sets`
+        ({name: set}, in training's layout)."""
         return {
             **state["history"],
             "best_epoch": state["best_epoch"],
@@ -307,6 +317,34 @@ def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | N
     return {"train": placed.pop("train"), "val": placed.pop("val"), "eval": placed}, sizes
 
 
+class BestEpochValidation:
+    """Each seed's validation results (predictions and accuracy per head) at its best epoch,
+    taken from the epochs a call trains: the epoch scan evaluates the validation set anyway
+    (`Trainer.run`), so `finish` evaluates it again only for a seed whose best epoch came before a
+    resume. Saves a camera row a second pass over its validation frames."""
+
+    def __init__(self, n_seeds: int):
+        self.found = np.zeros(n_seeds, bool)
+        self.predictions: dict[str, np.ndarray] = {}
+        self.accuracy: dict[str, np.ndarray] = {}
+
+    def add(self, first_epoch: int, predictions: Mapping[str, np.ndarray], accuracy: Mapping[str, np.ndarray], best_epoch: np.ndarray) -> None:
+        """The scan's outputs for epochs `first_epoch`, ... (predictions (seeds, n, samples) and
+        accuracy (seeds, n) per head) and each seed's best epoch after them."""
+        n = np.shape(next(iter(accuracy.values())))[1]
+        for seed in np.flatnonzero((best_epoch >= first_epoch) & (best_epoch < first_epoch + n)):
+            i = best_epoch[seed] - first_epoch
+            for h, p in predictions.items():
+                self.predictions.setdefault(h, np.zeros((len(self.found), p.shape[-1]), p.dtype))[seed] = p[seed, i]
+                self.accuracy.setdefault(h, np.zeros(len(self.found), accuracy[h].dtype))[seed] = accuracy[h][seed, i]
+            self.found[seed] = True
+
+    def results(self) -> dict[str, dict[str, np.ndarray]] | None:
+        """{"accuracy", "predictions"} as `Trainer.evaluate` gives them for every seed, or None
+        while a seed's best epoch was not among the epochs added."""
+        return {"accuracy": self.accuracy, "predictions": self.predictions} if self.found.all() else None
+
+
 def unpad(metrics, sizes: Mapping[str, int]):
     """Cut per-sample predictions (last axis) back to each set's real size."""
     return {
@@ -318,10 +356,15 @@ def unpad(metrics, sizes: Mapping[str, int]):
     }
 
 
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=1)
 def _programs(config: Config, shapes: tuple, n_train: int, mesh):
     """Jitted, seed-vmapped, seed-sharded init / run(n epochs) / finish, cached so that reruns of
-    a config (a resume, another data set of the same shapes) reuse the compiled programs."""
+    a config (a resume, another data set of the same shapes) reuse the compiled programs.
+
+    Only the latest run's: XLA:CPU compiles more slowly the more compiled programs a process holds.
+    Compiling the ablation's 22 rows' programs one after another took 175 s with the last 8 rows'
+    kept and 142 s with only the latest row's (default preset, 2 CPU devices); a study's rows differ
+    in their config, and the persistent compilation cache still serves a config that comes back."""
     trainer = make_trainer(config, dict(shapes), mesh, n_train)
     per_seed = sharding.replicated(mesh)
     init = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)
@@ -402,7 +445,7 @@ def train_and_evaluate(
     else:
         stats = input_statistics(config, data_sets["train"])
         state, done = sharding.put(with_input_statistics(init(keys), stats), per_seed), 0
-    history = curves.History(len(seeds), config.epochs)
+    history, validation = curves.History(len(seeds), config.epochs), BestEpochValidation(len(seeds))
     # in a multi-process run only process 0 writes curves; the others open no files but chunk alike
     writer = curves.open_writer(log_dir, seeds if runtime.is_primary() else (), done) if log_dir is not None else None
     save_every = save_every or config.epochs
@@ -413,6 +456,7 @@ def train_and_evaluate(
         state, chunk_curves = run(n)(state, data)
         chunk_curves = jax.device_get(chunk_curves)  # waits for the chunk
         history.add(done, chunk_curves, (time.perf_counter() - t0) / n)
+        validation.add(done, chunk_curves.pop("val_predictions"), chunk_curves["val_accuracy"], jax.device_get(state["best_epoch"]))
         if writer is not None:
             writer.write(history, done, done + n)
         done += n
@@ -422,7 +466,11 @@ def train_and_evaluate(
                 on_save(done)
     if writer is not None:
         writer.close()
-    metrics = unpad(jax.device_get(finish(state, data)), sizes)
+    val = validation.results()
+    metrics = jax.device_get(finish(state, data["eval"] if val is not None else {"val": data["val"], **data["eval"]}))
+    if val is not None:
+        metrics["eval"] = {"val": val, **metrics["eval"]}
+    metrics = unpad(metrics, sizes)
     return Results(config, seeds, trainer.graphdef, state, {**metrics, "epochs": history.scalars})
 
 

@@ -75,6 +75,9 @@ def test_resume_after_a_kill_reaches_the_uninterrupted_result(uninterrupted, tmp
     assert saved == [2]
     resumed = train_and_evaluate(TINY, data_sets(), SEEDS, workdir=tmp_path, save_every=2, on_save=saved.append)
     assert saved == [2, 4]  # continued from epoch 2, did not start over
+    # seed 0's best epoch came before the resume, so `finish` evaluates its validation set again
+    # (`train.BestEpochValidation`); seed 7's is among the resumed epochs
+    assert full.metrics["best_epoch"].tolist() == [0, 3]
     # the per-epoch curves: NaN for the epochs the killed process trained, wall times of their own
     outcome = lambda m: {k: v for k, v in m.items() if k != "epochs"}  # noqa: E731
     for a, b in zip(jax.tree.leaves(outcome(resumed.metrics)), jax.tree.leaves(outcome(full.metrics))):

@@ -112,6 +112,12 @@ def test_eta_learns_each_kind_of_row_s_time_from_the_rows_done():
         runner.Progress("z", 3, ["other"])
 
 
+def test_rows_train_grouped_by_camera_in_the_given_order_within_a_group():
+    rows = [(m, Config(modalities=m)) for m in (("image",), ("flow",), ("internal",), ("image", "internal"), ("flow", "internal"), ("proprio",))]
+    order = runner.in_training_order(rows, lambda row: row[1])
+    assert [m for m, _ in order] == [("image",), ("image", "internal"), ("flow",), ("flow", "internal"), ("internal",), ("proprio",)]
+
+
 def test_progress_names_rows_as_the_table_does():
     assert ablation.display_name("tcn:internal+external+proprio") == "TCN: Minsound + palm mic + proprioception"
     assert ablation.display_name("image+internal") == "Minsight image + Minsound"

@@ -68,6 +68,33 @@ def test_best_validation_epoch_is_selected(four_seeds):
     np.testing.assert_allclose(m["eval"]["val"]["accuracy"]["fabric"], m["best_val_acc"], atol=1e-6)
 
 
+def test_validation_results_are_the_best_epoch_models_own(four_seeds):
+    """The validation predictions come from the epoch scan's evaluation at each seed's best epoch
+    (`BestEpochValidation`): they are the returned model's predictions on the validation set."""
+    val = data_sets(TINY)["val"]
+    for i in range(len(four_seeds.seeds)):
+        logits = make_predict(four_seeds.graphdef)(four_seeds.params(i), val["inputs"])
+        for head, predictions in four_seeds.metrics["eval"]["val"]["predictions"].items():
+            np.testing.assert_array_equal(predictions[i], np.argmax(logits[head], -1), err_msg=head)
+            assert four_seeds.metrics["eval"]["val"]["accuracy"][head][i] == pytest.approx(
+                float(masked_accuracy(predictions[i], val["labels"][head]))
+            )
+
+
+def test_a_best_epoch_before_the_epochs_seen_leaves_validation_to_finish():
+    """A seed whose best epoch is not among the epochs added (it came before a resume) has no
+    validation results; one found stays until a later best epoch replaces it."""
+    kept = train.BestEpochValidation(2)
+    predictions = {"fabric": np.arange(2 * 2 * 3).reshape(2, 2, 3)}  # (seeds, epochs 4-5, samples)
+    accuracy = {"fabric": np.array([[0.1, 0.2], [0.3, 0.4]], np.float32)}
+    kept.add(4, predictions, accuracy, best_epoch=np.array([5, 1]))
+    assert kept.results() is None and kept.found.tolist() == [True, False]
+    kept.add(6, {"fabric": predictions["fabric"] + 100}, accuracy, best_epoch=np.array([5, 6]))
+    out = kept.results()
+    np.testing.assert_array_equal(out["predictions"]["fabric"], [[3, 4, 5], [106, 107, 108]])
+    np.testing.assert_array_equal(out["accuracy"]["fabric"], np.array([0.2, 0.3], np.float32))
+
+
 def test_masked_loss_and_accuracy_ignore_unknown_labels():
     logits = np.zeros((3, 4), np.float32)
     assert float(masked_cross_entropy(logits, np.array([-1, -1, -1]))) == 0.0

@@ -19,7 +19,7 @@ import dataclasses
 import hashlib
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence, TypeVar
 
 import numpy as np
 from absl import logging
@@ -32,6 +32,8 @@ from fabricjax.workspace import Location
 
 if TYPE_CHECKING:
     from fabricjax.studies.common.findings import Finding
+
+T = TypeVar("T")
 
 
 def seed_list(n_seeds: int) -> tuple[int, ...]:
@@ -107,10 +109,21 @@ def _which_rows(names: Sequence[str], n_rows: int) -> str:
     return f"every one of its {n_rows} rows" if len(names) == n_rows else f"rows {', '.join(names)}"
 
 
+ROW_KINDS = ("image", "flow", "other")
+
+
 def row_kind(config: Config) -> str:
     """What a row's training time mostly depends on: its costliest input (a camera row trains
     several times longer than an audio row), else "other"."""
-    return next((m for m in ("image", "flow") if m in config.modalities), "other")
+    return next((m for m in ROW_KINDS[:-1] if m in config.modalities), "other")
+
+
+def in_training_order(items: Sequence[T], config: Callable[[T], Config]) -> list[T]:
+    """`items` (rows, each with its `config(item)`) in the order they train: grouped by their
+    camera input (`row_kind`), in the given order within a group. A study's rows share the inputs
+    placed on the devices (`train.prepare`) within a memory budget, so a camera's frames are placed
+    once for its group, instead of again each time a row of the other camera has pushed them out."""
+    return sorted(items, key=lambda item: ROW_KINDS.index(row_kind(config(item))))
 
 
 class Progress:
@@ -252,7 +265,8 @@ def train_rows(
     progress: Progress | None = None,
     data_names: bool = False,
 ) -> Trained:
-    """Load the data every row needs once, then train each (name, config) row's seeds.
+    """Load the data every row needs once, then train each (name, config) row's seeds, in
+    `in_training_order` (the rows come back in the order given).
 
     `eval_splits`: the splits every row is evaluated on (beside val); `split_names`: the splits
     loaded. `checkpoints`: keep each row's models (`checkpoint_dir`). `label` names a row in the
@@ -269,13 +283,12 @@ def train_rows(
     if data_names and ds.recorded:
         names, inputs = next(iter(ds.sets.values())).names, {n: c.modalities for n, c in rows}
         label = lambda name: f"{name} ({data.inputs_name(inputs[name], names)})"  # noqa: E731
-    configs = [c for _, c in rows]
     if progress is None:
-        progress = Progress(study, len(rows), [row_kind(c) for c in configs])
+        progress = Progress(study, len(rows), [row_kind(c) for _, c in in_training_order(rows, lambda row: row[1])])
     else:  # started before this load
         progress.exclude(ds.generate_s + ds.load_s)
     trained = {}
-    for name, config in rows:
+    for name, config in in_training_order(rows, lambda row: row[1]):
         progress.start(label(name))
         trained[name] = row = train_row(
             name, config, ds.sets, seeds, eval_splits,
@@ -283,7 +296,7 @@ def train_rows(
             log_dir=workspace.logs_dir(study, name, workdir),
         )
         progress.finish(label(name), row.seconds, summary(row))
-    return Trained(ds, trained)
+    return Trained(ds, {name: trained[name] for name, _ in rows})
 
 
 def paired_tests(a: Row, b: Row, split: str, labels: np.ndarray, head: str = "fabric") -> dict[str, stats.WilcoxonResult]:

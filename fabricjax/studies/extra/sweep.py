@@ -188,6 +188,7 @@ def run(
     by_key: dict[tuple, list] = {}
     for unit in units:
         by_key.setdefault(loading.sequence_key(unit[1]), []).append(unit)
+    by_key = {key: runner.in_training_order(group, lambda unit: unit[1]) for key, group in by_key.items()}
     order = [u for group in by_key.values() for u in group]
     progress = runner.Progress("sweep", len(order), [runner.row_kind(c) for _, c, _, _ in order], [c.epochs for _, c, _, _ in order])
     labels = {name: f"{point_name(fields)} | {row.label}" for name, _, fields, row in order}
