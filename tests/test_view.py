@@ -31,7 +31,8 @@ SENSORS = (
     | {f"/joints/{j}/{f}" for j in archive.JOINT_NAMES for f in archive.JOINT_FIELDS}
 )
 WAVES = {f"/audio/{m}/wave" for m in archive.MIC_NAMES}
-PREDICTION = {f"/prediction/{k}" for k in ("probabilities", "confidence", "class", "latency_ms")}
+# what a model adds: each prediction, the sequential rule's posterior, and its decision (logged once)
+PREDICTION = {f"/prediction/{k}" for k in ("probabilities", "confidence", "class", "latency_ms", "posterior", "decision")}
 
 
 @pytest.fixture(scope="module")
@@ -77,6 +78,7 @@ def test_view_save_with_a_checkpoint_adds_the_models_predictions(smoke_trial, ch
     assert set(read) == SENSORS | WAVES | PREDICTION
     decided = list(range(CONFIG.seq_len - 1, trial.n_steps))  # the window's first N - 1 steps only fill it
     assert read["/prediction/probabilities"]["steps"] == decided == read["/prediction/confidence"]["steps"]
+    assert read["/prediction/posterior"]["steps"] == decided and len(read["/prediction/decision"]["steps"]) == 1
     assert read["/prediction/latency_ms"]["steps"] == list(range(trial.n_steps))
     assert doc["decided_steps"] == len(decided)
 
