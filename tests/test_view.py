@@ -31,8 +31,9 @@ SENSORS = (
     | {f"/joints/{j}/{f}" for j in archive.JOINT_NAMES for f in archive.JOINT_FIELDS}
 )
 WAVES = {f"/audio/{m}/wave" for m in archive.MIC_NAMES}
-# what a model adds: each prediction, the sequential rule's posterior, and its decision (logged once)
-PREDICTION = {f"/prediction/{k}" for k in ("probabilities", "confidence", "class", "latency_ms", "posterior", "decision")}
+PREDICTION = {f"/prediction/{k}" for k in ("probabilities", "confidence", "class", "latency_ms")}
+# what the viewer and the stream add from a checkpoint: the sequential rule's posterior, and its decision (logged once)
+SEQUENTIAL = {"/prediction/posterior", "/prediction/decision"}
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +76,7 @@ def test_view_save_with_a_checkpoint_adds_the_models_predictions(smoke_trial, ch
     path, trial = smoke_trial
     doc = view.view_archive(path, checkpoint=checkpoint, save=tmp_path / "trial.rrd")
     read = read_rrd(tmp_path / "trial.rrd")
-    assert set(read) == SENSORS | WAVES | PREDICTION
+    assert set(read) == SENSORS | WAVES | PREDICTION | SEQUENTIAL
     decided = list(range(CONFIG.seq_len - 1, trial.n_steps))  # the window's first N - 1 steps only fill it
     assert read["/prediction/probabilities"]["steps"] == decided == read["/prediction/confidence"]["steps"]
     assert read["/prediction/posterior"]["steps"] == decided and len(read["/prediction/decision"]["steps"]) == 1
@@ -100,7 +101,7 @@ def test_stream_view_save_logs_each_steps_sensors_and_result(smoke_trial, checkp
         out=lambda line: None, view_save=tmp_path / "stream.rrd",
     )
     read = read_rrd(tmp_path / "stream.rrd")
-    assert set(read) == SENSORS | WAVES | PREDICTION
+    assert set(read) == SENSORS | WAVES | PREDICTION | SEQUENTIAL
     assert read["/minsight/frame"]["steps"] == read["/prediction/latency_ms"]["steps"] == list(range(trial.n_steps))
     assert len(read["/prediction/probabilities"]["steps"]) == doc["decided_steps"]
 
