@@ -56,9 +56,10 @@ def feature_shapes(inputs: Mapping[str, jax.Array]) -> dict[str, tuple[int, ...]
     return {k: tuple(v.shape[2:]) for k, v in inputs.items()}
 
 
-# Bytes of a split summed at a time by `input_statistics`: its temporaries (float64 or uint16
-# copies) stay in the caches. A camera row's first statistics took 1.35 s over chunks of 256
-# sequences (92 MB of frames) and 0.65 s over chunks of 16 (5.8 MB), default preset, 2 cores.
+# Bytes of a split summed at a time by `input_statistics`, so that its temporaries (float64 or
+# uint16 copies) can stay in the caches. Not an established gain: a camera row's frame statistics
+# took 0.65 s over chunks of 16 sequences (5.8 MB) against 1.35 s over chunks of 256 (92 MB) in one
+# process, but 1.35 s at this default in another (default preset, 2 cores, just after loading).
 CHUNK_BYTES = 4 << 20
 
 

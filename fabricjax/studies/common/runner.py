@@ -283,12 +283,13 @@ def train_rows(
     if data_names and ds.recorded:
         names, inputs = next(iter(ds.sets.values())).names, {n: c.modalities for n, c in rows}
         label = lambda name: f"{name} ({data.inputs_name(inputs[name], names)})"  # noqa: E731
+    order = in_training_order(rows, lambda row: row[1])
     if progress is None:
-        progress = Progress(study, len(rows), [row_kind(c) for _, c in in_training_order(rows, lambda row: row[1])])
+        progress = Progress(study, len(rows), [row_kind(c) for _, c in order])
     else:  # started before this load
         progress.exclude(ds.generate_s + ds.load_s)
     trained = {}
-    for name, config in in_training_order(rows, lambda row: row[1]):
+    for name, config in order:
         progress.start(label(name))
         trained[name] = row = train_row(
             name, config, ds.sets, seeds, eval_splits,
