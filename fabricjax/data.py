@@ -79,7 +79,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, catalog, dataset_index, presets, splits, workspace
+from fabricjax import archive, catalog, dataset_index, host_arrays, presets, splits, workspace
 from fabricjax.config import MODALITY_NAMES, PAPER_WINDOW_S, Config
 from fabricjax.errors import UserError
 from fabricjax.features import cache, welch
@@ -368,7 +368,8 @@ def load_sequences(
         workers=workers, progress=progress,
     )
     # Each trial's sequences are copied into arrays preallocated from the index's step counts,
-    # so the dataset is held once (not per trial and again concatenated).
+    # so the dataset is held once (not per trial and again concatenated), where CPU devices can
+    # read them without a copy (`host_arrays`).
     inputs: dict[str, dict[str, np.ndarray]] = {}
     filled = dict.fromkeys(wanted, 0)
     for (e, s), f in zip(chosen, feats, strict=True):  # strict: runs the generator to its end (the bar closes)
@@ -376,7 +377,7 @@ def load_sequences(
         trial = {m: _sequences(f[feat.name], m, first_step(e.meta), n_seq, n, config, rates) for m, feat in features.items()}
         if not inputs:
             sizes = {t: sum(n_sequences(x, n) for x in members[t]) for t in wanted}
-            inputs = {t: {m: np.empty((sizes[t], *a.shape[1:]), a.dtype) for m, a in trial.items()} for t in wanted}
+            inputs = {t: {m: host_arrays.empty((sizes[t], *a.shape[1:]), a.dtype) for m, a in trial.items()} for t in wanted}
         for m, a in trial.items():
             if a.shape[1:] != inputs[s][m].shape[1:]:
                 raise archive.ArchiveError(

@@ -15,13 +15,14 @@ by, and the layout training holds its sets in.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Mapping
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fabricjax import memo
+from fabricjax import memo, runtime
 from fabricjax.config import Config
 from fabricjax.features import images
 
@@ -56,10 +57,11 @@ def feature_shapes(inputs: Mapping[str, jax.Array]) -> dict[str, tuple[int, ...]
     return {k: tuple(v.shape[2:]) for k, v in inputs.items()}
 
 
-# Bytes of a split summed at a time by `input_statistics`, so that its temporaries (float64 or
-# uint16 copies) can stay in the caches. Not an established gain: a camera row's frame statistics
-# took 0.65 s over chunks of 16 sequences (5.8 MB) against 1.35 s over chunks of 256 (92 MB) in one
-# process, but 1.35 s at this default in another (default preset, 2 cores, just after loading).
+# Bytes of a split summed at a time by `input_statistics` (one chunk per core at a time), so that
+# its temporaries (float64 or uint16 copies) can stay in the caches. The chunk size's gain is not
+# established: a camera row's frame statistics took 0.65 s over chunks of 16 sequences (5.8 MB)
+# against 1.35 s over chunks of 256 (92 MB) in one process, but 1.35 s at this default in another
+# (default preset, 2 cores, just after loading, one core). On both cores: 0.42-0.47 s.
 CHUNK_BYTES = 4 << 20
 
 
@@ -90,11 +92,14 @@ _STATISTICS = memo.ByArray(max_entries=16)
 
 def _moments(x, axis: int, per_position: bool, chunk: int) -> tuple[np.ndarray, np.ndarray]:
     """(mean, variance) of `x` (S, N, ...) about each channel's mean, or each position's
-    (`per_position`), summed over chunks of `chunk` sequences along the channel `axis`."""
+    (`per_position`), summed over chunks of `chunk` sequences along the channel `axis`. The chunks
+    are summed on every core (NumPy's reductions release the GIL) and their sums added in order,
+    so the result does not depend on the number of cores."""
     total, total_sq, count = 0.0, 0.0, 0
-    for start in range(0, max(len(x), 1), chunk):
-        part = np.asarray(x[start : start + chunk])
-        total, total_sq, count = (a + b for a, b in zip((total, total_sq, count), _sums(part, axis)))
+    with ThreadPoolExecutor(runtime.available_cores()) as pool:
+        sums = pool.map(lambda start: _sums(np.asarray(x[start : start + chunk]), axis), range(0, max(len(x), 1), chunk))
+        for part_sums in sums:
+            total, total_sq, count = (a + b for a, b in zip((total, total_sq, count), part_sums))
     mean, mean_sq = total / max(count, 1), total_sq / max(count, 1)  # per position and channel
     positions = tuple(range(mean.ndim - 1))
     if per_position:  # spread about each position's own mean

@@ -39,7 +39,7 @@ import optax
 from flax import nnx
 from jax.sharding import Mesh, NamedSharding
 
-from fabricjax import checkpoint, curves, memo, runtime, sharding
+from fabricjax import checkpoint, curves, host_arrays, memo, runtime, sharding
 from fabricjax.config import Config
 from fabricjax.inputs import feature_shapes, input_statistics, training_input, with_input_statistics
 from fabricjax.model import FabricNet, head_sizes
@@ -268,14 +268,25 @@ def make_trainer(
 
 def padded(a: np.ndarray, multiple: int, fill) -> np.ndarray:
     """`a` with rows of `fill` appended up to a whole number of `multiple` rows: evaluation sets
-    run in whole minibatches, with zero inputs and unknown (-1) labels, which every metric ignores."""
+    run in whole minibatches, with zero inputs and unknown (-1) labels, which every metric ignores.
+    A padded copy is made where CPU devices read it without another copy (`host_arrays`)."""
     extra = -len(a) % multiple
-    return np.concatenate([a, np.full((extra, *a.shape[1:]), fill, a.dtype)]) if extra else a
+    if not extra:
+        return a
+    out = host_arrays.empty((len(a) + extra, *a.shape[1:]), a.dtype)
+    out[: len(a)], out[len(a) :] = a, fill
+    return out
+
+
+def _buffer_bytes(placed: jax.Array) -> int:
+    """Memory `placed` holds: each distinct buffer once (a replicated placement on CPU devices
+    without a copy shares one, `host_arrays`)."""
+    return sum({s.data.unsafe_buffer_pointer(): s.data.nbytes for s in placed.addressable_shards}.values())
 
 
 # Inputs as runs read them (padded, in training's layout, on the devices), kept from one run to the
 # next: the rows of a study share their arrays (`memo`), within `_placement_budget`.
-_PLACED = memo.ByArray(max_entries=12, size=lambda placed: sum(s.data.nbytes for s in placed[1].addressable_shards))
+_PLACED = memo.ByArray(max_entries=12, size=lambda placed: _buffer_bytes(placed[1]))
 
 
 def _placement_budget(to: NamedSharding) -> int:
@@ -295,8 +306,10 @@ def _placed(a: np.ndarray, modality: str, multiple: int | None, to: NamedShardin
         name, array = training_input(modality, a if multiple is None else padded(a, multiple, 0))
         return name, sharding.put(array, to)
 
+    # `a` itself, placed without a copy (`host_arrays`), is not kept: placing it again costs
+    # nothing, and the kept value would keep `a` alive past its data set
     _PLACED.max_bytes = _placement_budget(to)
-    return _PLACED.get(a, (modality, multiple, to), make)
+    return _PLACED.get(a, (modality, multiple, to), make, keep=lambda placed: not host_arrays.placed_in_place(placed[1], a))
 
 
 def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None, to: NamedSharding):
@@ -420,8 +433,9 @@ def train_and_evaluate(
     The per-epoch curves (`curves.tags`: loss, accuracies per head, learning rate, epoch wall
     time) come back in `metrics["epochs"]` as {tag: (seeds, epochs)} arrays, NaN for epochs a
     resumed run did not train itself. With `log_dir` they are also written as TensorBoard event
-    files, one folder per seed (`curves.seed_dir`), after every epoch: the epoch scan then runs
-    one epoch per call so that a long run can be watched while it trains.
+    files, one folder per seed (`curves.seed_dir`), after every epoch: with `log_dir` the epoch
+    scan runs one epoch per call, so that a long run can be watched while it trains (and each
+    epoch's wall time is its own, also where tensorboardX is not installed).
     """
     seeds = tuple(int(s) for s in seeds)
     evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
@@ -449,7 +463,9 @@ def train_and_evaluate(
     # in a multi-process run only process 0 writes curves; the others open no files but chunk alike
     writer = curves.open_writer(log_dir, seeds if runtime.is_primary() else (), done) if log_dir is not None else None
     save_every = save_every or config.epochs
-    chunk = 1 if writer is not None else save_every
+    # one epoch per call wherever curves were asked for, written or not (tensorboardX is optional):
+    # each epoch's wall time is then its own, the first's with the compilation, in every install
+    chunk = 1 if log_dir is not None else save_every
     while done < config.epochs:
         n = min(chunk, save_every - done % save_every, config.epochs - done)
         t0 = time.perf_counter()

@@ -60,6 +60,8 @@ def test_without_tensorboardx_training_goes_on_without_curves(logged, tmp_path, 
     assert not (tmp_path / "logs").exists()
     assert any("tensorboardX is not installed" in r.getMessage() and '".[logs]"' in r.getMessage() for r in caplog.records)
     np.testing.assert_array_equal(res.metrics["eval"]["test"]["accuracy"]["fabric"], with_curves.metrics["eval"]["test"]["accuracy"]["fabric"])
+    # still one epoch per call, so each epoch's wall time is its own (not the run's mean, one value repeated)
+    assert len(set(res.metrics["epochs"][curves.WALL_TAG][0])) == TINY.epochs
 
 
 def test_missing_tensorboardx_is_said_once_per_process_not_once_per_row(tmp_path, monkeypatch, caplog):

@@ -272,3 +272,14 @@ def test_frame_statistics_summed_in_integers_equal_the_float64_path_bit_for_bit(
     ints, floats = input_statistics(cfg, ds, chunk=3), input_statistics(cfg, as_float, chunk=3)
     for k in ("image_shift", "image_scale"):
         np.testing.assert_array_equal(ints[k], floats[k])
+
+
+def test_input_statistics_do_not_depend_on_the_number_of_cores(monkeypatch):
+    """The chunks are summed on every core and added in order: one core gives the same bits."""
+    cfg = Config(preset="smoke", modalities=("proprio", "flow"), epochs=1, batch_size=8, seq_len=4)
+    ds = synthetic.data_set(cfg, 23, flow_hw=(3, 4))
+    many = input_statistics(cfg, ds, chunk=2)
+    monkeypatch.setattr(runtime, "available_cores", lambda: 1)
+    one = input_statistics(cfg, ds, chunk=2)
+    for k in many:
+        np.testing.assert_array_equal(many[k], one[k], err_msg=k)

@@ -21,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fabricjax import runtime
+from fabricjax import host_arrays, runtime
 
 DOWN_SIZE = (60, 80)
 MAX_DEGREES = 90.0
@@ -48,7 +48,7 @@ def to_rows(frames):
     if not isinstance(frames, np.ndarray):
         return jnp.moveaxis(jnp.reshape(frames, (*lead, n, h * w, c)), -3, -1)
     sequences = frames.reshape(-1, n, h * w, c)
-    rows = np.empty((len(sequences), h * w, c, n), frames.dtype)
+    rows = host_arrays.empty((len(sequences), h * w, c, n), frames.dtype)  # placed without a copy on CPU devices
 
     def block(start: int) -> None:
         rows[start : start + HOST_BLOCK] = np.moveaxis(sequences[start : start + HOST_BLOCK], 1, -1)
