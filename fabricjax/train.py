@@ -26,6 +26,7 @@ every epoch's randomness is `fold_in(key, epoch)`, so a resumed run is the unint
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import os
@@ -410,6 +411,45 @@ class Results:
         return nnx.merge(self.graphdef, self.params(index))
 
 
+# JAX's events for building a program (tracing, lowering, XLA's compilation), summed over this
+# process: `train_and_evaluate` reports its run's share ("compile_s" of its time account).
+_BUILD_EVENTS = frozenset(
+    f"/jax/core/compile/{e}" for e in ("jaxpr_trace_duration", "jaxpr_to_mlir_module_duration", "backend_compile_duration")
+)
+_build_seconds = [0.0]
+
+
+def _count_build_time(event: str, duration: float, **_) -> None:
+    if event in _BUILD_EVENTS:
+        _build_seconds[0] += duration
+
+
+jax.monitoring.register_event_duration_secs_listener(_count_build_time)
+
+
+class TimeAccount:
+    """Where a run's wall time went, in seconds: placing its inputs ("place_s"), initialising
+    (building and running the initialisation, the input statistics) or restoring ("initialise_s"),
+    its epochs ("epochs_s", the first with its programs' building), saving ("save_s"), evaluating
+    the best epoch's models ("evaluate_s"), and the time any of these spent building programs
+    ("compile_s": tracing, lowering and XLA's compilation). Each phase waits for its results, so
+    its time is its own; what the phases leave of the run's wall time is bookkeeping (curves
+    written, results gathered)."""
+
+    def __init__(self):
+        self.seconds: dict[str, float] = {}
+        self._built = _build_seconds[0]
+
+    @contextlib.contextmanager
+    def phase(self, name: str):
+        start = time.perf_counter()
+        yield
+        self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - start
+
+    def result(self) -> dict[str, float]:
+        return {**self.seconds, "compile_s": _build_seconds[0] - self._built}
+
+
 def seed_keys(seeds: Sequence[int]) -> jax.Array:
     return jnp.stack([jax.random.PRNGKey(int(s)) for s in seeds])
 
@@ -432,7 +472,8 @@ def train_and_evaluate(
 
     The per-epoch curves (`curves.tags`: loss, accuracies per head, learning rate, epoch wall
     time) come back in `metrics["epochs"]` as {tag: (seeds, epochs)} arrays, NaN for epochs a
-    resumed run did not train itself. With `log_dir` they are also written as TensorBoard event
+    resumed run did not train itself; where the run's wall time went comes back in
+    `metrics["time"]` (`TimeAccount`). With `log_dir` they are also written as TensorBoard event
     files, one folder per seed (`curves.seed_dir`), after every epoch: with `log_dir` the epoch
     scan runs one epoch per call, so that a long run can be watched while it trains (and each
     epoch's wall time is its own, also where tensorboardX is not installed).
@@ -443,22 +484,25 @@ def train_and_evaluate(
     per_seed = sharding.replicated(mesh)
     # in training's layout once per training, not per `run` call (studies write curves, so they run one
     # epoch per call); every set, so that training and evaluation compile one image path (`FabricNet.image_features`)
-    data, sizes = prepare(config, data_sets["train"], data_sets["val"], evals, per_seed)  # replicated, like the state
+    account = TimeAccount()
+    with account.phase("place_s"):
+        data, sizes = jax.block_until_ready(prepare(config, data_sets["train"], data_sets["val"], evals, per_seed))  # replicated, like the state
     shapes = tuple(sorted(feature_shapes(select(config, data_sets["train"])["inputs"]).items()))
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
-    trainer, init, run, finish = _programs(config, shapes, n_train, mesh)
-    keys = sharding.put(seed_keys(seeds), per_seed)
-
-    mngr = checkpoint.manager(workdir) if workdir is not None else None
-    run_meta = checkpoint.meta(config, seeds, trainer.shapes, getattr(data_sets["train"], "classes", None))
-    if mngr is not None and mngr.latest_step() is not None:
-        abstract = jax.tree.map(
-            lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=per_seed), jax.eval_shape(init, keys)
-        )
-        state, done = checkpoint.restore(mngr, abstract, run_meta)
-    else:
-        stats = input_statistics(config, data_sets["train"])
-        state, done = sharding.put(with_input_statistics(init(keys), stats), per_seed), 0
+    with account.phase("initialise_s"):
+        trainer, init, run, finish = _programs(config, shapes, n_train, mesh)
+        keys = sharding.put(seed_keys(seeds), per_seed)
+        mngr = checkpoint.manager(workdir) if workdir is not None else None
+        run_meta = checkpoint.meta(config, seeds, trainer.shapes, getattr(data_sets["train"], "classes", None))
+        if mngr is not None and mngr.latest_step() is not None:
+            abstract = jax.tree.map(
+                lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=per_seed), jax.eval_shape(init, keys)
+            )
+            state, done = checkpoint.restore(mngr, abstract, run_meta)
+        else:
+            stats = input_statistics(config, data_sets["train"])
+            state, done = sharding.put(with_input_statistics(init(keys), stats), per_seed), 0
+        state = jax.block_until_ready(state)
     history, validation = curves.History(len(seeds), config.epochs), BestEpochValidation(len(seeds))
     # in a multi-process run only process 0 writes curves; the others open no files but chunk alike
     writer = curves.open_writer(log_dir, seeds if runtime.is_primary() else (), done) if log_dir is not None else None
@@ -469,25 +513,28 @@ def train_and_evaluate(
     while done < config.epochs:
         n = min(chunk, save_every - done % save_every, config.epochs - done)
         t0 = time.perf_counter()
-        state, chunk_curves = run(n)(state, data)
-        chunk_curves = jax.device_get(chunk_curves)  # waits for the chunk
+        with account.phase("epochs_s"):
+            state, chunk_curves = run(n)(state, data)
+            chunk_curves = jax.device_get(chunk_curves)  # waits for the chunk
         history.add(done, chunk_curves, (time.perf_counter() - t0) / n)
         validation.add(done, chunk_curves.pop("val_predictions"), chunk_curves["val_accuracy"], jax.device_get(state["best_epoch"]))
         if writer is not None:
             writer.write(history, done, done + n)
         done += n
         if mngr is not None and (done % save_every == 0 or done == config.epochs):
-            checkpoint.save(mngr, done, state, run_meta)
+            with account.phase("save_s"):
+                checkpoint.save(mngr, done, state, run_meta)
             if on_save is not None:
                 on_save(done)
     if writer is not None:
         writer.close()
     val = validation.results()
-    metrics = jax.device_get(finish(state, data["eval"] if val is not None else {"val": data["val"], **data["eval"]}))
+    with account.phase("evaluate_s"):
+        metrics = jax.device_get(finish(state, data["eval"] if val is not None else {"val": data["val"], **data["eval"]}))
     if val is not None:
         metrics["eval"] = {"val": val, **metrics["eval"]}
     metrics = unpad(metrics, sizes)
-    return Results(config, seeds, trainer.graphdef, state, {**metrics, "epochs": history.scalars})
+    return Results(config, seeds, trainer.graphdef, state, {**metrics, "epochs": history.scalars, "time": account.result()})
 
 
 class Restored(NamedTuple):

@@ -283,3 +283,24 @@ def test_input_statistics_do_not_depend_on_the_number_of_cores(monkeypatch):
     one = input_statistics(cfg, ds, chunk=2)
     for k in many:
         np.testing.assert_array_equal(many[k], one[k], err_msg=k)
+
+
+def test_a_runs_time_account_adds_up_and_counts_the_building_of_its_programs(tmp_path):
+    """`metrics["time"]`: each phase's seconds, their sum within the run's wall time, the epochs'
+    equal to the per-epoch curve's, and the time spent building programs: some for a config this
+    process has not built yet, none when its programs are kept."""
+    import time
+
+    cfg = dataclasses.replace(TINY, epochs=2, width=12)  # programs this process has not built
+    sets = data_sets(cfg)
+    start = time.perf_counter()
+    first = train_and_evaluate(cfg, sets, (0, 1), workdir=tmp_path / "run")
+    wall = time.perf_counter() - start
+    account = first.metrics["time"]
+    assert set(account) == {"place_s", "initialise_s", "epochs_s", "save_s", "evaluate_s", "compile_s"}
+    assert all(v >= 0 for v in account.values())
+    assert sum(v for k, v in account.items() if k != "compile_s") <= wall
+    np.testing.assert_allclose(account["epochs_s"], first.metrics["epochs"]["epoch_wall_s"][0].sum(), rtol=1e-2)
+    assert 0 < account["compile_s"] <= wall
+    again = train_and_evaluate(cfg, sets, (0, 1))
+    assert again.metrics["time"]["compile_s"] == 0.0 and "save_s" not in again.metrics["time"]

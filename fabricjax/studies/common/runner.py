@@ -193,7 +193,8 @@ class Row:
         return np.asarray(self.results.metrics["eval"][split]["predictions"][head])
 
     def doc(self, splits: Sequence[str]) -> dict[str, Any]:
-        """The row's config, checkpoint (None where the study keeps no models), wall time and, per
+        """The row's config, checkpoint (None where the study keeps no models), wall time and its
+        account (`train.TimeAccount`) and, per
         seed, accuracies and per-sample predictions of every head."""
         ev = self.results.metrics["eval"]
         return {
@@ -201,6 +202,7 @@ class Row:
             "checkpoint": None if self.checkpoint is None else str(self.checkpoint),
             "seeds": list(self.results.seeds),
             "wall_s": self.seconds,
+            "time": self.results.metrics["time"],
             "best_epoch": np.asarray(self.results.metrics["best_epoch"]).tolist(),
             "epochs": {t: [[None if np.isnan(x) else float(x) for x in s] for s in v] for t, v in self.results.metrics["epochs"].items()},
             "accuracy": {s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()} for s in ("val", *splits)},
