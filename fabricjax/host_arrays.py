@@ -47,3 +47,13 @@ def placed_in_place(placed: jax.Array, host: np.ndarray) -> bool:
     """Whether every device's part of `placed` is `host`'s own memory (a placement without copy)."""
     address = host.__array_interface__["data"][0]
     return all(s.data.unsafe_buffer_pointer() == address for s in placed.addressable_shards)
+
+
+def padded(a: np.ndarray, length: int, fill) -> np.ndarray:
+    """`a` with rows of `fill` appended up to `length` rows, as a new array of this module's (`a`
+    itself where it has them already)."""
+    if len(a) == length:
+        return a
+    out = empty((length, *a.shape[1:]), a.dtype)
+    out[: len(a)], out[len(a) :] = a, fill
+    return out

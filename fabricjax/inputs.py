@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fabricjax import memo, runtime
+from fabricjax import host_arrays, memo, runtime
 from fabricjax.config import Config
 from fabricjax.features import images
 
@@ -143,6 +143,10 @@ def training_layout(inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
     return dict(training_input(m, a) for m, a in inputs.items())
 
 
-def training_input(modality: str, array) -> tuple[str, Any]:
-    """One input as `training_layout` holds it: (its name there, the array)."""
-    return ("image_rows", images.to_rows(array)) if modality == "image" else (modality, array)
+def training_input(modality: str, array, length: int | None = None) -> tuple[str, Any]:
+    """One input as `training_layout` holds it: (its name there, the array), with zero inputs
+    appended up to `length` sequences where one is given (NumPy arrays: evaluation sets run in
+    whole minibatches)."""
+    if modality == "image":
+        return "image_rows", images.to_rows(array, length)
+    return modality, array if length is None else host_arrays.padded(array, length, 0)

@@ -267,16 +267,10 @@ def make_trainer(
     return Trainer(config, shapes, graphdef, make_optimizer(config, steps), steps, mesh)
 
 
-def padded(a: np.ndarray, multiple: int, fill) -> np.ndarray:
-    """`a` with rows of `fill` appended up to a whole number of `multiple` rows: evaluation sets
-    run in whole minibatches, with zero inputs and unknown (-1) labels, which every metric ignores.
-    A padded copy is made where CPU devices read it without another copy (`host_arrays`)."""
-    extra = -len(a) % multiple
-    if not extra:
-        return a
-    out = host_arrays.empty((len(a) + extra, *a.shape[1:]), a.dtype)
-    out[: len(a)], out[len(a) :] = a, fill
-    return out
+def whole_minibatches(n: int, batch_size: int) -> int:
+    """Sequences of an evaluation set of `n` run in whole minibatches: padding with zero inputs and
+    unknown (-1) labels, which every metric ignores, up to this many."""
+    return n + -n % batch_size
 
 
 def _buffer_bytes(placed: jax.Array) -> int:
@@ -304,7 +298,7 @@ def _placed(a: np.ndarray, modality: str, multiple: int | None, to: NamedShardin
     minibatches of `multiple` where one is given (evaluation sets)."""
 
     def make():
-        name, array = training_input(modality, a if multiple is None else padded(a, multiple, 0))
+        name, array = training_input(modality, a, None if multiple is None else whole_minibatches(len(a), multiple))
         return name, sharding.put(array, to)
 
     # `a` itself, placed without a copy (`host_arrays`), is not kept: placing it again costs
@@ -324,7 +318,9 @@ def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | N
     placed = {
         k: {
             "inputs": dict(_placed(a, m, multiple(k), to) for m, a in v["inputs"].items()),
-            "labels": sharding.put({h: a if multiple(k) is None else padded(a, multiple(k), -1) for h, a in v["labels"].items()}, to),
+            "labels": sharding.put(
+                {h: a if multiple(k) is None else host_arrays.padded(a, whole_minibatches(len(a), multiple(k)), -1) for h, a in v["labels"].items()}, to
+            ),
         }
         for k, v in sets.items()
     }

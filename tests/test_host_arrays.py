@@ -6,6 +6,7 @@ import pytest
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from fabricjax import host_arrays, memo, train
+from fabricjax.features import images
 
 pytestmark = pytest.mark.skipif(jax.default_backend() != "cpu", reason="placement in place is XLA:CPU's")
 
@@ -38,10 +39,19 @@ def test_cpu_devices_read_an_aligned_array_in_place_and_copy_a_misaligned_one():
 
 def test_padded_sets_are_aligned_copies_with_the_fill_appended():
     a = np.arange(5 * 3, dtype=np.float32).reshape(5, 3)
-    p = train.padded(a, 4, -1)
+    p = host_arrays.padded(a, train.whole_minibatches(5, 4), -1)
     np.testing.assert_array_equal(p, np.concatenate([a, np.full((3, 3), -1, np.float32)]))
     assert p.ctypes.data % host_arrays.ALIGNMENT == 0
-    assert train.padded(a, 5, -1) is a  # whole minibatches already: the set itself
+    assert host_arrays.padded(a, train.whole_minibatches(5, 5), -1) is a  # whole minibatches already: the set itself
+
+
+def test_pixel_rows_of_a_padded_set_are_the_padded_frames_rows():
+    frames = np.random.default_rng(0).integers(0, 256, (5, 4, 3, 2, 3), np.uint8)
+    rows = images.to_rows(frames, 8)
+    np.testing.assert_array_equal(rows, images.to_rows(host_arrays.padded(frames, 8, 0)))
+    assert rows.shape == (8, 6, 3, 4) and not rows[5:].any()
+    with pytest.raises(ValueError, match="at most that long"):
+        images.to_rows(frames, 4)
 
 
 def test_training_keeps_placed_copies_but_not_an_array_placed_in_place(monkeypatch):

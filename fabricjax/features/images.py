@@ -14,6 +14,7 @@ rows (`to_rows`), the layout in which one angle per sequence is cheap to apply.
 
 from __future__ import annotations
 
+import math
 from concurrent.futures import ThreadPoolExecutor
 
 import cv2
@@ -34,9 +35,11 @@ def downsample(frames: np.ndarray, size: tuple[int, int] = DOWN_SIZE) -> np.ndar
     return np.stack([cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA) for f in frames])
 
 
-def to_rows(frames):
+def to_rows(frames, length: int | None = None):
     """(..., N, H, W, C) frames -> (..., H*W, C, N) rows: pixel-major, one row per pixel holding
-    its colours in every frame of the sequence.
+    its colours in every frame of the sequence. NumPy frames (S, N, H, W, C) can be given a
+    `length` >= S: the rows of `length` sequences, those past S zero (an evaluation set padded to
+    whole minibatches, in one copy).
 
     The layout the rotation wants: a sequence's frames share one angle, so rotating it moves whole
     rows (`rotate_rows`), which XLA's CPU backend gathers as contiguous copies; the same bilinear
@@ -48,10 +51,15 @@ def to_rows(frames):
     if not isinstance(frames, np.ndarray):
         return jnp.moveaxis(jnp.reshape(frames, (*lead, n, h * w, c)), -3, -1)
     sequences = frames.reshape(-1, n, h * w, c)
-    rows = host_arrays.empty((len(sequences), h * w, c, n), frames.dtype)  # placed without a copy on CPU devices
+    if length is not None:
+        if len(lead) != 1 or length < lead[0]:
+            raise ValueError(f"rows of {length} sequences from frames of shape {frames.shape}: one sequence axis, at most that long")
+        lead = [length]
+    rows = host_arrays.empty((math.prod(lead), h * w, c, n), frames.dtype)  # zeroed; placed without a copy on CPU devices
 
     def block(start: int) -> None:
-        rows[start : start + HOST_BLOCK] = np.moveaxis(sequences[start : start + HOST_BLOCK], 1, -1)
+        part = sequences[start : start + HOST_BLOCK]
+        rows[start : start + len(part)] = np.moveaxis(part, 1, -1)
 
     # NumPy copies without the GIL: blocks go to one thread per core (0.21 against 0.39 s for a
     # camera row's 1.1 GB on 2 cores)
