@@ -7,8 +7,9 @@ large allocations start 16 bytes past such a boundary, so they are copied, once 
 sets a study trains on are GBs (a camera row's training frames: 1.1 GB in the default preset,
 replicated on both CPU devices of a 2-core machine), so the arrays made to be placed (loaded
 sequences, pixel rows, padded evaluation sets) are allocated here: their placement then costs no
-copy and no memory on CPU devices (a camera row's frames: 1.6 s to place with copies, nothing
-without). On accelerators they are copied into device memory either way.
+copy and no memory on CPU devices (a camera row's training frames, laid out as pixel rows and
+placed: 1.56 s with the two copies, 0.49 s without). On accelerators they are copied into device
+memory either way.
 
 Aliasing is safe only for arrays nobody writes after placing them: loaded data sets are read-only
 (`data.load_sequences`), and the copies made for placement are never written again.
@@ -34,10 +35,10 @@ def empty(shape: tuple[int, ...], dtype) -> np.ndarray:
 
     Not NumPy's allocation for another reason too: NumPy asks the kernel for transparent huge
     pages for large arrays (`madvise`), and where memory is fragmented (after a data set's GBs
-    went through the page cache) the kernel compacts memory to find them, synchronously, at the
-    first write of each page: touching a fresh GB took 0.3 to 2.3 s that way on this project's
-    2-core machine, against 0.36 to 0.41 s in ordinary pages (three runs each). These arrays are
-    read in blocks of whole sequences (tens of kB and up), for which ordinary pages do as well."""
+    went through the page cache) the kernel may compact memory to find them, synchronously, at
+    the first write of each page: three fresh GB in a row took 0.35, 2.28 and 0.07 s to write with
+    that advice on this project's 2-core machine, 0.36-0.41 s without it. These arrays are read in
+    blocks of whole sequences (tens of kB and up), for which ordinary pages do as well."""
     dtype = np.dtype(dtype)
     count = math.prod(shape)
     return np.frombuffer(mmap.mmap(-1, max(count * dtype.itemsize, 1)), dtype, count).reshape(shape)
