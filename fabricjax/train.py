@@ -327,6 +327,17 @@ def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | N
     return {"train": placed.pop("train"), "val": placed.pop("val"), "eval": placed}, sizes
 
 
+def place_for_runs(config: Config, data_sets: Mapping[str, Any]) -> None:
+    """Place `data_sets`' inputs of `config` on the training devices as `train_and_evaluate` will
+    (in training's layout, evaluation sets padded: `prepare`) and compute their input statistics,
+    both kept for the runs after it on the same arrays. A study calls it for a camera input before
+    the first row that reads it, so that laying out the split's frames, which its rows share, is
+    timed as the data's cost, not as that row's."""
+    evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
+    jax.block_until_ready(prepare(config, data_sets["train"], data_sets["val"], evals, sharding.replicated(sharding.training_mesh(config.batch_size))))
+    input_statistics(config, data_sets["train"])
+
+
 class BestEpochValidation:
     """Each seed's validation results (predictions and accuracy per head) at its best epoch,
     taken from the epochs a call trains: the epoch scan evaluates the validation set anyway

@@ -53,6 +53,7 @@ def test_ablation_writes_table_statistics_and_confusions(workdir, tmp_path):
     assert "95.06 ± 1.85" in md and "smallest attainable p" in md and "command: `test`" in md
     assert json.loads((tmp_path / "ablation.json").read_text())["preset"] == "smoke"
     assert doc["compute_dtype"] == ["float32"] and "matrix products in float32 with float32 accumulation" in md
+    assert doc["dataset"]["layout_s"] == 0.0 and "laid out" not in md  # no camera input to lay out
 
 
 def test_the_smoke_preset_learns_and_says_it_checks_the_install(workdir, tmp_path):
@@ -350,6 +351,7 @@ def test_camera_rows(workdir, tmp_path):
     """Image and optical-flow rows (CNN encoders, rotation augmentation) end to end."""
     doc = ablation.run(n_seeds=2, rows=["image+internal", "flow", "proprio"], **run_kwargs(workdir, tmp_path))
     assert [r["name"] for r in doc["rows"]] == ["flow", "proprio", "image+internal"] and doc["wilcoxon"] is None  # the table's order
+    assert doc["dataset"]["layout_s"] > 0 and "camera inputs laid out for training" in (tmp_path / "ablation.md").read_text()
     assert (tmp_path / "ablation_confusion.png").stat().st_size > 0
     doc = properties.run(n_seeds=1, rows=["minsound+minsight"], **run_kwargs(workdir, tmp_path))
     out = latents.run(doc["rows"][0]["checkpoint"], where=Location(workdir=workdir, results=tmp_path))

@@ -304,3 +304,65 @@ def test_a_runs_time_account_adds_up_and_counts_the_building_of_its_programs(tmp
     assert 0 < account["compile_s"] <= wall
     again = train_and_evaluate(cfg, sets, (0, 1))
     assert again.metrics["time"]["compile_s"] == 0.0 and "save_s" not in again.metrics["time"]
+
+
+def test_inputs_placed_before_a_run_serve_it_and_change_nothing(monkeypatch):
+    """`place_for_runs` lays out a camera input as a run will (pixel rows, evaluation sets padded)
+    and computes its statistics; the run after it builds neither again and trains to the same
+    bits as a run that did it all itself."""
+    from fabricjax import inputs, memo
+    from fabricjax.features import images
+
+    cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "property_heads": False, "epochs": 1})
+    alone = train_and_evaluate(cfg, data_sets(cfg), (0,))
+    monkeypatch.setattr(memo, "MIN_BYTES", 0)  # the tiny arrays are kept like a data set's
+    monkeypatch.setattr(train, "_PLACED", memo.ByArray(max_entries=12, size=train._PLACED.size))
+    monkeypatch.setattr(inputs, "_STATISTICS", memo.ByArray(max_entries=16))
+    sets = data_sets(cfg)  # arrays neither memo has seen
+    train.place_for_runs(cfg, sets)
+    built = []
+    for module, name in ((images, "to_rows"), (inputs, "_moments")):
+        monkeypatch.setattr(module, name, lambda *a, _f=getattr(module, name), _n=name, **k: built.append(_n) or _f(*a, **k))
+    after = train_and_evaluate(cfg, sets, (0,))
+    assert built == []
+    np.testing.assert_array_equal(after.metrics["train_loss"], alone.metrics["train_loss"])
+    np.testing.assert_array_equal(after.metrics["eval"]["test"]["predictions"]["fabric"], alone.metrics["eval"]["test"]["predictions"]["fabric"])
+
+
+LEVEL_RUN = """
+import hashlib, sys
+import jax, numpy as np
+sys.path.insert(0, {tests!r})
+from fabricjax import runtime
+runtime.configure_jax()
+from test_train import TINY
+from fabricjax.bench import synthetic
+from fabricjax.config import Config
+from fabricjax.train import train_and_evaluate
+cfg = Config(**{{**TINY.to_json(), "modalities": ("image", "internal", "proprio"), "cnn_features": (4,), "epochs": 1}})
+sets = {{k: synthetic.data_set(cfg, n, seed=i, image_hw=(12, 16)) for i, (k, n) in enumerate((("train", 24), ("val", 10), ("test", 12)))}}
+res = train_and_evaluate(cfg, sets, seeds=[0, 1])
+print(hashlib.sha256(b"".join(np.asarray(x).tobytes() for x in jax.tree.leaves(res.state["params"]))).hexdigest())
+"""
+
+
+def test_the_backend_optimisation_level_changes_no_bit_of_a_trained_model(monkeypatch):
+    """`configure_jax` compiles at LLVM level 2 (`runtime.compile_at_backend_level`), where XLA
+    builds programs faster; a model trained at XLA's default level 3 has the same parameters, bit
+    for bit (camera, microphone and joint inputs, dropout on). A level already in XLA_FLAGS wins."""
+    monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
+    runtime.compile_at_backend_level()
+    assert os.environ["XLA_FLAGS"] == f"--xla_force_host_platform_device_count=2 --xla_backend_optimization_level={runtime.BACKEND_OPTIMIZATION_LEVEL}"
+    monkeypatch.setenv("XLA_FLAGS", "--xla_backend_optimization_level=3")
+    runtime.compile_at_backend_level()
+    assert os.environ["XLA_FLAGS"] == "--xla_backend_optimization_level=3"
+
+    code = LEVEL_RUN.format(tests=os.path.dirname(__file__))
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    runs = [  # side by side
+        subprocess.Popen([sys.executable, "-c", code], env={**env, **flags, "JAX_PLATFORMS": "cpu"}, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for flags in ({}, {"XLA_FLAGS": "--xla_backend_optimization_level=3"})
+    ]
+    (level_2, error_2), (level_3, error_3) = (run.communicate(timeout=300) for run in runs)
+    assert all(run.returncode == 0 for run in runs), error_2[-3000:] + error_3[-3000:]
+    assert level_2.split()[-1] == level_3.split()[-1]

@@ -175,7 +175,7 @@ def write(results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str
 
 def data_time_markdown(d: dict[str, Any]) -> str:
     """The data's share of a study's time (`dataset_doc`): recorded data is read, never simulated."""
-    load = f"features and sequences {d['load_s']:.0f} s"
+    load = f"features and sequences {d['load_s']:.0f} s" + (f", camera inputs laid out for training {d['layout_s']:.1f} s" if d.get("layout_s") else "")
     if d["source"] == "recorded":
         return f"data apart from that: {load} (recorded data, read as it is)"
     return f"data apart from that: simulation {d['generate_s']:.0f} s, {load}"
@@ -213,6 +213,7 @@ def dataset_doc(ds: Dataset) -> dict[str, Any]:
         "source": ds.source,
         "generate_s": ds.generate_s,
         "load_s": ds.load_s,
+        "layout_s": ds.layout_s,
         "sequences": {k: len(v) for k, v in ds.sets.items()},
         "trials": {k: c["trials"] for k, c in ds.split_counts().items()},
         "classes": list(ds.classes),

@@ -110,12 +110,13 @@ def _which_rows(names: Sequence[str], n_rows: int) -> str:
 
 
 ROW_KINDS = ("image", "flow", "other")
+CAMERA_INPUTS = ROW_KINDS[:-1]
 
 
 def row_kind(config: Config) -> str:
     """What a row's training time mostly depends on: its costliest input (a camera row trains
     several times longer than an audio row), else "other"."""
-    return next((m for m in ROW_KINDS[:-1] if m in config.modalities), "other")
+    return next((m for m in CAMERA_INPUTS if m in config.modalities), "other")
 
 
 def in_training_order(items: Sequence[T], config: Callable[[T], Config]) -> list[T]:
@@ -290,8 +291,15 @@ def train_rows(
         progress = Progress(study, len(rows), [row_kind(c) for _, c in order])
     else:  # started before this load
         progress.exclude(ds.generate_s + ds.load_s)
-    trained = {}
+    trained, laid_out = {}, set()
     for name, config in order:
+        camera = row_kind(config)
+        if camera in CAMERA_INPUTS and camera not in laid_out:  # the group's camera input, once (`in_training_order`)
+            t0 = time.perf_counter()
+            alone = dataclasses.replace(config, modalities=(camera,))
+            train.place_for_runs(alone, data.narrow({s: ds.sets[s] for s in ("train", "val", *eval_splits)}, alone))
+            ds.layout_s += time.perf_counter() - t0
+            laid_out.add(camera)
         progress.start(label(name))
         trained[name] = row = train_row(
             name, config, ds.sets, seeds, eval_splits,

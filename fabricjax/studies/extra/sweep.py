@@ -209,7 +209,7 @@ def run(
     flat = [entries[name] for name, _, _, _ in units]  # grid order, then the table's row order
     points, best = summarise(grid_points(grid), flat)
     head["train_s"] = sum(e["train_s"] for e in flat)
-    head["dataset"].update(generate_s=sum(d["generate_s"] for d in loads), load_s=sum(d["load_s"] for d in loads))
+    head["dataset"].update({k: sum(d[k] for d in loads) for k in ("generate_s", "load_s", "layout_s")})
     doc = {
         **head,
         "grid": {f: list(v) for f, v in grid.items()},
