@@ -33,8 +33,9 @@ from typing import Any, Mapping
 MIN_CACHED_COMPILE_S = 1.0  # programs compiling faster than this are not worth a cache file
 
 # LLVM's optimisation level for the code XLA compiles (XLA's default: 3). Level 2 builds a
-# training row's programs in about a quarter less time, and they compute the same bits (a test
-# trains under both levels) and run as fast (README, Speed).
+# training row's programs faster and they compute the same bits (a test trains under both
+# levels); the default preset's steps run as fast, the paper model's 5-seed step a few per cent
+# slower (README, Speed), so a long run may prefer level 3 through XLA_FLAGS.
 BACKEND_OPTIMIZATION_LEVEL = 2
 _LEVEL_FLAG = "--xla_backend_optimization_level"
 
