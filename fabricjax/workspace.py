@@ -47,6 +47,17 @@ def index_file(dataset, workdir=None) -> Path:
     return root(workdir) / "indexes" / f"{folder.name}-{hashlib.sha256(str(folder).encode()).hexdigest()[:16]}.json"
 
 
+def shown(path: str | os.PathLike) -> str:
+    """`path` as results files and the commands they print name it: relative to the working
+    directory when it lies inside it (`workspace/checkpoints/...` from the repository root), so a
+    published command runs on any machine from the same folder; else as given."""
+    p = Path(path).expanduser()
+    try:
+        return str(p.absolute().relative_to(Path.cwd()))
+    except ValueError:
+        return str(p)
+
+
 def features_dir(workdir=None) -> Path:
     return root(workdir) / "features"
 

@@ -71,19 +71,20 @@ def test_a_planted_class_level_is_found_and_pure_noise_is_at_chance(modality):
     assert len(planted["predictions"]["test"]) == n_test and "train" not in planted["predictions"]
 
 
-def _ablation_row(name, test):
+def _ablation_row(name, test, predictions=None):
     r = next(r for r in ablation.ROWS if r.name == name)
-    return {"name": name, "modalities": list(r.modalities), "display_name": ablation.display_name(name), "accuracy": {"test": {"fabric": test}}}
+    return {"name": name, "modalities": list(r.modalities), "display_name": ablation.display_name(name), "accuracy": {"test": {"fabric": test}},
+            "predictions": {"test": {"fabric": predictions or [[0, 1, 2, 3]] * len(test)}}}
 
 
 PROBE_DOC = {
     "preset": "default", "dataset": {"folder": "/w/datasets/default", "source": "simulated"},
-    "rows": [{"name": "internal", "modalities": ["internal"], "accuracy": {"test": 0.65}},
+    "rows": [{"name": "internal", "modalities": ["internal"], "accuracy": {"test": 0.65}, "predictions": {"test": [1] * 20}},
              {"name": "internal+external+proprio", "modalities": ["internal", "external", "proprio"], "accuracy": {"test": 0.75}}],
 }
 ABLATION_DOC = {
     "preset": "default", "dataset": {"folder": "/w/datasets/default", "source": "simulated"}, "seeds": [0, 1],
-    "rows": [_ablation_row("internal", [0.8, 0.9]), _ablation_row("proprio", [0.4, 0.4]),
+    "rows": [_ablation_row("internal", [0.8, 0.9]), _ablation_row("proprio", [0.4, 0.4], [[5] * 4] * 2),
              _ablation_row("tcn:internal+external+proprio", [0.7, 0.7]),
              _ablation_row(f"{ablation.STEP_LAYERNORM}:internal+external+proprio", [0.8, 0.8])],
 }
@@ -92,8 +93,8 @@ ABLATION_DOC = {
 def test_the_probe_sits_beside_every_ablation_row_with_the_difference():
     lines = probe.beside_ablation(PROBE_DOC, ABLATION_DOC).splitlines()
     assert lines[0] == "| Ablation row | Linear probe, test [%] | Model, test [%] (2 seeds) | Model − probe [pp] |"
-    assert lines[2] == "| Minsound | 65.00 | 85.00 ± 7.07 | +20.00 |"
-    assert lines[3] == "| proprioception | – | 40.00 ± 0.00 | – |"  # not probed in this run
+    assert lines[2] == "| Minsound | 65.00 (collapsed to class 1) | 85.00 ± 7.07 | +20.00 |"  # a probe predicting one class says so
+    assert lines[3] == "| proprioception | – | 40.00 ± 0.00 (collapsed to class 5: 2 of 2 seeds) | – |"  # not probed in this run
     assert lines[4] == "| TCN: Minsound + palm mic + proprioception | 75.00 | 70.00 ± 0.00 | -5.00 |"  # the TCN row, same inputs
     assert lines[5] == "| Minsound + palm mic + proprioception (our step-LayerNorm fusion) | 75.00 | 80.00 ± 0.00 | +5.00 |"
     text = "\n".join(lines)
@@ -109,7 +110,7 @@ def test_report_sets_the_probe_beside_the_ablation_from_their_json(tmp_path):
     manifest = {s: {"wall_s": 60.0, "finished": "today", "command": f"python -m experiments.{s}"} for s in ("ablation", "probe")}
     text = reproduce.write_report(tmp_path / "REPORT.md", manifest, "default", "c0de" * 16, "test", 1.0, 2).read_text()
     assert text.index("## Modality ablation") < text.index("## Linear probe") < text.index("### The probe beside the model, row by row")
-    assert "| Minsound | 65.00 | 85.00 ± 7.07 | +20.00 |" in text
+    assert "| Minsound | 65.00 (collapsed to class 1) | 85.00 ± 7.07 | +20.00 |" in text
     assert "| – (deterministic) | – (not in the paper) |" in text  # the summary line of the probe
     (tmp_path / "ablation.json").unlink()
     del manifest["ablation"]

@@ -210,14 +210,17 @@ def test_tsne_is_finite_for_identical_and_few_points():
 def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
     rows = [
         {"name": "internal", "backbone": "attention", "modalities": ["internal"], "paper_mean": 95.06, "paper_sd": 1.85,
-         "seeds": [0, 1, 2], "wall_s": 12.34, "accuracy": {"test": {"fabric": [0.9, 0.95, 1.0]}}},
+         "seeds": [0, 1, 2], "wall_s": 12.34, "accuracy": {"test": {"fabric": [0.9, 0.95, 1.0]}},
+         "predictions": {"test": {"fabric": [[0, 1, 2, 3]] * 3}}},
         {"name": "tcn", "backbone": "tcn", "modalities": ["internal", "external", "proprio"], "paper_mean": 75.41,
-         "paper_sd": 11.2, "seeds": [0, 1, 2], "wall_s": 5.0, "accuracy": {"test": {"fabric": [0.5, 0.5, 0.5]}}},
+         "paper_sd": 11.2, "seeds": [0, 1, 2], "wall_s": 5.0, "accuracy": {"test": {"fabric": [0.5, 0.5, 0.5]}},
+         "predictions": {"test": {"fabric": [[0, 1, 2, 3], [2] * 4, [2] * 4]}}},
     ]
     lines = ablation.table(rows).splitlines()
     assert lines[0].startswith("| Backbone | Modalities | Test accuracy [%] (ours, 3 seeds) | Paper [%] | Ours − paper [pp]")
     assert lines[2] == "| Transformer | Minsound | 95.00 ± 5.00 | 95.06 ± 1.85 | -0.06 | 12.3 |"
-    assert lines[3] == "| TCN | Minsound + palm mic + proprioception | 50.00 ± 0.00 | 75.41 ± 11.20 | -25.41 | 5.0 |"
+    # two of its seeds predict one class for every sequence: the table says so beside the accuracy
+    assert lines[3] == "| TCN | Minsound + palm mic + proprioception | 50.00 ± 0.00 (collapsed to class 2: 2 of 3 seeds) | 75.41 ± 11.20 | -25.41 | 5.0 |"
 
 
 def test_noise_and_bandwidth_tables():
@@ -446,3 +449,26 @@ def test_palm_physics_on_smoke_scenes(tmp_path):
     assert set(doc["shares_all"]["palm"]) >= {"fabric", "condition", "day within condition"}
     text = (tmp_path / "palm_physics.md").read_text()
     assert "Fabric, day and condition" in text and "- code: " in text and "; written " in text and "- machine: " in text
+
+
+def test_reproduce_writes_the_readme_block_of_a_scratch_copy(workdir, tmp_path):
+    """The README beside a results folder gets its results block from the run (and nothing else of
+    it changes); the block is what the tracked headline renders, the same numbers as the ablation's table."""
+    readme = tmp_path / "README.md"
+    before = (Path(__file__).parents[1] / "README.md").read_text()
+    readme.write_text(before)
+    plan = (reproduce.Step("ablation", 1, ("internal",)), reproduce.Step("probe", rows=("internal",)))
+    said = []
+    reproduce.run(preset="smoke", plan=plan, overrides=TINY, where=Location(workdir=workdir, results=tmp_path / "results", command="test"),
+                  say=said.append)
+    head = json.loads((tmp_path / "results" / reproduce.HEADLINE).read_text())
+    block = reproduce.readme_block(head)
+    after = readme.read_text()
+    assert block in after and f"reproduce: wrote the results block of {readme}" in said
+    assert after.split(reproduce.README_BEGIN)[0] == before.split(reproduce.README_BEGIN)[0]
+    assert after.split(reproduce.README_END)[1] == before.split(reproduce.README_END)[1]
+    [row] = head["rows"]
+    assert row["inputs"] == "Minsound" and f"| {row['ours'].split(' (')[0]} |" in (tmp_path / "results" / "ablation.md").read_text()
+    assert "from `test` on the smoke preset".lower() in block.lower() and "not counted (install check)" in block
+    assert not reproduce.write_readme_block(tmp_path / "results" / "nothing.md", block)  # no README there: nothing written
+    assert not (tmp_path / "results" / "nothing.md").exists()

@@ -209,7 +209,7 @@ def samples_doc(ss: data.SequenceSet) -> dict[str, Any]:
 
 def dataset_doc(ds: Dataset) -> dict[str, Any]:
     return {
-        "folder": str(ds.folder),
+        "folder": workspace.shown(ds.folder),
         "source": ds.source,
         "generate_s": ds.generate_s,
         "load_s": ds.load_s,

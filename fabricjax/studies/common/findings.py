@@ -89,4 +89,29 @@ def claims_markdown(doc: dict[str, Any], claims: str = "the paper's claims about
     return [f"## Findings checklist ({claims})", "", markdown(doc["findings"], counted=not documents.counts_no_claims(doc))]
 
 
+COLLAPSED_SHARE = 0.95  # a model "collapsed" when it predicts one class for at least this share of the sequences
+
+
+def collapsed(predictions) -> list[int | None]:
+    """Per seed (rows of `predictions`: seeds x sequences; one row for a single model), the class it
+    predicts for at least `COLLAPSED_SHARE` of the sequences, else None: chance reached that way is
+    not a measurement of what the inputs carry."""
+    out = []
+    for p in np.atleast_2d(np.asarray(predictions)):
+        classes, counts = np.unique(p, return_counts=True)
+        out.append(int(classes[np.argmax(counts)]) if p.size and counts.max() >= COLLAPSED_SHARE * p.size else None)
+    return out
+
+
+def collapse_note(predictions) -> str:
+    """' (collapsed to class k: n of m seeds)' beside an accuracy, or '' when no seed collapsed."""
+    per_seed = collapsed(predictions)
+    hit = [k for k in per_seed if k is not None]
+    if not hit:
+        return ""
+    classes = ", ".join(str(k) for k in sorted(set(hit)))
+    seeds = f": {len(hit)} of {len(per_seed)} seeds" if len(per_seed) > 1 else ""
+    return f" (collapsed to class {classes}{seeds})"
+
+
 NOT_COUNTED = "Not counted: an install check runs the paper's checks on data too small to test its claims."

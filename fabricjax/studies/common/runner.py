@@ -200,7 +200,7 @@ class Row:
         ev = self.results.metrics["eval"]
         return {
             "config": self.config.to_json(),
-            "checkpoint": None if self.checkpoint is None else str(self.checkpoint),
+            "checkpoint": None if self.checkpoint is None else workspace.shown(self.checkpoint),
             "seeds": list(self.results.seeds),
             "wall_s": self.seconds,
             "time": self.results.metrics["time"],

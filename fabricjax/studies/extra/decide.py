@@ -36,7 +36,7 @@ import jax
 import numpy as np
 from flax import nnx
 
-from fabricjax import archive, catalog, checkpoint, confidence, data, plots, train
+from fabricjax import archive, catalog, checkpoint, confidence, data, plots, train, workspace
 from fabricjax.studies.common import documents, loading
 from fabricjax.studies.extra import cost
 from fabricjax.studies.tools import stream
@@ -153,7 +153,7 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Loc
             "unknown": _answers(sets["holdout"], unk_cal, scores["mahalanobis"][1], reject_above),
         }
     return {
-        "checkpoint": str(checkpoint_dir), "config": config.to_json(), "seeds": list(seeds), "seed": seed,
+        "checkpoint": workspace.shown(checkpoint_dir), "config": config.to_json(), "seeds": list(seeds), "seed": seed,
         "temperatures": {str(s): v for s, v in temperatures.items()}, "temperature": t,
         "window_s": window_s, "splits": splits_doc, "unknown": unknown_doc, "dataset": documents.dataset_doc(ds),
         "cost_points": _cost_points(where.results_dir(), config.modalities),

@@ -29,7 +29,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from fabricjax import archive, data, stats
-from fabricjax.studies.common import documents, loading, runner
+from fabricjax.studies.common import documents, findings, loading, runner
 from fabricjax.studies.common.linear_probe import BLAS_THREADS, C_GRID, MAX_ITER, PCA_ABOVE, PCA_DIMS, Input, fit, prepare_inputs
 from fabricjax.studies.paper import ablation
 from fabricjax.studies.common.runner import StudyRow
@@ -119,7 +119,7 @@ def table(doc: Mapping[str, Any]) -> str:
     """One line per probe: its inputs, features, chosen C and accuracy on every split."""
     body = [
         [r["display_name"], r["probe_dims"], f"{r['C']:g}" + ("" if r["converged"] else " (not converged)"),
-         *[_pct(r["accuracy"], s) for s in SPLITS], f"{r['wall_s']:.1f}"]
+         *[_pct(r["accuracy"], s) + findings.collapse_note(r.get("predictions", {}).get(s, [])) * (s != "train") for s in SPLITS], f"{r['wall_s']:.1f}"]
         for r in doc["rows"]
     ]
     header = ["Inputs", "Probe features", "C (by validation)", "Train [%]", "Validation [%]", "Test [%]", "Cafe [%]", "Fit time [s]"]
@@ -165,8 +165,10 @@ def beside_ablation(probe_doc: Mapping[str, Any], ablation_doc: Mapping[str, Any
         mean, sd = stats.mean_sd(test)
         probe_test = None if p is None or p["accuracy"].get("test") is None else 100 * p["accuracy"]["test"]
         reached += probe_test is not None and mean >= probe_test
+        probe_note = "" if p is None else findings.collapse_note(p.get("predictions", {}).get("test", []))
         body.append([
-            r["display_name"], "–" if probe_test is None else f"{probe_test:.2f}", f"{mean:.2f} ± {sd:.2f}",
+            r["display_name"], "–" if probe_test is None else f"{probe_test:.2f}{probe_note}",
+            f"{mean:.2f} ± {sd:.2f}{findings.collapse_note(r['predictions']['test']['fabric'])}",
             "–" if probe_test is None else f"{mean - probe_test:+.2f}",
         ])
     n_seeds = len(ablation_doc["seeds"])

@@ -174,7 +174,7 @@ def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -
                 "by": "validation accuracy, mean over seeds [%]", "val": val,
                 "test": {t.config.fusion_norm: stats.mean_sd(100 * t.accuracy("test"))[0] for t in trained_as},
             },
-            "probe": {"C": p["C"], "accuracy": p["accuracy"]},
+            "probe": {"C": p["C"], "accuracy": p["accuracy"], "predictions": {"test": p["predictions"].get("test", [])}},
             **best.doc(["test"]),
         })
     return {
@@ -189,34 +189,40 @@ SIMILAR_PP = 10.0  # "similar": within this many points of each other (the paper
 WELL_ABOVE_CHANCE_PP = 10.0  # "well above chance": at least this many points above 1/21
 
 
-def checklist(test: dict[str, np.ndarray]) -> list[findings.Finding]:
+def checklist(test: dict[str, np.ndarray], notes: Mapping[str, str] | None = None) -> list[findings.Finding]:
     """The paper's qualitative claims about the ablation, as predicates over per-seed test
-    accuracies (`test`: row name -> per-seed accuracies in [0, 1]; rows not run are skipped)."""
+    accuracies (`test`: row name -> per-seed accuracies in [0, 1]; rows not run are skipped);
+    `notes`: row name -> what its evidence adds to its name (`findings.collapse_note`)."""
+    notes = notes or {}
+
+    def named(row: str) -> str:
+        return (MODALITY_NAMES[row] if row in MODALITY_NAMES else display_name(row)) + notes.get(row, "")
+
     out = []
     singles = ["image", "flow", "external", "proprio"]
     claim = "Minsound (internal audio) is the best single modality"
     if not (f := findings.missing(claim, ["internal", *singles], test)):
         best_other = max(singles, key=lambda r: findings.mean_pct(test[r]))
-        f = findings.at_least(claim, (MODALITY_NAMES["internal"], test["internal"]), (f"best other, {MODALITY_NAMES[best_other]}", test[best_other]), strict=True)
+        f = findings.at_least(claim, (named("internal"), test["internal"]), (f"best other, {named(best_other)}", test[best_other]), strict=True)
     out.append(f)
     claim = f"the palm mic alone is clearly worse than Minsound (>= {CLEARLY_WORSE_PP:.0f} pp below)"
     out.append(findings.missing(claim, ["internal", "external"], test) or findings.at_least(
-        claim, (MODALITY_NAMES["internal"], test["internal"]), (MODALITY_NAMES["external"], test["external"]), CLEARLY_WORSE_PP))
+        claim, (named("internal"), test["internal"]), (named("external"), test["external"]), CLEARLY_WORSE_PP))
     claim = (f"proprioception and optical flow alone are similar (within {SIMILAR_PP:.0f} pp) and well above chance "
              f"(>= {WELL_ABOVE_CHANCE_PP:.0f} pp above {100 / catalog.N_CLASSES:.1f} %)")
     if not (f := findings.missing(claim, ["proprio", "flow"], test)):
         p, fl = findings.mean_pct(test["proprio"]), findings.mean_pct(test["flow"])
         floor = 100 / catalog.N_CLASSES + WELL_ABOVE_CHANCE_PP
         f = findings.Finding(claim, abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor,
-                             f"{findings.describe(MODALITY_NAMES['proprio'], test['proprio'])}; {findings.describe(MODALITY_NAMES['flow'], test['flow'])}")
+                             f"{findings.describe(named('proprio'), test['proprio'])}; {findings.describe(named('flow'), test['flow'])}")
     out.append(f)
     claim = "Minsight images alone are the weakest camera input (below optical flow)"
     out.append(findings.missing(claim, ["image", "flow"], test) or findings.at_least(
-        claim, (MODALITY_NAMES["flow"], test["flow"]), (MODALITY_NAMES["image"], test["image"]), strict=True))
+        claim, (named("flow"), test["flow"]), (named("image"), test["image"]), strict=True))
     for base, compared, variant in ((WILCOXON_PAIR[0], WILCOXON_PAIR[1], ""), *[(b, c, " (our step-LayerNorm fusion)") for b, c in STEP_LAYERNORM_PAIRS]):
         claim = f"Minsound + palm mic >= Minsound{variant}"
         out.append(findings.missing(claim, [base, compared], test) or findings.at_least(
-            claim, (display_name(compared), test[compared]), (display_name(base), test[base])))
+            claim, (named(compared), test[compared]), (named(base), test[base])))
     claim = "the TCN is below the transformer on the same inputs (Minsound + palm mic + proprioception)"
     out.append(findings.missing(claim, ["internal+external+proprio", "tcn:internal+external+proprio"], test) or findings.at_least(
         claim, ("Transformer", test["internal+external+proprio"]), ("TCN", test["tcn:internal+external+proprio"]), strict=True))
@@ -233,7 +239,7 @@ def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
         body.append([
             "TCN" if r["backbone"] == "tcn" else "Transformer",
             label(r["modalities"], r["backbone"], r.get("fusion_norm", "sequence_minmax")).removeprefix("TCN: "),
-            f"{mean:.2f} ± {sd:.2f}",
+            f"{mean:.2f} ± {sd:.2f}{findings.collapse_note(r['predictions']['test']['fabric'])}",
             *([gap] if recorded else [f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}", f"{mean - r['paper_mean']:+.2f}"]),
             f"{r['wall_s']:.1f}",
         ])
@@ -291,7 +297,8 @@ def recorded_table(rows: Sequence[dict[str, Any]]) -> str:
         val = ", ".join(f"{FUSION_NAMES[f]} {v:.2f}" for f, v in choice["val"].items())
         body.append([
             "TCN" if r["backbone"] == "tcn" else "Transformer", r["display_name"], f"{FUSION_NAMES[r['fusion_norm']]} (val {val})",
-            f"{mean:.2f} ± {sd:.2f}", ", ".join(other) or "–", f"{probe_test:.2f}", f"{mean - probe_test:+.2f}", gap, f"{r['wall_s']:.1f}",
+            f"{mean:.2f} ± {sd:.2f}{findings.collapse_note(r['predictions']['test']['fabric'])}", ", ".join(other) or "–",
+            f"{probe_test:.2f}{findings.collapse_note(r['probe'].get('predictions', {}).get('test', []))}", f"{mean - probe_test:+.2f}", gap, f"{r['wall_s']:.1f}",
         ])
     header = ["Backbone", "Inputs", "Fusion (by validation)", f"Test accuracy [%] (recorded data, {len(rows[0]['seeds'])} seeds)",
               "Other fusion, test [%]", "Linear probe, test [%]", "Model − probe [pp]", documents.BEST_GAP, "Train wall time [s]"]
@@ -343,7 +350,8 @@ def _recorded_markdown(doc: dict[str, Any]) -> str:
 
 STUDY = runner.Study(
     "ablation", ROWS, n_seeds=5, eval_splits=("test",), split_names=loading.TRAIN_VAL_TEST,
-    document=document, checklist=lambda doc: checklist({r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]}),
+    document=document, checklist=lambda doc: checklist({r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]},
+                                   {r["name"]: findings.collapse_note(r["predictions"]["test"]["fabric"]) for r in doc["rows"]}),
     markdown=markdown, recorded_fusions=(STEP_LAYERNORM,), checkpoints=True,
 )
 run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

@@ -31,7 +31,7 @@ import numpy as np
 from flax import nnx
 from sklearn.manifold import TSNE
 
-from fabricjax import catalog, checkpoint, data, plots, train
+from fabricjax import catalog, checkpoint, data, plots, train, workspace
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, findings, loading
 from fabricjax.workspace import Location
@@ -112,7 +112,7 @@ def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()
     )
     doc = {
         **documents.header("latents", command=where.command, preset=config.preset, dataset=ds),
-        "checkpoint": str(checkpoint_dir),
+        "checkpoint": workspace.shown(checkpoint_dir),
         "config": config.to_json(),
         "checkpoint_seeds": seeds,
         "best_val_per_seed": best_val.tolist(),

@@ -47,7 +47,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import fabricjax
-from fabricjax import archive, dataset_index, presets, source, splits, workspace
+from fabricjax import archive, dataset_index, presets, source, splits, stats, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, findings
@@ -67,6 +67,10 @@ DECIDE_ROWS = (max(ablation.PAPER_ROWS, key=lambda r: r.paper["mean"]).name, "in
 CHECKPOINT_STUDIES = ("latents", "decide")  # studies of another study's checkpoints: run by --checkpoint, no seeds or rows flags
 MANIFEST = "reproduce.json"
 REPORT = "REPORT.md"
+HEADLINE = "headline.json"  # README's results block, as data (tracked, unlike the studies' JSON)
+# README's results block lies between these lines; `run` rewrites it in the README.md beside the results folder
+README_BEGIN = "<!-- results: written by `python -m experiments.reproduce` from results/headline.json; edits are overwritten -->"
+README_END = "<!-- end of results -->"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -292,6 +296,12 @@ def run(
         say(f"reproduce: {step.study} done in {_minutes(wall)}")
     write_report(out / REPORT, manifest, preset, code, where.command, time.perf_counter() - t_all, len(todo))
     say(f"reproduce: wrote {out / REPORT}")
+    head = headline(out, manifest, preset, where.command)
+    if head is not None:
+        documents.write_json(out / HEADLINE, head)
+        readme = out.parent / "README.md"
+        if write_readme_block(readme, readme_block(head, out.name)):
+            say(f"reproduce: wrote the results block of {readme}")
     return {s.study: manifest[s.study] for s in plan}
 
 
@@ -384,3 +394,74 @@ def _anchor(title: str) -> str:
     """GitHub's anchor for a heading: lower case, spaces to hyphens, punctuation dropped."""
     return "".join(c for c in title.lower().replace(" ", "-") if c.isalnum() or c in "-_")
 
+
+
+def headline(out: Path, manifest: Mapping[str, Any], preset: str, command_line: str | None) -> dict[str, Any] | None:
+    """README's results block as data, from the same results files as REPORT.md: the ablation's
+    rows (the paper's rows on simulated data, every row on recorded data) beside the paper and
+    the linear probe of the same inputs, each seeded study's checklist count, and the run's
+    command, date, machine and wall time. None when the folder holds no ablation."""
+    docs = {s: _read_json(out / f"{s}.json") for s in STUDIES if s in manifest}
+    abl = docs.get("ablation")
+    if not abl:
+        return None
+    recorded = documents.recorded(abl)
+    probe_rows = (docs.get("probe") or {}).get("rows", [])
+    rows = []
+    for r in abl["rows"]:
+        if not recorded and r.get("fusion_norm", "sequence_minmax") != "sequence_minmax":
+            continue  # our fusion variants: in REPORT.md, not the headline
+        p = probe.row_for(r["modalities"], probe_rows)
+        probe_test = None if p is None or p["accuracy"].get("test") is None else 100 * p["accuracy"]["test"]
+        rows.append({
+            "inputs": r["display_name"],
+            "ours": stats.format_mean_sd(r["accuracy"]["test"]["fabric"]) + findings.collapse_note(r["predictions"]["test"]["fabric"]),
+            "paper": None if recorded else f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}",
+            "probe": None if probe_test is None else f"{probe_test:.2f}" + findings.collapse_note(p.get("predictions", {}).get("test", [])),
+        })
+    claims = {}
+    for study, doc in docs.items():
+        if doc and study not in UNSEEDED and study != "decide" and doc.get("findings") and not recorded:
+            held, evaluated = findings.count([findings.Finding.from_json(f) for f in doc["findings"]])
+            claims[title(study)] = "not counted (install check)" if presets.install_check(preset) else f"{held} of {evaluated}"
+    m = abl["machine"]
+    return {
+        "command": command_line, "preset": preset, "recorded": recorded, "date": documents.utc_now(), "code": documents.git_commit(),
+        "machine": f"{m['cpu']}, {m['cores']} cores, JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)",
+        "wall_s": sum(e["wall_s"] for s, e in manifest.items() if s in STUDIES), "seeds": len(abl["seeds"]), "rows": rows, "claims": claims,
+    }
+
+
+def readme_block(head: Mapping[str, Any], results: str = "results") -> str:
+    """README's results block (between `README_BEGIN` and `README_END`, both included) rendered
+    from `headline`'s data; `results`: the results folder, relative to the README."""
+    command_line = f"`{head['command']}`" if head["command"] else "a call from Python"
+    lines = [
+        README_BEGIN,
+        f"From {command_line} on the {head['preset']} preset, {head['date']}, on {head['machine']} ({head['code']}); "
+        f"its studies took {_minutes(head['wall_s'])}. Every table, figure, test and time: [{results}/{REPORT}]({results}/{REPORT}).",
+        "",
+    ]
+    paper = not head["recorded"]
+    header = ["Inputs", f"Ours, test [%] ({head['seeds']} seeds)", *(["Paper [%]"] if paper else []), "Linear probe, test [%]"]
+    body = [[r["inputs"], r["ours"], *([r["paper"]] if paper else []), r["probe"] or "–"] for r in head["rows"]]
+    lines.append(documents.markdown_table(header, body))
+    if head["claims"]:
+        lines.append("The paper's claims reproduced: " + "; ".join(f"{k} {v}" for k, v in head["claims"].items()) + ".")
+        lines.append("")
+    lines.append(README_END)
+    return "\n".join(lines)
+
+
+def write_readme_block(readme: Path, block: str) -> bool:
+    """Replace the results block of `readme` with `block`; False (nothing written) when the file
+    does not exist or has no block: only a README that asks for one is ever written."""
+    try:
+        text = readme.read_text()
+    except OSError:
+        return False
+    begin, end = text.find(README_BEGIN), text.find(README_END)
+    if begin < 0 or end < begin:
+        return False
+    documents.write_text(readme, text[:begin] + block + text[end + len(README_END):])
+    return True

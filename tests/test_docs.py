@@ -1,0 +1,77 @@
+"""The documents stay true by construction: README's results block is the one the published
+results render, no measured number sits outside it, and no tracked document names a path of the
+machine that wrote it."""
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+
+from fabricjax import workspace
+from fabricjax.studies.common import findings
+from fabricjax.studies.tools import reproduce
+
+REPO = Path(__file__).parents[1]
+DOCUMENTS = [REPO / "README.md", REPO / "WORKSPACE.md", REPO / "CHANGELOG.md", *sorted((REPO / "docs").glob("*.md"))]
+
+
+def _readme_parts() -> tuple[str, str, str]:
+    text = (REPO / "README.md").read_text()
+    before, rest = text.split(reproduce.README_BEGIN)
+    block, after = rest.split(reproduce.README_END)
+    return before, reproduce.README_BEGIN + block + reproduce.README_END, after
+
+
+def test_readme_results_block_is_what_the_published_results_render():
+    head = json.loads((REPO / "results" / reproduce.HEADLINE).read_text())
+    _, block, _ = _readme_parts()
+    assert block == reproduce.readme_block(head), "README's results block differs from results/headline.json: rerun experiments.reproduce"
+    ablation_md = (REPO / "results" / "ablation.md").read_text()
+    for row in head["rows"]:  # the same numbers as the published table
+        assert f"| {row['ours']} |" in ablation_md, row
+
+
+def test_no_measured_number_outside_the_generated_block():
+    before, _, after = _readme_parts()
+    outside = before + after
+    assert not re.findall(r"\d\s?(%|pp\b)", outside), re.findall(r".{30}\d\s?(?:%|pp\b).{10}", outside)
+
+
+def test_documents_are_short():
+    assert len((REPO / "README.md").read_text().splitlines()) <= 250
+    assert len((REPO / "WORKSPACE.md").read_text().splitlines()) <= 200
+
+
+def test_no_tracked_document_or_result_names_a_machine_path():
+    files = [*DOCUMENTS, *[p for p in (REPO / "results").rglob("*") if p.suffix in (".md", ".json", ".log", ".txt")]]
+    absolute = re.compile(r"(?<![\w.~-])/(work|root|tmp|home|Users|mnt|opt|var)/")
+    found = [f"{p.relative_to(REPO)}:{i}" for p in files if p.exists() for i, line in enumerate(p.read_text().splitlines(), 1) if absolute.search(line)]
+    assert not found, found
+
+
+def test_documents_link_only_to_files_that_exist():
+    for doc in DOCUMENTS:
+        for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", doc.read_text()):
+            if not re.match(r"[a-z]+://", target):
+                assert (doc.parent / target).exists(), f"{doc.relative_to(REPO)} links to {target}, which does not exist"
+
+
+def test_results_name_paths_inside_the_working_directory_relatively(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert workspace.shown(tmp_path / "workspace" / "checkpoints" / "ablation" / "internal-1") == "workspace/checkpoints/ablation/internal-1"
+    assert workspace.shown("workspace/checkpoints/x") == "workspace/checkpoints/x"
+    outside = tmp_path.parent / "elsewhere"
+    assert workspace.shown(outside) == str(outside)
+
+
+def test_a_collapsed_model_is_named_not_measured():
+    one_class = np.zeros((5, 100), int)
+    assert findings.collapse_note(one_class) == " (collapsed to class 0: 5 of 5 seeds)"
+    mixed = np.tile(np.arange(4), (2, 25))
+    assert findings.collapse_note(mixed) == ""
+    nearly = np.zeros(100, int)
+    nearly[:4] = 3  # 96 % one class: collapsed; a single model names no seeds
+    assert findings.collapse_note(nearly) == " (collapsed to class 0)"
+    nearly[:6] = 3
+    assert findings.collapse_note(nearly) == "" and findings.collapsed([]) == [None]
