@@ -75,3 +75,36 @@ def test_a_collapsed_model_is_named_not_measured():
     assert findings.collapse_note(nearly) == " (collapsed to class 0)"
     nearly[:6] = 3
     assert findings.collapse_note(nearly) == "" and findings.collapsed([]) == [None]
+
+
+def _fenced(lang: str) -> list[str]:
+    return re.findall(rf"```{lang}\n(.*?)```", (REPO / "README.md").read_text(), re.S)
+
+
+def test_readme_starts_with_the_install_and_test_commands_ci_runs():
+    first = _fenced("bash")[0]
+    commands = [line for line in first.splitlines() if line and not line.startswith("#")]
+    assert commands[0].endswith("pip install -e . && python -m experiments.ablation --seeds=5")
+    assert commands[1].endswith('pip install -e ".[test]" && python -m pytest')
+    ci = (REPO / ".ci" / "run").read_text()
+    assert 'pip install -q -e ".[test]"' in ci and ci.rstrip().endswith("&& python -m pytest")
+
+
+def test_the_readme_smoke_check_runs_as_written_and_prints_what_it_shows(tmp_path):
+    """README's one-minute check, run verbatim (in a scratch workspace): every line README shows
+    of its output is printed, '...' standing for the measured parts."""
+    import os
+    import subprocess
+    import sys
+
+    [command] = [c.strip() for c in _fenced("bash")[1:] if "--preset=smoke" in c]
+    args = command.split()
+    assert args[:3] == ["python", "-m", "experiments.ablation"]
+    env = {k: v for k, v in os.environ.items() if k != workspace.ENV_VAR}  # the default workspace: ./workspace of the scratch folder
+    env.update(JAX_PLATFORMS="cpu", JAX_DISABLE_MOST_OPTIMIZATIONS="1")
+    out = subprocess.run([sys.executable, *args[1:]], env=env, cwd=tmp_path, capture_output=True, text=True, timeout=300, check=True)
+    printed = [line.split("] ", 1)[-1] for line in (out.stdout + out.stderr).replace("\r", "\n").splitlines()]
+    shown = _fenced("text")[0].strip().splitlines()
+    for line in shown:
+        pattern = re.escape(line).replace(re.escape("..."), ".+")
+        assert any(re.fullmatch(pattern, p) for p in printed), (line, printed[-8:])
