@@ -14,21 +14,140 @@ last reading, is listed in meta.import.joint_gaps; missing audio (a hole between
 error, since every window after it would silently be misplaced. Timestamps are seconds: times
 spanning far more than the audio (milliseconds) are an error, and a WAV file cut off before its
 header's length gives `complete: false` (meta.import.truncated names it).
+
+The session reference (archive format 3: the no-contact frames Minsight's software reads every
+frame against) is never made up: a camera's mapping, rig file or command line names where it comes
+from (`parse_reference`), a topic of the bag or a file of the trial folder, or, only when asked,
+`pre_contact`: the recording's first N frames (default `DEFAULT_REFERENCE_FRAMES`), which hold no
+contact only if the fingers were open when the camera started. The importers cannot tell when the
+fingers close (other labs' recordings carry no procedure phases: closing_steps is 0), which is why
+this is taken only when asked, and `meta.reference.how` says so. `meta.reference.session` is the
+session the manifest or mapping names, else the trial's day and condition (`day2_lab`), else, for
+recordings without days, the trial's own name (`session_of`); `times_s` are the frames' times on
+the trial's step clock where the recording gives them (a topic's stamps, the trial's own frames),
+else null. The force proxy reads against the reference's first frame, as the recorder's does.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import json
 from fractions import Fraction
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from acquisition.camera import ForceProxy
+from acquisition.readers import REFERENCE_SUFFIXES, read_reference
 from acquisition.recording import RecordingImportError, Stream
 from fabricjax import archive, catalog, integrity
 
 HOLE_STEPS = 3  # a stream silent for more than this many step periods has a hole (declared in meta.import)
 SPAN_FACTOR = 10  # timestamps spanning this many times the audio's duration are not seconds
+PRE_CONTACT = "pre_contact"  # a reference source: the trial's own first frames, only when asked
+DEFAULT_REFERENCE_FRAMES = 5  # pre-contact frames taken when reference_frames is not given
+
+
+@dataclasses.dataclass(frozen=True)
+class ReferenceSource:
+    """Where a trial's session reference comes from, as its mapping, rig file or command line names
+    it: a topic of the bag or a file of the trial folder (`name`), or, asked for by `asked_by`, the
+    trial's own first `frames` frames (`name` None)."""
+
+    name: str | None
+    frames: int = DEFAULT_REFERENCE_FRAMES
+    asked_by: str = "the mapping"
+
+    def describe(self) -> str:
+        """What the reference is read from (meta.source.reference): the topic or file, or pre_contact."""
+        return self.name if self.name is not None else f"{PRE_CONTACT}: the first {self.frames} frames"
+
+
+@dataclasses.dataclass(frozen=True)
+class ImportedReference:
+    """A session reference as an importer read it (the recorder's is `acquisition.camera.Reference`):
+    its frames, their times (s) on the recording's clock where the recording gives them, and how
+    they were taken (meta.reference.how)."""
+
+    frames: np.ndarray  # (R, H, W, 3) uint8
+    times: np.ndarray | None
+    how: str
+
+
+def parse_reference(given: dict[str, Any], where, *, topic: bool = False, flags: bool = False) -> ReferenceSource:
+    """A camera's reference source from a mapping's or rig file's [camera] table or the command line
+    (`flags`): `reference_topic` (bags, `topic`) or `reference` (a file of the trial folder), or
+    `reference = "pre_contact"` with an optional `reference_frames`. Naming none is a one-line error
+    saying how to name one, never a default: a reference made up from frames that hold a contact
+    would read as no contact."""
+    named = "reference_topic" if topic else "reference"
+    field = (lambda k: f"--{k}") if flags else (lambda k: f"camera.{k}")
+    spell = (lambda k, v: f"pass --{k}={v}") if flags else (lambda k, v: f"set {k} = {json.dumps(v)}")
+    asked_by = "the command line" if flags else "the mapping" if topic else "the rig file"
+    value, frames = given.get("reference"), given.get("reference_frames")
+    name = given.get(named) if topic else value if value != PRE_CONTACT else None
+    if topic and name is not None and value is not None:
+        raise RecordingImportError(where, field(named), f"given with {field('reference')}: name one source of the reference")
+    if name is None and value is None:
+        what = "the topic that carries it" if topic else "the file of the trial folder that holds it"
+        example = "/minsight/reference" if topic else "reference.png"
+        raise RecordingImportError(where, field(named), f"missing: a camera needs its session's no-contact reference: name {what} "
+                                   f"({spell(named, example)}), or {spell('reference', PRE_CONTACT)} to use the trial's first frames")
+    if name is not None:
+        if not isinstance(name, str) or not name.strip():
+            raise RecordingImportError(where, field(named), f"must be a {'topic' if topic else 'file name'}, got {name!r}")
+        if not topic and Path(name).suffix.lower() not in REFERENCE_SUFFIXES:
+            raise RecordingImportError(where, field(named), f"{name!r}: a reference file is an image, a video or a .npy of frames "
+                                       f"({', '.join(REFERENCE_SUFFIXES)}), or {PRE_CONTACT!r} for the trial's first frames")
+        if frames is not None:
+            raise RecordingImportError(where, field("reference_frames"), f"given with a named source ({name}), whose frames are all taken: "
+                                       f"reference_frames counts the trial's first frames with reference = {PRE_CONTACT!r}")
+        return ReferenceSource(name)
+    if value != PRE_CONTACT:
+        raise RecordingImportError(where, field("reference"), f"must be {PRE_CONTACT!r} (the trial's first frames; a topic is named by "
+                                   f"{field('reference_topic')}), got {value!r}")
+    if frames is not None and (isinstance(frames, bool) or not isinstance(frames, int) or not 1 <= frames <= archive.MAX_REFERENCE_FRAMES):
+        raise RecordingImportError(where, field("reference_frames"), f"must be an integer in [1, {archive.MAX_REFERENCE_FRAMES}], got {frames!r}")
+    return ReferenceSource(None, DEFAULT_REFERENCE_FRAMES if frames is None else frames, asked_by)
+
+
+def pre_contact(source: ReferenceSource, frame_times: np.ndarray, images: np.ndarray, where) -> ImportedReference:
+    """The recording's first `source.frames` frames (before any dropped for alignment: the earliest
+    hold a contact least), at their own times."""
+    n = source.frames
+    if n > len(images):
+        raise RecordingImportError(where, "reference_frames", f"{n} pre-contact frames asked for, the recording has {len(images)}")
+    first = "frame" if n == 1 else f"{n} frames"
+    return ImportedReference(images[:n].copy(), frame_times[:n].copy(), f"imported: the trial's first {first} (pre-contact, as {source.asked_by} asks)")
+
+
+def file_reference(folder: Path, source: ReferenceSource, size: tuple[int, int]) -> ImportedReference:
+    """The frames of the reference file `source` names, relative to the trial folder, at the
+    camera's frame size; a file holds no times."""
+    frames = read_reference(folder / source.name, size)
+    return ImportedReference(frames, None, f"imported: {_frames(len(frames))} of the file {source.name} (relative to the trial folder)")
+
+
+def _frames(n: int) -> str:
+    return "1 frame" if n == 1 else f"{n} frames"
+
+
+def session_of(fields: dict[str, Any]) -> str:
+    """meta.reference.session: the session the manifest or mapping names, else the trial's day and
+    condition (`day2_lab`, as the simulator names them), else, without days, the trial's own name:
+    trials are said to share a session only where the data says so."""
+    if fields.get("session"):
+        return str(fields["session"])
+    if fields.get("day") is not None:
+        return f"day{fields['day']}_{fields['condition']}"
+    return Path(archive.trial_filename(fields)).stem
+
+
+def reference_meta(reference: ImportedReference, session: str, t0: float) -> dict[str, Any]:
+    """meta.reference of a trial whose step clock starts at `t0` on the recording's clock."""
+    times = None if reference.times is None else [round(float(t - t0), 6) for t in reference.times]
+    return {"how": reference.how, "session": session, "times_s": times}
 
 
 def check_seconds(times: np.ndarray, where, field: str, mics: list[Stream]) -> None:
@@ -97,6 +216,8 @@ def align(
     joints: np.ndarray,
     trial: dict[str, Any],
     source: dict[str, Any],
+    reference: ReferenceSource,
+    named: ImportedReference | None = None,
     resample: bool = False,
     force_gain: float = ForceProxy.gain,
     force_deadband: float = ForceProxy.deadband,
@@ -108,6 +229,9 @@ def align(
 ) -> archive.TrialArchive:
     """The recorder's alignment (module docstring) of streams with timestamps in seconds.
 
+    `reference`: where the session reference comes from; `named`: its frames as read from the
+    named topic or file (None for pre_contact: the recording's first frames). `trial`: fabric_id,
+    day, trial, condition and optionally the session (meta.reference.session).
     `step_rate`: the camera's frame rate, the archive's step rate; None measures it (`step_rate_of`).
     `joint_fields_absent`: JOINT_FIELDS the recording lacks (NaN in `joints`; meta.streams.joints.absent).
     `clocks`: how each stream was placed in time (meta.import.clocks). `complete`: False for a
@@ -123,6 +247,7 @@ def align(
     keep = np.concatenate([[True], np.diff(frame_times) > 0])  # a repeated frame time is one frame
     duplicates = int(np.count_nonzero(~keep))
     frame_times, images = frame_times[keep], images[keep]
+    ref = named if reference.name is not None else pre_contact(reference, frame_times, images, where)
     jorder = np.argsort(joint_times, kind="stable")
     joint_times, joints = joint_times[jorder], joints[jorder]
 
@@ -157,8 +282,7 @@ def align(
     frame_times, images, window_end, jk = frame_times[:inside], images[:inside], window_end[:inside], jk[:inside]
     rate, rate_from = (step_rate, "mapping camera.rate") if step_rate else step_rate_of(frame_times)
     gaps = integrity.frame_gaps(frame_times, rate)
-    reference = images[0]
-    proxy = ForceProxy(reference, gain=force_gain, deadband=force_deadband)
+    proxy = ForceProxy(ref.frames[0], gain=force_gain, deadband=force_deadband)  # as the recorder's, against the session's reference
     try:
         fab = catalog.fabric(int(trial["fabric_id"]))
     except KeyError as e:
@@ -169,12 +293,13 @@ def align(
         day=int(trial["day"]),
         trial=int(trial["trial"]),
         condition=str(trial["condition"]),
-        source=source,
+        source={**source, "reference": reference.describe()},
         image_size=images.shape[1:3],
         complete=complete,
         streams=archive.hand_streams(images.shape[1:3], step_rate=rate, joint_fields_absent=joint_fields_absent),
         closing_steps=0,  # the procedure's phases are not in other labs' recordings: every step counts
-        force_proxy={"gain": force_gain, "deadband": force_deadband, "reference": "first kept frame"},
+        force_proxy={"gain": force_gain, "deadband": force_deadband, "reference": "the session reference's first frame"},
+        reference=reference_meta(ref, session_of(trial), float(frame_times[0])),
         **{"import": {
             "step_rate_from": rate_from,
             "frames_dropped_before_start": first,
@@ -195,6 +320,7 @@ def align(
         force=np.array([proxy(im) for im in images], np.float32),
         audio=np.stack([a[:n_samples] for a in audio]),
         images=np.ascontiguousarray(images, dtype=np.uint8),
+        reference=np.ascontiguousarray(ref.frames, dtype=np.uint8),
     )
 
 

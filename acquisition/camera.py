@@ -11,6 +11,7 @@ the 0.1 N grasp threshold, not to replace the network.
 from __future__ import annotations
 
 import dataclasses
+import time
 
 import cv2
 import numpy as np
@@ -18,6 +19,10 @@ import numpy as np
 from fabricjax import archive
 
 RAW_SIZE = (1280, 960)  # W, H
+# Minsight's camera node reads and discards 20 frames after opening the camera (the sensor's
+# warm-up: exposure and white balance settle), then saves the next frame as its no-contact
+# reference (martius-lab/Minsight-sensor, Code/minsight_runner_ros/src/minsight_sensor/minsight_sensor/camera.py).
+WARMUP_FRAMES = 20
 CROP_COLUMNS = (160, 1120)
 IMAGE_SIZE = archive.MINSIGHT_SIZE  # H, W (archive order)
 
@@ -67,6 +72,37 @@ class Camera:
 
     def close(self) -> None:
         self.cap.release()
+
+
+@dataclasses.dataclass(frozen=True)
+class Reference:
+    """A session's no-contact frames, what Minsight's software reads every frame against, and when
+    they were taken (`time.perf_counter()` of each), for the trial archive (`meta(t0)`)."""
+
+    frames: np.ndarray  # (R, H, W, 3) uint8
+    session: str
+    how: str
+    taken_at: tuple[float, ...] | None  # perf_counter of each frame; None: not known (simulated)
+
+    def meta(self, t0: float) -> dict:
+        """`meta.reference` of a trial whose step clock started at perf_counter `t0`."""
+        times = None if self.taken_at is None else [t - t0 for t in self.taken_at]
+        return {"how": self.how, "session": self.session, "times_s": times}
+
+
+def take_reference(camera: "Camera", session: str, n_frames: int = 1, warmup: int = WARMUP_FRAMES) -> Reference:
+    """The reference as Minsight's camera node takes it: `warmup` frames read and discarded, then
+    `n_frames` frames with the fingers open (no contact), before the first closing. Frames the
+    sensor repeated during the warm-up are not counted as the trial's dropped frames."""
+    for _ in range(warmup):
+        camera.read()
+    frames, times = [], []
+    for _ in range(n_frames):
+        frames.append(camera.read())
+        times.append(time.perf_counter())
+    camera.dropped = 0
+    how = f"recorded: {n_frames} no-contact frame{'s' * (n_frames > 1)} after {warmup} warm-up frames, fingers open, before the first closing"
+    return Reference(np.stack(frames), session, how, tuple(times))
 
 
 @dataclasses.dataclass

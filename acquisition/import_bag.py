@@ -1,9 +1,10 @@
 """Import one ROS 2 bag (sqlite3 or MCAP) as a trial archive:
-`python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR [--fabric=.. --day=.. --trial=.. --condition=..] [--resample] [--overwrite]`.
+`python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR [--fabric=.. --day=.. --trial=.. --condition=.. --session=..] [--resample] [--overwrite]`.
 
-The mapping file names the camera, microphone and joint topics (format in WORKSPACE.md, "Using your
-own recordings"); the trial's fabric, day, trial and condition come from its [trial] table, and the
-flags override it. An archive already in DIR is not replaced without --overwrite. Needs the optional `rosbags` package: pip install -e ".[bags]".
+The mapping file names the camera, microphone and joint topics (format in docs/data.md, "From ROS 2
+bags") and where the camera's session reference comes from (`reference_topic`, or
+`reference = "pre_contact"`: `acquisition.ros_bag`); the trial's fabric, day, trial, condition and
+optional session come from its [trial] table, and the flags override it. An archive already in DIR is not replaced without --overwrite. Needs the optional `rosbags` package: pip install -e ".[bags]".
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ flags.DEFINE_integer("fabric", None, "Fabric id (overrides the mapping's trial.f
 flags.DEFINE_integer("day", None, "Recording day (overrides trial.day).")
 flags.DEFINE_integer("trial", None, "Trial index (overrides trial.trial).")
 flags.DEFINE_enum("condition", None, list(archive.CONDITIONS), "Acoustic condition (overrides trial.condition).")
+flags.DEFINE_string("session", None, "Session whose camera reference the trial shares (overrides trial.session; default: day and condition).")
 flags.DEFINE_bool("resample", False, "Resample microphones not at 48 kHz (scipy.signal.resample_poly; recorded in the meta).")
 flags.DEFINE_bool("overwrite", False, "Replace an archive of the same fabric, day, trial and condition in --out.")
 
@@ -33,7 +35,7 @@ def main(argv):
     if len(argv) != 2:
         raise UserError("give exactly one bag: python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR")
     mapping = mapping_file.load_mapping(FLAGS.map)
-    overrides = {"fabric_id": FLAGS.fabric, "day": FLAGS.day, "trial": FLAGS.trial, "condition": FLAGS.condition}
+    overrides = {"fabric_id": FLAGS.fabric, "day": FLAGS.day, "trial": FLAGS.trial, "condition": FLAGS.condition, "session": FLAGS.session}
     trial = mapping_file.trial_fields(mapping, overrides, FLAGS.map)
     result = ros_bag.import_bag(argv[1], mapping, trial, resample=FLAGS.resample)
     path = Path(FLAGS.out) / archive.trial_filename(result.meta)

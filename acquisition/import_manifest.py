@@ -1,10 +1,10 @@
 """Import every trial a manifest lists, in one process pool with one progress bar:
 
-    python -m acquisition.import_manifest MANIFEST.csv --out=DIR [--rig=rig.toml | --map=mapping.toml]
-        [--labels=labels.csv] [--split=fraction:0.7,0.15,0.15 | --split=trial:train=0-3,val=4,test=5-6 | --split=day]
+    python -m acquisition.import_manifest MANIFEST.csv --out=DIR [--rig=rig.toml | --map=mapping.toml |
+        --reference=FILE|pre_contact [--reference_frames=N]] [--labels=labels.csv] [--split=fraction:0.7,0.15,0.15 | --split=trial:train=0-3,val=4,test=5-6 | --split=day]
         [--overwrite] [--workers=N]
 
-The manifest is a CSV with a header row, one row per trial (WORKSPACE.md, "Recordings from another
+The manifest is a CSV with a header row, one row per trial (docs/data.md, "Recordings from another
 rig"):
 
     path        the trial: a folder (of the rig file's layout with --rig, else of the hand's:
@@ -14,6 +14,9 @@ rig"):
     split       optional: train | val | test | cafe | holdout
     day, trial, condition     optional (condition: lab | cafe, default lab; trial: default the
                 row's index among its label's rows)
+    session     optional: the session whose camera reference the trial shares
+                (meta.reference.session; default: the trial's day and condition, without days the
+                trial's own name); not read for a rig without a camera
     stretchiness, roughness, thickness     optional property levels (ints), only where known
 
 The label map (name -> class) is `--labels` (a CSV with columns name, class) or, without it, the
@@ -41,6 +44,11 @@ and archives no row produces (another dataset, or rows since deleted or relabell
 without --overwrite. Staging folders and `.partial` files a killed run left in DIR are removed at the
 next run (one import per DIR at a time); a killed import's worker processes end with it.
 
+A camera's session reference is never made up: the rig file's or mapping's [camera] table names
+it, and for the hand's folders `--reference` does (a file relative to each trial folder, or
+`pre_contact` with `--reference_frames` for each trial's first frames: `acquisition.hand_folder`);
+a camera without one is an error before anything is read or written.
+
 Per trial the existing importers do the work (`acquisition.rig.import_rig_folder`,
 `hand_folder.import_folder`, `ros_bag.import_bag`); manifest columns no importer of the run reads
 (the property columns of the hand's folders and bags, whose levels come from the fabric catalog)
@@ -65,12 +73,13 @@ from absl import flags
 from tqdm import tqdm
 
 from acquisition import hand_folder, mapping_file, ros_bag, rig as rig_mod
+from acquisition.alignment import ReferenceSource, parse_reference, session_of
 from fabricjax import archive, cli, parallel
 from fabricjax.atomic import atomic_open
 from fabricjax.errors import UserError
 
-COLUMNS = ("path", "label", "split", "day", "trial", "condition", *archive.PROPERTY_NAMES)
-HAND_COLUMNS = COLUMNS[:6]  # the hand's folders and bags: property levels come from the fabric catalog
+COLUMNS = ("path", "label", "split", "day", "trial", "condition", "session", *archive.PROPERTY_NAMES)
+HAND_COLUMNS = COLUMNS[:7]  # the hand's folders and bags: property levels come from the fabric catalog
 STAGING = (".import-", ".partial")  # prefix and suffix of the staging folder in DIR
 
 
@@ -84,6 +93,7 @@ class Row:
     trial: int | None
     condition: str
     properties: dict[str, int]
+    session: str | None = None  # the session whose camera reference the trial shares
 
 
 class ManifestError(UserError):
@@ -148,7 +158,7 @@ def _row(manifest: Path, line: int, r: dict[str, str]) -> Row:
         raise ManifestError(manifest, line, "condition", f"must be one of {archive.CONDITIONS}, got {condition!r}")
     props = {p: v for p in archive.PROPERTY_NAMES if (v := _int(r.get(p, ""), manifest, line, p)) is not None}
     return Row(line, (manifest.parent / r["path"]).resolve(), r["label"], split, _int(r.get("day", ""), manifest, line, "day"),
-               _int(r.get("trial", ""), manifest, line, "trial"), condition, props)
+               _int(r.get("trial", ""), manifest, line, "trial"), condition, props, r.get("session") or None)
 
 
 def read_label_map(path: str | Path) -> dict[str, int]:
@@ -243,6 +253,7 @@ class Job:
     split: str | None
     rig: rig_mod.Rig | None
     mapping: dict[str, Any] | None
+    reference: ReferenceSource | None = None  # the camera's session reference; None: no camera
 
 
 def _import_one(job: Job) -> None:
@@ -251,10 +262,11 @@ def _import_one(job: Job) -> None:
     so every trial is tried and every error reported, with one worker or many."""
     try:
         if job.kind == "rig":
-            result = rig_mod.import_rig_folder(job.row.path, job.rig, job.meta_fields)
+            result = rig_mod.import_rig_folder(job.row.path, job.rig, job.meta_fields, session=job.row.session)
         else:
-            result = (hand_folder.import_folder(job.row.path, job.meta_fields) if job.kind == "folder"
-                      else ros_bag.import_bag(job.row.path, job.mapping, job.meta_fields))
+            trial = {**job.meta_fields, **({"session": job.row.session} if job.row.session else {})}
+            result = (hand_folder.import_folder(job.row.path, trial, reference=job.reference) if job.kind == "folder"
+                      else ros_bag.import_bag(job.row.path, job.mapping, trial))
             if job.split is not None:
                 result.meta["split"] = job.split
         archive.write_archive(job.target, result)
@@ -277,10 +289,15 @@ def _exit_with_parent(parent: int) -> None:
 
 
 def plan(rows: list[Row], out: Path, *, rig: rig_mod.Rig | None, mapping: dict[str, Any] | None, label_map: dict[str, int] | None,
-         splits: list[str | None], manifest, problems: list[str]) -> list[Job]:
+         splits: list[str | None], manifest, problems: list[str], reference: ReferenceSource | None = None) -> list[Job]:
     """One job per row, with its archive's name; two rows giving one name or listing one recording,
-    a label outside the label map and a missing recording or file are problems."""
+    a label outside the label map and a missing recording or file are problems. `reference`: the
+    hand's folders' session reference (`--reference`)."""
     kind = "rig" if rig is not None else "bag" if mapping is not None else "folder"
+    if kind == "rig":
+        reference = rig.reference
+    elif kind == "bag":
+        reference = parse_reference(mapping["camera"], "mapping", topic=True)
     jobs, names, paths = [], {}, {}
     for r, split in zip(rows, splits):
         if r.path in paths:
@@ -302,7 +319,7 @@ def plan(rows: list[Row], out: Path, *, rig: rig_mod.Rig | None, mapping: dict[s
                     raise ManifestError(manifest, r.line, "day", "missing: the hand's importers need a day")
                 fields = {"fabric_id": fid, "day": r.day, "trial": r.trial, "condition": r.condition}
                 if kind == "folder":
-                    hand_folder.check_layout(r.path)
+                    hand_folder.check_layout(r.path, reference)
                 elif not r.path.exists():
                     raise ManifestError(manifest, r.line, "path", f"no such bag: {r.path}")
         except UserError as e:
@@ -313,7 +330,7 @@ def plan(rows: list[Row], out: Path, *, rig: rig_mod.Rig | None, mapping: dict[s
             problems.append(str(ManifestError(manifest, r.line, "trial", f"gives the archive {name}, as line {names[name]} does (make label, day, trial unique)")))
             continue
         names[name] = r.line
-        jobs.append(Job(kind, r, str(out / name), fields, split, rig, mapping))
+        jobs.append(Job(kind, r, str(out / name), fields, split, rig, mapping, reference))
     return jobs
 
 
@@ -323,8 +340,15 @@ def _difference(meta: dict[str, Any], job: Job) -> str | None:
         return f"was imported from {meta['source'].get('path')}, not from {job.row.path} as line {job.row.line} says"
     if meta.get("label_map") != job.meta_fields.get("label_map"):
         return f"its label map {meta.get('label_map')} differs from the manifest's {job.meta_fields.get('label_map')} (classes added or renamed)"
+    wanted_reference = None if job.reference is None else job.reference.describe()
+    if meta["source"].get("reference") != wanted_reference:
+        if "reference" not in meta["source"]:
+            return "it holds no camera reference (imported before archives carried one)"
+        return f"its camera reference was read from {meta['source']['reference']}, not from {wanted_reference} as the import now names it"
     wanted = {**{k: v for k, v in job.meta_fields.items() if k != "label_map"}, "split": job.split}
     changed = [f"{key} {meta.get(key)!r} where line {job.row.line} says {want!r}" for key, want in wanted.items() if meta.get(key) != want]
+    if job.reference is not None and (session := session_of({**job.meta_fields, "session": job.row.session})) != meta.get("reference", {}).get("session"):
+        changed.append(f"session {meta.get('reference', {}).get('session')!r} where line {job.row.line} says {session!r}")
     return f"it has {', '.join(changed)}" if changed else None
 
 
@@ -374,16 +398,20 @@ def _staging(out: Path) -> Path:
 
 def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None, mapping: str | Path | None = None,
         labels: str | Path | None = None, split: str | None = None, overwrite: bool = False, workers: int | None = None,
-        progress: bool = True, say: Callable[[str], None] = print) -> dict[str, Any]:
-    """Import every row of `manifest` into `out` as one transaction (module docstring); returns a summary."""
+        progress: bool = True, say: Callable[[str], None] = print, reference: str | None = None,
+        reference_frames: int | None = None) -> dict[str, Any]:
+    """Import every row of `manifest` into `out` as one transaction (module docstring); returns a
+    summary. `reference`, `reference_frames`: the hand's folders' session reference (--reference)."""
     t0 = time.perf_counter()
     if rig is not None and mapping is not None:
         raise UserError("give --rig (trial folders of another rig) or --map (ROS 2 bags), not both")
+    if (rig is not None or mapping is not None) and (reference is not None or reference_frames is not None):
+        raise UserError(f"--reference names the session reference of the hand's trial folders; {'a rig file' if rig is not None else 'a mapping'} "
+                        f"names its camera's own ([camera] {'reference' if rig is not None else 'reference_topic or reference'})")
+    folder_reference = None
+    if rig is None and mapping is None:  # the hand's folders have a camera: the command line names its reference
+        folder_reference = parse_reference({"reference": reference, "reference_frames": reference_frames}, manifest, flags=True)
     rows, header, problems = read_manifest(manifest)
-    used = COLUMNS if rig is not None else HAND_COLUMNS
-    ignored = [h for h in header if h not in used]
-    if ignored:
-        say(f"note: {manifest}: columns not used: {', '.join(ignored)} (used: {', '.join(used)})")
     counters: dict[str, int] = defaultdict(int)
     rows = [dataclasses.replace(r, trial=r.trial if r.trial is not None else _next(counters, r.label)) for r in rows]
     rule = parse_split_rule(split)
@@ -400,6 +428,10 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
     else:
         splits = [r.split for r in rows]
     loaded_rig = rig_mod.load_rig(rig) if rig is not None else None
+    used = (COLUMNS if loaded_rig.camera else tuple(c for c in COLUMNS if c != "session")) if loaded_rig is not None else HAND_COLUMNS
+    ignored = [h for h in header if h not in used]
+    if ignored:
+        say(f"note: {manifest}: columns not used: {', '.join(ignored)} (used: {', '.join(used)})")
     if loaded_rig is not None and not any(splits) and any(r.day is None for r in rows):
         r = next(r for r in rows if r.day is None)
         problems.append(str(ManifestError(manifest, r.line, "split", "no split and no day: the trial would belong to no split "
@@ -411,7 +443,8 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
         raise UserError("--labels names classes of a rig's recordings (--rig); the hand's folders and bags are labelled by fabric id")
     loaded_map = mapping_file.load_mapping(mapping) if mapping is not None else None
     out = Path(out)
-    jobs = plan(rows, out, rig=loaded_rig, mapping=loaded_map, label_map=label_map, splits=splits, manifest=manifest, problems=problems)
+    jobs = plan(rows, out, rig=loaded_rig, mapping=loaded_map, label_map=label_map, splits=splits, manifest=manifest, problems=problems,
+                reference=folder_reference)
     todo, stale = check_out(out, jobs, overwrite, manifest, problems, say)
     if problems:
         raise ImportProblems(problems + ([f"{out}: nothing was written ({len(problems)} problems above)"] if len(problems) > 1 else []))
@@ -466,13 +499,15 @@ def main(argv):
     if len(argv) != 2:
         raise UserError("give exactly one manifest: python -m acquisition.import_manifest MANIFEST.csv --out=DIR")
     run(argv[1], FLAGS.out, rig=FLAGS.rig, mapping=FLAGS.map, labels=FLAGS.labels, split=FLAGS.split,
-        overwrite=FLAGS.overwrite, workers=FLAGS.workers)
+        overwrite=FLAGS.overwrite, workers=FLAGS.workers, reference=FLAGS.reference, reference_frames=FLAGS.reference_frames)
 
 
 if __name__ == "__main__":
     flags.DEFINE_string("out", None, "Folder to write the trial archives into.", required=True)
     flags.DEFINE_string("rig", None, "Rig file (TOML): the streams of each trial folder (acquisition/rig.py).")
     flags.DEFINE_string("map", None, "Mapping file (TOML) of ROS 2 bags (acquisition/import_bag.py).")
+    flags.DEFINE_string("reference", None, "The hand's trial folders' camera reference: a file relative to each trial folder, or pre_contact.")
+    flags.DEFINE_integer("reference_frames", None, "With --reference=pre_contact: how many of each trial's first frames (default 5).")
     flags.DEFINE_string("labels", None, "Label map: CSV with columns name, class (default: the manifest's labels, sorted).")
     flags.DEFINE_string("split", None, "Split rule when the manifest has no split column: fraction:TRAIN,VAL,TEST, trial:SPLIT=FIRST-LAST,... or day.")
     flags.DEFINE_bool("overwrite", False, "Replace the dataset in --out by the manifest's (default: keep archives of the same rows, refuse anything else).")

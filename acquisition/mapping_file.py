@@ -1,6 +1,7 @@
 """The TOML files that say what a recording holds (`read_toml`), the bag mapping that names its
-topics (`load_mapping`; format in WORKSPACE.md, "Using your own recordings"), and a trial's
-fabric, day, trial and condition from a mapping's [trial] table and the command line
+topics and its camera's session reference (`load_mapping`; format in docs/data.md, "From ROS 2
+bags", the reference keys in `acquisition.ros_bag`), and a trial's fabric, day, trial,
+condition and optional session from a mapping's [trial] table and the command line
 (`trial_fields`)."""
 
 from __future__ import annotations
@@ -28,7 +29,8 @@ def read_toml(path: Path, what: str) -> dict[str, Any]:
 
 
 def load_mapping(path: str | Path) -> dict[str, Any]:
-    """The mapping file, checked for the keys `import_bag` needs."""
+    """The mapping file, checked for the keys `import_bag` needs (a camera's reference among them),
+    before any bag is read or archive written."""
     path = Path(path)
     mapping = read_toml(path, "mapping")
     for key in ("camera.topic", "joints.topic", *(f"mics.{m}.topic" for m in archive.MIC_NAMES)):
@@ -42,11 +44,14 @@ def load_mapping(path: str | Path) -> dict[str, Any]:
 
 
 def trial_fields(mapping: dict[str, Any], overrides: dict[str, Any], where) -> dict[str, Any]:
-    """fabric_id, day, trial and condition: the command line wins over the mapping's [trial] table."""
+    """fabric_id, day, trial, condition and optionally session (the name trials that share a camera
+    reference share, meta.reference.session): the command line wins over the mapping's [trial] table."""
     trial = dict(mapping.get("trial", {})) | {k: v for k, v in overrides.items() if v is not None}
     for key in TRIAL_KEYS:
         if key not in trial:
             raise RecordingImportError(where, f"trial.{key}", "missing (give it in the mapping's [trial] table or on the command line)")
     if trial["condition"] not in archive.CONDITIONS:
         raise RecordingImportError(where, "trial.condition", f"must be one of {archive.CONDITIONS}, got {trial['condition']!r}")
+    if "session" in trial and (not isinstance(trial["session"], str) or not trial["session"].strip()):
+        raise RecordingImportError(where, "trial.session", f"must be a session's name, got {trial['session']!r}")
     return trial

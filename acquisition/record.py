@@ -1,9 +1,10 @@
 """Record trials: `python -m acquisition.record --fabric=12 --trials=6 --day=1 --out=DIR [--simulate]`.
 
 Hardware: servos on --servo_port, Minsight on --camera (index or path), the Pi sender at
---pi_host:--pi_port; hold the fingers open at the start so the first frame is the no-contact
-reference of the force proxy (gain and deadband from --force_gain / --force_deadband, calibrated
-once against a load cell). With --simulate every device is a simulated one behind the real drivers,
+--pi_host:--pi_port. Hold the fingers open at the start of each trial: the camera's no-contact
+reference is taken then, as Minsight's own camera node takes it (its warm-up frames discarded,
+then --reference_frames frames), stored in the trial's archive, and read by the force proxy (gain
+and deadband from --force_gain / --force_deadband, calibrated once against a load cell). With --simulate every device is a simulated one behind the real drivers,
 driven by the scene simulator. Stops at the first failed or interrupted trial (its archive is kept,
 marked complete=false) and exits non-zero.
 
@@ -46,13 +47,16 @@ flags.DEFINE_string("pi_host", "raspberrypi.local", "Host of the Pi sender.")
 flags.DEFINE_integer("pi_port", 5005, "Port of the Pi sender.")
 flags.DEFINE_float("force_gain", 0.05, "Force proxy gain, N per grey level of mean difference.")
 flags.DEFINE_float("force_deadband", 0.5, "Force proxy deadband, grey levels.")
+flags.DEFINE_integer("reference_frames", 1, "No-contact frames of the camera's reference, taken after its warm-up with the fingers open.", lower_bound=1)
 flags.DEFINE_bool("view", False, "Stream each step to the Rerun viewer as it is recorded.")
 flags.DEFINE_string("view_save", None, "Log what --view shows to this .rrd file instead.")
 flags.DEFINE_string("checkpoint", None, "With --view / --view_save: a streamable model whose running prediction is shown.")
 
 
-def hardware_rig() -> recorder.Rig:
-    from acquisition.camera import Camera, ForceProxy
+def hardware_rig(session: str) -> recorder.Rig:
+    """The hand's devices, opened; the fingers must be open: the camera's no-contact reference of
+    `session` is taken now (`camera.take_reference`), and the force proxy reads against it."""
+    from acquisition.camera import Camera, ForceProxy, take_reference
     from acquisition.mics import MicReceiver
     from acquisition.servos import ServoBus
 
@@ -60,9 +64,10 @@ def hardware_rig() -> recorder.Rig:
     bus.ping_all()
     bus.set_torque(True)
     cam = Camera(int(FLAGS.camera) if FLAGS.camera.isdigit() else FLAGS.camera)
-    force = ForceProxy(cam.read(), gain=FLAGS.force_gain, deadband=FLAGS.force_deadband)
+    reference = take_reference(cam, session, FLAGS.reference_frames)
+    force = ForceProxy(reference.frames[0], gain=FLAGS.force_gain, deadband=FLAGS.force_deadband)
     source = {"kind": "hardware", "servo_port": FLAGS.servo_port, "camera": FLAGS.camera, "pi": f"{FLAGS.pi_host}:{FLAGS.pi_port}"}
-    return recorder.Rig(bus=bus, camera=cam, mics=MicReceiver(FLAGS.pi_host, FLAGS.pi_port), force=force, source=source)
+    return recorder.Rig(bus=bus, camera=cam, mics=MicReceiver(FLAGS.pi_host, FLAGS.pi_port), force=force, source=source, reference=reference)
 
 
 class Watcher:
@@ -151,7 +156,7 @@ def main(argv):
         else:
             from acquisition.procedure import ExploratoryProcedure
 
-            rig = hardware_rig()
+            rig = hardware_rig(f"day{FLAGS.day}_{FLAGS.condition}_trial{trial}")
             try:
                 rec = recorder.record_trial(rig, ExploratoryProcedure(n_cycles=FLAGS.cycles), fabric_id=FLAGS.fabric,
                                             day=FLAGS.day, trial=trial, out_dir=out, condition=FLAGS.condition,

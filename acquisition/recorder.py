@@ -18,7 +18,7 @@ from typing import Any, Callable
 import numpy as np
 
 from acquisition import camera as camera_mod
-from acquisition.camera import Camera, CameraError, ForceProxy
+from acquisition.camera import Camera, CameraError, ForceProxy, Reference
 from acquisition.mics import MicError, MicReceiver
 from acquisition.procedure import ExploratoryProcedure, ProcedureError
 from acquisition.servos import ServoBus, ServoError
@@ -41,6 +41,7 @@ class Rig:
     mics: MicReceiver
     force: ForceProxy
     source: dict[str, Any]
+    reference: Reference  # the session's no-contact frames (`camera.take_reference`)
 
     def close(self) -> None:
         for close in (self.bus.close, self.camera.close, self.mics.close):
@@ -162,6 +163,7 @@ def record_trial(
         servo_retries=rig.bus.retried,
         camera_dropped_frames=rig.camera.dropped,
         force_proxy={"gain": rig.force.gain, "deadband": rig.force.deadband},
+        reference=rig.reference.meta(t0),
     )
     trial_archive = archive.TrialArchive(
         meta=meta,
@@ -171,6 +173,7 @@ def record_trial(
         force=force[:n],
         audio=audio,
         images=images[:n],
+        reference=rig.reference.frames,
     )
     path = Path(out_dir) / archive.trial_filename(meta)
     if write:

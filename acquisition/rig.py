@@ -1,6 +1,6 @@
 """Recordings of a rig unlike the paper's hand, as trial archives: its streams as it has them.
 
-A rig file (TOML) says what one trial folder holds (WORKSPACE.md, "Recordings from another rig"):
+A rig file (TOML) says what one trial folder holds (docs/data.md, "Recordings from another rig"):
 
     [steps]
     rate = 50                      # Hz: the step clock when there is no camera (omit it to step
@@ -21,6 +21,16 @@ A rig file (TOML) says what one trial folder holds (WORKSPACE.md, "Recordings fr
     units = ["rad", "N m"]
     [camera]                       # optional: camera.<video> or camera/ + frames.csv, as the
                                    # hand's folders; its frames are then the step clock
+    reference = "reference.png"    # required with a camera: its session's no-contact frames, a
+                                   # file relative to the trial folder (an image, a video or a
+                                   # .npy of uint8 RGB frames, at the camera's size;
+                                   # "../reference.png": one file beside a session's folders),
+                                   # or "pre_contact": the trial's own first frames
+    reference_frames = 5           # with "pre_contact": how many (default 5)
+
+A camera whose table names no reference is an error (`alignment.parse_reference`): the importer
+never takes one on its own. meta.reference.session is the manifest's `session` column, else the
+trial's day and condition, else (no days) the trial's own name.
 
 Alignment is the recorder's rule (`acquisition.alignment`): at each step, each microphone's
 window ends after the last sample at or before it, the joints are the latest reading at or before
@@ -45,7 +55,8 @@ from typing import Any
 
 import numpy as np
 
-from acquisition.alignment import check_seconds, stream_gaps
+from acquisition.alignment import (ImportedReference, ReferenceSource, check_seconds, file_reference, parse_reference, pre_contact,
+                                   reference_meta, session_of, stream_gaps)
 from acquisition.mapping_file import read_toml
 from acquisition.readers import read_camera, read_wav
 from acquisition.recording import RecordingImportError, Stream
@@ -72,6 +83,7 @@ class Rig:
     camera: bool
     step_rate: float | None
     mic_window_s: float | None = None  # the microphones' step window [s], None: not declared
+    reference: ReferenceSource | None = None  # where the camera's session reference comes from; None: no camera
 
 
 def load_rig(path: str | Path) -> Rig:
@@ -110,6 +122,14 @@ def load_rig(path: str | Path) -> Rig:
     if unknown:
         raise RecordingImportError(path, f"steps.{sorted(unknown)[0]}", "unknown key (known: rate, mic_window_s)")
     camera = "camera" in doc
+    reference = None
+    if camera:
+        table = doc["camera"]
+        if not isinstance(table, dict):
+            raise RecordingImportError(path, "camera", f"must be a table ([camera]), got {table!r}")
+        if set(table) - {"reference", "reference_frames"}:
+            raise RecordingImportError(path, f"camera.{sorted(set(table) - {'reference', 'reference_frames'})[0]}", "unknown key (known: reference, reference_frames)")
+        reference = parse_reference(table, path)
     if not camera and rate is None and joints is None:
         raise RecordingImportError(path, "steps.rate", "missing: without a camera or joints, steps need a declared rate")
     if not mics and joints is None and not camera:
@@ -123,12 +143,14 @@ def load_rig(path: str | Path) -> Rig:
         camera=camera,
         step_rate=None if rate is None else float(rate),
         mic_window_s=None if window is None else float(window),
+        reference=reference,
     )
 
 
 def missing_files(folder: Path, rig: Rig) -> list[str]:
     """The files the rig file names that `folder` lacks (every one, not the first)."""
     files = [m.file for m in rig.mics] + ([rig.joints_file] if rig.joints_file else [])
+    files += [rig.reference.name] if rig.reference is not None and rig.reference.name is not None else []
     return [f for f in files if not (folder / f).is_file()]
 
 
@@ -194,11 +216,19 @@ def align_rig(
     source: dict[str, Any],
     ignored_columns: list[str],
     truncated: list[str] = (),
+    named: ImportedReference | None = None,
+    session: str | None = None,
 ) -> archive.TrialArchive:
     """The recorder's alignment (module docstring) of the rig's streams; `meta_fields` are the
     trial's label, label map, split, day, trial, condition and properties; `truncated`: the files
-    cut off before their header's length (the trial is then `complete: false`)."""
+    cut off before their header's length (the trial is then `complete: false`). With a camera, the
+    session reference is `named` (the rig file's reference file, as read) or the recording's first
+    frames (pre_contact), of `session` (default: `alignment.session_of`)."""
     where = source.get("path", "<recording>")
+    ref = None
+    if images is not None:
+        ref = named if rig.reference.name is not None else pre_contact(rig.reference, frame_times, images, where)
+        source = {**source, "reference": rig.reference.describe()}
     times, clock, rate = step_times(rig, mics, joint_times, frame_times)
     n = len(times)
     usable = np.ones(n, bool)
@@ -237,8 +267,9 @@ def align_rig(
         notes["joint_gaps"] = stream_gaps(joint_times, times[sel], 1.0 / rate)
     if truncated:
         notes["truncated"] = list(truncated)
+    described = {} if ref is None else {"reference": reference_meta(ref, session_of({**meta_fields, "session": session}), float(times[first]))}
     meta = archive.make_meta(
-        **meta_fields, source=source, image_size=None, streams=streams, closing_steps=0, complete=not truncated, **{"import": notes},
+        **meta_fields, source=source, image_size=None, streams=streams, closing_steps=0, complete=not truncated, **{"import": notes}, **described,
     )
     return archive.TrialArchive(
         meta=meta,
@@ -248,11 +279,13 @@ def align_rig(
         force=None,
         audio=audio,
         images=None if images is None else np.ascontiguousarray(images[sel], dtype=np.uint8),
+        reference=None if ref is None else np.ascontiguousarray(ref.frames, dtype=np.uint8),
     )
 
 
-def import_rig_folder(folder: str | Path, rig: Rig, meta_fields: dict[str, Any]) -> archive.TrialArchive:
-    """One trial folder of the rig (module docstring) as an archive."""
+def import_rig_folder(folder: str | Path, rig: Rig, meta_fields: dict[str, Any], *, session: str | None = None) -> archive.TrialArchive:
+    """One trial folder of the rig (module docstring) as an archive; `session`: the session whose
+    camera reference the trial shares (meta.reference.session; default `alignment.session_of`)."""
     folder = Path(folder)
     check_layout(folder, rig)
     mics = [read_wav(folder / m.file, 0.0) for m in rig.mics]  # the hand folders' WAV reader
@@ -263,11 +296,12 @@ def import_rig_folder(folder: str | Path, rig: Rig, meta_fields: dict[str, Any])
         check_seconds(joint_times, folder / rig.joints_file, "time", mics)
         order = np.argsort(joint_times, kind="stable")
         joint_times, joints = joint_times[order], joints[order]
-    frame_times = images = None
+    frame_times = images = named = None
     if rig.camera:
         frame_times, images = read_camera(folder)  # the hand folders' camera reader
         check_seconds(frame_times, folder / "frames.csv", "time", mics)
+        named = None if rig.reference.name is None else file_reference(folder, rig.reference, images.shape[1:3])
     return align_rig(rig, mics=mics, joint_times=joint_times, joints=joints, frame_times=frame_times, images=images,
                      meta_fields=meta_fields, source={"kind": "rig_folder", "path": str(folder)}, ignored_columns=ignored,
-                     truncated=[m.file for m, s in zip(rig.mics, mics) if s.truncated])
+                     truncated=[m.file for m, s in zip(rig.mics, mics) if s.truncated], named=named, session=session)
 

@@ -23,6 +23,22 @@ which is logged and recorded (meta.source.audio_info).
 
 The measured offset of every stamped stream is recorded (meta.import.clocks). A stream whose header
 stamps are zero (a driver that never set them) is placed by receive time instead, with a note.
+
+The session reference. The mapping's [camera] table must say where the camera's no-contact
+reference comes from (`alignment.parse_reference`); a mapping that says nothing is an error:
+
+    reference_topic = "/minsight/reference"   images as on the camera topic (Image or
+                                              CompressedImage, the camera's size): every frame on
+                                              it up to the trial's first camera frame, or the one
+                                              frame of a topic published once (latched: recorded
+                                              whenever the bag started)
+    reference = "pre_contact"                 or: the trial's own first frames, only when asked
+    reference_frames = 5                      how many (default 5), only with pre_contact
+
+A reference frame's time is its header stamp placed as the camera's are (`_reference`), on the
+trial's step clock in meta.reference.times_s; null where the stamps are unset or the camera is
+placed by receive time (a latched frame is received when the bag starts, not when it was taken).
+The mapping's [trial] table may name the trial's `session` (meta.reference.session).
 """
 
 from __future__ import annotations
@@ -35,9 +51,9 @@ import numpy as np
 from absl import logging
 
 from acquisition import ros_messages as rm
-from acquisition.alignment import align
+from acquisition.alignment import ImportedReference, ReferenceSource, align, parse_reference
 from acquisition.camera import ForceProxy
-from acquisition.recording import Stream, to_words
+from acquisition.recording import RecordingImportError, Stream, to_words
 from fabricjax import archive
 from fabricjax.errors import UserError
 
@@ -77,11 +93,20 @@ class BagStreams:
     step_rate: float | None  # declared in the mapping (camera.rate), else None: measured by align
     clocks: dict[str, Any]
     source: dict[str, Any]
+    reference_source: ReferenceSource
+    reference: ImportedReference | None  # the frames of reference_source's topic; None: pre_contact
 
 
 def check_mapping(mapping: dict[str, Any], where) -> None:
-    """The ROS-specific keys of a mapping (clocks, audio formats, joint names), every problem at once."""
+    """The ROS-specific keys of a mapping (clocks, audio formats, joint names, the camera's
+    reference), every problem at once."""
     problems = []
+    try:
+        if parse_reference(mapping["camera"], where, topic=True).name == mapping["camera"]["topic"]:
+            problems.append("camera.reference_topic: is camera.topic: the reference is the session's no-contact frames, not the trial's "
+                            "(set reference = \"pre_contact\" to use the trial's first frames)")
+    except RecordingImportError as e:
+        problems.append(f"{e.field}: {e.problem}")
 
     def clock(table: dict, key: str) -> None:
         if "clock" in table and table["clock"] not in CLOCKS:
@@ -163,6 +188,7 @@ def read_bag(bag: str | Path, mapping: dict[str, Any]) -> BagStreams:
     except ModuleNotFoundError:
         raise UserError('reading bags needs the rosbags package: pip install -e ".[bags]"') from None
     check_mapping(mapping, "mapping")
+    reference = parse_reference(mapping["camera"], "mapping", topic=True)
     bag = Path(bag)
     if not bag.exists():
         raise BagError(bag, ["<bag>: no such bag"])
@@ -171,6 +197,8 @@ def read_bag(bag: str | Path, mapping: dict[str, Any]) -> BagStreams:
         hint = f"; to read a storage file without it give the file itself: {', '.join(files)}" if files else ""
         raise BagError(bag, [f"metadata.yaml: missing (a rosbag2 folder has one){hint}"])
     roles = {mapping["camera"]["topic"]: ("camera", rm.IMAGE_TYPES), mapping["joints"]["topic"]: ("joints", rm.JOINT_TYPES)}
+    if reference.name is not None:
+        roles[reference.name] = ("camera reference", rm.IMAGE_TYPES)
     for m in archive.MIC_NAMES:
         roles[mapping["mics"][m]["topic"]] = (m, rm.AUDIO_TYPES)
         if "info_topic" in mapping["mics"][m]:
@@ -223,6 +251,7 @@ def read_bag(bag: str | Path, mapping: dict[str, Any]) -> BagStreams:
     clocks: dict[str, Any] = {}
     cam = mapping["camera"]
     frame_times, images = _camera(decoded[cam["topic"]], cam, tolerance, problems, clocks)
+    ref = None if reference.name is None else _reference(decoded[reference.name], reference.name, frame_times, images, clocks.get("camera"), problems)
     joint_times, joints, absent = _joints(decoded[mapping["joints"]["topic"]], mapping["joints"], tolerance, problems, clocks)
     info_topics = {m: mapping["mics"][m].get("info_topic", found.get(m)) for m in archive.MIC_NAMES}
     mics = [_mic(m, mapping["mics"][m], info_topics[m], decoded, tolerance, problems, clocks) for m in archive.MIC_NAMES]
@@ -230,7 +259,7 @@ def read_bag(bag: str | Path, mapping: dict[str, Any]) -> BagStreams:
         raise BagError(bag, problems)
     return BagStreams(
         frame_times=frame_times, images=images, mics=mics, joint_times=joint_times, joints=joints,
-        joint_fields_absent=absent, step_rate=cam.get("rate"), clocks=clocks,
+        joint_fields_absent=absent, step_rate=cam.get("rate"), clocks=clocks, reference_source=reference, reference=ref,
         source={"kind": "ros2_bag", "path": str(bag),
                 "topics": {"camera": cam["topic"], "joints": mapping["joints"]["topic"],
                            **{m: mapping["mics"][m]["topic"] for m in archive.MIC_NAMES}},
@@ -277,6 +306,40 @@ def _camera(msgs, table, tolerance, problems, clocks) -> tuple[np.ndarray, np.nd
     times, clocks["camera"] = _place("camera", [rm.header_time(m) for _, _, m in msgs], received,
                                      table.get("clock", DEFAULT_CLOCK["camera"]), tolerance, problems, topic)
     return times, np.stack(frames)
+
+
+def _reference(msgs, topic: str, frame_times: np.ndarray, images: np.ndarray, camera_clock: dict | None, problems: list[str]) -> ImportedReference | None:
+    """The session's no-contact frames on `topic` (module docstring): every frame received up to
+    the trial's first camera frame, or the one frame of a topic published once. Their times are
+    their header stamps placed as the camera's are ("header": as they are, "device": shifted by the
+    camera's measured offset), None where the stamps are unset or the camera is placed by receive
+    time: a reference's receive time says when the bag got it, not when it was taken."""
+    frames = _decode_each(msgs, rm.decode_image, topic, problems)
+    if frames is None or camera_clock is None:  # a frame or the camera already a problem
+        return None
+    if not frames:
+        problems.append(f"{topic}: no messages: the camera's reference topic holds no frame")
+        return None
+    if {f.shape for f in frames} != {images.shape[1:]}:
+        problems.append(f"{topic}: data: frames of {sorted({f.shape[:2] for f in frames})} pixels, the camera's are {images.shape[1:3]}: "
+                        "a reference is the camera's own frames, at their size")
+        return None
+    stamps = [rm.header_time(m) for _, _, m in msgs]
+    offset = camera_clock.get("receive_minus_header_s", 0.0) if camera_clock["clock"] == "device" else 0.0
+    times = None if camera_clock["clock"] == "receive" or None in stamps else np.asarray(stamps, np.float64) + offset
+    if len(frames) == 1:
+        return ImportedReference(frames[0][None], times, f"imported: the one frame of {topic} (published once)")
+    when = times if times is not None else np.array([t for t, _, _ in msgs])
+    keep = np.flatnonzero(when <= frame_times.min())
+    if not keep.size:
+        problems.append(f"{topic}: none of its {len(frames)} frames comes before the trial's first camera frame "
+                        f"({frame_times.min():.3f} s): a no-contact reference is taken before the trial")
+        return None
+    of = (f"{len(keep)} frame{'s' * (len(keep) > 1)}" if len(keep) <= archive.MAX_REFERENCE_FRAMES
+          else f"the last {archive.MAX_REFERENCE_FRAMES} of {len(keep)} frames")
+    keep = keep[-archive.MAX_REFERENCE_FRAMES:]
+    return ImportedReference(np.stack([frames[k] for k in keep]), None if times is None else times[keep],
+                             f"imported: {of} of {topic}, up to the trial's first camera frame")
 
 
 def _joints(msgs, table, tolerance, problems, clocks) -> tuple[np.ndarray, np.ndarray, list[str]]:
@@ -384,6 +447,8 @@ def import_bag(
         joints=rec.joints,
         trial=trial,
         source=rec.source,
+        reference=rec.reference_source,
+        named=rec.reference,
         resample=resample,
         force_gain=float(mapping.get("force", {}).get("gain", ForceProxy.gain)),
         force_deadband=float(mapping.get("force", {}).get("deadband", ForceProxy.deadband)),

@@ -35,7 +35,7 @@ import scservo_sdk as scs
 
 from acquisition import camera as camera_mod
 from acquisition import servos, wire
-from acquisition.camera import Camera, ForceProxy
+from acquisition.camera import Camera, ForceProxy, Reference
 from acquisition.mics import MicReceiver
 from acquisition.recorder import Rig
 from fabricjax import archive
@@ -309,7 +309,10 @@ def simulated_rig(signals: SimulatedSignals, faults: Faults = Faults(), *, servo
                 "faults": dataclasses.asdict(faults),
                 **signals.source,
             }
-            rig = Rig(bus=bus, camera=Camera(str(video)), mics=MicReceiver("127.0.0.1", port), force=force, source=source)
+            scene = signals.source.get("scene", {})
+            session = Reference(reference[None], f"day{scene.get('day', 1)}_{scene.get('condition', 'lab')}",
+                                "simulated devices: the session's no-contact frame after the camera's warm-up, through the camera's codec", None)
+            rig = Rig(bus=bus, camera=Camera(str(video)), mics=MicReceiver("127.0.0.1", port), force=force, source=source, reference=session)
             yield rig
         finally:
             if rig is not None:

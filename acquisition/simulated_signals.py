@@ -19,7 +19,7 @@ from acquisition import recorder, simulated_devices
 from acquisition.procedure import ExploratoryProcedure
 from acquisition.simulated_devices import SimulatedSignals
 from fabricjax import sim
-from fabricjax.sim import calibration, minsight
+from fabricjax.sim import calibration
 
 
 def procedure(n_cycles: int = 50) -> ExploratoryProcedure:
@@ -37,7 +37,7 @@ def trial_signals(fabric_id: int, day: int = 1, trial: int = 0, *, n_cycles: int
         images=trial_archive.images,
         force=trial_archive.force,
         audio=trial_archive.audio,
-        reference=minsight.reference(scene),
+        reference=trial_archive.reference[0],
         source={"signals": "fabricjax.sim.simulate", "scene": scene.to_json()},
     )
 

@@ -21,6 +21,9 @@ joints          float32 (T, J, F)      streams.joints: J named joints x F fields
 force           float32 (T,)           estimated normal force at the Minsight tip, N; absent
                                        when the rig has no camera to estimate it from
 images          uint8 (T, H, W, 3)     camera frames; absent when not recorded
+reference       uint8 (R, H, W, 3)     the session's no-contact camera frames (format 3): what
+                                       Minsight's own software reads every frame against;
+                                       present exactly when meta.reference describes it
 ==============  =====================  ======================================================
 
 The paper's hand (`hand_streams`: microphones "internal" and "external" at 48 kHz, 6 joints x
@@ -50,6 +53,18 @@ another) and with NaN in the fields an optional top-level meta.joint_fields_abse
     day          int, or null for recordings without days
     properties   property levels only where known (a missing name or null: unknown)
 
+Format version 3 adds the session reference: Minsight's camera node saves a no-contact frame after
+its warm-up frames when it starts (and on a reset), and its force network reads every frame minus
+that reference. The LED drive and the shell's seating move between sessions, so a frame means
+little without the reference of its own session. An archive with frames may carry it as the
+`reference` array and `meta.reference`:
+
+    reference    {"how": how the frames were taken (one line), "session": the session's name
+                  (trials of one session share it), "times_s": [R times on the trial's step clock,
+                  before its first step when taken at the session's start] or null (not known)}
+
+Archives of formats 1 and 2 have no reference and read unchanged (`reference_note` says so).
+
 `write_archive` is atomic (temporary name in the same folder, fsync, rename); `read_archive`
 validates every field by type and range and raises `ArchiveError` naming the file, the field and
 the problem. It trusts no size a file declares: the meta JSON is bounded in length, nesting and
@@ -77,8 +92,9 @@ import numpy as np
 from fabricjax.atomic import atomic_open
 from fabricjax.errors import UserError
 
-FORMAT_VERSION = 2  # what `write_archive` writes; READ_VERSIONS are read
-READ_VERSIONS = (1, 2)
+FORMAT_VERSION = 3  # what `write_archive` writes; READ_VERSIONS are read
+READ_VERSIONS = (1, 2, 3)
+REFERENCE_VERSION = 3  # the first format that can carry a session reference
 # The time base and sample format of the paper's hand (the SPH0645 datasheet). This is their one
 # definition: the simulator, acquisition and features import them from here (only the stdlib-only
 # Pi side, `acquisition.wire.RATE`, repeats AUDIO_RATE; a test checks it). Other rigs declare their
@@ -121,7 +137,8 @@ REQUIRED_META = {  # by format version; an int is never a bool, a float is finit
     1: {**_COMMON_META, "day": int, "sample_rates": dict, "image_size": (list, type(None)), "joint_names": list, "units": dict},
     2: {**_COMMON_META, "day": (int, type(None)), "streams": dict},
 }
-OPTIONAL_META = {"closing_steps": int, "label_name": str, "label_map": dict, "split": (str, type(None)), "import": dict, "force_proxy": dict}
+REQUIRED_META[3] = REQUIRED_META[2]  # format 3 adds the optional session reference
+OPTIONAL_META = {"closing_steps": int, "label_name": str, "label_map": dict, "split": (str, type(None)), "import": dict, "force_proxy": dict, "reference": dict}
 # Bounds of what a reader accepts, checked before the bytes they bound are parsed or inflated: a
 # damaged or hostile file is an ArchiveError, never a reader that runs out of memory or time.
 MAX_META_CHARS = 1 << 20  # characters of meta JSON (a meta is a few kB)
@@ -130,7 +147,8 @@ MAX_NUMBER_CHARS = 32  # characters of one JSON number (an int64 has 19 digits)
 MAX_INT = 2**63 - 1  # integers of the meta fit an int64
 MAX_RATE = 10_000_000  # Hz, any stream's rate (no sensor here samples faster)
 MAX_IMAGE_SIDE = 16384  # pixels, a frame's height or width
-MAX_MEMBERS = 64  # zip members of one archive (it holds at most 7 arrays)
+MAX_MEMBERS = 64  # zip members of one archive (it holds at most 8 arrays)
+MAX_REFERENCE_FRAMES = 256  # no-contact frames of one session's reference
 MAX_MEMBER_BYTES = 16 << 30  # inflated bytes of one member
 # A compressed member may inflate to FREE_INFLATION bytes, beyond that to INFLATION_RATIO times its
 # compressed size: recorded signals compress a few times, a zip bomb a thousand times.
@@ -265,6 +283,7 @@ class TrialArchive:
     force: np.ndarray | None
     audio: np.ndarray
     images: np.ndarray | None = None
+    reference: np.ndarray | None = None  # (R, H, W, 3) the session's no-contact frames (format 3)
 
     @property
     def n_steps(self) -> int:
@@ -274,7 +293,7 @@ class TrialArchive:
         return {k: v for k in _ARRAYS if (v := getattr(self, k)) is not None}
 
 
-_ARRAYS = ("timestamps", "window_end", "joints", "force", "audio", "images")
+_ARRAYS = ("timestamps", "window_end", "joints", "force", "audio", "images", "reference")
 
 
 def _spec(name: str, lay: Layout) -> tuple[Any, tuple]:
@@ -286,6 +305,7 @@ def _spec(name: str, lay: Layout) -> tuple[Any, tuple]:
         "force": (np.float32, ("T",)),
         "audio": (np.int32, (len(lay.mics), None)),
         "images": (np.uint8, ("T", None, None, 3)),
+        "reference": (np.uint8, (None, None, None, 3)),
     }[name]
 
 
@@ -478,8 +498,10 @@ def _check_form(path, name: str, dtype: np.dtype, shape: tuple[int, ...], n_step
             raise ArchiveError(path, name, f"shape {shape}: {size} steps, but timestamps has {n_steps}")
         if isinstance(w, int) and size != w:
             raise ArchiveError(path, name, f"shape {shape}, expected {want} (the streams meta.streams declares)")
-    if name == "images" and (lay.image_size is None or tuple(shape[1:3]) != lay.image_size):
-        raise ArchiveError(path, "images", f"shape {shape} disagrees with the declared image_size {lay.image_size}")
+    if name in ("images", "reference") and (lay.image_size is None or tuple(shape[1:3]) != lay.image_size):
+        raise ArchiveError(path, name, f"shape {shape} disagrees with the declared image_size {lay.image_size}")
+    if name == "reference" and not 1 <= shape[0] <= MAX_REFERENCE_FRAMES:
+        raise ArchiveError(path, name, f"shape {shape}: {shape[0]} frames, expected 1 to {MAX_REFERENCE_FRAMES}")
 
 
 def _check_array(path, name: str, arr: np.ndarray, n_steps: int | None, lay: Layout) -> None:
@@ -527,10 +549,43 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
         raise ArchiveError(path, "window_end", "indices decrease between steps")
     if archive.images is not None:
         _check_array(path, "images", archive.images, n, lay)
+    _check_reference(archive, path, lay)
     closing = archive.meta.get("closing_steps", 0)
     if closing > n or (closing == n and archive.meta["complete"]):  # a trial interrupted while closing has no rubbing steps
         raise ArchiveError(path, "meta.closing_steps", f"{closing} closing steps leave none of the trial's {n} steps to rub")
     return archive
+
+
+def _check_reference(archive: TrialArchive, path, lay: Layout) -> None:
+    """The session reference: only in format 3 and later, only with a camera, its frames and
+    `meta.reference` together, and as many times (or null) as frames."""
+    described, ref = archive.meta.get("reference"), archive.reference
+    if described is None and ref is None:
+        return
+    if archive.meta["format_version"] < REFERENCE_VERSION:
+        raise ArchiveError(path, "reference", f"present, but format {archive.meta['format_version']} has no session reference (format {REFERENCE_VERSION} has)")
+    if lay.image_size is None:
+        raise ArchiveError(path, "reference", "present, but meta.streams declares no camera")
+    if ref is None:
+        raise ArchiveError(path, "reference", "missing: meta.reference describes a session reference the archive does not hold")
+    if described is None:
+        raise ArchiveError(path, "meta.reference", "missing: the archive holds reference frames; say how and when they were taken")
+    _check_array(path, "reference", ref, None, lay)
+    for key in ("how", "session"):
+        if not isinstance(described.get(key), str) or not described[key]:
+            raise ArchiveError(path, f"meta.reference.{key}", f"must be a non-empty string, got {json.dumps(described.get(key))[:60]}")
+    times = described.get("times_s", "missing")
+    if times is not None and not (isinstance(times, list) and len(times) == len(ref) and all(_is(t, (int, float)) for t in times)):
+        raise ArchiveError(path, "meta.reference.times_s", f"must be null or {len(ref)} finite times in seconds (one per reference frame), got {json.dumps(times)[:60]}")
+
+
+def reference_note(meta: dict[str, Any]) -> str | None:
+    """Why an archive with frames has no session reference (None when it has one, or no camera)."""
+    if layout(meta).image_size is None or "reference" in meta:
+        return None
+    if meta["format_version"] < REFERENCE_VERSION:
+        return f"a format-{meta['format_version']} archive: written before archives carried the session's no-contact reference"
+    return "its recording took no no-contact reference"
 
 
 def write_archive(path: os.PathLike | str, archive: TrialArchive) -> Path:
@@ -706,7 +761,7 @@ def read_archive(path: os.PathLike | str, *, images: bool = True) -> TrialArchiv
     """Load and fully validate one archive. `images=False` skips the (large) image stream."""
     path = Path(path)
     with _Members(path) as members:
-        meta, fields = _read_streams(path, members, ("window_end", "audio", "joints", "force") + (("images",) if images else ()))
+        meta, fields = _read_streams(path, members, ("window_end", "audio", "joints", "force", "reference") + (("images",) if images else ()))
     return validate(TrialArchive(meta=meta, images=fields.pop("images", None), **fields), path)
 
 

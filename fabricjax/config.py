@@ -44,7 +44,10 @@ FLOW_SPARSIFY = ("keep_top", "drop_top")
 # no-contact reference (Andrussow et al., "Minsight: A Fingertip-Sized Vision-Based Tactile Sensor for
 # Robotic Manipulation", Advanced Intelligent Systems, 2023). The reference removes the LEDs' fixed colour
 # field, so the paper's rotation turns the shell's deformation and not the camera's own lighting.
-IMAGE_REFERENCES = ("none", "training_mean")
+# "session" reads each frame minus its own session's no-contact reference, which the trial archive
+# carries (format 3, `archive.reference`), as Minsight's software does: the LED drive and the
+# shell's seating move between sessions, and only the session's own reference follows them.
+IMAGE_REFERENCES = ("none", "training_mean", "session")
 # The dtype of the model's matrix-product and convolution inputs (`model.dense`): products
 # accumulate in float32, and parameters, optimiser state, LayerNorms, softmax, the [0, 1] rescale,
 # the loss and every statistic stay float32 whatever it is. bfloat16 runs on the bfloat16 dot
@@ -104,7 +107,7 @@ class Config:
     warmup_steps: int = 100  # linear warm-up from 0: the first updates stay small while Adam's moments settle
     weight_decay: float = 1e-4
     augment_rotation: bool = True  # the paper's image augmentation (features/images.py), applied to the model's input
-    image_reference: str = "training_mean"  # IMAGE_REFERENCES
+    image_reference: str = "session"  # IMAGE_REFERENCES; chosen by measurement (docs/usage.md, "Can the model read each input?")
     # training data selection: fabrics excluded from training (the property holdouts)
     exclude_fabrics: tuple[int, ...] = ()
 

@@ -51,7 +51,9 @@ and holdout) are counted in an info line: never silent.
       "flow"                  float16 (S, N, 2, h, w)  sparse flow, 3x3 patch means (flow.py);
                                                        102x137 for 308x410 frames
       "image"                 uint8   (S, N, H, W, 3)  config.image_size ("down", the paper's 60x80)
-                                                       or the archive's size ("full")
+                                                       or the archive's size ("full"); int16 frames
+                                                       minus their session's reference where
+                                                       config.image_reference is "session"
     labels   int32 (S,): "fabric" (meta label: 0..n_classes-1; the hand's 21 classes or the first of them, in
              "holdout" up to 23), "stretchiness", "roughness", "thickness" (property levels, -1
              when unknown, e.g. class 0 or a property the recording does not give)
@@ -360,7 +362,8 @@ def load_sequences(
             )
     members = {s: [e for e, t in chosen if t == s] for s in wanted}
     features = {
-        m: feature_for(m, config.image_resolution, config.image_size, config.flow_sparsify, window_of(config, rates[m]) if m in rates else archive.WINDOW)
+        m: feature_for(m, config.image_resolution, config.image_size, config.flow_sparsify, window_of(config, rates[m]) if m in rates else archive.WINDOW,
+                       config.image_reference)
         for m in config.modalities
     }
     feats = cache.trial_features(

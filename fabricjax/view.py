@@ -5,6 +5,10 @@ Every step is logged at timeline "step" (the 50 Hz step index) and "time" (secon
 trial's first step), under these entity paths:
 
     minsight/frame             Image     the Minsight frame (when the trial has frames)
+    minsight/reference         Image     its session's no-contact reference (archives of format 3;
+                                         logged at the first step)
+    minsight/difference        Image     the frame minus that reference, what `image_reference=
+                                         "session"` reads: mid-grey = no change, per colour
     minsight/flow              Image     the flow modality's input: the step's optical flow, top
                                          0.1 % by magnitude, 3x3-pooled (`features.flow`); hue =
                                          direction, brightness = magnitude (the frame's largest = full)
@@ -106,10 +110,11 @@ def archive_step(trial: archive.TrialArchive, t: int) -> Step:
 class TrialView:
     """Logs steps (and a model's results on them) to a Rerun recording stream `rec`."""
 
-    def __init__(self, rec, label: int | None = None, meta: dict | None = None):
+    def __init__(self, rec, label: int | None = None, meta: dict | None = None, reference: np.ndarray | None = None):
         import jax
 
         self.rr, self.rec, self.label, self.meta = rerun(), rec, label, meta  # meta: the trial's, whose label map names the classes
+        self.reference = reference  # (H, W, 3) uint8: the session's no-contact frame, None where the trial has none
         self.previous_frame, self.decided = None, False
         self.spectrogram = np.full((len(archive.MIC_NAMES), welch.N_BINS, SPECTROGRAM_STEPS), np.nan, np.float32)
         self.psd = jax.jit(lambda w: welch.welch_psd(w, bandwidth_khz=archive.NYQUIST_KHZ))
@@ -130,6 +135,11 @@ class TrialView:
         self._at(s.index, s.time_s)
         if s.frame is not None:
             rec.log("minsight/frame", rr.Image(s.frame))
+            if self.reference is not None:
+                if self.previous_frame is None:
+                    rec.log("minsight/reference", rr.Image(self.reference))
+                difference = s.frame.astype(np.int16) - self.reference
+                rec.log("minsight/difference", rr.Image(np.clip(128 + difference, 0, 255).astype(np.uint8)))
             dense = flow.farneback(s.frame[None], self.previous_frame)
             rec.log("minsight/flow", rr.Image(false_colour.flow_rgb(np.asarray(flow.sparsify_and_pool(dense))[0])))
             self.previous_frame = s.frame
@@ -172,7 +182,8 @@ class TrialView:
 def log_trial(rec, trial: archive.TrialArchive, streamer: live.Streamer | None = None) -> dict[str, Any]:
     """Log a recorded trial, and `streamer`'s predictions over it (as fast as it runs); returns the
     streaming summary (`live.replay`), or {} without a model."""
-    view = TrialView(rec, int(trial.meta["label"]), trial.meta)
+    reference = None if trial.reference is None else np.rint(trial.reference.mean(0)).astype(np.uint8)
+    view = TrialView(rec, int(trial.meta["label"]), trial.meta, reference)
     for t in range(trial.n_steps):
         view.log_step(archive_step(trial, t))
     if streamer is None:

@@ -1,6 +1,7 @@
 """Small builders shared by tests (not fixtures: plain functions tests call explicitly)."""
 
 import json
+import zlib
 from typing import Any
 
 import numpy as np
@@ -8,8 +9,12 @@ import numpy as np
 from fabricjax import archive, catalog
 
 
-def tiny_archive(n_steps=30, fabric_id=4, day=1, trial=0, condition="lab", images=(12, 16), seed=0):
+def tiny_archive(n_steps=30, fabric_id=4, day=1, trial=0, condition="lab", images=(12, 16), seed=0, reference=True):
+    """A valid trial archive of random streams; with frames, its session's no-contact reference
+    (one frame, the same for every trial of the day and condition) unless `reference` is False."""
     rng = np.random.default_rng(seed)
+    with_reference = images is not None and reference
+    session = f"day{day}_{condition}"
     hop = archive.AUDIO_RATE // archive.STEP_RATE  # 960 samples per step
     n_samples = archive.WINDOW + hop * n_steps
     window_end = np.stack([archive.WINDOW + hop * np.arange(n_steps)] * 2, axis=1).astype(np.int64)
@@ -21,6 +26,7 @@ def tiny_archive(n_steps=30, fabric_id=4, day=1, trial=0, condition="lab", image
         condition=condition,
         source={"kind": "test"},
         image_size=images,
+        **({"reference": {"how": "test: random", "session": session, "times_s": [-1.0]}} if with_reference else {}),
     )
     return archive.TrialArchive(
         meta=meta,
@@ -30,6 +36,7 @@ def tiny_archive(n_steps=30, fabric_id=4, day=1, trial=0, condition="lab", image
         force=np.full(n_steps, 0.1, np.float32),
         audio=(rng.integers(-(2**17), 2**17, size=(2, n_samples)) << 14).astype(np.int32),
         images=None if images is None else rng.integers(0, 255, size=(n_steps, *images, 3), dtype=np.uint8),
+        reference=np.random.default_rng(zlib.crc32(session.encode())).integers(0, 255, size=(1, *images, 3), dtype=np.uint8) if with_reference else None,
     )
 
 

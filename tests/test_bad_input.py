@@ -61,7 +61,7 @@ def _corrupt(path):
 DAMAGE = {
     "truncated": (_truncate, "<file>|audio|joints|force|window_end|timestamps", "corrupt or truncated"),
     "corrupt_bytes": (_corrupt, "<file>|audio|joints|force|window_end|timestamps|meta", "corrupt or truncated|not valid JSON|CRC"),
-    "wrong_version": ({"meta": _meta(format_version=3)}, "meta.format_version", "unknown format version 3"),
+    "wrong_version": ({"meta": _meta(format_version=4)}, "meta.format_version", "unknown format version 4"),
     "nan_joints": ({"joints": np.full((41, 6, 3), np.nan, np.float32)}, "joints", "738 non-finite values"),
     "inf_force": ({"force": np.r_[np.ones(40), np.inf].astype(np.float32)}, "force", "1 non-finite values"),
     "nan_timestamps": ({"timestamps": np.r_[np.arange(40) * 0.02, np.nan]}, "timestamps", "non-finite"),

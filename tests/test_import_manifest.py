@@ -153,6 +153,14 @@ def test_rig_file_mistakes_are_named(tmp_path):
     bad.write_text('[[mics]]\nname = "v"\nfile = "v.wav"\n[steps]\nrate = 50\nwindow = 0.5\n')
     with pytest.raises(UserError, match=r"rig\.toml: steps\.window: unknown key \(known: rate, mic_window_s\)"):
         rig.load_rig(bad)
+    for camera, words in [('reference_topic = "/ref"', r"camera\.reference_topic: unknown key \(known: reference, reference_frames\)"),
+                          ('reference = "ref.txt"', r"camera\.reference: 'ref\.txt': a reference file is an image, a video or a \.npy"),
+                          ('reference = "ref.png"\nreference_frames = 3', r"camera\.reference_frames: given with a named source \(ref\.png\)")]:
+        bad.write_text(f'[[mics]]\nname = "v"\nfile = "v.wav"\n[camera]\n{camera}\n')
+        with pytest.raises(UserError, match=rf"rig\.toml: {words}"):
+            rig.load_rig(bad)
+    with pytest.raises(UserError, match=r"--reference names the session reference of the hand's trial folders; a rig file names its camera's own"):
+        import_manifest.run(tmp_path / "manifest.csv", tmp_path / "out", rig=bad, reference="pre_contact")
 
 
 def test_the_rig_files_step_window_is_recorded_and_loads_by_default(tmp_path):
@@ -260,7 +268,7 @@ def test_without_a_camera_or_a_rate_the_joints_timestamps_are_the_steps(tmp_path
 def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     import cv2
 
-    manifest = _rig_manifest(tmp_path / "rig", other_rig.RIG_TOML + "\n[camera]\n")
+    manifest = _rig_manifest(tmp_path / "rig", other_rig.RIG_TOML + '\n[camera]\nreference = "pre_contact"\nreference_frames = 2\n')
     folder = tmp_path / "rig" / "recordings" / "00_000"
     frames = np.random.default_rng(1).integers(0, 255, size=(12, 6, 8, 3), dtype=np.uint8)
     (folder / "camera").mkdir()
@@ -276,6 +284,26 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     np.testing.assert_array_equal(a.images, frames)
     np.testing.assert_array_equal(a.window_end[:, 0], np.floor(frame_t * other_rig.VIBRATION_RATE).astype(np.int64) + 1)
     assert "image" in lay.modalities() and "flow" in lay.modalities()
+    np.testing.assert_array_equal(a.reference, frames[:2])  # the rig file asks for the trial's first frames
+    assert a.meta["reference"] == {"how": "imported: the trial's first 2 frames (pre-contact, as the rig file asks)",
+                                   "session": "cotton_canvas_trial000_lab", "times_s": pytest.approx([0.0, 1 / 30], abs=1e-6)}  # no days: the trial's own name
+    # a reference file the rig file names, and the manifest's session column; the rig file must name one
+    np.save(folder / "reference.npy", frames[-1])
+    (tmp_path / "rig" / "rig.toml").write_text(other_rig.RIG_TOML + '\n[camera]\nreference = "reference.npy"\n')
+    _edit_manifest(manifest, manifest, lambda rows: [r + ["session" if i == 0 else "bench 2"] for i, r in enumerate(rows)])
+    _run(manifest, tmp_path / "out2")
+    b = archive.read_archive(tmp_path / "out2" / "cotton_canvas_trial000_lab.npz")
+    np.testing.assert_array_equal(b.reference, frames[-1:])
+    assert b.meta["reference"] == {"how": "imported: 1 frame of the file reference.npy (relative to the trial folder)", "session": "bench 2", "times_s": None}
+    (tmp_path / "rig" / "rig.toml").write_text(other_rig.RIG_TOML + '\n[camera]\nreference = "pre_contact"\n')
+    with pytest.raises(UserError, match=r"exists, but its camera reference was read from reference\.npy, not from pre_contact: the first 5 frames"):
+        _run(manifest, tmp_path / "out2")  # a rerun notices the rig file's new reference
+    (tmp_path / "rig" / "rig.toml").write_text(other_rig.RIG_TOML + "\n[camera]\n")
+    with pytest.raises(UserError) as e:
+        _run(manifest, tmp_path / "out3")
+    assert str(e.value) == (f"{tmp_path / 'rig' / 'rig.toml'}: camera.reference: missing: a camera needs its session's no-contact reference: name the "
+                            'file of the trial folder that holds it (set reference = "reference.png"), or set reference = "pre_contact" to use the trial\'s first frames')
+    assert not (tmp_path / "out3").exists()
 
 
 def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path):
@@ -349,22 +377,33 @@ def test_the_hands_folders_import_through_a_manifest(tmp_path):
     write_folder(tmp_path / "rec" / "b", seed=1)
     manifest = tmp_path / "rec" / "manifest.csv"
     manifest.write_text("path,label,day,trial\na,4,1,0\nb,7,3,2\n")
-    summary, _ = _run_hand(manifest, tmp_path / "out")
+    with pytest.raises(UserError) as e:
+        _run_hand(manifest, tmp_path / "out")
+    assert str(e.value) == (f"{manifest}: --reference: missing: a camera needs its session's no-contact reference: name the file of the trial "
+                            "folder that holds it (pass --reference=reference.png), or pass --reference=pre_contact to use the trial's first frames")
+    assert not (tmp_path / "out").exists()
+    summary, _ = _run_hand(manifest, tmp_path / "out", reference="reference.png")
     assert summary["trials"] == 2 and summary["classes"] is None and summary["splits"] == {"by day": 2}
     a = archive.read_archive(tmp_path / "out" / "fabric04_day1_trial00_lab.npz")
     assert a.meta["fabric_id"] == 4 and a.audio.shape[0] == 2 and a.images is not None and "split" not in a.meta
     b = archive.read_meta(tmp_path / "out" / "fabric07_day3_trial02_lab.npz")[0]
     assert b["day"] == 3 and b["label"] == 7 and b["label"] == b["fabric_id"]  # split by day, as the hand's protocol
-    manifest.write_text("path,label,day,trial,split\na,4,1,0,test\n")
-    _run_hand(manifest, tmp_path / "out1")
-    assert archive.read_meta(tmp_path / "out1" / "fabric04_day1_trial00_lab.npz")[0]["split"] == "test"  # the column wins over the day
+    rec = write_folder(tmp_path / "check", seed=1)  # b's recording again: its reference survives the import
+    np.testing.assert_array_equal(archive.read_archive(tmp_path / "out" / "fabric07_day3_trial02_lab.npz").reference, rec["reference"][None])
+    assert b["reference"] == {"how": "imported: 1 frame of the file reference.png (relative to the trial folder)", "session": "day3_lab", "times_s": None}
+    manifest.write_text("path,label,day,trial,split,session\na,4,1,0,test,rig A\n")
+    _run_hand(manifest, tmp_path / "out1", reference="pre_contact", reference_frames=2)
+    a = archive.read_archive(tmp_path / "out1" / "fabric04_day1_trial00_lab.npz")
+    assert a.meta["split"] == "test"  # the column wins over the day
+    np.testing.assert_array_equal(a.reference, write_folder(tmp_path / "again", seed=0)["frames"][:2])
+    assert a.meta["reference"]["session"] == "rig A" and a.meta["reference"]["how"] == "imported: the trial's first 2 frames (pre-contact, as the command line asks)"
     manifest.write_text("path,label,split\na,4,train\n")
     with pytest.raises(UserError, match=r"manifest\.csv: line 2: day: missing: the hand's importers need a day"):
-        _run_hand(manifest, tmp_path / "out2")
+        _run_hand(manifest, tmp_path / "out2", reference="reference.png")
     labels = tmp_path / "labels.csv"
     labels.write_text("name,class\nfelt,0\n")
     with pytest.raises(UserError, match="--labels names classes of a rig's recordings"):
-        _run_hand(manifest, tmp_path / "out3", labels=labels)
+        _run_hand(manifest, tmp_path / "out3", labels=labels, reference="reference.png")
 
 
 def test_bags_import_through_a_manifest_with_a_map(tmp_path):
@@ -374,7 +413,7 @@ def test_bags_import_through_a_manifest_with_a_map(tmp_path):
     bags.write_bag(tmp_path / "rec" / "bag0", bags.recording(seed=0))
     (tmp_path / "map.toml").write_text(bags.MAPPING_TOML)
     manifest = tmp_path / "rec" / "manifest.csv"
-    manifest.write_text("path,label,day,trial,split\nbag0,9,2,5,test\n")  # the row's fields win over the map's [trial]
+    manifest.write_text("path,label,day,trial,split,session\nbag0,9,2,5,test,rig A\n")  # the row's fields win over the map's [trial]
     summary, _ = _run_hand(manifest, tmp_path / "out", mapping=tmp_path / "map.toml")
     assert summary["trials"] == 1
     a = archive.read_archive(tmp_path / "out" / "fabric09_day2_trial05_lab.npz")
@@ -383,6 +422,8 @@ def test_bags_import_through_a_manifest_with_a_map(tmp_path):
     np.testing.assert_allclose(a.timestamps, 0.02 * np.arange(bags.N_FRAMES), atol=1e-6)
     np.testing.assert_array_equal(a.window_end, np.stack([bags.expected_window_end()] * 2, axis=1))
     np.testing.assert_array_equal(a.images, rec["frames"])
+    np.testing.assert_array_equal(a.reference, rec["reference"][:2])
+    assert a.meta["reference"]["session"] == "rig A" and a.meta["reference"]["times_s"] == pytest.approx([-0.5, -0.3])
 
 
 def _run_hand(manifest, out, **kw):
@@ -547,7 +588,7 @@ def test_latin1_manifest_read_only_out_and_unread_columns_are_one_line(tmp_path)
 
     write_folder(tmp_path / "hand" / "a", seed=0)
     (tmp_path / "hand" / "manifest.csv").write_text("path,label,day,roughness\na,4,1,2\n")
-    _, said = _run_hand(tmp_path / "hand" / "manifest.csv", tmp_path / "hand_out")
+    _, said = _run_hand(tmp_path / "hand" / "manifest.csv", tmp_path / "hand_out", reference="reference.png")
     assert said.count("columns not used: roughness") == 1  # the hand's levels come from the catalog
 
 

@@ -18,7 +18,7 @@ import pytest
 
 from fabricjax import train
 from fabricjax.bench import synthetic
-from fabricjax.config import Config
+from fabricjax.config import IMAGE_REFERENCES, Config
 
 N_CLASSES = 4  # chance: 25 %
 PASS = 0.6
@@ -30,13 +30,16 @@ CASES = [
     for m in ("image", "flow", "internal", "external", "proprio")
     for kind, norm in (("dynamic", "sequence_minmax"), ("dynamic", "step_layernorm"), ("static", "step_layernorm"))
 ]
+# The image under the other readings of a frame (`Config.image_reference`; the cases above read it
+# as the default does): the same cue must be learned whatever it is read against.
+REFERENCE_CASES = [(ref, kind) for ref in IMAGE_REFERENCES if ref != Config.image_reference for kind in ("dynamic", "static")]
 
 
 DTYPES = [pytest.param("float32"), pytest.param("bfloat16", marks=pytest.mark.slow)]
 
 
-def held_out_accuracy(modality: str, kind: str, norm: str, dtype: str) -> float:
-    config = Config.from_preset("smoke", modalities=(modality,), fusion_norm=norm, compute_dtype=dtype, **RECIPE)
+def held_out_accuracy(modality: str, kind: str, norm: str, dtype: str, image_reference: str = Config.image_reference) -> float:
+    config = Config.from_preset("smoke", modalities=(modality,), fusion_norm=norm, compute_dtype=dtype, image_reference=image_reference, **RECIPE)
     sets = {
         split: synthetic.planted_cue(config, modality, kind, n, n_classes=N_CLASSES, seed=seed)
         for split, n, seed in (("train", 256, 0), ("val", 64, 1), ("test", 128, 2))
@@ -53,6 +56,12 @@ def test_the_model_learns_a_planted_cue(modality, kind, norm, dtype):
         f"{modality} with fusion_norm={norm}, {dtype}: {accuracy:.0%} on held-out sequences with a {kind} cue "
         f"(chance {1 / N_CLASSES:.0%}, pass {PASS:.0%}): the model cannot read this stream"
     )
+
+
+@pytest.mark.parametrize("image_reference,kind", REFERENCE_CASES, ids=["-".join(c) for c in REFERENCE_CASES])
+def test_the_image_cue_is_learned_under_every_reference(image_reference, kind):
+    accuracy = held_out_accuracy("image", kind, "step_layernorm", "float32", image_reference)
+    assert accuracy >= PASS, f"image read against {image_reference}: {accuracy:.0%} on held-out sequences with a {kind} cue"
 
 
 def test_without_a_cue_the_model_stays_near_chance():

@@ -17,9 +17,14 @@ SPLIT_SEEDS = {"train": 1, "val": 2, "test": 3}
 
 
 def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
-    assert [r.name for r in probe.ROWS] == [r.name for r in ablation.ROWS if not r.name.startswith(("tcn:", ablation.STEP_LAYERNORM))]
-    for r in ablation.ROWS:  # every ablation row, the TCN and fusion variants included, has its probe
-        assert probe.row_for(r.modalities, [{"modalities": list(p.modalities)} for p in probe.ROWS]) is not None
+    paper = [r.name for r in ablation.ROWS if not r.name.startswith(("tcn:", ablation.STEP_LAYERNORM))]
+    # then every input set with the image again, its frames read against their session's reference
+    assert [r.name for r in probe.ROWS] == paper + [probe.SESSION + n for n in paper if "image" in n.split("+")]
+    rows = [{"modalities": list(p.modalities), **({"image_reference": p.settings["image_reference"]} if "image_reference" in p.settings else {})} for p in probe.ROWS]
+    for r in ablation.ROWS:  # every ablation row, the TCN and fusion variants included, has its probe under either reading
+        for reference in ("none", "training_mean", "session"):
+            p = probe.row_for(r.modalities, rows, reference)
+            assert p is not None and probe.reading(p.get("image_reference")) == (probe.reading(reference) if "image" in r.modalities else "frame")
 
 
 def test_summaries_are_the_mean_and_sd_over_steps_of_every_dimension(monkeypatch):

@@ -53,7 +53,7 @@ def rig_archive(n_steps=40, streams=None, **meta):
 
 
 def test_format_1_archive_reads_unchanged_as_the_hand(tmp_path):
-    a = tiny_archive()
+    a = tiny_archive(reference=False)  # format 1 has no session reference
     p = tmp_path / "old.npz"
     np.savez(p, meta=np.array(json.dumps(v1_meta())), **a.arrays())
     b = archive.read_archive(p)
@@ -69,7 +69,7 @@ def test_format_1_archive_reads_unchanged_as_the_hand(tmp_path):
 def test_format_1_archive_of_a_30_fps_position_only_import_reads_unchanged(tmp_path):
     """Format-1 archives that issue 27's importer wrote: the camera's own step rate in
     sample_rates.steps and the fields a JointState lacked in joint_fields_absent (NaN)."""
-    a = tiny_archive()
+    a = tiny_archive(reference=False)  # format 1 has no session reference
     joints = a.joints.copy()
     joints[..., 1:] = np.nan
     meta = {**v1_meta(), "sample_rates": {"audio": 48000, "steps": 30}, "joint_fields_absent": ["velocity", "current"]}

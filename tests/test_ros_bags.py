@@ -17,7 +17,7 @@ pytest.importorskip("rosbags")
 
 from acquisition import ros_bag  # noqa: E402
 from tests.test_import_bag import (  # noqa: E402
-    MAPPING, MAPPING_TOML, N_FRAMES, NAMES, T0, TS, _header, bag_messages, check_fields, recording,
+    MAPPING, MAPPING_TOML, N_FRAMES, NAMES, REFERENCE, T0, TS, _header, bag_messages, check_fields, recording,
     write_bag, write_messages,
 )
 
@@ -210,11 +210,13 @@ def test_stamps_on_another_clock_are_an_error_unless_the_mapping_says_so(tmp_pat
 
 def test_device_clock_camera_is_shifted_onto_the_bag_clock(tmp_path):
     rec = recording()
-    uptime = lambda t: t - T0 + 12.5  # noqa: E731  a camera stamping with its own uptime
-    bag = write_messages(tmp_path / "bag", _restamp(bag_messages(rec), CAMERA, uptime))
+    uptime = lambda t: t - T0 + 12.5  # noqa: E731  a camera stamping with its own uptime, its reference too
+    bag = write_messages(tmp_path / "bag", _restamp(_restamp(bag_messages(rec), CAMERA, uptime), REFERENCE, uptime))
     with pytest.raises(ros_bag.BagError, match=r"header.stamp: 87\.501 s behind"):
         ros_bag.import_bag(bag, MAPPING, TRIAL)
-    check_fields(ros_bag.import_bag(bag, _mapping(camera={"clock": "device"}), TRIAL), rec)
+    a = ros_bag.import_bag(bag, _mapping(camera={"clock": "device"}), TRIAL)
+    check_fields(a, rec)
+    assert a.meta["reference"]["times_s"] == pytest.approx([-0.5, -0.3])  # shifted as the camera's stamps are
 
 
 # --- 5. a 30 fps camera -----------------------------------------------------------------------
@@ -264,7 +266,7 @@ def test_every_problem_of_a_bag_is_listed_in_one_line(tmp_path):
         ros_bag.import_bag(bag, mapping, TRIAL)
     assert str(e.value) == (
         f"{bag}: topics ['/hand/joints', '/palm/mic'] not in the bag (it has ['/joint_states', '/minsight/image', "
-        "'/minsound/audio', '/palm/audio']); /minsight/image: type std_msgs/msg/String, expected sensor_msgs/msg/Image "
+        "'/minsight/reference', '/minsound/audio', '/palm/audio']); /minsight/image: type std_msgs/msg/String, expected sensor_msgs/msg/Image "
         "or sensor_msgs/msg/CompressedImage"
     )
 
@@ -346,7 +348,7 @@ def test_each_issue_case_is_one_line_on_the_command_line(tmp_path):
 
 LAB_RATE, LAB_CHUNK, LAB_FPS, UPTIME_AT_T0 = 16000, 512, 30, 12.5  # audio_common at 16 kHz, 32 ms chunks
 LAB_MAPPING = {
-    "camera": {"topic": CAMERA, "clock": "device"},  # a camera driver stamping with the device's clock
+    "camera": {"topic": CAMERA, "clock": "device", "reference_topic": REFERENCE},  # a camera driver stamping with the device's clock
     "mics": {"internal": {"topic": INTERNAL, "info_topic": "/minsound/audio_info"},
              "external": {"topic": EXTERNAL, "info_topic": "/palm/audio_info"}},
     "joints": {"topic": JOINTS},
@@ -358,7 +360,9 @@ def lab_messages(seed=0, seconds=1.0):
     """30 fps rgb8 frames stamped with the camera's uptime, received 4 ms later; two audio_common
     AudioData streams at 16 kHz S16LE (their AudioInfo published once, at the start) from 0.2 s
     before the first frame, each chunk received 1 ms after its last sample; position-only
-    JointState (joint_state_publisher) at 50 Hz on the bag's clock, received 2 ms after the stamp."""
+    JointState (joint_state_publisher) at 50 Hz on the bag's clock, received 2 ms after the stamp;
+    the camera's no-contact reference, one frame taken 0.3 s before the first and published once
+    (latched: the bag receives it when it starts, 0.25 s before the first frame)."""
     rng = np.random.default_rng(seed)
     msgs = []
     for i in range(int(seconds * LAB_FPS)):
@@ -377,12 +381,15 @@ def lab_messages(seed=0, seconds=1.0):
         js = TS.types["sensor_msgs/msg/JointState"](header=_header(t), name=NAMES, position=rng.normal(size=6),
                                                      velocity=np.zeros(0), effort=np.zeros(0))
         msgs.append((t + 0.002, JOINTS, "sensor_msgs/msg/JointState", js))
+    ref = TS.types["sensor_msgs/msg/Image"](header=_header(UPTIME_AT_T0 - 0.3), height=8, width=10, encoding="rgb8",
+                                             is_bigendian=0, step=30, data=rng.integers(0, 255, 240, dtype=np.uint8))
+    msgs.append((T0 - 0.25, REFERENCE, "sensor_msgs/msg/Image", ref))
     return sorted(msgs, key=lambda m: m[0])
 
 
 def test_lab_bag_becomes_an_archive_read_archive_and_verify_accept(tmp_path):
     msgs = lab_messages()
-    assert {m[1] for m in msgs} == {CAMERA, INTERNAL, EXTERNAL, JOINTS, "/minsound/audio_info", "/palm/audio_info"}
+    assert {m[1] for m in msgs} == {CAMERA, INTERNAL, EXTERNAL, JOINTS, REFERENCE, "/minsound/audio_info", "/palm/audio_info"}
     bag = write_messages(tmp_path / "bag", msgs, storage="mcap")
     with pytest.raises(RecordingImportError, match=r"/minsound/audio: rate: sample rate 16000 Hz, archives hold 48000 Hz"):
         ros_bag.import_bag(bag, LAB_MAPPING, TRIAL)
@@ -399,6 +406,10 @@ def test_lab_bag_becomes_an_archive_read_archive_and_verify_accept(tmp_path):
     assert clocks["joints"]["clock"] == "header" and clocks["internal"] == {"clock": "receive"}
     np.testing.assert_allclose(np.diff(back.timestamps), 1 / LAB_FPS, atol=1e-6)
     assert back.n_steps >= 25 and back.meta["import"]["frame_gaps"] == []
+    reference = next(m[3] for m in msgs if m[1] == REFERENCE)  # published once, its stamp on the camera's device clock
+    np.testing.assert_array_equal(back.reference, np.asarray(reference.data).reshape(1, 8, 10, 3))
+    assert back.meta["reference"] == {"how": f"imported: the one frame of {REFERENCE} (published once)", "session": "day2_lab",
+                                      "times_s": [pytest.approx(-0.3, abs=1e-6)]}
     problems, _ = integrity.verify(folder, tmp_path / "ws")
     assert problems == []
 

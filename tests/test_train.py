@@ -178,7 +178,7 @@ def test_image_rows_rotate_the_frame_minus_the_reference_in_training_only():
     standardised frames turned by the rotation the model used to apply to frames (tests/helpers.py,
     same angles from the same key); a frame equal to the reference is no deformation at every
     angle; evaluation never turns, on frames or on rows; without `augment_rotation` nothing turns."""
-    cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4, 8), "property_heads": False})
+    cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4, 8), "property_heads": False, "image_reference": "training_mean"})
     sets = {k: synthetic.data_set(cfg, 8, image_hw=(12, 16), seed=i) for i, k in enumerate(["train", "val"])}
     stats = input_statistics(cfg, sets["train"])
     assert stats["image_shift"].shape == (12, 16, 3) and stats["image_scale"].shape == (3,)

@@ -31,6 +31,8 @@ SENSORS = (
     | {f"/joints/{j}/{f}" for j in archive.JOINT_NAMES for f in archive.JOINT_FIELDS}
 )
 WAVES = {f"/audio/{m}/wave" for m in archive.MIC_NAMES}
+# what a trial archive's own view adds: its session's no-contact reference (once) and each frame's difference to it
+REFERENCE = {"/minsight/reference", "/minsight/difference"}
 PREDICTION = {f"/prediction/{k}" for k in ("probabilities", "confidence", "class", "latency_ms")}
 # what the viewer and the stream add from a checkpoint: the sequential rule's posterior, and its decision (logged once)
 SEQUENTIAL = {"/prediction/posterior", "/prediction/decision"}
@@ -64,9 +66,10 @@ def test_view_save_writes_every_sensor_entity_at_every_step(smoke_trial, tmp_pat
     assert out.returncode == 0, out.stderr
     assert f"{trial.n_steps} steps" in out.stdout
     read = read_rrd(tmp_path / "trial.rrd")
-    assert set(read) == SENSORS | WAVES
-    for entity in SENSORS:
+    assert set(read) == SENSORS | WAVES | REFERENCE
+    for entity in SENSORS | {"/minsight/difference"}:
         assert read[entity]["steps"] == list(range(trial.n_steps)), entity
+    assert read["/minsight/reference"]["steps"] == [0]
     new = np.diff(trial.window_end[:, 0])
     assert read["/audio/internal/wave"]["rows"] == archive.WINDOW + int(np.minimum(new, archive.WINDOW).sum())
 
@@ -76,7 +79,7 @@ def test_view_save_with_a_checkpoint_adds_the_models_predictions(smoke_trial, ch
     path, trial = smoke_trial
     doc = view.view_archive(path, checkpoint=checkpoint, save=tmp_path / "trial.rrd")
     read = read_rrd(tmp_path / "trial.rrd")
-    assert set(read) == SENSORS | WAVES | PREDICTION | SEQUENTIAL
+    assert set(read) == SENSORS | WAVES | REFERENCE | PREDICTION | SEQUENTIAL
     decided = list(range(CONFIG.seq_len - 1, trial.n_steps))  # the window's first N - 1 steps only fill it
     assert read["/prediction/probabilities"]["steps"] == decided == read["/prediction/confidence"]["steps"]
     assert read["/prediction/posterior"]["steps"] == decided and len(read["/prediction/decision"]["steps"]) == 1

@@ -92,7 +92,9 @@ def planted_cue(
                   0 -> 64 grey levels on pixel noise of SD 24, over a fixed colour field (each
                   colour a ramp of 40 -> 200 across the frame in its own direction, the same for
                   every sequence, as the shell's LEDs light a Minsight frame): the disc's
-                  brightening is invariant to rotation about the centre, the field is not
+                  brightening is invariant to rotation about the centre, the field is not;
+                  with `config.image_reference` "session", the frames minus that field (int16), as
+                  the data reads frames minus their session's no-contact reference
         flow      a uniform flow of 0 -> 1 px/frame along x over the frame's centre third, on
                   noise of SD 0.5 px/frame
         internal / external   log-PSD bins 4-11 rise by 0 -> 1 (decades) over noise of SD 0.5
@@ -115,6 +117,8 @@ def planted_cue(
             x = field + 64 * on[:, :, None, None, None] * disc[None, None, :, :, None]
             x = x + rng.normal(0, 24, (n, steps, h, w, 3))
             inputs[m] = np.clip(x, 0, 255).astype(np.uint8)
+            if config.image_reference == "session":
+                inputs[m] = inputs[m].astype(np.int16) - np.rint(field).astype(np.int16)
         elif m == "flow":
             h, w = flow_hw
             x = rng.normal(0, 0.5, (n, steps, 2, h, w)).astype(np.float32)

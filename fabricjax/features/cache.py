@@ -92,6 +92,10 @@ def _compute(job: tuple[str, str, list[str], dict[str, str]]) -> dict[str, np.nd
     if needs_images and trial.images is None:
         names = ", ".join(f.name for f in features if f.needs_images)
         raise archive.ArchiveError(path, "images", f"absent, but the features {names} need frames")
+    if any(f.needs_reference for f in features) and trial.reference is None:
+        raise archive.ArchiveError(path, "reference", f"absent ({archive.reference_note(trial.meta)}), but image_reference='session' reads every "
+                                   "frame against its session's no-contact reference: re-simulate or re-import the data with its reference "
+                                   "(docs/data.md), or read frames as they are: --set=image_reference=training_mean")
     out = {}
     for f in features:
         out[f.name] = f.compute(trial)

@@ -18,6 +18,9 @@ applied when sequences are built and is not part of the key. Arrays, per trial o
                                                          flow_drop_top: the other reading
     image_<h>x<w>               uint8   (T, h, w, 3)     area-downsampled frames (images.py; the
                                                          paper's 60x80 unless config.image_size)
+    image_session_<h>x<w>       int16   (T, h, w, 3)     the same frames minus their session's
+                                                         no-contact reference, downsampled alike
+                                                         (images.session_difference)
     image_full                  uint8   (T, H, W, 3)     the archive's frames (not cached)
 """
 
@@ -42,6 +45,7 @@ class Feature:
     needs_images: bool
     cached: bool
     compute: Callable[[archive.TrialArchive], np.ndarray]
+    needs_reference: bool = False  # the session's no-contact reference (`archive.TrialArchive.reference`)
 
 
 def mic_index(trial: archive.TrialArchive, role: str) -> int:
@@ -98,12 +102,14 @@ def _proprio(trial: archive.TrialArchive) -> np.ndarray:
 
 def feature_for(
     modality: str, image_resolution: str = "down", image_size: tuple[int, int] = images.DOWN_SIZE, flow_sparsify: str = "keep_top",
-    window: int = archive.WINDOW,
+    window: int = archive.WINDOW, image_reference: str = "training_mean",
 ) -> Feature:
     """The feature behind a model input (a `config.MODALITIES` name); `image_size` is the
     downsampled ("down") frame size, `flow_sparsify` the flow's reading of the paper's filter
     (`flow.SPARSIFY`: "flow" is the default reading's feature, "flow_<reading>" another's),
-    `window` a microphone's step window in samples (`welch.window_samples`)."""
+    `window` a microphone's step window in samples (`welch.window_samples`), `image_reference`
+    what a frame is read against (`config.IMAGE_REFERENCES`: "session" is its own feature, the
+    others subtract in the model)."""
     if modality in archive.MIC_ROLES:
         return _psd(modality, window)
     if modality == "proprio":
@@ -114,6 +120,12 @@ def feature_for(
             params["sparsify"] = flow_sparsify
         name = "flow" if flow_sparsify == flow.SPARSIFY[0] else f"flow_{flow_sparsify}"
         return Feature(name, params, True, True, lambda t: flow.trial_flow(t.images, flow_sparsify))
+    if modality == "image" and image_resolution == "down" and image_reference == "session":
+        size = (int(image_size[0]), int(image_size[1]))
+        params = {"size": size, "interpolation": "area", "reference": "session", "version": 1}
+        return Feature(f"image_session_{size[0]}x{size[1]}", params, True, True, lambda t: images.session_difference(t.images, t.reference, size), True)
+    if modality == "image" and image_reference == "session":
+        raise ValueError("image_reference='session' reads downsampled frames (image_resolution='down')")
     if modality == "image" and image_resolution == "down":
         size = (int(image_size[0]), int(image_size[1]))
         params = {"size": size, "interpolation": "area", "version": 1}
@@ -126,6 +138,8 @@ def feature_for(
 def feature_named(name: str) -> Feature:
     """The feature called `name` (how a worker process rebuilds one: a Feature's function does
     not pickle)."""
+    if m := re.fullmatch(r"image_session_(\d+)x(\d+)", name):
+        return feature_for("image", "down", (int(m[1]), int(m[2])), image_reference="session")
     if m := re.fullmatch(r"image_(\d+)x(\d+)", name):
         return feature_for("image", "down", (int(m[1]), int(m[2])))
     if m := re.fullmatch(r"psd_(\w+)_w(\d+)", name):

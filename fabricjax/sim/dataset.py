@@ -49,13 +49,14 @@ def filename(scene: Scene) -> str:
 
 def is_done(path: Path, scene: Scene) -> bool:
     """The archive exists, is readable, was made from this scene by this simulator version
-    (`scene.SIMULATOR_VERSION`, part of the scene's JSON) and has the wanted streams."""
+    (`scene.SIMULATOR_VERSION`, part of the scene's JSON) and has the wanted streams (frames with
+    their session's no-contact reference, which archives before format 3 lack)."""
     if not path.is_file():
         return False
     try:
         meta, _ = archive.read_meta(path)
         with np.load(path, allow_pickle=False) as npz:
-            has_images = "images" in npz.files
+            has_images = "images" in npz.files and "reference" in npz.files
     except archive.ArchiveError:
         return False
     made = dict(meta["source"].get("scene", {}))

@@ -126,6 +126,7 @@ def simulate(scene: Scene) -> archive.TrialArchive:
         source={"kind": "simulated", "scene": scene.to_json(), "effects": list(scene.effects)},
         image_size=scene.image_size if images is not None else None,
         closing_steps=int(np.searchsorted(t, mot.rubbing_start_s)),  # as the recorder writes it
+        **({"reference": reference_meta(scene)} if images is not None else {}),
     )
     return archive.validate(
         archive.TrialArchive(
@@ -136,5 +137,13 @@ def simulate(scene: Scene) -> archive.TrialArchive:
             force=force,
             audio=audio,
             images=images,
+            reference=None if images is None else minsight.reference(scene)[None],
         )
     )
+
+
+def reference_meta(scene: Scene) -> dict:
+    """`meta.reference` of a simulated trial: its session (day and condition) took one no-contact
+    frame at its start, as Minsight's camera node does after its warm-up (`minsight.reference`)."""
+    return {"how": "simulated: one no-contact frame after the camera's warm-up, at the session's start",
+            "session": f"day{scene.day}_{scene.condition}", "times_s": None}

@@ -1,6 +1,6 @@
 """A study's data: every split it evaluates, as sequences of every input any of its rows uses.
 
-Where the data comes from: `data_dir` (a folder of real recordings, see WORKSPACE.md) if given,
+Where the data comes from: `data_dir` (a folder of real recordings, see docs/data.md) if given,
 else the simulated dataset of the preset, written on first use by `sim.ensure_dataset` (camera
 frames are rendered only when some row needs images or optical flow).
 """
@@ -22,7 +22,7 @@ TRAIN_VAL_TEST = ("train", "val", "test")
 # The `Config` fields besides modalities and bandwidth that decide the sequences `data.load_sequences`
 # returns (which trials, how they are cut, which camera features): one load serves several rows
 # only where these agree (`data.narrow` then gives each row its modalities and band).
-SEQUENCE_FIELDS = ("preset", "seq_len", "exclude_fabrics", "image_resolution", "image_size", "flow_sparsify", "mic_window_s")
+SEQUENCE_FIELDS = ("preset", "seq_len", "exclude_fabrics", "image_resolution", "image_size", "flow_sparsify", "mic_window_s", "image_reference")
 
 
 @dataclasses.dataclass

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence, TypeVar
 import numpy as np
 from absl import logging
 
-from fabricjax import checkpoint, data, source, stats, train, workspace
+from fabricjax import archive, checkpoint, data, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, loading
@@ -94,15 +94,27 @@ def check_overrides(study: str, overrides: Mapping | None, rows: Sequence[StudyR
 def load_chosen_rows(
     study: str, all_rows: Sequence[StudyRow], names: Sequence[str] | None, preset: str, overrides: Mapping | None,
     where: Location, split_names: Sequence[str],
-) -> tuple[list[StudyRow], list[Config], loading.Dataset, list[str]]:
+) -> tuple[list[StudyRow], list[Config], list[loading.Dataset], list[str]]:
     """What a study without training (the probe, the day shift) reads: the chosen rows of
-    `all_rows` (all for None), their configs, the sequences they use on `split_names`, and the
-    splits that hold any."""
+    `all_rows` (all for None), their configs, each row's sequences on `split_names` (rows that
+    agree on `loading.SEQUENCE_FIELDS` share one load: the same object), and the splits that hold
+    any. Rows that read frames against their session's reference are left out, with a warning,
+    when the data has none and the rows were not asked for by name."""
     overrides = check_overrides(study, overrides, all_rows, "choose them with --rows")
     chosen = select_rows(all_rows, names)
     configs = [r.config(preset, overrides) for r in chosen]
-    ds = loading.load_for_rows(configs, data_dir=where.data_dir, workdir=where.workdir, split_names=split_names)
-    return chosen, configs, ds, [s for s in split_names if len(ds.sets[s])]
+    loads: dict[tuple, loading.Dataset] = {}
+    for key in dict.fromkeys(loading.sequence_key(c) for c in configs):
+        group = [c for c in configs if loading.sequence_key(c) == key]
+        try:
+            loads[key] = loading.load_for_rows(group, data_dir=where.data_dir, workdir=where.workdir, split_names=split_names)
+        except archive.ArchiveError as e:
+            if e.field != "reference" or names:
+                raise
+            logging.warning("%s: rows that read frames against their session's reference left out: %s", study, e)
+    kept = [(r, c) for r, c in zip(chosen, configs) if loading.sequence_key(c) in loads]
+    datasets = [loads[loading.sequence_key(c)] for _, c in kept]
+    return [r for r, _ in kept], [c for _, c in kept], datasets, [s for s in split_names if len(datasets[0].sets[s])]
 
 
 def _which_rows(names: Sequence[str], n_rows: int) -> str:

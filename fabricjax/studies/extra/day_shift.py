@@ -6,7 +6,8 @@ the trial explain, beside the linear probe's accuracy on the training days and o
 
 The paper splits by recording day so that a model cannot lean on what a day shares; this study
 says, before any model, what the test day differs in. For every model input (`ROWS`: Minsound,
-the palm microphone, proprioception, optical flow, the Minsight image), as the probe reads it
+the palm microphone, proprioception, optical flow, the Minsight image as it is and minus its
+session's no-contact reference, `Config.image_reference`), as the probe reads it
 (`linear_probe.summarise`: each dimension's mean and SD over a sequence's steps), each lab trial's
 summary is the mean of its sequences' summaries. Each dimension is standardised over the trials
 and its sum of squares split, for fabric f and day d:
@@ -40,7 +41,13 @@ from fabricjax.studies.common.runner import StudyRow
 from fabricjax.workspace import Location
 
 TITLE, PAPER = "Day shift: what the fabric, the day and the trial explain in each input", "not in the paper"
-ROWS = tuple(StudyRow(m, {"modalities": (m,)}, data.inputs_name((m,))) for m in ("internal", "external", "proprio", "flow", "image"))
+ROWS = (
+    *(StudyRow(m, {"modalities": (m,)}, data.inputs_name((m,))) for m in ("internal", "external", "proprio", "flow")),
+    # the frames as they are: the "none" and "training_mean" readings differ from them by a per-pixel
+    # constant, which standardising each dimension over the trials removes
+    StudyRow("image", {"modalities": ("image",), "image_reference": "training_mean"}, data.inputs_name(("image",))),
+    StudyRow(probe.SESSION + "image", {"modalities": ("image",), "image_reference": "session"}, data.inputs_name(("image",)) + " − session reference"),
+)
 SHARES = ("fabric", "day", "fabric x day", "trial")
 
 
@@ -94,7 +101,7 @@ def probe_accuracy(results, folder: str) -> tuple[dict[str, dict[str, float | No
         return {}, f"the probe in {path} ran on other data (`{doc.get('dataset', {}).get('folder')}`)"
     out = {}
     for r in ROWS:
-        row = probe.row_for(r.modalities, doc["rows"])
+        row = probe.row_for(r.modalities, doc["rows"], r.settings.get("image_reference"))
         if row is not None:
             out[r.name] = {s: row["accuracy"].get(s) for s in ("val", "test")}
     return out, None
@@ -109,7 +116,8 @@ def run(
 ) -> dict[str, Any]:
     """The shares and the probe's gap for the chosen inputs (all by default); writes
     results/day_shift.{md,json} and returns the JSON."""
-    chosen, _, ds, present = runner.load_chosen_rows("day_shift", ROWS, rows, preset, overrides, where, loading.TRAIN_VAL_TEST)
+    chosen, _, datasets, present = runner.load_chosen_rows("day_shift", ROWS, rows, preset, overrides, where, loading.TRAIN_VAL_TEST)
+    ds = datasets[0]
     info = {k: np.concatenate([ds.sets[s].info[k] for s in present]) for k in ("fabric_id", "day", "trial_key")}
     if len(np.unique(info["day"])) < 2:
         raise archive.ArchiveError(ds.folder, "day", "the lab trials come from fewer than two days: there is no day to tell apart")
@@ -119,14 +127,14 @@ def run(
     progress = runner.Progress("day_shift", len(chosen))
     out_rows = []
     names = ds.sets[present[0]].names if ds.recorded else {}  # recorded data: its own names for its streams
-    for r in chosen:
-        display = data.inputs_name(r.modalities, names)
+    for r, d in zip(chosen, datasets):
+        display = data.inputs_name(r.modalities, names) + r.label.removeprefix(data.inputs_name(r.modalities))
         progress.start(display)
         t1 = time.perf_counter()
         m = r.modalities[0]
-        per_split = [trial_summaries(ds.sets[s].inputs[m], ds.sets[s].info["trial_key"]) for s in present]  # a trial lies in one split
+        per_split = [trial_summaries(d.sets[s].inputs[m], d.sets[s].info["trial_key"]) for s in present]  # a trial lies in one split
         x = np.concatenate([x for x, _ in per_split])
-        labels = {k: np.concatenate([ds.sets[s].info[k][first] for s, (_, first) in zip(present, per_split)]) for k in ("fabric_id", "day")}
+        labels = {k: np.concatenate([d.sets[s].info[k][first] for s, (_, first) in zip(present, per_split)]) for k in ("fabric_id", "day")}
         shares = variance_shares(x, labels["fabric_id"], labels["day"])
         out_rows.append({
             "name": r.name, "display_name": display, "summary_dims": int(x.shape[1]), "shares": shares,
@@ -173,7 +181,10 @@ def markdown(doc: Mapping[str, Any]) -> str:
         "averaged per trial, each dimension standardised over the trials; the shares split its sum of squares into "
         "fabric, day (after the fabric), fabric x day and trial (within one fabric and day), averaged over the "
         "dimensions. A large day share is what a model can learn about a day and lose on a new one; the probe's "
-        "validation and test accuracy show whether it does.",
+        "validation and test accuracy show whether it does. The Minsight image appears as it is (the `none` and "
+        "`training_mean` readings of `Config.image_reference` differ from it by a per-pixel constant, which standardising "
+        "each dimension removes) and minus its session's no-contact reference (`session`); optical flow is computed from "
+        "the frames under every reading.",
         "",
         table(doc),
     ]

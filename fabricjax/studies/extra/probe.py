@@ -13,7 +13,11 @@ its pooled cells, PSDs their bins, proprioception its 18 joint channels. Each in
 are standardised on the training split; an input with more than `PCA_ABOVE` dimensions per step
 (the camera's) is reduced to at most `PCA_DIMS` principal components fitted on the training
 split; a row's inputs' features are concatenated and the regularisation C is chosen on the
-validation split from `C_GRID`. The sequences and splits are the ablation's own
+validation split from `C_GRID`. Every input set with the Minsight image is probed twice: frames
+as they are (what the "none" and "training_mean" readings give: a per-pixel constant, which the
+standardised summaries remove) and frames minus their session's no-contact reference
+(`Config.image_reference="session"`; left out, with a warning, where the data has no reference).
+The sequences and splits are the ablation's own
 (`loading.load_for_rows`: the simulated preset, or `data_dir`), plus the cafe split where the
 data has one. Deterministic: no seeds.
 
@@ -39,21 +43,40 @@ TITLE, PAPER = "Linear probe of every ablation row's inputs", "not in the paper"
 SPLITS = (*loading.TRAIN_VAL_TEST, "cafe")  # the ablation's, and the cafe condition where the data has it
 
 
+SESSION = "session:"  # the name prefix of a probe that reads frames minus their session's reference
+
+
 def _rows() -> tuple[StudyRow, ...]:
-    """One probe per distinct set of inputs among the ablation's rows, named like its first row."""
+    """One probe per distinct set of inputs among the ablation's rows, named like its first row;
+    with the image, a second reading its frames against their session's reference."""
     seen: dict[frozenset, StudyRow] = {}
+    session = []
     for r in ablation.ROWS:
-        mods = r.modalities
-        seen.setdefault(frozenset(mods), StudyRow("+".join(mods), {"modalities": mods}, ablation.label(mods, "attention")))
-    return tuple(seen.values())
+        mods, label = r.modalities, ablation.label(r.modalities, "attention")
+        if frozenset(mods) in seen:
+            continue
+        if "image" not in mods:
+            seen[frozenset(mods)] = StudyRow("+".join(mods), {"modalities": mods}, label)
+            continue
+        seen[frozenset(mods)] = StudyRow("+".join(mods), {"modalities": mods, "image_reference": "training_mean"}, label)
+        session.append(StudyRow(SESSION + "+".join(mods), {"modalities": mods, "image_reference": "session"}, f"{label}, frames − session reference"))
+    return (*seen.values(), *session)
 
 
 ROWS = _rows()
 
 
-def row_for(modalities: Sequence[str], rows: Sequence[Mapping[str, Any]]) -> Mapping[str, Any] | None:
-    """The probe row (as JSON) that reads exactly `modalities`, in any order; None if not probed."""
-    return next((r for r in rows if set(r["modalities"]) == set(modalities)), None)
+def reading(image_reference: str | None) -> str:
+    """How a probe row reads the frames: "session" (minus the session's reference) or "frame"
+    (as they are: the other readings differ from it by a per-pixel constant the probe removes)."""
+    return "session" if image_reference == "session" else "frame"
+
+
+def row_for(modalities: Sequence[str], rows: Sequence[Mapping[str, Any]], image_reference: str | None = None) -> Mapping[str, Any] | None:
+    """The probe row (as JSON) that reads exactly `modalities`, in any order, with the image (if
+    any) read as `image_reference` reads it (`reading`); None if not probed."""
+    want = reading(image_reference) if "image" in modalities else "frame"
+    return next((r for r in rows if set(r["modalities"]) == set(modalities) and reading(r.get("image_reference")) == want), None)
 
 
 def run(
@@ -64,7 +87,8 @@ def run(
     where: Location = Location(),
 ) -> dict[str, Any]:
     """Probe the chosen rows' inputs (all by default) and write results/probe.{md,json}; returns the JSON."""
-    chosen, configs, ds, present = runner.load_chosen_rows("probe", ROWS, rows, preset, overrides, where, SPLITS)
+    chosen, configs, datasets, present = runner.load_chosen_rows("probe", ROWS, rows, preset, overrides, where, SPLITS)
+    ds = datasets[0]
     for split in ("train", "val"):
         if split not in present:
             raise archive.ArchiveError(ds.folder, "<folder>", f"no {split} sequences (check days and conditions): the probe fits on train and chooses C on val")
@@ -73,11 +97,14 @@ def run(
         raise archive.ArchiveError(ds.folder, "label", "the training split holds fewer than two fabrics: nothing to probe")
 
     t0 = time.perf_counter()
-    inputs = prepare_inputs(ds.sets, loading.union_modalities(configs), present)
+    inputs = {}  # per load (rows that read the frames alike share one), each input's probe features
+    loads = list({id(d): d for d in datasets}.values())  # distinct loads, in row order
+    for d in loads:
+        inputs[id(d)] = prepare_inputs(d.sets, loading.union_modalities([c for c, e in zip(configs, datasets) if e is d]), present)
     with threadpool_limits(BLAS_THREADS):
         progress = runner.Progress("probe", len(chosen))
         names = ds.sets["train"].names if ds.recorded else {}  # recorded data: its own names for its streams
-        out_rows = [_probe_row(r, inputs, labels, present, progress, names) for r in chosen]
+        out_rows = [_probe_row(r, c, inputs[id(d)], labels, present, progress, names) for r, c, d in zip(chosen, configs, datasets)]
 
     doc = {
         **documents.header("probe", command=where.command, preset=preset, dataset=ds, probe_s=time.perf_counter() - t0),
@@ -87,14 +114,24 @@ def run(
         },
         "splits": present,
         "classes": sorted(np.unique(labels["train"]).tolist()),
-        "inputs": {m: {**i.to_json(), "display_name": data.inputs_name((m,), names)} for m, i in inputs.items()},
+        "inputs": {key: i for d in loads for key, i in _inputs_doc(inputs[id(d)], next(c for c, e in zip(configs, datasets) if e is d), names).items()},
         "rows": out_rows,
         "samples": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
     }
     return documents.write(where.results_dir(), doc, markdown)
 
 
-def _probe_row(r: StudyRow, inputs: Mapping[str, Input], labels, splits: Sequence[str], progress: runner.Progress,
+def _inputs_doc(inputs: Mapping[str, Input], config, names: Mapping[str, str]) -> dict[str, Any]:
+    """The inputs of one load as the JSON's "inputs": keyed by modality, the image read against
+    its session's reference as "session:image"."""
+    out = {}
+    for m, i in inputs.items():
+        session = m == "image" and config.image_reference == "session"
+        out[SESSION + m if session else m] = {**i.to_json(), "display_name": data.inputs_name((m,), names) + (" − session reference" if session else "")}
+    return out
+
+
+def _probe_row(r: StudyRow, config, inputs: Mapping[str, Input], labels, splits: Sequence[str], progress: runner.Progress,
                names: Mapping[str, str]) -> dict[str, Any]:
     """Row `r`'s probe on its inputs' features, concatenated, as the JSON row; `names`: the data's
     names for its streams (recorded data), else the paper's."""
@@ -107,6 +144,7 @@ def _probe_row(r: StudyRow, inputs: Mapping[str, Input], labels, splits: Sequenc
     progress.finish(name, seconds, f"C={result['C']:g}, test {100 * result['accuracy'].get('test', np.nan):.1f} %")
     return {
         "name": r.name, "modalities": list(r.modalities), "display_name": name,
+        **({"image_reference": config.image_reference} if "image" in r.modalities else {}),
         "probe_dims": int(features["train"].shape[1]), "wall_s": seconds, **result,
     }
 
@@ -128,7 +166,7 @@ def table(doc: Mapping[str, Any]) -> str:
 
 def inputs_table(doc: Mapping[str, Any]) -> str:
     body = [
-        [i.get("display_name", data.inputs_name((m,))), i["step_dims"], i["summary_dims"],
+        [i["display_name"] if "display_name" in i else data.inputs_name((m,)), i["step_dims"], i["summary_dims"],
          f"{i['probe_dims']} (PCA, {100 * i['explained_variance']:.1f} % of the variance)" if i["explained_variance"] is not None else i["probe_dims"],
          f"{i['seconds']:.1f}"]
         for m, i in doc["inputs"].items()
@@ -160,7 +198,7 @@ def beside_ablation(probe_doc: Mapping[str, Any], ablation_doc: Mapping[str, Any
     their probe, and a warning when the two ran on different data."""
     body, reached = [], 0
     for r in ablation_doc["rows"]:
-        p = row_for(r["modalities"], probe_doc["rows"])
+        p = row_for(r["modalities"], probe_doc["rows"], r.get("config", {}).get("image_reference"))
         test = 100 * np.asarray(r["accuracy"]["test"]["fabric"], np.float64)
         mean, sd = stats.mean_sd(test)
         probe_test = None if p is None or p["accuracy"].get("test") is None else 100 * p["accuracy"]["test"]

@@ -411,7 +411,7 @@ def headline(out: Path, manifest: Mapping[str, Any], preset: str, command_line: 
     for r in abl["rows"]:
         if not recorded and r.get("fusion_norm", "sequence_minmax") != "sequence_minmax":
             continue  # our fusion variants: in REPORT.md, not the headline
-        p = probe.row_for(r["modalities"], probe_rows)
+        p = probe.row_for(r["modalities"], probe_rows, r.get("config", {}).get("image_reference"))
         probe_test = None if p is None or p["accuracy"].get("test") is None else 100 * p["accuracy"]["test"]
         rows.append({
             "inputs": r["display_name"],
