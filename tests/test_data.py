@@ -7,7 +7,7 @@ import pytest
 
 from fabricjax import archive, data, dataset_index
 from fabricjax.config import Config
-from fabricjax.features import welch
+from fabricjax.features import images, welch
 from tests.helpers import tiny_archive, tiny_dataset
 
 # fabric 4 and class 0: two trials on each training day, one test trial, one cafe trial;
@@ -110,15 +110,22 @@ def test_cache_invalidation(dataset, tmp_path, reads, monkeypatch):
 def test_image_and_flow_features(tmp_path, reads):
     trials = [(4, 1, 0, "lab"), (4, 1, 1, "lab"), (4, 3, 0, "lab")]
     ds = tiny_dataset(tmp_path / "ds", trials, n_steps=41, images=(20, 26))
-    cfg = _config(modalities=("image", "flow"))
+    cfg = _config(modalities=("image", "flow"), image_reference="training_mean")
     sets = data.load_sequences(cfg, ds, workdir=tmp_path / "ws", progress=False, workers=1)
     assert sets["train"].inputs["image"].shape == (2, N, 60, 80, 3) and sets["train"].inputs["image"].dtype == np.uint8
     assert sets["train"].inputs["flow"].shape == (2, N, 2, 6, 9) and sets["train"].inputs["flow"].dtype == np.float16
     assert not sets["train"].inputs["flow"][0, 0].any()  # step 0 of a trial has no flow
     full_cfg = dataclasses.replace(cfg, image_resolution="full")
     full = data.load_sequences(full_cfg, ds, workdir=tmp_path / "ws", progress=False, workers=1)
-    frames = archive.read_archive(ds / "fabric04_day3_trial00_lab.npz").images
-    np.testing.assert_array_equal(full["test"].inputs["image"][1], frames[N : 2 * N])
+    trial = archive.read_archive(ds / "fabric04_day3_trial00_lab.npz")
+    np.testing.assert_array_equal(full["test"].inputs["image"][1], trial.images[N : 2 * N])
+    # read against the session's reference (the default), at either resolution: int16 differences
+    for resolution, shrink in (("down", lambda x: images.downsample(x, (60, 80))), ("full", lambda x: x)):
+        session = data.load_sequences(dataclasses.replace(cfg, image_reference="session", image_resolution=resolution), ds,
+                                      workdir=tmp_path / "ws", progress=False, workers=1)["test"].inputs["image"][1]
+        want = shrink(trial.images[N : 2 * N]).astype(np.int16) - shrink(trial.reference)[0].astype(np.int16)
+        assert session.dtype == np.int16
+        np.testing.assert_array_equal(session, want)
 
 
 def test_missing_images_is_a_clear_error(tmp_path):

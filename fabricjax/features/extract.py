@@ -22,6 +22,7 @@ applied when sequences are built and is not part of the key. Arrays, per trial o
                                                          no-contact reference, downsampled alike
                                                          (images.session_difference)
     image_full                  uint8   (T, H, W, 3)     the archive's frames (not cached)
+    image_session_full          int16   (T, H, W, 3)     those minus their session's reference (not cached)
 """
 
 from __future__ import annotations
@@ -124,8 +125,8 @@ def feature_for(
         size = (int(image_size[0]), int(image_size[1]))
         params = {"size": size, "interpolation": "area", "reference": "session", "version": 1}
         return Feature(f"image_session_{size[0]}x{size[1]}", params, True, True, lambda t: images.session_difference(t.images, t.reference, size), True)
-    if modality == "image" and image_reference == "session":
-        raise ValueError("image_reference='session' reads downsampled frames (image_resolution='down')")
+    if modality == "image" and image_resolution == "full" and image_reference == "session":
+        return Feature("image_session_full", {"reference": "session"}, True, False, lambda t: images.session_difference(t.images, t.reference, None), True)
     if modality == "image" and image_resolution == "down":
         size = (int(image_size[0]), int(image_size[1]))
         params = {"size": size, "interpolation": "area", "version": 1}
@@ -144,7 +145,7 @@ def feature_named(name: str) -> Feature:
         return feature_for("image", "down", (int(m[1]), int(m[2])))
     if m := re.fullmatch(r"psd_(\w+)_w(\d+)", name):
         return feature_for(m[1], window=int(m[2]))
-    candidates = [feature_for(m) for m in (*archive.MIC_ROLES, "proprio")] + [feature_for("image", "full")]
+    candidates = [feature_for(m) for m in (*archive.MIC_ROLES, "proprio")] + [feature_for("image", "full", image_reference=r) for r in ("none", "session")]
     candidates += [feature_for("flow", flow_sparsify=mode) for mode in flow.SPARSIFY]
     for f in candidates:
         if f.name == name:

@@ -35,12 +35,14 @@ def downsample(frames: np.ndarray, size: tuple[int, int] = DOWN_SIZE) -> np.ndar
     return np.stack([cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA) for f in frames])
 
 
-def session_difference(frames: np.ndarray, reference: np.ndarray, size: tuple[int, int] = DOWN_SIZE) -> np.ndarray:
+def session_difference(frames: np.ndarray, reference: np.ndarray, size: tuple[int, int] | None = DOWN_SIZE) -> np.ndarray:
     """(T, H, W, 3) uint8 frames minus their session's (R, H, W, 3) no-contact reference, both
-    area-downsampled to `size` first: (T, *size, 3) int16, exact (no wrap-around; 0 is "as without
-    contact"). Several reference frames are averaged and rounded to the nearest grey level."""
-    ref = downsample(reference, size).astype(np.float32).mean(0) if len(reference) > 1 else downsample(reference, size)[0]
-    return downsample(frames, size).astype(np.int16) - np.rint(ref).astype(np.int16)
+    area-downsampled to `size` first (None: at the frames' own size): (T, h, w, 3) int16, exact (no
+    wrap-around; 0 is "as without contact"). Several reference frames are averaged and rounded to
+    the nearest grey level."""
+    shrink = (lambda x: x) if size is None else (lambda x: downsample(x, size))
+    ref = shrink(reference).astype(np.float32).mean(0) if len(reference) > 1 else shrink(reference)[0]
+    return shrink(frames).astype(np.int16) - np.rint(ref).astype(np.int16)
 
 
 def to_rows(frames, length: int | None = None):
