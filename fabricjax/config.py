@@ -38,15 +38,15 @@ LR_SCHEDULES = ("constant", "cosine")
 # The two readings of the paper's flow filter, "filter for the top 0.1 percentile according to
 # magnitude" (fabricjax/features/flow.py): keep the strongest 0.1 % of vectors, or drop them.
 FLOW_SPARSIFY = ("keep_top", "drop_top")
-# What the image encoder's input is measured from (model.FabricNet.standardise): nothing (each colour
-# channel centred on its training mean, as the paper's pipeline reads the frame) or a reference frame,
-# the training split's mean frame per pixel, as Minsight's own force network reads the frame minus a
-# no-contact reference (Andrussow et al., "Minsight: A Fingertip-Sized Vision-Based Tactile Sensor for
-# Robotic Manipulation", Advanced Intelligent Systems, 2023). The reference removes the LEDs' fixed colour
-# field, so the paper's rotation turns the shell's deformation and not the camera's own lighting.
-# "session" reads each frame minus its own session's no-contact reference, which the trial archive
-# carries (format 3, `archive.reference`), as Minsight's software does: the LED drive and the
-# shell's seating move between sessions, and only the session's own reference follows them.
+# What the image encoder's input is measured from (model.FabricNet.standardise). Minsight's own force
+# network reads each frame minus a no-contact reference (Andrussow et al., "Minsight: A Fingertip-Sized
+# Vision-Based Tactile Sensor for Robotic Manipulation", Advanced Intelligent Systems, 2023), which
+# removes the LEDs' fixed colour field, so the paper's rotation turns the shell's deformation and not
+# the camera's own lighting. "session" (the default) is that reading: each frame minus its own
+# session's no-contact reference, which the trial archive carries (format 3, `archive.reference`);
+# the LED drive and the shell's seating move between sessions, and only the session's own reference
+# follows them. "training_mean" subtracts the training split's mean frame per pixel instead, and
+# "none" centres each colour channel on its training mean, as the paper's pipeline reads the frame.
 IMAGE_REFERENCES = ("none", "training_mean", "session")
 # The dtype of the model's matrix-product and convolution inputs (`model.dense`): products
 # accumulate in float32, and parameters, optimiser state, LayerNorms, softmax, the [0, 1] rescale,
