@@ -106,15 +106,32 @@ def load_chosen_rows(
     loads: dict[tuple, loading.Dataset] = {}
     for key in dict.fromkeys(loading.sequence_key(c) for c in configs):
         group = [c for c in configs if loading.sequence_key(c) == key]
+        # another reading of the frames decides only the image's sequences: an earlier load that
+        # differs in nothing else gives the rest, and only what it lacks is loaded
+        base = next((d for k, d in loads.items() if _apart_from_reading(k, key)), None)
+        if base is not None:
+            have = set(next(iter(base.sets.values())).inputs)
+            lacking = [(c, tuple(m for m in c.modalities if m == "image" or m not in have)) for c in group]
+            group = [dataclasses.replace(c, modalities=ms) for c, ms in lacking if ms]
         try:
-            loads[key] = loading.load_for_rows(group, data_dir=where.data_dir, workdir=where.workdir, split_names=split_names)
+            ds = loading.load_for_rows(group, data_dir=where.data_dir, workdir=where.workdir, split_names=split_names) if group else base
         except archive.ArchiveError as e:
             if e.field != "reference" or names:
                 raise
             logging.warning("%s: rows that read frames against their session's reference left out: %s", study, e)
+            continue
+        if base is not None and ds is not base:
+            ds = dataclasses.replace(base, sets={s: dataclasses.replace(x, inputs={**x.inputs, **ds.sets[s].inputs}) for s, x in base.sets.items()})
+        loads[key] = ds
     kept = [(r, c) for r, c in zip(chosen, configs) if loading.sequence_key(c) in loads]
     datasets = [loads[loading.sequence_key(c)] for _, c in kept]
     return [r for r, _ in kept], [c for _, c in kept], datasets, [s for s in split_names if len(datasets[0].sets[s])]
+
+
+def _apart_from_reading(a: tuple, b: tuple) -> bool:
+    """Two `loading.sequence_key`s that differ in `image_reference` alone."""
+    reading = loading.SEQUENCE_FIELDS.index("image_reference")
+    return a != b and a[:reading] + a[reading + 1 :] == b[:reading] + b[reading + 1 :]
 
 
 def _which_rows(names: Sequence[str], n_rows: int) -> str:

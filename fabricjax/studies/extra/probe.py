@@ -97,10 +97,11 @@ def run(
         raise archive.ArchiveError(ds.folder, "label", "the training split holds fewer than two fabrics: nothing to probe")
 
     t0 = time.perf_counter()
-    inputs = {}  # per load (rows that read the frames alike share one), each input's probe features
-    loads = list({id(d): d for d in datasets}.values())  # distinct loads, in row order
-    for d in loads:
-        inputs[id(d)] = prepare_inputs(d.sets, loading.union_modalities([c for c, e in zip(configs, datasets) if e is d]), present)
+    loads = {}  # per load (rows that read the frames alike share one): the load and its first row's config
+    for c, d in zip(configs, datasets):
+        loads.setdefault(id(d), (d, c))
+    inputs = {key: prepare_inputs(d.sets, loading.union_modalities([c for c, e in zip(configs, datasets) if e is d]), present)
+              for key, (d, _) in loads.items()}
     with threadpool_limits(BLAS_THREADS):
         progress = runner.Progress("probe", len(chosen))
         names = ds.sets["train"].names if ds.recorded else {}  # recorded data: its own names for its streams
@@ -114,7 +115,7 @@ def run(
         },
         "splits": present,
         "classes": sorted(np.unique(labels["train"]).tolist()),
-        "inputs": {key: i for d in loads for key, i in _inputs_doc(inputs[id(d)], next(c for c, e in zip(configs, datasets) if e is d), names).items()},
+        "inputs": {name: i for key, (_, c) in loads.items() for name, i in _inputs_doc(inputs[key], c, names).items()},
         "rows": out_rows,
         "samples": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
     }
