@@ -18,8 +18,10 @@ tuned to a classification accuracy. Sources are marked, here and in the modules'
 from __future__ import annotations
 
 import math
+from typing import Mapping
 
 from fabricjax import archive
+from fabricjax.sim import estimates
 
 # --- time base --------------------------------------------------------------------------------
 # [paper] The audio sample rate (48 kHz), the step rate (50 Hz, one step per Minsight frame) and the
@@ -35,7 +37,7 @@ GRASP_FORCE_N = 0.1  # [paper] closing stops when Minsight's force estimate reac
 OPEN_GAP_MM = 14.0  # [hw] fingertip gap of the open pose
 CLOSING_SPEED_MM_S = 20.0  # [hw] relative fingertip closing speed (same for every fabric [paper])
 SHELL_NORMAL_STIFFNESS_N_MM = 0.25  # [phys] two soft silicone shells in series, normal direction
-SHELL_SHEAR_STIFFNESS_N_MM = 0.30  # [phys] shear stiffness of one shell at the contact
+SHELL_SHEAR_STIFFNESS_N_MM = estimates.value("SHELL_SHEAR_STIFFNESS_N_MM")  # [phys] shear stiffness of one shell at the contact
 SETTLE_S = 0.1  # pause between the grasp and the first rubbing stroke
 STOP_S = 0.1  # recording continues briefly after the last stroke
 RUB_AMPLITUDE_MM = 3.0  # [hw] each fingertip moves +-3 mm laterally, the two in opposite phase
@@ -78,9 +80,15 @@ SHELL_SPECTRAL_SLOPE = 2.0
 # a fraction of that reaches the inner wall through ~3 mm of silicone over the contact patch.
 GAMMA_P0_PA = 1.4 * 101_325.0
 CONTACT_AREA_M2 = 20e-6  # ~5 mm x 4 mm contact patch at 0.1 N
-WALL_COUPLING = 0.01  # inner-wall displacement per outer-surface displacement
+WALL_COUPLING = estimates.value("WALL_COUPLING")  # inner-wall displacement per outer-surface displacement
 CAVITY_VOLUME_M3 = 8e-6  # ~8 cm^3 of air inside the shell
-TEXTURE_PA_PER_UM = GAMMA_P0_PA * CONTACT_AREA_M2 * WALL_COUPLING * 1e-6 / CAVITY_VOLUME_M3  # ~3.5e-3
+
+
+def texture_pa_per_um() -> float:
+    """Cavity pressure per micrometre of skin displacement (~3.5e-3 Pa at the registry's coupling)."""
+    return GAMMA_P0_PA * CONTACT_AREA_M2 * WALL_COUPLING * 1e-6 / CAVITY_VOLUME_M3
+
+
 # Shell wall: mass-spring wall mode with viscoelastic losses (silicone damping rises with f).
 SHELL_MODE_HZ = 3000.0
 SHELL_MODE_Q = 1.5
@@ -89,10 +97,10 @@ SHELL_LOSS_HZ = 12000.0  # exp(-f / SHELL_LOSS_HZ) extra viscoelastic loss
 # (amplitude ~ mu * F_n * asperity height), plus one larger release at every stroke reversal
 # (elastic energy 1/2 k delta^2 stored in the stuck shell and stretched cloth).
 SLIPS_PER_MM = 6.0  # at mu = 1
-SLIP_PA = 0.06  # click peak pressure at mu * F_n = 0.05 N and 20 um asperities
+SLIP_PA = estimates.value("SLIP_PA")  # click peak pressure at mu * F_n = 0.05 N and 20 um asperities
 SLIP_REF_FORCE_N = 0.05
 SLIP_REF_ROUGHNESS_UM = 20.0
-RELEASE_PA = 0.15  # reversal release at delta = 0.1 mm, mu * F_n = 0.05 N, 20 um asperities
+RELEASE_PA = estimates.value("RELEASE_PA")  # reversal release at delta = 0.1 mm, mu * F_n = 0.05 N, 20 um asperities
 SLIP_RING_HZ = (900.0, 3500.0)  # contact/skin ring of a slip click
 SLIP_DECAY_S = 0.0003
 SLIP_SPREAD = 0.5  # log-normal sigma of click amplitudes
@@ -159,8 +167,8 @@ FOLD_LINE_MM = (5.0, 15.0)
 # silicone of 1.07-1.1 g/cm^3 (Smooth-On Ecoflex / Dragon Skin technical bulletins) times the
 # Minsight-section shell thickness (`shell.transmission_loss_db`).
 SILICONE_DENSITY_KG_M3 = 1100.0
-SHELL_TL_MIN_DB = 3.0  # leaks around the base and the stiffness-controlled region at low frequency
-SHELL_TL_MAX_DB = 40.0  # flanking through the aluminium skeleton
+SHELL_TL_MIN_DB = estimates.value("SHELL_TL_MIN_DB")  # leaks around the base and the stiffness-controlled region at low frequency
+SHELL_TL_MAX_DB = estimates.value("SHELL_TL_MAX_DB")  # flanking through the aluminium skeleton
 
 # --- servo noise (heard by both microphones, also in class 0) ---------------------------------------
 # [estimates] No published acoustic measurement of the STS3215 or of a comparable serial-bus or
@@ -171,12 +179,12 @@ SHELL_TL_MAX_DB = 40.0  # flanking through the aluminium skeleton
 # order-of-magnitude estimates.
 GEAR_RATIO = 345.0  # [hw] STS3215 datasheet
 GEAR_TEETH = 10  # [estimate] first-stage pinion: mesh frequency = motor rev/s * teeth
-SERVO_TONE_PA = 0.006  # [estimate] gear-mesh tone at 1 rad/s joint speed, as heard inside the shell (~50 dB)
-SERVO_BROADBAND_PA = 0.004  # [estimate] motor/gear broadband noise at 1 rad/s
-SERVO_HOLD_PA = 0.001  # [estimate] holding servos' PWM hum (always present, ~34 dB)
+SERVO_TONE_PA = estimates.value("SERVO_TONE_PA")  # [estimate] gear-mesh tone at 1 rad/s joint speed, as heard inside the shell (~50 dB)
+SERVO_BROADBAND_PA = estimates.value("SERVO_BROADBAND_PA")  # [estimate] motor/gear broadband noise at 1 rad/s
+SERVO_HOLD_PA = estimates.value("SERVO_HOLD_PA")  # [estimate] holding servos' PWM hum (always present, ~34 dB)
 SERVO_LOAD_REF_NM = 0.01  # [estimate] torque at which the gear noise doubles
 SERVO_STRUCTURE_BAND_HZ = (150.0, 6000.0)  # [estimate] structure-borne band into the Minsound cavity
-SERVO_PALM_GAIN_DB = -10.0  # [estimate] airborne at the palm (the servos sit in the palm) vs structure-borne
+SERVO_PALM_GAIN_DB = estimates.value("SERVO_PALM_GAIN_DB")  # [estimate] airborne at the palm (the servos sit in the palm) vs structure-borne
 
 # --- ambient sound: the room, its events and the cafe loudspeaker -----------------------------
 # [paper, Robustness] Sound meter (Sauter SU 130, A-weighted) near the palm microphone: lab 29-31 dB,
@@ -257,17 +265,17 @@ SPEECH_OCTAVE_DB = {125: 57.5, 250: 60.5, 500: 62.0, 1000: 56.0, 2000: 50.0, 400
 # fluctuates about 1 / sqrt(N) as much as one talker's, so it shrinks as the room fills; 0.25 is many
 # talkers (~16 at a single talker's full modulation). Neither the paper's recording's talker count nor
 # a published modulation depth of coffee-shop noise was found.
-BABBLE_MODULATION = 0.25
+BABBLE_MODULATION = estimates.value("BABBLE_MODULATION")
 # [estimates] Clatter of cups, plates and cutlery: rate, ring band, decay and peak level. The one
 # published figure found, dish handling in a home kitchen ("Common Transient Sounds: The Kitchen is a
 # Very Noisy Place", The Hearing Review, January 1995), has instantaneous peaks usually above 80 dB
 # against a sound-meter reading of 70-75 dB(A): peaks at least 5-10 dB above the meter's average, a
 # bound the 12 dB below is consistent with, not a value for a cafe; restaurant surveys report
 # equivalent levels, not clatter events.
-CLATTER_PER_S = 1.5
+CLATTER_PER_S = estimates.value("CLATTER_PER_S")
 CLATTER_RING_HZ = (2000.0, 7000.0)
 CLATTER_DECAY_S = 0.015
-CLATTER_PEAK_DB = 12.0  # clatter peaks above the babble RMS
+CLATTER_PEAK_DB = estimates.value("CLATTER_PEAK_DB")  # clatter peaks above the babble RMS
 # [estimate; the paper does not place the loudspeaker, and no description of its noise playback beyond
 # "while playing audible noise" was found] A loudspeaker on a table 0.5-2 m from the hand,
 # in a direction drawn per cafe day; a small box radiates with directivity Q ~ 2 towards the hand
@@ -322,7 +330,7 @@ FORCE_BIAS_N = 0.004
 FOLD_SPREAD = 0.1
 # [phys] Where the contact centre lands on Minsight's shell: the grasp is force-controlled, not
 # placed, so the patch wanders by about a third of its ~5 mm size between trials (SD, mm).
-CONTACT_OFFSET_MM = 1.5
+CONTACT_OFFSET_MM = estimates.value("CONTACT_OFFSET_MM")
 
 # --- the rig between sessions (`sim.rig`) ---------------------------------------------------------
 # [phys] The lab's climate on a recording day. Building climate control holds 75 +- 2 F, i.e.
@@ -398,12 +406,12 @@ EXPOSURE_LEVEL_DN = 200.0
 # is the diffuse powder, the flake half varies with unit coefficient of variation); a pixel shows the
 # average over the cells in its footprint, so the grain fades with the pixel's area.
 FLAKE_SIZE_MM = 0.075
-FLAKE_CONTRAST = 0.5
+FLAKE_CONTRAST = estimates.value("FLAKE_CONTRAST")
 # [phys] Camera noise: shot noise of a small-pixel CMOS sensor, sigma = sqrt(DN / gain) with
 # gain = full well / 255 electrons per DN (full well ~6000 e-: order of magnitude for 1.4-2 um pixels);
 # the node's bilinear resize to 410x308 blends 4 native pixels (noise x 2/3), and area-averaging a
 # frame to a smaller size divides it by the square root of the pixels averaged.
-CAMERA_FULL_WELL_E = 6000.0
+CAMERA_FULL_WELL_E = estimates.value("CAMERA_FULL_WELL_E")
 RESIZE_NOISE_FACTOR = 2.0 / 3.0  # sqrt(E[sum of squared bilinear weights]) = sqrt((2/3)^2)
 # Contact mechanics. [phys] Hertz (1882): two equal elastic spheres (Minsight and the thumb's shell of
 # the same size, the thin cloth between them) at force F touch over a disc of radius
@@ -434,7 +442,7 @@ FORCE_ACCURACY_N = 0.03
 # patch grows ~15 % per mm of compressible stack), and a bending-stiff stack bridges it like a
 # plate on an elastic foundation, whose load spreads over (B / k)^(1/4) (Hetenyi 1946): the patch
 # widens across the fold as the quarter power of the stack's bending stiffness.
-CONFORM_PER_MM = 0.15
+CONFORM_PER_MM = estimates.value("CONFORM_PER_MM")
 # [phys] Bending stiffness of a layer ~ E h^3 / 12, and its in-plane stiffness ~ E h, so relative
 # to a reference layer B scales as stretch_stiffness * thickness^2 (reference: 5 N/mm, 0.5 mm, a
 # shirting cotton).
@@ -465,9 +473,8 @@ LED_FORWARD_V = (2.0, 3.0, 3.0)
 # * the seating of the shell on the base after remounting: [phys] SLA-printed mating parts (the
 #   camera holder and base are Form 3 prints [minsight]) fit to ~0.1 mm (Formlabs' tolerance guide),
 #   so the shell sits up to ~0.05 mm higher or lower (SD) and turns about its axis by that much over
-#   its 10 mm radius.
-SEATING_AXIAL_SD_MM = 0.05
-SEATING_ROTATION_SD_RAD = SEATING_AXIAL_SD_MM / SKELETON_RADIUS_MM
+#   its 10 mm radius (`minsight`: the rotation's SD is the axial SD over `SKELETON_RADIUS_MM`).
+SEATING_AXIAL_SD_MM = estimates.value("SEATING_AXIAL_SD_MM")
 # * the reference (no-contact) frame is taken anew each day [minsight, camera.py: one frame after
 #   the warm-up], so it carries that day's LEDs and seating.
 # Frames smaller than 308x410 are rendered at RENDER_SUPERSAMPLE times their size (at most the full
@@ -477,3 +484,12 @@ OPEN_POSE_RAD = (0.30, 0.20, 0.10, 0.00, 0.20, 0.50)  # [hw] joint angles of the
 CLOSING_SHARE = (0.0, 0.6, 0.4, 0.0, 1.0, 0.0)  # how each finger's closing travel splits over joints
 SERVO_STIFFNESS_NM_RAD = 4.0  # [hw] position-loop stiffness: loaded joints lag their command
 READ_LATENCY_S = 0.002  # joints are read just before the frame is captured
+
+
+def apply(overrides: Mapping[str, float]) -> None:
+    """Set every estimate (`estimates.ESTIMATES`) to its registry value, or to `overrides`' where
+    given (each within its declared range). Constants derived from estimates are functions here,
+    so they follow. The sensitivity study and the calibration simulate scenes that carry
+    overrides (`Scene.estimates`); `trial.simulate` applies them."""
+    values = {n: e.value for n, e in estimates.ESTIMATES.items()}
+    globals().update({**values, **estimates.check(overrides)})

@@ -24,7 +24,7 @@ import numpy as np
 
 from fabricjax import archive, catalog
 from fabricjax.sim import calibration as cal
-from fabricjax.sim import rig
+from fabricjax.sim import estimates, rig
 
 EFFECTS = ("texture", "stick_slip", "shell", "air_path", "servo_noise", "ambient", "sph0645", "proprioception", "climate", "wear")
 """Optional physics. The finger motion (the procedure itself) always runs."""
@@ -49,6 +49,9 @@ class Scene:
     cycles: int = 50
     seed: int = 0
     history: int = 0  # trials this fabric's cloth went through before this one (its wear)
+    # estimates set away from the registry's values (`sim.estimates`), sorted (name, value) pairs:
+    # the sensitivity study's and the calibration's points; () is the simulator as published
+    estimates: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self):
         catalog.fabric(self.fabric_id)
@@ -65,6 +68,9 @@ class Scene:
             raise ValueError(f"streams {missing} are required by the archive format (audio, joints, force)")
         if self.history < 0:
             raise ValueError(f"history counts earlier trials: need >= 0, got {self.history}")
+        checked = estimates.check(dict(self.estimates))
+        if tuple(sorted(checked.items())) != tuple(self.estimates):
+            raise ValueError(f"estimates must be sorted (name, value) pairs, each name once, got {self.estimates}")
         if self.cycles < 1 or min(self.image_size) < 8:
             raise ValueError(f"need cycles >= 1 and images of at least 8x8, got {self.cycles}, {self.image_size}")
 
@@ -78,6 +84,9 @@ class Scene:
 
     def to_json(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
+        d["estimates"] = dict(self.estimates)
+        if not d["estimates"]:
+            del d["estimates"]  # the published simulator: its archives' scenes name no estimates
         return {**{k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}, "simulator_version": SIMULATOR_VERSION}
 
     def rng(self, name: str, scope: str) -> np.random.Generator:

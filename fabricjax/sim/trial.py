@@ -109,8 +109,29 @@ def procedure(scene: Scene) -> Procedure:
     return Procedure(nz, mot, t, window_end, acoustics.Grid.for_samples(int(window_end[-1])))
 
 
+_MODULES = (acoustics, air_path, ambient, minsight, motion, proprio, servo, shell, sph0645, stick_slip, texture)
+_applied: tuple[tuple[str, float], ...] = ()  # the estimates `calibration` holds now (`Scene.estimates`)
+
+
+def use_estimates(estimates: tuple[tuple[str, float], ...]) -> None:
+    """Set `calibration`'s estimates to the registry's values overridden by `estimates`, and drop
+    every cached result computed from the previous ones (only when they change: a process
+    simulates many scenes of one point)."""
+    global _applied
+    if estimates == _applied:
+        return
+    cal.apply(dict(estimates))
+    for module in _MODULES:
+        for v in vars(module).values():
+            if hasattr(v, "cache_clear"):
+                v.cache_clear()
+    _applied = estimates
+
+
 def simulate(scene: Scene) -> archive.TrialArchive:
-    """The trial archive of `scene` (validated; `images` is None unless "images" is streamed)."""
+    """The trial archive of `scene` (validated; `images` is None unless "images" is streamed),
+    with the scene's estimates (`Scene.estimates`) in force."""
+    use_estimates(scene.estimates)
     fab = scene.fabric
     proc = procedure(scene)
     nz, mot, t, window_end = proc.nuisance, proc.motion, proc.frame_times, proc.window_end
