@@ -18,7 +18,6 @@ tuned to a classification accuracy. Sources are marked, here and in the modules'
 from __future__ import annotations
 
 import math
-from typing import Mapping
 
 from fabricjax import archive
 from fabricjax.sim import estimates
@@ -82,13 +81,7 @@ GAMMA_P0_PA = 1.4 * 101_325.0
 CONTACT_AREA_M2 = 20e-6  # ~5 mm x 4 mm contact patch at 0.1 N
 WALL_COUPLING = estimates.value("WALL_COUPLING")  # inner-wall displacement per outer-surface displacement
 CAVITY_VOLUME_M3 = 8e-6  # ~8 cm^3 of air inside the shell
-
-
-def texture_pa_per_um() -> float:
-    """Cavity pressure per micrometre of skin displacement (~3.5e-3 Pa at the registry's coupling)."""
-    return GAMMA_P0_PA * CONTACT_AREA_M2 * WALL_COUPLING * 1e-6 / CAVITY_VOLUME_M3
-
-
+TEXTURE_PA_PER_UM = GAMMA_P0_PA * CONTACT_AREA_M2 * WALL_COUPLING * 1e-6 / CAVITY_VOLUME_M3  # ~3.5e-3
 # Shell wall: mass-spring wall mode with viscoelastic losses (silicone damping rises with f).
 SHELL_MODE_HZ = 3000.0
 SHELL_MODE_Q = 1.5
@@ -473,8 +466,9 @@ LED_FORWARD_V = (2.0, 3.0, 3.0)
 # * the seating of the shell on the base after remounting: [phys] SLA-printed mating parts (the
 #   camera holder and base are Form 3 prints [minsight]) fit to ~0.1 mm (Formlabs' tolerance guide),
 #   so the shell sits up to ~0.05 mm higher or lower (SD) and turns about its axis by that much over
-#   its 10 mm radius (`minsight`: the rotation's SD is the axial SD over `SKELETON_RADIUS_MM`).
+#   its 10 mm radius.
 SEATING_AXIAL_SD_MM = estimates.value("SEATING_AXIAL_SD_MM")
+SEATING_ROTATION_SD_RAD = SEATING_AXIAL_SD_MM / SKELETON_RADIUS_MM
 # * the reference (no-contact) frame is taken anew each day [minsight, camera.py: one frame after
 #   the warm-up], so it carries that day's LEDs and seating.
 # Frames smaller than 308x410 are rendered at RENDER_SUPERSAMPLE times their size (at most the full
@@ -485,11 +479,3 @@ CLOSING_SHARE = (0.0, 0.6, 0.4, 0.0, 1.0, 0.0)  # how each finger's closing trav
 SERVO_STIFFNESS_NM_RAD = 4.0  # [hw] position-loop stiffness: loaded joints lag their command
 READ_LATENCY_S = 0.002  # joints are read just before the frame is captured
 
-
-def apply(overrides: Mapping[str, float]) -> None:
-    """Set every estimate (`estimates.ESTIMATES`) to its registry value, or to `overrides`' where
-    given (each within its declared range). Constants derived from estimates are functions here,
-    so they follow. The sensitivity study and the calibration simulate scenes that carry
-    overrides (`Scene.estimates`); `trial.simulate` applies them."""
-    values = {n: e.value for n, e in estimates.ESTIMATES.items()}
-    globals().update({**values, **estimates.check(overrides)})

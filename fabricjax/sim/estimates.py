@@ -137,9 +137,21 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
 GROUPS: tuple[str, ...] = tuple(dict.fromkeys(e.group for e in ESTIMATES.values()))
 
 
+_overrides: dict[str, float] = {}  # set by `override`: the values in force instead of the registry's
+
+
 def value(name: str) -> float:
-    """The simulator's value of estimate `name`."""
-    return ESTIMATES[name].value
+    """The value of estimate `name` in force: the registry's, unless `override` set another."""
+    return _overrides.get(name, ESTIMATES[name].value)
+
+
+def override(values: Mapping[str, float]) -> None:
+    """Put `values` (estimate name -> value, each within its range) in force instead of the
+    registry's, and every other estimate back to the registry's value. Modules read estimates
+    when they are executed: `trial.use_estimates` executes `calibration` again after this."""
+    checked = check(values)
+    _overrides.clear()
+    _overrides.update(checked)
 
 
 def check(overrides: Mapping[str, float]) -> dict[str, float]:

@@ -69,7 +69,7 @@ def day_state(scene: Scene) -> CameraDay:
     return CameraDay(
         led_gain=tuple(float(g) for g in gain),
         seat_axial_mm=float(rng.normal(0.0, cal.SEATING_AXIAL_SD_MM)),
-        seat_rotation_rad=float(rng.normal(0.0, cal.SEATING_AXIAL_SD_MM / cal.SKELETON_RADIUS_MM)),
+        seat_rotation_rad=float(rng.normal(0.0, cal.SEATING_ROTATION_SD_RAD)),
     )
 
 

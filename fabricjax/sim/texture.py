@@ -88,4 +88,4 @@ def vibration(
     creep = np.cumsum(rng.normal(0.0, cal.CLOTH_CREEP_MM_PER_CYCLE / np.sqrt(2), steps))
     creep = np.interp(np.linspace(0, steps - 1, len(slide_mm)), np.arange(steps), creep)
     h = sample_profile(profile, grasp_mm + slide_mm + creep)
-    return cal.texture_pa_per_um() * (normal_n / cal.GRASP_FORCE_N) * (h - h[0])
+    return cal.TEXTURE_PA_PER_UM * (normal_n / cal.GRASP_FORCE_N) * (h - h[0])

@@ -10,11 +10,12 @@ generator (`Scene.rng`), so switching one effect off leaves the others' draws un
 from __future__ import annotations
 
 import dataclasses
+import importlib
 
 import numpy as np
 
 from fabricjax import archive
-from fabricjax.sim import acoustics, air_path, ambient, minsight, motion, proprio, servo, shell, sph0645, stick_slip, texture
+from fabricjax.sim import acoustics, air_path, ambient, estimates, minsight, motion, proprio, servo, shell, sph0645, stick_slip, texture
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import Nuisance, Scene, nuisance
 
@@ -113,19 +114,20 @@ _MODULES = (acoustics, air_path, ambient, minsight, motion, proprio, servo, shel
 _applied: tuple[tuple[str, float], ...] = ()  # the estimates `calibration` holds now (`Scene.estimates`)
 
 
-def use_estimates(estimates: tuple[tuple[str, float], ...]) -> None:
-    """Set `calibration`'s estimates to the registry's values overridden by `estimates`, and drop
-    every cached result computed from the previous ones (only when they change: a process
-    simulates many scenes of one point)."""
+def use_estimates(values: tuple[tuple[str, float], ...]) -> None:
+    """Set `calibration`'s estimates to the registry's values overridden by `values` (its
+    constants, derived ones included, are computed again), and drop every cached result computed
+    from the previous ones; only when they change: a process simulates many scenes of one point."""
     global _applied
-    if estimates == _applied:
+    if values == _applied:
         return
-    cal.apply(dict(estimates))
+    estimates.override(dict(values))
+    importlib.reload(cal)
     for module in _MODULES:
         for v in vars(module).values():
             if hasattr(v, "cache_clear"):
                 v.cache_clear()
-    _applied = estimates
+    _applied = values
 
 
 def simulate(scene: Scene) -> archive.TrialArchive:
