@@ -18,6 +18,7 @@ from tqdm import tqdm
 from fabricjax import archive, dataset_index, parallel, presets, splits, workspace
 from fabricjax.errors import UserError
 from fabricjax.sim import calibration as cal
+from fabricjax.sim import estimates
 from fabricjax.sim.scene import EFFECTS, Scene
 from fabricjax.sim.trial import simulate
 
@@ -40,6 +41,7 @@ def scene_for(spec: splits.TrialSpec, dataset: splits.DatasetSpec, streams: Iter
         cycles=dataset.cycles_per_trial,
         seed=seed,
         history=history(spec, dataset),
+        estimates=estimates.in_force(),
     )
 
 

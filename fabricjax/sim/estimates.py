@@ -78,7 +78,11 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "SHELL_TL_MAX_DB", 40.0, 6.0, 40.0,
         "flanking through the rigid skeleton and the seam at the base caps any wall's loss; 40 dB is a sealed enclosure's, 6 dB an open seam's",
-        "how much room sound Minsound hears above ~300 Hz: the cafe's cost to Minsound", "shell airborne", _AUDIO),
+        "how much room sound Minsound hears above ~300 Hz: the cafe's cost to Minsound", "shell airborne", _AUDIO,
+        calibrated=Calibrated(
+            "Minsound's drop from the lab test day (95.06 %) to the cafe (67.51 %)", 95.06 - 67.51,
+            "Table ablation (Minsound alone, 95.06 %) and Table new_noise_results (Minsound, cafe, 67.51 %)",
+            "the noise study's Minsound row: lab test minus cafe accuracy, mean of its 10 seeds, default preset")),
     # --- servo noise ----------------------------------------------------------------------------
     Estimate(
         "SERVO_TONE_PA", 0.006, 0.0015, 0.024, "micro-servo gear mesh heard through a skeleton: tens of dB, unmeasured for the STS3215",
@@ -143,6 +147,11 @@ _overrides: dict[str, float] = {}  # set by `override`: the values in force inst
 def value(name: str) -> float:
     """The value of estimate `name` in force: the registry's, unless `override` set another."""
     return _overrides.get(name, ESTIMATES[name].value)
+
+
+def in_force() -> tuple[tuple[str, float], ...]:
+    """The overrides in force (`override`), as `Scene.estimates` carries them: sorted pairs."""
+    return tuple(sorted(_overrides.items()))
 
 
 def override(values: Mapping[str, float]) -> None:
