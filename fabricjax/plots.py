@@ -276,3 +276,24 @@ def plot_decide(path, models: Sequence[Mapping]) -> Path:
             roc.set_title("unknown fabrics: none in the data")
         roc.set(xlabel="known sequences flagged", ylabel="unknown sequences flagged", xlim=(0, 1), ylim=(0, 1.02))
     return _save(fig, path)
+
+
+def ranked_bars(path, factors: Sequence[str], panels: Sequence[tuple[str, Mapping[str, Sequence[float]]]], title: str) -> Path:
+    """One panel per response: its factors' mu* as horizontal bars, largest on top, with the
+    bootstrap interval as an error bar (`panels`: (response, SALib's Morris result))."""
+    cols = 3
+    rows = -(-len(panels) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 0.32 * len(factors) * rows + 1.2 * rows), layout="constrained", squeeze=False)
+    for ax, (name, result) in zip(axes.flat, panels):
+        mu, conf = np.asarray(result["mu_star"]), np.asarray(result["mu_star_conf"])
+        order = np.argsort(mu)
+        ax.barh(range(len(factors)), mu[order], xerr=conf[order], color="tab:blue", alpha=0.7, error_kw={"lw": 0.8})
+        ax.set_yticks(range(len(factors)), [factors[i] for i in order], fontsize=7)
+        ax.set_title(name, fontsize=8)
+        ax.set_xlim(0, max(1.0, float((mu + conf).max()) * 1.05))
+        ax.tick_params(axis="x", labelsize=7)
+        ax.grid(alpha=0.3, axis="x")
+    for ax in list(axes.flat)[len(panels):]:
+        ax.axis("off")
+    fig.suptitle(title, fontsize=10)
+    return _save(fig, path)

@@ -30,6 +30,9 @@ Python or from the command line (`--set field=value`).
              preset): the paper's per-sequence rotation is a gather whose cost grows with the frame.
     paper    the paper's scale and model: 6 trials per day, 50 cycles (~30 s, ~1500 steps), N=200,
              Minsight at 308x410 (flow 102x137), `Config`'s defaults: a GPU job.
+    sensitivity  the default preset's fabrics, frames and sequences on fewer, shorter trials (3 per
+             training day, 2 test and 2 cafe trials, 10 rubbing cycles: ~6 s): the data the
+             sensitivity study simulates anew at every point, in about a minute on 2 cores.
 """
 
 from __future__ import annotations
@@ -64,6 +67,11 @@ INSTALL_CHECK_NOTE = (
 _ALL_FABRICS = tuple(f.id for f in catalog.FABRICS)
 _PAPER_DATA = dict(fabrics=_ALL_FABRICS, train_trials_per_day=6, test_trials=2, cafe_trials=2, cycles_per_trial=50)
 
+_DEFAULT_TRAINING = MappingProxyType(dict(
+    seq_len=50, width=64, n_heads=4, n_layers=2, ffn=64, audio_hidden=(64, 32), proprio_hidden=(32, 32),
+    cnn_features=(4, 8), epochs=2, batch_size=16, learning_rate=2e-3, lr_schedule="cosine", image_size=(30, 40),
+))
+
 PRESETS: Mapping[str, Preset] = MappingProxyType({
     p.name: p
     for p in (
@@ -82,12 +90,14 @@ PRESETS: Mapping[str, Preset] = MappingProxyType({
         Preset(
             name="default",
             dataset=DatasetSpec(**_PAPER_DATA, image_size=(60, 80)),
-            training=MappingProxyType(dict(
-                seq_len=50, width=64, n_heads=4, n_layers=2, ffn=64, audio_hidden=(64, 32), proprio_hidden=(32, 32),
-                cnn_features=(4, 8), epochs=2, batch_size=16, learning_rate=2e-3, lr_schedule="cosine", image_size=(30, 40),
-            )),
+            training=_DEFAULT_TRAINING,
         ),
         Preset(name="paper", dataset=DatasetSpec(**_PAPER_DATA, image_size=archive.MINSIGHT_SIZE)),
+        Preset(
+            name="sensitivity",
+            dataset=DatasetSpec(**{**_PAPER_DATA, "train_trials_per_day": 3, "cycles_per_trial": 10}, image_size=(60, 80)),
+            training=_DEFAULT_TRAINING,
+        ),
     )
 })
 

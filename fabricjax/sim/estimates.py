@@ -31,6 +31,7 @@ class Calibrated:
     paper_value: float
     where: str  # where the paper gives it
     fitted_on: str  # which of our numbers is matched to it
+    study: str  # the study whose table holds that number (its other numbers are predictions)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -57,8 +58,10 @@ class Estimate:
     def at(self, u: float) -> float:
         """The value at relative place `u` in [0, 1] of the range (log-spaced for a `log` range)."""
         if self.log:
-            return float(math.exp(math.log(self.low) + u * (math.log(self.high) - math.log(self.low))))
-        return float(self.low + u * (self.high - self.low))
+            v = math.exp(math.log(self.low) + u * (math.log(self.high) - math.log(self.low)))
+        else:
+            v = self.low + u * (self.high - self.low)
+        return float(min(max(v, self.low), self.high))  # rounding must not leave the range
 
     def place(self) -> float:
         """Where `value` sits in the range, in [0, 1] (the inverse of `at`)."""
@@ -76,13 +79,13 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
         "a sealed soft wall cannot block below its stiffness-controlled region; leaks at the base pass what the mass law would stop",
         "the room sound Minsound hears at low frequency (lab floor, cafe babble)", "shell airborne", _AUDIO),
     Estimate(
-        "SHELL_TL_MAX_DB", 40.0, 6.0, 40.0,
+        "SHELL_TL_MAX_DB", 6.0, 6.0, 40.0,
         "flanking through the rigid skeleton and the seam at the base caps any wall's loss; 40 dB is a sealed enclosure's, 6 dB an open seam's",
         "how much room sound Minsound hears above ~300 Hz: the cafe's cost to Minsound", "shell airborne", _AUDIO,
         calibrated=Calibrated(
             "Minsound's drop from the lab test day (95.06 %) to the cafe (67.51 %)", 95.06 - 67.51,
             "Table ablation (Minsound alone, 95.06 %) and Table new_noise_results (Minsound, cafe, 67.51 %)",
-            "the noise study's Minsound row: lab test minus cafe accuracy, mean of its 10 seeds, default preset")),
+            "the noise study's Minsound row: lab test minus cafe accuracy, mean of its 10 seeds, default preset", "noise")),
     # --- servo noise ----------------------------------------------------------------------------
     Estimate(
         "SERVO_TONE_PA", 0.006, 0.0015, 0.024, "micro-servo gear mesh heard through a skeleton: tens of dB, unmeasured for the STS3215",
@@ -161,6 +164,12 @@ def override(values: Mapping[str, float]) -> None:
     checked = check(values)
     _overrides.clear()
     _overrides.update(checked)
+
+
+def calibrated_in(study: str) -> list[dict]:
+    """The calibrations matched to a number of `study`'s table, as its results record them."""
+    return [{"estimate": e.name, "value": e.value, "measurement": e.calibrated.measurement, "fitted_on": e.calibrated.fitted_on}
+            for e in ESTIMATES.values() if e.calibrated is not None and e.calibrated.study == study]
 
 
 def check(overrides: Mapping[str, float]) -> dict[str, float]:

@@ -17,6 +17,8 @@ that day's drift (the nuisance the paper's day-based splits are meant to expose)
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 import zlib
 from typing import Any
 
@@ -33,8 +35,19 @@ REQUIRED_STREAMS = ("audio", "proprio")  # the archive format requires audio, jo
 SCOPES = ("hardware", "fabric", "day", "trial")
 # The simulator's version, part of every simulated archive's scene (`Scene.to_json`): a dataset
 # written by another version is simulated again (`dataset.is_done`). Raised with every change of
-# what a scene simulates.
+# how a scene is simulated; a change of a magnitude changes `MAGNITUDES` instead.
 SIMULATOR_VERSION = 2
+
+
+def _magnitudes() -> str:
+    """A short hash of every constant of `calibration` (its estimates at their registry values):
+    part of every simulated scene, so data simulated with other magnitudes is simulated again."""
+    values = {k: v for k, v in sorted(vars(cal).items()) if k.isupper()}
+    return hashlib.sha256(json.dumps(values, default=repr).encode()).hexdigest()[:12]
+
+
+# Taken when this module is imported, before any scene's estimates are put in force (`trial.use_estimates`).
+MAGNITUDES = _magnitudes()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,7 +100,10 @@ class Scene:
         d["estimates"] = dict(self.estimates)
         if not d["estimates"]:
             del d["estimates"]  # the published simulator: its archives' scenes name no estimates
-        return {**{k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}, "simulator_version": SIMULATOR_VERSION}
+        return {
+            **{k: list(v) if isinstance(v, tuple) else v for k, v in d.items()},
+            "simulator_version": SIMULATOR_VERSION, "magnitudes": MAGNITUDES,
+        }
 
     def rng(self, name: str, scope: str) -> np.random.Generator:
         """The generator of draw `name` at `scope` (see the module docstring)."""

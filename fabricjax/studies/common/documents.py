@@ -173,6 +173,20 @@ def write(results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str
     return doc
 
 
+def replace_block(path: Path, begin: str, end: str, block: str) -> bool:
+    """Replace the lines from `begin` to `end` in the file `path` with `block` (which carries both
+    markers again); False (nothing written) when the file does not exist or lacks the markers."""
+    try:
+        text = Path(path).read_text()
+    except OSError:
+        return False
+    start, stop = text.find(begin), text.find(end)
+    if start < 0 or stop < start:
+        return False
+    write_text(path, text[:start] + block + text[stop + len(end):])
+    return True
+
+
 def data_time_markdown(d: dict[str, Any]) -> str:
     """The data's share of a study's time (`dataset_doc`): recorded data is read, never simulated."""
     load = f"features and sequences {d['load_s']:.0f} s" + (f", camera inputs laid out for training {d['layout_s']:.1f} s" if d.get("layout_s") else "")

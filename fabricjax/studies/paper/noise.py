@@ -21,6 +21,7 @@ import numpy as np
 
 from fabricjax import data, plots, stats
 from fabricjax.errors import UserError
+from fabricjax.sim import estimates
 from fabricjax.studies.common import documents, findings, loading, runner
 from fabricjax.studies.common.runner import StudyRow
 
@@ -66,7 +67,8 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
         })
         previous = row
     figure = plot(results / "noise.png", out_rows, trained.dataset.sets[SPLIT].names if recorded else None)
-    return {"rows": out_rows, "cafe_samples": documents.samples_doc(trained.dataset.sets[SPLIT])}, [figure]
+    calibrated = [] if recorded else estimates.calibrated_in("noise")
+    return {"rows": out_rows, "cafe_samples": documents.samples_doc(trained.dataset.sets[SPLIT]), "calibrated": calibrated}, [figure]
 
 
 def _has_cafe_trials(ds: loading.Dataset) -> None:
@@ -143,6 +145,9 @@ def markdown(doc: dict[str, Any]) -> str:
             lines.append(f"- {display_name(r['name'], names)} vs {display_name(r['against'], names)}: {w['describe']}")
     caveat = "per-sequence test treats sequences of one trial and of different seeds as independent, which they are not: read it as descriptive."
     lines += ["", f"The {caveat}" if recorded else f"The per-seed test is the one comparable to the paper's; the {caveat}", ""]
+    for c in doc.get("calibrated", []):
+        lines += [f"**Calibrated, not a finding**: {c['fitted_on']} is matched to {c['measurement']} by the simulator's estimate "
+                  f"`{c['estimate']}` = {c['value']:g} ([calibration.md](calibration.md)). Every other number of this table is a prediction.", ""]
     lines += findings.claims_markdown(doc)
     lines += ["Lab and cafe accuracy per row, every seed: `noise.png`.", ""]
     return "\n".join(lines)

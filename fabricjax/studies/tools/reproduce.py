@@ -51,7 +51,7 @@ from fabricjax import archive, dataset_index, presets, source, splits, stats, wo
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, findings
-from fabricjax.studies.extra import day_shift, decide, probe
+from fabricjax.studies.extra import day_shift, decide, probe, sensitivity
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
 from fabricjax.workspace import Location
 
@@ -372,7 +372,10 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
         "## Summary",
         "",
         documents.markdown_table(["Study", "Seeds", *([] if recorded else ["Paper's claims reproduced"]), "Wall time", "Finished"], summary),
+        "",
     ]
+    if not recorded:
+        lines += ["## What the simulator's estimates decide", "", sensitivity.report_block(out), ""]
     for study in studies:
         e = manifest[study]
         md = out / f"{study}.md"
@@ -456,12 +459,4 @@ def readme_block(head: Mapping[str, Any], results: str = "results") -> str:
 def write_readme_block(readme: Path, block: str) -> bool:
     """Replace the results block of `readme` with `block`; False (nothing written) when the file
     does not exist or has no block: only a README that asks for one is ever written."""
-    try:
-        text = readme.read_text()
-    except OSError:
-        return False
-    begin, end = text.find(README_BEGIN), text.find(README_END)
-    if begin < 0 or end < begin:
-        return False
-    documents.write_text(readme, text[:begin] + block + text[end + len(README_END):])
-    return True
+    return documents.replace_block(readme, README_BEGIN, README_END, block)
