@@ -425,6 +425,11 @@ CONTACT_SUPPORT_MM = SHELL_OUTER_RADIUS_MM
 # [paper] The grasp lands on the finger pad; the contact centre sits on the side wall where it meets
 # the cap (axial position below, mm from the camera), wandering by CONTACT_OFFSET_MM between trials.
 CONTACT_AXIAL_MM = SHELL_CYLINDER_MM
+# [estimate] The fingers close on arcs about their joints: a stack thicker by t stops each finger t / 2
+# earlier, which turns the contact along the shell by about R t / (2 L) (R the shell's 11.8 mm radius,
+# L the 30-60 mm from the joint to the contact), towards the tip. Left out of the published simulator
+# (0, the range's low end); the sensitivity study measures what it would change in the frames.
+CONTACT_SHIFT_PER_STACK_MM = estimates.value("CONTACT_SHIFT_PER_STACK_MM")
 # [minsight, insight] Force accuracy: mean absolute force error 0.07 N (Minsight, over its surface),
 # force magnitude accuracy ~0.03 N over 0.03-2 N (Insight); the image test checks that a step of
 # this size is far above the camera noise for an ideal observer.

@@ -139,6 +139,11 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "CONFORM_PER_MM", 0.15, 0.05, 0.4, "a compressible stack spreads the load over a larger patch: tens of per cent per mm",
         "how the patch's size follows the fabric's thickness", "contact on Minsight", _IMAGES),
+    # --- effects the published simulator leaves out (value 0), bounded by physics ------------------
+    Estimate(
+        "CONTACT_SHIFT_PER_STACK_MM", 0.0, 0.0, 0.2,
+        "closing on arcs, a stack thicker by t turns the contact along the shell by R t / 2L: 0.1-0.2 mm per mm for L 60-30 mm; 0 leaves it out",
+        "where the contact lands in the frame with the fabric's thickness (up to ~1 mm, a few pixels at 60x80)", "camera effects left out", _IMAGES),
 )})
 
 GROUPS: tuple[str, ...] = tuple(dict.fromkeys(e.group for e in ESTIMATES.values()))
