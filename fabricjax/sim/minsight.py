@@ -46,7 +46,7 @@ FULL_SIZE = archive.MINSIGHT_SIZE
 R_IN = cal.SKELETON_RADIUS_MM
 CAP_ARC_MM = np.pi / 2 * R_IN  # meridian arc from the apex to the cylinder
 CIRCUMFERENCE_MM = 2 * np.pi * R_IN
-CHUNK = 32  # frames processed together: vectorised, with temporaries that stay in cache
+CHUNK = 32  # [numerics] frames processed together: vectorised, with temporaries that stay in cache
 
 
 @dataclasses.dataclass(frozen=True)
