@@ -8,8 +8,10 @@
 Only what a scene calls for is computed: an effect missing from `scene.effects` is never
 evaluated, and images are rendered only when "images" is in `scene.streams`. Each module's
 docstring states what it models and where that comes from; every constant lives in
-`fabricjax.sim.calibration` with its source tag ([paper], [ds], [phys], [hw], [FACTS], listed
-there). The time base and word format shared with recorded trials are `fabricjax.archive`'s.
+`fabricjax.sim.calibration` with its source tag ([paper], [ds], [minsight], [insight], [FACTS],
+[cited], [law], [numerics], listed there) or as an estimate declared with its range in
+`fabricjax.sim.estimates`. The time base and word format shared with recorded trials are
+`fabricjax.archive`'s.
 """
 
 from fabricjax.sim.dataset import ensure_dataset, scene_for

@@ -17,7 +17,7 @@ import scipy.fft
 from fabricjax import archive
 from fabricjax.sim import calibration as cal
 
-P_REF = 20e-6
+P_REF = 20e-6  # [cited] the reference sound pressure of SPL, 20 uPa (IEC 61672, ISO 1683)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -33,7 +33,7 @@ def delay(f: np.ndarray, r_m: float) -> np.ndarray:
 def fingertip_radiation(f: np.ndarray, r_m: float) -> np.ndarray:
     """Pressure at `r_m` per cavity pressure of a fingertip radiating as a pulsating sphere, without the delay.
 
-    [phys] The shell's outer volume changes by the cavity's dV = p V / (gamma P0); a sphere of radius a
+    [cited] The shell's outer volume changes by the cavity's dV = p V / (gamma P0); a sphere of radius a
     (half the shell's width) with that volume displacement radiates p(r) = -rho w^2 dV / (4 pi r (1 + j k a))
     (Kinsler et al., pulsating sphere); with rho c^2 = gamma P0: p / p_cavity = -k^2 V / (4 pi r (1 + j k a)).
     """
@@ -45,7 +45,7 @@ def fingertip_radiation(f: np.ndarray, r_m: float) -> np.ndarray:
 def cloth_radiation(f: np.ndarray, r_m: float, cos_theta: float) -> np.ndarray:
     """Pressure at `r_m` per cavity-equivalent contact pressure of the cloth's dipole, without the delay.
 
-    [phys] Only the contact's area-mean motion radiates: relief far shorter than the patch averages out,
+    [estimate] Only the contact's area-mean motion radiates: relief far shorter than the patch averages out,
     and its mean is what changes the cavity's volume, dV = p V / (gamma P0) over the patch area. The sheet
     moves by `CLOTH_DISPLACEMENT_SHARE` of the skins' mean displacement dV / A; an unbaffled disc of
     radius a moving by xi radiates p = -j rho c^2 k^3 (2 a^3 / (3 pi)) xi cos(theta) / r (Lamb's added

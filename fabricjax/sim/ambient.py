@@ -30,7 +30,7 @@ from fabricjax.sim import acoustics, air_path
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import Scene
 
-ROOM_RESPONSE_LEN = 2**16  # samples of the drawn room responses (1.37 s: the 0.6 s T60 decay reaches -137 dB)
+ROOM_RESPONSE_LEN = 2**16  # [numerics] samples of the drawn room responses (1.37 s: the 0.6 s T60 decay reaches -137 dB)
 
 
 def octave_shape(f: np.ndarray, octave_db: dict[float, float]) -> np.ndarray:

@@ -1,18 +1,33 @@
 """Every physical constant of the scene simulator, in one place, with where it comes from.
 
 Calibration is by physical parameters only: levels, SNRs and bands from the paper and the
-SPH0645 datasheet, geometry and material constants as textbook-order estimates. Nothing here was
-tuned to a classification accuracy. Sources are marked, here and in the modules' docstrings
-("[paper, Section]" names where, "[paper: ...]" what it says):
+SPH0645 datasheet, physical laws, cited material and geometry constants, and declared estimates.
+Nothing here was tuned to a classification accuracy. Every number has one of three origins:
 
-    [paper]  stated in the paper (arxiv_main.tex, Method / Experiments)
-    [ds]     SPH0645LM4H datasheet (Knowles): -26 dBFS at 94 dB SPL, 65 dB(A) SNR, AOP 120 dB SPL,
-             18 valid bits of a 24-bit word in a 32-bit I2S slot, usable band 50 Hz-15 kHz
-    [phys]   a physical law or a material/geometry estimate (order of magnitude, stated)
-    [hw]     STS3215 servo / robot-hand estimates (resolution of the registers, lever lengths)
-    [FACTS]  an established property of the phenomenon from outside the paper and the datasheet
-             (texture vibration f = v / lambda, babble spectra, MEMS DC offset, magnetic encoders),
-             stated where it is used
+* a published source, tagged in the comment on its line or in the comment block directly above
+  it ("[paper, Section]" names where, "[paper: ...]" what it says):
+
+    [paper]     stated in the paper (arxiv_main.tex, Method / Experiments)
+    [ds]        SPH0645LM4H datasheet (Knowles): -26 dBFS at 94 dB SPL, 65 dB(A) SNR, AOP 120 dB
+                SPL, 18 valid bits of a 24-bit word in a 32-bit I2S slot, usable band 50 Hz-15 kHz
+    [minsight]  Minsight's publication and open design files (see "Minsight images")
+    [insight]   Insight's publication, Minsight's parent design (see "Minsight images")
+    [FACTS]     an established property of the phenomenon from outside the paper and the
+                datasheet (texture vibration f = v / lambda, babble spectra, magnetic encoders),
+                stated where it is used
+    [cited]     a named publication, standard or datasheet, given in that comment
+    [law]       a physical constant or law (sound speed in air, gamma P0, 0 C in kelvin)
+
+* an estimate: `estimates.value("NAME")`, declared in `fabricjax.sim.estimates` with its range, a
+  physical reason for that range and what it drives (`[estimate]` in the comments here; the
+  comments give the longer reasons). A calibration to one measurement of the paper is an estimate
+  whose registry entry says so (`calibrated`).
+* `[numerics]`: a numerical or implementation setting (grid, supersampling, lead-in, a reference
+  point that only states where an estimate is given), not a physical magnitude.
+
+An expression of other constants (a unit conversion, a derived geometry) needs no tag of its own.
+`tests/test_estimates.py` reads this file and every module of `fabricjax.sim` and fails on a
+number with none of these.
 """
 
 from __future__ import annotations
@@ -25,118 +40,128 @@ from fabricjax.sim import estimates
 # --- time base --------------------------------------------------------------------------------
 # [paper] The audio sample rate (48 kHz), the step rate (50 Hz, one step per Minsight frame) and the
 # audio samples per step (2048) are the archive format's: `archive.AUDIO_RATE`, `STEP_RATE`, `WINDOW`.
-LEAD_IN = 4096  # samples recorded before the procedure starts (>= archive.WINDOW so every window is full)
-FRAME_JITTER_S = 0.0008  # [hw] USB camera frame-time jitter: a UVC camera delivers frames on its own
-# clock; the host timestamps them at USB transfer with ~1 ms scheduling jitter (a USB 2.0 microframe
-# is 125 us; Linux user-space wake-up latency is ~0.1-1 ms), hence +-0.8 ms
-CONTROL_HZ = 2000  # grid on which the finger motion is integrated (then interpolated to 48 kHz)
+LEAD_IN = 4096  # [numerics] samples recorded before the procedure starts (>= archive.WINDOW so every window is full)
+# [estimate] USB camera frame-time jitter: a UVC camera delivers frames on its own clock; the host
+# timestamps them at USB transfer with ~1 ms scheduling jitter (a USB 2.0 microframe is 125 us; Linux
+# user-space wake-up latency is ~0.1-1 ms), hence +-0.8 ms
+FRAME_JITTER_S = estimates.value("FRAME_JITTER_S")
+CONTROL_HZ = 2000  # [numerics] grid on which the finger motion is integrated (then interpolated to 48 kHz)
 
 # --- finger motion [paper: force-controlled closing until 0.1 N, then rubbing cycles] ---------
 GRASP_FORCE_N = 0.1  # [paper] closing stops when Minsight's force estimate reaches this
-OPEN_GAP_MM = 14.0  # [hw] fingertip gap of the open pose
-CLOSING_SPEED_MM_S = 20.0  # [hw] relative fingertip closing speed (same for every fabric [paper])
-SHELL_NORMAL_STIFFNESS_N_MM = 0.25  # [phys] two soft silicone shells in series, normal direction
-SHELL_SHEAR_STIFFNESS_N_MM = estimates.value("SHELL_SHEAR_STIFFNESS_N_MM")  # [phys] shear stiffness of one shell at the contact
-SETTLE_S = 0.1  # pause between the grasp and the first rubbing stroke
-STOP_S = 0.1  # recording continues briefly after the last stroke
-RUB_AMPLITUDE_MM = 3.0  # [hw] each fingertip moves +-3 mm laterally, the two in opposite phase
-CYCLE_HZ = 2.0  # [hw] commanded rubbing frequency: 50 cycles ~ 25 s before the load droop
-ARC_MM = 0.15  # [phys] extra indentation at the stroke ends (the fingertips move on arcs)
-FINGER_LEVER_MM = 60.0  # [hw] joint axis to fingertip contact
+OPEN_GAP_MM = estimates.value("OPEN_GAP_MM")  # [estimate] fingertip gap of the open pose
+CLOSING_SPEED_MM_S = estimates.value("CLOSING_SPEED_MM_S")  # [estimate] relative fingertip closing speed (same for every fabric [paper])
+# [estimate] two soft silicone shells in series, normal direction (Hertz with the Ecoflex datasheet's
+# modulus, below in "Minsight images", gives 0.27 mm per shell at 0.1 N: consistent)
+SHELL_NORMAL_STIFFNESS_N_MM = estimates.value("SHELL_NORMAL_STIFFNESS_N_MM")
+SHELL_SHEAR_STIFFNESS_N_MM = estimates.value("SHELL_SHEAR_STIFFNESS_N_MM")  # [estimate] shear stiffness of one shell at the contact
+SETTLE_S = estimates.value("SETTLE_S")  # [estimate] pause between the grasp and the first rubbing stroke
+STOP_S = estimates.value("STOP_S")  # [estimate] recording continues briefly after the last stroke
+RUB_AMPLITUDE_MM = estimates.value("RUB_AMPLITUDE_MM")  # [estimate] each fingertip moves +-3 mm laterally, the two in opposite phase
+# [estimate] commanded rubbing frequency: 50 cycles ~ 25 s before the load droop; with the closing and
+# the droop, the paper's ~1500 steps per 50-cycle trial [paper, Experiments]
+CYCLE_HZ = estimates.value("CYCLE_HZ")
+ARC_MM = estimates.value("ARC_MM")  # [estimate] extra indentation at the stroke ends (the fingertips move on arcs)
+FINGER_LEVER_MM = estimates.value("FINGER_LEVER_MM")  # [estimate] joint axis to fingertip contact
 # [paper: "the fingers move more slowly when finger-fabric friction is high"] Position-controlled
 # hobby servos lose speed under load: speed = commanded / (1 + SPEED_DROOP_PER_N * mu * F_n).
 # 2 / N gives ~6 % (mu = 0.25) to ~22 % (mu = 0.95) slower cycles at 0.1-0.15 N: trials of ~1300-1550 steps.
-SPEED_DROOP_PER_N = 2.0
-# [hw] An STS3215's no-load speed is proportional to its supply voltage (datasheet: 0.222 s/60 deg at
+SPEED_DROOP_PER_N = estimates.value("SPEED_DROOP_PER_N")  # [estimate]
+# [estimate] An STS3215's no-load speed is proportional to its supply voltage (datasheet: 0.222 s/60 deg at
 # 7.4 V, 0.16 s/60 deg at 12 V, i.e. ~6 %/V); a bench supply under a varying load sags by ~0.1-0.2 V:
 # a per-trial spread of ~2 % of the rubbing rate.
-SPEED_JITTER = 0.02
-CYCLE_PHASE_JITTER = 0.01  # [hw] slow wander of the stroke rate within a trial: half the per-trial spread
-# [phys] The hanging cloth creeps between strokes (random walk): a stroke's net slip is the
+SPEED_JITTER = estimates.value("SPEED_JITTER")
+CYCLE_PHASE_JITTER = estimates.value("CYCLE_PHASE_JITTER")  # [estimate] slow wander of the stroke rate within a trial: half the per-trial spread
+# [estimate] The hanging cloth creeps between strokes (random walk): a stroke's net slip is the
 # stick length mu F_n / k_t ~ 0.1-0.3 mm; about a third of it is not recovered on the way back.
-CLOTH_CREEP_MM_PER_CYCLE = 0.05
+CLOTH_CREEP_MM_PER_CYCLE = estimates.value("CLOTH_CREEP_MM_PER_CYCLE")
 
 # --- fabric surface [FACTS: f = v / lambda; roughness spectrum 1/f^s; fuzz] -----------------------
-PROFILE_DX_MM = 0.001  # 1 um grid: resolves content to > 20 kHz at the fastest slide speed
-PROFILE_LEN_MM = 65.536  # one cloth strip per fabric (2**16 samples); grasps land anywhere on it
+PROFILE_DX_MM = 0.001  # [numerics] 1 um grid: resolves content to > 20 kHz at the fastest slide speed
+PROFILE_LEN_MM = 65.536  # [numerics] one simulated cloth strip per fabric (2**16 samples); grasps land anywhere on it
 # [paper: "after each trial, the position of the clothes hanger was adjusted to create variation
-# in the grasping location"] The grasp lands anywhere on the strip, at least one contact length
-# (~10 mm) from its ends: independent cloth for every trial, so no two trials share a surface.
-GRASP_RANGE_MM = (12.0, 52.0)
-ROUGHNESS_K_MIN = 0.5  # cycles/mm: below (2 mm wavelengths) the fabric drapes rather than vibrates
-WEAVE_SHARE = 0.5  # fraction of the RMS height in the periodic weave (the rest: random roughness)
-WEAVE_HARMONICS = 8
-WEAVE_IRREGULARITY = 0.03  # [phys] yarn spacing varies by ~3 % of the period (woven-fabric CV of yarn spacing, a few %)
-LOCAL_ROUGHNESS_SPREAD = 0.2  # [phys] local roughness varies +-20 % along the strip (10 mm correlation): wear, creases, pile direction
-FUZZ_FIBRES_PER_MM = 6.0  # loose fibre ends per mm of path at fuzz = 1
-FUZZ_FIBRE_WIDTH_MM = 0.008  # [phys] fibre diameter ~10-20 um
-FUZZ_HEIGHT = 0.6  # fibre bump height relative to the fabric's RMS roughness
-SHELL_ROUGHNESS_UM = 0.5  # [phys] the silicone skin's own micro-texture: all class 0 rubs against
-SHELL_SPECTRAL_SLOPE = 2.0
+# in the grasping location"] [estimate] The grasp lands anywhere in this range of the strip, at
+# least one contact length (~10 mm) from its ends: a different stretch of cloth for every trial.
+GRASP_RANGE_MM = (estimates.value("GRASP_RANGE_LOW_MM"), estimates.value("GRASP_RANGE_HIGH_MM"))
+ROUGHNESS_K_MIN = estimates.value("ROUGHNESS_K_MIN")  # [estimate] cycles/mm: below (2 mm wavelengths) the fabric drapes rather than vibrates
+WEAVE_SHARE = estimates.value("WEAVE_SHARE")  # [estimate] fraction of the RMS height in the periodic weave (the rest: random roughness)
+WEAVE_HARMONICS = 8  # [numerics] the weave's Fourier series, cut where its harmonics' weights m^(-s/2) have faded
+WEAVE_IRREGULARITY = estimates.value("WEAVE_IRREGULARITY")  # [estimate] yarn spacing varies by ~3 % of the period
+# [estimate] local roughness varies +-20 % along the strip (10 mm correlation): wear, creases, pile direction
+LOCAL_ROUGHNESS_SPREAD = estimates.value("LOCAL_ROUGHNESS_SPREAD")
+FUZZ_FIBRES_PER_MM = estimates.value("FUZZ_FIBRES_PER_MM")  # [estimate] loose fibre ends per mm of path at fuzz = 1
+FUZZ_FIBRE_WIDTH_MM = estimates.value("FUZZ_FIBRE_WIDTH_MM")  # [estimate] a fibre end's bump: fibre diameters are ~10-20 um
+FUZZ_HEIGHT = estimates.value("FUZZ_HEIGHT")  # [estimate] fibre bump height relative to the fabric's RMS roughness
+SHELL_ROUGHNESS_UM = estimates.value("SHELL_ROUGHNESS_UM")  # [estimate] the silicone skin's own micro-texture: all class 0 rubs against
+SHELL_SPECTRAL_SLOPE = estimates.value("SHELL_SPECTRAL_SLOPE")  # [estimate] its height spectrum's slope
 
 # --- contact sound in the Minsound cavity ---------------------------------------------------------
-# [phys] Adiabatic cavity: p = gamma * P0 * dV / V. The fabric profile displaces the outer skin;
-# a fraction of that reaches the inner wall through ~3 mm of silicone over the contact patch.
+# [law] Adiabatic cavity: p = gamma * P0 * dV / V (air: gamma = 1.4, P0 = 101 325 Pa). The fabric
+# profile displaces the outer skin; a fraction of that reaches the inner wall through ~3 mm of
+# silicone over the contact patch.
 GAMMA_P0_PA = 1.4 * 101_325.0
-CONTACT_AREA_M2 = 20e-6  # ~5 mm x 4 mm contact patch at 0.1 N
-WALL_COUPLING = estimates.value("WALL_COUPLING")  # inner-wall displacement per outer-surface displacement
-CAVITY_VOLUME_M3 = 8e-6  # ~8 cm^3 of air inside the shell
+CONTACT_AREA_M2 = estimates.value("CONTACT_AREA_M2")  # [estimate] ~5 mm x 4 mm contact patch at 0.1 N
+WALL_COUPLING = estimates.value("WALL_COUPLING")  # [estimate] inner-wall displacement per outer-surface displacement
+CAVITY_VOLUME_M3 = estimates.value("CAVITY_VOLUME_M3")  # [estimate] ~8 cm^3 of air inside the shell
 TEXTURE_PA_PER_UM = GAMMA_P0_PA * CONTACT_AREA_M2 * WALL_COUPLING * 1e-6 / CAVITY_VOLUME_M3  # ~3.5e-3
-# Shell wall: mass-spring wall mode with viscoelastic losses (silicone damping rises with f).
-SHELL_MODE_HZ = 3000.0
-SHELL_MODE_Q = 1.5
-SHELL_LOSS_HZ = 12000.0  # exp(-f / SHELL_LOSS_HZ) extra viscoelastic loss
+# [estimates] Shell wall: mass-spring wall mode with viscoelastic losses (silicone damping rises with f).
+SHELL_MODE_HZ = estimates.value("SHELL_MODE_HZ")
+SHELL_MODE_Q = estimates.value("SHELL_MODE_Q")
+SHELL_LOSS_HZ = estimates.value("SHELL_LOSS_HZ")  # exp(-f / SHELL_LOSS_HZ) extra viscoelastic loss
 # Stick-slip: micro-slips per mm slid grow with friction; each releases energy at asperity scale
 # (amplitude ~ mu * F_n * asperity height), plus one larger release at every stroke reversal
 # (elastic energy 1/2 k delta^2 stored in the stuck shell and stretched cloth).
-SLIPS_PER_MM = 6.0  # at mu = 1
+# [estimates] all but the reference point (SLIP_PA and RELEASE_PA are given at it).
+SLIPS_PER_MM = estimates.value("SLIPS_PER_MM")  # at mu = 1
 SLIP_PA = estimates.value("SLIP_PA")  # click peak pressure at mu * F_n = 0.05 N and 20 um asperities
-SLIP_REF_FORCE_N = 0.05
-SLIP_REF_ROUGHNESS_UM = 20.0
+SLIP_REF_FORCE_N = 0.05  # [numerics] the reference point SLIP_PA and RELEASE_PA are given at: mu * F_n
+SLIP_REF_ROUGHNESS_UM = 20.0  # [numerics] and asperity height (releases grow no further above it)
 RELEASE_PA = estimates.value("RELEASE_PA")  # reversal release at delta = 0.1 mm, mu * F_n = 0.05 N, 20 um asperities
-SLIP_RING_HZ = (900.0, 3500.0)  # contact/skin ring of a slip click
-SLIP_DECAY_S = 0.0003
-SLIP_SPREAD = 0.5  # log-normal sigma of click amplitudes
+SLIP_RING_HZ = (estimates.value("SLIP_RING_LOW_HZ"), estimates.value("SLIP_RING_HIGH_HZ"))  # contact/skin ring of a slip click
+SLIP_DECAY_S = estimates.value("SLIP_DECAY_S")
+SLIP_SPREAD = estimates.value("SLIP_SPREAD")  # log-normal sigma of click amplitudes
 
 # --- air paths: what each microphone hears of the contacts -------------------------------------
-# Geometry [hw, estimates for the ISyHand: the paper gives no drawing with dimensions]: the pinch
+# Geometry [estimates for the ISyHand: the paper gives no drawing with dimensions]: the pinch
 # point on the fold is the origin, the pinch axis (thumb to middle finger, normal to the cloth) is x.
 # Each fingertip's centre lies half a shell width plus half the folded stack from the cloth: the
 # 15 mm below is half the 30 mm width estimated before the shell's published radius (11.8 mm,
 # `SHELL_OUTER_RADIUS_MM`) was known; with it the centres sit ~12.3 mm from the pinch, which moves
 # the palm's distances to the fingertips by < 2 mm (< 0.2 dB at 7-9 cm), not yet simulated. The
 # palm microphone sits "on the side of the palm" [paper] ~8 cm from the pinch, below and behind it.
-THUMB_TIP_M = (-0.015, 0.0, 0.0)  # Minsound's shell (and its microphone) on the thumb
-MIDDLE_TIP_M = (0.015, 0.0, 0.0)  # Minsight's shell on the middle finger
-PALM_MIC_M = (-0.03, -0.07, 0.02)  # 7.9 cm from the pinch, 7.4 cm from the thumb, 8.6 cm from the middle finger
-SOUND_SPEED_M_S = 343.0  # [phys] air at 20 C
-AIR_DENSITY_KG_M3 = 1.2  # [phys] air at 20 C; rho c^2 = gamma P0 for an ideal gas
-# [phys] Each fingertip radiates as a pulsating sphere (Kinsler, Frey, Coppens & Sanders,
+# The zeros place the fingertips on the pinch axis [numerics: the frame's choice].
+THUMB_TIP_M = (-estimates.value("FINGERTIP_OFFSET_M"), 0.0, 0.0)  # Minsound's shell (and its microphone) on the thumb
+MIDDLE_TIP_M = (estimates.value("FINGERTIP_OFFSET_M"), 0.0, 0.0)  # Minsight's shell on the middle finger [numerics: on the axis]
+# 7.9 cm from the pinch, 7.4 cm from the thumb, 8.6 cm from the middle finger
+PALM_MIC_M = (estimates.value("PALM_MIC_X_M"), estimates.value("PALM_MIC_Y_M"), estimates.value("PALM_MIC_Z_M"))
+SOUND_SPEED_M_S = 343.0  # [law] air at 20 C
+AIR_DENSITY_KG_M3 = 1.2  # [law] air at 20 C; rho c^2 = gamma P0 for an ideal gas
+# [cited] Each fingertip radiates as a pulsating sphere (Kinsler, Frey, Coppens & Sanders,
 # Fundamentals of Acoustics, 4th ed., Wiley 2000, Sec. 7.3): silicone is incompressible, so the
 # shell's outer surface changes volume by exactly its cavity's dV, and p(r) = rho w^2 dV / (4 pi r
 # (1 + j k a)) with a half the shell's width (`air_path.fingertip_radiation`): -52 dB re the cavity
 # pressure at 1 kHz and 8 cm, +12 dB per octave up to k a = 1 (3.6 kHz). Minsight's shell is built as
 # Minsound's (silicone on a rigid skeleton, the same contact patch) [paper, Hardware], so its
 # contact radiates by the same law from its own centre.
-# [phys] The cloth between the fingertips is a limp sheet (membrane waves in hanging cloth travel
+# [cited] The cloth between the fingertips is a limp sheet (membrane waves in hanging cloth travel
 # at ~1 m/s and die within a millimetre at audio frequencies), so it radiates from the contact patch
 # only: an unbaffled rigid disc of the patch's radius oscillating normal to itself, a dipole whose
 # far field is p = rho c^2 k^3 (2 a^3 / (3 pi)) xi cos(theta) / r (Lamb, Hydrodynamics, 6th ed.
 # 1932, Sec. 102: added mass 8 rho a^3 / 3 of a disc; Pierce, Acoustics, ASA 1989, Sec. 4.4: far
 # field of a dipole of that strength): +18 dB per octave for a given displacement.
 CLOTH_RADIATOR_RADIUS_M = math.sqrt(CONTACT_AREA_M2 / math.pi)  # 2.5 mm: the contact patch
-# [phys] Only the patch's area-mean motion radiates (relief of microns to a millimetre, far shorter
+# [estimate] Only the patch's area-mean motion radiates (relief of microns to a millimetre, far shorter
 # than the 5 mm patch, averages out; its mean is what changes the cavity volume, `WALL_COUPLING`),
 # and the sheet between two equal soft shells in series moves by half the difference of the two
 # skins' mean displacements (the stack is far stiffer than the shells at 0.1 N). So the cloth's
 # dipole is ~0.16 k a below a fingertip's monopole: -30 dB at 4 kHz; it matters only above ~8 kHz,
 # where the shell's wall mode has cut the fingertips' own radiation.
-CLOTH_DISPLACEMENT_SHARE = 0.5
-# [phys, paper: the fingers rub a fold of the hanging cloth] The middle finger's Minsight shell rubs
+CLOTH_DISPLACEMENT_SHARE = estimates.value("CLOTH_DISPLACEMENT_SHARE")
+# [paper: the fingers rub a fold of the hanging cloth] [estimate] The middle finger's Minsight shell rubs
 # the other face of the fold: an independent patch of the same cloth strip, as far along the strip
 # as twice the pinch's distance from the fold line (the grasp lands 5-15 mm above the fold: the
 # fingertips are ~20 mm long and pinch the fold near its middle), moving opposite to the thumb.
-FOLD_LINE_MM = (5.0, 15.0)
+FOLD_LINE_MM = (estimates.value("FOLD_LINE_NEAR_MM"), estimates.value("FOLD_LINE_FAR_MM"))
 # Paths judged and left out, each bounded by the magnitudes above:
 # * Relief of one face reaching the other fingertip through the stack: through an elastic layer of
 #   thickness d, relief of wavelength lambda decays as exp(-2 pi d / lambda) (see the Minsight
@@ -155,13 +180,13 @@ FOLD_LINE_MM = (5.0, 15.0)
 #   shakes at least a finger link and its servo (~0.1 kg): ~0.01 m/s^2, i.e. ~2e-5 Pa (~1 dB SPL),
 #   below the microphone's own noise in every octave band. Into Minsound the contact's force acts
 #   directly (the shell transfer below), which dwarfs any share that returns through the skeleton.
-# [phys] Mass law for the shell wall (Beranek & Ver, Noise and Vibration Control Engineering, Wiley
+# [cited] Mass law for the shell wall (Beranek & Ver, Noise and Vibration Control Engineering, Wiley
 # 1992, Ch. 9: field-incidence TL = 20 log10(f m'') - 47 dB), with m'' the shell's construction:
 # silicone of 1.07-1.1 g/cm^3 (Smooth-On Ecoflex / Dragon Skin technical bulletins) times the
 # Minsight-section shell thickness (`shell.transmission_loss_db`).
 SILICONE_DENSITY_KG_M3 = 1100.0
-SHELL_TL_MIN_DB = estimates.value("SHELL_TL_MIN_DB")  # leaks around the base and the stiffness-controlled region at low frequency
-SHELL_TL_MAX_DB = estimates.value("SHELL_TL_MAX_DB")  # flanking through the aluminium skeleton
+SHELL_TL_MIN_DB = estimates.value("SHELL_TL_MIN_DB")  # [estimate] leaks around the base and the stiffness-controlled region at low frequency
+SHELL_TL_MAX_DB = estimates.value("SHELL_TL_MAX_DB")  # [estimate] flanking through the aluminium skeleton
 
 # --- servo noise (heard by both microphones, also in class 0) ---------------------------------------
 # [estimates] No published acoustic measurement of the STS3215 or of a comparable serial-bus or
@@ -170,13 +195,14 @@ SHELL_TL_MAX_DB = estimates.value("SHELL_TL_MAX_DB")  # flanking through the alu
 # reaches a sealed fingertip cavity through the skeleton. Only the gear ratio is the datasheet's; the
 # levels (dB SPL inside the shell), the pinion, the load reference, the band and the palm's share are
 # order-of-magnitude estimates.
-GEAR_RATIO = 345.0  # [hw] STS3215 datasheet
-GEAR_TEETH = 10  # [estimate] first-stage pinion: mesh frequency = motor rev/s * teeth
+GEAR_RATIO = 345.0  # [cited] STS3215 datasheet: 1:345 gear train
+GEAR_TEETH = estimates.value("GEAR_TEETH")  # [estimate] first-stage pinion: mesh frequency = motor rev/s * teeth
 SERVO_TONE_PA = estimates.value("SERVO_TONE_PA")  # [estimate] gear-mesh tone at 1 rad/s joint speed, as heard inside the shell (~50 dB)
 SERVO_BROADBAND_PA = estimates.value("SERVO_BROADBAND_PA")  # [estimate] motor/gear broadband noise at 1 rad/s
 SERVO_HOLD_PA = estimates.value("SERVO_HOLD_PA")  # [estimate] holding servos' PWM hum (always present, ~34 dB)
-SERVO_LOAD_REF_NM = 0.01  # [estimate] torque at which the gear noise doubles
-SERVO_STRUCTURE_BAND_HZ = (150.0, 6000.0)  # [estimate] structure-borne band into the Minsound cavity
+SERVO_LOAD_REF_NM = estimates.value("SERVO_LOAD_REF_NM")  # [estimate] torque at which the gear noise doubles
+# [estimate] structure-borne band into the Minsound cavity
+SERVO_STRUCTURE_BAND_HZ = (estimates.value("SERVO_BAND_LOW_HZ"), estimates.value("SERVO_BAND_HIGH_HZ"))
 SERVO_PALM_GAIN_DB = estimates.value("SERVO_PALM_GAIN_DB")  # [estimate] airborne at the palm (the servos sit in the palm) vs structure-borne
 
 # --- ambient sound: the room, its events and the cafe loudspeaker -----------------------------
@@ -184,9 +210,9 @@ SERVO_PALM_GAIN_DB = estimates.value("SERVO_PALM_GAIN_DB")  # [estimate] airborn
 # cafe noise 47-55 dB. `scene.nuisance` draws the level per day and trial within these ranges: the
 # lab's steady floor, and the loudspeaker's sound at the palm in the cafe condition.
 LAB_DB_A = (29.0, 31.0)
-CAFE_DB_A = (47.0, 55.0)
-CAFE_DAY_SPREAD_DB = 2.0  # a cafe day sits at U(48, 54), each trial +-1 dB, all within 47-55
-# The lab floor (ventilation, building services): the shape of Beranek's noise-criterion curve NC-25
+CAFE_DB_A = (47.0, 55.0)  # [paper]
+CAFE_DAY_SPREAD_DB = estimates.value("CAFE_DAY_SPREAD_DB")  # [estimate] a cafe day sits at U(48, 54), each trial +-1 dB, all within 47-55
+# [cited] The lab floor (ventilation, building services): the shape of Beranek's noise-criterion curve NC-25
 # (Beranek, Revised criteria for noise in buildings, Noise Control 3(1), 1957; ANSI S12.2), octave
 # band levels in dB at 63 Hz-8 kHz; only its shape is used, scaled to the drawn dB(A) level.
 LAB_FLOOR_OCTAVE_DB = {63: 54.0, 125: 44.0, 250: 37.0, 500: 31.0, 1000: 27.0, 2000: 24.0, 4000: 22.0, 8000: 21.0}
@@ -195,8 +221,8 @@ LAB_FLOOR_OCTAVE_DB = {63: 54.0, 125: 44.0, 250: 37.0, 500: 31.0, 1000: 27.0, 20
 # absorption A = 0.161 V / T60 = 39 m^2, room constant R ~ A: the reverberant field (4 / R) equals the
 # direct field of a Q = 1 source (Q / 4 pi r^2) at 0.9 m (Hopkins & Stryker 1948, in Beranek,
 # Acoustics, 1954, Ch. 10).
-ROOM_VOLUME_M3 = 144.0
-ROOM_T60_S = 0.6
+ROOM_VOLUME_M3 = estimates.value("ROOM_VOLUME_M3")
+ROOM_T60_S = estimates.value("ROOM_T60_S")
 # Between the palm microphone and Minsound (7.4 cm apart) a diffuse field has the coherence
 # sin(k d) / (k d) (Cook, Waterhouse, Berendt, Edelman & Thompson, Measurement of correlation
 # coefficients in reverberant sound fields, JASA 27, 1955): near 1 below ~1 kHz, small above 2.3 kHz.
@@ -233,19 +259,20 @@ ROOM_T60_S = 0.6
 # side of the hand's bench to the far side of the room); its level at the hand is the direct plus the
 # reverberant field (Hopkins-Stryker), its sound reaches the two microphones through the room's
 # responses (beyond the 0.9 m critical distance the reverberant field dominates).
-LAB_EVENTS = {  # kind: (per minute, dB(A) at 1 m, seconds)
-    "voice": (0.2, 50.0, (1.0, 4.0)),
-    "steps": (0.5, 45.0, (3.0, 6.0)),
-    "door": (0.05, 70.0, (0.3, 0.3)),
+# [cited] The voice's 50 dB(A) at 1 m (van Heusden et al.; Pearsons et al., above); every other number an estimate.
+LAB_EVENTS = {  # kind: (per minute, dB(A) at 1 m, (shortest, longest) seconds)
+    "voice": (estimates.value("LAB_VOICE_PER_MIN"), 50.0, (estimates.value("LAB_VOICE_SHORT_S"), estimates.value("LAB_VOICE_LONG_S"))),
+    "steps": (estimates.value("LAB_STEPS_PER_MIN"), estimates.value("LAB_STEPS_DB_A"), (estimates.value("LAB_STEPS_SHORT_S"), estimates.value("LAB_STEPS_LONG_S"))),
+    "door": (estimates.value("LAB_DOOR_PER_MIN"), estimates.value("LAB_DOOR_DB_A"), (estimates.value("LAB_DOOR_S"), estimates.value("LAB_DOOR_S"))),
 }
-LAB_ACTIVITY_SIGMA = 0.7
-EVENT_DISTANCE_M = (2.0, 8.0)
-SYLLABLE_HZ = 4.0
-STEP_HZ = 1.9
-STEP_LOWPASS_HZ = 500.0
-STEP_DECAY_S = 0.03  # [phys] a heel strike on a floor slab rings down within tens of ms
-DOOR_DECAY_SHARE = 1 / 3  # the door's impact decays with a time constant of a third of its 0.3 s
-# The cafe [paper: "loud background noise resembling ambient sound in a coffee shop", "while playing
+LAB_ACTIVITY_SIGMA = estimates.value("LAB_ACTIVITY_SIGMA")
+EVENT_DISTANCE_M = (estimates.value("EVENT_DISTANCE_NEAR_M"), estimates.value("EVENT_DISTANCE_FAR_M"))
+SYLLABLE_HZ = 4.0  # [cited] Houtgast & Steeneken 1985: the speech envelope peaks at 3-4 Hz
+STEP_HZ = 1.9  # [cited] Pachi & Ji 2005: the walking cadence
+STEP_LOWPASS_HZ = 500.0  # [cited] a shod heel on a concrete floor: strongest below 500 Hz (ISO 717-2 reference spectra)
+STEP_DECAY_S = estimates.value("STEP_DECAY_S")  # [estimate] a heel strike on a floor slab rings down within tens of ms
+DOOR_DECAY_SHARE = estimates.value("DOOR_DECAY_SHARE")  # [estimate] the door's impact decays with a time constant of a third of its 0.3 s
+# [cited] The cafe [paper: "loud background noise resembling ambient sound in a coffee shop", "while playing
 # audible noise"]: a recording played from a loudspeaker. Its long-term spectrum is that of babble,
 # i.e. of speech (many talkers sum to the long-term average speech spectrum, which is the same across
 # languages within a few dB: Byrne et al., An international comparison of long-term average speech
@@ -266,8 +293,8 @@ BABBLE_MODULATION = estimates.value("BABBLE_MODULATION")
 # bound the 12 dB below is consistent with, not a value for a cafe; restaurant surveys report
 # equivalent levels, not clatter events.
 CLATTER_PER_S = estimates.value("CLATTER_PER_S")
-CLATTER_RING_HZ = (2000.0, 7000.0)
-CLATTER_DECAY_S = 0.015
+CLATTER_RING_HZ = (estimates.value("CLATTER_RING_LOW_HZ"), estimates.value("CLATTER_RING_HIGH_HZ"))
+CLATTER_DECAY_S = estimates.value("CLATTER_DECAY_S")
 CLATTER_PEAK_DB = estimates.value("CLATTER_PEAK_DB")  # clatter peaks above the babble RMS
 # [estimate; the paper does not place the loudspeaker, and no description of its noise playback beyond
 # "while playing audible noise" was found] A loudspeaker on a table 0.5-2 m from the hand,
@@ -275,65 +302,65 @@ CLATTER_PEAK_DB = estimates.value("CLATTER_PEAK_DB")  # clatter peaks above the 
 # (Beranek, Acoustics, 1954, Ch. 4: a closed box is omnidirectional at low and beamed at high
 # frequencies). Its direct sound reaches each microphone along its own path and delay; the
 # reverberant sound through the room's response at each microphone.
-SPEAKER_DISTANCE_M = (0.5, 2.0)
-SPEAKER_Q = 2.0
+SPEAKER_DISTANCE_M = (estimates.value("SPEAKER_DISTANCE_NEAR_M"), estimates.value("SPEAKER_DISTANCE_FAR_M"))
+SPEAKER_Q = estimates.value("SPEAKER_Q")
 
 # --- SPH0645 [ds] -------------------------------------------------------------------------------
 SENSITIVITY_DBFS = -26.0  # at 94 dB SPL (1 Pa)
 # 18 valid bits, full scale 2**17: `archive.VALID_BITS`, `archive.FULL_SCALE`
 COUNTS_PER_PA = 10 ** (SENSITIVITY_DBFS / 20) * archive.FULL_SCALE / math.sqrt(2)  # RMS counts per Pa RMS
-SELF_NOISE_DB_A = 94.0 - 65.0  # 65 dB(A) SNR re 94 dB SPL -> 29 dB(A) SPL equivalent input noise
+SELF_NOISE_DB_A = 94.0 - 65.0  # [ds] 65 dB(A) SNR re 94 dB SPL -> 29 dB(A) SPL equivalent input noise
 BAND_HZ = (50.0, 15_000.0)  # [ds] usable band: 2nd-order roll-offs at both ends
-DECIMATION_HZ = 21_000.0  # steep digital low-pass of the sigma-delta decimator
-DC_OFFSET_COUNTS = -3000.0  # [ds, FACTS] large DC offset (of 2**17), drifting from day to day
-# [ds, FACTS] The DC offset is set by the modulator's reference and drifts with temperature; 400
-# counts is 0.3 % of full scale (an estimate: the datasheet gives no drift figure). It sits in the
-# lowest Welch bins only, which the detrend removes.
-DC_DRIFT_COUNTS = 400.0
+DECIMATION_HZ = estimates.value("DECIMATION_HZ")  # [estimate] steep digital low-pass of the sigma-delta decimator
+DC_OFFSET_COUNTS = estimates.value("DC_OFFSET_COUNTS")  # [estimate] large DC offset (of 2**17), drifting from day to day
+# [estimate] The DC offset is set by the modulator's reference and drifts with temperature; 400
+# counts is 0.3 % of full scale (the datasheet gives no drift figure). It sits in the lowest Welch
+# bins only, which the detrend removes.
+DC_DRIFT_COUNTS = estimates.value("DC_DRIFT_COUNTS")
 # [ds] Sensitivity tolerance is +-1 dB between parts; a part's sensitivity moves far less with
 # temperature (MEMS microphones: < 0.5 dB over -40..85 C). 0.5 dB is the day-to-day bound: each
 # day's gain is drawn uniformly within +-GAIN_DRIFT_DB (a bound, not a standard deviation; a lab's
 # few degrees between days would move it by hundredths of a dB, so the bound is generous).
 GAIN_DRIFT_DB = 0.5
-JUNK_BITS = 6  # bits 13..8 of the 24-bit word carry no information; bits 7..0 are zero
+JUNK_BITS = 6  # [ds] 18 valid bits of the 24-bit word: bits 13..8 carry no information; bits 7..0 are zero
 
-# --- proprioception [hw] ----------------------------------------------------------------------
-ANGLE_LSB_RAD = 2 * math.pi / 4096  # STS3215 position register
-VELOCITY_NOISE_RAD_S = 0.02
-CURRENT_LSB_A = 0.0065  # STS3215 present-current unit
-CURRENT_NOISE_A = 0.006  # PWM ripple
-IDLE_CURRENT_A = 0.04
-TORQUE_PER_AMP_NM = 0.7  # ~1.9 N m stall at ~2.7 A
-VISCOUS_NM_PER_RAD_S = 0.01  # gear-train drag of a moving joint
+# --- proprioception ------------------------------------------------------------------------------
+ANGLE_LSB_RAD = 2 * math.pi / 4096  # [cited] STS3215 datasheet: 12-bit magnetic encoder, 4096 steps per turn
+VELOCITY_NOISE_RAD_S = estimates.value("VELOCITY_NOISE_RAD_S")  # [estimate]
+CURRENT_LSB_A = 0.0065  # [cited] STS3215 memory table: the present-current register's unit, 6.5 mA
+CURRENT_NOISE_A = estimates.value("CURRENT_NOISE_A")  # [estimate] PWM ripple
+IDLE_CURRENT_A = estimates.value("IDLE_CURRENT_A")  # [estimate] a holding servo's draw
+TORQUE_PER_AMP_NM = 0.7  # [cited] STS3215 datasheet: ~1.9 N m (19.5 kg cm) stall torque at ~2.7 A stall current, 7.4 V
+VISCOUS_NM_PER_RAD_S = estimates.value("VISCOUS_NM_PER_RAD_S")  # [estimate] gear-train drag of a moving joint
 # No day-to-day joint calibration drift: the STS3215 reads its angle from an absolute 12-bit
 # magnetic encoder [FACTS], which has no offset to drift unless the horn or hand is reassembled,
 # and the current reading has no documented offset drift (its 6.5 mA LSB and the PWM ripple
 # above are the sensor's limits). Day-to-day differences reach the joints through the grasp.
-# [phys] Minsight force proxy: the closing stops when the estimate crosses 0.1 N, so its error
+# [estimate] Minsight force proxy: the closing stops when the estimate crosses 0.1 N, so its error
 # shows as grasp force (`motion.finger_motion` stops on the estimate, the proxy records it). The
 # force map of Insight, Minsight's parent design, is accurate to ~0.03 N in magnitude over 0.03-2 N
 # across many contacts (Sun, Martius, Kuchenbecker, "A soft thumb-sized vision-based sensor with
 # accurate all-round force perception", Nature Machine Intelligence 4, 2022); at one repeated
 # contact near 0.1 N the error splits into frame-to-frame noise and a bias that holds for a day
 # (the reference image is re-taken daily): 4 mN each (SD), a seventh of that figure apiece.
-FORCE_NOISE_N = 0.004
-FORCE_BIAS_N = 0.004
-# [phys] The hanging fabric is folded by hand on the hanger: where the grasp lands the stack is
+FORCE_NOISE_N = estimates.value("FORCE_NOISE_N")
+FORCE_BIAS_N = estimates.value("FORCE_BIAS_N")
+# [estimate] The hanging fabric is folded by hand on the hanger: where the grasp lands the stack is
 # two layers plus local slack and seams, +-10 % of its nominal thickness.
-FOLD_SPREAD = 0.1
-# [phys] Where the contact centre lands on Minsight's shell: the grasp is force-controlled, not
+FOLD_SPREAD = estimates.value("FOLD_SPREAD")
+# [estimate] Where the contact centre lands on Minsight's shell: the grasp is force-controlled, not
 # placed, so the patch wanders by about a third of its ~5 mm size between trials (SD, mm).
 CONTACT_OFFSET_MM = estimates.value("CONTACT_OFFSET_MM")
 
 # --- the rig between sessions (`sim.rig`) ---------------------------------------------------------
-# [phys] The lab's climate on a recording day. Building climate control holds 75 +- 2 F, i.e.
+# [cited] The lab's climate on a recording day. Building climate control holds 75 +- 2 F, i.e.
 # 22.8-25.0 C, after ASHRAE's comfort guidance (ASHRAE Standard 55, "Thermal Environmental
 # Conditions for Human Occupancy"), and indoor relative humidity within the comfort range 30-60 %
 # (ASHRAE Standard 55-1992); each day draws both uniformly in these ranges (the cafe is an indoor
 # room too). The climate is the same for every trial of a day.
 ROOM_TEMPERATURE_C = (22.8, 25.0)
-ROOM_HUMIDITY_PCT = (30.0, 60.0)
-# [phys] Friction of a soft, hygroscopic contact against the climate: the in-vivo skin friction map
+ROOM_HUMIDITY_PCT = (30.0, 60.0)  # [cited] ASHRAE Standard 55-1992
+# [cited] Friction of a soft, hygroscopic contact against the climate: the in-vivo skin friction map
 # of Klaassen et al. (Biotribology, 2016; reciprocating tribometer in a climate enclosure, 25-37 C,
 # 40-80 % RH) grows with the product T x RH and doubles from 25 C / 40 % to 37 C / 80 %; Hendriks and
 # Franklin ("Influence of surface roughness, material and climate conditions on the friction of
@@ -343,14 +370,14 @@ ROOM_HUMIDITY_PCT = (30.0, 60.0)
 # up water, so this skin figure is an upper estimate of the day-to-day change. The catalog's
 # coefficients hold at the centre of the room's climate (`rig.friction_scale`).
 FRICTION_CLIMATE_B_PER_A = 1.0 / 960.0
-# [phys] The silicone's modulus against temperature: rubber elasticity is entropic, G = n k T
+# [cited] The silicone's modulus against temperature: rubber elasticity is entropic, G = n k T
 # (Treloar, "The Physics of Rubber Elasticity", 3rd ed., Oxford 1975), so the shells' stiffness
 # scales with the absolute temperature: +0.34 % per K at room temperature. The catalog's and this
 # file's stiffnesses hold at `SILICONE_REFERENCE_K` (the centre of the room's climate). Minsight's
 # force map reads deformation, so a stiffer shell reads low: the closing stops later (`rig`).
-CELSIUS_K = 273.15
+CELSIUS_K = 273.15  # [law] 0 C in kelvin
 SILICONE_REFERENCE_K = CELSIUS_K + sum(ROOM_TEMPERATURE_C) / 2
-# [phys] Cloth wear: rubbing teases loose fibre ends out of a staple-fibre fabric (the fuzz stage of
+# [estimate] Cloth wear: rubbing teases loose fibre ends out of a staple-fibre fabric (the fuzz stage of
 # pilling, Gintis and Mead, "The mechanism of pilling", Textile Research Journal 29, 1959; filament
 # fabrics have no free ends, so fuzz-free cloth stays as it is). The Martindale pilling test
 # (ISO 12945-2) assesses fuzz and pills after 125, 500, 1000 and 2000 rubs: the loose-fibre density
@@ -358,7 +385,7 @@ SILICONE_REFERENCE_K = CELSIUS_K + sum(ROOM_TEMPERATURE_C) / 2
 # middle of those stages (an estimate: the test grades pills, not a fibre density).
 # A spot is rubbed in a trial when the grasp lands within a patch diameter (of `CONTACT_AREA_M2`) plus
 # a stroke of it: a share (5 + 6) / (40 + 11) of the trials on the 40 mm grasp range, two passes a cycle.
-WEAR_DOUBLING_RUBS = 1000.0
+WEAR_DOUBLING_RUBS = estimates.value("WEAR_DOUBLING_RUBS")
 
 # --- Minsight images --------------------------------------------------------------------------
 # Sources: [minsight] Andrussow, Sun, Kuchenbecker, Martius, "Minsight: A Fingertip-Sized Vision-Based
@@ -376,37 +403,37 @@ SHELL_WIDTH_MM = 2 * SHELL_OUTER_RADIUS_MM  # the fingertip's outer diameter (al
 SHELL_CYLINDER_MM = 15.0  # [minsight] skeleton length ~25 mm (skeleton.STEP) less the hemispherical cap's radius
 # [minsight, camera.py] The camera delivers 1280x960; the node crops the central 960x960 and resizes it
 # to 410x308 (W x H), so one square field of view spans both axes with different pixel pitches.
-# [phys] The lens is taken as an equidistant fisheye whose image circle fills the crop's width and
-# reaches 80 degrees off axis (the wall ~1.8 mm above the camera): a wide-angle estimate, since the
-# lens's field of view is not published.
-CAMERA_HALF_FOV_RAD = math.radians(80.0)
-LED_RING_RADIUS_MM = 6.0  # [phys] the LED ring lies inside the 10.25 mm skeleton, around the camera (estimate)
+# [estimate] The lens is taken as an equidistant fisheye whose image circle fills the crop's width
+# and reaches 80 degrees off axis (the wall ~1.8 mm above the camera): a wide-angle estimate, since
+# the lens's field of view is not published.
+CAMERA_HALF_FOV_RAD = math.radians(estimates.value("CAMERA_HALF_FOV_DEG"))
+LED_RING_RADIUS_MM = estimates.value("LED_RING_RADIUS_MM")  # [estimate] the LED ring lies inside the 10.25 mm skeleton, around the camera
 # [minsight] Full-colour SMD chip LEDs (Wuerth WL-SFCC) on a ring: red, green and blue emitters from
 # three directions 120 degrees apart, the photometric-stereo lighting of [insight]: a tilt of the
 # wall changes the three colours differently.
 LED_ANGLES_RAD = (math.radians(90.0), math.radians(210.0), math.radians(330.0))  # red, green, blue
 # [insight, minsight] A collimator in front of the LED ring shapes their light into a cone inside the
-# shell ("structured light"): [phys] each LED's light leaves within 35 degrees of the axis, fading
+# shell ("structured light"): [estimate] each LED's light leaves within 35 degrees of the axis, fading
 # linearly in cos to that edge (estimate: the cone must reach the wall from ~6 mm above the camera
 # to the tip; the collimator's drawing gives its aperture, not its optics).
-COLLIMATOR_HALF_ANGLE_RAD = math.radians(35.0)
-# [phys] The camera's fixed exposure (camera.py: manual exposure 156, auto white balance off) is
-# set for an unsaturated reference: the brightest no-contact pixels sit near this level (estimate).
-EXPOSURE_LEVEL_DN = 200.0
+COLLIMATOR_HALF_ANGLE_RAD = math.radians(estimates.value("COLLIMATOR_HALF_ANGLE_DEG"))
+# [estimate] The camera's fixed exposure (camera.py: manual exposure 156, auto white balance off) is
+# set for an unsaturated reference: the brightest no-contact pixels sit near this level.
+EXPOSURE_LEVEL_DN = estimates.value("EXPOSURE_LEVEL_DN")
 # [minsight] The interior is Ecoflex 00-30 filled with 65 um aluminium powder and 75 um aluminium
-# flakes: a grainy metallic surface. [phys] Each 75 um cell reflects a random share of the light
+# flakes: a grainy metallic surface. [estimate] Each 75 um cell reflects a random share of the light
 # (flake orientation): albedo 1 + FLAKE_CONTRAST * N(0, 1) per cell (estimate: half the cells' light
 # is the diffuse powder, the flake half varies with unit coefficient of variation); a pixel shows the
 # average over the cells in its footprint, so the grain fades with the pixel's area.
 FLAKE_SIZE_MM = 0.075
 FLAKE_CONTRAST = estimates.value("FLAKE_CONTRAST")
-# [phys] Camera noise: shot noise of a small-pixel CMOS sensor, sigma = sqrt(DN / gain) with
+# [estimate] Camera noise: shot noise of a small-pixel CMOS sensor, sigma = sqrt(DN / gain) with
 # gain = full well / 255 electrons per DN (full well ~6000 e-: order of magnitude for 1.4-2 um pixels);
 # the node's bilinear resize to 410x308 blends 4 native pixels (noise x 2/3), and area-averaging a
 # frame to a smaller size divides it by the square root of the pixels averaged.
 CAMERA_FULL_WELL_E = estimates.value("CAMERA_FULL_WELL_E")
-RESIZE_NOISE_FACTOR = 2.0 / 3.0  # sqrt(E[sum of squared bilinear weights]) = sqrt((2/3)^2)
-# Contact mechanics. [phys] Hertz (1882): two equal elastic spheres (Minsight and the thumb's shell of
+RESIZE_NOISE_FACTOR = 2.0 / 3.0  # [minsight] camera.py's bilinear resize: sqrt(E[sum of squared bilinear weights]) = sqrt((2/3)^2)
+# Contact mechanics. [cited] Hertz (1882): two equal elastic spheres (Minsight and the thumb's shell of
 # the same size, the thin cloth between them) at force F touch over a disc of radius
 # a = (3 F R_eff / (4 E*))^(1/3), R_eff = R / 2, 1 / E* = 2 (1 - nu^2) / E, and each shell is indented
 # by a^2 / R. The displacement of the outer surface (Johnson, Contact Mechanics, 1985, eq. 3.41) reaches
@@ -415,8 +442,8 @@ RESIZE_NOISE_FACTOR = 2.0 / 3.0  # sqrt(E[sum of squared bilinear weights]) = sq
 # i.e. E = 3 * 69 kPa / (2 - 1/4) = 118 kPa for a neo-Hookean solid, nu = 0.5 (rubber). At 0.1 N:
 # a = 1.8 mm, 0.27 mm per shell, consistent with SHELL_NORMAL_STIFFNESS_N_MM above.
 ELASTOMER_E_PA = 3 * 69e3 / (2.0 - 0.25)
-ELASTOMER_POISSON = 0.5
-# [phys] The skeleton holds the shell's global shape: the displacement vanishes one outer radius
+ELASTOMER_POISSON = 0.5  # [FACTS] rubber is incompressible
+# [estimate] The skeleton holds the shell's global shape: the displacement vanishes one outer radius
 # from the contact centre (the half-space's slow 1/r tail is cut there).
 CONTACT_SUPPORT_MM = SHELL_OUTER_RADIUS_MM
 # The shear of the contact: the tangential load over the shell's shear stiffness
@@ -425,45 +452,51 @@ CONTACT_SUPPORT_MM = SHELL_OUTER_RADIUS_MM
 # [paper] The grasp lands on the finger pad; the contact centre sits on the side wall where it meets
 # the cap (axial position below, mm from the camera), wandering by CONTACT_OFFSET_MM between trials.
 CONTACT_AXIAL_MM = SHELL_CYLINDER_MM
+# [estimate] The fingers close on arcs about their joints: a stack thicker by t stops each finger t / 2
+# earlier, which turns the contact along the shell by about R t / (2 L) (R the shell's 11.8 mm radius,
+# L the 30-60 mm from the joint to the contact), towards the tip. Left out of the published simulator
+# (0, the range's low end); the sensitivity study measures what it would change in the frames.
+CONTACT_SHIFT_PER_STACK_MM = estimates.value("CONTACT_SHIFT_PER_STACK_MM")
 # [minsight, insight] Force accuracy: mean absolute force error 0.07 N (Minsight, over its surface),
 # force magnitude accuracy ~0.03 N over 0.03-2 N (Insight); the image test checks that a step of
 # this size is far above the camera noise for an ideal observer.
 FORCE_ACCURACY_N = 0.03
 # What the fabric stack changes in the image at a fixed 0.1 N (the force-controlled closing makes
 # the force itself the same for every fabric):
-# [phys] Patch size: a compressible stack conforms to the fingertip and spreads the load (the
+# [estimate] Patch size: a compressible stack conforms to the fingertip and spreads the load (the
 # patch grows ~15 % per mm of compressible stack), and a bending-stiff stack bridges it like a
 # plate on an elastic foundation, whose load spreads over (B / k)^(1/4) (Hetenyi 1946): the patch
 # widens across the fold as the quarter power of the stack's bending stiffness.
 CONFORM_PER_MM = estimates.value("CONFORM_PER_MM")
-# [phys] Bending stiffness of a layer ~ E h^3 / 12, and its in-plane stiffness ~ E h, so relative
+# [estimate] Bending stiffness of a layer ~ E h^3 / 12, and its in-plane stiffness ~ E h, so relative
 # to a reference layer B scales as stretch_stiffness * thickness^2 (reference: 5 N/mm, 0.5 mm, a
-# shirting cotton).
-BENDING_REF_STRETCH_N_MM = 5.0
-BENDING_REF_THICKNESS_MM = 0.5
-# [phys] The fold of the folded stack is a ridge (a U-turn of the cloth, about one stack thickness
+# shirting cotton). Only stretch * thickness^2 of the reference enters: its thickness is where the
+# estimated stiffness is given.
+BENDING_REF_STRETCH_N_MM = estimates.value("BENDING_REF_STRETCH_N_MM")
+BENDING_REF_THICKNESS_MM = 0.5  # [numerics] the reference point BENDING_REF_STRETCH_N_MM is given at
+# [estimate] The fold of the folded stack is a ridge (a U-turn of the cloth, about one stack thickness
 # wide) that presses a line into the shell where it lies inside the patch. Through an elastic
 # shell of thickness d, surface relief of wavelength lambda reaches the inner wall attenuated by
 # exp(-2 pi d / lambda) (the same layer law as the contact); it removes weave textures of
 # sub-millimetre period entirely, so none is drawn.
-RIDGE_WAVELENGTH_PER_THICKNESS = 4.0  # a ridge of width w has its relief at lambda ~ 4 w
-FOLD_ANGLE_SPREAD_RAD = 0.3  # [paper: the hanger is moved between trials] the fold's direction varies
+RIDGE_WAVELENGTH_PER_THICKNESS = estimates.value("RIDGE_WAVELENGTH_PER_THICKNESS")  # a ridge of width w has its relief at lambda ~ 4 w
+FOLD_ANGLE_SPREAD_RAD = estimates.value("FOLD_ANGLE_SPREAD_RAD")  # [paper: the hanger is moved between trials] the fold's direction varies
 # The camera's day. [minsight, camera.py] Exposure and white balance are fixed by the camera node
 # (manual exposure, auto white balance off), so they do not move between days; what moves is:
-# * the LEDs' light with the room's temperature. [phys] Light output falls with junction temperature
+# * the LEDs' light with the room's temperature. [cited] Light output falls with junction temperature
 #   as exp(-dT / T1): T1 ~ 95 K for AlGaInP (red), ~1600 K for GaInN (green, blue) (E. F. Schubert,
 #   Light-Emitting Diodes, 2nd ed., Cambridge University Press 2006, ch. 6), so the red channel drifts
 #   ~1 %/K and the frame's colour with it; the dominant-wavelength shift (< 0.1 nm/K) is negligible
 #   against the camera's broad colour filters. The room's temperature is the day's climate
 #   (`ROOM_TEMPERATURE_C`, section "the rig between sessions"), relative to its centre.
 LED_T1_K = (95.0, 1600.0, 1600.0)
-# * the LEDs' drive: [phys] series-resistor LEDs on the USB supply, whose VBUS the USB 2.0
+# * the LEDs' drive: [cited] series-resistor LEDs on the USB supply, whose VBUS the USB 2.0
 #   specification allows within 4.75-5.25 V; a day's VBUS is drawn within that bound and the current
 #   follows (V - Vf) / R, Vf ~2.0 V (red) and ~3.0 V (green, blue) (full-colour chip LED datasheets).
 USB_VBUS_V = 5.0
-USB_VBUS_TOLERANCE_V = 0.25
-LED_FORWARD_V = (2.0, 3.0, 3.0)
-# * the seating of the shell on the base after remounting: [phys] SLA-printed mating parts (the
+USB_VBUS_TOLERANCE_V = 0.25  # [cited] USB 2.0 specification
+LED_FORWARD_V = (2.0, 3.0, 3.0)  # [cited] full-colour chip LED datasheets, as above
+# * the seating of the shell on the base after remounting: [estimate] SLA-printed mating parts (the
 #   camera holder and base are Form 3 prints [minsight]) fit to ~0.1 mm (Formlabs' tolerance guide),
 #   so the shell sits up to ~0.05 mm higher or lower (SD) and turns about its axis by that much over
 #   its 10 mm radius.
@@ -471,11 +504,20 @@ SEATING_AXIAL_SD_MM = estimates.value("SEATING_AXIAL_SD_MM")
 SEATING_ROTATION_SD_RAD = SEATING_AXIAL_SD_MM / SKELETON_RADIUS_MM
 # * the reference (no-contact) frame is taken anew each day [minsight, camera.py: one frame after
 #   the warm-up], so it carries that day's LEDs and seating.
-# Frames smaller than 308x410 are rendered at RENDER_SUPERSAMPLE times their size (at most the full
+# [numerics] Frames smaller than 308x410 are rendered at RENDER_SUPERSAMPLE times their size (at most the full
 # 308x410) from the same millimetre scene and area-averaged down, as the paper downsamples.
 RENDER_SUPERSAMPLE = 2
-OPEN_POSE_RAD = (0.30, 0.20, 0.10, 0.00, 0.20, 0.50)  # [hw] joint angles of the open hand
-CLOSING_SHARE = (0.0, 0.6, 0.4, 0.0, 1.0, 0.0)  # how each finger's closing travel splits over joints
-SERVO_STIFFNESS_NM_RAD = 4.0  # [hw] position-loop stiffness: loaded joints lag their command
-READ_LATENCY_S = 0.002  # joints are read just before the frame is captured
+# [estimate] joint angles of the open hand: thumb (3 joints), middle finger (2), palm (1)
+OPEN_POSE_RAD = (
+    estimates.value("OPEN_POSE_THUMB1_RAD"), estimates.value("OPEN_POSE_THUMB2_RAD"), estimates.value("OPEN_POSE_THUMB3_RAD"),
+    estimates.value("OPEN_POSE_MIDDLE1_RAD"), estimates.value("OPEN_POSE_MIDDLE2_RAD"), estimates.value("OPEN_POSE_PALM_RAD"),
+)
+# How each finger's closing travel splits over its joints: the base joints rub and the palm holds
+# still (0), the middle finger closes with its second joint alone (1), the thumb splits its travel
+# between its second and third joints [estimate] [numerics: the zeros and ones are the model's
+# structure, not magnitudes].
+_THUMB2 = estimates.value("CLOSING_SHARE_THUMB2")
+CLOSING_SHARE = (0.0, _THUMB2, 1.0 - _THUMB2, 0.0, 1.0, 0.0)
+SERVO_STIFFNESS_NM_RAD = estimates.value("SERVO_STIFFNESS_NM_RAD")  # [estimate] position-loop stiffness: loaded joints lag their command
+READ_LATENCY_S = estimates.value("READ_LATENCY_S")  # [estimate] joints are read just before the frame is captured
 

@@ -11,6 +11,12 @@ is a calibration, no longer a finding.
 
 Groups are the sensitivity study's factors: the estimates of one group act on one mechanism and
 move together (each to the same relative place in its own range).
+
+A tuple of `calibration` (a draw range, a position, a joint pose) has one estimate per element
+(`SPEAKER_DISTANCE_M` is `SPEAKER_DISTANCE_NEAR_M` to `SPEAKER_DISTANCE_FAR_M`), so the registry
+holds scalars only. `markdown_table` renders the registry for docs/simulator.md
+(`python -m experiments.estimates` writes it there); `tests/test_estimates.py` checks that every
+number of `fabricjax.sim` is a registry estimate or carries its source tag (see `calibration`).
 """
 
 from __future__ import annotations
@@ -70,7 +76,8 @@ class Estimate:
         return (self.value - self.low) / (self.high - self.low)
 
 
-_AUDIO, _ALL, _IMAGES = ("audio",), STREAMS, ("images",)
+_AUDIO, _ALL, _IMAGES, _PROPRIO = ("audio",), STREAMS, ("images",), ("proprio",)
+_AUDIO_PROPRIO = ("audio", "proprio")
 
 ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     # --- the shell's airborne path: what room sound reaches Minsound ---------------------------
@@ -99,6 +106,18 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "SERVO_PALM_GAIN_DB", -10.0, -20.0, 0.0, "the servos sit in the palm: airborne there at most as loud as structure-borne in the fingertip",
         "the servo noise the palm microphone hears", "servo noise", _AUDIO),
+    Estimate(
+        "GEAR_TEETH", 10.0, 6.0, 16.0, "the first-stage pinion of a small servo motor has some 6-16 teeth; the STS3215's is unpublished",
+        "the gear-mesh tone's frequency (motor rev/s x teeth)", "servo noise", _AUDIO),
+    Estimate(
+        "SERVO_LOAD_REF_NM", 0.01, 0.003, 0.03, "gear noise grows with the transmitted torque; a 0.1 N pinch loads a joint with mN m: the doubling torque is of that order",
+        "how much the contact's load raises the servo noise (its friction information)", "servo noise", _AUDIO, log=True),
+    Estimate(
+        "SERVO_BAND_LOW_HZ", 150.0, 75.0, 300.0, "the skeleton's mounting resonances pass little structure-borne sound below ~100-300 Hz",
+        "the low edge of the servo noise inside Minsound and at the palm", "servo noise", _AUDIO, log=True),
+    Estimate(
+        "SERVO_BAND_HIGH_HZ", 6000.0, 3000.0, 12000.0, "silicone and the joints' contacts damp structure-borne sound above a few kHz",
+        "the high edge of the servo noise inside Minsound", "servo noise", _AUDIO, log=True),
     # --- the cafe's sound besides its level -------------------------------------------------------
     Estimate(
         "CLATTER_PER_S", 1.5, 0.3, 6.0, "a quiet to a busy cafe: one clink every few seconds to several a second",
@@ -109,7 +128,28 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "BABBLE_MODULATION", 0.25, 0.1, 0.6, "the envelope of N talkers fluctuates as 1/sqrt(N): 3 to 100 talkers",
         "the babble's syllabic rhythm", "cafe scene", _AUDIO),
-    # --- the contact sound's size in Minsound ----------------------------------------------------
+    Estimate(
+        "CLATTER_RING_LOW_HZ", 2000.0, 1000.0, 3000.0, "cups and plates ring from ~1 kHz up; the recording's tableware is unknown",
+        "the lowest ring of the cafe's clatter", "cafe scene", _AUDIO),
+    Estimate(
+        "CLATTER_RING_HIGH_HZ", 7000.0, 4000.0, 12000.0, "cutlery and glass ring up to ~10 kHz and beyond",
+        "the highest ring of the cafe's clatter", "cafe scene", _AUDIO, log=True),
+    Estimate(
+        "CLATTER_DECAY_S", 0.015, 0.005, 0.05, "tableware struck on a table rings down within tens of ms",
+        "how long each clink rings", "cafe scene", _AUDIO, log=True),
+    Estimate(
+        "CAFE_DAY_SPREAD_DB", 2.0, 0.5, 4.0, "the paper's 47-55 dB(A) spans its cafe days and trials together; their split is unmeasured",
+        "how much of the cafe level's spread is the day's (the rest the trial's)", "cafe scene", _AUDIO),
+    Estimate(
+        "SPEAKER_DISTANCE_NEAR_M", 0.5, 0.3, 1.0, "a loudspeaker on a table by the rig, unplaced by the paper: from arm's length",
+        "the loudspeaker's nearest place: its direct sound against the room's at each microphone", "cafe scene", _AUDIO),
+    Estimate(
+        "SPEAKER_DISTANCE_FAR_M", 2.0, 1.0, 4.0, "to across the bench or the room's near side",
+        "the loudspeaker's farthest place", "cafe scene", _AUDIO, log=True),
+    Estimate(
+        "SPEAKER_Q", 2.0, 1.0, 4.0, "a small closed box is omnidirectional (Q = 1) at low and beamed (Q ~ 4) at high frequency (Beranek, Acoustics, Ch. 4)",
+        "the loudspeaker's direct sound against the reverberant", "cafe scene", _AUDIO, log=True),
+    # --- the contact sound's size in Minsound and its paths to the palm -----------------------------
     Estimate(
         "WALL_COUPLING", 0.01, 0.003, 0.03, "a 3 mm silicone wall over a 5 mm patch passes a few per cent of the skin's displacement to its inner face",
         "the texture sound's level in Minsound against its noise", "contact sound", _AUDIO, log=True),
@@ -119,7 +159,52 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "RELEASE_PA", 0.15, 0.05, 0.45, "the stroke reversal's stored elastic energy: order of magnitude",
         "the release at every stroke reversal", "contact sound", _AUDIO, log=True),
-    # --- the camera's day ---------------------------------------------------------------------
+    Estimate(
+        "CONTACT_AREA_M2", 20e-6, 8e-6, 40e-6, "Hertz at 0.1 N with Ecoflex 00-30's datasheet modulus gives a 3.6 mm disc (10 mm^2); a cloth stack conforms and spreads it",
+        "the volume the contact displaces (texture level), the cloth's radiating disc, the rubbed share of the strip", "contact sound", _AUDIO, log=True),
+    Estimate(
+        "CAVITY_VOLUME_M3", 8e-6, 3e-6, 12e-6, "a fingertip of Minsight's size (10.25 mm radius, 15 mm cylinder and cap) holds ~7 cm^3, less its skeleton and board",
+        "the cavity pressure per displaced volume (Minsound's contact sound)", "contact sound", _AUDIO, log=True),
+    Estimate(
+        "SHELL_MODE_HZ", 3000.0, 1500.0, 6000.0, "the silicone wall's mass on its own stiffness and the cavity's air spring: kHz order, unmeasured",
+        "where the contact sound in Minsound peaks and starts to fall", "contact sound", _AUDIO, log=True),
+    Estimate(
+        "SHELL_MODE_Q", 1.5, 0.7, 4.0, "soft silicones' loss factors of ~0.2-1, and a wall loaded by the contact: a broad resonance",
+        "how sharply the wall mode shapes the contact sound", "contact sound", _AUDIO, log=True),
+    Estimate(
+        "SHELL_LOSS_HZ", 12000.0, 6000.0, 24000.0, "silicone damping rises with frequency: one e-fold of extra loss somewhere in 6-24 kHz",
+        "the contact sound's fall above the wall mode", "contact sound", _AUDIO, log=True),
+    Estimate(
+        "SLIPS_PER_MM", 6.0, 2.0, 18.0, "micro-slips at the spacing of fibres (tens of um) to yarns (~1 mm): a few to tens per mm slid at mu = 1",
+        "how many stick-slip clicks a stroke makes", "contact sound", _AUDIO, log=True),
+    Estimate(
+        "SLIP_RING_LOW_HZ", 900.0, 450.0, 1800.0, "milligrams of skin on the contact's stiffness ring at kHz order: a factor 2 either way",
+        "the clicks' ring on the softest contacts (thick, compressible stacks)", "contact sound", _AUDIO, log=True),
+    Estimate(
+        "SLIP_RING_HIGH_HZ", 3500.0, 1800.0, 7000.0, "the same on the stiffest contact (no cloth): a factor 2 either way",
+        "the clicks' ring on the stiffest contacts", "contact sound", _AUDIO, log=True),
+    Estimate(
+        "SLIP_DECAY_S", 0.0003, 0.0001, 0.001, "a heavily damped skin rings for a cycle or a few of its kHz ring",
+        "how long each click rings", "contact sound", _AUDIO, log=True),
+    Estimate(
+        "SLIP_SPREAD", 0.5, 0.2, 1.0, "asperity heights and stick lengths vary between clicks by a factor 1.2 to 2.7 (log-normal sigma)",
+        "the spread of the clicks' amplitudes", "contact sound", _AUDIO),
+    Estimate(
+        "FINGERTIP_OFFSET_M", 0.015, 0.012, 0.018, "the shell's radius (11.8 mm [minsight]) plus half the stack puts a centre 12-14 mm from the pinch; 15 mm is the earlier width estimate",
+        "the fingertips' distances to the palm microphone", "contact sound", _AUDIO),
+    Estimate(
+        "PALM_MIC_X_M", -0.03, -0.05, -0.01, "'on the side of the palm' [paper], the ISyHand's dimensions unpublished: each coordinate within +-2 cm",
+        "where the palm microphone sits along the pinch axis (thumb side)", "contact sound", _AUDIO),
+    Estimate(
+        "PALM_MIC_Y_M", -0.07, -0.09, -0.05, "as the other coordinates: ~8 cm from the pinch, within +-2 cm",
+        "how far below the pinch the palm microphone sits", "contact sound", _AUDIO),
+    Estimate(
+        "PALM_MIC_Z_M", 0.02, 0.0, 0.04, "as the other coordinates: within +-2 cm",
+        "how far behind the pinch the palm microphone sits", "contact sound", _AUDIO),
+    Estimate(
+        "CLOTH_DISPLACEMENT_SHARE", 0.5, 0.3, 0.7, "equal shells in series put the sheet midway; unequal shells or a compliant stack move it by tens of per cent",
+        "the cloth's dipole at the palm microphone", "contact sound", _AUDIO),
+    # --- the camera -----------------------------------------------------------------------------
     Estimate(
         "SEATING_AXIAL_SD_MM", 0.05, 0.01, 0.1, "SLA-printed mating parts fit to ~0.1 mm: a remounted shell sits within a fraction of it",
         "where the shell sits on the camera each day: the frame's day term", "camera day", _IMAGES),
@@ -129,6 +214,18 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "CAMERA_FULL_WELL_E", 6000.0, 3000.0, 12000.0, "the full well of 1.4-2 um CMOS pixels",
         "the camera's shot noise", "camera day", _IMAGES, log=True),
+    Estimate(
+        "CAMERA_HALF_FOV_DEG", 80.0, 65.0, 90.0, "the image must reach the wall near the base (80 deg off axis at ~1.8 mm above the camera); the lens is unpublished",
+        "how much of the wall each frame sees, and at what scale", "camera day", _IMAGES),
+    Estimate(
+        "LED_RING_RADIUS_MM", 6.0, 4.0, 8.5, "inside the 10.25 mm skeleton [minsight], outside the camera module",
+        "the LEDs' angles of incidence: the shading a tilted wall makes", "camera day", _IMAGES),
+    Estimate(
+        "COLLIMATOR_HALF_ANGLE_DEG", 35.0, 20.0, 50.0, "the cone must light the wall from ~6 mm above the camera to the tip; the collimator's optics are unpublished",
+        "where on the wall the light falls off", "camera day", _IMAGES),
+    Estimate(
+        "EXPOSURE_LEVEL_DN", 200.0, 150.0, 240.0, "a fixed exposure set for an unsaturated reference: its brightest pixels at 60-95 % of 255",
+        "the frames' brightness, and with it the shot noise's share", "camera day", _IMAGES),
     # --- what the contact does to Minsight's wall ---------------------------------------------------
     Estimate(
         "SHELL_SHEAR_STIFFNESS_N_MM", 0.30, 0.1, 0.9, "a soft silicone shell's tangential stiffness at a 2 mm patch: of the order of its normal stiffness",
@@ -139,6 +236,212 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "CONFORM_PER_MM", 0.15, 0.05, 0.4, "a compressible stack spreads the load over a larger patch: tens of per cent per mm",
         "how the patch's size follows the fabric's thickness", "contact on Minsight", _IMAGES),
+    Estimate(
+        "SHELL_NORMAL_STIFFNESS_N_MM", 0.25, 0.15, 0.4, "Hertz between two Ecoflex 00-30 shells (datasheet modulus) gives 0.19 N/mm secant, 0.28 tangent at 0.1 N; the skeleton stiffens it",
+        "the closing travel, the grasp's overshoot and the load's swing over a stroke", "contact on Minsight", _ALL),
+    Estimate(
+        "BENDING_REF_STRETCH_N_MM", 5.0, 2.0, 12.0, "the layer whose bending starts to widen the patch: a shirting cotton's in-plane stiffness, a few N/mm at 0.5 mm",
+        "how much a stiff stack widens the patch across the fold", "contact on Minsight", _IMAGES, log=True),
+    Estimate(
+        "RIDGE_WAVELENGTH_PER_THICKNESS", 4.0, 2.0, 8.0, "a ridge of width w has its relief at wavelengths of 2 w (a half-sine bump) to several w (a smooth crease)",
+        "how much of the fold ridge thick stacks press through to the inner wall", "contact on Minsight", _IMAGES, log=True),
+    Estimate(
+        "FOLD_ANGLE_SPREAD_RAD", 0.3, 0.1, 0.6, "a hand-hung fold's direction after the hanger moves: within ~5-35 degrees of the finger's axis",
+        "the patch's orientation in the frame from trial to trial", "contact on Minsight", _IMAGES, log=True),
+    # --- the procedure: finger motion, timing and the grasp ------------------------------------------
+    Estimate(
+        "FRAME_JITTER_S", 0.0008, 0.0002, 0.002, "a UVC camera's frames timestamped on the host: a USB 2.0 microframe (125 us) to user-space wake-up latency (~1 ms)",
+        "each frame's capture time, with it the audio window and joint reading it carries", "procedure", _ALL, log=True),
+    Estimate(
+        "OPEN_GAP_MM", 14.0, 9.0, 25.0, "the open pose must clear the thickest folded stack (~6 mm) and stay within a human-sized pinch",
+        "the closing time before contact: when the rubbing starts", "procedure", _ALL),
+    Estimate(
+        "CLOSING_SPEED_MM_S", 20.0, 10.0, 40.0, "a closing checked once per 20 ms frame: slow enough to stop within ~0.5 mm of the threshold, fast enough to close in a second",
+        "the grasp force's overshoot past 0.1 N, and the closing time", "procedure", _ALL, log=True),
+    Estimate(
+        "SETTLE_S", 0.1, 0.04, 0.3, "a commanded pause between two motions: a few control periods to a few tenths of a second",
+        "the pause between the grasp and the first stroke", "procedure", _ALL, log=True),
+    Estimate(
+        "STOP_S", 0.1, 0.04, 0.3, "the recording stops a few control periods to a few tenths of a second after the last stroke",
+        "the trial's still tail", "procedure", _ALL, log=True),
+    Estimate(
+        "RUB_AMPLITUDE_MM", 3.0, 1.5, 6.0, "a stroke must exceed the 0.1-0.3 mm stick length many times over and stay on a ~20 mm fingertip pad",
+        "the stroke's length: slide speed, texture frequencies, the joints' swing", "procedure", _ALL, log=True),
+    Estimate(
+        "CYCLE_HZ", 2.0, 1.7, 2.4, "the paper's ~1500 steps (30 s) per 50-cycle trial, with the closing and the load's droop, bound the commanded rate",
+        "the rubbing rate: trial length, slide speed, texture frequencies", "procedure", _ALL),
+    Estimate(
+        "ARC_MM", 0.15, 0.05, 0.4, "the sagitta of two fingertips' +-3 mm arcs on 60 mm levers is 0.15 mm; the other joints and the pad's curvature change it",
+        "the normal force's swing at the stroke ends", "procedure", _ALL, log=True),
+    Estimate(
+        "SPEED_DROOP_PER_N", 2.0, 0.7, 5.0, "position-controlled servos lose a few to ~40 % of their speed at these loads; the paper: slower on high friction",
+        "how trial length follows friction", "procedure", _ALL, log=True),
+    Estimate(
+        "SPEED_JITTER", 0.02, 0.006, 0.05, "the STS3215's speed moves ~6 %/V (datasheet speeds at 7.4 and 12 V); a supply sags by 0.1-0.5 V under load",
+        "the rubbing rate's spread between trials", "procedure", _ALL, log=True),
+    Estimate(
+        "CYCLE_PHASE_JITTER", 0.01, 0.003, 0.03, "the stroke rate's wander within a trial: below the spread between trials, from the same supply and load",
+        "the stroke rate's wander within a trial", "procedure", _ALL, log=True),
+    Estimate(
+        "FOLD_SPREAD", 0.1, 0.03, 0.25, "a hand-folded stack: two layers plus slack and seams, a few to 25 % off its nominal thickness",
+        "the stack's thickness from trial to trial: closing angle, stiffness, patch", "procedure", _ALL, log=True),
+    Estimate(
+        "GRASP_RANGE_LOW_MM", 12.0, 8.0, 22.0, "how far the hanger's adjustment moves the grasp is unmeasured: a 20-48 mm spread, ~8 mm or more from the strip's ends",
+        "which stretch of cloth a trial reads, and how often trials share a spot (wear)", "procedure", _AUDIO),
+    Estimate(
+        "GRASP_RANGE_HIGH_MM", 52.0, 42.0, 56.0, "as the low end, within the simulated 65.5 mm strip",
+        "which stretch of cloth a trial reads, and how often trials share a spot (wear)", "procedure", _AUDIO),
+    Estimate(
+        "FOLD_LINE_NEAR_MM", 5.0, 2.0, 8.0, "~20 mm long fingertips pinch the fold near their middle: a few mm above the fold line at least",
+        "where on the strip the middle finger rubs, relative to the thumb", "procedure", _AUDIO),
+    Estimate(
+        "FOLD_LINE_FAR_MM", 15.0, 10.0, 20.0, "at most about a fingertip's length above it",
+        "where on the strip the middle finger rubs, relative to the thumb", "procedure", _AUDIO),
+    # --- the fabric's surface and its wear ----------------------------------------------------------
+    Estimate(
+        "ROUGHNESS_K_MIN", 0.5, 0.2, 1.0, "below wavelengths of 1-5 mm the draped cloth follows the fingertip rather than vibrating it",
+        "the texture sound's low-frequency content", "fabric surface", _AUDIO, log=True),
+    Estimate(
+        "WEAVE_SHARE", 0.5, 0.2, 0.8, "the periodic weave or knit carries a fifth to most of a cloth's height variance",
+        "how tonal (weave lines) against broadband each fabric's texture sound is", "fabric surface", _AUDIO),
+    Estimate(
+        "WEAVE_IRREGULARITY", 0.03, 0.01, 0.08, "woven fabrics' yarn spacing varies by a few per cent (coefficient of variation)",
+        "the weave lines' width", "fabric surface", _AUDIO, log=True),
+    Estimate(
+        "LOCAL_ROUGHNESS_SPREAD", 0.2, 0.05, 0.4, "wear, creases and pile direction change a strip's roughness by 5-40 % from place to place",
+        "the texture level's change with the grasp position", "fabric surface", _AUDIO),
+    Estimate(
+        "FUZZ_FIBRES_PER_MM", 6.0, 2.0, 18.0, "loose fibre ends on a fuzzy staple-fibre cloth: a few to tens per mm of path",
+        "the loose fibres' clicks in the texture sound", "fabric surface", _AUDIO, log=True),
+    Estimate(
+        "FUZZ_FIBRE_WIDTH_MM", 0.008, 0.004, 0.02, "textile fibres are ~10-20 um across (wool to ~40 um); a fibre end's bump is about as wide",
+        "how high in frequency the loose fibres reach", "fabric surface", _AUDIO, log=True),
+    Estimate(
+        "FUZZ_HEIGHT", 0.6, 0.2, 1.5, "a loose fibre end stands about as high as the cloth's RMS roughness, within a factor ~3",
+        "the loose fibres' share of the texture sound", "fabric surface", _AUDIO, log=True),
+    Estimate(
+        "SHELL_ROUGHNESS_UM", 0.5, 0.2, 1.5, "a moulded silicone skin's micro-texture: sub-micron to ~1 um RMS",
+        "class 0's texture sound and clicks (the shells rub each other)", "fabric surface", _AUDIO, log=True),
+    Estimate(
+        "SHELL_SPECTRAL_SLOPE", 2.0, 1.0, 3.0, "self-affine surfaces' height spectra fall as 1/k^(1 + 2H), Hurst exponent H of 0 to 1",
+        "class 0's texture spectrum", "fabric surface", _AUDIO),
+    Estimate(
+        "CLOTH_CREEP_MM_PER_CYCLE", 0.05, 0.02, 0.15, "about a third of the 0.1-0.3 mm stick length goes unrecovered each stroke, within a factor ~2-3",
+        "how far the read stretch of cloth drifts within a trial", "fabric surface", _AUDIO, log=True),
+    Estimate(
+        "WEAR_DOUBLING_RUBS", 1000.0, 250.0, 4000.0, "the Martindale pilling test's stages (125-2000 rubs, ISO 12945-2) grade pills, not a fibre density",
+        "how fast a cloth's loose fibres grow over its recording history", "fabric surface", _AUDIO, log=True),
+    # --- the room and the lab's events ---------------------------------------------------------------
+    Estimate(
+        "ROOM_VOLUME_M3", 144.0, 50.0, 400.0, "a university lab, unnamed by the paper: a small room (~5 x 4 x 2.7 m) to a large one (~12 x 11 x 3 m)",
+        "the reverberant field against the direct: events' and the loudspeaker's level at the hand", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "ROOM_T60_S", 0.6, 0.35, 1.2, "ANSI S12.60's classroom target is 0.6 s, furnished offices 0.4-0.8 s, a bare lab longer",
+        "the room's reverberation: its responses at the two microphones", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "LAB_VOICE_PER_MIN", 0.2, 0.05, 1.0, "a remark every 20 minutes to one a minute on an average day; no counts in a lab were found",
+        "how often a voice is heard in a trial", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "LAB_STEPS_PER_MIN", 0.5, 0.1, 2.0, "a walk past every 10 minutes to two a minute; no counts in a lab were found",
+        "how often footsteps are heard in a trial", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "LAB_DOOR_PER_MIN", 0.05, 0.01, 0.25, "a door every 100 minutes to every 4 minutes; no counts in a lab were found",
+        "how often a door is heard in a trial", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "LAB_STEPS_DB_A", 45.0, 38.0, 52.0, "a footfall at 1 m sits some dB below conversational speech (50 dB(A)); hard heels on a hard floor reach it",
+        "the footsteps' level", "room and lab events", _AUDIO),
+    Estimate(
+        "LAB_DOOR_DB_A", 70.0, 65.0, 75.0, "a door closed normally: 65-75 dB(A) at 1 m",
+        "the door's level", "room and lab events", _AUDIO),
+    Estimate(
+        "LAB_VOICE_SHORT_S", 1.0, 0.5, 2.0, "a remark lasts from a word or two",
+        "the shortest utterance", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "LAB_VOICE_LONG_S", 4.0, 2.0, 8.0, "to a few sentences",
+        "the longest utterance", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "LAB_STEPS_SHORT_S", 3.0, 1.5, 5.0, "a walk past at ~1.4 m/s stays within a few metres for a few seconds",
+        "the shortest walk past", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "LAB_STEPS_LONG_S", 6.0, 5.0, 12.0, "or longer on a slow or longer path",
+        "the longest walk past", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "LAB_DOOR_S", 0.3, 0.15, 0.6, "a door's impact and its latch: a few tenths of a second",
+        "how long a door's sound lasts", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "LAB_ACTIVITY_SIGMA", 0.7, 0.4, 1.2, "an ICU's day-to-day level spread is 0.40 in log-activity (Naef et al. 2023), a lower bound for a lab's irregular occupancy",
+        "how busy one recording day is against another", "room and lab events", _AUDIO),
+    Estimate(
+        "EVENT_DISTANCE_NEAR_M", 2.0, 1.0, 3.0, "the far side of the hand's bench",
+        "the nearest event", "room and lab events", _AUDIO),
+    Estimate(
+        "EVENT_DISTANCE_FAR_M", 8.0, 5.0, 12.0, "the far side of the room (5-12 m for the room sizes above)",
+        "the farthest event", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "STEP_DECAY_S", 0.03, 0.01, 0.08, "a heel strike on a floor slab rings down within tens of ms",
+        "each footfall's length", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "DOOR_DECAY_SHARE", 1 / 3, 0.15, 0.6, "the impact decays within its sound's duration: a time constant of a sixth to half of it",
+        "the door's decay", "room and lab events", _AUDIO),
+    # --- the joints, the force proxy and the hand's geometry -------------------------------------------
+    Estimate(
+        "FINGER_LEVER_MM", 60.0, 40.0, 90.0, "joint axis to fingertip contact of a human-sized finger (the ISyHand's dimensions are unpublished)",
+        "joint angle and speed per mm of fingertip travel: the joints' swing, the servos' speed and noise", "proprioception", _AUDIO_PROPRIO),
+    Estimate(
+        "OPEN_POSE_THUMB1_RAD", 0.30, 0.05, 0.55, "the open hand's pose is unpublished: each joint within ~15 degrees of one that clears the gap",
+        "the thumb's first joint angle (an offset)", "proprioception", _PROPRIO),
+    Estimate(
+        "OPEN_POSE_THUMB2_RAD", 0.20, -0.05, 0.45, "as the first joint", "the thumb's second joint angle (an offset)", "proprioception", _PROPRIO),
+    Estimate(
+        "OPEN_POSE_THUMB3_RAD", 0.10, -0.15, 0.35, "as the first joint", "the thumb's third joint angle (an offset)", "proprioception", _PROPRIO),
+    Estimate(
+        "OPEN_POSE_MIDDLE1_RAD", 0.00, -0.25, 0.25, "as the first joint", "the middle finger's first joint angle (an offset)", "proprioception", _PROPRIO),
+    Estimate(
+        "OPEN_POSE_MIDDLE2_RAD", 0.20, -0.05, 0.45, "as the first joint", "the middle finger's second joint angle (an offset)", "proprioception", _PROPRIO),
+    Estimate(
+        "OPEN_POSE_PALM_RAD", 0.50, 0.25, 0.75, "as the first joint", "the palm joint's angle (an offset)", "proprioception", _PROPRIO),
+    Estimate(
+        "CLOSING_SHARE_THUMB2", 0.6, 0.3, 0.8, "the thumb closes with its two outer joints; how it splits its travel between them is unpublished",
+        "the thumb's closing angles and loads (the rest goes to its third joint)", "proprioception", _PROPRIO),
+    Estimate(
+        "SERVO_STIFFNESS_NM_RAD", 4.0, 2.0, 30.0, "a position loop's torque per rad of lag: the 1.9 N m stall torque over a proportional band of 0.06-1 rad",
+        "how far loaded joints lag their command", "proprioception", _PROPRIO, log=True),
+    Estimate(
+        "VISCOUS_NM_PER_RAD_S", 0.01, 0.003, 0.03, "a 345:1 gear train's drag at the output: of the order of a per cent of the stall torque per rad/s",
+        "the moving joints' current", "proprioception", _PROPRIO, log=True),
+    Estimate(
+        "IDLE_CURRENT_A", 0.04, 0.015, 0.1, "a holding servo draws tens of mA (the STS3215's no-load running current is 150 mA at 7.4 V)",
+        "every joint's current floor", "proprioception", _PROPRIO, log=True),
+    Estimate(
+        "VELOCITY_NOISE_RAD_S", 0.02, 0.005, 0.06, "a velocity from a 12-bit encoder's counts: a 1.5 mrad step per 25-300 ms of counting",
+        "the joints' velocity noise", "proprioception", _PROPRIO, log=True),
+    Estimate(
+        "CURRENT_NOISE_A", 0.006, 0.002, 0.02, "PWM ripple on the current reading: about one 6.5 mA register step, up to a few",
+        "the joints' current noise", "proprioception", _PROPRIO, log=True),
+    Estimate(
+        "READ_LATENCY_S", 0.002, 0.0005, 0.008, "reading six servos over a 1 Mbaud half-duplex bus takes ~1-5 ms before the frame",
+        "how far the joint readings lead the frame", "proprioception", _PROPRIO, log=True),
+    Estimate(
+        "FORCE_NOISE_N", 0.004, 0.0015, 0.01, "Insight's ~0.03 N accuracy over many contacts [insight] bounds a repeated contact's; its split into noise and day bias is unmeasured",
+        "the force proxy's frame-to-frame noise", "proprioception", _PROPRIO, log=True),
+    Estimate(
+        "FORCE_BIAS_N", 0.004, 0.0015, 0.01, "as the noise: a share of Insight's ~0.03 N accuracy, held for a day by its daily reference image",
+        "the force proxy's day bias, and with it where the closing stops", "proprioception", _ALL, log=True),
+    # --- the microphones beyond their datasheet ------------------------------------------------------
+    Estimate(
+        "DC_OFFSET_COUNTS", -3000.0, -8000.0, -1000.0, "the SPH0645's DC offset is large and part-specific, unspecified: ~1-6 % of the 2**17 full scale",
+        "the words' DC (removed by the features' detrend)", "microphones", _AUDIO),
+    Estimate(
+        "DC_DRIFT_COUNTS", 400.0, 100.0, 1500.0, "the offset follows the modulator's reference and temperature; the datasheet gives no drift: 0.1-1 % of full scale",
+        "the DC's day-to-day change", "microphones", _AUDIO, log=True),
+    Estimate(
+        "DECIMATION_HZ", 21_000.0, 19_000.0, 23_000.0, "a sigma-delta decimator's passband ends at 0.40-0.48 of the 48 kHz rate (converters: 0.45-0.47); the SPH0645's is unstated",
+        "where the microphones' response ends above the 15 kHz band", "microphones", _AUDIO),
+    # --- effects the published simulator leaves out (value 0), bounded by physics ------------------
+    Estimate(
+        "CONTACT_SHIFT_PER_STACK_MM", 0.0, 0.0, 0.2,
+        "closing on arcs, a stack thicker by t turns the contact along the shell by R t / 2L: 0.1-0.2 mm per mm for L 60-30 mm; 0 leaves it out",
+        "where the contact lands in the frame with the fabric's thickness (up to ~1 mm, a few pixels at 60x80)", "camera effects left out", _IMAGES),
 )})
 
 GROUPS: tuple[str, ...] = tuple(dict.fromkeys(e.group for e in ESTIMATES.values()))
@@ -188,3 +491,48 @@ def check(overrides: Mapping[str, float]) -> dict[str, float]:
 def streams_touched(names) -> set[str]:
     """The streams the estimates `names` act on."""
     return {s for n in names for s in ESTIMATES[n].streams}
+
+
+TABLE_BEGIN = "<!-- ESTIMATES_BEGIN -->"
+TABLE_END = "<!-- ESTIMATES_END -->"
+
+
+def _number(v: float) -> str:
+    return f"{v:g}"
+
+
+def markdown_table() -> str:
+    """The registry as Markdown: per group, one row per estimate (value, range, scale, streams, why
+    this range, what it drives, and the measurement it is calibrated to, where it is)."""
+    lines = [f"{len(ESTIMATES)} estimates in {len(GROUPS)} groups (the sensitivity study's factors).", ""]
+    for group in GROUPS:
+        lines += [
+            f"**{group}**",
+            "",
+            "| estimate | value | range | scale | streams | why this range | drives |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for e in ESTIMATES.values():
+            if e.group != group:
+                continue
+            drives = e.drives
+            if e.calibrated is not None:
+                c = e.calibrated
+                drives += f"; calibrated to {c.measurement} ({_number(c.paper_value)}, {c.where}), fitted on {c.fitted_on}"
+            cells = [
+                f"`{e.name}`", _number(e.value), f"{_number(e.low)} to {_number(e.high)}", "log" if e.log else "lin",
+                ", ".join(e.streams), e.reason, drives,
+            ]
+            lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def with_table(text: str) -> str:
+    """`text` (a document holding `TABLE_BEGIN` and `TABLE_END` once each) with the block between
+    them rewritten to `markdown_table()`."""
+    if text.count(TABLE_BEGIN) != 1 or text.count(TABLE_END) != 1:
+        raise ValueError(f"the document must hold {TABLE_BEGIN} and {TABLE_END} once each")
+    before, rest = text.split(TABLE_BEGIN)
+    _, after = rest.split(TABLE_END)
+    return f"{before}{TABLE_BEGIN}\n{markdown_table()}{TABLE_END}{after}"

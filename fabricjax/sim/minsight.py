@@ -46,7 +46,7 @@ FULL_SIZE = archive.MINSIGHT_SIZE
 R_IN = cal.SKELETON_RADIUS_MM
 CAP_ARC_MM = np.pi / 2 * R_IN  # meridian arc from the apex to the cylinder
 CIRCUMFERENCE_MM = 2 * np.pi * R_IN
-CHUNK = 32  # frames processed together: vectorised, with temporaries that stay in cache
+CHUNK = 32  # [numerics] frames processed together: vectorised, with temporaries that stay in cache
 
 
 @dataclasses.dataclass(frozen=True)
@@ -328,8 +328,11 @@ def trial_contact(scene: Scene, nz: Nuisance, rng: np.random.Generator) -> dict:
     radii, profile, _, _ = inner_profile(cal.GRASP_FORCE_N)
     half = float(np.interp(0.5, profile[::-1], radii[::-1]))  # half-displacement radius
     ridge_offset = rng.uniform(-1.0, 1.0) * half * across
-    centre = np.array([CAP_ARC_MM + cal.SHELL_CYLINDER_MM - cal.CONTACT_AXIAL_MM, 0.0]) + nz.contact_offset_mm
-    width = max(2.0 * scene.fabric.thickness_mm * nz.fold, cal.FLAKE_SIZE_MM) if scene.fabric.is_fabric else 1.0
+    stack_mm = 2.0 * scene.fabric.thickness_mm * nz.fold if scene.fabric.is_fabric else 0.0
+    # a thicker stack stops the closing fingers earlier, so the contact lands further towards the tip
+    axial = cal.CONTACT_AXIAL_MM + cal.CONTACT_SHIFT_PER_STACK_MM * stack_mm
+    centre = np.array([CAP_ARC_MM + cal.SHELL_CYLINDER_MM - axial, 0.0]) + nz.contact_offset_mm
+    width = max(stack_mm, cal.FLAKE_SIZE_MM) if scene.fabric.is_fabric else 1.0
     return dict(centre_sc=centre, fold_angle=float(fold_angle), along=along, across=across, ridge=ridge,
                 ridge_offset=float(ridge_offset), ridge_width=float(width))
 

@@ -22,7 +22,8 @@ from fabricjax.sim import calibration as cal
 from fabricjax.sim.motion import Motion
 from fabricjax.sim.scene import Nuisance
 
-RUBBING = np.array([1.0, 0.0, 0.0, -1.0, 0.0, 0.0])  # thumb base +, middle base - (opposite phase)
+# [numerics] which joints rub and in which sense (signs, not magnitudes): thumb base +, middle base - (opposite phase)
+RUBBING = np.array([1.0, 0.0, 0.0, -1.0, 0.0, 0.0])
 
 
 def joints_and_force(motion: Motion, frame_t: np.ndarray, nz: Nuisance, rng: np.random.Generator | None):

@@ -1,6 +1,6 @@
 """Servo noise, heard by both microphones and present in every class (class 0 included).
 
-[hw, phys] A geared servo sings at its gear-mesh frequency, motor rev/s x pinion teeth =
+[estimates: calibration, "servo noise"] A geared servo sings at its gear-mesh frequency, motor rev/s x pinion teeth =
 |joint speed| x gear ratio / 2 pi x teeth (a few hundred Hz at rubbing speeds), with harmonics,
 plus broadband motor/gear noise growing with speed and with the transmitted torque; servos
 holding position still hum (PWM). The sound reaches Minsound through the aluminium skeleton
