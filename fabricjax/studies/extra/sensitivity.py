@@ -291,12 +291,23 @@ def plot(path: Path, doc: Mapping[str, Any]) -> Path:
     return plots.ranked_bars(path, doc["groups"], panels, "Influence of each group of estimates (Morris mu*, 95 % interval)")
 
 
+def verdict(holds_at: int, points: int) -> str:
+    """What a claim's count of points says about the simulator's estimates."""
+    if holds_at == 0:
+        return "holds nowhere in the ranges: not the estimates' doing (the model, or physics the simulator leaves out)"
+    if holds_at == points:
+        return "holds throughout the ranges: no estimate decides it"
+    return "decided by the estimates"
+
+
 def claims_table(doc: Mapping[str, Any]) -> str:
-    """Each claim: at how many points inside the declared ranges it holds, the response's range, and the groups that move it most."""
-    body = [[c["claim"], f"{c['holds_at']} of {c['points']}", f"{c['range'][0]:.1f} to {c['range'][1]:.1f}",
+    """Each claim: at how many points inside the declared ranges it holds, what that says, the
+    response's range, and the groups that move it most."""
+    body = [[c["claim"], f"{c['holds_at']} of {c['points']}", verdict(c["holds_at"], c["points"]), f"{c['range'][0]:.1f} to {c['range'][1]:.1f}",
              "; ".join(f"{d['group']} ({d['mu_star']:.1f})" for d in c["deciding"])]
             for c in doc["claims"]]
-    return documents.markdown_table(["Paper's claim (what a probe can say)", "Holds at points", "Response over the points", "Groups that move it most (mu*)"], body)
+    header = ["Paper's claim (what a probe can say)", "Holds at points", "So", "Its response over the points", "Groups that move it most (mu*)"]
+    return documents.markdown_table(header, body)
 
 
 def influence_table(doc: Mapping[str, Any]) -> str:
@@ -342,6 +353,7 @@ def markdown(doc: Mapping[str, Any]) -> str:
         *[f"- held at its calibrated value ([calibration.md](calibration.md)): `{n}` = {v:g}" for n, v in doc["held"].items()], "",
         "## The paper's claims against the estimates", "", claims_table(doc), "",
         "## Influence of each group on every response (mu*)", "", influence_table(doc), "",
-        "Ranked charts: [sensitivity.png](sensitivity.png).",
+        "Ranked charts: [sensitivity.png](sensitivity.png). \"Above chance\" is a one-sided binomial test on the test "
+        "sequences, which treats the sequences of one trial as independent (they are not): read it as descriptive.",
     ]
     return "\n".join(lines) + "\n"
