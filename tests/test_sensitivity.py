@@ -97,7 +97,7 @@ def test_the_screening_ranks_the_group_that_moves_each_response(tmp_path, monkey
     where = Location(workdir=tmp_path, results=tmp_path / "results")
     (tmp_path / "results").mkdir()
     report = tmp_path / "results" / "REPORT.md"
-    report.write_text(f"# report\n\n{sensitivity.REPORT_BEGIN}\nold\n{sensitivity.REPORT_END}\n\nkept\n")
+    report.write_text(f"# report\n\n{sensitivity.REPORT_BEGIN}\nSTALE BLOCK\n{sensitivity.REPORT_END}\n\nkept\n")
     doc = sensitivity.run(preset="smoke", trajectories=3, groups=["servo noise", "camera day"], where=where, progress=False)
     r = doc["responses"]
     assert np.argmax(r["probe test: Minsound [%]"]["mu_star"]) == 0 and r["probe test: Minsound [%]"]["mu_star"][1] == 0
@@ -109,7 +109,7 @@ def test_the_screening_ranks_the_group_that_moves_each_response(tmp_path, monkey
     for name in ("sensitivity.md", "sensitivity.json", "sensitivity.png"):
         assert (tmp_path / "results" / name).is_file()
     text = report.read_text()
-    assert "old" not in text and text.endswith("kept\n") and sensitivity.CLAIMS[0].text in text
+    assert "STALE BLOCK" not in text and text.endswith("kept\n") and sensitivity.CLAIMS[0].text in text
     # resumable: every point is read back, none measured again
     monkeypatch.setattr(sensitivity, "measure", lambda point, preset: pytest.fail("a measured point was measured again"))
     again = sensitivity.run(preset="smoke", trajectories=3, groups=["servo noise", "camera day"], where=where, progress=False)

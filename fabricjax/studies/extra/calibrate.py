@@ -66,6 +66,7 @@ def calibrated() -> list[estimates.Estimate]:
         if e.calibrated.measurement in seen:
             raise UserError(f"estimates {seen[e.calibrated.measurement]} and {e.name} are both fitted to {e.calibrated.measurement!r}: one estimate per measurement")
         seen[e.calibrated.measurement] = e.name
+    for e in out:
         if e.name not in MEASURE:
             raise UserError(f"estimate {e.name} is declared calibrated, but nothing measures {e.calibrated.fitted_on!r}")
     return out
