@@ -56,7 +56,7 @@ from fabricjax.workspace import Location
 STUDY = "sensitivity"
 PRESET = "sensitivity"
 LEVELS = 4  # Morris grid levels per factor (SALib's default; p/2 levels apart per step)
-TRAJECTORIES = 4
+TRAJECTORIES = 3  # r (k + 1) points: about an hour on 2 cores with every group
 SINGLE = ("internal", "external", "proprio", "flow", probe.SESSION + "image")
 PROBE_ROWS = (*SINGLE, "internal+proprio", "internal+external+proprio")
 SHIFT_ROWS = SINGLE
