@@ -99,7 +99,7 @@ class _Points:
                 result = MEASURE[e.name](point)
             finally:
                 estimates.override({})
-            self.points[key] = {"value": value, **result, "wall_s": time.perf_counter() - t0}
+            self.points[key] = {"value": value, **result, "wall_s": time.perf_counter() - t0, "code": documents.git_commit()}
             documents.write_json(self.path, {"others": self.others, "points": self.points})
             shutil.rmtree(point, ignore_errors=True)  # the point's dataset, features and checkpoints: its numbers are kept
         number = self.points[key]["number"]
@@ -159,9 +159,9 @@ def markdown(doc: dict[str, Any]) -> str:
             f"- no value in the declared range reaches {f['paper_value']:.2f} pp: the closest is **{f['fitted_value']:.4g}**, the range's end "
             f"({f['fitted_number']:.2f} pp), which is the calibrated value. The other {f['paper_value'] - f['fitted_number']:.2f} pp are not this "
             "estimate's to explain: [sensitivity.md](sensitivity.md) shows what else moves the number",
-            "", "Every point tried:", "",
-            documents.markdown_table(["Value", "Lab test [%]", "Cafe [%]", "Drop [pp]"], [
-                [f"{p['value']:.4g}", f"{np.mean(p['test']):.2f}", f"{np.mean(p['cafe']):.2f}", f"{p['number']:.2f}"]
+            "", "Every point tried (measured by the code named beside it; a point is kept while every other magnitude of the simulator is unchanged):", "",
+            documents.markdown_table(["Value", "Lab test [%]", "Cafe [%]", "Drop [pp]", "Measured by"], [
+                [f"{p['value']:.4g}", f"{np.mean(p['test']):.2f}", f"{np.mean(p['cafe']):.2f}", f"{p['number']:.2f}", p["code"]]
                 for p in f["points"]
             ]), "",
         ]

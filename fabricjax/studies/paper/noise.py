@@ -146,8 +146,9 @@ def markdown(doc: dict[str, Any]) -> str:
     caveat = "per-sequence test treats sequences of one trial and of different seeds as independent, which they are not: read it as descriptive."
     lines += ["", f"The {caveat}" if recorded else f"The per-seed test is the one comparable to the paper's; the {caveat}", ""]
     for c in doc.get("calibrated", []):
-        lines += [f"**Calibrated, not a finding**: {c['fitted_on']} is matched to {c['measurement']} by the simulator's estimate "
-                  f"`{c['estimate']}` = {c['value']:g} ([calibration.md](calibration.md)). Every other number of this table is a prediction.", ""]
+        lines += [f"**Calibrated, not a finding**: the simulator's estimate `{c['estimate']}` = {c['value']:g} is fitted to {c['measurement']} "
+                  f"on {c['fitted_on']} ([calibration.md](calibration.md)), so that number is a calibration. Every other number of this "
+                  "table is a prediction.", ""]
     lines += findings.claims_markdown(doc)
     lines += ["Lab and cafe accuracy per row, every seed: `noise.png`.", ""]
     return "\n".join(lines)
