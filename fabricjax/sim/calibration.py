@@ -76,6 +76,17 @@ CYCLE_PHASE_JITTER = estimates.value("CYCLE_PHASE_JITTER")  # [estimate] slow wa
 # stick length mu F_n / k_t ~ 0.1-0.3 mm; about a third of it is not recovered on the way back.
 CLOTH_CREEP_MM_PER_CYCLE = estimates.value("CLOTH_CREEP_MM_PER_CYCLE")
 
+# --- the catalog's physical parameters (`catalog.py`: our textbook-order choices, not measurements) ---
+# [estimate] Each kind of parameter is scaled by one factor for every fabric alike (`scene.simulated_fabric`):
+# 1, the catalog as it is, in the published data; the registry declares how far each could be off.
+CATALOG_WEAVE_PERIOD_SCALE = estimates.value("CATALOG_WEAVE_PERIOD_SCALE")
+CATALOG_ROUGHNESS_SCALE = estimates.value("CATALOG_ROUGHNESS_SCALE")
+CATALOG_FRICTION_SCALE = estimates.value("CATALOG_FRICTION_SCALE")
+CATALOG_THICKNESS_SCALE = estimates.value("CATALOG_THICKNESS_SCALE")
+CATALOG_COMPRESSIBILITY_SCALE = estimates.value("CATALOG_COMPRESSIBILITY_SCALE")
+CATALOG_STRETCH_STIFFNESS_SCALE = estimates.value("CATALOG_STRETCH_STIFFNESS_SCALE")
+CATALOG_FUZZ_SCALE = estimates.value("CATALOG_FUZZ_SCALE")
+
 # --- fabric surface [FACTS: f = v / lambda; roughness spectrum 1/f^s; fuzz] -----------------------
 PROFILE_DX_MM = 0.001  # [numerics] 1 um grid: resolves content to > 20 kHz at the fastest slide speed
 PROFILE_LEN_MM = 65.536  # [numerics] one simulated cloth strip per fabric (2**16 samples); grasps land anywhere on it

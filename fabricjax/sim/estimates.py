@@ -437,6 +437,28 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "DECIMATION_HZ", 21_000.0, 19_000.0, 23_000.0, "a sigma-delta decimator's passband ends at 0.40-0.48 of the 48 kHz rate (converters: 0.45-0.47); the SPH0645's is unstated",
         "where the microphones' response ends above the 15 kHz band", "microphones", _AUDIO),
+    # --- the catalog's physical parameters, each kind scaled for every fabric alike -----------------
+    Estimate(
+        "CATALOG_WEAVE_PERIOD_SCALE", 1.0, 0.7, 1.4, "weave and knit periods of the named garment kinds are known to tens of per cent (0.1-3 mm)",
+        "the texture's dominant frequency at the rubbing speed", "fabric catalog", _AUDIO, log=True),
+    Estimate(
+        "CATALOG_ROUGHNESS_SCALE", 1.0, 0.5, 2.0, "RMS heights of textiles span 2-50 um by fabric; each of ours is a choice within a factor of 2",
+        "the texture's vibration power and the stick-slip clicks' size", "fabric catalog", _AUDIO, log=True),
+    Estimate(
+        "CATALOG_FRICTION_SCALE", 1.0, 0.8, 1.25, "silicone-on-textile friction of 0.2-0.9 is known per fabric kind to about a fifth",
+        "stick length, trial length, stick-slip and the joints' load", "fabric catalog", _ALL, log=True),
+    Estimate(
+        "CATALOG_THICKNESS_SCALE", 1.0, 0.7, 1.4, "one layer's thickness of a garment kind varies by tens of per cent between weights",
+        "the stack the fingers pinch: the closing, the patch's size and the fold ridge", "fabric catalog", _ALL, log=True),
+    Estimate(
+        "CATALOG_COMPRESSIBILITY_SCALE", 1.0, 0.7, 1.3, "how much a stack gives at 0.1 N: a choice per fabric kind, tens of per cent either way",
+        "the stack's give under the grasp, and the patch's conformity", "fabric catalog", _ALL),
+    Estimate(
+        "CATALOG_STRETCH_STIFFNESS_SCALE", 1.0, 0.5, 2.0, "in-plane stiffness of a gripped strip: N/mm of order one to ten by weave and weight, a factor of 2",
+        "the cloth's give under the friction load and its bending stiffness", "fabric catalog", _ALL, log=True),
+    Estimate(
+        "CATALOG_FUZZ_SCALE", 1.0, 0.5, 1.5, "loose-fibre density of staple fabrics: a choice per fabric from none to pile, half to one and a half",
+        "the scratching of loose fibres in the texture", "fabric catalog", _AUDIO),
     # --- effects the published simulator leaves out (value 0), bounded by physics ------------------
     Estimate(
         "CONTACT_SHIFT_PER_STACK_MM", 0.0, 0.0, 0.2,

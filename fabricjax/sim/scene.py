@@ -50,6 +50,26 @@ def _magnitudes() -> str:
 MAGNITUDES = _magnitudes()
 
 
+# The catalog's physical parameters are our textbook-order choices: each kind is scaled, for every
+# fabric alike, by an estimate of the registry (1 in the published data: the catalog as it is).
+CATALOG_SCALES = {
+    "weave_period_mm": "CATALOG_WEAVE_PERIOD_SCALE", "roughness_um": "CATALOG_ROUGHNESS_SCALE", "friction": "CATALOG_FRICTION_SCALE",
+    "thickness_mm": "CATALOG_THICKNESS_SCALE", "compressibility": "CATALOG_COMPRESSIBILITY_SCALE",
+    "stretch_stiffness": "CATALOG_STRETCH_STIFFNESS_SCALE", "fuzz": "CATALOG_FUZZ_SCALE",
+}
+
+
+def simulated_fabric(fabric_id: int) -> catalog.Fabric:
+    """The catalog's fabric as the simulator uses it: each physical parameter kind times its
+    catalog scale (`CATALOG_SCALES`); the catalog's own entry where every scale is 1, and for
+    class 0 (no fabric: the fingers rub each other)."""
+    fab = catalog.fabric(fabric_id)
+    scales = {field: getattr(cal, name) for field, name in CATALOG_SCALES.items()}
+    if not fab.is_fabric or all(s == 1.0 for s in scales.values()):
+        return fab
+    return dataclasses.replace(fab, **{field: getattr(fab, field) * s for field, s in scales.items()})
+
+
 @dataclasses.dataclass(frozen=True)
 class Scene:
     fabric_id: int
@@ -89,7 +109,7 @@ class Scene:
 
     @property
     def fabric(self) -> catalog.Fabric:
-        return catalog.fabric(self.fabric_id)
+        return simulated_fabric(self.fabric_id)
 
     def wants(self, name: str) -> bool:
         """True when the scene calls for effect or stream `name`."""

@@ -22,9 +22,8 @@ import functools
 
 import numpy as np
 
-from fabricjax import catalog
 from fabricjax.sim import calibration as cal
-from fabricjax.sim.scene import Scene
+from fabricjax.sim.scene import Scene, simulated_fabric
 
 
 @functools.lru_cache(maxsize=32)
@@ -32,7 +31,7 @@ def surface_profile(fabric_id: int, seed: int) -> tuple[np.ndarray, np.ndarray |
     """Height (um) of the fabric's new cloth strip on a `PROFILE_DX_MM` grid, as (weave and
     roughness, fuzz; None for a fabric without loose fibres): the strip's height is their sum, the
     fuzz scaled by wear (cached: pure in its inputs)."""
-    fab = catalog.fabric(fabric_id)
+    fab = simulated_fabric(fabric_id)
     rng = Scene(fabric_id, seed=seed).rng("surface", "fabric")
     n = int(round(cal.PROFILE_LEN_MM / cal.PROFILE_DX_MM))
     x = np.arange(n) * cal.PROFILE_DX_MM
