@@ -154,6 +154,66 @@ def test_the_check_finds_an_unsourced_number(tmp_path):
     assert [line.split()[0] for line in _unsourced(path)] == ["probe.py:1", "probe.py:4", "probe.py:7"]
 
 
+# numbers the simulator's code (function and class bodies, default arguments) may hold as they are:
+# mathematics (halves, 2 pi, the powers of Hertz's law, trigonometric identities), dB (10, 20),
+# unit factors (1e-3 ... 1e9, 60 s per minute, 100 per cent, 180 and 360 degrees, 255 DN of an
+# 8-bit pixel), the imaginary unit, small indices and axes, and epsilons guarding a division;
+# every other number is a calibration constant, or a numerical setting tagged [numerics] on its line
+MATHEMATICAL = {0, 1, 2, 3, 4, 0.5, 10, 20, 60, 100, 180, 255, 360, 1e-3, 1e3, 1e6, 1e9, 1e-6, 1e-9, 1e-12, 1j, 2j}
+NUMERICS_TAG = re.compile(r"\[numerics\b")
+
+
+def _is_constant_assignment(stmt: ast.stmt) -> bool:
+    """A module-level assignment to an UPPER_CASE name: `_unsourced` checks its numbers."""
+    if isinstance(stmt, ast.Assign):
+        return any(isinstance(t, ast.Name) and CONSTANT.match(t.id) for t in stmt.targets)
+    return isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name) and bool(CONSTANT.match(stmt.target.id))
+
+
+def _unexplained_literals(path: Path) -> list[str]:
+    """The numeric literals outside module-level constants (in function and class bodies, default
+    arguments, decorators) that are neither in `MATHEMATICAL` nor on a line tagged [numerics]."""
+    source = path.read_text()
+    comments = _comments(source)
+    bad = []
+    for stmt in ast.parse(source).body:
+        if _is_constant_assignment(stmt):
+            continue
+        for n in ast.walk(stmt):
+            if not isinstance(n, ast.Constant) or isinstance(n.value, bool) or not isinstance(n.value, (int, float, complex)):
+                continue
+            if n.value in MATHEMATICAL or NUMERICS_TAG.search(comments.get(n.lineno, "")):
+                continue
+            where = path.relative_to(REPO) if path.is_relative_to(REPO) else path.name
+            bad.append(f"{where}:{n.lineno} {n.value!r}")
+    return bad
+
+
+def test_no_magnitude_is_written_into_the_simulators_code():
+    bad = [line for path in _modules() for line in _unexplained_literals(path)]
+    assert not bad, (
+        "numbers in the simulator's functions that are neither mathematics (MATHEMATICAL) nor a numerical setting tagged "
+        "[numerics] on their line: make each a calibration constant (sourced, or a registry estimate) and read it as cal.NAME:\n"
+        + "\n".join(bad)
+    )
+
+
+def test_the_literal_check_finds_a_magnitude_in_a_function(tmp_path):
+    code = (
+        "SPREAD_DB = 0.3  # [cited] module-level: the other check's\n"
+        "def jitter(rng, x=0.7):\n"
+        "    a = rng.uniform(-0.3, 0.3)\n"
+        "    b = 2 * np.pi * 1e-3 * 0.5 * x\n"
+        "    c = np.zeros(256)  # [numerics] a grid\n"
+        "    return a * 10 ** (b / 20) * -1.5\n"
+        "class Probe:\n"
+        "    n: int = 50\n"
+    )
+    path = tmp_path / "probe.py"
+    path.write_text(code)
+    assert _unexplained_literals(path) == ["probe.py:2 0.7", "probe.py:3 0.3", "probe.py:3 0.3", "probe.py:6 1.5", "probe.py:8 50"]
+
+
 def test_estimate_calls_name_registry_estimates_and_calibration_reads_every_one():
     unknown = [
         f"{path.relative_to(REPO)}:{call.lineno} {ast.unparse(call)}"

@@ -18,6 +18,10 @@ from fabricjax import archive
 from fabricjax.sim import calibration as cal
 
 P_REF = 20e-6  # [cited] the reference sound pressure of SPL, 20 uPa (IEC 61672, ISO 1683)
+# [cited] IEC 61672-1, Annex E: the A-weighting's pole frequencies (Hz, rounded as the standard gives
+# them) and its gain at 1 kHz (A1000 = -2.0 dB), which the weighting is normalised by
+A_WEIGHT_POLES_HZ = (20.6, 107.7, 737.9, 12194.0)
+A_WEIGHT_1KHZ_DB = 2.0  # [cited] IEC 61672-1: A1000
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,9 +62,10 @@ def db_to_pa(db: float) -> float:
 
 def a_weighting(f: np.ndarray) -> np.ndarray:
     """IEC 61672 A-weighting as an amplitude factor (1 at 1 kHz)."""
+    f1, f2_hz, f3, f4 = A_WEIGHT_POLES_HZ
     f2 = np.asarray(f, float) ** 2
-    ra = 12194.0**2 * f2**2 / ((f2 + 20.6**2) * np.sqrt((f2 + 107.7**2) * (f2 + 737.9**2)) * (f2 + 12194.0**2))
-    return ra * 10 ** (2.0 / 20)
+    ra = f4**2 * f2**2 / ((f2 + f1**2) * np.sqrt((f2 + f2_hz**2) * (f2 + f3**2)) * (f2 + f4**2))
+    return ra * 10 ** (A_WEIGHT_1KHZ_DB / 20)
 
 
 def rms_of_spectrum(spectrum: np.ndarray, grid: Grid, weight: np.ndarray | None = None) -> float:
@@ -72,7 +77,7 @@ def rms_of_spectrum(spectrum: np.ndarray, grid: Grid, weight: np.ndarray | None 
 
 def gain_to_db_a(spectrum: np.ndarray, grid: Grid, db_a: float) -> float:
     """The factor that brings `spectrum`'s A-weighted level to `db_a` dB SPL."""
-    return db_to_pa(db_a) / max(rms_of_spectrum(spectrum, grid, grid.a_weight), 1e-30)
+    return db_to_pa(db_a) / max(rms_of_spectrum(spectrum, grid, grid.a_weight), 1e-30)  # [numerics] guards silence
 
 
 def scale_to_db_a(spectrum: np.ndarray, grid: Grid, db_a: float) -> np.ndarray:

@@ -37,7 +37,7 @@ def octave_shape(f: np.ndarray, octave_db: dict[float, float]) -> np.ndarray:
     """Amplitude spectrum (any scale) whose octave-band levels follow `octave_db` (interpolated in log f)."""
     fc = np.array(list(octave_db), float)
     density_db = np.array(list(octave_db.values())) - 10 * np.log10(fc / np.sqrt(2))  # per Hz of an octave's width
-    log_f = np.log(np.maximum(np.asarray(f, np.float32), np.float32(20.0)))
+    log_f = np.log(np.maximum(np.asarray(f, np.float32), np.float32(20.0)))  # [numerics] flat below 20 Hz (log 0)
     return np.exp(np.interp(log_f, np.log(fc), density_db * (np.log(10) / 20)).astype(np.float32))
 
 
@@ -49,10 +49,10 @@ def diffuse_coherence(f: np.ndarray) -> np.ndarray:
 
 def room_constant_m2() -> float:
     """Sabine absorption 0.161 V / T60, taken as the room constant R."""
-    return 0.161 * cal.ROOM_VOLUME_M3 / cal.ROOM_T60_S
+    return cal.SABINE_S_PER_M * cal.ROOM_VOLUME_M3 / cal.ROOM_T60_S
 
 
-@functools.lru_cache(maxsize=16)
+@functools.lru_cache(maxsize=16)  # [numerics]
 def room_responses(seed: int, day: int, condition: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(frequencies, palm, Minsound) unit-power reverberant responses of the day's room (cached: pure)."""
     rng = Scene(0, day=day, condition=condition, seed=seed).rng("room", "day")
@@ -83,12 +83,12 @@ def floor(grid: acoustics.Grid, level_db_a: float, rng: np.random.Generator) -> 
 def event_level_db_a(level_1m_db_a: float, distance_m: float) -> float:
     """Level at the hand of a source of `level_1m_db_a` in free field at 1 m, `distance_m` away in the room
     (Hopkins-Stryker: direct Q / 4 pi r^2 plus reverberant 4 / R, Q = 1)."""
-    return level_1m_db_a + 10 * np.log10(1 / distance_m**2 + 16 * np.pi / room_constant_m2())
+    return level_1m_db_a + 10 * np.log10(1 / distance_m**2 + 4 * np.pi * 4 / room_constant_m2())
 
 
 def _burst(kind: str, seconds: float, rng: np.random.Generator) -> np.ndarray:
     """One event's waveform (unit A-weighted RMS before its envelope)."""
-    g = acoustics.Grid.for_samples(max(int(seconds * archive.AUDIO_RATE), 64))
+    g = acoustics.Grid.for_samples(max(int(seconds * archive.AUDIO_RATE), 64))  # [numerics] at least 64 samples
     t = np.arange(g.n) / archive.AUDIO_RATE
     if kind == "voice":
         shape = octave_shape(g.f, cal.SPEECH_OCTAVE_DB)
@@ -129,11 +129,12 @@ def clatter(n: int, rng: np.random.Generator) -> np.ndarray:
     """Sparse impacts (relative to a unit-RMS babble), each three inharmonic partials at 2-7 kHz."""
     out = np.zeros(n)
     tau = cal.CLATTER_DECAY_S
-    t = np.arange(int(5 * tau * archive.AUDIO_RATE)) / archive.AUDIO_RATE
+    t = np.arange(int(5 * tau * archive.AUDIO_RATE)) / archive.AUDIO_RATE  # [numerics] each clink lasts 5 decay times
+    spread = cal.CLATTER_DECAY_SPREAD
     for start in rng.integers(0, n, rng.poisson(cal.CLATTER_PER_S * n / archive.AUDIO_RATE)):
-        partials = rng.uniform(*cal.CLATTER_RING_HZ, 3)
-        hit = sum(np.sin(2 * np.pi * fp * t + rng.uniform(0, 2 * np.pi)) for fp in partials) / 3
-        hit *= np.exp(-t / (tau * rng.uniform(0.5, 1.5))) * rng.lognormal(0.0, 0.5)
+        partials = rng.uniform(*cal.CLATTER_RING_HZ, cal.CLATTER_PARTIALS)
+        hit = sum(np.sin(2 * np.pi * fp * t + rng.uniform(0, 2 * np.pi)) for fp in partials) / cal.CLATTER_PARTIALS
+        hit *= np.exp(-t / (tau * rng.uniform(1 - spread, 1 + spread))) * rng.lognormal(0.0, cal.CLATTER_LEVEL_SPREAD)
         stop = min(n, start + len(t))
         out[start:stop] += hit[: stop - start]
     return out
@@ -143,7 +144,7 @@ def recording(grid: acoustics.Grid, rng: np.random.Generator) -> np.ndarray:
     """Spectrum (any scale) of the coffee-shop recording the loudspeaker plays."""
     babble = grid.irfft(acoustics.noise_spectrum(rng, grid, babble_shape(grid.f)))
     babble /= babble.std()
-    n_env = int(grid.n / archive.AUDIO_RATE * 8) + 2  # syllable-rate envelope, 8 knots per second
+    n_env = int(grid.n / archive.AUDIO_RATE * (2 * cal.SYLLABLE_HZ)) + 2  # syllable-rate envelope: two knots per syllable
     env = np.interp(np.linspace(0, n_env - 1, grid.n), np.arange(n_env), rng.standard_normal(n_env))
     x = babble * (1.0 + cal.BABBLE_MODULATION * env)
     x += clatter(grid.n, rng) * 10 ** (cal.CLATTER_PEAK_DB / 20)

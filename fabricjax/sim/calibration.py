@@ -49,6 +49,7 @@ CONTROL_HZ = 2000  # [numerics] grid on which the finger motion is integrated (t
 
 # --- finger motion [paper: force-controlled closing until 0.1 N, then rubbing cycles] ---------
 GRASP_FORCE_N = 0.1  # [paper] closing stops when Minsight's force estimate reaches this
+CYCLES_PER_TRIAL = 50  # [paper, Experiments] rubbing cycles per trial (`Scene.cycles`' default)
 OPEN_GAP_MM = estimates.value("OPEN_GAP_MM")  # [estimate] fingertip gap of the open pose
 CLOSING_SPEED_MM_S = estimates.value("CLOSING_SPEED_MM_S")  # [estimate] relative fingertip closing speed (same for every fabric [paper])
 # [estimate] two soft silicone shells in series, normal direction (Hertz with the Ecoflex datasheet's
@@ -58,6 +59,9 @@ SHELL_SHEAR_STIFFNESS_N_MM = estimates.value("SHELL_SHEAR_STIFFNESS_N_MM")  # [e
 SETTLE_S = estimates.value("SETTLE_S")  # [estimate] pause between the grasp and the first rubbing stroke
 STOP_S = estimates.value("STOP_S")  # [estimate] recording continues briefly after the last stroke
 RUB_AMPLITUDE_MM = estimates.value("RUB_AMPLITUDE_MM")  # [estimate] each fingertip moves +-3 mm laterally, the two in opposite phase
+# [estimate] The preprogrammed strokes start from rest: the stroke's amplitude ramps up linearly over
+# this part of the first cycle (a servo's acceleration limit; the first quarter stroke)
+RUB_RAMP_CYCLES = estimates.value("RUB_RAMP_CYCLES")
 # [estimate] commanded rubbing frequency: 50 cycles ~ 25 s before the load droop; with the closing and
 # the droop, the paper's ~1500 steps per 50-cycle trial [paper, Experiments]
 CYCLE_HZ = estimates.value("CYCLE_HZ")
@@ -72,6 +76,9 @@ SPEED_DROOP_PER_N = estimates.value("SPEED_DROOP_PER_N")  # [estimate]
 # a per-trial spread of ~2 % of the rubbing rate.
 SPEED_JITTER = estimates.value("SPEED_JITTER")
 CYCLE_PHASE_JITTER = estimates.value("CYCLE_PHASE_JITTER")  # [estimate] slow wander of the stroke rate within a trial: half the per-trial spread
+# [estimate] the wander is a random walk with one step per this time (linearly interpolated between
+# them): the supply's and the load's fluctuations change over tens of ms to a stroke
+CYCLE_WANDER_S = estimates.value("CYCLE_WANDER_S")
 # [estimate] The hanging cloth creeps between strokes (random walk): a stroke's net slip is the
 # stick length mu F_n / k_t ~ 0.1-0.3 mm; about a third of it is not recovered on the way back.
 CLOTH_CREEP_MM_PER_CYCLE = estimates.value("CLOTH_CREEP_MM_PER_CYCLE")
@@ -97,9 +104,14 @@ GRASP_RANGE_MM = (estimates.value("GRASP_RANGE_LOW_MM"), estimates.value("GRASP_
 ROUGHNESS_K_MIN = estimates.value("ROUGHNESS_K_MIN")  # [estimate] cycles/mm: below (2 mm wavelengths) the fabric drapes rather than vibrates
 WEAVE_SHARE = estimates.value("WEAVE_SHARE")  # [estimate] fraction of the RMS height in the periodic weave (the rest: random roughness)
 WEAVE_HARMONICS = 8  # [numerics] the weave's Fourier series, cut where its harmonics' weights m^(-s/2) have faded
+# [estimate] each harmonic's weight departs from the m^(-s/2) trend by a factor U(1 - x, 1 + x), per fabric (yarn shape)
+WEAVE_HARMONIC_SPREAD = estimates.value("WEAVE_HARMONIC_SPREAD")
 WEAVE_IRREGULARITY = estimates.value("WEAVE_IRREGULARITY")  # [estimate] yarn spacing varies by ~3 % of the period
+# [estimate] the spacing's irregularity is smooth over this many weave periods (its spectrum ends at 1 / (this x period))
+WEAVE_WANDER_PERIODS = estimates.value("WEAVE_WANDER_PERIODS")
 # [estimate] local roughness varies +-20 % along the strip (10 mm correlation): wear, creases, pile direction
 LOCAL_ROUGHNESS_SPREAD = estimates.value("LOCAL_ROUGHNESS_SPREAD")
+LOCAL_ROUGHNESS_LENGTH_MM = estimates.value("LOCAL_ROUGHNESS_LENGTH_MM")  # [estimate] that variation's correlation length: its spectrum ends at 1 / this
 FUZZ_FIBRES_PER_MM = estimates.value("FUZZ_FIBRES_PER_MM")  # [estimate] loose fibre ends per mm of path at fuzz = 1
 FUZZ_FIBRE_WIDTH_MM = estimates.value("FUZZ_FIBRE_WIDTH_MM")  # [estimate] a fibre end's bump: fibre diameters are ~10-20 um
 FUZZ_HEIGHT = estimates.value("FUZZ_HEIGHT")  # [estimate] fibre bump height relative to the fabric's RMS roughness
@@ -128,7 +140,9 @@ SLIP_PA = estimates.value("SLIP_PA")  # click peak pressure at mu * F_n = 0.05 N
 SLIP_REF_FORCE_N = 0.05  # [numerics] the reference point SLIP_PA and RELEASE_PA are given at: mu * F_n
 SLIP_REF_ROUGHNESS_UM = 20.0  # [numerics] and asperity height (releases grow no further above it)
 RELEASE_PA = estimates.value("RELEASE_PA")  # reversal release at delta = 0.1 mm, mu * F_n = 0.05 N, 20 um asperities
+RELEASE_REF_SLIP_MM = 0.1  # [numerics] the stick length delta RELEASE_PA is given at (releases grow as sqrt(delta / this))
 SLIP_RING_HZ = (estimates.value("SLIP_RING_LOW_HZ"), estimates.value("SLIP_RING_HIGH_HZ"))  # contact/skin ring of a slip click
+SLIP_RING_SPREAD = estimates.value("SLIP_RING_SPREAD")  # the trial's ring is off the stiffness's by a factor U(1 - x, 1 + x)
 SLIP_DECAY_S = estimates.value("SLIP_DECAY_S")
 SLIP_SPREAD = estimates.value("SLIP_SPREAD")  # log-normal sigma of click amplitudes
 
@@ -196,6 +210,7 @@ FOLD_LINE_MM = (estimates.value("FOLD_LINE_NEAR_MM"), estimates.value("FOLD_LINE
 # silicone of 1.07-1.1 g/cm^3 (Smooth-On Ecoflex / Dragon Skin technical bulletins) times the
 # Minsight-section shell thickness (`shell.transmission_loss_db`).
 SILICONE_DENSITY_KG_M3 = 1100.0
+MASS_LAW_DB = 47.0  # [cited] Beranek & Ver 1992, Ch. 9: the field-incidence mass law's constant (f in Hz, m'' in kg/m^2)
 SHELL_TL_MIN_DB = estimates.value("SHELL_TL_MIN_DB")  # [estimate] leaks around the base and the stiffness-controlled region at low frequency
 SHELL_TL_MAX_DB = estimates.value("SHELL_TL_MAX_DB")  # [estimate] flanking through the aluminium skeleton
 
@@ -209,6 +224,8 @@ SHELL_TL_MAX_DB = estimates.value("SHELL_TL_MAX_DB")  # [estimate] flanking thro
 GEAR_RATIO = 345.0  # [cited] STS3215 datasheet: 1:345 gear train
 GEAR_TEETH = estimates.value("GEAR_TEETH")  # [estimate] first-stage pinion: mesh frequency = motor rev/s * teeth
 SERVO_TONE_PA = estimates.value("SERVO_TONE_PA")  # [estimate] gear-mesh tone at 1 rad/s joint speed, as heard inside the shell (~50 dB)
+# [estimate] the tone's 2nd and 3rd harmonics, in amplitude relative to the mesh frequency's (-6 and -12 dB)
+SERVO_HARMONICS = (estimates.value("SERVO_HARMONIC_2"), estimates.value("SERVO_HARMONIC_3"))
 SERVO_BROADBAND_PA = estimates.value("SERVO_BROADBAND_PA")  # [estimate] motor/gear broadband noise at 1 rad/s
 SERVO_HOLD_PA = estimates.value("SERVO_HOLD_PA")  # [estimate] holding servos' PWM hum (always present, ~34 dB)
 SERVO_LOAD_REF_NM = estimates.value("SERVO_LOAD_REF_NM")  # [estimate] torque at which the gear noise doubles
@@ -221,8 +238,11 @@ SERVO_PALM_GAIN_DB = estimates.value("SERVO_PALM_GAIN_DB")  # [estimate] airborn
 # cafe noise 47-55 dB. `scene.nuisance` draws the level per day and trial within these ranges: the
 # lab's steady floor, and the loudspeaker's sound at the palm in the cafe condition.
 LAB_DB_A = (29.0, 31.0)
+# [estimate] within a day, each lab trial's floor is the day's +-this (uniform), kept within LAB_DB_A
+LAB_TRIAL_JITTER_DB = estimates.value("LAB_TRIAL_JITTER_DB")
 CAFE_DB_A = (47.0, 55.0)  # [paper]
 CAFE_DAY_SPREAD_DB = estimates.value("CAFE_DAY_SPREAD_DB")  # [estimate] a cafe day sits at U(48, 54), each trial +-1 dB, all within 47-55
+CAFE_TRIAL_JITTER_DB = estimates.value("CAFE_TRIAL_JITTER_DB")  # [estimate] each cafe trial is the day's level +-this (uniform), kept within CAFE_DB_A
 # [cited] The lab floor (ventilation, building services): the shape of Beranek's noise-criterion curve NC-25
 # (Beranek, Revised criteria for noise in buildings, Noise Control 3(1), 1957; ANSI S12.2), octave
 # band levels in dB at 63 Hz-8 kHz; only its shape is used, scaled to the drawn dB(A) level.
@@ -234,6 +254,7 @@ LAB_FLOOR_OCTAVE_DB = {63: 54.0, 125: 44.0, 250: 37.0, 500: 31.0, 1000: 27.0, 20
 # Acoustics, 1954, Ch. 10).
 ROOM_VOLUME_M3 = estimates.value("ROOM_VOLUME_M3")
 ROOM_T60_S = estimates.value("ROOM_T60_S")
+SABINE_S_PER_M = 0.161  # [law] Sabine's equation T60 = 0.161 V / A: 24 ln 10 / c, in s/m
 # Between the palm microphone and Minsound (7.4 cm apart) a diffuse field has the coherence
 # sin(k d) / (k d) (Cook, Waterhouse, Berendt, Edelman & Thompson, Measurement of correlation
 # coefficients in reverberant sound fields, JASA 27, 1955): near 1 below ~1 kHz, small above 2.3 kHz.
@@ -307,6 +328,9 @@ CLATTER_PER_S = estimates.value("CLATTER_PER_S")
 CLATTER_RING_HZ = (estimates.value("CLATTER_RING_LOW_HZ"), estimates.value("CLATTER_RING_HIGH_HZ"))
 CLATTER_DECAY_S = estimates.value("CLATTER_DECAY_S")
 CLATTER_PEAK_DB = estimates.value("CLATTER_PEAK_DB")  # clatter peaks above the babble RMS
+CLATTER_PARTIALS = 3  # [numerics] each clink is drawn as this many inharmonic partials in CLATTER_RING_HZ (the model's structure)
+CLATTER_DECAY_SPREAD = estimates.value("CLATTER_DECAY_SPREAD")  # each clink's decay is CLATTER_DECAY_S x U(1 - x, 1 + x)
+CLATTER_LEVEL_SPREAD = estimates.value("CLATTER_LEVEL_SPREAD")  # log-normal sigma of the clinks' amplitudes
 # [estimate; the paper does not place the loudspeaker, and no description of its noise playback beyond
 # "while playing audible noise" was found] A loudspeaker on a table 0.5-2 m from the hand,
 # in a direction drawn per cafe day; a small box radiates with directivity Q ~ 2 towards the hand
@@ -323,6 +347,7 @@ COUNTS_PER_PA = 10 ** (SENSITIVITY_DBFS / 20) * archive.FULL_SCALE / math.sqrt(2
 SELF_NOISE_DB_A = 94.0 - 65.0  # [ds] 65 dB(A) SNR re 94 dB SPL -> 29 dB(A) SPL equivalent input noise
 BAND_HZ = (50.0, 15_000.0)  # [ds] usable band: 2nd-order roll-offs at both ends
 DECIMATION_HZ = estimates.value("DECIMATION_HZ")  # [estimate] steep digital low-pass of the sigma-delta decimator
+DECIMATION_ORDER = estimates.value("DECIMATION_ORDER")  # [estimate] its steepness: amplitude 1 / (1 + (f / DECIMATION_HZ)^this)
 DC_OFFSET_COUNTS = estimates.value("DC_OFFSET_COUNTS")  # [estimate] large DC offset (of 2**17), drifting from day to day
 # [estimate] The DC offset is set by the modulator's reference and drifts with temperature; 400
 # counts is 0.3 % of full scale (the datasheet gives no drift figure). It sits in the lowest Welch
@@ -431,6 +456,7 @@ COLLIMATOR_HALF_ANGLE_RAD = math.radians(estimates.value("COLLIMATOR_HALF_ANGLE_
 # [estimate] The camera's fixed exposure (camera.py: manual exposure 156, auto white balance off) is
 # set for an unsaturated reference: the brightest no-contact pixels sit near this level.
 EXPOSURE_LEVEL_DN = estimates.value("EXPOSURE_LEVEL_DN")
+EXPOSURE_PERCENTILE = 99.5  # [numerics] "the brightest pixels", where EXPOSURE_LEVEL_DN is given: this percentile (a robust maximum)
 # [minsight] The interior is Ecoflex 00-30 filled with 65 um aluminium powder and 75 um aluminium
 # flakes: a grainy metallic surface. [estimate] Each 75 um cell reflects a random share of the light
 # (flake orientation): albedo 1 + FLAKE_CONTRAST * N(0, 1) per cell (estimate: half the cells' light
@@ -529,6 +555,9 @@ OPEN_POSE_RAD = (
 # structure, not magnitudes].
 _THUMB2 = estimates.value("CLOSING_SHARE_THUMB2")
 CLOSING_SHARE = (0.0, _THUMB2, 1.0 - _THUMB2, 0.0, 1.0, 0.0)
+# [estimate] The palm joint holds still but takes this share of the rubbing joints' tangential load
+# torque (the hand's reaction to the strokes); the ISyHand's kinematics are unpublished.
+PALM_REACTION_SHARE = estimates.value("PALM_REACTION_SHARE")
 SERVO_STIFFNESS_NM_RAD = estimates.value("SERVO_STIFFNESS_NM_RAD")  # [estimate] position-loop stiffness: loaded joints lag their command
 READ_LATENCY_S = estimates.value("READ_LATENCY_S")  # [estimate] joints are read just before the frame is captured
 

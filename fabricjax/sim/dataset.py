@@ -77,9 +77,9 @@ def trial_bytes(dataset: splits.DatasetSpec, images: bool) -> int:
 
     A trial lasts its cycles at the commanded rate, ~12 % slower on average under load (the servo
     droop of calibration.SPEED_DROOP_PER_N), plus ~1 s of closing and pauses."""
-    seconds = dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0
+    seconds = dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0  # [numerics] a bound for the disk check, see above
     steps = seconds * archive.STEP_RATE
-    per_step = 8 + 2 * 8 + archive.N_PROPRIO * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)
+    per_step = 8 + 2 * 8 + archive.N_PROPRIO * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)  # [numerics] bytes
     return int(steps * per_step + 2 * 4 * (seconds * archive.AUDIO_RATE + cal.LEAD_IN))
 
 
@@ -124,7 +124,7 @@ def ensure_dataset(
     if jobs:
         need = len(jobs) * trial_bytes(dataset, "images" in streams)
         free = shutil.disk_usage(folder).free
-        if need > 0.95 * free:
+        if need > 0.95 * free:  # [numerics] a margin for other files
             raise NotEnoughDisk(f"{folder}: simulating {len(jobs)} trials of preset {preset_name!r} needs about {_gb(need)}, only {_gb(free)} free")
         if progress:
             print(

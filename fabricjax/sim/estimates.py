@@ -98,6 +98,12 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
         "SERVO_TONE_PA", 0.006, 0.0015, 0.024, "micro-servo gear mesh heard through a skeleton: tens of dB, unmeasured for the STS3215",
         "the gear-mesh tone at both microphones, in every class", "servo noise", _AUDIO, log=True),
     Estimate(
+        "SERVO_HARMONIC_2", 0.5, 0.2, 1.0, "gear-mesh noise carries harmonics of the mesh frequency from tooth-profile errors, within some 0-14 dB of it; unmeasured for the STS3215",
+        "the gear-mesh tone's second harmonic (amplitude relative to the first)", "servo noise", _AUDIO, log=True),
+    Estimate(
+        "SERVO_HARMONIC_3", 0.25, 0.08, 0.6, "as the second harmonic, a few dB further down: -4 to -22 dB",
+        "the gear-mesh tone's third harmonic (amplitude relative to the first)", "servo noise", _AUDIO, log=True),
+    Estimate(
         "SERVO_BROADBAND_PA", 0.004, 0.001, 0.016, "motor and gear broadband noise of a small servo: the tone's order, unmeasured",
         "the servos' broadband floor at both microphones", "servo noise", _AUDIO, log=True),
     Estimate(
@@ -138,8 +144,17 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
         "CLATTER_DECAY_S", 0.015, 0.005, 0.05, "tableware struck on a table rings down within tens of ms",
         "how long each clink rings", "cafe scene", _AUDIO, log=True),
     Estimate(
+        "CLATTER_DECAY_SPREAD", 0.5, 0.2, 0.8, "cups, plates and cutlery ring down at different rates: the longest ring 1.5 to 9 times the shortest ((1 + x) / (1 - x))",
+        "the spread of the clinks' ring times", "cafe scene", _AUDIO),
+    Estimate(
+        "CLATTER_LEVEL_SPREAD", 0.5, 0.2, 1.0, "clinks differ in strength by a factor 1.2 to 2.7 (log-normal sigma), unmeasured",
+        "the spread of the clinks' amplitudes", "cafe scene", _AUDIO),
+    Estimate(
         "CAFE_DAY_SPREAD_DB", 2.0, 0.5, 4.0, "the paper's 47-55 dB(A) spans its cafe days and trials together; their split is unmeasured",
         "how much of the cafe level's spread is the day's (the rest the trial's)", "cafe scene", _AUDIO),
+    Estimate(
+        "CAFE_TRIAL_JITTER_DB", 1.0, 0.3, 2.0, "the paper's 47-55 dB(A) spans cafe days and trials together; a played recording's half-minute excerpts differ by tenths of a dB to a few dB",
+        "the cafe level's change from trial to trial within a day", "cafe scene", _AUDIO),
     Estimate(
         "SPEAKER_DISTANCE_NEAR_M", 0.5, 0.3, 1.0, "a loudspeaker on a table by the rig, unplaced by the paper: from arm's length",
         "the loudspeaker's nearest place: its direct sound against the room's at each microphone", "cafe scene", _AUDIO),
@@ -183,6 +198,9 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "SLIP_RING_HIGH_HZ", 3500.0, 1800.0, 7000.0, "the same on the stiffest contact (no cloth): a factor 2 either way",
         "the clicks' ring on the stiffest contacts", "contact sound", _AUDIO, log=True),
+    Estimate(
+        "SLIP_RING_SPREAD", 0.1, 0.03, 0.3, "the ring follows the skin's mass on the contact's stiffness, which vary with where the patch sits and how the stack lies: a few to tens of per cent",
+        "the clicks' ring from trial to trial at one stiffness", "contact sound", _AUDIO, log=True),
     Estimate(
         "SLIP_DECAY_S", 0.0003, 0.0001, 0.001, "a heavily damped skin rings for a cycle or a few of its kHz ring",
         "how long each click rings", "contact sound", _AUDIO, log=True),
@@ -268,6 +286,9 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
         "RUB_AMPLITUDE_MM", 3.0, 1.5, 6.0, "a stroke must exceed the 0.1-0.3 mm stick length many times over and stay on a ~20 mm fingertip pad",
         "the stroke's length: slide speed, texture frequencies, the joints' swing", "procedure", _ALL, log=True),
     Estimate(
+        "RUB_RAMP_CYCLES", 0.25, 0.1, 0.5, "a servo starting a preprogrammed stroke from rest reaches its amplitude within a tenth to half a cycle (its acceleration limit); unpublished",
+        "the first stroke's run-up: its slide speed and joint swing", "procedure", _ALL, log=True),
+    Estimate(
         "CYCLE_HZ", 2.0, 1.7, 2.4, "the paper's ~1500 steps (30 s) per 50-cycle trial, with the closing and the load's droop, bound the commanded rate",
         "the rubbing rate: trial length, slide speed, texture frequencies", "procedure", _ALL),
     Estimate(
@@ -282,6 +303,9 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "CYCLE_PHASE_JITTER", 0.01, 0.003, 0.03, "the stroke rate's wander within a trial: below the spread between trials, from the same supply and load",
         "the stroke rate's wander within a trial", "procedure", _ALL, log=True),
+    Estimate(
+        "CYCLE_WANDER_S", 0.1, 0.03, 0.5, "the supply's and the load's fluctuations change over a servo's control periods (tens of ms) to a stroke (0.5 s)",
+        "how fast the stroke rate wanders within a trial", "procedure", _ALL, log=True),
     Estimate(
         "FOLD_SPREAD", 0.1, 0.03, 0.25, "a hand-folded stack: two layers plus slack and seams, a few to 25 % off its nominal thickness",
         "the stack's thickness from trial to trial: closing angle, stiffness, patch", "procedure", _ALL, log=True),
@@ -308,8 +332,17 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
         "WEAVE_IRREGULARITY", 0.03, 0.01, 0.08, "woven fabrics' yarn spacing varies by a few per cent (coefficient of variation)",
         "the weave lines' width", "fabric surface", _AUDIO, log=True),
     Estimate(
+        "WEAVE_WANDER_PERIODS", 4.0, 2.0, 16.0, "yarn spacing drifts smoothly (yarn tension, beat-up) over a couple to a dozen and more yarns",
+        "the weave lines' shape: how their irregularity is spread in frequency", "fabric surface", _AUDIO, log=True),
+    Estimate(
+        "WEAVE_HARMONIC_SPREAD", 0.5, 0.2, 0.8, "a yarn's cross-section sets each harmonic's weight: tens of per cent off a smooth 1/k^s trend either way",
+        "the relative levels of each fabric's weave lines", "fabric surface", _AUDIO),
+    Estimate(
         "LOCAL_ROUGHNESS_SPREAD", 0.2, 0.05, 0.4, "wear, creases and pile direction change a strip's roughness by 5-40 % from place to place",
         "the texture level's change with the grasp position", "fabric surface", _AUDIO),
+    Estimate(
+        "LOCAL_ROUGHNESS_LENGTH_MM", 10.0, 3.0, 30.0, "wear, creases and pile direction change over a fingertip's width to a few centimetres of cloth",
+        "how far the grasp must move for the texture level to change", "fabric surface", _AUDIO, log=True),
     Estimate(
         "FUZZ_FIBRES_PER_MM", 6.0, 2.0, 18.0, "loose fibre ends on a fuzzy staple-fibre cloth: a few to tens per mm of path",
         "the loose fibres' clicks in the texture sound", "fabric surface", _AUDIO, log=True),
@@ -338,6 +371,9 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "ROOM_T60_S", 0.6, 0.35, 1.2, "ANSI S12.60's classroom target is 0.6 s, furnished offices 0.4-0.8 s, a bare lab longer",
         "the room's reverberation: its responses at the two microphones", "room and lab events", _AUDIO, log=True),
+    Estimate(
+        "LAB_TRIAL_JITTER_DB", 0.3, 0.1, 1.0, "the meter's 29-31 dB(A) spans the lab's days and trials; a ventilation floor moves by tenths of a dB in a day, ~1 dB with the building services",
+        "the lab floor's level from trial to trial within a day", "room and lab events", _AUDIO, log=True),
     Estimate(
         "LAB_VOICE_PER_MIN", 0.2, 0.05, 1.0, "a remark every 20 minutes to one a minute on an average day; no counts in a lab were found",
         "how often a voice is heard in a trial", "room and lab events", _AUDIO, log=True),
@@ -404,6 +440,9 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
         "CLOSING_SHARE_THUMB2", 0.6, 0.3, 0.8, "the thumb closes with its two outer joints; how it splits its travel between them is unpublished",
         "the thumb's closing angles and loads (the rest goes to its third joint)", "proprioception", _PROPRIO),
     Estimate(
+        "PALM_REACTION_SHARE", 0.3, 0.1, 0.6, "the palm joint's axis against the rubbing direction sets how much of the strokes' reaction torque it carries; the ISyHand's kinematics are unpublished",
+        "the palm joint's lag and current under the rubbing load", "proprioception", _PROPRIO),
+    Estimate(
         "SERVO_STIFFNESS_NM_RAD", 4.0, 2.0, 30.0, "a position loop's torque per rad of lag: the 1.9 N m stall torque over a proportional band of 0.06-1 rad",
         "how far loaded joints lag their command", "proprioception", _PROPRIO, log=True),
     Estimate(
@@ -437,6 +476,9 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType({e.name: e for e in (
     Estimate(
         "DECIMATION_HZ", 21_000.0, 19_000.0, 23_000.0, "a sigma-delta decimator's passband ends at 0.40-0.48 of the 48 kHz rate (converters: 0.45-0.47); the SPH0645's is unstated",
         "where the microphones' response ends above the 15 kHz band", "microphones", _AUDIO),
+    Estimate(
+        "DECIMATION_ORDER", 24.0, 12.0, 48.0, "the stopband starts near the 24 kHz Nyquist rate, ~1.15 times the edge: an order of 12-48 cuts 15-55 dB there; the SPH0645's is unstated",
+        "how steeply the microphones' response ends above the decimator's edge", "microphones", _AUDIO, log=True),
     # --- the catalog's physical parameters, each kind scaled for every fabric alike -----------------
     Estimate(
         "CATALOG_WEAVE_PERIOD_SCALE", 1.0, 0.7, 1.4, "weave and knit periods of the named garment kinds are known to tens of per cent (0.1-3 mm)",

@@ -155,7 +155,7 @@ def _hit(h: int, w: int, axial: float, rotation: float):
     return rn <= 1.0, p, d, normal, s, c, e_s, e_c
 
 
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=8)  # [numerics]
 def _view(seed: int, h: int, w: int, axial: float, rotation: float) -> _View:
     valid, p, d, normal, s, c, e_s, e_c = _hit(h, w, axial, rotation)
     # pixel footprint and Jacobian from neighbouring rays (c unwrapped locally)
@@ -167,7 +167,7 @@ def _view(seed: int, h: int, w: int, axial: float, rotation: float) -> _View:
     det = np.where(np.abs(det) < 1e-12, 1e-12, det)
     jac_inv = np.stack([np.stack([jac[..., 1, 1], -jac[..., 0, 1]], -1), np.stack([-jac[..., 1, 0], jac[..., 0, 0]], -1)], -2) / det[..., None, None]
     # a wall moving inward by w meets the ray earlier: the seen point moves by w d_t / (d . n)
-    dn = np.minimum(np.sum(d * normal, -1), -0.05)
+    dn = np.minimum(np.sum(d * normal, -1), -0.05)  # [numerics] bounds the shift of grazing rays
     d_t = d - np.sum(d * normal, -1, keepdims=True) * normal
     shift_n = np.stack([np.sum(d_t * e_s, -1), np.sum(d_t * e_c, -1)], -1) / dn[..., None]
     lights, tangents = [], []
@@ -192,10 +192,10 @@ def _exposure(seed: int) -> float:
     """DN per unit radiance: the nominal no-contact frame's brightest pixels at EXPOSURE_LEVEL_DN."""
     v = _view(seed, *FULL_SIZE, 0.0, 0.0)
     radiance = (v.albedo * v.light)[:, v.valid]
-    return cal.EXPOSURE_LEVEL_DN / float(np.percentile(radiance.max(0), 99.5))
+    return cal.EXPOSURE_LEVEL_DN / float(np.percentile(radiance.max(0), cal.EXPOSURE_PERCENTILE))
 
 
-@functools.lru_cache(maxsize=4)
+@functools.lru_cache(maxsize=4)  # [numerics]
 def inner_profile(force_n: float) -> tuple[np.ndarray, np.ndarray, float, float]:
     """The inner wall's displacement profile at `force_n`: (radii mm, profile normalised to 1 at
     the centre, the outer surface's indentation per shell in mm, the share of it the inner wall
@@ -204,7 +204,7 @@ def inner_profile(force_n: float) -> tuple[np.ndarray, np.ndarray, float, float]
     r_eff = cal.SHELL_OUTER_RADIUS_MM / 2 * 1e-3
     a = (3 * force_n * r_eff / (4 * e_star)) ** (1 / 3) * 1e3  # mm
     indent = a**2 / cal.SHELL_OUTER_RADIUS_MM  # per shell
-    n, dx = 256, 2 * cal.CONTACT_SUPPORT_MM * 2 / 256
+    n, dx = 256, 2 * cal.CONTACT_SUPPORT_MM * 2 / 256  # [numerics] FFT grid over twice the support's diameter
     xy = (np.arange(n) - n // 2) * dx
     r = np.hypot(*np.meshgrid(xy, xy))
     inside = np.clip(r / a, 0, 1)
@@ -230,7 +230,7 @@ def patch_geometry(fabric: catalog.Fabric, fold: float) -> tuple[float, float, f
     bending = 2.0 * (fabric.stretch_stiffness / cal.BENDING_REF_STRETCH_N_MM) * (fabric.thickness_mm / cal.BENDING_REF_THICKNESS_MM) ** 2
     wavelength = cal.RIDGE_WAVELENGTH_PER_THICKNESS * stack_mm
     ridge = float(np.exp(-2 * np.pi * cal.SHELL_THICKNESS_MM / wavelength))
-    return conform, conform * (1.0 + bending) ** 0.25, ridge
+    return conform, conform * (1.0 + bending) ** (1 / 4), ridge
 
 
 @dataclasses.dataclass(frozen=True)

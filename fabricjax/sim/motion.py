@@ -101,9 +101,10 @@ def finger_motion(fabric: catalog.Fabric, cycles: int, nz: Nuisance, rng: np.ran
     mu = fabric.friction * nz.friction_scale
     rate = cal.CYCLE_HZ * nz.speed / (1.0 + cal.SPEED_DROOP_PER_N * mu * grasp_force)
     t_rub = t_stop + cal.SETTLE_S
-    n_rub = int(np.ceil(cycles / rate * 1.1 * cal.CONTROL_HZ))
-    wander = np.cumsum(rng.normal(0.0, 1.0, n_rub // 200 + 2))
-    wander = np.interp(np.arange(n_rub) / 200, np.arange(len(wander)), wander)
+    n_rub = int(np.ceil(cycles / rate * 1.1 * cal.CONTROL_HZ))  # [numerics] 10 % headroom for the wander (trimmed below)
+    knot = round(cal.CYCLE_WANDER_S * cal.CONTROL_HZ)  # control samples per step of the wander's random walk
+    wander = np.cumsum(rng.normal(0.0, 1.0, n_rub // knot + 2))
+    wander = np.interp(np.arange(n_rub) / knot, np.arange(len(wander)), wander)
     wander = cal.CYCLE_PHASE_JITTER * (wander - wander.mean()) / max(wander.std(), 1e-9)
     phase = np.cumsum(rate * (1.0 + wander) * dt)
     n_rub = int(np.searchsorted(phase, cycles)) + 1
@@ -112,7 +113,7 @@ def finger_motion(fabric: catalog.Fabric, cycles: int, nz: Nuisance, rng: np.ran
     n_post = int(cal.STOP_S * cal.CONTROL_HZ)
     t = np.arange(n_pre + n_rub + n_post) * dt
     finger = np.zeros_like(t)
-    ramp = np.minimum(1.0, phase * 4.0)  # the first quarter stroke accelerates
+    ramp = np.minimum(1.0, phase / cal.RUB_RAMP_CYCLES)  # the first strokes accelerate
     finger[n_pre : n_pre + n_rub] = cal.RUB_AMPLITUDE_MM * ramp * np.sin(2 * np.pi * phase)
     closing = np.clip(t, 0.0, t_stop) * cal.CLOSING_SPEED_MM_S
     compression = np.clip(closing - (cal.OPEN_GAP_MM - thickness), 0.0, None)

@@ -24,6 +24,7 @@ from fabricjax.sim.scene import Nuisance
 
 # [numerics] which joints rub and in which sense (signs, not magnitudes): thumb base +, middle base - (opposite phase)
 RUBBING = np.array([1.0, 0.0, 0.0, -1.0, 0.0, 0.0])
+PALM = 5  # [numerics] the palm joint's row: thumb 0-2, middle finger 3-4, palm 5 [paper]
 
 
 def joints_and_force(motion: Motion, frame_t: np.ndarray, nz: Nuisance, rng: np.random.Generator | None):
@@ -36,7 +37,7 @@ def joints_and_force(motion: Motion, frame_t: np.ndarray, nz: Nuisance, rng: np.
     if rng is not None:
         shear = motion.shear_n * lever * 1e-3  # N m, opposing the stroke
         torque = RUBBING[:, None] * shear + np.asarray(cal.CLOSING_SHARE)[:, None] * motion.normal_n * lever * 1e-3
-        torque[5] = 0.3 * shear  # the palm joint takes part of the reaction
+        torque[PALM] = cal.PALM_REACTION_SHARE * shear  # the palm joint takes part of the reaction
         angle = angle - torque / cal.SERVO_STIFFNESS_NM_RAD
         speed = np.gradient(angle, motion.t, axis=1)
         current = current + (np.abs(torque) + cal.VISCOUS_NM_PER_RAD_S * np.abs(speed)) / cal.TORQUE_PER_AMP_NM

@@ -44,7 +44,7 @@ def silicone_scale(temperature_c: float) -> float:
 def spot_share() -> float:
     """Share of the trials whose rubbed stretch (the contact patch's diameter plus a stroke) covers
     a given spot of the strip."""
-    rubbed = 2e3 * math.sqrt(cal.CONTACT_AREA_M2 / math.pi) + 2 * cal.RUB_AMPLITUDE_MM
+    rubbed = 2 * 1e3 * math.sqrt(cal.CONTACT_AREA_M2 / math.pi) + 2 * cal.RUB_AMPLITUDE_MM  # diameter, m -> mm
     lo, hi = cal.GRASP_RANGE_MM
     return rubbed / (hi - lo + rubbed)
 

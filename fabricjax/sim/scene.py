@@ -43,7 +43,7 @@ def _magnitudes() -> str:
     """A short hash of every constant of `calibration` (its estimates at their registry values):
     part of every simulated scene, so data simulated with other magnitudes is simulated again."""
     values = {k: v for k, v in sorted(vars(cal).items()) if k.isupper()}
-    return hashlib.sha256(json.dumps(values, default=repr).encode()).hexdigest()[:12]
+    return hashlib.sha256(json.dumps(values, default=repr).encode()).hexdigest()[:12]  # [numerics] 12 hex digits
 
 
 # Taken when this module is imported, before any scene's estimates are put in force (`trial.use_estimates`).
@@ -79,7 +79,7 @@ class Scene:
     effects: tuple[str, ...] = EFFECTS
     streams: tuple[str, ...] = REQUIRED_STREAMS
     image_size: tuple[int, int] = archive.MINSIGHT_SIZE
-    cycles: int = 50
+    cycles: int = cal.CYCLES_PER_TRIAL
     seed: int = 0
     history: int = 0  # trials this fabric's cloth went through before this one (its wear)
     # estimates set away from the registry's values (`sim.estimates`), sorted (name, value) pairs:
@@ -104,7 +104,7 @@ class Scene:
         checked = estimates.check(dict(self.estimates))
         if tuple(sorted(checked.items())) != tuple(self.estimates):
             raise ValueError(f"estimates must be sorted (name, value) pairs, each name once, got {self.estimates}")
-        if self.cycles < 1 or min(self.image_size) < 8:
+        if self.cycles < 1 or min(self.image_size) < 8:  # [numerics] the smallest frame the renderer supports
             raise ValueError(f"need cycles >= 1 and images of at least 8x8, got {self.cycles}, {self.image_size}")
 
     @property
@@ -164,11 +164,11 @@ def nuisance(scene: Scene) -> Nuisance:
     climate = rig.climate(scene.rng("climate", "day")) if scene.wants("climate") else (None, None)
     if scene.condition == "lab":
         level = day.uniform(*cal.LAB_DB_A)
-        level = float(np.clip(level + trial.uniform(-0.3, 0.3), *cal.LAB_DB_A))
+        level = float(np.clip(level + trial.uniform(-cal.LAB_TRIAL_JITTER_DB, cal.LAB_TRIAL_JITTER_DB), *cal.LAB_DB_A))
     else:
         lo, hi = cal.CAFE_DB_A
         level = day.uniform(lo + cal.CAFE_DAY_SPREAD_DB / 2, hi - cal.CAFE_DAY_SPREAD_DB / 2)
-        level = float(np.clip(level + trial.uniform(-1.0, 1.0), lo, hi))
+        level = float(np.clip(level + trial.uniform(-cal.CAFE_TRIAL_JITTER_DB, cal.CAFE_TRIAL_JITTER_DB), lo, hi))
     return Nuisance(
         ambient_db_a=level,
         mic_gain_db=day.uniform(-cal.GAIN_DRIFT_DB, cal.GAIN_DRIFT_DB, 2),

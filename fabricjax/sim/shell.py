@@ -27,7 +27,7 @@ def surface_mass_kg_m2() -> float:
 
 
 def transmission_loss_db(f: np.ndarray) -> np.ndarray:
-    tl = 20 * np.log10(np.maximum(f, 1.0) * surface_mass_kg_m2()) - 47.0
+    tl = 20 * np.log10(np.maximum(f, 1.0) * surface_mass_kg_m2()) - cal.MASS_LAW_DB
     return np.clip(tl, cal.SHELL_TL_MIN_DB, cal.SHELL_TL_MAX_DB)
 
 

@@ -23,7 +23,7 @@ from fabricjax.sim import calibration as cal
 
 def band_transfer(f: np.ndarray) -> np.ndarray:
     lo, hi = cal.BAND_HZ
-    decimator = 1.0 / (1.0 + (f / cal.DECIMATION_HZ) ** 24)
+    decimator = 1.0 / (1.0 + (f / cal.DECIMATION_HZ) ** cal.DECIMATION_ORDER)
     return acoustics.highpass2(f, lo) * acoustics.lowpass2(f, hi) * decimator
 
 
@@ -43,7 +43,7 @@ def to_words(counts: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
     """Signed 18-bit samples -> int32 I2S words (clipped at full scale; optional junk bits)."""
     q = np.clip(np.round(counts), -archive.FULL_SCALE, archive.FULL_SCALE - 1).astype(np.int32) << archive.SAMPLE_SHIFT
     if rng is not None:
-        q |= rng.integers(0, 2**cal.JUNK_BITS, q.shape, dtype=np.int32) << 8
+        q |= rng.integers(0, 2**cal.JUNK_BITS, q.shape, dtype=np.int32) << (archive.SAMPLE_SHIFT - cal.JUNK_BITS)  # bits 13..8
     return q
 
 

@@ -41,7 +41,7 @@ def events(scene: Scene, motion: Motion, rng: np.random.Generator) -> tuple[np.n
     rev = np.flatnonzero((np.sign(v[1:]) != np.sign(v[:-1])) & (motion.t[1:-1] > motion.rubbing_start_s)) + 1
     t_rev = motion.t[rev]
     load_rev = mu * motion.normal_n[rev] / cal.SLIP_REF_FORCE_N
-    stretch = np.sqrt(motion.slip_width_mm / 0.1)
+    stretch = np.sqrt(motion.slip_width_mm / cal.RELEASE_REF_SLIP_MM)
     amp_rev = cal.RELEASE_PA * load_rev * stretch * min(rough, 1.0) * rng.lognormal(0.0, cal.SLIP_SPREAD, len(rev))
     t_all = np.concatenate([times, t_rev])
     a_all = np.concatenate([amp, amp_rev]) * rng.choice([-1.0, 1.0], len(t_all))
@@ -53,7 +53,7 @@ def spectrum(scene: Scene, motion: Motion, grid: acoustics.Grid, rng: np.random.
     times, amps = events(scene, motion, rng)
     lo, hi = cal.SLIP_RING_HZ
     stiffness = motion.contact_stiffness_n_mm / cal.SHELL_NORMAL_STIFFNESS_N_MM  # (0, 1]
-    ring = (lo + (hi - lo) * np.sqrt(stiffness)) * rng.uniform(0.9, 1.1)
+    ring = (lo + (hi - lo) * np.sqrt(stiffness)) * rng.uniform(1 - cal.SLIP_RING_SPREAD, 1 + cal.SLIP_RING_SPREAD)
     idx = np.clip(np.round(times * archive.AUDIO_RATE).astype(np.int64) + cal.LEAD_IN, 0, grid.n - 1)
     train = np.zeros(grid.n)
     np.add.at(train, idx, amps)

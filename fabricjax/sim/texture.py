@@ -26,7 +26,7 @@ from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import Scene, simulated_fabric
 
 
-@functools.lru_cache(maxsize=32)
+@functools.lru_cache(maxsize=32)  # [numerics]
 def surface_profile(fabric_id: int, seed: int) -> tuple[np.ndarray, np.ndarray | None]:
     """Height (um) of the fabric's new cloth strip on a `PROFILE_DX_MM` grid, as (weave and
     roughness, fuzz; None for a fabric without loose fibres): the strip's height is their sum, the
@@ -47,10 +47,11 @@ def surface_profile(fabric_id: int, seed: int) -> tuple[np.ndarray, np.ndarray |
     h = rough * (np.sqrt(1 - weave_share**2) / rough.std())
     if weave_share:
         lam = fab.weave_period_mm
-        warp = np.fft.irfft(rng.standard_normal(len(k)) * (k < 1 / (4 * lam)), n)
+        warp = np.fft.irfft(rng.standard_normal(len(k)) * (k < 1 / (cal.WEAVE_WANDER_PERIODS * lam)), n)
         xw = x + cal.WEAVE_IRREGULARITY * lam * warp / max(warp.std(), 1e-12)
         harmonics = np.arange(1, cal.WEAVE_HARMONICS + 1)
-        weights = harmonics ** (-slope / 2) * rng.uniform(0.5, 1.5, len(harmonics))
+        spread = cal.WEAVE_HARMONIC_SPREAD
+        weights = harmonics ** (-slope / 2) * rng.uniform(1 - spread, 1 + spread, len(harmonics))
         phases = rng.uniform(0, 2 * np.pi, len(harmonics))
         weave = sum(w * np.cos(2 * np.pi * m * xw / lam + p) for m, w, p in zip(harmonics, weights, phases))
         h += weave * (weave_share / weave.std())
@@ -62,14 +63,14 @@ def surface_profile(fabric_id: int, seed: int) -> tuple[np.ndarray, np.ndarray |
         sigma = cal.FUZZ_FIBRE_WIDTH_MM / 2
         bumps = np.fft.irfft(np.fft.rfft(spikes) * np.exp(-0.5 * (2 * np.pi * k * sigma) ** 2), n)
         fuzz = cal.FUZZ_HEIGHT * fab.fuzz * bumps / max(bumps.max(), 1e-12)
-    local = np.fft.irfft(rng.standard_normal(len(k)) * (k < 0.1), n)
+    local = np.fft.irfft(rng.standard_normal(len(k)) * (k < 1 / cal.LOCAL_ROUGHNESS_LENGTH_MM), n)
     local = rough_um * (1.0 + cal.LOCAL_ROUGHNESS_SPREAD * local / max(np.abs(local).max(), 1e-12))
     return (h * local).astype(np.float64), None if fuzz is None else (fuzz * local).astype(np.float64)
 
 
 def sample_profile(profile: np.ndarray, position_mm: np.ndarray) -> np.ndarray:
     """Linear interpolation on the uniform profile grid (clamped to the strip)."""
-    u = np.clip(position_mm / cal.PROFILE_DX_MM, 0, len(profile) - 1.000001)
+    u = np.clip(position_mm / cal.PROFILE_DX_MM, 0, len(profile) - 1.000001)  # [numerics] inside the last interval
     i = u.astype(np.int64)
     w = u - i
     return profile[i] * (1 - w) + profile[i + 1] * w
