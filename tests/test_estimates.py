@@ -344,3 +344,20 @@ def test_the_documented_table_is_the_registry():
     assert estimates.with_table(doc) == doc, "docs/simulator.md's estimates table differs: run python -m experiments.estimates"
     for name in estimates.ESTIMATES:
         assert f"`{name}`" in doc
+
+
+def test_the_catalog_scales_apply_to_every_fabric_alike_and_leave_class_0_and_the_catalog_itself():
+    from fabricjax import catalog
+    from fabricjax.sim.scene import CATALOG_SCALES, simulated_fabric
+
+    assert all(estimates.ESTIMATES[name].value == 1.0 for name in CATALOG_SCALES.values())
+    assert simulated_fabric(3) is catalog.fabric(3)  # the published data: the catalog's own entry
+    high = {name: estimates.ESTIMATES[name].high for name in CATALOG_SCALES.values()}
+    try:
+        trial.use_estimates(tuple(sorted(high.items())))
+        for field, name in CATALOG_SCALES.items():
+            assert getattr(simulated_fabric(3), field) == pytest.approx(getattr(catalog.fabric(3), field) * high[name])
+        assert simulated_fabric(0) is catalog.fabric(0)  # no fabric: the fingers rub each other
+    finally:
+        trial.use_estimates(())
+    assert simulated_fabric(3) is catalog.fabric(3)

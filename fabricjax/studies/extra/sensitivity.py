@@ -191,6 +191,24 @@ def analyse(groups: Sequence[str], x: np.ndarray, y: np.ndarray, seed: int) -> d
     return {k: [float(v) for v in a[k]] for k in ("mu", "mu_star", "sigma", "mu_star_conf")}
 
 
+PUBLISHED = Path(__file__).resolve().parents[3] / "results" / f"{STUDY}.json"
+
+
+def prior_estimate(preset: str, n_points: int) -> str:
+    """The time `n_points` points should take, from the repository's published run of the same
+    preset (its median point; other machines differ), before this run has measured its first."""
+    try:
+        doc = json.loads(PUBLISHED.read_text())
+        seconds = float(np.median([p["wall_s"] for p in doc["points"]]))
+    except (OSError, ValueError, KeyError):
+        return "The first point's time gives the estimate for the rest."
+    if doc.get("preset") != preset:
+        return "The first point's time gives the estimate for the rest."
+    m = doc["machine"]
+    return (f"Estimated {n_points * seconds / 60:.0f} min: the published run took {seconds:.0f} s a point on {m['cpu']}, {m['cores']} cores "
+            "(other machines differ); the first point's time refines it.")
+
+
 def run(
     *, preset: str = PRESET, trajectories: int = TRAJECTORIES, groups: Sequence[str] | None = None, seed: int = 0,
     where: Location = Location(), progress: bool = True,
@@ -217,7 +235,7 @@ def run(
     documents.write_json(plan_path, plan)
     n_trials = len(presets.get(preset).dataset.trials())
     print(f"Sensitivity: {len(groups)} groups x {trajectories} trajectories = {len(x)} points; each simulates the {preset} preset "
-          f"({n_trials} trials) and fits {len(PROBE_ROWS) + len(PROPERTIES)} probes. The first point's time gives the estimate for the rest.", flush=True)
+          f"({n_trials} trials) and fits {len(PROBE_ROWS) + len(PROPERTIES)} probes. {prior_estimate(preset, len(x))}", flush=True)
     points, first = [], True
     t_start = time.perf_counter()
     bar = tqdm(total=len(x), desc="sensitivity", unit="point", disable=not progress)
