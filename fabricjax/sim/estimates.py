@@ -552,11 +552,6 @@ def check(overrides: Mapping[str, float]) -> dict[str, float]:
     return out
 
 
-def streams_touched(names) -> set[str]:
-    """The streams the estimates `names` act on."""
-    return {s for n in names for s in ESTIMATES[n].streams}
-
-
 TABLE_BEGIN = "<!-- ESTIMATES_BEGIN -->"
 TABLE_END = "<!-- ESTIMATES_END -->"
 

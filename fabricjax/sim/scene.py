@@ -39,15 +39,15 @@ SCOPES = ("hardware", "fabric", "day", "trial")
 SIMULATOR_VERSION = 2
 
 
-def _magnitudes() -> str:
-    """A short hash of every constant of `calibration` (its estimates at their registry values):
-    part of every simulated scene, so data simulated with other magnitudes is simulated again."""
-    values = {k: v for k, v in sorted(vars(cal).items()) if k.isupper()}
+def magnitudes(besides: str | None = None) -> str:
+    """A short hash of every constant of `calibration` as it holds now (all but `besides`): part
+    of every simulated scene, so data simulated with other magnitudes is simulated again."""
+    values = {k: v for k, v in sorted(vars(cal).items()) if k.isupper() and k != besides}
     return hashlib.sha256(json.dumps(values, default=repr).encode()).hexdigest()[:12]  # [numerics] 12 hex digits
 
 
 # Taken when this module is imported, before any scene's estimates are put in force (`trial.use_estimates`).
-MAGNITUDES = _magnitudes()
+MAGNITUDES = magnitudes()
 
 
 # The catalog's physical parameters are our textbook-order choices: each kind is scaled, for every

@@ -21,7 +21,6 @@ the same table is a prediction. One estimate per measurement: the registry refus
 
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
 import time
@@ -32,7 +31,7 @@ import numpy as np
 
 from fabricjax import workspace
 from fabricjax.errors import UserError
-from fabricjax.sim import calibration, estimates
+from fabricjax.sim import estimates, scene
 from fabricjax.studies.common import documents
 from fabricjax.studies.paper import noise
 from fabricjax.workspace import Location
@@ -72,19 +71,13 @@ def calibrated() -> list[estimates.Estimate]:
     return out
 
 
-def _magnitudes_besides(name: str) -> str:
-    """A hash of every `calibration` constant but `name`, at the registry's values."""
-    values = {k: v for k, v in sorted(vars(calibration).items()) if k.isupper() and k != name}
-    return hashlib.sha256(json.dumps(values, default=repr).encode()).hexdigest()[:16]
-
-
 class _Points:
     """The points measured so far for one estimate, kept on disk after each."""
 
     def __init__(self, folder: Path, e: estimates.Estimate):
         self.path = folder / "points.json"
         # every other magnitude of the simulator: a point measured under others measures something else
-        self.others = _magnitudes_besides(e.name)
+        self.others = scene.magnitudes(besides=e.name)
         kept = json.loads(self.path.read_text()) if self.path.is_file() else {}
         self.points: dict[str, dict[str, Any]] = kept.get("points", {}) if kept.get("others") == self.others else {}
 

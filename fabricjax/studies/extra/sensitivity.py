@@ -44,7 +44,7 @@ from SALib.sample import morris as morris_sample
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from fabricjax import data, plots, presets, workspace
+from fabricjax import plots, presets, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.sim import estimates
@@ -65,11 +65,8 @@ ALPHA = 0.01  # a probe "carries" a label when its test accuracy beats its chanc
 CLOSE_PP = 5.12  # "close": within the larger seed SD of the paper's two rows compared (flow 47.16 +- 5.12, proprioception 47.10 +- 3.72)
 
 
-def _display(row: str) -> str:
-    """A probe or day-shift row's inputs by the paper's names."""
-    session = row.startswith(probe.SESSION)
-    mods = row.removeprefix(probe.SESSION).split("+")
-    return data.inputs_name(mods) + (" − session reference" if session else "")
+# A row's inputs by the paper's names, as the day shift names them (every single input is one of its rows).
+_NAMES = {r.name: r.label for r in day_shift.ROWS}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,16 +142,17 @@ def measure(point: Path, preset: str) -> tuple[dict[str, float], dict[str, Any]]
     """Simulate `preset` with the estimates in force into the workspace `point` and measure every
     response; returns (responses, what the claims read besides them)."""
     where = Location(workdir=point, results=point / "results")
-    p = _probe_rows(probe.run(preset=preset, rows=list(PROBE_ROWS), where=where))
+    probe_doc = probe.run(preset=preset, rows=list(PROBE_ROWS), where=where)
+    p = _probe_rows(probe_doc)
     shares = {r["name"]: r for r in day_shift.run(preset=preset, rows=list(SHIFT_ROWS), where=where)["rows"]}
     props = _property_probe(point, preset)
     acc = {name: {s: 100 * v for s, v in r["accuracy"].items()} for name, r in p.items()}
     out: dict[str, float] = {}
     for row in SINGLE:
-        out[f"probe validation: {_display(row)} [%]"] = acc[row]["val"]
-        out[f"probe test: {_display(row)} [%]"] = acc[row]["test"]
-        out[f"fabric share: {_display(row)} [%]"] = 100 * shares[row]["shares"]["fabric"]
-        out[f"day share: {_display(row)} [%]"] = 100 * shares[row]["shares"]["day"]
+        out[f"probe validation: {_NAMES[row]} [%]"] = acc[row]["val"]
+        out[f"probe test: {_NAMES[row]} [%]"] = acc[row]["test"]
+        out[f"fabric share: {_NAMES[row]} [%]"] = 100 * shares[row]["shares"]["fabric"]
+        out[f"day share: {_NAMES[row]} [%]"] = 100 * shares[row]["shares"]["day"]
     out["Minsound lab → cafe drop [pp]"] = acc["internal"]["test"] - acc["internal"]["cafe"]
     out["palm mic lab → cafe drop [pp]"] = acc["external"]["test"] - acc["external"]["cafe"]
     image = probe.SESSION + "image"
@@ -165,17 +163,13 @@ def measure(point: Path, preset: str) -> tuple[dict[str, float], dict[str, Any]]
     out["image property margin over chance, test [pp]"] = min(100 * (props[q]["test"] - props[q]["chance"]) for q in PROPERTIES)
     out["best camera input, test [%]"] = max(acc["flow"]["test"], acc[image]["test"])
     n_test = len(p["flow"]["predictions"]["test"])
-    chance = 1 / len(probe_classes(point))
+    chance = 1 / len(probe_doc["classes"])
     side = {
         **{f"image carries {q}": _above_chance(props[q]["test"], props[q]["n"], props[q]["chance"]) for q in PROPERTIES},
         "camera carries the fabric": any(_above_chance(acc[r]["test"] / 100, n_test, chance) for r in ("flow", image)),
         "properties": props, "chance": chance,
     }
     return out, side
-
-
-def probe_classes(point: Path) -> list[int]:
-    return json.loads((point / "results" / "probe.json").read_text())["classes"]
 
 
 def design(groups: Sequence[str], trajectories: int, seed: int) -> np.ndarray:
