@@ -22,7 +22,7 @@ import numpy as np
 import orbax.checkpoint as ocp
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from fabricjax.config import Config
+from fabricjax.config import RESULT_NEUTRAL_FIELDS, Config
 from fabricjax.errors import UserError
 from fabricjax.model import head_sizes
 
@@ -128,7 +128,7 @@ def check_meta(directory, saved: dict[str, Any], expected: dict[str, Any]) -> No
     """Raise `CheckpointMismatch` naming the directory and every field that differs."""
     cfg = expected["config"]
     saved_cfg = saved.get("config", {})
-    diff = sorted(k for k in set(cfg) | set(saved_cfg) if _norm(cfg.get(k)) != _norm(saved_cfg.get(k)))
+    diff = sorted(k for k in (set(cfg) | set(saved_cfg)) - set(RESULT_NEUTRAL_FIELDS) if _norm(cfg.get(k)) != _norm(saved_cfg.get(k)))
     diff += [k for k in RUN_FIELDS if _norm(saved.get(k, 1 if k == "state_version" else None)) != _norm(expected[k])]
     if diff:
         details = "; ".join(

@@ -54,6 +54,10 @@ IMAGE_REFERENCES = ("none", "training_mean", "session")
 # units of CPUs that have them (x86 `avx512_bf16` / AMX, Arm `bf16`); float16 is kept for the
 # stability tests' overflow cases.
 COMPUTE_DTYPES = ("float32", "bfloat16", "float16")
+# Where training reads its inputs (`Config.input_source`); fields that do not change a run's
+# results, so a checkpoint resumes under either value (`checkpoint.check_meta`).
+INPUT_SOURCES = ("auto", "memory", "disk")
+RESULT_NEUTRAL_FIELDS = ("input_source",)
 
 
 def _preset_fields_first(cls):
@@ -110,6 +114,11 @@ class Config:
     image_reference: str = "session"  # IMAGE_REFERENCES; chosen by measurement (docs/usage.md, "Can the model read each input?")
     # training data selection: fabrics excluded from training (the property holdouts)
     exclude_fabrics: tuple[int, ...] = ()
+    # where training reads its inputs (INPUT_SOURCES): placed whole on the devices ("memory"), or
+    # minibatches read from the host (`fabricjax.feed`) out of memory-mapped sequence files
+    # ("disk", `data.load_sequences`); "auto": from disk where the loaded inputs would take more
+    # than `data.MEMORY_FRACTION` of this machine's memory. Results are the same bits either way.
+    input_source: str = "auto"
 
     def __post_init__(self):
         bad = [m for m in self.modalities if m not in MODALITIES]
@@ -129,6 +138,8 @@ class Config:
             raise ValueError(f"flow_sparsify must be one of {FLOW_SPARSIFY}, got {self.flow_sparsify!r}")
         if self.image_reference not in IMAGE_REFERENCES:
             raise ValueError(f"image_reference must be one of {IMAGE_REFERENCES}, got {self.image_reference!r}")
+        if self.input_source not in INPUT_SOURCES:
+            raise ValueError(f"input_source must be one of {INPUT_SOURCES}, got {self.input_source!r}")
         if self.compute_dtype not in COMPUTE_DTYPES:
             raise ValueError(f"compute_dtype must be one of {COMPUTE_DTYPES}, got {self.compute_dtype!r}")
         if self.image_resolution not in ("down", "full"):

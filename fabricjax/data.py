@@ -74,6 +74,7 @@ config asks for are computed, and frames are never read for an audio / proprioce
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections import Counter
 from typing import Mapping, Sequence
@@ -81,13 +82,18 @@ from typing import Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, catalog, dataset_index, host_arrays, presets, splits, workspace
+from fabricjax import archive, catalog, dataset_index, host_arrays, memo, presets, splits, workspace
 from fabricjax.config import MODALITY_NAMES, PAPER_WINDOW_S, Config
 from fabricjax.errors import UserError
 from fabricjax.features import cache, welch
 from fabricjax.features.extract import feature_for
+from fabricjax.sequence_store import SequenceStore
 
 SPLITS = archive.SPLITS
+# Loaded sequences that would take more than this fraction of the machine's memory are filled into
+# memory-mapped files instead (`sequence_store`), and training reads them from the host
+# (`fabricjax.feed`): the rest is left to the model, the features being computed, the page cache.
+MEMORY_FRACTION = 0.5
 _SOURCE_FIELD = {"image": "images", "flow": "images", "proprio": "joints"}  # archive field behind a modality
 
 
@@ -202,6 +208,45 @@ def _report_unused(entries: Sequence[dataset_index.IndexEntry], roles, chosen_sp
         logging.info("%s are not used by this study (it reads %s)",
                      ", ".join(f"{skipped[s]} trials on split {s}" for s in SPLITS if s in skipped), ", ".join(wanted))
 
+
+
+def _fill(index, chosen, members, features, config: Config, rates, store: SequenceStore, features_root, workers, progress) -> dict[str, dict[str, np.ndarray]]:
+    """{split: {modality: (S, N, ...)}}: each trial's sequences of its features (cached, or
+    computed first) copied into arrays preallocated from the index's step counts, so the dataset
+    is held once (not per trial and again concatenated): in memory where CPU devices can read them
+    without a copy (`host_arrays`), or in `store`'s files where they would take more than
+    `MEMORY_FRACTION` of memory (or `config.input_source` says "disk"). Read-only."""
+    n, wanted = config.seq_len, tuple(members)
+    feats = cache.trial_features(
+        index, [e for e, _ in chosen], list(features.values()), features_root,
+        workers=workers, progress=progress,
+    )
+    inputs: dict[str, dict[str, np.ndarray]] = {}
+    filled = dict.fromkeys(wanted, 0)
+    for (e, s), f in zip(chosen, feats, strict=True):  # strict: runs the generator to its end (the bar closes)
+        n_seq = n_sequences(e, n)
+        trial = {m: _sequences(f[feat.name], m, first_step(e.meta), n_seq, n, config, rates) for m, feat in features.items()}
+        if not inputs:
+            shapes = {t: {m: ((sum(n_sequences(x, n) for x in members[t]), *a.shape[1:]), a.dtype) for m, a in trial.items()} for t in wanted}
+            total = sum(math.prod(shape) * np.dtype(dtype).itemsize for t in shapes.values() for shape, dtype in t.values())
+            on_disk = config.input_source == "disk" or (config.input_source == "auto" and total > memo.memory_budget(MEMORY_FRACTION))
+            if on_disk:
+                logging.info("the sequences take %.1f GB: training reads them from %s (input_source=%s)", total / 1e9, workspace.shown(store.folder), config.input_source)
+            inputs = store.create(shapes) if on_disk else {t: {m: host_arrays.empty(*v) for m, v in d.items()} for t, d in shapes.items()}
+        for m, a in trial.items():
+            if a.shape[1:] != inputs[s][m].shape[1:]:
+                raise archive.ArchiveError(
+                    index.path(e), _SOURCE_FIELD.get(m, "audio"),
+                    f"{m} sequences of shape {a.shape[1:]}, but the dataset's first trial gives {inputs[s][m].shape[1:]}",
+                )
+            inputs[s][m][filled[s] : filled[s] + n_seq] = a
+        filled[s] += n_seq
+    if any(isinstance(a, np.memmap) for d in inputs.values() for a in d.values()):
+        return store.finish(inputs)
+    for arrays in inputs.values():  # read-only from here: training keeps what it derives from them (`fabricjax.memo`)
+        for a in arrays.values():
+            a.flags.writeable = False
+    return inputs
 
 def stream_names(lay: archive.Layout) -> dict[str, str]:
     """{modality: how the data names its stream}: a microphone's name, "joints <names> (<fields>)"
@@ -366,32 +411,17 @@ def load_sequences(
                        config.image_reference)
         for m in config.modalities
     }
-    feats = cache.trial_features(
-        index, [e for e, _ in chosen], list(features.values()), workspace.features_dir(workdir),
-        workers=workers, progress=progress,
-    )
-    # Each trial's sequences are copied into arrays preallocated from the index's step counts,
-    # so the dataset is held once (not per trial and again concatenated), where CPU devices can
-    # read them without a copy (`host_arrays`).
-    inputs: dict[str, dict[str, np.ndarray]] = {}
-    filled = dict.fromkeys(wanted, 0)
-    for (e, s), f in zip(chosen, feats, strict=True):  # strict: runs the generator to its end (the bar closes)
-        n_seq = n_sequences(e, n)
-        trial = {m: _sequences(f[feat.name], m, first_step(e.meta), n_seq, n, config, rates) for m, feat in features.items()}
-        if not inputs:
-            sizes = {t: sum(n_sequences(x, n) for x in members[t]) for t in wanted}
-            inputs = {t: {m: host_arrays.empty((sizes[t], *a.shape[1:]), a.dtype) for m, a in trial.items()} for t in wanted}
-        for m, a in trial.items():
-            if a.shape[1:] != inputs[s][m].shape[1:]:
-                raise archive.ArchiveError(
-                    index.path(e), _SOURCE_FIELD.get(m, "audio"),
-                    f"{m} sequences of shape {a.shape[1:]}, but the dataset's first trial gives {inputs[s][m].shape[1:]}",
-                )
-            inputs[s][m][filled[s] : filled[s] + n_seq] = a
-        filled[s] += n_seq
-    for arrays in inputs.values():  # read-only from here: training keeps what it derives from them (`fabricjax.memo`)
-        for a in arrays.values():
-            a.flags.writeable = False
+    store = SequenceStore(workspace.sequences_dir(workdir), {
+        "features": {m: [f.name, f.params] for m, f in features.items()}, "seq_len": n, "bandwidth_khz": config.bandwidth_khz,
+        "mic_window_s": config.mic_window_s, "rates": rates, "dataset": str(index.root.resolve()),
+        "trials": {s: [[e.file, e.fingerprint] for e in members[s]] for s in wanted},
+    })
+    inputs = store.load() if config.input_source != "memory" else None
+    if inputs is not None and config.input_source == "auto" and sum(a.nbytes for d in inputs.values() for a in d.values()) <= memo.memory_budget(MEMORY_FRACTION):
+        inputs = None  # stored by a run that asked for "disk", and they fit in memory
+    if inputs is None:
+        inputs = _fill(index, chosen, members, features, config, rates, store, workspace.features_dir(workdir), workers, progress)
+    names = stream_names(lay)
     names = stream_names(lay)
     return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, names=names, classes=classes, window_s=config.mic_window_s)
             for s in wanted}

@@ -50,6 +50,12 @@ def placed_in_place(placed: jax.Array, host: np.ndarray) -> bool:
     return all(s.data.unsafe_buffer_pointer() == address for s in placed.addressable_shards)
 
 
+def whole_minibatches(n: int, batch_size: int) -> int:
+    """Sequences of an evaluation set of `n` run in whole minibatches: padding with zero inputs and
+    unknown (-1) labels, which every metric ignores, up to this many."""
+    return n + -n % batch_size
+
+
 def padded(a: np.ndarray, length: int, fill) -> np.ndarray:
     """`a` with rows of `fill` appended up to `length` rows, as a new array of this module's (`a`
     itself where it has them already)."""

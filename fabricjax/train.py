@@ -40,7 +40,7 @@ import optax
 from flax import nnx
 from jax.sharding import Mesh, NamedSharding
 
-from fabricjax import checkpoint, curves, host_arrays, memo, runtime, sharding
+from fabricjax import checkpoint, curves, feed, host_arrays, memo, runtime, sharding
 from fabricjax.config import Config
 from fabricjax.inputs import feature_shapes, input_statistics, training_input, with_input_statistics
 from fabricjax.model import FabricNet, head_sizes
@@ -166,45 +166,66 @@ class Trainer:
         logits = self.logits(params, batch["inputs"], key)
         return sum(masked_cross_entropy(logits[h], batch["labels"][h]) for h in logits), logits
 
-    def train_epoch(self, params, opt_state, key, train, epoch=0):
-        """One pass over shuffled minibatches (remainder dropped) in a scan: (params, opt_state, summary).
-
-        `train` is in the layout training holds its set in (`inputs.training_layout`: frames as
-        rows; `train_and_evaluate` converts it once per training). `epoch` (0-based) places the pass in the run for the learning-rate schedule. `summary` is
-        the epoch's mean loss ("train_loss"), the accuracy per head over the minibatches as they
-        were trained ("train_accuracy", counted from the logits of the training steps themselves:
-        dropout and augmentation on, parameters changing) and the learning rate of its last step ("lr")."""
-        n = jax.tree.leaves(train)[0].shape[0]
+    def epoch_order(self, key, n: int) -> tuple[jax.Array, jax.Array]:
+        """An epoch's minibatches over `n` training sequences, from its key: (indices (steps,
+        batch): a permutation, the remainder dropped; each step's key (steps, 2)). Training from
+        the devices and from the host (`fabricjax.feed`) read the same order."""
         batch = min(self.config.batch_size, n)
         steps = n // batch
         k_perm, k_steps = jax.random.split(key)
-        order = jax.random.permutation(k_perm, n)[: steps * batch].reshape(steps, batch)
+        return jax.random.permutation(k_perm, n)[: steps * batch].reshape(steps, batch), jax.random.split(k_steps, steps)
 
-        def step(carry, xs):
-            params, opt_state = carry
-            idx, k = xs
-            mb = sharding.split_samples(jax.tree.map(lambda a: a[idx], train), self.mesh)
-            (loss, logits), grads = jax.value_and_grad(self.loss, has_aux=True)(params, mb, k)
-            updates, opt_state = self.tx.update(grads, opt_state, params)
-            return (optax.apply_updates(params, updates), opt_state), (loss, _correct_and_known(logits, mb["labels"]))
+    def train_step(self, carry, mb, key):
+        """One optimiser step on minibatch `mb`: ((params, opt_state), (loss, right and known
+        labels per head))."""
+        params, opt_state = carry
+        mb = sharding.split_samples(mb, self.mesh)
+        (loss, logits), grads = jax.value_and_grad(self.loss, has_aux=True)(params, mb, key)
+        updates, opt_state = self.tx.update(grads, opt_state, params)
+        return (optax.apply_updates(params, updates), opt_state), (loss, _correct_and_known(logits, mb["labels"]))
 
-        (params, opt_state), (losses, counts) = jax.lax.scan(step, (params, opt_state), (order, jax.random.split(k_steps, steps)))
-        summary = {
+    def epoch_summary(self, losses, counts, epoch) -> dict[str, Any]:
+        """An epoch's mean loss, its training accuracy per head over the minibatches as they were
+        trained, and the learning rate of its last step, from its steps' outputs."""
+        steps = losses.shape[0]
+        return {
             "train_loss": losses.mean(),
             "train_accuracy": {h: right.sum() / jnp.maximum(known.sum(), 1) for h, (right, known) in counts.items()},
             "lr": learning_rate(self.config, self.total_steps, epoch * steps + steps - 1),
         }
-        return params, opt_state, summary
+
+    def train_epoch(self, params, opt_state, key, train, epoch=0):
+        """One pass over shuffled minibatches (`epoch_order`) in a scan: (params, opt_state, summary).
+
+        `train` is in the layout training holds its set in (`inputs.training_layout`: frames as
+        rows; `train_and_evaluate` converts it once per training). `epoch` (0-based) places the pass in the run for the learning-rate schedule. `summary` is
+        `epoch_summary`'s: the accuracy is counted from the logits of the training steps themselves
+        (dropout and augmentation on, parameters changing)."""
+        order, keys = self.epoch_order(key, jax.tree.leaves(train)[0].shape[0])
+
+        def step(carry, xs):
+            idx, k = xs
+            return self.train_step(carry, jax.tree.map(lambda a: a[idx], train), k)
+
+        (params, opt_state), (losses, counts) = jax.lax.scan(step, (params, opt_state), (order, keys))
+        return params, opt_state, self.epoch_summary(losses, counts, epoch)
+
+    def predict(self, params, inputs) -> dict[str, jax.Array]:
+        """Predicted class per head of a set padded to whole minibatches (see `pad`), a
+        minibatch at a time."""
+        model = nnx.merge(self.graphdef, params)
+        batch = self.config.batch_size
+        chunks = sharding.split_samples(jax.tree.map(lambda a: a.reshape(-1, batch, *a.shape[1:]), inputs), self.mesh, axis=1)
+        return {h: jnp.argmax(v, -1).reshape(-1).astype(jnp.int32) for h, v in jax.lax.map(model, chunks).items()}
 
     def evaluate(self, params, ds) -> dict[str, dict[str, jax.Array]]:
         """Predictions and accuracy per head over a set padded to whole minibatches (see `pad`)."""
-        model = nnx.merge(self.graphdef, params)
-        batch = self.config.batch_size
-        chunks = sharding.split_samples(jax.tree.map(lambda a: a.reshape(-1, batch, *a.shape[1:]), ds["inputs"]), self.mesh, axis=1)
-        logits = jax.lax.map(model, chunks)
-        preds = {h: jnp.argmax(v, -1).reshape(-1).astype(jnp.int32) for h, v in logits.items()}
-        acc = {h: masked_accuracy(p, ds["labels"][h]) for h, p in preds.items()}
-        return {"accuracy": acc, "predictions": preds}
+        preds = self.predict(params, ds["inputs"])
+        return {"accuracy": self.accuracy(preds, ds["labels"]), "predictions": preds}
+
+    @staticmethod
+    def accuracy(predictions: Mapping[str, jax.Array], labels: Mapping[str, jax.Array]) -> dict[str, jax.Array]:
+        return {h: masked_accuracy(p, labels[h]) for h, p in predictions.items()}
 
     def selection_metric(self, accuracy: dict[str, jax.Array]) -> jax.Array:
         """Validation accuracy used to pick the best epoch: fabric if trained, else mean over properties."""
@@ -225,33 +246,40 @@ class Trainer:
             params, opt_state, summary = self.train_epoch(
                 state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), data["train"], e
             )
-            loss = summary["train_loss"]
             validation = self.evaluate(params, data["val"])
-            val = self.selection_metric(validation["accuracy"])
-            better = val > state["best_val"]
-            hist = state["history"]
-            return {
-                "params": params,
-                "opt_state": opt_state,
-                "best_params": jax.tree.map(lambda a, b: jnp.where(better, a, b), params, state["best_params"]),
-                "best_val": jnp.where(better, val, state["best_val"]),
-                "best_epoch": jnp.where(better, e, state["best_epoch"]),
-                "epoch": e + 1,
-                "key": state["key"],
-                "history": {"train_loss": hist["train_loss"].at[e].set(loss), "val_acc": hist["val_acc"].at[e].set(val)},
-            }, {**summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]}
+            return self.end_epoch(state, params, opt_state, summary["train_loss"], validation), {
+                **summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]
+            }
 
         return jax.lax.scan(epoch, state, length=n_epochs)
+
+    def end_epoch(self, state, params, opt_state, loss, validation) -> dict[str, Any]:
+        """The state after an epoch that trained `params` to `loss` and `validation` (`evaluate`'s
+        on the validation set): the best-validation parameters kept, the curves written."""
+        e = state["epoch"]
+        val = self.selection_metric(validation["accuracy"])
+        better = val > state["best_val"]
+        hist = state["history"]
+        return {
+            "params": params,
+            "opt_state": opt_state,
+            "best_params": jax.tree.map(lambda a, b: jnp.where(better, a, b), params, state["best_params"]),
+            "best_val": jnp.where(better, val, state["best_val"]),
+            "best_epoch": jnp.where(better, e, state["best_epoch"]),
+            "epoch": e + 1,
+            "key": state["key"],
+            "history": {"train_loss": hist["train_loss"].at[e].set(loss), "val_acc": hist["val_acc"].at[e].set(val)},
+        }
 
     def finish(self, state, sets) -> dict[str, Any]:
         """Metrics of a finished run: learning curves and the best-validation model on `sets`
         ({name: set}, in training's layout)."""
-        return {
-            **state["history"],
-            "best_epoch": state["best_epoch"],
-            "best_val_acc": state["best_val"],
-            "eval": {name: self.evaluate(state["best_params"], ds) for name, ds in sets.items()},
-        }
+        return self.finished(state, {name: self.evaluate(state["best_params"], ds) for name, ds in sets.items()})
+
+    @staticmethod
+    def finished(state, evaluations: Mapping[str, Any]) -> dict[str, Any]:
+        """`finish`'s metrics from the best-validation model's `evaluations` ({name: `evaluate`'s})."""
+        return {**state["history"], "best_epoch": state["best_epoch"], "best_val_acc": state["best_val"], "eval": dict(evaluations)}
 
 
 def make_trainer(
@@ -265,12 +293,6 @@ def make_trainer(
     graphdef = nnx.split(nnx.eval_shape(lambda: FabricNet(config, shapes, rngs=nnx.Rngs(0))))[0]
     steps = total_steps(config, config.batch_size if n_train is None else n_train)
     return Trainer(config, shapes, graphdef, make_optimizer(config, steps), steps, mesh)
-
-
-def whole_minibatches(n: int, batch_size: int) -> int:
-    """Sequences of an evaluation set of `n` run in whole minibatches: padding with zero inputs and
-    unknown (-1) labels, which every metric ignores, up to this many."""
-    return n + -n % batch_size
 
 
 def _buffer_bytes(placed: jax.Array) -> int:
@@ -298,7 +320,7 @@ def _placed(a: np.ndarray, modality: str, multiple: int | None, to: NamedShardin
     minibatches of `multiple` where one is given (evaluation sets)."""
 
     def make():
-        name, array = training_input(modality, a, None if multiple is None else whole_minibatches(len(a), multiple))
+        name, array = training_input(modality, a, None if multiple is None else host_arrays.whole_minibatches(len(a), multiple))
         return name, sharding.put(array, to)
 
     # `a` itself, placed without a copy (`host_arrays`), is not kept: placing it again costs
@@ -309,17 +331,20 @@ def _placed(a: np.ndarray, modality: str, multiple: int | None, to: NamedShardin
 
 def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None, to: NamedSharding):
     """(the run's data on `to`'s devices, evaluation set sizes): each set's inputs in training's
-    layout (`inputs.training_input`), evaluation sets padded to whole minibatches. Built on the
+    layout (`inputs.training_input`), evaluation sets padded to whole minibatches. A run fed from
+    the host (`feed.reads_from_host`) gets its sets as they are, on the host. Built on the
     host with NumPy (copies of a camera row's GB of frames compile nothing that way), and large
     inputs are kept on the devices for the next run on the same arrays (`_placed`)."""
     sets = {k: select(config, v) for k, v in {"train": train_set, "val": val_set, **(eval_sets or {})}.items()}
     sizes = {k: len(jax.tree.leaves(v["labels"])[0]) for k, v in sets.items() if k != "train"}
+    if feed.reads_from_host(config, train_set):  # the sets stay on the host (`fabricjax.feed`)
+        return {"train": sets.pop("train"), "val": sets.pop("val"), "eval": sets}, sizes
     multiple = lambda k: None if k == "train" else config.batch_size  # noqa: E731
     placed = {
         k: {
             "inputs": dict(_placed(a, m, multiple(k), to) for m, a in v["inputs"].items()),
             "labels": sharding.put(
-                {h: a if multiple(k) is None else host_arrays.padded(a, whole_minibatches(len(a), multiple(k)), -1) for h, a in v["labels"].items()}, to
+                {h: a if multiple(k) is None else host_arrays.padded(a, host_arrays.whole_minibatches(len(a), multiple(k)), -1) for h, a in v["labels"].items()}, to
             ),
         }
         for k, v in sets.items()
@@ -397,7 +422,7 @@ def _programs(config: Config, shapes: tuple, n_train: int, mesh):
             out_shardings=per_seed,
         )
     )
-    return trainer, init, run, finish
+    return trainer, init, run, finish, feed.HostFed(trainer, per_seed)
 
 
 @dataclasses.dataclass
@@ -497,7 +522,9 @@ def train_and_evaluate(
     shapes = tuple(sorted(feature_shapes(select(config, data_sets["train"])["inputs"]).items()))
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
     with account.phase("initialise_s"):
-        trainer, init, run, finish = _programs(config, shapes, n_train, mesh)
+        trainer, init, run, finish, fed = _programs(config, shapes, n_train, mesh)
+        if feed.reads_from_host(config, data_sets["train"]):
+            run, finish = (lambda n: functools.partial(fed.run, n_epochs=n)), fed.finish
         keys = sharding.put(seed_keys(seeds), per_seed)
         mngr = checkpoint.manager(workdir) if workdir is not None else None
         run_meta = checkpoint.meta(config, seeds, trainer.shapes, getattr(data_sets["train"], "classes", None))

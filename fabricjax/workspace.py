@@ -62,6 +62,11 @@ def features_dir(workdir=None) -> Path:
     return root(workdir) / "features"
 
 
+def sequences_dir(workdir=None) -> Path:
+    """Loaded sequences too large for memory, as memory-mapped files (`fabricjax.sequence_store`)."""
+    return root(workdir) / "sequences"
+
+
 def checkpoints_dir(name: str, workdir=None) -> Path:
     return (root(workdir) / "checkpoints" / name).absolute()
 

@@ -242,3 +242,25 @@ def test_loaded_sequences_are_read_only(dataset, tmp_path):
         for a in s.inputs.values():
             with pytest.raises(ValueError, match="read-only"):
                 a[...] = 0
+
+
+def test_sequences_larger_than_memory_are_memory_mapped_files(dataset, tmp_path, reads, monkeypatch):
+    """input_source="disk" (and "auto" beyond MEMORY_FRACTION of memory): the same sequences, in
+    read-only files a second load reads without touching the archives; the folder is outside the data."""
+    cfg = _config(modalities=("internal", "proprio", "flow", "image"))
+    in_memory = data.load_sequences(dataclasses.replace(cfg, input_source="memory"), dataset, workdir=tmp_path / "ws", progress=False)
+    monkeypatch.setattr(data, "MEMORY_FRACTION", 1e-12)  # every data set is "larger than memory"
+    for source in ("auto", "disk"):
+        on_disk = data.load_sequences(dataclasses.replace(cfg, input_source=source), dataset, workdir=tmp_path / "ws", progress=False)
+        for split, s in in_memory.items():
+            for m, a in s.inputs.items():
+                b = on_disk[split].inputs[m]
+                assert isinstance(b, np.memmap) and not b.flags.writeable and str(tmp_path / "ws") in str(b.filename)
+                np.testing.assert_array_equal(a, b)
+    reads.clear()
+    data.load_sequences(dataclasses.replace(cfg, input_source="disk"), dataset, workdir=tmp_path / "ws", progress=False)
+    assert reads == []
+    assert not list((tmp_path / "ws" / "sequences").glob("*.partial"))
+    monkeypatch.setattr(data, "MEMORY_FRACTION", 0.5)  # stored, but it fits: "auto" holds it in memory
+    fits = data.load_sequences(cfg, dataset, workdir=tmp_path / "ws", progress=False)
+    assert not isinstance(fits["train"].inputs["image"], np.memmap)
