@@ -34,7 +34,7 @@ from fabricjax.inputs import training_input
 
 # What one placed block of training steps (all seeds' minibatches) or of evaluation minibatches
 # holds at most, unless one step's minibatches alone hold more.
-BLOCK_BYTES = 256 << 20
+BLOCK_BYTES = 64 << 20
 
 
 def reads_from_host(config: Config, train_set) -> bool:
@@ -62,8 +62,14 @@ def host_bytes(inputs: Mapping[str, np.ndarray], batch: int, n_seeds: int) -> in
 
 
 def _laid_out(inputs: Mapping[str, np.ndarray], rows: np.ndarray, length: int | None = None) -> dict[str, np.ndarray]:
-    """Sequences `rows` of every input, in training's layout, padded with zeros to `length`."""
-    return dict(training_input(m, np.asarray(a[rows]), length) for m, a in inputs.items())
+    """Sequences `rows` of every input, in training's layout, padded with zeros to `length`: in
+    arrays CPU devices read without a copy (`host_arrays`)."""
+    out = {}
+    for m, a in inputs.items():
+        block = host_arrays.empty((len(rows) if length is None else length, *a.shape[1:]), a.dtype)
+        np.take(a, rows, axis=0, out=block[: len(rows)])
+        out.update([training_input(m, block)])
+    return out
 
 
 class HostFed:

@@ -71,3 +71,48 @@ def test_host_memory_is_a_few_blocks_whatever_the_data():
     inputs = sets(CAMERA)["train"]["inputs"]
     one_step = 2 * CAMERA.batch_size * feed.sequence_bytes(inputs)
     assert feed.host_bytes(inputs, CAMERA.batch_size, 2) <= 2 * max(feed.BLOCK_BYTES, one_step)
+
+
+# The slow test's process may hold this much private memory (RLIMIT_DATA: heap and anonymous
+# mappings, not the files it maps): it trains on paper-size flow features of twice that on disk.
+LIMIT_GB, FEATURES_GB = 1.25, 2.5
+CHILD = """
+import resource, sys
+limit = int({limit} * 2**30)
+resource.setrlimit(resource.RLIMIT_DATA, (limit, limit))
+import numpy as np
+from fabricjax import runtime
+runtime.configure_jax()
+from fabricjax.config import Config
+from fabricjax.train import train_and_evaluate
+cfg = Config(preset="smoke", modalities=("flow",), width=16, n_layers=1, ffn=32, cnn_features=(4, 8), seq_len={n}, epochs=1, batch_size=8)
+sets = {{s: {{"inputs": {{"flow": np.load(f"{{sys.argv[1]}}/{{s}}.npy", mmap_mode="r")}}, "labels": {{"fabric": np.load(f"{{sys.argv[1]}}/{{s}}.labels.npy")}}}} for s in ("train", "val")}}
+try:
+    np.array(sets["train"]["inputs"]["flow"])
+    sys.exit("the limit does not bind: the training set fits in memory")
+except MemoryError:
+    pass
+r = train_and_evaluate(cfg, sets, seeds=[0])
+print("trained", r.metrics["train_loss"][0, 0], r.metrics["eval"]["val"]["predictions"]["fabric"].shape)
+"""
+
+
+@pytest.mark.slow  # ~2 min: 2.5 GB written, one epoch over it
+def test_training_on_features_larger_than_the_memory_limit(tmp_path):
+    import subprocess
+    import sys
+
+    n, step_shape = 20, (2, 102, 137)  # the paper's pooled flow of 308x410 frames, float16
+    per_sequence = n * np.prod(step_shape) * 2
+    sizes = {"train": int(FEATURES_GB * 2**30 // per_sequence), "val": 40}
+    rng = np.random.default_rng(0)
+    for split, count in sizes.items():
+        a = np.lib.format.open_memmap(tmp_path / f"{split}.npy", mode="w+", dtype=np.float16, shape=(count, n, *step_shape))
+        for start in range(0, count, 64):
+            a[start : start + 64] = rng.standard_normal((min(64, count - start), n, *step_shape), np.float32)
+        a.flush()
+        np.save(tmp_path / f"{split}.labels.npy", rng.integers(0, 21, count).astype(np.int32))
+        del a
+    done = subprocess.run([sys.executable, "-c", CHILD.format(limit=LIMIT_GB, n=n), str(tmp_path)], capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "trained" in done.stdout and "(1, 40)" in done.stdout
