@@ -254,13 +254,14 @@ def title(doc: dict[str, Any], study: str, paper: str | None = None) -> str:
     if recorded(doc):
         return f"# {study} on recorded data"
     heading = f"# {study} (the paper's {paper})" if paper else f"# {study}"
-    return heading + (f"\n\n> {presets.INSTALL_CHECK_NOTE}" if counts_no_claims(doc) else "")
+    return heading + (f"\n\n> {presets.note(doc.get('preset'))}" if counts_no_claims(doc) else "")
 
 
 def counts_no_claims(doc: dict[str, Any]) -> bool:
-    """The results are of an install-check preset (`presets.install_check`): the paper's claims are
-    shown as checks that run, never counted."""
-    return presets.install_check(doc.get("preset"))
+    """The results are of a preset whose results are not the paper's table (`presets.note`: the
+    install check, a sample of the paper's data): the paper's claims are shown as checks that run,
+    never counted."""
+    return presets.note(doc.get("preset")) is not None
 
 
 BEST_GAP = "Row − best row [pp]"  # the column recorded-data tables have instead of the paper's
