@@ -71,13 +71,22 @@ class NotEnoughDisk(UserError):
     """The dataset would not fit on the disk: nothing was written."""
 
 
+def trial_seconds(dataset: splits.DatasetSpec) -> float:
+    """About how long one simulated trial of `dataset` lasts, at most: its cycles at the commanded
+    rate, ~12 % slower on average under load (the servo droop of calibration.SPEED_DROOP_PER_N),
+    plus ~1 s of closing and pauses."""
+    return dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0  # [numerics] a bound for the disk check and plans, see above
+
+
+def trial_steps(dataset: splits.DatasetSpec) -> int:
+    """About how many steps one simulated trial of `dataset` records (`trial_seconds`)."""
+    return int(trial_seconds(dataset) * archive.STEP_RATE)
+
+
 def trial_bytes(dataset: splits.DatasetSpec, images: bool) -> int:
     """About how many bytes one simulated trial archive of `dataset` takes before its members are
-    deflated (`archive.write_npz`): an upper bound, for the free-disk check.
-
-    A trial lasts its cycles at the commanded rate, ~12 % slower on average under load (the servo
-    droop of calibration.SPEED_DROOP_PER_N), plus ~1 s of closing and pauses."""
-    seconds = dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0  # [numerics] a bound for the disk check, see above
+    deflated (`archive.write_npz`): an upper bound, for the free-disk check."""
+    seconds = trial_seconds(dataset)
     steps = seconds * archive.STEP_RATE
     per_step = 8 + 2 * 8 + archive.N_PROPRIO * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)  # [numerics] bytes
     return int(steps * per_step + 2 * 4 * (seconds * archive.AUDIO_RATE + cal.LEAD_IN))

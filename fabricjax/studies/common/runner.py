@@ -27,7 +27,7 @@ from absl import logging
 from fabricjax import archive, checkpoint, data, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies.common import documents, loading
+from fabricjax.studies.common import documents, loading, plan
 from fabricjax.workspace import Location
 
 if TYPE_CHECKING:
@@ -442,6 +442,8 @@ def run_study(
     if where.data_dir:
         row_configs = _with_fusion_twins(study, row_configs)
     labels = {r.name: r.label for r in study.rows}
+    if not where.data_dir:  # what the run will take, before it starts (hours at the paper's scale)
+        print(plan.markdown(preset, plan.stages(preset, row_configs, len(seeds), where.workdir), len(row_configs), len(seeds)), flush=True)
     trained = train_rows(
         study.name, row_configs, seeds,
         eval_splits=study.eval_splits, split_names=study.split_names, data_dir=where.data_dir, workdir=where.workdir,
