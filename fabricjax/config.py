@@ -38,6 +38,9 @@ LR_SCHEDULES = ("constant", "cosine")
 # The two readings of the paper's flow filter, "filter for the top 0.1 percentile according to
 # magnitude" (fabricjax/features/flow.py): keep the strongest 0.1 % of vectors, or drop them.
 FLOW_SPARSIFY = ("keep_top", "drop_top")
+# Who computes the dense Farneback flow (fabricjax/features/flow.py): OpenCV on the host (the
+# default and the reference), or its JAX reimplementation in batches on JAX's devices.
+FLOW_METHODS = ("opencv", "jax")
 # What the image encoder's input is measured from (model.FabricNet.standardise). Minsight's own force
 # network reads each frame minus a no-contact reference (Andrussow et al., "Minsight: A Fingertip-Sized
 # Vision-Based Tactile Sensor for Robotic Manipulation", Advanced Intelligent Systems, 2023), which
@@ -89,6 +92,7 @@ class Config:
     image_resolution: str = "down"  # "down" = image_size, "full" = the archive's resolution
     image_size: tuple[int, int] = (60, 80)  # the "down" frame size: the paper's 60x80
     flow_sparsify: str = "keep_top"  # FLOW_SPARSIFY
+    flow_method: str = "opencv"  # FLOW_METHODS
     # model
     width: int = 64
     n_heads: int = 4
@@ -136,6 +140,8 @@ class Config:
             raise ValueError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
         if self.flow_sparsify not in FLOW_SPARSIFY:
             raise ValueError(f"flow_sparsify must be one of {FLOW_SPARSIFY}, got {self.flow_sparsify!r}")
+        if self.flow_method not in FLOW_METHODS:
+            raise ValueError(f"flow_method must be one of {FLOW_METHODS}, got {self.flow_method!r}")
         if self.image_reference not in IMAGE_REFERENCES:
             raise ValueError(f"image_reference must be one of {IMAGE_REFERENCES}, got {self.image_reference!r}")
         if self.input_source not in INPUT_SOURCES:

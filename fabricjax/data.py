@@ -408,7 +408,7 @@ def load_sequences(
     members = {s: [e for e, t in chosen if t == s] for s in wanted}
     features = {
         m: feature_for(m, config.image_resolution, config.image_size, config.flow_sparsify, window_of(config, rates[m]) if m in rates else archive.WINDOW,
-                       config.image_reference)
+                       config.image_reference, config.flow_method)
         for m in config.modalities
     }
     store = SequenceStore(workspace.sequences_dir(workdir), {

@@ -15,7 +15,8 @@ applied when sequences are built and is not part of the key. Arrays, per trial o
                                                          hand's 6 x (angle, velocity, current):
                                                          archive.N_PROPRIO
     flow                        float16 (T, 2, h, w)     patch-pooled sparse flow (flow.py);
-                                                         flow_drop_top: the other reading
+                                                         flow_drop_top: the other reading;
+                                                         <either>_jax: dense flow by JAX, not OpenCV
     image_<h>x<w>               uint8   (T, h, w, 3)     area-downsampled frames (images.py; the
                                                          paper's 60x80 unless config.image_size)
     image_session_<h>x<w>       int16   (T, h, w, 3)     the same frames minus their session's
@@ -103,14 +104,15 @@ def _proprio(trial: archive.TrialArchive) -> np.ndarray:
 
 def feature_for(
     modality: str, image_resolution: str = "down", image_size: tuple[int, int] = images.DOWN_SIZE, flow_sparsify: str = "keep_top",
-    window: int = archive.WINDOW, image_reference: str = "training_mean",
+    window: int = archive.WINDOW, image_reference: str = "training_mean", flow_method: str = "opencv",
 ) -> Feature:
     """The feature behind a model input (a `config.MODALITIES` name); `image_size` is the
     downsampled ("down") frame size, `flow_sparsify` the flow's reading of the paper's filter
     (`flow.SPARSIFY`: "flow" is the default reading's feature, "flow_<reading>" another's),
     `window` a microphone's step window in samples (`welch.window_samples`), `image_reference`
     what a frame is read against (`config.IMAGE_REFERENCES`: "session" is its own feature, the
-    others subtract in the model)."""
+    others subtract in the model), `flow_method` who computes the dense flow (`flow.METHODS`:
+    OpenCV's keeps its name and cache key, "jax" is its own feature, "<name>_jax")."""
     if modality in archive.MIC_ROLES:
         return _psd(modality, window)
     if modality == "proprio":
@@ -120,7 +122,10 @@ def feature_for(
         if flow_sparsify != flow.SPARSIFY[0]:  # the default reading keeps its name and cache key
             params["sparsify"] = flow_sparsify
         name = "flow" if flow_sparsify == flow.SPARSIFY[0] else f"flow_{flow_sparsify}"
-        return Feature(name, params, True, True, lambda t: flow.trial_flow(t.images, flow_sparsify))
+        if flow_method != flow.METHODS[0]:  # OpenCV's flow keeps its name and cache key
+            params["method"] = flow_method
+            name = f"{name}_{flow_method}"
+        return Feature(name, params, True, True, lambda t: flow.trial_flow(t.images, flow_sparsify, method=flow_method))
     if modality == "image" and image_resolution == "down" and image_reference == "session":
         size = (int(image_size[0]), int(image_size[1]))
         params = {"size": size, "interpolation": "area", "reference": "session", "version": 1}
@@ -146,7 +151,7 @@ def feature_named(name: str) -> Feature:
     if m := re.fullmatch(r"psd_(\w+)_w(\d+)", name):
         return feature_for(m[1], window=int(m[2]))
     candidates = [feature_for(m) for m in (*archive.MIC_ROLES, "proprio")] + [feature_for("image", "full", image_reference=r) for r in ("none", "session")]
-    candidates += [feature_for("flow", flow_sparsify=mode) for mode in flow.SPARSIFY]
+    candidates += [feature_for("flow", flow_sparsify=mode, flow_method=method) for mode in flow.SPARSIFY for method in flow.METHODS]
     for f in candidates:
         if f.name == name:
             return f

@@ -1,9 +1,14 @@
 """Patch-pooled optical flow between consecutive Minsight frames.
 
 Two stages:
-  1. Dense Farneback flow (OpenCV) between frame t-1 and frame t, on grayscale full-resolution
-     frames (frames are taken as RGB). This runs on the host, in C++; OpenCV releases the GIL,
-     so trials run in parallel threads. Step 0 has no predecessor and gets zero flow.
+  1. Dense Farneback flow between frame t-1 and frame t, on grayscale full-resolution frames
+     (frames are taken as RGB), by one of two implementations (`METHODS`, chosen by
+     `Config.flow_method`):
+       opencv  OpenCV's, on the host, in C++, one frame pair at a time; OpenCV releases the GIL,
+               so trials run in parallel threads. The default and the reference.
+       jax     the same algorithm in JAX (farneback.py), a chunk's frame pairs as one batch on
+               JAX's devices; results/flow_agreement.md measures how closely it matches.
+     Step 0 has no predecessor and gets zero flow.
   2. In JAX (jitted): sparsify, then pool 3x3 patches.
 
 Sparsify ("filter for the top 0.1 percentile according to magnitude"), two readings (`SPARSIFY`,
@@ -34,26 +39,33 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from fabricjax.config import FLOW_METHODS as METHODS
 from fabricjax.config import FLOW_SPARSIFY as SPARSIFY
+from fabricjax.features import farneback as jax_farneback
+from fabricjax.features.farneback import FARNEBACK
 
 PATCH = 3
 TOP_FRACTION = 0.001
-# OpenCV's reference parameters for Farneback (pyr_scale, levels, winsize, iterations, poly_n,
-# poly_sigma, flags), as in its dense optical flow tutorial.
-FARNEBACK = dict(pyr_scale=0.5, levels=3, winsize=15, iterations=3, poly_n=5, poly_sigma=1.2, flags=0)
 
 
 def pooled_shape(height: int, width: int) -> tuple[int, int]:
     return height // PATCH, -(-width // PATCH)
 
 
-def farneback(frames: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
-    """(T, H, W, 3) uint8 frames -> (T, H, W, 2) float32 flow from each frame's predecessor.
+def farneback(frames: np.ndarray, previous: np.ndarray | None = None, method: str = "opencv") -> np.ndarray | jax.Array:
+    """(T, H, W, 3) uint8 frames -> (T, H, W, 2) float32 flow from each frame's predecessor, by
+    `method` (`METHODS`; "jax" returns it on JAX's device).
 
     `previous` is the frame before `frames[0]` (for processing a trial in chunks); without it
     the first flow is zero.
     """
-    gray = [cv2.cvtColor(f, cv2.COLOR_RGB2GRAY) for f in frames]
+    if method not in METHODS:
+        raise ValueError(f"flow method must be one of {METHODS}, got {method!r}")
+    gray = np.stack([cv2.cvtColor(f, cv2.COLOR_RGB2GRAY) for f in frames])
+    if method == "jax":
+        before = np.concatenate([gray[:1] if previous is None else cv2.cvtColor(previous, cv2.COLOR_RGB2GRAY)[None], gray[:-1]])
+        dense = jax_farneback.farneback(before, gray)
+        return dense if previous is not None else dense.at[0].set(0.0)
     prev = None if previous is None else cv2.cvtColor(previous, cv2.COLOR_RGB2GRAY)
     out = np.zeros((len(frames), *frames.shape[1:3], 2), np.float32)
     for t, g in enumerate(gray):
@@ -108,18 +120,23 @@ def sparsify_and_pool(flow: jax.Array, mode: str = "keep_top") -> jax.Array:
     return _pool(_sparsify(flow, mode))
 
 
-def trial_flow(frames: np.ndarray, mode: str = "keep_top", chunk: int = 8) -> np.ndarray:
-    """One trial's (T, H, W, 3) frames -> (T, 2, h, w) float16 pooled flow.
+def trial_flow(frames: np.ndarray, mode: str = "keep_top", chunk: int = 8, method: str = "opencv") -> np.ndarray:
+    """One trial's (T, H, W, 3) frames -> (T, 2, h, w) float16 pooled flow, dense flow by `method`.
 
     Works in chunks of `chunk` steps so the dense full-resolution flow of a whole trial
-    (1.5 GB at the paper's scale) never exists at once; the last chunk is zero-padded to keep
-    one compiled shape.
+    (1.5 GB at the paper's scale) never exists at once; the last chunk is padded to keep one
+    compiled shape (its dense flow with zeros; for "jax", its frames with its last frame, so the
+    batch of frame pairs keeps one shape too).
     """
     n, height, width = frames.shape[:3]
     out = np.empty((n, 2, *pooled_shape(height, width)), np.float16)
     for start in range(0, n, chunk):
         stop = min(start + chunk, n)
-        dense = farneback(frames[start:stop], frames[start - 1] if start else None)
-        dense = np.pad(dense, ((0, chunk - (stop - start)), (0, 0), (0, 0), (0, 0)))
+        part = frames[start:stop]
+        if method == "jax":
+            part = np.concatenate([part, np.repeat(part[-1:], chunk - len(part), axis=0)])
+        dense = farneback(part, frames[start - 1] if start else None, method)
+        if len(dense) < chunk:
+            dense = np.pad(dense, ((0, chunk - len(dense)), (0, 0), (0, 0), (0, 0)))
         out[start:stop] = np.asarray(sparsify_and_pool(dense, mode))[: stop - start]
     return out
