@@ -4,6 +4,11 @@ writes results/bench.json and the README's table (`markdown`).
 Benchmarks (names for --only):
     simulator    simulated seconds per wall second (audio + proprioception)
     welch        `welch_psd` against `scipy.signal.welch` on 4096 windows x 2048 (float32 samples)
+    flow         dense Farneback flow per frame pair at 308x410 and 60x80: OpenCV on one thread and on
+                 every core, the JAX reimplementation batched on JAX's devices (CPU, or an accelerator)
+    input        training fed from the host (`fabricjax.feed`): one step's minibatches of the paper's
+                 flow features (5 seeds x batch 32, N=200) gathered from memory, from disk (the
+                 file's pages dropped first) and from the page cache
     extraction   cold feature extraction (audio PSDs + proprioception) of the smoke dataset and the
                  peak memory of a fresh process doing it; paper scale extrapolated linearly in steps
     training     training step of the audio + proprioception model (batch 32, N=200, 320 bins,
@@ -48,14 +53,14 @@ import jax
 from absl import logging
 
 from fabricjax import archive, dataset_index, live, presets, sharding, sim, train
-from fabricjax.bench import feature_timing, program_timing, sim_throughput, torch_twin
+from fabricjax.bench import feature_timing, flow_timing, input_timing, program_timing, sim_throughput, torch_twin
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.sim import calibration as sim_calibration
 from fabricjax.studies.common import documents
 from fabricjax.workspace import Location
 
-BENCHMARKS = ("simulator", "welch", "extraction", "training", "camera", "inference", "streaming", "acquisition", "import")
+BENCHMARKS = ("simulator", "welch", "extraction", "flow", "input", "training", "camera", "inference", "streaming", "acquisition", "import")
 PASSED_IN = ("acquisition", "import")  # benchmarks of the acquisition package, which this library does not import
 
 
@@ -285,6 +290,8 @@ def run(
         "simulator": lambda: bench_simulator(quick),
         "welch": lambda: bench_welch(quick),
         "extraction": lambda: bench_extraction(quick, where.workdir),
+        "flow": lambda: flow_timing.bench_flow(batch=4 if quick else 8, repeats=1 if quick else 3),
+        "input": lambda: input_timing.bench_input(n_sequences=24 if quick else 96, steps=1 if quick else 3),
         "training": lambda: bench_training(quick, workload, comparison(), matmul_peak()),
         "camera": lambda: bench_camera(quick),
         "inference": lambda: bench_inference(quick, workload, comparison(), matmul_peak()),
@@ -372,6 +379,22 @@ def markdown(doc: dict[str, Any]) -> str:
         rows.append([
             f"feature extraction, {e['dataset']} dataset ({e['steps']} steps)",
             f"{e['cold_s']:.1f} s, peak {e['peak_rss_mb']:.0f} MB", f"paper scale ~{e['paper_scale_extrapolated_s'] / 60:.0f} min (extrapolated)", "",
+        ])
+    if "flow" in b:
+        f = b["flow"]
+        for size, v in f["sizes"].items():
+            rows.append([
+                f"optical flow (Farneback) per frame pair, {size}: JAX on {f['jax_devices']} {f['device']} device(s), batch {f['batch']}",
+                f"{v['jax_s'] * 1e3:.1f} ms", f"OpenCV 1 thread {v['opencv_1_thread_s'] * 1e3:.1f} ms, {f['opencv_threads']} threads {v['opencv_all_cores_s'] * 1e3:.1f} ms",
+                _ratio(v["jax_s"] / min(v["opencv_1_thread_s"], v["opencv_all_cores_s"])),
+            ])
+    if "input" in b:
+        i = b["input"]
+        src = i["sources"]
+        rows.append([
+            f"training fed from the host: one step's minibatches of paper flow features ({i['n_seeds']} seeds x {i['batch']}, {i['step_mb']:.0f} MB)",
+            f"disk {src['disk_cold']['s_per_step'] * 1e3:.0f} ms ({src['disk_cold']['mb_per_s']:.0f} MB/s), page cache {src['disk_warm']['s_per_step'] * 1e3:.0f} ms",
+            f"memory {src['memory']['s_per_step'] * 1e3:.0f} ms ({src['memory']['mb_per_s']:.0f} MB/s)", _ratio(src["disk_cold"]["s_per_step"] / src["memory"]["s_per_step"]),
         ])
     if "acquisition" in b:
         a = b["acquisition"]
