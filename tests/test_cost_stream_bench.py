@@ -235,15 +235,16 @@ def test_bench_rejects_unknown_names(tmp_path):
 def test_comparison_times_every_dtype_against_every_twin_variant(monkeypatch):
     """`compare_with_torch`'s bookkeeping with a stand-in twin (torch is optional): ours in each
     compute dtype against eager and compiled variants, each in float32 and under autocast; a
-    variant that fails to build is recorded, the fastest one is the reference of every ratio."""
+    variant that fails to build is recorded, the fastest one is the reference of every ratio; several
+    seeds come in sequence and vmapped, one seed alone."""
     from fabricjax.bench import torch_twin
 
     seconds = {(None, False): 0.4, (None, True): 0.2, ("default", False): 0.3, ("default", True): 0.25}
 
-    def runner(*args, compile_mode=None, autocast=False, **kw):
+    def runner(*args, compile_mode=None, autocast=False, ensemble=torch_twin.IN_SEQUENCE, **kw):
         if compile_mode == "broken":
             raise RuntimeError("no C++ compiler\nmore")
-        return lambda: seconds[(compile_mode, autocast)]
+        return lambda: seconds[(compile_mode, autocast)] / (2 if ensemble == torch_twin.VMAPPED else 1)
 
     monkeypatch.setattr(torch_twin, "require", lambda: type("T", (), {"get_num_threads": staticmethod(lambda: 2)}))
     monkeypatch.setattr(torch_twin, "adamw_impl", lambda: "fused")
@@ -254,12 +255,15 @@ def test_comparison_times_every_dtype_against_every_twin_variant(monkeypatch):
         cfg, seeds=(1, 2), batch=4, seq_len=6, psd_bins=8, steps=1, rounds=2, inference_rounds=1, inference_calls=2, pause_s=0.0,
         compile_modes=("default", "broken"),
     )
-    for t in (out["training"]["1_seed"], out["training"]["2_seed"]):
-        assert t["torch_variant"] == "eager +bf16 autocast" and t["torch_s_per_step"] == 0.2
+    for t, fastest, s, ensembles in ((out["training"]["1_seed"], "eager +bf16 autocast", 0.2, [""]),
+                                     (out["training"]["2_seed"], "eager +bf16 autocast, vmapped", 0.1, [", in sequence", ", vmapped"])):
+        assert t["torch_variant"] == fastest and t["torch_s_per_step"] == s
         assert set(t["ours"]) == set(program_timing.DTYPES)
-        assert all(v["ratio"] == pytest.approx(v["s_per_step"] / 0.2, rel=1e-6) for v in t["ours"].values())
-        assert "error" in t["torch_variants"]["compiled:broken +bf16 autocast"]
-        assert set(t["torch_variants"]["compiled:default"]["ratio"]) == set(program_timing.DTYPES)
+        assert all(v["ratio"] == pytest.approx(v["s_per_step"] / s, rel=1e-6) for v in t["ours"].values())
+        assert len(t["torch_variants"]) == 3 * 2 * len(ensembles)
+        for e in ensembles:
+            assert "error" in t["torch_variants"]["compiled:broken +bf16 autocast" + e]
+            assert set(t["torch_variants"]["compiled:default" + e]["ratio"]) == set(program_timing.DTYPES)
     assert "per_seed_vs_1_seed" in out["training"]["2_seed"]["ours"]["bfloat16"]
     i = out["inference"]
     assert i["torch_variant"] == "eager +bf16 autocast" and set(i["ours"]) == set(program_timing.DTYPES)

@@ -102,3 +102,36 @@ def test_twin_under_bfloat16_autocast_runs_and_stays_near_float32():
     np.testing.assert_allclose(low, full, atol=0.05 * float(np.abs(full).max()))
     assert torch_twin.train_step_runner(cfg, n_seeds=1, batch=4, n_bins=20, steps=1, autocast=True)() > 0
     assert torch_twin.inference_runner(cfg, n_bins=20, autocast=True)() > 0
+
+
+def test_vmapped_ensemble_trains_each_seed_as_its_twin_alone():
+    """The vmapped ensemble (the benchmarks' peer of our vmap over seeds) is n twins trained apart:
+    over two steps, the same losses and the same clipped gradients going into AdamW (the second
+    step's from the parameters the first AdamW step made), each seed on its own minibatch and
+    clipped by its own global norm; weight decay on the same tensors. No dropout, so neither draws.
+    Parameters are not compared: the key bias's gradient is zero but for rounding, and Adam
+    scales rounding noise up to a full step."""
+    cfg = Config(modalities=("internal", "proprio"), dropout=0.0, **SMALL)
+    torch.manual_seed(0)
+    models = [torch_twin.build(cfg, n_bins=20).train() for _ in range(3)]
+    batches = torch_twin.batches(cfg, 3, batch=4, n_bins=20)
+    # Every seed's global gradient norm is above the clip's and differs from the others': a clip by
+    # one norm over all seeds, or none, would give other gradients.
+    norms = []
+    for model, (inputs, labels) in zip(models, batches):
+        grads = torch.autograd.grad(torch_twin._loss(model, inputs, labels, autocast=False), list(model.parameters()))
+        norms.append(float(torch.linalg.vector_norm(torch.stack([g.norm() for g in grads]))))
+    assert min(norms) > 1.5 * torch_twin.MAX_GRAD_NORM and len({round(n, 3) for n in norms}) == 3
+    vmapped = torch_twin.Vmapped(cfg, models, batches)  # copies the models' parameters before `alone` trains them
+    alone = torch_twin.InSequence(cfg, models, batches)
+
+    def groups(opt, seed_axes):
+        return [(g["weight_decay"], [p.shape[seed_axes:] for p in g["params"]]) for g in opt.param_groups]
+
+    assert groups(vmapped.opt, 1) == groups(alone.opts[0], 0)
+    for _ in range(2):
+        np.testing.assert_allclose(vmapped.step().numpy(), alone.step().numpy(), rtol=1e-5)
+        for seed, model in enumerate(models):
+            for name, p in model.named_parameters():
+                np.testing.assert_allclose(vmapped.params[name].grad[seed].numpy(), p.grad.numpy(), rtol=1e-4, atol=1e-7, err_msg=name)
+    assert torch_twin.train_step_runner(cfg, n_seeds=2, batch=4, n_bins=20, steps=1, autocast=True, ensemble=torch_twin.VMAPPED)() > 0

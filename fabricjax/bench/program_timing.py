@@ -230,10 +230,13 @@ def compare_rows(
 COMPARE_CONFIG = Config.from_preset("paper", modalities=("internal", "external", "proprio"))
 
 
-def _variant(compile_mode: str | None, autocast: bool = False) -> str:
+def _variant(compile_mode: str | None, autocast: bool = False, ensemble: str | None = None) -> str:
     """A twin variant's name in the results: "eager" or "compiled:MODE", "+bf16 autocast" under
-    `torch.autocast` to bfloat16."""
-    return ("eager" if compile_mode is None else f"compiled:{compile_mode}") + (" +bf16 autocast" if autocast else "")
+    `torch.autocast` to bfloat16, then how several seeds train (", in sequence" or ", vmapped":
+    a key of `torch_twin.ENSEMBLES`; None for one seed, a lone model)."""
+    return ("eager" if compile_mode is None else f"compiled:{compile_mode}") + (" +bf16 autocast" if autocast else "") + (
+        f", {ensemble}" if ensemble else ""
+    )
 
 
 def _build(make: Callable[[], Callable[[], float]], tolerate: bool) -> tuple[Callable[[], float] | None, dict[str, Any]]:
@@ -294,7 +297,9 @@ def compare_with_torch(
     out. Every program is built and warmed up first (compile time recorded apart,
     `build_and_warmup_s`); then each round times every side back to back for every seed count
     (the order reversed every other round), so machine load hits all alike. Ours trains `n` seeds
-    in one vmapped program, the twin `n` models one after another. Ratios are ours (per dtype,
+    in one vmapped program, each seed on its own minibatches; for `n` > 1 every twin variant comes
+    twice, `n` models one after another and as one `torch.vmap`ped ensemble (`torch_twin.InSequence`,
+    `torch_twin.Vmapped`; each seed on its own minibatch likewise). Ratios are ours (per dtype,
     under "ours") / the fastest twin variant by median time (below 1: we are faster;
     `torch_variant` names it, `torch_variants` holds every variant and our ratio to it per dtype):
     `ratio` is the median of the per-round ratios, `ratio_of_medians` the ratio of the median
@@ -322,10 +327,15 @@ def compare_with_torch(
         for d, c in ours.items():
             runs[_ours(d)], built[_ours(d)] = _build(lambda c=c: train_step_runner(c, n, batch=batch, seq_len=seq_len, psd_bins=psd_bins, steps=steps), tolerate=False)
         for mode, autocast in variants:
-            make = functools.partial(twin.train_step_runner, cfg, n_seeds=n, batch=batch, n_bins=psd_bins, steps=steps, compile_mode=mode, autocast=autocast)
-            run, built[_variant(mode, autocast)] = _build(make, tolerate=mode is not None or autocast)
-            if run is not None:
-                runs[_variant(mode, autocast)] = run
+            for ensemble in twin.ENSEMBLES if n > 1 else (None,):
+                make = functools.partial(
+                    twin.train_step_runner, cfg, n_seeds=n, batch=batch, n_bins=psd_bins, steps=steps, compile_mode=mode, autocast=autocast,
+                    ensemble=ensemble or twin.IN_SEQUENCE,
+                )
+                name = _variant(mode, autocast, ensemble)
+                run, built[name] = _build(make, tolerate=mode is not None or autocast or ensemble == twin.VMAPPED)
+                if run is not None:
+                    runs[name] = run
         per_round[n] = {k: np.asarray(v) for k, v in _interleave(runs, rounds, pause_s).items()}
         setup[n] = built
         del runs

@@ -13,8 +13,9 @@ Benchmarks (names for --only):
                  peak memory of a fresh process doing it; paper scale extrapolated linearly in steps
     training     training step of the audio + proprioception model (batch 32, N=200, 320 bins,
                  the paper's width 64 / 3 layers): ours in float32 and bfloat16 compute (`program_timing.DTYPES`)
-                 for 1 and 5 vmapped seeds (--train_seeds), the PyTorch twin's for 1 seed and 5 seeds one after
-                 another, eager and torch.compiled, each in float32 and under its bfloat16 autocast
+                 for 1 and 5 vmapped seeds (--train_seeds), the PyTorch twin's for 1 seed and for 5 seeds one
+                 after another ("in sequence") and torch.vmapped ("vmapped"), eager and torch.compiled, each
+                 in float32 and under its bfloat16 autocast
     camera       a camera row's training step against an audio row's (target: at most 1.5x), the
                  ablation's rows on the default preset (batch 16, N=50, 30x40 frames, 5 vmapped seeds),
                  interleaved: audio (Minsound), image, and image without the rotation augmentation
@@ -31,13 +32,14 @@ Benchmarks (names for --only):
 Ours and the twin are timed in alternating rounds in this process (`program_timing.compare_with_torch`),
 so machine load hits both alike; ratios are ours / theirs for times (below 1: we are faster, the
 median of the per-round ratios for training), theirs being the fastest of the twin's variants
-(eager, each `torch.compile` mode; every variant and its compile time in bench.json), and scipy /
-ours for the Welch speed-up. Training and inference also say how close ours comes to the machine:
-FLOPs per step by XLA's cost analysis of the compiled program, the GFLOP/s that makes, and its
-fraction of a dense matmul's GFLOP/s with float32 and with bfloat16 operands (float32
-accumulation), both measured in the same run (`program_timing.matmul_peak`). The
-PyTorch twin (`fabricjax.bench.torch_twin`, `pip install -e ".[compare]"`) is optional: without torch
-the comparison is skipped with a note. Nothing here asserts a time.
+(eager, each `torch.compile` mode; several seeds in sequence and vmapped; every variant and its
+compile time in bench.json), and scipy / ours for the Welch speed-up. Training and inference
+also say how close ours comes to the machine: FLOPs per step by XLA's cost analysis of the
+compiled program, the GFLOP/s that makes, and its fraction of a dense matmul's GFLOP/s with
+float32 and with bfloat16 operands (float32 accumulation), both measured in the same run
+(`program_timing.matmul_peak`). The PyTorch twin (`fabricjax.bench.torch_twin`,
+`pip install -e ".[compare]"`) is optional: without torch the comparison is skipped with a note.
+Nothing here asserts a time.
 """
 
 from __future__ import annotations
@@ -335,7 +337,7 @@ def markdown(doc: dict[str, Any]) -> str:
                 )
                 rows.append([
                     what, f"{ours['seconds_per_step'] * 1e3:.0f} ms",
-                    f"{theirs['variant']} {secs * 1e3:.0f} ms" + (" (in sequence)" if n > 1 else "") if secs else "n/a",
+                    f"{theirs['variant']} {secs * 1e3:.0f} ms" if secs else "n/a",
                     _ratio(ours.get("ratio")), *_machine(ours.get("xla")),
                 ])
             for name, v in t.get("interleaved", {}).get("training", {}).get(f"{n}_seed", {}).get("torch_variants", {}).items():

@@ -15,9 +15,10 @@ torch; every function that needs it imports it when called (ImportError without 
 `fabricjax.bench.program_timing.compare_with_torch` and the bench suite use it only where torch is installed.
 
 The strongest PyTorch we know to write: the runners take `compile_mode` (None: eager; else a
-`torch.compile` mode, `COMPILE_MODES`), and the optimiser is the fastest AdamW implementation
-this torch offers (`adamw_impl`: fused, else foreach), so a ratio against the twin is not a ratio
-against a slow default.
+`torch.compile` mode, `COMPILE_MODES`), the optimiser is the fastest AdamW implementation this
+torch offers (`adamw_impl`: fused, else foreach), and several seeds train either one model after
+another (`InSequence`) or as one `torch.vmap`ped ensemble (`Vmapped`, the peer of our `jax.vmap`
+over seeds), so a ratio against the twin is not a ratio against a slow default.
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ SUPPORTED = ("internal", "external", "proprio")
 # one that works without a GPU (CUDA graphs are GPU-only).
 COMPILE_MODES = ("default", "max-autotune-no-cudagraphs")
 ADAMW_IMPLS = ("fused", "foreach")  # fastest first; `adamw_impl` picks the first this torch builds
+MAX_GRAD_NORM = 1.0  # the global-norm clip of fabricjax.train
 
 
 @functools.cache
@@ -190,13 +192,6 @@ def state_dict_from_params(params: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _param_groups(model, config: Config) -> list[dict]:
-    """AdamW's groups as ours: weight decay on weight matrices only."""
-    decay = [p for p in model.parameters() if p.ndim > 1]
-    rest = [p for p in model.parameters() if p.ndim <= 1]
-    return [{"params": decay, "weight_decay": config.weight_decay}, {"params": rest, "weight_decay": 0.0}]
-
-
 @functools.cache
 def adamw_impl() -> str:
     """The first of `ADAMW_IMPLS` that this torch builds and steps on CPU parameters.
@@ -216,20 +211,33 @@ def adamw_impl() -> str:
     return "for-loop"
 
 
-def _optimizer(model, config: Config):
+def _optimizer(config: Config, params, seed_axes: int = 0):
+    """AdamW (`adamw_impl`) as ours: weight decay on weight matrices only. `seed_axes`: leading
+    axes of `params` that stack seeds (1 for a vmapped ensemble's), so a stacked bias is no matrix."""
     import torch
 
+    params = list(params)
+    decay = [p for p in params if p.ndim - seed_axes > 1]
+    rest = [p for p in params if p.ndim - seed_axes <= 1]
+    groups = [{"params": decay, "weight_decay": config.weight_decay}, {"params": rest, "weight_decay": 0.0}]
     impl = adamw_impl()
-    return torch.optim.AdamW(_param_groups(model, config), lr=config.learning_rate, **({impl: True} if impl in ADAMW_IMPLS else {}))
+    return torch.optim.AdamW(groups, lr=config.learning_rate, **({impl: True} if impl in ADAMW_IMPLS else {}))
 
 
-def _clip_by_global_norm(params, max_norm: float = 1.0):
-    """optax.clip_by_global_norm: scale every gradient by max_norm / max(norm, max_norm)."""
+def _clip_factor(grads):
+    """optax.clip_by_global_norm(MAX_GRAD_NORM)'s factor for one model's gradients: MAX_GRAD_NORM / max(global norm, MAX_GRAD_NORM)."""
     import torch
 
-    grads = [p.grad for p in params if p.grad is not None]
     norm = torch.linalg.vector_norm(torch.stack([torch.linalg.vector_norm(g) for g in grads]))
-    torch._foreach_mul_(grads, max_norm / torch.clamp(norm, min=max_norm))
+    return MAX_GRAD_NORM / torch.clamp(norm, min=MAX_GRAD_NORM)
+
+
+def _loss(forward, inputs, labels, autocast: bool):
+    """The training loss of one model (`forward`) on one minibatch, under `mixed_precision(autocast)`."""
+    from torch.nn import functional as F
+
+    with mixed_precision(autocast):
+        return F.cross_entropy(forward(inputs), labels, ignore_index=-1)
 
 
 def _batch(config: Config, batch: int, n_bins: int, seed: int = 0):
@@ -241,16 +249,22 @@ def _batch(config: Config, batch: int, n_bins: int, seed: int = 0):
     return inputs, torch.randint(0, catalog.N_CLASSES, (batch,), generator=g)
 
 
-def compiled(model, compile_mode: str | None):
-    """`model` itself (eager) or `torch.compile(model, mode=compile_mode)`; compilation happens at
-    the first call, so the runners' warm-up call is where a mode fails or spends its compile time."""
+def batches(config: Config, n_seeds: int, batch: int, n_bins: int) -> list:
+    """One synthetic minibatch (inputs, labels) per seed: each seed trains on its own samples, as
+    ours, whose seeds each draw their own minibatches."""
+    return [_batch(config, batch, n_bins, seed=s) for s in range(n_seeds)]
+
+
+def compiled(fn, compile_mode: str | None):
+    """`fn` (a module or a function) itself (eager) or `torch.compile(fn, mode=compile_mode)`; compilation
+    happens at the first call, so the runners' warm-up call is where a mode fails or spends its compile time."""
     import torch
 
     if compile_mode is None:
-        return model
+        return fn
     if compile_mode not in COMPILE_MODES:
         raise ValueError(f"compile_mode must be None or one of {COMPILE_MODES}, got {compile_mode!r}")
-    return torch.compile(model, mode=compile_mode)
+    return torch.compile(fn, mode=compile_mode)
 
 
 def mixed_precision(autocast: bool):
@@ -261,39 +275,106 @@ def mixed_precision(autocast: bool):
     return torch.autocast("cpu", dtype=torch.bfloat16, enabled=autocast)
 
 
+class InSequence:
+    """`models` trained one after another, each on its own minibatch of `batches` (see `batches`):
+    every step runs each model's forward and backward, the clip and its AdamW step in turn. With
+    `compile_mode` each model's forward (and with it, through AOTAutograd, its backward) is
+    `torch.compile`d; with `autocast` the forward and loss run under `mixed_precision`; clipping
+    and the AdamW step (`adamw_impl`) stay eager and float32, as fused kernels already. The
+    models are trained in place."""
+
+    def __init__(self, config: Config, models, batches, compile_mode: str | None = None, autocast: bool = False):
+        self.models, self.batches, self.autocast = models, batches, autocast
+        self.opts = [_optimizer(config, m.parameters()) for m in models]
+        self.forwards = [compiled(m, compile_mode) for m in models]
+
+    def step(self):
+        """One training step of every model; their losses, (n_seeds,)."""
+        import torch
+
+        losses = []
+        for model, forward, opt, (inputs, labels) in zip(self.models, self.forwards, self.opts, self.batches):
+            opt.zero_grad(set_to_none=True)
+            loss = _loss(forward, inputs, labels, self.autocast)
+            loss.backward()
+            grads = [p.grad for p in model.parameters()]
+            torch._foreach_mul_(grads, _clip_factor(grads))
+            opt.step()
+            losses.append(loss.detach())
+        return torch.stack(losses)
+
+
+class Vmapped:
+    """`models` trained as one vmapped ensemble, PyTorch's peer of our `jax.vmap` over seeds: their
+    parameters and buffers stacked over a leading seed axis (`torch.func.stack_module_state`, a
+    copy: `models` stay as they were), one `torch.vmap` over a function that runs one model
+    (`torch.func.functional_call`) on its own minibatch of `batches` (stacked likewise) and returns
+    its loss and its gradients (`torch.func.grad_and_value`) clipped by its own global norm, as
+    our vmapped optax clips each seed's; dropout draws a different mask for every seed
+    (`randomness="different"`); one AdamW (`adamw_impl`) steps the stacked parameters, which is
+    every seed's AdamW at once (its arithmetic is elementwise; decay on the seeds' weight
+    matrices only). With `compile_mode` that vmapped function (forward, backward and clip) is
+    `torch.compile`d; with `autocast` the forward and loss run under `mixed_precision`.
+
+    This torch has no batching rule for its CPU attention kernel (nor its backward): vmap runs
+    `scaled_dot_product_attention` seed by seed (with a warning) and batches the rest."""
+
+    def __init__(self, config: Config, models, batches, compile_mode: str | None = None, autocast: bool = False):
+        import copy
+
+        import torch
+        from torch import func
+
+        self.params, self.buffers = func.stack_module_state(models)
+        self.inputs = {m: torch.stack([inputs[m] for inputs, _ in batches]) for m in batches[0][0]}
+        self.labels = torch.stack([labels for _, labels in batches])
+        self.opt = _optimizer(config, self.params.values(), seed_axes=1)
+        base = copy.deepcopy(models[0]).to("meta")  # the architecture only: functional_call brings each seed's tensors
+
+        def one_seed(params, buffers, inputs, labels):
+            def loss(p):
+                return _loss(functools.partial(func.functional_call, base, (p, buffers)), inputs, labels, autocast)
+
+            grads, value = func.grad_and_value(loss)(params)
+            factor = _clip_factor(list(grads.values()))
+            return {k: g * factor for k, g in grads.items()}, value
+
+        self.grads_and_loss = compiled(torch.vmap(one_seed, randomness="different"), compile_mode)
+
+    def step(self):
+        """One training step of every seed; their losses, (n_seeds,)."""
+        import torch
+
+        with torch.no_grad():  # gradients come from func.grad alone; no autograd graph of the stacked parameters
+            grads, losses = self.grads_and_loss(self.params, self.buffers, self.inputs, self.labels)
+        for k, p in self.params.items():
+            p.grad = grads[k]
+        self.opt.step()
+        return losses
+
+
+IN_SEQUENCE, VMAPPED = "in sequence", "vmapped"
+ENSEMBLES = {IN_SEQUENCE: InSequence, VMAPPED: Vmapped}  # how the runners train several seeds, by name
+
+
 def train_step_runner(
     config: Config, *, n_seeds: int = 1, batch: int = 32, n_bins: int = 320, steps: int = 4, compile_mode: str | None = None,
-    autocast: bool = False,
+    autocast: bool = False, ensemble: str = IN_SEQUENCE,
 ) -> Callable[[], float]:
-    """A warmed-up callable that runs `steps` training steps of `n_seeds` models one after another
-    (each step: every seed in turn) and returns seconds per step. With `compile_mode` each model's
-    forward (and with it, through AOTAutograd, its backward) is `torch.compile`d; with `autocast`
-    the forward and loss run under `mixed_precision`; gradient clipping and the AdamW step
-    (`adamw_impl`) stay eager and float32, as fused kernels already."""
+    """A warmed-up callable that runs `steps` training steps of `n_seeds` models, each on its own
+    minibatch, trained as `ensemble` says (a key of `ENSEMBLES`: `InSequence`, `Vmapped`; with
+    `compile_mode` and `autocast` as there) and returns seconds per step."""
     import torch
-    from torch.nn import functional as F
 
     torch.manual_seed(0)
     models = [build(config, n_bins).train() for _ in range(n_seeds)]
-    opts = [_optimizer(m, config) for m in models]
-    forwards = [compiled(m, compile_mode) for m in models]
-    inputs, labels = _batch(config, batch, n_bins)
-
-    def step():
-        for model, forward, opt in zip(models, forwards, opts):
-            opt.zero_grad(set_to_none=True)
-            with mixed_precision(autocast):
-                loss = F.cross_entropy(forward(inputs), labels, ignore_index=-1)
-            loss.backward()
-            _clip_by_global_norm(model.parameters(), 1.0)
-            opt.step()
-
-    step()  # warm-up
+    trainer = ENSEMBLES[ensemble](config, models, batches(config, n_seeds, batch, n_bins), compile_mode, autocast)
+    trainer.step()  # warm-up
 
     def run() -> float:
         t0 = time.perf_counter()
         for _ in range(steps):
-            step()
+            trainer.step()
         return (time.perf_counter() - t0) / steps
 
     return run
