@@ -118,9 +118,11 @@ def study_command(study: Study) -> None:
     its flags, then `study.run` with them."""
     define_rows(study.row_names, study.n_seeds)
 
+    flags.DEFINE_bool("plan", False, "print what the run needs (disk and time per stage) and stop; with --results also write plan.md there")
+
     def main(argv):
         del argv
-        study.run(**rows_kwargs())
+        study.run(**rows_kwargs(), plan_only=FLAGS.plan)
 
     run(main)
 

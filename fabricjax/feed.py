@@ -56,9 +56,11 @@ def block_steps(inputs: Mapping[str, np.ndarray], batch: int, n_seeds: int, step
     return max(1, min(steps, BLOCK_BYTES // max(n_seeds * batch * sequence_bytes(inputs), 1)))
 
 
-def host_bytes(inputs: Mapping[str, np.ndarray], batch: int, n_seeds: int) -> int:
-    """Host memory a fed run's blocks hold at once (the one the devices read and the next)."""
-    return 2 * block_steps(inputs, batch, n_seeds, 1 << 30) * n_seeds * batch * sequence_bytes(inputs)
+def host_bytes(per_sequence: int, batch: int, n_seeds: int) -> int:
+    """Host memory a fed run's blocks hold at once (the one the devices read and the next), for
+    sequences of `per_sequence` bytes (`sequence_bytes`)."""
+    one_step = n_seeds * batch * per_sequence
+    return 2 * max(1, BLOCK_BYTES // max(one_step, 1)) * one_step
 
 
 def _laid_out(inputs: Mapping[str, np.ndarray], rows: np.ndarray, length: int | None = None) -> dict[str, np.ndarray]:

@@ -70,7 +70,8 @@ def test_any_block_size_gives_the_same_bits(on_devices, monkeypatch):
 def test_host_memory_is_a_few_blocks_whatever_the_data():
     inputs = sets(CAMERA)["train"]["inputs"]
     one_step = 2 * CAMERA.batch_size * feed.sequence_bytes(inputs)
-    assert feed.host_bytes(inputs, CAMERA.batch_size, 2) <= 2 * max(feed.BLOCK_BYTES, one_step)
+    assert feed.host_bytes(feed.sequence_bytes(inputs), CAMERA.batch_size, 2) <= 2 * max(feed.BLOCK_BYTES, one_step)
+    assert feed.host_bytes(10**9, 32, 5) == 2 * 5 * 32 * 10**9  # one step's minibatches, however large
 
 
 # The slow test's process may hold this much private memory (RLIMIT_DATA: heap and anonymous

@@ -20,10 +20,12 @@ def test_missing_trials_are_timed_on_this_host_and_their_disk_counted(tmp_path):
     n = len(spec.trials())
     assert sim.name.startswith(f"simulation ({n} of {n} trials missing)") and sim.seconds > 0
     assert sim.disk_bytes == n * sim_dataset.trial_bytes(spec, True)
-    assert features.seconds > 0 and features.disk_bytes > 0 and "ms per frame" in features.basis
+    assert features.seconds > 0 and features.disk_bytes > 0 and "flow " in features.basis
+    assert "does not fit" in plan.markdown("smoke", stages, 2, 2, free_bytes=1)
     assert sequences.disk_bytes == 0 and "held in memory" in sequences.basis
     assert training.seconds is None  # no published run of this recipe
-    text = plan.markdown("smoke", stages, 2, 2)
+    assert "peak host memory" in sequences.basis
+    text = plan.markdown("smoke", stages, 2, 2, free_bytes=1e15)
     assert text.startswith("Plan: 2 rows x 2 seeds on preset 'smoke'") and "and more (a stage is unknown)" in text
 
 

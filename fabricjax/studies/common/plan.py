@@ -1,10 +1,10 @@
 """What a study on simulated data will cost, printed before it starts: disk and time per stage.
 
-    simulation   the preset's missing trials: a two-cycle trial simulated on this host just now
+    simulation   the preset's missing trials: a short trial simulated on this host just now
                  (`probe`), per step, over the simulation's processes
-    flow         the missing trials' frames: OpenCV's Farneback timed on the probe's frames, per
-                 frame, over the feature processes
-    features     the cache's bytes per step of each camera input (the audio and joint features are small)
+    camera       the missing trials' frames: each camera feature (optical flow, downsampled frames)
+      features   timed on the probe's frames, per frame, over the feature processes; the cache's
+                 bytes per step (the audio and joint features are small)
     sequences    what the rows' loaded sequences take, and whether they go to memory-mapped files
                  (`data.MEMORY_FRACTION`)
     training     per row, seconds per training sequence, epoch and seed measured by the published
@@ -24,23 +24,26 @@ import dataclasses
 import json
 import math
 import os
+import shutil
 import time
+import types
 from pathlib import Path
 from typing import Any, Sequence
 
 import cv2
 
-from fabricjax import archive, data, memo, presets, workspace
+from fabricjax import archive, data, feed, memo, presets, workspace
 from fabricjax.config import Config
 from fabricjax.features import flow, welch
 from fabricjax.sim import dataset as sim_dataset
 from fabricjax.sim.trial import simulate
 from fabricjax.splits import DatasetSpec
+from fabricjax.studies.common import documents
 
 # The published run the training line is extrapolated from (`python -m experiments.ablation
 # --preset=paper_sample --seeds=5 --results=results/paper_sample`).
 SAMPLE_RESULTS = Path(__file__).resolve().parents[3] / "results" / "paper_sample" / "ablation.json"
-PROBE_FLOW_PAIRS = 8  # frame pairs timed per probe
+PROBE_FRAMES = 16  # frames each camera feature is timed on (two of flow's chunks)
 PROBE_CYCLES = 2  # rubbing cycles of the probe's trial: its closing's share of the time stays small
 # Config fields a row of the published sample may differ in and still give this run's rate: the
 # data's own (preset, classes, step window) and where inputs are read from (the same bits)
@@ -55,20 +58,27 @@ class Stage:
     basis: str
 
 
-def probe(dataset: DatasetSpec, images: bool) -> dict[str, float]:
-    """Seconds per simulated step and per frame of OpenCV flow (one thread), on this host now."""
-    one_cycle = dataclasses.replace(dataset, cycles_per_trial=PROBE_CYCLES)
-    scene = sim_dataset.scene_for(one_cycle.trials()[0], one_cycle, ("audio", "proprio") + (("images",) if images else ()))
+def probe(dataset: DatasetSpec, config: Config) -> dict[str, float]:
+    """Seconds per simulated step ("simulate") and per frame of each camera feature of `config`
+    (its name: flow with OpenCV on one thread, sparsified and pooled; frames downsampled), on this
+    host now: a `PROBE_CYCLES` trial simulated, its features computed once to compile, then timed."""
+    camera = [m for m in config.modalities if m in ("image", "flow")]
+    cycles = dataclasses.replace(dataset, cycles_per_trial=PROBE_CYCLES)
+    scene = sim_dataset.scene_for(cycles.trials()[0], cycles, ("audio", "proprio") + (("images",) if camera else ()))
     t0 = time.perf_counter()
     trial = simulate(scene)
-    out = {"simulate_s_per_step": (time.perf_counter() - t0) / len(trial.timestamps)}
-    if images:
-        threads = cv2.getNumThreads()
-        cv2.setNumThreads(1)
-        frames = trial.images[: PROBE_FLOW_PAIRS + 1]
-        t0 = time.perf_counter()
-        flow.farneback(frames)
-        out["flow_s_per_frame"] = (time.perf_counter() - t0) / max(len(frames) - 1, 1)
+    out = {"simulate": (time.perf_counter() - t0) / len(trial.timestamps)}
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # a feature process's one thread (`cache`)
+    try:
+        for m in camera:
+            feature = data.feature_for(m, config.image_resolution, config.image_size, config.flow_sparsify, archive.WINDOW, config.image_reference, config.flow_method)
+            frames = lambda n: types.SimpleNamespace(images=trial.images[:n], reference=trial.reference)  # noqa: E731
+            feature.compute(frames(PROBE_FRAMES))  # compiles
+            t0 = time.perf_counter()
+            feature.compute(frames(PROBE_FRAMES))
+            out[feature.name] = (time.perf_counter() - t0) / PROBE_FRAMES
+    finally:
         cv2.setNumThreads(threads)
     return out
 
@@ -129,47 +139,61 @@ def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, wor
     missing = [s for s in scenes if not sim_dataset.is_done(folder / sim_dataset.filename(s), s)]
     steps = sim_dataset.trial_steps(spec)
     workers = os.cpu_count() or 1
-    costs = probe(spec, bool(camera)) if missing else {}
     union = dataclasses.replace(configs[0][1], modalities=tuple(sorted({m for _, c in configs for m in c.modalities})))
+    costs = probe(spec, union) if missing else {}
+    per_frame = sum(v for k, v in costs.items() if k != "simulate")
     out = [Stage(
         f"simulation ({len(missing)} of {len(scenes)} trials missing)", len(missing) * sim_dataset.trial_bytes(spec, bool(camera)),
-        len(missing) * steps * costs.get("simulate_s_per_step", 0.0) / workers,
-        f"a two-cycle trial simulated just now: {1e3 * costs['simulate_s_per_step']:.1f} ms per step, {workers} processes" if missing else "done",
+        len(missing) * steps * costs.get("simulate", 0.0) / workers,
+        f"a {PROBE_CYCLES}-cycle trial simulated just now: {1e3 * costs['simulate']:.1f} ms per step, {workers} processes" if missing else "done",
     )]
     if camera:
         cameras = dataclasses.replace(union, modalities=tuple(sorted(camera)))
+        timed = ", ".join(f"{k} {1e3 * v:.1f} ms" for k, v in costs.items() if k != "simulate")
         out.append(Stage(
-            f"optical flow and features ({len(missing)} trials' frames)", len(missing) * steps * _bytes_per_step(cameras, spec.image_size),
-            len(missing) * steps * costs.get("flow_s_per_frame", 0.0) / workers if "flow" in camera else 0.0,
-            f"OpenCV's Farneback on the probe's frames just now: {1e3 * costs.get('flow_s_per_frame', 0):.1f} ms per frame on one thread, "
-            f"{workers} processes" if missing and "flow" in camera else "trials already simulated may have theirs cached",
+            f"camera features ({len(missing)} trials' frames)", len(missing) * steps * _bytes_per_step(cameras, spec.image_size),
+            len(missing) * steps * per_frame / workers,
+            f"per frame on one thread just now ({timed}; flow by {union.flow_method}), {workers} processes" if missing
+            else "trials already simulated may have theirs cached",
         ))
     n = configs[0][1].seq_len
     per_trial = steps // n
     train_sequences = sum(per_trial for t in spec.trials() if t.day in spec.splits.train_days and t.trial < spec.train_trials_per_day - spec.splits.val_trials_per_day)
-    loaded = len(scenes) * per_trial * n * _bytes_per_step(union, spec.image_size)
+    per_sequence = n * _bytes_per_step(union, spec.image_size)
+    loaded = len(scenes) * per_trial * per_sequence
     to_disk = loaded > memo.memory_budget(data.MEMORY_FRACTION)
+    peak = feed.host_bytes(int(per_sequence), union.batch_size, n_seeds) if to_disk else loaded
     out.append(Stage(
         "sequences", loaded if to_disk else 0, 0.0,
-        f"{loaded / 1e9:.1f} GB loaded: " + ("more than half of memory, so memory-mapped files in the workspace, read a block at a time" if to_disk else "held in memory"),
+        f"{loaded / 1e9:.1f} GB loaded: " + ("more than half of memory, so memory-mapped files in the workspace, read a block at a time" if to_disk else "held in memory")
+        + f"; peak host memory for training inputs {peak / 1e9:.1f} GB",
     ))
     out.append(_training(configs, n_seeds, train_sequences))
     return out
 
 
-def markdown(preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int) -> str:
+def markdown(preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int, free_bytes: float) -> str:
     known = [s.seconds for s in stages_ if s.seconds is not None]
-    total = sum(known)
+    disk = sum(s.disk_bytes for s in stages_)
     lines = [
-        f"Plan: {n_rows} rows x {n_seeds} seeds on preset {preset!r}: about {_duration(total)}"
+        f"Plan: {n_rows} rows x {n_seeds} seeds on preset {preset!r}: about {_duration(sum(known))}"
         + (" and more (a stage is unknown)" if len(known) < len(stages_) else "")
-        + f", {sum(s.disk_bytes for s in stages_) / 1e9:.1f} GB of disk at most",
+        + f", {disk / 1e9:.1f} GB of disk at most ({free_bytes / 1e9:.0f} GB free"
+        + ("; it does not fit: free disk space or give --workdir on a larger disk" if disk > free_bytes else "") + ")",
         "",
         "| stage | disk | time | from |",
         "|---|---|---|---|",
     ]
     lines += [f"| {s.name} | {s.disk_bytes / 1e9:.1f} GB | {'unknown' if s.seconds is None else _duration(s.seconds)} | {s.basis} |" for s in stages_]
     return "\n".join(lines)
+
+
+def free_disk(workdir=None) -> int:
+    """Free bytes on the disk the workspace is on (its nearest existing folder)."""
+    folder = workspace.root(workdir).absolute()
+    while not folder.exists():
+        folder = folder.parent
+    return shutil.disk_usage(folder).free
 
 
 def _duration(seconds: float) -> str:
@@ -180,5 +204,11 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
-def document(preset: str, stages_: Sequence[Stage]) -> dict[str, Any]:
-    return {"preset": preset, "stages": [dataclasses.asdict(s) for s in stages_]}
+def write(where: workspace.Location, study: str, preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int) -> dict[str, Any]:
+    """results/plan.md and plan.json: the plan, with the command, code, date and host it was made on."""
+    doc = {
+        **documents.header("plan", command=where.command, preset=preset), "of_study": study, "rows": n_rows, "n_seeds": n_seeds,
+        "stages": [dataclasses.asdict(s) for s in stages_], "total_s": sum(s.seconds or 0.0 for s in stages_), "free_bytes": free_disk(where.workdir),
+    }
+    return documents.write(where.results_dir(), doc, lambda d: f"# What {d['of_study']} needs on preset {d['preset']}\n\n"
+                           + documents.header_markdown(d, time="seconds (its probe)") + "\n" + markdown(preset, stages_, n_rows, n_seeds, d["free_bytes"]) + "\n")

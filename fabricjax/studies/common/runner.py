@@ -430,9 +430,11 @@ def run_study(
     rows: Sequence[str] | None = None,
     overrides: Mapping[str, Any] | None = None,
     where: Location = Location(),
+    plan_only: bool = False,
 ) -> dict[str, Any]:
     """Train the chosen `rows` of `study` (all by default) with `n_seeds` seeds (the study's count
-    by default), check the paper's claims and write results/<study>.md and .json; returns the JSON."""
+    by default), check the paper's claims and write results/<study>.md and .json; returns the JSON.
+    The plan (`plan.stages`) is printed first; `plan_only` stops there, writing it as results/plan.md."""
 
     overrides = check_overrides(study.name, overrides, study.rows, study.choose_rows)
     chosen = select_rows(study.rows, rows)
@@ -443,7 +445,12 @@ def run_study(
         row_configs = _with_fusion_twins(study, row_configs)
     labels = {r.name: r.label for r in study.rows}
     if not where.data_dir:  # what the run will take, before it starts (hours at the paper's scale)
-        print(plan.markdown(preset, plan.stages(preset, row_configs, len(seeds), where.workdir), len(row_configs), len(seeds)), flush=True)
+        stages = plan.stages(preset, row_configs, len(seeds), where.workdir)
+        print(plan.markdown(preset, stages, len(row_configs), len(seeds), plan.free_disk(where.workdir)), flush=True)
+        if plan_only:
+            return plan.write(where, study.name, preset, stages, len(row_configs), len(seeds))
+    elif plan_only:
+        raise UserError("--plan estimates what simulated data needs; recorded data (--data_dir) is there already")
     trained = train_rows(
         study.name, row_configs, seeds,
         eval_splits=study.eval_splits, split_names=study.split_names, data_dir=where.data_dir, workdir=where.workdir,
