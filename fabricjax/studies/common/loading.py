@@ -22,7 +22,7 @@ TRAIN_VAL_TEST = ("train", "val", "test")
 # The `Config` fields besides modalities and bandwidth that decide the sequences `data.load_sequences`
 # returns (which trials, how they are cut, which camera features): one load serves several rows
 # only where these agree (`data.narrow` then gives each row its modalities and band).
-SEQUENCE_FIELDS = ("preset", "seq_len", "exclude_fabrics", "image_resolution", "image_size", "flow_sparsify", "flow_method", "mic_window_s", "image_reference")
+SEQUENCE_FIELDS = ("preset", "seq_len", "exclude_fabrics", "image_resolution", "image_size", "flow_sparsify", "flow_method", "mic_window_s", "image_reference", "input_source")
 
 
 @dataclasses.dataclass
