@@ -16,7 +16,7 @@ from fabricjax.train import train_and_evaluate
 # with its own shuffle; a remainder batch dropped; evaluation sets that are not whole minibatches
 CAMERA = Config(
     preset="smoke", modalities=("image", "flow", "internal", "proprio"), width=16, n_layers=1, ffn=32, cnn_features=(4, 8),
-    audio_hidden=(16, 8), proprio_hidden=(16, 8), seq_len=6, epochs=3, batch_size=4, warmup_steps=2, image_size=(30, 40),
+    audio_hidden=(16, 8), proprio_hidden=(16, 8), seq_len=6, epochs=2, batch_size=4, warmup_steps=2, image_size=(30, 40),
     property_heads=True,
 )
 
@@ -57,14 +57,14 @@ def test_memory_mapped_inputs_are_read_from_the_host(tmp_path):
     assert not feed.reads_from_host(dataclasses.replace(CAMERA, input_source="memory"), sets(CAMERA, tmp_path)["train"])
 
 
-def test_training_from_memory_mapped_files_is_the_device_resident_run(on_devices, tmp_path):
-    assert_same_run(on_devices, train_and_evaluate(CAMERA, sets(CAMERA, tmp_path), seeds=[0, 1]))
-
-
-def test_any_block_size_gives_the_same_bits(on_devices, monkeypatch):
-    """One step per block and one sequence per evaluation block: blocks change nothing."""
+def test_training_from_memory_mapped_files_in_blocks_is_the_device_resident_run(on_devices, tmp_path, monkeypatch):
+    """Read from files, one step per block and one sequence per evaluation block, an epoch per
+    call with curves and a checkpoint as studies run it, then resumed from it: the same bits."""
     monkeypatch.setattr(feed, "BLOCK_BYTES", 1)
-    assert_same_run(on_devices, train_and_evaluate(dataclasses.replace(CAMERA, input_source="disk"), sets(CAMERA), seeds=[0, 1]))
+    on_disk = sets(CAMERA, tmp_path)
+    kwargs = dict(seeds=[0, 1], workdir=tmp_path / "checkpoint", log_dir=tmp_path / "curves")
+    assert_same_run(on_devices, train_and_evaluate(CAMERA, on_disk, **kwargs))
+    assert_same_run(on_devices, train_and_evaluate(CAMERA, on_disk, **kwargs))  # restored, evaluated again
 
 
 def test_host_memory_is_a_few_blocks_whatever_the_data():

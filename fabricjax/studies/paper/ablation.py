@@ -116,7 +116,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
         if n in rows
     ]
     figure = plots.plot_confusions(
-        results / "ablation_confusion.png", panels, class_names=trained.dataset.classes if recorded else None
+        results / "ablation_confusion.png", panels, n_classes=trained.dataset.n_classes, class_names=trained.dataset.classes if recorded else None
     ) if panels else None
     if recorded:
         return _recorded_body(trained, chosen, tests), [figure]
