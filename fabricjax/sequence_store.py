@@ -20,11 +20,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import shutil
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+
+from fabricjax.errors import UserError
 
 
 class SequenceStore:
@@ -48,8 +51,15 @@ class SequenceStore:
             return None
 
     def create(self, shapes: Mapping[str, Mapping[str, tuple[tuple[int, ...], Any]]]) -> dict[str, dict[str, np.memmap]]:
-        """Zeroed writable files {split: {modality: (shape, dtype)}} to fill, then `finish`."""
+        """Zeroed writable files {split: {modality: (shape, dtype)}} to fill, then `finish`; a
+        one-line `UserError`, having written nothing, where the disk has not the room."""
         shutil.rmtree(self._partial, ignore_errors=True)
+        need = sum(math.prod(shape) * np.dtype(dtype).itemsize for d in shapes.values() for shape, dtype in d.values())
+        self.folder.parent.mkdir(parents=True, exist_ok=True)
+        free = shutil.disk_usage(self.folder.parent).free
+        if need > free:
+            raise UserError(f"{self.folder.parent}: the loaded sequences need {need / 1e9:.1f} GB of memory-mapped files, only {free / 1e9:.1f} GB free "
+                            "(free disk space, give --workdir on a larger disk, or --set=input_source=memory where memory holds them)")
         self._partial.mkdir(parents=True)
         return {
             s: {m: np.lib.format.open_memmap(self._partial / f"{s}.{m}.npy", mode="w+", dtype=dtype, shape=shape) for m, (shape, dtype) in d.items()}

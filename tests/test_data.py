@@ -264,3 +264,15 @@ def test_sequences_larger_than_memory_are_memory_mapped_files(dataset, tmp_path,
     monkeypatch.setattr(data, "MEMORY_FRACTION", 0.5)  # stored, but it fits: "auto" holds it in memory
     fits = data.load_sequences(cfg, dataset, workdir=tmp_path / "ws", progress=False)
     assert not isinstance(fits["train"].inputs["image"], np.memmap)
+
+
+def test_sequences_that_do_not_fit_the_disk_are_refused_having_written_nothing(dataset, tmp_path, monkeypatch):
+    import shutil
+
+    from fabricjax.errors import UserError
+
+    real = shutil.disk_usage
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: real(path)._replace(free=10))
+    with pytest.raises(UserError, match="GB of memory-mapped files, only 0.0 GB free") as e:
+        data.load_sequences(_config(input_source="disk"), dataset, workdir=tmp_path / "ws", progress=False)
+    assert "\n" not in str(e.value) and not list((tmp_path / "ws" / "sequences").iterdir())
