@@ -22,7 +22,8 @@ from fabricjax.config import Config
 from fabricjax.features import welch
 
 
-def _best_of(fn, repeats: int) -> float:
+def best_of(fn, repeats: int) -> float:
+    """The shortest of `repeats` timed calls of `fn`, in seconds."""
     times = []
     for _ in range(repeats):
         t = time.perf_counter()
@@ -42,9 +43,9 @@ def bench_welch(n_windows: int = 4096, repeats: int = 5, seed: int = 0) -> dict:
     dev_words, dev_samples = jax.device_put(words), jax.device_put(samples)
     ours(dev_words).block_until_ready()
     theirs(dev_samples).block_until_ready()
-    t_ours = _best_of(lambda: ours(dev_words).block_until_ready(), repeats)
-    t_jax = _best_of(lambda: theirs(dev_samples).block_until_ready(), repeats)
-    t_scipy = _best_of(lambda: scipy.signal.welch(samples, **welch.SCIPY_KWARGS), repeats)
+    t_ours = best_of(lambda: ours(dev_words).block_until_ready(), repeats)
+    t_jax = best_of(lambda: theirs(dev_samples).block_until_ready(), repeats)
+    t_scipy = best_of(lambda: scipy.signal.welch(samples, **welch.SCIPY_KWARGS), repeats)
     return {
         "n_windows": n_windows,
         "welch_psd_s": t_ours,

@@ -16,6 +16,7 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
+from fabricjax.bench.feature_timing import best_of
 from fabricjax.features import farneback
 
 
@@ -23,15 +24,6 @@ def _pairs(size: tuple[int, int], n: int, seed: int) -> tuple[np.ndarray, np.nda
     rng = np.random.default_rng(seed)
     first = np.stack([cv2.GaussianBlur(rng.integers(0, 256, size, dtype=np.uint8), (0, 0), 1.5) for _ in range(n)])
     return first, np.roll(first, 1, axis=2)
-
-
-def _best_of(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
 
 
 def bench_flow(sizes=((308, 410), (60, 80)), batch: int = 8, repeats: int = 3, seed: int = 0) -> dict:
@@ -53,14 +45,14 @@ def bench_flow(sizes=((308, 410), (60, 80)), batch: int = 8, repeats: int = 3, s
             def one(i):
                 return cv2.calcOpticalFlowFarneback(first[i], second[i], None, **farneback.FARNEBACK)
 
-            serial = _best_of(lambda: [one(i) for i in range(batch)], repeats)
+            serial = best_of(lambda: [one(i) for i in range(batch)], repeats)
             with ThreadPoolExecutor(threads) as pool:
-                pooled = _best_of(lambda: list(pool.map(one, range(batch))), repeats)
+                pooled = best_of(lambda: list(pool.map(one, range(batch))), repeats)
             a, b = jax.device_put(first, sharding), jax.device_put(second, sharding)
             t = time.perf_counter()
             farneback.farneback(a, b).block_until_ready()
             compile_s = time.perf_counter() - t
-            jitted = _best_of(lambda: farneback.farneback(a, b).block_until_ready(), repeats)
+            jitted = best_of(lambda: farneback.farneback(a, b).block_until_ready(), repeats)
             out["sizes"][f"{size[0]}x{size[1]}"] = {
                 "opencv_1_thread_s": serial / batch, "opencv_all_cores_s": pooled / batch, "jax_s": jitted / batch, "jax_compile_s": compile_s,
             }
