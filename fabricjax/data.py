@@ -209,7 +209,6 @@ def _report_unused(entries: Sequence[dataset_index.IndexEntry], roles, chosen_sp
                      ", ".join(f"{skipped[s]} trials on split {s}" for s in SPLITS if s in skipped), ", ".join(wanted))
 
 
-
 def _fill(index, chosen, members, features, config: Config, rates, store: SequenceStore, features_root, workers, progress) -> dict[str, dict[str, np.ndarray]]:
     """{split: {modality: (S, N, ...)}}: each trial's sequences of its features (cached, or
     computed first) copied into arrays preallocated from the index's step counts, so the dataset
@@ -247,6 +246,7 @@ def _fill(index, chosen, members, features, config: Config, rates, store: Sequen
         for a in arrays.values():
             a.flags.writeable = False
     return inputs
+
 
 def stream_names(lay: archive.Layout) -> dict[str, str]:
     """{modality: how the data names its stream}: a microphone's name, "joints <names> (<fields>)"
@@ -421,7 +421,6 @@ def load_sequences(
         inputs = None  # stored by a run that asked for "disk", and they fit in memory
     if inputs is None:
         inputs = _fill(index, chosen, members, features, config, rates, store, workspace.features_dir(workdir), workers, progress)
-    names = stream_names(lay)
     names = stream_names(lay)
     return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, names=names, classes=classes, window_s=config.mic_window_s)
             for s in wanted}

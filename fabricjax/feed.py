@@ -51,16 +51,22 @@ def sequence_bytes(inputs: Mapping[str, np.ndarray]) -> int:
     return sum(a[0].nbytes for a in inputs.values())
 
 
+def _per_block(unit_bytes: int) -> int:
+    """Units (training steps, evaluation minibatches) of `unit_bytes` a block holds: as many as
+    `BLOCK_BYTES` holds, at least one."""
+    return max(1, BLOCK_BYTES // max(unit_bytes, 1))
+
+
 def block_steps(inputs: Mapping[str, np.ndarray], batch: int, n_seeds: int, steps: int) -> int:
-    """Training steps per block: as many as `BLOCK_BYTES` holds for every seed, at least one."""
-    return max(1, min(steps, BLOCK_BYTES // max(n_seeds * batch * sequence_bytes(inputs), 1)))
+    """Training steps per block (of `steps`), every seed's minibatches in each."""
+    return min(steps, _per_block(n_seeds * batch * sequence_bytes(inputs)))
 
 
 def host_bytes(per_sequence: int, batch: int, n_seeds: int) -> int:
     """Host memory a fed run's blocks hold at once (the one the devices read and the next), for
     sequences of `per_sequence` bytes (`sequence_bytes`)."""
     one_step = n_seeds * batch * per_sequence
-    return 2 * max(1, BLOCK_BYTES // max(one_step, 1)) * one_step
+    return 2 * _per_block(one_step) * one_step
 
 
 def _laid_out(inputs: Mapping[str, np.ndarray], rows: np.ndarray, length: int | None = None) -> dict[str, np.ndarray]:
@@ -126,7 +132,7 @@ class HostFed:
         """`Trainer.evaluate` of every seed's `params` on host set `ds`, a block of minibatches at a time."""
         batch = self.trainer.config.batch_size
         n = len(next(iter(ds["labels"].values())))
-        per_block = batch * max(1, BLOCK_BYTES // max(batch * sequence_bytes(ds["inputs"]), 1))
+        per_block = batch * _per_block(batch * sequence_bytes(ds["inputs"]))
         preds = []
         for start in range(0, max(n, 1), per_block):
             stop = min(start + per_block, n)

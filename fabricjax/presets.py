@@ -35,7 +35,7 @@ Python or from the command line (`--set field=value`).
              fabrics 0-4 (5 classes), one training and one validation trial per training day,
              one test trial, no cafe trials; the paper's trials (50 cycles), frames (308x410,
              flow 102x137), N=200 and recipe. 25 trials of the paper's 342 (~7 % of its steps,
-             70 of its ~1,470 training sequences). Its tables are not the paper's (5 classes, a
+             67 training sequences of its ~1,470). Its tables are not the paper's (5 classes, a
              20th of the training data) and count none of its claims (`note`).
     sensitivity  the default preset's fabrics, frames and sequences on fewer, shorter trials (3 per
              training day, 2 test and 2 cafe trials, 10 rubbing cycles: ~6 s): the data the
