@@ -28,10 +28,10 @@ from fabricjax.model import head_sizes
 
 
 # The layout of the saved training state; bumped whenever it changes (2: the optimiser state holds
-# the cosine decay's own step counter; 3: Adam's moments are one flat vector), so a checkpoint of
+# the cosine decay's own step counter; 3: Adam's moments are one flat vector; 4: each seed's early-stopping epoch), so a checkpoint of
 # another layout is refused by name instead of failing inside orbax, and a study's checkpoint
 # folder (tagged with it) starts afresh.
-STATE_VERSION = 3
+STATE_VERSION = 4
 
 
 class CheckpointMismatch(UserError):

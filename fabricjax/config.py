@@ -108,7 +108,14 @@ class Config:
     property_heads: bool = False
     compute_dtype: str = "float32"  # COMPUTE_DTYPES
     # training
-    epochs: int = 40
+    epochs: int = 40  # the most epochs a seed trains (with `patience`, the cap of early stopping)
+    # early stopping: a seed stops after this many epochs without a better validation accuracy and
+    # keeps its best-validation parameters (0: every seed trains all `epochs`, the paper's recipe)
+    patience: int = 0
+    # the recipe chosen by validation accuracy (`studies.common.recipe`): each learning rate and width of
+    # these grids is trained, and a row keeps the best; empty: `learning_rate` and `width` as they are
+    lr_grid: tuple[float, ...] = ()
+    width_grid: tuple[int, ...] = ()
     batch_size: int = 32
     learning_rate: float = 1e-3
     lr_schedule: str = "constant"  # LR_SCHEDULES, after the warm-up
@@ -154,6 +161,10 @@ class Config:
             raise ValueError("at least one of fabric_head and property_heads must be on")
         if self.n_classes < 2:
             raise ValueError(f"n_classes must be at least 2, got {self.n_classes}")
+        if any(not 0 < lr < 1 for lr in self.lr_grid) or any(w < 1 for w in self.width_grid):
+            raise ValueError(f"lr_grid holds learning rates in (0, 1) and width_grid widths >= 1, got {self.lr_grid} and {self.width_grid}")
+        if self.patience < 0:
+            raise ValueError(f"patience must be 0 (no early stopping) or a number of epochs, got {self.patience}")
         if self.seq_len < 1:
             raise ValueError(f"seq_len must be at least 1, got {self.seq_len}")
 

@@ -90,7 +90,13 @@ class HostFed:
             sharding.vmap_seeds(lambda key, epoch, n: trainer.epoch_order(jax.random.fold_in(key, epoch), n), in_axes=(0, None, None)),
             static_argnums=2,
         )
-        scan = lambda carry, block, keys: jax.lax.scan(lambda c, xs: trainer.train_step(c, *xs), carry, (block, keys))  # noqa: E731
+        def scan(carry, block, keys, stopped_at):  # a stopped seed's carry passes through unchanged (`Trainer.unless_stopped`)
+            def step(c, xs):
+                new, out = trainer.train_step(c, *xs)
+                return trainer.unless_stopped(stopped_at, new, c), out
+
+            return jax.lax.scan(step, carry, (block, keys))
+
         self._steps = jax.jit(sharding.vmap_seeds(scan), donate_argnums=0)
         self._summary = jax.jit(sharding.vmap_seeds(trainer.epoch_summary, in_axes=(0, 0, None)))
         self._predict = jax.jit(sharding.vmap_seeds(trainer.predict, in_axes=(0, None)))
@@ -117,7 +123,7 @@ class HostFed:
                     "inputs": {m: a.reshape(*rows.shape, *a.shape[1:]) for m, a in _laid_out(train["inputs"], rows.reshape(-1)).items()},
                     "labels": {h: a[rows] for h, a in train["labels"].items()},
                 }
-                carry, (loss, count) = self._steps(carry, self._place(block), keys[:, start : start + k])
+                carry, (loss, count) = self._steps(carry, self._place(block), keys[:, start : start + k], state["stopped_at"])
                 losses.append(loss)
                 counts.append(count)
             losses, counts = (jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=1), *parts) for parts in (losses, counts))

@@ -146,6 +146,7 @@ class Trainer:
             "best_params": params,
             "best_val": jnp.float32(-1.0),
             "best_epoch": jnp.int32(-1),
+            "stopped_at": jnp.int32(-1),
             "epoch": jnp.int32(0),
             "key": k_run,
             "history": {"train_loss": zeros, "val_acc": zeros},
@@ -246,6 +247,7 @@ class Trainer:
             params, opt_state, summary = self.train_epoch(
                 state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), data["train"], e
             )
+            params, opt_state = self.unless_stopped(state["stopped_at"], (params, opt_state), (state["params"], state["opt_state"]))
             validation = self.evaluate(params, data["val"])
             return self.end_epoch(state, params, opt_state, summary["train_loss"], validation), {
                 **summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]
@@ -253,19 +255,32 @@ class Trainer:
 
         return jax.lax.scan(epoch, state, length=n_epochs)
 
+    @staticmethod
+    def unless_stopped(stopped_at, new, old):
+        """`new` (what training made of `old`: parameters, optimiser state), or `old` where the
+        seed has stopped (`stopped_at` >= 0, `end_epoch`): a stopped seed's parameters no longer
+        change, while the seeds beside it in the vmapped program train on."""
+        return jax.tree.map(lambda a, b: jnp.where(stopped_at >= 0, b, a), new, old)
+
     def end_epoch(self, state, params, opt_state, loss, validation) -> dict[str, Any]:
         """The state after an epoch that trained `params` to `loss` and `validation` (`evaluate`'s
-        on the validation set): the best-validation parameters kept, the curves written."""
+        on the validation set): the best-validation parameters kept, the curves written, and the
+        seed stopped once `config.patience` epochs have passed without a better validation
+        accuracy (early stopping; the seed's best-validation parameters are its result)."""
         e = state["epoch"]
         val = self.selection_metric(validation["accuracy"])
         better = val > state["best_val"]
+        best_epoch = jnp.where(better, e, state["best_epoch"])
+        patience = self.config.patience
+        stop = (state["stopped_at"] < 0) & (patience > 0) & (e - best_epoch >= patience)
         hist = state["history"]
         return {
             "params": params,
             "opt_state": opt_state,
             "best_params": jax.tree.map(lambda a, b: jnp.where(better, a, b), params, state["best_params"]),
             "best_val": jnp.where(better, val, state["best_val"]),
-            "best_epoch": jnp.where(better, e, state["best_epoch"]),
+            "best_epoch": best_epoch,
+            "stopped_at": jnp.where(stop, e, state["stopped_at"]),
             "epoch": e + 1,
             "key": state["key"],
             "history": {"train_loss": hist["train_loss"].at[e].set(loss), "val_acc": hist["val_acc"].at[e].set(val)},
@@ -279,7 +294,10 @@ class Trainer:
     @staticmethod
     def finished(state, evaluations: Mapping[str, Any]) -> dict[str, Any]:
         """`finish`'s metrics from the best-validation model's `evaluations` ({name: `evaluate`'s})."""
-        return {**state["history"], "best_epoch": state["best_epoch"], "best_val_acc": state["best_val"], "eval": dict(evaluations)}
+        return {
+            **state["history"], "best_epoch": state["best_epoch"], "stopped_at": state["stopped_at"], "best_val_acc": state["best_val"],
+            "eval": dict(evaluations),
+        }
 
 
 def make_trainer(
@@ -482,6 +500,12 @@ class TimeAccount:
         return {**self.seconds, "compile_s": _build_seconds[0] - self._built}
 
 
+def stopped(state) -> bool:
+    """Whether every seed of a run has stopped early (`Trainer.end_epoch`): its remaining epochs
+    would change nothing."""
+    return bool(np.all(jax.device_get(state["stopped_at"]) >= 0))
+
+
 def seed_keys(seeds: Sequence[int]) -> jax.Array:
     return jnp.stack([jax.random.PRNGKey(int(s)) for s in seeds])
 
@@ -543,8 +567,10 @@ def train_and_evaluate(
     save_every = save_every or config.epochs
     # one epoch per call wherever curves were asked for, written or not (tensorboardX is optional):
     # each epoch's wall time is then its own, the first's with the compilation, in every install
-    chunk = 1 if log_dir is not None else save_every
-    while done < config.epochs:
+    # early stopping: a chunk ends at most `patience` epochs after a seed could have stopped, and
+    # the run ends when every seed has (`stopped`)
+    chunk = 1 if log_dir is not None else min(save_every, config.patience or save_every)
+    while done < config.epochs and not stopped(state):
         n = min(chunk, save_every - done % save_every, config.epochs - done)
         t0 = time.perf_counter()
         with account.phase("epochs_s"):
@@ -555,7 +581,7 @@ def train_and_evaluate(
         if writer is not None:
             writer.write(history, done, done + n)
         done += n
-        if mngr is not None and (done % save_every == 0 or done == config.epochs):
+        if mngr is not None and (done % save_every == 0 or done == config.epochs or stopped(state)):
             with account.phase("save_s"):
                 checkpoint.save(mngr, done, state, run_meta)
             if on_save is not None:

@@ -27,7 +27,7 @@ from absl import logging
 from fabricjax import archive, checkpoint, data, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.studies.common import documents, loading, plan
+from fabricjax.studies.common import documents, loading, plan, recipe
 from fabricjax.workspace import Location
 
 if TYPE_CHECKING:
@@ -215,6 +215,7 @@ class Row:
     results: train.Results
     seconds: float
     checkpoint: Path | None = None
+    recipe: dict[str, Any] | None = None  # how its recipe was chosen on validation (`recipe.document`), where it was
 
     def accuracy(self, split: str, head: str = "fabric") -> np.ndarray:
         return np.asarray(self.results.metrics["eval"][split]["accuracy"][head], np.float64)
@@ -234,6 +235,8 @@ class Row:
             "wall_s": self.seconds,
             "time": self.results.metrics["time"],
             "best_epoch": np.asarray(self.results.metrics["best_epoch"]).tolist(),
+            "stopped_at": np.asarray(self.results.metrics["stopped_at"]).tolist(),
+            "recipe": self.recipe,
             "epochs": {t: [[None if np.isnan(x) else float(x) for x in s] for s in v] for t, v in self.results.metrics["epochs"].items()},
             "accuracy": {s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()} for s in ("val", *splits)},
             "predictions": {s: {h: np.asarray(p).tolist() for h, p in ev[s]["predictions"].items()} for s in splits},
@@ -256,6 +259,26 @@ def train_row(
     t0 = time.perf_counter()
     results = train.train_and_evaluate(config, row_sets, seeds, workdir=checkpoint_dir, log_dir=log_dir)
     return Row(name, config, results, time.perf_counter() - t0, Path(checkpoint_dir) if checkpoint_dir else None)
+
+
+def train_fitted(
+    study: str, name: str, config: Config, sets: Mapping[str, data.SequenceSet], seeds: Sequence[int], eval_splits: Sequence[str],
+    workdir=None, checkpoints: bool = False,
+) -> Row:
+    """`train_row` of every point of `config`'s recipe grid (`recipe.points`), the point the
+    validation split prefers kept (`recipe.choose`); its time is the whole grid's. A config
+    without a grid is one point, reported as is."""
+    configs = recipe.points(config)
+    grid = []
+    for point in configs:
+        sub = name if len(configs) == 1 else f"{name}/{recipe.point_name(point)}"
+        grid.append(train_row(
+            name, point, sets, seeds, eval_splits,
+            checkpoint_dir=checkpoint_dir(study, name, point, seeds, workdir) if checkpoints else None,
+            log_dir=workspace.logs_dir(study, sub, workdir),
+        ))
+    chosen = recipe.choose(grid)
+    return dataclasses.replace(chosen, seconds=sum(r.seconds for r in grid), recipe=recipe.document(config, grid, chosen))
 
 
 def checkpoint_dir(study: str, row: str, config: Config, seeds: Sequence[int], workdir=None) -> Path:
@@ -330,11 +353,7 @@ def train_rows(
             ds.layout_s += time.perf_counter() - t0
             laid_out.add(camera)
         progress.start(label(name))
-        trained[name] = row = train_row(
-            name, config, ds.sets, seeds, eval_splits,
-            checkpoint_dir=checkpoint_dir(study, name, config, seeds, workdir) if checkpoints else None,
-            log_dir=workspace.logs_dir(study, name, workdir),
-        )
+        trained[name] = row = train_fitted(study, name, config, ds.sets, seeds, eval_splits, workdir, checkpoints)
         progress.finish(label(name), row.seconds, summary(row))
     return Trained(ds, {name: trained[name] for name, _ in rows})
 

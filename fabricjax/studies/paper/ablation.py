@@ -32,7 +32,7 @@ from absl import logging
 
 from fabricjax import catalog, data, plots, stats
 from fabricjax.config import MODALITY_NAMES
-from fabricjax.studies.common import documents, findings, linear_probe, loading, runner
+from fabricjax.studies.common import documents, findings, linear_probe, loading, recipe, runner
 from fabricjax.studies.common.runner import StudyRow
 
 TITLE, PAPER = "Modality ablation", "Table ablation_table"  # how results name the study, and what of the paper it reproduces
@@ -260,6 +260,7 @@ def markdown(doc: dict[str, Any]) -> str:
         "concatenated features normalised by a LayerNorm instead of the paper's per-sequence [0, 1] rescale "
         "(`Config.fusion_norm`); the paper column repeats the paper's row with the same inputs for reference.",
         "",
+        *recipe.markdown(doc["rows"]),
         "## Findings checklist (the paper's claims about this table)",
         "",
         findings.markdown(doc["findings"], counted=not documents.counts_no_claims(doc)),
@@ -337,6 +338,7 @@ def _recorded_markdown(doc: dict[str, Any]) -> str:
         f"(`experiments.probe`), on the same sequences. Within-sequence share of each input's variance: {steadiness}.",
         "",
         *recorded_notes(doc),
+        *recipe.markdown(doc["rows"]),
     ]
     w = doc["wilcoxon"]
     if w:
