@@ -74,7 +74,7 @@ from tqdm import tqdm
 
 from acquisition import hand_folder, mapping_file, ros_bag, rig as rig_mod
 from acquisition.alignment import ReferenceSource, parse_reference, session_of
-from fabricjax import archive, cli, parallel
+from fabricjax import archive, cli, parallel, provenance
 from fabricjax.atomic import atomic_open
 from fabricjax.errors import UserError
 
@@ -461,6 +461,9 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
             os.replace(s.target, j.target)
         for p in stale:
             p.unlink()
+        source = provenance.from_readme(Path(manifest).parent)
+        if source is not None:
+            provenance.write(out, source)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     notes: dict[str, Counter] = defaultdict(Counter)

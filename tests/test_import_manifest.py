@@ -645,3 +645,38 @@ def test_killing_the_import_ends_its_workers_and_a_rerun_removes_what_it_left(tm
     assert list(out.glob(".import-*.partial")) and not list(out.glob("*.npz"))  # staged, never in DIR
     summary, _ = _run(manifest, out)
     assert summary["imported"] == 18 and not list(out.glob(".*"))
+
+
+README = """demo_rig: contact sound of three materials
+
+What was recorded
+  Three materials rubbed by a probe (Doe et al., 2030).
+
+Source
+  example.org/demo (commit abc)
+
+Channels
+  one microphone at 2.2 kHz
+
+License
+  research use only; cite Doe et al. 2030.
+"""
+
+
+def test_the_readme_beside_the_manifest_gives_every_results_page_its_source_and_terms(recordings, tmp_path):
+    """The data's own words on where it comes from and on what terms reach the import's folder
+    and the top of a results page; a section on anything else does not."""
+    root = tmp_path / "rig"
+    shutil.copytree(recordings.parent, root)
+    (root / "README.txt").write_text(README)
+    out = tmp_path / "archives"
+    _run(root / recordings.name, out)
+    from fabricjax import provenance
+    from fabricjax.studies.common import documents
+
+    source = provenance.read(out)
+    assert source["title"] == "demo_rig: contact sound of three materials"
+    assert source["sections"] == {"What was recorded": "Three materials rubbed by a probe (Doe et al., 2030).",
+                                  "Source": "example.org/demo (commit abc)", "License": "research use only; cite Doe et al. 2030."}
+    line = documents.data_markdown("default", {"source": "recorded", "folder": "x", "classes": LABELS, "trials": {}, "sequences": {}, "provenance": source})
+    assert "**License**: research use only; cite Doe et al. 2030." in line and "2.2 kHz" not in line

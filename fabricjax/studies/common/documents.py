@@ -22,7 +22,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from fabricjax import data, presets, runtime, stats, workspace
+from fabricjax import data, presets, provenance, runtime, stats, workspace
 from fabricjax.atomic import atomic_open
 from fabricjax.studies.common.loading import Dataset
 
@@ -198,8 +198,9 @@ def data_time_markdown(d: dict[str, Any]) -> str:
 def data_markdown(preset: str, d: dict[str, Any]) -> str:
     """The preset and the dataset (`dataset_doc`) a study read."""
     if d["source"] == "recorded":
-        return (f"- preset: {preset}; recorded data `{d['folder']}` ({len(d['classes'])} classes, chance "
+        line = (f"- preset: {preset}; recorded data `{d['folder']}` ({len(d['classes'])} classes, chance "
                 f"{100 / len(d['classes']):.1f} %); trials {d['trials']}; sequences {d['sequences']}")
+        return line + ("\n" + provenance.markdown(d["provenance"]) if "provenance" in d else "")
     return f"- preset: {preset}; {d['source']} dataset `{d['folder']}`; sequences {d['sequences']}"
 
 
@@ -232,6 +233,7 @@ def dataset_doc(ds: Dataset) -> dict[str, Any]:
         "trials": {k: c["trials"] for k, c in ds.split_counts().items()},
         "classes": list(ds.classes),
         **({"names": dict(next(iter(ds.sets.values())).names)} if ds.recorded else {}),  # how the data names its streams
+        **({"provenance": source} if ds.recorded and (source := provenance.read(ds.folder)) else {}),  # its README's source and terms
     }
 
 
