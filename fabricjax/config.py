@@ -112,6 +112,12 @@ class Config:
     # early stopping: a seed stops after this many epochs without a better validation accuracy and
     # keeps its best-validation parameters (0: every seed trains all `epochs`, the paper's recipe)
     patience: int = 0
+    # the training budget and the patience in optimiser steps per seed, whatever the data's size (0:
+    # `epochs` and `patience` as given): the data a study loads sets `epochs` and `patience` to the
+    # fewest epochs that cover them (`loading.Dataset.fit`), so a small dataset gets as many updates
+    # as a large one instead of as many passes
+    train_steps: int = 0
+    patience_steps: int = 0
     # the recipe chosen by validation accuracy (`studies.common.recipe`): each learning rate and width of
     # these grids is trained, and a row keeps the best; empty: `learning_rate` and `width` as they are
     lr_grid: tuple[float, ...] = ()
@@ -163,6 +169,8 @@ class Config:
             raise ValueError(f"n_classes must be at least 2, got {self.n_classes}")
         if any(not 0 < lr < 1 for lr in self.lr_grid) or any(w < 1 for w in self.width_grid):
             raise ValueError(f"lr_grid holds learning rates in (0, 1) and width_grid widths >= 1, got {self.lr_grid} and {self.width_grid}")
+        if self.train_steps < 0 or self.patience_steps < 0:
+            raise ValueError(f"train_steps and patience_steps must be 0 (epochs as given) or numbers of optimiser steps, got {self.train_steps}, {self.patience_steps}")
         if self.patience < 0:
             raise ValueError(f"patience must be 0 (no early stopping) or a number of epochs, got {self.patience}")
         if self.seq_len < 1:

@@ -16,21 +16,22 @@ def rows(preset, *modalities):
 def test_missing_trials_are_timed_on_this_host_and_their_disk_counted(tmp_path):
     spec = presets.get("smoke").dataset
     stages = plan.stages("smoke", rows("smoke", ("internal",), ("flow", "internal")), 2, tmp_path)
-    sim, features, sequences, training = stages
+    sim, features, sequences, *training = stages
     n = len(spec.trials())
     assert sim.name.startswith(f"simulation ({n} of {n} trials missing)") and sim.seconds > 0
     assert sim.disk_bytes == n * sim_dataset.trial_bytes(spec, True)
     assert features.seconds > 0 and features.disk_bytes > 0 and "flow " in features.basis
     assert "does not fit" in plan.markdown("smoke", stages, 2, 2, free_bytes=1)
     assert sequences.disk_bytes == 0 and "held in memory" in sequences.basis
-    assert training.seconds is None  # no published run of this recipe
+    assert len(training) == 2 and all(t.seconds is None for t in training)  # one stage per row; no published run of this model
     assert "peak host memory" in sequences.basis
     text = plan.markdown("smoke", stages, 2, 2, free_bytes=1e15)
     assert text.startswith("Plan: 2 rows x 2 seeds on preset 'smoke'") and "and more (a stage is unknown)" in text
 
 
 def test_training_is_extrapolated_from_the_published_sample_per_row(tmp_path, monkeypatch):
-    """Seconds per sequence, epoch and seed of the same row and recipe, times this run's counts, plus its compilation."""
+    """Seconds per sequence, epoch and seed of a published row of the same inputs and model, times
+    this run's counts and grid points, plus their compilation; another model is not extrapolated."""
     sample = Config.from_preset("paper_sample", modalities=("internal",))
     doc = {
         "machine": {"cpu": "AMD EPYC", "cores": 2}, "date": "2026-11-27", "dataset": {"sequences": {"train": 70}},
@@ -40,6 +41,28 @@ def test_training_is_extrapolated_from_the_published_sample_per_row(tmp_path, mo
     path = tmp_path / "ablation.json"
     path.write_text(json.dumps(doc))
     monkeypatch.setattr(plan, "SAMPLE_RESULTS", path)
-    training = plan._training(rows("paper", ("internal",)), 5, 1000)
+    monkeypatch.setattr(plan, "REPRODUCE_MANIFEST", tmp_path / "absent.json")
+    (training,) = plan.training(rows("paper", ("internal",)), 5, 1000)
     assert abs(training.seconds - (10.0 + 1000 * sample.epochs * 5 * 0.01)) < 1e-6 and "AMD EPYC" in training.basis
-    assert plan._training(rows("default", ("internal",)), 5, 1000).seconds is None  # another recipe: not extrapolated
+    assert plan.training(rows("default", ("internal",)), 5, 1000)[0].seconds is None  # another model: not extrapolated
+    grid = dataclasses.replace(Config.from_preset("paper", modalities=("internal",)), lr_grid=(1e-3, 3e-3), width_grid=(32, 64))
+    (fitted,) = plan.training([("internal", grid)], 5, 1000)
+    assert abs(fitted.seconds - 4 * training.seconds) < 1e-6 and "4 grid points" in fitted.basis
+
+
+def test_the_published_manifest_gives_each_rows_rate_and_a_step_budget_its_epochs(tmp_path, monkeypatch):
+    """A row of the default preset's fitted recipe: at most the epochs that cover its step budget
+    on this run's sequences, at the rate the published reproduce manifest recorded for its inputs."""
+    config = Config.from_preset("default", modalities=("proprio",))
+    doc = {"dataset": {"sequences": {"train": 1600}}, "rows": [{
+        "config": config.to_json(), "seeds": [0, 1], "wall_s": 5.0 + 1600 * 3 * 2 * 1e-4, "time": {"compile_s": 5.0},
+        "recipe": {"grid": [{"epochs_trained": [2, 3]}]},
+    }]}
+    manifest = {"ablation": {"rates": plan.rates(doc), "machine": "AMD EPYC, 2 cores", "finished": "2026-11-27 12:00 UTC"}}
+    (tmp_path / "reproduce.json").write_text(json.dumps(manifest))
+    monkeypatch.setattr(plan, "REPRODUCE_MANIFEST", tmp_path / "reproduce.json")
+    monkeypatch.setattr(plan, "SAMPLE_RESULTS", tmp_path / "absent.json")
+    (stage,) = plan.training([("proprio", config)], 5, 1600)
+    epochs = -(-config.train_steps // (1600 // config.batch_size))
+    assert abs(stage.seconds - (5.0 + 1e-4 * 1600 * epochs * 5)) < 1e-6
+    assert f"at most {epochs} epochs" in stage.basis and "AMD EPYC" in stage.basis

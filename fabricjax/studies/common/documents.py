@@ -204,6 +204,11 @@ def data_markdown(preset: str, d: dict[str, Any]) -> str:
     return f"- preset: {preset}; {d['source']} dataset `{d['folder']}`; sequences {d['sequences']}"
 
 
+def machine_line(m: dict[str, Any]) -> str:
+    """The machine (`machine`) in a few words: its CPU, cores and JAX's devices."""
+    return f"{m['cpu']}, {m['cores']} cores, JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)"
+
+
 def machine_markdown(m: dict[str, Any]) -> str:
     """The machine (`machine`) a study ran on."""
     return (f"- machine: {m['cpu']} ({', '.join(m.get('vector_units') or ['vector units not recorded'])}), {m['cores']} cores, "

@@ -52,9 +52,17 @@ class Dataset:
         return next(iter(self.sets.values())).window_s
 
     def fit(self, config: Config) -> Config:
-        """`config` as trained on this data: its classes (the fabric head's size) and its
-        microphones' step window, so a checkpoint's config says what its features were."""
-        return dataclasses.replace(config, n_classes=self.n_classes, mic_window_s=self.window_s)
+        """`config` as trained on this data: its classes (the fabric head's size), its
+        microphones' step window, so a checkpoint's config says what its features were, and,
+        where it gives its budget or patience in optimiser steps (`Config.train_steps`,
+        `patience_steps`), the epochs that cover them on this data's training split."""
+        fitted = dataclasses.replace(config, n_classes=self.n_classes, mic_window_s=self.window_s)
+        n_train = len(self.sets["train"])
+        if config.train_steps:
+            fitted = dataclasses.replace(fitted, epochs=epochs_for(config, config.train_steps, n_train))
+        if config.patience_steps:
+            fitted = dataclasses.replace(fitted, patience=epochs_for(config, config.patience_steps, n_train))
+        return fitted
 
     @property
     def recorded(self) -> bool:
@@ -63,6 +71,13 @@ class Dataset:
     def split_counts(self) -> dict[str, dict[str, int]]:
         """Trials and sequences per split."""
         return {k: {"trials": len(set(v.info["trial_key"].tolist())), "sequences": len(v)} for k, v in self.sets.items()}
+
+
+def epochs_for(config: Config, steps: int, n_train: int) -> int:
+    """The fewest epochs whose optimiser steps on `n_train` training sequences cover `steps`
+    (an epoch's steps as `train.total_steps` counts them)."""
+    per_epoch = max(n_train // min(config.batch_size, max(n_train, 1)), 1)
+    return max(1, -(-steps // per_epoch))
 
 
 def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS) -> Dataset:

@@ -38,16 +38,24 @@ from fabricjax.features import flow, welch
 from fabricjax.sim import dataset as sim_dataset
 from fabricjax.sim.trial import simulate
 from fabricjax.splits import DatasetSpec
-from fabricjax.studies.common import documents
+from fabricjax.studies.common import documents, loading, recipe
 
 # The published run the training line is extrapolated from (`python -m experiments.ablation
 # --preset=paper_sample --seeds=5 --results=results/paper_sample`).
 SAMPLE_RESULTS = Path(__file__).resolve().parents[3] / "results" / "paper_sample" / "ablation.json"
+# The manifest of the published `python -m experiments.reproduce --results=results`: each training
+# study's rate per row (`rates`), measured on the default preset.
+REPRODUCE_MANIFEST = SAMPLE_RESULTS.parents[1] / "reproduce.json"
 PROBE_FRAMES = 16  # frames each camera feature is timed on (two of flow's chunks)
 PROBE_CYCLES = 2  # rubbing cycles of the probe's trial: its closing's share of the time stays small
-# Config fields a row of the published sample may differ in and still give this run's rate: the
-# data's own (preset, classes, step window) and where inputs are read from (the same bits)
-RATE_NEUTRAL = ("preset", "n_classes", "mic_window_s", "input_source")
+# Config fields a published row may differ in and still give this run's seconds per sequence, epoch
+# and seed: the data's own (preset, classes, step window, band, holdouts), where inputs are read from
+# (the same bits), and the recipe (the width's share of the time is small beside the inputs' encoders)
+RATE_NEUTRAL = (
+    "preset", "n_classes", "mic_window_s", "input_source", "bandwidth_khz", "exclude_fabrics",
+    "epochs", "patience", "train_steps", "patience_steps", "lr_grid", "width_grid", "learning_rate", "width", "lr_schedule",
+    "warmup_steps", "weight_decay", "dropout",
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,34 +107,67 @@ def _bytes_per_step(config: Config, image_size: tuple[int, int]) -> float:
     return out
 
 
-def _training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequences: int) -> Stage:
+def _published_rates() -> list[tuple[str, dict[str, dict[str, float]]]]:
+    """(where from, {rate key: rate}) of every published training run: each study of the
+    repository's `REPRODUCE_MANIFEST`, then the paper_sample run (`SAMPLE_RESULTS`)."""
+    out = []
+    try:
+        manifest = json.loads(REPRODUCE_MANIFEST.read_text())
+        for study, entry in manifest.items():
+            if entry.get("rates"):
+                out.append((f"{study} in {workspace.shown(REPRODUCE_MANIFEST)} ({entry.get('machine', 'host not recorded')}, {entry['finished']})", entry["rates"]))
+    except (OSError, ValueError):
+        pass
     try:
         sample = json.loads(SAMPLE_RESULTS.read_text())
-    except (OSError, ValueError):
-        return Stage("training", 0, None, f"unknown before the run: no published run of the paper_sample preset ({workspace.shown(SAMPLE_RESULTS)})")
-    measured = {r["name"]: r for r in sample.get("rows", [])}
-    n_sample = sample["dataset"]["sequences"]["train"]
-    total, missing = 0.0, []
+        out.append((f"{workspace.shown(SAMPLE_RESULTS)} ({sample['machine'].get('cpu')}, {sample['machine'].get('cores')} cores, {sample['date']})", rates(sample)))
+    except (OSError, ValueError, KeyError):
+        pass
+    return out
+
+
+def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequences: int) -> list[Stage]:
+    """One stage per row: its grid points (`recipe.points`) times its compilation and the cap of
+    its epochs on `train_sequences` (`loading.epochs_for`; early stopping ends sooner) times the
+    published rate of a row with the same inputs and model (`rates`). A row no published run
+    matches is unknown until the run's own progress log gives its ETA."""
+    published = _published_rates()
+    out = []
     for name, config in configs:
-        row = measured.get(name)
-        if row is None or _recipe(row["config"]) != _recipe(config.to_json()):
-            missing.append(name)
+        key = rate_key(config.to_json())
+        source, rate = next(((src, r[key]) for src, r in published if key in r), (None, None))
+        points = recipe.points(config)
+        epochs = loading.epochs_for(config, config.train_steps, train_sequences) if config.train_steps else config.epochs
+        grid = f"{len(points)} grid points x " if len(points) > 1 else ""
+        if rate is None:
+            out.append(Stage(f"training {name}", 0, None, f"unknown before the run: no published run of these inputs and this model; {grid}at most {epochs} epochs"))
             continue
-        compile_s = row["time"]["compile_s"]
-        per_unit = (row["wall_s"] - compile_s) / (n_sample * row["config"]["epochs"] * len(row["seeds"]))
-        total += compile_s + per_unit * train_sequences * config.epochs * n_seeds
-    machine = sample["machine"]
-    basis = (f"seconds per training sequence, epoch and seed of each row in {workspace.shown(SAMPLE_RESULTS)} "
-             f"({machine.get('cpu')}, {machine.get('cores')} cores, {sample['date']}), times {train_sequences} sequences")
-    if missing:
-        basis += f"; rows it did not run with this recipe ({', '.join(missing)}) not counted"
-    if len(missing) == len(configs):
-        return Stage("training", 0, None, "unknown before the run: the published run of the paper_sample preset trained other recipes")
-    return Stage("training", 0, total, basis)
+        seconds = len(points) * (rate["compile_s"] + rate["per_unit_s"] * train_sequences * epochs * n_seeds)
+        out.append(Stage(f"training {name}", 0, seconds, f"{grid}at most {epochs} epochs (early stopping ends sooner) of {train_sequences} sequences x "
+                         f"{n_seeds} seeds at {1e6 * rate['per_unit_s']:.0f} us per sequence, epoch and seed, as measured by {source}"))
+    return out
 
 
-def _recipe(config: dict[str, Any]) -> dict[str, Any]:
-    return {k: json.dumps(v) for k, v in config.items() if k not in RATE_NEUTRAL}
+def rate_key(config: dict[str, Any]) -> str:
+    """What decides a row's seconds per sequence, epoch and seed besides the host: its inputs and
+    model; not its data's size and classes, nor its recipe (`RATE_NEUTRAL`)."""
+    return json.dumps({k: v for k, v in sorted(config.items()) if k not in RATE_NEUTRAL})
+
+
+def rates(doc: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """Per row of a training study's results document (keyed by `rate_key`): its seconds per
+    training sequence, epoch run and seed, and its compilation per grid point; what `training`
+    scales a later run's rows by. An epoch run is one the vmapped program went through (until
+    every seed had stopped), summed over the row's grid points."""
+    n_train = doc["dataset"]["sequences"]["train"]
+    out = {}
+    for row in doc["rows"]:
+        grid = (row.get("recipe") or {}).get("grid") or [{"epochs_trained": [row["config"]["epochs"]]}]
+        epochs_run = sum(max(p["epochs_trained"]) for p in grid)
+        compile_s = row["time"].get("compile_s", 0.0)
+        units = n_train * epochs_run * len(row["seeds"])
+        out[rate_key(row["config"])] = {"per_unit_s": max(row["wall_s"] - compile_s, 0.0) / max(units, 1), "compile_s": compile_s / len(grid)}
+    return out
 
 
 def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, workdir=None) -> list[Stage]:
@@ -168,8 +209,7 @@ def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, wor
         f"{loaded / 1e9:.1f} GB loaded: " + ("more than half of memory, so memory-mapped files in the workspace, read a block at a time" if to_disk else "held in memory")
         + f"; peak host memory for training inputs {peak / 1e9:.1f} GB",
     ))
-    out.append(_training(configs, n_seeds, train_sequences))
-    return out
+    return out + training(configs, n_seeds, train_sequences)
 
 
 def markdown(preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int, free_bytes: float) -> str:

@@ -95,6 +95,8 @@ def line(doc: dict[str, Any]) -> str:
     if doc["patience"]:
         span = f"{min(epochs)}-{max(epochs)}" if min(epochs) != max(epochs) else f"{epochs[0]}"
         text += f"; {span} epochs of at most {doc['max_epochs']} (early stopping after {doc['patience']} without a better validation)"
+    else:
+        text += f"; {doc['max_epochs']} epochs (no early stopping)"
     return text
 
 

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence, TypeVar
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, checkpoint, data, source, stats, train, workspace
+from fabricjax import archive, checkpoint, data, presets, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, loading, plan, recipe
@@ -334,7 +334,10 @@ def train_rows(
     ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
     if check is not None:
         check(ds)
-    rows = [(name, ds.fit(config)) for name, config in rows]  # the data's classes and step window
+    rows = [(name, ds.fit(config)) for name, config in rows]  # the data's classes, step window and epochs
+    if ds.recorded:  # what training will take, now that the data's size is known
+        stages = plan.training(rows, len(seeds), len(ds.sets["train"]))
+        print(plan.markdown(f"{rows[0][1].preset} on recorded data", stages, len(rows), len(seeds), plan.free_disk(workdir)), flush=True)
     if data_names and ds.recorded:
         names, inputs = next(iter(ds.sets.values())).names, {n: c.modalities for n, c in rows}
         label = lambda name: f"{name} ({data.inputs_name(inputs[name], names)})"  # noqa: E731
@@ -456,6 +459,8 @@ def run_study(
     The plan (`plan.stages`) is printed first; `plan_only` stops there, writing it as results/plan.md."""
 
     overrides = check_overrides(study.name, overrides, study.rows, study.choose_rows)
+    if where.data_dir:  # the preset's recipe for recorded data, beneath the command line's
+        overrides = {**presets.get(preset).recorded_training, **overrides}
     chosen = select_rows(study.rows, rows)
     seeds = seed_list(study.n_seeds if n_seeds is None else n_seeds)
     own = dict(study.recorded_settings) if where.data_dir else {}

@@ -51,6 +51,7 @@ from fabricjax import archive, dataset_index, presets, source, splits, stats, wo
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, findings
+from fabricjax.studies.common.plan import rates as training_rates
 from fabricjax.studies.extra import day_shift, decide, probe, sensitivity
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
 from fabricjax.workspace import Location
@@ -278,19 +279,21 @@ def run(
             checkpoint = ",".join(folders)
         cmd = command(step, preset, overrides, out, checkpoint, data_dir, workdir)
         kwargs = dict(where=dataclasses.replace(where, results=out, command=cmd))
+        doc = None
         if step.study == "latents":
             latents.run(checkpoint, **kwargs)
         elif step.study == "decide":
             decide.run(folders, names=names, **kwargs)
         else:
             seeds = {"n_seeds": step.seeds} if step.seeds else {}
-            STUDIES[step.study].run(**seeds, preset=preset, rows=step.rows, overrides=overrides, **kwargs)
+            doc = STUDIES[step.study].run(**seeds, preset=preset, rows=step.rows, overrides=overrides, **kwargs)
         wall = time.perf_counter() - t0
         manifest[step.study] = {
             "key": keys[step.study], "wall_s": wall, "command": cmd,
             "finished": documents.utc_now(),
-            # what an estimate of a later run scales from
+            # what an estimate of a later run scales from: the study's, and each training row's (`plan.rates`)
             "preset": preset, "seeds": step.seeds, "rows": len(step.rows) if step.rows else _n_rows(step.study),
+            **({"rates": training_rates(doc), "machine": documents.machine_line(doc["machine"])} if doc and step.seeds else {}),
         }
         documents.write_json(manifest_path, manifest)
         say(f"reproduce: {step.study} done in {_minutes(wall)}")
@@ -430,7 +433,7 @@ def headline(out: Path, manifest: Mapping[str, Any], preset: str, command_line: 
     m = abl["machine"]
     return {
         "command": command_line, "preset": preset, "recorded": recorded, "date": documents.utc_now(), "code": documents.git_commit(),
-        "machine": f"{m['cpu']}, {m['cores']} cores, JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)",
+        "machine": documents.machine_line(m),
         "wall_s": sum(e["wall_s"] for s, e in manifest.items() if s in STUDIES), "seeds": len(abl["seeds"]), "rows": rows, "claims": claims,
     }
 
