@@ -343,11 +343,23 @@ def narrow(sets: dict[str, SequenceSet], config: Config) -> dict[str, SequenceSe
     }
 
 
-def _check_bands(config: Config, rates: Mapping[str, int], names: Mapping[str, str]) -> None:
+_SAID: set[tuple] = set()
+
+
+def _first_time(what: tuple) -> bool:
+    """Whether this process has not yet said `what`: a fact of the data (a microphone's rate
+    below the band asked for) is said once, not again for every study that loads it."""
+    first = what not in _SAID
+    _SAID.add(what)
+    return first
+
+
+def _check_bands(config: Config, rates: Mapping[str, int], names: Mapping[str, str], folder=None) -> None:
     """Refuse a step window too short for a spectrum; state a window that gives few bins (a short
     duration at a low rate) and a bandwidth above a microphone's Nyquist (the PSD stops there);
     refuse two microphones whose bands give the shared audio encoder different bin counts.
-    `names`: each audio modality's microphone, as the data names it."""
+    `names`: each audio modality's microphone, as the data names it; the bandwidth is said once per
+    dataset `folder` and microphone in a process."""
     for m, rate in rates.items():
         window = window_of(config, rate)
         ms, full = 1e3 * config.mic_window_s, welch.full_bins(window)
@@ -359,7 +371,7 @@ def _check_bands(config: Config, rates: Mapping[str, int], names: Mapping[str, s
                             "%.1f Hz apart); a longer window (--set mic_window_s=..., or the rig file's steps.mic_window_s) gives a finer spectrum", names[m], ms, window, rate,
                             full, archive.nyquist_khz(rate), rate / welch.nperseg(window))
         nyquist = archive.nyquist_khz(rate)
-        if config.bandwidth_khz > nyquist:
+        if config.bandwidth_khz > nyquist and _first_time(("nyquist", str(folder), names[m], config.bandwidth_khz)):
             logging.warning("bandwidth %g kHz is above the %s microphone's Nyquist (%g kHz at %d Hz): its PSD is capped at "
                             "0-%g kHz (%d bins)", config.bandwidth_khz, names[m], nyquist, rate, nyquist, full)
     bins = {m: welch.n_bins(config.bandwidth_khz, r, window_of(config, r)) for m, r in rates.items()}
@@ -397,7 +409,7 @@ def load_sequences(
     rates = check_streams(index, [e for e, _ in chosen], config.modalities)
     config = dataclasses.replace(config, mic_window_s=step_window_s(config, index, [e for e, _ in chosen]))
     lay = archive.layout(chosen[0][0].meta)
-    _check_bands(config, rates, {m: lay.mics[lay.mic(m)].name for m in rates})
+    _check_bands(config, rates, {m: lay.mics[lay.mic(m)].name for m in rates}, index.root)
     n = config.seq_len
     for e, _ in chosen:
         if n_sequences(e, n) == 0:

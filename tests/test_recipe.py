@@ -58,7 +58,7 @@ def test_no_patience_never_stops():
 
 @pytest.mark.parametrize("from_host", [False, True], ids=["devices", "host"])
 def test_a_stopped_seed_no_longer_changes_while_the_others_train(from_host):
-    """Two seeds in one vmapped program, the first marked stopped: two more epochs leave its
+    """Two seeds in one vmapped program, the first marked stopped: another epoch leaves its
     parameters and optimiser state bit for bit, and change the other's; on the devices and when
     fed from the host (`feed.HostFed`)."""
     cfg = dataclasses.replace(TINY, patience=2)
@@ -70,10 +70,10 @@ def test_a_stopped_seed_no_longer_changes_while_the_others_train(from_host):
     before = jax.tree.map(np.array, (state["params"], state["opt_state"]))
     if from_host:
         fed = feed.HostFed(trainer, sharding.replicated(mesh))
-        after, _ = fed.run(state, {"train": sets["train"], "val": sets["val"]}, n_epochs=2)
+        after, _ = fed.run(state, {"train": sets["train"], "val": sets["val"]}, n_epochs=1)
     else:
         data, _ = train.prepare(cfg, sets["train"], sets["val"], {}, sharding.replicated(mesh))
-        after, _ = jax.jit(jax.vmap(lambda s, d: trainer.run(s, d, 2), in_axes=(0, None)))(state, data)
+        after, _ = jax.jit(jax.vmap(lambda s, d: trainer.run(s, d, 1), in_axes=(0, None)))(state, data)
     for old, new in zip(jax.tree.leaves(before), jax.tree.leaves((after["params"], after["opt_state"]))):
         np.testing.assert_array_equal(np.asarray(new)[0], old[0])
     moved = [not np.array_equal(np.asarray(new)[1], old[1]) for old, new in zip(jax.tree.leaves(before[0]), jax.tree.leaves(after["params"]))]
@@ -114,7 +114,7 @@ def test_a_corrupted_test_split_changes_no_choice(monkeypatch):
     """Every choice (the grid point, each seed's best and stopping epoch, the validation scores)
     is the same whether the test split is the real one or noise with shuffled labels."""
     monkeypatch.setattr(runner.data, "narrow", lambda sets, config: {k: train.select(config, {"inputs": v.inputs, "labels": v.labels}) for k, v in sets.items()})
-    cfg = dataclasses.replace(TINY, patience=2, epochs=8, lr_grid=(1e-4, 3e-3))
+    cfg = dataclasses.replace(TINY, patience=1, epochs=4, lr_grid=(1e-4, 3e-3))
     clean = {k: _Set(v) for k, v in data_sets(cfg).items()}
     rng = np.random.default_rng(7)
     test = clean["test"]

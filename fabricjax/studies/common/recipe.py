@@ -78,10 +78,9 @@ def document(config: Config, grid: Sequence[Row], chosen: Row) -> dict[str, Any]
 
 def epochs_trained(row: Row) -> list[int]:
     """Per seed, the epochs whose training changed its parameters: to the epoch it stopped at
-    (inclusive), else every epoch the run went through."""
-    stopped = np.asarray(row.results.metrics["stopped_at"])
-    ran = np.isfinite(next(iter(row.results.metrics["epochs"].values()))).sum(axis=1)
-    return [int(s + 1) if s >= 0 else int(n) for s, n in zip(stopped, ran)]
+    (inclusive), else all of the run's (`Config.epochs`: a seed that never stopped kept the run
+    going to its cap)."""
+    return [int(s) + 1 if s >= 0 else row.config.epochs for s in np.asarray(row.results.metrics["stopped_at"])]
 
 
 def line(doc: dict[str, Any]) -> str:

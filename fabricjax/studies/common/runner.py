@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence, TypeVar
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, checkpoint, data, presets, source, stats, train, workspace
+from fabricjax import archive, checkpoint, data, dataset_index, presets, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, loading, plan, recipe
@@ -102,6 +102,8 @@ def load_chosen_rows(
     when the data has none and the rows were not asked for by name."""
     overrides = check_overrides(study, overrides, all_rows, "choose them with --rows")
     chosen = select_rows(all_rows, names)
+    if where.data_dir and not names:  # recorded data: the rows it can feed, the others left out in one line
+        chosen = feedable_rows(study, chosen, where)
     configs = [r.config(preset, overrides) for r in chosen]
     loads: dict[tuple, loading.Dataset] = {}
     for key in dict.fromkeys(loading.sequence_key(c) for c in configs):
@@ -126,6 +128,22 @@ def load_chosen_rows(
     kept = [(r, c) for r, c in zip(chosen, configs) if loading.sequence_key(c) in loads]
     datasets = [loads[loading.sequence_key(c)] for _, c in kept]
     return [r for r, _ in kept], [c for _, c in kept], datasets, [s for s in split_names if len(datasets[0].sets[s])]
+
+
+def feedable_rows(study: str, rows: Sequence[StudyRow], where: Location) -> list[StudyRow]:
+    """The rows of `rows` whose inputs the recorded data in `where.data_dir` has, saying in one
+    line which it leaves out and why; none fed is a one-line error."""
+    index = dataset_index.load_index(where.data_dir, where.workdir)
+    lay = archive.layout(index.entries[0].meta)
+    have = set(lay.modalities())
+    fed = [r for r in rows if set(r.modalities) <= have]
+    left = [r.name for r in rows if r not in fed]
+    if not fed:
+        raise UserError(f"{study}: none of its rows can be fed by {where.data_dir}: it has {lay.describe()}")
+    if left:
+        lacking = sorted({m for r in rows for m in r.modalities} - have)
+        logging.warning("%s: %d of its %d rows left out (%s): they need %s, which the data lacks", study, len(left), len(rows), ", ".join(left), ", ".join(lacking))
+    return fed
 
 
 def _apart_from_reading(a: tuple, b: tuple) -> bool:
