@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from acquisition.recording import RecordingImportError, Stream, to_words
+from acquisition.recording import RecordingImportError, Stream, recorded_as, to_words
 from fabricjax import archive
 
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov")
@@ -35,7 +35,7 @@ def read_wav(path: Path, start: float) -> Stream:
     truncated = any("EOF prematurely" in str(w.message) for w in caught)
     if samples.ndim != 1:
         raise RecordingImportError(path, "channels", f"{samples.shape[1]} channels, expected 1 (one file per microphone)")
-    return Stream.from_samples(str(path), int(rate), to_words(samples, path, "samples"), start, truncated)
+    return Stream.from_samples(str(path), int(rate), to_words(samples, path, "samples"), start, truncated, recorded_as(samples, "WAV"))
 
 
 def read_joints_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:

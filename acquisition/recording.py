@@ -35,6 +35,7 @@ class Stream:
     times: np.ndarray  # (K,) float64, increasing
     counts: np.ndarray  # (K,) int64, samples held at each time
     truncated: bool = False  # the file ends before the length its header declares (a cut-off recording)
+    recorded_as: str | None = None  # what the file held before `to_words`, e.g. "16-bit PCM WAV" (None: SPH0645 words)
 
     @classmethod
     def from_chunks(cls, name: str, rate: int, times, chunks: list[np.ndarray]) -> "Stream":
@@ -47,11 +48,20 @@ class Stream:
         return cls(name, rate, np.concatenate(ordered), np.asarray(times, np.float64)[order], counts)
 
     @classmethod
-    def from_samples(cls, name: str, rate: int, samples: np.ndarray, start: float = 0.0, truncated: bool = False) -> "Stream":
+    def from_samples(cls, name: str, rate: int, samples: np.ndarray, start: float = 0.0, truncated: bool = False,
+                     recorded_as: str | None = None) -> "Stream":
         """A continuous recording (a WAV file) whose first sample is at `start`."""
         if len(samples) == 0:
             raise RecordingImportError(name, "audio", "no samples")
-        return cls(name, rate, samples, start + np.arange(len(samples)) / rate, np.arange(1, len(samples) + 1, dtype=np.int64), truncated)
+        return cls(name, rate, samples, start + np.arange(len(samples)) / rate, np.arange(1, len(samples) + 1, dtype=np.int64), truncated, recorded_as)
+
+
+def recorded_as(samples: np.ndarray, container: str) -> str:
+    """What a file's samples were before `to_words`: "16-bit PCM WAV" for int16, "32-bit PCM WAV
+    (read as SPH0645 words)" for int32."""
+    if samples.dtype == np.int16:
+        return f"16-bit PCM {container}, placed in the top 16 of the 18 valid bits"
+    return f"{8 * samples.dtype.itemsize}-bit PCM {container}, read as SPH0645 words"
 
 
 def to_words(samples: np.ndarray, where, field: str) -> np.ndarray:

@@ -255,12 +255,13 @@ def align_rig(
     for k, m in enumerate(mics):
         audio[k, : len(m.samples)] = m.samples
     streams = {
-        "mics": [{"name": rm.name, "rate": int(m.rate), "role": rm.role} for rm, m in zip(rig.mics, mics)],
+        "mics": [{"name": rm.name, "rate": int(m.rate), "role": rm.role} | ({"recorded_as": m.recorded_as} if m.recorded_as else {})
+                 for rm, m in zip(rig.mics, mics)],
         "joints": {"names": list(rig.joint_names), "fields": list(rig.joint_fields), "units": list(rig.joint_units)} if rig.joints_file else None,
         "camera": None if images is None else {"image_size": [int(images.shape[1]), int(images.shape[2])]},
         "force": None,
         "steps": {"clock": clock, "rate": round(rate, 6)} | ({} if rig.mic_window_s is None else {"mic_window_s": rig.mic_window_s}),
-        "audio_format": archive.AUDIO_FORMAT,
+        "audio_format": archive.AUDIO_FORMAT + "".join(f"; {rm.name}: from {m.recorded_as}" for rm, m in zip(rig.mics, mics) if m.recorded_as),
     }
     notes = {"steps_dropped_before_start": first, "steps_dropped_at_end": n - 1 - last, "ignored_columns": ignored_columns}
     if joint_times is not None:

@@ -680,3 +680,28 @@ def test_the_readme_beside_the_manifest_gives_every_results_page_its_source_and_
                                   "Source": "example.org/demo (commit abc)", "License": "research use only; cite Doe et al. 2030."}
     line = documents.data_markdown("default", {"source": "recorded", "folder": "x", "classes": LABELS, "trials": {}, "sequences": {}, "provenance": source})
     assert "**License**: research use only; cite Doe et al. 2030." in line and "2.2 kHz" not in line
+
+
+def test_an_archive_says_what_its_wav_files_held(archives):
+    """A 16-bit WAV from another microphone is stored as SPH0645-style words; the archive says so
+    rather than naming only the word format."""
+    meta, _ = archive.read_meta(next(archives.glob("*.npz")))
+    mic = meta["streams"]["mics"][0]
+    assert mic["recorded_as"].startswith("16-bit PCM WAV")
+    assert meta["streams"]["audio_format"].endswith(f"{mic['name']}: from {mic['recorded_as']}")
+
+
+def test_without_rows_a_study_on_recorded_data_runs_the_rows_it_can_feed(archives, tmp_path, caplog):
+    """No --rows on a rig without a palm microphone or a camera: the probe reads the rows the data
+    feeds and says in one line which it left out, instead of stopping at the first it cannot."""
+    import logging
+
+    from fabricjax.studies.extra import probe
+
+    with caplog.at_level(logging.WARNING):
+        doc = probe.run(preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"))
+    names = [r["name"] for r in doc["rows"]]
+    assert names and all(not {"image", "flow", "external"} & set(n.split("+")) for n in names)
+    assert "internal" in names and "proprio" in names
+    left = [r.message for r in caplog.records if "rows left out" in r.message]
+    assert len(left) == 1 and "external" in left[0] and "flow" in left[0]

@@ -34,6 +34,7 @@ the studies share (`common/`), one concept per module:
     loading      the data a study needs, loaded once for all its rows
     runner       Study / StudyRow and run_study; named rows -> trained seeds (`train_rows`), progress
                  with ETA, paired Wilcoxon tests
+    recipe       a row's grid of learning rates and widths, and the point the validation split prefers
     documents    the results layer: every results file's header (command, code, date, machine, data),
                  tables, per-row and per-sample records, atomic writing with the figures listed
     findings     the paper's claims as predicates over per-seed results: a study's checklist

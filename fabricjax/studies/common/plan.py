@@ -50,11 +50,12 @@ PROBE_FRAMES = 16  # frames each camera feature is timed on (two of flow's chunk
 PROBE_CYCLES = 2  # rubbing cycles of the probe's trial: its closing's share of the time stays small
 # Config fields a published row may differ in and still give this run's seconds per sequence, epoch
 # and seed: the data's own (preset, classes, step window, band, holdouts), where inputs are read from
-# (the same bits), and the recipe (the width's share of the time is small beside the inputs' encoders)
+# (the same bits), the recipe (the width's share of the time is small beside the inputs' encoders) and
+# the fusion's normalisation (a rescale or a LayerNorm of each step's features: little of a step's work)
 RATE_NEUTRAL = (
     "preset", "n_classes", "mic_window_s", "input_source", "bandwidth_khz", "exclude_fabrics",
     "epochs", "patience", "train_steps", "patience_steps", "lr_grid", "width_grid", "learning_rate", "width", "lr_schedule",
-    "warmup_steps", "weight_decay", "dropout",
+    "warmup_steps", "weight_decay", "dropout", "fusion_norm",
 )
 
 

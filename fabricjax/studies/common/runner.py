@@ -480,6 +480,8 @@ def run_study(
     if where.data_dir:  # the preset's recipe for recorded data, beneath the command line's
         overrides = {**presets.get(preset).recorded_training, **overrides}
     chosen = select_rows(study.rows, rows)
+    if where.data_dir and not rows:  # recorded data: the rows it can feed, the others left out in one line
+        chosen = feedable_rows(study.name, chosen, where)
     seeds = seed_list(study.n_seeds if n_seeds is None else n_seeds)
     own = dict(study.recorded_settings) if where.data_dir else {}
     row_configs = [(r.name, r.config(preset, overrides, own)) for r in chosen]
