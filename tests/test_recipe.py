@@ -1,6 +1,7 @@
 """The fitted recipe: early stopping inside the vmapped program, and the grid chosen on validation alone."""
 
 import dataclasses
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -135,3 +136,23 @@ def test_a_corrupted_test_split_changes_no_choice(monkeypatch):
     assert a[:3] == b[:3]
     assert len(a[0]["grid"]) == 2
     assert not np.array_equal(a[3], b[3])  # the test split itself did change
+
+
+LMT108 = Path(__file__).resolve().parents[2] / "shared" / "data" / "lmt108_sound"
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (LMT108 / "manifest.csv").exists(), reason="the LMT-108 recordings are not beside this checkout")
+def test_real_contact_sound_trains_to_its_linear_probe(tmp_path):
+    """Real recordings (LMT-108, 22 materials): imported as they are and trained with the fitted
+    recipe and no other setting, the row lands within 3 pp of the linear probe of its inputs."""
+    from acquisition import import_manifest
+    from fabricjax.studies.paper import ablation
+    from fabricjax.workspace import Location
+
+    out = tmp_path / "lmt108"
+    import_manifest.run(LMT108 / "manifest.csv", out, rig=LMT108 / "rig.toml", progress=False, say=lambda s: None)
+    doc = ablation.run(n_seeds=1, rows=["internal"], where=Location(workdir=tmp_path / "ws", data_dir=out, results=tmp_path / "results", command="test"))
+    (row,) = doc["rows"]
+    assert 100 * np.mean(row["accuracy"]["test"]["fabric"]) >= 100 * row["probe"]["accuracy"]["test"] - 3
+    assert len(row["recipe"]["grid"]) == 4 and "License" in doc["dataset"]["provenance"]["sections"]

@@ -115,8 +115,9 @@ def _published_rates() -> list[tuple[str, dict[str, dict[str, float]]]]:
     try:
         manifest = json.loads(REPRODUCE_MANIFEST.read_text())
         for study, entry in manifest.items():
-            if entry.get("rates"):
-                out.append((f"{study} in {workspace.shown(REPRODUCE_MANIFEST)} ({entry.get('machine', 'host not recorded')}, {entry['finished']})", entry["rates"]))
+            if entry.get("rates"):  # keys re-read under today's `RATE_NEUTRAL` (a key is the JSON of the fields it kept)
+                keyed = {rate_key(json.loads(k)): v for k, v in entry["rates"].items()}
+                out.append((f"{study} in {workspace.shown(REPRODUCE_MANIFEST)} ({entry.get('machine', 'host not recorded')}, {entry['finished']})", keyed))
     except (OSError, ValueError):
         pass
     try:
