@@ -130,18 +130,20 @@ def load_chosen_rows(
     return [r for r, _ in kept], [c for _, c in kept], datasets, [s for s in split_names if len(datasets[0].sets[s])]
 
 
+def split_by_inputs(rows: Sequence[StudyRow], have: set[str]) -> tuple[list[StudyRow], list[str]]:
+    """(the rows whose inputs are all in `have`, the inputs some row needs that `have` lacks)."""
+    return [r for r in rows if set(r.modalities) <= have], sorted({m for r in rows for m in r.modalities} - have)
+
+
 def feedable_rows(study: str, rows: Sequence[StudyRow], where: Location) -> list[StudyRow]:
     """The rows of `rows` whose inputs the recorded data in `where.data_dir` has, saying in one
     line which it leaves out and why; none fed is a one-line error."""
-    index = dataset_index.load_index(where.data_dir, where.workdir)
-    lay = archive.layout(index.entries[0].meta)
-    have = set(lay.modalities())
-    fed = [r for r in rows if set(r.modalities) <= have]
+    lay = archive.layout(dataset_index.load_index(where.data_dir, where.workdir).entries[0].meta)
+    fed, lacking = split_by_inputs(rows, set(lay.modalities()))
     left = [r.name for r in rows if r not in fed]
     if not fed:
         raise UserError(f"{study}: none of its rows can be fed by {where.data_dir}: it has {lay.describe()}")
     if left:
-        lacking = sorted({m for r in rows for m in r.modalities} - have)
         logging.warning("%s: %d of its %d rows left out (%s): they need %s, which the data lacks", study, len(left), len(rows), ", ".join(left), ", ".join(lacking))
     return fed
 

@@ -50,7 +50,7 @@ import fabricjax
 from fabricjax import archive, dataset_index, presets, source, splits, stats, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
-from fabricjax.studies.common import documents, findings
+from fabricjax.studies.common import documents, findings, runner
 from fabricjax.studies.common.plan import rates as training_rates
 from fabricjax.studies.extra import day_shift, decide, probe, sensitivity
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
@@ -200,8 +200,8 @@ def fit_plan(plan: Sequence[Step], preset: str, data_dir, workdir, say: Callable
             out.append(step)
             continue
         named = [r for r in rows if step.rows is None or r.name in step.rows]
-        fit = tuple(r.name for r in named if set(r.modalities) <= have)
-        lacking = sorted({m for r in named for m in r.modalities} - have)
+        fed, lacking = runner.split_by_inputs(named, have)
+        fit = tuple(r.name for r in fed)
         if not fit:
             say(f"  {step.study:<11} skip  (its rows need {', '.join(lacking)}, which the data lacks: it has {lay.describe()})")
             continue
