@@ -56,19 +56,28 @@ def test_noise_checklist_with_exact_wilcoxon_over_ten_seeds():
 
 def test_properties_checklist():
     chance = {p: 100.0 / n for p, n in catalog.PROPERTY_LEVELS.items()}
-    minsound, both = (r.name for r in properties.ROWS)
+    majority = {p: {"label": 0, "accuracy": 100.0 / n, "known": 100} for p, n in catalog.PROPERTY_LEVELS.items()}  # balanced levels
+    ours, both = (r.name for r in properties.ROWS)
 
     def hold(a, b):
-        return {minsound: {p: _pct(v) for p, v in a.items()}, both: {p: _pct(v) for p, v in b.items()}}
+        return {ours: {p: _pct(v) for p, v in a.items()}, both: {p: _pct(v) for p, v in b.items()}}
 
     paper_like = hold({"stretchiness": [76, 77], "roughness": [40, 41], "thickness": [70, 71]},
                       {"stretchiness": [83, 82], "roughness": [34, 33], "thickness": [90, 91]})
-    assert _holds(properties.checklist(paper_like, chance)) == [True] * 5
+    assert _holds(properties.checklist(paper_like, chance, majority)) == [True] * 5
     wrong = hold({"stretchiness": [40, 45], "roughness": [30, 31], "thickness": [70, 71]},
                  {"stretchiness": [42, 41], "roughness": [34, 33], "thickness": [60, 61]})
     # Minsound stretchiness below 50 % chance; both rows above chance; Minsound wins thickness; loses roughness
-    assert _holds(properties.checklist(wrong, chance)) == [False, False, False, False, False]
-    assert _holds(properties.checklist({minsound: paper_like[minsound]}, chance)) == [True, None, None, None, None]
+    assert _holds(properties.checklist(wrong, chance, majority)) == [False, False, False, False, False]
+    assert _holds(properties.checklist({ours: paper_like[ours]}, chance, majority)) == [True, None, None, None, None]
+    # unbalanced holdouts: above 1 / levels is not enough, the majority level must be beaten (issue 61: 60.28 % under 60.64 %)
+    unbalanced = {**majority, "stretchiness": {"label": 1, "accuracy": 80.0, "known": 100}}
+    f = properties.checklist(paper_like, chance, unbalanced, {ours: {"stretchiness": " (collapsed to level 1: 2 of 2 seeds)"}})
+    assert _holds(f)[:2] == [False, True]
+    assert ("stretchiness 76.5 % (seeds: 76.0, 77.0) (collapsed to level 1: 2 of 2 seeds): not above its majority level 80.0 % (level 1); "
+            "above 1 / levels 50.0 %") in f[0].evidence
+    assert "rule: each property's mean over seeds above its majority level" in f[0].claim
+    assert _holds(properties.checklist(paper_like, chance, {**majority, "thickness": None}))[:2] == [None, None]  # no level known: not evaluated
 
 
 def _ids():

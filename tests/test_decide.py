@@ -93,6 +93,10 @@ def test_decide_on_the_smoke_preset_writes_its_reports_and_the_stream_applies_th
     m = doc["models"][0]
     assert {p.name for p in results.iterdir()} >= {"decide.md", "decide.json", "decide.png"}
     assert set(m["splits"]) == {"test", "cafe"} and m["unknown"]["fabrics"] == [21]  # the smoke preset's one new fabric
+    for d in m["splits"].values():  # each accuracy beside its split's majority class (of the sequences, of the trials)
+        assert d["majority"]["known"] == d["sequences"] and d["majority_trials"]["known"] == d["trials"]
+        assert d["collapsed"] is None or 0 <= d["collapsed"] < len(doc["dataset"]["classes"])
+    assert "| majority class [%] |" in (results / "decide.md").read_text()
     assert all(0 <= v["auroc"] <= 1 for v in m["unknown"]["scores"].values())
     assert confidence.load_temperature(m["checkpoint"], m["seed"]) == pytest.approx(m["temperature"])
     lines = []

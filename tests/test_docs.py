@@ -77,6 +77,18 @@ def test_a_collapsed_model_is_named_not_measured():
     assert findings.collapse_note(nearly) == "" and findings.collapsed([]) == [None]
 
 
+def test_the_majority_baseline_comes_from_the_splits_own_labels():
+    assert findings.majority([2, 2, 1, -1, 0]) == {"label": 2, "accuracy": 50.0, "known": 4}  # unknown labels (-1) left out
+    assert findings.majority([1, 0])["label"] == 0  # a tie: the lowest label
+    assert findings.majority([-1, -1]) is None and findings.majority_cell(None) == "–"
+    assert findings.majority_cell(findings.majority([1, 1, 0]), "level") == "66.67 (level 1)"
+    # collapse counts the sequences whose label is known: one seed answers 3 for every known one
+    assert findings.collapsed([[0, 3, 3, 3]], [-1, 1, 1, 1]) == [3] and findings.collapsed([[0, 3, 3, 3]]) == [None]
+    assert findings.collapse_note([[0, 3, 3, 3]], [-1, 1, 1, 1], "level") == " (collapsed to level 3)"
+    assert findings.above_majority([0.61, 0.60], {"label": 1, "accuracy": 60.64, "known": 100}) is False
+    assert findings.above_majority([0.61, 0.61], None) is None
+
+
 def _fenced(lang: str) -> list[str]:
     return re.findall(rf"```{lang}\n(.*?)```", (REPO / "README.md").read_text(), re.S)
 

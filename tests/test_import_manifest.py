@@ -454,7 +454,7 @@ def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs
     _edit_manifest(manifest, manifest, lambda rows: [r + ["roughness"] if i == 0 else r[:3] + ["holdout" if r[1] == "silk" else r[3], roughness[r[1]]]
                                                      for i, r in enumerate(rows)])
     _run(manifest, tmp_path / "out")
-    doc = properties.run(n_seeds=1, rows=["minsound"], preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test"))
+    doc = properties.run(n_seeds=1, rows=["internal+proprio"], preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test"))
     # class 1 (felt) trains, as the data says: the catalog's holdout ids (1, 10, 21-23) are not a rig's classes
     assert doc["dataset"]["trials"]["train"] == 6 and doc["fabrics"] == {"test": [0, 1, 2], "holdout": [3]}
     arm = f"joints arm_0–arm_{other_rig.N_JOINTS - 1} (angle, velocity, torque)"

@@ -29,36 +29,43 @@ def _doc(study, rows, **fields):
             "train_s": 5.0, "rows": [{**r, "seeds": [0, 1]} for r in rows], "findings": [], "figures": [], **fields}
 
 
+MAJORITY = {"label": 2, "accuracy": 40.0, "known": 40}  # a split's majority class, as `findings.majority` gives it
+FINE = [None, None]  # no seed collapsed
+
+
 def _bandwidth_doc():
     return _doc("bandwidth", [
-        {"name": f"{k:g}", "bandwidth_khz": k, "psd_bins": 512, "wall_s": 1.0,
+        {"name": f"{k:g}", "bandwidth_khz": k, "psd_bins": 512, "wall_s": 1.0, "collapsed": {"val": FINE, "test": FINE},
          "accuracy": {"val": {"fabric": [v, v]}, "test": {"fabric": [t, t]}}}
         for k, v, t in ((0.55, 0.8, 0.7), (1.1, 0.9, 0.9))
-    ], modalities=["internal"], microphone="vibration")
+    ], modalities=["internal"], microphone="vibration", majority={"val": MAJORITY, "test": MAJORITY})
 
 
 def _noise_doc():
     w = {"p_value": 0.5, "min_attainable_p": 0.5, "method": "exact", "describe": "p = 0.5 (exact)"}
     return _doc("noise", [
         {"name": "internal", "modalities": ["internal"], "against": None, "wilcoxon": None, "wall_s": 1.0,
-         "accuracy": {"cafe": {"fabric": [0.6, 0.6]}, "test": {"fabric": [0.9, 0.9]}}},
+         "accuracy": {"cafe": {"fabric": [0.6, 0.6]}, "test": {"fabric": [0.9, 0.9]}}, "collapsed": {"cafe": FINE, "test": FINE}},
         {"name": "internal+proprio", "modalities": ["internal", "proprio"], "against": "internal", "wall_s": 2.0,
-         "wilcoxon": {"per_seed": w, "per_sample": w}, "accuracy": {"cafe": {"fabric": [0.8, 0.8]}, "test": {"fabric": [1.0, 1.0]}}},
-    ])
+         "wilcoxon": {"per_seed": w, "per_sample": w}, "accuracy": {"cafe": {"fabric": [0.8, 0.8]}, "test": {"fabric": [1.0, 1.0]}},
+         "collapsed": {"cafe": FINE, "test": FINE}},
+    ], majority={"cafe": MAJORITY, "test": MAJORITY})
 
 
 def _properties_doc():
     acc = lambda a: {s: {p: [a, a] for p in properties.PROPERTIES} for s in properties.SPLITS}  # noqa: E731
     return _doc("properties", [
-        {"name": r.name, "modalities": list(r.modalities), "checkpoint": f"ckpt/{r.name}", "wall_s": 1.0, "accuracy": acc(a)}
+        {"name": r.name, "modalities": list(r.modalities), "checkpoint": f"ckpt/{r.name}", "wall_s": 1.0, "accuracy": acc(a),
+         "collapsed": {s: dict.fromkeys(properties.PROPERTIES, FINE) for s in properties.SPLITS}}
         for r, a in zip(properties.ROWS, (0.5, 0.75))
-    ], chance={p: 100.0 / 3 for p in properties.PROPERTIES}, majority={s: dict.fromkeys(properties.PROPERTIES, 40.0) for s in properties.SPLITS},
+    ], chance={p: 100.0 / 3 for p in properties.PROPERTIES}, majority={s: dict.fromkeys(properties.PROPERTIES, MAJORITY) for s in properties.SPLITS},
         fabrics={"test": [0, 1, 2], "holdout": []})
 
 
 @pytest.mark.parametrize("study, doc, best_gap, other_gap", [
-    (bandwidth, _bandwidth_doc(), "| 1.1 | 512 | 90.00 ± 0.00 | 90.00 ± 0.00 | +0.00 |", "| 0.55 | 512 | 80.00 ± 0.00 | 70.00 ± 0.00 | -20.00 |"),
-    (noise, _noise_doc(), f"| vibration + {ARM} | 80.00 ± 0.00 | +0.00 |", "| vibration | 60.00 ± 0.00 | -20.00 |"),
+    (bandwidth, _bandwidth_doc(), "| 1.1 | 512 | 90.00 ± 0.00 | 40.00 (class 2) | 90.00 ± 0.00 | 40.00 (class 2) | +0.00 |",
+     "| 0.55 | 512 | 80.00 ± 0.00 | 40.00 (class 2) | 70.00 ± 0.00 | 40.00 (class 2) | -20.00 |"),
+    (noise, _noise_doc(), f"| vibration + {ARM} | 80.00 ± 0.00 | 40.00 (class 2) | +0.00 |", "| vibration | 60.00 ± 0.00 | 40.00 (class 2) | -20.00 |"),
     (properties, _properties_doc(), "75.00 ± 0.00 / +0.00", "50.00 ± 0.00 / -25.00"),
 ])
 def test_recorded_results_compare_rows_not_the_paper(study, doc, best_gap, other_gap):
@@ -74,7 +81,7 @@ def test_recorded_results_compare_rows_not_the_paper(study, doc, best_gap, other
 def test_recorded_results_name_rows_by_the_datas_streams():
     noise_md, properties_md = noise.markdown(_noise_doc()), properties.markdown(_properties_doc())
     assert f"- vibration + {ARM} vs vibration: p = 0.5 (exact)" in noise_md
-    assert f"holdout fabrics: vibration + {ARM} [%]" in properties_md and f"| vibration + {ARM} | 1.0 | `ckpt/minsound` |" in properties_md
+    assert f"holdout fabrics: vibration + {ARM} [%]" in properties_md and f"| vibration + {ARM} | 1.0 | `ckpt/internal+proprio` |" in properties_md
     assert f"| training fabrics: vibration + {ARM} + camera image [%] (recorded data / row − best row [pp]) |" in properties_md
     simulated = {**_noise_doc(), "dataset": {**DATASET, "source": "simulated"}}
     assert documents.stream_names(simulated) == {} and noise.display_name("internal+proprio") == "Minsound + proprioception"
@@ -123,7 +130,8 @@ def test_recorded_latents_use_the_datas_classes_and_levels_not_the_catalogs():
 
 def _cost_doc():
     point = dict(name="att N25", group="N x backbone", seq_len=25, touch_s=25 / 30, backbone="attention", width=16, bandwidth_khz=1.1,
-                 modalities=["internal"], params=1000, accuracy_mean=80.0, accuracy_sd=1.0, train_s=3.0, latency_p50_ms=1.0, latency_p99_ms=2.0)
+                 modalities=["internal"], params=1000, accuracy_mean=80.0, accuracy_sd=1.0, majority=MAJORITY, collapsed=[None, 2],
+                 train_s=3.0, latency_p50_ms=1.0, latency_p99_ms=2.0)
     return {"study": "cost", "command": "test", "preset": "smoke", "seeds": [0, 1], "machine": MACHINE,
             "dataset": {**DATASET, "shortest_trial_steps": 60, "step_rate": 30.0},
             "base": {"backbone": "attention", "seq_len": 25, "width": 16, "bandwidth_khz": 1.1, "modalities": ["internal"], "n_layers": 1, "epochs": 2},
@@ -138,6 +146,7 @@ def test_recorded_cost_has_no_paper_point_and_steps_at_the_datas_rate():
     assert "touch time: N steps at 30 Hz" in md and documents.RECORDED_NOTE in md and "| 0.83 |" in md
     assert "paper" not in md.lower() and "**" not in md and "simulat" not in md.lower()
     assert "| att N25 | 25 | 0.83 | attention | 16 | 1.1 | vibration |" in md  # the rig's microphone, not the role
+    assert "| 80.00 ± 1.00 (collapsed to class 2: 1 of 2 seeds) | 40.00 (class 2) |" in md
 
 
 def test_the_report_of_recorded_data_names_no_paper(tmp_path):

@@ -499,7 +499,7 @@ def test_ablation_command_under_debug_nans(smoke_workdir, tmp_path):
 @pytest.mark.slow  # ~30-55 s on 2 cores: run with -m slow
 def test_properties_and_latents_commands_under_debug_nans(smoke_workdir, tmp_path):
     _command(
-        "experiments.properties", "--preset=smoke", "--seeds=1", "--set=epochs=1", "--rows=minsound",
+        "experiments.properties", "--preset=smoke", "--seeds=1", "--set=epochs=1", "--rows=internal+proprio",
         f"--workdir={smoke_workdir}", results=tmp_path,
     )
     (row,) = json.loads((tmp_path / "properties.json").read_text())["rows"]

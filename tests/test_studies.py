@@ -85,8 +85,11 @@ def test_ablation_rerun_gives_identical_per_seed_accuracies(workdir, tmp_path):
     assert first["rows"][1]["fusion_norm"] == "step_layernorm" and "our step-LayerNorm fusion" in first["rows"][1]["display_name"]
 
 
-def _holds(test: dict) -> list[bool | None]:
-    return [f.holds for f in ablation.checklist({k: np.asarray(v) / 100 for k, v in test.items()})]
+MAJORITY = {"label": 0, "accuracy": 5.0, "known": 100}  # the test split's majority class, as `findings.majority` gives it
+
+
+def _holds(test: dict, majority=MAJORITY) -> list[bool | None]:
+    return [f.holds for f in ablation.checklist({k: np.asarray(v) / 100 for k, v in test.items()}, majority, 21)]
 
 
 def test_ablation_checklist_predicates_on_synthetic_per_seed_results():
@@ -105,6 +108,11 @@ def test_ablation_checklist_predicates_on_synthetic_per_seed_results():
     # + palm below Minsound; our fused variant 61.5 >= 61; TCN 50.5 above the transformer's 50
     assert _holds(wrong) == [True, False, False, False, False, True, False]
     assert _holds({"internal": [90]}) == [None] * 7  # rows not run: not evaluated
+    # "well above chance" counts against the majority class, not 1 / classes: 47 % is not 10 pp above a 40 % majority
+    unbalanced = {"label": 3, "accuracy": 40.0, "known": 100}
+    assert _holds(paper_like, unbalanced)[2] is False and _holds(paper_like, None)[2] is None
+    claim = ablation.checklist({k: np.asarray(v) / 100 for k, v in paper_like.items()}, unbalanced, 21)[2]
+    assert "majority class 40.0 % (class 3), so at least 50.0 %" in claim.evidence and "1 / classes 4.8 %" in claim.evidence
 
 
 def test_bandwidth_narrows_the_psd_per_row(workdir, tmp_path):
@@ -171,7 +179,7 @@ def test_probe_command_reads_a_data_dir_and_writes_nothing_there(workdir, tmp_pa
 @pytest.fixture(scope="module")
 def property_run(workdir, tmp_path_factory):
     results = tmp_path_factory.mktemp("properties")
-    return properties.run(n_seeds=2, rows=["minsound"], **run_kwargs(workdir, results)), results
+    return properties.run(n_seeds=2, rows=["internal+proprio"], **run_kwargs(workdir, results)), results
 
 
 def test_properties_report_training_and_holdout_fabrics_and_checkpoint(property_run):
@@ -185,6 +193,18 @@ def test_properties_report_training_and_holdout_fabrics_and_checkpoint(property_
     assert Path(row["checkpoint"]).is_dir()
     md = (results / "properties.md").read_text()
     assert "97.40" in md and "76.15" in md and row["checkpoint"] in md
+    # every accuracy beside its split's majority level, from the split's own labels, and each seed's collapse in the JSON
+    for split in properties.SPLITS:
+        for p in properties.PROPERTIES:
+            labels = np.asarray(doc["samples"][split]["labels"][p])
+            assert doc["majority"][split][p] == findings.majority(labels)
+            assert row["collapsed"][split][p] == findings.collapsed(row["predictions"][split][p], labels)
+    assert "Majority level, holdout fabrics [%]" in md and "above its majority level" in md
+    # "above chance" is counted against the majority level alone
+    claim = doc["findings"][0]
+    means = {p: 100 * np.mean(row["accuracy"]["holdout"][p]) for p in properties.PROPERTIES}
+    assert claim["holds"] == all(means[p] > doc["majority"]["holdout"][p]["accuracy"] for p in properties.PROPERTIES)
+    assert claim["claim"].startswith("Minsound + proprioception: every property is above chance") and "1 / levels" in claim["evidence"]
 
 
 def test_latents_from_the_property_checkpoint(property_run, workdir, tmp_path):
@@ -208,36 +228,42 @@ def test_tsne_is_finite_for_identical_and_few_points():
 
 
 def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
+    labels = [0, 1, 2, 2]
     rows = [
         {"name": "internal", "backbone": "attention", "modalities": ["internal"], "paper_mean": 95.06, "paper_sd": 1.85,
          "seeds": [0, 1, 2], "wall_s": 12.34, "accuracy": {"test": {"fabric": [0.9, 0.95, 1.0]}},
-         "predictions": {"test": {"fabric": [[0, 1, 2, 3]] * 3}}},
+         "collapsed": {"test": findings.collapsed([[0, 1, 2, 3]] * 3, labels)}},
         {"name": "tcn", "backbone": "tcn", "modalities": ["internal", "external", "proprio"], "paper_mean": 75.41,
          "paper_sd": 11.2, "seeds": [0, 1, 2], "wall_s": 5.0, "accuracy": {"test": {"fabric": [0.5, 0.5, 0.5]}},
-         "predictions": {"test": {"fabric": [[0, 1, 2, 3], [2] * 4, [2] * 4]}}},
+         "collapsed": {"test": findings.collapsed([[0, 1, 2, 3], [2] * 4, [2] * 4], labels)}},
     ]
-    lines = ablation.table(rows).splitlines()
-    assert lines[0].startswith("| Backbone | Modalities | Test accuracy [%] (ours, 3 seeds) | Paper [%] | Ours − paper [pp]")
-    assert lines[2] == "| Transformer | Minsound | 95.00 ± 5.00 | 95.06 ± 1.85 | -0.06 | 12.3 |"
-    # two of its seeds predict one class for every sequence: the table says so beside the accuracy
-    assert lines[3] == "| TCN | Minsound + palm mic + proprioception | 50.00 ± 0.00 (collapsed to class 2: 2 of 3 seeds) | 75.41 ± 11.20 | -25.41 | 5.0 |"
+    lines = ablation.table(rows, findings.majority(labels)).splitlines()
+    assert lines[0].startswith("| Backbone | Modalities | Test accuracy [%] (ours, 3 seeds) | Majority class, test [%] | Paper [%] | Ours − paper [pp]")
+    assert lines[2] == "| Transformer | Minsound | 95.00 ± 5.00 | 50.00 (class 2) | 95.06 ± 1.85 | -0.06 | 12.3 |"
+    # two of its seeds predict one class for every sequence: the table says so beside the accuracy, and beside the majority class
+    assert lines[3] == ("| TCN | Minsound + palm mic + proprioception | 50.00 ± 0.00 (collapsed to class 2: 2 of 3 seeds) | 50.00 (class 2) | "
+                        "75.41 ± 11.20 | -25.41 | 5.0 |")
 
 
 def test_noise_and_bandwidth_tables():
     w = {"p_value": 0.001953125, "min_attainable_p": 0.001953125, "method": "exact"}
+    fine = {"cafe": [None, None], "test": [None, None]}
     rows = [
         {"name": "internal", "modalities": ["internal"], "paper": {"mean": 67.51, "sd": 5.05, "p": None}, "wilcoxon": None, "wall_s": 1.0,
-         "accuracy": {"cafe": {"fabric": [0.7, 0.7]}, "test": {"fabric": [0.9, 0.9]}}},
+         "accuracy": {"cafe": {"fabric": [0.7, 0.7]}, "test": {"fabric": [0.9, 0.9]}}, "collapsed": {**fine, "cafe": [4, None]}},
         {"name": "internal+proprio", "modalities": ["internal", "proprio"], "paper": {"mean": 87.51, "sd": 2.66, "p": "< 0.0001"}, "wall_s": 2.0,
          "wilcoxon": {"per_seed": w, "per_sample": {**w, "method": "approx"}},
-         "accuracy": {"cafe": {"fabric": [0.9, 0.8]}, "test": {"fabric": [1.0, 1.0]}}},
+         "accuracy": {"cafe": {"fabric": [0.9, 0.8]}, "test": {"fabric": [1.0, 1.0]}}, "collapsed": fine},
     ]
-    lines = noise.table(rows).splitlines()
-    assert lines[2] == "| Minsound | 70.00 ± 0.00 | 67.51 ± 5.05 | +2.49 | – | – | – | 90.00 ± 0.00 | 1.0 |"
+    majority = {"cafe": findings.majority([4, 4, 1]), "test": findings.majority([0, 1, 1, 2])}
+    lines = noise.table(rows, majority).splitlines()
+    assert lines[2] == ("| Minsound | 70.00 ± 0.00 (collapsed to class 4: 1 of 2 seeds) | 66.67 (class 4) | 67.51 ± 5.05 | +2.49 | – | – | – | "
+                        "90.00 ± 0.00 | 50.00 (class 1) | 1.0 |")
     assert "0.001953 (floor 0.002, exact)" in lines[3] and "< 0.0001" in lines[3]
     bw = [{"bandwidth_khz": 2.5, "psd_bins": 54, "paper": {"val_mean": 92.43, "val_sd": 1.13, "test_mean": 89.87, "test_sd": 3.31},
-           "wall_s": 3.0, "accuracy": {"val": {"fabric": [0.9]}, "test": {"fabric": [0.8]}}}]
-    assert bandwidth.table(bw).splitlines()[2] == "| 2.5 | 54 | 90.00 ± 0.00 | 92.43 ± 1.13 | -2.43 | 80.00 ± 0.00 | 89.87 ± 3.31 | -9.87 | 3.0 |"
+           "wall_s": 3.0, "accuracy": {"val": {"fabric": [0.9]}, "test": {"fabric": [0.8]}}, "collapsed": {"val": [None], "test": [None]}}]
+    assert bandwidth.table(bw, {"val": majority["cafe"], "test": None}).splitlines()[2] == (
+        "| 2.5 | 54 | 90.00 ± 0.00 | 66.67 (class 4) | 92.43 ± 1.13 | -2.43 | 80.00 ± 0.00 | – | 89.87 ± 3.31 | -9.87 | 3.0 |")
 
 
 def fake_row(name, accuracy, predictions, seeds):
@@ -356,14 +382,14 @@ def test_camera_rows(workdir, tmp_path):
     assert [r["name"] for r in doc["rows"]] == ["flow", "proprio", "image+internal"] and doc["wilcoxon"] is None  # the table's order
     assert doc["dataset"]["layout_s"] > 0 and "camera inputs laid out for training" in (tmp_path / "ablation.md").read_text()
     assert (tmp_path / "ablation_confusion.png").stat().st_size > 0
-    doc = properties.run(n_seeds=1, rows=["minsound+minsight"], **run_kwargs(workdir, tmp_path))
+    doc = properties.run(n_seeds=1, rows=["internal+proprio+image"], **run_kwargs(workdir, tmp_path))
     out = latents.run(doc["rows"][0]["checkpoint"], where=Location(workdir=workdir, results=tmp_path))
     assert np.isfinite([p["xy"] for p in out["points"]]).all()
 
 
 # The smallest plan that still has a study that depends on another (latents on properties) and
 # one without seeds (the probe); the other studies' own runs are tested above.
-SMOKE_PLAN = (reproduce.Step("probe", rows=("proprio",)), reproduce.Step("bandwidth", 1, ("2.5",)), reproduce.Step("properties", 1, ("minsound",)),
+SMOKE_PLAN = (reproduce.Step("probe", rows=("proprio",)), reproduce.Step("bandwidth", 1, ("2.5",)), reproduce.Step("properties", 1, ("internal+proprio",)),
               reproduce.Step("latents"))
 
 

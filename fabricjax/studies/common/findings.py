@@ -4,6 +4,12 @@ A study states each claim it can test as a `Finding`: the claim in words, whethe
 results reproduce it (None when a row it needs was not run) and the numbers behind the verdict,
 so a reader can disagree with the rule without rerunning anything. Claims compare seed means
 unless they say otherwise; the rule is part of the claim's text.
+
+Every accuracy is judged against the strongest trivial baseline of its split, `majority`: always
+answering the split's most frequent class (or level), computed from its labels. The tables show it
+beside each accuracy, with `collapse_note` wherever a seed predicts one class for nearly every
+sequence (`COLLAPSED_SHARE`), and a claim that something is above chance counts only where its
+mean over seeds is above that baseline (`above_majority`); 1 / classes is shown beside it.
 """
 
 from __future__ import annotations
@@ -89,29 +95,73 @@ def claims_markdown(doc: dict[str, Any], claims: str = "the paper's claims about
     return [f"## Findings checklist ({claims})", "", markdown(doc["findings"], counted=not documents.counts_no_claims(doc))]
 
 
-COLLAPSED_SHARE = 0.95  # a model "collapsed" when it predicts one class for at least this share of the sequences
+# A model "collapsed" when it predicts one class (or level) for at least this share of the
+# sequences of a split whose label is known: its accuracy is then the share of that class, which
+# says nothing of what the inputs carry.
+COLLAPSED_SHARE = 0.95
 
 
-def collapsed(predictions) -> list[int | None]:
+def majority(labels) -> dict[str, Any] | None:
+    """The strongest trivial baseline of a split: always answering its most frequent known label
+    (`labels` below 0 are unknown and ignored; on a tie the lowest label). {"label": that label,
+    "accuracy": the percent of known labels it gets right, "known": how many labels are known};
+    None when none is known. Computed from the split's own labels, because its classes or levels
+    are rarely balanced: 1 / classes is then a lower bar than answering one class already clears."""
+    known = np.asarray(labels).ravel()
+    known = known[known >= 0]
+    if known.size == 0:
+        return None
+    counts = np.bincount(known)
+    label = int(np.argmax(counts))
+    return {"label": label, "accuracy": 100.0 * float(counts[label]) / known.size, "known": int(known.size)}
+
+
+def majority_cell(base: Mapping[str, Any] | None, noun: str = "class") -> str:
+    """A table's cell of a `majority` baseline: '60.64 (level 1)', or '–' without known labels."""
+    return "–" if base is None else f"{base['accuracy']:.2f} ({noun} {base['label']})"
+
+
+def collapsed(predictions, labels=None) -> list[int | None]:
     """Per seed (rows of `predictions`: seeds x sequences; one row for a single model), the class it
-    predicts for at least `COLLAPSED_SHARE` of the sequences, else None: chance reached that way is
-    not a measurement of what the inputs carry."""
+    predicts for at least `COLLAPSED_SHARE` of the sequences (those whose `labels` are known, where
+    given), else None."""
     out = []
+    known = None if labels is None else np.asarray(labels).ravel() >= 0
     for p in np.atleast_2d(np.asarray(predictions)):
+        p = p if known is None or p.size == 0 else p[known]
         classes, counts = np.unique(p, return_counts=True)
         out.append(int(classes[np.argmax(counts)]) if p.size and counts.max() >= COLLAPSED_SHARE * p.size else None)
     return out
 
 
-def collapse_note(predictions) -> str:
-    """' (collapsed to class k: n of m seeds)' beside an accuracy, or '' when no seed collapsed."""
-    per_seed = collapsed(predictions)
+def collapse_note(predictions, labels=None, noun: str = "class") -> str:
+    """' (collapsed to class k: n of m seeds)' beside an accuracy (`noun`: "level" for a property
+    head), or '' when no seed collapsed: `collapse_text` of `collapsed`."""
+    return collapse_text(collapsed(predictions, labels), noun)
+
+
+def collapse_text(per_seed: Sequence[int | None], noun: str = "class") -> str:
+    """`collapse_note` of the per-seed result of `collapsed`, as a results JSON stores it."""
     hit = [k for k in per_seed if k is not None]
     if not hit:
         return ""
     classes = ", ".join(str(k) for k in sorted(set(hit)))
     seeds = f": {len(hit)} of {len(per_seed)} seeds" if len(per_seed) > 1 else ""
-    return f" (collapsed to class {classes}{seeds})"
+    return f" (collapsed to {noun} {classes}{seeds})"
+
+
+def baseline_note(noun: str = "class") -> str:
+    """The sentence under a table with `majority` columns and `collapse_note` flags (`noun`:
+    "level" for property heads)."""
+    return (f"Majority {noun}: the accuracy of always answering the split's most frequent {noun}, from its labels (the {noun} in "
+            f"brackets), the strongest trivial baseline; *collapsed to {noun} k*: a seed answered k for at least "
+            f"{100 * COLLAPSED_SHARE:.0f} % of the split's sequences.")
+
+
+def above_majority(values, base: Mapping[str, Any] | None) -> bool | None:
+    """Whether the mean over seeds of `values` (accuracies in [0, 1]) is above the `majority`
+    baseline `base` (None without known labels): how every "above chance" claim is counted."""
+    return None if base is None else mean_pct(values) > base["accuracy"]
 
 
 NOT_COUNTED = "Not counted: these results are not the paper's table (the note at the top says what they are); the paper's checks run, none is counted."

@@ -25,7 +25,8 @@ Everything not swept (the base width, layers, epochs, ...) is the preset's (`pre
 the `--set` overrides on top; the base N is the preset's (or `--set=seq_len=...`), the base
 backbone and modality set are the first of their flags. Lengths longer than the shortest trial are skipped and reported.
 
-Per point: test accuracy (mean ± SD over seeds; all seeds train in one vmapped program), training
+Per point: test accuracy (mean ± SD over seeds; all seeds train in one vmapped program) beside
+its test sequences' majority class (`findings.majority`), flagged where a seed collapsed, training
 wall time of that program (compilation included, no checkpoints, so a rerun measures afresh),
 inference latency of one test sequence (`predict_one` compiled ahead of time after warm-up, result on the host,
 p50 / p99), parameter count. Sequences do not overlap, so a longer N also means fewer training
@@ -46,7 +47,7 @@ from absl import logging
 from fabricjax import archive, data, dataset_index, plots, stats
 from fabricjax.bench import program_timing
 from fabricjax.config import Config
-from fabricjax.studies.common import documents, loading, runner
+from fabricjax.studies.common import documents, findings, loading, runner
 from fabricjax.workspace import Location
 
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
@@ -151,8 +152,11 @@ def steps_and_rate(folder, workdir=None) -> tuple[int, float]:
 
 
 def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int, step_rate: float) -> dict[str, Any]:
-    """Train all seeds of one point and measure what it costs (touch time at `step_rate`)."""
+    """Train all seeds of one point and measure what it costs (touch time at `step_rate`); its
+    test sequences' majority class (`findings.majority`: a point's N decides its sequences) and the
+    class each seed collapsed to (`findings.collapsed`)."""
     row = runner.train_row(point.name, point.config, sets, seeds, ["test"])
+    labels = sets["test"].labels["fabric"]
     acc = 100 * row.accuracy("test")
     mean, sd = stats.mean_sd(acc)
     c = point.config
@@ -169,6 +173,8 @@ def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int, step
         "accuracy": acc.tolist(),
         "accuracy_mean": mean,
         "accuracy_sd": sd,
+        "majority": findings.majority(labels),
+        "collapsed": findings.collapsed(row.predictions("test"), labels),
         "train_s": row.seconds,
         **measure_inference(row, sets["test"], latency_repeats),
         "config": c.to_json(),
@@ -255,14 +261,15 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
     ]
     header = ["point", "N", "touch [s]", "backbone", "width", "band [kHz]", "modalities", "params",
-              "test acc [%]", "train [s]", "p50 [ms]", "p99 [ms]", "front"]
+              "test acc [%]", "majority class, test [%]", "train [s]", "p50 [ms]", "p99 [ms]", "front"]
     rows, names = [], documents.stream_names(doc)
     for r in doc["points"]:
         front = "".join(t for t, k in (("T", "touch_s"), ("L", "latency_p50_ms")) if r["name"] in doc["pareto_front"][k])
         name = f"**{r['name']}**" if r["name"] == doc["paper_point"] else r["name"]
         rows.append([
             name, r["seq_len"], f"{r['touch_s']:.2f}", r["backbone"], r["width"], f"{r['bandwidth_khz']:g}",
-            data.inputs_name(r["modalities"], names) if names else "+".join(r["modalities"]), f"{r['params']:,}", f"{r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f}",
+            data.inputs_name(r["modalities"], names) if names else "+".join(r["modalities"]), f"{r['params']:,}",
+            f"{r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f}{findings.collapse_text(r['collapsed'])}", findings.majority_cell(r["majority"]),
             f"{r['train_s']:.0f}", f"{r['latency_p50_ms']:.2f}", f"{r['latency_p99_ms']:.2f}", front,
         ])
-    return "\n".join(lines) + documents.markdown_table(header, rows)
+    return "\n".join(lines) + documents.markdown_table(header, rows) + f"\n{findings.baseline_note()}\n"

@@ -8,12 +8,14 @@ Per model (its seed with the best validation score; no training):
 * Calibration: one temperature per seed fitted on the validation split (`confidence.fit_temperature`),
   written beside the checkpoint (`confidence.TEMPERATURE_FILE`) so that the stream, the viewer
   and the decision rule apply it; the expected calibration error and reliability diagram on the
-  test and cafe splits before and after it (the argmax, so the accuracy, is unchanged).
+  test and cafe splits before and after it (the argmax, so the accuracy, is unchanged). Each
+  split's accuracy stands beside its majority class (`findings.majority`), with a collapse flag
+  where the model answers one class for nearly every sequence (`findings.collapsed`).
 * When to stop rubbing: each trial's non-overlapping windows (its sequences, in order) feed the
   sequential rule (`confidence.sequential`): decide when the best class's posterior reaches a
   threshold, or at the trial's last window. Accuracy against mean touch time to the decision,
   one point per threshold of `THRESHOLDS`, beside the cost study's fixed-N points (its
-  results/cost.json, where the results folder has one).
+  results/cost.json, where the results folder has one) and the majority class of the trials.
 * Unknown fabrics: per test-day sequence, two scores of "not a trained class": 1 - the maximum
   calibrated probability, and the Mahalanobis distance of the model's pooled latents to the
   nearest training class (`confidence.Mahalanobis`, fitted on the training split). The unknowns
@@ -37,7 +39,7 @@ import numpy as np
 from flax import nnx
 
 from fabricjax import archive, catalog, checkpoint, confidence, data, plots, train, workspace
-from fabricjax.studies.common import documents, loading
+from fabricjax.studies.common import documents, findings, loading
 from fabricjax.studies.extra import cost
 from fabricjax.studies.tools import stream
 from fabricjax.workspace import Location
@@ -126,9 +128,12 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Loc
         raw, cal = confidence.calibrated(out[split][0]), confidence.calibrated(out[split][0], t)
         groups = trials(sets[split])
         tl = [int(labels[g[0]]) for g in groups]
+        predicted = np.argmax(cal, -1)
         splits_doc[split] = {
             "sequences": len(labels), "trials": len(groups),
-            "accuracy": float(np.mean(np.argmax(cal, -1) == labels)),
+            "accuracy": float(np.mean(predicted == labels)),
+            "majority": findings.majority(labels), "collapsed": findings.collapsed(predicted, labels)[0],
+            "majority_trials": findings.majority(tl),
             "calibration": _calibration({"before": raw, "after": cal}, labels),
             "curve": confidence.decision_curve([cal[g] for g in groups], tl, THRESHOLDS, None, window_s),
             "curve_uncalibrated": confidence.decision_curve([raw[g] for g in groups], tl, THRESHOLDS, None, window_s),
@@ -214,13 +219,15 @@ def markdown(doc: dict[str, Any]) -> str:
                   f"- checkpoint: `{m['checkpoint']}`, seed {m['seed']} (best by validation of {m['seeds']}); "
                   f"temperature {m['temperature']:.3f} (fitted on the validation split; written beside the checkpoint)",
                   f"- one window: {m['window_s']:.2f} s of touch", "", "### Calibration", ""]
-        rows = [[s, d["sequences"], _pct(d["accuracy"]), _pct(d["calibration"]["before"]["ece"]), _pct(d["calibration"]["after"]["ece"])]
+        rows = [[s, d["sequences"], _pct(d["accuracy"]) + findings.collapse_text([d["collapsed"]]), findings.majority_cell(d["majority"]),
+                 _pct(d["calibration"]["before"]["ece"]), _pct(d["calibration"]["after"]["ece"])]
                 for s, d in m["splits"].items()]
-        lines += [documents.markdown_table(["split", "sequences", "accuracy [%]", "ECE before [%]", "ECE after [%]"], rows), ""]
+        lines += [documents.markdown_table(["split", "sequences", "accuracy [%]", "majority class [%]", "ECE before [%]", "ECE after [%]"], rows),
+                  findings.baseline_note(), ""]
         lines += ["### When to stop rubbing (sequential rule over a trial's windows)", ""]
         for s, d in m["splits"].items():
             rows = [[f"{c['threshold']:g}", _pct(c["accuracy"]), f"{c['mean_touch_s']:.2f}", _pct(c["confident"])] for c in d["curve"]]
-            lines += [f"{s} ({d['trials']} trials):", "",
+            lines += [f"{s} ({d['trials']} trials; majority class of the trials [%]: {findings.majority_cell(d['majority_trials'])}):", "",
                       documents.markdown_table(["threshold", "accuracy [%]", "mean touch to decision [s]", "reached the threshold [%]"], rows), ""]
         if m["cost_points"] is None:
             lines += ["The cost study's fixed-N points: no cost.json in this results folder (run `python -m experiments.cost`).", ""]

@@ -30,7 +30,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import catalog, data, plots, stats
+from fabricjax import data, plots, stats
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.studies.common import documents, findings, linear_probe, loading, recipe, runner
 from fabricjax.studies.common.runner import StudyRow
@@ -101,8 +101,9 @@ def display_name(row_name: str) -> str:
 
 
 def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
-    """The rows beside the paper's, the Wilcoxon tests of `WILCOXON_PAIR` and the confusion
-    matrices of `CONFUSION_ROWS` (results/ablation_confusion.png)."""
+    """The rows beside the paper's, each with the class each seed collapsed to (`findings.collapsed`),
+    the test split's majority class (`findings.majority`), the Wilcoxon tests of `WILCOXON_PAIR` and
+    the confusion matrices of `CONFUSION_ROWS` (results/ablation_confusion.png)."""
     rows, seeds = trained.rows, next(iter(trained.rows.values())).results.seeds
     test = trained.dataset.sets["test"]
     labels = test.labels["fabric"]
@@ -129,11 +130,13 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
                 "display_name": r.label,
                 "fusion_norm": r.settings["fusion_norm"],
                 **({} if recorded else {"paper_mean": r.paper["mean"], "paper_sd": r.paper["sd"]}),
+                "collapsed": {"test": findings.collapsed(rows[r.name].predictions("test"), labels)},
                 **rows[r.name].doc(["test"]),
             }
             for r in chosen
         ],
         "fusion_choice": fusion_choices(rows),
+        "majority": {"test": findings.majority(labels)},
         "test_samples": documents.samples_doc(test),
         "wilcoxon": {
             "baseline": base,
@@ -205,10 +208,12 @@ def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -
                 "test": {t.config.fusion_norm: stats.mean_sd(100 * t.accuracy("test"))[0] for t in trained_as},
             },
             "probe": {"C": p["C"], "accuracy": p["accuracy"], "predictions": {"test": p["predictions"].get("test", [])}},
+            "collapsed": {"test": findings.collapsed(best.predictions("test"), sets["test"].labels["fabric"])},
             **best.doc(["test"]),
         })
     return {
         "rows": out, "names": dict(names), "steady_below": STEADY_BELOW, "steadiness": steady,
+        "majority": {"test": findings.majority(sets["test"].labels["fabric"])},
         "test_samples": documents.samples_doc(sets["test"]),
         "wilcoxon": {"baseline": WILCOXON_PAIR[0], "compared": WILCOXON_PAIR[1], **{k: documents.wilcoxon_doc(v) for k, v in tests.items()}} if tests else None,
     }
@@ -216,13 +221,16 @@ def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -
 
 CLEARLY_WORSE_PP = 10.0  # "clearly worse": at least this many points below (the paper: 36)
 SIMILAR_PP = 10.0  # "similar": within this many points of each other (the paper: 0.06)
-WELL_ABOVE_CHANCE_PP = 10.0  # "well above chance": at least this many points above 1/21
+WELL_ABOVE_CHANCE_PP = 10.0  # "well above chance": at least this many points above the test split's majority class
 
 
-def checklist(test: dict[str, np.ndarray], notes: Mapping[str, str] | None = None) -> list[findings.Finding]:
+def checklist(test: dict[str, np.ndarray], majority: Mapping[str, Any] | None, n_classes: int,
+              notes: Mapping[str, str] | None = None) -> list[findings.Finding]:
     """The paper's qualitative claims about the ablation, as predicates over per-seed test
-    accuracies (`test`: row name -> per-seed accuracies in [0, 1]; rows not run are skipped);
-    `notes`: row name -> what its evidence adds to its name (`findings.collapse_note`)."""
+    accuracies (`test`: row name -> per-seed accuracies in [0, 1]; rows not run are skipped).
+    `majority`: the test split's `findings.majority` baseline, which "above chance" is counted
+    against; `n_classes`: the data's classes, whose 1 / classes is the paper's chance, shown beside
+    it; `notes`: row name -> what its evidence adds to its name (`findings.collapse_note`)."""
     notes = notes or {}
 
     def named(row: str) -> str:
@@ -239,12 +247,17 @@ def checklist(test: dict[str, np.ndarray], notes: Mapping[str, str] | None = Non
     out.append(findings.missing(claim, ["internal", "external"], test) or findings.at_least(
         claim, (named("internal"), test["internal"]), (named("external"), test["external"]), CLEARLY_WORSE_PP))
     claim = (f"proprioception and optical flow alone are similar (within {SIMILAR_PP:.0f} pp) and well above chance "
-             f"(>= {WELL_ABOVE_CHANCE_PP:.0f} pp above {100 / catalog.N_CLASSES:.1f} %)")
+             f"(rule: each >= {WELL_ABOVE_CHANCE_PP:.0f} pp above the test split's majority class; 1 / classes shown beside it)")
     if not (f := findings.missing(claim, ["proprio", "flow"], test)):
         p, fl = findings.mean_pct(test["proprio"]), findings.mean_pct(test["flow"])
-        floor = 100 / catalog.N_CLASSES + WELL_ABOVE_CHANCE_PP
-        f = findings.Finding(claim, abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor,
-                             f"{findings.describe(named('proprio'), test['proprio'])}; {findings.describe(named('flow'), test['flow'])}")
+        evidence = (f"{findings.describe(named('proprio'), test['proprio'])}; {findings.describe(named('flow'), test['flow'])}; "
+                    f"1 / classes {100 / n_classes:.1f} %")
+        if majority is None:
+            f = findings.Finding(claim, None, f"{evidence}; no test label known, so no majority class")
+        else:
+            floor = majority["accuracy"] + WELL_ABOVE_CHANCE_PP
+            f = findings.Finding(claim, abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor,
+                                 f"{evidence}; majority class {majority['accuracy']:.1f} % (class {majority['label']}), so at least {floor:.1f} %")
     out.append(f)
     claim = "Minsight images alone are the weakest camera input (below optical flow)"
     out.append(findings.missing(claim, ["image", "flow"], test) or findings.at_least(
@@ -259,9 +272,10 @@ def checklist(test: dict[str, np.ndarray], notes: Mapping[str, str] | None = Non
     return out
 
 
-def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
-    """Our accuracy beside the paper's, with the difference, one line per row; on recorded data
-    each row beside the best row instead."""
+def table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None, recorded: bool = False) -> str:
+    """Our accuracy, flagged where seeds collapsed (each row's "collapsed"), beside the test
+    split's `majority` class and the paper's, with the difference, one line per row; on recorded
+    data each row beside the best row instead."""
     means = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
     gaps = documents.best_gaps([m for m, _ in means])
     body = []
@@ -269,13 +283,14 @@ def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
         body.append([
             "TCN" if r["backbone"] == "tcn" else "Transformer",
             label(r["modalities"], r["backbone"], r.get("fusion_norm", "sequence_minmax")).removeprefix("TCN: "),
-            f"{mean:.2f} ± {sd:.2f}{findings.collapse_note(r['predictions']['test']['fabric'])}",
+            f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}",
+            findings.majority_cell(majority),
             *([gap] if recorded else [f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}", f"{mean - r['paper_mean']:+.2f}"]),
             f"{r['wall_s']:.1f}",
         ])
     accuracy = f"Test accuracy [%] ({'recorded data' if recorded else 'ours'}, {len(rows[0]['seeds'])} seeds)"
     compared = [documents.BEST_GAP] if recorded else ["Paper [%]", "Ours − paper [pp]"]
-    return documents.markdown_table(["Backbone", "Modalities", accuracy, *compared, "Train wall time [s]"], body)
+    return documents.markdown_table(["Backbone", "Modalities", accuracy, "Majority class, test [%]", *compared, "Train wall time [s]"], body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
@@ -285,7 +300,9 @@ def markdown(doc: dict[str, Any]) -> str:
         documents.title(doc, TITLE, PAPER),
         "",
         documents.header_markdown(doc),
-        table(doc["rows"]),
+        table(doc["rows"], doc["majority"]["test"]),
+        findings.baseline_note(),
+        "",
         "Rows marked *our step-LayerNorm fusion* are not in the paper: the same inputs with each step's "
         "concatenated features normalised by a LayerNorm instead of the paper's per-sequence [0, 1] rescale "
         "(`Config.fusion_norm`); the paper column repeats the paper's row with the same inputs for reference.",
@@ -318,9 +335,10 @@ def markdown(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def recorded_table(rows: Sequence[dict[str, Any]]) -> str:
-    """Recorded data: each row under its fusion (by validation), the other fusion's test accuracy,
-    its probe's, model − probe and the gap to the best row."""
+def recorded_table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None) -> str:
+    """Recorded data: each row under its fusion (by validation), flagged where seeds collapsed
+    (each row's "collapsed"), beside the test split's `majority` class, the other fusion's test
+    accuracy, its probe's, model − probe and the gap to the best row."""
     means = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
     body = []
     for r, (mean, sd), gap in zip(rows, means, documents.best_gaps([m for m, _ in means])):
@@ -329,11 +347,12 @@ def recorded_table(rows: Sequence[dict[str, Any]]) -> str:
         val = ", ".join(f"{FUSION_NAMES[f]} {v:.2f}" for f, v in choice["val"].items())
         body.append([
             "TCN" if r["backbone"] == "tcn" else "Transformer", r["display_name"], f"{FUSION_NAMES[r['fusion_norm']]} (val {val})",
-            f"{mean:.2f} ± {sd:.2f}{findings.collapse_note(r['predictions']['test']['fabric'])}", ", ".join(other) or "–",
+            f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}", findings.majority_cell(majority),
+            ", ".join(other) or "–",
             f"{probe_test:.2f}{findings.collapse_note(r['probe'].get('predictions', {}).get('test', []))}", f"{mean - probe_test:+.2f}", gap, f"{r['wall_s']:.1f}",
         ])
     header = ["Backbone", "Inputs", "Fusion (by validation)", f"Test accuracy [%] (recorded data, {len(rows[0]['seeds'])} seeds)",
-              "Other fusion, test [%]", "Linear probe, test [%]", "Model − probe [pp]", documents.BEST_GAP, "Train wall time [s]"]
+              "Majority class, test [%]", "Other fusion, test [%]", "Linear probe, test [%]", "Model − probe [pp]", documents.BEST_GAP, "Train wall time [s]"]
     return documents.markdown_table(header, body)
 
 
@@ -363,7 +382,9 @@ def _recorded_markdown(doc: dict[str, Any]) -> str:
         documents.title(doc, TITLE, PAPER),
         "",
         documents.header_markdown(doc),
-        recorded_table(doc["rows"]),
+        recorded_table(doc["rows"], doc["majority"]["test"]),
+        findings.baseline_note(),
+        "",
         documents.RECORDED_NOTE + " Each row is trained under both fusion normalisations and shown under the one with the better "
         "validation accuracy (step-LayerNorm on a tie: it keeps the steady level the rescale erases). The probe is a logistic regression on each sequence's per-dimension mean and SD "
         f"(`experiments.probe`), on the same sequences. Within-sequence share of each input's variance: {steadiness}.",
@@ -383,8 +404,9 @@ def _recorded_markdown(doc: dict[str, Any]) -> str:
 
 STUDY = runner.Study(
     "ablation", ROWS, n_seeds=5, eval_splits=("test",), split_names=loading.TRAIN_VAL_TEST,
-    document=document, checklist=lambda doc: checklist({r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]},
-                                   {r["name"]: findings.collapse_note(r["predictions"]["test"]["fabric"]) for r in doc["rows"]}),
+    document=document, checklist=lambda doc: checklist(
+        {r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]}, doc["majority"]["test"], len(doc["dataset"]["classes"]),
+        {r["name"]: findings.collapse_text(r["collapsed"]["test"]) for r in doc["rows"]}),
     markdown=markdown, recorded_fusions=(STEP_LAYERNORM,), checkpoints=True,
 )
 run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

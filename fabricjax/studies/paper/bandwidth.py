@@ -14,7 +14,7 @@ with each other instead (`documents.recorded`), and the PSD bins are those at it
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -27,6 +27,7 @@ from fabricjax.studies.common.runner import StudyRow
 TITLE, PAPER = "PSD bandwidth", "Table bandwidth_classification"  # how results name the study, and what of the paper it reproduces
 
 MODALITIES = ("internal",)
+SPLITS = ("val", "test")  # the splits the table reports
 
 
 def row_name(khz: float) -> str:
@@ -44,20 +45,26 @@ ROWS = (_row(2.5, 92.43, 1.13, 89.87, 3.31), _row(10.0, 97.45, 1.17, 93.07, 3.33
 
 
 def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
-    """Every row's PSD bins beside the paper's, the microphone read and results/bandwidth.png."""
-    test = trained.dataset.sets["test"]
+    """Every row's PSD bins beside the paper's, with the class each seed collapsed to on the
+    validation and test splits (`findings.collapsed`); both splits' majority class
+    (`findings.majority`), the microphone read and results/bandwidth.png."""
+    sets = trained.dataset.sets
+    test = sets["test"]
     recorded = trained.dataset.recorded
     out_rows = []
     for r in chosen:
         khz = r.settings["bandwidth_khz"]
+        row = trained.rows[r.name]
         out_rows.append({
             "name": r.name, "bandwidth_khz": khz, "psd_bins": welch.n_bins(khz, test.rates.get("internal", archive.AUDIO_RATE)),
             **({} if recorded else {"paper": dict(r.paper)}),
-            **trained.rows[r.name].doc(["test"]),
+            "collapsed": {s: findings.collapsed(row.predictions(s), sets[s].labels["fabric"]) for s in SPLITS},
+            **row.doc(["test"]),
         })
     mic = microphone(trained.dataset)
     figure = plot(results / "bandwidth.png", out_rows, mic)
-    return {"modalities": list(MODALITIES), "microphone": mic, "rows": out_rows, "test_samples": documents.samples_doc(test)}, [figure]
+    majority = {s: findings.majority(sets[s].labels["fabric"]) for s in SPLITS}
+    return {"modalities": list(MODALITIES), "microphone": mic, "rows": out_rows, "majority": majority, "test_samples": documents.samples_doc(test)}, [figure]
 
 
 def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
@@ -100,23 +107,27 @@ def plot(path, rows: Sequence[dict[str, Any]], microphone: str):
     return plots.plot_against_bandwidth(path, khz, series, microphone)
 
 
-def table(rows: Sequence[dict[str, Any]], recorded: bool = False) -> str:
-    """Validation and test accuracy per bandwidth beside the paper's; on recorded data test
+def table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Mapping[str, Any] | None], recorded: bool = False) -> str:
+    """Validation and test accuracy per bandwidth, flagged where seeds collapsed (each row's
+    "collapsed"), each beside its split's `majority` class and the paper's; on recorded data test
     accuracy beside the best row's instead."""
     val = [stats.mean_sd(100 * np.asarray(r["accuracy"]["val"]["fabric"])) for r in rows]
     test = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
     gaps = documents.best_gaps([m for m, _ in test])
     body = []
     for r, v, t, gap in zip(rows, val, test, gaps):
+        ours = {s: f"{m:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed'][s])}" for s, (m, sd) in zip(SPLITS, (v, t))}
+        base = {s: findings.majority_cell(majority[s]) for s in SPLITS}
         if recorded:
-            compared = [f"{v[0]:.2f} ± {v[1]:.2f}", f"{t[0]:.2f} ± {t[1]:.2f}", gap]
+            compared = [ours["val"], base["val"], ours["test"], base["test"], gap]
         else:
             p = r["paper"]
-            compared = [f"{v[0]:.2f} ± {v[1]:.2f}", f"{p['val_mean']:.2f} ± {p['val_sd']:.2f}", f"{v[0] - p['val_mean']:+.2f}",
-                        f"{t[0]:.2f} ± {t[1]:.2f}", f"{p['test_mean']:.2f} ± {p['test_sd']:.2f}", f"{t[0] - p['test_mean']:+.2f}"]
+            compared = [ours["val"], base["val"], f"{p['val_mean']:.2f} ± {p['val_sd']:.2f}", f"{v[0] - p['val_mean']:+.2f}",
+                        ours["test"], base["test"], f"{p['test_mean']:.2f} ± {p['test_sd']:.2f}", f"{t[0] - p['test_mean']:+.2f}"]
         body.append([f"{r['bandwidth_khz']:g}", r["psd_bins"], *compared, f"{r['wall_s']:.1f}"])
-    compared = (["Val [%]", "Test [%]", documents.BEST_GAP] if recorded else
-                ["Val [%] (ours)", "Val [%] (paper)", "Val diff [pp]", "Test [%] (ours)", "Test [%] (paper)", "Test diff [pp]"])
+    compared = (["Val [%]", "Majority class, val [%]", "Test [%]", "Majority class, test [%]", documents.BEST_GAP] if recorded else
+                ["Val [%] (ours)", "Majority class, val [%]", "Val [%] (paper)", "Val diff [pp]",
+                 "Test [%] (ours)", "Majority class, test [%]", "Test [%] (paper)", "Test diff [pp]"])
     return documents.markdown_table(["Bandwidth [kHz]", "PSD bins", *compared, "Train wall time [s]"], body)
 
 
@@ -131,7 +142,9 @@ def markdown(doc: dict[str, Any]) -> str:
         f"Inputs: {' + '.join(doc['modalities'])} ({inputs}). Validation accuracy is that of the best-validation epoch, "
         "the model every test number uses.",
         "",
-        table(doc["rows"], recorded),
+        table(doc["rows"], doc["majority"], recorded),
+        findings.baseline_note(),
+        "",
     ]
     lines += findings.claims_markdown(doc)
     lines += ["Accuracy against bandwidth, every seed: `bandwidth.png`.", ""]

@@ -1,7 +1,7 @@
 """t-SNE of per-trial mean latents from a restored checkpoint (the paper's Fig. latent_features).
 
     python -m experiments.properties --seeds=5          # prints and records its checkpoints
-    python -m experiments.latents --checkpoint=workspace/checkpoints/properties/minsound+minsight-<tag>
+    python -m experiments.latents --checkpoint=workspace/checkpoints/properties/internal+proprio+image-<tag>
 
 The checkpoint's own config says which preset, modalities and fabric exclusions to load. One seed
 is used: the one with the best validation score, or `seed`. For each fabric 1-23 on the test day

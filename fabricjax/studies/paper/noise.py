@@ -28,6 +28,7 @@ from fabricjax.studies.common.runner import StudyRow
 TITLE, PAPER = "Cafe noise", "Table new_noise_results"  # how results name the study, and what of the paper it reproduces
 
 SPLIT = "cafe"
+SPLITS = (SPLIT, "test")  # the splits every row is evaluated on: the cafe and, for reference, the lab test day
 SIGNIFICANCE = 0.05  # the level at which the checklist calls a per-seed Wilcoxon test significant
 
 
@@ -51,8 +52,11 @@ ROWS = (
 
 
 def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
-    """Every row with its tests against the preceding row on the cafe split, and results/noise.png."""
-    labels = trained.dataset.sets[SPLIT].labels["fabric"]
+    """Every row with its tests against the preceding row on the cafe split and the class each
+    seed collapsed to on the cafe and lab test splits (`findings.collapsed`); both splits'
+    majority class (`findings.majority`), and results/noise.png."""
+    sets = trained.dataset.sets
+    labels = sets[SPLIT].labels["fabric"]
     recorded = trained.dataset.recorded
     out_rows, previous = [], None
     for r in chosen:
@@ -63,12 +67,14 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
             **({} if recorded else {"paper": dict(r.paper)}),
             "against": previous.name if previous is not None else None,
             "wilcoxon": {k: documents.wilcoxon_doc(v) for k, v in tests.items()} or None,
+            "collapsed": {s: findings.collapsed(row.predictions(s), sets[s].labels["fabric"]) for s in SPLITS},
             **row.doc([SPLIT, "test"]),
         })
         previous = row
     figure = plot(results / "noise.png", out_rows, trained.dataset.sets[SPLIT].names if recorded else None)
     calibrated = [] if recorded else estimates.calibrated_in("noise")
-    return {"rows": out_rows, "cafe_samples": documents.samples_doc(trained.dataset.sets[SPLIT]), "calibrated": calibrated}, [figure]
+    majority = {s: findings.majority(sets[s].labels["fabric"]) for s in SPLITS}
+    return {"rows": out_rows, "majority": majority, "cafe_samples": documents.samples_doc(sets[SPLIT]), "calibrated": calibrated}, [figure]
 
 
 def _has_cafe_trials(ds: loading.Dataset) -> None:
@@ -113,10 +119,12 @@ def _p(w: dict[str, Any] | None) -> str:
     return "–" if w is None else f"{w['p_value']:.4g} (floor {w['min_attainable_p']:.2g}, {w['method']})"
 
 
-def table(rows: Sequence[dict[str, Any]], recorded: bool = False, names: Mapping[str, str] | None = None) -> str:
-    """Cafe accuracy per row beside the paper's (on recorded data: beside the best row's), the
-    tests against the preceding row, and the lab test day's accuracy; rows named by `names`
-    (recorded data: the data's names for its streams) else the paper's sensors."""
+def table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Mapping[str, Any] | None], recorded: bool = False,
+          names: Mapping[str, str] | None = None) -> str:
+    """Cafe accuracy per row, flagged where seeds collapsed (each row's "collapsed"), beside the
+    cafe split's `majority` class and the paper's (on recorded data: beside the best row's), the
+    tests against the preceding row, and the lab test day's accuracy beside its majority class;
+    rows named by `names` (recorded data: the data's names for its streams) else the paper's sensors."""
     cafe = [stats.mean_sd(100 * np.asarray(r["accuracy"][SPLIT]["fabric"])) for r in rows]
     gaps = documents.best_gaps([m for m, _ in cafe])
     body = []
@@ -129,17 +137,21 @@ def table(rows: Sequence[dict[str, Any]], recorded: bool = False, names: Mapping
         else:
             p = r["paper"]
             compared = [f"{p['mean']:.2f} ± {p['sd']:.2f}", f"{mean - p['mean']:+.2f}", *tests, p["p"] or "–"]
-        body.append([display_name(r["name"], names), f"{mean:.2f} ± {sd:.2f}", *compared, f"{lab[0]:.2f} ± {lab[1]:.2f}", f"{r['wall_s']:.1f}"])
+        body.append([display_name(r["name"], names), f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed'][SPLIT])}",
+                     findings.majority_cell(majority[SPLIT]), *compared,
+                     f"{lab[0]:.2f} ± {lab[1]:.2f}{findings.collapse_text(r['collapsed']['test'])}", findings.majority_cell(majority["test"]),
+                     f"{r['wall_s']:.1f}"])
     tests = ["p per seed", "p per sequence"]
     compared = [documents.BEST_GAP, *tests] if recorded else ["Paper [%]", "Ours − paper [pp]", *tests, "Paper p"]
     ours = "recorded data" if recorded else "ours"
-    return documents.markdown_table(["Modalities", f"Cafe test [%] ({ours})", *compared, f"Lab test [%] ({ours})", "Train wall time [s]"], body)
+    return documents.markdown_table(["Modalities", f"Cafe test [%] ({ours})", "Majority class, cafe [%]", *compared,
+                                     f"Lab test [%] ({ours})", "Majority class, lab test [%]", "Train wall time [s]"], body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
     recorded, names = documents.recorded(doc), documents.stream_names(doc)
-    lines = [documents.title(doc, TITLE, PAPER), "", documents.header_markdown(doc), table(doc["rows"], recorded, names),
-             "Tests, each row against the preceding one on the cafe split:", ""]
+    lines = [documents.title(doc, TITLE, PAPER), "", documents.header_markdown(doc), table(doc["rows"], doc["majority"], recorded, names),
+             findings.baseline_note(), "", "Tests, each row against the preceding one on the cafe split:", ""]
     for r in doc["rows"]:
         for w in (r["wilcoxon"] or {}).values():
             lines.append(f"- {display_name(r['name'], names)} vs {display_name(r['against'], names)}: {w['describe']}")
@@ -155,9 +167,9 @@ def markdown(doc: dict[str, Any]) -> str:
 
 
 STUDY = runner.Study(
-    "noise", ROWS, n_seeds=10, eval_splits=(SPLIT, "test"),
+    "noise", ROWS, n_seeds=10, eval_splits=SPLITS,
     split_names=(*loading.TRAIN_VAL_TEST, SPLIT), document=document,
-    checklist=lambda doc: checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in (SPLIT, "test")} for r in doc["rows"]}),
+    checklist=lambda doc: checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in SPLITS} for r in doc["rows"]}),
     markdown=markdown, summary=lambda row: f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %", check=_has_cafe_trials,
 )
 run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

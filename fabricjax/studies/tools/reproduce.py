@@ -7,7 +7,7 @@ The plan (`PLAN`, data): the modality ablation (5 seeds), the linear probe of ev
 row's inputs (no seeds: deterministic, and cheap), the day shift of every input (what the fabric,
 the day and the trial explain, beside the probe's training-day and new-day accuracy; no seeds),
 the PSD bandwidth (5), cafe noise (10, as the paper), property perception (5, saving its
-checkpoints) and the latent t-SNE from the property study's Minsound + Minsight checkpoint, then the
+checkpoints) and the latent t-SNE from the property study's checkpoint of its Minsound + proprioception + Minsight row, then the
 decision study (calibration, when to stop rubbing, unknown fabrics) on the ablation's checkpoints
 of the row the paper calls best and of Minsound alone (`DECIDE_ROWS`; no training). The dataset is simulated once (or read from
 `data_dir`), features and compiled programs are cached, checkpoints resume, so every study after
@@ -62,7 +62,7 @@ STUDIES = {
 }
 UPSTREAM = {"latents": "properties", "day_shift": "probe", "decide": "ablation"}  # a study -> the study whose results it reads
 UNSEEDED = ("probe", "day_shift")  # deterministic studies of no paper table: no seeds, no claims
-LATENT_ROW = properties.ROWS[-1].name  # the paper's figure: the Minsound + Minsight model
+LATENT_ROW = properties.ROWS[-1].name  # the paper's figure: its "Minsound + Minsight" model, which also reads proprioception
 # the decision study's models: the ablation row the paper calls best (its highest mean) and Minsound alone
 DECIDE_ROWS = (max(ablation.PAPER_ROWS, key=lambda r: r.paper["mean"]).name, "internal")
 CHECKPOINT_STUDIES = ("latents", "decide")  # studies of another study's checkpoints: run by --checkpoint, no seeds or rows flags
