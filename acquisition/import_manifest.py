@@ -59,11 +59,9 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import functools
 import os
 import shutil
 import tempfile
-import threading
 import time
 from collections import Counter, defaultdict
 from pathlib import Path
@@ -74,13 +72,14 @@ from tqdm import tqdm
 
 from acquisition import hand_folder, mapping_file, ros_bag, rig as rig_mod
 from acquisition.alignment import ReferenceSource, parse_reference, session_of
-from fabricjax import archive, cli, parallel, provenance
+from fabricjax import archive, cli, lock, parallel, provenance
 from fabricjax.atomic import atomic_open
 from fabricjax.errors import UserError
 
 COLUMNS = ("path", "label", "split", "day", "trial", "condition", "session", *archive.PROPERTY_NAMES)
 HAND_COLUMNS = COLUMNS[:7]  # the hand's folders and bags: property levels come from the fabric catalog
 STAGING = (".import-", ".partial")  # prefix and suffix of the staging folder in DIR
+IMPORT_LOCK = ".import.lock"  # in DIR: a second import into it at the same time is refused (`fabricjax.lock`)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -275,19 +274,6 @@ def _import_one(job: Job) -> None:
             f.write(str(e))
 
 
-def _exit_with_parent(parent: int) -> None:
-    """A worker's initializer: the worker ends when the importing process `parent` is gone (killed),
-    rather than living on as an orphan. The parent's pid comes from the parent itself: a worker
-    still starting when the parent is killed would otherwise take its new parent for the importer."""
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(0.5)
-        os._exit(1)
-
-    threading.Thread(target=watch, daemon=True).start()
-
-
 def plan(rows: list[Row], out: Path, *, rig: rig_mod.Rig | None, mapping: dict[str, Any] | None, label_map: dict[str, int] | None,
          splits: list[str | None], manifest, problems: list[str], reference: ReferenceSource | None = None) -> list[Job]:
     """One job per row, with its archive's name; two rows giving one name or listing one recording,
@@ -383,10 +369,17 @@ def check_out(out: Path, jobs: list[Job], overwrite: bool, manifest, problems: l
     return todo, []
 
 
-def _staging(out: Path) -> Path:
-    """A new staging folder in `out`, after removing what a killed run left there."""
+def _writable(out: Path) -> None:
     try:
         out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise UserError(f"{out}: --out: cannot write there: {e.strerror or e}") from None
+
+
+def _staging(out: Path) -> Path:
+    """A new staging folder in `out`, after removing what a killed run left there (the import's
+    lock is held: no other import is using them)."""
+    try:
         for stray in out.glob(f"{STAGING[0]}*{STAGING[1]}"):
             shutil.rmtree(stray)
         for stray in out.glob(".*.partial"):  # `atomic_open`'s temporaries
@@ -448,24 +441,26 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
     todo, stale = check_out(out, jobs, overwrite, manifest, problems, say)
     if problems:
         raise ImportProblems(problems + ([f"{out}: nothing was written ({len(problems)} problems above)"] if len(problems) > 1 else []))
-    staging = _staging(out)
-    try:
-        staged = [dataclasses.replace(j, target=str(staging / Path(j.target).name)) for j in todo]
-        n = max(1, min(workers or os.cpu_count() or 1, len(todo)))
-        with tqdm(total=len(todo), desc=f"import ({n} processes)", unit="trial", disable=not progress) as bar:
-            parallel.run_jobs(_import_one, staged, n, bar.update, initializer=functools.partial(_exit_with_parent, os.getpid()))
-        failed = [Path(j.target + ".error").read_text() for j in staged if Path(j.target + ".error").exists()]
-        if failed:
-            raise ImportProblems(failed + ([f"{out}: nothing was written ({len(failed)} trials failed)"] if len(failed) > 1 else []))
-        for j, s in zip(todo, staged):  # the import is complete: into DIR, and what no row produces out of it
-            os.replace(s.target, j.target)
-        for p in stale:
-            p.unlink()
-        source = provenance.from_readme(Path(manifest).parent)
-        if source is not None:
-            provenance.write(out, source)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
+    _writable(out)
+    with lock.hold(out / IMPORT_LOCK, f"the import into {out}", f"importing {len(todo)} trials", transient=True):  # one import at a time
+        staging = _staging(out)
+        try:
+            staged = [dataclasses.replace(j, target=str(staging / Path(j.target).name)) for j in todo]
+            n = max(1, min(workers or os.cpu_count() or 1, len(todo)))
+            with tqdm(total=len(todo), desc=f"import ({n} processes)", unit="trial", disable=not progress) as bar:
+                parallel.run_jobs(_import_one, staged, n, bar.update)
+            failed = [Path(j.target + ".error").read_text() for j in staged if Path(j.target + ".error").exists()]
+            if failed:
+                raise ImportProblems(failed + ([f"{out}: nothing was written ({len(failed)} trials failed)"] if len(failed) > 1 else []))
+            for j, s in zip(todo, staged):  # the import is complete: into DIR, and what no row produces out of it
+                os.replace(s.target, j.target)
+            for p in stale:
+                p.unlink()
+            source = provenance.from_readme(Path(manifest).parent)
+            if source is not None:
+                provenance.write(out, source)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
     notes: dict[str, Counter] = defaultdict(Counter)
     steps = 0
     for j in jobs:

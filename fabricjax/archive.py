@@ -595,7 +595,7 @@ def write_archive(path: os.PathLike | str, archive: TrialArchive) -> Path:
     recordings) are stored, so no ratio bound can refuse them."""
     path = Path(path)
     validate(archive, path)
-    with atomic_open(path) as f:
+    with atomic_open(path, what="a trial archive") as f:
         write_npz(f, {"meta": np.array(json.dumps(archive.meta)), **archive.arrays()}, deflate=lambda a: a.nbytes <= FREE_INFLATION)
     return path
 

@@ -14,6 +14,7 @@ without creating anything (`open_existing`): a path holding no checkpoint is a o
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -22,6 +23,7 @@ import numpy as np
 import orbax.checkpoint as ocp
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from fabricjax import disk
 from fabricjax.config import RESULT_NEUTRAL_FIELDS, Config
 from fabricjax.errors import UserError
 from fabricjax.model import head_sizes
@@ -73,12 +75,16 @@ def _holds_steps(folder: Path) -> bool:
     return any(p.is_dir() and p.name.isdigit() and (p / "meta").exists() for p in folder.iterdir())
 
 
-def meta(config: Config, seeds, shapes: dict[str, tuple[int, ...]], classes: Sequence[str] | None = None) -> dict[str, Any]:
-    """What identifies a run (its config, its seeds, the per-step input shapes and the state's
-    layout) and what it was trained for (`trained_for`, with the data's class names `classes`)."""
+def meta(
+    config: Config, seeds, shapes: dict[str, tuple[int, ...]], classes: Sequence[str] | None = None,
+    dataset: Mapping[str, str] | None = None,
+) -> dict[str, Any]:
+    """What identifies a run (its config, its seeds, the per-step input shapes, the state's layout
+    and the data it trains on: `dataset`, `DatasetIndex.identity`) and what it was trained for
+    (`trained_for`, with the data's class names `classes`)."""
     return {
         "config": config.to_json(), "seeds": [int(s) for s in seeds], "shapes": {k: list(v) for k, v in shapes.items()},
-        "state_version": STATE_VERSION, "trained_for": trained_for(config, classes),
+        "state_version": STATE_VERSION, "trained_for": trained_for(config, classes), "dataset": dict(dataset or {}),
     }
 
 
@@ -113,10 +119,25 @@ def save(mngr: ocp.CheckpointManager, step: int, state, run_meta: dict[str, Any]
     The state is copied to the host first: orbax saves a device array from each device's shard,
     and compiled a slicing program per array shape and device to do so (1.2 s at a run's first save,
     against 0.05 s from host copies, for a camera row's state on 2 CPU devices). A restore places
-    the arrays on the devices whichever way they were saved (`restore`)."""
+    the arrays on the devices whichever way they were saved (`restore`). A save that would not fit
+    on the disk is a `disk.DiskFull` before orbax starts (orbax's own threads would print a
+    traceback each); one that fills the disk all the same leaves no unfinished step behind."""
     state = jax.device_get(state)
-    mngr.save(step, args=ocp.args.Composite(state=ocp.args.StandardSave(state), meta=ocp.args.JsonSave(run_meta)))
-    mngr.wait_until_finished()
+    where, what = Path(mngr.directory), f"the checkpoint of epoch {step}"
+    needed = sum(np.asarray(x).nbytes for x in jax.tree.leaves(state))
+    disk.require(where, needed, what, margin=SAVE_MARGIN)
+    try:
+        with disk.writing(where, what, needed):
+            mngr.save(step, args=ocp.args.Composite(state=ocp.args.StandardSave(state), meta=ocp.args.JsonSave(run_meta)))
+            mngr.wait_until_finished()
+    except disk.DiskFull:
+        for unfinished in where.glob(f"{step}.orbax-checkpoint-tmp*"):
+            shutil.rmtree(unfinished, ignore_errors=True)
+        raise
+
+
+# Free space a save asks for beyond the arrays' bytes: orbax's metadata and the file system's blocks.
+SAVE_MARGIN = 1.25
 
 
 def read_meta(mngr: ocp.CheckpointManager, step: int | None = None) -> dict[str, Any]:
@@ -125,7 +146,10 @@ def read_meta(mngr: ocp.CheckpointManager, step: int | None = None) -> dict[str,
 
 
 def check_meta(directory, saved: dict[str, Any], expected: dict[str, Any]) -> None:
-    """Raise `CheckpointMismatch` naming the directory and every field that differs."""
+    """Raise `CheckpointMismatch` naming the directory and every field that differs; a run on other
+    data (`require_data`) first, naming both datasets."""
+    if expected.get("dataset"):
+        require_data(directory, saved.get("dataset"), expected["dataset"], CheckpointMismatch)
     cfg = expected["config"]
     saved_cfg = saved.get("config", {})
     diff = sorted(k for k in (set(cfg) | set(saved_cfg)) - set(RESULT_NEUTRAL_FIELDS) if _norm(cfg.get(k)) != _norm(saved_cfg.get(k)))
@@ -135,6 +159,18 @@ def check_meta(directory, saved: dict[str, Any], expected: dict[str, Any]) -> No
             f"{k}: saved {_field(saved, k)!r}, requested {_field(expected, k)!r}" for k in diff
         )
         raise CheckpointMismatch(f"checkpoint in {directory} was made with a different run: {details}")
+
+
+def require_data(directory, trained_on: Mapping[str, str] | None, reads: Mapping[str, str], error: type[UserError] = WrongCheckpoint) -> None:
+    """Raise `error` unless the checkpoint in `directory`, trained on `trained_on`, was trained on
+    the data this run `reads` (both `DatasetIndex.identity`): equal contents, wherever they lie. A
+    checkpoint that does not name its data is refused too: its data cannot be told."""
+    if not trained_on:
+        raise error(f"the checkpoint in {directory} does not record the data it was trained on, so it cannot be used "
+                    f"with {reads['folder']}: retrain it")
+    if trained_on.get("content") != reads.get("content"):
+        raise error(f"the checkpoint in {directory} was trained on {trained_on.get('folder')} (contents {trained_on.get('content')}), "
+                    f"not on {reads['folder']} (contents {reads['content']}) that this run reads")
 
 
 RUN_FIELDS = ("seeds", "shapes", "state_version")  # beside the config's fields (a checkpoint without state_version has layout 1)

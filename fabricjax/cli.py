@@ -13,8 +13,9 @@
   share a line with a progress bar (the bar is cleared, the line written, the bar redrawn).
 * A user's mistake (a bad flag value, or a `fabricjax.errors.UserError` such as a damaged archive,
   an empty data folder or an unknown row) ends in one line `error: <message>` on stderr and exit
-  status 2; `--verbosity=1` (absl's debug level) shows its traceback. Anything else is a bug and
-  keeps its traceback.
+  status 2; `--verbosity=1` (absl's debug level) shows its traceback. So does a full disk, also
+  where a library's write found it (`fabricjax.disk`). Anything else is a bug and keeps its
+  traceback.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from typing import Callable, Mapping, Sequence
 from absl import app, flags, logging
 from tqdm import tqdm
 
-from fabricjax import runtime
+from fabricjax import disk, runtime
 from fabricjax.errors import UserError
 
 FLAGS = flags.FLAGS
@@ -142,5 +143,10 @@ def run(main: Callable[[list[str]], object], before: Callable[[], None] = runtim
             if logging.get_verbosity() >= logging.DEBUG:
                 raise
             fail(str(e))
+        except Exception as e:  # a library's own write on a full disk: the same one line as ours
+            if not disk.is_full(e) or logging.get_verbosity() >= logging.DEBUG:
+                raise
+            path = disk.full_path(e) or os.getcwd()
+            fail(str(disk.DiskFull(path, "a file")))
 
     app.run(start, flags_parser=_parse)

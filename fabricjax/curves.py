@@ -47,8 +47,8 @@ def seed_dir(log_dir: str | os.PathLike, seed: int) -> Path:
 
 
 class History:
-    """A run's curves as {tag: float32 (seeds, epochs)}, filled chunk by chunk; NaN where an epoch
-    was trained by an earlier, interrupted process (a resumed run starts from its checkpoint)."""
+    """A run's curves as {tag: float32 (seeds, epochs)}, filled chunk by chunk; a resumed run takes
+    the epochs before its checkpoint from the checkpoint (`restore`), NaN where the checkpoint has none."""
 
     def __init__(self, n_seeds: int, n_epochs: int):
         self.shape = (n_seeds, n_epochs)
@@ -62,6 +62,16 @@ class History:
         for tag, values in chunk.items():
             full = self.scalars.setdefault(tag, np.full(self.shape, np.nan, np.float32))
             full[:, first_epoch : first_epoch + n] = values
+
+    def to_json(self) -> dict[str, list]:
+        """The curves so far, as JSON (null for an epoch not trained yet): saved with a checkpoint,
+        so that a resumed run reports the epochs its killed predecessor trained."""
+        return {tag: [[None if np.isnan(x) else float(x) for x in row] for row in a] for tag, a in self.scalars.items()}
+
+    def restore(self, saved: Mapping[str, list]) -> None:
+        """Take the curves of `to_json` (a checkpoint's), whose epochs this run will not train."""
+        for tag, rows in saved.items():
+            self.scalars[tag] = np.array([[np.nan if x is None else x for x in row] for row in rows], np.float32).reshape(self.shape)
 
 
 class CurveWriter:

@@ -82,7 +82,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, catalog, dataset_index, host_arrays, memo, presets, splits, workspace
+from fabricjax import archive, catalog, dataset_index, disk, host_arrays, lock, memo, presets, splits, workspace
 from fabricjax.config import MODALITY_NAMES, PAPER_WINDOW_S, Config
 from fabricjax.errors import UserError
 from fabricjax.features import cache, welch
@@ -106,6 +106,7 @@ class SequenceSet:
     names: Mapping[str, str] = dataclasses.field(default_factory=dict)  # absent: the paper's (config.MODALITY_NAMES)
     classes: tuple[str, ...] = tuple(catalog.fabric(k).name for k in range(catalog.N_CLASSES))
     window_s: float = PAPER_WINDOW_S  # the microphones' step window [s] (`step_window_s`)
+    dataset: Mapping[str, str] = dataclasses.field(default_factory=dict)  # `DatasetIndex.identity`; absent: made in memory
 
     @property
     def n_classes(self) -> int:
@@ -231,6 +232,8 @@ def _fill(index, chosen, members, features, config: Config, rates, store: Sequen
             on_disk = config.input_source == "disk" or (config.input_source == "auto" and total > memo.memory_budget(MEMORY_FRACTION))
             if on_disk:
                 logging.info("the sequences take %.1f GB: training reads them from %s (input_source=%s)", total / 1e9, workspace.shown(store.folder), config.input_source)
+            if on_disk:  # memory-mapped files on a full disk would end in a bus error, not an OSError
+                disk.require(store.folder, total, "the loaded sequences")
             inputs = store.create(shapes) if on_disk else {t: {m: host_arrays.empty(*v) for m, v in d.items()} for t, d in shapes.items()}
         for m, a in trial.items():
             if a.shape[1:] != inputs[s][m].shape[1:]:
@@ -432,7 +435,10 @@ def load_sequences(
     if inputs is not None and config.input_source == "auto" and sum(a.nbytes for d in inputs.values() for a in d.values()) <= memo.memory_budget(MEMORY_FRACTION):
         inputs = None  # stored by a run that asked for "disk", and they fit in memory
     if inputs is None:
-        inputs = _fill(index, chosen, members, features, config, rates, store, workspace.features_dir(workdir), workers, progress)
+        features_root = workspace.features_dir(workdir)
+        with lock.hold(lock.lock_file(features_root, workdir), "the feature cache", f"computing features of {index.root.name}", wait=True):
+            inputs = _fill(index, chosen, members, features, config, rates, store, features_root, workers, progress)
     names = stream_names(lay)
-    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, names=names, classes=classes, window_s=config.mic_window_s)
+    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, names=names, classes=classes, window_s=config.mic_window_s,
+                              dataset=index.identity())
             for s in wanted}

@@ -47,6 +47,16 @@ class DatasetIndex:
     def select(self, **where: Any) -> list[IndexEntry]:
         return [e for e in self.entries if all(e.meta.get(k) == v for k, v in where.items())]
 
+    @property
+    def content_hash(self) -> str:
+        """Identifies the dataset by its contents (every archive's name and sha256), wherever its
+        folder lies: what checkpoints are keyed by, so that a model is never reused on other data."""
+        return hashlib.sha256("\n".join(f"{e.file} {e.sha256}" for e in self.entries).encode()).hexdigest()[:16]
+
+    def identity(self) -> dict[str, str]:
+        """The dataset as a checkpoint records it: its folder (as commands name it) and `content_hash`."""
+        return {"folder": workspace.shown(self.root), "content": self.content_hash}
+
 
 def sha256_file(path: os.PathLike | str) -> str:
     """Hex sha256 of a file's bytes, read in 1 MiB blocks."""
@@ -90,7 +100,7 @@ def build_index(folder: os.PathLike | str, index_file: os.PathLike | str | None 
         entries.append(IndexEntry(p.name, meta, n, st.st_size, st.st_mtime_ns, sha256_file(p)))
     doc = {"format_version": INDEX_VERSION, "folder": str(root.resolve()), "trials": [dataclasses.asdict(e) for e in entries]}
     ipath.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_open(ipath, "w") as f:
+    with atomic_open(ipath, "w", what="the dataset index") as f:
         f.write(json.dumps(doc, indent=1))
     return DatasetIndex(root, tuple(entries))
 

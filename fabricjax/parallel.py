@@ -2,14 +2,21 @@
 
 Jobs run in spawned processes through `concurrent.futures` (not `multiprocessing.Pool`): a worker
 that dies raises `BrokenProcessPool` in the caller instead of hanging the run, and its workers are
-not daemonic, so a job may start processes of its own. One worker runs the jobs in this process.
+not daemonic, so a job may start processes of its own. One worker runs the jobs in this process. Every worker watches its parent
+(`_exit_with_parent`): killing the parent (kill -9 included) ends its workers too.
 """
 
 from __future__ import annotations
 
+import functools
 import multiprocessing
+import os
+import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from typing import Callable, Sequence
+
+PARENT_POLL_S = 0.5  # how soon a worker notices its parent is gone
 
 
 def run_jobs(fn: Callable, jobs: Sequence, workers: int, on_done: Callable[[], None], initializer: Callable[[], None] | None = None) -> None:
@@ -22,7 +29,27 @@ def run_jobs(fn: Callable, jobs: Sequence, workers: int, on_done: Callable[[], N
             fn(job)
             on_done()
         return
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"), initializer=initializer) as pool:
+    start = functools.partial(_start_worker, os.getpid(), initializer)
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"), initializer=start) as pool:
         for done in [pool.submit(fn, job) for job in jobs]:  # in job order: the first failing job's error is raised
             done.result()
             on_done()
+
+
+def _start_worker(parent: int, initializer: Callable[[], None] | None) -> None:
+    _exit_with_parent(parent)
+    if initializer is not None:
+        initializer()
+
+
+def _exit_with_parent(parent: int) -> None:
+    """The worker ends when the process `parent` that started the pool is gone (killed), rather
+    than waiting for jobs forever as an orphan. The parent's pid comes from the parent itself: a
+    worker still starting when the parent is killed would otherwise take its new parent for it."""
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()

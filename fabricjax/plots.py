@@ -23,7 +23,7 @@ def _save(fig, path) -> Path:
     """Written by process 0 only in a multi-process run (every process draws the same figure)."""
     try:
         if runtime.is_primary():
-            with atomic_open(path) as f:
+            with atomic_open(path, what="a figure") as f:
                 fig.savefig(f, format="png", dpi=130, bbox_inches="tight")
     finally:
         plt.close(fig)

@@ -510,6 +510,11 @@ def seed_keys(seeds: Sequence[int]) -> jax.Array:
     return jnp.stack([jax.random.PRNGKey(int(s)) for s in seeds])
 
 
+# How often a checkpointed run saves by default: a killed run loses at most this many epochs (a
+# row of the paper preset is hours), and a save costs a fraction of an epoch.
+SAVE_EVERY_EPOCHS = 2
+
+
 def train_and_evaluate(
     config: Config,
     data_sets: Mapping[str, Any],
@@ -522,9 +527,10 @@ def train_and_evaluate(
     """Train one model per seed in a single program and evaluate it on every set.
 
     `data_sets` holds "train", "val" and any number of evaluation sets ("test", "cafe", ...).
-    With `workdir` (this run's checkpoint directory) the state is saved every `save_every`
-    epochs (default: at the end) and a rerun resumes from the latest checkpoint; `on_save(epoch)`
-    is called after each durable save.
+    With `workdir` (this run's checkpoint directory) the state and the curves so far are saved
+    every `save_every` epochs (default `SAVE_EVERY_EPOCHS`) and at the end, and a rerun resumes
+    from the latest save to the uninterrupted run's bits; `on_save(epoch)` is called after each
+    durable save.
 
     The per-epoch curves (`curves.tags`: loss, accuracies per head, learning rate, epoch wall
     time) come back in `metrics["epochs"]` as {tag: (seeds, epochs)} arrays, NaN for epochs a
@@ -551,20 +557,25 @@ def train_and_evaluate(
             run, finish = (lambda n: functools.partial(fed.run, n_epochs=n)), fed.finish
         keys = sharding.put(seed_keys(seeds), per_seed)
         mngr = checkpoint.manager(workdir) if workdir is not None else None
-        run_meta = checkpoint.meta(config, seeds, trainer.shapes, getattr(data_sets["train"], "classes", None))
+        train_set = data_sets["train"]
+        run_meta = checkpoint.meta(config, seeds, trainer.shapes, getattr(train_set, "classes", None), getattr(train_set, "dataset", None))
+        saved_curves = None
         if mngr is not None and mngr.latest_step() is not None:
             abstract = jax.tree.map(
                 lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=per_seed), jax.eval_shape(init, keys)
             )
             state, done = checkpoint.restore(mngr, abstract, run_meta)
+            saved_curves = checkpoint.read_meta(mngr, done).get("curves")
         else:
             stats = input_statistics(config, data_sets["train"])
             state, done = sharding.put(with_input_statistics(init(keys), stats), per_seed), 0
         state = jax.block_until_ready(state)
     history, validation = curves.History(len(seeds), config.epochs), BestEpochValidation(len(seeds))
+    if done and saved_curves:
+        history.restore(saved_curves)
     # in a multi-process run only process 0 writes curves; the others open no files but chunk alike
     writer = curves.open_writer(log_dir, seeds if runtime.is_primary() else (), done) if log_dir is not None else None
-    save_every = save_every or config.epochs
+    save_every = save_every or SAVE_EVERY_EPOCHS
     # one epoch per call wherever curves were asked for, written or not (tensorboardX is optional):
     # each epoch's wall time is then its own, the first's with the compilation, in every install
     # early stopping: a chunk ends at most `patience` epochs after a seed could have stopped, and
@@ -583,7 +594,7 @@ def train_and_evaluate(
         done += n
         if mngr is not None and (done % save_every == 0 or done == config.epochs or stopped(state)):
             with account.phase("save_s"):
-                checkpoint.save(mngr, done, state, run_meta)
+                checkpoint.save(mngr, done, state, {**run_meta, "curves": history.to_json()})
             if on_save is not None:
                 on_save(done)
     if writer is not None:
@@ -607,6 +618,7 @@ class Restored(NamedTuple):
     config: Config
     seeds: list[int]
     trained_for: dict[str, Any]
+    dataset: dict[str, str]  # the data it was trained on (`DatasetIndex.identity`; empty where the checkpoint does not say)
 
 
 def restore(directory: str | os.PathLike, config: Config | None = None, seed: int | None = None) -> Restored:
@@ -627,7 +639,8 @@ def restore(directory: str | os.PathLike, config: Config | None = None, seed: in
     state, _ = checkpoint.restore(mngr, checkpoint.on_devices(abstract), expected)
     for_ = saved.get("trained_for") or checkpoint.trained_for(config)  # older checkpoints: from their config
     if seed is None:
-        return Restored(trainer.graphdef, state, config, saved["seeds"], for_)
+        return Restored(trainer.graphdef, state, config, saved["seeds"], for_, saved.get("dataset") or {})
     if seed not in saved["seeds"]:
         raise KeyError(f"seed {seed} is not in the checkpoint in {mngr.directory} (seeds {saved['seeds']})")
-    return Restored(trainer.graphdef, checkpoint.select_seed(state, saved["seeds"].index(seed)), config, saved["seeds"], for_)
+    return Restored(trainer.graphdef, checkpoint.select_seed(state, saved["seeds"].index(seed)), config, saved["seeds"], for_,
+                    saved.get("dataset") or {})

@@ -40,12 +40,12 @@ def tiny_archive(n_steps=30, fabric_id=4, day=1, trial=0, condition="lab", image
     )
 
 
-def tiny_dataset(folder, trials, n_steps=45, images=(12, 16)):
+def tiny_dataset(folder, trials, n_steps=45, images=(12, 16), seed=0):
     """Write one tiny archive per (fabric_id, day, trial, condition) into `folder`; `n_steps` may
-    be a dict from that tuple to a step count. Returns the folder."""
+    be a dict from that tuple to a step count; `seed` draws another dataset. Returns the folder."""
     for i, (fabric_id, day, trial, condition) in enumerate(trials):
         n = n_steps.get((fabric_id, day, trial, condition), 45) if isinstance(n_steps, dict) else n_steps
-        a = tiny_archive(n, fabric_id=fabric_id, day=day, trial=trial, condition=condition, images=images, seed=i)
+        a = tiny_archive(n, fabric_id=fabric_id, day=day, trial=trial, condition=condition, images=images, seed=seed + i)
         archive.write_archive(f"{folder}/{archive.trial_filename(a.meta)}", a)
     return folder
 

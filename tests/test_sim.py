@@ -233,8 +233,10 @@ def test_not_enough_disk_is_a_clear_error_before_any_write(tmp_path, monkeypatch
     import shutil
     from collections import namedtuple
 
+    from fabricjax.disk import DiskFull
+
     monkeypatch.setattr(shutil, "disk_usage", lambda p: namedtuple("u", "total used free")(10**9, 10**9, 10**6))
-    with pytest.raises(dataset_mod.NotEnoughDisk, match="needs about .* GB, only 0.0 GB free"):
+    with pytest.raises(DiskFull, match=r"for \d+ simulated trials of preset 'smoke' \(.*\): needs at least \d+ MB, 1 MB free there"):
         ensure_dataset("smoke", workdir=tmp_path, streams=("audio", "proprio"), progress=False, workers=1)
     assert not list((tmp_path / "datasets" / "smoke").glob("*.npz"))
 

@@ -49,7 +49,7 @@ def folder(features_root: Path, dataset_root: Path, feature: Feature) -> Path:
 
 
 def _atomic_write(path: Path, write) -> None:
-    with atomic_open(path) as f:
+    with atomic_open(path, what="cached features") as f:
         write(f)
 
 

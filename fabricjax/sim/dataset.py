@@ -2,21 +2,21 @@
 
 Archives are written atomically (`archive.write_archive`), so an interrupted run leaves only
 finished archives (plus temporary `.partial` files, removed on the next run); rerunning skips
-every archive that already exists, matches its scene and holds the wanted streams.
+every archive that already exists, matches its scene and holds the wanted streams. Writing holds
+the dataset's lock (`fabricjax.lock`): a run that reads the dataset, or simulates it, at the same
+time makes this one end in a line naming it, before anything is written.
 """
 
 from __future__ import annotations
 
 import os
-import shutil
 from pathlib import Path
 from typing import Iterable
 
 import numpy as np
 from tqdm import tqdm
 
-from fabricjax import archive, dataset_index, parallel, presets, splits, workspace
-from fabricjax.errors import UserError
+from fabricjax import archive, dataset_index, disk, lock, parallel, presets, splits, workspace
 from fabricjax.sim import calibration as cal
 from fabricjax.sim import estimates
 from fabricjax.sim.scene import EFFECTS, Scene
@@ -67,10 +67,6 @@ def is_done(path: Path, scene: Scene) -> bool:
     return made == want and (has_images or "images" not in scene.streams)
 
 
-class NotEnoughDisk(UserError):
-    """The dataset would not fit on the disk: nothing was written."""
-
-
 def trial_seconds(dataset: splits.DatasetSpec) -> float:
     """About how long one simulated trial of `dataset` lasts, at most: its cycles at the commanded
     rate, ~12 % slower on average under load (the servo droop of calibration.SPEED_DROOP_PER_N),
@@ -90,10 +86,6 @@ def trial_bytes(dataset: splits.DatasetSpec, images: bool) -> int:
     steps = seconds * archive.STEP_RATE
     per_step = 8 + 2 * 8 + archive.N_PROPRIO * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)  # [numerics] bytes
     return int(steps * per_step + 2 * 4 * (seconds * archive.AUDIO_RATE + cal.LEAD_IN))
-
-
-def _gb(n: float) -> str:
-    return f"{n / 1e9:.1f} GB"
 
 
 def _write(job: tuple[Scene, str]) -> str:
@@ -119,30 +111,41 @@ def ensure_dataset(
     writing, the disk space the missing trials need is estimated (`trial_bytes`) and checked."""
     dataset = presets.get(preset_name).dataset
     folder = workspace.dataset_dir(preset_name, workdir)
-    folder.mkdir(parents=True, exist_ok=True)
-    for stale in folder.glob(".*.partial"):
-        stale.unlink()
     scenes = [scene_for(spec, dataset, streams, seed) for spec in dataset.trials()]
     wanted = {filename(s) for s in scenes}
-    for foreign in sorted(p for p in folder.glob("*.npz") if p.name not in wanted):
-        foreign.unlink()  # the simulator's own folder: a trial the preset no longer has (e.g. an older smoke preset's fabrics)
-        if progress:
-            print(f"removed {foreign}: the preset {preset_name!r} has no such trial", flush=True)
-    jobs = [(s, str(folder / filename(s))) for s in scenes if not is_done(folder / filename(s), s)]
-    workers = workers or os.cpu_count() or 1
-    if jobs:
-        need = len(jobs) * trial_bytes(dataset, "images" in streams)
-        free = shutil.disk_usage(folder).free
-        if need > 0.95 * free:  # [numerics] a margin for other files
-            raise NotEnoughDisk(f"{folder}: simulating {len(jobs)} trials of preset {preset_name!r} needs about {_gb(need)}, only {_gb(free)} free")
-        if progress:
-            print(
-                f"Simulating {len(jobs)} of {len(scenes)} trials of preset {preset_name!r} ({', '.join(streams)}) into {folder}: "
-                f"at most {_gb(need)} on disk (less: members are deflated), on {workers} processes. This happens once; later runs reuse the archives.",
-                flush=True,
-            )
-    bar = tqdm(total=len(scenes), initial=len(scenes) - len(jobs), desc=f"simulate {preset_name}", unit="trial", disable=not progress or not jobs)
-    with bar:
-        parallel.run_jobs(_write, jobs, workers, bar.update)
-    dataset_index.build_index(folder)
+    if folder.is_dir() and not _to_write(folder, scenes, wanted):  # complete: only read, as readers may at the same time
+        dataset_index.load_index(folder, workdir)
+        return folder
+    doing = f"simulating preset {preset_name!r}"
+    with lock.hold(lock.lock_file(folder, workdir), f"the dataset {workspace.shown(folder)}", doing):
+        folder.mkdir(parents=True, exist_ok=True)
+        for stale in folder.glob(".*.partial"):
+            stale.unlink()
+        for foreign in sorted(p for p in folder.glob("*.npz") if p.name not in wanted):
+            foreign.unlink()  # the simulator's own folder: a trial the preset no longer has (e.g. an older smoke preset's fabrics)
+            if progress:
+                print(f"removed {foreign}: the preset {preset_name!r} has no such trial", flush=True)
+        jobs = [(s, str(folder / filename(s))) for s in scenes if not is_done(folder / filename(s), s)]
+        workers = workers or os.cpu_count() or 1
+        if jobs:
+            need = len(jobs) * trial_bytes(dataset, "images" in streams)
+            disk.require(folder, need, f"{len(jobs)} simulated trials of preset {preset_name!r}", margin=1 / 0.95)  # [numerics] a margin for other files
+            if progress:
+                print(
+                    f"Simulating {len(jobs)} of {len(scenes)} trials of preset {preset_name!r} ({', '.join(streams)}) into {folder}: "
+                    f"at most {disk.size(need)} on disk (less: members are deflated), on {workers} processes. "
+                    "This happens once; later runs reuse the archives.",
+                    flush=True,
+                )
+        bar = tqdm(total=len(scenes), initial=len(scenes) - len(jobs), desc=f"simulate {preset_name}", unit="trial", disable=not progress or not jobs)
+        with bar:
+            parallel.run_jobs(_write, jobs, workers, bar.update)
+        dataset_index.build_index(folder)
     return folder
+
+
+def _to_write(folder: Path, scenes: list[Scene], wanted: set[str]) -> bool:
+    """Whether the dataset in `folder` lacks an archive of `scenes`, holds one no scene makes
+    (`wanted`: their file names), or a temporary file of an interrupted write."""
+    return (any(folder.glob(".*.partial")) or any(p.name not in wanted for p in folder.glob("*.npz"))
+            or any(not is_done(folder / filename(s), s) for s in scenes))

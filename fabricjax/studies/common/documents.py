@@ -22,7 +22,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from fabricjax import data, presets, provenance, runtime, stats, workspace
+from fabricjax import atomic, data, presets, provenance, runtime, stats, workspace
 from fabricjax.atomic import atomic_open
 from fabricjax.studies.common.loading import Dataset
 
@@ -88,7 +88,7 @@ def write_text(path: os.PathLike | str, text: str) -> Path:
     """Atomic: a reader sees the old file or the new one, never half of one. In a multi-process
     run every process computes the same document and only process 0 writes it (`runtime.is_primary`)."""
     if runtime.is_primary():
-        with atomic_open(path, "w") as f:
+        with atomic_open(path, "w", what="a results file") as f:
             f.write(text)
     return Path(path)
 
@@ -167,9 +167,10 @@ def write(results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str
     `reproduce` know a study's figures."""
     out = results_path(results)
     doc["figures"] = [Path(f).name for f in figures if f is not None]
-    if markdown is not None:
-        write_text(out / f"{doc['study']}.md", markdown(doc))
-    write_json(out / f"{doc['study']}.json", doc)
+    with atomic.together():  # both files, or neither (a study drawing figures holds them in its own block)
+        if markdown is not None:
+            write_text(out / f"{doc['study']}.md", markdown(doc))
+        write_json(out / f"{doc['study']}.json", doc)
     return doc
 
 

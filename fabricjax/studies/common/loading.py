@@ -14,7 +14,7 @@ from typing import Sequence
 
 from absl import logging
 
-from fabricjax import data, sim, workspace
+from fabricjax import data, lock, sim, workspace
 from fabricjax.config import Config
 
 # The splits a study that evaluates on the lab test day needs (no cafe or holdout features computed).
@@ -83,13 +83,14 @@ def epochs_for(config: Config, steps: int, n_train: int) -> int:
 def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS) -> Dataset:
     """The splits a study evaluates as sequences of `config.modalities`, loaded once."""
     t0 = time.perf_counter()
-    if data_dir:
-        folder, source = workspace.dataset_dir(config.preset, workdir, data_dir), "recorded"
-    else:
-        streams = ("audio", "proprio") + (("images",) if {"image", "flow"} & set(config.modalities) else ())
-        folder, source = sim.ensure_dataset(config.preset, workdir, streams=streams), "simulated"
-    t1 = time.perf_counter()
-    sets = data.load_sequences(config, folder, workdir=workdir, split_names=split_names)
+    with reading(config.preset, data_dir, workdir):
+        if data_dir:
+            folder, source = workspace.dataset_dir(config.preset, workdir, data_dir), "recorded"
+        else:
+            streams = ("audio", "proprio") + (("images",) if {"image", "flow"} & set(config.modalities) else ())
+            folder, source = sim.ensure_dataset(config.preset, workdir, streams=streams), "simulated"
+        t1 = time.perf_counter()
+        sets = data.load_sequences(config, folder, workdir=workdir, split_names=split_names)
     t2 = time.perf_counter()
     logging.info("dataset %s (%s): %s", folder, source, {k: len(v) for k, v in sets.items()})
     ds = Dataset(sets, Path(folder), source, t1 - t0, t2 - t1, workdir)
@@ -97,6 +98,13 @@ def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Se
         counts = ", ".join(f"{k} {c['trials']} trials / {c['sequences']} sequences" for k, c in ds.split_counts().items())
         print(f"recorded data {folder} ({ds.n_classes} classes): {counts}")
     return ds
+
+
+def reading(preset: str, data_dir=None, workdir=None):
+    """The dataset's lock held shared (`fabricjax.lock`) while the block reads it: runs that read
+    one dataset go together; one that would simulate it anew at the same time is refused."""
+    folder = workspace.dataset_dir(preset, workdir, data_dir)
+    return lock.hold(lock.lock_file(folder, workdir), f"the dataset {workspace.shown(folder)}", "reading it", shared=True)
 
 
 def sequence_key(config: Config) -> tuple:

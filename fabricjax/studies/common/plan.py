@@ -34,6 +34,7 @@ import cv2
 
 from fabricjax import archive, data, feed, memo, presets, workspace
 from fabricjax.config import Config
+from fabricjax.disk import size
 from fabricjax.features import flow, welch
 from fabricjax.sim import dataset as sim_dataset
 from fabricjax.sim.trial import simulate
@@ -208,25 +209,25 @@ def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, wor
     peak = feed.host_bytes(int(per_sequence), union.batch_size, n_seeds) if to_disk else loaded
     out.append(Stage(
         "sequences", loaded if to_disk else 0, 0.0,
-        f"{loaded / 1e9:.1f} GB loaded: " + ("more than half of memory, so memory-mapped files in the workspace, read a block at a time" if to_disk else "held in memory")
-        + f"; peak host memory for training inputs {peak / 1e9:.1f} GB",
+        f"{size(loaded)} loaded: " + ("more than half of memory, so memory-mapped files in the workspace, read a block at a time" if to_disk else "held in memory")
+        + f"; peak host memory for training inputs {size(peak)}",
     ))
     return out + training(configs, n_seeds, train_sequences)
 
 
 def markdown(preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int, free_bytes: float) -> str:
     known = [s.seconds for s in stages_ if s.seconds is not None]
-    disk = sum(s.disk_bytes for s in stages_)
+    need = sum(s.disk_bytes for s in stages_)
     lines = [
         f"Plan: {n_rows} rows x {n_seeds} seeds on preset {preset!r}: about {_duration(sum(known))}"
         + (" and more (a stage is unknown)" if len(known) < len(stages_) else "")
-        + f", {disk / 1e9:.1f} GB of disk at most ({free_bytes / 1e9:.0f} GB free"
-        + ("; it does not fit: free disk space or give --workdir on a larger disk" if disk > free_bytes else "") + ")",
+        + f", {size(need)} of disk at most ({size(free_bytes)} free"
+        + ("; it does not fit: free disk space or give --workdir on a larger disk" if need > free_bytes else "") + ")",
         "",
         "| stage | disk | time | from |",
         "|---|---|---|---|",
     ]
-    lines += [f"| {s.name} | {s.disk_bytes / 1e9:.1f} GB | {'unknown' if s.seconds is None else _duration(s.seconds)} | {s.basis} |" for s in stages_]
+    lines += [f"| {s.name} | {size(s.disk_bytes)} | {'unknown' if s.seconds is None else _duration(s.seconds)} | {s.basis} |" for s in stages_]
     return "\n".join(lines)
 
 

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence, TypeVar
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, checkpoint, data, dataset_index, presets, source, stats, train, workspace
+from fabricjax import archive, atomic, checkpoint, data, dataset_index, lock, presets, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, loading, plan, recipe
@@ -64,14 +64,24 @@ class StudyRow:
 
 
 def select_rows(rows: Sequence[StudyRow], names: Sequence[str] | None) -> list[StudyRow]:
-    """The rows named in `names` (all when None), in the table's order; unknown names raise."""
+    """The rows named in `names` (all when None), in the table's order. Each of `names` is a row's
+    name (what logs and checkpoints call it) or, where no name is, its label (what the tables
+    print, such as "Minsound"), in any case; one that is neither is a one-line error listing the
+    choices."""
     if not names:
         return list(rows)
-    known = [r.name for r in rows]
-    unknown = [n for n in names if n not in known]
+
+    def row(name: str) -> StudyRow | None:
+        key = name.casefold()
+        return next((r for r in rows if r.name.casefold() == key), None) or next((r for r in rows if r.label.casefold() == key), None)
+
+    found = {n: row(n) for n in names}
+    unknown = [n for n, r in found.items() if r is None]
     if unknown:
-        raise UserError(f"unknown rows {unknown}; choose from {known}")
-    return [r for r in rows if r.name in names]
+        choices = ", ".join(r.name if r.label == r.name else f"{r.name} ({r.label})" for r in rows)
+        raise UserError(f"unknown rows {unknown}; choose a row's name or its label, in any case: {choices}")
+    chosen = {r.name for r in found.values()}
+    return [r for r in rows if r.name in chosen]
 
 
 def check_overrides(study: str, overrides: Mapping | None, rows: Sequence[StudyRow], instead: str) -> dict:
@@ -294,18 +304,19 @@ def train_fitted(
         sub = name if len(configs) == 1 else f"{name}/{recipe.point_name(point)}"
         grid.append(train_row(
             name, point, sets, seeds, eval_splits,
-            checkpoint_dir=checkpoint_dir(study, name, point, seeds, workdir) if checkpoints else None,
+            checkpoint_dir=checkpoint_dir(study, name, point, seeds, sets["train"].dataset, workdir) if checkpoints else None,
             log_dir=workspace.logs_dir(study, sub, workdir),
         ))
     chosen = recipe.choose(grid)
     return dataclasses.replace(chosen, seconds=sum(r.seconds for r in grid), recipe=recipe.document(config, grid, chosen))
 
 
-def checkpoint_dir(study: str, row: str, config: Config, seeds: Sequence[int], workdir=None) -> Path:
-    """A checkpoint directory per (row, config, seeds, code): reruns resume; other settings, or
-    other code (`source.fingerprint`), start afresh instead of reusing what older code trained."""
-    tag = hashlib.sha1(f"{config.dumps()}{list(seeds)}{checkpoint.STATE_VERSION}{source.fingerprint()}".encode()).hexdigest()[:8]
-    return workspace.checkpoints_dir(f"{study}/{row}-{tag}", workdir)
+def checkpoint_dir(study: str, row: str, config: Config, seeds: Sequence[int], dataset: Mapping[str, str], workdir=None) -> Path:
+    """A checkpoint directory per (row, config, seeds, data, code): reruns resume; other settings,
+    other data (`dataset`: `DatasetIndex.identity`, by content) or other code (`source.fingerprint`)
+    start afresh instead of reusing what was trained on something else."""
+    key = f"{config.dumps()}{list(seeds)}{checkpoint.STATE_VERSION}{dataset.get('content')}{source.fingerprint()}"
+    return workspace.checkpoints_dir(f"{study}/{row}-{hashlib.sha1(key.encode()).hexdigest()[:8]}", workdir)
 
 
 def _test_summary(row: Row) -> str:
@@ -351,34 +362,38 @@ def train_rows(
     `data_names`: on recorded data, name each row in the log by its name and the data's own names
     for its inputs (the rig's microphones and joints), not by `label`."""
     configs = [c for _, c in rows]
-    ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
-    if check is not None:
-        check(ds)
-    rows = [(name, ds.fit(config)) for name, config in rows]  # the data's classes, step window and epochs
-    if ds.recorded:  # what training will take, now that the data's size is known
-        stages = plan.training(rows, len(seeds), len(ds.sets["train"]))
-        print(plan.markdown(f"{rows[0][1].preset} on recorded data", stages, len(rows), len(seeds), plan.free_disk(workdir)), flush=True)
-    if data_names and ds.recorded:
-        names, inputs = next(iter(ds.sets.values())).names, {n: c.modalities for n, c in rows}
-        label = lambda name: f"{name} ({data.inputs_name(inputs[name], names)})"  # noqa: E731
-    order = in_training_order(rows, lambda row: row[1])
-    if progress is None:
-        progress = Progress(study, len(rows), [row_kind(c) for _, c in order])
-    else:  # started before this load
-        progress.exclude(ds.generate_s + ds.load_s)
-    trained, laid_out = {}, set()
-    for name, config in order:
-        camera = row_kind(config)
-        if camera in CAMERA_INPUTS and camera not in laid_out:  # the group's camera input, once (`in_training_order`)
-            t0 = time.perf_counter()
-            alone = dataclasses.replace(config, modalities=(camera,))
-            train.place_for_runs(alone, data.narrow({s: ds.sets[s] for s in ("train", "val", *eval_splits)}, alone))
-            ds.layout_s += time.perf_counter() - t0
-            laid_out.add(camera)
-        progress.start(label(name))
-        trained[name] = row = train_fitted(study, name, config, ds.sets, seeds, eval_splits, workdir, checkpoints)
-        progress.finish(label(name), row.seconds, summary(row))
-    return Trained(ds, {name: trained[name] for name, _ in rows})
+    checkpoints_folder = workspace.checkpoints_dir(study, workdir)
+    with (lock.hold(lock.lock_file(checkpoints_folder, workdir), f"the {study} study's checkpoints ({workspace.shown(checkpoints_folder)})",
+                    f"training {len(rows)} rows"),
+          loading.reading(configs[0].preset, data_dir, workdir)):
+        ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
+        if check is not None:
+            check(ds)
+        rows = [(name, ds.fit(config)) for name, config in rows]  # the data's classes, step window and epochs
+        if ds.recorded:  # what training will take, now that the data's size is known
+            stages = plan.training(rows, len(seeds), len(ds.sets["train"]))
+            print(plan.markdown(f"{rows[0][1].preset} on recorded data", stages, len(rows), len(seeds), plan.free_disk(workdir)), flush=True)
+        if data_names and ds.recorded:
+            names, inputs = next(iter(ds.sets.values())).names, {n: c.modalities for n, c in rows}
+            label = lambda name: f"{name} ({data.inputs_name(inputs[name], names)})"  # noqa: E731
+        order = in_training_order(rows, lambda row: row[1])
+        if progress is None:
+            progress = Progress(study, len(rows), [row_kind(c) for _, c in order])
+        else:  # started before this load
+            progress.exclude(ds.generate_s + ds.load_s)
+        trained, laid_out = {}, set()
+        for name, config in order:
+            camera = row_kind(config)
+            if camera in CAMERA_INPUTS and camera not in laid_out:  # the group's camera input, once (`in_training_order`)
+                t0 = time.perf_counter()
+                alone = dataclasses.replace(config, modalities=(camera,))
+                train.place_for_runs(alone, data.narrow({s: ds.sets[s] for s in ("train", "val", *eval_splits)}, alone))
+                ds.layout_s += time.perf_counter() - t0
+                laid_out.add(camera)
+            progress.start(label(name))
+            trained[name] = row = train_fitted(study, name, config, ds.sets, seeds, eval_splits, workdir, checkpoints)
+            progress.finish(label(name), row.seconds, summary(row))
+        return Trained(ds, {name: trained[name] for name, _ in rows})
 
 
 def paired_tests(a: Row, b: Row, split: str, labels: np.ndarray, head: str = "fabric") -> dict[str, stats.WilcoxonResult]:
@@ -430,7 +445,7 @@ class Study:
     checklist: Callable[[dict[str, Any]], list[Finding]]
     markdown: Callable[[dict[str, Any]], str]
     choose_rows: str = "choose them with --rows"  # how to pick what a row sets instead of --set
-    checkpoints: bool = False
+    checkpoints: bool = True  # save each row as it trains (`train.SAVE_EVERY_EPOCHS`): a killed run resumes mid-row
     summary: Callable[[Row], str] = _test_summary
     check: Callable[[loading.Dataset], None] | None = None
     recorded_settings: Mapping[str, Any] = dataclasses.field(default_factory=dict)
@@ -503,9 +518,10 @@ def run_study(
         checkpoints=study.checkpoints, label=lambda name: labels.get(name, name), summary=study.summary, check=study.check,
         data_names=True,
     )
-    body, figures = study.document(trained, chosen, where.results_dir())
-    dtypes = (config.compute_dtype for _, config in row_configs)
-    doc = {**documents.header(study.name, command=where.command, preset=preset, seeds=seeds, dataset=trained.dataset, compute_dtypes=dtypes, train_s=trained.train_s), **body}
-    # the checklist holds the paper's claims: recorded data is not the paper's
-    doc["findings"] = [] if trained.dataset.recorded else [f.to_json() for f in study.checklist(doc)]
-    return documents.write(where.results_dir(), doc, study.markdown, figures)
+    with atomic.together():  # the figures, Markdown and JSON of this run, or none of them
+        body, figures = study.document(trained, chosen, where.results_dir())
+        dtypes = (config.compute_dtype for _, config in row_configs)
+        doc = {**documents.header(study.name, command=where.command, preset=preset, seeds=seeds, dataset=trained.dataset, compute_dtypes=dtypes, train_s=trained.train_s), **body}
+        # the checklist holds the paper's claims: recorded data is not the paper's
+        doc["findings"] = [] if trained.dataset.recorded else [f.to_json() for f in study.checklist(doc)]
+        return documents.write(where.results_dir(), doc, study.markdown, figures)

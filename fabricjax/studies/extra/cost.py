@@ -44,7 +44,7 @@ import jax
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, data, dataset_index, plots, stats
+from fabricjax import archive, atomic, data, dataset_index, plots, stats
 from fabricjax.bench import program_timing
 from fabricjax.config import Config
 from fabricjax.studies.common import documents, findings, loading, runner
@@ -237,8 +237,9 @@ def run(
         "total_s": time.perf_counter() - t_all,
         "points": rows,
     }
-    figure = plots.plot_pareto(where.results_dir() / "cost_pareto.png", rows, X_AXES, highlight=paper_name)
-    return documents.write(where.results_dir(), doc, markdown, [figure])
+    with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
+        figure = plots.plot_pareto(where.results_dir() / "cost_pareto.png", rows, X_AXES, highlight=paper_name)
+        return documents.write(where.results_dir(), doc, markdown, [figure])
 
 
 def markdown(doc: dict[str, Any]) -> str:

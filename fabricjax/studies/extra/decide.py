@@ -38,7 +38,7 @@ import jax
 import numpy as np
 from flax import nnx
 
-from fabricjax import archive, catalog, checkpoint, confidence, data, plots, train, workspace
+from fabricjax import archive, atomic, catalog, checkpoint, confidence, data, plots, train, workspace
 from fabricjax.studies.common import documents, findings, loading
 from fabricjax.studies.extra import cost
 from fabricjax.studies.tools import stream
@@ -101,6 +101,7 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Loc
     unknown = unknown_fabrics(config, bool(where.data_dir), unknown_labels)
     data_config = dataclasses.replace(config, exclude_fabrics=unknown)
     ds = loading.load_dataset(data_config, data_dir=where.data_dir, workdir=where.workdir, split_names=("train", "val", *EVAL_SPLITS, "holdout"))
+    checkpoint.require_data(checkpoint_dir, restored.dataset, ds.sets["test"].dataset)
     sets = {k: v for k, v in ds.sets.items() if len(v)}
     for need in ("train", "val", "test"):
         if need not in sets:
@@ -199,12 +200,13 @@ def run(checkpoint_dirs: Sequence = (), *, names: Sequence[str] | None = None, u
         m = evaluate_model(d, unknown_labels=unknown_labels, where=where)
         m["name"] = names[i] if names else "+".join(m["config"]["modalities"])
         models.append(m)
-    png = plots.plot_decide(where.results_dir() / "decide.png", models)
-    doc = {**documents.header("decide", command=where.command, preset=models[0]["config"]["preset"]), "dataset": models[0].pop("dataset"),
-           "thresholds": list(THRESHOLDS), "models": models}
-    for m in models[1:]:
-        m.pop("dataset")
-    return documents.write(where.results_dir(), doc, markdown, [png])
+    with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
+        png = plots.plot_decide(where.results_dir() / "decide.png", models)
+        doc = {**documents.header("decide", command=where.command, preset=models[0]["config"]["preset"]), "dataset": models[0].pop("dataset"),
+               "thresholds": list(THRESHOLDS), "models": models}
+        for m in models[1:]:
+            m.pop("dataset")
+        return documents.write(where.results_dir(), doc, markdown, [png])
 
 
 def _pct(x) -> str:

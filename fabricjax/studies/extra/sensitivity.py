@@ -44,7 +44,7 @@ from SALib.sample import morris as morris_sample
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from fabricjax import plots, presets, workspace
+from fabricjax import atomic, plots, presets, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.sim import estimates
@@ -259,8 +259,9 @@ def run(
     doc = document(groups, x, points, seed)
     doc = {**documents.header(STUDY, command=where.command, preset=preset, trajectories=trajectories, levels=LEVELS,
                               wall_s=time.perf_counter() - t_start), **doc}
-    figure = plot(where.results_dir() / "sensitivity.png", doc)
-    doc = documents.write(where.results_dir(), doc, markdown, [figure])
+    with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
+        figure = plot(where.results_dir() / "sensitivity.png", doc)
+        doc = documents.write(where.results_dir(), doc, markdown, [figure])
     documents.replace_block(where.results_dir() / "REPORT.md", REPORT_BEGIN, REPORT_END, report_block(where.results_dir()))
     return doc
 

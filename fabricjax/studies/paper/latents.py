@@ -31,7 +31,7 @@ import numpy as np
 from flax import nnx
 from sklearn.manifold import TSNE
 
-from fabricjax import catalog, checkpoint, data, plots, train, workspace
+from fabricjax import atomic, catalog, checkpoint, data, plots, train, workspace
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, findings, loading
 from fabricjax.workspace import Location
@@ -79,7 +79,7 @@ def tsne(points: np.ndarray, seed: int = 0) -> tuple[np.ndarray, float | None]:
 
 def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()) -> dict[str, Any]:
     """Restore, encode, embed, plot: writes results/latents.{png,json}; returns the JSON."""
-    graphdef, state, config, seeds, for_ = train.restore(checkpoint_dir)  # under the checkpoint's own config
+    graphdef, state, config, seeds, for_, trained_on = train.restore(checkpoint_dir)  # under the checkpoint's own config
     if where.data_dir is None:  # the simulated hand's holdouts: the model must not have trained on them
         trained_holdouts = sorted(set(catalog.PROPERTY_HOLDOUTS) - set(catalog.NEW_FABRICS) - set(for_["unseen_fabrics"]))
         checkpoint.require(
@@ -97,6 +97,7 @@ def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()
     params = checkpoint.select_seed(state["best_params"], index)
 
     ds = loading.load_dataset(config, data_dir=where.data_dir, workdir=where.workdir, split_names=("test", "holdout"))
+    checkpoint.require_data(checkpoint_dir, trained_on, ds.sets["test"].dataset)
     test_day = _concat([ds.sets["test"], ds.sets["holdout"]])
     if ds.recorded:
         known, holdouts = recorded_fabrics(test_day, ds.classes), sorted(set(ds.sets["holdout"].info["fabric_id"].tolist()))
@@ -105,29 +106,30 @@ def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()
     points, fabrics, keys, counts = trial_means(graphdef, params, test_day, config.modalities, known)
     xy, perplexity = tsne(points)
     agreement = neighbour_agreement(points, fabrics, known, holdouts)
-    png = plots.plot_latents(
-        where.results_dir() / "latents.png", xy, fabrics, known, holdouts,
-        title=f"t-SNE of per-trial mean latents ({data.inputs_name(config.modalities, ds.sets['test'].names if ds.recorded else None)}, seed {seeds[index]}; holdouts outlined)",
-        neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
-    )
-    doc = {
-        **documents.header("latents", command=where.command, preset=config.preset, dataset=ds),
-        "checkpoint": workspace.shown(checkpoint_dir),
-        "config": config.to_json(),
-        "checkpoint_seeds": seeds,
-        "best_val_per_seed": best_val.tolist(),
-        "seed": seeds[index],
-        "perplexity": perplexity,
-        "points": [
-            {"fabric_id": f, "trial_key": k, "sequences": c, "xy": p.tolist()}
-            for f, k, c, p in zip(fabrics, keys, counts, xy)
-        ],
-        "holdouts": list(holdouts),
-        "neighbours": agreement,
-        # the checklist holds the paper's reading of its figure: recorded data is not the paper's
-        "findings": [] if ds.recorded else [f.to_json() for f in checklist(agreement)],
-    }
-    return documents.write(where.results_dir(), doc, markdown, [png])
+    with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
+        png = plots.plot_latents(
+            where.results_dir() / "latents.png", xy, fabrics, known, holdouts,
+            title=f"t-SNE of per-trial mean latents ({data.inputs_name(config.modalities, ds.sets['test'].names if ds.recorded else None)}, seed {seeds[index]}; holdouts outlined)",
+            neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
+        )
+        doc = {
+            **documents.header("latents", command=where.command, preset=config.preset, dataset=ds),
+            "checkpoint": workspace.shown(checkpoint_dir),
+            "config": config.to_json(),
+            "checkpoint_seeds": seeds,
+            "best_val_per_seed": best_val.tolist(),
+            "seed": seeds[index],
+            "perplexity": perplexity,
+            "points": [
+                {"fabric_id": f, "trial_key": k, "sequences": c, "xy": p.tolist()}
+                for f, k, c, p in zip(fabrics, keys, counts, xy)
+            ],
+            "holdouts": list(holdouts),
+            "neighbours": agreement,
+            # the checklist holds the paper's reading of its figure: recorded data is not the paper's
+            "findings": [] if ds.recorded else [f.to_json() for f in checklist(agreement)],
+        }
+        return documents.write(where.results_dir(), doc, markdown, [png])
 
 
 def catalog_fabrics(ids) -> dict[int, tuple[str, dict[str, int | None]]]:

@@ -39,7 +39,7 @@ def quick_model(preset: str, overrides: Mapping[str, Any] | None = None, *, work
     config = Config.from_preset(preset, **{"modalities": QUICK_MODALITIES, **(overrides or {})})
     ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir)
     config = ds.fit(config)  # the data's classes and step window
-    directory = runner.checkpoint_dir("stream", "quick", config, [0], workdir)
+    directory = runner.checkpoint_dir("stream", "quick", config, [0], ds.sets["train"].dataset, workdir)
     row = runner.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
     return row.results.graphdef, row.results.params(0), config, directory
 
