@@ -109,7 +109,7 @@ def define_rows(row_names: Sequence[str], n_seeds: int) -> None:
     (from `row_names`) and --set."""
     flags.DEFINE_integer("seeds", n_seeds, "number of seeds (0..n-1) trained together (the study's count by default)", lower_bound=1)
     define_preset()
-    flags.DEFINE_list("rows", None, f"comma-separated rows, from: {', '.join(row_names)} (default: every row of the table)")
+    flags.DEFINE_list("rows", None, f"comma-separated rows, each by its name or by the label the tables print, in any case; names: {', '.join(row_names)} (default: every row of the table)")
     define_overrides()
 
 
@@ -131,7 +131,7 @@ def rows_study_command(study) -> None:
     """The whole command line of a deterministic study over named rows (the probe, the day shift):
     --preset, --rows (from `study.ROWS`) and --set, then `study.run` with them."""
     define_preset()
-    flags.DEFINE_list("rows", None, f"comma-separated rows, from: {', '.join(r.name for r in study.ROWS)} (default: every row)")
+    flags.DEFINE_list("rows", None, f"comma-separated rows, each by its name or by the label the tables print, in any case; names: {', '.join(r.name for r in study.ROWS)} (default: every row)")
     define_overrides()
 
     def main(argv):

@@ -15,7 +15,7 @@ from fabricjax import data, presets, sim, source, stats, train
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, findings, runner
-from fabricjax.studies.extra import probe, sweep
+from fabricjax.studies.extra import day_shift, probe, sweep
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
 from fabricjax.studies.tools import reproduce
 from fabricjax.workspace import Location
@@ -301,6 +301,25 @@ def test_ten_seed_floor_and_row_selection():
     assert [r.name for r in runner.select_rows(ablation.PAPER_ROWS, None)] == [r.name for r in ablation.PAPER_ROWS]
     with pytest.raises(ValueError, match="unknown rows"):
         runner.select_rows(ablation.PAPER_ROWS, ["audio"])
+
+
+def test_rows_are_chosen_by_name_or_by_the_label_the_tables_print():
+    """--rows=Minsound,proprioception: what the tables print, in any case, beside the names logs and
+    checkpoints use; the rows come back in the table's order, an unknown one is a one-line error."""
+    names = lambda chosen: [r.name for r in chosen]  # noqa: E731
+    assert names(runner.select_rows(ablation.ROWS, ["Minsound", "proprioception"])) == ["internal", "proprio"]
+    assert names(runner.select_rows(ablation.ROWS, ["PROPRIO", "minsound", "internal"])) == ["internal", "proprio"]
+    assert names(runner.select_rows(ablation.ROWS, ["tcn: minsound + palm mic + proprioception"])) == ["tcn:internal+external+proprio"]
+    assert names(runner.select_rows(bandwidth.ROWS, ["15 kHz", "2.5"])) == ["2.5", "15"]
+    assert names(runner.select_rows(properties.ROWS, ["Minsound + Proprioception + Minsight image"])) == ["internal+proprio+image"]
+    with pytest.raises(UserError) as e:
+        runner.select_rows(noise.ROWS, ["Minsound", "audio"])
+    assert str(e.value) == ("unknown rows ['audio']; choose a row's name or its label, in any case: internal (Minsound), "
+                            "internal+proprio (Minsound + proprioception), internal+proprio+external (Minsound + proprioception + palm mic)")
+    # a name or label picks one row in every study: no label repeats, or is another row's name
+    for rows in (ablation.ROWS, bandwidth.ROWS, noise.ROWS, properties.ROWS, probe.ROWS, day_shift.ROWS):
+        keys = [k.casefold() for r in rows for k in {r.name, r.label}]
+        assert len(keys) == len(set(keys)), [r.name for r in rows]
 
 
 # Every study whose rows set `Config` fields, with how to run it (the sweep also needs a grid).

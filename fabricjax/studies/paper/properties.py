@@ -19,7 +19,7 @@ data (`--data_dir`) the rows are compared with each other instead (`documents.re
 holdouts are the trials of its holdout split (no class is excluded by the catalog's fabric ids);
 the tables name each row by the data's names for its inputs (`data.inputs_name`: the rig file's
 microphones and joints), while --rows takes the row names (internal+proprio, internal+proprio+image)
-or the paper's labels.
+or their labels on simulated data (Minsound + proprioception, ...).
 
 The trained models (all seeds) are saved as an orbax checkpoint per row; `experiments.latents
 --checkpoint=DIR` restores one for the t-SNE figure.
