@@ -6,11 +6,11 @@
     --distributed --coordinator_address --num_processes --process_id   (always: a run over several processes)
 
 `--preset` names a preset of `fabricjax/presets.py` (its data and training settings); each
-`--set` overrides one `Config` field on top, typed by the field (`--set=epochs=4`,
-`--set=backbone=tcn`, `--set=modalities=internal,proprio`, `--set=image_size=30,40`) and checked
-before anything runs. Results go to <workspace>/results unless --results says otherwise, so a run
-leaves the repository clean; `--results=results` regenerates the tables published in the
-repository.
+`--set` overrides one `Config` field on top, typed by the field (`--set=seq_len=100`,
+`--set=compute_dtype=bfloat16`, `--set=image_size=30,40`, `--set=modalities=internal,proprio`
+where no row of the command sets its inputs) and checked before anything runs. Results go to
+<workspace>/results unless --results says otherwise, so a run leaves the repository clean;
+`--results=results` regenerates the tables published in the repository.
 """
 
 from __future__ import annotations
@@ -147,8 +147,8 @@ def define_preset() -> None:
 
 def define_overrides() -> None:
     flags.DEFINE_multi_string(
-        "set", [], "override a Config field on top of the preset, field=value (repeatable), e.g. --set=epochs=4 "
-        "--set=backbone=tcn --set=modalities=internal,proprio",
+        "set", [], "override a Config field on top of the preset, field=value (repeatable), e.g. --set=seq_len=100 "
+        "--set=compute_dtype=bfloat16; a field the command's rows set themselves is refused (choose those with --rows)",
     )
 
 
