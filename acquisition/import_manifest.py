@@ -2,7 +2,7 @@
 
     python -m acquisition.import_manifest MANIFEST.csv --out=DIR [--rig=rig.toml | --map=mapping.toml |
         --reference=FILE|pre_contact [--reference_frames=N]] [--labels=labels.csv] [--split=fraction:0.7,0.15,0.15 | --split=trial:train=0-3,val=4,test=5-6 | --split=day]
-        [--overwrite] [--workers=N]
+        [--overwrite] [--workers=N] [--workdir=WORKSPACE]
 
 The manifest is a CSV with a header row, one row per trial (docs/data.md, "Recordings from another
 rig"):
@@ -44,6 +44,12 @@ and archives no row produces (another dataset, or rows since deleted or relabell
 without --overwrite. Staging folders and `.partial` files a killed run left in DIR are removed at the
 next run (one import per DIR at a time); a killed import's worker processes end with it.
 
+A complete import ends by writing DIR's index (`dataset_index.build_index`: each archive's meta,
+size and sha256, hashed as the import left it) where `workspace.index_file` keeps it for the
+workspace `workdir` (--workdir), under `<workspace>/indexes/` and never inside DIR, so that
+`python -m experiments.verify DIR` re-hashes every archive against what was imported, and the first
+study reading DIR finds it indexed.
+
 A camera's session reference is never made up: the rig file's or mapping's [camera] table names
 it, and for the hand's folders `--reference` does (a file relative to each trial folder, or
 `pre_contact` with `--reference_frames` for each trial's first frames: `acquisition.hand_folder`);
@@ -72,7 +78,7 @@ from tqdm import tqdm
 
 from acquisition import hand_folder, mapping_file, ros_bag, rig as rig_mod
 from acquisition.alignment import ReferenceSource, parse_reference, session_of
-from fabricjax import archive, cli, lock, parallel, provenance
+from fabricjax import archive, cli, dataset_index, lock, parallel, provenance, workspace
 from fabricjax.atomic import atomic_open
 from fabricjax.errors import UserError
 
@@ -392,9 +398,10 @@ def _staging(out: Path) -> Path:
 def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None, mapping: str | Path | None = None,
         labels: str | Path | None = None, split: str | None = None, overwrite: bool = False, workers: int | None = None,
         progress: bool = True, say: Callable[[str], None] = print, reference: str | None = None,
-        reference_frames: int | None = None) -> dict[str, Any]:
-    """Import every row of `manifest` into `out` as one transaction (module docstring); returns a
-    summary. `reference`, `reference_frames`: the hand's folders' session reference (--reference)."""
+        reference_frames: int | None = None, workdir: str | Path | None = None) -> dict[str, Any]:
+    """Import every row of `manifest` into `out` as one transaction, then index `out` in the
+    workspace `workdir` (module docstring); returns a summary. `reference`, `reference_frames`: the
+    hand's folders' session reference (--reference)."""
     t0 = time.perf_counter()
     if rig is not None and mapping is not None:
         raise UserError("give --rig (trial folders of another rig) or --map (ROS 2 bags), not both")
@@ -461,6 +468,8 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
                 provenance.write(out, source)
         finally:
             shutil.rmtree(staging, ignore_errors=True)
+        index_path = workspace.index_file(out, workdir)
+        dataset_index.build_index(out, index_path)  # an earlier index's entries of the archives kept are not hashed again
     notes: dict[str, Counter] = defaultdict(Counter)
     steps = 0
     for j in jobs:
@@ -478,10 +487,13 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
     per_split = Counter(s or "by day" for s in splits)
     n_classes = len(set(label_map.values())) if label_map else None  # classes, not names: a label file may give one class two names
     summary = {"trials": len(jobs), "imported": len(todo), "resumed": len(jobs) - len(todo), "removed": len(stale), "steps": steps,
-               "splits": dict(per_split), "classes": n_classes, "seconds": time.perf_counter() - t0, "out": str(out)}
+               "splits": dict(per_split), "classes": n_classes, "seconds": time.perf_counter() - t0, "out": str(out),
+               "index": str(index_path)}
     say(f"{out}: {len(todo)} trials imported, {len(jobs) - len(todo)} already there (resumed); {steps} steps; "
         f"splits {', '.join(f'{k} {v}' for k, v in sorted(per_split.items()))}" + (f"; {n_classes} classes" if label_map else "")
         + (f"; {len(stale)} archives no row produces removed (--overwrite)" if stale else "") + f" ({summary['seconds']:.1f} s)")
+    verify = "experiments.verify" + (f" --workdir={workdir}" if workdir is not None else "")
+    say(f"{out}: indexed, each archive's sha256 in {workspace.shown(index_path)} ({verify} re-hashes against it)")
     return summary
 
 
@@ -497,7 +509,8 @@ def main(argv):
     if len(argv) != 2:
         raise UserError("give exactly one manifest: python -m acquisition.import_manifest MANIFEST.csv --out=DIR")
     run(argv[1], FLAGS.out, rig=FLAGS.rig, mapping=FLAGS.map, labels=FLAGS.labels, split=FLAGS.split,
-        overwrite=FLAGS.overwrite, workers=FLAGS.workers, reference=FLAGS.reference, reference_frames=FLAGS.reference_frames)
+        overwrite=FLAGS.overwrite, workers=FLAGS.workers, reference=FLAGS.reference, reference_frames=FLAGS.reference_frames,
+        workdir=FLAGS.workdir)
 
 
 if __name__ == "__main__":
@@ -510,4 +523,5 @@ if __name__ == "__main__":
     flags.DEFINE_string("split", None, "Split rule when the manifest has no split column: fraction:TRAIN,VAL,TEST, trial:SPLIT=FIRST-LAST,... or day.")
     flags.DEFINE_bool("overwrite", False, "Replace the dataset in --out by the manifest's (default: keep archives of the same rows, refuse anything else).")
     flags.DEFINE_integer("workers", None, "Processes (default: one per core).", lower_bound=1)
+    flags.DEFINE_string("workdir", None, "Workspace that keeps DIR's index (default: $FABRICJAX_WORKDIR or ./workspace); give verify and the studies the same.")
     cli.run(main)

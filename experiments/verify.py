@@ -1,10 +1,12 @@
 """Check a dataset: `python -m experiments.verify DIR`.
 
-Re-hashes every archive against its index's sha256, re-validates every field and reports irregular
-step timestamps (`fabricjax.integrity`); prints each problem as `file: field: reason` and exits 1
-if there is any. Every file is checked whatever another holds; a file verify itself fails on (a bug,
-not a finding about the data) is printed with the exception, and the exit status is then 2, as for
-any error of the command. Writes nothing, in DIR or elsewhere."""
+Re-hashes every archive against the sha256 its index recorded (the index that `import_manifest`,
+or the first study reading DIR, wrote in the workspace `--workdir`; without one it says so and
+hashes nothing), re-validates every field and reports irregular step timestamps
+(`fabricjax.integrity`); prints each problem as `file: field: reason` and exits 1 if there is any.
+Every file is checked whatever another holds; a file verify itself fails on (a bug, not a finding
+about the data) is printed with the exception, and the exit status is then 2, as for any error of
+the command. Writes nothing, in DIR or elsewhere."""
 
 from __future__ import annotations
 
@@ -26,7 +28,8 @@ def main(argv):
     problems, counts = integrity.verify(argv[1], FLAGS.workdir)
     for p in problems:
         print(p)
-    hashed = f"{counts['hashed']} hashed against {counts['index']}" if counts["index"] else "no index yet, so no hashes to check"
+    hashed = (f"{counts['hashed']} hashed against {counts['index']}" if counts["index"] else
+              f"no index of {argv[1]} in this workspace, so no hashes to check: import_manifest and the first study reading it write one")
     print(f"{counts['archives']} archives checked ({hashed}): {len(problems) or 'no'} problem{'s' * (len(problems) != 1)}")
     for f in counts["failures"]:
         print(f)

@@ -1,5 +1,5 @@
-"""Content hashes in the index, and `verify` naming each problem: a flipped byte, a truncated file,
-an irregular timestamp; read_archive refusing a repeated step."""
+"""Content hashes in the index (written at import by `import_manifest`), and `verify` naming each
+problem: a flipped byte, a truncated file, an irregular timestamp; read_archive refusing a repeated step."""
 
 import json
 import subprocess
@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from acquisition import import_manifest, other_rig
 from fabricjax import archive, dataset_index, integrity, workspace
 from tests.helpers import npz_fields, tiny_archive, tiny_dataset
 
@@ -71,6 +72,26 @@ def test_verify_command_exits_1_and_prints_each_problem(tmp_path):
     assert f"{target}: <file>: " in done.stdout
     done = subprocess.run(cmd[:3] + [str(tmp_path / "nowhere")], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and done.stderr.strip().count("\n") == 0
+
+
+def test_a_fresh_import_is_hashed_against_the_index_the_import_wrote(tmp_path):
+    manifest = other_rig.write_recordings(tmp_path / "rig", ["felt", "oak"], 2, seconds=(2.0, 2.5), splits={0: "train", 1: "test"})
+    out, ws = tmp_path / "archives", tmp_path / "ws"
+    summary = import_manifest.run(manifest, out, rig=manifest.parent / "rig.toml", workers=1, progress=False, say=lambda s: None, workdir=ws)
+    assert Path(summary["index"]) == workspace.index_file(out, ws) and Path(summary["index"]).parent == ws / "indexes"
+    assert {p.suffix for p in out.iterdir()} == {".npz"}  # the index lives in the workspace, not in DIR
+    target = sorted(out.glob("*.npz"))[0]
+    data = bytearray(target.read_bytes())
+    data[len(data) // 2] ^= 0x01  # the bytes change after the import, behind the index's back
+    target.write_bytes(bytes(data))
+    cmd = [sys.executable, "-m", "experiments.verify", str(out)]
+    done = subprocess.run(cmd + [f"--workdir={ws}"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1, done.stderr
+    assert f"4 archives checked (4 hashed against {summary['index']})" in done.stdout, done.stdout
+    assert f"{target}: <file>: sha256 differs" in done.stdout
+    elsewhere = subprocess.run(cmd + [f"--workdir={tmp_path / 'other_ws'}"], capture_output=True, text=True, timeout=120)
+    assert f"no index of {out} in this workspace, so no hashes to check" in elsewhere.stdout, elsewhere.stdout
+    assert "sha256" not in elsewhere.stdout and not (tmp_path / "other_ws").exists()  # verify writes no index
 
 
 def test_repeated_step_is_refused_at_load(tmp_path):
