@@ -30,7 +30,7 @@ from typing import Callable, Mapping, Sequence
 from absl import app, flags, logging
 from tqdm import tqdm
 
-from fabricjax import disk, runtime
+from fabricjax import disk, runtime, workspace
 from fabricjax.errors import UserError
 
 FLAGS = flags.FLAGS
@@ -146,7 +146,8 @@ def run(main: Callable[[list[str]], object], before: Callable[[], None] = runtim
         except Exception as e:  # a library's own write on a full disk: the same one line as ours
             if not disk.is_full(e) or logging.get_verbosity() >= logging.DEBUG:
                 raise
-            path = disk.full_path(e) or os.getcwd()
+            workdir = FLAGS["workdir"].value if "workdir" in FLAGS else None
+            path = disk.full_path(e) or workspace.root(workdir).absolute()  # a library that did not say which file
             fail(str(disk.DiskFull(path, "a file")))
 
     app.run(start, flags_parser=_parse)

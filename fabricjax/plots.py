@@ -72,11 +72,12 @@ def plot_confusions(path, panels: Sequence[tuple[str, np.ndarray, np.ndarray]], 
 
 
 _ROUGH_MARKERS = ("o", "s", "^", "D", "P")
+_KEY_MARKER = "h"  # the keys of size and outline: not a roughness marker
 
 
 def plot_latents(
     path, xy: np.ndarray, fabric_ids: Sequence[int], fabrics: Mapping[int, tuple[str, Mapping[str, int | None]]],
-    holdouts: Collection[int], title: str = "t-SNE of per-trial mean latents", neighbours: dict[int, int] | None = None,
+    holdouts: Collection[int], title: str = "t-SNE of latents, one point per fabric", neighbours: dict[int, int] | None = None,
 ) -> Path:
     """Colour = stretchiness, marker = roughness level, size = thickness level (the paper's Fig.
     latent_features), from `fabrics` (id -> name and property levels, None where unknown: the
@@ -102,8 +103,10 @@ def plot_latents(
         plt.Line2D([], [], ls="", marker=m, color="grey", label=f"roughness {i} ({'very smooth' if i == 0 else 'very rough' if i == 4 else ''})".replace(" ()", ""))
         for i, m in enumerate(_ROUGH_MARKERS)
     ]
-    handles += [plt.Line2D([], [], ls="", marker="o", color="grey", ms=ms, label=f"thickness {t}") for t, ms in zip(("thin", "medium", "thick"), (7, 10, 13))]
-    handles += [plt.Line2D([], [], ls="", marker="o", mfc="white", mec="black", mew=2, label="holdout fabric (not trained on)")]
+    # size and outline apply to every marker: their keys use a shape that no roughness level has
+    handles += [plt.Line2D([], [], ls="", marker=_KEY_MARKER, color="grey", ms=ms, label=f"thickness {t} (marker size)")
+                for t, ms in zip(("thin", "medium", "thick"), (7, 10, 13))]
+    handles += [plt.Line2D([], [], ls="", marker=_KEY_MARKER, mfc="white", mec="black", mew=2, label="holdout fabric (not trained on)")]
     if neighbours:
         handles += [plt.Line2D([], [], ls="--", color="black", label="holdout to nearest training fabric\n(in latent space)")]
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
@@ -192,27 +195,43 @@ def plot_pareto(path, points: Sequence[dict], x_keys: Sequence[tuple[str, str]],
                 front.append(i)
                 best = ys[i]
         ax.step(xs[front], ys[front], where="post", color="tab:red", lw=1, label="Pareto front")
-        for p, x, y in zip(points, xs, ys):
-            mark = p["name"] == highlight
-            ax.annotate(
-                p["name"] + (" (paper config)" if mark else ""),
-                (x, y),
-                fontsize=6.5,
-                xytext=(0, -16) if mark else (4, 3),  # the marked point's label centred below its ring
-                textcoords="offset points",
-                ha="center" if mark else "left",
-                color="tab:red" if mark else "black",
-                weight="bold" if mark else "normal",
-            )
-            if mark:
-                ax.scatter([x], [y], s=160, facecolors="none", edgecolors="tab:red", linewidths=1.5)
         ax.set(xlabel=label, ylabel="test accuracy [%]")
         ax.margins(x=0.18, y=0.08)
         if np.all(xs > 0) and xs.max() / xs.min() > 20:
             ax.set_xscale("log")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
+        marked = [i for i, p in enumerate(points) if p["name"] == highlight]
+        for i in marked:  # the paper's point: ringed, its label centred below the ring
+            ax.scatter([xs[i]], [ys[i]], s=160, facecolors="none", edgecolors="tab:red", linewidths=1.5)
+            ax.annotate(points[i]["name"] + " (paper config)", (xs[i], ys[i]), fontsize=6.5, xytext=(0, -16), textcoords="offset points",
+                        ha="center", color="tab:red", weight="bold")
+        _labels_apart(ax, xs, ys, [p["name"] for p in points], fontsize=6.5, skip=set(marked))
     return _save(fig, path)
+
+
+def _labels_apart(ax, xs: np.ndarray, ys: np.ndarray, texts: Sequence[str], fontsize: float, skip: Collection[int] = ()) -> None:
+    """Label each point to its upper right, moving a label down (with a thin leader line) until it
+    overlaps no label placed before it, from the highest point down: points close together (one
+    touch time, say) keep readable labels. Call after the axes' limits and scales are final."""
+    fig = ax.figure
+    fig.canvas.draw()
+    px_per_pt = fig.dpi / 72
+    height, step = fontsize * 1.3 * px_per_pt, fontsize * 0.35 * px_per_pt
+    at = ax.transData.transform(np.column_stack([xs, ys]))
+    placed: list[tuple[float, float, float]] = []  # (left, right, bottom) of each label, in pixels
+    for i in np.argsort(-at[:, 1], kind="stable"):
+        if i in skip:
+            continue
+        left, width = at[i, 0] + 4 * px_per_pt, len(texts[i]) * fontsize * 0.55 * px_per_pt
+        bottom = at[i, 1] + 2 * px_per_pt
+        while any(abs(bottom - b) < height and left < r and lo < left + width for lo, r, b in placed):
+            bottom -= step
+        placed.append((left, left + width, bottom))
+        moved = at[i, 1] + 2 * px_per_pt - bottom > height / 2
+        ax.annotate(texts[i], (xs[i], ys[i]), xytext=((left - at[i, 0]) / px_per_pt, (bottom - at[i, 1]) / px_per_pt),
+                    textcoords="offset points", fontsize=fontsize, va="bottom",
+                    arrowprops={"arrowstyle": "-", "lw": 0.4, "color": "grey", "shrinkA": 0, "shrinkB": 2} if moved else None)
 
 
 def plot_psds(path, freqs_hz: np.ndarray, psds: dict[str, np.ndarray], noise: np.ndarray | None = None) -> Path:
@@ -280,20 +299,21 @@ def plot_decide(path, models: Sequence[Mapping]) -> Path:
 
 def ranked_bars(path, factors: Sequence[str], panels: Sequence[tuple[str, Mapping[str, Sequence[float]]]], title: str) -> Path:
     """One panel per response: its factors' mu* as horizontal bars, largest on top, with the
-    bootstrap interval as an error bar (`panels`: (response, SALib's Morris result))."""
-    cols = 3
+    bootstrap interval as an error bar (`panels`: (response, SALib's Morris result)); two panels a
+    row, text at 10-12 pt, so that a page of many responses stays readable."""
+    cols = 2
     rows = -(-len(panels) // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 0.32 * len(factors) * rows + 1.2 * rows), layout="constrained", squeeze=False)
+    fig, axes = plt.subplots(rows, cols, figsize=(7.0 * cols, 0.42 * len(factors) * rows + 1.4 * rows), layout="constrained", squeeze=False)
     for ax, (name, result) in zip(axes.flat, panels):
         mu, conf = np.asarray(result["mu_star"]), np.asarray(result["mu_star_conf"])
         order = np.argsort(mu)
         ax.barh(range(len(factors)), mu[order], xerr=conf[order], color="tab:blue", alpha=0.7, error_kw={"lw": 0.8})
-        ax.set_yticks(range(len(factors)), [factors[i] for i in order], fontsize=7)
-        ax.set_title(name, fontsize=8)
+        ax.set_yticks(range(len(factors)), [factors[i] for i in order], fontsize=10)
+        ax.set_title(name, fontsize=11)
         ax.set_xlim(0, max(1.0, float((mu + conf).max()) * 1.05))
-        ax.tick_params(axis="x", labelsize=7)
+        ax.tick_params(axis="x", labelsize=10)
         ax.grid(alpha=0.3, axis="x")
     for ax in list(axes.flat)[len(panels):]:
         ax.axis("off")
-    fig.suptitle(title, fontsize=10)
+    fig.suptitle(title, fontsize=13)
     return _save(fig, path)

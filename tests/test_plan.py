@@ -26,7 +26,7 @@ def test_missing_trials_are_timed_on_this_host_and_their_disk_counted(tmp_path):
     assert len(training) == 2 and all(t.seconds is None for t in training)  # one stage per row; no published run of this model
     assert "peak host memory" in sequences.basis
     text = plan.markdown("smoke", stages, 2, 2, free_bytes=1e15)
-    assert text.startswith("Plan: 2 rows x 2 seeds on preset 'smoke'") and "and more (a stage is unknown)" in text
+    assert text.startswith("Plan: 2 rows x 2 seeds on preset 'smoke'") and "stages unknown before the run (below), the others about" in text
 
 
 def test_training_is_extrapolated_from_the_published_sample_per_row(tmp_path, monkeypatch):

@@ -161,3 +161,15 @@ def _running(pid: int) -> bool:
             return f.read().split()[2] != "Z"
     except FileNotFoundError:
         return False
+
+
+def test_results_of_another_preset_or_data_are_replaced_with_a_note(tmp_path, capsys):
+    from fabricjax.studies.common import documents
+
+    doc = lambda preset, folder: {"study": "ablation", "preset": preset, "dataset": {"folder": folder}}  # noqa: E731
+    documents.write(tmp_path, doc("smoke", "workspace/datasets/smoke"), None)
+    documents.write(tmp_path, doc("smoke", "workspace/datasets/smoke"), None)  # the same run again: nothing to say
+    assert "note:" not in capsys.readouterr().err
+    documents.write(tmp_path, doc("default", "workspace/datasets/default"), None)
+    err = capsys.readouterr().err
+    assert "held the results of preset smoke on workspace/datasets/smoke" in err and "--results=DIR keeps both" in err

@@ -6,7 +6,7 @@ The paper's tables and figures (`paper/`):
     bandwidth    PSD bandwidth 2.5 / 10 / 15 / 24 kHz (Table bandwidth_classification)
     noise        cafe-noise test set, Wilcoxon against the preceding row (Table new_noise_results)
     properties   property heads on training and holdout fabrics (Table property_perception)
-    latents      t-SNE of per-trial mean latents from a restored checkpoint (Fig. latent_features)
+    latents      t-SNE of latents, one point per fabric, from a restored checkpoint (Fig. latent_features)
 
 Our studies beyond the paper (`extra/`):
 

@@ -2,8 +2,8 @@
 numbers come from.
 
 Every study (the training studies, the probe, cost, sweep, latents, stream, bench, palm) builds
-its JSON document on `header` (study, command, code, machine, date, and the fields it adds:
-preset, seeds, dataset, ...), says where its numbers come from in Markdown with `header_markdown`
+its JSON document on `header` (study, command, code and the `fingerprints` of what decides its
+numbers, machine, date, and the fields it adds: preset, seeds, dataset, ...), says where its numbers come from in Markdown with `header_markdown`
 and writes results/<study>.md and .json atomically with `write`, which also records the figures
 it drew under one key, "figures". Tables are `markdown_table`; per-row and per-sample records of a
 trained row are `runner.Row.doc` and `samples_doc`. The paper's claims checked on a study's rows live in
@@ -17,13 +17,15 @@ import json
 import os
 import platform
 import subprocess
+import sys
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from fabricjax import atomic, data, presets, provenance, runtime, stats, workspace
+from fabricjax import atomic, data, dataset_index, presets, provenance, runtime, source, stats, workspace
 from fabricjax.atomic import atomic_open
+from fabricjax.sim import estimates
 from fabricjax.studies.common.loading import Dataset
 
 
@@ -70,6 +72,24 @@ def git_commit() -> str:
     except (OSError, subprocess.SubprocessError):
         return "no git checkout"
     return f"commit {head}" + (" + uncommitted changes" if dirty else "")
+
+
+FINGERPRINT_DIGITS = 16  # hex digits of each fingerprint a results file records
+
+
+def fingerprints(data: str | None) -> dict[str, str | None]:
+    """What decides a study's numbers besides its command (study, preset, seeds, rows, --set), as
+    every results file (`header`) and `reproduce`'s manifest record it: "code", the `fabricjax`
+    package without comments and docstrings (`source.fingerprint`); "estimates", the simulator's
+    magnitudes in force (`sim.estimates.fingerprint`); "data", recorded data's contents (`data`:
+    `DatasetIndex.content_hash`), None for a preset's simulated data, which the code, the
+    estimates and the preset decide."""
+    return {"code": source.fingerprint()[:FINGERPRINT_DIGITS], "estimates": estimates.fingerprint()[:FINGERPRINT_DIGITS], "data": data}
+
+
+def data_fingerprint(ds: Dataset | None) -> str | None:
+    """The "data" of `fingerprints` for a study that read `ds`: recorded data's contents, else None."""
+    return dataset_index.load_index(ds.folder, ds.workdir).content_hash if ds is not None and ds.recorded else None
 
 
 def _default(o):
@@ -120,13 +140,14 @@ def header(
     compute_dtypes: Iterable[str] | None = None, **fields,
 ) -> dict[str, Any]:
     """The first fields of every results JSON: what ran (`study`; `command`: the command line,
-    None when called from Python), from which code, when and on which machine, then the study's
-    own `fields` (its preset, the seeds, the dataset it read as `dataset_doc`, the compute dtypes
-    its models trained in (`Config.compute_dtype`), its times, ...)."""
+    None when called from Python), from which code and with which `fingerprints`, when and on
+    which machine, then the study's own `fields` (its preset, the seeds, the dataset it read as
+    `dataset_doc`, the compute dtypes its models trained in (`Config.compute_dtype`), its times, ...)."""
     doc = {
         "study": study,
         "command": command,
         "code": git_commit(),
+        "fingerprints": fingerprints(data_fingerprint(dataset)),
         "date": utc_now(),
         "machine": machine(),
     }
@@ -145,6 +166,8 @@ def header_markdown(doc: dict[str, Any], time: str | None = None) -> str:
     lines = [command_markdown(doc["command"])]
     if "code" in doc:  # results written before the header named its code and date have neither
         lines.append(f"- code: {doc['code']}; written {doc['date']}")
+    if "fingerprints" in doc:  # nor, before it recorded them, fingerprints
+        lines.append(fingerprints_markdown(doc["fingerprints"]))
     if "dataset" in doc:
         lines.append(data_markdown(doc["preset"], doc["dataset"]))
     if "seeds" in doc:
@@ -160,6 +183,12 @@ def header_markdown(doc: dict[str, Any], time: str | None = None) -> str:
     return "\n".join([*lines, ""])
 
 
+def fingerprints_markdown(prints: dict[str, str | None]) -> str:
+    """The `fingerprints` a results file records, as its header lists them."""
+    data = f", recorded data `{prints['data']}`" if prints["data"] else ""
+    return f"- fingerprints: code `{prints['code']}`, simulator estimates `{prints['estimates']}`{data}"
+
+
 def write(results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str] | None, figures: Sequence[Path | None] = ()) -> dict[str, Any]:
     """Write `doc` as results/<study>.json and `markdown(doc)` (None: no Markdown) as
     results/<study>.md, atomically; `figures` (drawn into the same folder; None: not drawn) are
@@ -167,11 +196,32 @@ def write(results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str
     `reproduce` know a study's figures."""
     out = results_path(results)
     doc["figures"] = [Path(f).name for f in figures if f is not None]
+    replaced = replacing(out / f"{doc['study']}.json", doc)
+    if replaced:
+        print(f"note: {replaced}", file=sys.stderr, flush=True)
     with atomic.together():  # both files, or neither (a study drawing figures holds them in its own block)
         if markdown is not None:
             write_text(out / f"{doc['study']}.md", markdown(doc))
         write_json(out / f"{doc['study']}.json", doc)
     return doc
+
+
+def replacing(path: Path, doc: dict[str, Any]) -> str | None:
+    """What `doc` replaces in words where the results at `path` are of another preset or other
+    data (a user's run over the install check's, say), else None: a replaced run is said, not silent."""
+    try:
+        old = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(old, dict):
+        return None
+
+    def of(d: dict[str, Any]) -> str:
+        return f"preset {d.get('preset')} on {(d.get('dataset') or {}).get('folder', 'its data')}"
+
+    if of(old) == of(doc):
+        return None
+    return f"{workspace.shown(path)} held the results of {of(old)}; this run's, of {of(doc)}, replace them (--results=DIR keeps both)"
 
 
 def replace_block(path: Path, begin: str, end: str, block: str) -> bool:

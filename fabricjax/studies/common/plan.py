@@ -219,8 +219,9 @@ def markdown(preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int, f
     known = [s.seconds for s in stages_ if s.seconds is not None]
     need = sum(s.disk_bytes for s in stages_)
     lines = [
-        f"Plan: {n_rows} rows x {n_seeds} seeds on preset {preset!r}: about {_duration(sum(known))}"
-        + (" and more (a stage is unknown)" if len(known) < len(stages_) else "")
+        f"Plan: {n_rows} rows x {n_seeds} seeds on preset {preset!r}: "
+        + (f"about {_duration(sum(known))}" if len(known) == len(stages_)
+           else f"{len(stages_) - len(known)} of {len(stages_)} stages unknown before the run (below), the others about {_duration(sum(known))}")
         + f", {size(need)} of disk at most ({size(free_bytes)} free"
         + ("; it does not fit: free disk space or give --workdir on a larger disk" if need > free_bytes else "") + ")",
         "",

@@ -198,7 +198,7 @@ def run(checkpoint_dirs: Sequence = (), *, names: Sequence[str] | None = None, u
     models = []
     for i, d in enumerate(checkpoint_dirs):
         m = evaluate_model(d, unknown_labels=unknown_labels, where=where)
-        m["name"] = names[i] if names else "+".join(m["config"]["modalities"])
+        m["name"] = names[i] if names else data.inputs_name(m["config"]["modalities"], documents.stream_names(m))  # as tables name them
         models.append(m)
     with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
         png = plots.plot_decide(where.results_dir() / "decide.png", models)

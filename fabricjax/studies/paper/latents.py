@@ -1,4 +1,4 @@
-"""t-SNE of per-trial mean latents from a restored checkpoint (the paper's Fig. latent_features).
+"""t-SNE of latents (one point per fabric: its first test-day trial's mean) from a restored checkpoint (the paper's Fig. latent_features).
 
     python -m experiments.properties --seeds=5          # prints and records its checkpoints
     python -m experiments.latents --checkpoint=workspace/checkpoints/properties/internal+proprio+image-<tag>
@@ -109,7 +109,8 @@ def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()
     with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
         png = plots.plot_latents(
             where.results_dir() / "latents.png", xy, fabrics, known, holdouts,
-            title=f"t-SNE of per-trial mean latents ({data.inputs_name(config.modalities, ds.sets['test'].names if ds.recorded else None)}, seed {seeds[index]}; holdouts outlined)",
+            title=f"t-SNE of latents, one point per fabric: its first test-day trial's mean\n"
+                  f"({data.inputs_name(config.modalities, ds.sets['test'].names if ds.recorded else None)}, seed {seeds[index]}; holdouts outlined)",
             neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
         )
         doc = {
@@ -164,7 +165,7 @@ def _agreement(a: int, b: int, fabrics: Mapping[int, tuple[str, Mapping[str, int
 def neighbour_agreement(points: np.ndarray, fabric_ids: list[int], fabrics: Mapping[int, tuple[str, Mapping[str, int | None]]] | None = None,
                         holdouts=catalog.PROPERTY_HOLDOUTS) -> dict[str, Any]:
     """How well the latent space groups unseen fabrics with trained fabrics of the same property
-    levels (Euclidean distance between per-trial mean latents; fabrics without properties skipped;
+    levels (Euclidean distance between the fabrics' points; fabrics without properties skipped;
     levels from `fabrics` as in `_agreement`).
 
     pairs: per holdout, its nearest training fabric, their agreement (fraction of properties with
@@ -238,7 +239,7 @@ def markdown(doc: dict[str, Any]) -> str:
         f"- checkpoint: `{doc['checkpoint']}` ({'+'.join(c['modalities'])}; seed {doc['seed']}, the best by validation of seeds {doc['checkpoint_seeds']})",
         f"- points: {len(doc['points'])} {points}, one trial each; t-SNE perplexity {doc['perplexity'] or 0:.2f}",
         "",
-        "![t-SNE of per-trial mean latents](latents.png)",
+        "![t-SNE of latents, one point per fabric: its first test-day trial's mean](latents.png)",
         "",
     ]
     if recorded:  # the measurements `checklist` would judge, without the paper's reading
