@@ -63,16 +63,27 @@ INPUT_SOURCES = ("auto", "memory", "disk")
 RESULT_NEUTRAL_FIELDS = ("input_source",)
 
 
+# A count of epochs and the budget in optimiser steps that replaces it on the data loaded
+# (`loading.Dataset.fit`): a count given without its budget sets the budget to 0 (none).
+_BUDGETS = (("epochs", "train_steps"), ("patience", "patience_steps"))
+
+
 def _preset_fields_first(cls):
     """`cls(preset=name, **fields)` takes the fields preset `name` sets (`presets.Preset.training`)
     before its own defaults, with `fields` on top: building a config directly and through
-    `from_preset` give the same config. A config built from all its fields (`dataclasses.replace`,
+    `from_preset` give the same config. `epochs` (or `patience`) given without `train_steps`
+    (`patience_steps`) is trained as given: the preset's budget in steps does not replace it
+    (`--set=epochs=4` trains 4 epochs). A config built from all its fields (`dataclasses.replace`,
     `from_json`) is those fields."""
     init = cls.__init__
 
     @functools.wraps(init)
     def __init__(self, preset: str = "paper", **fields):
-        init(self, preset=preset, **{**presets.get(preset).training, **fields})
+        given = dict(fields)
+        for count, budget in _BUDGETS:  # an epoch count asked for is trained, not replaced by the preset's step budget
+            if count in given and budget not in given:
+                given[budget] = 0
+        init(self, preset=preset, **{**presets.get(preset).training, **given})
 
     cls.__init__ = __init__
     return cls

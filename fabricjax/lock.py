@@ -123,8 +123,12 @@ def _note_path(lock: Path, pid: int | None = None) -> Path:
 
 
 def _note(lock: Path, doing: str, shared: bool) -> None:
+    """Say who holds `lock` for a refusal to name; the lock holds without it (a full disk)."""
     note = {"pid": os.getpid(), "command": command_line(), "doing": doing, "shared": shared}
-    _note_path(lock).write_text(json.dumps(note))
+    try:
+        _note_path(lock).write_text(json.dumps(note))
+    except OSError:
+        _note_path(lock).unlink(missing_ok=True)
 
 
 def _alive(pid: int) -> bool:

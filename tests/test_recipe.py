@@ -156,3 +156,17 @@ def test_real_contact_sound_trains_to_its_linear_probe(tmp_path):
     (row,) = doc["rows"]
     assert 100 * np.mean(row["accuracy"]["test"]["fabric"]) >= 100 * row["probe"]["accuracy"]["test"] - 3
     assert len(row["recipe"]["grid"]) == 4 and "License" in doc["dataset"]["provenance"]["sections"]
+
+
+def test_an_epoch_count_asked_for_is_trained_not_replaced_by_the_presets_step_budget():
+    """`--set=epochs=4` on a preset with a step budget trains 4 epochs (the budget gives way); a
+    config built from all its fields keeps them as they are."""
+    import dataclasses
+
+    from fabricjax.config import Config
+
+    budget = Config.from_preset("default")
+    assert budget.train_steps > 0 and budget.patience_steps > 0
+    asked = Config.from_preset("default", epochs=4, patience=1)
+    assert (asked.epochs, asked.train_steps, asked.patience, asked.patience_steps) == (4, 0, 1, 0)
+    assert dataclasses.replace(budget, epochs=7).train_steps == budget.train_steps

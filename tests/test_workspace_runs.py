@@ -139,7 +139,37 @@ def _can_mount(tmp_path) -> bool:
     return True
 
 
-@pytest.mark.slow  # ~5 min: a smoke run on small file systems, each full at another write
+def _used(path: Path) -> int:
+    return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+
+
+def _leave_free(mount: Path, free: int) -> None:
+    """Fill the file system at `mount` so that about `free` bytes stay free."""
+    ballast = mount / "ballast"
+    ballast.unlink(missing_ok=True)
+    fill = shutil.disk_usage(mount).free - free
+    if fill > 0:
+        with open(ballast, "wb") as f:
+            os.posix_fallocate(f.fileno(), 0, fill)
+
+
+def _check_full_run(mount: Path, seen: set) -> None:
+    """Run the smoke ablation on the nearly full `mount`: it ends in one line or completes, and
+    leaves nothing half-written; the write it ended at goes into `seen`."""
+    r = subprocess.run(_command(mount / "ws", mount / "results"), cwd=REPO, capture_output=True, text=True)
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
+    if r.returncode != 0:
+        assert r.returncode == 2 and len(errors) == 1 and "no space left on the disk" in errors[0], r.stderr[-3000:]
+        assert "Traceback" not in r.stderr, r.stderr[-3000:]
+        what, where = errors[0].removeprefix("error: no space left on the disk for ").split(" (", 1)
+        seen.add((what, Path(where.split(")")[0]).relative_to(mount).parts[:3]))
+    half = [p for p in mount.rglob("*") if p.name.endswith(".partial") or "orbax-checkpoint-tmp" in p.name]
+    assert half == [], half
+    results = {p.suffix for p in (mount / "results").glob("ablation.*")} if (mount / "results").exists() else set()
+    assert results in (set(), {".md", ".json"}, {".md", ".json", ".png"}), results  # a set, or none
+
+
+@pytest.mark.slow  # ~5 min: a smoke run on a file system filled to leave less and less, each full at another write
 def test_a_full_disk_at_every_write_is_one_line_and_a_rerun_with_space_gives_the_clean_results(tmp_path):
     if not _can_mount(tmp_path):
         pytest.skip("mounting a small file system needs root")
@@ -148,25 +178,23 @@ def test_a_full_disk_at_every_write_is_one_line_and_a_rerun_with_space_gives_the
     try:
         subprocess.run(_command(mount / "ws", mount / "results"), check=True, cwd=REPO, capture_output=True)
         clean = _accuracies(mount / "results")
-        used = sum(f.stat().st_size for f in mount.rglob("*") if f.is_file())
-        seen = []
-        for fraction in (0.02, 0.1, 0.3, 0.5, 0.7, 0.85, 0.95, 0.99):
-            subprocess.run(["umount", str(mount)], check=True)
-            _tmpfs(mount, max(int(used * fraction), 64 << 10))
-            r = subprocess.run(_command(mount / "ws", mount / "results"), cwd=REPO, capture_output=True, text=True)
-            errors = [line for line in r.stderr.splitlines() if line.startswith("error:")]
-            if r.returncode != 0:
-                assert r.returncode == 2 and len(errors) == 1 and "no space left on the disk" in errors[0], r.stderr[-3000:]
-                assert "Traceback" not in r.stderr, r.stderr[-3000:]
-                seen.append(errors[0].split(" (")[0])
-            half = [p for p in mount.rglob("*") if p.name.endswith(".partial") or "orbax-checkpoint-tmp" in p.name]
-            assert half == [], half
-            results = {p.suffix for p in (mount / "results").glob("ablation.*")} if (mount / "results").exists() else set()
-            assert results in (set(), {".md", ".json", ".png"}, {".md", ".json"}), results
-            _tmpfs(mount, 1 << 30)  # space freed: the rerun completes with the clean results
+        dataset = _used(mount / "ws" / "datasets")
+        after_dataset = _used(mount) - dataset  # what a run writes once the dataset exists
+        seen: set[str] = set()
+        cases = [(0.5, True)] + [(f, False) for f in (0.02, 0.1, 0.3, 0.5, 0.7, 0.8, 0.9, 0.95, 0.98, 0.995)]
+        for fraction, from_empty in cases:  # from an empty workspace (the simulator), then with the dataset there
+            for p in list(mount.iterdir()):
+                if p.name != "ws":
+                    shutil.rmtree(p) if p.is_dir() else p.unlink()
+            for p in list((mount / "ws").iterdir()):
+                if from_empty or p.name != "datasets":
+                    shutil.rmtree(p)
+            _leave_free(mount, int((dataset if from_empty else after_dataset) * fraction))
+            _check_full_run(mount, seen)
+            (mount / "ballast").unlink(missing_ok=True)  # space freed: the rerun completes with the clean results
             subprocess.run(_command(mount / "ws", mount / "results"), check=True, cwd=REPO, capture_output=True)
             assert _accuracies(mount / "results") == clean
-        assert len(seen) >= 4, seen
-        print(seen)
+        print(sorted(seen))
+        assert len({what for what, _ in seen}) >= 4, seen  # the simulator's check and at least three write sites after it
     finally:
         subprocess.run(["umount", str(mount)], check=False)
