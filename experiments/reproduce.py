@@ -3,7 +3,10 @@
     python -m experiments.reproduce                      # default preset, into workspace/results/REPORT.md
     python -m experiments.reproduce --results=results    # regenerates the repository's results/REPORT.md
     python -m experiments.reproduce --set=epochs=4       # any Config field, for every study
+    python -m experiments.reproduce --check --results=results   # runs nothing: lists the stale studies and their files, exit 1 if any
 """
+
+import sys
 
 from absl import flags as absl_flags
 
@@ -15,10 +18,15 @@ flags.define_preset()
 flags.define_overrides()
 STUDIES = absl_flags.DEFINE_list("studies", None, f"comma-separated studies to run, from: {', '.join(reproduce.STUDIES)} (default: all, in that order)")
 FORCE = absl_flags.DEFINE_bool("force", False, "rerun every study, even those whose results are up to date")
+CHECK = absl_flags.DEFINE_bool(
+    "check", False, "run nothing: list the studies of --results whose fingerprints (code, simulator estimates, --data_dir's data) "
+    "no longer match today's, with their files; exit status 1 if any")
 
 
 def main(argv):
     del argv
+    if CHECK.value:
+        sys.exit(1 if reproduce.check(flags.location()) else 0)
     plan = reproduce.PLAN
     if STUDIES.value:
         known = [s.study for s in plan]

@@ -12,9 +12,10 @@ Each example runs in a process forked from one that imported the libraries once,
 directory, with `--workdir` and `--results` (and `experiments.estimates`' `--doc`) pointed at
 temporary paths, and stops where its work would begin (`BOUNDARIES`: loading or simulating data,
 simulating a scene (a training study's plan, printed before it trains, times one), reading an
-archive or a results file, restoring a checkpoint, verifying a folder, a benchmark): a full run
-takes minutes to hours, and what it reads (DIR, ARCHIVE, a checkpoint) is a placeholder. Joining a run over several processes (`--distributed`) is skipped, so
-such an example is checked as one process. An example that needs a screen (`--view`) is checked as
+archive or a results file, checking a results folder's fingerprints, restoring a checkpoint,
+verifying a folder, a benchmark): a full run takes minutes to hours, and what it reads (DIR,
+ARCHIVE, a checkpoint) is a placeholder. Joining a run over several processes (`--distributed`)
+is skipped, so such an example is checked as one process. An example that needs a screen (`--view`) is checked as
 on a machine with one. Example commands that finish before any boundary (`--plan`,
 `estimates --check`) run to the end. What it does not prove: that the data, checkpoints or files an
 example names exist, or that the run after the boundary succeeds (the study tests do that).
@@ -50,6 +51,7 @@ BOUNDARIES = {
     "fabricjax.train.restore": "restores a checkpoint",
     "fabricjax.integrity.verify": "verifies a folder of archives",
     "fabricjax.studies.tools.variant.read": "reads a results file",
+    "fabricjax.studies.tools.reproduce.check": "checks a results folder's fingerprints",
     "fabricjax.bench.suite._torch_twin": "builds the PyTorch twin of the benchmarks",
 }
 BENCHMARK_PREFIX = "bench_"  # and every benchmark function (fabricjax.bench, acquisition): "runs a benchmark"

@@ -65,8 +65,9 @@ def test_day_shift_runs_after_the_probe_in_reproduce_and_shows_its_gap(workdir, 
     assert f"## {reproduce.title('day_shift')}" in report and "Test − validation [pp]" in report
     assert report.count("| – (deterministic) | – (not in the paper) |") == 2
     manifest = json.loads((tmp_path / reproduce.MANIFEST).read_text())
-    other = reproduce.step_key(plan[1], "smoke", TINY, None, "x", manifest["probe"]["key"] + "0")
-    assert other != reproduce.step_key(plan[1], "smoke", TINY, None, "x", manifest["probe"]["key"])  # the probe's key is in the day shift's
+    prints = manifest["day_shift"]["fingerprints"]
+    other = reproduce.step_key(plan[1], "smoke", TINY, prints, manifest["probe"]["key"] + "0")
+    assert other != reproduce.step_key(plan[1], "smoke", TINY, prints, manifest["probe"]["key"]) == manifest["day_shift"]["key"]  # the probe's key is in the day shift's
 
 
 @pytest.mark.slow

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax.studies.common import linear_probe
+from fabricjax.studies.common import documents, linear_probe
 from fabricjax.studies.extra import probe
 from fabricjax.studies.paper import ablation
 from fabricjax.studies.tools import reproduce
@@ -113,13 +113,13 @@ def test_report_sets_the_probe_beside_the_ablation_from_their_json(tmp_path):
         (tmp_path / f"{study}.json").write_text(json.dumps({**doc, "machine": {"cpu": "x", "cores": 2, "platform": "p", "python": "3", "jax_backend": "cpu", "devices": []}}))
         (tmp_path / f"{study}.md").write_text(f"# {study}\n\n{study} table\n")
     manifest = {s: {"wall_s": 60.0, "finished": "today", "command": f"python -m experiments.{s}"} for s in ("ablation", "probe")}
-    text = reproduce.write_report(tmp_path / "REPORT.md", manifest, "default", "c0de" * 16, "test", 1.0, 2).read_text()
+    text = reproduce.write_report(tmp_path / "REPORT.md", manifest, "default", documents.fingerprints(None), "test", 1.0, 2).read_text()
     assert text.index("## Modality ablation") < text.index("## Linear probe") < text.index("### The probe beside the model, row by row")
     assert "| Minsound | 65.00 (collapsed to class 1) | 85.00 ± 7.07 | +20.00 |" in text
     assert "| – (deterministic) | – (not in the paper) |" in text  # the summary line of the probe
     (tmp_path / "ablation.json").unlink()
     del manifest["ablation"]
-    assert "beside the model" not in reproduce.write_report(tmp_path / "REPORT.md", manifest, "default", "c0de" * 16, "test", 1.0, 1).read_text()
+    assert "beside the model" not in reproduce.write_report(tmp_path / "REPORT.md", manifest, "default", documents.fingerprints(None), "test", 1.0, 1).read_text()
 
 
 def test_reproduce_runs_the_probe_without_seeds():

@@ -155,7 +155,7 @@ def test_the_report_of_recorded_data_names_no_paper(tmp_path):
     (tmp_path / "bandwidth.md").write_text(bandwidth.markdown(doc))
     manifest = {"bandwidth": {"key": "k", "wall_s": 60.0, "command": "python -m experiments.bandwidth --data_dir=rig_archives",
                               "finished": "2026-11-25 08:00 UTC"}}
-    text = reproduce.write_report(tmp_path / "REPORT.md", manifest, "smoke", "c0de" * 16, "test", 1.0, 1).read_text()
+    text = reproduce.write_report(tmp_path / "REPORT.md", manifest, "smoke", documents.fingerprints("d" * 16), "test", 1.0, 1).read_text()
     assert text.splitlines()[0] == "# Report: every study on the smoke preset on recorded data"
     assert "## PSD bandwidth\n" in text and "| [PSD bandwidth](#psd-bandwidth) | 2 | 1.0 min |" in text
     assert documents.RECORDED_NOTE in text and "feature extraction, done once, is in the first study's" in text

@@ -444,16 +444,17 @@ def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_p
 
 
 def test_reproduce_keys_follow_what_decides_the_numbers():
-    code = "c0de"
+    prints = {"code": "c0de", "estimates": "e5", "data": None}
     step = reproduce.Step("noise", 10)
-    key = reproduce.step_key(step, "default", {}, None, code)
-    assert key == reproduce.step_key(step, "default", {}, None, code)
-    assert key != reproduce.step_key(reproduce.Step("noise", 5), "default", {}, None, code)
-    assert key != reproduce.step_key(step, "smoke", {}, None, code)
-    assert key != reproduce.step_key(step, "default", {"epochs": 3}, None, code)
-    assert key != reproduce.step_key(step, "default", {}, None, "other code")
+    key = reproduce.step_key(step, "default", {}, prints)
+    assert key == reproduce.step_key(step, "default", {}, dict(prints))
+    assert key != reproduce.step_key(reproduce.Step("noise", 5), "default", {}, prints)
+    assert key != reproduce.step_key(step, "smoke", {}, prints)
+    assert key != reproduce.step_key(step, "default", {"epochs": 3}, prints)
+    for name, other in (("code", "other code"), ("estimates", "other estimates"), ("data", "a" * 16)):  # other recordings, too
+        assert key != reproduce.step_key(step, "default", {}, {**prints, name: other}), name
     latents_step = reproduce.Step("latents")
-    assert reproduce.step_key(latents_step, "default", {}, None, code, "props-a") != reproduce.step_key(latents_step, "default", {}, None, code, "props-b")
+    assert reproduce.step_key(latents_step, "default", {}, prints, "props-a") != reproduce.step_key(latents_step, "default", {}, prints, "props-b")
     assert len(source.fingerprint()) == 64
     assert reproduce.command(step, "default", {"epochs": 3, "modalities": ("internal", "proprio")}, "results") == (
         "python -m experiments.noise --seeds=10 --preset=default --set=epochs=3 --set=modalities=internal,proprio --results=results"

@@ -22,6 +22,7 @@ number of `fabricjax.sim` is a registry estimate or carries its source tag (see 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 from types import MappingProxyType
 from typing import Mapping
@@ -522,6 +523,13 @@ def value(name: str) -> float:
 def in_force() -> tuple[tuple[str, float], ...]:
     """The overrides in force (`override`), as `Scene.estimates` carries them: sorted pairs."""
     return tuple(sorted(_overrides.items()))
+
+
+def fingerprint() -> str:
+    """The simulator's magnitudes as results record them (`studies.common.documents.fingerprints`):
+    sha256 over every estimate's name and the value in force (`value`)."""
+    text = "\n".join(f"{name}={value(name)!r}" for name in sorted(ESTIMATES))
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def override(values: Mapping[str, float]) -> None:

@@ -3,11 +3,12 @@ numbers come from.
 
 Every study (the training studies, the probe, cost, sweep, latents, stream, bench, palm) builds
 its JSON document on `header` (study, command, code and the `fingerprints` of what decides its
-numbers, machine, date, and the fields it adds: preset, seeds, dataset, ...), says where its numbers come from in Markdown with `header_markdown`
-and writes results/<study>.md and .json atomically with `write`, which also records the figures
-it drew under one key, "figures". Tables are `markdown_table`; per-row and per-sample records of a
-trained row are `runner.Row.doc` and `samples_doc`. The paper's claims checked on a study's rows live in
-`findings`; REPORT.md, which gathers every study, is `reproduce`'s."""
+numbers, machine, date, and the fields it adds: preset, seeds, dataset, ...), says where its
+numbers come from in Markdown with `header_markdown` and writes results/<study>.md and .json
+atomically with `write`, which also records the figures it drew under one key, "figures". Tables
+are `markdown_table`; per-row and per-sample records of a trained row are `runner.Row.doc` and
+`samples_doc`. The paper's claims checked on a study's rows live in `findings`; REPORT.md, which
+gathers every study, is `reproduce`'s."""
 
 from __future__ import annotations
 
@@ -80,11 +81,14 @@ FINGERPRINT_DIGITS = 16  # hex digits of each fingerprint a results file records
 def fingerprints(data: str | None) -> dict[str, str | None]:
     """What decides a study's numbers besides its command (study, preset, seeds, rows, --set), as
     every results file (`header`) and `reproduce`'s manifest record it: "code", the `fabricjax`
-    package without comments and docstrings (`source.fingerprint`); "estimates", the simulator's
-    magnitudes in force (`sim.estimates.fingerprint`); "data", recorded data's contents (`data`:
-    `DatasetIndex.content_hash`), None for a preset's simulated data, which the code, the
-    estimates and the preset decide."""
-    return {"code": source.fingerprint()[:FINGERPRINT_DIGITS], "estimates": estimates.fingerprint()[:FINGERPRINT_DIGITS], "data": data}
+    package without comments and docstrings (`source.fingerprint`); "data", recorded data's
+    contents (`data`: `DatasetIndex.content_hash`), None for a preset's simulated data, which the
+    code, the preset and "estimates" decide: the simulator's magnitudes in force
+    (`sim.estimates.fingerprint`), None on recorded data, which no estimate decides."""
+    prints = {"code": source.fingerprint()[:FINGERPRINT_DIGITS], "estimates": None, "data": data}
+    if data is None:
+        prints["estimates"] = estimates.fingerprint()[:FINGERPRINT_DIGITS]
+    return prints
 
 
 def data_fingerprint(ds: Dataset | None) -> str | None:
@@ -185,8 +189,8 @@ def header_markdown(doc: dict[str, Any], time: str | None = None) -> str:
 
 def fingerprints_markdown(prints: dict[str, str | None]) -> str:
     """The `fingerprints` a results file records, as its header lists them."""
-    data = f", recorded data `{prints['data']}`" if prints["data"] else ""
-    return f"- fingerprints: code `{prints['code']}`, simulator estimates `{prints['estimates']}`{data}"
+    named = {"code": "code", "estimates": "simulator estimates", "data": "recorded data"}
+    return "- fingerprints: " + ", ".join(f"{named[k]} `{v}`" for k, v in prints.items() if v is not None)
 
 
 def write(results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str] | None, figures: Sequence[Path | None] = ()) -> dict[str, Any]:

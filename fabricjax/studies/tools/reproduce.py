@@ -14,12 +14,21 @@ of the row the paper calls best and of Minsound alone (`DECIDE_ROWS`; no trainin
 the first pays only for its training.
 
 A study is skipped when it is up to date: the manifest `reproduce.json` in the results folder
-records, per study, a key over what decides its numbers (the study and its seeds and rows, the
-preset, the config overrides, the data folder, the source of the `fabricjax` package and, for
-a study that reads another's results (`UPSTREAM`: the latents the property study's checkpoint,
-the day shift the probe's accuracies, the decision study the ablation's checkpoints), that study's key) and its outputs exist. Change any of those
-and that study (and what depends on it) runs again. The manifest is rewritten after every
-study, so an interrupted run picks up where it stopped.
+records, per study, a key over what decides its numbers (`step_key`: the study and its seeds and
+rows, the preset, the config overrides, the `documents.fingerprints` of the code, the simulator's
+estimates and the data and, for a study that reads another's results (`UPSTREAM`: the latents the
+property study's checkpoint, the day shift the probe's accuracies, the decision study the
+ablation's checkpoints), that study's key) and its outputs exist. Change any of those and that
+study (and what depends on it) runs again. The manifest is rewritten after every study, so an
+interrupted run picks up where it stopped.
+
+Staleness: each manifest entry also records what its key was computed from (its step, preset,
+overrides and fingerprints) and the commit it ran at, so `stale` recomputes every study's key
+under today's fingerprints without running anything: a study whose key moved is stale, since
+that commit, and its numbers are not today's code's, estimates' or data's. `check` (`python -m
+experiments.reproduce --check`) lists the stale studies of a results folder with their files;
+REPORT.md and README's results block, when `run` writes them, say "stale since <commit>" beside
+each study of the manifest that this call did not bring up to date (one outside `--studies`).
 
 The report embeds each study's own Markdown (its table beside the paper's, its findings
 checklist, its Wilcoxon tests), links its figures, sets the probe beside the ablation row by row
@@ -47,7 +56,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import fabricjax
-from fabricjax import archive, dataset_index, presets, source, splits, stats, workspace
+from fabricjax import archive, dataset_index, presets, splits, stats, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, findings, runner
@@ -101,12 +110,83 @@ def title(study: str, recorded: bool = False) -> str:
     return module.TITLE if recorded else f"{module.TITLE} ({module.PAPER})"
 
 
-def step_key(step: Step, preset: str, overrides: Mapping[str, Any], data_dir, code: str, upstream: str = "") -> str:
+def step_key(step: Step, preset: str, overrides: Mapping[str, Any], prints: Mapping[str, str | None], upstream: str = "") -> str:
+    """What decides a study's results, as one key: the step, preset, overrides, the fingerprints
+    of the code, the simulator's estimates and the data (`prints`: `documents.fingerprints`; the
+    data's is recorded data's contents, None on the preset's simulated data, which the other two
+    decide) and the upstream study's key."""
     parts = {
         "step": dataclasses.asdict(step), "preset": preset, "overrides": dict(sorted(overrides.items())),
-        "data_dir": str(Path(data_dir).resolve()) if data_dir else None, "code": code, "upstream": upstream,
+        "fingerprints": dict(prints), "upstream": upstream,
     }
     return hashlib.sha256(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def _as_json(value: Any) -> Any:
+    """`value` as the manifest holds it once written (tuples as lists, what JSON lacks as its str,
+    as `step_key` hashes it), so that this call's manifest equals the next call's reading of it."""
+    return json.loads(json.dumps(value, default=str))
+
+
+def _upstream(study: str, keys: Mapping[str, str], manifest: Mapping[str, Any]) -> str:
+    """The key of the study whose results `study` reads: this call's (`keys`), else the
+    manifest's; "" for a study that reads none, or one never run."""
+    up = UPSTREAM.get(study)
+    return keys.get(up, manifest.get(up, {}).get("key", "")) if up else ""
+
+
+def _data_fingerprint(data_dir, workdir) -> str | None:
+    """The "data" of `documents.fingerprints` for a run on `data_dir` (None: the preset's simulated data)."""
+    return dataset_index.load_index(data_dir, workdir).content_hash if data_dir else None
+
+
+FINGERPRINT_WORDS = {"code": "the code", "estimates": "the simulator's estimates", "data": "the data"}  # `documents.fingerprints`' keys
+
+
+def stale(manifest: Mapping[str, Any], prints: Mapping[str, str | None]) -> dict[str, str]:
+    """{study: "stale since <commit>: <what> changed"} for each study of `manifest` whose key,
+    recomputed from what its entry recorded (step, preset, overrides) under today's fingerprints
+    (`prints`) and the manifest's key of its upstream study (whose results it read: rerun since,
+    they are not the ones it read), differs from the key it ran under; in `STUDIES` order. An entry
+    that records no fingerprints is stale: nothing says what it was computed from."""
+    out: dict[str, str] = {}
+    for study in (s for s in STUDIES if s in manifest):
+        entry = manifest[study]
+        since = f"stale since {entry.get('commit', entry['finished'])}"
+        if "fingerprints" not in entry:
+            out[study] = f"{since}: it records no fingerprints of what it was computed from"
+            continue
+        if step_key(Step(**entry["step"]), entry["preset"], entry["overrides"], prints, _upstream(study, {}, manifest)) != entry["key"]:
+            moved = [words for k, words in FINGERPRINT_WORDS.items() if entry["fingerprints"].get(k) != prints[k]]
+            moved = moved or ([f"the {UPSTREAM[study]} study it reads"] if study in UPSTREAM else ["how its key is computed"])
+            out[study] = f"{since}: {' and '.join(moved)} changed"
+    return out
+
+
+def check(where: Location, say: Callable[[str], None] = print) -> dict[str, str]:
+    """Say which studies of the manifest in `where`'s results folder are stale (`stale`, under the
+    fingerprints of today's code, estimates and `where.data_dir`'s data), each with its files
+    there, and which files gather them; runs nothing, writes nothing. Returns `stale`'s dict."""
+    out = where.results_dir()
+    manifest = _read_json(out / MANIFEST)
+    if manifest is None:
+        raise UserError(f"{workspace.shown(out / MANIFEST)}: no manifest of experiments.reproduce to check")
+    prints = documents.fingerprints(_data_fingerprint(where.data_dir, where.workdir))
+    notes = stale(manifest, prints)
+    studies = [s for s in STUDIES if s in manifest]
+    lines = [f"reproduce --check: {len(notes)} of the {len(studies)} studies of {workspace.shown(out / MANIFEST)} are stale "
+             f"({documents.fingerprints_markdown(prints)[2:]} today)"]
+    for study, note in notes.items():
+        files = ", ".join(workspace.shown(p) for p in _outputs(study, out) if p.exists())
+        lines.append(f"  {study:<11} {note}: {files or 'no files'}")
+    if notes:
+        first = manifest[next(iter(notes))]  # the flags of the run that wrote it: a step named reproduce is the whole plan's command
+        rerun = command(Step("reproduce"), first["preset"], first.get("overrides", {}), workspace.shown(out),
+                        data_dir=where.data_dir, workdir=where.workdir)
+        lines.append(f"  {workspace.shown(out / REPORT)} and {workspace.shown(out / HEADLINE)} (README's results block) gather them; "
+                     f"`{rerun}` reruns what is stale and rewrites both")
+    say("\n".join(lines))
+    return notes
 
 
 def command(step: Step, preset: str, overrides: Mapping[str, Any], results: Path, checkpoint: str | None = None,
@@ -234,13 +314,11 @@ def run(
     out = where.results_dir()
     manifest_path = out / MANIFEST
     manifest = _read_json(manifest_path) or {}
-    code = source.fingerprint()
+    prints = documents.fingerprints(_data_fingerprint(data_dir, workdir))
 
-    keys = {}
+    keys: dict[str, str] = {}
     for step in plan:  # a study that reads another's results has that study's key in its own
-        up = UPSTREAM.get(step.study)
-        upstream = keys.get(up, manifest.get(up, {}).get("key", "")) if up else ""
-        keys[step.study] = step_key(step, preset, overrides, data_dir, code, upstream)
+        keys[step.study] = step_key(step, preset, overrides, prints, _upstream(step.study, keys, manifest))
     todo = [s for s in plan if force or manifest.get(s.study, {}).get("key") != keys[s.study] or not all(p.exists() for p in _outputs(s.study, out))]
 
     lines = [f"reproduce: preset {preset}, results in {out}"]
@@ -290,16 +368,18 @@ def run(
         wall = time.perf_counter() - t0
         manifest[step.study] = {
             "key": keys[step.study], "wall_s": wall, "command": cmd,
-            "finished": documents.utc_now(),
+            "finished": documents.utc_now(), "commit": documents.git_commit(),
+            # what the key was computed from: `stale` recomputes it under later fingerprints
+            "step": _as_json(dataclasses.asdict(step)), "overrides": _as_json(overrides), "fingerprints": prints,
             # what an estimate of a later run scales from: the study's, and each training row's (`plan.rates`)
             "preset": preset, "seeds": step.seeds, "rows": len(step.rows) if step.rows else _n_rows(step.study),
             **({"rates": training_rates(doc), "machine": documents.machine_line(doc["machine"])} if doc and step.seeds else {}),
         }
         documents.write_json(manifest_path, manifest)
         say(f"reproduce: {step.study} done in {_minutes(wall)}")
-    write_report(out / REPORT, manifest, preset, code, where.command, time.perf_counter() - t_all, len(todo))
+    write_report(out / REPORT, manifest, preset, prints, where.command, time.perf_counter() - t_all, len(todo))
     say(f"reproduce: wrote {out / REPORT}")
-    head = headline(out, manifest, preset, where.command)
+    head = headline(out, manifest, preset, where.command, prints)
     if head is not None:
         documents.write_json(out / HEADLINE, head)
         readme = out.parent / "README.md"
@@ -326,10 +406,13 @@ def _demote(markdown: str) -> str:
     return "\n".join("#" + line if line.startswith("#") else line for line in lines).strip() + "\n"
 
 
-def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str, command_line: str, run_s: float, n_run: int) -> Path:
-    """REPORT.md over every study the manifest holds (this call's and earlier calls'), in `STUDIES` order."""
+def write_report(path: Path, manifest: Mapping[str, Any], preset: str, prints: Mapping[str, str | None], command_line: str,
+                 run_s: float, n_run: int) -> Path:
+    """REPORT.md over every study the manifest holds (this call's and earlier calls'), in `STUDIES`
+    order, each stale one (`stale` under today's fingerprints, `prints`) saying so."""
     out = path.parent
     studies = [s for s in STUDIES if s in manifest]
+    notes = stale(manifest, prints)
     docs = {s: _read_json(out / f"{s}.json") for s in studies}
     first = next((d for d in docs.values() if d), None)
     m = first["machine"] if first else documents.machine()
@@ -347,8 +430,9 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
             held, evaluated = findings.count([findings.Finding.from_json(f) for f in doc.get("findings", [])])
             seeds = len(doc["seeds"]) if study != "latents" and doc.get("seeds") else "1 (best of the property study's)"
             claims = f"{held} of {evaluated}" if not presets.install_check(preset) else "not counted (install check)"
+        finished = manifest[study]["finished"] + (f"; **{notes[study]}**" if study in notes else "")
         summary.append([f"[{title(study, recorded)}](#{_anchor(title(study, recorded))})", seeds, *([] if recorded else [claims]),
-                        _minutes(manifest[study]["wall_s"]), manifest[study]["finished"]])
+                        _minutes(manifest[study]["wall_s"]), finished])
     if recorded:
         heading = documents.title(first, f"Report: every study on the {preset} preset")
         data_note, numbers = "feature extraction, done once, is", documents.RECORDED_NOTE
@@ -366,8 +450,8 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
         "the others were up to date and kept)",
         f"- machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}, JAX on {m['jax_backend']} ({len(m['devices'])} devices)",
         f"- versions: {', '.join(f'{k} {v}' for k, v in versions().items())}",
-        f"- code: fabricjax {fabricjax.__version__}, {documents.git_commit()}, source fingerprint `{code[:16]}` "
-        "(`fabricjax.source.fingerprint`)",
+        f"- code: fabricjax {fabricjax.__version__}, {documents.git_commit()}",
+        documents.fingerprints_markdown(prints) + " (today's; `python -m experiments.reproduce --check` lists the studies they do not match)",
         f"- wall time of the studies: {_minutes(total)} in all (each below; {data_note} in the first study's)",
         "",
         f"Every number below comes from the study's results file in this folder, written by the run named beside it. {numbers}",
@@ -387,6 +471,8 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, code: str
             "",
             f"Wall time {_minutes(e['wall_s'])}, finished {e['finished']}. Rerun alone: `{e['command']}`",
             "",
+            *([f"> **{notes[study][0].upper() + notes[study][1:]}**: these are not today's numbers; `python -m experiments.reproduce` reruns it.", ""]
+              if study in notes else []),
             _demote(md.read_text()) if md.exists() else f"({md.name} is missing)\n",
         ]
         figures = (docs[study] or {}).get("figures", [])
@@ -402,11 +488,13 @@ def _anchor(title: str) -> str:
 
 
 
-def headline(out: Path, manifest: Mapping[str, Any], preset: str, command_line: str | None) -> dict[str, Any] | None:
+def headline(out: Path, manifest: Mapping[str, Any], preset: str, command_line: str | None,
+             prints: Mapping[str, str | None]) -> dict[str, Any] | None:
     """README's results block as data, from the same results files as REPORT.md: the ablation's
     rows (the paper's rows on simulated data, every row on recorded data) beside the paper and
-    the linear probe of the same inputs, each seeded study's checklist count, and the run's
-    command, date, machine and wall time. None when the folder holds no ablation."""
+    the linear probe of the same inputs, each seeded study's checklist count, the stale studies
+    (`stale` under today's fingerprints, `prints`) by title, and the run's command, date, machine
+    and wall time. None when the folder holds no ablation."""
     docs = {s: _read_json(out / f"{s}.json") for s in STUDIES if s in manifest}
     abl = docs.get("ablation")
     if not abl:
@@ -435,6 +523,7 @@ def headline(out: Path, manifest: Mapping[str, Any], preset: str, command_line: 
         "command": command_line, "preset": preset, "recorded": recorded, "date": documents.utc_now(), "code": documents.git_commit(),
         "machine": documents.machine_line(m),
         "wall_s": sum(e["wall_s"] for s, e in manifest.items() if s in STUDIES), "seeds": len(abl["seeds"]), "rows": rows, "claims": claims,
+        "stale": {title(s, recorded): note for s, note in stale(manifest, prints).items()},
     }
 
 
@@ -454,6 +543,10 @@ def readme_block(head: Mapping[str, Any], results: str = "results") -> str:
     lines.append(documents.markdown_table(header, body))
     if head["claims"]:
         lines.append("The paper's claims reproduced: " + "; ".join(f"{k} {v}" for k, v in head["claims"].items()) + ".")
+        lines.append("")
+    if head.get("stale"):  # a headline written before it recorded stale studies has none
+        lines.append("**Stale**, not today's numbers: " + "; ".join(f"{k} ({v})" for k, v in head["stale"].items())
+                     + " (`python -m experiments.reproduce --check` lists their files).")
         lines.append("")
     lines.append(README_END)
     return "\n".join(lines)

@@ -1,0 +1,115 @@
+"""Staleness by construction: results record the fingerprints of what decides them (code without
+comments and docstrings, the simulator's estimates in force, the data), and `reproduce --check`,
+REPORT.md and README's results block flag the studies whose fingerprints no longer match today's."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from fabricjax import sim, source
+from fabricjax.sim import estimates
+from fabricjax.studies.common import documents
+from fabricjax.studies.tools import reproduce
+from fabricjax.workspace import Location
+
+REPO = Path(__file__).resolve().parents[1]
+PLAN = (reproduce.Step("probe", rows=("proprio",)), reproduce.Step("day_shift", rows=("proprio",)))
+
+
+@pytest.fixture(scope="module")
+def published(tmp_path_factory):
+    """A results folder as `reproduce` writes it: the probe and the day shift (which reads the
+    probe's results) on the smoke preset, a few seconds."""
+    root = tmp_path_factory.mktemp("staleness")
+    sim.ensure_dataset("smoke", root / "ws", streams=("audio", "proprio"), progress=False)
+    where = Location(workdir=root / "ws", results=root / "results", command="test")
+    reproduce.run(preset="smoke", plan=PLAN, where=where, say=lambda s: None)
+    return where
+
+
+def _check_command(where: Location) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "experiments.reproduce", "--check", f"--results={where.results}", f"--workdir={where.workdir}"]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=REPO)
+
+
+def test_the_code_fingerprint_ignores_comments_docstrings_and_blank_lines():
+    code = 'def f(x):\n    return x + 1  # one more\n'
+    documented = '"""A module."""\n\n# a note\ndef f(x):\n    """Add one."""\n\n    return x + 1  # one more, said again\n'
+    assert source.executed(documented) == source.executed(code) == "def f(x):\n    return x + 1\n"
+    assert source.executed('def f(x):\n    s = "kept: a value"\n    return x + 2\n') != source.executed(code)
+
+
+def test_every_results_file_records_the_fingerprints(published):
+    doc = json.loads((published.results / "probe.json").read_text())
+    assert doc["fingerprints"] == documents.fingerprints(None)  # simulated data: decided by the code, estimates and preset
+    assert documents.fingerprints_markdown(doc["fingerprints"]) in (published.results / "probe.md").read_text()
+    manifest = json.loads((published.results / reproduce.MANIFEST).read_text())
+    assert manifest["probe"]["fingerprints"] == doc["fingerprints"] and manifest["probe"]["commit"] == doc["code"]
+
+
+def test_an_unchanged_state_lists_nothing_stale(published):
+    said = []
+    assert reproduce.check(published, say=said.append) == {}
+    assert said[0].startswith("reproduce --check: 0 of the 2 studies of ")
+    report = (published.results / reproduce.REPORT).read_text()
+    assert "stale since" not in report.lower()
+    done = _check_command(published)
+    assert done.returncode == 0, done.stderr
+    assert "0 of the 2 studies" in done.stdout
+
+
+def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(published):
+    manifest = json.loads((published.results / reproduce.MANIFEST).read_text())
+    estimates.override({"SERVO_TONE_PA": estimates.ESTIMATES["SERVO_TONE_PA"].value * 2})
+    try:
+        said = []
+        notes = reproduce.check(published, say=said.append)
+        report = reproduce.write_report(published.results / "STALE.md", manifest, "smoke", documents.fingerprints(None), "test", 1.0, 0).read_text()
+    finally:
+        estimates.override({})
+    since = f"stale since {manifest['probe']['commit']}"
+    assert notes == {"probe": f"{since}: the simulator's estimates changed", "day_shift": f"{since}: the simulator's estimates changed"}
+    text = "\n".join(said)
+    assert f"probe       {notes['probe']}: " in text and f"{published.results / 'probe.md'}" in text  # each stale study's files
+    assert "reruns what is stale" in text and "--preset=smoke" in text
+    assert f"**{notes['probe']}**" in report and f"> **S{notes['day_shift'][1:]}**" in report  # the summary and the study's section
+    assert reproduce.check(published, say=lambda s: None) == {}  # the registry's values again: nothing stale
+
+
+def test_changed_code_marks_the_studies_stale_and_the_reader_of_a_rerun_study(published, monkeypatch):
+    monkeypatch.setattr(source, "fingerprint", lambda: "f" * 64)
+    notes = reproduce.stale(json.loads((published.results / reproduce.MANIFEST).read_text()), documents.fingerprints(None))
+    assert list(notes) == ["probe", "day_shift"] and all(n.endswith(": the code changed") for n in notes.values())
+    monkeypatch.undo()
+    manifest = json.loads((published.results / reproduce.MANIFEST).read_text())
+    manifest["probe"]["key"] = "0" * 16  # the probe rerun since: the day shift read the results of another probe
+    notes = reproduce.stale(manifest, documents.fingerprints(None))
+    assert notes["day_shift"].endswith(": the probe study it reads changed")
+
+
+def test_check_exits_1_on_results_of_other_code_and_readme_says_stale(published, tmp_path):
+    results = tmp_path / "results"
+    shutil.copytree(published.results, results)
+    manifest = json.loads((results / reproduce.MANIFEST).read_text())
+    keys: dict[str, str] = {}
+    for study in ("probe", "day_shift"):  # as a run of other code would have recorded them
+        e = manifest[study]
+        e["fingerprints"]["code"] = "0" * 16
+        e["key"] = keys[study] = reproduce.step_key(reproduce.Step(**e["step"]), e["preset"], e["overrides"], e["fingerprints"], keys.get("probe", ""))
+    (results / reproduce.MANIFEST).write_text(json.dumps(manifest))
+    done = _check_command(Location(workdir=published.workdir, results=results))
+    assert done.returncode == 1, done.stderr
+    assert "2 of the 2 studies" in done.stdout and done.stdout.count(": the code changed: ") == 2
+    assert str(results / "day_shift.md") in done.stdout
+    head = {**json.loads((REPO / "results" / reproduce.HEADLINE).read_text()), "stale": {reproduce.title("probe"): "stale since commit abc: the code changed"}}
+    block = reproduce.readme_block(head)
+    assert f"**Stale**, not today's numbers: {reproduce.title('probe')} (stale since commit abc: the code changed)" in block
+
+
+def test_check_of_a_folder_without_a_manifest_is_a_one_line_error(tmp_path):
+    done = _check_command(Location(workdir=tmp_path / "ws", results=tmp_path / "nothing"))
+    assert done.returncode == 2 and done.stderr.strip().count("\n") == 0 and "no manifest of experiments.reproduce" in done.stderr
