@@ -254,5 +254,6 @@ def write(where: workspace.Location, study: str, preset: str, stages_: Sequence[
         **documents.header("plan", command=where.command, preset=preset), "of_study": study, "rows": n_rows, "n_seeds": n_seeds,
         "stages": [dataclasses.asdict(s) for s in stages_], "total_s": sum(s.seconds or 0.0 for s in stages_), "free_bytes": free_disk(where.workdir),
     }
+    spent = "seconds: the plan simulates one trial and computes its features to measure sizes"
     return documents.write(where.results_dir(), doc, lambda d: f"# What {d['of_study']} needs on preset {d['preset']}\n\n"
-                           + documents.header_markdown(d, time="seconds: the plan simulates one trial and computes its features to measure sizes") + "\n" + markdown(preset, stages_, n_rows, n_seeds, d["free_bytes"]) + "\n")
+                           + documents.header_markdown(d, time=spent) + "\n" + markdown(preset, stages_, n_rows, n_seeds, d["free_bytes"]) + "\n")

@@ -272,10 +272,11 @@ def checklist(test: dict[str, np.ndarray], majority: Mapping[str, Any] | None, n
     return out
 
 
-def table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None, recorded: bool = False) -> str:
+def table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None, recorded: bool = False, paper: bool = True) -> str:
     """Our accuracy, flagged where seeds collapsed (each row's "collapsed"), beside the test
     split's `majority` class and the paper's, with the difference, one line per row; on recorded
-    data each row beside the best row instead."""
+    data each row beside the best row instead; without the paper's columns where `paper` is False
+    (a preset whose results are not the paper's table)."""
     means = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
     gaps = documents.best_gaps([m for m, _ in means])
     body = []
@@ -285,28 +286,29 @@ def table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None, re
             label(r["modalities"], r["backbone"], r.get("fusion_norm", "sequence_minmax")).removeprefix("TCN: "),
             f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}",
             findings.majority_cell(majority),
-            *([gap] if recorded else [f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}", f"{mean - r['paper_mean']:+.2f}"]),
+            *([gap] if recorded else [f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}", f"{mean - r['paper_mean']:+.2f}"] if paper else []),
             f"{r['wall_s']:.1f}",
         ])
     accuracy = f"Test accuracy [%] ({'recorded data' if recorded else 'ours'}, {len(rows[0]['seeds'])} seeds)"
-    compared = [documents.BEST_GAP] if recorded else ["Paper [%]", "Ours − paper [pp]"]
+    compared = [documents.BEST_GAP] if recorded else ["Paper [%]", "Ours − paper [pp]"] if paper else []
     return documents.markdown_table(["Backbone", "Modalities", accuracy, "Majority class, test [%]", *compared, "Train wall time [s]"], body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
     if documents.recorded(doc):
         return _recorded_markdown(doc)
+    paper = not documents.counts_no_claims(doc)  # the paper's columns only where the results are its table's
     lines = [
         documents.title(doc, TITLE, PAPER),
         "",
         documents.header_markdown(doc),
-        table(doc["rows"], doc["majority"]["test"]),
+        table(doc["rows"], doc["majority"]["test"], paper=paper),
         findings.baseline_note(),
         "",
-        "Rows marked *our step-LayerNorm fusion* are not in the paper: the same inputs with each step's "
-        "concatenated features normalised by a LayerNorm instead of the paper's per-sequence [0, 1] rescale "
-        "(`Config.fusion_norm`); the paper column repeats the paper's row with the same inputs for reference.",
-        "",
+        *(["Rows marked *our step-LayerNorm fusion* are not in the paper: the same inputs with each step's "
+           "concatenated features normalised by a LayerNorm instead of the paper's per-sequence [0, 1] rescale "
+           "(`Config.fusion_norm`)" + ("; the paper column repeats the paper's row with the same inputs for reference." if paper else "."), ""]
+          if any(r.get("fusion_norm") == STEP_LAYERNORM for r in doc["rows"]) else []),
         *recipe.markdown(doc["rows"]),
         *fusion_choice_markdown(doc.get("fusion_choice", [])),
         "## Findings checklist (the paper's claims about this table)",
