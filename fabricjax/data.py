@@ -82,7 +82,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, catalog, dataset_index, disk, host_arrays, lock, memo, presets, splits, workspace
+from fabricjax import archive, catalog, dataset_index, host_arrays, lock, memo, presets, splits, workspace
 from fabricjax.config import MODALITY_NAMES, PAPER_WINDOW_S, Config
 from fabricjax.errors import UserError
 from fabricjax.features import cache, welch
@@ -232,8 +232,6 @@ def _fill(index, chosen, members, features, config: Config, rates, store: Sequen
             on_disk = config.input_source == "disk" or (config.input_source == "auto" and total > memo.memory_budget(MEMORY_FRACTION))
             if on_disk:
                 logging.info("the sequences take %.1f GB: training reads them from %s (input_source=%s)", total / 1e9, workspace.shown(store.folder), config.input_source)
-            if on_disk:  # memory-mapped files on a full disk would end in a bus error, not an OSError
-                disk.require(store.folder, total, "the loaded sequences")
             inputs = store.create(shapes) if on_disk else {t: {m: host_arrays.empty(*v) for m, v in d.items()} for t, d in shapes.items()}
         for m, a in trial.items():
             if a.shape[1:] != inputs[s][m].shape[1:]:

@@ -27,6 +27,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from fabricjax import disk
 from fabricjax.errors import UserError
 
 
@@ -58,7 +59,7 @@ class SequenceStore:
         self.folder.parent.mkdir(parents=True, exist_ok=True)
         free = shutil.disk_usage(self.folder.parent).free
         if need > free:
-            raise UserError(f"{self.folder.parent}: the loaded sequences need {need / 1e9:.1f} GB of memory-mapped files, only {free / 1e9:.1f} GB free "
+            raise UserError(f"{self.folder.parent}: the loaded sequences need {disk.size(need)} of memory-mapped files, only {disk.size(free)} free "
                             "(free disk space, give --workdir on a larger disk, or --set=input_source=memory where memory holds them)")
         self._partial.mkdir(parents=True)
         return {

@@ -52,7 +52,7 @@ def damaged_folder(tmp_path):
 
 USER_ERRORS = {  # flags -> what the one line must say
     "no_seeds": (["--seeds=0"], r"flag --seeds=0: 0 is not a positive integer"),
-    "unknown_row": (["--rows=foo"], r"unknown rows \['foo'\]; choose from \['image', "),
+    "unknown_row": (["--rows=foo"], r"unknown rows \['foo'\]; choose a row's name or its label, in any case: image \(Minsight image\), "),
     "empty_data_dir": (["--data_dir={tmp}/empty"], r"empty: field '<folder>': the folder holds no trial archives"),
     "missing_data_dir": (["--data_dir={tmp}/nope"], r"nope: field '<folder>': dataset folder does not exist"),
     "bad_override_value": (["--set=backbone=lstm"], r"--set: backbone must be one of \('attention', 'tcn'\), got 'lstm'"),

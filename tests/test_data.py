@@ -273,6 +273,6 @@ def test_sequences_that_do_not_fit_the_disk_are_refused_having_written_nothing(d
 
     real = shutil.disk_usage
     monkeypatch.setattr(shutil, "disk_usage", lambda path: real(path)._replace(free=10))
-    with pytest.raises(UserError, match="GB of memory-mapped files, only 0.0 GB free") as e:
+    with pytest.raises(UserError, match=r"need \d+ kB of memory-mapped files, only 0 kB free") as e:
         data.load_sequences(_config(input_source="disk"), dataset, workdir=tmp_path / "ws", progress=False)
     assert "\n" not in str(e.value) and not list((tmp_path / "ws" / "sequences").iterdir())
