@@ -68,7 +68,9 @@ def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(publishe
     try:
         said = []
         notes = reproduce.check(published, say=said.append)
-        report = reproduce.write_report(published.results / "STALE.md", manifest, "smoke", documents.fingerprints(None), "test", 1.0, 0).read_text()
+        stale_report = reproduce.write_report(published.results / "STALE.md", manifest, "smoke", documents.fingerprints(None), "test", 1.0, 0)
+        report = stale_report.read_text()
+        stale_report.unlink()  # a report under another name would be checked as a results file of its own
     finally:
         estimates.override({})
     since = f"stale since {manifest['probe']['commit']}"
@@ -113,3 +115,20 @@ def test_check_exits_1_on_results_of_other_code_and_readme_says_stale(published,
 def test_check_of_a_folder_without_a_manifest_is_a_one_line_error(tmp_path):
     done = _check_command(Location(workdir=tmp_path / "ws", results=tmp_path / "nothing"))
     assert done.returncode == 2 and done.stderr.strip().count("\n") == 0 and "no manifest of experiments.reproduce" in done.stderr
+
+
+def test_other_results_files_are_checked_by_the_fingerprints_their_headers_record(tmp_path):
+    """A study run alone, a sweep or a benchmark is not in the manifest: its header's fingerprints
+    decide, and a header without any is stale (nothing says what it was computed from)."""
+    from fabricjax.studies.common import documents
+    from fabricjax.studies.tools import reproduce
+
+    prints = documents.fingerprints(None)
+    (tmp_path / "sweeps").mkdir()
+    (tmp_path / "cost.md").write_text("# Cost\n\n- code: commit abc123; written today\n")
+    (tmp_path / "sweeps" / "sweep.md").write_text("# Sweep\n\n" + documents.fingerprints_markdown(prints) + "\n")
+    (tmp_path / "palm.md").write_text("# Palm\n\n" + documents.fingerprints_markdown({**prints, "code": "0" * 16}) + "\n")
+    found = reproduce.other_stale(tmp_path, {}, prints)
+    assert set(found) == {str(tmp_path / "cost.md"), str(tmp_path / "palm.md")}
+    assert found[str(tmp_path / "cost.md")] == "stale since commit abc123: it records no fingerprints of what it was computed from"
+    assert found[str(tmp_path / "palm.md")].endswith("the code changed")

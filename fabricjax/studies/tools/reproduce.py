@@ -49,6 +49,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import re
 import shlex
 import time
 from importlib import metadata
@@ -163,6 +164,32 @@ def stale(manifest: Mapping[str, Any], prints: Mapping[str, str | None]) -> dict
     return out
 
 
+def other_stale(out: Path, manifest: Mapping[str, Any], prints: Mapping[str, str | None]) -> dict[str, str]:
+    """{file: "stale since <commit>: ..."} for every other results file under `out` (each `.md` that
+    is not a study of the manifest or REPORT.md: a study run alone, a sweep, a benchmark, a folder
+    of recorded data) whose header records no fingerprints, or another code or estimates
+    fingerprint than today's (`prints`); recorded data's fingerprint is not compared (its folder is
+    not known here)."""
+    own = {out / REPORT, *(out / f"{s}.md" for s in manifest if s in STUDIES)}
+    found = {}
+    for path in sorted(out.rglob("*.md")):
+        if path in own:
+            continue
+        head = path.read_text(errors="replace").split("\n## ", 1)[0]
+        commit = re.search(r"^- code: commit (\w+)", head, re.M)
+        since = f"stale since commit {commit.group(1)}" if commit else "stale"
+        recorded = re.search(r"^- fingerprints: (.*)$", head, re.M)
+        if recorded is None:
+            found[workspace.shown(path)] = f"{since}: it records no fingerprints of what it was computed from"
+            continue
+        saved = dict(re.findall(r"(code|simulator estimates) `(\w+)`", recorded.group(1)))
+        moved = [FINGERPRINT_WORDS[k] for k, named in (("code", "code"), ("estimates", "simulator estimates"))
+                 if named in saved and saved[named] != prints.get(k)]
+        if moved:
+            found[workspace.shown(path)] = f"{since}: {' and '.join(moved)} changed"
+    return found
+
+
 def check(where: Location, say: Callable[[str], None] = print) -> dict[str, str]:
     """Say which studies of the manifest in `where`'s results folder are stale (`stale`, under the
     fingerprints of today's code, estimates and `where.data_dir`'s data), each with its files
@@ -185,8 +212,12 @@ def check(where: Location, say: Callable[[str], None] = print) -> dict[str, str]
                         data_dir=where.data_dir, workdir=where.workdir)
         lines.append(f"  {workspace.shown(out / REPORT)} and {workspace.shown(out / HEADLINE)} (README's results block) gather them; "
                      f"`{rerun}` reruns what is stale and rewrites both")
+    others = other_stale(out, manifest, prints)
+    if others:
+        lines.append(f"other results files in {workspace.shown(out)}, each rewritten by rerunning the command its header names:")
+        lines += [f"  {path}: {note}" for path, note in others.items()]
     say("\n".join(lines))
-    return notes
+    return {**notes, **others}
 
 
 def command(step: Step, preset: str, overrides: Mapping[str, Any], results: Path, checkpoint: str | None = None,
@@ -524,6 +555,7 @@ def headline(out: Path, manifest: Mapping[str, Any], preset: str, command_line: 
         "machine": documents.machine_line(m),
         "wall_s": sum(e["wall_s"] for s, e in manifest.items() if s in STUDIES), "seeds": len(abl["seeds"]), "rows": rows, "claims": claims,
         "stale": {title(s, recorded): note for s, note in stale(manifest, prints).items()},
+        "other_stale": len(other_stale(out, manifest, prints)),
     }
 
 
@@ -547,6 +579,10 @@ def readme_block(head: Mapping[str, Any], results: str = "results") -> str:
     if head.get("stale"):  # a headline written before it recorded stale studies has none
         lines.append("**Stale**, not today's numbers: " + "; ".join(f"{k} ({v})" for k, v in head["stale"].items())
                      + " (`python -m experiments.reproduce --check` lists their files).")
+        lines.append("")
+    if head.get("other_stale"):
+        lines.append(f"{head['other_stale']} other results files in `{results}/` (studies run alone, sweeps, benchmarks) predate today's "
+                     "code or estimates: `python -m experiments.reproduce --check --results=results` names each.")
         lines.append("")
     lines.append(README_END)
     return "\n".join(lines)
