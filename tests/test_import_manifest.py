@@ -3,6 +3,7 @@ with torque, no camera, no palm microphone, string labels, no days."""
 
 import csv
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -705,3 +706,31 @@ def test_without_rows_a_study_on_recorded_data_runs_the_rows_it_can_feed(archive
     assert "internal" in names and "proprio" in names
     left = [r.message for r in caplog.records if "rows left out" in r.message]
     assert len(left) == 1 and "external" in left[0] and "flow" in left[0]
+
+
+HOLD_IMPORT = """
+import sys, time
+from acquisition import import_manifest
+from fabricjax import lock
+with lock.hold(__import__("pathlib").Path(sys.argv[1]) / import_manifest.IMPORT_LOCK, "the import", "importing for a test", transient=True):
+    print("held", flush=True)
+    time.sleep(120)
+"""
+
+
+def test_a_second_import_into_one_folder_is_refused_in_one_line_and_writes_nothing(recordings, tmp_path):
+    """Two imports into one --out at once: the second refuses, naming the first, before it has
+    written an archive; once the first is gone (killed) the import runs and leaves no lock behind."""
+    out = tmp_path / "archives"
+    out.mkdir()
+    first = subprocess.Popen([sys.executable, "-c", HOLD_IMPORT, str(out)], stdout=subprocess.PIPE, text=True, cwd=Path(__file__).parents[1])
+    try:
+        assert first.stdout.readline().strip() == "held"
+        with pytest.raises(UserError, match=re.escape(f"the import into {out} is in use by PID {first.pid} (") + ".*importing for a test") as e:
+            _run(recordings, out)
+        assert "\n" not in str(e.value) and not list(out.glob("*.npz"))
+    finally:
+        first.kill()
+        first.wait()
+    summary, _ = _run(recordings, out)
+    assert len(list(out.glob("*.npz"))) == 12 and not list(out.glob(".*"))
