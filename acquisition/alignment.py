@@ -88,27 +88,53 @@ def parse_reference(given: dict[str, Any], where, *, topic: bool = False, flags:
     value, frames = given.get("reference"), given.get("reference_frames")
     name = given.get(named) if topic else value if value != PRE_CONTACT else None
     if topic and name is not None and value is not None:
-        raise RecordingImportError(where, field(named), f"given with {field('reference')}: name one source of the reference")
+        raise RecordingImportError(
+            where, field(named), f"given with {field('reference')}: name one source of the reference"
+        )
     if name is None and value is None:
         what = "the topic that carries it" if topic else "the file of the trial folder that holds it"
         example = "/minsight/reference" if topic else "reference.png"
-        raise RecordingImportError(where, field(named), f"missing: a camera needs its session's no-contact reference: name {what} "
-                                   f"({spell(named, example)}), or {spell('reference', PRE_CONTACT)} to use the trial's first frames")
+        raise RecordingImportError(
+            where,
+            field(named),
+            f"missing: a camera needs its session's no-contact reference: name {what} "
+            f"({spell(named, example)}), or {spell('reference', PRE_CONTACT)} to use the trial's first frames",
+        )
     if name is not None:
         if not isinstance(name, str) or not name.strip():
-            raise RecordingImportError(where, field(named), f"must be a {'topic' if topic else 'file name'}, got {name!r}")
+            raise RecordingImportError(
+                where, field(named), f"must be a {'topic' if topic else 'file name'}, got {name!r}"
+            )
         if not topic and Path(name).suffix.lower() not in REFERENCE_SUFFIXES:
-            raise RecordingImportError(where, field(named), f"{name!r}: a reference file is an image, a video or a .npy of frames "
-                                       f"({', '.join(REFERENCE_SUFFIXES)}), or {PRE_CONTACT!r} for the trial's first frames")
+            raise RecordingImportError(
+                where,
+                field(named),
+                f"{name!r}: a reference file is an image, a video or a .npy of frames "
+                f"({', '.join(REFERENCE_SUFFIXES)}), or {PRE_CONTACT!r} for the trial's first frames",
+            )
         if frames is not None:
-            raise RecordingImportError(where, field("reference_frames"), f"given with a named source ({name}), whose frames are all taken: "
-                                       f"reference_frames counts the trial's first frames with reference = {PRE_CONTACT!r}")
+            raise RecordingImportError(
+                where,
+                field("reference_frames"),
+                f"given with a named source ({name}), whose frames are all taken: "
+                f"reference_frames counts the trial's first frames with reference = {PRE_CONTACT!r}",
+            )
         return ReferenceSource(name)
     if value != PRE_CONTACT:
-        raise RecordingImportError(where, field("reference"), f"must be {PRE_CONTACT!r} (the trial's first frames; a topic is named by "
-                                   f"{field('reference_topic')}), got {value!r}")
-    if frames is not None and (isinstance(frames, bool) or not isinstance(frames, int) or not 1 <= frames <= archive.MAX_REFERENCE_FRAMES):
-        raise RecordingImportError(where, field("reference_frames"), f"must be an integer in [1, {archive.MAX_REFERENCE_FRAMES}], got {frames!r}")
+        raise RecordingImportError(
+            where,
+            field("reference"),
+            f"must be {PRE_CONTACT!r} (the trial's first frames; a topic is named by "
+            f"{field('reference_topic')}), got {value!r}",
+        )
+    if frames is not None and (
+        isinstance(frames, bool) or not isinstance(frames, int) or not 1 <= frames <= archive.MAX_REFERENCE_FRAMES
+    ):
+        raise RecordingImportError(
+            where,
+            field("reference_frames"),
+            f"must be an integer in [1, {archive.MAX_REFERENCE_FRAMES}], got {frames!r}",
+        )
     return ReferenceSource(None, DEFAULT_REFERENCE_FRAMES if frames is None else frames, asked_by)
 
 
@@ -117,16 +143,24 @@ def pre_contact(source: ReferenceSource, frame_times: np.ndarray, images: np.nda
     hold a contact least), at their own times."""
     n = source.frames
     if n > len(images):
-        raise RecordingImportError(where, "reference_frames", f"{n} pre-contact frames asked for, the recording has {len(images)}")
+        raise RecordingImportError(
+            where, "reference_frames", f"{n} pre-contact frames asked for, the recording has {len(images)}"
+        )
     first = "frame" if n == 1 else f"{n} frames"
-    return ImportedReference(images[:n].copy(), frame_times[:n].copy(), f"imported: the trial's first {first} (pre-contact, as {source.asked_by} asks)")
+    return ImportedReference(
+        images[:n].copy(),
+        frame_times[:n].copy(),
+        f"imported: the trial's first {first} (pre-contact, as {source.asked_by} asks)",
+    )
 
 
 def file_reference(folder: Path, source: ReferenceSource, size: tuple[int, int]) -> ImportedReference:
     """The frames of the reference file `source` names, relative to the trial folder, at the
     camera's frame size; a file holds no times."""
     frames = read_reference(folder / source.name, size)
-    return ImportedReference(frames, None, f"imported: {_frames(len(frames))} of the file {source.name} (relative to the trial folder)")
+    return ImportedReference(
+        frames, None, f"imported: {_frames(len(frames))} of the file {source.name} (relative to the trial folder)"
+    )
 
 
 def _frames(n: int) -> str:
@@ -158,8 +192,12 @@ def check_seconds(times: np.ndarray, where, field: str, mics: list[Stream]) -> N
     audio_s = max(len(m.samples) / m.rate for m in mics)
     span = float(times[-1] - times[0])
     if span > SPAN_FACTOR * audio_s + 1.0:
-        raise RecordingImportError(where, field, f"timestamps span {span:g}, but the microphones hold {audio_s:.2f} s of audio: "
-                                   "timestamps must be seconds (these look like milliseconds or another clock)")
+        raise RecordingImportError(
+            where,
+            field,
+            f"timestamps span {span:g}, but the microphones hold {audio_s:.2f} s of audio: "
+            "timestamps must be seconds (these look like milliseconds or another clock)",
+        )
 
 
 def stream_gaps(times: np.ndarray, steps: np.ndarray, period: float) -> list[dict[str, float]]:
@@ -171,7 +209,13 @@ def stream_gaps(times: np.ndarray, steps: np.ndarray, period: float) -> list[dic
     for k in gaps:
         inside = int(np.count_nonzero((steps > times[k]) & (steps < times[k + 1])))
         if inside:
-            out.append({"from_s": round(float(times[k]), 6), "seconds": round(float(times[k + 1] - times[k]), 6), "steps": inside})
+            out.append(
+                {
+                    "from_s": round(float(times[k]), 6),
+                    "seconds": round(float(times[k + 1] - times[k]), 6),
+                    "steps": inside,
+                }
+            )
     return out
 
 
@@ -188,14 +232,18 @@ def _at_archive_rate(stream: Stream, resample: bool, resampled: dict) -> tuple[n
     if steps.size and steps.max() > half_chunk:
         k = int(np.argmax(steps)) + 1
         raise RecordingImportError(
-            stream.name, "audio", f"about {steps[k - 1]:.3f} s of samples missing before t={times[k] - times[0]:.3f} s "
-            "(a message was lost; the windows after it cannot be placed)"
+            stream.name,
+            "audio",
+            f"about {steps[k - 1]:.3f} s of samples missing before t={times[k] - times[0]:.3f} s "
+            "(a message was lost; the windows after it cannot be placed)",
         )
     if stream.rate != archive.AUDIO_RATE:
         if not resample:
             raise RecordingImportError(
-                stream.name, "rate", f"sample rate {stream.rate} Hz, archives hold {archive.AUDIO_RATE} Hz "
-                "(pass --resample to convert with scipy.signal.resample_poly)"
+                stream.name,
+                "rate",
+                f"sample rate {stream.rate} Hz, archives hold {archive.AUDIO_RATE} Hz "
+                "(pass --resample to convert with scipy.signal.resample_poly)",
             )
         from scipy.signal import resample_poly
 
@@ -203,7 +251,11 @@ def _at_archive_rate(stream: Stream, resample: bool, resampled: dict) -> tuple[n
         audio = np.round(resample_poly(audio.astype(np.float64), ratio.numerator, ratio.denominator))
         audio = np.clip(audio, np.iinfo(np.int32).min, np.iinfo(np.int32).max).astype(np.int32)
         counts = np.floor(counts * float(ratio)).astype(np.int64)
-        resampled[stream.name] = {"from_hz": stream.rate, "to_hz": archive.AUDIO_RATE, "method": "scipy.signal.resample_poly"}
+        resampled[stream.name] = {
+            "from_hz": stream.rate,
+            "to_hz": archive.AUDIO_RATE,
+            "method": "scipy.signal.resample_poly",
+        }
     return audio, times, counts
 
 
@@ -238,7 +290,9 @@ def align(
     recording cut off (meta.complete); `notes`: more of meta.import (e.g. the truncated files)."""
     where = source.get("path", "<recording>")
     if len(mics) != len(archive.MIC_NAMES):
-        raise RecordingImportError(where, "mics", f"need {len(archive.MIC_NAMES)} microphones {archive.MIC_NAMES}, got {len(mics)}")
+        raise RecordingImportError(
+            where, "mics", f"need {len(archive.MIC_NAMES)} microphones {archive.MIC_NAMES}, got {len(mics)}"
+        )
     for name, times in (("camera", frame_times), ("joints", joint_times)):
         if len(times) == 0:
             raise RecordingImportError(where, name, "no messages")
@@ -265,9 +319,11 @@ def align(
         full = (window_end >= archive.WINDOW).all(axis=1)
         first_full = f"{frame_times[np.argmax(full)]:.3f} s" if full.any() else "none"
         raise RecordingImportError(
-            where, "camera", f"no frame comes after a full audio window and a joint reading: frames span "
+            where,
+            "camera",
+            f"no frame comes after a full audio window and a joint reading: frames span "
             f"{frame_times[0]:.3f}-{frame_times[-1]:.3f} s, the first with a full audio window: {first_full}, the first "
-            f"joint reading: {joint_times[0]:.3f} s (streams on different clocks? see the mapping's clock keys)"
+            f"joint reading: {joint_times[0]:.3f} s (streams on different clocks? see the mapping's clock keys)",
         )
     first = int(np.argmax(usable))
     frame_times, images, window_end, jk = frame_times[first:], images[first:], window_end[first:], jk[first:]
@@ -278,11 +334,17 @@ def align(
     inside = int(np.count_nonzero((window_end <= n_samples).all(axis=1)))
     dropped_at_end = len(frame_times) - inside
     if inside == 0:
-        raise RecordingImportError(where, "audio", f"the microphones' recordings differ in length: the shorter ({n_samples} samples) ends before the first frame")
+        raise RecordingImportError(
+            where,
+            "audio",
+            f"the microphones' recordings differ in length: the shorter ({n_samples} samples) ends before the first frame",
+        )
     frame_times, images, window_end, jk = frame_times[:inside], images[:inside], window_end[:inside], jk[:inside]
     rate, rate_from = (step_rate, "mapping camera.rate") if step_rate else step_rate_of(frame_times)
     gaps = integrity.frame_gaps(frame_times, rate)
-    proxy = ForceProxy(ref.frames[0], gain=force_gain, deadband=force_deadband)  # as the recorder's, against the session's reference
+    proxy = ForceProxy(
+        ref.frames[0], gain=force_gain, deadband=force_deadband
+    )  # as the recorder's, against the session's reference
     try:
         fab = catalog.fabric(int(trial["fabric_id"]))
     except KeyError as e:
@@ -298,19 +360,27 @@ def align(
         complete=complete,
         streams=archive.hand_streams(images.shape[1:3], step_rate=rate, joint_fields_absent=joint_fields_absent),
         closing_steps=0,  # the procedure's phases are not in other labs' recordings: every step counts
-        force_proxy={"gain": force_gain, "deadband": force_deadband, "reference": "the session reference's first frame"},
+        force_proxy={
+            "gain": force_gain,
+            "deadband": force_deadband,
+            "reference": "the session reference's first frame",
+        },
         reference=reference_meta(ref, session_of(trial), float(frame_times[0])),
-        **{"import": {
-            "step_rate_from": rate_from,
-            "frames_dropped_before_start": first,
-            "frames_dropped_at_end": dropped_at_end,
-            "duplicate_frames_dropped": duplicates,
-            "frame_gaps": [{"step": int(k), "seconds": round(float(frame_times[k] - frame_times[k - 1]), 6)} for k in gaps],
-            "joint_gaps": stream_gaps(joint_times, frame_times, 1.0 / rate),
-            "resampled": resampled,
-            **({"clocks": clocks} if clocks else {}),
-            **(notes or {}),
-        }},
+        **{
+            "import": {
+                "step_rate_from": rate_from,
+                "frames_dropped_before_start": first,
+                "frames_dropped_at_end": dropped_at_end,
+                "duplicate_frames_dropped": duplicates,
+                "frame_gaps": [
+                    {"step": int(k), "seconds": round(float(frame_times[k] - frame_times[k - 1]), 6)} for k in gaps
+                ],
+                "joint_gaps": stream_gaps(joint_times, frame_times, 1.0 / rate),
+                "resampled": resampled,
+                **({"clocks": clocks} if clocks else {}),
+                **(notes or {}),
+            }
+        },
     )
     return archive.TrialArchive(
         meta=meta,
@@ -332,4 +402,6 @@ def step_rate_of(frame_times: np.ndarray) -> tuple[float, str]:
     interval = float(np.median(np.diff(frame_times)))
     rate = 1.0 / interval
     whole = round(rate)
-    return (int(whole) if abs(rate - whole) <= 0.01 * rate else round(rate, 2)), f"median frame interval {interval * 1e3:.2f} ms"
+    return (
+        int(whole) if abs(rate - whole) <= 0.01 * rate else round(rate, 2)
+    ), f"median frame interval {interval * 1e3:.2f} ms"

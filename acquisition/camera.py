@@ -61,9 +61,13 @@ class Camera:
             if ok:
                 break
         else:
-            raise CameraError(f"camera {self.source!r}: no frame after {self.retries + 1} reads (stream ended or unplugged)")
+            raise CameraError(
+                f"camera {self.source!r}: no frame after {self.retries + 1} reads (stream ended or unplugged)"
+            )
         if raw.shape[:2] != (RAW_SIZE[1], RAW_SIZE[0]):
-            raise CameraError(f"camera {self.source!r}: frame {raw.shape[1]}x{raw.shape[0]}, expected {RAW_SIZE[0]}x{RAW_SIZE[1]}")
+            raise CameraError(
+                f"camera {self.source!r}: frame {raw.shape[1]}x{raw.shape[0]}, expected {RAW_SIZE[0]}x{RAW_SIZE[1]}"
+            )
         image = preprocess(raw)
         if self._last is not None and np.array_equal(image, self._last):
             self.dropped += 1

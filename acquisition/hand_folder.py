@@ -21,8 +21,10 @@ from acquisition.recording import RecordingImportError
 from fabricjax import archive
 
 JOINTS_FILE = "joints.csv"
-OTHER_RIG = ("a folder of another rig imports with python -m acquisition.import_manifest MANIFEST.csv --out=DIR --rig=rig.toml "
-             "(docs/data.md, \"Recordings from another rig\")")
+OTHER_RIG = (
+    "a folder of another rig imports with python -m acquisition.import_manifest MANIFEST.csv --out=DIR --rig=rig.toml "
+    '(docs/data.md, "Recordings from another rig")'
+)
 
 
 def missing_files(folder: Path, reference: ReferenceSource | None = None) -> list[str]:
@@ -31,7 +33,9 @@ def missing_files(folder: Path, reference: ReferenceSource | None = None) -> lis
     missing = [f"{m}.wav" for m in archive.MIC_NAMES if not (folder / f"{m}.wav").is_file()]
     missing += [JOINTS_FILE] if not (folder / JOINTS_FILE).is_file() else []
     has_camera = any((folder / f"camera{s}").is_file() for s in VIDEO_SUFFIXES) or (folder / "camera").is_dir()
-    missing += [f"camera{{{','.join(VIDEO_SUFFIXES)}}} or camera/*{{{','.join(IMAGE_SUFFIXES)}}}"] if not has_camera else []
+    missing += (
+        [f"camera{{{','.join(VIDEO_SUFFIXES)}}} or camera/*{{{','.join(IMAGE_SUFFIXES)}}}"] if not has_camera else []
+    )
     named = reference is not None and reference.name is not None and not (folder / reference.name).is_file()
     return missing + ([f"{reference.name} (the reference --reference names)"] if named else [])
 
@@ -43,10 +47,14 @@ def check_layout(folder: Path, reference: ReferenceSource | None = None) -> None
         raise RecordingImportError(folder, "<folder>", "no such trial folder")
     missing = missing_files(folder, reference)
     if missing:
-        raise RecordingImportError(folder, "<folder>", f"not a trial folder of the hand's layout: missing {', '.join(missing)}; {OTHER_RIG}")
+        raise RecordingImportError(
+            folder, "<folder>", f"not a trial folder of the hand's layout: missing {', '.join(missing)}; {OTHER_RIG}"
+        )
 
 
-def import_folder(folder: str | Path, trial: dict[str, Any], *, reference: ReferenceSource, resample: bool = False) -> archive.TrialArchive:
+def import_folder(
+    folder: str | Path, trial: dict[str, Any], *, reference: ReferenceSource, resample: bool = False
+) -> archive.TrialArchive:
     """One trial folder (layout in docs/data.md): `internal.wav` and `external.wav` starting at
     time 0, `joints.csv` and the camera on the same clock (seconds), aligned by `align`, with the
     session reference from `reference` (module docstring; a file's frames have no known times); a

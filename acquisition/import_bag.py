@@ -26,8 +26,14 @@ flags.DEFINE_integer("fabric", None, "Fabric id (overrides the mapping's trial.f
 flags.DEFINE_integer("day", None, "Recording day (overrides trial.day).")
 flags.DEFINE_integer("trial", None, "Trial index (overrides trial.trial).")
 flags.DEFINE_enum("condition", None, list(archive.CONDITIONS), "Acoustic condition (overrides trial.condition).")
-flags.DEFINE_string("session", None, "Session whose camera reference the trial shares (overrides trial.session; default: day and condition).")
-flags.DEFINE_bool("resample", False, "Resample microphones not at 48 kHz (scipy.signal.resample_poly; recorded in the meta).")
+flags.DEFINE_string(
+    "session",
+    None,
+    "Session whose camera reference the trial shares (overrides trial.session; default: day and condition).",
+)
+flags.DEFINE_bool(
+    "resample", False, "Resample microphones not at 48 kHz (scipy.signal.resample_poly; recorded in the meta)."
+)
 flags.DEFINE_bool("overwrite", False, "Replace an archive of the same fabric, day, trial and condition in --out.")
 
 
@@ -35,7 +41,13 @@ def main(argv):
     if len(argv) != 2:
         raise UserError("give exactly one bag: python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR")
     mapping = mapping_file.load_mapping(FLAGS.map)
-    overrides = {"fabric_id": FLAGS.fabric, "day": FLAGS.day, "trial": FLAGS.trial, "condition": FLAGS.condition, "session": FLAGS.session}
+    overrides = {
+        "fabric_id": FLAGS.fabric,
+        "day": FLAGS.day,
+        "trial": FLAGS.trial,
+        "condition": FLAGS.condition,
+        "session": FLAGS.session,
+    }
     trial = mapping_file.trial_fields(mapping, overrides, FLAGS.map)
     result = ros_bag.import_bag(argv[1], mapping, trial, resample=FLAGS.resample)
     path = Path(FLAGS.out) / archive.trial_filename(result.meta)
@@ -43,7 +55,9 @@ def main(argv):
         raise RecordingImportError(path, "<file>", "exists (pass --overwrite to replace it)")
     archive.write_archive(path, result)
     gaps = result.meta["import"]["frame_gaps"]
-    print(f"{path}: {result.n_steps} steps" + (f", {len(gaps)} frame gaps (see meta.import.frame_gaps)" if gaps else ""))
+    print(
+        f"{path}: {result.n_steps} steps" + (f", {len(gaps)} frame gaps (see meta.import.frame_gaps)" if gaps else "")
+    )
 
 
 if __name__ == "__main__":

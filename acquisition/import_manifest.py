@@ -128,7 +128,12 @@ def _utf8_lines(path: Path, what: str):
     try:
         return path.read_text(encoding="utf-8-sig").splitlines(keepends=True)
     except UnicodeDecodeError as e:
-        raise ManifestError(path, "-", "<file>", f"not UTF-8 text (byte {e.object[e.start]:#04x} at offset {e.start}): save the {what} as UTF-8") from None
+        raise ManifestError(
+            path,
+            "-",
+            "<file>",
+            f"not UTF-8 text (byte {e.object[e.start]:#04x} at offset {e.start}): save the {what} as UTF-8",
+        ) from None
 
 
 def read_manifest(manifest: str | Path) -> tuple[list[Row], list[str], list[str]]:
@@ -162,8 +167,17 @@ def _row(manifest: Path, line: int, r: dict[str, str]) -> Row:
     if condition not in archive.CONDITIONS:
         raise ManifestError(manifest, line, "condition", f"must be one of {archive.CONDITIONS}, got {condition!r}")
     props = {p: v for p in archive.PROPERTY_NAMES if (v := _int(r.get(p, ""), manifest, line, p)) is not None}
-    return Row(line, (manifest.parent / r["path"]).resolve(), r["label"], split, _int(r.get("day", ""), manifest, line, "day"),
-               _int(r.get("trial", ""), manifest, line, "trial"), condition, props, r.get("session") or None)
+    return Row(
+        line,
+        (manifest.parent / r["path"]).resolve(),
+        r["label"],
+        split,
+        _int(r.get("day", ""), manifest, line, "day"),
+        _int(r.get("trial", ""), manifest, line, "trial"),
+        condition,
+        props,
+        r.get("session") or None,
+    )
 
 
 def read_label_map(path: str | Path) -> dict[str, int]:
@@ -200,16 +214,20 @@ def parse_split_rule(rule: str | None) -> tuple[str, tuple[float, ...] | dict[in
     except ValueError:
         fractions = ()
     if kind != "fraction" or len(fractions) != 3 or min(fractions) < 0 or abs(sum(fractions) - 1) > 1e-6:
-        raise UserError(f"--split={rule}: expected day, fraction:TRAIN,VAL,TEST with fractions summing to 1 (e.g. "
-                        "fraction:0.7,0.15,0.15) or trial:SPLIT=FIRST-LAST,... (e.g. trial:train=0-3,val=4,test=5-6)")
+        raise UserError(
+            f"--split={rule}: expected day, fraction:TRAIN,VAL,TEST with fractions summing to 1 (e.g. "
+            "fraction:0.7,0.15,0.15) or trial:SPLIT=FIRST-LAST,... (e.g. trial:train=0-3,val=4,test=5-6)"
+        )
     return ("fraction", fractions)
 
 
 def _trial_ranges(rule: str, rest: str) -> dict[int, str]:
     """`train=0-3,val=4,test=5-6` -> {0: "train", ..., 6: "test"}: inclusive ranges of trial
     indices, each index in one split."""
-    usage = (f"--split={rule}: expected trial:SPLIT=FIRST-LAST,... with splits from {', '.join(archive.SPLITS)} "
-             "and each trial index in one range, e.g. trial:train=0-3,val=4,test=5-6")
+    usage = (
+        f"--split={rule}: expected trial:SPLIT=FIRST-LAST,... with splits from {', '.join(archive.SPLITS)} "
+        "and each trial index in one range, e.g. trial:train=0-3,val=4,test=5-6"
+    )
     out: dict[int, str] = {}
     for item in rest.split(","):
         split, _, span = item.partition("=")
@@ -228,7 +246,11 @@ def _trial_ranges(rule: str, rest: str) -> dict[int, str]:
 def by_trial(rows: list[Row], splits: dict[int, str], manifest, rule: str, problems: list[str]) -> list[str | None]:
     """Each row's split by its trial index (the same indices in every class: stratified by class);
     a row whose index no range names is a problem, not a trial left out."""
-    problems += [str(ManifestError(manifest, r.line, "trial", f"trial {r.trial} is in no range of --split={rule}")) for r in rows if r.trial not in splits]
+    problems += [
+        str(ManifestError(manifest, r.line, "trial", f"trial {r.trial} is in no range of --split={rule}"))
+        for r in rows
+        if r.trial not in splits
+    ]
     return [splits.get(r.trial) for r in rows]
 
 
@@ -270,8 +292,11 @@ def _import_one(job: Job) -> None:
             result = rig_mod.import_rig_folder(job.row.path, job.rig, job.meta_fields, session=job.row.session)
         else:
             trial = {**job.meta_fields, **({"session": job.row.session} if job.row.session else {})}
-            result = (hand_folder.import_folder(job.row.path, trial, reference=job.reference) if job.kind == "folder"
-                      else ros_bag.import_bag(job.row.path, job.mapping, trial))
+            result = (
+                hand_folder.import_folder(job.row.path, trial, reference=job.reference)
+                if job.kind == "folder"
+                else ros_bag.import_bag(job.row.path, job.mapping, trial)
+            )
             if job.split is not None:
                 result.meta["split"] = job.split
         archive.write_archive(job.target, result)
@@ -280,8 +305,18 @@ def _import_one(job: Job) -> None:
             f.write(str(e))
 
 
-def plan(rows: list[Row], out: Path, *, rig: rig_mod.Rig | None, mapping: dict[str, Any] | None, label_map: dict[str, int] | None,
-         splits: list[str | None], manifest, problems: list[str], reference: ReferenceSource | None = None) -> list[Job]:
+def plan(
+    rows: list[Row],
+    out: Path,
+    *,
+    rig: rig_mod.Rig | None,
+    mapping: dict[str, Any] | None,
+    label_map: dict[str, int] | None,
+    splits: list[str | None],
+    manifest,
+    problems: list[str],
+    reference: ReferenceSource | None = None,
+) -> list[Job]:
     """One job per row, with its archive's name; two rows giving one name or listing one recording,
     a label outside the label map and a missing recording or file are problems. `reference`: the
     hand's folders' session reference (`--reference`)."""
@@ -293,17 +328,40 @@ def plan(rows: list[Row], out: Path, *, rig: rig_mod.Rig | None, mapping: dict[s
     jobs, names, paths = [], {}, {}
     for r, split in zip(rows, splits):
         if r.path in paths:
-            problems.append(str(ManifestError(manifest, r.line, "path", f"the recording {r.path} is listed again (line {paths[r.path]}): "
-                                              "one recording is one trial, in one split, under one label")))
+            problems.append(
+                str(
+                    ManifestError(
+                        manifest,
+                        r.line,
+                        "path",
+                        f"the recording {r.path} is listed again (line {paths[r.path]}): "
+                        "one recording is one trial, in one split, under one label",
+                    )
+                )
+            )
             continue
         paths[r.path] = r.line
         try:
             if kind == "rig":
                 if r.label not in label_map:
-                    raise ManifestError(manifest, r.line, "label", f"{r.label!r} is not in the label map (its names: {', '.join(sorted(label_map))})")
+                    raise ManifestError(
+                        manifest,
+                        r.line,
+                        "label",
+                        f"{r.label!r} is not in the label map (its names: {', '.join(sorted(label_map))})",
+                    )
                 cls = label_map[r.label]
-                fields = dict(fabric_id=cls, label=cls, label_name=r.label, label_map=label_map, properties=r.properties,
-                              day=r.day, trial=r.trial, condition=r.condition, **({"split": split} if split else {}))
+                fields = dict(
+                    fabric_id=cls,
+                    label=cls,
+                    label_name=r.label,
+                    label_map=label_map,
+                    properties=r.properties,
+                    day=r.day,
+                    trial=r.trial,
+                    condition=r.condition,
+                    **({"split": split} if split else {}),
+                )
                 rig_mod.check_layout(r.path, rig)
             else:
                 fid = _int(r.label, manifest, r.line, "label")
@@ -319,7 +377,16 @@ def plan(rows: list[Row], out: Path, *, rig: rig_mod.Rig | None, mapping: dict[s
             continue
         name = archive.trial_filename(fields)
         if name in names:
-            problems.append(str(ManifestError(manifest, r.line, "trial", f"gives the archive {name}, as line {names[name]} does (make label, day, trial unique)")))
+            problems.append(
+                str(
+                    ManifestError(
+                        manifest,
+                        r.line,
+                        "trial",
+                        f"gives the archive {name}, as line {names[name]} does (make label, day, trial unique)",
+                    )
+                )
+            )
             continue
         names[name] = r.line
         jobs.append(Job(kind, r, str(out / name), fields, split, rig, mapping, reference))
@@ -338,13 +405,23 @@ def _difference(meta: dict[str, Any], job: Job) -> str | None:
             return "it holds no camera reference (imported before archives carried one)"
         return f"its camera reference was read from {meta['source']['reference']}, not from {wanted_reference} as the import now names it"
     wanted = {**{k: v for k, v in job.meta_fields.items() if k != "label_map"}, "split": job.split}
-    changed = [f"{key} {meta.get(key)!r} where line {job.row.line} says {want!r}" for key, want in wanted.items() if meta.get(key) != want]
-    if job.reference is not None and (session := session_of({**job.meta_fields, "session": job.row.session})) != meta.get("reference", {}).get("session"):
-        changed.append(f"session {meta.get('reference', {}).get('session')!r} where line {job.row.line} says {session!r}")
+    changed = [
+        f"{key} {meta.get(key)!r} where line {job.row.line} says {want!r}"
+        for key, want in wanted.items()
+        if meta.get(key) != want
+    ]
+    if job.reference is not None and (
+        session := session_of({**job.meta_fields, "session": job.row.session})
+    ) != meta.get("reference", {}).get("session"):
+        changed.append(
+            f"session {meta.get('reference', {}).get('session')!r} where line {job.row.line} says {session!r}"
+        )
     return f"it has {', '.join(changed)}" if changed else None
 
 
-def check_out(out: Path, jobs: list[Job], overwrite: bool, manifest, problems: list[str], say: Callable[[str], None]) -> tuple[list[Job], list[Path]]:
+def check_out(
+    out: Path, jobs: list[Job], overwrite: bool, manifest, problems: list[str], say: Callable[[str], None]
+) -> tuple[list[Job], list[Path]]:
     """The jobs to run, and the archives in `out` that --overwrite removes (no row produces them);
     what `out` already holds that a plain rerun may not keep is a problem."""
     if out.exists() and not out.is_dir():
@@ -356,8 +433,10 @@ def check_out(out: Path, jobs: list[Job], overwrite: bool, manifest, problems: l
         return jobs, foreign
     if foreign:
         shown = ", ".join(p.name for p in foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
-        problems.append(f"{out}: --out: holds {len(foreign)} archive{'s' * (len(foreign) != 1)} no row of {manifest} produces ({shown}): "
-                        "another dataset, or rows since removed or relabelled; choose another --out, or pass --overwrite to replace the dataset in it")
+        problems.append(
+            f"{out}: --out: holds {len(foreign)} archive{'s' * (len(foreign) != 1)} no row of {manifest} produces ({shown}): "
+            "another dataset, or rows since removed or relabelled; choose another --out, or pass --overwrite to replace the dataset in it"
+        )
     todo = []
     for j in jobs:
         target = Path(j.target)
@@ -395,10 +474,22 @@ def _staging(out: Path) -> Path:
         raise UserError(f"{out}: --out: cannot write there: {e.strerror or e}") from None
 
 
-def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None, mapping: str | Path | None = None,
-        labels: str | Path | None = None, split: str | None = None, overwrite: bool = False, workers: int | None = None,
-        progress: bool = True, say: Callable[[str], None] = print, reference: str | None = None,
-        reference_frames: int | None = None, workdir: str | Path | None = None) -> dict[str, Any]:
+def run(
+    manifest: str | Path,
+    out: str | Path,
+    *,
+    rig: str | Path | None = None,
+    mapping: str | Path | None = None,
+    labels: str | Path | None = None,
+    split: str | None = None,
+    overwrite: bool = False,
+    workers: int | None = None,
+    progress: bool = True,
+    say: Callable[[str], None] = print,
+    reference: str | None = None,
+    reference_frames: int | None = None,
+    workdir: str | Path | None = None,
+) -> dict[str, Any]:
     """Import every row of `manifest` into `out` as one transaction, then index `out` in the
     workspace `workdir` (module docstring); returns a summary. `reference`, `reference_frames`: the
     hand's folders' session reference (--reference)."""
@@ -406,11 +497,15 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
     if rig is not None and mapping is not None:
         raise UserError("give --rig (trial folders of another rig) or --map (ROS 2 bags), not both")
     if (rig is not None or mapping is not None) and (reference is not None or reference_frames is not None):
-        raise UserError(f"--reference names the session reference of the hand's trial folders; {'a rig file' if rig is not None else 'a mapping'} "
-                        f"names its camera's own ([camera] {'reference' if rig is not None else 'reference_topic or reference'})")
+        raise UserError(
+            f"--reference names the session reference of the hand's trial folders; {'a rig file' if rig is not None else 'a mapping'} "
+            f"names its camera's own ([camera] {'reference' if rig is not None else 'reference_topic or reference'})"
+        )
     folder_reference = None
     if rig is None and mapping is None:  # the hand's folders have a camera: the command line names its reference
-        folder_reference = parse_reference({"reference": reference, "reference_frames": reference_frames}, manifest, flags=True)
+        folder_reference = parse_reference(
+            {"reference": reference, "reference_frames": reference_frames}, manifest, flags=True
+        )
     rows, header, problems = read_manifest(manifest)
     counters: dict[str, int] = defaultdict(int)
     rows = [dataclasses.replace(r, trial=r.trial if r.trial is not None else _next(counters, r.label)) for r in rows]
@@ -419,8 +514,15 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
     if rule is not None and has_column:
         raise UserError(f"{manifest}: has a split column and --split={split} was given: choose one")
     if rule is None and has_column:
-        problems += [str(ManifestError(manifest, r.line, "split", "empty, while other rows give one (give every row a split, or none)"))
-                     for r in rows if not r.split]
+        problems += [
+            str(
+                ManifestError(
+                    manifest, r.line, "split", "empty, while other rows give one (give every row a split, or none)"
+                )
+            )
+            for r in rows
+            if not r.split
+        ]
     if rule and rule[0] == "fraction":
         splits = by_fraction(rows, rule[1])
     elif rule and rule[0] == "trial":
@@ -428,28 +530,58 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
     else:
         splits = [r.split for r in rows]
     loaded_rig = rig_mod.load_rig(rig) if rig is not None else None
-    used = (COLUMNS if loaded_rig.camera else tuple(c for c in COLUMNS if c != "session")) if loaded_rig is not None else HAND_COLUMNS
+    used = (
+        (COLUMNS if loaded_rig.camera else tuple(c for c in COLUMNS if c != "session"))
+        if loaded_rig is not None
+        else HAND_COLUMNS
+    )
     ignored = [h for h in header if h not in used]
     if ignored:
         say(f"note: {manifest}: columns not used: {', '.join(ignored)} (used: {', '.join(used)})")
     if loaded_rig is not None and not any(splits) and any(r.day is None for r in rows):
         r = next(r for r in rows if r.day is None)
-        problems.append(str(ManifestError(manifest, r.line, "split", "no split and no day: the trial would belong to no split "
-                        "(give a split column, --split=fraction:TRAIN,VAL,TEST or trial:SPLIT=FIRST-LAST,..., or days with --split=day)")))
+        problems.append(
+            str(
+                ManifestError(
+                    manifest,
+                    r.line,
+                    "split",
+                    "no split and no day: the trial would belong to no split "
+                    "(give a split column, --split=fraction:TRAIN,VAL,TEST or trial:SPLIT=FIRST-LAST,..., or days with --split=day)",
+                )
+            )
+        )
     label_map = None
     if loaded_rig is not None:
-        label_map = read_label_map(labels) if labels else {name: k for k, name in enumerate(sorted({r.label for r in rows}))}
+        label_map = (
+            read_label_map(labels) if labels else {name: k for k, name in enumerate(sorted({r.label for r in rows}))}
+        )
     elif labels:
-        raise UserError("--labels names classes of a rig's recordings (--rig); the hand's folders and bags are labelled by fabric id")
+        raise UserError(
+            "--labels names classes of a rig's recordings (--rig); the hand's folders and bags are labelled by fabric id"
+        )
     loaded_map = mapping_file.load_mapping(mapping) if mapping is not None else None
     out = Path(out)
-    jobs = plan(rows, out, rig=loaded_rig, mapping=loaded_map, label_map=label_map, splits=splits, manifest=manifest, problems=problems,
-                reference=folder_reference)
+    jobs = plan(
+        rows,
+        out,
+        rig=loaded_rig,
+        mapping=loaded_map,
+        label_map=label_map,
+        splits=splits,
+        manifest=manifest,
+        problems=problems,
+        reference=folder_reference,
+    )
     todo, stale = check_out(out, jobs, overwrite, manifest, problems, say)
     if problems:
-        raise ImportProblems(problems + ([f"{out}: nothing was written ({len(problems)} problems above)"] if len(problems) > 1 else []))
+        raise ImportProblems(
+            problems + ([f"{out}: nothing was written ({len(problems)} problems above)"] if len(problems) > 1 else [])
+        )
     _writable(out)
-    with lock.hold(out / IMPORT_LOCK, f"the import into {out}", f"importing {len(todo)} trials", transient=True):  # one import at a time
+    with lock.hold(
+        out / IMPORT_LOCK, f"the import into {out}", f"importing {len(todo)} trials", transient=True
+    ):  # one import at a time
         staging = _staging(out)
         try:
             staged = [dataclasses.replace(j, target=str(staging / Path(j.target).name)) for j in todo]
@@ -458,7 +590,9 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
                 parallel.run_jobs(_import_one, staged, n, bar.update)
             failed = [Path(j.target + ".error").read_text() for j in staged if Path(j.target + ".error").exists()]
             if failed:
-                raise ImportProblems(failed + ([f"{out}: nothing was written ({len(failed)} trials failed)"] if len(failed) > 1 else []))
+                raise ImportProblems(
+                    failed + ([f"{out}: nothing was written ({len(failed)} trials failed)"] if len(failed) > 1 else [])
+                )
             for j, s in zip(todo, staged):  # the import is complete: into DIR, and what no row produces out of it
                 os.replace(s.target, j.target)
             for p in stale:
@@ -469,7 +603,9 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
         finally:
             shutil.rmtree(staging, ignore_errors=True)
         index_path = workspace.index_file(out, workdir)
-        dataset_index.build_index(out, index_path)  # an earlier index's entries of the archives kept are not hashed again
+        dataset_index.build_index(
+            out, index_path
+        )  # an earlier index's entries of the archives kept are not hashed again
     notes: dict[str, Counter] = defaultdict(Counter)
     steps = 0
     for j in jobs:
@@ -479,19 +615,40 @@ def run(manifest: str | Path, out: str | Path, *, rig: str | Path | None = None,
         notes["incomplete"].update(["trials"] if not meta["complete"] else [])
         notes["joint_gaps"].update(["trials"] if meta.get("import", {}).get("joint_gaps") else [])
     if notes["columns"]:
-        say(f"note: joint columns not named in the rig file, not imported: {', '.join(f'{c} ({k} trials)' for c, k in sorted(notes['columns'].items()))}")
+        say(
+            f"note: joint columns not named in the rig file, not imported: {', '.join(f'{c} ({k} trials)' for c, k in sorted(notes['columns'].items()))}"
+        )
     if notes["incomplete"]:
-        say(f"note: {notes['incomplete']['trials']} trials are incomplete (complete: false; meta.import.truncated names the cut-off files)")
+        say(
+            f"note: {notes['incomplete']['trials']} trials are incomplete (complete: false; meta.import.truncated names the cut-off files)"
+        )
     if notes["joint_gaps"]:
-        say(f"note: {notes['joint_gaps']['trials']} trials have holes in the joints, where steps hold the last reading (meta.import.joint_gaps)")
+        say(
+            f"note: {notes['joint_gaps']['trials']} trials have holes in the joints, where steps hold the last reading (meta.import.joint_gaps)"
+        )
     per_split = Counter(s or "by day" for s in splits)
-    n_classes = len(set(label_map.values())) if label_map else None  # classes, not names: a label file may give one class two names
-    summary = {"trials": len(jobs), "imported": len(todo), "resumed": len(jobs) - len(todo), "removed": len(stale), "steps": steps,
-               "splits": dict(per_split), "classes": n_classes, "seconds": time.perf_counter() - t0, "out": str(out),
-               "index": str(index_path)}
-    say(f"{out}: {len(todo)} trials imported, {len(jobs) - len(todo)} already there (resumed); {steps} steps; "
-        f"splits {', '.join(f'{k} {v}' for k, v in sorted(per_split.items()))}" + (f"; {n_classes} classes" if label_map else "")
-        + (f"; {len(stale)} archives no row produces removed (--overwrite)" if stale else "") + f" ({summary['seconds']:.1f} s)")
+    n_classes = (
+        len(set(label_map.values())) if label_map else None
+    )  # classes, not names: a label file may give one class two names
+    summary = {
+        "trials": len(jobs),
+        "imported": len(todo),
+        "resumed": len(jobs) - len(todo),
+        "removed": len(stale),
+        "steps": steps,
+        "splits": dict(per_split),
+        "classes": n_classes,
+        "seconds": time.perf_counter() - t0,
+        "out": str(out),
+        "index": str(index_path),
+    }
+    say(
+        f"{out}: {len(todo)} trials imported, {len(jobs) - len(todo)} already there (resumed); {steps} steps; "
+        f"splits {', '.join(f'{k} {v}' for k, v in sorted(per_split.items()))}"
+        + (f"; {n_classes} classes" if label_map else "")
+        + (f"; {len(stale)} archives no row produces removed (--overwrite)" if stale else "")
+        + f" ({summary['seconds']:.1f} s)"
+    )
     verify = "experiments.verify" + (f" --workdir={workdir}" if workdir is not None else "")
     say(f"{out}: indexed, each archive's sha256 in {workspace.shown(index_path)} ({verify} re-hashes against it)")
     return summary
@@ -508,20 +665,50 @@ FLAGS = flags.FLAGS
 def main(argv):
     if len(argv) != 2:
         raise UserError("give exactly one manifest: python -m acquisition.import_manifest MANIFEST.csv --out=DIR")
-    run(argv[1], FLAGS.out, rig=FLAGS.rig, mapping=FLAGS.map, labels=FLAGS.labels, split=FLAGS.split,
-        overwrite=FLAGS.overwrite, workers=FLAGS.workers, reference=FLAGS.reference, reference_frames=FLAGS.reference_frames,
-        workdir=FLAGS.workdir)
+    run(
+        argv[1],
+        FLAGS.out,
+        rig=FLAGS.rig,
+        mapping=FLAGS.map,
+        labels=FLAGS.labels,
+        split=FLAGS.split,
+        overwrite=FLAGS.overwrite,
+        workers=FLAGS.workers,
+        reference=FLAGS.reference,
+        reference_frames=FLAGS.reference_frames,
+        workdir=FLAGS.workdir,
+    )
 
 
 if __name__ == "__main__":
     flags.DEFINE_string("out", None, "Folder to write the trial archives into.", required=True)
     flags.DEFINE_string("rig", None, "Rig file (TOML): the streams of each trial folder (acquisition/rig.py).")
     flags.DEFINE_string("map", None, "Mapping file (TOML) of ROS 2 bags (acquisition/import_bag.py).")
-    flags.DEFINE_string("reference", None, "The hand's trial folders' camera reference: a file relative to each trial folder, or pre_contact.")
-    flags.DEFINE_integer("reference_frames", None, "With --reference=pre_contact: how many of each trial's first frames (default 5).")
-    flags.DEFINE_string("labels", None, "Label map: CSV with columns name, class (default: the manifest's labels, sorted).")
-    flags.DEFINE_string("split", None, "Split rule when the manifest has no split column: fraction:TRAIN,VAL,TEST, trial:SPLIT=FIRST-LAST,... or day.")
-    flags.DEFINE_bool("overwrite", False, "Replace the dataset in --out by the manifest's (default: keep archives of the same rows, refuse anything else).")
+    flags.DEFINE_string(
+        "reference",
+        None,
+        "The hand's trial folders' camera reference: a file relative to each trial folder, or pre_contact.",
+    )
+    flags.DEFINE_integer(
+        "reference_frames", None, "With --reference=pre_contact: how many of each trial's first frames (default 5)."
+    )
+    flags.DEFINE_string(
+        "labels", None, "Label map: CSV with columns name, class (default: the manifest's labels, sorted)."
+    )
+    flags.DEFINE_string(
+        "split",
+        None,
+        "Split rule when the manifest has no split column: fraction:TRAIN,VAL,TEST, trial:SPLIT=FIRST-LAST,... or day.",
+    )
+    flags.DEFINE_bool(
+        "overwrite",
+        False,
+        "Replace the dataset in --out by the manifest's (default: keep archives of the same rows, refuse anything else).",
+    )
     flags.DEFINE_integer("workers", None, "Processes (default: one per core).", lower_bound=1)
-    flags.DEFINE_string("workdir", None, "Workspace that keeps DIR's index (default: $FABRICJAX_WORKDIR or ./workspace); give verify and the studies the same.")
+    flags.DEFINE_string(
+        "workdir",
+        None,
+        "Workspace that keeps DIR's index (default: $FABRICJAX_WORKDIR or ./workspace); give verify and the studies the same.",
+    )
     cli.run(main)

@@ -49,9 +49,13 @@ def trial_fields(mapping: dict[str, Any], overrides: dict[str, Any], where) -> d
     trial = dict(mapping.get("trial", {})) | {k: v for k, v in overrides.items() if v is not None}
     for key in TRIAL_KEYS:
         if key not in trial:
-            raise RecordingImportError(where, f"trial.{key}", "missing (give it in the mapping's [trial] table or on the command line)")
+            raise RecordingImportError(
+                where, f"trial.{key}", "missing (give it in the mapping's [trial] table or on the command line)"
+            )
     if trial["condition"] not in archive.CONDITIONS:
-        raise RecordingImportError(where, "trial.condition", f"must be one of {archive.CONDITIONS}, got {trial['condition']!r}")
+        raise RecordingImportError(
+            where, "trial.condition", f"must be one of {archive.CONDITIONS}, got {trial['condition']!r}"
+        )
     if "session" in trial and (not isinstance(trial["session"], str) or not trial["session"].strip()):
         raise RecordingImportError(where, "trial.session", f"must be a session's name, got {trial['session']!r}")
     return trial

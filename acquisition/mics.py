@@ -43,7 +43,9 @@ class FrameAssembler:
             size = wire.HEADER.size + n * wire.FRAME_BYTES
             if len(self.buf) < size:
                 break
-            frames = np.frombuffer(self.buf, "<i4", n * wire.CHANNELS, wire.HEADER.size).reshape(n, wire.CHANNELS).copy()
+            frames = (
+                np.frombuffer(self.buf, "<i4", n * wire.CHANNELS, wire.HEADER.size).reshape(n, wire.CHANNELS).copy()
+            )
             packets.append((seq, first, frames))
             del self.buf[:size]
             self.offset += size

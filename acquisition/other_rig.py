@@ -66,8 +66,12 @@ def vibration(class_id: int, n_classes: int, seconds: float, rng: np.random.Gene
     speed = SLOWEST + (1 - SLOWEST) * np.abs(np.sin(np.pi * STROKE_RATE * t + rng.uniform(0, np.pi)))
     phase = 2 * np.pi * np.cumsum(texture_frequency(class_id, n_classes) * speed) / VIBRATION_RATE
     smooth = max(1, int(VIBRATION_RATE / TEXTURE_BANDWIDTH_HZ))  # a moving average: a complex envelope ~this band wide
-    envelope = np.convolve(rng.normal(size=t.size) + 1j * rng.normal(size=t.size), np.ones(smooth) / np.sqrt(smooth), "same")
-    texture = np.real(envelope * (np.exp(1j * phase) + SECOND_HARMONIC * np.exp(2j * phase + 1j * rng.uniform(0, 2 * np.pi))))
+    envelope = np.convolve(
+        rng.normal(size=t.size) + 1j * rng.normal(size=t.size), np.ones(smooth) / np.sqrt(smooth), "same"
+    )
+    texture = np.real(
+        envelope * (np.exp(1j * phase) + SECOND_HARMONIC * np.exp(2j * phase + 1j * rng.uniform(0, 2 * np.pi)))
+    )
     x = 0.15 * speed * texture / np.sqrt(2) + BACKGROUND * rng.normal(size=t.size)
     return x * 10 ** (rng.uniform(-GAIN_DB, GAIN_DB) / 20)
 
@@ -76,12 +80,16 @@ def write_trial(folder: Path, class_id: int, seconds: float, rng: np.random.Gene
     """One trial folder: vibration.wav and joints.csv."""
     folder.mkdir(parents=True, exist_ok=True)
     x = vibration(class_id, n_classes, seconds, rng)
-    wavfile.write(folder / "vibration.wav", VIBRATION_RATE, np.round(np.clip(x, -1, 1 - 2**-15) * 2**15).astype(np.int16))
+    wavfile.write(
+        folder / "vibration.wav", VIBRATION_RATE, np.round(np.clip(x, -1, 1 - 2**-15) * 2**15).astype(np.int16)
+    )
     jt = np.arange(int(seconds * JOINT_RATE)) / JOINT_RATE
     angle = 0.2 * np.sin(2 * np.pi * 1.5 * jt[:, None] + np.arange(N_JOINTS)) + rng.normal(0, 0.01, (jt.size, N_JOINTS))
     velocity = np.gradient(angle, jt, axis=0)
     torque = (0.5 + 0.05 * class_id) * angle + rng.normal(0, 0.02, angle.shape)
-    header = ["time"] + [f"arm_{j}_{f}" for j in range(N_JOINTS) for f in ("angle", "velocity", "torque")] + [EXTRA_COLUMN]
+    header = (
+        ["time"] + [f"arm_{j}_{f}" for j in range(N_JOINTS) for f in ("angle", "velocity", "torque")] + [EXTRA_COLUMN]
+    )
     values = np.stack([angle, velocity, torque], axis=2).reshape(jt.size, -1)
     with open(folder / "joints.csv", "w", newline="") as f:
         w = csv.writer(f)
@@ -89,8 +97,14 @@ def write_trial(folder: Path, class_id: int, seconds: float, rng: np.random.Gene
         w.writerows(np.column_stack([jt, values, np.full(jt.size, 31.5)]).round(6).tolist())
 
 
-def write_recordings(root: Path, labels: list[str], trials_per_label: int, seconds: tuple[float, float] = (6.0, 8.0),
-                     splits: dict[int, str] | None = None, seed: int = 0) -> Path:
+def write_recordings(
+    root: Path,
+    labels: list[str],
+    trials_per_label: int,
+    seconds: tuple[float, float] = (6.0, 8.0),
+    splits: dict[int, str] | None = None,
+    seed: int = 0,
+) -> Path:
     """Trial folders under root/recordings, rig.toml and manifest.csv (path, label and, when
     `splits` maps a trial index to a split, a split column). Returns the manifest."""
     rng = np.random.default_rng(seed)
@@ -118,10 +132,25 @@ def bench_import(trials: int = 1000, seconds: tuple[float, float] = (6.0, 8.0), 
     with tempfile.TemporaryDirectory() as tmp:
         manifest = write_recordings(Path(tmp) / "rig", labels, max(1, trials // len(labels)), seconds)
         t0 = time.perf_counter()
-        summary = import_manifest.run(manifest, Path(tmp) / "archives", rig=Path(tmp) / "rig" / "rig.toml",
-                                      split="fraction:0.7,0.15,0.15", workers=workers, progress=False, say=lambda s: None)
+        summary = import_manifest.run(
+            manifest,
+            Path(tmp) / "archives",
+            rig=Path(tmp) / "rig" / "rig.toml",
+            split="fraction:0.7,0.15,0.15",
+            workers=workers,
+            progress=False,
+            say=lambda s: None,
+        )
         wall = time.perf_counter() - t0
         mb_in = sum(p.stat().st_size for p in (Path(tmp) / "rig").rglob("*") if p.is_file()) / 1e6
-    return {"trials": summary["trials"], "seconds_per_trial": list(seconds), "wall_s": wall, "ms_per_trial": 1e3 * wall / summary["trials"],
-            "steps": summary["steps"], "input_mb": mb_in, "target_s": 180.0, "meets_target": wall <= 180.0,
-            "rig": f"1 vibration channel at {VIBRATION_RATE} Hz, {N_JOINTS} joints x 3 at {JOINT_RATE} Hz, no camera"}
+    return {
+        "trials": summary["trials"],
+        "seconds_per_trial": list(seconds),
+        "wall_s": wall,
+        "ms_per_trial": 1e3 * wall / summary["trials"],
+        "steps": summary["steps"],
+        "input_mb": mb_in,
+        "target_s": 180.0,
+        "meets_target": wall <= 180.0,
+        "rig": f"1 vibration channel at {VIBRATION_RATE} Hz, {N_JOINTS} joints x 3 at {JOINT_RATE} Hz, no camera",
+    }

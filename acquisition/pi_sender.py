@@ -1,7 +1,7 @@
 """Raspberry Pi side: stream the two SPH0645 microphones to the laptop over TCP (format in `wire`).
 
-    python -m acquisition.pi_sender --port=5005 --device=hw:CARD=sndrpii2scard
-    python -m acquisition.pi_sender --port=5005 --simulate --fabric=12     # simulated words
+python -m acquisition.pi_sender --port=5005 --device=hw:CARD=sndrpii2scard
+python -m acquisition.pi_sender --port=5005 --simulate --fabric=12     # simulated words
 """
 
 from absl import app, flags
@@ -22,11 +22,15 @@ def main(argv):
     if FLAGS.simulate:
         from acquisition import simulated_devices, simulated_signals
 
-        periods = simulated_devices.paced_periods(simulated_signals.trial_signals(FLAGS.fabric, n_cycles=FLAGS.cycles).audio)
+        periods = simulated_devices.paced_periods(
+            simulated_signals.trial_signals(FLAGS.fabric, n_cycles=FLAGS.cycles).audio
+        )
     else:
         periods = wire.arecord_periods(FLAGS.device)
     sent = wire.serve(periods, FLAGS.host, FLAGS.port)
-    print(f"pi_sender: {sent['ended']}; sent {sent['sent']} packets, dropped {sent['dropped']}, {sent['frames']} frames")
+    print(
+        f"pi_sender: {sent['ended']}; sent {sent['sent']} packets, dropped {sent['dropped']}, {sent['frames']} frames"
+    )
 
 
 if __name__ == "__main__":

@@ -16,7 +16,11 @@ from fabricjax import archive
 
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
-REFERENCE_SUFFIXES = (*IMAGE_SUFFIXES, *VIDEO_SUFFIXES, ".npy")  # a reference file: one image, a video, or frames as saved by NumPy
+REFERENCE_SUFFIXES = (
+    *IMAGE_SUFFIXES,
+    *VIDEO_SUFFIXES,
+    ".npy",
+)  # a reference file: one image, a video, or frames as saved by NumPy
 
 
 def read_wav(path: Path, start: float) -> Stream:
@@ -25,7 +29,11 @@ def read_wav(path: Path, start: float) -> Stream:
     from scipy.io import wavfile
 
     if not path.is_file():
-        raise RecordingImportError(path, "<file>", "no such file (one WAV per microphone: " + ", ".join(f"{m}.wav" for m in archive.MIC_NAMES) + ")")
+        raise RecordingImportError(
+            path,
+            "<file>",
+            "no such file (one WAV per microphone: " + ", ".join(f"{m}.wav" for m in archive.MIC_NAMES) + ")",
+        )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", wavfile.WavFileWarning)
         try:
@@ -34,8 +42,12 @@ def read_wav(path: Path, start: float) -> Stream:
             raise RecordingImportError(path, "<file>", f"not a readable WAV file: {e}") from None
     truncated = any("EOF prematurely" in str(w.message) for w in caught)
     if samples.ndim != 1:
-        raise RecordingImportError(path, "channels", f"{samples.shape[1]} channels, expected 1 (one file per microphone)")
-    return Stream.from_samples(str(path), int(rate), to_words(samples, path, "samples"), start, truncated, recorded_as(samples, "WAV"))
+        raise RecordingImportError(
+            path, "channels", f"{samples.shape[1]} channels, expected 1 (one file per microphone)"
+        )
+    return Stream.from_samples(
+        str(path), int(rate), to_words(samples, path, "samples"), start, truncated, recorded_as(samples, "WAV")
+    )
 
 
 def read_joints_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -94,7 +106,9 @@ def read_camera(folder: Path) -> tuple[np.ndarray, np.ndarray]:
         frames = [_image(p) for p in sorted(p for p in where.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)]
         fps = 0.0
     else:
-        raise RecordingImportError(folder, "camera", f"no camera video (camera{{{','.join(VIDEO_SUFFIXES)}}}) or image folder camera/")
+        raise RecordingImportError(
+            folder, "camera", f"no camera video (camera{{{','.join(VIDEO_SUFFIXES)}}}) or image folder camera/"
+        )
     if not frames:
         raise RecordingImportError(where, "frames", "no frames could be read")
     if len({f.shape for f in frames}) > 1:
@@ -128,18 +142,32 @@ def read_reference(path: Path, size: tuple[int, int]) -> np.ndarray:
         except (ValueError, OSError) as e:
             raise RecordingImportError(path, "<file>", f"not a readable .npy file: {e}") from None
         if frames.dtype != np.uint8 or frames.ndim not in (3, 4) or frames.shape[-1] != 3:
-            raise RecordingImportError(path, "frames", f"{frames.dtype} {frames.shape}, expected uint8 RGB frames (H, W, 3) or (R, H, W, 3)")
+            raise RecordingImportError(
+                path, "frames", f"{frames.dtype} {frames.shape}, expected uint8 RGB frames (H, W, 3) or (R, H, W, 3)"
+            )
         frames = frames[None] if frames.ndim == 3 else frames
     elif suffix in VIDEO_SUFFIXES:
         video = _video_frames(path)[0]
         if not video or len({f.shape for f in video}) > 1:
-            raise RecordingImportError(path, "frames", "no frames could be read" if not video else f"frames of different sizes {sorted({f.shape for f in video})}")
+            raise RecordingImportError(
+                path,
+                "frames",
+                "no frames could be read"
+                if not video
+                else f"frames of different sizes {sorted({f.shape for f in video})}",
+            )
         frames = np.stack(video)
     else:
         frames = _image(path)[None]
     if not 1 <= len(frames) <= archive.MAX_REFERENCE_FRAMES:
-        raise RecordingImportError(path, "frames", f"{len(frames)} frames, expected 1 to {archive.MAX_REFERENCE_FRAMES}")
+        raise RecordingImportError(
+            path, "frames", f"{len(frames)} frames, expected 1 to {archive.MAX_REFERENCE_FRAMES}"
+        )
     if tuple(frames.shape[1:3]) != tuple(size):
-        raise RecordingImportError(path, "frames", f"{frames.shape[1]}x{frames.shape[2]} pixels, the camera's frames are {size[0]}x{size[1]}: "
-                                   "a reference is the camera's own frames, at their size")
+        raise RecordingImportError(
+            path,
+            "frames",
+            f"{frames.shape[1]}x{frames.shape[2]} pixels, the camera's frames are {size[0]}x{size[1]}: "
+            "a reference is the camera's own frames, at their size",
+        )
     return np.ascontiguousarray(frames)

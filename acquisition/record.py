@@ -47,10 +47,17 @@ flags.DEFINE_string("pi_host", "raspberrypi.local", "Host of the Pi sender.")
 flags.DEFINE_integer("pi_port", 5005, "Port of the Pi sender.")
 flags.DEFINE_float("force_gain", 0.05, "Force proxy gain, N per grey level of mean difference.")
 flags.DEFINE_float("force_deadband", 0.5, "Force proxy deadband, grey levels.")
-flags.DEFINE_integer("reference_frames", 1, "No-contact frames of the camera's reference, taken after its warm-up with the fingers open.", lower_bound=1)
+flags.DEFINE_integer(
+    "reference_frames",
+    1,
+    "No-contact frames of the camera's reference, taken after its warm-up with the fingers open.",
+    lower_bound=1,
+)
 flags.DEFINE_bool("view", False, "Stream each step to the Rerun viewer as it is recorded.")
 flags.DEFINE_string("view_save", None, "Log what --view shows to this .rrd file instead.")
-flags.DEFINE_string("checkpoint", None, "With --view / --view_save: a streamable model whose running prediction is shown.")
+flags.DEFINE_string(
+    "checkpoint", None, "With --view / --view_save: a streamable model whose running prediction is shown."
+)
 
 
 def hardware_rig(session: str) -> recorder.Rig:
@@ -66,8 +73,20 @@ def hardware_rig(session: str) -> recorder.Rig:
     cam = Camera(int(FLAGS.camera) if FLAGS.camera.isdigit() else FLAGS.camera)
     reference = take_reference(cam, session, FLAGS.reference_frames)
     force = ForceProxy(reference.frames[0], gain=FLAGS.force_gain, deadband=FLAGS.force_deadband)
-    source = {"kind": "hardware", "servo_port": FLAGS.servo_port, "camera": FLAGS.camera, "pi": f"{FLAGS.pi_host}:{FLAGS.pi_port}"}
-    return recorder.Rig(bus=bus, camera=cam, mics=MicReceiver(FLAGS.pi_host, FLAGS.pi_port), force=force, source=source, reference=reference)
+    source = {
+        "kind": "hardware",
+        "servo_port": FLAGS.servo_port,
+        "camera": FLAGS.camera,
+        "pi": f"{FLAGS.pi_host}:{FLAGS.pi_port}",
+    }
+    return recorder.Rig(
+        bus=bus,
+        camera=cam,
+        mics=MicReceiver(FLAGS.pi_host, FLAGS.pi_port),
+        force=force,
+        source=source,
+        reference=reference,
+    )
 
 
 class Watcher:
@@ -104,7 +123,9 @@ class Watcher:
             if self.streamer is not None:
                 t0 = time.perf_counter()
                 probs = self.streamer.update(step.windows[self.streamer.mics], step.joints)
-                self.viewer.log_prediction(self.live.StepResult(step.index, step.time_s, probs, 1e3 * (time.perf_counter() - t0)))
+                self.viewer.log_prediction(
+                    self.live.StepResult(step.index, step.time_s, probs, 1e3 * (time.perf_counter() - t0))
+                )
 
     def close(self) -> None:
         """Log the backlog, then flush the recording."""
@@ -149,18 +170,35 @@ def main(argv):
         if FLAGS.simulate:
             from acquisition import simulated_devices, simulated_signals
 
-            signals = simulated_signals.trial_signals(FLAGS.fabric, FLAGS.day, trial, n_cycles=FLAGS.cycles, condition=FLAGS.condition)
+            signals = simulated_signals.trial_signals(
+                FLAGS.fabric, FLAGS.day, trial, n_cycles=FLAGS.cycles, condition=FLAGS.condition
+            )
             with simulated_devices.simulated_rig(signals) as rig:
-                rec = recorder.record_trial(rig, simulated_signals.procedure(FLAGS.cycles), fabric_id=FLAGS.fabric, day=FLAGS.day,
-                                            trial=trial, out_dir=out, condition=FLAGS.condition, on_step=on_step)
+                rec = recorder.record_trial(
+                    rig,
+                    simulated_signals.procedure(FLAGS.cycles),
+                    fabric_id=FLAGS.fabric,
+                    day=FLAGS.day,
+                    trial=trial,
+                    out_dir=out,
+                    condition=FLAGS.condition,
+                    on_step=on_step,
+                )
         else:
             from acquisition.procedure import ExploratoryProcedure
 
             rig = hardware_rig(f"day{FLAGS.day}_{FLAGS.condition}_trial{trial}")
             try:
-                rec = recorder.record_trial(rig, ExploratoryProcedure(n_cycles=FLAGS.cycles), fabric_id=FLAGS.fabric,
-                                            day=FLAGS.day, trial=trial, out_dir=out, condition=FLAGS.condition,
-                                            on_step=on_step)
+                rec = recorder.record_trial(
+                    rig,
+                    ExploratoryProcedure(n_cycles=FLAGS.cycles),
+                    fabric_id=FLAGS.fabric,
+                    day=FLAGS.day,
+                    trial=trial,
+                    out_dir=out,
+                    condition=FLAGS.condition,
+                    on_step=on_step,
+                )
             finally:
                 rig.close()
         if watching is not None:
@@ -168,8 +206,10 @@ def main(argv):
             if watching.dropped:
                 print(f"view: {watching.dropped} steps dropped (the viewer fell {Watcher.BACKLOG} steps behind)")
         st = rec.archive.meta["step_time"]
-        print(f"{rec.path}: {rec.archive.n_steps} steps, step p50 {st['p50_ms']} ms p99 {st['p99_ms']} ms, "
-              f"missed {st['missed_deadlines']}" + (f", INCOMPLETE: {rec.failure}" if rec.failure else ""))
+        print(
+            f"{rec.path}: {rec.archive.n_steps} steps, step p50 {st['p50_ms']} ms p99 {st['p99_ms']} ms, "
+            f"missed {st['missed_deadlines']}" + (f", INCOMPLETE: {rec.failure}" if rec.failure else "")
+        )
         if rec.failure:
             sys.exit(1)
 

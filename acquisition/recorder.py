@@ -130,8 +130,15 @@ def record_trial(
                 missed += 1
             if on_step is not None:
                 new = archive.WINDOW if n == 0 else int(min(max(ends[n] - ends[n - 1], 0), archive.WINDOW))
-                on_step(index=n, time_s=float(stamps[n] - stamps[0]), windows=windows, new_samples=new,
-                        joints=joints[n], force=float(force[n]), frame=images[n])
+                on_step(
+                    index=n,
+                    time_s=float(stamps[n] - stamps[0]),
+                    windows=windows,
+                    new_samples=new,
+                    joints=joints[n],
+                    force=float(force[n]),
+                    frame=images[n],
+                )
             n += 1
             slot = max(slot + 1, math.ceil((te - t0) / period))  # a late step skips slots, never bunches up
         else:
@@ -181,4 +188,3 @@ def record_trial(
     if interrupted:
         raise KeyboardInterrupt(f"recording interrupted; {n} steps kept in {path} (complete=False)")
     return Recording(path, trial_archive, failure)
-

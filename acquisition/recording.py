@@ -48,12 +48,27 @@ class Stream:
         return cls(name, rate, np.concatenate(ordered), np.asarray(times, np.float64)[order], counts)
 
     @classmethod
-    def from_samples(cls, name: str, rate: int, samples: np.ndarray, start: float = 0.0, truncated: bool = False,
-                     recorded_as: str | None = None) -> "Stream":
+    def from_samples(
+        cls,
+        name: str,
+        rate: int,
+        samples: np.ndarray,
+        start: float = 0.0,
+        truncated: bool = False,
+        recorded_as: str | None = None,
+    ) -> "Stream":
         """A continuous recording (a WAV file) whose first sample is at `start`."""
         if len(samples) == 0:
             raise RecordingImportError(name, "audio", "no samples")
-        return cls(name, rate, samples, start + np.arange(len(samples)) / rate, np.arange(1, len(samples) + 1, dtype=np.int64), truncated, recorded_as)
+        return cls(
+            name,
+            rate,
+            samples,
+            start + np.arange(len(samples)) / rate,
+            np.arange(1, len(samples) + 1, dtype=np.int64),
+            truncated,
+            recorded_as,
+        )
 
 
 def recorded_as(samples: np.ndarray, container: str) -> str:

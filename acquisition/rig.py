@@ -55,8 +55,17 @@ from typing import Any
 
 import numpy as np
 
-from acquisition.alignment import (ImportedReference, ReferenceSource, check_seconds, file_reference, parse_reference, pre_contact,
-                                   reference_meta, session_of, stream_gaps)
+from acquisition.alignment import (
+    ImportedReference,
+    ReferenceSource,
+    check_seconds,
+    file_reference,
+    parse_reference,
+    pre_contact,
+    reference_meta,
+    session_of,
+    stream_gaps,
+)
 from acquisition.mapping_file import read_toml
 from acquisition.readers import read_camera, read_wav
 from acquisition.recording import RecordingImportError, Stream
@@ -92,14 +101,18 @@ def load_rig(path: str | Path) -> Rig:
     doc = read_toml(path, "rig")
     known = {"steps", "mics", "joints", "camera"}
     if set(doc) - known:
-        raise RecordingImportError(path, ", ".join(sorted(set(doc) - known)), f"unknown table (known: {', '.join(sorted(known))})")
+        raise RecordingImportError(
+            path, ", ".join(sorted(set(doc) - known)), f"unknown table (known: {', '.join(sorted(known))})"
+        )
     mics = []
     for k, m in enumerate(doc.get("mics", [])):
         for key in ("name", "file"):
             if not isinstance(m.get(key), str):
                 raise RecordingImportError(path, f"mics[{k}].{key}", "missing")
         if m.get("role") not in (*archive.MIC_ROLES, None):
-            raise RecordingImportError(path, f"mics[{k}].role", f"must be one of {archive.MIC_ROLES} or omitted, got {m['role']!r}")
+            raise RecordingImportError(
+                path, f"mics[{k}].role", f"must be one of {archive.MIC_ROLES} or omitted, got {m['role']!r}"
+            )
         mics.append(RigMic(m["name"], m["file"], m.get("role")))
     roles = [m.role for m in mics if m.role]
     if len(roles) != len(set(roles)):
@@ -110,13 +123,17 @@ def load_rig(path: str | Path) -> Rig:
             if key not in joints:
                 raise RecordingImportError(path, f"joints.{key}", "missing")
         if len(joints["units"]) != len(joints["fields"]):
-            raise RecordingImportError(path, "joints.units", f"{len(joints['units'])} units for {len(joints['fields'])} fields")
+            raise RecordingImportError(
+                path, "joints.units", f"{len(joints['units'])} units for {len(joints['fields'])} fields"
+            )
     steps = doc.get("steps", {})
     rate = steps.get("rate")
     if rate is not None and (not isinstance(rate, (int, float)) or rate <= 0):
         raise RecordingImportError(path, "steps.rate", f"must be a rate in Hz > 0, got {rate!r}")
     window = steps.get("mic_window_s")
-    if window is not None and (isinstance(window, bool) or not isinstance(window, (int, float)) or not 0 < window < float("inf")):
+    if window is not None and (
+        isinstance(window, bool) or not isinstance(window, (int, float)) or not 0 < window < float("inf")
+    ):
         raise RecordingImportError(path, "steps.mic_window_s", f"must be a duration in seconds > 0, got {window!r}")
     unknown = set(steps) - {"rate", "mic_window_s"}
     if unknown:
@@ -128,10 +145,16 @@ def load_rig(path: str | Path) -> Rig:
         if not isinstance(table, dict):
             raise RecordingImportError(path, "camera", f"must be a table ([camera]), got {table!r}")
         if set(table) - {"reference", "reference_frames"}:
-            raise RecordingImportError(path, f"camera.{sorted(set(table) - {'reference', 'reference_frames'})[0]}", "unknown key (known: reference, reference_frames)")
+            raise RecordingImportError(
+                path,
+                f"camera.{sorted(set(table) - {'reference', 'reference_frames'})[0]}",
+                "unknown key (known: reference, reference_frames)",
+            )
         reference = parse_reference(table, path)
     if not camera and rate is None and joints is None:
-        raise RecordingImportError(path, "steps.rate", "missing: without a camera or joints, steps need a declared rate")
+        raise RecordingImportError(
+            path, "steps.rate", "missing: without a camera or joints, steps need a declared rate"
+        )
     if not mics and joints is None and not camera:
         raise RecordingImportError(path, "<file>", "declares no stream (mics, joints or camera)")
     return Rig(
@@ -179,7 +202,9 @@ def read_joints(path: Path, rig: Rig) -> tuple[np.ndarray, np.ndarray, list[str]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # no rows is the error below, not a warning
-            table = np.loadtxt(path, delimiter=",", skiprows=1, usecols=[header.index(c) for c in wanted], ndmin=2, encoding="utf-8")
+            table = np.loadtxt(
+                path, delimiter=",", skiprows=1, usecols=[header.index(c) for c in wanted], ndmin=2, encoding="utf-8"
+            )
     except ValueError as e:
         raise RecordingImportError(path, "<file>", f"not a numeric CSV: {e}") from None
     if len(table) == 0:
@@ -191,7 +216,9 @@ def read_joints(path: Path, rig: Rig) -> tuple[np.ndarray, np.ndarray, list[str]
     return table[:, 0], values, [h for h in header if h not in wanted]
 
 
-def step_times(rig: Rig, mics: list[Stream], joint_times: np.ndarray | None, frame_times: np.ndarray | None) -> tuple[np.ndarray, str, float]:
+def step_times(
+    rig: Rig, mics: list[Stream], joint_times: np.ndarray | None, frame_times: np.ndarray | None
+) -> tuple[np.ndarray, str, float]:
     """The step clock: the camera's frames, else the declared rate from 0 to the end of the shortest
     stream, else the joint stream's timestamps. Returns (times, clock, nominal rate)."""
     if frame_times is not None:
@@ -243,34 +270,62 @@ def align_rig(
         jk = np.searchsorted(joint_times, times, side="right") - 1
         usable &= (jk >= 0) & (times <= joint_times[-1])
     if not usable.any():
-        raise RecordingImportError(where, "steps", "no step has a full window of every microphone and a joint reading "
-                                   f"(microphones need {archive.WINDOW} samples, or the rig file's mic_window_s where longer, at their own rate before the first step)")
+        raise RecordingImportError(
+            where,
+            "steps",
+            "no step has a full window of every microphone and a joint reading "
+            f"(microphones need {archive.WINDOW} samples, or the rig file's mic_window_s where longer, at their own rate before the first step)",
+        )
     keep = np.flatnonzero(usable)
     first, last = int(keep[0]), int(keep[-1])
     if not usable[first : last + 1].all():
-        raise RecordingImportError(where, "steps", "a stream stops and resumes within the recording (a hole): it cannot be aligned")
+        raise RecordingImportError(
+            where, "steps", "a stream stops and resumes within the recording (a hole): it cannot be aligned"
+        )
     sel = slice(first, last + 1)
     n_samples = max((len(m.samples) for m in mics), default=0)
     audio = np.zeros((len(mics), n_samples), np.int32)  # a mic at a lower rate is zero-padded at the end
     for k, m in enumerate(mics):
         audio[k, : len(m.samples)] = m.samples
     streams = {
-        "mics": [{"name": rm.name, "rate": int(m.rate), "role": rm.role} | ({"recorded_as": m.recorded_as} if m.recorded_as else {})
-                 for rm, m in zip(rig.mics, mics)],
-        "joints": {"names": list(rig.joint_names), "fields": list(rig.joint_fields), "units": list(rig.joint_units)} if rig.joints_file else None,
+        "mics": [
+            {"name": rm.name, "rate": int(m.rate), "role": rm.role}
+            | ({"recorded_as": m.recorded_as} if m.recorded_as else {})
+            for rm, m in zip(rig.mics, mics)
+        ],
+        "joints": {"names": list(rig.joint_names), "fields": list(rig.joint_fields), "units": list(rig.joint_units)}
+        if rig.joints_file
+        else None,
         "camera": None if images is None else {"image_size": [int(images.shape[1]), int(images.shape[2])]},
         "force": None,
-        "steps": {"clock": clock, "rate": round(rate, 6)} | ({} if rig.mic_window_s is None else {"mic_window_s": rig.mic_window_s}),
-        "audio_format": archive.AUDIO_FORMAT + "".join(f"; {rm.name}: from {m.recorded_as}" for rm, m in zip(rig.mics, mics) if m.recorded_as),
+        "steps": {"clock": clock, "rate": round(rate, 6)}
+        | ({} if rig.mic_window_s is None else {"mic_window_s": rig.mic_window_s}),
+        "audio_format": archive.AUDIO_FORMAT
+        + "".join(f"; {rm.name}: from {m.recorded_as}" for rm, m in zip(rig.mics, mics) if m.recorded_as),
     }
-    notes = {"steps_dropped_before_start": first, "steps_dropped_at_end": n - 1 - last, "ignored_columns": ignored_columns}
+    notes = {
+        "steps_dropped_before_start": first,
+        "steps_dropped_at_end": n - 1 - last,
+        "ignored_columns": ignored_columns,
+    }
     if joint_times is not None:
         notes["joint_gaps"] = stream_gaps(joint_times, times[sel], 1.0 / rate)
     if truncated:
         notes["truncated"] = list(truncated)
-    described = {} if ref is None else {"reference": reference_meta(ref, session_of({**meta_fields, "session": session}), float(times[first]))}
+    described = (
+        {}
+        if ref is None
+        else {"reference": reference_meta(ref, session_of({**meta_fields, "session": session}), float(times[first]))}
+    )
     meta = archive.make_meta(
-        **meta_fields, source=source, image_size=None, streams=streams, closing_steps=0, complete=not truncated, **{"import": notes}, **described,
+        **meta_fields,
+        source=source,
+        image_size=None,
+        streams=streams,
+        closing_steps=0,
+        complete=not truncated,
+        **{"import": notes},
+        **described,
     )
     return archive.TrialArchive(
         meta=meta,
@@ -284,7 +339,9 @@ def align_rig(
     )
 
 
-def import_rig_folder(folder: str | Path, rig: Rig, meta_fields: dict[str, Any], *, session: str | None = None) -> archive.TrialArchive:
+def import_rig_folder(
+    folder: str | Path, rig: Rig, meta_fields: dict[str, Any], *, session: str | None = None
+) -> archive.TrialArchive:
     """One trial folder of the rig (module docstring) as an archive; `session`: the session whose
     camera reference the trial shares (meta.reference.session; default `alignment.session_of`)."""
     folder = Path(folder)
@@ -302,7 +359,17 @@ def import_rig_folder(folder: str | Path, rig: Rig, meta_fields: dict[str, Any],
         frame_times, images = read_camera(folder)  # the hand folders' camera reader
         check_seconds(frame_times, folder / "frames.csv", "time", mics)
         named = None if rig.reference.name is None else file_reference(folder, rig.reference, images.shape[1:3])
-    return align_rig(rig, mics=mics, joint_times=joint_times, joints=joints, frame_times=frame_times, images=images,
-                     meta_fields=meta_fields, source={"kind": "rig_folder", "path": str(folder)}, ignored_columns=ignored,
-                     truncated=[m.file for m, s in zip(rig.mics, mics) if s.truncated], named=named, session=session)
-
+    return align_rig(
+        rig,
+        mics=mics,
+        joint_times=joint_times,
+        joints=joints,
+        frame_times=frame_times,
+        images=images,
+        meta_fields=meta_fields,
+        source={"kind": "rig_folder", "path": str(folder)},
+        ignored_columns=ignored,
+        truncated=[m.file for m, s in zip(rig.mics, mics) if s.truncated],
+        named=named,
+        session=session,
+    )

@@ -103,8 +103,10 @@ def check_mapping(mapping: dict[str, Any], where) -> None:
     problems = []
     try:
         if parse_reference(mapping["camera"], where, topic=True).name == mapping["camera"]["topic"]:
-            problems.append("camera.reference_topic: is camera.topic: the reference is the session's no-contact frames, not the trial's "
-                            "(set reference = \"pre_contact\" to use the trial's first frames)")
+            problems.append(
+                "camera.reference_topic: is camera.topic: the reference is the session's no-contact frames, not the trial's "
+                '(set reference = "pre_contact" to use the trial\'s first frames)'
+            )
     except RecordingImportError as e:
         problems.append(f"{e.field}: {e.problem}")
 
@@ -133,28 +135,40 @@ def check_mapping(mapping: dict[str, Any], where) -> None:
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         problems.append(f"joints.names: must be a list of joint names, got {names!r}")
     elif len(names) != archive.N_JOINTS:
-        problems.append(f"joints.names: expected {archive.N_JOINTS} names (archive order {list(archive.JOINT_NAMES)}), got {len(names)}")
+        problems.append(
+            f"joints.names: expected {archive.N_JOINTS} names (archive order {list(archive.JOINT_NAMES)}), got {len(names)}"
+        )
     elif len(set(names)) != len(names):
         problems.append(f"joints.names: {sorted({n for n in names if names.count(n) > 1})} named more than once")
     if problems:
         raise BagError(where, problems)
 
 
-def _place(name: str, stamps: list[float | None] | None, received: np.ndarray, policy: str, tolerance: float,
-           problems: list[str], topic: str) -> tuple[np.ndarray, dict[str, Any]]:
+def _place(
+    name: str,
+    stamps: list[float | None] | None,
+    received: np.ndarray,
+    policy: str,
+    tolerance: float,
+    problems: list[str],
+    topic: str,
+) -> tuple[np.ndarray, dict[str, Any]]:
     """A stream's times on the receive clock by its clock policy (module docstring), and what was
     done; `stamps` is None for a message type without a header."""
     record: dict[str, Any] = {"clock": policy}
     if stamps is None:
         if policy != "receive":
-            problems.append(f"{name}.clock: {policy!r}, but {topic}'s messages have no header: use \"receive\"")
+            problems.append(f'{name}.clock: {policy!r}, but {topic}\'s messages have no header: use "receive"')
         return received, record
     if not stamps:
         return received, record
     if any(s is None for s in stamps):
         zero = sum(s is None for s in stamps)
         if policy != "receive":
-            record = {"clock": "receive", "note": f"{zero} of {len(stamps)} header stamps are zero: placed by receive time"}
+            record = {
+                "clock": "receive",
+                "note": f"{zero} of {len(stamps)} header stamps are zero: placed by receive time",
+            }
         return received, record
     header = np.asarray(stamps, np.float64)
     offset = float(np.median(received - header))
@@ -166,8 +180,8 @@ def _place(name: str, stamps: list[float | None] | None, received: np.ndarray, p
     if abs(offset) > tolerance:
         problems.append(
             f"{topic}: header.stamp: {abs(offset):.3f} s {'behind' if offset > 0 else 'ahead of'} the bag's receive time "
-            f"(tolerance {tolerance} s): the stamps are on another clock; set clock = \"device\" in the mapping's "
-            f"{name} table to shift them onto the bag's clock, or clock = \"receive\""
+            f'(tolerance {tolerance} s): the stamps are on another clock; set clock = "device" in the mapping\'s '
+            f'{name} table to shift them onto the bag\'s clock, or clock = "receive"'
         )
     return header, record
 
@@ -196,7 +210,10 @@ def read_bag(bag: str | Path, mapping: dict[str, Any]) -> BagStreams:
         files = sorted(p.name for p in bag.iterdir() if p.suffix in (".mcap", ".db3"))
         hint = f"; to read a storage file without it give the file itself: {', '.join(files)}" if files else ""
         raise BagError(bag, [f"metadata.yaml: missing (a rosbag2 folder has one){hint}"])
-    roles = {mapping["camera"]["topic"]: ("camera", rm.IMAGE_TYPES), mapping["joints"]["topic"]: ("joints", rm.JOINT_TYPES)}
+    roles = {
+        mapping["camera"]["topic"]: ("camera", rm.IMAGE_TYPES),
+        mapping["joints"]["topic"]: ("joints", rm.JOINT_TYPES),
+    }
     if reference.name is not None:
         roles[reference.name] = ("camera reference", rm.IMAGE_TYPES)
     for m in archive.MIC_NAMES:
@@ -223,8 +240,13 @@ def read_bag(bag: str | Path, mapping: dict[str, Any]) -> BagStreams:
             found = _only_audio_info(mapping, types)
             for m, topic in found.items():
                 roles[topic] = (f"{m} info", rm.AUDIO_INFO_TYPES)
-                logging.info("%s: the mapping names no info_topic for mics.%s (%s): using the bag's only AudioInfo topic, %s",
-                             bag, m, mapping["mics"][m]["topic"], topic)
+                logging.info(
+                    "%s: the mapping names no info_topic for mics.%s (%s): using the bag's only AudioInfo topic, %s",
+                    bag,
+                    m,
+                    mapping["mics"][m]["topic"],
+                    topic,
+                )
             storage = [c for c in _storage_connections(reader) if c.topic in roles]
             store = rm.typestore_for([*reader.connections, *storage])
             messages: dict[str, list] = {t: [] for t in roles}
@@ -251,19 +273,45 @@ def read_bag(bag: str | Path, mapping: dict[str, Any]) -> BagStreams:
     clocks: dict[str, Any] = {}
     cam = mapping["camera"]
     frame_times, images = _camera(decoded[cam["topic"]], cam, tolerance, problems, clocks)
-    ref = None if reference.name is None else _reference(decoded[reference.name], reference.name, frame_times, images, clocks.get("camera"), problems)
-    joint_times, joints, absent = _joints(decoded[mapping["joints"]["topic"]], mapping["joints"], tolerance, problems, clocks)
+    ref = (
+        None
+        if reference.name is None
+        else _reference(decoded[reference.name], reference.name, frame_times, images, clocks.get("camera"), problems)
+    )
+    joint_times, joints, absent = _joints(
+        decoded[mapping["joints"]["topic"]], mapping["joints"], tolerance, problems, clocks
+    )
     info_topics = {m: mapping["mics"][m].get("info_topic", found.get(m)) for m in archive.MIC_NAMES}
-    mics = [_mic(m, mapping["mics"][m], info_topics[m], decoded, tolerance, problems, clocks) for m in archive.MIC_NAMES]
+    mics = [
+        _mic(m, mapping["mics"][m], info_topics[m], decoded, tolerance, problems, clocks) for m in archive.MIC_NAMES
+    ]
     if problems:
         raise BagError(bag, problems)
     return BagStreams(
-        frame_times=frame_times, images=images, mics=mics, joint_times=joint_times, joints=joints,
-        joint_fields_absent=absent, step_rate=cam.get("rate"), clocks=clocks, reference_source=reference, reference=ref,
-        source={"kind": "ros2_bag", "path": str(bag),
-                "topics": {"camera": cam["topic"], "joints": mapping["joints"]["topic"],
-                           **{m: mapping["mics"][m]["topic"] for m in archive.MIC_NAMES}},
-                **({"audio_info": {m: {"topic": t, "chosen": "the bag's only AudioInfo topic"} for m, t in found.items()}} if found else {})},
+        frame_times=frame_times,
+        images=images,
+        mics=mics,
+        joint_times=joint_times,
+        joints=joints,
+        joint_fields_absent=absent,
+        step_rate=cam.get("rate"),
+        clocks=clocks,
+        reference_source=reference,
+        reference=ref,
+        source={
+            "kind": "ros2_bag",
+            "path": str(bag),
+            "topics": {
+                "camera": cam["topic"],
+                "joints": mapping["joints"]["topic"],
+                **{m: mapping["mics"][m]["topic"] for m in archive.MIC_NAMES},
+            },
+            **(
+                {"audio_info": {m: {"topic": t, "chosen": "the bag's only AudioInfo topic"} for m, t in found.items()}}
+                if found
+                else {}
+            ),
+        },
     )
 
 
@@ -274,8 +322,10 @@ def _only_audio_info(mapping: dict[str, Any], types: dict[str, set[str]]) -> dic
     if len(infos) != 1:
         return {}
     return {
-        m: infos[0] for m in archive.MIC_NAMES
-        if "info_topic" not in mapping["mics"][m] and types.get(mapping["mics"][m]["topic"], set()) & set(RAW_AUDIO_TYPES)
+        m: infos[0]
+        for m in archive.MIC_NAMES
+        if "info_topic" not in mapping["mics"][m]
+        and types.get(mapping["mics"][m]["topic"], set()) & set(RAW_AUDIO_TYPES)
     }
 
 
@@ -303,12 +353,21 @@ def _camera(msgs, table, tolerance, problems, clocks) -> tuple[np.ndarray, np.nd
         problems.append(f"{topic}: data: frames of different sizes {sorted({f.shape for f in frames})}")
         return np.zeros(0), np.zeros((0, 1, 1, 3), np.uint8)
     received = np.array([t for t, _, _ in msgs])
-    times, clocks["camera"] = _place("camera", [rm.header_time(m) for _, _, m in msgs], received,
-                                     table.get("clock", DEFAULT_CLOCK["camera"]), tolerance, problems, topic)
+    times, clocks["camera"] = _place(
+        "camera",
+        [rm.header_time(m) for _, _, m in msgs],
+        received,
+        table.get("clock", DEFAULT_CLOCK["camera"]),
+        tolerance,
+        problems,
+        topic,
+    )
     return times, np.stack(frames)
 
 
-def _reference(msgs, topic: str, frame_times: np.ndarray, images: np.ndarray, camera_clock: dict | None, problems: list[str]) -> ImportedReference | None:
+def _reference(
+    msgs, topic: str, frame_times: np.ndarray, images: np.ndarray, camera_clock: dict | None, problems: list[str]
+) -> ImportedReference | None:
     """The session's no-contact frames on `topic` (module docstring): every frame received up to
     the trial's first camera frame, or the one frame of a topic published once. Their times are
     their header stamps placed as the camera's are ("header": as they are, "device": shifted by the
@@ -321,8 +380,10 @@ def _reference(msgs, topic: str, frame_times: np.ndarray, images: np.ndarray, ca
         problems.append(f"{topic}: no messages: the camera's reference topic holds no frame")
         return None
     if {f.shape for f in frames} != {images.shape[1:]}:
-        problems.append(f"{topic}: data: frames of {sorted({f.shape[:2] for f in frames})} pixels, the camera's are {images.shape[1:3]}: "
-                        "a reference is the camera's own frames, at their size")
+        problems.append(
+            f"{topic}: data: frames of {sorted({f.shape[:2] for f in frames})} pixels, the camera's are {images.shape[1:3]}: "
+            "a reference is the camera's own frames, at their size"
+        )
         return None
     stamps = [rm.header_time(m) for _, _, m in msgs]
     offset = camera_clock.get("receive_minus_header_s", 0.0) if camera_clock["clock"] == "device" else 0.0
@@ -332,14 +393,22 @@ def _reference(msgs, topic: str, frame_times: np.ndarray, images: np.ndarray, ca
     when = times if times is not None else np.array([t for t, _, _ in msgs])
     keep = np.flatnonzero(when <= frame_times.min())
     if not keep.size:
-        problems.append(f"{topic}: none of its {len(frames)} frames comes before the trial's first camera frame "
-                        f"({frame_times.min():.3f} s): a no-contact reference is taken before the trial")
+        problems.append(
+            f"{topic}: none of its {len(frames)} frames comes before the trial's first camera frame "
+            f"({frame_times.min():.3f} s): a no-contact reference is taken before the trial"
+        )
         return None
-    of = (f"{len(keep)} frame{'s' * (len(keep) > 1)}" if len(keep) <= archive.MAX_REFERENCE_FRAMES
-          else f"the last {archive.MAX_REFERENCE_FRAMES} of {len(keep)} frames")
-    keep = keep[-archive.MAX_REFERENCE_FRAMES:]
-    return ImportedReference(np.stack([frames[k] for k in keep]), None if times is None else times[keep],
-                             f"imported: {of} of {topic}, up to the trial's first camera frame")
+    of = (
+        f"{len(keep)} frame{'s' * (len(keep) > 1)}"
+        if len(keep) <= archive.MAX_REFERENCE_FRAMES
+        else f"the last {archive.MAX_REFERENCE_FRAMES} of {len(keep)} frames"
+    )
+    keep = keep[-archive.MAX_REFERENCE_FRAMES :]
+    return ImportedReference(
+        np.stack([frames[k] for k in keep]),
+        None if times is None else times[keep],
+        f"imported: {of} of {topic}, up to the trial's first camera frame",
+    )
 
 
 def _joints(msgs, table, tolerance, problems, clocks) -> tuple[np.ndarray, np.ndarray, list[str]]:
@@ -357,8 +426,15 @@ def _joints(msgs, table, tolerance, problems, clocks) -> tuple[np.ndarray, np.nd
         elif carried < len(joints):  # a field that comes and goes cannot be told from a lost reading
             problems.append(f"{topic}: {ros_field}: carried by {carried} of {len(joints)} messages")
     received = np.array([t for t, _, _ in msgs])
-    times, clocks["joints"] = _place("joints", [rm.header_time(m) for _, _, m in msgs], received,
-                                     table.get("clock", DEFAULT_CLOCK["joints"]), tolerance, problems, topic)
+    times, clocks["joints"] = _place(
+        "joints",
+        [rm.header_time(m) for _, _, m in msgs],
+        received,
+        table.get("clock", DEFAULT_CLOCK["joints"]),
+        tolerance,
+        problems,
+        topic,
+    )
     return times, joints, absent
 
 
@@ -369,26 +445,36 @@ def _audio_format(name: str, table: dict, infos: list[dict], problems: list[str]
     if infos:
         distinct = {tuple(sorted(i.items())) for i in infos}
         if len(distinct) > 1:
-            problems.append(f"{table['topic']}: audio info: the format changes during the recording ({len(distinct)} different AudioInfo)")
+            problems.append(
+                f"{table['topic']}: audio info: the format changes during the recording ({len(distinct)} different AudioInfo)"
+            )
             return None
         info = infos[0]
         if info["coding_format"].lower() not in ("", "wave", "pcm"):
-            problems.append(f"{table['topic']}: coding_format: {info['coding_format']!r} audio is compressed; record "
-                            "audio_common with coding_format wave (raw samples)")
+            problems.append(
+                f"{table['topic']}: coding_format: {info['coding_format']!r} audio is compressed; record "
+                "audio_common with coding_format wave (raw samples)"
+            )
             return None
         if info["sample_format"] not in rm.SAMPLE_FORMATS:
-            problems.append(f"{table['topic']}: sample_format: {info['sample_format']!r} not supported ({', '.join(rm.SAMPLE_FORMATS)})")
+            problems.append(
+                f"{table['topic']}: sample_format: {info['sample_format']!r} not supported ({', '.join(rm.SAMPLE_FORMATS)})"
+            )
             return None
         for key, value in given.items():
             if value is not None and value != info[key]:
-                problems.append(f"{where}.{key if key != 'sample_format' else 'format'}: {value!r} in the mapping, "
-                                f"the bag's AudioInfo says {info[key]!r}")
+                problems.append(
+                    f"{where}.{key if key != 'sample_format' else 'format'}: {value!r} in the mapping, "
+                    f"the bag's AudioInfo says {info[key]!r}"
+                )
                 return None
         given = {k: info[k] for k in given}
     channels = given["channels"] or 1
     channel = table.get("channel", 0)
     if channels > 1 and "channel" not in table:
-        problems.append(f"{where}.channel: missing: the audio has {channels} interleaved channels; name the one this microphone is (0-{channels - 1})")
+        problems.append(
+            f"{where}.channel: missing: the audio has {channels} interleaved channels; name the one this microphone is (0-{channels - 1})"
+        )
         return None
     if channel >= channels:
         problems.append(f"{where}.channel: {channel}, but the audio has {channels} channels")
@@ -420,7 +506,9 @@ def _mic(name, table, info_topic, decoded, tolerance, problems, clocks) -> Chunk
     stamped = all(t in rm.STAMPED_AUDIO_TYPES for _, t, _ in msgs)
     stamps = [rm.header_time(m) for _, _, m in msgs] if stamped else None
     received = np.array([t for t, _, _ in msgs])
-    times, clocks[name] = _place(f"mics.{name}", stamps, received, table.get("clock", DEFAULT_CLOCK["mic"]), tolerance, problems, topic)
+    times, clocks[name] = _place(
+        f"mics.{name}", stamps, received, table.get("clock", DEFAULT_CLOCK["mic"]), tolerance, problems, topic
+    )
     if fmt.rate is None:
         problems.append(f"mics.{name}.rate: missing, and no AudioInfo in the bag gives it (set rate, or info_topic)")
         return Chunks(topic, 0, [], [])
@@ -438,7 +526,9 @@ def import_bag(
     placed on the bag's receive clock by the mapping's clock policy (module docstring), and
     align it (`acquisition.alignment`)."""
     rec = read_bag(bag, mapping)
-    mics = [Stream.from_chunks(c.topic, c.rate, c.times, [to_words(x, c.topic, "data") for x in c.chunks]) for c in rec.mics]
+    mics = [
+        Stream.from_chunks(c.topic, c.rate, c.times, [to_words(x, c.topic, "data") for x in c.chunks]) for c in rec.mics
+    ]
     return align(
         frame_times=rec.frame_times,
         images=rec.images,

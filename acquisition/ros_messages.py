@@ -107,7 +107,9 @@ def decode_image(msg) -> np.ndarray:
     c = IMAGE_ENCODINGS[msg.encoding]
     data = np.asarray(msg.data, np.uint8)
     if msg.step < msg.width * c or data.size != msg.height * msg.step:
-        raise DecodeError("data", f"{data.size} bytes for {msg.height} rows of step {msg.step} ({msg.width} x {c} channels)")
+        raise DecodeError(
+            "data", f"{data.size} bytes for {msg.height} rows of step {msg.step} ({msg.width} x {c} channels)"
+        )
     img = data.reshape(msg.height, msg.step)[:, : msg.width * c].reshape(msg.height, msg.width, c)
     if msg.encoding in BGR_ENCODINGS:
         return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
@@ -126,8 +128,12 @@ class AudioFormat:
 
 def info_fields(info) -> dict[str, Any]:
     """The fields of an audio_common AudioInfo that say how to read the bytes."""
-    return {"sample_format": str(info.sample_format), "channels": int(info.channels), "rate": int(info.sample_rate),
-            "coding_format": str(info.coding_format)}
+    return {
+        "sample_format": str(info.sample_format),
+        "channels": int(info.channels),
+        "rate": int(info.sample_rate),
+        "coding_format": str(info.coding_format),
+    }
 
 
 def audio_payload(msg, msgtype: str) -> tuple[np.ndarray, Any]:
@@ -146,12 +152,18 @@ def decode_audio(payload: np.ndarray, fmt: AudioFormat) -> np.ndarray:
     channels split, `fmt.channel` kept."""
     if payload.dtype == np.uint8:
         if fmt.sample_format is None:
-            raise DecodeError("sample_format", "raw audio bytes (uint8[]) need a sample format: give format in the "
-                              "mapping or an AudioInfo topic as info_topic")
+            raise DecodeError(
+                "sample_format",
+                "raw audio bytes (uint8[]) need a sample format: give format in the "
+                "mapping or an AudioInfo topic as info_topic",
+            )
         dtype = SAMPLE_FORMATS[fmt.sample_format]
         frame = dtype.itemsize * fmt.channels
         if payload.size % frame:
-            raise DecodeError("data", f"{payload.size} bytes is not a whole number of {fmt.channels}-channel {fmt.sample_format} frames")
+            raise DecodeError(
+                "data",
+                f"{payload.size} bytes is not a whole number of {fmt.channels}-channel {fmt.sample_format} frames",
+            )
         payload = payload.view(dtype).astype(dtype.newbyteorder("="))
     if payload.size % fmt.channels:
         raise DecodeError("data", f"{payload.size} samples is not a whole number of {fmt.channels}-channel frames")
@@ -166,7 +178,9 @@ def joint_row(msg, names: list[str]) -> np.ndarray:
     if missing:
         raise DecodeError("name", f"joints {missing} not in the message (it has {list(msg.name)})")
     row = np.full((archive.N_JOINTS, archive.N_JOINT_FIELDS), np.nan)
-    for f, (field, values) in enumerate(zip(("position", "velocity", "effort"), (msg.position, msg.velocity, msg.effort))):
+    for f, (field, values) in enumerate(
+        zip(("position", "velocity", "effort"), (msg.position, msg.velocity, msg.effort))
+    ):
         if len(values) == 0:
             continue
         if len(values) != len(msg.name):

@@ -116,8 +116,12 @@ class ServoBus:
         return archive.JOINT_NAMES[self.ids.index(servo_id)] if servo_id in self.ids else "bus"
 
     def _fail(self, servo_id: int, register: int, result: int, error: int = 0) -> ServoError:
-        problem = self.packet.getTxRxResult(result) if result != scs.COMM_SUCCESS else self.packet.getRxPacketError(error)
-        return ServoError(servo_id, self._joint(servo_id), register, f"{problem.split('] ')[-1]} (after {self.retries + 1} tries)")
+        problem = (
+            self.packet.getTxRxResult(result) if result != scs.COMM_SUCCESS else self.packet.getRxPacketError(error)
+        )
+        return ServoError(
+            servo_id, self._joint(servo_id), register, f"{problem.split('] ')[-1]} (after {self.retries + 1} tries)"
+        )
 
     def _recover(self) -> None:
         """Let a late or garbled reply finish, then drop it so the retry starts on a clean line."""

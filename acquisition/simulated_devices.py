@@ -144,7 +144,9 @@ class SimServoBus:
                     continue
                 self._set_state(i, self.joints[step, self.ids.index(i)])
                 f = self.faults.corrupt_servo
-                corrupt = f is not None and f[0] == i and self.sync_reads >= f[1] and (self.sync_reads - f[1]) % f[2] == 0
+                corrupt = (
+                    f is not None and f[0] == i and self.sync_reads >= f[1] and (self.sync_reads - f[1]) % f[2] == 0
+                )
                 out += _status(i, bytes(self.memory[i][address : address + length]), corrupt=corrupt)
             return out
         if instruction == scs.INST_SYNC_WRITE:
@@ -254,7 +256,8 @@ def _devices_main(pipe, signals_path: str, faults: Faults) -> None:
     result: dict = {}
     send = chunked_sender(faults.seed) if faults.tcp_chunks else wire.send_all
     sender = threading.Thread(
-        target=lambda: result.update(wire.serve(paced_periods(audio, faults), listener=listener, send=send)), daemon=True
+        target=lambda: result.update(wire.serve(paced_periods(audio, faults), listener=listener, send=send)),
+        daemon=True,
     )
     sender.start()
     pipe.send((bus.path, listener.getsockname()[1]))
@@ -310,9 +313,20 @@ def simulated_rig(signals: SimulatedSignals, faults: Faults = Faults(), *, servo
                 **signals.source,
             }
             scene = signals.source.get("scene", {})
-            session = Reference(reference[None], f"day{scene.get('day', 1)}_{scene.get('condition', 'lab')}",
-                                "simulated devices: the session's no-contact frame after the camera's warm-up, through the camera's codec", None)
-            rig = Rig(bus=bus, camera=Camera(str(video)), mics=MicReceiver("127.0.0.1", port), force=force, source=source, reference=session)
+            session = Reference(
+                reference[None],
+                f"day{scene.get('day', 1)}_{scene.get('condition', 'lab')}",
+                "simulated devices: the session's no-contact frame after the camera's warm-up, through the camera's codec",
+                None,
+            )
+            rig = Rig(
+                bus=bus,
+                camera=Camera(str(video)),
+                mics=MicReceiver("127.0.0.1", port),
+                force=force,
+                source=source,
+                reference=session,
+            )
             yield rig
         finally:
             if rig is not None:

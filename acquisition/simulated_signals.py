@@ -27,10 +27,20 @@ def procedure(n_cycles: int = 50) -> ExploratoryProcedure:
     return ExploratoryProcedure(n_cycles=n_cycles, cycle_s=1.0 / calibration.CYCLE_HZ)
 
 
-def trial_signals(fabric_id: int, day: int = 1, trial: int = 0, *, n_cycles: int = 50, condition: str = "lab", seed: int = 0) -> SimulatedSignals:
+def trial_signals(
+    fabric_id: int, day: int = 1, trial: int = 0, *, n_cycles: int = 50, condition: str = "lab", seed: int = 0
+) -> SimulatedSignals:
     """Simulate the trial with every effect and all streams, and package it for the devices."""
-    scene = sim.Scene(fabric_id=fabric_id, day=day, trial=trial, condition=condition, streams=sim.STREAMS,
-                      image_size=camera_mod.IMAGE_SIZE, cycles=n_cycles, seed=seed)
+    scene = sim.Scene(
+        fabric_id=fabric_id,
+        day=day,
+        trial=trial,
+        condition=condition,
+        streams=sim.STREAMS,
+        image_size=camera_mod.IMAGE_SIZE,
+        cycles=n_cycles,
+        seed=seed,
+    )
     trial_archive = sim.simulate(scene)
     return SimulatedSignals(
         joints=trial_archive.joints,
@@ -47,5 +57,7 @@ def bench_acquisition(seconds: float = 10.0, fabric_id: int = 12) -> dict:
     cycles = max(1, round(seconds * calibration.CYCLE_HZ))
     signals = trial_signals(fabric_id, n_cycles=cycles)
     with simulated_devices.simulated_rig(signals) as rig:
-        rec = recorder.record_trial(rig, procedure(cycles), fabric_id=fabric_id, day=1, trial=0, out_dir=".", write=False)
+        rec = recorder.record_trial(
+            rig, procedure(cycles), fabric_id=fabric_id, day=1, trial=0, out_dir=".", write=False
+        )
     return rec.archive.meta["step_time"] | {"mic_stream": rec.archive.meta["mic_stream"], "failure": rec.failure}

@@ -29,15 +29,30 @@ FRAME_BYTES = 4 * CHANNELS
 
 def arecord_periods(device: str, period: int = PERIOD) -> Iterable[bytes]:
     """Raw S32_LE stereo periods read from ALSA; paced by the sound card itself."""
-    cmd = ["arecord", "-D", device, "-c", str(CHANNELS), "-r", str(RATE), "-f", "S32_LE", "-t", "raw",
-           f"--period-size={period}", "-q"]
+    cmd = [
+        "arecord",
+        "-D",
+        device,
+        "-c",
+        str(CHANNELS),
+        "-r",
+        str(RATE),
+        "-f",
+        "S32_LE",
+        "-t",
+        "raw",
+        f"--period-size={period}",
+        "-q",
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE)
     try:
         size = period * FRAME_BYTES
         while True:
             block = proc.stdout.read(size)
             if len(block) < size:
-                raise RuntimeError(f"arecord ended (exit code {proc.poll()}); check the I2S overlay and device {device}")
+                raise RuntimeError(
+                    f"arecord ended (exit code {proc.poll()}); check the I2S overlay and device {device}"
+                )
             yield block
     finally:
         proc.terminate()

@@ -22,9 +22,14 @@ from fabricjax.bench import suite as bench
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_list("only", None, f"benchmarks to run (default all): {','.join(bench.BENCHMARKS)}")
-absl_flags.DEFINE_bool("quick", False, "a small model (fabricjax/bench/suite.QUICK_WORKLOAD), smaller sizes and fewer repeats: a smoke check")
+absl_flags.DEFINE_bool(
+    "quick",
+    False,
+    "a small model (fabricjax/bench/suite.QUICK_WORKLOAD), smaller sizes and fewer repeats: a smoke check",
+)
 absl_flags.DEFINE_list(
-    "train_seeds", ["1", "5"],
+    "train_seeds",
+    ["1", "5"],
     "seed counts of the training benchmark (must include 1); each is split over the CPU devices as training "
     "splits it (sharding.training_mesh)",
 )
@@ -37,7 +42,11 @@ def main(argv):
         raise app.UsageError(f"--train_seeds must be positive and include 1, got {FLAGS.train_seeds}")
     workload = dataclasses.replace(bench.QUICK_WORKLOAD if FLAGS.quick else bench.Workload(), seeds=seeds)
     bench.run(
-        only=FLAGS.only, quick=FLAGS.quick, workload=workload, acquisition=bench_acquisition, importer=bench_import,
+        only=FLAGS.only,
+        quick=FLAGS.quick,
+        workload=workload,
+        acquisition=bench_acquisition,
+        importer=bench_import,
         where=flags.location(),
     )
 

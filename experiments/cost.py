@@ -1,7 +1,7 @@
 """What accuracy costs in touch time, training time and inference latency (see fabricjax/studies/extra/cost.py).
 
-    python -m experiments.cost --seeds=5     # default preset: 15 points, <= 20 min on 2 CPU cores
-    python -m experiments.cost --set=seq_len=25 --set=epochs=4   # base point's N, any Config field
+python -m experiments.cost --seeds=5     # default preset: 15 points, <= 20 min on 2 CPU cores
+python -m experiments.cost --set=seq_len=25 --set=epochs=4   # base point's N, any Config field
 """
 
 from absl import flags as absl_flags
@@ -14,15 +14,22 @@ FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_integer("seeds", 5, "seeds (0..n-1) trained together per point")
 flags.define_preset()
 flags.define_overrides()
-absl_flags.DEFINE_list("seq_lens", ["25", "50", "100", "200"], "sequence lengths N (steps at 50 Hz), each with every backbone")
+absl_flags.DEFINE_list(
+    "seq_lens", ["25", "50", "100", "200"], "sequence lengths N (steps at 50 Hz), each with every backbone"
+)
 absl_flags.DEFINE_list("backbones", list(BACKBONES), "backbones; the first is the base point's")
 absl_flags.DEFINE_list("widths", ["32", "128"], "model widths varied alone (FFN = 2 x width); empty: none")
 absl_flags.DEFINE_list("bandwidths", ["2.5", "24"], "PSD bandwidths [kHz] varied alone; empty: none")
 absl_flags.DEFINE_list(
-    "modality_sets", ["internal+external", "internal", "internal+external+proprio"],
+    "modality_sets",
+    ["internal+external", "internal", "internal+external+proprio"],
     "modality sets joined by '+'; the first is the base point's, the others are varied alone",
 )
-absl_flags.DEFINE_bool("paper", True, "add the paper's configuration (N=200 capped to the trials, attention, width 64, 15 kHz, internal+external)")
+absl_flags.DEFINE_bool(
+    "paper",
+    True,
+    "add the paper's configuration (N=200 capped to the trials, attention, width 64, 15 kHz, internal+external)",
+)
 absl_flags.DEFINE_integer("latency_repeats", 100, "timed predict_one calls per point")
 
 

@@ -14,8 +14,14 @@ from experiments import flags
 from fabricjax.errors import UserError
 from fabricjax.studies.extra import decide
 
-CHECKPOINT = absl_flags.DEFINE_list("checkpoint", [], "checkpoint directories (default: a quick model of --preset, as experiments.stream)")
-UNKNOWN = absl_flags.DEFINE_list("unknown_labels", [], "fabric ids (archives' meta.fabric_id) whose test trials are the unknowns, beside the model's excluded fabrics")
+CHECKPOINT = absl_flags.DEFINE_list(
+    "checkpoint", [], "checkpoint directories (default: a quick model of --preset, as experiments.stream)"
+)
+UNKNOWN = absl_flags.DEFINE_list(
+    "unknown_labels",
+    [],
+    "fabric ids (archives' meta.fabric_id) whose test trials are the unknowns, beside the model's excluded fabrics",
+)
 flags.define_preset()
 flags.define_overrides()
 
@@ -26,7 +32,13 @@ def main(argv):
         unknown = [int(x) for x in UNKNOWN.value]
     except ValueError:
         raise UserError(f"--unknown_labels: {UNKNOWN.value} are not all integers (fabric ids)") from None
-    decide.run(CHECKPOINT.value, preset=flags.FLAGS.preset, overrides=flags.overrides(), unknown_labels=unknown, where=flags.location())
+    decide.run(
+        CHECKPOINT.value,
+        preset=flags.FLAGS.preset,
+        overrides=flags.overrides(),
+        unknown_labels=unknown,
+        where=flags.location(),
+    )
 
 
 if __name__ == "__main__":

@@ -19,7 +19,9 @@ from fabricjax.sim import estimates
 
 FLAGS = flags.FLAGS
 flags.DEFINE_bool("check", False, "only compare: exit 1 if the document's block differs from the registry")
-flags.DEFINE_string("doc", str(Path(__file__).parents[1] / "docs" / "simulator.md"), "the document holding the table's markers")
+flags.DEFINE_string(
+    "doc", str(Path(__file__).parents[1] / "docs" / "simulator.md"), "the document holding the table's markers"
+)
 
 
 def main(argv):
@@ -32,13 +34,19 @@ def main(argv):
         cli.fail(f"{path}: {e}")
     if FLAGS.check:
         if new != text:
-            print(f"{path}: the estimates table differs from fabricjax/sim/estimates.py; run python -m experiments.estimates", file=sys.stderr)
+            print(
+                f"{path}: the estimates table differs from fabricjax/sim/estimates.py; run python -m experiments.estimates",
+                file=sys.stderr,
+            )
             sys.exit(1)
         print(f"{path}: the estimates table is up to date ({len(estimates.ESTIMATES)} estimates)")
         return
     if new != text:
         path.write_text(new)
-    print(f"{path}: {len(estimates.ESTIMATES)} estimates in {len(estimates.GROUPS)} groups" + ("" if new != text else " (unchanged)"))
+    print(
+        f"{path}: {len(estimates.ESTIMATES)} estimates in {len(estimates.GROUPS)} groups"
+        + ("" if new != text else " (unchanged)")
+    )
 
 
 if __name__ == "__main__":

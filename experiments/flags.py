@@ -31,31 +31,46 @@ if TYPE_CHECKING:
 
 FLAGS = flags.FLAGS
 
-flags.DEFINE_string("workdir", None, "workspace root: datasets, features, checkpoints (default $FABRICJAX_WORKDIR or ./workspace)")
 flags.DEFINE_string(
-    "data_dir", None,
+    "workdir", None, "workspace root: datasets, features, checkpoints (default $FABRICJAX_WORKDIR or ./workspace)"
+)
+flags.DEFINE_string(
+    "data_dir",
+    None,
     "a folder of real recorded trial archives, only read (its index is kept under the workspace); default: the preset's simulated dataset",
 )
 flags.DEFINE_string(
-    "results", None,
+    "results",
+    None,
     "where <study>.md/.json and figures are written (default: <workspace>/results; --results=results regenerates "
     "the tables published in the repository)",
 )
 flags.DEFINE_integer(
-    "cpu_devices", None,
+    "cpu_devices",
+    None,
     "CPU devices for JAX (default: one per core, so that seeds or minibatch samples train on separate cores; "
     "1, the default of experiments.stream and experiments.cost: a single device whose ops share the cores, "
     "the lowest latency for one sequence)",
 )
 
 flags.DEFINE_bool(
-    "distributed", False,
+    "distributed",
+    False,
     "join a run over several processes (hosts), each started with the same command: jax.distributed.initialize() "
     "reads a cluster's environment (SLURM, Open MPI, ...); elsewhere give --coordinator_address, --num_processes and --process_id",
 )
-flags.DEFINE_string("coordinator_address", None, "host:port of process 0 of a --distributed run outside a cluster scheduler")
-flags.DEFINE_integer("num_processes", None, "number of processes of a --distributed run outside a cluster scheduler", lower_bound=1)
-flags.DEFINE_integer("process_id", None, "this process's index (0..num_processes-1) in a --distributed run outside a cluster scheduler", lower_bound=0)
+flags.DEFINE_string(
+    "coordinator_address", None, "host:port of process 0 of a --distributed run outside a cluster scheduler"
+)
+flags.DEFINE_integer(
+    "num_processes", None, "number of processes of a --distributed run outside a cluster scheduler", lower_bound=1
+)
+flags.DEFINE_integer(
+    "process_id",
+    None,
+    "this process's index (0..num_processes-1) in a --distributed run outside a cluster scheduler",
+    lower_bound=0,
+)
 
 PROCESS_FLAGS = ("coordinator_address", "num_processes", "process_id")
 
@@ -107,9 +122,15 @@ def results_dir() -> Path:
 def define_rows(row_names: Sequence[str], n_seeds: int) -> None:
     """The flags of a command that trains rows: --seeds (default `n_seeds`), --preset, --rows
     (from `row_names`) and --set."""
-    flags.DEFINE_integer("seeds", n_seeds, "number of seeds (0..n-1) trained together (the study's count by default)", lower_bound=1)
+    flags.DEFINE_integer(
+        "seeds", n_seeds, "number of seeds (0..n-1) trained together (the study's count by default)", lower_bound=1
+    )
     define_preset()
-    flags.DEFINE_list("rows", None, f"comma-separated rows, each by its name or by the label the tables print, in any case; names: {', '.join(row_names)} (default: every row of the table)")
+    flags.DEFINE_list(
+        "rows",
+        None,
+        f"comma-separated rows, each by its name or by the label the tables print, in any case; names: {', '.join(row_names)} (default: every row of the table)",
+    )
     define_overrides()
 
 
@@ -118,7 +139,11 @@ def study_command(study: Study) -> None:
     its flags, then `study.run` with them."""
     define_rows(study.row_names, study.n_seeds)
 
-    flags.DEFINE_bool("plan", False, "print what the run needs (disk and time per stage) and stop; with --results also write plan.md there")
+    flags.DEFINE_bool(
+        "plan",
+        False,
+        "print what the run needs (disk and time per stage) and stop; with --results also write plan.md there",
+    )
 
     def main(argv):
         del argv
@@ -131,7 +156,11 @@ def rows_study_command(study) -> None:
     """The whole command line of a deterministic study over named rows (the probe, the day shift):
     --preset, --rows (from `study.ROWS`) and --set, then `study.run` with them."""
     define_preset()
-    flags.DEFINE_list("rows", None, f"comma-separated rows, each by its name or by the label the tables print, in any case; names: {', '.join(r.name for r in study.ROWS)} (default: every row)")
+    flags.DEFINE_list(
+        "rows",
+        None,
+        f"comma-separated rows, each by its name or by the label the tables print, in any case; names: {', '.join(r.name for r in study.ROWS)} (default: every row)",
+    )
     define_overrides()
 
     def main(argv):
@@ -142,12 +171,16 @@ def rows_study_command(study) -> None:
 
 
 def define_preset() -> None:
-    flags.DEFINE_enum("preset", "default", sorted(presets.PRESETS), "dataset and training preset (fabricjax/presets.py)")
+    flags.DEFINE_enum(
+        "preset", "default", sorted(presets.PRESETS), "dataset and training preset (fabricjax/presets.py)"
+    )
 
 
 def define_overrides() -> None:
     flags.DEFINE_multi_string(
-        "set", [], "override a Config field on top of the preset, field=value (repeatable), e.g. --set=seq_len=100 "
+        "set",
+        [],
+        "override a Config field on top of the preset, field=value (repeatable), e.g. --set=seq_len=100 "
         "--set=compute_dtype=bfloat16; a field the command's rows set themselves is refused (choose those with --rows)",
     )
 
@@ -170,7 +203,9 @@ def rows_kwargs() -> dict[str, Any]:
 
 def location() -> workspace.Location:
     """Where data and results live, and the command line (recorded in every results file)."""
-    return workspace.Location(workdir=FLAGS.workdir, data_dir=FLAGS.data_dir, results=results_dir(), command=command_line())
+    return workspace.Location(
+        workdir=FLAGS.workdir, data_dir=FLAGS.data_dir, results=results_dir(), command=command_line()
+    )
 
 
 def command_line() -> str:

@@ -1,6 +1,6 @@
 """The cafe-noise table, Wilcoxon against the preceding row (see fabricjax/studies/paper/noise.py).
 
-    python -m experiments.noise --seeds=10
+python -m experiments.noise --seeds=10
 """
 
 from experiments import flags

@@ -1,6 +1,6 @@
 """Property perception on training and holdout fabrics, checkpointed (see fabricjax/studies/paper/properties.py).
 
-    python -m experiments.properties --seeds=5
+python -m experiments.properties --seeds=5
 """
 
 from experiments import flags

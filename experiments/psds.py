@@ -34,7 +34,11 @@ def mean_psd(audio_row: np.ndarray, window_end: np.ndarray) -> tuple[np.ndarray,
 
 def class_psds(preset_name: str) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
     dataset = presets.get(preset_name).dataset
-    specs = [s for s in dataset.trials() if s.day == dataset.splits.train_days[0] and s.trial == 0 and s.fabric_id < catalog.N_CLASSES]
+    specs = [
+        s
+        for s in dataset.trials()
+        if s.day == dataset.splits.train_days[0] and s.trial == 0 and s.fabric_id < catalog.N_CLASSES
+    ]
     psds = {}
     for spec in sorted(specs, key=lambda s: s.fabric_id):
         arch = simulate(scene_for(spec, dataset, ("audio", "proprio")))

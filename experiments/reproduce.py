@@ -1,9 +1,9 @@
 """Every study of the paper in order, skipping those up to date, and one report (see fabricjax/studies/tools/reproduce.py).
 
-    python -m experiments.reproduce                      # default preset, into workspace/results/REPORT.md
-    python -m experiments.reproduce --results=results    # regenerates the repository's results/REPORT.md
-    python -m experiments.reproduce --set=epochs=4       # any Config field, for every study
-    python -m experiments.reproduce --check --results=results   # runs nothing: lists the stale studies and their files, exit 1 if any
+python -m experiments.reproduce                      # default preset, into workspace/results/REPORT.md
+python -m experiments.reproduce --results=results    # regenerates the repository's results/REPORT.md
+python -m experiments.reproduce --set=epochs=4       # any Config field, for every study
+python -m experiments.reproduce --check --results=results   # runs nothing: lists the stale studies and their files, exit 1 if any
 """
 
 import sys
@@ -16,11 +16,18 @@ from fabricjax.studies.tools import reproduce
 
 flags.define_preset()
 flags.define_overrides()
-STUDIES = absl_flags.DEFINE_list("studies", None, f"comma-separated studies to run, from: {', '.join(reproduce.STUDIES)} (default: all, in that order)")
+STUDIES = absl_flags.DEFINE_list(
+    "studies",
+    None,
+    f"comma-separated studies to run, from: {', '.join(reproduce.STUDIES)} (default: all, in that order)",
+)
 FORCE = absl_flags.DEFINE_bool("force", False, "rerun every study, even those whose results are up to date")
 CHECK = absl_flags.DEFINE_bool(
-    "check", False, "run nothing: list the studies of --results whose fingerprints (code, simulator estimates, --data_dir's data) "
-    "no longer match today's, with their files; exit status 1 if any")
+    "check",
+    False,
+    "run nothing: list the studies of --results whose fingerprints (code, simulator estimates, --data_dir's data) "
+    "no longer match today's, with their files; exit status 1 if any",
+)
 
 
 def main(argv):
@@ -34,7 +41,13 @@ def main(argv):
         if unknown:
             raise UserError(f"--studies: unknown {unknown}; choose from {known}")
         plan = tuple(s for s in plan if s.study in STUDIES.value)
-    reproduce.run(preset=absl_flags.FLAGS.preset, plan=plan, overrides=flags.overrides(), force=FORCE.value, where=flags.location())
+    reproduce.run(
+        preset=absl_flags.FLAGS.preset,
+        plan=plan,
+        overrides=flags.overrides(),
+        force=FORCE.value,
+        where=flags.location(),
+    )
 
 
 if __name__ == "__main__":

@@ -15,13 +15,21 @@ from fabricjax.studies.extra import sensitivity
 
 PRESET = absl_flags.DEFINE_string("preset", sensitivity.PRESET, "the preset simulated at every point")
 TRAJECTORIES = absl_flags.DEFINE_integer("trajectories", sensitivity.TRAJECTORIES, "Morris trajectories", lower_bound=1)
-GROUPS = absl_flags.DEFINE_list("groups", None, "the groups of estimates screened (default: every group of fabricjax/sim/estimates.py)")
+GROUPS = absl_flags.DEFINE_list(
+    "groups", None, "the groups of estimates screened (default: every group of fabricjax/sim/estimates.py)"
+)
 SEED = absl_flags.DEFINE_integer("seed", 0, "seed of the Morris design")
 
 
 def main(argv):
     del argv
-    sensitivity.run(preset=PRESET.value, trajectories=TRAJECTORIES.value, groups=GROUPS.value, seed=SEED.value, where=flags.location())
+    sensitivity.run(
+        preset=PRESET.value,
+        trajectories=TRAJECTORIES.value,
+        groups=GROUPS.value,
+        seed=SEED.value,
+        where=flags.location(),
+    )
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """Write a preset's simulated dataset (archives + index.json), resuming where a run stopped.
 
-    python -m experiments.simulate --preset=default [--streams=audio,proprio,images] [--workdir=...]
+python -m experiments.simulate --preset=default [--streams=audio,proprio,images] [--workdir=...]
 """
 
 from __future__ import annotations
@@ -21,7 +21,9 @@ flags.DEFINE_integer("seed", 0, "simulator seed")
 
 def main(argv):
     del argv
-    folder = ensure_dataset(FLAGS.preset, FLAGS.workdir, tuple(FLAGS.streams), progress=True, workers=FLAGS.workers, seed=FLAGS.seed)
+    folder = ensure_dataset(
+        FLAGS.preset, FLAGS.workdir, tuple(FLAGS.streams), progress=True, workers=FLAGS.workers, seed=FLAGS.seed
+    )
     print(f"dataset ready: {folder}")
 
 

@@ -18,13 +18,21 @@ from experiments import flags
 from fabricjax.studies.tools import stream
 
 FLAGS = absl_flags.FLAGS
-absl_flags.DEFINE_string("archive", None, "trial archive to replay (default: the first test-day trial of the model's dataset)")
-absl_flags.DEFINE_string("checkpoint", None, "checkpoint directory of a train_and_evaluate run (default: a quick model of --preset)")
+absl_flags.DEFINE_string(
+    "archive", None, "trial archive to replay (default: the first test-day trial of the model's dataset)"
+)
+absl_flags.DEFINE_string(
+    "checkpoint", None, "checkpoint directory of a train_and_evaluate run (default: a quick model of --preset)"
+)
 flags.define_preset()
 flags.define_overrides()
 absl_flags.DEFINE_bool("realtime", True, "replay at 50 Hz; false: as fast as possible")
-absl_flags.DEFINE_integer("print_every", 0, "also print every k-th step's prediction (default 0: the summary only)", lower_bound=0)
-absl_flags.DEFINE_bool("view", False, "stream the trial's sensors and each step's prediction, confidence and latency to the Rerun viewer")
+absl_flags.DEFINE_integer(
+    "print_every", 0, "also print every k-th step's prediction (default 0: the summary only)", lower_bound=0
+)
+absl_flags.DEFINE_bool(
+    "view", False, "stream the trial's sensors and each step's prediction, confidence and latency to the Rerun viewer"
+)
 absl_flags.DEFINE_string("view_save", None, "log what --view shows to this .rrd file instead (no viewer needed)")
 
 

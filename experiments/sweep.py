@@ -17,7 +17,9 @@ from fabricjax.studies.paper import ablation
 
 FLAGS = absl_flags.FLAGS
 flags.define_rows(ablation.STUDY.row_names, sweep.N_SEEDS)
-absl_flags.DEFINE_multi_string("grid", [], f"a swept Config field, repeatable (the points are the cartesian product): {sweep.GRID_HELP}")
+absl_flags.DEFINE_multi_string(
+    "grid", [], f"a swept Config field, repeatable (the points are the cartesian product): {sweep.GRID_HELP}"
+)
 absl_flags.DEFINE_integer("latency_repeats", 100, "timed predict_one calls per point and row", lower_bound=1)
 
 

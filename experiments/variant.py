@@ -10,8 +10,12 @@ from absl import flags as absl_flags
 from experiments import flags
 from fabricjax.studies.tools import variant
 
-BASELINE = absl_flags.DEFINE_string("baseline", None, "the baseline's results JSON (e.g. results/ablation.json)", required=True)
-VARIANT = absl_flags.DEFINE_string("variant", None, "the variant's results JSON, the same study rerun with --set changes", required=True)
+BASELINE = absl_flags.DEFINE_string(
+    "baseline", None, "the baseline's results JSON (e.g. results/ablation.json)", required=True
+)
+VARIANT = absl_flags.DEFINE_string(
+    "variant", None, "the variant's results JSON, the same study rerun with --set changes", required=True
+)
 
 
 def main(argv):

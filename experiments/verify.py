@@ -28,13 +28,21 @@ def main(argv):
     problems, counts = integrity.verify(argv[1], FLAGS.workdir)
     for p in problems:
         print(p)
-    hashed = (f"{counts['hashed']} hashed against {counts['index']}" if counts["index"] else
-              f"no index of {argv[1]} in this workspace, so no hashes to check: import_manifest and the first study reading it write one")
-    print(f"{counts['archives']} archives checked ({hashed}): {len(problems) or 'no'} problem{'s' * (len(problems) != 1)}")
+    hashed = (
+        f"{counts['hashed']} hashed against {counts['index']}"
+        if counts["index"]
+        else f"no index of {argv[1]} in this workspace, so no hashes to check: import_manifest and the first study reading it write one"
+    )
+    print(
+        f"{counts['archives']} archives checked ({hashed}): {len(problems) or 'no'} problem{'s' * (len(problems) != 1)}"
+    )
     for f in counts["failures"]:
         print(f)
     if counts["failures"]:
-        print(f"verify failed on {len(counts['failures'])} file{'s' * (len(counts['failures']) != 1)} (a bug of verify: the lines above name them)", file=sys.stderr)
+        print(
+            f"verify failed on {len(counts['failures'])} file{'s' * (len(counts['failures']) != 1)} (a bug of verify: the lines above name them)",
+            file=sys.stderr,
+        )
         sys.exit(2)
     if problems:
         sys.exit(1)

@@ -16,12 +16,16 @@ from fabricjax import view
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_string("save", None, "write the recording to this .rrd file instead of opening the viewer")
-absl_flags.DEFINE_string("checkpoint", None, "checkpoint directory of a streamable train_and_evaluate run (audio / proprioception)")
+absl_flags.DEFINE_string(
+    "checkpoint", None, "checkpoint directory of a streamable train_and_evaluate run (audio / proprioception)"
+)
 
 
 def main(argv):
     if len(argv) != 2:
-        cli.fail("give exactly one trial archive: python -m experiments.view ARCHIVE [--save=trial.rrd] [--checkpoint=DIR]")
+        cli.fail(
+            "give exactly one trial archive: python -m experiments.view ARCHIVE [--save=trial.rrd] [--checkpoint=DIR]"
+        )
     doc = view.view_archive(argv[1], checkpoint=FLAGS.checkpoint, save=FLAGS.save)
     summary = f"{doc['archive']}: {doc['steps']} steps" + ("" if doc["frames"] else " (no camera frames)")
     if "accuracy_over_decided_steps" in doc:

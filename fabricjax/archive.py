@@ -134,11 +134,26 @@ _COMMON_META = {
     "complete": bool,
 }
 REQUIRED_META = {  # by format version; an int is never a bool, a float is finite
-    1: {**_COMMON_META, "day": int, "sample_rates": dict, "image_size": (list, type(None)), "joint_names": list, "units": dict},
+    1: {
+        **_COMMON_META,
+        "day": int,
+        "sample_rates": dict,
+        "image_size": (list, type(None)),
+        "joint_names": list,
+        "units": dict,
+    },
     2: {**_COMMON_META, "day": (int, type(None)), "streams": dict},
 }
 REQUIRED_META[3] = REQUIRED_META[2]  # format 3 adds the optional session reference
-OPTIONAL_META = {"closing_steps": int, "label_name": str, "label_map": dict, "split": (str, type(None)), "import": dict, "force_proxy": dict, "reference": dict}
+OPTIONAL_META = {
+    "closing_steps": int,
+    "label_name": str,
+    "label_map": dict,
+    "split": (str, type(None)),
+    "import": dict,
+    "force_proxy": dict,
+    "reference": dict,
+}
 # Bounds of what a reader accepts, checked before the bytes they bound are parsed or inflated: a
 # damaged or hostile file is an ArchiveError, never a reader that runs out of memory or time.
 MAX_META_CHARS = 1 << 20  # characters of meta JSON (a meta is a few kB)
@@ -223,15 +238,22 @@ class Layout:
 
     def describe(self) -> str:
         """One line: what the data has."""
-        mics = ", ".join(f"{m.name} ({m.rate} Hz" + (f", feeds {m.role})" if m.role else ", feeds no input)") for m in self.mics)
-        fields = ", ".join(f"{f} [{u}]" + (" (not recorded)" if f in self.joint_fields_absent else "") for f, u in zip(self.joint_fields, self.joint_units))
+        mics = ", ".join(
+            f"{m.name} ({m.rate} Hz" + (f", feeds {m.role})" if m.role else ", feeds no input)") for m in self.mics
+        )
+        fields = ", ".join(
+            f"{f} [{u}]" + (" (not recorded)" if f in self.joint_fields_absent else "")
+            for f, u in zip(self.joint_fields, self.joint_units)
+        )
         joints = f"{len(self.joint_names)} joints x {fields}" if self.has_joints else "no joints"
         camera = f"camera {self.image_size[0]}x{self.image_size[1]}" if self.image_size else "no camera"
         return f"microphones: {mics or 'none'}; {joints}; {camera}; steps at {self.step_rate:g} Hz ({self.step_clock} clock)"
 
 
 def hand_streams(
-    image_size: tuple[int, int] | None, step_rate: float = STEP_RATE, joint_fields_absent: list[str] | tuple[str, ...] = ()
+    image_size: tuple[int, int] | None,
+    step_rate: float = STEP_RATE,
+    joint_fields_absent: list[str] | tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """`meta.streams` of the paper's hand; `image_size` None when frames are not recorded;
     `step_rate` the camera's frame rate when an imported recording's camera does not run at 50 Hz;
@@ -251,17 +273,23 @@ def layout(meta: dict[str, Any]) -> Layout:
     """The streams of a validated meta (format 1: the hand's, with its recorded image size, step
     rate and absent joint fields)."""
     if meta["format_version"] == 1:
-        s = hand_streams(meta["image_size"], meta["sample_rates"].get("steps", STEP_RATE), meta.get("joint_fields_absent", ()))
+        s = hand_streams(
+            meta["image_size"], meta["sample_rates"].get("steps", STEP_RATE), meta.get("joint_fields_absent", ())
+        )
     else:
         s = meta["streams"]
     j = s["joints"] or {"names": [], "fields": [], "units": []}
     cam = s["camera"]
     return Layout(
         mics=tuple(Mic(m["name"], int(m["rate"]), m.get("role")) for m in s["mics"]),
-        joint_names=tuple(j["names"]), joint_fields=tuple(j["fields"]), joint_units=tuple(j["units"]),
+        joint_names=tuple(j["names"]),
+        joint_fields=tuple(j["fields"]),
+        joint_units=tuple(j["units"]),
         joint_fields_absent=tuple(j.get("absent", ())),
         image_size=None if cam is None else (int(cam["image_size"][0]), int(cam["image_size"][1])),
-        force=s["force"] is not None, step_clock=s["steps"]["clock"], step_rate=float(s["steps"]["rate"]),
+        force=s["force"] is not None,
+        step_clock=s["steps"]["clock"],
+        step_rate=float(s["steps"]["rate"]),
         mic_window_s=s["steps"].get("mic_window_s"),
     )
 
@@ -352,7 +380,15 @@ def _is(value: Any, typ) -> bool:
 
 def _type_name(typ) -> str:
     types = typ if isinstance(typ, tuple) else (typ,)
-    names = {int: "an integer", float: "a finite number", str: "a string", bool: "true or false", dict: "an object", list: "a list", type(None): "null"}
+    names = {
+        int: "an integer",
+        float: "a finite number",
+        str: "a string",
+        bool: "true or false",
+        dict: "an object",
+        list: "a list",
+        type(None): "null",
+    }
     return " or ".join(names[t] for t in types)
 
 
@@ -376,7 +412,9 @@ def _check_rate(value: Any, path, field: str, integer: bool = False) -> None:
 
 def _check_image_size(size: Any, path, field: str) -> None:
     if not isinstance(size, list) or len(size) != 2 or not all(_is(x, int) and 1 <= x <= MAX_IMAGE_SIDE for x in size):
-        raise ArchiveError(path, field, f"must be [H, W], two integers in [1, {MAX_IMAGE_SIDE}], got {json.dumps(size)[:60]}")
+        raise ArchiveError(
+            path, field, f"must be [H, W], two integers in [1, {MAX_IMAGE_SIDE}], got {json.dumps(size)[:60]}"
+        )
 
 
 def _check_strings(values: Any, path, field: str) -> None:
@@ -386,6 +424,7 @@ def _check_strings(values: Any, path, field: str) -> None:
 
 def _check_streams(streams: dict[str, Any], path) -> None:
     """The shape of a version-2 `meta.streams` (what `layout` reads)."""
+
     def need(cond: bool, field: str, problem: str) -> None:
         if not cond:
             raise ArchiveError(path, f"meta.streams.{field}", problem)
@@ -397,28 +436,43 @@ def _check_streams(streams: dict[str, Any], path) -> None:
     for k, m in enumerate(mics):
         need(isinstance(m, dict) and isinstance(m.get("name"), str), f"mics[{k}].name", "missing")
         _check_rate(m.get("rate"), path, f"meta.streams.mics[{k}].rate", integer=True)
-        need(m.get("role") in (*MIC_ROLES, None), f"mics[{k}].role", f"must be one of {MIC_ROLES} or null, got {m.get('role')!r}")
+        need(
+            m.get("role") in (*MIC_ROLES, None),
+            f"mics[{k}].role",
+            f"must be one of {MIC_ROLES} or null, got {m.get('role')!r}",
+        )
     roles = [m["role"] for m in mics if m.get("role")]
     need(len(roles) == len(set(roles)), "mics", f"two microphones feed the same input: roles {roles}")
     j = streams["joints"]
-    need(j is None or isinstance(j, dict), "joints", "must be null or {\"names\", \"fields\", \"units\"}")
+    need(j is None or isinstance(j, dict), "joints", 'must be null or {"names", "fields", "units"}')
     if j is not None:
         for key in ("names", "fields", "units"):
             _check_strings(j.get(key), path, f"meta.streams.joints.{key}")
-        need(len(j["fields"]) == len(j["units"]), "joints.units", f"{len(j['units'])} units for {len(j['fields'])} fields")
+        need(
+            len(j["fields"]) == len(j["units"]),
+            "joints.units",
+            f"{len(j['units'])} units for {len(j['fields'])} fields",
+        )
         need(len(j["names"]) > 0 and len(j["fields"]) > 0, "joints", "no names or no fields (use null for no joints)")
         _check_absent_fields(j.get("absent", []), j["fields"], path, "meta.streams.joints.absent")
     cam = streams["camera"]
-    need(cam is None or isinstance(cam, dict), "camera", "must be null or {\"image_size\": [H, W]}")
+    need(cam is None or isinstance(cam, dict), "camera", 'must be null or {"image_size": [H, W]}')
     if cam is not None:
         _check_image_size(cam.get("image_size"), path, "meta.streams.camera.image_size")
-    need(streams["force"] is None or isinstance(streams["force"], str), "force", f"must be a unit (\"N\") or null, got {streams['force']!r}")
+    need(
+        streams["force"] is None or isinstance(streams["force"], str),
+        "force",
+        f'must be a unit ("N") or null, got {streams["force"]!r}',
+    )
     steps = streams["steps"]
     need(isinstance(steps, dict) and steps.get("clock") in STEP_CLOCKS, "steps.clock", f"must be one of {STEP_CLOCKS}")
     _check_rate(steps.get("rate"), path, "meta.streams.steps.rate")
     window = steps.get("mic_window_s")
-    need(window is None or (_is(window, (int, float)) and window > 0), "steps.mic_window_s",
-         f"must be a duration in seconds > 0, got {json.dumps(window)[:60]}")
+    need(
+        window is None or (_is(window, (int, float)) and window > 0),
+        "steps.mic_window_s",
+        f"must be a duration in seconds > 0, got {json.dumps(window)[:60]}",
+    )
 
 
 def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
@@ -430,7 +484,9 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
         raise ArchiveError(path, "meta.format_version", "missing")
     version = meta["format_version"]
     if not _is(version, int) or version not in READ_VERSIONS:
-        raise ArchiveError(path, "meta.format_version", f"unknown format version {version!r} (this code reads {READ_VERSIONS})")
+        raise ArchiveError(
+            path, "meta.format_version", f"unknown format version {version!r} (this code reads {READ_VERSIONS})"
+        )
     for key, typ in REQUIRED_META[version].items():
         if key not in meta:
             raise ArchiveError(path, f"meta.{key}", "missing")
@@ -456,7 +512,9 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
             _check_count(level, path, f"meta.properties.{name}")
     if version == 1:
         if not _is(meta["sample_rates"].get("audio"), int) or meta["sample_rates"]["audio"] != AUDIO_RATE:
-            raise ArchiveError(path, "meta.sample_rates.audio", f"must be {AUDIO_RATE}, got {meta['sample_rates'].get('audio')!r}")
+            raise ArchiveError(
+                path, "meta.sample_rates.audio", f"must be {AUDIO_RATE}, got {meta['sample_rates'].get('audio')!r}"
+            )
         _check_rate(meta["sample_rates"].get("steps", STEP_RATE), path, "meta.sample_rates.steps")
         if meta["image_size"] is not None:
             _check_image_size(meta["image_size"], path, "meta.image_size")
@@ -466,7 +524,11 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
         _check_absent_fields(meta.get("joint_fields_absent", []), JOINT_FIELDS, path, "meta.joint_fields_absent")
         return meta
     if "joint_fields_absent" in meta:  # one representation per format
-        raise ArchiveError(path, "meta.joint_fields_absent", "a format-1 key: format 2 lists absent joint fields in meta.streams.joints.absent")
+        raise ArchiveError(
+            path,
+            "meta.joint_fields_absent",
+            "a format-1 key: format 2 lists absent joint fields in meta.streams.joints.absent",
+        )
     _check_streams(meta["streams"], path)
     if meta.get("split") is not None and meta["split"] not in SPLITS:
         raise ArchiveError(path, "meta.split", f"must be one of {SPLITS} or absent, got {meta['split']!r}")
@@ -477,12 +539,19 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
         if not classes or classes != set(range(max(classes) + 1)):
             raise ArchiveError(path, "meta.label_map", "must map names to classes 0..K-1, every class named")
         if meta["label"] not in classes:
-            raise ArchiveError(path, "meta.label", f"class {meta['label']} is not in the label map's classes 0..{max(classes)}")
+            raise ArchiveError(
+                path, "meta.label", f"class {meta['label']} is not in the label map's classes 0..{max(classes)}"
+            )
     return meta
 
 
 def _check_absent_fields(absent: Any, fields, path, field: str) -> None:
-    if not isinstance(absent, list) or not all(isinstance(x, str) for x in absent) or not set(absent) <= set(fields) or len(set(absent)) != len(absent):
+    if (
+        not isinstance(absent, list)
+        or not all(isinstance(x, str) for x in absent)
+        or not set(absent) <= set(fields)
+        or len(set(absent)) != len(absent)
+    ):
         raise ArchiveError(path, field, f"must list distinct fields of {list(fields)}, got {absent!r}")
 
 
@@ -531,14 +600,24 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
         if name == "joints" and lay.joint_fields_absent and arr.ndim == 3 and arr.shape[2] == len(lay.joint_fields):
             absent = np.isin(lay.joint_fields, lay.joint_fields_absent)
             if not np.isnan(arr[..., absent]).all():
-                raise ArchiveError(path, "joints", f"fields {list(lay.joint_fields_absent)} are recorded as absent but hold values (NaN where not recorded)")
-            arr = np.where(absent, 0, arr).astype(arr.dtype)  # NaN where absent, checked above; finite elsewhere, checked next
+                raise ArchiveError(
+                    path,
+                    "joints",
+                    f"fields {list(lay.joint_fields_absent)} are recorded as absent but hold values (NaN where not recorded)",
+                )
+            arr = np.where(absent, 0, arr).astype(
+                arr.dtype
+            )  # NaN where absent, checked above; finite elsewhere, checked next
         _check_array(path, name, arr, n, lay)
     back = np.flatnonzero(np.diff(archive.timestamps) <= 0)
     if back.size:  # a repeated step (or one out of order) would count the same moment twice
         k = int(back[0]) + 1
-        raise ArchiveError(path, "timestamps", f"not strictly increasing: step {k} ({archive.timestamps[k]} s) "
-                           f"does not come after step {k - 1} ({archive.timestamps[k - 1]} s)")
+        raise ArchiveError(
+            path,
+            "timestamps",
+            f"not strictly increasing: step {k} ({archive.timestamps[k]} s) "
+            f"does not come after step {k - 1} ({archive.timestamps[k - 1]} s)",
+        )
     n_samples = archive.audio.shape[1]
     we = archive.window_end
     if we.size and (we.min() < 0 or we.max() > n_samples):
@@ -551,8 +630,12 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
         _check_array(path, "images", archive.images, n, lay)
     _check_reference(archive, path, lay)
     closing = archive.meta.get("closing_steps", 0)
-    if closing > n or (closing == n and archive.meta["complete"]):  # a trial interrupted while closing has no rubbing steps
-        raise ArchiveError(path, "meta.closing_steps", f"{closing} closing steps leave none of the trial's {n} steps to rub")
+    if closing > n or (
+        closing == n and archive.meta["complete"]
+    ):  # a trial interrupted while closing has no rubbing steps
+        raise ArchiveError(
+            path, "meta.closing_steps", f"{closing} closing steps leave none of the trial's {n} steps to rub"
+        )
     return archive
 
 
@@ -563,20 +646,36 @@ def _check_reference(archive: TrialArchive, path, lay: Layout) -> None:
     if described is None and ref is None:
         return
     if archive.meta["format_version"] < REFERENCE_VERSION:
-        raise ArchiveError(path, "reference", f"present, but format {archive.meta['format_version']} has no session reference (format {REFERENCE_VERSION} has)")
+        raise ArchiveError(
+            path,
+            "reference",
+            f"present, but format {archive.meta['format_version']} has no session reference (format {REFERENCE_VERSION} has)",
+        )
     if lay.image_size is None:
         raise ArchiveError(path, "reference", "present, but meta.streams declares no camera")
     if ref is None:
-        raise ArchiveError(path, "reference", "missing: meta.reference describes a session reference the archive does not hold")
+        raise ArchiveError(
+            path, "reference", "missing: meta.reference describes a session reference the archive does not hold"
+        )
     if described is None:
-        raise ArchiveError(path, "meta.reference", "missing: the archive holds reference frames; say how and when they were taken")
+        raise ArchiveError(
+            path, "meta.reference", "missing: the archive holds reference frames; say how and when they were taken"
+        )
     _check_array(path, "reference", ref, None, lay)
     for key in ("how", "session"):
         if not isinstance(described.get(key), str) or not described[key]:
-            raise ArchiveError(path, f"meta.reference.{key}", f"must be a non-empty string, got {json.dumps(described.get(key))[:60]}")
+            raise ArchiveError(
+                path, f"meta.reference.{key}", f"must be a non-empty string, got {json.dumps(described.get(key))[:60]}"
+            )
     times = described.get("times_s", "missing")
-    if times is not None and not (isinstance(times, list) and len(times) == len(ref) and all(_is(t, (int, float)) for t in times)):
-        raise ArchiveError(path, "meta.reference.times_s", f"must be null or {len(ref)} finite times in seconds (one per reference frame), got {json.dumps(times)[:60]}")
+    if times is not None and not (
+        isinstance(times, list) and len(times) == len(ref) and all(_is(t, (int, float)) for t in times)
+    ):
+        raise ArchiveError(
+            path,
+            "meta.reference.times_s",
+            f"must be null or {len(ref)} finite times in seconds (one per reference frame), got {json.dumps(times)[:60]}",
+        )
 
 
 def reference_note(meta: dict[str, Any]) -> str | None:
@@ -596,11 +695,17 @@ def write_archive(path: os.PathLike | str, archive: TrialArchive) -> Path:
     path = Path(path)
     validate(archive, path)
     with atomic_open(path, what="a trial archive") as f:
-        write_npz(f, {"meta": np.array(json.dumps(archive.meta)), **archive.arrays()}, deflate=lambda a: a.nbytes <= FREE_INFLATION)
+        write_npz(
+            f,
+            {"meta": np.array(json.dumps(archive.meta)), **archive.arrays()},
+            deflate=lambda a: a.nbytes <= FREE_INFLATION,
+        )
     return path
 
 
-DEFLATE_LEVEL = 1  # zlib's fastest level: nearly all of level 6's saving on frames and audio words, at a few times its speed
+DEFLATE_LEVEL = (
+    1  # zlib's fastest level: nearly all of level 6's saving on frames and audio words, at a few times its speed
+)
 
 
 def write_npz(f, arrays: Mapping[str, np.ndarray], deflate: Callable[[np.ndarray], bool]) -> None:
@@ -632,7 +737,9 @@ class _Members:
             raise ArchiveError(path, "<file>", f"not a readable .npz archive (corrupt or truncated): {e}") from None
         if len(infos) > MAX_MEMBERS:
             self.zip.close()
-            raise ArchiveError(path, "<file>", f"{len(infos)} zip members, more than {MAX_MEMBERS}: not a trial archive")
+            raise ArchiveError(
+                path, "<file>", f"{len(infos)} zip members, more than {MAX_MEMBERS}: not a trial archive"
+            )
         self.infos = {i.filename[: -len(".npy")]: i for i in infos if i.filename.endswith(".npy")}
         self.size = path.stat().st_size
 
@@ -651,14 +758,28 @@ class _Members:
         if info is None:
             raise ArchiveError(path, name, "missing")
         if info.compress_size > self.size:
-            raise ArchiveError(path, name, f"declares {info.compress_size} bytes, the file holds {self.size} (truncated, or a damaged size)")
+            raise ArchiveError(
+                path,
+                name,
+                f"declares {info.compress_size} bytes, the file holds {self.size} (truncated, or a damaged size)",
+            )
         stored = info.compress_type == zipfile.ZIP_STORED
         if stored and info.file_size != info.compress_size:
-            raise ArchiveError(path, name, f"a stored member declaring {info.file_size} bytes in {info.compress_size} (a damaged size)")
-        bound = MAX_MEMBER_BYTES if stored else min(MAX_MEMBER_BYTES, max(FREE_INFLATION, INFLATION_RATIO * info.compress_size))
+            raise ArchiveError(
+                path, name, f"a stored member declaring {info.file_size} bytes in {info.compress_size} (a damaged size)"
+            )
+        bound = (
+            MAX_MEMBER_BYTES
+            if stored
+            else min(MAX_MEMBER_BYTES, max(FREE_INFLATION, INFLATION_RATIO * info.compress_size))
+        )
         if info.file_size > bound:
-            raise ArchiveError(path, name, f"declares {info.file_size} bytes inflated from {info.compress_size}, more than the {bound} "
-                               "a trial's member may hold (a zip bomb or a damaged size)")
+            raise ArchiveError(
+                path,
+                name,
+                f"declares {info.file_size} bytes inflated from {info.compress_size}, more than the {bound} "
+                "a trial's member may hold (a zip bomb or a damaged size)",
+            )
         try:
             with self.zip.open(info) as f:
                 dtype, shape, fortran = _npy_header(f, path, name)
@@ -667,7 +788,11 @@ class _Members:
                 check(dtype, shape)
                 nbytes = int(np.prod(shape, dtype=np.uint64)) * dtype.itemsize
                 if nbytes != info.file_size - f.tell():
-                    raise ArchiveError(path, name, f"the npy header's shape {shape} of {dtype} needs {nbytes} bytes, the zip member holds {info.file_size - f.tell()}")
+                    raise ArchiveError(
+                        path,
+                        name,
+                        f"the npy header's shape {shape} of {dtype} needs {nbytes} bytes, the zip member holds {info.file_size - f.tell()}",
+                    )
                 arr = np.empty(shape[::-1] if fortran else shape, dtype)
                 view, done = memoryview(arr.reshape(-1).view(np.uint8)), 0
                 while done < nbytes and (chunk := f.read(min(READ_CHUNK, nbytes - done))):
@@ -690,10 +815,14 @@ def _npy_header(f, path: Path, name: str) -> tuple[np.dtype, tuple[int, ...], bo
         shape, fortran, dtype = read(f)
     except KeyError:
         raise ArchiveError(path, name, "unknown npy format version") from None
-    except Exception as e:  # numpy parses the header with ast and tokenize: any damage is a broken header, not a bug of ours
+    except (
+        Exception
+    ) as e:  # numpy parses the header with ast and tokenize: any damage is a broken header, not a bug of ours
         raise ArchiveError(path, name, f"not an npy array (its header is damaged): {type(e).__name__}: {e}") from None
     if any(d > MAX_INT for d in shape) or np.prod([float(d) for d in shape]) * dtype.itemsize > MAX_MEMBER_BYTES:
-        raise ArchiveError(path, name, f"the npy header declares shape {shape} of {dtype}, more than {MAX_MEMBER_BYTES} bytes")
+        raise ArchiveError(
+            path, name, f"the npy header declares shape {shape} of {dtype}, more than {MAX_MEMBER_BYTES} bytes"
+        )
     return dtype, tuple(int(d) for d in shape), bool(fortran)
 
 
@@ -706,7 +835,9 @@ def parse_json(text: str, path, field: str) -> Any:
     if len(text) > MAX_META_CHARS:
         raise ArchiveError(path, field, f"{len(text)} characters of JSON, more than {MAX_META_CHARS}")
     brackets = np.frombuffer(_JSON_STRING.sub('""', text).encode("utf-8", "replace"), np.uint8)
-    depth = np.cumsum(np.isin(brackets, (ord("["), ord("{"))).astype(np.int64) - np.isin(brackets, (ord("]"), ord("}"))))
+    depth = np.cumsum(
+        np.isin(brackets, (ord("["), ord("{"))).astype(np.int64) - np.isin(brackets, (ord("]"), ord("}")))
+    )
     if depth.size and depth.max() > MAX_JSON_DEPTH:
         raise ArchiveError(path, field, f"JSON nested {int(depth.max())} deep, more than {MAX_JSON_DEPTH}")
 
@@ -715,6 +846,7 @@ def parse_json(text: str, path, field: str) -> Any:
             if len(s) > MAX_NUMBER_CHARS:
                 raise ArchiveError(path, field, f"a number of {len(s)} characters, more than {MAX_NUMBER_CHARS}")
             return kind(s)
+
         return parse
 
     def constant(name: str):
@@ -729,12 +861,18 @@ def parse_json(text: str, path, field: str) -> Any:
 def _parse_meta(path: Path, members: _Members) -> dict[str, Any]:
     def check(dtype: np.dtype, shape: tuple[int, ...]) -> None:
         if dtype.kind != "U" or shape != () or dtype.itemsize > 4 * MAX_META_CHARS:
-            raise ArchiveError(path, "meta", f"must be one JSON string (0-d unicode) of at most {MAX_META_CHARS} characters, got {dtype} {shape}")
+            raise ArchiveError(
+                path,
+                "meta",
+                f"must be one JSON string (0-d unicode) of at most {MAX_META_CHARS} characters, got {dtype} {shape}",
+            )
 
     return validate_meta(parse_json(str(members.read("meta", check)[()]), path, "meta"), path)
 
 
-def _read_streams(path: Path, members: _Members, names: tuple[str, ...]) -> tuple[dict[str, Any], dict[str, np.ndarray | None]]:
+def _read_streams(
+    path: Path, members: _Members, names: tuple[str, ...]
+) -> tuple[dict[str, Any], dict[str, np.ndarray | None]]:
     """The validated meta and the arrays `names` (None where absent), each header checked against
     the meta's layout and the step count before its data is read."""
     meta = _parse_meta(path, members)
@@ -742,8 +880,13 @@ def _read_streams(path: Path, members: _Members, names: tuple[str, ...]) -> tupl
     ts = members.read("timestamps", lambda dtype, shape: _check_form(path, "timestamps", dtype, shape, None, lay))
     out: dict[str, np.ndarray | None] = {"timestamps": ts}
     for name in names:
-        if name in members or name in ("window_end", "audio"):  # `validate` says "missing" for a declared stream the file lacks
-            out[name] = members.read(name, lambda dtype, shape, name=name: _check_form(path, name, dtype, shape, ts.shape[0], lay))
+        if name in members or name in (
+            "window_end",
+            "audio",
+        ):  # `validate` says "missing" for a declared stream the file lacks
+            out[name] = members.read(
+                name, lambda dtype, shape, name=name: _check_form(path, name, dtype, shape, ts.shape[0], lay)
+            )
         else:
             out[name] = None
     return meta, out
@@ -761,7 +904,9 @@ def read_archive(path: os.PathLike | str, *, images: bool = True) -> TrialArchiv
     """Load and fully validate one archive. `images=False` skips the (large) image stream."""
     path = Path(path)
     with _Members(path) as members:
-        meta, fields = _read_streams(path, members, ("window_end", "audio", "joints", "force", "reference") + (("images",) if images else ()))
+        meta, fields = _read_streams(
+            path, members, ("window_end", "audio", "joints", "force", "reference") + (("images",) if images else ())
+        )
     return validate(TrialArchive(meta=meta, images=fields.pop("images", None), **fields), path)
 
 

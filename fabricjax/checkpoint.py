@@ -61,12 +61,18 @@ def open_existing(directory: str | os.PathLike) -> ocp.CheckpointManager:
     for a parent, the checkpoint folders inside it. Nothing is created."""
     path = os.path.abspath(directory)
     if not os.path.isdir(path):
-        raise NoCheckpoint(f"no checkpoint at {path}: {'no such folder' if not os.path.exists(path) else 'not a folder'}")
+        raise NoCheckpoint(
+            f"no checkpoint at {path}: {'no such folder' if not os.path.exists(path) else 'not a folder'}"
+        )
     # create=False and no save: nothing is written (orbax's read_only mode says as much in two warnings)
     mngr = ocp.CheckpointManager(path, options=ocp.CheckpointManagerOptions(create=False))
     if mngr.latest_step() is None:
         inside = sorted(str(p) for p in Path(path).glob("*/") if p.is_dir() and _holds_steps(p))
-        hint = f"; checkpoint folders inside it: {', '.join(inside)}" if inside else " (a checkpoint folder holds numbered step folders)"
+        hint = (
+            f"; checkpoint folders inside it: {', '.join(inside)}"
+            if inside
+            else " (a checkpoint folder holds numbered step folders)"
+        )
         raise NoCheckpoint(f"no checkpoint in {path}{hint}")
     return mngr
 
@@ -76,15 +82,22 @@ def _holds_steps(folder: Path) -> bool:
 
 
 def meta(
-    config: Config, seeds, shapes: dict[str, tuple[int, ...]], classes: Sequence[str] | None = None,
+    config: Config,
+    seeds,
+    shapes: dict[str, tuple[int, ...]],
+    classes: Sequence[str] | None = None,
     dataset: Mapping[str, str] | None = None,
 ) -> dict[str, Any]:
     """What identifies a run (its config, its seeds, the per-step input shapes, the state's layout
     and the data it trains on: `dataset`, `DatasetIndex.identity`) and what it was trained for
     (`trained_for`, with the data's class names `classes`)."""
     return {
-        "config": config.to_json(), "seeds": [int(s) for s in seeds], "shapes": {k: list(v) for k, v in shapes.items()},
-        "state_version": STATE_VERSION, "trained_for": trained_for(config, classes), "dataset": dict(dataset or {}),
+        "config": config.to_json(),
+        "seeds": [int(s) for s in seeds],
+        "shapes": {k: list(v) for k, v in shapes.items()},
+        "state_version": STATE_VERSION,
+        "trained_for": trained_for(config, classes),
+        "dataset": dict(dataset or {}),
     }
 
 
@@ -92,9 +105,12 @@ def trained_for(config: Config, classes: Sequence[str] | None = None) -> dict[st
     """What a model is for: its heads, its fabric classes (count and names, the data's label map),
     its inputs, its dataset preset and the fabrics excluded from its training (never seen)."""
     return {
-        "heads": list(head_sizes(config)), "n_classes": config.n_classes if config.fabric_head else None,
+        "heads": list(head_sizes(config)),
+        "n_classes": config.n_classes if config.fabric_head else None,
         "classes": None if classes is None or not config.fabric_head else list(classes),
-        "inputs": list(config.modalities), "preset": config.preset, "unseen_fabrics": sorted(config.exclude_fabrics),
+        "inputs": list(config.modalities),
+        "preset": config.preset,
+        "unseen_fabrics": sorted(config.exclude_fabrics),
     }
 
 
@@ -110,7 +126,9 @@ def require(directory, for_: Mapping[str, Any], job: str, expected: str, ok: boo
     """Raise `WrongCheckpoint` unless `ok`: `job` needs `expected`, and the checkpoint in
     `directory` holds a model trained for `for_`."""
     if not ok:
-        raise WrongCheckpoint(f"{job} needs {expected}; the checkpoint in {directory} holds a model with {describe(for_)}")
+        raise WrongCheckpoint(
+            f"{job} needs {expected}; the checkpoint in {directory} holds a model with {describe(for_)}"
+        )
 
 
 def save(mngr: ocp.CheckpointManager, step: int, state, run_meta: dict[str, Any]) -> None:
@@ -128,7 +146,9 @@ def save(mngr: ocp.CheckpointManager, step: int, state, run_meta: dict[str, Any]
     disk.require(where, needed, what, margin=SAVE_MARGIN)
     try:
         with disk.writing(where, what, needed):
-            mngr.save(step, args=ocp.args.Composite(state=ocp.args.StandardSave(state), meta=ocp.args.JsonSave(run_meta)))
+            mngr.save(
+                step, args=ocp.args.Composite(state=ocp.args.StandardSave(state), meta=ocp.args.JsonSave(run_meta))
+            )
             mngr.wait_until_finished()
     except disk.DiskFull:
         for unfinished in where.glob(f"{step}.orbax-checkpoint-tmp*"):
@@ -152,28 +172,40 @@ def check_meta(directory, saved: dict[str, Any], expected: dict[str, Any]) -> No
         require_data(directory, saved.get("dataset"), expected["dataset"], CheckpointMismatch)
     cfg = expected["config"]
     saved_cfg = saved.get("config", {})
-    diff = sorted(k for k in (set(cfg) | set(saved_cfg)) - set(RESULT_NEUTRAL_FIELDS) if _norm(cfg.get(k)) != _norm(saved_cfg.get(k)))
+    diff = sorted(
+        k
+        for k in (set(cfg) | set(saved_cfg)) - set(RESULT_NEUTRAL_FIELDS)
+        if _norm(cfg.get(k)) != _norm(saved_cfg.get(k))
+    )
     diff += [k for k in RUN_FIELDS if _norm(saved.get(k, 1 if k == "state_version" else None)) != _norm(expected[k])]
     if diff:
-        details = "; ".join(
-            f"{k}: saved {_field(saved, k)!r}, requested {_field(expected, k)!r}" for k in diff
-        )
+        details = "; ".join(f"{k}: saved {_field(saved, k)!r}, requested {_field(expected, k)!r}" for k in diff)
         raise CheckpointMismatch(f"checkpoint in {directory} was made with a different run: {details}")
 
 
-def require_data(directory, trained_on: Mapping[str, str] | None, reads: Mapping[str, str], error: type[UserError] = WrongCheckpoint) -> None:
+def require_data(
+    directory, trained_on: Mapping[str, str] | None, reads: Mapping[str, str], error: type[UserError] = WrongCheckpoint
+) -> None:
     """Raise `error` unless the checkpoint in `directory`, trained on `trained_on`, was trained on
     the data this run `reads` (both `DatasetIndex.identity`): equal contents, wherever they lie. A
     checkpoint that does not name its data is refused too: its data cannot be told."""
     if not trained_on:
-        raise error(f"the checkpoint in {directory} does not record the data it was trained on, so it cannot be used "
-                    f"with {reads['folder']}: retrain it")
+        raise error(
+            f"the checkpoint in {directory} does not record the data it was trained on, so it cannot be used "
+            f"with {reads['folder']}: retrain it"
+        )
     if trained_on.get("content") != reads.get("content"):
-        raise error(f"the checkpoint in {directory} was trained on {trained_on.get('folder')} (contents {trained_on.get('content')}), "
-                    f"not on {reads['folder']} (contents {reads['content']}) that this run reads")
+        raise error(
+            f"the checkpoint in {directory} was trained on {trained_on.get('folder')} (contents {trained_on.get('content')}), "
+            f"not on {reads['folder']} (contents {reads['content']}) that this run reads"
+        )
 
 
-RUN_FIELDS = ("seeds", "shapes", "state_version")  # beside the config's fields (a checkpoint without state_version has layout 1)
+RUN_FIELDS = (
+    "seeds",
+    "shapes",
+    "state_version",
+)  # beside the config's fields (a checkpoint without state_version has layout 1)
 
 
 def _field(m: dict[str, Any], k: str):
@@ -211,4 +243,3 @@ def restore(mngr: ocp.CheckpointManager, abstract_state, expected_meta: dict[str
 def select_seed(state, index: int):
     """One seed's slice of a stacked state."""
     return jax.tree.map(lambda x: x[index], state)
-

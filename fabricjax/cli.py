@@ -114,8 +114,10 @@ _PROJECT_DIRS = tuple(os.path.join(_PROJECT_ROOT, p) + os.sep for p in PROJECT_P
 
 def _shown(record: std_logging.LogRecord) -> bool:
     """Without --verbosity: warnings and errors, and the project's own INFO lines."""
-    return record.levelno >= std_logging.WARNING or os.path.abspath(record.pathname).startswith(_PROJECT_DIRS) or (
-        record.pathname == sys.argv[0]
+    return (
+        record.levelno >= std_logging.WARNING
+        or os.path.abspath(record.pathname).startswith(_PROJECT_DIRS)
+        or (record.pathname == sys.argv[0])
     )
 
 

@@ -57,7 +57,9 @@ def fit_temperature(logits: np.ndarray, labels: np.ndarray) -> float:
     labels = np.asarray(labels)
     if len(labels) == 0:
         raise ValueError("no samples to fit a temperature on")
-    res = optimize.minimize_scalar(lambda s: nll(logits, labels, float(np.exp(s))), bounds=LOG_T_RANGE, method="bounded")
+    res = optimize.minimize_scalar(
+        lambda s: nll(logits, labels, float(np.exp(s))), bounds=LOG_T_RANGE, method="bounded"
+    )
     return float(np.exp(res.x))
 
 
@@ -112,7 +114,10 @@ class Accumulator:
     @property
     def decided(self) -> bool:
         """The best class's posterior has reached the threshold, or the maximum time is up."""
-        return self.windows > 0 and (self.posterior.max() >= self.threshold or (self.max_windows is not None and self.windows >= self.max_windows))
+        return self.windows > 0 and (
+            self.posterior.max() >= self.threshold
+            or (self.max_windows is not None and self.windows >= self.max_windows)
+        )
 
 
 def sequential(window_probs: np.ndarray, threshold: float, max_windows: int | None = None) -> Decision:
@@ -158,7 +163,7 @@ def auroc(known: np.ndarray, unknown: np.ndarray) -> float:
     if not len(k) or not len(u):
         raise ValueError("AUROC needs known and unknown samples")
     r = stats.rankdata(np.concatenate([k, u]))
-    return float((r[len(k):].sum() - len(u) * (len(u) + 1) / 2) / (len(k) * len(u)))
+    return float((r[len(k) :].sum() - len(u) * (len(u) + 1) / 2) / (len(k) * len(u)))
 
 
 def false_accept_rate(known: np.ndarray, unknown: np.ndarray, recall: float = KNOWN_RECALL) -> tuple[float, float]:
@@ -191,18 +196,25 @@ def load_temperature(directory: str | os.PathLike, seed: int) -> float | None:
     return None if t is None else float(t)
 
 
-def decision_curve(trials: Sequence[np.ndarray], labels: Sequence[int], thresholds: Sequence[float], max_windows: int | None,
-                   window_s: float) -> list[dict[str, float]]:
+def decision_curve(
+    trials: Sequence[np.ndarray],
+    labels: Sequence[int],
+    thresholds: Sequence[float],
+    max_windows: int | None,
+    window_s: float,
+) -> list[dict[str, float]]:
     """Per threshold: accuracy of the sequential decisions over `trials` ((windows, classes)
     calibrated probabilities each, with their true `labels`) and the mean touch time to decision
     (windows x `window_s`)."""
     out = []
     for th in thresholds:
         ds = [sequential(p, th, max_windows) for p in trials]
-        out.append({
-            "threshold": float(th),
-            "accuracy": float(np.mean([d.label == y for d, y in zip(ds, labels)])),
-            "mean_touch_s": float(np.mean([d.windows for d in ds]) * window_s),
-            "confident": float(np.mean([d.confident for d in ds])),
-        })
+        out.append(
+            {
+                "threshold": float(th),
+                "accuracy": float(np.mean([d.label == y for d, y in zip(ds, labels)])),
+                "mean_touch_s": float(np.mean([d.windows for d in ds]) * window_s),
+                "confident": float(np.mean([d.confident for d in ds])),
+            }
+        )
     return out

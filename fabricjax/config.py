@@ -27,7 +27,13 @@ from fabricjax.errors import UserError
 MODALITIES = ("image", "flow", "internal", "external", "proprio")
 AUDIO_MODALITIES = archive.MIC_NAMES  # a microphone's PSD is the modality of the same name
 # How tables and figures name each modality (the sensors of the paper).
-MODALITY_NAMES = {"image": "Minsight image", "flow": "optical flow", "internal": "Minsound", "external": "palm mic", "proprio": "proprioception"}
+MODALITY_NAMES = {
+    "image": "Minsight image",
+    "flow": "optical flow",
+    "internal": "Minsound",
+    "external": "palm mic",
+    "proprio": "proprioception",
+}
 BACKBONES = ("attention", "tcn")
 PAPER_WINDOW_S = archive.WINDOW / archive.AUDIO_RATE  # the paper's step window: 2048 samples at 48 kHz, 42.67 ms
 # How the concatenated per-step features are normalised before the backbone: the paper's rescale of
@@ -115,7 +121,9 @@ class Config:
     dropout: float = 0.1
     fusion_norm: str = "sequence_minmax"  # FUSION_NORMS; the paper's is the default
     fabric_head: bool = True
-    n_classes: int = catalog.N_CLASSES  # the fabric head's classes: the dataset's label map (studies set it from the data)
+    n_classes: int = (
+        catalog.N_CLASSES
+    )  # the fabric head's classes: the dataset's label map (studies set it from the data)
     property_heads: bool = False
     compute_dtype: str = "float32"  # COMPUTE_DTYPES
     # training
@@ -139,7 +147,9 @@ class Config:
     warmup_steps: int = 100  # linear warm-up from 0: the first updates stay small while Adam's moments settle
     weight_decay: float = 1e-4
     augment_rotation: bool = True  # the paper's image augmentation (features/images.py), applied to the model's input
-    image_reference: str = "session"  # IMAGE_REFERENCES; chosen by measurement (docs/usage.md, "Can the model read each input?")
+    image_reference: str = (
+        "session"  # IMAGE_REFERENCES; chosen by measurement (docs/usage.md, "Can the model read each input?")
+    )
     # training data selection: fabrics excluded from training (the property holdouts)
     exclude_fabrics: tuple[int, ...] = ()
     # where training reads its inputs (INPUT_SOURCES): placed whole on the devices ("memory"), or
@@ -157,7 +167,9 @@ class Config:
         if not 0 < self.bandwidth_khz <= archive.NYQUIST_KHZ:
             raise ValueError(f"bandwidth_khz must be in (0, {archive.NYQUIST_KHZ:g}], got {self.bandwidth_khz}")
         if self.mic_window_s is not None and not 0 < self.mic_window_s < float("inf"):
-            raise ValueError(f"mic_window_s must be a duration in seconds > 0 (or none: the data's), got {self.mic_window_s}")
+            raise ValueError(
+                f"mic_window_s must be a duration in seconds > 0 (or none: the data's), got {self.mic_window_s}"
+            )
         if self.fusion_norm not in FUSION_NORMS:
             raise ValueError(f"fusion_norm must be one of {FUSION_NORMS}, got {self.fusion_norm!r}")
         if self.lr_schedule not in LR_SCHEDULES:
@@ -179,9 +191,13 @@ class Config:
         if self.n_classes < 2:
             raise ValueError(f"n_classes must be at least 2, got {self.n_classes}")
         if any(not 0 < lr < 1 for lr in self.lr_grid) or any(w < 1 for w in self.width_grid):
-            raise ValueError(f"lr_grid holds learning rates in (0, 1) and width_grid widths >= 1, got {self.lr_grid} and {self.width_grid}")
+            raise ValueError(
+                f"lr_grid holds learning rates in (0, 1) and width_grid widths >= 1, got {self.lr_grid} and {self.width_grid}"
+            )
         if self.train_steps < 0 or self.patience_steps < 0:
-            raise ValueError(f"train_steps and patience_steps must be 0 (epochs as given) or numbers of optimiser steps, got {self.train_steps}, {self.patience_steps}")
+            raise ValueError(
+                f"train_steps and patience_steps must be 0 (epochs as given) or numbers of optimiser steps, got {self.train_steps}, {self.patience_steps}"
+            )
         if self.patience < 0:
             raise ValueError(f"patience must be 0 (no early stopping) or a number of epochs, got {self.patience}")
         if self.seq_len < 1:
@@ -205,7 +221,9 @@ class Config:
         if unknown:
             raise ValueError(f"unknown config fields {sorted(unknown)}")
         d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
-        if "seq_len" in d and d["seq_len"] is None:  # a saved config may hold seq_len null (N unset): read as its preset's N, so such checkpoints still restore
+        if (
+            "seq_len" in d and d["seq_len"] is None
+        ):  # a saved config may hold seq_len null (N unset): read as its preset's N, so such checkpoints still restore
             d["seq_len"] = presets.get(d.get("preset", cls.preset)).training.get("seq_len", cls.seq_len)
         return cls(**d)
 

@@ -71,7 +71,9 @@ class History:
     def restore(self, saved: Mapping[str, list]) -> None:
         """Take the curves of `to_json` (a checkpoint's), whose epochs this run will not train."""
         for tag, rows in saved.items():
-            self.scalars[tag] = np.array([[np.nan if x is None else x for x in row] for row in rows], np.float32).reshape(self.shape)
+            self.scalars[tag] = np.array(
+                [[np.nan if x is None else x for x in row] for row in rows], np.float32
+            ).reshape(self.shape)
 
 
 class CurveWriter:

@@ -106,7 +106,9 @@ class SequenceSet:
     names: Mapping[str, str] = dataclasses.field(default_factory=dict)  # absent: the paper's (config.MODALITY_NAMES)
     classes: tuple[str, ...] = tuple(catalog.fabric(k).name for k in range(catalog.N_CLASSES))
     window_s: float = PAPER_WINDOW_S  # the microphones' step window [s] (`step_window_s`)
-    dataset: Mapping[str, str] = dataclasses.field(default_factory=dict)  # `DatasetIndex.identity`; absent: made in memory
+    dataset: Mapping[str, str] = dataclasses.field(
+        default_factory=dict
+    )  # `DatasetIndex.identity`; absent: made in memory
 
     @property
     def n_classes(self) -> int:
@@ -135,11 +137,16 @@ def classes_of(index: dataset_index.DatasetIndex) -> tuple[str, ...]:
     maps = {json_key(e.meta.get("label_map")): e for e in index.entries}
     if len(maps) > 1:
         a, b = list(maps.values())[:2]
-        raise archive.ArchiveError(index.path(b), "meta.label_map", f"differs from the label map of {a.file} (one dataset, one label map)")
+        raise archive.ArchiveError(
+            index.path(b), "meta.label_map", f"differs from the label map of {a.file} (one dataset, one label map)"
+        )
     named = label_classes(index.entries[0].meta)
     if named is None:
         catalog_classes = SequenceSet.__dataclass_fields__["classes"].default
-        highest = max((e.meta["label"] for e in index.entries if e.meta["label"] < len(catalog_classes)), default=len(catalog_classes) - 1)
+        highest = max(
+            (e.meta["label"] for e in index.entries if e.meta["label"] < len(catalog_classes)),
+            default=len(catalog_classes) - 1,
+        )
         return catalog_classes[: highest + 1]
     return named
 
@@ -157,7 +164,9 @@ def json_key(x) -> str:
     return repr(sorted(x.items())) if isinstance(x, dict) else repr(x)
 
 
-def check_streams(index: dataset_index.DatasetIndex, entries: Sequence[dataset_index.IndexEntry], modalities: Sequence[str]) -> dict[str, int]:
+def check_streams(
+    index: dataset_index.DatasetIndex, entries: Sequence[dataset_index.IndexEntry], modalities: Sequence[str]
+) -> dict[str, int]:
     """Before any data is read: every trial carries the streams `modalities` need (else a one-line
     error listing what the data has), and each microphone used has one rate in all trials.
     Returns {audio modality: rate}."""
@@ -168,7 +177,8 @@ def check_streams(index: dataset_index.DatasetIndex, entries: Sequence[dataset_i
         if lacking:
             names = ", ".join(f"{m} ({MODALITY_NAMES[m]})" for m in lacking)
             raise archive.ArchiveError(
-                index.path(e), _SOURCE_FIELD.get(lacking[0], "audio"),
+                index.path(e),
+                _SOURCE_FIELD.get(lacking[0], "audio"),
                 f"absent: the data has no {names} for the modalities {', '.join(modalities)}; it has {lay.describe()} "
                 f"(choose rows or modalities it supports: {', '.join(lay.modalities()) or 'none'})",
             )
@@ -179,38 +189,67 @@ def check_streams(index: dataset_index.DatasetIndex, entries: Sequence[dataset_i
             rate = lay.mics[k].rate
             first = rates.setdefault(m, (rate, e))
             if first[0] != rate:
-                raise archive.ArchiveError(index.path(e), "meta.streams.mics", f"the {m} microphone runs at {rate} Hz, but at {first[0]} Hz in {first[1].file} (one rate per microphone in a dataset)")
+                raise archive.ArchiveError(
+                    index.path(e),
+                    "meta.streams.mics",
+                    f"the {m} microphone runs at {rate} Hz, but at {first[0]} Hz in {first[1].file} (one rate per microphone in a dataset)",
+                )
     return {m: r for m, (r, _) in rates.items()}
 
 
-def _report_unused(entries: Sequence[dataset_index.IndexEntry], roles, chosen_split, n_classes: int, wanted: Sequence[str]) -> None:
+def _report_unused(
+    entries: Sequence[dataset_index.IndexEntry], roles, chosen_split, n_classes: int, wanted: Sequence[str]
+) -> None:
     """Say which trials no split uses, and why (a day no split names, a label outside the classes),
     and how many of the splits the caller does not read there are (a study reading train, val and
     test skips cafe and holdout trials, which would otherwise vanish from a --data_dir run unsaid)."""
     no_role = [e for e, r in zip(entries, roles) if r is None]
     if no_role:
         days = sorted({str(e.meta["day"]) for e in no_role})
-        logging.warning("%d trials belong to no split and are not used (days %s: not among the preset's days, and no split "
-                        "given at import), e.g. %s", len(no_role), ", ".join(days), no_role[0].file)
-    outside = [e for e, r in zip(entries, roles) if r in ("test", "cafe") and chosen_split(e, r) is None and e.meta["label"] >= n_classes]
+        logging.warning(
+            "%d trials belong to no split and are not used (days %s: not among the preset's days, and no split "
+            "given at import), e.g. %s",
+            len(no_role),
+            ", ".join(days),
+            no_role[0].file,
+        )
+    outside = [
+        e
+        for e, r in zip(entries, roles)
+        if r in ("test", "cafe") and chosen_split(e, r) is None and e.meta["label"] >= n_classes
+    ]
     new = [e for e in outside if "label_map" not in e.meta and e.meta["fabric_id"] in catalog.NEW_FABRICS]
     if new:  # the hand's test day, by design: what they are, not a warning
-        logging.info("the test day's new fabrics %s (%d test trial%s) have no training trials: they are the property study's "
-                     "holdouts, not classes of the fabric classifier", ", ".join(map(str, sorted({e.meta["fabric_id"] for e in new}))),
-                     len(new), "s" * (len(new) != 1))
+        logging.info(
+            "the test day's new fabrics %s (%d test trial%s) have no training trials: they are the property study's "
+            "holdouts, not classes of the fabric classifier",
+            ", ".join(map(str, sorted({e.meta["fabric_id"] for e in new}))),
+            len(new),
+            "s" * (len(new) != 1),
+        )
     outside = [e for e in outside if e not in new]
     if outside:
         labels = sorted({e.meta["label"] for e in outside})
-        logging.warning("%d %s trials have labels outside the %d classes (%s) and are not evaluated, e.g. %s",
-                        len(outside), "/".join(sorted({r for e, r in zip(entries, roles) if e in outside})), n_classes,
-                        ", ".join(map(str, labels)), outside[0].file)
+        logging.warning(
+            "%d %s trials have labels outside the %d classes (%s) and are not evaluated, e.g. %s",
+            len(outside),
+            "/".join(sorted({r for e, r in zip(entries, roles) if e in outside})),
+            n_classes,
+            ", ".join(map(str, labels)),
+            outside[0].file,
+        )
     skipped = Counter(s for e, r in zip(entries, roles) if (s := chosen_split(e, r)) not in (None, *wanted))
     if skipped:
-        logging.info("%s are not used by this study (it reads %s)",
-                     ", ".join(f"{skipped[s]} trials on split {s}" for s in SPLITS if s in skipped), ", ".join(wanted))
+        logging.info(
+            "%s are not used by this study (it reads %s)",
+            ", ".join(f"{skipped[s]} trials on split {s}" for s in SPLITS if s in skipped),
+            ", ".join(wanted),
+        )
 
 
-def _fill(index, chosen, members, features, config: Config, rates, store: SequenceStore, features_root, workers, progress) -> dict[str, dict[str, np.ndarray]]:
+def _fill(
+    index, chosen, members, features, config: Config, rates, store: SequenceStore, features_root, workers, progress
+) -> dict[str, dict[str, np.ndarray]]:
     """{split: {modality: (S, N, ...)}}: each trial's sequences of its features (cached, or
     computed first) copied into arrays preallocated from the index's step counts, so the dataset
     is held once (not per trial and again concatenated): in memory where CPU devices can read them
@@ -218,25 +257,48 @@ def _fill(index, chosen, members, features, config: Config, rates, store: Sequen
     `MEMORY_FRACTION` of memory (or `config.input_source` says "disk"). Read-only."""
     n, wanted = config.seq_len, tuple(members)
     feats = cache.trial_features(
-        index, [e for e, _ in chosen], list(features.values()), features_root,
-        workers=workers, progress=progress,
+        index,
+        [e for e, _ in chosen],
+        list(features.values()),
+        features_root,
+        workers=workers,
+        progress=progress,
     )
     inputs: dict[str, dict[str, np.ndarray]] = {}
     filled = dict.fromkeys(wanted, 0)
     for (e, s), f in zip(chosen, feats, strict=True):  # strict: runs the generator to its end (the bar closes)
         n_seq = n_sequences(e, n)
-        trial = {m: _sequences(f[feat.name], m, first_step(e.meta), n_seq, n, config, rates) for m, feat in features.items()}
+        trial = {
+            m: _sequences(f[feat.name], m, first_step(e.meta), n_seq, n, config, rates) for m, feat in features.items()
+        }
         if not inputs:
-            shapes = {t: {m: ((sum(n_sequences(x, n) for x in members[t]), *a.shape[1:]), a.dtype) for m, a in trial.items()} for t in wanted}
-            total = sum(math.prod(shape) * np.dtype(dtype).itemsize for t in shapes.values() for shape, dtype in t.values())
-            on_disk = config.input_source == "disk" or (config.input_source == "auto" and total > memo.memory_budget(MEMORY_FRACTION))
+            shapes = {
+                t: {m: ((sum(n_sequences(x, n) for x in members[t]), *a.shape[1:]), a.dtype) for m, a in trial.items()}
+                for t in wanted
+            }
+            total = sum(
+                math.prod(shape) * np.dtype(dtype).itemsize for t in shapes.values() for shape, dtype in t.values()
+            )
+            on_disk = config.input_source == "disk" or (
+                config.input_source == "auto" and total > memo.memory_budget(MEMORY_FRACTION)
+            )
             if on_disk:
-                logging.info("the sequences take %.1f GB: training reads them from %s (input_source=%s)", total / 1e9, workspace.shown(store.folder), config.input_source)
-            inputs = store.create(shapes) if on_disk else {t: {m: host_arrays.empty(*v) for m, v in d.items()} for t, d in shapes.items()}
+                logging.info(
+                    "the sequences take %.1f GB: training reads them from %s (input_source=%s)",
+                    total / 1e9,
+                    workspace.shown(store.folder),
+                    config.input_source,
+                )
+            inputs = (
+                store.create(shapes)
+                if on_disk
+                else {t: {m: host_arrays.empty(*v) for m, v in d.items()} for t, d in shapes.items()}
+            )
         for m, a in trial.items():
             if a.shape[1:] != inputs[s][m].shape[1:]:
                 raise archive.ArchiveError(
-                    index.path(e), _SOURCE_FIELD.get(m, "audio"),
+                    index.path(e),
+                    _SOURCE_FIELD.get(m, "audio"),
                     f"{m} sequences of shape {a.shape[1:]}, but the dataset's first trial gives {inputs[s][m].shape[1:]}",
                 )
             inputs[s][m][filled[s] : filled[s] + n_seq] = a
@@ -295,7 +357,9 @@ def _describe(entries: list[dataset_index.IndexEntry], n: int) -> tuple[dict, di
     return labels, info
 
 
-def _sequences(feature: np.ndarray, modality: str, start: int, n_seq: int, n: int, config: Config, rates: Mapping[str, int]) -> np.ndarray:
+def _sequences(
+    feature: np.ndarray, modality: str, start: int, n_seq: int, n: int, config: Config, rates: Mapping[str, int]
+) -> np.ndarray:
     """A trial's (T, ...) feature -> (n_seq, n, ...) view from step `start`, the remainder dropped."""
     x = _band(feature[start : start + n_seq * n], modality, config.bandwidth_khz, rates, config.mic_window_s)
     return x.reshape(n_seq, n, *x.shape[1:])
@@ -316,7 +380,9 @@ def window_of(config: Config, rate: int) -> int:
     return welch.window_samples(PAPER_WINDOW_S if config.mic_window_s is None else config.mic_window_s, rate)
 
 
-def step_window_s(config: Config, index: dataset_index.DatasetIndex, entries: Sequence[dataset_index.IndexEntry]) -> float:
+def step_window_s(
+    config: Config, index: dataset_index.DatasetIndex, entries: Sequence[dataset_index.IndexEntry]
+) -> float:
     """The microphones' step window [s]: `config.mic_window_s` when set (it wins over the data's,
     said once where they differ), else the one the trials declare (`Layout.mic_window_s`: every
     trial the same, else an error naming the first that differs), else the paper's."""
@@ -325,13 +391,18 @@ def step_window_s(config: Config, index: dataset_index.DatasetIndex, entries: Se
         declared.setdefault(archive.layout(e.meta).mic_window_s, e)
     if len(declared) > 1:
         (a, ea), (b, eb) = list(declared.items())[:2]
-        raise archive.ArchiveError(index.path(eb), "meta.streams.steps.mic_window_s",
-                                   f"{'absent' if b is None else f'{b:g} s'}, but {'absent' if a is None else f'{a:g} s'} in {ea.file} (one step window per dataset)")
+        raise archive.ArchiveError(
+            index.path(eb),
+            "meta.streams.steps.mic_window_s",
+            f"{'absent' if b is None else f'{b:g} s'}, but {'absent' if a is None else f'{a:g} s'} in {ea.file} (one step window per dataset)",
+        )
     data_s = next(iter(declared))
     if config.mic_window_s is None:
         return PAPER_WINDOW_S if data_s is None else float(data_s)
     if data_s is not None and data_s != config.mic_window_s:
-        logging.info("mic_window_s=%g s (the config's) is used, not the %g s the data declares", config.mic_window_s, data_s)
+        logging.info(
+            "mic_window_s=%g s (the config's) is used, not the %g s the data declares", config.mic_window_s, data_s
+        )
     return config.mic_window_s
 
 
@@ -339,7 +410,14 @@ def narrow(sets: dict[str, SequenceSet], config: Config) -> dict[str, SequenceSe
     """Sets loaded for several rows (the union of their modalities, the widest bandwidth) as one
     row's: its modalities only, PSDs cut to its bandwidth. Views, no copies."""
     return {
-        k: dataclasses.replace(s, inputs={m: _band(a, m, config.bandwidth_khz, s.rates, s.window_s) for m, a in s.inputs.items() if m in config.modalities})
+        k: dataclasses.replace(
+            s,
+            inputs={
+                m: _band(a, m, config.bandwidth_khz, s.rates, s.window_s)
+                for m, a in s.inputs.items()
+                if m in config.modalities
+            },
+        )
         for k, s in sets.items()
     }
 
@@ -365,20 +443,40 @@ def _check_bands(config: Config, rates: Mapping[str, int], names: Mapping[str, s
         window = window_of(config, rate)
         ms, full = 1e3 * config.mic_window_s, welch.full_bins(window)
         if window < welch.MIN_WINDOW:
-            raise UserError(f"mic_window_s={config.mic_window_s:g}: the {names[m]} microphone's window is {window} samples at {rate} Hz, "
-                            f"too short for a Welch spectrum (at least {welch.MIN_WINDOW} samples)")
+            raise UserError(
+                f"mic_window_s={config.mic_window_s:g}: the {names[m]} microphone's window is {window} samples at {rate} Hz, "
+                f"too short for a Welch spectrum (at least {welch.MIN_WINDOW} samples)"
+            )
         if full < welch.USEFUL_BINS:
-            logging.warning("the %s microphone's %.2f ms step window is %d samples at %d Hz: its PSD has only %d bins (0-%g kHz, "
-                            "%.1f Hz apart); a longer window (--set mic_window_s=..., or the rig file's steps.mic_window_s) gives a finer spectrum", names[m], ms, window, rate,
-                            full, archive.nyquist_khz(rate), rate / welch.nperseg(window))
+            logging.warning(
+                "the %s microphone's %.2f ms step window is %d samples at %d Hz: its PSD has only %d bins (0-%g kHz, "
+                "%.1f Hz apart); a longer window (--set mic_window_s=..., or the rig file's steps.mic_window_s) gives a finer spectrum",
+                names[m],
+                ms,
+                window,
+                rate,
+                full,
+                archive.nyquist_khz(rate),
+                rate / welch.nperseg(window),
+            )
         nyquist = archive.nyquist_khz(rate)
         if config.bandwidth_khz > nyquist and _first_time(("nyquist", str(folder), names[m], config.bandwidth_khz)):
-            logging.warning("bandwidth %g kHz is above the %s microphone's Nyquist (%g kHz at %d Hz): its PSD is capped at "
-                            "0-%g kHz (%d bins)", config.bandwidth_khz, names[m], nyquist, rate, nyquist, full)
+            logging.warning(
+                "bandwidth %g kHz is above the %s microphone's Nyquist (%g kHz at %d Hz): its PSD is capped at "
+                "0-%g kHz (%d bins)",
+                config.bandwidth_khz,
+                names[m],
+                nyquist,
+                rate,
+                nyquist,
+                full,
+            )
     bins = {m: welch.n_bins(config.bandwidth_khz, r, window_of(config, r)) for m, r in rates.items()}
     if len(set(bins.values())) > 1:
-        raise UserError(f"the microphones' PSDs have different bin counts at {config.bandwidth_khz:g} kHz ({bins}: rates {dict(rates)}); "
-                        "the shared audio encoder needs equal ones: use one microphone, or a bandwidth at or above both Nyquists")
+        raise UserError(
+            f"the microphones' PSDs have different bin counts at {config.bandwidth_khz:g} kHz ({bins}: rates {dict(rates)}); "
+            "the shared audio encoder needs equal ones: use one microphone, or a bandwidth at or above both Nyquists"
+        )
 
 
 def load_sequences(
@@ -403,10 +501,16 @@ def load_sequences(
     _report_unused(index.entries, roles, place, n_classes, wanted)
     chosen = [(e, s) for e, r in zip(index.entries, roles) if (s := place(e, r)) in wanted]
     if not chosen:
-        raise archive.ArchiveError(index.root, "<folder>", f"no trial belongs to the splits {list(wanted)} (check days, conditions and splits)")
+        raise archive.ArchiveError(
+            index.root, "<folder>", f"no trial belongs to the splits {list(wanted)} (check days, conditions and splits)"
+        )
     for e, s in chosen:
         if s in ("train", "val") and not 0 <= e.meta["label"] < n_classes:
-            raise archive.ArchiveError(index.path(e), "meta.label", f"label {e.meta['label']} of a {s} trial is outside the {n_classes} classes 0..{n_classes - 1}")
+            raise archive.ArchiveError(
+                index.path(e),
+                "meta.label",
+                f"label {e.meta['label']} of a {s} trial is outside the {n_classes} classes 0..{n_classes - 1}",
+            )
     rates = check_streams(index, [e for e, _ in chosen], config.modalities)
     config = dataclasses.replace(config, mic_window_s=step_window_s(config, index, [e for e, _ in chosen]))
     lay = archive.layout(chosen[0][0].meta)
@@ -415,28 +519,61 @@ def load_sequences(
     for e, _ in chosen:
         if n_sequences(e, n) == 0:
             raise archive.ArchiveError(
-                index.path(e), "timestamps",
+                index.path(e),
+                "timestamps",
                 f"{e.n_steps} steps of which {e.n_steps - first_step(e.meta)} rubbing, fewer than one sequence of N={n} steps",
             )
     members = {s: [e for e, t in chosen if t == s] for s in wanted}
     features = {
-        m: feature_for(m, config.image_resolution, config.image_size, config.flow_sparsify, window_of(config, rates[m]) if m in rates else archive.WINDOW,
-                       config.image_reference, config.flow_method)
+        m: feature_for(
+            m,
+            config.image_resolution,
+            config.image_size,
+            config.flow_sparsify,
+            window_of(config, rates[m]) if m in rates else archive.WINDOW,
+            config.image_reference,
+            config.flow_method,
+        )
         for m in config.modalities
     }
-    store = SequenceStore(workspace.sequences_dir(workdir), {
-        "features": {m: [f.name, f.params] for m, f in features.items()}, "seq_len": n, "bandwidth_khz": config.bandwidth_khz,
-        "mic_window_s": config.mic_window_s, "rates": rates, "dataset": str(index.root.resolve()),
-        "trials": {s: [[e.file, e.fingerprint] for e in members[s]] for s in wanted},
-    })
+    store = SequenceStore(
+        workspace.sequences_dir(workdir),
+        {
+            "features": {m: [f.name, f.params] for m, f in features.items()},
+            "seq_len": n,
+            "bandwidth_khz": config.bandwidth_khz,
+            "mic_window_s": config.mic_window_s,
+            "rates": rates,
+            "dataset": str(index.root.resolve()),
+            "trials": {s: [[e.file, e.fingerprint] for e in members[s]] for s in wanted},
+        },
+    )
     inputs = store.load() if config.input_source != "memory" else None
-    if inputs is not None and config.input_source == "auto" and sum(a.nbytes for d in inputs.values() for a in d.values()) <= memo.memory_budget(MEMORY_FRACTION):
+    if (
+        inputs is not None
+        and config.input_source == "auto"
+        and sum(a.nbytes for d in inputs.values() for a in d.values()) <= memo.memory_budget(MEMORY_FRACTION)
+    ):
         inputs = None  # stored by a run that asked for "disk", and they fit in memory
     if inputs is None:
         features_root = workspace.features_dir(workdir)
-        with lock.hold(lock.lock_file(features_root, workdir), "the feature cache", f"computing features of {index.root.name}", wait=True):
+        with lock.hold(
+            lock.lock_file(features_root, workdir),
+            "the feature cache",
+            f"computing features of {index.root.name}",
+            wait=True,
+        ):
             inputs = _fill(index, chosen, members, features, config, rates, store, features_root, workers, progress)
     names = stream_names(lay)
-    return {s: SequenceSet(inputs[s], *_describe(members[s], n), rates=rates, names=names, classes=classes, window_s=config.mic_window_s,
-                              dataset=index.identity())
-            for s in wanted}
+    return {
+        s: SequenceSet(
+            inputs[s],
+            *_describe(members[s], n),
+            rates=rates,
+            names=names,
+            classes=classes,
+            window_s=config.mic_window_s,
+            dataset=index.identity(),
+        )
+        for s in wanted
+    }

@@ -98,7 +98,11 @@ def build_index(folder: os.PathLike | str, index_file: os.PathLike | str | None 
             continue
         meta, n = read_meta(p)
         entries.append(IndexEntry(p.name, meta, n, st.st_size, st.st_mtime_ns, sha256_file(p)))
-    doc = {"format_version": INDEX_VERSION, "folder": str(root.resolve()), "trials": [dataclasses.asdict(e) for e in entries]}
+    doc = {
+        "format_version": INDEX_VERSION,
+        "folder": str(root.resolve()),
+        "trials": [dataclasses.asdict(e) for e in entries],
+    }
     ipath.parent.mkdir(parents=True, exist_ok=True)
     with atomic_open(ipath, "w", what="the dataset index") as f:
         f.write(json.dumps(doc, indent=1))
@@ -131,7 +135,9 @@ def load_index(folder: os.PathLike | str, workdir: os.PathLike | str | None = No
     for e in entries:
         if e.file not in on_disk:
             raise ArchiveError(
-                ipath, f"trials[{e.file}]", f"listed archive is missing from {root} (restore it, or delete {ipath} to re-index)"
+                ipath,
+                f"trials[{e.file}]",
+                f"listed archive is missing from {root} (restore it, or delete {ipath} to re-index)",
             )
     stale = len(on_disk) != len(entries) or any(
         not e.sha256 or on_disk[e.file].st_size != e.size or on_disk[e.file].st_mtime_ns != e.mtime_ns for e in entries

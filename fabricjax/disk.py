@@ -33,8 +33,10 @@ class DiskFull(UserError, OSError):
 
     def message(self) -> str:
         need = f" needs {'at least ' if self.needed is not None else ''}{size(self.needed)}," if self.needed else ""
-        return (f"no space left on the disk for {self.what} ({self.path}):{need} {size(self.free)} free there; "
-                "nothing half-written was kept: free space (or give --workdir on a larger disk) and run again")
+        return (
+            f"no space left on the disk for {self.what} ({self.path}):{need} {size(self.free)} free there; "
+            "nothing half-written was kept: free space (or give --workdir on a larger disk) and run again"
+        )
 
     def __str__(self) -> str:
         return self.message()

@@ -87,10 +87,15 @@ class HostFed:
     def __init__(self, trainer, per_seed: NamedSharding):
         self.trainer, self.per_seed = trainer, per_seed
         self._plan = jax.jit(
-            sharding.vmap_seeds(lambda key, epoch, n: trainer.epoch_order(jax.random.fold_in(key, epoch), n), in_axes=(0, None, None)),
+            sharding.vmap_seeds(
+                lambda key, epoch, n: trainer.epoch_order(jax.random.fold_in(key, epoch), n), in_axes=(0, None, None)
+            ),
             static_argnums=2,
         )
-        def scan(carry, block, keys, stopped_at):  # a stopped seed's carry passes through unchanged (`Trainer.unless_stopped`)
+
+        def scan(
+            carry, block, keys, stopped_at
+        ):  # a stopped seed's carry passes through unchanged (`Trainer.unless_stopped`)
             def step(c, xs):
                 new, out = trainer.train_step(c, *xs)
                 return trainer.unless_stopped(stopped_at, new, c), out
@@ -120,18 +125,27 @@ class HostFed:
             for start in range(0, order.shape[1], k):
                 rows = order[:, start : start + k]  # (seeds, steps, batch)
                 block = {
-                    "inputs": {m: a.reshape(*rows.shape, *a.shape[1:]) for m, a in _laid_out(train["inputs"], rows.reshape(-1)).items()},
+                    "inputs": {
+                        m: a.reshape(*rows.shape, *a.shape[1:])
+                        for m, a in _laid_out(train["inputs"], rows.reshape(-1)).items()
+                    },
                     "labels": {h: a[rows] for h, a in train["labels"].items()},
                 }
-                carry, (loss, count) = self._steps(carry, self._place(block), keys[:, start : start + k], state["stopped_at"])
+                carry, (loss, count) = self._steps(
+                    carry, self._place(block), keys[:, start : start + k], state["stopped_at"]
+                )
                 losses.append(loss)
                 counts.append(count)
-            losses, counts = (jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=1), *parts) for parts in (losses, counts))
+            losses, counts = (
+                jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=1), *parts) for parts in (losses, counts)
+            )
             summary = self._summary(losses, counts, epoch)
             validation = self.evaluate(carry[0], data["val"])
             rest = {k: v for k, v in state.items() if k not in ("params", "opt_state")}
             state = self._end_epoch(rest, *carry, summary["train_loss"], validation)
-            outputs.append({**summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]})
+            outputs.append(
+                {**summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]}
+            )
         return state, jax.tree.map(lambda *xs: jnp.stack(xs, axis=1), *outputs)
 
     def evaluate(self, params, ds: Mapping[str, Any]) -> dict[str, dict[str, jax.Array]]:
@@ -145,10 +159,15 @@ class HostFed:
             length = host_arrays.whole_minibatches(stop - start, batch)
             preds.append(self._predict(params, self._place(_laid_out(ds["inputs"], np.arange(start, stop), length))))
         preds = jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=1), *preds)
-        labels = {h: np.concatenate([a, np.full(host_arrays.whole_minibatches(n, batch) - n, -1, a.dtype)]) for h, a in ds["labels"].items()}
+        labels = {
+            h: np.concatenate([a, np.full(host_arrays.whole_minibatches(n, batch) - n, -1, a.dtype)])
+            for h, a in ds["labels"].items()
+        }
         accuracy = jax.vmap(self.trainer.accuracy, in_axes=(0, None))(preds, labels)
         return {"accuracy": accuracy, "predictions": preds}
 
     def finish(self, state: dict[str, Any], sets: Mapping[str, Any]) -> dict[str, Any]:
         """`Trainer.finish`: the curves and the best-validation model on every set of `sets`."""
-        return self.trainer.finished(state, {name: self.evaluate(state["best_params"], ds) for name, ds in sets.items()})
+        return self.trainer.finished(
+            state, {name: self.evaluate(state["best_params"], ds) for name, ds in sets.items()}
+        )

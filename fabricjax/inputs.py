@@ -79,7 +79,10 @@ def input_statistics(config: Config, train_set, chunk: int | None = None) -> dic
         if m not in STANDARDISED:
             continue
         x = inputs[m]
-        axis, per_position = STANDARDISED[m] % (x.ndim - 2) + 2, per_position_shift(config, m)  # the channel axis of (S, N, ...)
+        axis, per_position = (
+            STANDARDISED[m] % (x.ndim - 2) + 2,
+            per_position_shift(config, m),
+        )  # the channel axis of (S, N, ...)
         n = chunk or max(1, CHUNK_BYTES // max(x[0].nbytes, 1))
         mean, variance = _STATISTICS.get(x, (axis, per_position, n), lambda: _moments(x, axis, per_position, n))
         stats[f"{m}_shift"] = jnp.asarray(mean, jnp.float32)
@@ -98,7 +101,9 @@ def _moments(x, axis: int, per_position: bool, chunk: int) -> tuple[np.ndarray, 
     so the result does not depend on the number of cores."""
     total, total_sq, count = 0.0, 0.0, 0
     with ThreadPoolExecutor(runtime.available_cores()) as pool:
-        sums = pool.map(lambda start: _sums(np.asarray(x[start : start + chunk]), axis), range(0, max(len(x), 1), chunk))
+        sums = pool.map(
+            lambda start: _sums(np.asarray(x[start : start + chunk]), axis), range(0, max(len(x), 1), chunk)
+        )
         for part_sums in sums:
             total, total_sq, count = (a + b for a, b in zip((total, total_sq, count), part_sums))
     mean, mean_sq = total / max(count, 1), total_sq / max(count, 1)  # per position and channel
@@ -118,7 +123,10 @@ def _sums(part: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, int]:
     if part.dtype in (np.uint8, np.int16):  # frames, and frames minus their session's reference (|x| <= 255)
         flat = part.reshape(-1, *part.shape[2:])
         wide = flat.astype(np.uint16 if part.dtype == np.uint8 else np.int32)
-        sums = (np.moveaxis(a, axis - 2, -1).astype(np.float64) for a in (flat.sum(0, dtype=np.int64), (wide * wide).sum(0, dtype=np.int64)))
+        sums = (
+            np.moveaxis(a, axis - 2, -1).astype(np.float64)
+            for a in (flat.sum(0, dtype=np.int64), (wide * wide).sum(0, dtype=np.int64))
+        )
         return (*sums, len(flat))
     part = np.moveaxis(np.asarray(part, np.float64), axis, -1)
     part = part.reshape(-1, *part.shape[2:])  # (sequences x steps, positions..., channels)

@@ -56,9 +56,17 @@ def _check_file(p: Path, entry: dict | None, ipath: Path) -> list[Problem]:
     if entry is not None and entry.get("sha256"):
         size = p.stat().st_size
         if size != entry.get("size"):
-            problems.append(Problem(str(p), "<file>", f"{size} bytes, the index recorded {entry.get('size')} (truncated or rewritten)"))
+            problems.append(
+                Problem(
+                    str(p), "<file>", f"{size} bytes, the index recorded {entry.get('size')} (truncated or rewritten)"
+                )
+            )
         elif dataset_index.sha256_file(p) != entry["sha256"]:
-            problems.append(Problem(str(p), "<file>", f"sha256 differs from the one {ipath} recorded (bytes changed since indexing)"))
+            problems.append(
+                Problem(
+                    str(p), "<file>", f"sha256 differs from the one {ipath} recorded (bytes changed since indexing)"
+                )
+            )
     try:
         trial = archive.read_archive(p)
     except archive.ArchiveError as e:
@@ -66,8 +74,14 @@ def _check_file(p: Path, entry: dict | None, ipath: Path) -> list[Problem]:
     rate = archive.layout(trial.meta).step_rate
     for k in frame_gaps(trial.timestamps, rate):
         dt = trial.timestamps[k] - trial.timestamps[k - 1]
-        problems.append(Problem(str(p), "timestamps", f"irregular: step {k} comes {dt * 1e3:.1f} ms after step {k - 1} "
-                                f"(more than {GAP_FACTOR} periods of {1e3 / rate:.0f} ms: frames lost or a step late)"))
+        problems.append(
+            Problem(
+                str(p),
+                "timestamps",
+                f"irregular: step {k} comes {dt * 1e3:.1f} ms after step {k - 1} "
+                f"(more than {GAP_FACTOR} periods of {1e3 / rate:.0f} ms: frames lost or a step late)",
+            )
+        )
     return problems
 
 
@@ -94,4 +108,9 @@ def verify(folder: os.PathLike | str, workdir: os.PathLike | str | None = None) 
     on_disk = {p.name for p in files}
     for name in sorted(set(indexed or {}) - on_disk):
         problems.append(Problem(str(ipath), f"trials[{name}]", f"listed archive is missing from {root}"))
-    return problems, {"archives": len(files), "hashed": hashed, "index": str(ipath) if indexed is not None else None, "failures": failures}
+    return problems, {
+        "archives": len(files),
+        "hashed": hashed,
+        "index": str(ipath) if indexed is not None else None,
+        "failures": failures,
+    }

@@ -48,7 +48,9 @@ from fabricjax.config import Config
 from fabricjax.features import welch
 
 STREAMABLE = ("internal", "external", "proprio")
-HAND = archive.layout({"format_version": archive.FORMAT_VERSION, "streams": archive.hand_streams(None)})  # the paper's hand's streams
+HAND = archive.layout(
+    {"format_version": archive.FORMAT_VERSION, "streams": archive.hand_streams(None)}
+)  # the paper's hand's streams
 
 
 @dataclasses.dataclass(frozen=True)
@@ -67,7 +69,9 @@ class Streamer:
     trials it is fed (`archive.layout` of their meta; default the hand's), which give each
     microphone's row and rate and the joint values per step."""
 
-    def __init__(self, graphdef: nnx.GraphDef, params, config: Config, temperature: float = 1.0, layout: archive.Layout = HAND):
+    def __init__(
+        self, graphdef: nnx.GraphDef, params, config: Config, temperature: float = 1.0, layout: archive.Layout = HAND
+    ):
         bad = [m for m in config.modalities if m not in STREAMABLE]
         if bad:
             raise ValueError(f"streaming supports the modalities {STREAMABLE}; the model uses {bad}")
@@ -85,11 +89,17 @@ class Streamer:
         # a sharding that changed between steps would recompile the update mid-stream.
         self.device = jax.devices()[0]
         self.params = jax.device_put(params, self.device)
-        width = dict(zip([m for m in config.modalities if m in archive.MIC_ROLES],
-                         (welch.n_bins(config.bandwidth_khz, r, w) for r, w in zip(self.rates, self.windows))))
+        width = dict(
+            zip(
+                [m for m in config.modalities if m in archive.MIC_ROLES],
+                (welch.n_bins(config.bandwidth_khz, r, w) for r, w in zip(self.rates, self.windows)),
+            )
+        )
         width["proprio"] = int(np.prod(self.joint_shape))
         self._empty = {m: np.zeros((self.n, width[m]), np.float32) for m in config.modalities}
-        self._update = jax.jit(functools.partial(_update, graphdef, config, self.temperature, self.rates), donate_argnums=1)
+        self._update = jax.jit(
+            functools.partial(_update, graphdef, config, self.temperature, self.rates), donate_argnums=1
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -172,7 +182,9 @@ def replay(
             if wait > 0:
                 time.sleep(wait)
         t0 = time.perf_counter()
-        joints = np.zeros(streamer.joint_shape, np.float32) if trial.joints is None else trial.joints[t]  # a rig without joints
+        joints = (
+            np.zeros(streamer.joint_shape, np.float32) if trial.joints is None else trial.joints[t]
+        )  # a rig without joints
         probs = streamer.update(step_windows(trial, t, streamer.mics, streamer.windows), joints)
         done = time.perf_counter()
         ms = 1e3 * (done - t0)
@@ -188,11 +200,27 @@ def replay(
                 evidence.add(probs)
                 if decision is None and evidence.decided:
                     k = int(np.argmax(evidence.posterior))
-                    decision = {"step": t, "time_s": float(stamps[t] + period), "windows": evidence.windows, "class": k,
-                                "fabric": class_name(k, trial.meta), "posterior": float(evidence.posterior[k]), "correct": k == label}
+                    decision = {
+                        "step": t,
+                        "time_s": float(stamps[t] + period),
+                        "windows": evidence.windows,
+                        "class": k,
+                        "fabric": class_name(k, trial.meta),
+                        "posterior": float(evidence.posterior[k]),
+                        "correct": k == label,
+                    }
         if on_step is not None:
-            on_step(StepResult(t, float(stamps[t]), probs, ms, None if evidence.log_post is None else evidence.posterior,
-                               evidence.windows, decision is not None))
+            on_step(
+                StepResult(
+                    t,
+                    float(stamps[t]),
+                    probs,
+                    ms,
+                    None if evidence.log_post is None else evidence.posterior,
+                    evidence.windows,
+                    decision is not None,
+                )
+            )
     latency = stats.percentiles_ms(seconds) if seconds else {"p50_ms": None, "p99_ms": None}
     return {
         "label": label,
@@ -225,8 +253,16 @@ def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config, float]:
     restored = train.restore(directory)
     for_ = restored.trained_for
     checkpoint.require(
-        directory, for_, "streaming", f"a model with a fabric head over inputs from {'/'.join(STREAMABLE)}",
+        directory,
+        for_,
+        "streaming",
+        f"a model with a fabric head over inputs from {'/'.join(STREAMABLE)}",
         "fabric" in for_["heads"] and set(for_["inputs"]) <= set(STREAMABLE),
     )
     t = confidence.load_temperature(directory, restored.seeds[0])
-    return restored.graphdef, checkpoint.select_seed(restored.state["best_params"], 0), restored.config, 1.0 if t is None else t
+    return (
+        restored.graphdef,
+        checkpoint.select_seed(restored.state["best_params"], 0),
+        restored.config,
+        1.0 if t is None else t,
+    )

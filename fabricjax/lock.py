@@ -48,7 +48,11 @@ _HELD: dict[Path, _Held] = {}  # this process's locks, by lock file
 def lock_file(thing: str | os.PathLike, workdir=None) -> Path:
     """The lock of `thing` (a path a run writes or reads) in the workspace's lock folder."""
     resolved = Path(thing).expanduser().resolve()
-    return workspace.root(workdir) / LOCKS / f"{resolved.name}-{hashlib.sha256(str(resolved).encode()).hexdigest()[:12]}.lock"
+    return (
+        workspace.root(workdir)
+        / LOCKS
+        / f"{resolved.name}-{hashlib.sha256(str(resolved).encode()).hexdigest()[:12]}.lock"
+    )
 
 
 def command_line() -> str:
@@ -62,7 +66,9 @@ def command_line() -> str:
 
 
 @contextlib.contextmanager
-def hold(lock: Path, what: str, doing: str, *, shared: bool = False, wait: bool = False, transient: bool = False) -> Iterator[None]:
+def hold(
+    lock: Path, what: str, doing: str, *, shared: bool = False, wait: bool = False, transient: bool = False
+) -> Iterator[None]:
     """Hold `lock` (`lock_file`) for `what` (its name in messages) while the block runs: shared
     (reading) or exclusive (writing, `doing` says what); `Busy` if another run holds it the other
     way, or with `wait` (for locks held briefly) a line saying whom this run waits for, then the
@@ -113,7 +119,9 @@ def _flock(fd: int, lock: Path, what: str, mode: int, wait: bool = False) -> Non
         fcntl.flock(fd, mode | fcntl.LOCK_NB)
     except BlockingIOError:
         if not wait:
-            raise Busy(f"{what} is in use by {_holder(lock)}; wait for it to end, or give this run another --workdir") from None
+            raise Busy(
+                f"{what} is in use by {_holder(lock)}; wait for it to end, or give this run another --workdir"
+            ) from None
         print(f"waiting: {what} is in use by {_holder(lock)}", file=sys.stderr, flush=True)
         fcntl.flock(fd, mode)
 

@@ -111,9 +111,7 @@ class MLP(nnx.Module):
 
     def __init__(self, sizes: tuple[int, ...], *, dtype, rngs: nnx.Rngs, input_norm: bool = False):
         self.input_norm = nnx.LayerNorm(sizes[0], rngs=rngs) if input_norm else None
-        self.layers = nnx.List(
-            [dense(a, b, dtype=dtype, rngs=rngs) for a, b in zip(sizes[:-1], sizes[1:])]
-        )
+        self.layers = nnx.List([dense(a, b, dtype=dtype, rngs=rngs) for a, b in zip(sizes[:-1], sizes[1:])])
 
     def __call__(self, x):
         layers = iter(self.layers)
@@ -222,7 +220,9 @@ def _patch_product_bwd(saved, dy):
     dy = dy.astype(kernel.dtype)  # the products' operands in the compute dtype, as forward
     kernel_t = jnp.broadcast_to(kernel.T, (*rows.shape[:2], *kernel.T.shape))
     d_rows = jnp.einsum("bckj,bckn->bcjn", kernel_t, dy, preferred_element_type=jnp.float32)
-    d_kernel = jnp.einsum("bcjn,bcnk->bcjk", rows, jnp.swapaxes(dy, 2, 3), preferred_element_type=jnp.float32).sum((0, 1))
+    d_kernel = jnp.einsum("bcjn,bcnk->bcjk", rows, jnp.swapaxes(dy, 2, 3), preferred_element_type=jnp.float32).sum(
+        (0, 1)
+    )
     return d_rows.astype(rows.dtype), d_kernel.astype(kernel.dtype)
 
 
@@ -242,7 +242,9 @@ def self_attention(q: jax.Array, k: jax.Array, v: jax.Array) -> jax.Array:
     # overflow to inf above 65504)
     scores = jnp.einsum("bhtd,bhsd->bhts", q * q.shape[-1] ** -0.5, k, preferred_element_type=jnp.float32)
     e = jnp.exp(scores - jax.lax.stop_gradient(scores.max(axis=-1, keepdims=True)))
-    return jnp.einsum("bhts,bhsd->bhtd", e.astype(v.dtype), v, preferred_element_type=jnp.float32) / e.sum(axis=-1, keepdims=True)
+    return jnp.einsum("bhts,bhsd->bhtd", e.astype(v.dtype), v, preferred_element_type=jnp.float32) / e.sum(
+        axis=-1, keepdims=True
+    )
 
 
 class AttentionBlock(nnx.Module):
@@ -271,8 +273,14 @@ class AttentionBlock(nnx.Module):
         h = self.norm1(x)
         dtype = self.qkv.dtype or jnp.float32
         kernel, bias = self.qkv.kernel[...], self.qkv.bias[...]
-        heads = lambda i: jnp.swapaxes(  # noqa: E731
-            (matmul(h, kernel[:, i * w : (i + 1) * w], dtype) + bias[i * w : (i + 1) * w]).astype(dtype).reshape(b, t, self.n_heads, -1), 1, 2
+        heads = (  # noqa: E731
+            lambda i: jnp.swapaxes(
+                (matmul(h, kernel[:, i * w : (i + 1) * w], dtype) + bias[i * w : (i + 1) * w])
+                .astype(dtype)
+                .reshape(b, t, self.n_heads, -1),
+                1,
+                2,
+            )
         )
         a = jnp.swapaxes(self_attention(heads(0), heads(1), heads(2)), 1, 2).reshape(b, t, w)
         x = x + self.dropout(self.proj(a), deterministic=rngs is None, rngs=rngs)
@@ -391,7 +399,9 @@ class FabricNet(nnx.Module):
             elif m == "proprio":
                 x = self.proprio(x)
             else:
-                x = self.audio(x)  # standardised in float32 first: log-PSD levels near -10 lose their detail in bfloat16
+                x = self.audio(
+                    x
+                )  # standardised in float32 first: log-PSD levels near -10 lose their detail in bfloat16
             parts.append(x.reshape(b, n, -1))
         fused = jnp.concatenate(parts, axis=-1)
         return rescale_unit(fused) if self.fusion_norm is None else self.fusion_norm(fused.astype(jnp.float32))
@@ -426,7 +436,9 @@ class FabricNet(nnx.Module):
 
     def standardise(self, modality: str, x: jax.Array) -> jax.Array:
         """(x - shift) * scale per channel with the fixed training-split statistics, in the compute dtype."""
-        shift, scale = jax.lax.stop_gradient((getattr(self, f"{modality}_shift")[...], getattr(self, f"{modality}_scale")[...]))
+        shift, scale = jax.lax.stop_gradient(
+            (getattr(self, f"{modality}_shift")[...], getattr(self, f"{modality}_scale")[...])
+        )
         shape = channel_shape(modality, x.ndim - 1)
         shift = shift.reshape(shape) if shift.ndim == 1 else shift  # a reference frame broadcasts as it is
         return ((x.astype(jnp.float32) - shift) * scale.reshape(shape)).astype(self.dtype)
@@ -463,7 +475,9 @@ def make_predict(graphdef: nnx.GraphDef):
     return jax.jit(predict)
 
 
-def compile_predict_one(graphdef: nnx.GraphDef, params, example: Mapping[str, Any], device: jax.Device | None = None) -> jax.stages.Compiled:
+def compile_predict_one(
+    graphdef: nnx.GraphDef, params, example: Mapping[str, Any], device: jax.Device | None = None
+) -> jax.stages.Compiled:
     """`predict_one(inputs)`: logits per head for one sequence {modality: (N, ...)} of `example`'s
     shapes and dtypes, e.g. live on the robot; the production single-sequence path.
 
@@ -480,5 +494,8 @@ def compile_predict_one(graphdef: nnx.GraphDef, params, example: Mapping[str, An
         return jax.tree.map(lambda a: a[0], logits)
 
     placed = jax.sharding.SingleDeviceSharding(device)
-    shapes = {m: jax.ShapeDtypeStruct(np.shape(a), jax.dtypes.canonicalize_dtype(a.dtype), sharding=placed) for m, a in example.items()}
+    shapes = {
+        m: jax.ShapeDtypeStruct(np.shape(a), jax.dtypes.canonicalize_dtype(a.dtype), sharding=placed)
+        for m, a in example.items()
+    }
     return jax.jit(predict_one).lower(shapes).compile()

@@ -19,7 +19,13 @@ from typing import Callable, Sequence
 PARENT_POLL_S = 0.5  # how soon a worker notices its parent is gone
 
 
-def run_jobs(fn: Callable, jobs: Sequence, workers: int, on_done: Callable[[], None], initializer: Callable[[], None] | None = None) -> None:
+def run_jobs(
+    fn: Callable,
+    jobs: Sequence,
+    workers: int,
+    on_done: Callable[[], None],
+    initializer: Callable[[], None] | None = None,
+) -> None:
     """Call `fn(job)` for every job (results dropped: jobs write their own outputs), calling
     `on_done()` after each, in `min(workers, len(jobs))` processes; the first failing job's
     exception (in job order, whichever finished first) reaches the caller."""

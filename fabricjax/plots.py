@@ -41,8 +41,12 @@ def class_label(class_id: int) -> str:
     return f"{class_id} {catalog.fabric(class_id).name.split(' (')[0]}"
 
 
-def plot_confusions(path, panels: Sequence[tuple[str, np.ndarray, np.ndarray]], n_classes: int = catalog.N_CLASSES,
-                    class_names: Sequence[str] | None = None) -> Path:
+def plot_confusions(
+    path,
+    panels: Sequence[tuple[str, np.ndarray, np.ndarray]],
+    n_classes: int = catalog.N_CLASSES,
+    class_names: Sequence[str] | None = None,
+) -> Path:
     """One row-normalised confusion matrix per (title, labels, predictions) panel, side by side.
 
     Classes are labelled with `class_names` (a dataset's own label map; then `n_classes` is their
@@ -76,8 +80,13 @@ _KEY_MARKER = "h"  # the keys of size and outline: not a roughness marker
 
 
 def plot_latents(
-    path, xy: np.ndarray, fabric_ids: Sequence[int], fabrics: Mapping[int, tuple[str, Mapping[str, int | None]]],
-    holdouts: Collection[int], title: str = "t-SNE of latents, one point per fabric", neighbours: dict[int, int] | None = None,
+    path,
+    xy: np.ndarray,
+    fabric_ids: Sequence[int],
+    fabrics: Mapping[int, tuple[str, Mapping[str, int | None]]],
+    holdouts: Collection[int],
+    title: str = "t-SNE of latents, one point per fabric",
+    neighbours: dict[int, int] | None = None,
 ) -> Path:
     """Colour = stretchiness, marker = roughness level, size = thickness level (the paper's Fig.
     latent_features), from `fabrics` (id -> name and property levels, None where unknown: the
@@ -94,23 +103,57 @@ def plot_latents(
         p = fabrics[fid][1]
         held = fid in holdouts
         ax.scatter(
-            x, y, s=60 + 60 * (p["thickness"] or 0), marker=_ROUGH_MARKERS[p["roughness"] or 0], c=colours[p["stretchiness"]],
-            edgecolors="black" if held else "none", linewidths=2.2 if held else 0, alpha=0.85, zorder=2,
+            x,
+            y,
+            s=60 + 60 * (p["thickness"] or 0),
+            marker=_ROUGH_MARKERS[p["roughness"] or 0],
+            c=colours[p["stretchiness"]],
+            edgecolors="black" if held else "none",
+            linewidths=2.2 if held else 0,
+            alpha=0.85,
+            zorder=2,
         )
-        ax.annotate(str(fid), (x, y), fontsize=9 if held else 8, weight="bold" if held else "normal", xytext=(5, 4), textcoords="offset points")
-    handles = [plt.Line2D([], [], ls="", marker="o", color=colours[k], label=f"stretchiness {('low', 'high')[k]}") for k in (0, 1)]
+        ax.annotate(
+            str(fid),
+            (x, y),
+            fontsize=9 if held else 8,
+            weight="bold" if held else "normal",
+            xytext=(5, 4),
+            textcoords="offset points",
+        )
+    handles = [
+        plt.Line2D([], [], ls="", marker="o", color=colours[k], label=f"stretchiness {('low', 'high')[k]}")
+        for k in (0, 1)
+    ]
     handles += [
-        plt.Line2D([], [], ls="", marker=m, color="grey", label=f"roughness {i} ({'very smooth' if i == 0 else 'very rough' if i == 4 else ''})".replace(" ()", ""))
+        plt.Line2D(
+            [],
+            [],
+            ls="",
+            marker=m,
+            color="grey",
+            label=f"roughness {i} ({'very smooth' if i == 0 else 'very rough' if i == 4 else ''})".replace(" ()", ""),
+        )
         for i, m in enumerate(_ROUGH_MARKERS)
     ]
     # size and outline apply to every marker: their keys use a shape that no roughness level has
-    handles += [plt.Line2D([], [], ls="", marker=_KEY_MARKER, color="grey", ms=ms, label=f"thickness {t} (marker size)")
-                for t, ms in zip(("thin", "medium", "thick"), (7, 10, 13))]
-    handles += [plt.Line2D([], [], ls="", marker=_KEY_MARKER, mfc="white", mec="black", mew=2, label="holdout fabric (not trained on)")]
+    handles += [
+        plt.Line2D([], [], ls="", marker=_KEY_MARKER, color="grey", ms=ms, label=f"thickness {t} (marker size)")
+        for t, ms in zip(("thin", "medium", "thick"), (7, 10, 13))
+    ]
+    handles += [
+        plt.Line2D(
+            [], [], ls="", marker=_KEY_MARKER, mfc="white", mec="black", mew=2, label="holdout fabric (not trained on)"
+        )
+    ]
     if neighbours:
-        handles += [plt.Line2D([], [], ls="--", color="black", label="holdout to nearest training fabric\n(in latent space)")]
+        handles += [
+            plt.Line2D([], [], ls="--", color="black", label="holdout to nearest training fabric\n(in latent space)")
+        ]
     ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
-    key = "\n".join(f"{'*' if fid in holdouts else ' '}{fid:>2} {fabrics[fid][0].split(' (')[0]}" for fid in sorted(where))
+    key = "\n".join(
+        f"{'*' if fid in holdouts else ' '}{fid:>2} {fabrics[fid][0].split(' (')[0]}" for fid in sorted(where)
+    )
     ax.text(1.01, 0.0, key + "\n* holdout", transform=ax.transAxes, fontsize=6.5, family="monospace", va="bottom")
     ax.set(title=title, xlabel="t-SNE 1", ylabel="t-SNE 2")
     ax.margins(0.08)
@@ -127,7 +170,9 @@ def _seed_dots(ax, x: float, values: np.ndarray, colour: str, spread: float) -> 
     ax.scatter(x + offsets, v, s=12, color=colour, alpha=0.55, edgecolors="none", zorder=3)
 
 
-def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[Sequence[np.ndarray], Sequence[float]]], microphone: str) -> Path:
+def plot_against_bandwidth(
+    path, khz: Sequence[float], series: dict[str, tuple[Sequence[np.ndarray], Sequence[float]]], microphone: str
+) -> Path:
     """Accuracy [%] of `microphone` (the data's name for it) against PSD bandwidth: per split (`series`: split -> (per-seed values per
     bandwidth, the paper's mean per bandwidth or None: recorded data), every seed as a dot, our
     mean as a line, the paper's mean dashed."""
@@ -138,7 +183,14 @@ def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[S
         shift = (i - (len(series) - 1) / 2) * 0.35  # validation left, test right of each bandwidth
         for xi, v in zip(x, per_seed):
             _seed_dots(ax, xi + shift, v, colour, 0.12)
-        ax.plot(x + shift, [np.mean(v) for v in per_seed], "o-", color=colour, lw=1.6, label=f"{name}, ours (mean; dots: seeds)")
+        ax.plot(
+            x + shift,
+            [np.mean(v) for v in per_seed],
+            "o-",
+            color=colour,
+            lw=1.6,
+            label=f"{name}, ours (mean; dots: seeds)",
+        )
         if paper is not None:
             ax.plot(x, paper, "s--", color=colour, lw=1.0, mfc="white", alpha=0.8, label=f"{name}, paper (mean)")
     ax.set(xlabel="PSD bandwidth [kHz]", ylabel="accuracy [%]", title=f"{microphone} accuracy against PSD bandwidth")
@@ -148,7 +200,9 @@ def plot_against_bandwidth(path, khz: Sequence[float], series: dict[str, tuple[S
     return _save(fig, path)
 
 
-def plot_seed_bars(path, groups: Sequence[str], series: dict[str, tuple[Sequence[np.ndarray], Sequence[float | None]]], title: str) -> Path:
+def plot_seed_bars(
+    path, groups: Sequence[str], series: dict[str, tuple[Sequence[np.ndarray], Sequence[float | None]]], title: str
+) -> Path:
     """Grouped bars of mean accuracy [%] with every seed's value as a dot: per split (`series`:
     split -> (per-seed values per group, the paper's mean per group or None)); the paper's mean
     is a black bar-wide tick, named in the legend with its split ("cafe test, paper (mean)")."""
@@ -157,7 +211,14 @@ def plot_seed_bars(path, groups: Sequence[str], series: dict[str, tuple[Sequence
     for i, (split, (per_seed, paper)) in enumerate(series.items()):
         name, colour = _SPLIT_STYLE[split]
         xs = np.arange(len(groups)) + (i - (len(series) - 1) / 2) * width
-        ax.bar(xs, [np.mean(v) for v in per_seed], width * 0.92, color=colour, alpha=0.35, label=f"{name}, ours (mean; dots: seeds)")
+        ax.bar(
+            xs,
+            [np.mean(v) for v in per_seed],
+            width * 0.92,
+            color=colour,
+            alpha=0.35,
+            label=f"{name}, ours (mean; dots: seeds)",
+        )
         for x, v in zip(xs, per_seed):
             _seed_dots(ax, x, v, colour, width * 0.3)
         for x, p in zip(xs, paper):
@@ -204,13 +265,23 @@ def plot_pareto(path, points: Sequence[dict], x_keys: Sequence[tuple[str, str]],
         marked = [i for i, p in enumerate(points) if p["name"] == highlight]
         for i in marked:  # the paper's point: ringed, its label centred below the ring
             ax.scatter([xs[i]], [ys[i]], s=160, facecolors="none", edgecolors="tab:red", linewidths=1.5)
-            ax.annotate(points[i]["name"] + " (paper config)", (xs[i], ys[i]), fontsize=6.5, xytext=(0, -16), textcoords="offset points",
-                        ha="center", color="tab:red", weight="bold")
+            ax.annotate(
+                points[i]["name"] + " (paper config)",
+                (xs[i], ys[i]),
+                fontsize=6.5,
+                xytext=(0, -16),
+                textcoords="offset points",
+                ha="center",
+                color="tab:red",
+                weight="bold",
+            )
         _labels_apart(ax, xs, ys, [p["name"] for p in points], fontsize=6.5, skip=set(marked))
     return _save(fig, path)
 
 
-def _labels_apart(ax, xs: np.ndarray, ys: np.ndarray, texts: Sequence[str], fontsize: float, skip: Collection[int] = ()) -> None:
+def _labels_apart(
+    ax, xs: np.ndarray, ys: np.ndarray, texts: Sequence[str], fontsize: float, skip: Collection[int] = ()
+) -> None:
     """Label each point to its upper right, moving a label down (with a thin leader line) until it
     overlaps no label placed before it, from the highest point down: points close together (one
     touch time, say) keep readable labels. Call after the axes' limits and scales are final."""
@@ -229,9 +300,15 @@ def _labels_apart(ax, xs: np.ndarray, ys: np.ndarray, texts: Sequence[str], font
             bottom -= step
         placed.append((left, left + width, bottom))
         moved = at[i, 1] + 2 * px_per_pt - bottom > height / 2
-        ax.annotate(texts[i], (xs[i], ys[i]), xytext=((left - at[i, 0]) / px_per_pt, (bottom - at[i, 1]) / px_per_pt),
-                    textcoords="offset points", fontsize=fontsize, va="bottom",
-                    arrowprops={"arrowstyle": "-", "lw": 0.4, "color": "grey", "shrinkA": 0, "shrinkB": 2} if moved else None)
+        ax.annotate(
+            texts[i],
+            (xs[i], ys[i]),
+            xytext=((left - at[i, 0]) / px_per_pt, (bottom - at[i, 1]) / px_per_pt),
+            textcoords="offset points",
+            fontsize=fontsize,
+            va="bottom",
+            arrowprops={"arrowstyle": "-", "lw": 0.4, "color": "grey", "shrinkA": 0, "shrinkB": 2} if moved else None,
+        )
 
 
 def plot_psds(path, freqs_hz: np.ndarray, psds: dict[str, np.ndarray], noise: np.ndarray | None = None) -> Path:
@@ -265,21 +342,53 @@ def plot_decide(path, models: Sequence[Mapping]) -> Path:
                     continue
                 r = d["calibration"][when]["reliability"]
                 pts = [(c, a) for c, a in zip(r["confidence"], r["accuracy"]) if c is not None]
-                rel.plot(*zip(*pts), ls, marker="o", ms=3, color=styles.get(split),
-                         label=f"{split} {when} (ECE {100 * d['calibration'][when]['ece']:.1f} %)")
-        rel.set(xlabel="confidence (max probability)", ylabel="accuracy", title=f"{m['name']}: reliability, T = {m['temperature']:.2f}",
-                xlim=(0, 1), ylim=(0, 1.02))
+                rel.plot(
+                    *zip(*pts),
+                    ls,
+                    marker="o",
+                    ms=3,
+                    color=styles.get(split),
+                    label=f"{split} {when} (ECE {100 * d['calibration'][when]['ece']:.1f} %)",
+                )
+        rel.set(
+            xlabel="confidence (max probability)",
+            ylabel="accuracy",
+            title=f"{m['name']}: reliability, T = {m['temperature']:.2f}",
+            xlim=(0, 1),
+            ylim=(0, 1.02),
+        )
         rel.legend(fontsize=8)
         for split, d in m["splits"].items():
             c = d["curve"]
-            cur.plot([x["mean_touch_s"] for x in c], [100 * x["accuracy"] for x in c], "-o", ms=4, color=styles.get(split),
-                     label=f"{split}: sequential rule")
+            cur.plot(
+                [x["mean_touch_s"] for x in c],
+                [100 * x["accuracy"] for x in c],
+                "-o",
+                ms=4,
+                color=styles.get(split),
+                label=f"{split}: sequential rule",
+            )
             for x in c[:: max(1, len(c) // 4)]:
-                cur.annotate(f"{x['threshold']:g}", (x["mean_touch_s"], 100 * x["accuracy"]), fontsize=7, textcoords="offset points", xytext=(3, -9))
+                cur.annotate(
+                    f"{x['threshold']:g}",
+                    (x["mean_touch_s"], 100 * x["accuracy"]),
+                    fontsize=7,
+                    textcoords="offset points",
+                    xytext=(3, -9),
+                )
         if m.get("cost_points"):
-            cur.plot([p["touch_s"] for p in m["cost_points"]], [100 * p["accuracy"] for p in m["cost_points"]], "ks", ms=5,
-                     label="cost study: fixed N (test)")
-        cur.set(xlabel="mean touch time to decision [s]", ylabel="accuracy [%]", title="when to stop rubbing (labels: posterior threshold)")
+            cur.plot(
+                [p["touch_s"] for p in m["cost_points"]],
+                [100 * p["accuracy"] for p in m["cost_points"]],
+                "ks",
+                ms=5,
+                label="cost study: fixed N (test)",
+            )
+        cur.set(
+            xlabel="mean touch time to decision [s]",
+            ylabel="accuracy [%]",
+            title="when to stop rubbing (labels: posterior threshold)",
+        )
         cur.legend(fontsize=8)
         roc.plot([0, 1], [0, 1], color="grey", lw=0.8, ls=":")
         u = m.get("unknown")
@@ -287,8 +396,11 @@ def plot_decide(path, models: Sequence[Mapping]) -> Path:
             for name, s in u["scores"].items():
                 k, v = np.asarray(s["known"]), np.asarray(s["unknown"])
                 cuts = np.unique(np.concatenate([k, v, [np.inf]]))[::-1]
-                roc.plot([np.mean(k >= t) for t in cuts], [np.mean(v >= t) for t in cuts],
-                         label=f"{name.replace('_', ' ')} (AUROC {s['auroc']:.2f})")
+                roc.plot(
+                    [np.mean(k >= t) for t in cuts],
+                    [np.mean(v >= t) for t in cuts],
+                    label=f"{name.replace('_', ' ')} (AUROC {s['auroc']:.2f})",
+                )
             roc.legend(fontsize=8)
             roc.set_title(f"unknown fabrics {', '.join(map(str, u['fabrics']))}")
         else:
@@ -297,13 +409,17 @@ def plot_decide(path, models: Sequence[Mapping]) -> Path:
     return _save(fig, path)
 
 
-def ranked_bars(path, factors: Sequence[str], panels: Sequence[tuple[str, Mapping[str, Sequence[float]]]], title: str) -> Path:
+def ranked_bars(
+    path, factors: Sequence[str], panels: Sequence[tuple[str, Mapping[str, Sequence[float]]]], title: str
+) -> Path:
     """One panel per response: its factors' mu* as horizontal bars, largest on top, with the
     bootstrap interval as an error bar (`panels`: (response, SALib's Morris result)); two panels a
     row, text at 10-12 pt, so that a page of many responses stays readable."""
     cols = 2
     rows = -(-len(panels) // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(7.0 * cols, 0.42 * len(factors) * rows + 1.4 * rows), layout="constrained", squeeze=False)
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(7.0 * cols, 0.42 * len(factors) * rows + 1.4 * rows), layout="constrained", squeeze=False
+    )
     for ax, (name, result) in zip(axes.flat, panels):
         mu, conf = np.asarray(result["mu_star"]), np.asarray(result["mu_star_conf"])
         order = np.argsort(mu)
@@ -313,7 +429,7 @@ def ranked_bars(path, factors: Sequence[str], panels: Sequence[tuple[str, Mappin
         ax.set_xlim(0, max(1.0, float((mu + conf).max()) * 1.05))
         ax.tick_params(axis="x", labelsize=10)
         ax.grid(alpha=0.3, axis="x")
-    for ax in list(axes.flat)[len(panels):]:
+    for ax in list(axes.flat)[len(panels) :]:
         ax.axis("off")
     fig.suptitle(title, fontsize=13)
     return _save(fig, path)

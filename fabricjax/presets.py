@@ -83,8 +83,18 @@ _PAPER_DATA = dict(fabrics=_ALL_FABRICS, train_trials_per_day=6, test_trials=2, 
 
 # The default preset's model and step, chosen by the recipe sweep on its data (`experiments.sweep`).
 _LAPTOP_MODEL = dict(
-    seq_len=50, width=64, n_heads=4, n_layers=2, ffn=64, audio_hidden=(64, 32), proprio_hidden=(32, 32),
-    cnn_features=(4, 8), batch_size=16, learning_rate=2e-3, lr_schedule="cosine", image_size=(30, 40),
+    seq_len=50,
+    width=64,
+    n_heads=4,
+    n_layers=2,
+    ffn=64,
+    audio_hidden=(64, 32),
+    proprio_hidden=(32, 32),
+    cnn_features=(4, 8),
+    batch_size=16,
+    learning_rate=2e-3,
+    lr_schedule="cosine",
+    image_size=(30, 40),
 )
 # The fitted recipe (`studies.common.recipe`): a budget of optimiser steps per seed, early stopping
 # on the validation split, and on recorded data a grid of learning rates and widths chosen on it.
@@ -94,44 +104,72 @@ FITTED_RECIPE = MappingProxyType(dict(train_steps=4500, patience_steps=1100, epo
 RECORDED_GRID = MappingProxyType(dict(lr_grid=(1e-3, 3e-3), width_grid=(32, 64)))
 _DEFAULT_TRAINING = MappingProxyType({**_LAPTOP_MODEL, **FITTED_RECIPE})
 
-PRESETS: Mapping[str, Preset] = MappingProxyType({
-    p.name: p
-    for p in (
-        Preset(
-            name="smoke",
-            dataset=DatasetSpec(
-                fabrics=(0, 1, 2, 3, 4, 21), train_trials_per_day=2, test_trials=1, cafe_trials=1, cycles_per_trial=3,
-                image_size=(77, 103),
+PRESETS: Mapping[str, Preset] = MappingProxyType(
+    {
+        p.name: p
+        for p in (
+            Preset(
+                name="smoke",
+                dataset=DatasetSpec(
+                    fabrics=(0, 1, 2, 3, 4, 21),
+                    train_trials_per_day=2,
+                    test_trials=1,
+                    cafe_trials=1,
+                    cycles_per_trial=3,
+                    image_size=(77, 103),
+                ),
+                training=MappingProxyType(
+                    dict(
+                        seq_len=20,
+                        width=16,
+                        n_heads=4,
+                        n_layers=1,
+                        ffn=32,
+                        audio_hidden=(32, 16),
+                        proprio_hidden=(16, 16),
+                        cnn_features=(4, 8),
+                        epochs=15,
+                        batch_size=8,
+                        learning_rate=3e-3,
+                        warmup_steps=5,
+                    )
+                ),
+                install_check=True,
             ),
-            training=MappingProxyType(dict(
-                seq_len=20, width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16),
-                cnn_features=(4, 8), epochs=15, batch_size=8, learning_rate=3e-3, warmup_steps=5,
-            )),
-            install_check=True,
-        ),
-        Preset(
-            name="default",
-            dataset=DatasetSpec(**_PAPER_DATA, image_size=(60, 80)),
-            training=_DEFAULT_TRAINING,
-            recorded_training=RECORDED_GRID,
-        ),
-        Preset(name="paper", dataset=DatasetSpec(**_PAPER_DATA, image_size=archive.MINSIGHT_SIZE)),
-        Preset(
-            name="paper_sample",
-            dataset=DatasetSpec(fabrics=(0, 1, 2, 3, 4), train_trials_per_day=2, test_trials=1, cafe_trials=0, cycles_per_trial=50,
-                                image_size=archive.MINSIGHT_SIZE),
-            note=("The paper_sample preset is the paper preset (its trials, 308x410 frames, N=200, its model and recipe) on a sample "
-                  "of its data: 5 fabrics, one training trial per day. Its numbers are not the paper's table (5 classes, a 20th of the "
-                  "training sequences), and none of the paper's claims is counted: it measures what the paper's scale costs and shows "
-                  "that its camera rows run."),
-        ),
-        Preset(
-            name="sensitivity",
-            dataset=DatasetSpec(**{**_PAPER_DATA, "train_trials_per_day": 3, "cycles_per_trial": 10}, image_size=(60, 80)),
-            training=MappingProxyType({**_LAPTOP_MODEL, "epochs": 2}),
-        ),
-    )
-})
+            Preset(
+                name="default",
+                dataset=DatasetSpec(**_PAPER_DATA, image_size=(60, 80)),
+                training=_DEFAULT_TRAINING,
+                recorded_training=RECORDED_GRID,
+            ),
+            Preset(name="paper", dataset=DatasetSpec(**_PAPER_DATA, image_size=archive.MINSIGHT_SIZE)),
+            Preset(
+                name="paper_sample",
+                dataset=DatasetSpec(
+                    fabrics=(0, 1, 2, 3, 4),
+                    train_trials_per_day=2,
+                    test_trials=1,
+                    cafe_trials=0,
+                    cycles_per_trial=50,
+                    image_size=archive.MINSIGHT_SIZE,
+                ),
+                note=(
+                    "The paper_sample preset is the paper preset (its trials, 308x410 frames, N=200, its model and recipe) on a sample "
+                    "of its data: 5 fabrics, one training trial per day. Its numbers are not the paper's table (5 classes, a 20th of the "
+                    "training sequences), and none of the paper's claims is counted: it measures what the paper's scale costs and shows "
+                    "that its camera rows run."
+                ),
+            ),
+            Preset(
+                name="sensitivity",
+                dataset=DatasetSpec(
+                    **{**_PAPER_DATA, "train_trials_per_day": 3, "cycles_per_trial": 10}, image_size=(60, 80)
+                ),
+                training=MappingProxyType({**_LAPTOP_MODEL, "epochs": 2}),
+            ),
+        )
+    }
+)
 
 
 def install_check(name: str | None) -> bool:

@@ -29,7 +29,11 @@ def _sections(lines: list[str]) -> list[tuple[str, list[str]]]:
     markdown = any(line.startswith("#") for line in lines)
     out: list[tuple[str, list[str]]] = []
     for line in lines[1:]:
-        heading = line.startswith("#") if markdown else bool(line.strip()) and not line[0].isspace() and not set(line.strip()) <= set("=-")
+        heading = (
+            line.startswith("#")
+            if markdown
+            else bool(line.strip()) and not line[0].isspace() and not set(line.strip()) <= set("=-")
+        )
         if heading:
             out.append((line.lstrip("#").strip(), []))
         elif out and line.strip():
@@ -47,7 +51,9 @@ def from_readme(folder: str | os.PathLike) -> dict[str, Any] | None:
     if not lines:
         return None
     sections = _sections(lines)
-    kept = {h: " ".join(body) for i, (h, body) in enumerate(sections) if (i == 0 or h.lower().startswith(KEPT)) and body}
+    kept = {
+        h: " ".join(body) for i, (h, body) in enumerate(sections) if (i == 0 or h.lower().startswith(KEPT)) and body
+    }
     return {"readme": readme.name, "title": lines[0].lstrip("#").strip(), "sections": kept}
 
 

@@ -115,14 +115,18 @@ def use_cpu_cores(n: int | None = None) -> int:
     count of 1 keeps the single device."""
     import jax
 
-    if "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", "") or os.environ.get("JAX_NUM_CPU_DEVICES"):
+    if "xla_force_host_platform_device_count" in os.environ.get("XLA_FLAGS", "") or os.environ.get(
+        "JAX_NUM_CPU_DEVICES"
+    ):
         return len(jax.devices("cpu"))
     n = n or available_cores()
     try:
         jax.config.update("jax_num_cpu_devices", n)
     except RuntimeError:  # JAX has started
         if len(jax.devices("cpu")) != n:
-            warnings.warn(f"JAX already started with {len(jax.devices('cpu'))} CPU device(s); use_cpu_cores({n}) comes too late")
+            warnings.warn(
+                f"JAX already started with {len(jax.devices('cpu'))} CPU device(s); use_cpu_cores({n}) comes too late"
+            )
     return len(jax.devices("cpu"))
 
 

@@ -40,7 +40,9 @@ class SequenceStore:
         self.folder = Path(root) / digest
         self._partial = self.folder.with_name(digest + ".partial")
 
-    def _arrays(self, folder: Path, arrays: Mapping[str, list[str]], mode: str | None = "r") -> dict[str, dict[str, np.ndarray]]:
+    def _arrays(
+        self, folder: Path, arrays: Mapping[str, list[str]], mode: str | None = "r"
+    ) -> dict[str, dict[str, np.ndarray]]:
         return {s: {m: np.load(folder / f"{s}.{m}.npy", mmap_mode=mode) for m in ms} for s, ms in arrays.items()}
 
     def load(self) -> dict[str, dict[str, np.ndarray]] | None:
@@ -51,7 +53,9 @@ class SequenceStore:
         except (OSError, ValueError, KeyError):
             return None
 
-    def create(self, shapes: Mapping[str, Mapping[str, tuple[tuple[int, ...], Any]]]) -> dict[str, dict[str, np.memmap]]:
+    def create(
+        self, shapes: Mapping[str, Mapping[str, tuple[tuple[int, ...], Any]]]
+    ) -> dict[str, dict[str, np.memmap]]:
         """Zeroed writable files {split: {modality: (shape, dtype)}} to fill, then `finish`; a
         one-line `UserError`, having written nothing, where the disk has not the room."""
         shutil.rmtree(self._partial, ignore_errors=True)
@@ -59,11 +63,16 @@ class SequenceStore:
         self.folder.parent.mkdir(parents=True, exist_ok=True)
         free = shutil.disk_usage(self.folder.parent).free
         if need > free:
-            raise UserError(f"{self.folder.parent}: the loaded sequences need {disk.size(need)} of memory-mapped files, only {disk.size(free)} free "
-                            "(free disk space, give --workdir on a larger disk, or --set=input_source=memory where memory holds them)")
+            raise UserError(
+                f"{self.folder.parent}: the loaded sequences need {disk.size(need)} of memory-mapped files, only {disk.size(free)} free "
+                "(free disk space, give --workdir on a larger disk, or --set=input_source=memory where memory holds them)"
+            )
         self._partial.mkdir(parents=True)
         return {
-            s: {m: np.lib.format.open_memmap(self._partial / f"{s}.{m}.npy", mode="w+", dtype=dtype, shape=shape) for m, (shape, dtype) in d.items()}
+            s: {
+                m: np.lib.format.open_memmap(self._partial / f"{s}.{m}.npy", mode="w+", dtype=dtype, shape=shape)
+                for m, (shape, dtype) in d.items()
+            }
             for s, d in shapes.items()
         }
 
@@ -73,7 +82,9 @@ class SequenceStore:
             for a in d.values():
                 a.flush()
         listing = {s: sorted(d) for s, d in arrays.items()}
-        (self._partial / "key.json").write_text(json.dumps({"key": self.key, "arrays": listing}, indent=1, sort_keys=True))
+        (self._partial / "key.json").write_text(
+            json.dumps({"key": self.key, "arrays": listing}, indent=1, sort_keys=True)
+        )
         shutil.rmtree(self.folder, ignore_errors=True)
         self._partial.rename(self.folder)
         return self._arrays(self.folder, listing)

@@ -119,4 +119,6 @@ def wilcoxon(a, b, *, pairing: str) -> WilcoxonResult:
         p, statistic = sign_flip_p(nonzero)
         return WilcoxonResult(statistic, p, d.size, nz, EXACT, pairing, min_exact_p(nz))
     res = sps.wilcoxon(a, b, zero_method="wilcox", alternative="two-sided", method="approx")
-    return WilcoxonResult(float(res.statistic), float(res.pvalue), d.size, nz, APPROX, pairing, min_approx_p(np.abs(nonzero)))
+    return WilcoxonResult(
+        float(res.statistic), float(res.pvalue), d.size, nz, APPROX, pairing, min_approx_p(np.abs(nonzero))
+    )

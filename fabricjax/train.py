@@ -45,6 +45,7 @@ from fabricjax.config import Config
 from fabricjax.inputs import feature_shapes, input_statistics, training_input, with_input_statistics
 from fabricjax.model import FabricNet, head_sizes
 
+
 def select(config: Config, ds) -> dict[str, dict[str, np.ndarray]]:
     """The arrays of `ds` this config uses, on the host: its modalities and its heads' labels
     (int32)."""
@@ -119,10 +120,15 @@ def masked_accuracy(predictions: jax.Array, labels: jax.Array) -> jax.Array:
     return ((predictions == labels) & valid).sum() / jnp.maximum(valid.sum(), 1)
 
 
-def _correct_and_known(logits: dict[str, jax.Array], labels: dict[str, jax.Array]) -> dict[str, tuple[jax.Array, jax.Array]]:
+def _correct_and_known(
+    logits: dict[str, jax.Array], labels: dict[str, jax.Array]
+) -> dict[str, tuple[jax.Array, jax.Array]]:
     """Per head, (right predictions, known labels) of a minibatch: summed over an epoch, the
     counts give its training accuracy as `masked_accuracy` counts it."""
-    return {h: (((jnp.argmax(v, -1) == labels[h]) & (labels[h] >= 0)).sum(), (labels[h] >= 0).sum()) for h, v in logits.items()}
+    return {
+        h: (((jnp.argmax(v, -1) == labels[h]) & (labels[h] >= 0)).sum(), (labels[h] >= 0).sum())
+        for h, v in logits.items()
+    }
 
 
 @dataclasses.dataclass(frozen=True)
@@ -174,7 +180,9 @@ class Trainer:
         batch = min(self.config.batch_size, n)
         steps = n // batch
         k_perm, k_steps = jax.random.split(key)
-        return jax.random.permutation(k_perm, n)[: steps * batch].reshape(steps, batch), jax.random.split(k_steps, steps)
+        return jax.random.permutation(k_perm, n)[: steps * batch].reshape(steps, batch), jax.random.split(
+            k_steps, steps
+        )
 
     def train_step(self, carry, mb, key):
         """One optimiser step on minibatch `mb`: ((params, opt_state), (loss, right and known
@@ -216,7 +224,9 @@ class Trainer:
         minibatch at a time."""
         model = nnx.merge(self.graphdef, params)
         batch = self.config.batch_size
-        chunks = sharding.split_samples(jax.tree.map(lambda a: a.reshape(-1, batch, *a.shape[1:]), inputs), self.mesh, axis=1)
+        chunks = sharding.split_samples(
+            jax.tree.map(lambda a: a.reshape(-1, batch, *a.shape[1:]), inputs), self.mesh, axis=1
+        )
         return {h: jnp.argmax(v, -1).reshape(-1).astype(jnp.int32) for h, v in jax.lax.map(model, chunks).items()}
 
     def evaluate(self, params, ds) -> dict[str, dict[str, jax.Array]]:
@@ -247,10 +257,14 @@ class Trainer:
             params, opt_state, summary = self.train_epoch(
                 state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), data["train"], e
             )
-            params, opt_state = self.unless_stopped(state["stopped_at"], (params, opt_state), (state["params"], state["opt_state"]))
+            params, opt_state = self.unless_stopped(
+                state["stopped_at"], (params, opt_state), (state["params"], state["opt_state"])
+            )
             validation = self.evaluate(params, data["val"])
             return self.end_epoch(state, params, opt_state, summary["train_loss"], validation), {
-                **summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]
+                **summary,
+                "val_accuracy": validation["accuracy"],
+                "val_predictions": validation["predictions"],
             }
 
         return jax.lax.scan(epoch, state, length=n_epochs)
@@ -295,13 +309,18 @@ class Trainer:
     def finished(state, evaluations: Mapping[str, Any]) -> dict[str, Any]:
         """`finish`'s metrics from the best-validation model's `evaluations` ({name: `evaluate`'s})."""
         return {
-            **state["history"], "best_epoch": state["best_epoch"], "stopped_at": state["stopped_at"], "best_val_acc": state["best_val"],
+            **state["history"],
+            "best_epoch": state["best_epoch"],
+            "stopped_at": state["stopped_at"],
+            "best_val_acc": state["best_val"],
             "eval": dict(evaluations),
         }
 
 
 def make_trainer(
-    config: Config, shapes: Mapping[str, tuple[int, ...]], mesh: Mesh | None = None,
+    config: Config,
+    shapes: Mapping[str, tuple[int, ...]],
+    mesh: Mesh | None = None,
     n_train: int | None = None,
 ) -> Trainer:
     """The pieces of a run of `config` on inputs of per-sample `shapes` and `n_train` training
@@ -338,13 +357,17 @@ def _placed(a: np.ndarray, modality: str, multiple: int | None, to: NamedShardin
     minibatches of `multiple` where one is given (evaluation sets)."""
 
     def make():
-        name, array = training_input(modality, a, None if multiple is None else host_arrays.whole_minibatches(len(a), multiple))
+        name, array = training_input(
+            modality, a, None if multiple is None else host_arrays.whole_minibatches(len(a), multiple)
+        )
         return name, sharding.put(array, to)
 
     # `a` itself, placed without a copy (`host_arrays`), is not kept: placing it again costs
     # nothing, and the kept value would keep `a` alive past its data set
     _PLACED.max_bytes = _placement_budget(to)
-    return _PLACED.get(a, (modality, multiple, to), make, keep=lambda placed: not host_arrays.placed_in_place(placed[1], a))
+    return _PLACED.get(
+        a, (modality, multiple, to), make, keep=lambda placed: not host_arrays.placed_in_place(placed[1], a)
+    )
 
 
 def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None, to: NamedSharding):
@@ -362,7 +385,13 @@ def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | N
         k: {
             "inputs": dict(_placed(a, m, multiple(k), to) for m, a in v["inputs"].items()),
             "labels": sharding.put(
-                {h: a if multiple(k) is None else host_arrays.padded(a, host_arrays.whole_minibatches(len(a), multiple(k)), -1) for h, a in v["labels"].items()}, to
+                {
+                    h: a
+                    if multiple(k) is None
+                    else host_arrays.padded(a, host_arrays.whole_minibatches(len(a), multiple(k)), -1)
+                    for h, a in v["labels"].items()
+                },
+                to,
             ),
         }
         for k, v in sets.items()
@@ -377,7 +406,15 @@ def place_for_runs(config: Config, data_sets: Mapping[str, Any]) -> None:
     the first row that reads it, so that laying out the split's frames, which its rows share, is
     timed as the data's cost, not as that row's."""
     evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
-    jax.block_until_ready(prepare(config, data_sets["train"], data_sets["val"], evals, sharding.replicated(sharding.training_mesh(config.batch_size))))
+    jax.block_until_ready(
+        prepare(
+            config,
+            data_sets["train"],
+            data_sets["val"],
+            evals,
+            sharding.replicated(sharding.training_mesh(config.batch_size)),
+        )
+    )
     input_statistics(config, data_sets["train"])
 
 
@@ -392,7 +429,13 @@ class BestEpochValidation:
         self.predictions: dict[str, np.ndarray] = {}
         self.accuracy: dict[str, np.ndarray] = {}
 
-    def add(self, first_epoch: int, predictions: Mapping[str, np.ndarray], accuracy: Mapping[str, np.ndarray], best_epoch: np.ndarray) -> None:
+    def add(
+        self,
+        first_epoch: int,
+        predictions: Mapping[str, np.ndarray],
+        accuracy: Mapping[str, np.ndarray],
+        best_epoch: np.ndarray,
+    ) -> None:
         """The scan's outputs for epochs `first_epoch`, ... (predictions (seeds, n, samples) and
         accuracy (seeds, n) per head) and each seed's best epoch after them."""
         n = np.shape(next(iter(accuracy.values())))[1]
@@ -464,7 +507,8 @@ class Results:
 # JAX's events for building a program (tracing, lowering, XLA's compilation), summed over this
 # process: `train_and_evaluate` reports its run's share ("compile_s" of its time account).
 _BUILD_EVENTS = frozenset(
-    f"/jax/core/compile/{e}" for e in ("jaxpr_trace_duration", "jaxpr_to_mlir_module_duration", "backend_compile_duration")
+    f"/jax/core/compile/{e}"
+    for e in ("jaxpr_trace_duration", "jaxpr_to_mlir_module_duration", "backend_compile_duration")
 )
 _build_seconds = [0.0]
 
@@ -548,7 +592,9 @@ def train_and_evaluate(
     # epoch per call); every set, so that training and evaluation compile one image path (`FabricNet.image_features`)
     account = TimeAccount()
     with account.phase("place_s"):
-        data, sizes = jax.block_until_ready(prepare(config, data_sets["train"], data_sets["val"], evals, per_seed))  # replicated, like the state
+        data, sizes = jax.block_until_ready(
+            prepare(config, data_sets["train"], data_sets["val"], evals, per_seed)
+        )  # replicated, like the state
     shapes = tuple(sorted(feature_shapes(select(config, data_sets["train"])["inputs"]).items()))
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
     with account.phase("initialise_s"):
@@ -558,7 +604,9 @@ def train_and_evaluate(
         keys = sharding.put(seed_keys(seeds), per_seed)
         mngr = checkpoint.manager(workdir) if workdir is not None else None
         train_set = data_sets["train"]
-        run_meta = checkpoint.meta(config, seeds, trainer.shapes, getattr(train_set, "classes", None), getattr(train_set, "dataset", None))
+        run_meta = checkpoint.meta(
+            config, seeds, trainer.shapes, getattr(train_set, "classes", None), getattr(train_set, "dataset", None)
+        )
         saved_curves = None
         if mngr is not None and mngr.latest_step() is not None:
             abstract = jax.tree.map(
@@ -588,7 +636,9 @@ def train_and_evaluate(
             state, chunk_curves = run(n)(state, data)
             chunk_curves = jax.device_get(chunk_curves)  # waits for the chunk
         history.add(done, chunk_curves, (time.perf_counter() - t0) / n)
-        validation.add(done, chunk_curves.pop("val_predictions"), chunk_curves["val_accuracy"], jax.device_get(state["best_epoch"]))
+        validation.add(
+            done, chunk_curves.pop("val_predictions"), chunk_curves["val_accuracy"], jax.device_get(state["best_epoch"])
+        )
         if writer is not None:
             writer.write(history, done, done + n)
         done += n
@@ -601,11 +651,15 @@ def train_and_evaluate(
         writer.close()
     val = validation.results()
     with account.phase("evaluate_s"):
-        metrics = jax.device_get(finish(state, data["eval"] if val is not None else {"val": data["val"], **data["eval"]}))
+        metrics = jax.device_get(
+            finish(state, data["eval"] if val is not None else {"val": data["val"], **data["eval"]})
+        )
     if val is not None:
         metrics["eval"] = {"val": val, **metrics["eval"]}
     metrics = unpad(metrics, sizes)
-    return Results(config, seeds, trainer.graphdef, state, {**metrics, "epochs": history.scalars, "time": account.result()})
+    return Results(
+        config, seeds, trainer.graphdef, state, {**metrics, "epochs": history.scalars, "time": account.result()}
+    )
 
 
 class Restored(NamedTuple):
@@ -618,7 +672,9 @@ class Restored(NamedTuple):
     config: Config
     seeds: list[int]
     trained_for: dict[str, Any]
-    dataset: dict[str, str]  # the data it was trained on (`DatasetIndex.identity`; empty where the checkpoint does not say)
+    dataset: dict[
+        str, str
+    ]  # the data it was trained on (`DatasetIndex.identity`; empty where the checkpoint does not say)
 
 
 def restore(directory: str | os.PathLike, config: Config | None = None, seed: int | None = None) -> Restored:
@@ -642,5 +698,11 @@ def restore(directory: str | os.PathLike, config: Config | None = None, seed: in
         return Restored(trainer.graphdef, state, config, saved["seeds"], for_, saved.get("dataset") or {})
     if seed not in saved["seeds"]:
         raise KeyError(f"seed {seed} is not in the checkpoint in {mngr.directory} (seeds {saved['seeds']})")
-    return Restored(trainer.graphdef, checkpoint.select_seed(state, saved["seeds"].index(seed)), config, saved["seeds"], for_,
-                    saved.get("dataset") or {})
+    return Restored(
+        trainer.graphdef,
+        checkpoint.select_seed(state, saved["seeds"].index(seed)),
+        config,
+        saved["seeds"],
+        for_,
+        saved.get("dataset") or {},
+    )

@@ -102,8 +102,13 @@ def archive_step(trial: archive.TrialArchive, t: int) -> Step:
     """Step `t` of a recorded trial, as it came in."""
     new = archive.WINDOW if t == 0 else int(trial.window_end[t, 0] - trial.window_end[t - 1, 0])
     return Step(
-        t, float(trial.timestamps[t] - trial.timestamps[0]), np.stack(live.step_windows(trial, t, [0, 1], [archive.WINDOW] * 2)),
-        min(max(new, 0), archive.WINDOW), trial.joints[t], float(trial.force[t]), None if trial.images is None else trial.images[t],
+        t,
+        float(trial.timestamps[t] - trial.timestamps[0]),
+        np.stack(live.step_windows(trial, t, [0, 1], [archive.WINDOW] * 2)),
+        min(max(new, 0), archive.WINDOW),
+        trial.joints[t],
+        float(trial.force[t]),
+        None if trial.images is None else trial.images[t],
     )
 
 
@@ -113,7 +118,12 @@ class TrialView:
     def __init__(self, rec, label: int | None = None, meta: dict | None = None, reference: np.ndarray | None = None):
         import jax
 
-        self.rr, self.rec, self.label, self.meta = rerun(), rec, label, meta  # meta: the trial's, whose label map names the classes
+        self.rr, self.rec, self.label, self.meta = (
+            rerun(),
+            rec,
+            label,
+            meta,
+        )  # meta: the trial's, whose label map names the classes
         self.reference = reference  # (H, W, 3) uint8: the session's no-contact frame, None where the trial has none
         self.previous_frame, self.decided = None, False
         self.spectrogram = np.full((len(archive.MIC_NAMES), welch.N_BINS, SPECTROGRAM_STEPS), np.nan, np.float32)
@@ -175,7 +185,12 @@ class TrialView:
             j = int(np.argmax(r.posterior))
             rec.log("prediction/posterior", rr.Scalars(float(r.posterior[j])))
             if r.decided and not self.decided:
-                rec.log("prediction/decision", rr.TextLog(f"decided: {live.class_name(j, self.meta)} posterior {r.posterior[j]:.3f} after {r.windows} windows"))
+                rec.log(
+                    "prediction/decision",
+                    rr.TextLog(
+                        f"decided: {live.class_name(j, self.meta)} posterior {r.posterior[j]:.3f} after {r.windows} windows"
+                    ),
+                )
             self.decided = r.decided
 
 
@@ -198,12 +213,24 @@ def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
         require_display("--save")
     trial = archive.read_archive(path, images=True)
     lay = archive.layout(trial.meta)
-    if lay.mics != live.HAND.mics or (lay.joint_names, lay.joint_fields) != (live.HAND.joint_names, live.HAND.joint_fields) or not lay.force:
-        raise UserError(f"{path}: meta.streams: the viewer shows the hand's streams ({live.HAND.describe()}); this trial has {lay.describe()}")
+    if (
+        lay.mics != live.HAND.mics
+        or (lay.joint_names, lay.joint_fields) != (live.HAND.joint_names, live.HAND.joint_fields)
+        or not lay.force
+    ):
+        raise UserError(
+            f"{path}: meta.streams: the viewer shows the hand's streams ({live.HAND.describe()}); this trial has {lay.describe()}"
+        )
     streamer = None
     if checkpoint is not None:
         streamer = live.Streamer(*live.restore_model(checkpoint), layout=archive.layout(trial.meta))
     rec = open_recording(save, save_flag="--save")
     summary = log_trial(rec, trial, streamer)
     rec.flush()
-    return {"archive": str(path), "steps": trial.n_steps, "frames": trial.images is not None, "rrd": None if save is None else str(save), **summary}
+    return {
+        "archive": str(path),
+        "steps": trial.n_steps,
+        "frames": trial.images is not None,
+        "rrd": None if save is None else str(save),
+        **summary,
+    }

@@ -17,7 +17,9 @@ class Location:
     workspace's: `Location()` reads the preset's simulated dataset and writes <workspace>/results."""
 
     workdir: str | os.PathLike | None = None  # the workspace root (`root`)
-    data_dir: str | os.PathLike | None = None  # recorded trial archives, only read; None: the preset's simulated dataset
+    data_dir: str | os.PathLike | None = (
+        None  # recorded trial archives, only read; None: the preset's simulated dataset
+    )
     results: str | os.PathLike | None = None  # where results files go; None: <workspace>/results
     command: str | None = None  # the command line that started the run; None: called from Python
 

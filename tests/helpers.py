@@ -36,7 +36,11 @@ def tiny_archive(n_steps=30, fabric_id=4, day=1, trial=0, condition="lab", image
         force=np.full(n_steps, 0.1, np.float32),
         audio=(rng.integers(-(2**17), 2**17, size=(2, n_samples)) << 14).astype(np.int32),
         images=None if images is None else rng.integers(0, 255, size=(n_steps, *images, 3), dtype=np.uint8),
-        reference=np.random.default_rng(zlib.crc32(session.encode())).integers(0, 255, size=(1, *images, 3), dtype=np.uint8) if with_reference else None,
+        reference=np.random.default_rng(zlib.crc32(session.encode())).integers(
+            0, 255, size=(1, *images, 3), dtype=np.uint8
+        )
+        if with_reference
+        else None,
     )
 
 
@@ -45,7 +49,9 @@ def tiny_dataset(folder, trials, n_steps=45, images=(12, 16), seed=0):
     be a dict from that tuple to a step count; `seed` draws another dataset. Returns the folder."""
     for i, (fabric_id, day, trial, condition) in enumerate(trials):
         n = n_steps.get((fabric_id, day, trial, condition), 45) if isinstance(n_steps, dict) else n_steps
-        a = tiny_archive(n, fabric_id=fabric_id, day=day, trial=trial, condition=condition, images=images, seed=seed + i)
+        a = tiny_archive(
+            n, fabric_id=fabric_id, day=day, trial=trial, condition=condition, images=images, seed=seed + i
+        )
         archive.write_archive(f"{folder}/{archive.trial_filename(a.meta)}", a)
     return folder
 

@@ -60,7 +60,9 @@ def test_silent_servo_is_a_clear_error(signals):
     bus = servos.ServoBus(sim.path, retries=1)
     try:
         bus.read_state()
-        with pytest.raises(servos.ServoError, match=r"servo 5 \(middle_tip\), register present position..current \(56..70\)"):
+        with pytest.raises(
+            servos.ServoError, match=r"servo 5 \(middle_tip\), register present position..current \(56..70\)"
+        ):
             bus.read_state()
     finally:
         bus.close()
@@ -68,7 +70,9 @@ def test_silent_servo_is_a_clear_error(signals):
 
 
 def test_corrupt_checksums_are_retried_then_reported(signals):
-    sim = simulated_devices.SimServoBus(signals.joints, faults=simulated_devices.Faults(corrupt_servo=(3, 2, 3))).start()
+    sim = simulated_devices.SimServoBus(
+        signals.joints, faults=simulated_devices.Faults(corrupt_servo=(3, 2, 3))
+    ).start()
     bus = servos.ServoBus(sim.path, retries=2)
     try:
         for _ in range(8):  # every third sync read is garbled: each one is retried successfully
@@ -77,7 +81,9 @@ def test_corrupt_checksums_are_retried_then_reported(signals):
     finally:
         bus.close()
         sim.stop()
-    sim = simulated_devices.SimServoBus(signals.joints, faults=simulated_devices.Faults(corrupt_servo=(3, 1, 1))).start()
+    sim = simulated_devices.SimServoBus(
+        signals.joints, faults=simulated_devices.Faults(corrupt_servo=(3, 1, 1))
+    ).start()
     bus = servos.ServoBus(sim.path, retries=2)
     try:
         with pytest.raises(servos.ServoError, match=r"servo 3 \(thumb_tip\).*Incorrect status packet.*3 tries"):
@@ -173,7 +179,11 @@ def test_device_failure_keeps_an_incomplete_archive(signals, tmp_path, faults, f
 
 
 def test_recoverable_faults_are_counted(signals, tmp_path):
-    _, arch, _ = _record(signals, simulated_devices.Faults(repeat_frames_every=10, drop_periods_every=25, corrupt_servo=(4, 5, 20)), tmp_path)
+    _, arch, _ = _record(
+        signals,
+        simulated_devices.Faults(repeat_frames_every=10, drop_periods_every=25, corrupt_servo=(4, 5, 20)),
+        tmp_path,
+    )
     meta = arch.meta
     assert meta["complete"] is True, meta.get("failure")
     assert meta["camera_dropped_frames"] > 0
@@ -197,7 +207,9 @@ def test_ctrl_c_keeps_an_incomplete_archive(signals, tmp_path):
         previous = signal.signal(signal.SIGINT, signal.default_int_handler)
         try:
             with pytest.raises(KeyboardInterrupt, match="complete=False"):
-                recorder.record_trial(rig, simulated_signals.procedure(2), fabric_id=12, day=1, trial=4, out_dir=tmp_path)
+                recorder.record_trial(
+                    rig, simulated_signals.procedure(2), fabric_id=12, day=1, trial=4, out_dir=tmp_path
+                )
         finally:
             signal.signal(signal.SIGINT, previous)
     (path,) = tmp_path.glob("*.npz")
@@ -221,7 +233,9 @@ def test_recorded_features_match_the_simulators_direct_path(tmp_path):
     for f in fabrics:
         signals = simulated_signals.trial_signals(f, day=1, trial=0, n_cycles=2)
         with simulated_devices.simulated_rig(signals) as rig:
-            rec = recorder.record_trial(rig, simulated_signals.procedure(2), fabric_id=f, day=1, trial=0, out_dir=tmp_path / str(f))
+            rec = recorder.record_trial(
+                rig, simulated_signals.procedure(2), fabric_id=f, day=1, trial=0, out_dir=tmp_path / str(f)
+            )
         recorded = mean_psd(archive.read_archive(rec.path, images=False))
         same_scene = mean_psd(sim.simulate(sim.Scene(fabric_id=f, day=1, trial=0, cycles=2)))
         assert np.abs(recorded - same_scene).mean() < 0.3  # log10 units: windows fall at other instants

@@ -192,7 +192,9 @@ def test_index_of_missing_or_empty_folder(tmp_path):
     with pytest.raises(archive.ArchiveError, match="does not exist"):
         dataset_index.load_index(tmp_path / "nope")
     (tmp_path / "empty").mkdir()
-    with pytest.raises(archive.ArchiveError, match=r"empty: field '<folder>': the folder holds no trial archives \(\*\.npz\)$"):
+    with pytest.raises(
+        archive.ArchiveError, match=r"empty: field '<folder>': the folder holds no trial archives \(\*\.npz\)$"
+    ):
         dataset_index.load_index(tmp_path / "empty", tmp_path / "ws")
 
 

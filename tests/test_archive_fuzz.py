@@ -18,16 +18,60 @@ from tests.helpers import npz_fields, tiny_archive
 N_STEPS = 8
 SECONDS = 5  # per read: a tiny archive reads in milliseconds
 PEAK_BYTES = 64 << 20  # per read: a tiny archive needs well under 1 MB
-HOSTILE = [-5, "x", None, True, False, 1.5, 0, 10**30, float("inf"), float("nan"), [], {}, [1], "", 2**70, 3, {"a": [1]}, ["x", "y", "z"]]
+HOSTILE = [
+    -5,
+    "x",
+    None,
+    True,
+    False,
+    1.5,
+    0,
+    10**30,
+    float("inf"),
+    float("nan"),
+    [],
+    {},
+    [1],
+    "",
+    2**70,
+    3,
+    {"a": [1]},
+    ["x", "y", "z"],
+]
 # meta fields the reader validates (free-form dicts: source, import, force_proxy, are not mutated)
-FIELDS = ["format_version", "fabric_id", "label", "properties.stretchiness", "properties.roughness", "trial", "condition",
-          "complete", "day", "closing_steps", "split", "label_name", "label_map", "streams.mics.0.rate", "streams.mics.0.role",
-          "streams.mics.1.name", "streams.joints.names", "streams.joints.fields", "streams.camera.image_size",
-          "streams.camera.image_size.0", "streams.steps.rate", "streams.steps.clock", "streams.force"]
+FIELDS = [
+    "format_version",
+    "fabric_id",
+    "label",
+    "properties.stretchiness",
+    "properties.roughness",
+    "trial",
+    "condition",
+    "complete",
+    "day",
+    "closing_steps",
+    "split",
+    "label_name",
+    "label_map",
+    "streams.mics.0.rate",
+    "streams.mics.0.role",
+    "streams.mics.1.name",
+    "streams.joints.names",
+    "streams.joints.fields",
+    "streams.camera.image_size",
+    "streams.camera.image_size.0",
+    "streams.steps.rate",
+    "streams.steps.clock",
+    "streams.force",
+]
 COUNTS = {"fabric_id", "label", "trial", "closing_steps", "properties.stretchiness", "properties.roughness", "day"}
 NULLABLE = {"day", "properties.stretchiness", "properties.roughness", "split", "streams.mics.0.role", "streams.force"}
-ENUMS = {"condition": archive.CONDITIONS, "split": archive.SPLITS, "streams.mics.0.role": archive.MIC_ROLES,
-         "streams.steps.clock": archive.STEP_CLOCKS}
+ENUMS = {
+    "condition": archive.CONDITIONS,
+    "split": archive.SPLITS,
+    "streams.mics.0.role": archive.MIC_ROLES,
+    "streams.steps.clock": archive.STEP_CLOCKS,
+}
 
 
 class Hang(Exception):
@@ -77,7 +121,11 @@ def _meta_sound(key: str, value, read: archive.TrialArchive, base: archive.Trial
     if key.startswith("streams.camera.image_size"):
         return archive.layout(read.meta).image_size == base.images.shape[1:3]
     if key in ("streams.joints.names", "streams.joints.fields"):
-        return isinstance(value, list) and all(isinstance(x, str) for x in value) and len(value) == len(_get(base.meta, key))
+        return (
+            isinstance(value, list)
+            and all(isinstance(x, str) for x in value)
+            and len(value) == len(_get(base.meta, key))
+        )
     if key == "label_map":
         return isinstance(value, dict) and read.meta["label"] in value.values()
     if key in ("label_name", "streams.mics.1.name", "streams.force"):
@@ -116,7 +164,7 @@ def _header_declaring(a: archive.TrialArchive, shape) -> bytes:
             if info.filename == "audio.npy":
                 header = io.BytesIO()
                 np.lib.format.write_array_header_1_0(header, {"descr": "<i4", "fortran_order": False, "shape": shape})
-                data = header.getvalue() + data[len(header.getvalue()):]
+                data = header.getvalue() + data[len(header.getvalue()) :]
             z.writestr(info.filename, data)
     return buf.getvalue()
 
@@ -125,9 +173,9 @@ def _sizes_declaring(raw: bytes, member: str, size: int) -> bytes:
     """The archive with `member`'s compressed and inflated sizes in the central directory set to `size`."""
     data, at = bytearray(raw), 0
     while (at := data.find(b"PK\x01\x02", at)) >= 0:
-        name_len = int.from_bytes(data[at + 28: at + 30], "little")
-        if data[at + 46: at + 46 + name_len] == member.encode():
-            data[at + 20: at + 28] = size.to_bytes(4, "little") * 2
+        name_len = int.from_bytes(data[at + 28 : at + 30], "little")
+        if data[at + 46 : at + 46 + name_len] == member.encode():
+            data[at + 20 : at + 28] = size.to_bytes(4, "little") * 2
         at += 4
     return bytes(data)
 
@@ -137,7 +185,7 @@ def _member_offsets(raw: bytes) -> dict[str, tuple[int, int]]:
     out = {}
     with zipfile.ZipFile(io.BytesIO(raw)) as z:
         for info in z.infolist():
-            name_len, extra_len = np.frombuffer(raw[info.header_offset + 26: info.header_offset + 30], "<u2")
+            name_len, extra_len = np.frombuffer(raw[info.header_offset + 26 : info.header_offset + 30], "<u2")
             start = info.header_offset + 30 + int(name_len) + int(extra_len)
             out[info.filename] = (start, info.compress_size)
     return out
@@ -175,14 +223,20 @@ def mutations(seed: int = 0):
     changed[start + length - 2] ^= 0x10  # an audio word changed: only the CRC tells
     yield "an audio word changed", bytes(changed), "refuse", None
     meta = json.dumps(base.meta)
-    for name, text in [("meta nested 100,000 deep", meta[:-1] + ', "x": ' + "[" * 100_000 + "]" * 100_000 + "}"),
-                       ("a meta integer of 5,000 digits", meta.replace('"trial": 0', '"trial": ' + "9" * 5000)),
-                       ("meta of 6 MB", meta[:-1] + ', "x": "' + "a" * (6 << 20) + '"}'),
-                       ("meta steps.rate Infinity", meta.replace('"rate": 50}', '"rate": Infinity}')),
-                       ("meta not JSON", meta[:-3]), ("meta a JSON list", "[1, 2]")]:
+    for name, text in [
+        ("meta nested 100,000 deep", meta[:-1] + ', "x": ' + "[" * 100_000 + "]" * 100_000 + "}"),
+        ("a meta integer of 5,000 digits", meta.replace('"trial": 0', '"trial": ' + "9" * 5000)),
+        ("meta of 6 MB", meta[:-1] + ', "x": "' + "a" * (6 << 20) + '"}'),
+        ("meta steps.rate Infinity", meta.replace('"rate": 50}', '"rate": Infinity}')),
+        ("meta not JSON", meta[:-3]),
+        ("meta a JSON list", "[1, 2]"),
+    ]:
         yield name, _bytes(base, meta=np.array(text)), "refuse", None
     yield "meta an int array", _bytes(base, meta=np.arange(3)), "refuse", None
-    for name, shape in [("an npy header declaring terabytes", (2, 1 << 40)), ("an npy header of another shape", (2, 7))]:
+    for name, shape in [
+        ("an npy header declaring terabytes", (2, 1 << 40)),
+        ("an npy header of another shape", (2, 7)),
+    ]:
         yield name, _header_declaring(base, shape), "refuse", None
     yield "a stored member declaring 4 GB", _sizes_declaring(raw, "timestamps.npy", 0xFFFFFFF0), "refuse", None
     npy = io.BytesIO()
@@ -191,7 +245,12 @@ def mutations(seed: int = 0):
     nomagic = io.BytesIO()
     with zipfile.ZipFile(nomagic, "w") as z:
         for k, v in npz_fields(base).items():
-            z.writestr(f"{k}.npy", b"no magic here" if k == "joints" else (lambda b: (np.lib.format.write_array(b, np.asarray(v)), b.getvalue())[1])(io.BytesIO()))
+            z.writestr(
+                f"{k}.npy",
+                b"no magic here"
+                if k == "joints"
+                else (lambda b: (np.lib.format.write_array(b, np.asarray(v)), b.getvalue())[1])(io.BytesIO()),
+            )
     yield "a member without the npy magic", nomagic.getvalue(), "refuse", None
     yield "a zip bomb (deflated member 1000-fold)", _zip_bomb(base), "refuse", None
     yield "a compressed archive", _bytes(base, compressed=True), "bytes", None
@@ -214,8 +273,14 @@ def _read(path):
 
 
 def _same(a: archive.TrialArchive, b: archive.TrialArchive) -> bool:
-    return a.meta == b.meta and all(np.array_equal(getattr(a, k), getattr(b, k)) and getattr(a, k).dtype == getattr(b, k).dtype
-                                    for k in a.arrays()) and set(a.arrays()) == set(b.arrays())
+    return (
+        a.meta == b.meta
+        and all(
+            np.array_equal(getattr(a, k), getattr(b, k)) and getattr(a, k).dtype == getattr(b, k).dtype
+            for k in a.arrays()
+        )
+        and set(a.arrays()) == set(b.arrays())
+    )
 
 
 def test_every_mutation_is_a_clean_error_or_a_correct_reading(tmp_path):
@@ -245,9 +310,21 @@ def test_every_mutation_is_a_clean_error_or_a_correct_reading(tmp_path):
     assert n + 1 >= 300 and outcomes["error"] > 200 and outcomes["read"] >= 5, outcomes  # both outcomes exercised
 
 
-@pytest.mark.parametrize("key, value", [("closing_steps", -5), ("closing_steps", N_STEPS), ("day", False), ("properties.roughness", True),
-                                        ("streams.steps.rate", True), ("label", -1), ("streams.mics.0.rate", 48000.5),
-                                        ("label_map", {"a": [1]}), ("streams.joints", "angle"), ("streams.camera.image_size", ["x", None])])
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("closing_steps", -5),
+        ("closing_steps", N_STEPS),
+        ("day", False),
+        ("properties.roughness", True),
+        ("streams.steps.rate", True),
+        ("label", -1),
+        ("streams.mics.0.rate", 48000.5),
+        ("label_map", {"a": [1]}),
+        ("streams.joints", "angle"),
+        ("streams.camera.image_size", ["x", None]),
+    ],
+)
 def test_each_accepted_wrong_case_of_the_report_is_refused(tmp_path, key, value):
     base = tiny_archive(n_steps=N_STEPS, images=(4, 5))
     meta = json.loads(json.dumps(base.meta))

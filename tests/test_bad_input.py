@@ -60,7 +60,11 @@ def _corrupt(path):
 
 DAMAGE = {
     "truncated": (_truncate, "<file>|audio|joints|force|window_end|timestamps", "corrupt or truncated"),
-    "corrupt_bytes": (_corrupt, "<file>|audio|joints|force|window_end|timestamps|meta", "corrupt or truncated|not valid JSON|CRC"),
+    "corrupt_bytes": (
+        _corrupt,
+        "<file>|audio|joints|force|window_end|timestamps|meta",
+        "corrupt or truncated|not valid JSON|CRC",
+    ),
     "wrong_version": ({"meta": _meta(format_version=4)}, "meta.format_version", "unknown format version 4"),
     "nan_joints": ({"joints": np.full((41, 6, 3), np.nan, np.float32)}, "joints", "738 non-finite values"),
     "inf_force": ({"force": np.r_[np.ones(40), np.inf].astype(np.float32)}, "force", "1 non-finite values"),
@@ -145,7 +149,9 @@ def test_damaged_feature_cache_is_recomputed(dataset, tmp_path):
             np.testing.assert_array_equal(after[s].inputs[m], before[s].inputs[m])
 
 
-@pytest.mark.parametrize("modality, sizes", [("image", [(12, 16), (14, 16), (12, 16)]), ("flow", [(12, 16), (15, 16), (12, 16)])])
+@pytest.mark.parametrize(
+    "modality, sizes", [("image", [(12, 16), (14, 16), (12, 16)]), ("flow", [(12, 16), (15, 16), (12, 16)])]
+)
 def test_trials_with_other_frame_sizes_are_named(tmp_path, modality, sizes):
     """The first trial fixes the sequence arrays' shapes; a trial whose frames give another shape
     is an error naming it, not a numpy broadcast error."""
@@ -170,7 +176,17 @@ def test_incomplete_archive_is_kept_and_readable(tmp_path):
     assert (sets["train"].info["trial_key"] == entry.file).sum() == 1
 
 
-TINY = Config(preset="smoke", modalities=("internal",), width=16, n_layers=1, ffn=32, audio_hidden=(16, 8), seq_len=8, epochs=1, batch_size=8)
+TINY = Config(
+    preset="smoke",
+    modalities=("internal",),
+    width=16,
+    n_layers=1,
+    ffn=32,
+    audio_hidden=(16, 8),
+    seq_len=8,
+    epochs=1,
+    batch_size=8,
+)
 
 
 def test_checkpoint_directory_errors_name_the_directory(tmp_path):
@@ -179,8 +195,12 @@ def test_checkpoint_directory_errors_name_the_directory(tmp_path):
     sets = {k: synthetic.data_set(TINY, 8, seed=i) for i, k in enumerate(["train", "val"])}
     train.train_and_evaluate(TINY, sets, [0], workdir=tmp_path / "run")
     wider = {k: synthetic.data_set(TINY, 8, psd_bins=32, seed=i) for i, k in enumerate(["train", "val"])}
-    with pytest.raises(checkpoint.CheckpointMismatch, match=r"run was made with a different run: shapes: saved \{'internal': \[24\]\}"):
+    with pytest.raises(
+        checkpoint.CheckpointMismatch, match=r"run was made with a different run: shapes: saved \{'internal': \[24\]\}"
+    ):
         train.train_and_evaluate(TINY, wider, [0], workdir=tmp_path / "run")
     other = Config(**{**TINY.to_json(), "bandwidth_khz": 2.5})
-    with pytest.raises(checkpoint.CheckpointMismatch, match=rf"{tmp_path / 'run'}.*bandwidth_khz: saved 15.0, requested 2.5"):
+    with pytest.raises(
+        checkpoint.CheckpointMismatch, match=rf"{tmp_path / 'run'}.*bandwidth_khz: saved 15.0, requested 2.5"
+    ):
         train.restore(tmp_path / "run", other)

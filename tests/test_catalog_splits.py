@@ -57,7 +57,11 @@ def test_config_validation_and_json():
     assert c.seq_len == 20 and c.width == 16 and config.Config.from_preset("default").seq_len == 50
     assert config.Config.from_preset("smoke", seq_len=8, width=4).seq_len == 8  # overrides win over the preset
     # one route from a preset to a config: built directly, a preset's config has its training too
-    assert config.Config(preset="default", epochs=3) == config.Config.from_preset("default", epochs=3) != config.Config(epochs=3)
+    assert (
+        config.Config(preset="default", epochs=3)
+        == config.Config.from_preset("default", epochs=3)
+        != config.Config(epochs=3)
+    )
     with pytest.raises(ValueError, match="modalities"):
         config.Config(modalities=("nose",))
     with pytest.raises(ValueError, match="preset"):
@@ -75,7 +79,9 @@ def test_config_from_json_before_seq_len_was_explicit():
 
 
 def test_every_config_field_round_trips_through_an_override():
-    c = config.Config.from_preset("default", modalities=("internal", "proprio"), exclude_fabrics=(1, 10), augment_rotation=False)
+    c = config.Config.from_preset(
+        "default", modalities=("internal", "proprio"), exclude_fabrics=(1, 10), augment_rotation=False
+    )
     for field, value in c.to_json().items():
         value = tuple(value) if isinstance(value, list) else value
         assert config.parse_override(config.format_override(field, value)) == (field, value)
@@ -83,13 +89,16 @@ def test_every_config_field_round_trips_through_an_override():
     assert config.parse_override(" epochs = 4 ") == ("epochs", 4)
 
 
-@pytest.mark.parametrize("text, message", [
-    ("epochs=two", "override 'epochs=two': epochs takes int: 'two' is not an integer"),
-    ("colour=red", "Config has no field 'colour'"),
-    ("epochs", "expected field=value"),
-    ("image_size=30", r"image_size takes tuple\[int, int\]: 1 values given, 2 expected"),
-    ("augment_rotation=maybe", "'maybe' is not true or false"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("epochs=two", "override 'epochs=two': epochs takes int: 'two' is not an integer"),
+        ("colour=red", "Config has no field 'colour'"),
+        ("epochs", "expected field=value"),
+        ("image_size=30", r"image_size takes tuple\[int, int\]: 1 values given, 2 expected"),
+        ("augment_rotation=maybe", "'maybe' is not true or false"),
+    ],
+)
 def test_bad_overrides_are_one_line_errors(text, message):
     with pytest.raises(errors.UserError, match=message) as e:
         config.parse_override(text)

@@ -56,28 +56,41 @@ def test_noise_checklist_with_exact_wilcoxon_over_ten_seeds():
 
 def test_properties_checklist():
     chance = {p: 100.0 / n for p, n in catalog.PROPERTY_LEVELS.items()}
-    majority = {p: {"label": 0, "accuracy": 100.0 / n, "known": 100} for p, n in catalog.PROPERTY_LEVELS.items()}  # balanced levels
+    majority = {
+        p: {"label": 0, "accuracy": 100.0 / n, "known": 100} for p, n in catalog.PROPERTY_LEVELS.items()
+    }  # balanced levels
     ours, both = (r.name for r in properties.ROWS)
 
     def hold(a, b):
         return {ours: {p: _pct(v) for p, v in a.items()}, both: {p: _pct(v) for p, v in b.items()}}
 
-    paper_like = hold({"stretchiness": [76, 77], "roughness": [40, 41], "thickness": [70, 71]},
-                      {"stretchiness": [83, 82], "roughness": [34, 33], "thickness": [90, 91]})
+    paper_like = hold(
+        {"stretchiness": [76, 77], "roughness": [40, 41], "thickness": [70, 71]},
+        {"stretchiness": [83, 82], "roughness": [34, 33], "thickness": [90, 91]},
+    )
     assert _holds(properties.checklist(paper_like, chance, majority)) == [True] * 5
-    wrong = hold({"stretchiness": [40, 45], "roughness": [30, 31], "thickness": [70, 71]},
-                 {"stretchiness": [42, 41], "roughness": [34, 33], "thickness": [60, 61]})
+    wrong = hold(
+        {"stretchiness": [40, 45], "roughness": [30, 31], "thickness": [70, 71]},
+        {"stretchiness": [42, 41], "roughness": [34, 33], "thickness": [60, 61]},
+    )
     # Minsound stretchiness below 50 % chance; both rows above chance; Minsound wins thickness; loses roughness
     assert _holds(properties.checklist(wrong, chance, majority)) == [False, False, False, False, False]
     assert _holds(properties.checklist({ours: paper_like[ours]}, chance, majority)) == [True, None, None, None, None]
     # unbalanced holdouts: above 1 / levels is not enough, the majority level must be beaten (issue 61: 60.28 % under 60.64 %)
     unbalanced = {**majority, "stretchiness": {"label": 1, "accuracy": 80.0, "known": 100}}
-    f = properties.checklist(paper_like, chance, unbalanced, {ours: {"stretchiness": " (collapsed to level 1: 2 of 2 seeds)"}})
+    f = properties.checklist(
+        paper_like, chance, unbalanced, {ours: {"stretchiness": " (collapsed to level 1: 2 of 2 seeds)"}}
+    )
     assert _holds(f)[:2] == [False, True]
-    assert ("stretchiness 76.5 % (seeds: 76.0, 77.0) (collapsed to level 1: 2 of 2 seeds): not above its majority level 80.0 % (level 1); "
-            "above 1 / levels 50.0 %") in f[0].evidence
+    assert (
+        "stretchiness 76.5 % (seeds: 76.0, 77.0) (collapsed to level 1: 2 of 2 seeds): not above its majority level 80.0 % (level 1); "
+        "above 1 / levels 50.0 %"
+    ) in f[0].evidence
     assert "rule: each property's mean over seeds above its majority level" in f[0].claim
-    assert _holds(properties.checklist(paper_like, chance, {**majority, "thickness": None}))[:2] == [None, None]  # no level known: not evaluated
+    assert _holds(properties.checklist(paper_like, chance, {**majority, "thickness": None}))[:2] == [
+        None,
+        None,
+    ]  # no level known: not evaluated
 
 
 def _ids():
@@ -102,8 +115,14 @@ def test_latent_neighbours_agree_when_holdouts_sit_on_their_twins():
 
 def test_latent_checklist_fails_when_holdouts_sit_on_their_opposites():
     # each holdout placed at a training fabric that shares none of its levels
-    opposite = {h: next(t for t in catalog.TRAINING_FABRICS if t not in catalog.PROPERTY_HOLDOUTS
-                        and latents._agreement(h, t) == 0.0) for h in catalog.PROPERTY_HOLDOUTS}
+    opposite = {
+        h: next(
+            t
+            for t in catalog.TRAINING_FABRICS
+            if t not in catalog.PROPERTY_HOLDOUTS and latents._agreement(h, t) == 0.0
+        )
+        for h in catalog.PROPERTY_HOLDOUTS
+    }
     pts = {f: np.eye(23)[f - 1] * 100 for f in _ids()}
     for h, t in opposite.items():
         pts[h] = pts[t] + 1e-3
@@ -128,7 +147,13 @@ def test_findings_round_trip_through_json_and_markdown():
 
 @pytest.mark.parametrize("split", ["val", "test"])
 def test_bandwidth_plot_takes_every_seed(tmp_path, split):
-    rows = [{"bandwidth_khz": k, "accuracy": {s: {"fabric": [0.5, 0.6, 0.7]} for s in ("val", "test")},
-             "paper": {"val_mean": 90.0, "test_mean": 88.0}} for k in (2.5, 10, 15, 24)]
+    rows = [
+        {
+            "bandwidth_khz": k,
+            "accuracy": {s: {"fabric": [0.5, 0.6, 0.7]} for s in ("val", "test")},
+            "paper": {"val_mean": 90.0, "test_mean": 88.0},
+        }
+        for k in (2.5, 10, 15, 24)
+    ]
     png = bandwidth.plot(tmp_path / f"bw-{split}.png", rows, "Minsound")
     assert png.read_bytes()[:4] == b"\x89PNG"

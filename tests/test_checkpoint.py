@@ -15,8 +15,15 @@ from fabricjax.train import restore, train_and_evaluate
 from fabricjax.workspace import Location
 
 TINY = Config(
-    preset="smoke", modalities=("internal",), width=16, n_layers=1, ffn=32,
-    audio_hidden=(16, 8), seq_len=8, epochs=4, batch_size=8,
+    preset="smoke",
+    modalities=("internal",),
+    width=16,
+    n_layers=1,
+    ffn=32,
+    audio_hidden=(16, 8),
+    seq_len=8,
+    epochs=4,
+    batch_size=8,
 )
 SEEDS = [0, 7]
 
@@ -43,8 +50,14 @@ def test_restore_one_seed_gives_identical_predictions(uninterrupted):
     workdir, res = uninterrupted
     graphdef, state, config, seeds, trained_for, _ = restore(workdir, TINY, seed=7)
     assert config == TINY and seeds == SEEDS
-    assert trained_for == {"heads": ["fabric"], "n_classes": TINY.n_classes, "classes": None, "inputs": ["internal"],
-                           "preset": "smoke", "unseen_fabrics": []}
+    assert trained_for == {
+        "heads": ["fabric"],
+        "n_classes": TINY.n_classes,
+        "classes": None,
+        "inputs": ["internal"],
+        "preset": "smoke",
+        "unseen_fabrics": [],
+    }
     test = data_sets()["test"]["inputs"]
     restored = make_predict(graphdef)(state["best_params"], test)["fabric"]
     trained = make_predict(res.graphdef)(res.params(1), test)["fabric"]
@@ -106,7 +119,9 @@ def test_a_checkpoint_of_another_state_layout_is_refused_by_name():
     the studies' checkpoint folders are tagged with the layout, so they start afresh instead."""
     expected = checkpoint.meta(TINY, [0, 1], {"internal": (24,)})
     old = {k: v for k, v in expected.items() if k != "state_version"}
-    with pytest.raises(checkpoint.CheckpointMismatch, match=f"state_version: saved 1, requested {checkpoint.STATE_VERSION}"):
+    with pytest.raises(
+        checkpoint.CheckpointMismatch, match=f"state_version: saved 1, requested {checkpoint.STATE_VERSION}"
+    ):
         checkpoint.check_meta("ckpt", old, expected)
     checkpoint.check_meta("ckpt", expected, expected)
 
@@ -121,7 +136,9 @@ def test_a_studys_checkpoint_folder_changes_with_the_code_and_the_data(monkeypat
     cfg = Config.from_preset("smoke")
     data_a, data_b = {"folder": "a", "content": "1" * 16}, {"folder": "b", "content": "2" * 16}
     folder = runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], data_a, tmp_path)
-    assert folder == runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], {**data_a, "folder": "moved"}, tmp_path)
+    assert folder == runner.checkpoint_dir(
+        "properties", "minsound", cfg, [0, 1], {**data_a, "folder": "moved"}, tmp_path
+    )
     assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 2], data_a, tmp_path)
     assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], data_b, tmp_path)
     monkeypatch.setattr(source, "fingerprint", lambda: "other code")
@@ -190,7 +207,9 @@ def test_a_path_without_a_checkpoint_is_one_line_and_creates_nothing(uninterrupt
     assert not (tmp_path / "typo").exists()
     parent = workdir.parent
     before = sorted(parent.rglob("*"))
-    with pytest.raises(checkpoint.NoCheckpoint, match=f"no checkpoint in {parent}; checkpoint folders inside it: .*{workdir.name}"):
+    with pytest.raises(
+        checkpoint.NoCheckpoint, match=f"no checkpoint in {parent}; checkpoint folders inside it: .*{workdir.name}"
+    ):
         restore(parent)
     assert sorted(parent.rglob("*")) == before
 
@@ -203,12 +222,19 @@ def test_a_checkpoint_made_for_another_job_is_refused_naming_both(uninterrupted,
     properties_only = dataclasses.replace(TINY, fabric_head=False, property_heads=True, epochs=1)
     sets = {k: synthetic.data_set(properties_only, 8, seed=i) for i, k in enumerate(["train", "val"])}
     train_and_evaluate(properties_only, sets, [0], workdir=tmp_path / "properties")
-    with pytest.raises(checkpoint.WrongCheckpoint, match=(
-        rf"streaming needs a model with a fabric head .*; the checkpoint in {tmp_path / 'properties'} holds a model with "
-        r"heads stretchiness\+roughness\+thickness, inputs internal")):
+    with pytest.raises(
+        checkpoint.WrongCheckpoint,
+        match=(
+            rf"streaming needs a model with a fabric head .*; the checkpoint in {tmp_path / 'properties'} holds a model with "
+            r"heads stretchiness\+roughness\+thickness, inputs internal"
+        ),
+    ):
         live.restore_model(tmp_path / "properties")
     workdir, _ = uninterrupted  # trained on every fabric
-    with pytest.raises(checkpoint.WrongCheckpoint, match=r"latents needs a model that never saw the holdout fabrics 1, 10, 21, 22, 23 .*"
-                                                         r"heads fabric \(21 classes\), inputs internal, preset smoke, fabrics never seen: none"):
+    with pytest.raises(
+        checkpoint.WrongCheckpoint,
+        match=r"latents needs a model that never saw the holdout fabrics 1, 10, 21, 22, 23 .*"
+        r"heads fabric \(21 classes\), inputs internal, preset smoke, fabrics never seen: none",
+    ):
         latents.run(workdir, where=Location(results=tmp_path / "results"))
     assert not (tmp_path / "results").exists()

@@ -22,7 +22,12 @@ def command(*args, env=None):
     """`python -m experiments.ablation ARGS` as a user runs it: JAX_PLATFORMS unset."""
     env = {k: v for k, v in {**os.environ, **(env or {})}.items() if k != "JAX_PLATFORMS"}
     return subprocess.run(
-        [sys.executable, "-m", "experiments.ablation", *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300
+        [sys.executable, "-m", "experiments.ablation", *args],
+        env=env,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
 
 
@@ -37,9 +42,14 @@ def test_help_lists_the_project_flags_and_exits_0():
     assert "libtpu" not in out.stdout + out.stderr
 
 
-@pytest.mark.parametrize("module", ["experiments.psds", "experiments.stream", "experiments.latents", "experiments.probe", "experiments.decide"])
+@pytest.mark.parametrize(
+    "module",
+    ["experiments.psds", "experiments.stream", "experiments.latents", "experiments.probe", "experiments.decide"],
+)
 def test_every_command_takes_a_workdir(module):
-    out = subprocess.run([sys.executable, "-m", module, "--help"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-m", module, "--help"], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
     assert out.returncode == 0 and "--workdir" in out.stdout, out.stderr
 
 
@@ -52,11 +62,20 @@ def damaged_folder(tmp_path):
 
 USER_ERRORS = {  # flags -> what the one line must say
     "no_seeds": (["--seeds=0"], r"flag --seeds=0: 0 is not a positive integer"),
-    "unknown_row": (["--rows=foo"], r"unknown rows \['foo'\]; choose a row's name or its label, in any case: image \(Minsight image\), "),
+    "unknown_row": (
+        ["--rows=foo"],
+        r"unknown rows \['foo'\]; choose a row's name or its label, in any case: image \(Minsight image\), ",
+    ),
     "empty_data_dir": (["--data_dir={tmp}/empty"], r"empty: field '<folder>': the folder holds no trial archives"),
     "missing_data_dir": (["--data_dir={tmp}/nope"], r"nope: field '<folder>': dataset folder does not exist"),
-    "bad_override_value": (["--set=backbone=lstm"], r"--set: backbone must be one of \('attention', 'tcn'\), got 'lstm'"),
-    "damaged_archive": (["--data_dir={tmp}/damaged"], r"fabric04_day1_trial00_lab\.npz: field '<file>': not a readable \.npz archive"),
+    "bad_override_value": (
+        ["--set=backbone=lstm"],
+        r"--set: backbone must be one of \('attention', 'tcn'\), got 'lstm'",
+    ),
+    "damaged_archive": (
+        ["--data_dir={tmp}/damaged"],
+        r"fabric04_day1_trial00_lab\.npz: field '<file>': not a readable \.npz archive",
+    ),
 }
 
 
@@ -78,7 +97,14 @@ def test_a_bug_keeps_its_traceback_and_debug_shows_a_user_errors():
     env = {k: v for k, v in os.environ.items() if k != "JAX_PLATFORMS"}
 
     def run(exc, *args):
-        return subprocess.run([sys.executable, "-c", code.format(exc), *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=120)
+        return subprocess.run(
+            [sys.executable, "-c", code.format(exc), *args],
+            env=env,
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
 
     bug = run("RuntimeError")
     assert bug.returncode == 1 and "Traceback" in bug.stderr and "RuntimeError: boom" in bug.stderr
@@ -99,7 +125,9 @@ def test_jax_platforms_is_cpu_only_where_no_accelerator_can_be():
 
 
 def test_eta_learns_each_kind_of_row_s_time_from_the_rows_done():
-    assert [runner.row_kind(Config(modalities=m)) for m in (("internal",), ("image", "internal"), ("flow", "proprio"))] == ["other", "image", "flow"]
+    assert [
+        runner.row_kind(Config(modalities=m)) for m in (("internal",), ("image", "internal"), ("flow", "proprio"))
+    ] == ["other", "image", "flow"]
     progress = runner.Progress("x", 4, ["image", "other", "other", "image"])
     progress.finish("a", 150.0, "")  # a camera row first: no audio row done yet, so its rate stands in
     assert progress.eta() == pytest.approx(450.0)
@@ -113,9 +141,19 @@ def test_eta_learns_each_kind_of_row_s_time_from_the_rows_done():
 
 
 def test_rows_train_grouped_by_camera_in_the_given_order_within_a_group():
-    rows = [(m, Config(modalities=m)) for m in (("image",), ("flow",), ("internal",), ("image", "internal"), ("flow", "internal"), ("proprio",))]
+    rows = [
+        (m, Config(modalities=m))
+        for m in (("image",), ("flow",), ("internal",), ("image", "internal"), ("flow", "internal"), ("proprio",))
+    ]
     order = runner.in_training_order(rows, lambda row: row[1])
-    assert [m for m, _ in order] == [("image",), ("image", "internal"), ("flow",), ("flow", "internal"), ("internal",), ("proprio",)]
+    assert [m for m, _ in order] == [
+        ("image",),
+        ("image", "internal"),
+        ("flow",),
+        ("flow", "internal"),
+        ("internal",),
+        ("proprio",),
+    ]
 
 
 def test_progress_names_rows_as_the_table_does():

@@ -101,7 +101,11 @@ def document_examples() -> list[tuple[str, str]]:
         for block in re.findall(r"```[^\n]*\n(.*?)```", text, re.S):
             out += [(str(path.relative_to(REPO)), c) for line in _joined(block.splitlines()) if (c := _command(line))]
         prose = re.sub(r"```.*?```", "", text, flags=re.S)
-        out += [(str(path.relative_to(REPO)), _command(span)) for span in re.findall(r"`([^`\n]+)`", prose) if span.startswith(PREFIX)]
+        out += [
+            (str(path.relative_to(REPO)), _command(span))
+            for span in re.findall(r"`([^`\n]+)`", prose)
+            if span.startswith(PREFIX)
+        ]
     return out
 
 
@@ -124,7 +128,10 @@ def help_examples(command: str, helps: dict[str, str], base: str) -> list[tuple[
 def base_example(command: str) -> str:
     """The first example of `command` its own module's docstring gives (the command alone without one)."""
     where = f"experiments/{command}.py docstring"
-    return next((c for w, c in docstring_examples() if w == where and c.split()[2] == f"experiments.{command}"), f"{PREFIX}{command}")
+    return next(
+        (c for w, c in docstring_examples() if w == where and c.split()[2] == f"experiments.{command}"),
+        f"{PREFIX}{command}",
+    )
 
 
 def static_examples() -> list[tuple[str, str]]:
@@ -137,14 +144,28 @@ def outcomes(tmp_path_factory):
     for some 100 distinct examples on 2 cores."""
     scratch = tmp_path_factory.mktemp("examples")
     jobs = {"examples": static_examples() + [("negative control", REFUSED)], "scratch": str(scratch)}
-    env = {**os.environ, "JAX_PLATFORMS": "cpu", "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
-    done = subprocess.run([sys.executable, __file__], input=json.dumps(jobs), capture_output=True, text=True, env=env, timeout=1800, cwd=scratch)
+    env = {
+        **os.environ,
+        "JAX_PLATFORMS": "cpu",
+        "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")]),
+    }
+    done = subprocess.run(
+        [sys.executable, __file__],
+        input=json.dumps(jobs),
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=1800,
+        cwd=scratch,
+    )
     assert done.returncode == 0, done.stderr[-4000:]
     return json.loads(done.stdout.splitlines()[-1])
 
 
 def _failures(results: list[dict]) -> list[str]:
-    return [f"{r['where']}: `{r['command']}`: {r['outcome']}\n{r['output'][-1500:]}" for r in results if not r["passed"]]
+    return [
+        f"{r['where']}: `{r['command']}`: {r['outcome']}\n{r['output'][-1500:]}" for r in results if not r["passed"]
+    ]
 
 
 def test_every_documented_example_passes_its_commands_argument_checks(outcomes):
@@ -168,15 +189,35 @@ def test_a_refused_example_is_caught(outcomes):
 
 
 def test_examples_are_extracted_from_docstrings_documents_and_continuations():
-    assert _command("    python -m experiments.stream [--print_every=10] [--view]   # also") == "python -m experiments.stream --print_every=10 --view"
-    assert _command("pip install -e . && python -m experiments.ablation --seeds=5") == "python -m experiments.ablation --seeds=5"
-    assert _joined(["python -m experiments.cost --widths= \\", "    --modality_sets=internal"]) == ["python -m experiments.cost --widths= --modality_sets=internal"]
-    helps = {"set": "override ..., e.g. --set=seq_len=100 --set=compute_dtype=bfloat16; repeat this option", "grid": "e.g. --grid='a=1;2'"}
-    assert help_examples("cost", helps, "python -m experiments.cost --seeds=5 --set=width=8") == [
-        ("python -m experiments.cost --help, --set", "python -m experiments.cost --seeds=5 --set=seq_len=100 --set=compute_dtype=bfloat16"),
-        ("python -m experiments.cost --help, --grid", "python -m experiments.cost --seeds=5 --set=width=8 '--grid=a=1;2'"),
+    assert (
+        _command("    python -m experiments.stream [--print_every=10] [--view]   # also")
+        == "python -m experiments.stream --print_every=10 --view"
+    )
+    assert (
+        _command("pip install -e . && python -m experiments.ablation --seeds=5")
+        == "python -m experiments.ablation --seeds=5"
+    )
+    assert _joined(["python -m experiments.cost --widths= \\", "    --modality_sets=internal"]) == [
+        "python -m experiments.cost --widths= --modality_sets=internal"
     ]
-    assert base_example("latents") == "python -m experiments.latents --checkpoint=DIR --seed=1" and base_example("verify") == "python -m experiments.verify"
+    helps = {
+        "set": "override ..., e.g. --set=seq_len=100 --set=compute_dtype=bfloat16; repeat this option",
+        "grid": "e.g. --grid='a=1;2'",
+    }
+    assert help_examples("cost", helps, "python -m experiments.cost --seeds=5 --set=width=8") == [
+        (
+            "python -m experiments.cost --help, --set",
+            "python -m experiments.cost --seeds=5 --set=seq_len=100 --set=compute_dtype=bfloat16",
+        ),
+        (
+            "python -m experiments.cost --help, --grid",
+            "python -m experiments.cost --seeds=5 --set=width=8 '--grid=a=1;2'",
+        ),
+    ]
+    assert (
+        base_example("latents") == "python -m experiments.latents --checkpoint=DIR --seed=1"
+        and base_example("verify") == "python -m experiments.verify"
+    )
     found = {c for _, c in static_examples()}
     assert f"{PREFIX}ablation --seeds=5" in found and f"{PREFIX}ablation --rows=Minsound,proprioception" in found
 
@@ -281,7 +322,11 @@ def _fork(argv: list[str], scratch: Path, help_only: bool = False) -> dict:
         if time.monotonic() > deadline:
             os.kill(pid, 9)
             os.waitpid(pid, 0)
-            return {"passed": False, "outcome": f"reached no boundary in {TIMEOUT_S} s", "output": out.read_text(errors="replace")}
+            return {
+                "passed": False,
+                "outcome": f"reached no boundary in {TIMEOUT_S} s",
+                "output": out.read_text(errors="replace"),
+            }
         time.sleep(0.02)
     outcome = json.loads(result.read_text()) if result.exists() else {"passed": False, "outcome": "the process died"}
     return {**outcome, "output": out.read_text(errors="replace") if out.exists() else ""}

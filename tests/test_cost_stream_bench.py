@@ -36,16 +36,28 @@ def smoke_workdir(tmp_path_factory):
 def test_sweep_is_one_factor_at_a_time_with_the_paper_point_capped():
     base = Config.from_preset("smoke", modalities=("internal", "external"), seq_len=20)
     points, paper = cost.sweep_points(
-        base, seq_lens=(10, 20, 200), backbones=("attention", "tcn"), widths=(8, 16), bandwidths=(2.5, 15.0),
-        modality_sets=[("internal", "external"), ("internal",)], max_len=120,
+        base,
+        seq_lens=(10, 20, 200),
+        backbones=("attention", "tcn"),
+        widths=(8, 16),
+        bandwidths=(2.5, 15.0),
+        modality_sets=[("internal", "external"), ("internal",)],
+        max_len=120,
     )
     names = [p.name for p in points]
     assert len(names) == len(set(names))
     assert all(p.config.seq_len <= 120 for p in points)  # N=200 skipped
     grid = [p for p in points if p.group == "N x backbone"]
-    assert {(p.config.backbone, p.config.seq_len) for p in grid} == {(b, n) for b in ("attention", "tcn") for n in (10, 20)}
+    assert {(p.config.backbone, p.config.seq_len) for p in grid} == {
+        (b, n) for b in ("attention", "tcn") for n in (10, 20)
+    }
     # width 16 and 15 kHz and the first modality set are the base: no duplicate points
-    assert sorted(p.group for p in points if p.group not in ("N x backbone",)) == ["bandwidth", "modalities", "paper", "width"]
+    assert sorted(p.group for p in points if p.group not in ("N x backbone",)) == [
+        "bandwidth",
+        "modalities",
+        "paper",
+        "width",
+    ]
     paper_cfg = next(p.config for p in points if p.name == paper)
     assert (paper_cfg.seq_len, paper_cfg.width, paper_cfg.ffn, paper_cfg.backbone) == (120, 64, 128, "attention")
     assert paper_cfg.modalities == ("internal", "external") and paper_cfg.bandwidth_khz == 15.0
@@ -54,7 +66,15 @@ def test_sweep_is_one_factor_at_a_time_with_the_paper_point_capped():
 def test_a_width_point_at_the_base_width_but_another_ffn_has_its_own_name():
     # the default preset's FFN is not 2 x width, so its width's point (FFN 2 x width) is another model
     base = Config.from_preset("smoke", seq_len=20, width=16, ffn=16)
-    points, _ = cost.sweep_points(base, seq_lens=(20,), backbones=("attention",), widths=(16,), bandwidths=(), modality_sets=[base.modalities], max_len=120)
+    points, _ = cost.sweep_points(
+        base,
+        seq_lens=(20,),
+        backbones=("attention",),
+        widths=(16,),
+        bandwidths=(),
+        modality_sets=[base.modalities],
+        max_len=120,
+    )
     names = [p.name for p in points]
     assert len(names) == len(set(names)) and "att N20 w16/32" in names
 
@@ -71,14 +91,30 @@ def test_pareto_front_keeps_only_undominated_points():
 
 def test_cost_run_writes_table_json_and_pareto_png(smoke_workdir, tmp_path):
     doc = cost.run(
-        n_seeds=2, preset="smoke", seq_lens=(20,), backbones=("attention",), widths=(), bandwidths=(),
-        modality_sets=[("internal", "external")], latency_repeats=3, where=Location(workdir=smoke_workdir, results=tmp_path, command="test"),
+        n_seeds=2,
+        preset="smoke",
+        seq_lens=(20,),
+        backbones=("attention",),
+        widths=(),
+        bandwidths=(),
+        modality_sets=[("internal", "external")],
+        latency_repeats=3,
+        where=Location(workdir=smoke_workdir, results=tmp_path, command="test"),
     )
     assert [p["group"] for p in doc["points"]] == ["N x backbone", "paper"]
     assert doc["paper_point"] == doc["points"][1]["name"]
     saved = json.loads((tmp_path / "cost.json").read_text())
     for p in saved["points"]:
-        assert {"accuracy", "accuracy_mean", "accuracy_sd", "touch_s", "train_s", "latency_p50_ms", "latency_p99_ms", "params"} <= set(p)
+        assert {
+            "accuracy",
+            "accuracy_mean",
+            "accuracy_sd",
+            "touch_s",
+            "train_s",
+            "latency_p50_ms",
+            "latency_p99_ms",
+            "params",
+        } <= set(p)
         assert len(p["accuracy"]) == 2 and p["params"] > 0 and p["latency_p99_ms"] >= p["latency_p50_ms"] > 0
         assert p["touch_s"] == p["seq_len"] / 50
     assert set(saved["pareto_front"]) == {"touch_s", "latency_p50_ms"} and "machine" in saved
@@ -88,18 +124,26 @@ def test_cost_run_writes_table_json_and_pareto_png(smoke_workdir, tmp_path):
 
 
 def _tiny_streamer(config, shapes=None, layout=live.HAND):
-    shapes = shapes or {m: (18,) if m == "proprio" else (welch.n_bins(config.bandwidth_khz),) for m in config.modalities}
+    shapes = shapes or {
+        m: (18,) if m == "proprio" else (welch.n_bins(config.bandwidth_khz),) for m in config.modalities
+    }
     trainer = train.make_trainer(config, shapes)
-    return live.Streamer(trainer.graphdef, jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"], config, layout=layout)
+    return live.Streamer(
+        trainer.graphdef, jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"], config, layout=layout
+    )
 
 
 def test_streaming_psd_of_the_newest_step_equals_the_batch_feature(smoke_workdir):
     folder = smoke_workdir / "datasets" / "smoke"
     trial = archive.read_archive(stream_command.first_test_trial(folder), images=False)
-    config = Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=8, bandwidth_khz=10.0, **TINY)
+    config = Config(
+        preset="smoke", modalities=("internal", "external", "proprio"), seq_len=8, bandwidth_khz=10.0, **TINY
+    )
     s = _tiny_streamer(config)
     extra = 3
-    probs = [s.update(live.step_windows(trial, t, s.mics, s.windows), trial.joints[t]) for t in range(config.seq_len + extra)]
+    probs = [
+        s.update(live.step_windows(trial, t, s.mics, s.windows), trial.joints[t]) for t in range(config.seq_len + extra)
+    ]
     assert all(p is None for p in probs[: config.seq_len - 1])
     assert all(p.shape == (21,) and np.isclose(p.sum(), 1, atol=1e-5) for p in probs[config.seq_len - 1 :])
     k = welch.n_bins(10.0)
@@ -120,7 +164,9 @@ def test_streaming_a_rig_uses_the_window_by_duration_at_its_mics_rate():
 
     trial = rig_archive(n_steps=12)
     lay = archive.layout(trial.meta)
-    config = Config(preset="smoke", modalities=("internal", "proprio"), seq_len=4, mic_window_s=0.3, n_classes=3, **TINY)
+    config = Config(
+        preset="smoke", modalities=("internal", "proprio"), seq_len=4, mic_window_s=0.3, n_classes=3, **TINY
+    )
     window = data.window_of(config, 2200)
     assert window == 660
     s = _tiny_streamer(config, {"internal": (welch.full_bins(window),), "proprio": (21,)}, lay)
@@ -128,7 +174,12 @@ def test_streaming_a_rig_uses_the_window_by_duration_at_its_mics_rate():
     probs = [s.update(live.step_windows(trial, t, s.mics, s.windows), trial.joints[t]) for t in range(6)]
     assert probs[-1].shape == (3,)
     batch = extract.feature_for("internal", window=window).compute(trial)[2:6]
-    np.testing.assert_allclose(np.asarray(s.window["internal"]), batch[:, : welch.n_bins(config.bandwidth_khz, 2200, window)], rtol=0, atol=1e-5)
+    np.testing.assert_allclose(
+        np.asarray(s.window["internal"]),
+        batch[:, : welch.n_bins(config.bandwidth_khz, 2200, window)],
+        rtol=0,
+        atol=1e-5,
+    )
     np.testing.assert_array_equal(np.asarray(s.window["proprio"]), trial.joints[2:6].reshape(4, 21))
     assert live.class_name(2, trial.meta) == "felt" and live.class_name(2) == catalog.fabric(2).name
 
@@ -140,22 +191,40 @@ def test_streamer_rejects_camera_models():
 
 def test_stream_run_trains_a_quick_model_then_restores_it(smoke_workdir, tmp_path):
     lines = []
-    doc = stream_command.run(preset="smoke", realtime=False, print_every=5, where=Location(workdir=smoke_workdir, results=tmp_path), out=lines.append)
+    doc = stream_command.run(
+        preset="smoke",
+        realtime=False,
+        print_every=5,
+        where=Location(workdir=smoke_workdir, results=tmp_path),
+        out=lines.append,
+    )
     assert doc["decided_steps"] == doc["steps"] - doc["window_steps"] + 1 > 0
     assert doc["latency_p99_ms"] >= doc["latency_p50_ms"] > 0 and doc["late_steps"] is None
     assert any("p=" in line and "ms" in line for line in lines) and lines[-1].startswith("first correct decision")
     assert json.loads((tmp_path / "stream.json").read_text())["archive"] == doc["archive"]
-    again = stream_command.run(checkpoint_dir=doc["checkpoint"], realtime=False, print_every=0, where=Location(workdir=smoke_workdir, results=tmp_path), out=lines.append)
+    again = stream_command.run(
+        checkpoint_dir=doc["checkpoint"],
+        realtime=False,
+        print_every=0,
+        where=Location(workdir=smoke_workdir, results=tmp_path),
+        out=lines.append,
+    )
     assert again["config"] == doc["config"]
     assert again["accuracy_over_decided_steps"] == doc["accuracy_over_decided_steps"]
 
 
 @pytest.mark.slow  # ~30-55 s on 2 cores: run with -m slow
 def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
-    workload = bench.Workload(Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=12, **TINY), batch=8, bins=24)
+    workload = bench.Workload(
+        Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=12, **TINY), batch=8, bins=24
+    )
     lines = []
     doc = bench.run(
-        quick=True, workload=workload, where=Location(workdir=smoke_workdir, results=tmp_path, command="test"), out=lines.append, acquisition=bench_acquisition,
+        quick=True,
+        workload=workload,
+        where=Location(workdir=smoke_workdir, results=tmp_path, command="test"),
+        out=lines.append,
+        acquisition=bench_acquisition,
         importer=lambda trials: bench_import(trials=20, seconds=(2.0, 3.0)),
     )
     saved = json.loads((tmp_path / "bench.json").read_text())
@@ -168,12 +237,22 @@ def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
     assert "missed_deadlines" in b["acquisition"] and b["simulator"]["realtime_factor"] > 0
     assert all(saved["matmul_peak"][d]["gflop_per_s"] > 0 for d in program_timing.DTYPES)
     for d in program_timing.DTYPES:
-        assert b["training"]["ours_5_seed"][d]["xla"]["flops_per_step"] > b["training"]["ours_1_seed"][d]["xla"]["flops_per_step"] > 0
+        assert (
+            b["training"]["ours_5_seed"][d]["xla"]["flops_per_step"]
+            > b["training"]["ours_1_seed"][d]["xla"]["flops_per_step"]
+            > 0
+        )
         assert set(b["inference"]["ours"][d]["xla"]["fraction_of_peak"]) == set(program_timing.DTYPES)
         assert f"{d} (batch 8, N=12)" in lines[-1] and f"sequence, {d}, p50" in lines[-1]
     if doc["torch"] is not None:
-        assert all("ratio" in b["training"]["ours_1_seed"][d] and "ratio_p50" in b["inference"]["ours"][d] for d in program_timing.DTYPES)
-        assert b["training"]["torch_1_seed"]["variant"] in b["training"]["interleaved"]["training"]["1_seed"]["torch_variants"]
+        assert all(
+            "ratio" in b["training"]["ours_1_seed"][d] and "ratio_p50" in b["inference"]["ours"][d]
+            for d in program_timing.DTYPES
+        )
+        assert (
+            b["training"]["torch_1_seed"]["variant"]
+            in b["training"]["interleaved"]["training"]["1_seed"]["torch_variants"]
+        )
         assert "eager +bf16 autocast" in b["training"]["interleaved"]["training"]["1_seed"]["torch_variants"]
     else:
         assert "skipped" in doc["torch_note"]
@@ -188,7 +267,11 @@ def test_xla_flops_utilisation_and_matmul_peak_are_positive():
     peaks = {d: program_timing.matmul_peak(n=128, repeats=2, dtype=d) for d in program_timing.DTYPES}
     for d, peak in peaks.items():
         # Rows split over every device: the per-device counts add up to the whole matmul's.
-        assert peak["flops"] == pytest.approx(2 * 128**3, rel=0.01) and peak["devices"] == len(jax.devices()) and peak["dtype"] == d
+        assert (
+            peak["flops"] == pytest.approx(2 * 128**3, rel=0.01)
+            and peak["devices"] == len(jax.devices())
+            and peak["dtype"] == d
+        )
         assert np.isfinite(peak["gflop_per_s"]) and peak["gflop_per_s"] > 0
     use = program_timing.utilisation(flops, 1e-4, {d: p["gflop_per_s"] for d, p in peaks.items()})
     assert np.isfinite(use["gflop_per_s"]) and use["gflop_per_s"] > 0
@@ -203,22 +286,37 @@ def test_bench_table_names_the_fastest_variant_and_a_failed_compile():
     training = {"1_seed": {"torch_variants": {"eager": eager, "compiled:default": failed}}}
     peak = {"n": 2048, "devices": 2}
     doc = {
-        "command": "test", "quick": False, "torch": "2.13.0", "machine": {"cpu": "cpu", "cores": 2, "jax": "0.10"},
+        "command": "test",
+        "quick": False,
+        "torch": "2.13.0",
+        "machine": {"cpu": "cpu", "cores": 2, "jax": "0.10"},
         "matmul_peak": {"float32": {**peak, "gflop_per_s": 80.0}, "bfloat16": {**peak, "gflop_per_s": 160.0}},
         "benchmarks": {
             "training": {
                 "workload": {"batch": 32, "seq_len": 200},
-                "ours_1_seed": {"float32": {"seconds_per_step": 0.1, "ratio": 0.5, "xla": xla}, "bfloat16": {"seconds_per_step": 0.08, "ratio": 0.4, "xla": xla}},
+                "ours_1_seed": {
+                    "float32": {"seconds_per_step": 0.1, "ratio": 0.5, "xla": xla},
+                    "bfloat16": {"seconds_per_step": 0.08, "ratio": 0.4, "xla": xla},
+                },
                 "torch_1_seed": {"variant": "eager", "seconds_per_step": 0.2},
                 "interleaved": {"torch_adamw": "fused", "training": training},
             },
-            "inference": {"workload": {"seq_len": 200}, "ours": {"float32": {"p50_ms": 3.0, "p99_ms": 9.0, "xla": xla}}},
+            "inference": {
+                "workload": {"seq_len": 200},
+                "ours": {"float32": {"p50_ms": 3.0, "p99_ms": 9.0, "xla": xla}},
+            },
         },
     }
     table = bench.markdown(doc)
-    assert "| training step, 1 seed, float32 (batch 32, N=200) | 100 ms | eager 200 ms | 0.50 | 2 | 20 (25 % / 12 %) |" in table
+    assert (
+        "| training step, 1 seed, float32 (batch 32, N=200) | 100 ms | eager 200 ms | 0.50 | 2 | 20 (25 % / 12 %) |"
+        in table
+    )
     assert "| training step, 1 seed, bfloat16 (batch 32, N=200) | 80 ms | eager 200 ms | 0.40 |" in table
-    assert "float32 operands (80.0 GFLOP/s) and bfloat16 operands (160.0 GFLOP/s)" in table and "on the same 2 devices" in table
+    assert (
+        "float32 operands (80.0 GFLOP/s) and bfloat16 operands (160.0 GFLOP/s)" in table
+        and "on the same 2 devices" in table
+    )
     assert "| training, 1 seed | eager | 200 ms | float32 0.50, bfloat16 0.40 | 1.0 s |" in table
     assert "| inference, one 200-step sequence, float32, p50 / p99 | 3.00 / 9.00 ms | n/a |" in table
     assert "| training, 1 seed | compiled:default | n/a |  | failed: BackendCompilerFailed: no C++ compiler |" in table
@@ -252,11 +350,22 @@ def test_comparison_times_every_dtype_against_every_twin_variant(monkeypatch):
     monkeypatch.setattr(torch_twin, "inference_runner", runner)
     cfg = Config(preset="smoke", modalities=("internal", "proprio"), seq_len=6, **TINY)
     out = program_timing.compare_with_torch(
-        cfg, seeds=(1, 2), batch=4, seq_len=6, psd_bins=8, steps=1, rounds=2, inference_rounds=1, inference_calls=2, pause_s=0.0,
+        cfg,
+        seeds=(1, 2),
+        batch=4,
+        seq_len=6,
+        psd_bins=8,
+        steps=1,
+        rounds=2,
+        inference_rounds=1,
+        inference_calls=2,
+        pause_s=0.0,
         compile_modes=("default", "broken"),
     )
-    for t, fastest, s, ensembles in ((out["training"]["1_seed"], "eager +bf16 autocast", 0.2, [""]),
-                                     (out["training"]["2_seed"], "eager +bf16 autocast, vmapped", 0.1, [", in sequence", ", vmapped"])):
+    for t, fastest, s, ensembles in (
+        (out["training"]["1_seed"], "eager +bf16 autocast", 0.2, [""]),
+        (out["training"]["2_seed"], "eager +bf16 autocast, vmapped", 0.1, [", in sequence", ", vmapped"]),
+    ):
         assert t["torch_variant"] == fastest and t["torch_s_per_step"] == s
         assert set(t["ours"]) == set(program_timing.DTYPES)
         assert all(v["ratio"] == pytest.approx(v["s_per_step"] / s, rel=1e-6) for v in t["ours"].values())

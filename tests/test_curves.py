@@ -58,8 +58,12 @@ def test_without_tensorboardx_training_goes_on_without_curves(logged, tmp_path, 
     hide_tensorboardx(monkeypatch)
     res = train_and_evaluate(TINY, data_sets(TINY), SEEDS, log_dir=tmp_path / "logs")
     assert not (tmp_path / "logs").exists()
-    assert any("tensorboardX is not installed" in r.getMessage() and '".[logs]"' in r.getMessage() for r in caplog.records)
-    np.testing.assert_array_equal(res.metrics["eval"]["test"]["accuracy"]["fabric"], with_curves.metrics["eval"]["test"]["accuracy"]["fabric"])
+    assert any(
+        "tensorboardX is not installed" in r.getMessage() and '".[logs]"' in r.getMessage() for r in caplog.records
+    )
+    np.testing.assert_array_equal(
+        res.metrics["eval"]["test"]["accuracy"]["fabric"], with_curves.metrics["eval"]["test"]["accuracy"]["fabric"]
+    )
     # still one epoch per call, so each epoch's wall time is its own (not the run's mean, one value repeated)
     assert len(set(res.metrics["epochs"][curves.WALL_TAG][0])) == TINY.epochs
 
@@ -91,7 +95,10 @@ def test_a_resumed_run_appends_to_the_curves_of_the_interrupted_one(logged, tmp_
 def test_a_smoke_study_leaves_event_files_equal_to_the_curves_it_returns(tmp_path):
     sim.ensure_dataset("smoke", tmp_path, streams=("audio", "proprio"), progress=False)
     doc = ablation.run(
-        n_seeds=2, rows=["internal"], preset="smoke", overrides=dict(epochs=2, width=16, n_layers=1),
+        n_seeds=2,
+        rows=["internal"],
+        preset="smoke",
+        overrides=dict(epochs=2, width=16, n_layers=1),
         where=Location(workdir=tmp_path, results=tmp_path / "results", command="test"),
     )
     row = json.loads((tmp_path / "results" / "ablation.json").read_text())["rows"][0]
@@ -103,4 +110,6 @@ def test_a_smoke_study_leaves_event_files_equal_to_the_curves_it_returns(tmp_pat
         assert values.shape == (2, 2)
         np.testing.assert_array_equal(back[tag], values, err_msg=tag)
     # the reported validation accuracy is the best epoch's
-    np.testing.assert_array_equal(epochs["val/accuracy/fabric"].max(axis=1), np.array(row["accuracy"]["val"]["fabric"], np.float32))
+    np.testing.assert_array_equal(
+        epochs["val/accuracy/fabric"].max(axis=1), np.array(row["accuracy"]["val"]["fabric"], np.float32)
+    )

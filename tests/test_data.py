@@ -12,9 +12,11 @@ from tests.helpers import tiny_archive, tiny_dataset
 
 # fabric 4 and class 0: two trials on each training day, one test trial, one cafe trial;
 # fabric 1 (a property holdout) the same; fabric 21 (new) a test trial only.
-TRIALS = [
-    (fid, day, t, "lab") for fid in (0, 4, 1) for day in (1, 2) for t in (0, 1)
-] + [(fid, 3, 0, "lab") for fid in (0, 4, 1, 21)] + [(fid, 4, 0, "cafe") for fid in (0, 4, 1)]
+TRIALS = (
+    [(fid, day, t, "lab") for fid in (0, 4, 1) for day in (1, 2) for t in (0, 1)]
+    + [(fid, 3, 0, "lab") for fid in (0, 4, 1, 21)]
+    + [(fid, 4, 0, "cafe") for fid in (0, 4, 1)]
+)
 LENGTHS = {(4, 1, 0, "lab"): 61, (4, 3, 0, "lab"): 20, (0, 2, 1, "lab"): 39}
 N = 20
 
@@ -121,8 +123,13 @@ def test_image_and_flow_features(tmp_path, reads):
     np.testing.assert_array_equal(full["test"].inputs["image"][1], trial.images[N : 2 * N])
     # read against the session's reference (the default), at either resolution: int16 differences
     for resolution, shrink in (("down", lambda x: images.downsample(x, (60, 80))), ("full", lambda x: x)):
-        session = data.load_sequences(dataclasses.replace(cfg, image_reference="session", image_resolution=resolution), ds,
-                                      workdir=tmp_path / "ws", progress=False, workers=1)["test"].inputs["image"][1]
+        session = data.load_sequences(
+            dataclasses.replace(cfg, image_reference="session", image_resolution=resolution),
+            ds,
+            workdir=tmp_path / "ws",
+            progress=False,
+            workers=1,
+        )["test"].inputs["image"][1]
         want = shrink(trial.images[N : 2 * N]).astype(np.int16) - shrink(trial.reference)[0].astype(np.int16)
         assert session.dtype == np.int16
         np.testing.assert_array_equal(session, want)
@@ -143,7 +150,9 @@ def test_trial_shorter_than_a_sequence_names_the_file(tmp_path):
 def test_only_the_requested_splits_are_read(dataset, tmp_path, reads):
     full = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws1", progress=False, workers=1)
     n_read = len(reads)
-    sets = data.load_sequences(_config(), dataset, workdir=tmp_path / "ws2", progress=False, workers=1, split_names=("test", "train"))
+    sets = data.load_sequences(
+        _config(), dataset, workdir=tmp_path / "ws2", progress=False, workers=1, split_names=("test", "train")
+    )
     assert list(sets) == ["train", "test"]  # in SPLITS order
     for s in sets:
         np.testing.assert_array_equal(sets[s].inputs["internal"], full[s].inputs["internal"])
@@ -151,7 +160,9 @@ def test_only_the_requested_splits_are_read(dataset, tmp_path, reads):
     assert second and not any("cafe" in name for name in second)
     assert not any(name in second for name in full["val"].info["trial_key"])
     with pytest.raises(ValueError, match="unknown splits"):
-        data.load_sequences(_config(), dataset, workdir=tmp_path / "ws3", progress=False, workers=1, split_names=("training",))
+        data.load_sequences(
+            _config(), dataset, workdir=tmp_path / "ws3", progress=False, workers=1, split_names=("training",)
+        )
 
 
 def test_sequences_start_at_the_first_rubbing_step(tmp_path):
@@ -205,8 +216,11 @@ def test_the_feature_cache_deflates_8_and_16_bit_features_and_stores_float32(tmp
     from fabricjax.features import cache
 
     rng = np.random.default_rng(0)
-    arrays = {"frames": rng.integers(0, 8, (50, 6, 8, 3)).astype(np.uint8), "flow": np.zeros((50, 2, 4, 5), np.float16),
-              "psd": rng.normal(size=(50, 24)).astype(np.float32)}
+    arrays = {
+        "frames": rng.integers(0, 8, (50, 6, 8, 3)).astype(np.uint8),
+        "flow": np.zeros((50, 2, 4, 5), np.float16),
+        "psd": rng.normal(size=(50, 24)).astype(np.float32),
+    }
     for name, a in arrays.items():
         path = tmp_path / f"{name}.npz"
         cache.save(path, "fp", a)
@@ -248,10 +262,14 @@ def test_sequences_larger_than_memory_are_memory_mapped_files(dataset, tmp_path,
     """input_source="disk" (and "auto" beyond MEMORY_FRACTION of memory): the same sequences, in
     read-only files a second load reads without touching the archives; the folder is outside the data."""
     cfg = _config(modalities=("internal", "proprio", "flow", "image"))
-    in_memory = data.load_sequences(dataclasses.replace(cfg, input_source="memory"), dataset, workdir=tmp_path / "ws", progress=False)
+    in_memory = data.load_sequences(
+        dataclasses.replace(cfg, input_source="memory"), dataset, workdir=tmp_path / "ws", progress=False
+    )
     monkeypatch.setattr(data, "MEMORY_FRACTION", 1e-12)  # every data set is "larger than memory"
     for source in ("auto", "disk"):
-        on_disk = data.load_sequences(dataclasses.replace(cfg, input_source=source), dataset, workdir=tmp_path / "ws", progress=False)
+        on_disk = data.load_sequences(
+            dataclasses.replace(cfg, input_source=source), dataset, workdir=tmp_path / "ws", progress=False
+        )
         for split, s in in_memory.items():
             for m, a in s.inputs.items():
                 b = on_disk[split].inputs[m]

@@ -53,21 +53,35 @@ def workdir(tmp_path_factory):
 
 @pytest.mark.slow
 def test_day_shift_runs_after_the_probe_in_reproduce_and_shows_its_gap(workdir, tmp_path):
-    plan = (reproduce.Step("probe", rows=("proprio", "internal")), reproduce.Step("day_shift", rows=("proprio", "internal")))
-    reproduce.run(preset="smoke", plan=plan, overrides=TINY, where=Location(workdir=workdir, results=tmp_path), say=lambda s: None)
+    plan = (
+        reproduce.Step("probe", rows=("proprio", "internal")),
+        reproduce.Step("day_shift", rows=("proprio", "internal")),
+    )
+    reproduce.run(
+        preset="smoke", plan=plan, overrides=TINY, where=Location(workdir=workdir, results=tmp_path), say=lambda s: None
+    )
     doc = json.loads((tmp_path / "day_shift.json").read_text())
     probe_doc = json.loads((tmp_path / "probe.json").read_text())
-    assert [r["name"] for r in doc["rows"]] == ["internal", "proprio"]  # the table's order and doc["days"] == [1, 2, 3] and doc["probe_missing"] is None
+    assert [r["name"] for r in doc["rows"]] == [
+        "internal",
+        "proprio",
+    ]  # the table's order and doc["days"] == [1, 2, 3] and doc["probe_missing"] is None
     for r in doc["rows"]:
         assert sum(r["shares"].values()) == pytest.approx(1.0)
-        assert r["probe"] == {s: next(p for p in probe_doc["rows"] if p["name"] == r["name"])["accuracy"][s] for s in ("val", "test")}
+        assert r["probe"] == {
+            s: next(p for p in probe_doc["rows"] if p["name"] == r["name"])["accuracy"][s] for s in ("val", "test")
+        }
     report = (tmp_path / "REPORT.md").read_text()
     assert f"## {reproduce.title('day_shift')}" in report and "Test − validation [pp]" in report
     assert report.count("| – (deterministic) | – (not in the paper) |") == 2
     manifest = json.loads((tmp_path / reproduce.MANIFEST).read_text())
     prints = manifest["day_shift"]["fingerprints"]
     other = reproduce.step_key(plan[1], "smoke", TINY, prints, manifest["probe"]["key"] + "0")
-    assert other != reproduce.step_key(plan[1], "smoke", TINY, prints, manifest["probe"]["key"]) == manifest["day_shift"]["key"]  # the probe's key is in the day shift's
+    assert (
+        other
+        != reproduce.step_key(plan[1], "smoke", TINY, prints, manifest["probe"]["key"])
+        == manifest["day_shift"]["key"]
+    )  # the probe's key is in the day shift's
 
 
 @pytest.mark.slow
@@ -77,8 +91,16 @@ def test_day_shift_reads_a_recorded_folder_and_says_when_the_probe_is_missing(wo
     for archive in sim.ensure_dataset("smoke", workdir, streams=("audio", "proprio"), progress=False).glob("*.npz"):
         os.link(archive, folder / archive.name)
     before = sorted((p.name, p.stat().st_mtime_ns) for p in folder.rglob("*"))
-    doc = day_shift.run(preset="smoke", rows=["external"], where=Location(workdir=workdir, data_dir=folder, results=tmp_path / "results", command="test"))
-    assert doc["dataset"]["source"] == "recorded" and doc["rows"][0]["probe"] is None and "no probe results" in doc["probe_missing"]
+    doc = day_shift.run(
+        preset="smoke",
+        rows=["external"],
+        where=Location(workdir=workdir, data_dir=folder, results=tmp_path / "results", command="test"),
+    )
+    assert (
+        doc["dataset"]["source"] == "recorded"
+        and doc["rows"][0]["probe"] is None
+        and "no probe results" in doc["probe_missing"]
+    )
     md = (tmp_path / "results" / "day_shift.md").read_text()
     assert md.startswith("# Day shift") and "on recorded data" in md and "Probe columns: no probe results" in md
     assert sorted((p.name, p.stat().st_mtime_ns) for p in folder.rglob("*")) == before

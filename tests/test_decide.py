@@ -100,8 +100,14 @@ def test_decide_on_the_smoke_preset_writes_its_reports_and_the_stream_applies_th
     assert all(0 <= v["auroc"] <= 1 for v in m["unknown"]["scores"].values())
     assert confidence.load_temperature(m["checkpoint"], m["seed"]) == pytest.approx(m["temperature"])
     lines = []
-    s = stream.run(preset="smoke", where=Location(workdir=tmp_path / "ws", results=results), realtime=False, print_every=0, out=lines.append,
-                   view_save=tmp_path / "s.rrd")
+    s = stream.run(
+        preset="smoke",
+        where=Location(workdir=tmp_path / "ws", results=results),
+        realtime=False,
+        print_every=0,
+        out=lines.append,
+        view_save=tmp_path / "s.rrd",
+    )
     assert s["temperature"] == pytest.approx(m["temperature"]) and any("sequential decision" in x for x in lines)
     # the accumulated posterior, once per non-overlapping window after the first full one
     windows = (s["steps"] - s["window_steps"]) // s["window_steps"] + 1
@@ -115,7 +121,13 @@ def test_reproduce_runs_decide_on_the_ablations_checkpoint(tmp_path):
 
     plan = (reproduce.Step("ablation", 1, ("internal",)), reproduce.Step("decide", rows=("internal",)))
     said = []
-    reproduce.run(preset="smoke", plan=plan, overrides=dict(epochs=1, width=16, n_layers=1), where=Location(workdir=tmp_path / "ws", results=tmp_path / "out"), say=said.append)
+    reproduce.run(
+        preset="smoke",
+        plan=plan,
+        overrides=dict(epochs=1, width=16, n_layers=1),
+        where=Location(workdir=tmp_path / "ws", results=tmp_path / "out"),
+        say=said.append,
+    )
     ablation = json.loads((tmp_path / "out" / "ablation.json").read_text())
     doc = json.loads((tmp_path / "out" / "decide.json").read_text())
     assert [m["checkpoint"] for m in doc["models"]] == [ablation["rows"][0]["checkpoint"]]
@@ -132,8 +144,17 @@ def test_decide_on_recorded_data_uses_its_label_map_splits_and_unknown_labels(tm
 
     trials = [(0, "train"), (1, "train")] * 3 + [(0, "val"), (1, "val"), (0, "test"), (1, "test"), (2, "test")]
     ds = _rig_dataset(tmp_path / "ds", trials)
-    doc = decide.run(preset="smoke", overrides={"modalities": ("internal",), "epochs": 1}, where=Location(data_dir=ds, workdir=tmp_path / "ws", results=tmp_path / "out"), unknown_labels=[2])
+    doc = decide.run(
+        preset="smoke",
+        overrides={"modalities": ("internal",), "epochs": 1},
+        where=Location(data_dir=ds, workdir=tmp_path / "ws", results=tmp_path / "out"),
+        unknown_labels=[2],
+    )
     m = doc["models"][0]
     assert doc["dataset"]["classes"] == ["oak", "pine", "felt"] and list(m["splits"]) == ["test"]
-    assert m["unknown"]["fabrics"] == [2] and m["unknown"]["unknown_sequences"] == 3 and m["unknown"]["known_sequences"] == 6
+    assert (
+        m["unknown"]["fabrics"] == [2]
+        and m["unknown"]["unknown_sequences"] == 3
+        and m["unknown"]["known_sequences"] == 6
+    )
     assert "on recorded data" in (tmp_path / "out" / "decide.md").read_text()

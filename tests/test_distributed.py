@@ -59,7 +59,9 @@ def test_two_processes_train_as_one_process_with_two_devices(tmp_path):
     (tmp_path / "out").mkdir()
     address = f"localhost:{free_port()}"
     procs = [start(tmp_path, "one", 2)]
-    procs += [start(tmp_path, "two", 1, dict(coordinator_address=address, num_processes=2, process_id=i)) for i in range(2)]
+    procs += [
+        start(tmp_path, "two", 1, dict(coordinator_address=address, num_processes=2, process_id=i)) for i in range(2)
+    ]
     for p in procs:
         log = p.communicate(timeout=300)[0]
         assert p.returncode == 0, log[-3000:]
@@ -75,4 +77,6 @@ def test_two_processes_train_as_one_process_with_two_devices(tmp_path):
         for k in one.files:
             if k not in ("devices", "saves", "train_loss", "accuracy", "predictions", "restored"):
                 np.testing.assert_allclose(got[k], one[k], rtol=1e-4, atol=1e-6, err_msg=k)
-    assert sorted(p.name for p in (tmp_path / "two").glob("written_by_*")) == ["written_by_0"]  # only process 0 writes results
+    assert sorted(p.name for p in (tmp_path / "two").glob("written_by_*")) == [
+        "written_by_0"
+    ]  # only process 0 writes results

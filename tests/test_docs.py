@@ -26,7 +26,9 @@ def _readme_parts() -> tuple[str, str, str]:
 def test_readme_results_block_is_what_the_published_results_render():
     head = json.loads((REPO / "results" / reproduce.HEADLINE).read_text())
     _, block, _ = _readme_parts()
-    assert block == reproduce.readme_block(head), "README's results block differs from results/headline.json: rerun experiments.reproduce"
+    assert block == reproduce.readme_block(head), (
+        "README's results block differs from results/headline.json: rerun experiments.reproduce"
+    )
     ablation_md = (REPO / "results" / "ablation.md").read_text()
     for row in head["rows"]:  # the same numbers as the published table
         assert f"| {row['ours']} |" in ablation_md, row
@@ -46,7 +48,13 @@ def test_documents_are_short():
 def test_no_tracked_document_or_result_names_a_machine_path():
     files = [*DOCUMENTS, *[p for p in (REPO / "results").rglob("*") if p.suffix in (".md", ".json", ".log", ".txt")]]
     absolute = re.compile(r"(?<![\w.~-])/(work|root|tmp|home|Users|mnt|opt|var)/")
-    found = [f"{p.relative_to(REPO)}:{i}" for p in files if p.exists() for i, line in enumerate(p.read_text().splitlines(), 1) if absolute.search(line)]
+    found = [
+        f"{p.relative_to(REPO)}:{i}"
+        for p in files
+        if p.exists()
+        for i, line in enumerate(p.read_text().splitlines(), 1)
+        if absolute.search(line)
+    ]
     assert not found, found
 
 
@@ -54,12 +62,17 @@ def test_documents_link_only_to_files_that_exist():
     for doc in DOCUMENTS:
         for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", doc.read_text()):
             if not re.match(r"[a-z]+://", target):
-                assert (doc.parent / target).exists(), f"{doc.relative_to(REPO)} links to {target}, which does not exist"
+                assert (doc.parent / target).exists(), (
+                    f"{doc.relative_to(REPO)} links to {target}, which does not exist"
+                )
 
 
 def test_results_name_paths_inside_the_working_directory_relatively(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert workspace.shown(tmp_path / "workspace" / "checkpoints" / "ablation" / "internal-1") == "workspace/checkpoints/ablation/internal-1"
+    assert (
+        workspace.shown(tmp_path / "workspace" / "checkpoints" / "ablation" / "internal-1")
+        == "workspace/checkpoints/ablation/internal-1"
+    )
     assert workspace.shown("workspace/checkpoints/x") == "workspace/checkpoints/x"
     outside = tmp_path.parent / "elsewhere"
     assert workspace.shown(outside) == str(outside)
@@ -78,7 +91,11 @@ def test_a_collapsed_model_is_named_not_measured():
 
 
 def test_the_majority_baseline_comes_from_the_splits_own_labels():
-    assert findings.majority([2, 2, 1, -1, 0]) == {"label": 2, "accuracy": 50.0, "known": 4}  # unknown labels (-1) left out
+    assert findings.majority([2, 2, 1, -1, 0]) == {
+        "label": 2,
+        "accuracy": 50.0,
+        "known": 4,
+    }  # unknown labels (-1) left out
     assert findings.majority([1, 0])["label"] == 0  # a tie: the lowest label
     assert findings.majority([-1, -1]) is None and findings.majority_cell(None) == "–"
     assert findings.majority_cell(findings.majority([1, 1, 0]), "level") == "66.67 (level 1)"
@@ -112,9 +129,13 @@ def test_the_readme_smoke_check_runs_as_written_and_prints_what_it_shows(tmp_pat
     [command] = [c.strip() for c in _fenced("bash")[1:] if "--preset=smoke" in c]
     args = command.split()
     assert args[:3] == ["python", "-m", "experiments.ablation"]
-    env = {k: v for k, v in os.environ.items() if k != workspace.ENV_VAR}  # the default workspace: ./workspace of the scratch folder
+    env = {
+        k: v for k, v in os.environ.items() if k != workspace.ENV_VAR
+    }  # the default workspace: ./workspace of the scratch folder
     env.update(JAX_PLATFORMS="cpu", JAX_DISABLE_MOST_OPTIMIZATIONS="1")
-    out = subprocess.run([sys.executable, *args[1:]], env=env, cwd=tmp_path, capture_output=True, text=True, timeout=300, check=True)
+    out = subprocess.run(
+        [sys.executable, *args[1:]], env=env, cwd=tmp_path, capture_output=True, text=True, timeout=300, check=True
+    )
     printed = [line.split("] ", 1)[-1] for line in (out.stdout + out.stderr).replace("\r", "\n").splitlines()]
     shown = _fenced("text")[0].strip().splitlines()
     for line in shown:

@@ -42,7 +42,12 @@ def _is_estimate_call(node: ast.AST) -> bool:
 
 
 def _estimate_name(call: ast.Call) -> str | None:
-    if len(call.args) == 1 and not call.keywords and isinstance(call.args[0], ast.Constant) and isinstance(call.args[0].value, str):
+    if (
+        len(call.args) == 1
+        and not call.keywords
+        and isinstance(call.args[0], ast.Constant)
+        and isinstance(call.args[0].value, str)
+    ):
         return call.args[0].value
     return None
 
@@ -60,7 +65,8 @@ def _walk_outside_estimates(node: ast.AST):
 def _numbers(node: ast.AST) -> list[float]:
     """The numeric literals of `node` outside estimate calls (dict keys included)."""
     return [
-        n.value for n in _walk_outside_estimates(node)
+        n.value
+        for n in _walk_outside_estimates(node)
         if isinstance(n, ast.Constant) and isinstance(n.value, (int, float, complex)) and not isinstance(n.value, bool)
     ]
 
@@ -135,7 +141,8 @@ def test_every_number_of_the_simulator_is_sourced_or_a_registry_estimate():
     bad = [line for path in _modules() if path.name != "estimates.py" for line in _unsourced(path)]
     assert not bad, (
         "module-level numbers with neither a source tag ([paper], [ds], [minsight], [insight], [FACTS], [cited], [law], "
-        "[numerics]) in their comment nor a registry estimate (estimates.value), see calibration's docstring:\n" + "\n".join(bad)
+        "[numerics]) in their comment nor a registry estimate (estimates.value), see calibration's docstring:\n"
+        + "\n".join(bad)
     )
 
 
@@ -167,7 +174,9 @@ def _is_constant_assignment(stmt: ast.stmt) -> bool:
     """A module-level assignment to an UPPER_CASE name: `_unsourced` checks its numbers."""
     if isinstance(stmt, ast.Assign):
         return any(isinstance(t, ast.Name) and CONSTANT.match(t.id) for t in stmt.targets)
-    return isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name) and bool(CONSTANT.match(stmt.target.id))
+    return (
+        isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name) and bool(CONSTANT.match(stmt.target.id))
+    )
 
 
 def _unexplained_literals(path: Path) -> list[str]:
@@ -180,7 +189,11 @@ def _unexplained_literals(path: Path) -> list[str]:
         if _is_constant_assignment(stmt):
             continue
         for n in ast.walk(stmt):
-            if not isinstance(n, ast.Constant) or isinstance(n.value, bool) or not isinstance(n.value, (int, float, complex)):
+            if (
+                not isinstance(n, ast.Constant)
+                or isinstance(n.value, bool)
+                or not isinstance(n.value, (int, float, complex))
+            ):
                 continue
             if n.value in MATHEMATICAL or NUMERICS_TAG.search(comments.get(n.lineno, "")):
                 continue
@@ -211,7 +224,13 @@ def test_the_literal_check_finds_a_magnitude_in_a_function(tmp_path):
     )
     path = tmp_path / "probe.py"
     path.write_text(code)
-    assert _unexplained_literals(path) == ["probe.py:2 0.7", "probe.py:3 0.3", "probe.py:3 0.3", "probe.py:6 1.5", "probe.py:8 50"]
+    assert _unexplained_literals(path) == [
+        "probe.py:2 0.7",
+        "probe.py:3 0.3",
+        "probe.py:3 0.3",
+        "probe.py:6 1.5",
+        "probe.py:8 50",
+    ]
 
 
 def test_estimate_calls_name_registry_estimates_and_calibration_reads_every_one():
@@ -296,23 +315,41 @@ def test_no_module_but_calibration_computes_from_an_estimate_at_import():
         bad += [
             f"{path.relative_to(REPO)}:{n.lineno} {ast.unparse(n)}"
             for n in _import_time_nodes(tree.body)
-            if isinstance(n, ast.Attribute) and isinstance(n.value, ast.Name) and n.value.id in aliases and n.attr in derived
+            if isinstance(n, ast.Attribute)
+            and isinstance(n.value, ast.Name)
+            and n.value.id in aliases
+            and n.attr in derived
         ]
-    assert not bad, "module-level uses of estimate-derived calibration constants (compute them at the use site):\n" + "\n".join(bad)
+    assert not bad, (
+        "module-level uses of estimate-derived calibration constants (compute them at the use site):\n" + "\n".join(bad)
+    )
 
 
 def _same(a, b) -> bool:
     arrays_a, arrays_b = a.arrays(), b.arrays()
-    return a.meta == b.meta and arrays_a.keys() == arrays_b.keys() and all(
-        arrays_a[k].dtype == arrays_b[k].dtype and arrays_a[k].shape == arrays_b[k].shape and arrays_a[k].tobytes() == arrays_b[k].tobytes()
-        for k in arrays_a
+    return (
+        a.meta == b.meta
+        and arrays_a.keys() == arrays_b.keys()
+        and all(
+            arrays_a[k].dtype == arrays_b[k].dtype
+            and arrays_a[k].shape == arrays_b[k].shape
+            and arrays_a[k].tobytes() == arrays_b[k].tobytes()
+            for k in arrays_a
+        )
     )
 
 
 def test_an_override_changes_the_data_and_going_back_restores_it_byte_for_byte():
     scene = Scene(fabric_id=1, cycles=1, streams=("audio", "proprio"))
     published = trial.simulate(scene)
-    loud = trial.simulate(Scene(fabric_id=1, cycles=1, streams=("audio", "proprio"), estimates=(("SERVO_TONE_PA", estimates.ESTIMATES["SERVO_TONE_PA"].high),)))
+    loud = trial.simulate(
+        Scene(
+            fabric_id=1,
+            cycles=1,
+            streams=("audio", "proprio"),
+            estimates=(("SERVO_TONE_PA", estimates.ESTIMATES["SERVO_TONE_PA"].high),),
+        )
+    )
     assert not np.array_equal(loud.audio, published.audio)
     np.testing.assert_array_equal(loud.joints, published.joints)  # an audio estimate leaves the joints alone
     again = trial.simulate(scene)
@@ -341,7 +378,9 @@ def test_a_scene_with_an_estimate_out_of_range_or_unknown_is_refused(values):
 
 def test_the_documented_table_is_the_registry():
     doc = (REPO / "docs" / "simulator.md").read_text()
-    assert estimates.with_table(doc) == doc, "docs/simulator.md's estimates table differs: run python -m experiments.estimates"
+    assert estimates.with_table(doc) == doc, (
+        "docs/simulator.md's estimates table differs: run python -m experiments.estimates"
+    )
     for name in estimates.ESTIMATES:
         assert f"`{name}`" in doc
 

@@ -29,7 +29,11 @@ def test_wav_round_trips_samples_bit_exactly(tmp_path):
 def test_command_reports_a_damaged_archive_in_one_line(tmp_path):
     bad = tmp_path / "bad.npz"
     bad.write_bytes(b"not a zip")
-    done = subprocess.run([sys.executable, "-m", "acquisition.export_wav", str(bad), f"--out={tmp_path}"],
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-m", "acquisition.export_wav", str(bad), f"--out={tmp_path}"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 2
     assert len(done.stderr.strip().splitlines()) == 1 and str(bad) in done.stderr

@@ -71,7 +71,11 @@ def test_moving_texture_matches_opencv(size, motion):
 
 def test_identical_frames_match_opencv_with_pyramid():
     """72x96 is the smallest of these sizes with a pyramid level below full resolution."""
-    assert farneback.pyramid_levels(60, 80) == 0 and farneback.pyramid_levels(72, 96) == 1 and farneback.pyramid_levels(308, 410) == 3
+    assert (
+        farneback.pyramid_levels(60, 80) == 0
+        and farneback.pyramid_levels(72, 96) == 1
+        and farneback.pyramid_levels(308, 410) == 3
+    )
     frames = _pairs(72, 96, _translation)[0]
     epe, ours, _ = _epe(frames, frames)
     assert epe.max() < SAME_MAX_EPE, epe.max()
@@ -84,16 +88,27 @@ def test_identical_frames_match_opencv_with_pyramid():
 def test_opencv_building_blocks():
     """The pyramid's blur kernels and bilinear resize are OpenCV's."""
     assert farneback.gaussian_kernel(3, 0.0).tolist() == [0.25, 0.5, 0.25]
-    np.testing.assert_allclose(farneback.gaussian_kernel(9, 1.5), cv2.getGaussianKernel(9, 1.5, ktype=cv2.CV_32F)[:, 0], rtol=1e-6)
+    np.testing.assert_allclose(
+        farneback.gaussian_kernel(9, 1.5), cv2.getGaussianKernel(9, 1.5, ktype=cv2.CV_32F)[:, 0], rtol=1e-6
+    )
     img = _texture(77, 103, 0)
     for h, w in [(38, 51), (154, 205)]:
-        np.testing.assert_allclose(np.asarray(farneback.resize_linear(img, h, w)), cv2.resize(img, (w, h), interpolation=cv2.INTER_LINEAR), atol=1e-3)
+        np.testing.assert_allclose(
+            np.asarray(farneback.resize_linear(img, h, w)),
+            cv2.resize(img, (w, h), interpolation=cv2.INTER_LINEAR),
+            atol=1e-3,
+        )
 
 
 def test_trial_flow_jax_matches_opencv_features():
     """The pooled features the model reads, by either method, on frames moving 1.5 px a step."""
     scene = cv2.GaussianBlur(np.random.default_rng(0).integers(0, 255, (60, 90, 3), dtype=np.uint8), (0, 0), 2)
-    frames = np.stack([_uint8(np.stack([_warp(scene[..., c].astype(np.float32), 1.5 * s, 0.0) for c in range(3)], -1)) for s in range(5)])[:, :48, :64]
+    frames = np.stack(
+        [
+            _uint8(np.stack([_warp(scene[..., c].astype(np.float32), 1.5 * s, 0.0) for c in range(3)], -1))
+            for s in range(5)
+        ]
+    )[:, :48, :64]
     by = {m: flow.trial_flow(frames, "drop_top", chunk=BATCH, method=m) for m in flow.METHODS}
     assert not by["jax"][0].any()  # step 0 has no predecessor
     np.testing.assert_allclose(by["jax"].astype(np.float32), by["opencv"].astype(np.float32), atol=2e-3)
@@ -101,7 +116,12 @@ def test_trial_flow_jax_matches_opencv_features():
 
 
 def test_flow_method_is_its_own_feature_and_opencv_keeps_its_key(tmp_path):
-    today = {"farneback": dict(pyr_scale=0.5, levels=3, winsize=15, iterations=3, poly_n=5, poly_sigma=1.2, flags=0), "top_fraction": 0.001, "patch": 3, "version": 1}
+    today = {
+        "farneback": dict(pyr_scale=0.5, levels=3, winsize=15, iterations=3, poly_n=5, poly_sigma=1.2, flags=0),
+        "top_fraction": 0.001,
+        "patch": 3,
+        "version": 1,
+    }
     for mode, name, extra in [("keep_top", "flow", {}), ("drop_top", "flow_drop_top", {"sparsify": "drop_top"})]:
         ours = extract.feature_for("flow", flow_sparsify=mode)
         assert (ours.name, ours.params) == (name, {**today, **extra})

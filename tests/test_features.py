@@ -132,7 +132,9 @@ def test_the_two_flow_readings_split_the_field_between_them():
     keep, drop = (np.asarray(flow.sparsify_and_pool(dense, mode)) for mode in ("keep_top", "drop_top"))
     np.testing.assert_allclose(keep, _numpy_pool(dense), rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(drop, _numpy_pool(dense, drop_top=True), rtol=1e-5, atol=1e-6)
-    np.testing.assert_allclose(keep + drop, _numpy_pool(dense, drop_top=True) + _numpy_pool(dense), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(
+        keep + drop, _numpy_pool(dense, drop_top=True) + _numpy_pool(dense), rtol=1e-5, atol=1e-6
+    )
     assert (keep != 0).mean() < 0.02 and (drop != 0).mean() > 0.99
     with pytest.raises(ValueError, match="sparsification"):
         flow.sparsify_and_pool(dense, "keep_all")

@@ -15,8 +15,19 @@ from fabricjax.train import train_and_evaluate
 # every kind of input: frames (laid out as rows per block), flow, a PSD, joints; two seeds, each
 # with its own shuffle; a remainder batch dropped; evaluation sets that are not whole minibatches
 CAMERA = Config(
-    preset="smoke", modalities=("image", "flow", "internal", "proprio"), width=16, n_layers=1, ffn=32, cnn_features=(4, 8),
-    audio_hidden=(16, 8), proprio_hidden=(16, 8), seq_len=6, epochs=2, batch_size=4, warmup_steps=2, image_size=(30, 40),
+    preset="smoke",
+    modalities=("image", "flow", "internal", "proprio"),
+    width=16,
+    n_layers=1,
+    ffn=32,
+    cnn_features=(4, 8),
+    audio_hidden=(16, 8),
+    proprio_hidden=(16, 8),
+    seq_len=6,
+    epochs=2,
+    batch_size=4,
+    warmup_steps=2,
+    image_size=(30, 40),
     property_heads=True,
 )
 
@@ -108,12 +119,19 @@ def test_training_on_features_larger_than_the_memory_limit(tmp_path):
     sizes = {"train": int(FEATURES_GB * 2**30 // per_sequence), "val": 40}
     rng = np.random.default_rng(0)
     for split, count in sizes.items():
-        a = np.lib.format.open_memmap(tmp_path / f"{split}.npy", mode="w+", dtype=np.float16, shape=(count, n, *step_shape))
+        a = np.lib.format.open_memmap(
+            tmp_path / f"{split}.npy", mode="w+", dtype=np.float16, shape=(count, n, *step_shape)
+        )
         for start in range(0, count, 64):
             a[start : start + 64] = rng.standard_normal((min(64, count - start), n, *step_shape), np.float32)
         a.flush()
         np.save(tmp_path / f"{split}.labels.npy", rng.integers(0, 21, count).astype(np.int32))
         del a
-    done = subprocess.run([sys.executable, "-c", CHILD.format(limit=LIMIT_GB, n=n), str(tmp_path)], capture_output=True, text=True, timeout=900)
+    done = subprocess.run(
+        [sys.executable, "-c", CHILD.format(limit=LIMIT_GB, n=n), str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     assert "trained" in done.stdout and "(1, 40)" in done.stdout

@@ -42,7 +42,9 @@ def test_padded_sets_are_aligned_copies_with_the_fill_appended():
     p = host_arrays.padded(a, host_arrays.whole_minibatches(5, 4), -1)
     np.testing.assert_array_equal(p, np.concatenate([a, np.full((3, 3), -1, np.float32)]))
     assert p.ctypes.data % host_arrays.ALIGNMENT == 0
-    assert host_arrays.padded(a, host_arrays.whole_minibatches(5, 5), -1) is a  # whole minibatches already: the set itself
+    assert (
+        host_arrays.padded(a, host_arrays.whole_minibatches(5, 5), -1) is a
+    )  # whole minibatches already: the set itself
 
 
 def test_pixel_rows_of_a_padded_set_are_the_padded_frames_rows():

@@ -26,7 +26,10 @@ REFERENCE = "/minsight/reference"
 REFERENCE_T = (T0 - 0.5, T0 - 0.3, T0 + 0.1)  # s: two no-contact frames before the trial, one republished during it
 MAPPING = {
     "camera": {"topic": "/minsight/image", "reference_topic": REFERENCE},
-    "mics": {"internal": {"topic": "/minsound/audio", "rate": 48000}, "external": {"topic": "/palm/audio", "rate": 48000}},
+    "mics": {
+        "internal": {"topic": "/minsound/audio", "rate": 48000},
+        "external": {"topic": "/palm/audio", "rate": 48000},
+    },
     "joints": {"topic": "/joint_states"},
     "trial": {"fabric_id": 4, "day": 2, "trial": 3, "condition": "lab"},
 }
@@ -78,7 +81,15 @@ def recording(seed=0, n_frames=N_FRAMES):
     joint_t = T0 - 0.05 + 0.01 * np.arange(2 * n_frames + 5)
     joints = rng.normal(size=(len(joint_t), 6, 3))
     reference = rng.integers(0, 255, size=(len(REFERENCE_T), H, W, 3), dtype=np.uint8)
-    return dict(frames=frames, internal=internal, external=external, chunk_end=chunk_end, joint_t=joint_t, joints=joints, reference=reference)
+    return dict(
+        frames=frames,
+        internal=internal,
+        external=external,
+        chunk_end=chunk_end,
+        joint_t=joint_t,
+        joints=joints,
+        reference=reference,
+    )
 
 
 def write_bag(path, rec, *, storage="sqlite3", qos=None, **options):
@@ -94,7 +105,9 @@ def write_messages(path, msgs, *, storage="sqlite3", qos=None):
         conns = {}
         for t, topic, typ, msg in msgs:
             if topic not in conns:
-                conns[topic] = writer.add_connection(topic, typ, typestore=TS, offered_qos_profiles=(qos or {}).get(topic, ()))
+                conns[topic] = writer.add_connection(
+                    topic, typ, typestore=TS, offered_qos_profiles=(qos or {}).get(topic, ())
+                )
             writer.write(conns[topic], int(round(t * 1e9)), TS.serialize_cdr(msg, typ))
     return Path(path)
 
@@ -120,10 +133,22 @@ def bag_messages(rec, *, compressed=False, shuffle=False, drop_frame=None, drop_
     for k, t in enumerate(rec["chunk_end"]):
         if k == drop_chunk:
             continue
-        msgs.append((t, "/minsound/audio", "std_msgs/msg/Int16MultiArray",
-                     TS.types["std_msgs/msg/Int16MultiArray"](layout=_layout(), data=rec["internal"][k])))
-        msgs.append((t, "/palm/audio", "std_msgs/msg/Int32MultiArray",
-                     TS.types["std_msgs/msg/Int32MultiArray"](layout=_layout(), data=rec["external"][k])))
+        msgs.append(
+            (
+                t,
+                "/minsound/audio",
+                "std_msgs/msg/Int16MultiArray",
+                TS.types["std_msgs/msg/Int16MultiArray"](layout=_layout(), data=rec["internal"][k]),
+            )
+        )
+        msgs.append(
+            (
+                t,
+                "/palm/audio",
+                "std_msgs/msg/Int32MultiArray",
+                TS.types["std_msgs/msg/Int32MultiArray"](layout=_layout(), data=rec["external"][k]),
+            )
+        )
     for t, q in zip(rec["joint_t"], rec["joints"]):
         msg = TS.types["sensor_msgs/msg/JointState"](
             header=_header(t), name=NAMES, position=q[:, 0].copy(), velocity=q[:, 1].copy(), effort=q[:, 2].copy()
@@ -133,14 +158,18 @@ def bag_messages(rec, *, compressed=False, shuffle=False, drop_frame=None, drop_
         order = np.random.default_rng(1).permutation(len(msgs))
         msgs = [msgs[i] for i in order]
         # frames and joints arrive late and in bursts: receive times no longer follow the stamps
-        msgs = [(t + (0.05 if topic in ("/minsight/image", "/joint_states") and i % 3 == 0 else 0.0), topic, typ, m)
-                for i, (t, topic, typ, m) in enumerate(msgs)]
+        msgs = [
+            (t + (0.05 if topic in ("/minsight/image", "/joint_states") and i % 3 == 0 else 0.0), topic, typ, m)
+            for i, (t, topic, typ, m) in enumerate(msgs)
+        ]
     return msgs
 
 
 def reference_message(t, img):
     """A no-contact frame taken at `t`, received 1 ms later."""
-    msg = TS.types["sensor_msgs/msg/Image"](header=_header(t), height=H, width=W, encoding="rgb8", is_bigendian=0, step=W * 3, data=img.ravel())
+    msg = TS.types["sensor_msgs/msg/Image"](
+        header=_header(t), height=H, width=W, encoding="rgb8", is_bigendian=0, step=W * 3, data=img.ravel()
+    )
     return (t + 0.001, REFERENCE, "sensor_msgs/msg/Image", msg)
 
 
@@ -162,7 +191,9 @@ def check_fields(a, rec):
     assert archive.layout(a.meta).image_size == (H, W)
     assert a.meta["import"]["frame_gaps"] == []
     assert archive.layout(a.meta).step_rate == 50 and "absent" not in a.meta["streams"]["joints"]
-    np.testing.assert_array_equal(a.reference, rec["reference"][:2])  # the frames before the trial's first, not the one during it
+    np.testing.assert_array_equal(
+        a.reference, rec["reference"][:2]
+    )  # the frames before the trial's first, not the one during it
     assert a.meta["reference"]["how"] == f"imported: 2 frames of {REFERENCE}, up to the trial's first camera frame"
     assert a.meta["reference"]["session"] == "day2_lab" and a.meta["source"]["reference"] == REFERENCE
 
@@ -184,29 +215,49 @@ def test_a_camera_without_a_reference_is_a_one_line_error_and_pre_contact_is_onl
     camera = {"topic": "/minsight/image"}
     with pytest.raises(ros_bag.BagError) as e:
         ros_bag.import_bag(bag, {**MAPPING, "camera": camera}, MAPPING["trial"])
-    assert str(e.value) == ("mapping: camera.reference_topic: missing: a camera needs its session's no-contact reference: name the topic "
-                            'that carries it (set reference_topic = "/minsight/reference"), or set reference = "pre_contact" to use the trial\'s first frames')
-    a = ros_bag.import_bag(bag, {**MAPPING, "camera": {**camera, "reference": "pre_contact", "reference_frames": 3}}, MAPPING["trial"])
+    assert str(e.value) == (
+        "mapping: camera.reference_topic: missing: a camera needs its session's no-contact reference: name the topic "
+        'that carries it (set reference_topic = "/minsight/reference"), or set reference = "pre_contact" to use the trial\'s first frames'
+    )
+    a = ros_bag.import_bag(
+        bag, {**MAPPING, "camera": {**camera, "reference": "pre_contact", "reference_frames": 3}}, MAPPING["trial"]
+    )
     a = archive.read_archive(archive.write_archive(tmp_path / archive.trial_filename(a.meta), a))
     np.testing.assert_array_equal(a.reference, rec["frames"][:3])
-    assert a.meta["reference"] == {"how": "imported: the trial's first 3 frames (pre-contact, as the mapping asks)", "session": "day2_lab",
-                                   "times_s": pytest.approx([0.0, 0.02, 0.04])}
-    for table, words in [({**MAPPING["camera"], "reference": "pre_contact"}, "camera.reference_topic: given with camera.reference"),
-                         ({**MAPPING["camera"], "reference_frames": 2}, "camera.reference_frames: given with a named source"),
-                         ({**camera, "reference": "pre_contact", "reference_frames": 0}, "camera.reference_frames: must be an integer in [1, 256]"),
-                         ({**camera, "reference_topic": "/minsight/image"}, "camera.reference_topic: is camera.topic")]:
+    assert a.meta["reference"] == {
+        "how": "imported: the trial's first 3 frames (pre-contact, as the mapping asks)",
+        "session": "day2_lab",
+        "times_s": pytest.approx([0.0, 0.02, 0.04]),
+    }
+    for table, words in [
+        ({**MAPPING["camera"], "reference": "pre_contact"}, "camera.reference_topic: given with camera.reference"),
+        ({**MAPPING["camera"], "reference_frames": 2}, "camera.reference_frames: given with a named source"),
+        (
+            {**camera, "reference": "pre_contact", "reference_frames": 0},
+            "camera.reference_frames: must be an integer in [1, 256]",
+        ),
+        ({**camera, "reference_topic": "/minsight/image"}, "camera.reference_topic: is camera.topic"),
+    ]:
         with pytest.raises(ros_bag.BagError, match=re.escape(words)):
             ros_bag.import_bag(bag, {**MAPPING, "camera": table}, MAPPING["trial"])
     no_reference = write_messages(tmp_path / "bag2", [m for m in bag_messages(rec) if m[1] != REFERENCE])
     with pytest.raises(ros_bag.BagError, match=r"topics \['/minsight/reference'\] not in the bag"):
         ros_bag.import_bag(no_reference, MAPPING, MAPPING["trial"])
     others = [m for m in bag_messages(rec) if m[1] != REFERENCE]
-    once = ros_bag.import_bag(write_messages(tmp_path / "bag3", [*others, reference_message(T0 + 0.1, rec["reference"][2])]), MAPPING, MAPPING["trial"])
-    np.testing.assert_array_equal(once.reference, rec["reference"][2:])  # published once (latched): taken whenever it came
+    once = ros_bag.import_bag(
+        write_messages(tmp_path / "bag3", [*others, reference_message(T0 + 0.1, rec["reference"][2])]),
+        MAPPING,
+        MAPPING["trial"],
+    )
+    np.testing.assert_array_equal(
+        once.reference, rec["reference"][2:]
+    )  # published once (latched): taken whenever it came
     assert once.meta["reference"]["how"] == f"imported: the one frame of {REFERENCE} (published once)"
     assert once.meta["reference"]["times_s"] == pytest.approx([0.1])
     late = [*others, *(reference_message(T0 + dt, img) for dt, img in zip((0.1, 0.2), rec["reference"]))]
-    with pytest.raises(ros_bag.BagError, match=r"/minsight/reference: none of its 2 frames comes before the trial's first camera frame"):
+    with pytest.raises(
+        ros_bag.BagError, match=r"/minsight/reference: none of its 2 frames comes before the trial's first camera frame"
+    ):
         ros_bag.import_bag(write_messages(tmp_path / "bag4", late), MAPPING, MAPPING["trial"])
 
 
@@ -237,7 +288,9 @@ def test_wrong_rate_is_an_error_unless_resampled(tmp_path):
 def test_missing_topic_is_named(tmp_path):
     bag = write_bag(tmp_path / "bag", recording())
     mapping = {**MAPPING, "joints": {"topic": "/hand/joints"}}
-    with pytest.raises(ros_bag.BagError, match=r"bag: topics \['/hand/joints'\] not in the bag \(it has \['/joint_states', "):
+    with pytest.raises(
+        ros_bag.BagError, match=r"bag: topics \['/hand/joints'\] not in the bag \(it has \['/joint_states', "
+    ):
         ros_bag.import_bag(bag, mapping, MAPPING["trial"])
 
 
@@ -245,17 +298,33 @@ def test_command_writes_archive_and_reports_errors_in_one_line(tmp_path):
     rec = recording()
     bag = write_bag(tmp_path / "bag", rec)
     (tmp_path / "map.toml").write_text(MAPPING_TOML)
-    cmd = [sys.executable, "-m", "acquisition.import_bag", str(bag), f"--map={tmp_path / 'map.toml'}", f"--out={tmp_path / 'out'}"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "acquisition.import_bag",
+        str(bag),
+        f"--map={tmp_path / 'map.toml'}",
+        f"--out={tmp_path / 'out'}",
+    ]
     done = subprocess.run(cmd + ["--trial=5"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert archive.read_archive(tmp_path / "out" / "fabric04_day2_trial05_lab.npz").meta["trial"] == 5
     (tmp_path / "bad.toml").write_text(MAPPING_TOML.replace('[joints]\ntopic = "/joint_states"\n', ""))
-    done = subprocess.run(cmd[:4] + [f"--map={tmp_path / 'bad.toml'}", cmd[5]], capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        cmd[:4] + [f"--map={tmp_path / 'bad.toml'}", cmd[5]], capture_output=True, text=True, timeout=120
+    )
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [f"error: {tmp_path / 'bad.toml'}: joints.topic: missing"]
     (tmp_path / "bad.toml").write_text(MAPPING_TOML.replace('reference_topic = "/minsight/reference"\n', ""))
-    done = subprocess.run(cmd[:4] + [f"--map={tmp_path / 'bad.toml'}", f"--out={tmp_path / 'out2'}"], capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        cmd[:4] + [f"--map={tmp_path / 'bad.toml'}", f"--out={tmp_path / 'out2'}"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 2 and not (tmp_path / "out2").exists()
-    assert done.stderr.strip().splitlines() == [f"error: {tmp_path / 'bad.toml'}: camera.reference_topic: missing: a camera needs its session's "
-                                                "no-contact reference: name the topic that carries it (set reference_topic = \"/minsight/reference\"), "
-                                                "or set reference = \"pre_contact\" to use the trial's first frames"]
+    assert done.stderr.strip().splitlines() == [
+        f"error: {tmp_path / 'bad.toml'}: camera.reference_topic: missing: a camera needs its session's "
+        'no-contact reference: name the topic that carries it (set reference_topic = "/minsight/reference"), '
+        'or set reference = "pre_contact" to use the trial\'s first frames'
+    ]

@@ -53,7 +53,15 @@ def write_folder(folder, *, video=False, rate=48000, drop_column=None, seed=0):
     np.savetxt(folder / "joints.csv", table, delimiter=",", header=",".join(cols), comments="", fmt="%.9g")
     reference = rng.integers(0, 255, size=(H, W, 3), dtype=np.uint8)
     cv2.imwrite(str(folder / "reference.png"), cv2.cvtColor(reference, cv2.COLOR_RGB2BGR))
-    return dict(frames=frames, frame_t=frame_t, internal=internal, external=external, joint_t=joint_t, joints=joints, reference=reference)
+    return dict(
+        frames=frames,
+        frame_t=frame_t,
+        internal=internal,
+        external=external,
+        joint_t=joint_t,
+        joints=joints,
+        reference=reference,
+    )
 
 
 @pytest.mark.parametrize("video", [False, True])
@@ -75,7 +83,11 @@ def test_folder_becomes_aligned_archive(tmp_path, video):
     else:
         np.testing.assert_array_equal(a.images, rec["frames"])
     np.testing.assert_array_equal(a.reference, rec["reference"][None])  # a PNG: exact
-    assert a.meta["reference"] == {"how": "imported: 1 frame of the file reference.png (relative to the trial folder)", "session": "day1_lab", "times_s": None}
+    assert a.meta["reference"] == {
+        "how": "imported: 1 frame of the file reference.png (relative to the trial folder)",
+        "session": "day1_lab",
+        "times_s": None,
+    }
     assert a.meta["source"]["reference"] == "reference.png"
 
 
@@ -84,38 +96,77 @@ def test_a_reference_file_npy_or_pre_contact_frames_and_none_is_a_one_line_error
     np.save(tmp_path / "t" / "ref.npy", np.stack([rec["reference"]] * 2))
     a = hand_folder.import_folder(tmp_path / "t", {**TRIAL, "session": "monday"}, reference=ReferenceSource("ref.npy"))
     np.testing.assert_array_equal(a.reference, np.stack([rec["reference"]] * 2))
-    assert a.meta["reference"]["session"] == "monday" and a.meta["reference"]["how"].startswith("imported: 2 frames of the file ref.npy")
+    assert a.meta["reference"]["session"] == "monday" and a.meta["reference"]["how"].startswith(
+        "imported: 2 frames of the file ref.npy"
+    )
     b = hand_folder.import_folder(tmp_path / "t", TRIAL, reference=ReferenceSource(None, 3, "the command line"))
     np.testing.assert_array_equal(b.reference, rec["frames"][:3])
-    assert b.meta["reference"] == {"how": "imported: the trial's first 3 frames (pre-contact, as the command line asks)", "session": "day1_lab",
-                                   "times_s": pytest.approx([0.0, 0.02, 0.04])}
+    assert b.meta["reference"] == {
+        "how": "imported: the trial's first 3 frames (pre-contact, as the command line asks)",
+        "session": "day1_lab",
+        "times_s": pytest.approx([0.0, 0.02, 0.04]),
+    }
     np.save(tmp_path / "t" / "small.npy", rec["reference"][:4])
     with pytest.raises(RecordingImportError, match=r"small\.npy: frames: 4x10 pixels, the camera's frames are 8x10"):
         hand_folder.import_folder(tmp_path / "t", TRIAL, reference=ReferenceSource("small.npy"))
-    with pytest.raises(RecordingImportError, match=r"t: <folder>: not a trial folder of the hand's layout: missing gone\.png \(the reference --reference names\)"):
+    with pytest.raises(
+        RecordingImportError,
+        match=r"t: <folder>: not a trial folder of the hand's layout: missing gone\.png \(the reference --reference names\)",
+    ):
         hand_folder.import_folder(tmp_path / "t", TRIAL, reference=ReferenceSource("gone.png"))
-    cmd = [sys.executable, "-m", "acquisition.import_folder", str(tmp_path / "t"), f"--out={tmp_path / 'o'}", "--fabric=4", "--day=1", "--trial=0"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "acquisition.import_folder",
+        str(tmp_path / "t"),
+        f"--out={tmp_path / 'o'}",
+        "--fabric=4",
+        "--day=1",
+        "--trial=0",
+    ]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and not (tmp_path / "o").exists()
-    assert done.stderr.strip().splitlines() == [f"error: {tmp_path / 't'}: --reference: missing: a camera needs its session's no-contact reference: "
-                                                "name the file of the trial folder that holds it (pass --reference=reference.png), or pass "
-                                                "--reference=pre_contact to use the trial's first frames"]
-    done = subprocess.run(cmd + ["--reference=pre_contact", "--reference_frames=2"], capture_output=True, text=True, timeout=120)
+    assert done.stderr.strip().splitlines() == [
+        f"error: {tmp_path / 't'}: --reference: missing: a camera needs its session's no-contact reference: "
+        "name the file of the trial folder that holds it (pass --reference=reference.png), or pass "
+        "--reference=pre_contact to use the trial's first frames"
+    ]
+    done = subprocess.run(
+        cmd + ["--reference=pre_contact", "--reference_frames=2"], capture_output=True, text=True, timeout=120
+    )
     assert done.returncode == 0, done.stderr
-    np.testing.assert_array_equal(archive.read_archive(tmp_path / "o" / "fabric04_day1_trial00_lab.npz").reference, rec["frames"][:2])
+    np.testing.assert_array_equal(
+        archive.read_archive(tmp_path / "o" / "fabric04_day1_trial00_lab.npz").reference, rec["frames"][:2]
+    )
 
 
 def test_folder_errors_name_file_field_and_problem(tmp_path):
     write_folder(tmp_path / "rate", rate=44100)
     with pytest.raises(RecordingImportError, match=r"rate/internal\.wav: rate: sample rate 44100 Hz"):
         hand_folder.import_folder(tmp_path / "rate", TRIAL, reference=REFERENCE)
-    assert hand_folder.import_folder(tmp_path / "rate", TRIAL, reference=REFERENCE, resample=True).meta["import"]["resampled"]
+    assert hand_folder.import_folder(tmp_path / "rate", TRIAL, reference=REFERENCE, resample=True).meta["import"][
+        "resampled"
+    ]
     write_folder(tmp_path / "col", drop_column="palm_current")
     with pytest.raises(RecordingImportError, match=r"joints\.csv: palm_current: column missing"):
         hand_folder.import_folder(tmp_path / "col", TRIAL, reference=REFERENCE)
     (tmp_path / "rate" / "external.wav").unlink()
-    done = subprocess.run([sys.executable, "-m", "acquisition.import_folder", str(tmp_path / "rate"), f"--out={tmp_path / 'o'}",
-                           "--fabric=4", "--day=1", "--trial=0", "--reference=reference.png"], capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "acquisition.import_folder",
+            str(tmp_path / "rate"),
+            f"--out={tmp_path / 'o'}",
+            "--fabric=4",
+            "--day=1",
+            "--trial=0",
+            "--reference=reference.png",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
     assert "rate: <folder>: not a trial folder of the hand's layout: missing external.wav;" in done.stderr
 
@@ -127,7 +178,9 @@ def test_another_rigs_folder_names_every_missing_file_and_the_rig_import(tmp_pat
     folder = tmp_path / "rig" / "recordings" / "00_000"
     with pytest.raises(RecordingImportError) as e:
         hand_folder.import_folder(folder, TRIAL, reference=REFERENCE)
-    assert str(e.value).startswith(f"{folder}: <folder>: not a trial folder of the hand's layout: missing internal.wav, external.wav, camera{{")
+    assert str(e.value).startswith(
+        f"{folder}: <folder>: not a trial folder of the hand's layout: missing internal.wav, external.wav, camera{{"
+    )
     assert "joints.csv" not in str(e.value).split(";")[0]  # the folder has one
     assert "python -m acquisition.import_manifest MANIFEST.csv --out=DIR --rig=rig.toml" in str(e.value)
 
@@ -148,7 +201,10 @@ def test_joint_timestamps_in_milliseconds_header_only_and_holes(tmp_path):
     header = (tmp_path / "ms" / "joints.csv").read_text().splitlines()[0]
     table[:, 0] *= 1000
     np.savetxt(tmp_path / "ms" / "joints.csv", table, delimiter=",", header=header, comments="", fmt="%.9g")
-    with pytest.raises(RecordingImportError, match=r"ms/joints\.csv: time: timestamps span 440, but the microphones hold 0\.43 s .* must be seconds"):
+    with pytest.raises(
+        RecordingImportError,
+        match=r"ms/joints\.csv: time: timestamps span 440, but the microphones hold 0\.43 s .* must be seconds",
+    ):
         hand_folder.import_folder(tmp_path / "ms", TRIAL, reference=REFERENCE)
     (tmp_path / "ms" / "joints.csv").write_text(header + "\n")
     with pytest.raises(RecordingImportError, match=r"joints\.csv: <rows>: no readings \(a header row only\)"):
@@ -158,7 +214,12 @@ def test_joint_timestamps_in_milliseconds_header_only_and_holes(tmp_path):
     held = (table[:, 0] > 0.15) & (table[:, 0] < 0.30)  # 150 ms without a reading: steps hold the last one
     np.savetxt(tmp_path / "hole" / "joints.csv", table[~held], delimiter=",", header=header, comments="", fmt="%.9g")
     gaps = hand_folder.import_folder(tmp_path / "hole", TRIAL, reference=REFERENCE).meta["import"]["joint_gaps"]
-    assert len(gaps) == 1 and gaps[0]["from_s"] == pytest.approx(0.15) and gaps[0]["seconds"] == pytest.approx(0.15, abs=0.011) and gaps[0]["steps"] == 7
+    assert (
+        len(gaps) == 1
+        and gaps[0]["from_s"] == pytest.approx(0.15)
+        and gaps[0]["seconds"] == pytest.approx(0.15, abs=0.011)
+        and gaps[0]["steps"] == 7
+    )
 
 
 def test_bag_import_without_rosbags_says_how_to_install(tmp_path, monkeypatch):

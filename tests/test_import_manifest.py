@@ -37,14 +37,27 @@ def archives(recordings, tmp_path_factory):
 
 def _run(manifest, out, **kw):
     said = []
-    summary = import_manifest.run(manifest, out, rig=manifest.parent / "rig.toml", workers=1, progress=False, say=said.append, **kw)
+    summary = import_manifest.run(
+        manifest, out, rig=manifest.parent / "rig.toml", workers=1, progress=False, say=said.append, **kw
+    )
     return summary, "\n".join(said)
 
 
 def test_one_command_imports_the_rig_as_it_is(recordings, tmp_path):
     out = tmp_path / "archives"
-    proc = subprocess.run([sys.executable, "-m", "acquisition.import_manifest", str(recordings), f"--out={out}",
-                           f"--rig={recordings.parent / 'rig.toml'}"], capture_output=True, text=True, cwd=Path(__file__).parents[1])
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "acquisition.import_manifest",
+            str(recordings),
+            f"--out={out}",
+            f"--rig={recordings.parent / 'rig.toml'}",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=Path(__file__).parents[1],
+    )
     assert proc.returncode == 0, proc.stderr
     assert "12 trials imported" in proc.stdout and "3 classes" in proc.stdout
     assert "gripper_temperature (12 trials)" in proc.stdout  # the column the rig file does not name is reported
@@ -76,7 +89,10 @@ def test_rerun_resumes_and_a_foreign_archive_needs_overwrite(recordings, tmp_pat
     foreign = archive.read_archive(out / "oak_trial001_lab.npz")
     archive.write_archive(victim, foreign)  # an archive of another recording under this row's name
     before = victim.read_bytes()
-    with pytest.raises(UserError, match="oak_trial000_lab.npz: exists, but was imported from .*02_001, not from .*02_000 as line 10 says; pass --overwrite"):
+    with pytest.raises(
+        UserError,
+        match="oak_trial000_lab.npz: exists, but was imported from .*02_001, not from .*02_000 as line 10 says; pass --overwrite",
+    ):
         _run(recordings, out)
     assert victim.read_bytes() == before
     replaced, _ = _run(recordings, out, overwrite=True)
@@ -96,8 +112,15 @@ def test_trial_rule_splits_every_class_by_trial_index(tmp_path):
     manifest = other_rig.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
     summary, _ = _run(manifest, tmp_path / "out", split="trial:train=0-1,val=2,test=3")
     assert summary["splits"] == {"train": 4, "val": 2, "test": 2}
-    assert [archive.read_meta(tmp_path / "out" / f"felt_trial00{k}_lab.npz")[0]["split"] for k in range(4)] == ["train", "train", "val", "test"]
-    with pytest.raises(UserError, match=r"manifest\.csv: line \d+: trial: trial 3 is in no range of --split=trial:train=0-1,val=2"):
+    assert [archive.read_meta(tmp_path / "out" / f"felt_trial00{k}_lab.npz")[0]["split"] for k in range(4)] == [
+        "train",
+        "train",
+        "val",
+        "test",
+    ]
+    with pytest.raises(
+        UserError, match=r"manifest\.csv: line \d+: trial: trial 3 is in no range of --split=trial:train=0-1,val=2"
+    ):
         _run(manifest, tmp_path / "out2", split="trial:train=0-1,val=2")
     for bad in ("trial:train=0-2,val=2", "trial:train=3-1", "trial:dev=0-3", "trial:train=0-x"):
         with pytest.raises(UserError, match=f"--split={bad}: expected trial:SPLIT=FIRST-LAST"):
@@ -125,13 +148,23 @@ def test_silent_cases_are_messages(recordings, tmp_path):
     with pytest.raises(UserError, match=r"line \d+: label: 'oak' is not in the label map"):
         _run(recordings, out, labels=labels)
     # a manifest column nobody reads
-    extra = _edit_manifest(recordings, recordings.parent / "extra.csv", lambda rows: [r + (["notes"] if i == 0 else ["x"]) for i, r in enumerate(rows)])
+    extra = _edit_manifest(
+        recordings,
+        recordings.parent / "extra.csv",
+        lambda rows: [r + (["notes"] if i == 0 else ["x"]) for i, r in enumerate(rows)],
+    )
     _, said = _run(extra, out)
     assert "columns not used: notes" in said
     # two rows naming one archive
-    shutil.copytree(recordings.parent / "recordings" / "00_000", recordings.parent / "recordings" / "extra", dirs_exist_ok=True)
-    dup = _edit_manifest(recordings, recordings.parent / "dup.csv", lambda rows: rows + [["recordings/extra", *rows[1][1:]]])
-    with pytest.raises(UserError, match=r"dup\.csv: line 14: trial: gives the archive cotton_canvas_trial000_lab\.npz, as line 2 does"):
+    shutil.copytree(
+        recordings.parent / "recordings" / "00_000", recordings.parent / "recordings" / "extra", dirs_exist_ok=True
+    )
+    dup = _edit_manifest(
+        recordings, recordings.parent / "dup.csv", lambda rows: rows + [["recordings/extra", *rows[1][1:]]]
+    )
+    with pytest.raises(
+        UserError, match=r"dup\.csv: line 14: trial: gives the archive cotton_canvas_trial000_lab\.npz, as line 2 does"
+    ):
         _run(dup, tmp_path / "out2")
     with pytest.raises(UserError, match="--split=fraction:0.5,0.5,0.5: expected"):
         _run(no_split, tmp_path / "out3", split="fraction:0.5,0.5,0.5")
@@ -154,13 +187,21 @@ def test_rig_file_mistakes_are_named(tmp_path):
     bad.write_text('[[mics]]\nname = "v"\nfile = "v.wav"\n[steps]\nrate = 50\nwindow = 0.5\n')
     with pytest.raises(UserError, match=r"rig\.toml: steps\.window: unknown key \(known: rate, mic_window_s\)"):
         rig.load_rig(bad)
-    for camera, words in [('reference_topic = "/ref"', r"camera\.reference_topic: unknown key \(known: reference, reference_frames\)"),
-                          ('reference = "ref.txt"', r"camera\.reference: 'ref\.txt': a reference file is an image, a video or a \.npy"),
-                          ('reference = "ref.png"\nreference_frames = 3', r"camera\.reference_frames: given with a named source \(ref\.png\)")]:
+    for camera, words in [
+        ('reference_topic = "/ref"', r"camera\.reference_topic: unknown key \(known: reference, reference_frames\)"),
+        ('reference = "ref.txt"', r"camera\.reference: 'ref\.txt': a reference file is an image, a video or a \.npy"),
+        (
+            'reference = "ref.png"\nreference_frames = 3',
+            r"camera\.reference_frames: given with a named source \(ref\.png\)",
+        ),
+    ]:
         bad.write_text(f'[[mics]]\nname = "v"\nfile = "v.wav"\n[camera]\n{camera}\n')
         with pytest.raises(UserError, match=rf"rig\.toml: {words}"):
             rig.load_rig(bad)
-    with pytest.raises(UserError, match=r"--reference names the session reference of the hand's trial folders; a rig file names its camera's own"):
+    with pytest.raises(
+        UserError,
+        match=r"--reference names the session reference of the hand's trial folders; a rig file names its camera's own",
+    ):
         import_manifest.run(tmp_path / "manifest.csv", tmp_path / "out", rig=bad, reference="pre_contact")
 
 
@@ -172,14 +213,20 @@ def test_the_rig_files_step_window_is_recorded_and_loads_by_default(tmp_path):
     from fabricjax.features import welch
 
     window_s = archive.WINDOW * 1.5 / other_rig.VIBRATION_RATE
-    toml = other_rig.RIG_TOML.replace(f"rate = {other_rig.STEP_RATE}\n", f"rate = {other_rig.STEP_RATE}\nmic_window_s = {window_s!r}\n")
+    toml = other_rig.RIG_TOML.replace(
+        f"rate = {other_rig.STEP_RATE}\n", f"rate = {other_rig.STEP_RATE}\nmic_window_s = {window_s!r}\n"
+    )
     _run(_rig_manifest(tmp_path / "rig", toml), tmp_path / "out")
     a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")
     assert archive.layout(a.meta).mic_window_s == window_s
     assert a.window_end[0, 0] >= 1.5 * archive.WINDOW  # the longer window is full at the first step
     config = Config.from_preset("smoke", modalities=("internal",), seq_len=4)
-    sets = data.load_sequences(config, tmp_path / "out", workdir=tmp_path / "ws", progress=False, split_names=("train",))
-    assert sets["train"].window_s == window_s and sets["train"].inputs["internal"].shape[2] == welch.full_bins(3072) == 767
+    sets = data.load_sequences(
+        config, tmp_path / "out", workdir=tmp_path / "ws", progress=False, split_names=("train",)
+    )
+    assert (
+        sets["train"].window_s == window_s and sets["train"].inputs["internal"].shape[2] == welch.full_bins(3072) == 767
+    )
 
 
 @pytest.mark.slow  # ~1-3 min on 2 shared cores: import and two smoke-size rows
@@ -187,10 +234,20 @@ def test_a_study_trains_and_tests_on_the_imported_rig(archives, tmp_path, capsys
     from fabricjax.studies.paper import ablation
 
     names = sorted(p.name for p in archives.iterdir())
-    doc = ablation.run(n_seeds=1, rows=["proprio", "internal+proprio"], preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"))
+    doc = ablation.run(
+        n_seeds=1,
+        rows=["proprio", "internal+proprio"],
+        preset="smoke",
+        where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"),
+    )
     assert sorted(p.name for p in archives.iterdir()) == names  # the data folder is only read: no invented files
     printed = capsys.readouterr().out
-    assert "recorded data" in printed and "train 6 trials /" in printed and "val 3 trials /" in printed and "test 3 trials /" in printed
+    assert (
+        "recorded data" in printed
+        and "train 6 trials /" in printed
+        and "val 3 trials /" in printed
+        and "test 3 trials /" in printed
+    )
     assert doc["dataset"]["classes"] == LABELS and doc["dataset"]["trials"] == {"train": 6, "val": 3, "test": 3}
     for row in doc["rows"]:
         assert row["config"]["n_classes"] == 3 and "paper_mean" not in row
@@ -205,17 +262,35 @@ def test_a_study_trains_and_tests_on_the_imported_rig(archives, tmp_path, capsys
 def test_a_row_the_rig_cannot_feed_is_refused_before_training(archives, tmp_path):
     from fabricjax.studies.paper import ablation
 
-    with pytest.raises(archive.ArchiveError, match=r"field 'audio': absent: the data has no external \(palm mic\).*it has microphones: vibration"):
-        ablation.run(n_seeds=1, rows=["internal+external"], preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"))
+    with pytest.raises(
+        archive.ArchiveError,
+        match=r"field 'audio': absent: the data has no external \(palm mic\).*it has microphones: vibration",
+    ):
+        ablation.run(
+            n_seeds=1,
+            rows=["internal+external"],
+            preset="smoke",
+            where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"),
+        )
     assert not (tmp_path / "results" / "ablation.md").exists()
 
 
 def test_the_probe_reads_the_imported_rig(archives, tmp_path):
     from fabricjax.studies.extra import probe
 
-    doc = probe.run(rows=["proprio", "internal"], preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"))
-    assert doc["splits"] == ["train", "val", "test"] and doc["classes"] == [0, 1, 2]  # no cafe trials: no cafe column filled
-    assert doc["inputs"]["proprio"]["step_dims"] == 7 * 3 and doc["inputs"]["internal"]["step_dims"] == 24  # 42.67 ms at 2.2 kHz: 94 samples
+    doc = probe.run(
+        rows=["proprio", "internal"],
+        preset="smoke",
+        where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"),
+    )
+    assert doc["splits"] == ["train", "val", "test"] and doc["classes"] == [
+        0,
+        1,
+        2,
+    ]  # no cafe trials: no cafe column filled
+    assert (
+        doc["inputs"]["proprio"]["step_dims"] == 7 * 3 and doc["inputs"]["internal"]["step_dims"] == 24
+    )  # 42.67 ms at 2.2 kHz: 94 samples
     assert all(0 <= r["accuracy"]["test"] <= 1 for r in doc["rows"])
     md = (tmp_path / "results" / "probe.md").read_text()
     assert "recorded data" in md and "chance 33.3 %" in md and "(recorded data, read as it is)" in md
@@ -233,8 +308,12 @@ def test_the_bandwidth_plot_names_the_rigs_microphone(archives, tmp_path):
 def test_import_benchmark_entry_and_row(tmp_path):
     from fabricjax.bench import suite as bench
 
-    doc = bench.run(only=["import"], where=Location(results=tmp_path, command="test"), out=lambda s: None,
-                    importer=lambda trials: other_rig.bench_import(trials=20, seconds=(2.0, 3.0), workers=1))
+    doc = bench.run(
+        only=["import"],
+        where=Location(results=tmp_path, command="test"),
+        out=lambda s: None,
+        importer=lambda trials: other_rig.bench_import(trials=20, seconds=(2.0, 3.0), workers=1),
+    )
     entry = doc["benchmarks"]["import"]
     assert entry["trials"] == 20 and entry["steps"] > 0 and entry["wall_s"] > 0
     assert "batch import, 20 trials of 2-3 s" in (tmp_path / "bench.md").read_text()
@@ -244,13 +323,17 @@ def test_import_benchmark_entry_and_row(tmp_path):
 
 def _rig_manifest(root, rig_toml, labels=LABELS[:1], trials=1, seconds=(2.0, 2.0), splits=None):
     """A rig's recordings (`other_rig`) under another rig file: its step clock or microphones."""
-    manifest = other_rig.write_recordings(root, labels, trials, seconds, splits=splits or {k: "train" for k in range(trials)})
+    manifest = other_rig.write_recordings(
+        root, labels, trials, seconds, splits=splits or {k: "train" for k in range(trials)}
+    )
     (root / "rig.toml").write_text(rig_toml)
     return manifest
 
 
 def test_without_a_camera_or_a_rate_the_joints_timestamps_are_the_steps(tmp_path):
-    manifest = _rig_manifest(tmp_path / "rig", other_rig.RIG_TOML.replace(f"[steps]\nrate = {other_rig.STEP_RATE}\n", ""))
+    manifest = _rig_manifest(
+        tmp_path / "rig", other_rig.RIG_TOML.replace(f"[steps]\nrate = {other_rig.STEP_RATE}\n", "")
+    )
     _run(manifest, tmp_path / "out")
     a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")
     lay = archive.layout(a.meta)
@@ -259,17 +342,23 @@ def test_without_a_camera_or_a_rate_the_joints_timestamps_are_the_steps(tmp_path
     # every step is one joint reading, as read (no interpolation): the rows from the first usable one
     table = np.loadtxt(tmp_path / "rig" / "recordings" / "00_000" / "joints.csv", delimiter=",", skiprows=1)
     first = a.meta["import"]["steps_dropped_before_start"]
-    assert first == int(np.ceil(archive.WINDOW / other_rig.VIBRATION_RATE * other_rig.JOINT_RATE))  # a full 2048-sample window
+    assert first == int(
+        np.ceil(archive.WINDOW / other_rig.VIBRATION_RATE * other_rig.JOINT_RATE)
+    )  # a full 2048-sample window
     rows = table[first : first + a.n_steps, 1:-1].reshape(a.n_steps, other_rig.N_JOINTS, 3)
     np.testing.assert_allclose(a.joints, rows.astype(np.float32))
     step_t = table[first : first + a.n_steps, 0]
-    np.testing.assert_array_equal(a.window_end[:, 0], np.floor(step_t * other_rig.VIBRATION_RATE + 1e-9).astype(np.int64) + 1)
+    np.testing.assert_array_equal(
+        a.window_end[:, 0], np.floor(step_t * other_rig.VIBRATION_RATE + 1e-9).astype(np.int64) + 1
+    )
 
 
 def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     import cv2
 
-    manifest = _rig_manifest(tmp_path / "rig", other_rig.RIG_TOML + '\n[camera]\nreference = "pre_contact"\nreference_frames = 2\n')
+    manifest = _rig_manifest(
+        tmp_path / "rig", other_rig.RIG_TOML + '\n[camera]\nreference = "pre_contact"\nreference_frames = 2\n'
+    )
     folder = tmp_path / "rig" / "recordings" / "00_000"
     frames = np.random.default_rng(1).integers(0, 255, size=(12, 6, 8, 3), dtype=np.uint8)
     (folder / "camera").mkdir()
@@ -286,24 +375,38 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     np.testing.assert_array_equal(a.window_end[:, 0], np.floor(frame_t * other_rig.VIBRATION_RATE).astype(np.int64) + 1)
     assert "image" in lay.modalities() and "flow" in lay.modalities()
     np.testing.assert_array_equal(a.reference, frames[:2])  # the rig file asks for the trial's first frames
-    assert a.meta["reference"] == {"how": "imported: the trial's first 2 frames (pre-contact, as the rig file asks)",
-                                   "session": "cotton_canvas_trial000_lab", "times_s": pytest.approx([0.0, 1 / 30], abs=1e-6)}  # no days: the trial's own name
+    assert a.meta["reference"] == {
+        "how": "imported: the trial's first 2 frames (pre-contact, as the rig file asks)",
+        "session": "cotton_canvas_trial000_lab",
+        "times_s": pytest.approx([0.0, 1 / 30], abs=1e-6),
+    }  # no days: the trial's own name
     # a reference file the rig file names, and the manifest's session column; the rig file must name one
     np.save(folder / "reference.npy", frames[-1])
     (tmp_path / "rig" / "rig.toml").write_text(other_rig.RIG_TOML + '\n[camera]\nreference = "reference.npy"\n')
-    _edit_manifest(manifest, manifest, lambda rows: [r + ["session" if i == 0 else "bench 2"] for i, r in enumerate(rows)])
+    _edit_manifest(
+        manifest, manifest, lambda rows: [r + ["session" if i == 0 else "bench 2"] for i, r in enumerate(rows)]
+    )
     _run(manifest, tmp_path / "out2")
     b = archive.read_archive(tmp_path / "out2" / "cotton_canvas_trial000_lab.npz")
     np.testing.assert_array_equal(b.reference, frames[-1:])
-    assert b.meta["reference"] == {"how": "imported: 1 frame of the file reference.npy (relative to the trial folder)", "session": "bench 2", "times_s": None}
+    assert b.meta["reference"] == {
+        "how": "imported: 1 frame of the file reference.npy (relative to the trial folder)",
+        "session": "bench 2",
+        "times_s": None,
+    }
     (tmp_path / "rig" / "rig.toml").write_text(other_rig.RIG_TOML + '\n[camera]\nreference = "pre_contact"\n')
-    with pytest.raises(UserError, match=r"exists, but its camera reference was read from reference\.npy, not from pre_contact: the first 5 frames"):
+    with pytest.raises(
+        UserError,
+        match=r"exists, but its camera reference was read from reference\.npy, not from pre_contact: the first 5 frames",
+    ):
         _run(manifest, tmp_path / "out2")  # a rerun notices the rig file's new reference
     (tmp_path / "rig" / "rig.toml").write_text(other_rig.RIG_TOML + "\n[camera]\n")
     with pytest.raises(UserError) as e:
         _run(manifest, tmp_path / "out3")
-    assert str(e.value) == (f"{tmp_path / 'rig' / 'rig.toml'}: camera.reference: missing: a camera needs its session's no-contact reference: name the "
-                            'file of the trial folder that holds it (set reference = "reference.png"), or set reference = "pre_contact" to use the trial\'s first frames')
+    assert str(e.value) == (
+        f"{tmp_path / 'rig' / 'rig.toml'}: camera.reference: missing: a camera needs its session's no-contact reference: name the "
+        'file of the trial folder that holds it (set reference = "reference.png"), or set reference = "pre_contact" to use the trial\'s first frames'
+    )
     assert not (tmp_path / "out3").exists()
 
 
@@ -314,7 +417,9 @@ def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path):
     from fabricjax.config import Config
     from fabricjax.features import welch
 
-    room = other_rig.RIG_TOML.replace("[joints]", '[[mics]]\nname = "room"\nfile = "room.wav"\nrole = "external"\n\n[joints]')
+    room = other_rig.RIG_TOML.replace(
+        "[joints]", '[[mics]]\nname = "room"\nfile = "room.wav"\nrole = "external"\n\n[joints]'
+    )
     manifest = _rig_manifest(tmp_path / "rig", room, labels=LABELS[:2], trials=2, splits={0: "train", 1: "test"})
     rng = np.random.default_rng(2)
     for folder in (tmp_path / "rig" / "recordings").iterdir():  # white noise of one level in both microphones
@@ -343,10 +448,19 @@ def test_a_labels_file_sets_the_classes_and_their_count(recordings, tmp_path):
     summary, said = _run(recordings, tmp_path / "out", labels=labels)
     assert summary["classes"] == 2 and "; 2 classes" in said
     meta = archive.read_meta(tmp_path / "out" / "felt_trial003_lab.npz")[0]
-    assert meta["label_map"] == {"oak": 0, "felt": 1, "cotton canvas": 1} and meta["label"] == 1 and meta["label_name"] == "felt"
+    assert (
+        meta["label_map"] == {"oak": 0, "felt": 1, "cotton canvas": 1}
+        and meta["label"] == 1
+        and meta["label_name"] == "felt"
+    )
     assert archive.read_meta(tmp_path / "out" / "oak_trial000_lab.npz")[0]["label"] == 0
-    sets = data.load_sequences(Config.from_preset("smoke", modalities=("proprio",)), tmp_path / "out", workdir=tmp_path / "ws",
-                               progress=False, split_names=("train", "test"))
+    sets = data.load_sequences(
+        Config.from_preset("smoke", modalities=("proprio",)),
+        tmp_path / "out",
+        workdir=tmp_path / "ws",
+        progress=False,
+        split_names=("train", "test"),
+    )
     assert sets["train"].classes == ("oak", "cotton canvas / felt") and sets["train"].n_classes == 2
     assert set(sets["test"].labels["fabric"].tolist()) == {0, 1}
 
@@ -355,18 +469,36 @@ def test_property_columns_give_levels_only_where_given(tmp_path):
     from fabricjax import data
     from fabricjax.config import Config
 
-    manifest = other_rig.write_recordings(tmp_path / "rig", LABELS[:2], 2, seconds=(2.0, 2.0), splits={0: "train", 1: "test"})
+    manifest = other_rig.write_recordings(
+        tmp_path / "rig", LABELS[:2], 2, seconds=(2.0, 2.0), splits={0: "train", 1: "test"}
+    )
     levels = {"cotton canvas": ("1", "3", ""), "felt": ("0", "", "")}  # stretchiness, roughness, thickness
-    _edit_manifest(manifest, manifest, lambda rows: [r + (["stretchiness", "roughness", "thickness"] if i == 0 else list(levels[r[1]]))
-                                                     for i, r in enumerate(rows)])
+    _edit_manifest(
+        manifest,
+        manifest,
+        lambda rows: [
+            r + (["stretchiness", "roughness", "thickness"] if i == 0 else list(levels[r[1]]))
+            for i, r in enumerate(rows)
+        ],
+    )
     _run(manifest, tmp_path / "out")
-    assert archive.read_meta(tmp_path / "out" / "cotton_canvas_trial001_lab.npz")[0]["properties"] == {"stretchiness": 1, "roughness": 3}
+    assert archive.read_meta(tmp_path / "out" / "cotton_canvas_trial001_lab.npz")[0]["properties"] == {
+        "stretchiness": 1,
+        "roughness": 3,
+    }
     assert archive.read_meta(tmp_path / "out" / "felt_trial000_lab.npz")[0]["properties"] == {"stretchiness": 0}
-    sets = data.load_sequences(Config.from_preset("smoke", modalities=("proprio",)), tmp_path / "out", workdir=tmp_path / "ws",
-                               progress=False, split_names=("train", "test"))
+    sets = data.load_sequences(
+        Config.from_preset("smoke", modalities=("proprio",)),
+        tmp_path / "out",
+        workdir=tmp_path / "ws",
+        progress=False,
+        split_names=("train", "test"),
+    )
     ss = sets["test"]
     felt = ss.labels["fabric"] == 1
-    assert set(ss.labels["stretchiness"][felt].tolist()) == {0} and set(ss.labels["stretchiness"][~felt].tolist()) == {1}
+    assert set(ss.labels["stretchiness"][felt].tolist()) == {0} and set(ss.labels["stretchiness"][~felt].tolist()) == {
+        1
+    }
     assert set(ss.labels["roughness"][felt].tolist()) == {-1} and set(ss.labels["roughness"][~felt].tolist()) == {3}
     assert set(ss.labels["thickness"].tolist()) == {-1}  # no level given: unknown, never the catalog's
 
@@ -380,8 +512,10 @@ def test_the_hands_folders_import_through_a_manifest(tmp_path):
     manifest.write_text("path,label,day,trial\na,4,1,0\nb,7,3,2\n")
     with pytest.raises(UserError) as e:
         _run_hand(manifest, tmp_path / "out")
-    assert str(e.value) == (f"{manifest}: --reference: missing: a camera needs its session's no-contact reference: name the file of the trial "
-                            "folder that holds it (pass --reference=reference.png), or pass --reference=pre_contact to use the trial's first frames")
+    assert str(e.value) == (
+        f"{manifest}: --reference: missing: a camera needs its session's no-contact reference: name the file of the trial "
+        "folder that holds it (pass --reference=reference.png), or pass --reference=pre_contact to use the trial's first frames"
+    )
     assert not (tmp_path / "out").exists()
     summary, _ = _run_hand(manifest, tmp_path / "out", reference="reference.png")
     assert summary["trials"] == 2 and summary["classes"] is None and summary["splits"] == {"by day": 2}
@@ -390,14 +524,23 @@ def test_the_hands_folders_import_through_a_manifest(tmp_path):
     b = archive.read_meta(tmp_path / "out" / "fabric07_day3_trial02_lab.npz")[0]
     assert b["day"] == 3 and b["label"] == 7 and b["label"] == b["fabric_id"]  # split by day, as the hand's protocol
     rec = write_folder(tmp_path / "check", seed=1)  # b's recording again: its reference survives the import
-    np.testing.assert_array_equal(archive.read_archive(tmp_path / "out" / "fabric07_day3_trial02_lab.npz").reference, rec["reference"][None])
-    assert b["reference"] == {"how": "imported: 1 frame of the file reference.png (relative to the trial folder)", "session": "day3_lab", "times_s": None}
+    np.testing.assert_array_equal(
+        archive.read_archive(tmp_path / "out" / "fabric07_day3_trial02_lab.npz").reference, rec["reference"][None]
+    )
+    assert b["reference"] == {
+        "how": "imported: 1 frame of the file reference.png (relative to the trial folder)",
+        "session": "day3_lab",
+        "times_s": None,
+    }
     manifest.write_text("path,label,day,trial,split,session\na,4,1,0,test,rig A\n")
     _run_hand(manifest, tmp_path / "out1", reference="pre_contact", reference_frames=2)
     a = archive.read_archive(tmp_path / "out1" / "fabric04_day1_trial00_lab.npz")
     assert a.meta["split"] == "test"  # the column wins over the day
     np.testing.assert_array_equal(a.reference, write_folder(tmp_path / "again", seed=0)["frames"][:2])
-    assert a.meta["reference"]["session"] == "rig A" and a.meta["reference"]["how"] == "imported: the trial's first 2 frames (pre-contact, as the command line asks)"
+    assert (
+        a.meta["reference"]["session"] == "rig A"
+        and a.meta["reference"]["how"] == "imported: the trial's first 2 frames (pre-contact, as the command line asks)"
+    )
     manifest.write_text("path,label,split\na,4,train\n")
     with pytest.raises(UserError, match=r"manifest\.csv: line 2: day: missing: the hand's importers need a day"):
         _run_hand(manifest, tmp_path / "out2", reference="reference.png")
@@ -414,7 +557,9 @@ def test_bags_import_through_a_manifest_with_a_map(tmp_path):
     bags.write_bag(tmp_path / "rec" / "bag0", bags.recording(seed=0))
     (tmp_path / "map.toml").write_text(bags.MAPPING_TOML)
     manifest = tmp_path / "rec" / "manifest.csv"
-    manifest.write_text("path,label,day,trial,split,session\nbag0,9,2,5,test,rig A\n")  # the row's fields win over the map's [trial]
+    manifest.write_text(
+        "path,label,day,trial,split,session\nbag0,9,2,5,test,rig A\n"
+    )  # the row's fields win over the map's [trial]
     summary, _ = _run_hand(manifest, tmp_path / "out", mapping=tmp_path / "map.toml")
     assert summary["trials"] == 1
     a = archive.read_archive(tmp_path / "out" / "fabric09_day2_trial05_lab.npz")
@@ -437,10 +582,21 @@ def _run_hand(manifest, out, **kw):
 def test_the_cost_study_reads_the_imported_rig_without_the_paper_point(archives, tmp_path):
     from fabricjax.studies.extra import cost
 
-    doc = cost.run(n_seeds=1, preset="smoke", seq_lens=(10,), backbones=("attention",), widths=(), bandwidths=(), modality_sets=[("internal",)],
-                   latency_repeats=2, where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"))
+    doc = cost.run(
+        n_seeds=1,
+        preset="smoke",
+        seq_lens=(10,),
+        backbones=("attention",),
+        widths=(),
+        bandwidths=(),
+        modality_sets=[("internal",)],
+        latency_repeats=2,
+        where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"),
+    )
     assert doc["paper_point"] is None and "paper" not in {p["group"] for p in doc["points"]}
-    assert doc["dataset"]["step_rate"] == other_rig.STEP_RATE and all(p["touch_s"] == p["seq_len"] / other_rig.STEP_RATE for p in doc["points"])
+    assert doc["dataset"]["step_rate"] == other_rig.STEP_RATE and all(
+        p["touch_s"] == p["seq_len"] / other_rig.STEP_RATE for p in doc["points"]
+    )
     md = (tmp_path / "results" / "cost.md").read_text()
     assert md.startswith("# What accuracy costs in time on recorded data") and "paper" not in md.lower()
 
@@ -452,24 +608,48 @@ def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs
     labels = [*LABELS, "silk"]
     manifest = other_rig.write_recordings(tmp_path / "rig", labels, 4, seconds=(3.0, 3.5), splits=SPLITS)
     roughness = {"cotton canvas": "1", "felt": "0", "oak": "1", "silk": "0"}
-    _edit_manifest(manifest, manifest, lambda rows: [r + ["roughness"] if i == 0 else r[:3] + ["holdout" if r[1] == "silk" else r[3], roughness[r[1]]]
-                                                     for i, r in enumerate(rows)])
+    _edit_manifest(
+        manifest,
+        manifest,
+        lambda rows: [
+            r + ["roughness"] if i == 0 else r[:3] + ["holdout" if r[1] == "silk" else r[3], roughness[r[1]]]
+            for i, r in enumerate(rows)
+        ],
+    )
     _run(manifest, tmp_path / "out")
-    doc = properties.run(n_seeds=1, rows=["internal+proprio"], preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test"))
+    doc = properties.run(
+        n_seeds=1,
+        rows=["internal+proprio"],
+        preset="smoke",
+        where=Location(
+            workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test"
+        ),
+    )
     # class 1 (felt) trains, as the data says: the catalog's holdout ids (1, 10, 21-23) are not a rig's classes
     assert doc["dataset"]["trials"]["train"] == 6 and doc["fabrics"] == {"test": [0, 1, 2], "holdout": [3]}
     arm = f"joints arm_0–arm_{other_rig.N_JOINTS - 1} (angle, velocity, torque)"
     assert doc["dataset"]["names"] == {"internal": "vibration", "proprio": arm}  # the rig file's names, in the results
     pmd = (tmp_path / "results" / "properties.md").read_text()
-    assert f"holdout fabrics: vibration + {arm} [%]" in pmd and "Minsound" not in pmd.replace("`", " ").split("Checkpoint")[0]
-    ld = latents.run(doc["rows"][0]["checkpoint"], where=Location(workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test"))
+    assert (
+        f"holdout fabrics: vibration + {arm} [%]" in pmd
+        and "Minsound" not in pmd.replace("`", " ").split("Checkpoint")[0]
+    )
+    ld = latents.run(
+        doc["rows"][0]["checkpoint"],
+        where=Location(
+            workdir=tmp_path / "ws", data_dir=tmp_path / "out", results=tmp_path / "results", command="test"
+        ),
+    )
     assert ld["holdouts"] == [3] and [p["fabric_id"] for p in ld["points"]] == [0, 1, 2, 3] and ld["findings"] == []
-    assert [(p["holdout"], p["chance"]) for p in ld["neighbours"]["pairs"]] == [(3, pytest.approx(1 / 3))]  # roughness 0 as felt only
+    assert [(p["holdout"], p["chance"]) for p in ld["neighbours"]["pairs"]] == [
+        (3, pytest.approx(1 / 3))
+    ]  # roughness 0 as felt only
     md = (tmp_path / "results" / "latents.md").read_text()
     assert md.startswith("# Latent space on recorded data") and "paper" not in md.lower()
 
 
 # The import cases of a transaction: each an error naming file, field and problem, or declared in the meta.
+
 
 def _small(root, labels=LABELS[:2], trials=2, seconds=(2.0, 2.0)):
     return other_rig.write_recordings(root, labels, trials, seconds, splits={0: "train", 1: "test", 2: "val"})
@@ -484,9 +664,17 @@ def test_every_problem_of_a_manifest_is_listed_and_nothing_written(tmp_path):
         _run(manifest, tmp_path / "out")
     lines = str(e.value).splitlines()
     assert lines[0] == f"{manifest}: line 7: trial: 'x' is not an integer"
-    assert lines[1] == f"{tmp_path / 'rig' / 'recordings' / '00_001'}: <folder>: missing vibration.wav (named by the rig file)"
-    assert lines[2] == f"{tmp_path / 'rig' / 'recordings' / '01_000'}: <folder>: missing joints.csv (named by the rig file)"
-    assert lines[3].startswith(f"{manifest}: line 6: path: the recording {tmp_path / 'rig' / 'recordings' / '00_000'} is listed again (line 2)")
+    assert (
+        lines[1]
+        == f"{tmp_path / 'rig' / 'recordings' / '00_001'}: <folder>: missing vibration.wav (named by the rig file)"
+    )
+    assert (
+        lines[2]
+        == f"{tmp_path / 'rig' / 'recordings' / '01_000'}: <folder>: missing joints.csv (named by the rig file)"
+    )
+    assert lines[3].startswith(
+        f"{manifest}: line 6: path: the recording {tmp_path / 'rig' / 'recordings' / '00_000'} is listed again (line 2)"
+    )
     assert lines[4] == f"{tmp_path / 'out'}: nothing was written (4 problems above)" and len(lines) == 5
     assert not (tmp_path / "out").exists()
 
@@ -497,7 +685,14 @@ def test_a_trial_failing_in_a_worker_is_the_same_one_line_error_and_nothing_is_w
     joints = tmp_path / "rig" / "recordings" / "01_001" / "joints.csv"
     joints.write_text(joints.read_text().splitlines()[0] + "\n")  # a header only
     with pytest.raises(import_manifest.ImportProblems) as e:
-        import_manifest.run(manifest, tmp_path / "out", rig=tmp_path / "rig" / "rig.toml", workers=workers, progress=False, say=lambda s: None)
+        import_manifest.run(
+            manifest,
+            tmp_path / "out",
+            rig=tmp_path / "rig" / "rig.toml",
+            workers=workers,
+            progress=False,
+            say=lambda s: None,
+        )
     assert str(e.value) == f"{joints}: <rows>: no readings (a header row only)"
     assert [p.name for p in (tmp_path / "out").iterdir()] == []  # no archive, no staging folder
 
@@ -508,8 +703,10 @@ def test_a_new_class_changes_the_label_map_which_needs_overwrite_and_then_replac
     _run(first, tmp_path / "out")
     with pytest.raises(UserError) as e:
         _run(grown, tmp_path / "out")
-    assert str(e.value).splitlines()[0] == (f"{tmp_path / 'out' / 'felt_trial000_lab.npz'}: exists, but its label map {{'felt': 0, 'oak': 1}} differs "
-                                            "from the manifest's {'cotton': 0, 'felt': 1, 'oak': 2} (classes added or renamed); pass --overwrite to replace the dataset")
+    assert str(e.value).splitlines()[0] == (
+        f"{tmp_path / 'out' / 'felt_trial000_lab.npz'}: exists, but its label map {{'felt': 0, 'oak': 1}} differs "
+        "from the manifest's {'cotton': 0, 'felt': 1, 'oak': 2} (classes added or renamed); pass --overwrite to replace the dataset"
+    )
     summary, _ = _run(grown, tmp_path / "out", overwrite=True)
     assert summary["imported"] == 6 and len(list((tmp_path / "out").glob("*.npz"))) == 6
     assert {archive.read_meta(p)[0]["label_map"]["oak"] for p in (tmp_path / "out").glob("*.npz")} == {2}
@@ -518,15 +715,25 @@ def test_a_new_class_changes_the_label_map_which_needs_overwrite_and_then_replac
 def test_a_relabelled_row_with_overwrite_leaves_no_stale_archive_and_a_foreign_out_is_refused(tmp_path):
     manifest = _small(tmp_path / "rig")
     _run(manifest, tmp_path / "out")
-    relabelled = _edit_manifest(manifest, tmp_path / "rig" / "relabelled.csv",
-                                lambda rows: rows[:-1] + [[rows[-1][0], "cotton canvas", "5", rows[-1][3]]])
-    with pytest.raises(UserError, match=r"holds 1 archive no row of .*relabelled\.csv produces \(felt_trial001_lab\.npz\): another dataset, "
-                                        r"or rows since removed or relabelled; choose another --out, or pass --overwrite"):
+    relabelled = _edit_manifest(
+        manifest,
+        tmp_path / "rig" / "relabelled.csv",
+        lambda rows: rows[:-1] + [[rows[-1][0], "cotton canvas", "5", rows[-1][3]]],
+    )
+    with pytest.raises(
+        UserError,
+        match=r"holds 1 archive no row of .*relabelled\.csv produces \(felt_trial001_lab\.npz\): another dataset, "
+        r"or rows since removed or relabelled; choose another --out, or pass --overwrite",
+    ):
         _run(relabelled, tmp_path / "out")
     summary, said = _run(relabelled, tmp_path / "out", overwrite=True)
     assert summary["removed"] == 1 and "1 archives no row produces removed (--overwrite)" in said
     assert sorted(p.name for p in (tmp_path / "out").glob("*.npz")) == [
-        "cotton_canvas_trial000_lab.npz", "cotton_canvas_trial001_lab.npz", "cotton_canvas_trial005_lab.npz", "felt_trial000_lab.npz"]
+        "cotton_canvas_trial000_lab.npz",
+        "cotton_canvas_trial001_lab.npz",
+        "cotton_canvas_trial005_lab.npz",
+        "felt_trial000_lab.npz",
+    ]
 
 
 def test_resume_imports_a_damaged_archive_again(tmp_path):
@@ -551,8 +758,11 @@ def test_timestamps_in_milliseconds_holes_and_cut_off_wavs(tmp_path):
     ms = table.copy()
     ms[:, 0] *= 1000
     np.savetxt(rec / "00_000" / "joints.csv", ms, delimiter=",", header=header, comments="", fmt="%.6f")
-    with pytest.raises(UserError, match=r"00_000/joints\.csv: time: timestamps span 1990, but the microphones hold 2\.00 s of audio: "
-                                        r"timestamps must be seconds"):
+    with pytest.raises(
+        UserError,
+        match=r"00_000/joints\.csv: time: timestamps span 1990, but the microphones hold 2\.00 s of audio: "
+        r"timestamps must be seconds",
+    ):
         _run(manifest, tmp_path / "out")
     hole = (table[:, 0] > 1.2) & (table[:, 0] < 1.79)  # 0.59 s without a joint reading
     np.savetxt(rec / "00_000" / "joints.csv", table[~hole], delimiter=",", header=header, comments="", fmt="%.6f")
@@ -560,7 +770,9 @@ def test_timestamps_in_milliseconds_holes_and_cut_off_wavs(tmp_path):
     wav.write_bytes(wav.read_bytes()[: wav.stat().st_size // 2])
     _, said = _run(manifest, tmp_path / "out")
     gaps = archive.read_meta(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")[0]["import"]["joint_gaps"]
-    assert gaps == [{"from_s": pytest.approx(1.2), "seconds": pytest.approx(0.59), "steps": 29}]  # steps 1.22 .. 1.78 s hold the 1.2 s reading
+    assert gaps == [
+        {"from_s": pytest.approx(1.2), "seconds": pytest.approx(0.59), "steps": 29}
+    ]  # steps 1.22 .. 1.78 s hold the 1.2 s reading
     cut = archive.read_meta(tmp_path / "out" / "cotton_canvas_trial001_lab.npz")[0]
     assert cut["complete"] is False and cut["import"]["truncated"] == ["vibration.wav"]
     assert archive.read_meta(tmp_path / "out" / "cotton_canvas_trial002_lab.npz")[0]["complete"] is True
@@ -571,10 +783,15 @@ def test_latin1_manifest_read_only_out_and_unread_columns_are_one_line(tmp_path)
     manifest = _small(tmp_path / "rig", labels=["felt"], trials=1)
     latin = tmp_path / "rig" / "latin1.csv"
     latin.write_bytes(manifest.read_text().replace("felt", "feutre lav\u00e9").encode("latin-1"))
-    with pytest.raises(UserError, match=r"latin1\.csv: line -: <file>: not UTF-8 text \(byte 0xe9 at offset \d+\): save the manifest as UTF-8$"):
+    with pytest.raises(
+        UserError,
+        match=r"latin1\.csv: line -: <file>: not UTF-8 text \(byte 0xe9 at offset \d+\): save the manifest as UTF-8$",
+    ):
         _run(latin, tmp_path / "out")
     (tmp_path / "a_file").write_text("")
-    with pytest.raises(UserError, match=rf"^{tmp_path / 'a_file' / 'out'}: --out: cannot write there: Not a directory$"):
+    with pytest.raises(
+        UserError, match=rf"^{tmp_path / 'a_file' / 'out'}: --out: cannot write there: Not a directory$"
+    ):
         _run(manifest, tmp_path / "a_file" / "out")
     out = tmp_path / "ro"
     out.mkdir()
@@ -607,7 +824,7 @@ def _stat(pid):
         text = Path(f"/proc/{pid}/stat").read_text()
     except OSError:
         return None
-    fields = text[text.rindex(")") + 2:].split()
+    fields = text[text.rindex(")") + 2 :].split()
     return int(fields[1]), fields[0]
 
 
@@ -628,12 +845,22 @@ def _alive(pid):
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads processes from /proc (Linux)")
 def test_killing_the_import_ends_its_workers_and_a_rerun_removes_what_it_left(tmp_path):
-    manifest = other_rig.write_recordings(tmp_path / "rig", LABELS, 6, seconds=(6.0, 8.0), splits={k: "train" for k in range(6)})
+    manifest = other_rig.write_recordings(
+        tmp_path / "rig", LABELS, 6, seconds=(6.0, 8.0), splits={k: "train" for k in range(6)}
+    )
     out = tmp_path / "out"
     root = str(Path(__file__).parents[1])
-    proc = subprocess.Popen([sys.executable, "-c", _KILL_IMPORT.format(root=root, manifest=str(manifest), out=str(out), rig=str(manifest.parent / "rig.toml"))])
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            _KILL_IMPORT.format(root=root, manifest=str(manifest), out=str(out), rig=str(manifest.parent / "rig.toml")),
+        ]
+    )
     deadline = time.monotonic() + 60
-    while time.monotonic() < deadline and not (list(out.glob(".import-*.partial/*.npz")) and len(_workers(proc.pid)) >= 2):
+    while time.monotonic() < deadline and not (
+        list(out.glob(".import-*.partial/*.npz")) and len(_workers(proc.pid)) >= 2
+    ):
         time.sleep(0.05)
     workers = _workers(proc.pid)
     assert workers, "the import started no workers"
@@ -677,9 +904,15 @@ def test_the_readme_beside_the_manifest_gives_every_results_page_its_source_and_
 
     source = provenance.read(out)
     assert source["title"] == "demo_rig: contact sound of three materials"
-    assert source["sections"] == {"What was recorded": "Three materials rubbed by a probe (Doe et al., 2030).",
-                                  "Source": "example.org/demo (commit abc)", "License": "research use only; cite Doe et al. 2030."}
-    line = documents.data_markdown("default", {"source": "recorded", "folder": "x", "classes": LABELS, "trials": {}, "sequences": {}, "provenance": source})
+    assert source["sections"] == {
+        "What was recorded": "Three materials rubbed by a probe (Doe et al., 2030).",
+        "Source": "example.org/demo (commit abc)",
+        "License": "research use only; cite Doe et al. 2030.",
+    }
+    line = documents.data_markdown(
+        "default",
+        {"source": "recorded", "folder": "x", "classes": LABELS, "trials": {}, "sequences": {}, "provenance": source},
+    )
     assert "**License**: research use only; cite Doe et al. 2030." in line and "2.2 kHz" not in line
 
 
@@ -700,7 +933,10 @@ def test_without_rows_a_study_on_recorded_data_runs_the_rows_it_can_feed(archive
     from fabricjax.studies.extra import probe
 
     with caplog.at_level(logging.WARNING):
-        doc = probe.run(preset="smoke", where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"))
+        doc = probe.run(
+            preset="smoke",
+            where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"),
+        )
     names = [r["name"] for r in doc["rows"]]
     assert names and all(not {"image", "flow", "external"} & set(n.split("+")) for n in names)
     assert "internal" in names and "proprio" in names
@@ -723,10 +959,15 @@ def test_a_second_import_into_one_folder_is_refused_in_one_line_and_writes_nothi
     written an archive; once the first is gone (killed) the import runs and leaves no lock behind."""
     out = tmp_path / "archives"
     out.mkdir()
-    first = subprocess.Popen([sys.executable, "-c", HOLD_IMPORT, str(out)], stdout=subprocess.PIPE, text=True, cwd=Path(__file__).parents[1])
+    first = subprocess.Popen(
+        [sys.executable, "-c", HOLD_IMPORT, str(out)], stdout=subprocess.PIPE, text=True, cwd=Path(__file__).parents[1]
+    )
     try:
         assert first.stdout.readline().strip() == "held"
-        with pytest.raises(UserError, match=re.escape(f"the import into {out} is in use by PID {first.pid} (") + ".*importing for a test") as e:
+        with pytest.raises(
+            UserError,
+            match=re.escape(f"the import into {out} is in use by PID {first.pid} (") + ".*importing for a test",
+        ) as e:
             _run(recordings, out)
         assert "\n" not in str(e.value) and not list(out.glob("*.npz"))
     finally:

@@ -22,8 +22,13 @@ def test_smoke_study_trains_on_imported_bags(tmp_path):
         trial = {"fabric_id": spec.fabric_id, "day": spec.day, "trial": spec.trial, "condition": spec.condition}
         a = ros_bag.import_bag(bag, MAPPING, trial)
         archive.write_archive(data / archive.trial_filename(a.meta), a)
-    doc = ablation.run(n_seeds=1, rows=["internal"], preset="smoke", overrides=dict(epochs=1, width=16, n_layers=1),
-                       where=Location(workdir=tmp_path / "ws", data_dir=data, results=tmp_path / "results", command="test"))
+    doc = ablation.run(
+        n_seeds=1,
+        rows=["internal"],
+        preset="smoke",
+        overrides=dict(epochs=1, width=16, n_layers=1),
+        where=Location(workdir=tmp_path / "ws", data_dir=data, results=tmp_path / "results", command="test"),
+    )
     acc = doc["rows"][0]["accuracy"]["test"]["fabric"]
     assert len(acc) == 1 and np.isfinite(acc).all()
 
@@ -39,7 +44,12 @@ def test_smoke_study_trains_on_bags_recorded_as_a_ros2_lab_records(tmp_path):
         trial = {"fabric_id": spec.fabric_id, "day": spec.day, "trial": spec.trial, "condition": spec.condition}
         a = ros_bag.import_bag(bag, LAB_MAPPING, trial, resample=True)
         archive.read_archive(archive.write_archive(data / archive.trial_filename(a.meta), a))
-    doc = ablation.run(n_seeds=1, rows=["internal"], preset="smoke", overrides=dict(epochs=1, width=16, n_layers=1),
-                       where=Location(workdir=tmp_path / "ws", data_dir=data, results=tmp_path / "results", command="test"))
+    doc = ablation.run(
+        n_seeds=1,
+        rows=["internal"],
+        preset="smoke",
+        overrides=dict(epochs=1, width=16, n_layers=1),
+        where=Location(workdir=tmp_path / "ws", data_dir=data, results=tmp_path / "results", command="test"),
+    )
     acc = doc["rows"][0]["accuracy"]["test"]["fabric"]
     assert len(acc) == 1 and np.isfinite(acc).all()

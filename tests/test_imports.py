@@ -27,11 +27,21 @@ print(json.dumps({
 
 
 def test_no_library_module_imports_the_commands():
-    env = {**os.environ, "JAX_PLATFORMS": "cpu", "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    env = {
+        **os.environ,
+        "JAX_PLATFORMS": "cpu",
+        "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+    }
     out = subprocess.run([sys.executable, "-c", CODE], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-3000:]
     doc = json.loads(out.stdout.strip().splitlines()[-1])
-    assert {"fabricjax.cli", "fabricjax.runtime", "fabricjax.bench.torch_twin", "fabricjax.bench.suite", "fabricjax.studies.tools.stream"} <= set(doc["modules"])
+    assert {
+        "fabricjax.cli",
+        "fabricjax.runtime",
+        "fabricjax.bench.torch_twin",
+        "fabricjax.bench.suite",
+        "fabricjax.studies.tools.stream",
+    } <= set(doc["modules"])
     assert doc["experiments"] == [], doc["experiments"]
     assert not doc["threefry_configured"]  # importing the library leaves JAX as it is
 
@@ -45,7 +55,10 @@ def test_no_library_module_imports_the_commands_even_lazily():
                 names = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom):
                 names = [node.module or ""] if node.level == 0 else []
-            elif isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", None)) in ("import_module", "__import__"):
+            elif isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", None)) in (
+                "import_module",
+                "__import__",
+            ):
                 names = [a.value for a in node.args[:1] if isinstance(a, ast.Constant) and isinstance(a.value, str)]
             else:
                 continue

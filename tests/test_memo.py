@@ -54,9 +54,22 @@ def test_a_run_on_kept_inputs_equals_a_run_that_places_them_anew(monkeypatch):
     """The rows of a study share their placed inputs and statistics (`train._PLACED`,
     `inputs._STATISTICS`): a second run on the same arrays reuses them and gives the same
     results as runs that place everything anew."""
-    cfg = Config(preset="smoke", modalities=("image", "proprio"), cnn_features=(4,), width=16, n_layers=1, ffn=16,
-                 seq_len=4, epochs=2, batch_size=8, property_heads=False)
-    sets = {k: synthetic.data_set(cfg, n, image_hw=(6, 8), seed=s) for k, n, s in (("train", 16, 0), ("val", 10, 1), ("test", 12, 2))}
+    cfg = Config(
+        preset="smoke",
+        modalities=("image", "proprio"),
+        cnn_features=(4,),
+        width=16,
+        n_layers=1,
+        ffn=16,
+        seq_len=4,
+        epochs=2,
+        batch_size=8,
+        property_heads=False,
+    )
+    sets = {
+        k: synthetic.data_set(cfg, n, image_hw=(6, 8), seed=s)
+        for k, n, s in (("train", 16, 0), ("val", 10, 1), ("test", 12, 2))
+    }
     fresh = train.train_and_evaluate(cfg, sets, (0, 1))
     monkeypatch.setattr(memo, "MIN_BYTES", 0)
     first = train.train_and_evaluate(cfg, sets, (0, 1))
@@ -65,7 +78,9 @@ def test_a_run_on_kept_inputs_equals_a_run_that_places_them_anew(monkeypatch):
     assert held > 0 and len(train._PLACED) == held  # nothing new placed: every input was found
     for r in (first, kept):
         np.testing.assert_array_equal(r.metrics["train_loss"], fresh.metrics["train_loss"])
-        np.testing.assert_array_equal(r.metrics["eval"]["test"]["predictions"]["fabric"], fresh.metrics["eval"]["test"]["predictions"]["fabric"])
+        np.testing.assert_array_equal(
+            r.metrics["eval"]["test"]["predictions"]["fabric"], fresh.metrics["eval"]["test"]["predictions"]["fabric"]
+        )
     stats = input_statistics(cfg, sets["train"])
     sets["train"]["inputs"]["image"] = sets["train"]["inputs"]["image"].copy()  # another array: its own statistics
     assert all(np.array_equal(stats[k], v) for k, v in input_statistics(cfg, sets["train"]).items())

@@ -10,9 +10,27 @@ from fabricjax import catalog
 from fabricjax.bench import synthetic
 from fabricjax.config import MODALITIES, Config
 from fabricjax.inputs import feature_shapes
-from fabricjax.model import FabricNet, causal_conv, compile_predict_one, make_predict, patch_product, rescale_unit, self_attention
+from fabricjax.model import (
+    FabricNet,
+    causal_conv,
+    compile_predict_one,
+    make_predict,
+    patch_product,
+    rescale_unit,
+    self_attention,
+)
 
-TINY = dict(preset="smoke", width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(4, 8), seq_len=10)
+TINY = dict(
+    preset="smoke",
+    width=16,
+    n_heads=4,
+    n_layers=1,
+    ffn=32,
+    audio_hidden=(16, 8),
+    proprio_hidden=(16, 8),
+    cnn_features=(4, 8),
+    seq_len=10,
+)
 COMBOS = [c for r in range(1, len(MODALITIES) + 1) for c in itertools.combinations(MODALITIES, r)]
 
 
@@ -173,7 +191,9 @@ def test_bfloat16_compute_multiplies_in_bfloat16_and_accumulates_in_float32(back
         return sum(v.sum() for v in logits.values()), logits
 
     jaxpr = jax.make_jaxpr(jax.grad(loss, has_aux=True))(params, inputs).jaxpr
-    dots = _dot_dtypes(jaxpr) + _dot_dtypes(jax.make_jaxpr(lambda p, x: nnx.merge(graphdef, p)(x))(params, inputs).jaxpr)
+    dots = _dot_dtypes(jaxpr) + _dot_dtypes(
+        jax.make_jaxpr(lambda p, x: nnx.merge(graphdef, p)(x))(params, inputs).jaxpr
+    )
     assert all(out == "float32" for _, out in dots)
     low = [d for d, _ in dots if d == ("bfloat16", "bfloat16")]
     assert len(low) >= 0.75 * len(dots), dots

@@ -19,13 +19,22 @@ LABELS = ["cotton canvas", "felt", "oak"]
 def _archives(root, trials, seconds):
     splits = {k: "train" for k in range(trials - 2)} | {trials - 2: "val", trials - 1: "test"}
     manifest = other_rig.write_recordings(root / "rig", LABELS, trials, seconds=seconds, splits=splits)
-    import_manifest.run(manifest, root / "archives", rig=root / "rig" / "rig.toml", workers=1, progress=False, say=lambda s: None)
+    import_manifest.run(
+        manifest, root / "archives", rig=root / "rig" / "rig.toml", workers=1, progress=False, say=lambda s: None
+    )
     return root / "archives"
 
 
 def _vibration_row(tmp_path, preset, trials, seconds, epochs, seeds):
-    doc = ablation.run(n_seeds=seeds, rows=["internal"], preset=preset, overrides={"epochs": epochs},
-                       where=Location(workdir=tmp_path / "ws", data_dir=_archives(tmp_path, trials, seconds), results=tmp_path / "results"))
+    doc = ablation.run(
+        n_seeds=seeds,
+        rows=["internal"],
+        preset=preset,
+        overrides={"epochs": epochs},
+        where=Location(
+            workdir=tmp_path / "ws", data_dir=_archives(tmp_path, trials, seconds), results=tmp_path / "results"
+        ),
+    )
     (row,) = doc["rows"]
     return doc, row
 
@@ -34,7 +43,9 @@ def _assert_reaches_probe(doc, row, tmp_path):
     model = sum(row["accuracy"]["test"]["fabric"]) / len(row["accuracy"]["test"]["fabric"])
     assert model >= row["probe"]["accuracy"]["test"], (row["fusion_norm"], row["fusion_choice"], row["probe"])
     md = (tmp_path / "results" / "ablation.md").read_text()
-    assert "| vibration |" in md and "Minsound" not in md and "paper" not in md.lower() and "Linear probe, test [%]" in md
+    assert (
+        "| vibration |" in md and "Minsound" not in md and "paper" not in md.lower() and "Linear probe, test [%]" in md
+    )
     assert row["fusion_norm"] in row["fusion_choice"]["val"] and len(row["fusion_choice"]["val"]) == 2
     assert set(doc["steadiness"]) == {"internal"}
 

@@ -23,10 +23,15 @@ def test_missing_trials_are_timed_on_this_host_and_their_disk_counted(tmp_path):
     assert features.seconds > 0 and features.disk_bytes > 0 and "flow " in features.basis
     assert "does not fit" in plan.markdown("smoke", stages, 2, 2, free_bytes=1)
     assert sequences.disk_bytes == 0 and "held in memory" in sequences.basis
-    assert len(training) == 2 and all(t.seconds is None for t in training)  # one stage per row; no published run of this model
+    assert len(training) == 2 and all(
+        t.seconds is None for t in training
+    )  # one stage per row; no published run of this model
     assert "peak host memory" in sequences.basis
     text = plan.markdown("smoke", stages, 2, 2, free_bytes=1e15)
-    assert text.startswith("Plan: 2 rows x 2 seeds on preset 'smoke'") and "stages unknown before the run (below), the others about" in text
+    assert (
+        text.startswith("Plan: 2 rows x 2 seeds on preset 'smoke'")
+        and "stages unknown before the run (below), the others about" in text
+    )
 
 
 def test_training_is_extrapolated_from_the_published_sample_per_row(tmp_path, monkeypatch):
@@ -34,9 +39,18 @@ def test_training_is_extrapolated_from_the_published_sample_per_row(tmp_path, mo
     this run's counts and grid points, plus their compilation; another model is not extrapolated."""
     sample = Config.from_preset("paper_sample", modalities=("internal",))
     doc = {
-        "machine": {"cpu": "AMD EPYC", "cores": 2}, "date": "2026-11-27", "dataset": {"sequences": {"train": 70}},
-        "rows": [{"name": "internal", "config": dataclasses.replace(sample, n_classes=5).to_json(), "seeds": [0, 1],
-                  "wall_s": 10.0 + 70 * sample.epochs * 2 * 0.01, "time": {"compile_s": 10.0}}],
+        "machine": {"cpu": "AMD EPYC", "cores": 2},
+        "date": "2026-11-27",
+        "dataset": {"sequences": {"train": 70}},
+        "rows": [
+            {
+                "name": "internal",
+                "config": dataclasses.replace(sample, n_classes=5).to_json(),
+                "seeds": [0, 1],
+                "wall_s": 10.0 + 70 * sample.epochs * 2 * 0.01,
+                "time": {"compile_s": 10.0},
+            }
+        ],
     }
     path = tmp_path / "ablation.json"
     path.write_text(json.dumps(doc))
@@ -45,7 +59,9 @@ def test_training_is_extrapolated_from_the_published_sample_per_row(tmp_path, mo
     (training,) = plan.training(rows("paper", ("internal",)), 5, 1000)
     assert abs(training.seconds - (10.0 + 1000 * sample.epochs * 5 * 0.01)) < 1e-6 and "AMD EPYC" in training.basis
     assert plan.training(rows("default", ("internal",)), 5, 1000)[0].seconds is None  # another model: not extrapolated
-    grid = dataclasses.replace(Config.from_preset("paper", modalities=("internal",)), lr_grid=(1e-3, 3e-3), width_grid=(32, 64))
+    grid = dataclasses.replace(
+        Config.from_preset("paper", modalities=("internal",)), lr_grid=(1e-3, 3e-3), width_grid=(32, 64)
+    )
     (fitted,) = plan.training([("internal", grid)], 5, 1000)
     assert abs(fitted.seconds - 4 * training.seconds) < 1e-6 and "4 grid points" in fitted.basis
 
@@ -54,11 +70,21 @@ def test_the_published_manifest_gives_each_rows_rate_and_a_step_budget_its_epoch
     """A row of the default preset's fitted recipe: at most the epochs that cover its step budget
     on this run's sequences, at the rate the published reproduce manifest recorded for its inputs."""
     config = Config.from_preset("default", modalities=("proprio",))
-    doc = {"dataset": {"sequences": {"train": 1600}}, "rows": [{
-        "config": config.to_json(), "seeds": [0, 1], "wall_s": 5.0 + 1600 * 3 * 2 * 1e-4, "time": {"compile_s": 5.0},
-        "recipe": {"grid": [{"epochs_trained": [2, 3]}]},
-    }]}
-    manifest = {"ablation": {"rates": plan.rates(doc), "machine": "AMD EPYC, 2 cores", "finished": "2026-11-27 12:00 UTC"}}
+    doc = {
+        "dataset": {"sequences": {"train": 1600}},
+        "rows": [
+            {
+                "config": config.to_json(),
+                "seeds": [0, 1],
+                "wall_s": 5.0 + 1600 * 3 * 2 * 1e-4,
+                "time": {"compile_s": 5.0},
+                "recipe": {"grid": [{"epochs_trained": [2, 3]}]},
+            }
+        ],
+    }
+    manifest = {
+        "ablation": {"rates": plan.rates(doc), "machine": "AMD EPYC, 2 cores", "finished": "2026-11-27 12:00 UTC"}
+    }
     (tmp_path / "reproduce.json").write_text(json.dumps(manifest))
     monkeypatch.setattr(plan, "REPRODUCE_MANIFEST", tmp_path / "reproduce.json")
     monkeypatch.setattr(plan, "SAMPLE_RESULTS", tmp_path / "absent.json")

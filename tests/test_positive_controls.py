@@ -32,14 +32,25 @@ CASES = [
 ]
 # The image under the other readings of a frame (`Config.image_reference`; the cases above read it
 # as the default does): the same cue must be learned whatever it is read against.
-REFERENCE_CASES = [(ref, kind) for ref in IMAGE_REFERENCES if ref != Config.image_reference for kind in ("dynamic", "static")]
+REFERENCE_CASES = [
+    (ref, kind) for ref in IMAGE_REFERENCES if ref != Config.image_reference for kind in ("dynamic", "static")
+]
 
 
 DTYPES = [pytest.param("float32"), pytest.param("bfloat16", marks=pytest.mark.slow)]
 
 
-def held_out_accuracy(modality: str, kind: str, norm: str, dtype: str, image_reference: str = Config.image_reference) -> float:
-    config = Config.from_preset("smoke", modalities=(modality,), fusion_norm=norm, compute_dtype=dtype, image_reference=image_reference, **RECIPE)
+def held_out_accuracy(
+    modality: str, kind: str, norm: str, dtype: str, image_reference: str = Config.image_reference
+) -> float:
+    config = Config.from_preset(
+        "smoke",
+        modalities=(modality,),
+        fusion_norm=norm,
+        compute_dtype=dtype,
+        image_reference=image_reference,
+        **RECIPE,
+    )
     sets = {
         split: synthetic.planted_cue(config, modality, kind, n, n_classes=N_CLASSES, seed=seed)
         for split, n, seed in (("train", 256, 0), ("val", 64, 1), ("test", 128, 2))
@@ -61,7 +72,9 @@ def test_the_model_learns_a_planted_cue(modality, kind, norm, dtype):
 @pytest.mark.parametrize("image_reference,kind", REFERENCE_CASES, ids=["-".join(c) for c in REFERENCE_CASES])
 def test_the_image_cue_is_learned_under_every_reference(image_reference, kind):
     accuracy = held_out_accuracy("image", kind, "step_layernorm", "float32", image_reference)
-    assert accuracy >= PASS, f"image read against {image_reference}: {accuracy:.0%} on held-out sequences with a {kind} cue"
+    assert accuracy >= PASS, (
+        f"image read against {image_reference}: {accuracy:.0%} on held-out sequences with a {kind} cue"
+    )
 
 
 def test_without_a_cue_the_model_stays_near_chance():

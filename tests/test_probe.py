@@ -20,17 +20,30 @@ def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
     paper = [r.name for r in ablation.ROWS if not r.name.startswith(("tcn:", ablation.STEP_LAYERNORM))]
     # then every input set with the image again, its frames read against their session's reference
     assert [r.name for r in probe.ROWS] == paper + [probe.SESSION + n for n in paper if "image" in n.split("+")]
-    rows = [{"modalities": list(p.modalities), **({"image_reference": p.settings["image_reference"]} if "image_reference" in p.settings else {})} for p in probe.ROWS]
-    for r in ablation.ROWS:  # every ablation row, the TCN and fusion variants included, has its probe under either reading
+    rows = [
+        {
+            "modalities": list(p.modalities),
+            **({"image_reference": p.settings["image_reference"]} if "image_reference" in p.settings else {}),
+        }
+        for p in probe.ROWS
+    ]
+    for (
+        r
+    ) in ablation.ROWS:  # every ablation row, the TCN and fusion variants included, has its probe under either reading
         for reference in ("none", "training_mean", "session"):
             p = probe.row_for(r.modalities, rows, reference)
-            assert p is not None and probe.reading(p.get("image_reference")) == (probe.reading(reference) if "image" in r.modalities else "frame")
+            assert p is not None and probe.reading(p.get("image_reference")) == (
+                probe.reading(reference) if "image" in r.modalities else "frame"
+            )
 
 
 def test_summaries_are_the_mean_and_sd_over_steps_of_every_dimension(monkeypatch):
     monkeypatch.setattr(linear_probe, "SUMMARY_CHUNK", 2)  # several chunks and a partial last one
     rng = np.random.default_rng(0)
-    for x in (rng.integers(0, 256, (5, 4, 3, 2, 3), dtype=np.uint8), rng.normal(size=(5, 4, 2, 3, 2)).astype(np.float16)):
+    for x in (
+        rng.integers(0, 256, (5, 4, 3, 2, 3), dtype=np.uint8),
+        rng.normal(size=(5, 4, 2, 3, 2)).astype(np.float16),
+    ):
         flat = x.reshape(5, 4, -1).astype(np.float64)
         got = linear_probe.summarise(x)
         assert got.dtype == np.float32 and got.shape == (5, 2 * flat.shape[2])
@@ -78,55 +91,115 @@ def test_a_planted_class_level_is_found_and_pure_noise_is_at_chance(modality):
 
 def _ablation_row(name, test, predictions=None):
     r = next(r for r in ablation.ROWS if r.name == name)
-    return {"name": name, "modalities": list(r.modalities), "display_name": ablation.display_name(name), "accuracy": {"test": {"fabric": test}},
-            "predictions": {"test": {"fabric": predictions or [[0, 1, 2, 3]] * len(test)}}}
+    return {
+        "name": name,
+        "modalities": list(r.modalities),
+        "display_name": ablation.display_name(name),
+        "accuracy": {"test": {"fabric": test}},
+        "predictions": {"test": {"fabric": predictions or [[0, 1, 2, 3]] * len(test)}},
+    }
 
 
 PROBE_DOC = {
-    "preset": "default", "dataset": {"folder": "/w/datasets/default", "source": "simulated"},
-    "rows": [{"name": "internal", "modalities": ["internal"], "accuracy": {"test": 0.65}, "predictions": {"test": [1] * 20}},
-             {"name": "internal+external+proprio", "modalities": ["internal", "external", "proprio"], "accuracy": {"test": 0.75}}],
+    "preset": "default",
+    "dataset": {"folder": "/w/datasets/default", "source": "simulated"},
+    "rows": [
+        {"name": "internal", "modalities": ["internal"], "accuracy": {"test": 0.65}, "predictions": {"test": [1] * 20}},
+        {
+            "name": "internal+external+proprio",
+            "modalities": ["internal", "external", "proprio"],
+            "accuracy": {"test": 0.75},
+        },
+    ],
 }
 ABLATION_DOC = {
-    "preset": "default", "dataset": {"folder": "/w/datasets/default", "source": "simulated"}, "seeds": [0, 1],
-    "rows": [_ablation_row("internal", [0.8, 0.9]), _ablation_row("proprio", [0.4, 0.4], [[5] * 4] * 2),
-             _ablation_row("tcn:internal+external+proprio", [0.7, 0.7]),
-             _ablation_row(f"{ablation.STEP_LAYERNORM}:internal+external+proprio", [0.8, 0.8])],
+    "preset": "default",
+    "dataset": {"folder": "/w/datasets/default", "source": "simulated"},
+    "seeds": [0, 1],
+    "rows": [
+        _ablation_row("internal", [0.8, 0.9]),
+        _ablation_row("proprio", [0.4, 0.4], [[5] * 4] * 2),
+        _ablation_row("tcn:internal+external+proprio", [0.7, 0.7]),
+        _ablation_row(f"{ablation.STEP_LAYERNORM}:internal+external+proprio", [0.8, 0.8]),
+    ],
 }
 
 
 def test_the_probe_sits_beside_every_ablation_row_with_the_difference():
     lines = probe.beside_ablation(PROBE_DOC, ABLATION_DOC).splitlines()
     assert lines[0] == "| Ablation row | Linear probe, test [%] | Model, test [%] (2 seeds) | Model − probe [pp] |"
-    assert lines[2] == "| Minsound | 65.00 (collapsed to class 1) | 85.00 ± 7.07 | +20.00 |"  # a probe predicting one class says so
-    assert lines[3] == "| proprioception | – | 40.00 ± 0.00 (collapsed to class 5: 2 of 2 seeds) | – |"  # not probed in this run
-    assert lines[4] == "| TCN: Minsound + palm mic + proprioception | 75.00 | 70.00 ± 0.00 | -5.00 |"  # the TCN row, same inputs
-    assert lines[5] == "| Minsound + palm mic + proprioception (our step-LayerNorm fusion) | 75.00 | 80.00 ± 0.00 | +5.00 |"
+    assert (
+        lines[2] == "| Minsound | 65.00 (collapsed to class 1) | 85.00 ± 7.07 | +20.00 |"
+    )  # a probe predicting one class says so
+    assert (
+        lines[3] == "| proprioception | – | 40.00 ± 0.00 (collapsed to class 5: 2 of 2 seeds) | – |"
+    )  # not probed in this run
+    assert (
+        lines[4] == "| TCN: Minsound + palm mic + proprioception | 75.00 | 70.00 ± 0.00 | -5.00 |"
+    )  # the TCN row, same inputs
+    assert (
+        lines[5]
+        == "| Minsound + palm mic + proprioception (our step-LayerNorm fusion) | 75.00 | 80.00 ± 0.00 | +5.00 |"
+    )
     text = "\n".join(lines)
     assert "2 of 3 rows at or above their probe's test accuracy" in text and "Not the same data" not in text
     other = {**PROBE_DOC, "preset": "smoke", "dataset": {"folder": "/w/datasets/smoke"}}
-    assert "**Not the same data**: ablation on default `/w/datasets/default`, probe on smoke" in probe.beside_ablation(other, ABLATION_DOC)
+    assert "**Not the same data**: ablation on default `/w/datasets/default`, probe on smoke" in probe.beside_ablation(
+        other, ABLATION_DOC
+    )
 
 
 def test_report_sets_the_probe_beside_the_ablation_from_their_json(tmp_path):
     for study, doc in (("ablation", ABLATION_DOC), ("probe", PROBE_DOC)):
-        (tmp_path / f"{study}.json").write_text(json.dumps({**doc, "machine": {"cpu": "x", "cores": 2, "platform": "p", "python": "3", "jax_backend": "cpu", "devices": []}}))
+        (tmp_path / f"{study}.json").write_text(
+            json.dumps(
+                {
+                    **doc,
+                    "machine": {
+                        "cpu": "x",
+                        "cores": 2,
+                        "platform": "p",
+                        "python": "3",
+                        "jax_backend": "cpu",
+                        "devices": [],
+                    },
+                }
+            )
+        )
         (tmp_path / f"{study}.md").write_text(f"# {study}\n\n{study} table\n")
-    manifest = {s: {"wall_s": 60.0, "finished": "today", "command": f"python -m experiments.{s}"} for s in ("ablation", "probe")}
-    text = reproduce.write_report(tmp_path / "REPORT.md", manifest, "default", documents.fingerprints(None), "test", 1.0, 2).read_text()
-    assert text.index("## Modality ablation") < text.index("## Linear probe") < text.index("### The probe beside the model, row by row")
+    manifest = {
+        s: {"wall_s": 60.0, "finished": "today", "command": f"python -m experiments.{s}"} for s in ("ablation", "probe")
+    }
+    text = reproduce.write_report(
+        tmp_path / "REPORT.md", manifest, "default", documents.fingerprints(None), "test", 1.0, 2
+    ).read_text()
+    assert (
+        text.index("## Modality ablation")
+        < text.index("## Linear probe")
+        < text.index("### The probe beside the model, row by row")
+    )
     assert "| Minsound | 65.00 (collapsed to class 1) | 85.00 ± 7.07 | +20.00 |" in text
     assert "| – (deterministic) | – (not in the paper) |" in text  # the summary line of the probe
     (tmp_path / "ablation.json").unlink()
     del manifest["ablation"]
-    assert "beside the model" not in reproduce.write_report(tmp_path / "REPORT.md", manifest, "default", documents.fingerprints(None), "test", 1.0, 1).read_text()
+    assert (
+        "beside the model"
+        not in reproduce.write_report(
+            tmp_path / "REPORT.md", manifest, "default", documents.fingerprints(None), "test", 1.0, 1
+        ).read_text()
+    )
 
 
 def test_reproduce_runs_the_probe_without_seeds():
     step = next(s for s in reproduce.PLAN if s.study == "probe")
     assert step.seeds is None and reproduce.PLAN.index(step) == 1  # right after the ablation
-    assert reproduce.command(step, "default", {"epochs": 3}, "results") == "python -m experiments.probe --preset=default --set=epochs=3 --results=results"
+    assert (
+        reproduce.command(step, "default", {"epochs": 3}, "results")
+        == "python -m experiments.probe --preset=default --set=epochs=3 --results=results"
+    )
     recorded = {"probe": {"preset": "default", "seeds": None, "rows": len(probe.ROWS), "wall_s": 60.0}}
     assert reproduce.estimate_s(step, "default", {}, recorded) == 60.0  # the first manifest that recorded the preset
-    assert reproduce.estimate_s(reproduce.Step("probe", rows=("proprio",)), "default", recorded) == pytest.approx(60.0 / len(probe.ROWS))
+    assert reproduce.estimate_s(reproduce.Step("probe", rows=("proprio",)), "default", recorded) == pytest.approx(
+        60.0 / len(probe.ROWS)
+    )
     assert reproduce.estimate_s(step, "smoke", recorded) is None

@@ -16,8 +16,18 @@ from fabricjax.studies.common import recipe, runner
 from fabricjax.train import make_trainer, train_and_evaluate
 
 TINY = Config(
-    preset="smoke", modalities=("internal", "proprio"), width=16, n_layers=1, ffn=32, audio_hidden=(16, 8),
-    proprio_hidden=(16, 8), seq_len=8, epochs=6, batch_size=8, learning_rate=3e-3, warmup_steps=2,
+    preset="smoke",
+    modalities=("internal", "proprio"),
+    width=16,
+    n_layers=1,
+    ffn=32,
+    audio_hidden=(16, 8),
+    proprio_hidden=(16, 8),
+    seq_len=8,
+    epochs=6,
+    batch_size=8,
+    learning_rate=3e-3,
+    warmup_steps=2,
 )
 
 
@@ -26,7 +36,11 @@ def _shapes(cfg):
 
 
 def data_sets(cfg, n_train=32):
-    return {"train": synthetic.data_set(cfg, n_train, seed=0), "val": synthetic.data_set(cfg, 16, seed=1), "test": synthetic.data_set(cfg, 16, seed=2)}
+    return {
+        "train": synthetic.data_set(cfg, n_train, seed=0),
+        "val": synthetic.data_set(cfg, 16, seed=1),
+        "test": synthetic.data_set(cfg, 16, seed=2),
+    }
 
 
 def test_early_stopping_picks_the_epoch_a_validation_curve_dictates():
@@ -35,25 +49,44 @@ def test_early_stopping_picks_the_epoch_a_validation_curve_dictates():
     cfg = dataclasses.replace(TINY, patience=3, epochs=10)
     trainer = make_trainer(cfg, _shapes(cfg))
     state = trainer.init(jax.random.PRNGKey(0))
-    curve = [0.2, 0.5, 0.4, 0.6, 0.55, 0.6, 0.58, 0.9, 0.95, 0.97]  # best 0.6 at epoch 3; epochs 4, 5, 6 no better: stops at 6
+    curve = [
+        0.2,
+        0.5,
+        0.4,
+        0.6,
+        0.55,
+        0.6,
+        0.58,
+        0.9,
+        0.95,
+        0.97,
+    ]  # best 0.6 at epoch 3; epochs 4, 5, 6 no better: stops at 6
     for e, acc in enumerate(curve):
         params = jax.tree.map(lambda a: jnp.full_like(a, e), state["params"])  # each epoch's parameters are its number
-        params, opt_state = trainer.unless_stopped(state["stopped_at"], (params, state["opt_state"]), (state["params"], state["opt_state"]))
+        params, opt_state = trainer.unless_stopped(
+            state["stopped_at"], (params, state["opt_state"]), (state["params"], state["opt_state"])
+        )
         # a stopped seed's parameters are frozen, so its validation accuracy is that of its last trained epoch
         acc = acc if state["stopped_at"] < 0 else curve[int(state["stopped_at"])]
-        state = trainer.end_epoch(state, params, opt_state, jnp.float32(1.0), {"accuracy": {"fabric": jnp.float32(acc)}})
+        state = trainer.end_epoch(
+            state, params, opt_state, jnp.float32(1.0), {"accuracy": {"fabric": jnp.float32(acc)}}
+        )
     assert int(state["best_epoch"]) == 3
     assert int(state["stopped_at"]) == 6
     assert float(state["best_val"]) == pytest.approx(0.6)
     assert all(np.all(np.asarray(a) == 3) for a in jax.tree.leaves(state["best_params"]))
-    assert all(np.all(np.asarray(a) == 6) for a in jax.tree.leaves(state["params"]))  # trained up to the stop, then frozen
+    assert all(
+        np.all(np.asarray(a) == 6) for a in jax.tree.leaves(state["params"])
+    )  # trained up to the stop, then frozen
 
 
 def test_no_patience_never_stops():
     trainer = make_trainer(TINY, _shapes(TINY))
     state = trainer.init(jax.random.PRNGKey(0))
     for _ in range(5):
-        state = trainer.end_epoch(state, state["params"], state["opt_state"], jnp.float32(1.0), {"accuracy": {"fabric": jnp.float32(0.1)}})
+        state = trainer.end_epoch(
+            state, state["params"], state["opt_state"], jnp.float32(1.0), {"accuracy": {"fabric": jnp.float32(0.1)}}
+        )
     assert int(state["stopped_at"]) == -1
 
 
@@ -66,7 +99,9 @@ def test_a_stopped_seed_no_longer_changes_while_the_others_train(from_host):
     sets = {k: train.select(cfg, v) for k, v in data_sets(cfg).items()}
     mesh = sharding.training_mesh(cfg.batch_size)
     trainer = make_trainer(cfg, _shapes(cfg), mesh, n_train=32)
-    state = jax.jit(jax.vmap(trainer.init))(train.seed_keys([0, 1]))  # distinct buffers: the host feed donates the parameters
+    state = jax.jit(jax.vmap(trainer.init))(
+        train.seed_keys([0, 1])
+    )  # distinct buffers: the host feed donates the parameters
     state["stopped_at"] = jnp.array([0, -1], jnp.int32)
     before = jax.tree.map(np.array, (state["params"], state["opt_state"]))
     if from_host:
@@ -77,7 +112,10 @@ def test_a_stopped_seed_no_longer_changes_while_the_others_train(from_host):
         after, _ = jax.jit(jax.vmap(lambda s, d: trainer.run(s, d, 1), in_axes=(0, None)))(state, data)
     for old, new in zip(jax.tree.leaves(before), jax.tree.leaves((after["params"], after["opt_state"]))):
         np.testing.assert_array_equal(np.asarray(new)[0], old[0])
-    moved = [not np.array_equal(np.asarray(new)[1], old[1]) for old, new in zip(jax.tree.leaves(before[0]), jax.tree.leaves(after["params"]))]
+    moved = [
+        not np.array_equal(np.asarray(new)[1], old[1])
+        for old, new in zip(jax.tree.leaves(before[0]), jax.tree.leaves(after["params"]))
+    ]
     assert any(moved)
 
 
@@ -114,19 +152,35 @@ class _Set:
 def test_a_corrupted_test_split_changes_no_choice(monkeypatch):
     """Every choice (the grid point, each seed's best and stopping epoch, the validation scores)
     is the same whether the test split is the real one or noise with shuffled labels."""
-    monkeypatch.setattr(runner.data, "narrow", lambda sets, config: {k: train.select(config, {"inputs": v.inputs, "labels": v.labels}) for k, v in sets.items()})
+    monkeypatch.setattr(
+        runner.data,
+        "narrow",
+        lambda sets, config: {
+            k: train.select(config, {"inputs": v.inputs, "labels": v.labels}) for k, v in sets.items()
+        },
+    )
     cfg = dataclasses.replace(TINY, patience=1, epochs=4, lr_grid=(1e-4, 3e-3))
     clean = {k: _Set(v) for k, v in data_sets(cfg).items()}
     rng = np.random.default_rng(7)
     test = clean["test"]
-    corrupt = dict(clean, test=_Set({
-        "inputs": {m: rng.normal(size=a.shape).astype(a.dtype) * 100 for m, a in test.inputs.items()},
-        "labels": {h: rng.permutation(a) for h, a in test.labels.items()},
-    }))
+    corrupt = dict(
+        clean,
+        test=_Set(
+            {
+                "inputs": {m: rng.normal(size=a.shape).astype(a.dtype) * 100 for m, a in test.inputs.items()},
+                "labels": {h: rng.permutation(a) for h, a in test.labels.items()},
+            }
+        ),
+    )
 
     def fit(sets):
         row = runner.train_fitted("t", "row", cfg, sets, [0, 1], ["test"])
-        return row.recipe, row.results.metrics["best_epoch"].tolist(), row.results.metrics["stopped_at"].tolist(), row.results.metrics["eval"]["test"]["accuracy"]["fabric"]
+        return (
+            row.recipe,
+            row.results.metrics["best_epoch"].tolist(),
+            row.results.metrics["stopped_at"].tolist(),
+            row.results.metrics["eval"]["test"]["accuracy"]["fabric"],
+        )
 
     a, b = fit(clean), fit(corrupt)
     for doc in (a[0], b[0]):
@@ -142,7 +196,9 @@ LMT108 = Path(__file__).resolve().parents[2] / "shared" / "data" / "lmt108_sound
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(not (LMT108 / "manifest.csv").exists(), reason="the LMT-108 recordings are not beside this checkout")
+@pytest.mark.skipif(
+    not (LMT108 / "manifest.csv").exists(), reason="the LMT-108 recordings are not beside this checkout"
+)
 def test_real_contact_sound_trains_to_its_linear_probe(tmp_path):
     """Real recordings (LMT-108, 22 materials): imported as they are and trained with the fitted
     recipe and no other setting, the row lands within 3 pp of the linear probe of its inputs."""
@@ -152,7 +208,11 @@ def test_real_contact_sound_trains_to_its_linear_probe(tmp_path):
 
     out = tmp_path / "lmt108"
     import_manifest.run(LMT108 / "manifest.csv", out, rig=LMT108 / "rig.toml", progress=False, say=lambda s: None)
-    doc = ablation.run(n_seeds=1, rows=["internal"], where=Location(workdir=tmp_path / "ws", data_dir=out, results=tmp_path / "results", command="test"))
+    doc = ablation.run(
+        n_seeds=1,
+        rows=["internal"],
+        where=Location(workdir=tmp_path / "ws", data_dir=out, results=tmp_path / "results", command="test"),
+    )
     (row,) = doc["rows"]
     assert 100 * np.mean(row["accuracy"]["test"]["fabric"]) >= 100 * row["probe"]["accuracy"]["test"] - 3
     assert len(row["recipe"]["grid"]) == 4 and "License" in doc["dataset"]["provenance"]["sections"]

@@ -18,7 +18,9 @@ def test_the_reference_survives_a_round_trip(tmp_path):
     b = archive.read_archive(archive.write_archive(tmp_path / "t.npz", a))
     np.testing.assert_array_equal(b.reference, a.reference)
     assert b.meta["reference"] == a.meta["reference"] and archive.reference_note(b.meta) is None
-    assert archive.read_archive(tmp_path / "t.npz", images=False).reference is not None  # small: read without the frames too
+    assert (
+        archive.read_archive(tmp_path / "t.npz", images=False).reference is not None
+    )  # small: read without the frames too
 
 
 def _meta(**changes):
@@ -27,16 +29,27 @@ def _meta(**changes):
     return np.array(json.dumps(m))
 
 
-@pytest.mark.parametrize("changes, field, words", [
-    ({"reference": None}, "reference", "missing: meta.reference describes"),
-    ({"meta": np.array(json.dumps({k: v for k, v in tiny_archive().meta.items() if k != "reference"}))}, "meta.reference", "say how and when"),
-    ({"reference": np.zeros((1, 5, 5, 3), np.uint8)}, "reference", "image_size"),
-    ({"reference": np.zeros((0, 12, 16, 3), np.uint8)}, "reference", "0 frames"),
-    ({"reference": np.zeros((1, 12, 16, 3), np.float32)}, "reference", "dtype"),
-    ({"meta": _meta(reference={"how": "x", "session": "s", "times_s": [1.0, 2.0]})}, "meta.reference.times_s", "1 finite times"),
-    ({"meta": _meta(reference={"how": "", "session": "s", "times_s": None})}, "meta.reference.how", "non-empty"),
-    ({"meta": _meta(format_version=2)}, "reference", "format 2 has no session reference"),
-])
+@pytest.mark.parametrize(
+    "changes, field, words",
+    [
+        ({"reference": None}, "reference", "missing: meta.reference describes"),
+        (
+            {"meta": np.array(json.dumps({k: v for k, v in tiny_archive().meta.items() if k != "reference"}))},
+            "meta.reference",
+            "say how and when",
+        ),
+        ({"reference": np.zeros((1, 5, 5, 3), np.uint8)}, "reference", "image_size"),
+        ({"reference": np.zeros((0, 12, 16, 3), np.uint8)}, "reference", "0 frames"),
+        ({"reference": np.zeros((1, 12, 16, 3), np.float32)}, "reference", "dtype"),
+        (
+            {"meta": _meta(reference={"how": "x", "session": "s", "times_s": [1.0, 2.0]})},
+            "meta.reference.times_s",
+            "1 finite times",
+        ),
+        ({"meta": _meta(reference={"how": "", "session": "s", "times_s": None})}, "meta.reference.how", "non-empty"),
+        ({"meta": _meta(format_version=2)}, "reference", "format 2 has no session reference"),
+    ],
+)
 def test_a_bad_reference_is_one_line_naming_the_field(tmp_path, changes, field, words):
     p = tmp_path / "bad.npz"
     np.savez(p, **npz_fields(tiny_archive(), **changes))
@@ -49,7 +62,14 @@ def test_a_camera_free_archive_needs_no_reference_and_may_hold_none(tmp_path):
     a = tiny_archive(images=None)
     assert a.reference is None and archive.reference_note(a.meta) is None
     p = tmp_path / "bad.npz"
-    np.savez(p, **npz_fields(a, reference=np.zeros((1, 12, 16, 3), np.uint8), meta=np.array(json.dumps({**a.meta, "reference": {"how": "x", "session": "s", "times_s": None}}))))
+    np.savez(
+        p,
+        **npz_fields(
+            a,
+            reference=np.zeros((1, 12, 16, 3), np.uint8),
+            meta=np.array(json.dumps({**a.meta, "reference": {"how": "x", "session": "s", "times_s": None}})),
+        ),
+    )
     with pytest.raises(archive.ArchiveError, match="declares no camera|declared image_size None"):
         archive.read_archive(p)
 
@@ -81,7 +101,16 @@ def test_subtracting_the_reference_is_exact_without_wrap_around():
 
 def test_the_simulator_writes_each_session_s_reference():
     def trial(day, trial_index):
-        scene = sim.Scene(fabric_id=4, day=day, trial=trial_index, condition="lab", streams=sim.STREAMS, image_size=(30, 40), cycles=1, seed=0)
+        scene = sim.Scene(
+            fabric_id=4,
+            day=day,
+            trial=trial_index,
+            condition="lab",
+            streams=sim.STREAMS,
+            image_size=(30, 40),
+            cycles=1,
+            seed=0,
+        )
         return sim.simulate(scene)
 
     a, b, c = trial(1, 0), trial(1, 1), trial(2, 0)
@@ -116,7 +145,14 @@ def test_the_recorder_takes_the_reference_as_minsight_s_node_does():
     cam = _FakeCamera()
     ref = camera.take_reference(cam, "day3_lab", n_frames=2)
     # the warm-up frames are discarded, the next frames kept; repeats during the warm-up are not the trial's drops
-    assert [int(f[0, 0, 0]) for f in ref.frames] == [camera.WARMUP_FRAMES, camera.WARMUP_FRAMES + 1] and cam.dropped == 0
+    assert [int(f[0, 0, 0]) for f in ref.frames] == [
+        camera.WARMUP_FRAMES,
+        camera.WARMUP_FRAMES + 1,
+    ] and cam.dropped == 0
     meta = ref.meta(t0=ref.taken_at[1] + 2.0)
-    assert meta["session"] == "day3_lab" and np.allclose(meta["times_s"][1], -2.0) and meta["times_s"][0] < meta["times_s"][1]
+    assert (
+        meta["session"] == "day3_lab"
+        and np.allclose(meta["times_s"][1], -2.0)
+        and meta["times_s"][0] < meta["times_s"][1]
+    )
     assert "after 20 warm-up frames" in meta["how"]

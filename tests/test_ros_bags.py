@@ -17,8 +17,19 @@ pytest.importorskip("rosbags")
 
 from acquisition import ros_bag  # noqa: E402
 from tests.test_import_bag import (  # noqa: E402
-    MAPPING, MAPPING_TOML, N_FRAMES, NAMES, REFERENCE, T0, TS, _header, bag_messages, check_fields, recording,
-    write_bag, write_messages,
+    MAPPING,
+    MAPPING_TOML,
+    N_FRAMES,
+    NAMES,
+    REFERENCE,
+    T0,
+    TS,
+    _header,
+    bag_messages,
+    check_fields,
+    recording,
+    write_bag,
+    write_messages,
 )
 
 TRIAL = MAPPING["trial"]
@@ -55,7 +66,11 @@ def _audio_data(samples: np.ndarray):
 
 def _info(rate, channels=1, sample_format="S16LE", coding_format="wave"):
     return TS.types["audio_common_msgs/msg/AudioInfo"](
-        channels=channels, sample_rate=rate, sample_format=sample_format, bitrate=rate * 16 * channels, coding_format=coding_format
+        channels=channels,
+        sample_rate=rate,
+        sample_format=sample_format,
+        bitrate=rate * 16 * channels,
+        coding_format=coding_format,
     )
 
 
@@ -80,11 +95,14 @@ def _as_audio_common(msgs, kind):
     return out
 
 
-@pytest.mark.parametrize("kind,table", [
-    ("AudioData", {"format": "S16LE"}),                           # format from the mapping
-    ("AudioDataStamped", {"info_topic": "/minsound/audio_info"}),  # from an AudioInfo topic
-    ("AudioStamped", {}),                                          # carried by every message
-])
+@pytest.mark.parametrize(
+    "kind,table",
+    [
+        ("AudioData", {"format": "S16LE"}),  # format from the mapping
+        ("AudioDataStamped", {"info_topic": "/minsound/audio_info"}),  # from an AudioInfo topic
+        ("AudioStamped", {}),  # carried by every message
+    ],
+)
 def test_audio_common_audio_is_read_bit_exact(tmp_path, kind, table):
     rec = recording()
     msgs = _as_audio_common(bag_messages(rec), kind)
@@ -104,8 +122,12 @@ def test_raw_audio_takes_the_bags_only_audio_info_topic(tmp_path):
     del mapping["mics"]["internal"]["rate"]
     a = ros_bag.import_bag(write_messages(tmp_path / "bag", msgs), mapping, TRIAL)
     check_fields(archive.validate(a), rec)
-    assert a.meta["source"]["audio_info"] == {"internal": {"topic": "/minsound/audio_info", "chosen": "the bag's only AudioInfo topic"}}
-    msgs.append((T0 - 0.1, "/palm/audio_info", "audio_common_msgs/msg/AudioInfo", _info(48000)))  # two: whose is whose is unknown
+    assert a.meta["source"]["audio_info"] == {
+        "internal": {"topic": "/minsound/audio_info", "chosen": "the bag's only AudioInfo topic"}
+    }
+    msgs.append(
+        (T0 - 0.1, "/palm/audio_info", "audio_common_msgs/msg/AudioInfo", _info(48000))
+    )  # two: whose is whose is unknown
     with pytest.raises(ros_bag.BagError, match=r"need a sample format"):
         ros_bag.import_bag(write_messages(tmp_path / "bag2", msgs), mapping, TRIAL)
 
@@ -113,11 +135,17 @@ def test_raw_audio_takes_the_bags_only_audio_info_topic(tmp_path):
 def test_raw_audio_without_a_format_is_a_clear_error(tmp_path):
     rec = recording()
     bag = write_messages(tmp_path / "bag", _as_audio_common(bag_messages(rec), "AudioData"))
-    with pytest.raises(ros_bag.BagError, match=r"/minsound/audio: sample_format: raw audio bytes \(uint8\[\]\) need a sample format"):
+    with pytest.raises(
+        ros_bag.BagError, match=r"/minsound/audio: sample_format: raw audio bytes \(uint8\[\]\) need a sample format"
+    ):
         ros_bag.import_bag(bag, MAPPING, TRIAL)
     mapping = _mapping(internal={"format": "S32LE", "info_topic": "/info"})
-    msgs = _as_audio_common(bag_messages(rec), "AudioData") + [(T0, "/info", "audio_common_msgs/msg/AudioInfo", _info(48000))]
-    with pytest.raises(ros_bag.BagError, match=r"mics\.internal\.format: 'S32LE' in the mapping, the bag's AudioInfo says 'S16LE'"):
+    msgs = _as_audio_common(bag_messages(rec), "AudioData") + [
+        (T0, "/info", "audio_common_msgs/msg/AudioInfo", _info(48000))
+    ]
+    with pytest.raises(
+        ros_bag.BagError, match=r"mics\.internal\.format: 'S32LE' in the mapping, the bag's AudioInfo says 'S16LE'"
+    ):
         ros_bag.import_bag(write_messages(tmp_path / "bag2", msgs), mapping, TRIAL)
     no_rate = _mapping()
     del no_rate["mics"]["external"]["rate"]
@@ -156,15 +184,19 @@ def test_zero_joint_stamps_fall_back_to_receive_time_with_a_note(tmp_path):
     a = ros_bag.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
     # joints received at their stamp + 2 ms: the latest at or before frame i is reading 4 + 2 i
     np.testing.assert_allclose(a.joints, rec["joints"][4 + 2 * np.arange(N_FRAMES)].astype(np.float32), rtol=1e-6)
-    assert a.meta["import"]["clocks"]["joints"] == {"clock": "receive", "note": f"{len(rec['joint_t'])} of {len(rec['joint_t'])} header stamps are zero: placed by receive time"}
+    assert a.meta["import"]["clocks"]["joints"] == {
+        "clock": "receive",
+        "note": f"{len(rec['joint_t'])} of {len(rec['joint_t'])} header stamps are zero: placed by receive time",
+    }
 
 
 def _position_only(msgs):
     out = []
     for t, topic, typ, m in msgs:
         if topic == JOINTS:
-            m = TS.types["sensor_msgs/msg/JointState"](header=m.header, name=m.name, position=m.position,
-                                                        velocity=np.zeros(0), effort=np.zeros(0))
+            m = TS.types["sensor_msgs/msg/JointState"](
+                header=m.header, name=m.name, position=m.position, velocity=np.zeros(0), effort=np.zeros(0)
+            )
         out.append((t, topic, typ, m))
     return out
 
@@ -176,18 +208,22 @@ def test_position_only_joint_states_record_absent_fields(tmp_path):
     back = archive.read_archive(path)
     assert back.meta["streams"]["joints"]["absent"] == ["velocity", "current"]
     assert archive.layout(back.meta).joint_fields_absent == ("velocity", "current")
-    np.testing.assert_allclose(back.joints[..., 0], rec["joints"][5 + 2 * np.arange(N_FRAMES), :, 0].astype(np.float32), rtol=1e-6)
+    np.testing.assert_allclose(
+        back.joints[..., 0], rec["joints"][5 + 2 * np.arange(N_FRAMES), :, 0].astype(np.float32), rtol=1e-6
+    )
     assert np.isnan(back.joints[..., 1:]).all()  # never zeros
     # an absent field that holds values is refused
     fake = archive.TrialArchive(**{**back.__dict__, "joints": np.nan_to_num(back.joints)})
-    with pytest.raises(archive.ArchiveError, match=r"joints': fields \['velocity', 'current'\] are recorded as absent but hold values"):
+    with pytest.raises(
+        archive.ArchiveError, match=r"joints': fields \['velocity', 'current'\] are recorded as absent but hold values"
+    ):
         archive.validate(fake)
 
 
 def test_a_field_that_comes_and_goes_is_an_error(tmp_path):
     msgs = bag_messages(recording())
     first = next(i for i, (_, topic, _, _) in enumerate(msgs) if topic == JOINTS)
-    msgs[first:first + 1] = _position_only(msgs[first:first + 1])
+    msgs[first : first + 1] = _position_only(msgs[first : first + 1])
     with pytest.raises(ros_bag.BagError, match=r"/joint_states: velocity: carried by 44 of 45 messages"):
         ros_bag.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
 
@@ -198,8 +234,11 @@ def test_a_field_that_comes_and_goes_is_an_error(tmp_path):
 def test_stamps_on_another_clock_are_an_error_unless_the_mapping_says_so(tmp_path):
     rec = recording()
     bag = write_messages(tmp_path / "bag", _restamp(bag_messages(rec), CAMERA, lambda t: t - 0.3))
-    with pytest.raises(ros_bag.BagError, match=r"/minsight/image: header.stamp: 0\.301 s behind the bag's receive time "
-                       r"\(tolerance 0\.02 s\): the stamps are on another clock; set clock = \"device\""):
+    with pytest.raises(
+        ros_bag.BagError,
+        match=r"/minsight/image: header.stamp: 0\.301 s behind the bag's receive time "
+        r"\(tolerance 0\.02 s\): the stamps are on another clock; set clock = \"device\"",
+    ):
         ros_bag.import_bag(bag, MAPPING, TRIAL)
     for clock in ("receive", "device"):
         a = ros_bag.import_bag(bag, _mapping(camera={"clock": clock}), TRIAL)
@@ -229,8 +268,15 @@ def _thirty_fps(rec, drop=None):
     for i in range(n):
         if i != drop:
             t = T0 + i / 30
-            img = TS.types["sensor_msgs/msg/Image"](header=_header(t), height=8, width=10, encoding="rgb8", is_bigendian=0,
-                                                     step=30, data=rec["frames"][i % N_FRAMES].ravel())
+            img = TS.types["sensor_msgs/msg/Image"](
+                header=_header(t),
+                height=8,
+                width=10,
+                encoding="rgb8",
+                is_bigendian=0,
+                step=30,
+                data=rec["frames"][i % N_FRAMES].ravel(),
+            )
             msgs.append((t + 0.001, CAMERA, "sensor_msgs/msg/Image", img))
     return msgs, n
 
@@ -240,7 +286,9 @@ def test_thirty_fps_camera_sets_the_step_rate_not_frame_loss(tmp_path):
     msgs, n = _thirty_fps(rec)
     a = ros_bag.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
     assert a.n_steps == n and a.meta["streams"]["steps"] == {"clock": "camera", "rate": 30}
-    assert a.meta["import"]["frame_gaps"] == [] and a.meta["import"]["step_rate_from"] == "median frame interval 33.33 ms"
+    assert (
+        a.meta["import"]["frame_gaps"] == [] and a.meta["import"]["step_rate_from"] == "median frame interval 33.33 ms"
+    )
     folder = tmp_path / "data"
     archive.write_archive(folder / archive.trial_filename(a.meta), a)
     lost, _ = _thirty_fps(rec, drop=7)
@@ -251,7 +299,10 @@ def test_thirty_fps_camera_sets_the_step_rate_not_frame_loss(tmp_path):
     assert [str(p).split(": ")[1:3] for p in problems] == [["timestamps", "irregular"]]
     assert "step 7 comes 66.7 ms after step 6 (more than 1.5 periods of 33 ms" in str(problems[0])
     declared = ros_bag.import_bag(write_messages(tmp_path / "bag3", msgs), _mapping(camera={"rate": 29.97}), TRIAL)
-    assert archive.layout(declared.meta).step_rate == 29.97 and declared.meta["import"]["step_rate_from"] == "mapping camera.rate"
+    assert (
+        archive.layout(declared.meta).step_rate == 29.97
+        and declared.meta["import"]["step_rate_from"] == "mapping camera.rate"
+    )
 
 
 # --- 6-9. problems named precisely, all at once -----------------------------------------------
@@ -275,8 +326,17 @@ def test_metadata_qos_unlike_the_storage_still_reads_every_message(tmp_path):
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 
     never = QosTime(sec=0, nsec=0)
-    qos = Qos(QosHistory.KEEP_LAST, 10, QosReliability.RELIABLE, QosDurability.VOLATILE, never, never,
-              QosLiveliness.AUTOMATIC, never, False)
+    qos = Qos(
+        QosHistory.KEEP_LAST,
+        10,
+        QosReliability.RELIABLE,
+        QosDurability.VOLATILE,
+        never,
+        never,
+        QosLiveliness.AUTOMATIC,
+        never,
+        False,
+    )
     rec = recording()
     bag = write_bag(tmp_path / "bag", rec, qos={JOINTS: [qos]})
     meta = bag / "metadata.yaml"
@@ -285,7 +345,9 @@ def test_metadata_qos_unlike_the_storage_still_reads_every_message(tmp_path):
     meta.write_text(text.replace("depth: 10", "depth: 5"))  # the metadata spells the profile differently
     check_fields(ros_bag.import_bag(bag, MAPPING, TRIAL), rec)
     meta.write_text(text.replace("message_count: 45", "message_count: 47"))  # and counts more than are stored
-    with pytest.raises(ros_bag.BagError, match=r"/joint_states: the bag's metadata counts 47 messages, 45 could be read"):
+    with pytest.raises(
+        ros_bag.BagError, match=r"/joint_states: the bag's metadata counts 47 messages, 45 could be read"
+    ):
         ros_bag.import_bag(bag, MAPPING, TRIAL)
 
 
@@ -296,18 +358,28 @@ def test_older_type_names_are_read(tmp_path):
     meta.write_text(meta.read_text().replace("sensor_msgs/msg/", "sensor_msgs/"))
     with sqlite3.connect(bag / "bag.db3") as db:
         db.execute("UPDATE topics SET type = replace(type, 'sensor_msgs/msg/', 'sensor_msgs/')")
-        db.execute("UPDATE message_definitions SET topic_type = replace(topic_type, 'sensor_msgs/msg/', 'sensor_msgs/')")
+        db.execute(
+            "UPDATE message_definitions SET topic_type = replace(topic_type, 'sensor_msgs/msg/', 'sensor_msgs/')"
+        )
     assert "type: sensor_msgs/Image" in meta.read_text()
     check_fields(ros_bag.import_bag(bag, MAPPING, TRIAL), rec)
 
 
 def test_mapping_problems_name_the_mapping_file(tmp_path):
     path = tmp_path / "map.toml"
-    path.write_text(MAPPING_TOML.replace('topic = "/joint_states"', 'topic = "/joint_states"\nnames = ["a", "b", "a", "c", "d", "e"]'))
+    path.write_text(
+        MAPPING_TOML.replace(
+            'topic = "/joint_states"', 'topic = "/joint_states"\nnames = ["a", "b", "a", "c", "d", "e"]'
+        )
+    )
     with pytest.raises(ros_bag.BagError, match=rf"^{path}: joints\.names: \['a'\] named more than once$"):
         mapping_file.load_mapping(path)
-    path.write_text(MAPPING_TOML.replace('topic = "/joint_states"', 'topic = "/joint_states"\nnames = ["a"]\nclock = "gps"'))
-    with pytest.raises(ros_bag.BagError, match=rf"^{path}: joints\.clock: must be one of .*; joints\.names: expected 6 names"):
+    path.write_text(
+        MAPPING_TOML.replace('topic = "/joint_states"', 'topic = "/joint_states"\nnames = ["a"]\nclock = "gps"')
+    )
+    with pytest.raises(
+        ros_bag.BagError, match=rf"^{path}: joints\.clock: must be one of .*; joints\.names: expected 6 names"
+    ):
         mapping_file.load_mapping(path)
 
 
@@ -318,8 +390,9 @@ def test_8uc1_frames_read_as_mono8(tmp_path):
     for t, topic, typ, m in bag_messages(rec):
         if topic == CAMERA:
             i = int(round((m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 - T0) / 0.02))
-            m = TS.types["sensor_msgs/msg/Image"](header=m.header, height=8, width=10, encoding="8UC1", is_bigendian=0,
-                                                   step=10, data=gray[i].ravel())
+            m = TS.types["sensor_msgs/msg/Image"](
+                header=m.header, height=8, width=10, encoding="8UC1", is_bigendian=0, step=10, data=gray[i].ravel()
+            )
         msgs.append((t, topic, typ, m))
     a = ros_bag.import_bag(write_messages(tmp_path / "bag", msgs), MAPPING, TRIAL)
     np.testing.assert_array_equal(a.images, np.repeat(gray[..., None], 3, axis=-1))
@@ -329,8 +402,11 @@ def test_folder_without_metadata_names_the_storage_file_to_give(tmp_path):
     rec = recording()
     bag = write_bag(tmp_path / "bag", rec, storage="mcap")
     (bag / "metadata.yaml").unlink()
-    with pytest.raises(ros_bag.BagError, match=r"bag: metadata.yaml: missing \(a rosbag2 folder has one\); to read a storage "
-                       r"file without it give the file itself: bag\.mcap$"):
+    with pytest.raises(
+        ros_bag.BagError,
+        match=r"bag: metadata.yaml: missing \(a rosbag2 folder has one\); to read a storage "
+        r"file without it give the file itself: bag\.mcap$",
+    ):
         ros_bag.import_bag(bag, MAPPING, TRIAL)
     check_fields(ros_bag.import_bag(bag / "bag.mcap", MAPPING, TRIAL), rec)
 
@@ -338,7 +414,14 @@ def test_folder_without_metadata_names_the_storage_file_to_give(tmp_path):
 def test_each_issue_case_is_one_line_on_the_command_line(tmp_path):
     (tmp_path / "map.toml").write_text(MAPPING_TOML)
     bag = write_messages(tmp_path / "bag", _restamp(bag_messages(recording()), CAMERA, lambda t: t - 0.3))
-    cmd = [sys.executable, "-m", "acquisition.import_bag", str(bag), f"--map={tmp_path / 'map.toml'}", f"--out={tmp_path / 'out'}"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "acquisition.import_bag",
+        str(bag),
+        f"--map={tmp_path / 'map.toml'}",
+        f"--out={tmp_path / 'out'}",
+    ]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "header.stamp: 0.301 s behind" in done.stderr
     assert not (tmp_path / "out").exists()
@@ -348,9 +431,15 @@ def test_each_issue_case_is_one_line_on_the_command_line(tmp_path):
 
 LAB_RATE, LAB_CHUNK, LAB_FPS, UPTIME_AT_T0 = 16000, 512, 30, 12.5  # audio_common at 16 kHz, 32 ms chunks
 LAB_MAPPING = {
-    "camera": {"topic": CAMERA, "clock": "device", "reference_topic": REFERENCE},  # a camera driver stamping with the device's clock
-    "mics": {"internal": {"topic": INTERNAL, "info_topic": "/minsound/audio_info"},
-             "external": {"topic": EXTERNAL, "info_topic": "/palm/audio_info"}},
+    "camera": {
+        "topic": CAMERA,
+        "clock": "device",
+        "reference_topic": REFERENCE,
+    },  # a camera driver stamping with the device's clock
+    "mics": {
+        "internal": {"topic": INTERNAL, "info_topic": "/minsound/audio_info"},
+        "external": {"topic": EXTERNAL, "info_topic": "/palm/audio_info"},
+    },
     "joints": {"topic": JOINTS},
     "trial": TRIAL,
 }
@@ -367,31 +456,63 @@ def lab_messages(seed=0, seconds=1.0):
     msgs = []
     for i in range(int(seconds * LAB_FPS)):
         t = T0 + i / LAB_FPS
-        img = TS.types["sensor_msgs/msg/Image"](header=_header(t - T0 + UPTIME_AT_T0), height=8, width=10, encoding="rgb8",
-                                                 is_bigendian=0, step=30, data=rng.integers(0, 255, 240, dtype=np.uint8))
+        img = TS.types["sensor_msgs/msg/Image"](
+            header=_header(t - T0 + UPTIME_AT_T0),
+            height=8,
+            width=10,
+            encoding="rgb8",
+            is_bigendian=0,
+            step=30,
+            data=rng.integers(0, 255, 240, dtype=np.uint8),
+        )
         msgs.append((t + 0.004, CAMERA, "sensor_msgs/msg/Image", img))
     start = T0 - 0.2
     for topic in (INTERNAL, EXTERNAL):
         msgs.append((start, topic.replace("/audio", "/audio_info"), "audio_common_msgs/msg/AudioInfo", _info(LAB_RATE)))
         for k in range(int((seconds + 0.2) * LAB_RATE / LAB_CHUNK)):
             samples = rng.integers(-3000, 3000, LAB_CHUNK).astype(np.int16)
-            msgs.append((start + (k + 1) * LAB_CHUNK / LAB_RATE + 0.001, topic, "audio_common_msgs/msg/AudioData", _audio_data(samples)))
+            msgs.append(
+                (
+                    start + (k + 1) * LAB_CHUNK / LAB_RATE + 0.001,
+                    topic,
+                    "audio_common_msgs/msg/AudioData",
+                    _audio_data(samples),
+                )
+            )
     for k in range(int((seconds + 0.2) * 50)):
         t = start + k / 50
-        js = TS.types["sensor_msgs/msg/JointState"](header=_header(t), name=NAMES, position=rng.normal(size=6),
-                                                     velocity=np.zeros(0), effort=np.zeros(0))
+        js = TS.types["sensor_msgs/msg/JointState"](
+            header=_header(t), name=NAMES, position=rng.normal(size=6), velocity=np.zeros(0), effort=np.zeros(0)
+        )
         msgs.append((t + 0.002, JOINTS, "sensor_msgs/msg/JointState", js))
-    ref = TS.types["sensor_msgs/msg/Image"](header=_header(UPTIME_AT_T0 - 0.3), height=8, width=10, encoding="rgb8",
-                                             is_bigendian=0, step=30, data=rng.integers(0, 255, 240, dtype=np.uint8))
+    ref = TS.types["sensor_msgs/msg/Image"](
+        header=_header(UPTIME_AT_T0 - 0.3),
+        height=8,
+        width=10,
+        encoding="rgb8",
+        is_bigendian=0,
+        step=30,
+        data=rng.integers(0, 255, 240, dtype=np.uint8),
+    )
     msgs.append((T0 - 0.25, REFERENCE, "sensor_msgs/msg/Image", ref))
     return sorted(msgs, key=lambda m: m[0])
 
 
 def test_lab_bag_becomes_an_archive_read_archive_and_verify_accept(tmp_path):
     msgs = lab_messages()
-    assert {m[1] for m in msgs} == {CAMERA, INTERNAL, EXTERNAL, JOINTS, REFERENCE, "/minsound/audio_info", "/palm/audio_info"}
+    assert {m[1] for m in msgs} == {
+        CAMERA,
+        INTERNAL,
+        EXTERNAL,
+        JOINTS,
+        REFERENCE,
+        "/minsound/audio_info",
+        "/palm/audio_info",
+    }
     bag = write_messages(tmp_path / "bag", msgs, storage="mcap")
-    with pytest.raises(RecordingImportError, match=r"/minsound/audio: rate: sample rate 16000 Hz, archives hold 48000 Hz"):
+    with pytest.raises(
+        RecordingImportError, match=r"/minsound/audio: rate: sample rate 16000 Hz, archives hold 48000 Hz"
+    ):
         ros_bag.import_bag(bag, LAB_MAPPING, TRIAL)
     a = ros_bag.import_bag(bag, LAB_MAPPING, TRIAL, resample=True)
     folder = tmp_path / "data"
@@ -399,17 +520,24 @@ def test_lab_bag_becomes_an_archive_read_archive_and_verify_accept(tmp_path):
     lay = archive.layout(back.meta)
     assert [m.rate for m in lay.mics] == [48000, 48000] and lay.step_rate == 30
     assert lay.joint_fields_absent == ("velocity", "current")
-    assert back.meta["import"]["resampled"] == {t: {"from_hz": 16000, "to_hz": 48000, "method": "scipy.signal.resample_poly"}
-                                                for t in (INTERNAL, EXTERNAL)}
+    assert back.meta["import"]["resampled"] == {
+        t: {"from_hz": 16000, "to_hz": 48000, "method": "scipy.signal.resample_poly"} for t in (INTERNAL, EXTERNAL)
+    }
     clocks = back.meta["import"]["clocks"]
-    assert clocks["camera"] == {"clock": "device", "receive_minus_header_s": pytest.approx(T0 - UPTIME_AT_T0 + 0.004, abs=1e-6)}
+    assert clocks["camera"] == {
+        "clock": "device",
+        "receive_minus_header_s": pytest.approx(T0 - UPTIME_AT_T0 + 0.004, abs=1e-6),
+    }
     assert clocks["joints"]["clock"] == "header" and clocks["internal"] == {"clock": "receive"}
     np.testing.assert_allclose(np.diff(back.timestamps), 1 / LAB_FPS, atol=1e-6)
     assert back.n_steps >= 25 and back.meta["import"]["frame_gaps"] == []
     reference = next(m[3] for m in msgs if m[1] == REFERENCE)  # published once, its stamp on the camera's device clock
     np.testing.assert_array_equal(back.reference, np.asarray(reference.data).reshape(1, 8, 10, 3))
-    assert back.meta["reference"] == {"how": f"imported: the one frame of {REFERENCE} (published once)", "session": "day2_lab",
-                                      "times_s": [pytest.approx(-0.3, abs=1e-6)]}
+    assert back.meta["reference"] == {
+        "how": f"imported: the one frame of {REFERENCE} (published once)",
+        "session": "day2_lab",
+        "times_s": [pytest.approx(-0.3, abs=1e-6)],
+    }
     problems, _ = integrity.verify(folder, tmp_path / "ws")
     assert problems == []
 
@@ -419,15 +547,25 @@ def test_proprio_on_absent_joint_fields_is_a_one_line_error(tmp_path):
     from fabricjax.config import Config
 
     folder = tmp_path / "data"
-    a = ros_bag.import_bag(write_messages(tmp_path / "bag", lab_messages(seconds=1.5)), LAB_MAPPING, TRIAL, resample=True)
+    a = ros_bag.import_bag(
+        write_messages(tmp_path / "bag", lab_messages(seconds=1.5)), LAB_MAPPING, TRIAL, resample=True
+    )
     path = archive.write_archive(folder / archive.trial_filename(a.meta), a)
     config = Config(preset="smoke", seq_len=20, modalities=("internal", "proprio"))
     with pytest.raises(archive.ArchiveError) as e:
         data.load_sequences(config, folder, workdir=tmp_path / "ws", progress=False, workers=1, split_names=("train",))
-    assert str(e.value) == (f"{path}: field 'joints': absent: the data has no proprio (proprioception) for the modalities internal, "
-                            "proprio; it has microphones: internal (48000 Hz, feeds internal), external (48000 Hz, feeds external); "
-                            "6 joints x angle [rad], velocity [rad/s] (not recorded), current [A] (not recorded); camera 8x10; "
-                            "steps at 30 Hz (camera clock) (choose rows or modalities it supports: internal, external, image, flow)")
-    sets = data.load_sequences(Config(preset="smoke", seq_len=20, modalities=("internal",)), folder, workdir=tmp_path / "ws",
-                               progress=False, workers=1, split_names=("train",))
+    assert str(e.value) == (
+        f"{path}: field 'joints': absent: the data has no proprio (proprioception) for the modalities internal, "
+        "proprio; it has microphones: internal (48000 Hz, feeds internal), external (48000 Hz, feeds external); "
+        "6 joints x angle [rad], velocity [rad/s] (not recorded), current [A] (not recorded); camera 8x10; "
+        "steps at 30 Hz (camera clock) (choose rows or modalities it supports: internal, external, image, flow)"
+    )
+    sets = data.load_sequences(
+        Config(preset="smoke", seq_len=20, modalities=("internal",)),
+        folder,
+        workdir=tmp_path / "ws",
+        progress=False,
+        workers=1,
+        split_names=("train",),
+    )
     assert len(sets["train"]) == a.n_steps // 20

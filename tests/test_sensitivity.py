@@ -42,7 +42,9 @@ def test_a_measurement_outside_the_range_takes_the_closest_end_and_resumes(tmp_p
     monkeypatch.setitem(calibrate.MEASURE, "SHELL_TL_MAX_DB", _linear_drop)
     fit = calibrate.fit(_with_target(29.0), tmp_path, log=lambda s: None)
     assert not fit["bracketed"] and fit["fitted_value"] == TL.low and len(fit["points"]) == 2
-    monkeypatch.setitem(calibrate.MEASURE, "SHELL_TL_MAX_DB", lambda point: pytest.fail("a measured point was measured again"))
+    monkeypatch.setitem(
+        calibrate.MEASURE, "SHELL_TL_MAX_DB", lambda point: pytest.fail("a measured point was measured again")
+    )
     assert calibrate.fit(_with_target(29.0), tmp_path, log=lambda s: None)["points"] == fit["points"]
     doc = {**documents.header(calibrate.STUDY, command=None, seeds=list(range(calibrate.SEEDS))), "fits": [fit]}
     assert "the range's end" in calibrate.markdown(doc)
@@ -82,12 +84,18 @@ def _stand_in_measure(point, preset):
     grain = estimates.value("FLAKE_CONTRAST") / estimates.ESTIMATES["FLAKE_CONTRAST"].high
     minsound, image = 90 - 40 * tone, 10 + 30 * grain
     responses = {name: 0.0 for name in sensitivity.PLOTTED}
-    responses.update({
-        "probe test: Minsound [%]": minsound, "probe test: Minsight image − session reference [%]": image,
-        "Minsound margin over the best other single input [pp]": minsound - max(image, 50.0),
-        "optical flow − image, test [pp]": 20 - image, "proprioception − optical flow, test [pp]": 1.0,
-        "palm's gain in the cafe [pp]": -5.0, "image property margin over chance, test [pp]": 0.0, "best camera input, test [%]": image,
-    })
+    responses.update(
+        {
+            "probe test: Minsound [%]": minsound,
+            "probe test: Minsight image − session reference [%]": image,
+            "Minsound margin over the best other single input [pp]": minsound - max(image, 50.0),
+            "optical flow − image, test [pp]": 20 - image,
+            "proprioception − optical flow, test [pp]": 1.0,
+            "palm's gain in the cafe [pp]": -5.0,
+            "image property margin over chance, test [pp]": 0.0,
+            "best camera input, test [%]": image,
+        }
+    )
     side = {"image carries thickness": False, "image carries roughness": False, "camera carries the fabric": image > 20}
     return responses, side
 
@@ -98,7 +106,9 @@ def test_the_screening_ranks_the_group_that_moves_each_response(tmp_path, monkey
     (tmp_path / "results").mkdir()
     report = tmp_path / "results" / "REPORT.md"
     report.write_text(f"# report\n\n{sensitivity.REPORT_BEGIN}\nSTALE BLOCK\n{sensitivity.REPORT_END}\n\nkept\n")
-    doc = sensitivity.run(preset="smoke", trajectories=3, groups=["servo noise", "camera day"], where=where, progress=False)
+    doc = sensitivity.run(
+        preset="smoke", trajectories=3, groups=["servo noise", "camera day"], where=where, progress=False
+    )
     r = doc["responses"]
     assert np.argmax(r["probe test: Minsound [%]"]["mu_star"]) == 0 and r["probe test: Minsound [%]"]["mu_star"][1] == 0
     assert np.argmax(r["probe test: Minsight image − session reference [%]"]["mu_star"]) == 1
@@ -111,8 +121,12 @@ def test_the_screening_ranks_the_group_that_moves_each_response(tmp_path, monkey
     text = report.read_text()
     assert "STALE BLOCK" not in text and text.endswith("kept\n") and sensitivity.CLAIMS[0].text in text
     # resumable: every point is read back, none measured again
-    monkeypatch.setattr(sensitivity, "measure", lambda point, preset: pytest.fail("a measured point was measured again"))
-    again = sensitivity.run(preset="smoke", trajectories=3, groups=["servo noise", "camera day"], where=where, progress=False)
+    monkeypatch.setattr(
+        sensitivity, "measure", lambda point, preset: pytest.fail("a measured point was measured again")
+    )
+    again = sensitivity.run(
+        preset="smoke", trajectories=3, groups=["servo noise", "camera day"], where=where, progress=False
+    )
     assert again["responses"] == doc["responses"]
 
 
@@ -127,11 +141,15 @@ def test_unknown_or_too_few_groups_are_one_line_errors(tmp_path):
 def test_the_screening_runs_on_the_smoke_preset(tmp_path):
     """Every point simulated anew with its estimates and probed: three points of two groups."""
     where = Location(workdir=tmp_path, results=tmp_path / "results")
-    doc = sensitivity.run(preset="smoke", trajectories=1, groups=["servo noise", "camera day"], where=where, progress=False)
+    doc = sensitivity.run(
+        preset="smoke", trajectories=1, groups=["servo noise", "camera day"], where=where, progress=False
+    )
     assert len(doc["points"]) == 3
     r = doc["responses"]
     # servo noise is audio only, the camera's day images only: each leaves the other's inputs exactly as they were
     assert r["probe test: Minsound [%]"]["mu_star"][1] == 0
     assert r["day share: Minsight image − session reference [%]"]["mu_star"][0] == 0
     assert r["day share: Minsight image − session reference [%]"]["mu_star"][1] > 0
-    assert not (tmp_path / "sensitivity" / "smoke-r1-seed0" / "point-000").exists()  # each point's data removed once measured
+    assert not (
+        tmp_path / "sensitivity" / "smoke-r1-seed0" / "point-000"
+    ).exists()  # each point's data removed once measured

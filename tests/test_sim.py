@@ -13,7 +13,20 @@ import scipy.signal
 
 from fabricjax import archive, catalog, dataset_index, presets
 from fabricjax.sim import EFFECTS, Scene, ensure_dataset, simulate
-from fabricjax.sim import acoustics, air_path, ambient, minsight, motion, rig, servo, shell, sph0645, stick_slip, texture, trial
+from fabricjax.sim import (
+    acoustics,
+    air_path,
+    ambient,
+    minsight,
+    motion,
+    rig,
+    servo,
+    shell,
+    sph0645,
+    stick_slip,
+    texture,
+    trial,
+)
 from fabricjax.sim import calibration as cal
 from fabricjax.sim import dataset as dataset_mod
 from fabricjax.sim import scene as scene_mod
@@ -217,7 +230,9 @@ def test_parallel_generation_writes_the_same_archives_as_serial(tmp_path):
     serial = ensure_dataset("smoke", workdir=tmp_path / "serial", workers=1, **kw)
     pooled = ensure_dataset("smoke", workdir=tmp_path / "pooled", workers=2, **kw)
     names = sorted(p.name for p in serial.glob("*.npz"))
-    assert names == sorted(p.name for p in pooled.glob("*.npz")) and len(names) == len(presets.get("smoke").dataset.trials())
+    assert names == sorted(p.name for p in pooled.glob("*.npz")) and len(names) == len(
+        presets.get("smoke").dataset.trials()
+    )
     for name in names:
         assert (serial / name).read_bytes() == (pooled / name).read_bytes(), name
 
@@ -236,7 +251,9 @@ def test_not_enough_disk_is_a_clear_error_before_any_write(tmp_path, monkeypatch
     from fabricjax.disk import DiskFull
 
     monkeypatch.setattr(shutil, "disk_usage", lambda p: namedtuple("u", "total used free")(10**9, 10**9, 10**6))
-    with pytest.raises(DiskFull, match=r"for \d+ simulated trials of preset 'smoke' \(.*\): needs at least \d+ MB, 1 MB free there"):
+    with pytest.raises(
+        DiskFull, match=r"for \d+ simulated trials of preset 'smoke' \(.*\): needs at least \d+ MB, 1 MB free there"
+    ):
         ensure_dataset("smoke", workdir=tmp_path, streams=("audio", "proprio"), progress=False, workers=1)
     assert not list((tmp_path / "datasets" / "smoke").glob("*.npz"))
 
@@ -284,7 +301,9 @@ def test_the_middle_finger_rubs_its_own_patch_and_only_the_palm_hears_it(monkeyp
 
 def _band_coherence(a: np.ndarray, b: np.ndarray, f: np.ndarray, lo: float, hi: float) -> float:
     band = (f >= lo) & (f < hi)
-    return float(np.abs(np.sum(a[band] * np.conj(b[band]))) ** 2 / (np.sum(np.abs(a[band]) ** 2) * np.sum(np.abs(b[band]) ** 2)))
+    return float(
+        np.abs(np.sum(a[band] * np.conj(b[band]))) ** 2 / (np.sum(np.abs(a[band]) ** 2) * np.sum(np.abs(b[band]) ** 2))
+    )
 
 
 def test_the_room_is_coherent_at_both_microphones_only_where_its_wavelength_spans_them():
@@ -293,7 +312,11 @@ def test_the_room_is_coherent_at_both_microphones_only_where_its_wavelength_span
     palm, outside = ambient.floor(grid, 30.0, np.random.default_rng(0))
     assert _band_coherence(palm, outside, grid.f, 100, 300) > 0.95
     assert _band_coherence(palm, outside, grid.f, 5000, 10000) < 0.05
-    assert 29.9 < 20 * np.log10(acoustics.rms_of_spectrum(palm, grid, acoustics.a_weighting(grid.f)) / acoustics.P_REF) < 30.1
+    assert (
+        29.9
+        < 20 * np.log10(acoustics.rms_of_spectrum(palm, grid, acoustics.a_weighting(grid.f)) / acoustics.P_REF)
+        < 30.1
+    )
 
 
 def test_the_lab_changes_from_day_to_day_and_the_cafe_plays_from_a_place():
@@ -318,14 +341,18 @@ def test_the_lab_changes_from_day_to_day_and_the_cafe_plays_from_a_place():
     scene = Scene(3, day=4, condition="cafe", effects=("ambient",), cycles=2)
     proc = trial.procedure(scene)
     palm = trial.sound_sources(scene, proc.motion, proc.grid, proc.nuisance)["cafe loudspeaker"][1]
-    level = 20 * np.log10(acoustics.rms_of_spectrum(palm, proc.grid, acoustics.a_weighting(proc.grid.f)) / acoustics.P_REF)
+    level = 20 * np.log10(
+        acoustics.rms_of_spectrum(palm, proc.grid, acoustics.a_weighting(proc.grid.f)) / acoustics.P_REF
+    )
     assert level == pytest.approx(proc.nuisance.ambient_db_a, abs=0.01)
 
 
 def test_a_cafe_archive_is_the_same_bits_for_the_same_seed_day_and_trial():
     scene = Scene(7, day=4, trial=1, condition="cafe", cycles=2)
     assert np.array_equal(simulate(scene).audio, simulate(scene).audio)
-    assert not np.array_equal(simulate(scene).audio, simulate(Scene(7, day=4, trial=0, condition="cafe", cycles=2)).audio)
+    assert not np.array_equal(
+        simulate(scene).audio, simulate(Scene(7, day=4, trial=0, condition="cafe", cycles=2)).audio
+    )
 
 
 def test_the_shell_loss_follows_its_construction():
@@ -336,13 +363,17 @@ def test_the_shell_loss_follows_its_construction():
     assert shell.surface_mass_kg_m2() == pytest.approx(m)
     assert cal.SHELL_TL_MIN_DB < 20 * np.log10(200 * m) - 47 < cal.SHELL_TL_MAX_DB
     assert shell.transmission_loss_db(np.array([200.0]))[0] == pytest.approx(20 * np.log10(200 * m) - 47, abs=0.01)
-    assert shell.transmission_loss_db(np.array([1000.0]))[0] == pytest.approx(min(20 * np.log10(1000 * m) - 47, cal.SHELL_TL_MAX_DB))
+    assert shell.transmission_loss_db(np.array([1000.0]))[0] == pytest.approx(
+        min(20 * np.log10(1000 * m) - 47, cal.SHELL_TL_MAX_DB)
+    )
 
 
 def test_the_microphone_gain_drifts_within_its_datasheet_bound():
     """[ds] A MEMS microphone's sensitivity moves < 0.5 dB over its whole temperature range
     (-40..85 C), so no recording day's gain lies further than 0.5 dB from nominal; it does drift."""
-    gains = np.array([nuisance(Scene(1, day=day, condition=c)).mic_gain_db for day in range(1, 201) for c in ("lab", "cafe")])
+    gains = np.array(
+        [nuisance(Scene(1, day=day, condition=c)).mic_gain_db for day in range(1, 201) for c in ("lab", "cafe")]
+    )
     assert np.abs(gains).max() <= 0.5
     assert gains.std() > 0.15
 
@@ -350,7 +381,15 @@ def test_the_microphone_gain_drifts_within_its_datasheet_bound():
 def test_the_rigs_day_and_trial_draws_are_deterministic_per_seed_day_and_trial():
     def draws(**kw):
         nz = nuisance(Scene(7, history=4, **kw))
-        return (nz.temperature_c, nz.humidity_pct, nz.force_bias_n, nz.friction_scale, nz.silicone_scale, nz.fuzz_scale, nz.grasp_mm)
+        return (
+            nz.temperature_c,
+            nz.humidity_pct,
+            nz.force_bias_n,
+            nz.friction_scale,
+            nz.silicone_scale,
+            nz.fuzz_scale,
+            nz.grasp_mm,
+        )
 
     assert draws(day=2, trial=1) == draws(day=2, trial=1)
     same_day, other_trial = draws(day=2, trial=1), draws(day=2, trial=3)
@@ -380,7 +419,9 @@ def test_two_days_close_the_grasp_at_different_forces():
 
 
 def test_the_climate_moves_friction_and_silicone_and_wear_grows_the_fuzz():
-    assert rig.friction_scale(*(float(np.mean(r)) for r in (cal.ROOM_TEMPERATURE_C, cal.ROOM_HUMIDITY_PCT))) == pytest.approx(1.0)
+    assert rig.friction_scale(
+        *(float(np.mean(r)) for r in (cal.ROOM_TEMPERATURE_C, cal.ROOM_HUMIDITY_PCT))
+    ) == pytest.approx(1.0)
     assert rig.friction_scale(25.0, 60.0) > 1.0 > rig.friction_scale(22.8, 30.0)
     assert rig.silicone_scale(30.0) / rig.silicone_scale(20.0) == pytest.approx(303.15 / 293.15)
     assert rig.fuzz_scale(0, 50) == 1.0 < rig.fuzz_scale(6, 50) < rig.fuzz_scale(12, 50)
@@ -393,7 +434,9 @@ def test_the_climate_moves_friction_and_silicone_and_wear_grows_the_fuzz():
 
 def test_dataset_scenes_count_the_cloths_earlier_trials():
     dataset = presets.get("smoke").dataset
-    scenes = {(s.fabric_id, s.day, s.trial): dataset_mod.scene_for(s, dataset, ("audio", "proprio")) for s in dataset.trials()}
+    scenes = {
+        (s.fabric_id, s.day, s.trial): dataset_mod.scene_for(s, dataset, ("audio", "proprio")) for s in dataset.trials()
+    }
     n = dataset.train_trials_per_day
     assert scenes[(1, 1, 0)].history == 0 and scenes[(1, 2, 1)].history == n + 1
     assert scenes[(1, 3, 0)].history == 2 * n  # the test day follows both training days

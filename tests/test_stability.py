@@ -45,7 +45,7 @@ from tests.helpers import tiny_archive
 
 ROOT = Path(__file__).resolve().parents[1]
 INT32_MIN, INT32_MAX = np.iinfo(np.int32).min, np.iinfo(np.int32).max
-TOP = ((2**17 - 1) << 14)  # the largest valid 18-bit sample, low 14 bits zero
+TOP = (2**17 - 1) << 14  # the largest valid 18-bit sample, low 14 bits zero
 FLOOR = np.float32(np.log10(welch.LOG_FLOOR))
 
 
@@ -111,7 +111,8 @@ def test_impulse_and_extreme_words_match_scipy(kind):
 
 
 words_strategy = hnp.arrays(
-    np.int32, (2, archive.WINDOW),
+    np.int32,
+    (2, archive.WINDOW),
     elements=st.one_of(st.sampled_from([INT32_MIN, INT32_MAX, TOP, 0, -1, 1 << 14]), st.integers(INT32_MIN, INT32_MAX)),
     fill=st.sampled_from([0, INT32_MAX, INT32_MIN]),
 )
@@ -165,9 +166,20 @@ def _hard_signal_archive(fabric_id, day, trial, condition, seed):
 
 
 TINY = Config(
-    preset="smoke", modalities=("internal", "external", "proprio"), width=16, n_heads=4, n_layers=1, ffn=32,
-    audio_hidden=(16, 8), proprio_hidden=(16, 8), cnn_features=(16, 32, 64), seq_len=N, batch_size=6, property_heads=True,
-    epochs=40, learning_rate=1e-3,
+    preset="smoke",
+    modalities=("internal", "external", "proprio"),
+    width=16,
+    n_heads=4,
+    n_layers=1,
+    ffn=32,
+    audio_hidden=(16, 8),
+    proprio_hidden=(16, 8),
+    cnn_features=(16, 32, 64),
+    seq_len=N,
+    batch_size=6,
+    property_heads=True,
+    epochs=40,
+    learning_rate=1e-3,
     warmup_steps=0,  # one optimiser step must move the parameters (a warm-up starts at rate 0)
 )
 
@@ -235,8 +247,12 @@ def _variants(n=6):
     floor = {**x, "internal": np.full_like(x["internal"], FLOOR), "external": np.full_like(x["external"], FLOOR)}
     big = {k: v * 1e4 for k, v in x.items()}
     return {
-        "random": x, "constant_over_time": const_time, "half_constant_dims": half, "all_equal_psds": equal_psd,
-        "floor_psds": floor, "huge_inputs": big,
+        "random": x,
+        "constant_over_time": const_time,
+        "half_constant_dims": half,
+        "all_equal_psds": equal_psd,
+        "floor_psds": floor,
+        "huge_inputs": big,
     }, base["labels"]
 
 
@@ -329,7 +345,9 @@ def test_a_batch_of_one_class_without_properties():
     check_step(out)
     logits = out["logits"]
     expected = -jax.nn.log_softmax(logits["fabric"])[:, 0].mean()
-    trainer = _stepper(dataclasses.replace(TINY, batch_size=6), tuple(sorted((k, v.shape[2:]) for k, v in inputs["random"].items())))[0]
+    trainer = _stepper(
+        dataclasses.replace(TINY, batch_size=6), tuple(sorted((k, v.shape[2:]) for k, v in inputs["random"].items()))
+    )[0]
     loss, _ = trainer.loss(out["params"], train.select(TINY, {"inputs": inputs["random"], "labels": labels}), None)
     assert float(loss) == pytest.approx(float(expected), rel=1e-5)
     for p in catalog.PROPERTY_LEVELS:
@@ -396,13 +414,13 @@ def test_tsne_of_degenerate_latents_is_finite(points):
 # ---------------------------------------------------------------------------------------------
 # Faults: a training process killed mid-epoch resumes from its last checkpoint
 
-RESUME = dataclasses.replace(
-    TINY, modalities=("internal",), property_heads=False, epochs=5, batch_size=4, seq_len=8
-)
+RESUME = dataclasses.replace(TINY, modalities=("internal",), property_heads=False, epochs=5, batch_size=4, seq_len=8)
 
 
 def resume_sets():
-    return {k: synthetic.data_set(RESUME, n, seed=i) for i, (k, n) in enumerate([("train", 12), ("val", 8), ("test", 8)])}
+    return {
+        k: synthetic.data_set(RESUME, n, seed=i) for i, (k, n) in enumerate([("train", 12), ("val", 8), ("test", 8)])
+    }
 
 
 _KILLED_TRAINER = """
@@ -447,7 +465,9 @@ def test_training_killed_mid_epoch_resumes_from_its_last_checkpoint(tmp_path):
 
     assert checkpoint.manager(workdir).latest_step() == 2  # epoch 3 was never saved
     saved = []
-    resumed = train.train_and_evaluate(RESUME, resume_sets(), [0, 1], workdir=workdir, save_every=1, on_save=saved.append)
+    resumed = train.train_and_evaluate(
+        RESUME, resume_sets(), [0, 1], workdir=workdir, save_every=1, on_save=saved.append
+    )
     assert saved == [3, 4, 5]  # continued after epoch 2, did not start over
     full = train.train_and_evaluate(RESUME, resume_sets(), [0, 1], save_every=1)  # the same compiled chunks
     outcome = lambda m: {k: v for k, v in m.items() if k not in ("epochs", "time")}  # noqa: E731  (curves: NaN before the resume, own wall times)
@@ -471,8 +491,12 @@ def smoke_workdir(tmp_path_factory):
 def _command(module, *args, results):
     env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_DEBUG_NANS": "True", "JAX_DISABLE_MOST_OPTIMIZATIONS": "1"}
     out = subprocess.run(
-        [sys.executable, "-m", module, *args, f"--results={results}"], env=env, cwd=ROOT, capture_output=True,
-        text=True, timeout=300,
+        [sys.executable, "-m", module, *args, f"--results={results}"],
+        env=env,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert out.returncode == 0, out.stderr[-4000:]
     assert "FloatingPointError" not in out.stderr
@@ -488,8 +512,13 @@ def test_debug_nans_is_read_from_the_environment():
 
 def test_ablation_command_under_debug_nans(smoke_workdir, tmp_path):
     _command(
-        "experiments.ablation", "--preset=smoke", "--seeds=1", "--set=epochs=1", "--rows=internal+proprio",
-        f"--workdir={smoke_workdir}", results=tmp_path,
+        "experiments.ablation",
+        "--preset=smoke",
+        "--seeds=1",
+        "--set=epochs=1",
+        "--rows=internal+proprio",
+        f"--workdir={smoke_workdir}",
+        results=tmp_path,
     )
     doc = json.loads((tmp_path / "ablation.json").read_text())
     (row,) = doc["rows"]
@@ -499,8 +528,13 @@ def test_ablation_command_under_debug_nans(smoke_workdir, tmp_path):
 @pytest.mark.slow  # ~30-55 s on 2 cores: run with -m slow
 def test_properties_and_latents_commands_under_debug_nans(smoke_workdir, tmp_path):
     _command(
-        "experiments.properties", "--preset=smoke", "--seeds=1", "--set=epochs=1", "--rows=internal+proprio",
-        f"--workdir={smoke_workdir}", results=tmp_path,
+        "experiments.properties",
+        "--preset=smoke",
+        "--seeds=1",
+        "--set=epochs=1",
+        "--rows=internal+proprio",
+        f"--workdir={smoke_workdir}",
+        results=tmp_path,
     )
     (row,) = json.loads((tmp_path / "properties.json").read_text())["rows"]
     assert all(np.isfinite(v).all() for split in row["accuracy"].values() for v in split.values())

@@ -32,20 +32,31 @@ def published(tmp_path_factory):
 
 
 def _check_command(where: Location) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", "experiments.reproduce", "--check", f"--results={where.results}", f"--workdir={where.workdir}"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "experiments.reproduce",
+        "--check",
+        f"--results={where.results}",
+        f"--workdir={where.workdir}",
+    ]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=REPO)
 
 
 def test_the_code_fingerprint_ignores_comments_docstrings_and_blank_lines():
-    code = 'def f(x):\n    return x + 1  # one more\n'
-    documented = '"""A module."""\n\n# a note\ndef f(x):\n    """Add one."""\n\n    return x + 1  # one more, said again\n'
+    code = "def f(x):\n    return x + 1  # one more\n"
+    documented = (
+        '"""A module."""\n\n# a note\ndef f(x):\n    """Add one."""\n\n    return x + 1  # one more, said again\n'
+    )
     assert source.executed(documented) == source.executed(code) == "def f(x):\n    return x + 1\n"
     assert source.executed('def f(x):\n    s = "kept: a value"\n    return x + 2\n') != source.executed(code)
 
 
 def test_every_results_file_records_the_fingerprints(published):
     doc = json.loads((published.results / "probe.json").read_text())
-    assert doc["fingerprints"] == documents.fingerprints(None)  # simulated data: decided by the code, estimates and preset
+    assert doc["fingerprints"] == documents.fingerprints(
+        None
+    )  # simulated data: decided by the code, estimates and preset
     assert documents.fingerprints_markdown(doc["fingerprints"]) in (published.results / "probe.md").read_text()
     manifest = json.loads((published.results / reproduce.MANIFEST).read_text())
     assert manifest["probe"]["fingerprints"] == doc["fingerprints"] and manifest["probe"]["commit"] == doc["code"]
@@ -68,23 +79,34 @@ def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(publishe
     try:
         said = []
         notes = reproduce.check(published, say=said.append)
-        stale_report = reproduce.write_report(published.results / "STALE.md", manifest, "smoke", documents.fingerprints(None), "test", 1.0, 0)
+        stale_report = reproduce.write_report(
+            published.results / "STALE.md", manifest, "smoke", documents.fingerprints(None), "test", 1.0, 0
+        )
         report = stale_report.read_text()
         stale_report.unlink()  # a report under another name would be checked as a results file of its own
     finally:
         estimates.override({})
     since = f"stale since {manifest['probe']['commit']}"
-    assert notes == {"probe": f"{since}: the simulator's estimates changed", "day_shift": f"{since}: the simulator's estimates changed"}
+    assert notes == {
+        "probe": f"{since}: the simulator's estimates changed",
+        "day_shift": f"{since}: the simulator's estimates changed",
+    }
     text = "\n".join(said)
-    assert f"probe       {notes['probe']}: " in text and f"{published.results / 'probe.md'}" in text  # each stale study's files
+    assert (
+        f"probe       {notes['probe']}: " in text and f"{published.results / 'probe.md'}" in text
+    )  # each stale study's files
     assert "reruns what is stale" in text and "--preset=smoke" in text
-    assert f"**{notes['probe']}**" in report and f"> **S{notes['day_shift'][1:]}**" in report  # the summary and the study's section
+    assert (
+        f"**{notes['probe']}**" in report and f"> **S{notes['day_shift'][1:]}**" in report
+    )  # the summary and the study's section
     assert reproduce.check(published, say=lambda s: None) == {}  # the registry's values again: nothing stale
 
 
 def test_changed_code_marks_the_studies_stale_and_the_reader_of_a_rerun_study(published, monkeypatch):
     monkeypatch.setattr(source, "fingerprint", lambda: "f" * 64)
-    notes = reproduce.stale(json.loads((published.results / reproduce.MANIFEST).read_text()), documents.fingerprints(None))
+    notes = reproduce.stale(
+        json.loads((published.results / reproduce.MANIFEST).read_text()), documents.fingerprints(None)
+    )
     assert list(notes) == ["probe", "day_shift"] and all(n.endswith(": the code changed") for n in notes.values())
     monkeypatch.undo()
     manifest = json.loads((published.results / reproduce.MANIFEST).read_text())
@@ -101,20 +123,32 @@ def test_check_exits_1_on_results_of_other_code_and_readme_says_stale(published,
     for study in ("probe", "day_shift"):  # as a run of other code would have recorded them
         e = manifest[study]
         e["fingerprints"]["code"] = "0" * 16
-        e["key"] = keys[study] = reproduce.step_key(reproduce.Step(**e["step"]), e["preset"], e["overrides"], e["fingerprints"], keys.get("probe", ""))
+        e["key"] = keys[study] = reproduce.step_key(
+            reproduce.Step(**e["step"]), e["preset"], e["overrides"], e["fingerprints"], keys.get("probe", "")
+        )
     (results / reproduce.MANIFEST).write_text(json.dumps(manifest))
     done = _check_command(Location(workdir=published.workdir, results=results))
     assert done.returncode == 1, done.stderr
     assert "2 of the 2 studies" in done.stdout and done.stdout.count(": the code changed: ") == 2
     assert str(results / "day_shift.md") in done.stdout
-    head = {**json.loads((REPO / "results" / reproduce.HEADLINE).read_text()), "stale": {reproduce.title("probe"): "stale since commit abc: the code changed"}}
+    head = {
+        **json.loads((REPO / "results" / reproduce.HEADLINE).read_text()),
+        "stale": {reproduce.title("probe"): "stale since commit abc: the code changed"},
+    }
     block = reproduce.readme_block(head)
-    assert f"**Stale**, not today's numbers: {reproduce.title('probe')} (stale since commit abc: the code changed)" in block
+    assert (
+        f"**Stale**, not today's numbers: {reproduce.title('probe')} (stale since commit abc: the code changed)"
+        in block
+    )
 
 
 def test_check_of_a_folder_without_a_manifest_is_a_one_line_error(tmp_path):
     done = _check_command(Location(workdir=tmp_path / "ws", results=tmp_path / "nothing"))
-    assert done.returncode == 2 and done.stderr.strip().count("\n") == 0 and "no manifest of experiments.reproduce" in done.stderr
+    assert (
+        done.returncode == 2
+        and done.stderr.strip().count("\n") == 0
+        and "no manifest of experiments.reproduce" in done.stderr
+    )
 
 
 def test_other_results_files_are_checked_by_the_fingerprints_their_headers_record(tmp_path):
@@ -127,8 +161,13 @@ def test_other_results_files_are_checked_by_the_fingerprints_their_headers_recor
     (tmp_path / "sweeps").mkdir()
     (tmp_path / "cost.md").write_text("# Cost\n\n- code: commit abc123; written today\n")
     (tmp_path / "sweeps" / "sweep.md").write_text("# Sweep\n\n" + documents.fingerprints_markdown(prints) + "\n")
-    (tmp_path / "palm.md").write_text("# Palm\n\n" + documents.fingerprints_markdown({**prints, "code": "0" * 16}) + "\n")
+    (tmp_path / "palm.md").write_text(
+        "# Palm\n\n" + documents.fingerprints_markdown({**prints, "code": "0" * 16}) + "\n"
+    )
     found = reproduce.other_stale(tmp_path, {}, prints)
     assert set(found) == {str(tmp_path / "cost.md"), str(tmp_path / "palm.md")}
-    assert found[str(tmp_path / "cost.md")] == "stale since commit abc123: it records no fingerprints of what it was computed from"
+    assert (
+        found[str(tmp_path / "cost.md")]
+        == "stale since commit abc123: it records no fingerprints of what it was computed from"
+    )
     assert found[str(tmp_path / "palm.md")].endswith("the code changed")

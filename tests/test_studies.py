@@ -51,7 +51,9 @@ def test_ablation_writes_table_statistics_and_confusions(workdir, tmp_path):
     assert (tmp_path / "ablation_confusion.png").stat().st_size > 0
     md = (tmp_path / "ablation.md").read_text()
     assert "smallest attainable p" in md and "command: `test`" in md
-    assert "Paper [%]" not in md and "95.06 ± 1.85" not in md  # the install check is not the paper's table: no paper columns
+    assert (
+        "Paper [%]" not in md and "95.06 ± 1.85" not in md
+    )  # the install check is not the paper's table: no paper columns
     assert json.loads((tmp_path / "ablation.json").read_text())["preset"] == "smoke"
     assert doc["compute_dtype"] == ["float32"] and "matrix products in float32 with float32 accumulation" in md
     assert doc["dataset"]["layout_s"] == 0.0 and "laid out" not in md  # no camera input to lay out
@@ -61,7 +63,9 @@ def test_the_smoke_preset_learns_and_says_it_checks_the_install(workdir, tmp_pat
     """The newcomer's proof that the install works: the smoke preset's own recipe puts Minsound
     well above chance (twice chance over the classes its test day has), and its report says that
     it checks the install and counts none of the paper's claims."""
-    doc = ablation.run(n_seeds=1, rows=["internal"], preset="smoke", where=Location(workdir=workdir, results=tmp_path, command="test"))
+    doc = ablation.run(
+        n_seeds=1, rows=["internal"], preset="smoke", where=Location(workdir=workdir, results=tmp_path, command="test")
+    )
     labels = doc["test_samples"]["labels"]["fabric"]
     chance = 1 / len(set(labels))
     assert doc["rows"][0]["accuracy"]["test"]["fabric"][0] >= 2 * chance
@@ -83,10 +87,17 @@ def test_ablation_rerun_gives_identical_per_seed_accuracies(workdir, tmp_path):
     second = ablation.run(n_seeds=2, rows=rows, **run_kwargs(workdir, tmp_path / "b"))
     for a, b in zip(first["rows"], second["rows"]):
         assert a["accuracy"] == b["accuracy"] and a["predictions"] == b["predictions"]
-    assert first["rows"][1]["fusion_norm"] == "step_layernorm" and "our step-LayerNorm fusion" in first["rows"][1]["display_name"]
+    assert (
+        first["rows"][1]["fusion_norm"] == "step_layernorm"
+        and "our step-LayerNorm fusion" in first["rows"][1]["display_name"]
+    )
 
 
-MAJORITY = {"label": 0, "accuracy": 5.0, "known": 100}  # the test split's majority class, as `findings.majority` gives it
+MAJORITY = {
+    "label": 0,
+    "accuracy": 5.0,
+    "known": 100,
+}  # the test split's majority class, as `findings.majority` gives it
 
 
 def _holds(test: dict, majority=MAJORITY) -> list[bool | None]:
@@ -95,15 +106,27 @@ def _holds(test: dict, majority=MAJORITY) -> list[bool | None]:
 
 def test_ablation_checklist_predicates_on_synthetic_per_seed_results():
     paper_like = {
-        "image": [40, 42], "flow": [47, 48], "internal": [95, 94], "external": [59, 60], "proprio": [47, 46],
-        "internal+external": [97, 98], f"{ablation.STEP_LAYERNORM}:internal+external": [96, 97],
-        "internal+external+proprio": [96, 96], "tcn:internal+external+proprio": [75, 76],
+        "image": [40, 42],
+        "flow": [47, 48],
+        "internal": [95, 94],
+        "external": [59, 60],
+        "proprio": [47, 46],
+        "internal+external": [97, 98],
+        f"{ablation.STEP_LAYERNORM}:internal+external": [96, 97],
+        "internal+external+proprio": [96, 96],
+        "tcn:internal+external+proprio": [75, 76],
     }
     assert _holds(paper_like) == [True] * 7
     wrong = {
-        "image": [50, 50], "flow": [30, 32], "internal": [60, 62], "external": [55, 56], "proprio": [10, 12],
-        "internal+external": [58, 59], f"{ablation.STEP_LAYERNORM}:internal+external": [61, 62],
-        "internal+external+proprio": [50, 50], "tcn:internal+external+proprio": [51, 50],
+        "image": [50, 50],
+        "flow": [30, 32],
+        "internal": [60, 62],
+        "external": [55, 56],
+        "proprio": [10, 12],
+        "internal+external": [58, 59],
+        f"{ablation.STEP_LAYERNORM}:internal+external": [61, 62],
+        "internal+external+proprio": [50, 50],
+        "tcn:internal+external+proprio": [51, 50],
     }
     # best single (61 > 55.5); palm only 5.5 pp worse; proprio 11 vs flow 31; images above flow;
     # + palm below Minsound; our fused variant 61.5 >= 61; TCN 50.5 above the transformer's 50
@@ -113,7 +136,10 @@ def test_ablation_checklist_predicates_on_synthetic_per_seed_results():
     unbalanced = {"label": 3, "accuracy": 40.0, "known": 100}
     assert _holds(paper_like, unbalanced)[2] is False and _holds(paper_like, None)[2] is None
     claim = ablation.checklist({k: np.asarray(v) / 100 for k, v in paper_like.items()}, unbalanced, 21)[2]
-    assert "majority class 40.0 % (class 3), so at least 50.0 %" in claim.evidence and "1 / classes 4.8 %" in claim.evidence
+    assert (
+        "majority class 40.0 % (class 3), so at least 50.0 %" in claim.evidence
+        and "1 / classes 4.8 %" in claim.evidence
+    )
 
 
 def test_bandwidth_narrows_the_psd_per_row(workdir, tmp_path):
@@ -121,11 +147,19 @@ def test_bandwidth_narrows_the_psd_per_row(workdir, tmp_path):
     (row,) = doc["rows"]
     assert row["psd_bins"] == 54 and row["config"]["bandwidth_khz"] == 2.5
     assert "89.87 ± 3.31" in (tmp_path / "bandwidth.md").read_text()
-    full = {"s": data.SequenceSet({"internal": np.zeros((2, 3, 512)), "external": np.zeros((2, 3, 512)), "proprio": np.zeros((2, 3, 18))}, {}, {})}
+    full = {
+        "s": data.SequenceSet(
+            {"internal": np.zeros((2, 3, 512)), "external": np.zeros((2, 3, 512)), "proprio": np.zeros((2, 3, 18))},
+            {},
+            {},
+        )
+    }
     cut = data.narrow(full, Config(modalities=("internal", "proprio"), bandwidth_khz=15.0))["s"].inputs
     assert cut.keys() == {"internal", "proprio"}  # the row's inputs only
     assert cut["internal"].shape == (2, 3, 320) and cut["proprio"].shape == (2, 3, 18)
-    with pytest.raises(UserError, match=r"sets bandwidth_khz per row itself \(every one of its 4 rows\); choose bandwidths with --rows"):
+    with pytest.raises(
+        UserError, match=r"sets bandwidth_khz per row itself \(every one of its 4 rows\); choose bandwidths with --rows"
+    ):
         bandwidth.run(**run_kwargs(workdir, tmp_path) | {"overrides": {"bandwidth_khz": 10.0}})
 
 
@@ -149,7 +183,11 @@ def test_probe_writes_its_table_for_the_ablation_rows_inputs(workdir, tmp_path):
         assert all(0 <= a <= 1 for a in r["accuracy"].values())
         assert len(r["predictions"]["test"]) == len(doc["samples"]["test"]["labels"]["fabric"])
     image = doc["inputs"]["image"]  # the smoke preset's 60x80 frames: 14400 dims per step, reduced
-    assert image["step_dims"] == 60 * 80 * 3 and image["probe_dims"] <= probe.PCA_DIMS and 0 < image["explained_variance"] <= 1 + 1e-6
+    assert (
+        image["step_dims"] == 60 * 80 * 3
+        and image["probe_dims"] <= probe.PCA_DIMS
+        and 0 < image["explained_variance"] <= 1 + 1e-6
+    )
     assert doc["inputs"]["proprio"]["probe_dims"] == 36 and doc["rows"][2]["probe_dims"] == 2 * 640
     md = (tmp_path / "probe.md").read_text()
     assert md.startswith("# Linear probe") and "command: `test`" in md and "| Minsound + palm mic | 1280 |" in md
@@ -166,14 +204,26 @@ def test_probe_command_reads_a_data_dir_and_writes_nothing_there(workdir, tmp_pa
         os.link(archive, folder / archive.name)
     before = sorted((p.name, p.stat().st_mtime_ns) for p in folder.rglob("*"))
     env = {**os.environ, "JAX_PLATFORMS": "cpu"}
-    cmd = [sys.executable, "-m", "experiments.probe", "--preset=smoke", "--rows=proprio", f"--data_dir={folder}",
-           f"--workdir={workdir}", f"--results={tmp_path / 'results'}"]
-    out = subprocess.run(cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True, timeout=300)
+    cmd = [
+        sys.executable,
+        "-m",
+        "experiments.probe",
+        "--preset=smoke",
+        "--rows=proprio",
+        f"--data_dir={folder}",
+        f"--workdir={workdir}",
+        f"--results={tmp_path / 'results'}",
+    ]
+    out = subprocess.run(
+        cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True, timeout=300
+    )
     results = tmp_path / "results"
     assert out.stdout.strip().splitlines()[-1] == f"wrote {results / 'probe.json'}, {results / 'probe.md'}"
     doc = json.loads((results / "probe.json").read_text())
     assert doc["dataset"]["source"] == "recorded" and doc["dataset"]["folder"] == str(folder)
-    assert [r["name"] for r in doc["rows"]] == ["proprio"] and doc["command"].startswith("python -m experiments.probe --preset=smoke")
+    assert [r["name"] for r in doc["rows"]] == ["proprio"] and doc["command"].startswith(
+        "python -m experiments.probe --preset=smoke"
+    )
     assert sorted((p.name, p.stat().st_mtime_ns) for p in folder.rglob("*")) == before  # only read
 
 
@@ -205,7 +255,10 @@ def test_properties_report_training_and_holdout_fabrics_and_checkpoint(property_
     claim = doc["findings"][0]
     means = {p: 100 * np.mean(row["accuracy"]["holdout"][p]) for p in properties.PROPERTIES}
     assert claim["holds"] == all(means[p] > doc["majority"]["holdout"][p]["accuracy"] for p in properties.PROPERTIES)
-    assert claim["claim"].startswith("Minsound + proprioception: every property is above chance") and "1 / levels" in claim["evidence"]
+    assert (
+        claim["claim"].startswith("Minsound + proprioception: every property is above chance")
+        and "1 / levels" in claim["evidence"]
+    )
 
 
 def test_latents_from_the_property_checkpoint(property_run, workdir, tmp_path):
@@ -231,44 +284,92 @@ def test_tsne_is_finite_for_identical_and_few_points():
 def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
     labels = [0, 1, 2, 2]
     rows = [
-        {"name": "internal", "backbone": "attention", "modalities": ["internal"], "paper_mean": 95.06, "paper_sd": 1.85,
-         "seeds": [0, 1, 2], "wall_s": 12.34, "accuracy": {"test": {"fabric": [0.9, 0.95, 1.0]}},
-         "collapsed": {"test": findings.collapsed([[0, 1, 2, 3]] * 3, labels)}},
-        {"name": "tcn", "backbone": "tcn", "modalities": ["internal", "external", "proprio"], "paper_mean": 75.41,
-         "paper_sd": 11.2, "seeds": [0, 1, 2], "wall_s": 5.0, "accuracy": {"test": {"fabric": [0.5, 0.5, 0.5]}},
-         "collapsed": {"test": findings.collapsed([[0, 1, 2, 3], [2] * 4, [2] * 4], labels)}},
+        {
+            "name": "internal",
+            "backbone": "attention",
+            "modalities": ["internal"],
+            "paper_mean": 95.06,
+            "paper_sd": 1.85,
+            "seeds": [0, 1, 2],
+            "wall_s": 12.34,
+            "accuracy": {"test": {"fabric": [0.9, 0.95, 1.0]}},
+            "collapsed": {"test": findings.collapsed([[0, 1, 2, 3]] * 3, labels)},
+        },
+        {
+            "name": "tcn",
+            "backbone": "tcn",
+            "modalities": ["internal", "external", "proprio"],
+            "paper_mean": 75.41,
+            "paper_sd": 11.2,
+            "seeds": [0, 1, 2],
+            "wall_s": 5.0,
+            "accuracy": {"test": {"fabric": [0.5, 0.5, 0.5]}},
+            "collapsed": {"test": findings.collapsed([[0, 1, 2, 3], [2] * 4, [2] * 4], labels)},
+        },
     ]
     lines = ablation.table(rows, findings.majority(labels)).splitlines()
-    assert lines[0].startswith("| Backbone | Modalities | Test accuracy [%] (ours, 3 seeds) | Majority class, test [%] | Paper [%] | Ours − paper [pp]")
+    assert lines[0].startswith(
+        "| Backbone | Modalities | Test accuracy [%] (ours, 3 seeds) | Majority class, test [%] | Paper [%] | Ours − paper [pp]"
+    )
     assert lines[2] == "| Transformer | Minsound | 95.00 ± 5.00 | 50.00 (class 2) | 95.06 ± 1.85 | -0.06 | 12.3 |"
     # two of its seeds predict one class for every sequence: the table says so beside the accuracy, and beside the majority class
-    assert lines[3] == ("| TCN | Minsound + palm mic + proprioception | 50.00 ± 0.00 (collapsed to class 2: 2 of 3 seeds) | 50.00 (class 2) | "
-                        "75.41 ± 11.20 | -25.41 | 5.0 |")
+    assert lines[3] == (
+        "| TCN | Minsound + palm mic + proprioception | 50.00 ± 0.00 (collapsed to class 2: 2 of 3 seeds) | 50.00 (class 2) | "
+        "75.41 ± 11.20 | -25.41 | 5.0 |"
+    )
 
 
 def test_noise_and_bandwidth_tables():
     w = {"p_value": 0.001953125, "min_attainable_p": 0.001953125, "method": "exact"}
     fine = {"cafe": [None, None], "test": [None, None]}
     rows = [
-        {"name": "internal", "modalities": ["internal"], "paper": {"mean": 67.51, "sd": 5.05, "p": None}, "wilcoxon": None, "wall_s": 1.0,
-         "accuracy": {"cafe": {"fabric": [0.7, 0.7]}, "test": {"fabric": [0.9, 0.9]}}, "collapsed": {**fine, "cafe": [4, None]}},
-        {"name": "internal+proprio", "modalities": ["internal", "proprio"], "paper": {"mean": 87.51, "sd": 2.66, "p": "< 0.0001"}, "wall_s": 2.0,
-         "wilcoxon": {"per_seed": w, "per_sample": {**w, "method": "approx"}},
-         "accuracy": {"cafe": {"fabric": [0.9, 0.8]}, "test": {"fabric": [1.0, 1.0]}}, "collapsed": fine},
+        {
+            "name": "internal",
+            "modalities": ["internal"],
+            "paper": {"mean": 67.51, "sd": 5.05, "p": None},
+            "wilcoxon": None,
+            "wall_s": 1.0,
+            "accuracy": {"cafe": {"fabric": [0.7, 0.7]}, "test": {"fabric": [0.9, 0.9]}},
+            "collapsed": {**fine, "cafe": [4, None]},
+        },
+        {
+            "name": "internal+proprio",
+            "modalities": ["internal", "proprio"],
+            "paper": {"mean": 87.51, "sd": 2.66, "p": "< 0.0001"},
+            "wall_s": 2.0,
+            "wilcoxon": {"per_seed": w, "per_sample": {**w, "method": "approx"}},
+            "accuracy": {"cafe": {"fabric": [0.9, 0.8]}, "test": {"fabric": [1.0, 1.0]}},
+            "collapsed": fine,
+        },
     ]
     majority = {"cafe": findings.majority([4, 4, 1]), "test": findings.majority([0, 1, 1, 2])}
     lines = noise.table(rows, majority).splitlines()
-    assert lines[2] == ("| Minsound | 70.00 ± 0.00 (collapsed to class 4: 1 of 2 seeds) | 66.67 (class 4) | 67.51 ± 5.05 | +2.49 | – | – | – | "
-                        "90.00 ± 0.00 | 50.00 (class 1) | 1.0 |")
+    assert lines[2] == (
+        "| Minsound | 70.00 ± 0.00 (collapsed to class 4: 1 of 2 seeds) | 66.67 (class 4) | 67.51 ± 5.05 | +2.49 | – | – | – | "
+        "90.00 ± 0.00 | 50.00 (class 1) | 1.0 |"
+    )
     assert "0.001953 (floor 0.002, exact)" in lines[3] and "< 0.0001" in lines[3]
-    bw = [{"bandwidth_khz": 2.5, "psd_bins": 54, "paper": {"val_mean": 92.43, "val_sd": 1.13, "test_mean": 89.87, "test_sd": 3.31},
-           "wall_s": 3.0, "accuracy": {"val": {"fabric": [0.9]}, "test": {"fabric": [0.8]}}, "collapsed": {"val": [None], "test": [None]}}]
+    bw = [
+        {
+            "bandwidth_khz": 2.5,
+            "psd_bins": 54,
+            "paper": {"val_mean": 92.43, "val_sd": 1.13, "test_mean": 89.87, "test_sd": 3.31},
+            "wall_s": 3.0,
+            "accuracy": {"val": {"fabric": [0.9]}, "test": {"fabric": [0.8]}},
+            "collapsed": {"val": [None], "test": [None]},
+        }
+    ]
     assert bandwidth.table(bw, {"val": majority["cafe"], "test": None}).splitlines()[2] == (
-        "| 2.5 | 54 | 90.00 ± 0.00 | 66.67 (class 4) | 92.43 ± 1.13 | -2.43 | 80.00 ± 0.00 | – | 89.87 ± 3.31 | -9.87 | 3.0 |")
+        "| 2.5 | 54 | 90.00 ± 0.00 | 66.67 (class 4) | 92.43 ± 1.13 | -2.43 | 80.00 ± 0.00 | – | 89.87 ± 3.31 | -9.87 | 3.0 |"
+    )
 
 
 def fake_row(name, accuracy, predictions, seeds):
-    metrics = {"eval": {"test": {"accuracy": {"fabric": np.asarray(accuracy)}, "predictions": {"fabric": np.asarray(predictions)}}}}
+    metrics = {
+        "eval": {
+            "test": {"accuracy": {"fabric": np.asarray(accuracy)}, "predictions": {"fabric": np.asarray(predictions)}}
+        }
+    }
     return runner.Row(name, None, train.Results(None, tuple(seeds), None, None, metrics), 1.0)
 
 
@@ -310,13 +411,19 @@ def test_rows_are_chosen_by_name_or_by_the_label_the_tables_print():
     names = lambda chosen: [r.name for r in chosen]  # noqa: E731
     assert names(runner.select_rows(ablation.ROWS, ["Minsound", "proprioception"])) == ["internal", "proprio"]
     assert names(runner.select_rows(ablation.ROWS, ["PROPRIO", "minsound", "internal"])) == ["internal", "proprio"]
-    assert names(runner.select_rows(ablation.ROWS, ["tcn: minsound + palm mic + proprioception"])) == ["tcn:internal+external+proprio"]
+    assert names(runner.select_rows(ablation.ROWS, ["tcn: minsound + palm mic + proprioception"])) == [
+        "tcn:internal+external+proprio"
+    ]
     assert names(runner.select_rows(bandwidth.ROWS, ["15 kHz", "2.5"])) == ["2.5", "15"]
-    assert names(runner.select_rows(properties.ROWS, ["Minsound + Proprioception + Minsight image"])) == ["internal+proprio+image"]
+    assert names(runner.select_rows(properties.ROWS, ["Minsound + Proprioception + Minsight image"])) == [
+        "internal+proprio+image"
+    ]
     with pytest.raises(UserError) as e:
         runner.select_rows(noise.ROWS, ["Minsound", "audio"])
-    assert str(e.value) == ("unknown rows ['audio']; choose a row's name or its label, in any case: internal (Minsound), "
-                            "internal+proprio (Minsound + proprioception), internal+proprio+external (Minsound + proprioception + palm mic)")
+    assert str(e.value) == (
+        "unknown rows ['audio']; choose a row's name or its label, in any case: internal (Minsound), "
+        "internal+proprio (Minsound + proprioception), internal+proprio+external (Minsound + proprioception + palm mic)"
+    )
     # a name or label picks one row in every study: no label repeats, or is another row's name
     for rows in (ablation.ROWS, bandwidth.ROWS, noise.ROWS, properties.ROWS, probe.ROWS, day_shift.ROWS):
         keys = [k.casefold() for r in rows for k in {r.name, r.label}]
@@ -334,25 +441,45 @@ STUDIES_WITH_ROWS = {
 }
 
 
-@pytest.mark.parametrize("study, field", [(s, f) for s, (rows, _) in STUDIES_WITH_ROWS.items() for f in sorted({f for r in rows for f in r.settings})])
+@pytest.mark.parametrize(
+    "study, field",
+    [(s, f) for s, (rows, _) in STUDIES_WITH_ROWS.items() for f in sorted({f for r in rows for f in r.settings})],
+)
 def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp_path):
     """--set of a field any of the study's rows sets would be silently replaced, or would silently
     change what a row is (--set=backbone=attention made the ablation's TCN row a transformer): it
     fails in one line naming the field and the rows, before any data is read."""
     settings, run = STUDIES_WITH_ROWS[study]
-    with pytest.raises(UserError, match=f"the {study} study sets {field} per row itself \\((every one of its {len(settings)} rows|rows .+)\\); choose") as e:
-        run(preset="smoke", overrides={field: Config.__dataclass_fields__[field].default}, where=Location(workdir=tmp_path / "nothing", results=tmp_path))
+    with pytest.raises(
+        UserError,
+        match=f"the {study} study sets {field} per row itself \\((every one of its {len(settings)} rows|rows .+)\\); choose",
+    ) as e:
+        run(
+            preset="smoke",
+            overrides={field: Config.__dataclass_fields__[field].default},
+            where=Location(workdir=tmp_path / "nothing", results=tmp_path),
+        )
     assert "\n" not in str(e.value)
     assert not (tmp_path / "nothing").exists()
 
 
 def test_the_override_error_names_the_rows_that_set_the_field():
-    rows = [runner.StudyRow(n, s, n) for n, s in (("a", {"backbone": "tcn", "modalities": ("internal",)}), ("b", {"modalities": ("proprio",)}),
-                                                   ("c", {"modalities": ("flow",)}))]
+    rows = [
+        runner.StudyRow(n, s, n)
+        for n, s in (
+            ("a", {"backbone": "tcn", "modalities": ("internal",)}),
+            ("b", {"modalities": ("proprio",)}),
+            ("c", {"modalities": ("flow",)}),
+        )
+    ]
     with pytest.raises(UserError) as e:
-        runner.check_overrides("toy", {"backbone": "attention", "modalities": ("internal",), "epochs": 1}, rows, "choose them with --rows")
-    assert str(e.value) == ("the toy study sets backbone per row itself (rows a); modalities per row itself (every one of its 3 rows); "
-                            "choose them with --rows")
+        runner.check_overrides(
+            "toy", {"backbone": "attention", "modalities": ("internal",), "epochs": 1}, rows, "choose them with --rows"
+        )
+    assert str(e.value) == (
+        "the toy study sets backbone per row itself (rows a); modalities per row itself (every one of its 3 rows); "
+        "choose them with --rows"
+    )
     assert runner.check_overrides("toy", {"epochs": 1}, rows, "") == {"epochs": 1}
 
 
@@ -362,11 +489,18 @@ def test_the_ablation_row_counts_the_docs_state_are_the_code_s():
     assert tcn == 1 and len(ablation.ROWS) == paper + variants
     repo = Path(__file__).parents[1]
     said = {
-        "fabricjax/studies/paper/ablation.py": [f"{paper - tcn} transformer rows and the TCN row, and {variants} of them again"],
-        "fabricjax/studies/__init__.py": [f"{paper} rows incl. TCN (Table ablation_table) + {variants} step-LayerNorm variants"],
+        "fabricjax/studies/paper/ablation.py": [
+            f"{paper - tcn} transformer rows and the TCN row, and {variants} of them again"
+        ],
+        "fabricjax/studies/__init__.py": [
+            f"{paper} rows incl. TCN (Table ablation_table) + {variants} step-LayerNorm variants"
+        ],
         "experiments/ablation.py": [f"its {paper} rows and our {variants} fusion-variant rows"],
-        "docs/usage.md": [f"{paper - tcn} transformer rows + TCN, and {variants} rows again", f"{len(ablation.ROWS)} rows in all",
-                          f"8 points x {len(ablation.ROWS)} rows"],
+        "docs/usage.md": [
+            f"{paper - tcn} transformer rows + TCN, and {variants} rows again",
+            f"{len(ablation.ROWS)} rows in all",
+            f"8 points x {len(ablation.ROWS)} rows",
+        ],
     }
     for path, texts in said.items():
         text = " ".join((repo / path).read_text().split())
@@ -375,17 +509,29 @@ def test_the_ablation_row_counts_the_docs_state_are_the_code_s():
 
 
 def test_results_say_how_they_were_made():
-    assert documents.command_markdown("python -m experiments.noise --seeds=10") == "- command: `python -m experiments.noise --seeds=10`"
+    assert (
+        documents.command_markdown("python -m experiments.noise --seeds=10")
+        == "- command: `python -m experiments.noise --seeds=10`"
+    )
     assert documents.command_markdown(None) == "- command: none (called from Python)"  # not the test runner's argv
 
 
 def test_ablation_command_end_to_end(workdir):
     env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_DISABLE_MOST_OPTIMIZATIONS": "1"}
     cmd = [
-        sys.executable, "-m", "experiments.ablation", "--preset=smoke", "--seeds=1", "--set=epochs=1", "--rows=internal",
-        f"--workdir={workdir}", "--cpu_devices=2",
+        sys.executable,
+        "-m",
+        "experiments.ablation",
+        "--preset=smoke",
+        "--seeds=1",
+        "--set=epochs=1",
+        "--rows=internal",
+        f"--workdir={workdir}",
+        "--cpu_devices=2",
     ]
-    out = subprocess.run(cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True, timeout=300)
+    out = subprocess.run(
+        cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True, timeout=300
+    )
     results = workdir / "results"  # the default: under the workspace, not in the repository
     assert out.stdout.strip().splitlines()[-1] == f"wrote {results / 'ablation.json'}, {results / 'ablation.md'}"
     doc = json.loads((results / "ablation.json").read_text())
@@ -399,8 +545,13 @@ def test_ablation_command_end_to_end(workdir):
 def test_camera_rows(workdir, tmp_path):
     """Image and optical-flow rows (CNN encoders, rotation augmentation) end to end."""
     doc = ablation.run(n_seeds=2, rows=["image+internal", "flow", "proprio"], **run_kwargs(workdir, tmp_path))
-    assert [r["name"] for r in doc["rows"]] == ["flow", "proprio", "image+internal"] and doc["wilcoxon"] is None  # the table's order
-    assert doc["dataset"]["layout_s"] > 0 and "camera inputs laid out for training" in (tmp_path / "ablation.md").read_text()
+    assert [r["name"] for r in doc["rows"]] == ["flow", "proprio", "image+internal"] and doc[
+        "wilcoxon"
+    ] is None  # the table's order
+    assert (
+        doc["dataset"]["layout_s"] > 0
+        and "camera inputs laid out for training" in (tmp_path / "ablation.md").read_text()
+    )
     assert (tmp_path / "ablation_confusion.png").stat().st_size > 0
     doc = properties.run(n_seeds=1, rows=["internal+proprio+image"], **run_kwargs(workdir, tmp_path))
     out = latents.run(doc["rows"][0]["checkpoint"], where=Location(workdir=workdir, results=tmp_path))
@@ -409,28 +560,55 @@ def test_camera_rows(workdir, tmp_path):
 
 # The smallest plan that still has a study that depends on another (latents on properties) and
 # one without seeds (the probe); the other studies' own runs are tested above.
-SMOKE_PLAN = (reproduce.Step("probe", rows=("proprio",)), reproduce.Step("bandwidth", 1, ("2.5",)), reproduce.Step("properties", 1, ("internal+proprio",)),
-              reproduce.Step("latents"))
+SMOKE_PLAN = (
+    reproduce.Step("probe", rows=("proprio",)),
+    reproduce.Step("bandwidth", 1, ("2.5",)),
+    reproduce.Step("properties", 1, ("internal+proprio",)),
+    reproduce.Step("latents"),
+)
 
 
 def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_path):
     said = []
-    kw = dict(preset="smoke", plan=SMOKE_PLAN, overrides=TINY, where=Location(workdir=workdir, results=tmp_path), say=said.append)
+    kw = dict(
+        preset="smoke",
+        plan=SMOKE_PLAN,
+        overrides=TINY,
+        where=Location(workdir=workdir, results=tmp_path),
+        say=said.append,
+    )
     first = reproduce.run(**kw)
     assert list(first) == [s.study for s in SMOKE_PLAN]
     assert all(f"{s.study:<11} run" in said[0] for s in SMOKE_PLAN)
-    assert f"estimated time: none for probe, bandwidth, properties, latents: no earlier run of the smoke preset in {tmp_path}" in said[0]
+    assert (
+        f"estimated time: none for probe, bandwidth, properties, latents: no earlier run of the smoke preset in {tmp_path}"
+        in said[0]
+    )
     text = (tmp_path / "REPORT.md").read_text()
     for s in SMOKE_PLAN:
         assert f"## {reproduce.title(s.study)}" in text
-    assert text.count("Rerun alone: `python -m experiments.") == 4 and "`python -m experiments.bandwidth --seeds=1 --preset=smoke --rows=2.5" in text
-    assert "`python -m experiments.probe --preset=smoke --rows=proprio --set=" in text and "| – (deterministic) | – (not in the paper) |" in text
+    assert (
+        text.count("Rerun alone: `python -m experiments.") == 4
+        and "`python -m experiments.bandwidth --seeds=1 --preset=smoke --rows=2.5" in text
+    )
+    assert (
+        "`python -m experiments.probe --preset=smoke --rows=proprio --set=" in text
+        and "| – (deterministic) | – (not in the paper) |" in text
+    )
     assert "--checkpoint=" in text and "![bandwidth.png](bandwidth.png)" in text and "(latents.png)" in text
     # every paper study's checklist is in the report (the probe has none), not counted: smoke checks the install
     assert text.count(findings.NOT_COUNTED) == 3 and "evaluated claims reproduced" not in text
     assert presets.INSTALL_CHECK_NOTE in text.split("\n")[2] and text.count("| not counted (install check) |") == 3
     outputs = {p.name: p.stat().st_ino for p in tmp_path.iterdir() if p.name not in ("REPORT.md", "reproduce.json")}
-    assert {"probe.md", "probe.json", "bandwidth.md", "bandwidth.png", "properties.json", "latents.png", "latents.md"} <= set(outputs)
+    assert {
+        "probe.md",
+        "probe.json",
+        "bandwidth.md",
+        "bandwidth.png",
+        "properties.json",
+        "latents.png",
+        "latents.md",
+    } <= set(outputs)
 
     said.clear()
     second = reproduce.run(**kw)
@@ -452,10 +630,16 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
     assert key != reproduce.step_key(reproduce.Step("noise", 5), "default", {}, prints)
     assert key != reproduce.step_key(step, "smoke", {}, prints)
     assert key != reproduce.step_key(step, "default", {"epochs": 3}, prints)
-    for name, other in (("code", "other code"), ("estimates", "other estimates"), ("data", "a" * 16)):  # other recordings, too
+    for name, other in (
+        ("code", "other code"),
+        ("estimates", "other estimates"),
+        ("data", "a" * 16),
+    ):  # other recordings, too
         assert key != reproduce.step_key(step, "default", {}, {**prints, name: other}), name
     latents_step = reproduce.Step("latents")
-    assert reproduce.step_key(latents_step, "default", {}, prints, "props-a") != reproduce.step_key(latents_step, "default", {}, prints, "props-b")
+    assert reproduce.step_key(latents_step, "default", {}, prints, "props-a") != reproduce.step_key(
+        latents_step, "default", {}, prints, "props-b"
+    )
     assert len(source.fingerprint()) == 64
     assert reproduce.command(step, "default", {"epochs": 3, "modalities": ("internal", "proprio")}, "results") == (
         "python -m experiments.noise --seeds=10 --preset=default --set=epochs=3 --set=modalities=internal,proprio --results=results"
@@ -471,13 +655,17 @@ def test_palm_variance_shares_recover_planted_effects():
     shares = palm.variance_shares(x)
     total = sum(shares[k] for k in ("fabric", "day", "fabric x day", "trial"))
     assert np.allclose(total, 1.0)
-    assert np.allclose(shares["fabric"] / shares["day"], 6 * 4 * 3 * fabric.var(ddof=0) / (4 * 3 * 6 * day.var(ddof=0)), rtol=1e-2)
+    assert np.allclose(
+        shares["fabric"] / shares["day"], 6 * 4 * 3 * fabric.var(ddof=0) / (4 * 3 * 6 * day.var(ddof=0)), rtol=1e-2
+    )
     assert np.all(shares["trial"] < 1e-3) and np.all(shares["fabric x day"] < 1e-3)
     # a condition effect (the last day is the cafe, 20 dB up) is split off the day effect
     conditions = ["lab", "lab", "lab", "cafe"]
     y = x + np.array([0.0, 0.0, 0.0, 20.0])[None, :, None, None]
     split = palm.variance_shares(y, conditions)
-    assert np.allclose(sum(split[k] for k in ("fabric", "condition", "day within condition", "fabric x day", "trial")), 1.0)
+    assert np.allclose(
+        sum(split[k] for k in ("fabric", "condition", "day within condition", "fabric x day", "trial")), 1.0
+    )
     assert np.all(split["condition"] > 0.8) and np.all(split["day within condition"] < split["condition"] / 20)
 
 
@@ -506,8 +694,13 @@ def test_reproduce_writes_the_readme_block_of_a_scratch_copy(workdir, tmp_path):
     readme.write_text(before)
     plan = (reproduce.Step("ablation", 1, ("internal",)), reproduce.Step("probe", rows=("internal",)))
     said = []
-    reproduce.run(preset="smoke", plan=plan, overrides=TINY, where=Location(workdir=workdir, results=tmp_path / "results", command="test"),
-                  say=said.append)
+    reproduce.run(
+        preset="smoke",
+        plan=plan,
+        overrides=TINY,
+        where=Location(workdir=workdir, results=tmp_path / "results", command="test"),
+        say=said.append,
+    )
     head = json.loads((tmp_path / "results" / reproduce.HEADLINE).read_text())
     block = reproduce.readme_block(head)
     after = readme.read_text()
@@ -515,7 +708,12 @@ def test_reproduce_writes_the_readme_block_of_a_scratch_copy(workdir, tmp_path):
     assert after.split(reproduce.README_BEGIN)[0] == before.split(reproduce.README_BEGIN)[0]
     assert after.split(reproduce.README_END)[1] == before.split(reproduce.README_END)[1]
     [row] = head["rows"]
-    assert row["inputs"] == "Minsound" and f"| {row['ours'].split(' (')[0]} |" in (tmp_path / "results" / "ablation.md").read_text()
+    assert (
+        row["inputs"] == "Minsound"
+        and f"| {row['ours'].split(' (')[0]} |" in (tmp_path / "results" / "ablation.md").read_text()
+    )
     assert "from `test` on the smoke preset".lower() in block.lower() and "not counted (install check)" in block
-    assert not reproduce.write_readme_block(tmp_path / "results" / "nothing.md", block)  # no README there: nothing written
+    assert not reproduce.write_readme_block(
+        tmp_path / "results" / "nothing.md", block
+    )  # no README there: nothing written
     assert not (tmp_path / "results" / "nothing.md").exists()

@@ -40,39 +40,62 @@ def swept(workdir, tmp_path_factory):
     Four trainings, each compiled afresh (~80 s of CPU in all): the tests that use it are slow."""
     results = tmp_path_factory.mktemp("sweep_results")
     doc = sweep.run(
-        grid={"epochs": (1, 2)}, n_seeds=1, preset="smoke", rows=ROWS, overrides=FIXED, latency_repeats=3,
+        grid={"epochs": (1, 2)},
+        n_seeds=1,
+        preset="smoke",
+        rows=ROWS,
+        overrides=FIXED,
+        latency_repeats=3,
         where=Location(workdir=workdir, results=results, command="test"),
     )
     return doc, results
 
 
 def test_grid_values_are_read_like_set_with_semicolons_between_tuples():
-    grid = sweep.parse_grid([
-        "epochs=1,2", "cnn_features=4,8;8,16", "learning_rate=1e-3;2e-3", "augment_rotation=true,false", "audio_hidden=32,16",
-    ])
+    grid = sweep.parse_grid(
+        [
+            "epochs=1,2",
+            "cnn_features=4,8;8,16",
+            "learning_rate=1e-3;2e-3",
+            "augment_rotation=true,false",
+            "audio_hidden=32,16",
+        ]
+    )
     assert grid == {
-        "epochs": (1, 2), "cnn_features": ((4, 8), (8, 16)), "learning_rate": (1e-3, 2e-3),
-        "augment_rotation": (True, False), "audio_hidden": ((32, 16),),  # a tuple field without ';' is one value
+        "epochs": (1, 2),
+        "cnn_features": ((4, 8), (8, 16)),
+        "learning_rate": (1e-3, 2e-3),
+        "augment_rotation": (True, False),
+        "audio_hidden": ((32, 16),),  # a tuple field without ';' is one value
     }
     assert list(grid) == ["epochs", "cnn_features", "learning_rate", "augment_rotation", "audio_hidden"]
     assert sweep.grid_points({"a": (1, 2), "b": ("x", "y")}) == [
-        {"a": 1, "b": "x"}, {"a": 1, "b": "y"}, {"a": 2, "b": "x"}, {"a": 2, "b": "y"},
+        {"a": 1, "b": "x"},
+        {"a": 1, "b": "y"},
+        {"a": 2, "b": "x"},
+        {"a": 2, "b": "y"},
     ]
-    assert sweep.point_name({"cnn_features": (4, 8), "augment_rotation": False}) == "cnn_features=4,8 augment_rotation=false"
+    assert (
+        sweep.point_name({"cnn_features": (4, 8), "augment_rotation": False})
+        == "cnn_features=4,8 augment_rotation=false"
+    )
 
 
-@pytest.mark.parametrize("texts, problem", [
-    (["epochs"], "expected field=v1,v2"),
-    (["=1,2"], "expected field=v1,v2"),
-    (["epochs="], "expected field=v1,v2"),
-    (["epochs=1,,2"], "empty value"),
-    (["cnn_features=4,8;"], "empty value"),
-    (["epochs=a,2"], "epochs takes int: 'a' is not an integer"),
-    (["nofield=1,2"], "Config has no field 'nofield'"),
-    (["epochs=1,1"], "a value is repeated"),
-    (["audio_hidden=32,16,8"], "3 values given, 2 expected"),
-    (["epochs=1", "epochs=2"], "swept by an earlier --grid"),
-])
+@pytest.mark.parametrize(
+    "texts, problem",
+    [
+        (["epochs"], "expected field=v1,v2"),
+        (["=1,2"], "expected field=v1,v2"),
+        (["epochs="], "expected field=v1,v2"),
+        (["epochs=1,,2"], "empty value"),
+        (["cnn_features=4,8;"], "empty value"),
+        (["epochs=a,2"], "epochs takes int: 'a' is not an integer"),
+        (["nofield=1,2"], "Config has no field 'nofield'"),
+        (["epochs=1,1"], "a value is repeated"),
+        (["audio_hidden=32,16,8"], "3 values given, 2 expected"),
+        (["epochs=1", "epochs=2"], "swept by an earlier --grid"),
+    ],
+)
 def test_a_malformed_grid_is_a_one_line_error_naming_the_flag(texts, problem):
     with pytest.raises(UserError) as e:
         sweep.parse_grid(texts)
@@ -80,29 +103,66 @@ def test_a_malformed_grid_is_a_one_line_error_naming_the_flag(texts, problem):
     assert message.startswith(f"--grid={texts[-1]}: ") and problem in message and "\n" not in message
 
 
-@pytest.mark.parametrize("grid, overrides, problem", [
-    ({"modalities": (("internal",), ("proprio",))}, {}, f"the sweep study sets modalities per row itself (every one of its {len(ablation.ROWS)} rows); choose the ablation's rows with --rows"),
-    ({"fusion_norm": ("sequence_minmax", "step_layernorm")}, {}, "sets fusion_norm per row itself"),
-    ({"epochs": (1,)}, {"fusion_norm": "step_layernorm"}, "sets fusion_norm per row itself"),
-    ({"epochs": (1, 2)}, {"epochs": 3}, "--grid and --set both give epochs"),
-    ({"preset": ("smoke",)}, {}, "the preset is not a grid field"),
-    ({}, {}, "give at least one field"),
-    ({"backbone": ("attention", "tcn")}, {}, "sets backbone per row itself"),  # a grid over it would turn the TCN row into a transformer
-    ({"lr_schedule": ("constant", "sawtooth")}, {}, "--grid point lr_schedule=sawtooth: lr_schedule must be one of"),
-    ({"fabric_head": (True, False)}, {"property_heads": True}, "--grid point fabric_head=false: the sweep ranks recipes by fabric accuracy"),
-])
+@pytest.mark.parametrize(
+    "grid, overrides, problem",
+    [
+        (
+            {"modalities": (("internal",), ("proprio",))},
+            {},
+            f"the sweep study sets modalities per row itself (every one of its {len(ablation.ROWS)} rows); choose the ablation's rows with --rows",
+        ),
+        ({"fusion_norm": ("sequence_minmax", "step_layernorm")}, {}, "sets fusion_norm per row itself"),
+        ({"epochs": (1,)}, {"fusion_norm": "step_layernorm"}, "sets fusion_norm per row itself"),
+        ({"epochs": (1, 2)}, {"epochs": 3}, "--grid and --set both give epochs"),
+        ({"preset": ("smoke",)}, {}, "the preset is not a grid field"),
+        ({}, {}, "give at least one field"),
+        (
+            {"backbone": ("attention", "tcn")},
+            {},
+            "sets backbone per row itself",
+        ),  # a grid over it would turn the TCN row into a transformer
+        (
+            {"lr_schedule": ("constant", "sawtooth")},
+            {},
+            "--grid point lr_schedule=sawtooth: lr_schedule must be one of",
+        ),
+        (
+            {"fabric_head": (True, False)},
+            {"property_heads": True},
+            "--grid point fabric_head=false: the sweep ranks recipes by fabric accuracy",
+        ),
+    ],
+)
 def test_a_grid_the_sweep_cannot_run_fails_in_one_line_before_any_data_is_read(grid, overrides, problem, tmp_path):
     with pytest.raises(UserError) as e:
-        sweep.run(grid=grid, preset="smoke", rows=ROWS, overrides=overrides, where=Location(workdir=tmp_path / "nothing", results=tmp_path))
+        sweep.run(
+            grid=grid,
+            preset="smoke",
+            rows=ROWS,
+            overrides=overrides,
+            where=Location(workdir=tmp_path / "nothing", results=tmp_path),
+        )
     assert problem in str(e.value) and "\n" not in str(e.value)
     assert not (tmp_path / "nothing").exists() and not list(tmp_path.iterdir())
 
 
 def test_the_command_reports_a_bad_grid_in_one_line_and_exit_2(tmp_path):
-    cmd = [sys.executable, "-m", "experiments.sweep", "--preset=smoke", "--grid=epochs=1,2", "--grid=epochs", f"--workdir={tmp_path}"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "experiments.sweep",
+        "--preset=smoke",
+        "--grid=epochs=1,2",
+        "--grid=epochs",
+        f"--workdir={tmp_path}",
+    ]
     out = subprocess.run(cmd, env=ENV, cwd=REPO, capture_output=True, text=True, timeout=120)
-    assert out.returncode == 2 and out.stderr == "error: --grid=epochs: expected field=v1,v2,... e.g. --grid=epochs=2,4; " \
-        "';' between values of a tuple field, e.g. --grid='cnn_features=4,8;8,16'\n", out.stderr
+    assert (
+        out.returncode == 2
+        and out.stderr
+        == "error: --grid=epochs: expected field=v1,v2,... e.g. --grid=epochs=2,4; "
+        "';' between values of a tuple field, e.g. --grid='cnn_features=4,8;8,16'\n"
+    ), out.stderr
 
 
 def entries_for(point, rows, val_means):
@@ -110,10 +170,16 @@ def entries_for(point, rows, val_means):
 
 
 def test_every_point_trains_the_preset_with_set_and_its_own_fields_on_every_row():
-    grid, rows = {"epochs": (1, 2), "cnn_features": ((4, 8), (8, 16))}, [r for r in ablation.ROWS if r.name in ("image", "tcn:internal+external+proprio")]
+    grid, rows = (
+        {"epochs": (1, 2), "cnn_features": ((4, 8), (8, 16))},
+        [r for r in ablation.ROWS if r.name in ("image", "tcn:internal+external+proprio")],
+    )
     units = sweep.plan("smoke", grid, {"learning_rate": 3e-3}, rows)
     assert [name for name, *_ in units] == [
-        f"epochs={e}/cnn_features={c}/{r}" for e in (1, 2) for c in ("4,8", "8,16") for r in ("image", "tcn:internal+external+proprio")
+        f"epochs={e}/cnn_features={c}/{r}"
+        for e in (1, 2)
+        for c in ("4,8", "8,16")
+        for r in ("image", "tcn:internal+external+proprio")
     ]  # point-major, the first field slowest; the name is the unit's log folder
     for _, config, fields, row in units:
         expected = Config.from_preset("smoke", learning_rate=3e-3, **row.settings, **fields)
@@ -122,15 +188,23 @@ def test_every_point_trains_the_preset_with_set_and_its_own_fields_on_every_row(
 
 def test_the_best_point_is_the_first_argmax_of_the_validation_accuracy_averaged_over_rows():
     points = [{"lr": 1}, {"lr": 2}, {"lr": 3}]
-    entries = entries_for("lr=1", "ab", [90, 10]) + entries_for("lr=2", "ab", [60, 60]) + entries_for("lr=3", "ab", [20, 100])
+    entries = (
+        entries_for("lr=1", "ab", [90, 10]) + entries_for("lr=2", "ab", [60, 60]) + entries_for("lr=3", "ab", [20, 100])
+    )
     summary, best = sweep.summarise(points, entries)
-    assert [p["val_mean_over_rows"] for p in summary] == [50, 60, 60] and best == 1  # not the best single row (lr=3 b, lr=1 a)
+    assert [p["val_mean_over_rows"] for p in summary] == [
+        50,
+        60,
+        60,
+    ] and best == 1  # not the best single row (lr=3 b, lr=1 a)
     assert summary[1]["train_s"] == 2.0 and summary[1]["rows"] == 2
 
 
 def test_one_load_serves_only_rows_with_the_same_sequences():
     a, b = Config.from_preset("smoke"), Config.from_preset("smoke", seq_len=10, modalities=("proprio",))
-    assert loading.sequence_key(a) == loading.sequence_key(Config.from_preset("smoke", width=64, modalities=("proprio",)))
+    assert loading.sequence_key(a) == loading.sequence_key(
+        Config.from_preset("smoke", width=64, modalities=("proprio",))
+    )
     with pytest.raises(ValueError, match="need separate loads"):
         loading.load_for_rows([a, b])
 
@@ -139,7 +213,9 @@ def test_sequence_fields_name_every_config_field_the_data_pipeline_reads():
     """A field that decides the loaded sequences but is missing from SEQUENCE_FIELDS would let one
     load serve sweep points it does not fit."""
     sources = [REPO / "fabricjax" / "data.py", *sorted((REPO / "fabricjax" / "features").glob("*.py"))]
-    read = {m for p in sources for m in re.findall(r"\bconfig\.([a-z_]+)\b", p.read_text())} & set(Config.__dataclass_fields__)
+    read = {m for p in sources for m in re.findall(r"\bconfig\.([a-z_]+)\b", p.read_text())} & set(
+        Config.__dataclass_fields__
+    )
     narrowed = {"modalities", "bandwidth_khz"}  # data.narrow gives each row its own
     assert read and read <= set(loading.SEQUENCE_FIELDS) | narrowed, read - set(loading.SEQUENCE_FIELDS) - narrowed
 
@@ -152,13 +228,22 @@ def test_sweep_trains_every_point_on_every_row_and_writes_md_and_json(swept):
     for e in doc["entries"]:
         assert len(e["accuracy"]["val"]["fabric"]) == 1 and len(e["accuracy"]["test"]["fabric"]) == 1
         assert e["val_mean"] == pytest.approx(100 * e["accuracy"]["val"]["fabric"][0]) and e["val_sd"] == 0.0
-        assert e["train_s"] > 0 and e["latency_p50_ms"] > 0 and e["params"] > 0 and 0 <= e["train_last_epoch_mean"] <= 100
+        assert (
+            e["train_s"] > 0 and e["latency_p50_ms"] > 0 and e["params"] > 0 and 0 <= e["train_last_epoch_mean"] <= 100
+        )
     assert [p["name"] for p in doc["points"]] == ["epochs=1", "epochs=2"] and len(doc["loads"]) == 1
-    assert doc["study"] == "sweep" and doc["command"] == "test" and doc["grid"] == {"epochs": [1, 2]} and doc["rows"] == ROWS
+    assert (
+        doc["study"] == "sweep"
+        and doc["command"] == "test"
+        and doc["grid"] == {"epochs": [1, 2]}
+        and doc["rows"] == ROWS
+    )
     md = (results / "sweep.md").read_text()
     assert "- command: `test`" in md and "machine:" in md
     assert f"**Best point by validation accuracy averaged over the 2 rows: `{doc['best']['name']}`**" in md
-    assert sum(line.startswith(("| epochs=", "| **epochs=")) for line in md.splitlines()) == 2 + 4  # the points, then point x row
+    assert (
+        sum(line.startswith(("| epochs=", "| **epochs=")) for line in md.splitlines()) == 2 + 4
+    )  # the points, then point x row
 
 
 @pytest.mark.slow
@@ -181,7 +266,10 @@ def test_each_point_trains_the_preset_with_its_own_fields(swept, workdir):
     for e in doc["entries"]:
         r = rows[e["row"]]
         expected = Config.from_preset(
-            "smoke", **r.settings, **FIXED, epochs=e["fields"]["epochs"],
+            "smoke",
+            **r.settings,
+            **FIXED,
+            epochs=e["fields"]["epochs"],
         )
         ds = loading.load_for_rows([expected], workdir=workdir, split_names=loading.TRAIN_VAL_TEST)
         assert Config.from_json(e["config"]) == ds.fit(expected)
@@ -191,8 +279,17 @@ def test_each_point_trains_the_preset_with_its_own_fields(swept, workdir):
 def test_the_command_sweeps_a_tuple_field_and_loads_once_per_sequence_length(workdir):
     """--grid with ';' between tuple values, and seq_len in the grid: two loads, each serving two points."""
     cmd = [
-        sys.executable, "-m", "experiments.sweep", "--preset=smoke", "--grid=seq_len=10,20", "--grid=audio_hidden=32,16;16,8",
-        "--rows=internal", "--seeds=1", "--set=epochs=1", "--latency_repeats=3", f"--workdir={workdir}",
+        sys.executable,
+        "-m",
+        "experiments.sweep",
+        "--preset=smoke",
+        "--grid=seq_len=10,20",
+        "--grid=audio_hidden=32,16;16,8",
+        "--rows=internal",
+        "--seeds=1",
+        "--set=epochs=1",
+        "--latency_repeats=3",
+        f"--workdir={workdir}",
     ]
     out = subprocess.run(cmd, check=True, env=ENV, cwd=REPO, capture_output=True, text=True, timeout=600)
     results = workdir / "results"
@@ -201,8 +298,19 @@ def test_the_command_sweeps_a_tuple_field_and_loads_once_per_sequence_length(wor
     doc = json.loads((results / "sweep.json").read_text())
     assert doc["command"].startswith("python -m experiments.sweep --preset=smoke --grid=seq_len=10,20")
     assert doc["grid"] == {"seq_len": [10, 20], "audio_hidden": [[32, 16], [16, 8]]}
-    assert [e["point"] for e in doc["entries"]] == ["seq_len=10 audio_hidden=32,16", "seq_len=10 audio_hidden=16,8",
-                                                    "seq_len=20 audio_hidden=32,16", "seq_len=20 audio_hidden=16,8"]
-    assert [(e["config"]["seq_len"], e["config"]["audio_hidden"]) for e in doc["entries"]] == [(10, [32, 16]), (10, [16, 8]), (20, [32, 16]), (20, [16, 8])]
-    assert [d["seq_len"] for d in doc["loads"]] == [10, 20] and doc["loads"][0]["sequences"]["train"] > doc["loads"][1]["sequences"]["train"]
+    assert [e["point"] for e in doc["entries"]] == [
+        "seq_len=10 audio_hidden=32,16",
+        "seq_len=10 audio_hidden=16,8",
+        "seq_len=20 audio_hidden=32,16",
+        "seq_len=20 audio_hidden=16,8",
+    ]
+    assert [(e["config"]["seq_len"], e["config"]["audio_hidden"]) for e in doc["entries"]] == [
+        (10, [32, 16]),
+        (10, [16, 8]),
+        (20, [32, 16]),
+        (20, [16, 8]),
+    ]
+    assert [d["seq_len"] for d in doc["loads"]] == [10, 20] and doc["loads"][0]["sequences"]["train"] > doc["loads"][1][
+        "sequences"
+    ]["train"]
     assert "sequences loaded 2 times" in (results / "sweep.md").read_text()

@@ -16,7 +16,9 @@ from fabricjax.inputs import feature_shapes  # noqa: E402
 from fabricjax.model import make_predict  # noqa: E402
 from fabricjax.train import make_trainer, select  # noqa: E402
 
-SMALL = dict(preset="smoke", width=32, n_heads=4, n_layers=2, ffn=48, audio_hidden=(40, 24), proprio_hidden=(24, 16), seq_len=30)
+SMALL = dict(
+    preset="smoke", width=32, n_heads=4, n_layers=2, ffn=48, audio_hidden=(40, 24), proprio_hidden=(24, 16), seq_len=30
+)
 
 
 @pytest.mark.parametrize("modalities", [("internal", "external", "proprio"), ("proprio", "internal")])
@@ -133,5 +135,12 @@ def test_vmapped_ensemble_trains_each_seed_as_its_twin_alone():
         np.testing.assert_allclose(vmapped.step().numpy(), alone.step().numpy(), rtol=1e-5)
         for seed, model in enumerate(models):
             for name, p in model.named_parameters():
-                np.testing.assert_allclose(vmapped.params[name].grad[seed].numpy(), p.grad.numpy(), rtol=1e-4, atol=1e-7, err_msg=name)
-    assert torch_twin.train_step_runner(cfg, n_seeds=2, batch=4, n_bins=20, steps=1, autocast=True, ensemble=torch_twin.VMAPPED)() > 0
+                np.testing.assert_allclose(
+                    vmapped.params[name].grad[seed].numpy(), p.grad.numpy(), rtol=1e-4, atol=1e-7, err_msg=name
+                )
+    assert (
+        torch_twin.train_step_runner(
+            cfg, n_seeds=2, batch=4, n_bins=20, steps=1, autocast=True, ensemble=torch_twin.VMAPPED
+        )()
+        > 0
+    )

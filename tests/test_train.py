@@ -19,8 +19,19 @@ from fabricjax.train import make_trainer, masked_accuracy, masked_cross_entropy,
 from tests import helpers
 
 TINY = Config(
-    preset="smoke", modalities=("internal", "proprio"), width=16, n_layers=1, ffn=32, cnn_features=(16, 32, 64),
-    audio_hidden=(16, 8), proprio_hidden=(16, 8), seq_len=8, epochs=3, batch_size=8, learning_rate=1e-3, warmup_steps=100,
+    preset="smoke",
+    modalities=("internal", "proprio"),
+    width=16,
+    n_layers=1,
+    ffn=32,
+    cnn_features=(16, 32, 64),
+    audio_hidden=(16, 8),
+    proprio_hidden=(16, 8),
+    seq_len=8,
+    epochs=3,
+    batch_size=8,
+    learning_rate=1e-3,
+    warmup_steps=100,
     property_heads=True,
 )
 
@@ -105,7 +116,9 @@ def test_masked_loss_and_accuracy_ignore_unknown_labels():
 def test_without_a_fabric_head_the_best_epoch_follows_mean_property_accuracy():
     cfg = Config(**{**TINY.to_json(), "fabric_head": False})
     trainer = make_trainer(cfg, {"internal": (24,), "proprio": (18,)})
-    assert float(trainer.selection_metric({"stretchiness": 1.0, "roughness": 0.2, "thickness": 0.3})) == pytest.approx(0.5)
+    assert float(trainer.selection_metric({"stretchiness": 1.0, "roughness": 0.2, "thickness": 0.3})) == pytest.approx(
+        0.5
+    )
 
 
 SHARDED = """
@@ -157,14 +170,18 @@ def test_four_host_devices_give_the_same_results_as_one(four_seeds, tmp_path):
     np.testing.assert_allclose(sharded["seeds"]["train_loss"], single.metrics["train_loss"], rtol=1e-5)
     np.testing.assert_array_equal(sharded["seeds"]["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"])
     np.testing.assert_allclose(sharded["samples"]["train_loss"], single.metrics["train_loss"][1:2], rtol=1e-5)
-    np.testing.assert_array_equal(sharded["samples"]["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"][1:2])
+    np.testing.assert_array_equal(
+        sharded["samples"]["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"][1:2]
+    )
     assert sharded["resumed_saves"] == [2, 3] and sharded["resumed_loss"] == sharded["samples"]["train_loss"]
 
 
 def test_cpu_devices_are_chosen_before_jax_starts_and_an_explicit_count_wins():
     code = "from fabricjax import runtime; print(runtime.use_cpu_cores(3))"
     env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES")}
-    run = lambda env: subprocess.run([sys.executable, "-c", code], env={**env, "JAX_PLATFORMS": "cpu"}, capture_output=True, text=True, timeout=120)  # noqa: E731
+    run = lambda env: subprocess.run(  # noqa: E731
+        [sys.executable, "-c", code], env={**env, "JAX_PLATFORMS": "cpu"}, capture_output=True, text=True, timeout=120
+    )
     assert run(env).stdout.split() == ["3"]
     assert run({**env, "XLA_FLAGS": "--xla_force_host_platform_device_count=2"}).stdout.split() == ["2"]
     # In this process JAX has started with one CPU device: too late to change, and said so.
@@ -178,7 +195,15 @@ def test_image_rows_rotate_the_frame_minus_the_reference_in_training_only():
     standardised frames turned by the rotation the model used to apply to frames (tests/helpers.py,
     same angles from the same key); a frame equal to the reference is no deformation at every
     angle; evaluation never turns, on frames or on rows; without `augment_rotation` nothing turns."""
-    cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4, 8), "property_heads": False, "image_reference": "training_mean"})
+    cfg = Config(
+        **{
+            **TINY.to_json(),
+            "modalities": ("image",),
+            "cnn_features": (4, 8),
+            "property_heads": False,
+            "image_reference": "training_mean",
+        }
+    )
     sets = {k: synthetic.data_set(cfg, 8, image_hw=(12, 16), seed=i) for i, k in enumerate(["train", "val"])}
     stats = input_statistics(cfg, sets["train"])
     assert stats["image_shift"].shape == (12, 16, 3) and stats["image_scale"].shape == (3,)
@@ -199,20 +224,27 @@ def test_image_rows_rotate_the_frame_minus_the_reference_in_training_only():
     np.testing.assert_allclose(evaluation, model.image(standardised).reshape(b, n, -1), atol=1e-6)
     np.testing.assert_allclose(model.image_features(training_layout({"image": frames}), None), evaluation, atol=1e-5)
     trained = model.image_features({"image": frames}, nnx.Rngs(dropout=0, augment=1))
-    turned = helpers.reference_rotate_batch(nnx.Rngs(dropout=0, augment=1).augment(), standardised.reshape(b, n, 12, 16, 3))
+    turned = helpers.reference_rotate_batch(
+        nnx.Rngs(dropout=0, augment=1).augment(), standardised.reshape(b, n, 12, 16, 3)
+    )
     np.testing.assert_allclose(trained, model.image(turned.reshape(b * n, 12, 16, 3)).reshape(b, n, -1), atol=1e-5)
     assert not np.allclose(trained, evaluation, atol=1e-3)  # training: rotated
     np.testing.assert_allclose(  # the reference turned is still no deformation
         model.image_features({"image": reference}, nnx.Rngs(dropout=0, augment=2)),
-        model.image(jnp.zeros((8, 12, 16, 3))).reshape(2, 4, -1), atol=1e-4,
+        model.image(jnp.zeros((8, 12, 16, 3))).reshape(2, 4, -1),
+        atol=1e-4,
     )
     still = built(dataclasses.replace(cfg, augment_rotation=False))
     assert not still.rotate_images and model.rotate_images
-    np.testing.assert_allclose(still.image_features({"image": frames}, nnx.Rngs(dropout=0, augment=1)), evaluation, atol=1e-5)
+    np.testing.assert_allclose(
+        still.image_features({"image": frames}, nnx.Rngs(dropout=0, augment=1)), evaluation, atol=1e-5
+    )
     res = train_and_evaluate(cfg, sets, seeds=[0])
     assert np.isfinite(res.metrics["train_loss"]).all()
     # training evaluates on rows (one compiled image path): the predictions of the model on frames
-    on_frames = make_predict(res.graphdef)(res.params(0), {"image": jnp.asarray(sets["val"]["inputs"]["image"])})["fabric"]
+    on_frames = make_predict(res.graphdef)(res.params(0), {"image": jnp.asarray(sets["val"]["inputs"]["image"])})[
+        "fabric"
+    ]
     np.testing.assert_array_equal(res.metrics["eval"]["val"]["predictions"]["fabric"][0], np.argmax(on_frames, -1))
 
 
@@ -227,7 +259,9 @@ def test_image_configs_reuse_their_cached_programs():
 
 
 def test_joint_standardisation_comes_from_the_training_split_and_stays_fixed():
-    cfg = Config(preset="smoke", modalities=("proprio",), width=16, n_layers=1, ffn=16, epochs=2, batch_size=8, seq_len=8)
+    cfg = Config(
+        preset="smoke", modalities=("proprio",), width=16, n_layers=1, ffn=16, epochs=2, batch_size=8, seq_len=8
+    )
     sets = {k: synthetic.data_set(cfg, n, seed=s) for k, n, s in (("train", 16, 0), ("val", 8, 1))}
     sets["train"]["inputs"]["proprio"] = sets["train"]["inputs"]["proprio"] * 1e-3 + 5.0  # tiny spread, large offset
     x = sets["train"]["inputs"]["proprio"].reshape(-1, 18)
@@ -242,7 +276,9 @@ def test_joint_standardisation_comes_from_the_training_split_and_stays_fixed():
 def test_pixel_and_flow_standardisation_is_per_channel_over_the_training_split():
     """Camera inputs are centred and scaled per colour channel / flow component (inputs.STANDARDISED),
     accumulated in chunks: equal to NumPy's statistics over every sequence, step and position."""
-    cfg = Config(preset="smoke", modalities=("image", "flow"), epochs=1, batch_size=8, seq_len=4, image_reference="none")
+    cfg = Config(
+        preset="smoke", modalities=("image", "flow"), epochs=1, batch_size=8, seq_len=4, image_reference="none"
+    )
     ds = synthetic.data_set(cfg, 10, image_hw=(6, 8), flow_hw=(3, 4))
     ds["inputs"]["flow"][:, :, 1] *= 1e-3  # a nearly silent component is scaled up, never divided by 0
     stats = input_statistics(cfg, ds, chunk=3)
@@ -313,7 +349,9 @@ def test_inputs_placed_before_a_run_serve_it_and_change_nothing(monkeypatch):
     from fabricjax import inputs, memo
     from fabricjax.features import images
 
-    cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "property_heads": False, "epochs": 1})
+    cfg = Config(
+        **{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "property_heads": False, "epochs": 1}
+    )
     alone = train_and_evaluate(cfg, data_sets(cfg), (0,))
     monkeypatch.setattr(memo, "MIN_BYTES", 0)  # the tiny arrays are kept like a data set's
     monkeypatch.setattr(train, "_PLACED", memo.ByArray(max_entries=12, size=train._PLACED.size))
@@ -322,11 +360,15 @@ def test_inputs_placed_before_a_run_serve_it_and_change_nothing(monkeypatch):
     train.place_for_runs(cfg, sets)
     built = []
     for module, name in ((images, "to_rows"), (inputs, "_moments")):
-        monkeypatch.setattr(module, name, lambda *a, _f=getattr(module, name), _n=name, **k: built.append(_n) or _f(*a, **k))
+        monkeypatch.setattr(
+            module, name, lambda *a, _f=getattr(module, name), _n=name, **k: built.append(_n) or _f(*a, **k)
+        )
     after = train_and_evaluate(cfg, sets, (0,))
     assert built == []
     np.testing.assert_array_equal(after.metrics["train_loss"], alone.metrics["train_loss"])
-    np.testing.assert_array_equal(after.metrics["eval"]["test"]["predictions"]["fabric"], alone.metrics["eval"]["test"]["predictions"]["fabric"])
+    np.testing.assert_array_equal(
+        after.metrics["eval"]["test"]["predictions"]["fabric"], alone.metrics["eval"]["test"]["predictions"]["fabric"]
+    )
 
 
 LEVEL_RUN = """
@@ -352,7 +394,10 @@ def test_the_backend_optimisation_level_changes_no_bit_of_a_trained_model(monkey
     for bit (camera, microphone and joint inputs, dropout on). A level already in XLA_FLAGS wins."""
     monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
     runtime.compile_at_backend_level()
-    assert os.environ["XLA_FLAGS"] == f"--xla_force_host_platform_device_count=2 --xla_backend_optimization_level={runtime.BACKEND_OPTIMIZATION_LEVEL}"
+    assert (
+        os.environ["XLA_FLAGS"]
+        == f"--xla_force_host_platform_device_count=2 --xla_backend_optimization_level={runtime.BACKEND_OPTIMIZATION_LEVEL}"
+    )
     monkeypatch.setenv("XLA_FLAGS", "--xla_backend_optimization_level=3")
     runtime.compile_at_backend_level()
     assert os.environ["XLA_FLAGS"] == "--xla_backend_optimization_level=3"
@@ -360,7 +405,13 @@ def test_the_backend_optimisation_level_changes_no_bit_of_a_trained_model(monkey
     code = LEVEL_RUN.format(tests=os.path.dirname(__file__))
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
     runs = [  # side by side
-        subprocess.Popen([sys.executable, "-c", code], env={**env, **flags, "JAX_PLATFORMS": "cpu"}, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        subprocess.Popen(
+            [sys.executable, "-c", code],
+            env={**env, **flags, "JAX_PLATFORMS": "cpu"},
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         for flags in ({}, {"XLA_FLAGS": "--xla_backend_optimization_level=3"})
     ]
     (level_2, error_2), (level_3, error_3) = (run.communicate(timeout=300) for run in runs)

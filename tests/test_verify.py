@@ -75,9 +75,13 @@ def test_verify_command_exits_1_and_prints_each_problem(tmp_path):
 
 
 def test_a_fresh_import_is_hashed_against_the_index_the_import_wrote(tmp_path):
-    manifest = other_rig.write_recordings(tmp_path / "rig", ["felt", "oak"], 2, seconds=(2.0, 2.5), splits={0: "train", 1: "test"})
+    manifest = other_rig.write_recordings(
+        tmp_path / "rig", ["felt", "oak"], 2, seconds=(2.0, 2.5), splits={0: "train", 1: "test"}
+    )
     out, ws = tmp_path / "archives", tmp_path / "ws"
-    summary = import_manifest.run(manifest, out, rig=manifest.parent / "rig.toml", workers=1, progress=False, say=lambda s: None, workdir=ws)
+    summary = import_manifest.run(
+        manifest, out, rig=manifest.parent / "rig.toml", workers=1, progress=False, say=lambda s: None, workdir=ws
+    )
     assert Path(summary["index"]) == workspace.index_file(out, ws) and Path(summary["index"]).parent == ws / "indexes"
     assert {p.suffix for p in out.iterdir()} == {".npz"}  # the index lives in the workspace, not in DIR
     target = sorted(out.glob("*.npz"))[0]
@@ -89,7 +93,9 @@ def test_a_fresh_import_is_hashed_against_the_index_the_import_wrote(tmp_path):
     assert done.returncode == 1, done.stderr
     assert f"4 archives checked (4 hashed against {summary['index']})" in done.stdout, done.stdout
     assert f"{target}: <file>: sha256 differs" in done.stdout
-    elsewhere = subprocess.run(cmd + [f"--workdir={tmp_path / 'other_ws'}"], capture_output=True, text=True, timeout=120)
+    elsewhere = subprocess.run(
+        cmd + [f"--workdir={tmp_path / 'other_ws'}"], capture_output=True, text=True, timeout=120
+    )
     assert f"no index of {out} in this workspace, so no hashes to check" in elsewhere.stdout, elsewhere.stdout
     assert "sha256" not in elsewhere.stdout and not (tmp_path / "other_ws").exists()  # verify writes no index
 
@@ -129,7 +135,9 @@ def test_verify_checks_every_file_of_a_folder_of_every_mutation(tmp_path):
     archive.write_archive(folder / "good.npz", tiny_archive(n_steps=8, images=None))
     problems, counts = integrity.verify(folder, tmp_path / "ws")
     assert counts["archives"] == len(bad) + 1 and counts["failures"] == []
-    assert sorted({Path(p.file).name for p in problems}) == [f"m{k:03d}.npz" for k in range(len(bad))]  # each named, the good one not
+    assert sorted({Path(p.file).name for p in problems}) == [
+        f"m{k:03d}.npz" for k in range(len(bad))
+    ]  # each named, the good one not
 
 
 def test_verify_names_its_own_failure_on_a_file_and_still_checks_the_rest(tmp_path, monkeypatch):
@@ -146,7 +154,9 @@ def test_verify_names_its_own_failure_on_a_file_and_still_checks_the_rest(tmp_pa
     truncated = folder / index.entries[2].file
     truncated.write_bytes(truncated.read_bytes()[:300])
     problems, counts = integrity.verify(folder, tmp_path / "ws")
-    assert [str(f) for f in counts["failures"]] == [f"{first}: <verify>: verify failed on this file: TypeError: a reader bug"]
+    assert [str(f) for f in counts["failures"]] == [
+        f"{first}: <verify>: verify failed on this file: TypeError: a reader bug"
+    ]
     assert {p.file for p in problems} == {str(truncated)}
 
 
@@ -176,7 +186,9 @@ cli.run(verify.main)
 def test_verify_command_exits_2_on_its_own_failure_after_printing_every_file(tmp_path):
     folder, index = _dataset(tmp_path)
     code = _BROKEN_VERIFY.format(folder=str(folder), workdir=tmp_path / "ws")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=Path(__file__).parents[1])
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=Path(__file__).parents[1]
+    )
     assert done.returncode == 2, done.stderr
     assert done.stdout.count("<verify>: verify failed on this file: TypeError: a reader bug") == 3
     assert "verify failed on 3 files (a bug of verify" in done.stderr

@@ -50,14 +50,23 @@ def smoke_trial(tmp_path_factory):
 def checkpoint(tmp_path_factory):
     ckpt = tmp_path_factory.mktemp("ckpt")
     bins = welch.n_bins(CONFIG.bandwidth_khz)
-    sets = {k: synthetic.data_set(CONFIG, n, seed=i, psd_bins=bins) for i, (k, n) in enumerate([("train", 24), ("val", 10)])}
+    sets = {
+        k: synthetic.data_set(CONFIG, n, seed=i, psd_bins=bins) for i, (k, n) in enumerate([("train", 24), ("val", 10)])
+    }
     train_and_evaluate(CONFIG, sets, [0], workdir=ckpt)
     return ckpt
 
 
 def command(*args):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([sys.executable, "-m", "experiments.view", *map(str, args)], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "experiments.view", *map(str, args)],
+        env=env,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def test_view_save_writes_every_sensor_entity_at_every_step(smoke_trial, tmp_path):
@@ -91,7 +100,14 @@ def test_without_the_sdk_a_one_line_error_says_what_to_install(smoke_trial, tmp_
     path, _ = smoke_trial
     code = "import sys; sys.modules['rerun'] = None; sys.argv[0] = 'view'; from experiments import view; from fabricjax import cli; cli.run(view.main)"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    out = subprocess.run([sys.executable, "-c", code, str(path), f"--save={tmp_path / 'x.rrd'}"], env=env, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(path), f"--save={tmp_path / 'x.rrd'}"],
+        env=env,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert out.returncode == 2
     assert out.stderr.strip().splitlines() == ['error: viewing needs the Rerun SDK: pip install -e ".[viz]"']
 
@@ -100,8 +116,13 @@ def test_without_the_sdk_a_one_line_error_says_what_to_install(smoke_trial, tmp_
 def test_stream_view_save_logs_each_steps_sensors_and_result(smoke_trial, checkpoint, tmp_path):
     path, trial = smoke_trial
     doc = stream_command.run(
-        archive_path=path, checkpoint_dir=checkpoint, realtime=False, print_every=0, where=Location(results=tmp_path),
-        out=lambda line: None, view_save=tmp_path / "stream.rrd",
+        archive_path=path,
+        checkpoint_dir=checkpoint,
+        realtime=False,
+        print_every=0,
+        where=Location(results=tmp_path),
+        out=lambda line: None,
+        view_save=tmp_path / "stream.rrd",
     )
     read = read_rrd(tmp_path / "stream.rrd")
     assert set(read) == SENSORS | WAVES | PREDICTION | SEQUENTIAL
@@ -111,8 +132,23 @@ def test_stream_view_save_logs_each_steps_sensors_and_result(smoke_trial, checkp
 
 def test_record_view_save_logs_the_trial_as_it_is_recorded(checkpoint, tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    args = ["--fabric=12", "--trials=1", "--cycles=2", "--simulate", f"--out={tmp_path}", f"--view_save={tmp_path / 'rec.rrd'}", f"--checkpoint={checkpoint}"]
-    out = subprocess.run([sys.executable, "-m", "acquisition.record", *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    args = [
+        "--fabric=12",
+        "--trials=1",
+        "--cycles=2",
+        "--simulate",
+        f"--out={tmp_path}",
+        f"--view_save={tmp_path / 'rec.rrd'}",
+        f"--checkpoint={checkpoint}",
+    ]
+    out = subprocess.run(
+        [sys.executable, "-m", "acquisition.record", *args],
+        env=env,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert out.returncode == 0, out.stderr
     assert "connection ended" not in out.stderr + out.stdout  # the simulated Pi's end of stream is no news
     trial = archive.read_archive(next(tmp_path.glob("*.npz")), images=False)
@@ -122,17 +158,26 @@ def test_record_view_save_logs_the_trial_as_it_is_recorded(checkpoint, tmp_path)
     assert read["/prediction/confidence"]["steps"] == list(range(CONFIG.seq_len - 1, trial.n_steps))
 
 
-@pytest.mark.parametrize("module, args, save_flag", [
-    ("experiments.view", ["{trial}"], "--save"),
-    ("experiments.stream", ["--view", "--preset=smoke", "--workdir={tmp}"], "--view_save"),
-    ("acquisition.record", ["--view", "--simulate", "--fabric=12", "--trials=1", "--cycles=2", "--out={tmp}/rec"], "--view_save"),
-])
+@pytest.mark.parametrize(
+    "module, args, save_flag",
+    [
+        ("experiments.view", ["{trial}"], "--save"),
+        ("experiments.stream", ["--view", "--preset=smoke", "--workdir={tmp}"], "--view_save"),
+        (
+            "acquisition.record",
+            ["--view", "--simulate", "--fabric=12", "--trials=1", "--cycles=2", "--out={tmp}/rec"],
+            "--view_save",
+        ),
+    ],
+)
 def test_viewing_without_a_display_is_one_line_naming_the_save_flag(smoke_trial, tmp_path, module, args, save_flag):
     """No command waits for a viewer that cannot open: before any work, one line and status 2."""
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     env["PYTHONPATH"] = str(ROOT)
     args = [a.format(trial=smoke_trial[0], tmp=tmp_path) for a in args]
-    out = subprocess.run([sys.executable, "-m", module, *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-m", module, *args], env=env, cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
     assert out.returncode == 2, out.stderr[-2000:]
     [line] = out.stderr.strip().splitlines()
     assert line.startswith("error: the Rerun viewer needs a display") and f"{save_flag}=FILE.rrd" in line
@@ -145,6 +190,9 @@ def test_viewing_another_rigs_trial_is_one_line_saying_what_it_has(tmp_path):
 
     path = tmp_path / "rig.npz"
     archive.write_archive(path, rig_archive())
-    with pytest.raises(UserError, match=r"rig\.npz: meta\.streams: the viewer shows the hand's streams .*; this trial has microphones: vibration \(2200 Hz"):
+    with pytest.raises(
+        UserError,
+        match=r"rig\.npz: meta\.streams: the viewer shows the hand's streams .*; this trial has microphones: vibration \(2200 Hz",
+    ):
         view.view_archive(path, save=tmp_path / "rig.rrd")
     assert not (tmp_path / "rig.rrd").exists()

@@ -30,7 +30,9 @@ with lock.hold(lock.lock_file(sys.argv[1], sys.argv[2]), "the thing", "writing i
 
 def _holder(tmp_path, how="exclusive"):
     thing = tmp_path / "thing"
-    p = subprocess.Popen([sys.executable, "-c", HOLD, str(thing), str(tmp_path / "ws"), how], stdout=subprocess.PIPE, text=True, cwd=REPO)
+    p = subprocess.Popen(
+        [sys.executable, "-c", HOLD, str(thing), str(tmp_path / "ws"), how], stdout=subprocess.PIPE, text=True, cwd=REPO
+    )
     assert p.stdout.readline().strip() == "held"
     return p, lock.lock_file(thing, tmp_path / "ws")
 
@@ -75,7 +77,10 @@ def test_a_full_disk_while_writing_a_file_is_one_error_and_leaves_the_old_file(t
             f.write("x" * 5000)
             raise OSError(errno.ENOSPC, "No space left on device")
     message = str(e.value)
-    assert message.startswith(f"no space left on the disk for the dataset index ({target}): needs at least 5 kB,") and "\n" not in message
+    assert (
+        message.startswith(f"no space left on the disk for the dataset index ({target}): needs at least 5 kB,")
+        and "\n" not in message
+    )
     assert target.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["index.json"]
 
 
@@ -106,7 +111,9 @@ def test_a_checkpoint_that_would_not_fit_is_refused_before_orbax_writes(tmp_path
     state = {"params": np.zeros((1000,), np.float32)}
     mngr = checkpoint.manager(tmp_path / "ckpt")
     monkeypatch.setattr(disk, "free_bytes", lambda path: 1000)
-    with pytest.raises(disk.DiskFull, match=r"for the checkpoint of epoch 2 \(.*ckpt\): needs at least 4 kB, 1 kB free"):
+    with pytest.raises(
+        disk.DiskFull, match=r"for the checkpoint of epoch 2 \(.*ckpt\): needs at least 4 kB, 1 kB free"
+    ):
         checkpoint.save(mngr, 2, state, checkpoint.meta(Config.from_preset("smoke"), [0], {}))
     assert mngr.latest_step() is None and not list((tmp_path / "ckpt").iterdir())
 
@@ -122,7 +129,9 @@ cli.run(main, before=lambda: None)
 def test_a_full_disk_found_by_a_librarys_own_write_is_one_line():
     r = subprocess.run([sys.executable, "-c", FULL_IN_A_LIBRARY], capture_output=True, text=True, cwd=REPO)
     assert r.returncode == 2
-    assert r.stderr.strip().count("\n") == 0 and r.stderr.startswith("error: no space left on the disk for a file (/data/ws/checkpoints/x/4)")
+    assert r.stderr.strip().count("\n") == 0 and r.stderr.startswith(
+        "error: no space left on the disk for a file (/data/ws/checkpoints/x/4)"
+    )
 
 
 ORPHANS = """
@@ -141,7 +150,9 @@ if __name__ == "__main__":
 def test_no_pool_worker_outlives_its_killed_parent(tmp_path):
     script = tmp_path / "pool.py"
     script.write_text(textwrap.dedent(ORPHANS))
-    p = subprocess.Popen([sys.executable, str(script), str(tmp_path)], cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)})
+    p = subprocess.Popen(
+        [sys.executable, str(script), str(tmp_path)], cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)}
+    )
     deadline = time.time() + 60
     while not all((tmp_path / n).exists() and (tmp_path / n).read_text() for n in "ab"):
         assert time.time() < deadline, "the workers did not start"

@@ -28,7 +28,10 @@ QUICK = dict(epochs=2, train_steps=0, patience_steps=0, patience=0, width=16, n_
 
 def _outcome(doc):
     """Each row's per-seed accuracies and validation curves: what a reused model would repeat."""
-    return {r["name"]: (r["accuracy"], {tag: v for tag, v in r["epochs"].items() if tag != "epoch_wall_s"}) for r in doc["rows"]}
+    return {
+        r["name"]: (r["accuracy"], {tag: v for tag, v in r["epochs"].items() if tag != "epoch_wall_s"})
+        for r in doc["rows"]
+    }
 
 
 @pytest.mark.slow  # ~30 s: four small trainings
@@ -49,8 +52,19 @@ def test_two_datasets_through_one_workspace_each_give_their_fresh_workspace_resu
 
 
 def _command(workdir, results, epochs=2, seeds=1):
-    return [sys.executable, "-m", "experiments.ablation", "--preset=smoke", "--rows=internal", f"--seeds={seeds}",
-            f"--set=epochs={epochs}", "--set=width=16", "--set=n_layers=1", f"--workdir={workdir}", f"--results={results}"]
+    return [
+        sys.executable,
+        "-m",
+        "experiments.ablation",
+        "--preset=smoke",
+        "--rows=internal",
+        f"--seeds={seeds}",
+        f"--set=epochs={epochs}",
+        "--set=width=16",
+        "--set=n_layers=1",
+        f"--workdir={workdir}",
+        f"--results={results}",
+    ]
 
 
 def _accuracies(results):
@@ -59,7 +73,11 @@ def _accuracies(results):
 
 def _session_processes(sid: int) -> list[int]:
     out = subprocess.run(["ps", "-eo", "pid=,sid=,stat="], capture_output=True, text=True).stdout.split("\n")
-    return [int(p) for p, s, st in (line.split() for line in out if line.strip()) if int(s) == sid and not st.startswith("Z")]
+    return [
+        int(p)
+        for p, s, st in (line.split() for line in out if line.strip())
+        if int(s) == sid and not st.startswith("Z")
+    ]
 
 
 @pytest.mark.slow  # ~2 min: three smoke trainings of 6 epochs
@@ -71,7 +89,13 @@ def test_a_row_killed_mid_way_resumes_from_its_last_save_to_the_uninterrupted_bi
     subprocess.run(command(clean, tmp_path / "r_clean"), check=True, cwd=REPO, capture_output=True)
     killed.mkdir()
     shutil.copytree(clean / "datasets", killed / "datasets")
-    p = subprocess.Popen(command(killed, tmp_path / "r_killed"), cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    p = subprocess.Popen(
+        command(killed, tmp_path / "r_killed"),
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
     deadline = time.time() + 300
     while not list(killed.glob("checkpoints/ablation/internal-*/2/")):
         assert p.poll() is None and time.time() < deadline, "the run ended before its first save"
@@ -102,8 +126,16 @@ def test_two_runs_started_together_both_finish_clean_or_the_second_refuses_in_on
     outcomes = []
     for rep in range(20):
         shutil.rmtree(ws / "checkpoints", ignore_errors=True)
-        runs = [subprocess.Popen(_command(ws, tmp_path / f"r{rep}_{k}"), cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-                for k in range(2)]
+        runs = [
+            subprocess.Popen(
+                _command(ws, tmp_path / f"r{rep}_{k}"),
+                cwd=REPO,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            for k in range(2)
+        ]
         for k, p in enumerate(runs):
             try:
                 _, err = p.communicate(timeout=300)
@@ -195,6 +227,8 @@ def test_a_full_disk_at_every_write_is_one_line_and_a_rerun_with_space_gives_the
             subprocess.run(_command(mount / "ws", mount / "results"), check=True, cwd=REPO, capture_output=True)
             assert _accuracies(mount / "results") == clean
         print(sorted(seen))
-        assert len({what for what, _ in seen}) >= 4, seen  # the simulator's check and at least three write sites after it
+        assert len({what for what, _ in seen}) >= 4, (
+            seen
+        )  # the simulator's check and at least three write sites after it
     finally:
         subprocess.run(["umount", str(mount)], check=False)

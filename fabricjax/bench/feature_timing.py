@@ -36,7 +36,9 @@ def bench_welch(n_windows: int = 4096, repeats: int = 5, seed: int = 0) -> dict:
     """Seconds per call (best of `repeats`, after compilation) on n_windows x 2048 windows."""
     rng = np.random.default_rng(seed)
     full_scale = int(archive.FULL_SCALE)
-    words = (rng.integers(-full_scale, full_scale, size=(n_windows, archive.WINDOW)) << archive.SAMPLE_SHIFT).astype(np.int32)
+    words = (rng.integers(-full_scale, full_scale, size=(n_windows, archive.WINDOW)) << archive.SAMPLE_SHIFT).astype(
+        np.int32
+    )
     samples = np.asarray(welch.to_full_scale(words), np.float32)
     ours = jax.jit(lambda w: welch.welch_psd(w, bandwidth_khz=archive.NYQUIST_KHZ, log=False))
     theirs = jax.jit(lambda x: jax.scipy.signal.welch(x, **welch.SCIPY_KWARGS)[1])

@@ -37,7 +37,13 @@ def bench_flow(sizes=((308, 410), (60, 80)), batch: int = 8, repeats: int = 3, s
     threads = os.cpu_count() or 1
     before = cv2.getNumThreads()
     cv2.setNumThreads(1)
-    out = {"batch": batch, "jax_devices": n_dev, "device": str(devices[0].platform), "opencv_threads": threads, "sizes": {}}
+    out = {
+        "batch": batch,
+        "jax_devices": n_dev,
+        "device": str(devices[0].platform),
+        "opencv_threads": threads,
+        "sizes": {},
+    }
     try:
         for size in sizes:
             first, second = _pairs(tuple(size), batch, seed)
@@ -54,7 +60,10 @@ def bench_flow(sizes=((308, 410), (60, 80)), batch: int = 8, repeats: int = 3, s
             compile_s = time.perf_counter() - t
             jitted = best_of(lambda: farneback.farneback(a, b).block_until_ready(), repeats)
             out["sizes"][f"{size[0]}x{size[1]}"] = {
-                "opencv_1_thread_s": serial / batch, "opencv_all_cores_s": pooled / batch, "jax_s": jitted / batch, "jax_compile_s": compile_s,
+                "opencv_1_thread_s": serial / batch,
+                "opencv_all_cores_s": pooled / batch,
+                "jax_s": jitted / batch,
+                "jax_compile_s": compile_s,
             }
     finally:
         cv2.setNumThreads(before)

@@ -33,7 +33,9 @@ def _drop_from_page_cache(path: Path) -> None:
         os.close(fd)
 
 
-def bench_input(n_sequences: int = 96, seq_len: int = 200, batch: int = 32, n_seeds: int = 5, steps: int = 3, seed: int = 0) -> dict:
+def bench_input(
+    n_sequences: int = 96, seq_len: int = 200, batch: int = 32, n_seeds: int = 5, steps: int = 3, seed: int = 0
+) -> dict:
     """Per source ("memory"; "disk_cold": the file's pages dropped before each step; "disk_warm":
     the file again, as the page cache holds it): seconds per training step's minibatches (every
     seed's, `steps` steps) gathered and laid out as training reads them, MB/s and sequences/s."""
@@ -42,7 +44,9 @@ def bench_input(n_sequences: int = 96, seq_len: int = 200, batch: int = 32, n_se
     in_memory = host_arrays.empty(shape, np.float16)
     for i in range(n_sequences):
         in_memory[i] = rng.standard_normal(shape[1:], np.float32)
-    orders = [rng.integers(0, n_sequences, n_seeds * batch) for _ in range(steps)]  # every seed draws its own minibatch; their draws overlap, as in training
+    orders = [
+        rng.integers(0, n_sequences, n_seeds * batch) for _ in range(steps)
+    ]  # every seed draws its own minibatch; their draws overlap, as in training
     per_step = n_seeds * batch * in_memory[0].nbytes
 
     def timed(array, before=lambda: None) -> float:
@@ -54,13 +58,28 @@ def bench_input(n_sequences: int = 96, seq_len: int = 200, batch: int = 32, n_se
             total += time.perf_counter() - t
         return total / steps
 
-    out = {"sequence_mb": in_memory[0].nbytes / 1e6, "step_mb": per_step / 1e6, "batch": batch, "n_seeds": n_seeds, "file_mb": in_memory.nbytes / 1e6, "sources": {}}
+    out = {
+        "sequence_mb": in_memory[0].nbytes / 1e6,
+        "step_mb": per_step / 1e6,
+        "batch": batch,
+        "n_seeds": n_seeds,
+        "file_mb": in_memory.nbytes / 1e6,
+        "sources": {},
+    }
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "flow.npy"
         np.save(path, in_memory)
         on_disk = np.load(path, mmap_mode="r")
-        seconds = {"memory": timed(in_memory), "disk_cold": timed(on_disk, lambda: _drop_from_page_cache(path)), "disk_warm": timed(on_disk)}
+        seconds = {
+            "memory": timed(in_memory),
+            "disk_cold": timed(on_disk, lambda: _drop_from_page_cache(path)),
+            "disk_warm": timed(on_disk),
+        }
         del on_disk
     for source, s in seconds.items():
-        out["sources"][source] = {"s_per_step": s, "mb_per_s": per_step / 1e6 / s, "sequences_per_s": n_seeds * batch / s}
+        out["sources"][source] = {
+            "s_per_step": s,
+            "mb_per_s": per_step / 1e6 / s,
+            "sequences_per_s": n_seeds * batch / s,
+        }
     return out

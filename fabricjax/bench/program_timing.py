@@ -70,8 +70,14 @@ def matmul_peak(n: int = MATMUL_N, repeats: int = 5, dtype: str = "float32") -> 
     devices = jax.devices()
     n = -(-n // len(devices)) * len(devices)  # rows divide evenly over the devices
     mesh = jax.sharding.Mesh(np.asarray(devices), ("rows",))
-    a = jax.device_put(jax.random.normal(jax.random.PRNGKey(0), (n, n), dtype), jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("rows")))
-    b = jax.device_put(jax.random.normal(jax.random.PRNGKey(1), (n, n), dtype), jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec()))
+    a = jax.device_put(
+        jax.random.normal(jax.random.PRNGKey(0), (n, n), dtype),
+        jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec("rows")),
+    )
+    b = jax.device_put(
+        jax.random.normal(jax.random.PRNGKey(1), (n, n), dtype),
+        jax.sharding.NamedSharding(mesh, jax.sharding.PartitionSpec()),
+    )
     matmul = jax.jit(lambda x, y: jnp.dot(x, y, preferred_element_type=jnp.float32))
     flops = xla_flops(matmul, a, b)
     jax.block_until_ready(matmul(a, b))  # compile and warm up
@@ -82,17 +88,36 @@ def matmul_peak(n: int = MATMUL_N, repeats: int = 5, dtype: str = "float32") -> 
         return time.perf_counter() - t
 
     seconds = min(once() for _ in range(repeats))
-    return {"n": n, "devices": len(devices), "dtype": dtype, "flops": flops, "seconds": seconds, "gflop_per_s": flops / seconds / 1e9}
+    return {
+        "n": n,
+        "devices": len(devices),
+        "dtype": dtype,
+        "flops": flops,
+        "seconds": seconds,
+        "gflop_per_s": flops / seconds / 1e9,
+    }
 
 
 def utilisation(flops: float, seconds: float, peaks: dict[str, float]) -> dict[str, Any]:
     """FLOPs of one step or call taking `seconds`: achieved GFLOP/s and its fraction of each matmul
     peak (`peaks`: operand dtype -> GFLOP/s, `matmul_peak`)."""
     achieved = flops / seconds / 1e9
-    return {"flops_per_step": flops, "gflop_per_s": achieved, "fraction_of_peak": {k: achieved / v for k, v in peaks.items()}}
+    return {
+        "flops_per_step": flops,
+        "gflop_per_s": achieved,
+        "fraction_of_peak": {k: achieved / v for k, v in peaks.items()},
+    }
 
 
-def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_bins: int, steps: int, image_hw: tuple[int, int] | None = None):
+def _epoch_program(
+    config: Config,
+    n_seeds: int,
+    batch: int,
+    seq_len: int,
+    psd_bins: int,
+    steps: int,
+    image_hw: tuple[int, int] | None = None,
+):
     """The jitted, vmapped `Trainer.train_epoch` and its arguments (carry, keys, data), placed as
     training places them (`sharding.training_mesh`)."""
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
@@ -103,13 +128,22 @@ def _epoch_program(config: Config, n_seeds: int, batch: int, seq_len: int, psd_b
     trainer = make_trainer(cfg, feature_shapes(chosen["inputs"]), mesh=mesh, n_train=batch * steps)
     train = jax.device_put({**chosen, "inputs": training_layout(chosen["inputs"])}, sharding.replicated(mesh))
     per_seed = sharding.replicated(mesh)
-    states = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)(jax.device_put(seed_keys(range(n_seeds)), per_seed))
-    epoch = jax.jit(sharding.vmap_seeds(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0)
+    states = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)(
+        jax.device_put(seed_keys(range(n_seeds)), per_seed)
+    )
+    epoch = jax.jit(
+        sharding.vmap_seeds(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0
+    )
     return epoch, (states["params"], states["opt_state"]), states["key"], train
 
 
 def train_step_runner(
-    config: Config, n_seeds: int, batch: int = 32, seq_len: int = 200, psd_bins: int = 320, steps: int = STEPS_PER_EPOCH,
+    config: Config,
+    n_seeds: int,
+    batch: int = 32,
+    seq_len: int = 200,
+    psd_bins: int = 320,
+    steps: int = STEPS_PER_EPOCH,
     image_hw: tuple[int, int] | None = None,
 ) -> Callable[[], float]:
     """A compiled, warmed-up callable that runs one epoch of `steps` vmapped training steps (the real
@@ -135,7 +169,13 @@ def train_step_runner(
 
 
 def bench_train_step(
-    config: Config, n_seeds: int, batch: int = 32, seq_len: int = 200, psd_bins: int = 320, steps: int = STEPS_PER_EPOCH, repeats: int = 3
+    config: Config,
+    n_seeds: int,
+    batch: int = 32,
+    seq_len: int = 200,
+    psd_bins: int = 320,
+    steps: int = STEPS_PER_EPOCH,
+    repeats: int = 3,
 ) -> dict[str, float]:
     """Best-of-`repeats` time of `steps` vmapped training steps: seconds per step and sequences/s per seed."""
     run = train_step_runner(config, n_seeds, batch=batch, seq_len=seq_len, psd_bins=psd_bins, steps=steps)
@@ -198,8 +238,14 @@ CAMERA_TARGET = 1.5  # the target: a camera row's training step costs at most 1.
 
 
 def compare_rows(
-    rows: dict[str, Config], *, reference: str, n_seeds: int = 5, psd_bins: int = 320, steps: int = STEPS_PER_EPOCH,
-    rounds: int = 5, pause_s: float = 1.0,
+    rows: dict[str, Config],
+    *,
+    reference: str,
+    n_seeds: int = 5,
+    psd_bins: int = 320,
+    steps: int = STEPS_PER_EPOCH,
+    rounds: int = 5,
+    pause_s: float = 1.0,
 ) -> dict[str, Any]:
     """Training steps of study rows (`rows`: name -> config, each at its own batch size, N and
     camera frame size `image_size`) timed in alternating rounds in this process (`_interleave`), so
@@ -209,17 +255,34 @@ def compare_rows(
     runs, built = {}, {}
     for name, cfg in rows.items():
         make = functools.partial(
-            train_step_runner, cfg, n_seeds, batch=cfg.batch_size, seq_len=cfg.seq_len, psd_bins=psd_bins, steps=steps, image_hw=cfg.image_size
+            train_step_runner,
+            cfg,
+            n_seeds,
+            batch=cfg.batch_size,
+            seq_len=cfg.seq_len,
+            psd_bins=psd_bins,
+            steps=steps,
+            image_hw=cfg.image_size,
         )
         runs[name], built[name] = _build(make, tolerate=False)
     times = {k: np.asarray(v) for k, v in _interleave(runs, rounds, pause_s).items()}
     ref = times[reference]
     return {
-        "n_seeds": n_seeds, "steps_per_timing": steps, "rounds": rounds, "reference": reference,
+        "n_seeds": n_seeds,
+        "steps_per_timing": steps,
+        "rounds": rounds,
+        "reference": reference,
         "rows": {
             name: {
-                **built[name], "s_per_step": float(np.median(t)), "min_s": float(t.min()), "rounds": t.tolist(),
-                **({} if name == reference else {"ratio": float(np.median(t / ref)), "ratio_of_medians": float(np.median(t) / np.median(ref))}),
+                **built[name],
+                "s_per_step": float(np.median(t)),
+                "min_s": float(t.min()),
+                "rounds": t.tolist(),
+                **(
+                    {}
+                    if name == reference
+                    else {"ratio": float(np.median(t / ref)), "ratio_of_medians": float(np.median(t) / np.median(ref))}
+                ),
             }
             for name, t in times.items()
         },
@@ -234,12 +297,16 @@ def _variant(compile_mode: str | None, autocast: bool = False, ensemble: str | N
     """A twin variant's name in the results: "eager" or "compiled:MODE", "+bf16 autocast" under
     `torch.autocast` to bfloat16, then how several seeds train (", in sequence" or ", vmapped":
     a key of `torch_twin.ENSEMBLES`; None for one seed, a lone model)."""
-    return ("eager" if compile_mode is None else f"compiled:{compile_mode}") + (" +bf16 autocast" if autocast else "") + (
-        f", {ensemble}" if ensemble else ""
+    return (
+        ("eager" if compile_mode is None else f"compiled:{compile_mode}")
+        + (" +bf16 autocast" if autocast else "")
+        + (f", {ensemble}" if ensemble else "")
     )
 
 
-def _build(make: Callable[[], Callable[[], float]], tolerate: bool) -> tuple[Callable[[], float] | None, dict[str, Any]]:
+def _build(
+    make: Callable[[], Callable[[], float]], tolerate: bool
+) -> tuple[Callable[[], float] | None, dict[str, Any]]:
     """`make()` (a runner, compiled and warmed up as it is built) and its record: the seconds to
     build it and run its first calls, which hold the whole compile time, kept apart from the step
     times. With `tolerate` a failure is recorded as {"error": ...} instead of raised: a
@@ -318,18 +385,32 @@ def compare_with_torch(
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
     ours = {d: dataclasses.replace(cfg, compute_dtype=d) for d in dtypes}
     mine = {_ours(d) for d in dtypes}
-    variants = [(mode, autocast) for mode in (None, *(twin.COMPILE_MODES if compile_modes is None else compile_modes)) for autocast in (False, True)]
+    variants = [
+        (mode, autocast)
+        for mode in (None, *(twin.COMPILE_MODES if compile_modes is None else compile_modes))
+        for autocast in (False, True)
+    ]
     training: dict[str, Any] = {}
     per_round: dict[int, dict[str, np.ndarray]] = {}
     setup: dict[int, dict[str, dict]] = {}
     for n in seeds:  # one seed count at a time, so only its programs hold memory
         runs, built = {}, {}
         for d, c in ours.items():
-            runs[_ours(d)], built[_ours(d)] = _build(lambda c=c: train_step_runner(c, n, batch=batch, seq_len=seq_len, psd_bins=psd_bins, steps=steps), tolerate=False)
+            runs[_ours(d)], built[_ours(d)] = _build(
+                lambda c=c: train_step_runner(c, n, batch=batch, seq_len=seq_len, psd_bins=psd_bins, steps=steps),
+                tolerate=False,
+            )
         for mode, autocast in variants:
             for ensemble in twin.ENSEMBLES if n > 1 else (None,):
                 make = functools.partial(
-                    twin.train_step_runner, cfg, n_seeds=n, batch=batch, n_bins=psd_bins, steps=steps, compile_mode=mode, autocast=autocast,
+                    twin.train_step_runner,
+                    cfg,
+                    n_seeds=n,
+                    batch=batch,
+                    n_bins=psd_bins,
+                    steps=steps,
+                    compile_mode=mode,
+                    autocast=autocast,
                     ensemble=ensemble or twin.IN_SEQUENCE,
                 )
                 name = _variant(mode, autocast, ensemble)
@@ -346,11 +427,18 @@ def compare_with_torch(
         training[f"{n}_seed"] = {
             "ours": {
                 d: {
-                    "s_per_step": float(np.median(t[_ours(d)])), "min_s": float(t[_ours(d)].min()),
-                    "ratio": float(np.median(t[_ours(d)] / f)), "ratio_of_medians": float(np.median(t[_ours(d)]) / np.median(f)),
-                    "ratio_of_mins": float(t[_ours(d)].min() / f.min()), "build_and_warmup_s": built[_ours(d)]["build_and_warmup_s"],
+                    "s_per_step": float(np.median(t[_ours(d)])),
+                    "min_s": float(t[_ours(d)].min()),
+                    "ratio": float(np.median(t[_ours(d)] / f)),
+                    "ratio_of_medians": float(np.median(t[_ours(d)]) / np.median(f)),
+                    "ratio_of_mins": float(t[_ours(d)].min() / f.min()),
+                    "build_and_warmup_s": built[_ours(d)]["build_and_warmup_s"],
                     "rounds": t[_ours(d)].tolist(),
-                    **({"per_seed_vs_1_seed": float(np.median(t[_ours(d)] / (n * per_round[1][_ours(d)])))} if n > 1 and 1 in seeds else {}),
+                    **(
+                        {"per_seed_vs_1_seed": float(np.median(t[_ours(d)] / (n * per_round[1][_ours(d)])))}
+                        if n > 1 and 1 in seeds
+                        else {}
+                    ),
                 }
                 for d in dtypes
             },
@@ -359,34 +447,60 @@ def compare_with_torch(
             "torch_min_s": float(f.min()),
             "torch_rounds": f.tolist(),
             "torch_variants": {
-                v: {**b, **({"s_per_step": float(np.median(t[v])), "min_s": float(t[v].min()), "rounds": t[v].tolist(),
-                             "ratio": {d: float(np.median(t[_ours(d)] / t[v])) for d in dtypes}} if v in t else {})}
-                for v, b in built.items() if v not in mine
+                v: {
+                    **b,
+                    **(
+                        {
+                            "s_per_step": float(np.median(t[v])),
+                            "min_s": float(t[v].min()),
+                            "rounds": t[v].tolist(),
+                            "ratio": {d: float(np.median(t[_ours(d)] / t[v])) for d in dtypes},
+                        }
+                        if v in t
+                        else {}
+                    ),
+                }
+                for v, b in built.items()
+                if v not in mine
             },
         }
     runs, built = {}, {}
     for d, c in ours.items():
-        runs[_ours(d)], built[_ours(d)] = _build(lambda c=c: inference_runner(c, seq_len=seq_len, psd_bins=psd_bins), tolerate=False)
+        runs[_ours(d)], built[_ours(d)] = _build(
+            lambda c=c: inference_runner(c, seq_len=seq_len, psd_bins=psd_bins), tolerate=False
+        )
     for mode, autocast in variants:
         make = functools.partial(twin.inference_runner, cfg, n_bins=psd_bins, compile_mode=mode, autocast=autocast)
         run, built[_variant(mode, autocast)] = _build(make, tolerate=mode is not None or autocast)
         if run is not None:
             runs[_variant(mode, autocast)] = run
     blocks = {side: (lambda run=run: [run() for _ in range(inference_calls)]) for side, run in runs.items()}
-    lat = {side: [s for block in v for s in block] for side, v in _interleave(blocks, inference_rounds, pause_s).items()}
+    lat = {
+        side: [s for block in v for s in block] for side, v in _interleave(blocks, inference_rounds, pause_s).items()
+    }
     p = {k: stats.percentiles_ms(v) for k, v in lat.items()}
     fastest = min((v for v in p if v not in mine), key=lambda v: p[v]["p50_ms"])
     inference = {
         "ours": {
-            d: {**p[_ours(d)], "ratio_p50": p[_ours(d)]["p50_ms"] / p[fastest]["p50_ms"], "build_and_warmup_s": built[_ours(d)]["build_and_warmup_s"]}
+            d: {
+                **p[_ours(d)],
+                "ratio_p50": p[_ours(d)]["p50_ms"] / p[fastest]["p50_ms"],
+                "build_and_warmup_s": built[_ours(d)]["build_and_warmup_s"],
+            }
             for d in dtypes
         },
         "torch_p50_ms": p[fastest]["p50_ms"],
         "torch_p99_ms": p[fastest]["p99_ms"],
         "torch_variant": fastest,
         "torch_variants": {
-            v: {**b, **({**p[v], "ratio_p50": {d: p[_ours(d)]["p50_ms"] / p[v]["p50_ms"] for d in dtypes}} if v in p else {})}
-            for v, b in built.items() if v not in mine
+            v: {
+                **b,
+                **(
+                    {**p[v], "ratio_p50": {d: p[_ours(d)]["p50_ms"] / p[v]["p50_ms"] for d in dtypes}} if v in p else {}
+                ),
+            }
+            for v, b in built.items()
+            if v not in mine
         },
     }
     return {

@@ -9,7 +9,9 @@ from fabricjax.sim.scene import Scene
 from fabricjax.sim.trial import simulate
 
 
-def bench_throughput(seconds: float = 30.0, fabrics: tuple[int, ...] = (0, 6, 12), streams=("audio", "proprio")) -> dict:
+def bench_throughput(
+    seconds: float = 30.0, fabrics: tuple[int, ...] = (0, 6, 12), streams=("audio", "proprio")
+) -> dict:
     """Simulate one trial of ~`seconds` per fabric (after a short warm-up) in this process."""
     cycles = max(1, round(seconds * cal.CYCLE_HZ * 0.9))
     for fid in fabrics:

@@ -62,7 +62,19 @@ from fabricjax.sim import calibration as sim_calibration
 from fabricjax.studies.common import documents
 from fabricjax.workspace import Location
 
-BENCHMARKS = ("simulator", "welch", "extraction", "flow", "input", "training", "camera", "inference", "streaming", "acquisition", "import")
+BENCHMARKS = (
+    "simulator",
+    "welch",
+    "extraction",
+    "flow",
+    "input",
+    "training",
+    "camera",
+    "inference",
+    "streaming",
+    "acquisition",
+    "import",
+)
 PASSED_IN = ("acquisition", "import")  # benchmarks of the acquisition package, which this library does not import
 
 
@@ -79,8 +91,15 @@ class Workload:
 
     def describe(self) -> dict:
         c = self.model
-        return {"batch": self.batch, "seq_len": c.seq_len, "psd_bins": self.bins, "modalities": list(c.modalities),
-                "width": c.width, "n_layers": c.n_layers, "backbone": c.backbone}
+        return {
+            "batch": self.batch,
+            "seq_len": c.seq_len,
+            "psd_bins": self.bins,
+            "modalities": list(c.modalities),
+            "width": c.width,
+            "n_layers": c.n_layers,
+            "backbone": c.backbone,
+        }
 
 
 # --quick's workload: a small model on short sequences, so a smoke run of the whole suite (the
@@ -88,7 +107,14 @@ class Workload:
 # check, not a measurement. The default stays the full measurement.
 QUICK_WORKLOAD = Workload(
     dataclasses.replace(
-        program_timing.COMPARE_CONFIG, width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16), seq_len=24,
+        program_timing.COMPARE_CONFIG,
+        width=16,
+        n_heads=4,
+        n_layers=1,
+        ffn=32,
+        audio_hidden=(32, 16),
+        proprio_hidden=(16, 16),
+        seq_len=24,
     ),
     batch=8,
     bins=24,
@@ -105,7 +131,7 @@ def _torch_twin():
         torch_twin.require()
         return torch_twin, None
     except ImportError as e:
-        return None, f"PyTorch comparison skipped: {e} (install with pip install -e \".[compare]\")"
+        return None, f'PyTorch comparison skipped: {e} (install with pip install -e ".[compare]")'
 
 
 def bench_simulator(quick: bool) -> dict:
@@ -140,8 +166,16 @@ def _interleaved(quick: bool, w: Workload) -> dict:
     """Ours and the twin's training steps and inference timed in alternating rounds, so machine
     load hits both alike (`program_timing.compare_with_torch`)."""
     return program_timing.compare_with_torch(
-        w.model, seeds=w.seeds, batch=w.batch, seq_len=w.model.seq_len, psd_bins=w.bins, steps=2 if quick else program_timing.STEPS_PER_EPOCH,
-        rounds=2 if quick else 5, pause_s=0.05 if quick else 1.0, inference_rounds=2 if quick else 10, inference_calls=5 if quick else 20,
+        w.model,
+        seeds=w.seeds,
+        batch=w.batch,
+        seq_len=w.model.seq_len,
+        psd_bins=w.bins,
+        steps=2 if quick else program_timing.STEPS_PER_EPOCH,
+        rounds=2 if quick else 5,
+        pause_s=0.05 if quick else 1.0,
+        inference_rounds=2 if quick else 10,
+        inference_calls=5 if quick else 20,
     )
 
 
@@ -156,35 +190,64 @@ def bench_training(quick: bool, w: Workload, compared: dict | None, peaks: dict)
             model = dataclasses.replace(w.model, compute_dtype=d)
             if compared is None:
                 ours[d] = program_timing.bench_train_step(
-                    model, n, batch=w.batch, seq_len=model.seq_len, psd_bins=w.bins, steps=2 if quick else program_timing.STEPS_PER_EPOCH, repeats=2 if quick else 3
+                    model,
+                    n,
+                    batch=w.batch,
+                    seq_len=model.seq_len,
+                    psd_bins=w.bins,
+                    steps=2 if quick else program_timing.STEPS_PER_EPOCH,
+                    repeats=2 if quick else 3,
                 )
             else:
                 c = compared["training"][f"{n}_seed"]["ours"][d]
-                ours[d] = {"n_seeds": n, "seconds_per_step": c["s_per_step"], "sequences_per_s_per_seed": w.batch / c["s_per_step"], "ratio": c["ratio"]}
+                ours[d] = {
+                    "n_seeds": n,
+                    "seconds_per_step": c["s_per_step"],
+                    "sequences_per_s_per_seed": w.batch / c["s_per_step"],
+                    "ratio": c["ratio"],
+                }
             flops = program_timing.train_step_flops(model, n, batch=w.batch, seq_len=model.seq_len, psd_bins=w.bins)
             ours[d]["xla"] = program_timing.utilisation(flops, ours[d]["seconds_per_step"], gflops)
         if compared is not None:
             c = compared["training"][f"{n}_seed"]
             out[f"torch_{n}_seed"] = {
-                "n_seeds": n, "variant": c["torch_variant"], "seconds_per_step": c["torch_s_per_step"],
+                "n_seeds": n,
+                "variant": c["torch_variant"],
+                "seconds_per_step": c["torch_s_per_step"],
                 "sequences_per_s_per_seed": w.batch * n / c["torch_s_per_step"],
             }
     for n in w.seeds:
         if n > 1:  # our n vmapped seeds against n times one seed of ours (1.0: vmapping is free)
             out[f"ours_{n}_over_1_per_seed"] = {
-                d: out[f"ours_{n}_seed"][d]["seconds_per_step"] / (n * out["ours_1_seed"][d]["seconds_per_step"]) for d in program_timing.DTYPES
+                d: out[f"ours_{n}_seed"][d]["seconds_per_step"] / (n * out["ours_1_seed"][d]["seconds_per_step"])
+                for d in program_timing.DTYPES
             }
     # How training splits each minibatch's samples over the devices: {"batch": devices}.
     out["mesh"] = dict(sharding.training_mesh(w.batch).shape)
     if compared is not None:
-        out["interleaved"] = {k: compared[k] for k in ("rounds", "steps_per_timing", "torch_threads", "torch_adamw", "training")}
+        out["interleaved"] = {
+            k: compared[k] for k in ("rounds", "steps_per_timing", "torch_threads", "torch_adamw", "training")
+        }
     return out
 
 
 def camera_rows(quick: bool) -> dict[str, Config]:
     """The ablation's audio and camera rows on the default preset (--quick: a small model on short
     sequences of small frames), and the camera row without its rotation (the rotation's share)."""
-    shrink = dict(seq_len=12, width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), batch_size=8, image_size=(12, 16)) if quick else {}
+    shrink = (
+        dict(
+            seq_len=12,
+            width=16,
+            n_heads=4,
+            n_layers=1,
+            ffn=32,
+            audio_hidden=(32, 16),
+            batch_size=8,
+            image_size=(12, 16),
+        )
+        if quick
+        else {}
+    )
     audio = Config.from_preset("default", modalities=("internal",), **shrink)
     camera = Config.from_preset("default", modalities=("image",), **shrink)
     return {"audio": audio, "camera": camera, "camera_unrotated": dataclasses.replace(camera, augment_rotation=False)}
@@ -196,14 +259,29 @@ def bench_camera(quick: bool) -> dict:
     rows = camera_rows(quick)
     bins = 24 if quick else welch.n_bins(rows["audio"].bandwidth_khz)
     out = program_timing.compare_rows(
-        rows, reference="audio", psd_bins=bins, steps=2 if quick else program_timing.STEPS_PER_EPOCH, rounds=2 if quick else 5, pause_s=0.05 if quick else 1.0,
+        rows,
+        reference="audio",
+        psd_bins=bins,
+        steps=2 if quick else program_timing.STEPS_PER_EPOCH,
+        rounds=2 if quick else 5,
+        pause_s=0.05 if quick else 1.0,
     )
     c = rows["camera"]
     ratio = out["rows"]["camera"]["ratio"]
     return {
-        **out, "workload": {"preset": c.preset, "batch": c.batch_size, "seq_len": c.seq_len, "image_size": list(c.image_size), "psd_bins": bins,
-                            "cnn_features": list(c.cnn_features), "width": c.width, "n_layers": c.n_layers},
-        "target_ratio": program_timing.CAMERA_TARGET, "meets_target": ratio <= program_timing.CAMERA_TARGET,
+        **out,
+        "workload": {
+            "preset": c.preset,
+            "batch": c.batch_size,
+            "seq_len": c.seq_len,
+            "image_size": list(c.image_size),
+            "psd_bins": bins,
+            "cnn_features": list(c.cnn_features),
+            "width": c.width,
+            "n_layers": c.n_layers,
+        },
+        "target_ratio": program_timing.CAMERA_TARGET,
+        "meets_target": ratio <= program_timing.CAMERA_TARGET,
     }
 
 
@@ -214,7 +292,9 @@ def bench_inference(quick: bool, w: Workload, compared: dict | None, peaks: dict
     for d in program_timing.DTYPES:
         model = dataclasses.replace(w.model, compute_dtype=d)
         if compared is None:
-            out["ours"][d] = program_timing.bench_inference(model, seq_len=model.seq_len, psd_bins=w.bins, repeats=30 if quick else 200)
+            out["ours"][d] = program_timing.bench_inference(
+                model, seq_len=model.seq_len, psd_bins=w.bins, repeats=30 if quick else 200
+            )
         else:
             c = compared["inference"]["ours"][d]
             out["ours"][d] = {"p50_ms": c["p50_ms"], "p99_ms": c["p99_ms"], "ratio_p50": c["ratio_p50"]}
@@ -225,7 +305,10 @@ def bench_inference(quick: bool, w: Workload, compared: dict | None, peaks: dict
     if compared is not None:
         c = compared["inference"]
         out["torch"] = {"variant": c["torch_variant"], "p50_ms": c["torch_p50_ms"], "p99_ms": c["torch_p99_ms"]}
-        out["interleaved"] = {"torch_variants": c["torch_variants"], "build_and_warmup_s": {d: v["build_and_warmup_s"] for d, v in c["ours"].items()}}
+        out["interleaved"] = {
+            "torch_variants": c["torch_variants"],
+            "build_and_warmup_s": {d: v["build_and_warmup_s"] for d, v in c["ours"].items()},
+        }
     return out
 
 
@@ -236,12 +319,19 @@ def bench_streaming(quick: bool, w: Workload) -> dict:
     n = w.model.seq_len
     cycles = max(2, round((n + (50 if quick else 250)) / (50 / sim_calibration.CYCLE_HZ)))  # ~N + 1 or 5 s of rubbing
     trial = sim.simulate(sim.Scene(12, cycles=cycles, streams=("audio", "proprio")))
-    shapes = {m: (archive.N_PROPRIO,) if m == "proprio" else (welch.n_bins(w.model.bandwidth_khz),) for m in w.model.modalities}
+    shapes = {
+        m: (archive.N_PROPRIO,) if m == "proprio" else (welch.n_bins(w.model.bandwidth_khz),)
+        for m in w.model.modalities
+    }
     trainer = train.make_trainer(w.model, shapes)
     params = jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"]
     out = live.replay(live.Streamer(trainer.graphdef, params, w.model), trial, realtime=False)
     keep = ("steps", "window_steps", "decided_steps", "latency_p50_ms", "latency_p99_ms", "latency_max_ms")
-    return {k: out[k] for k in keep} | {"workload": w.describe(), "target_p99_ms": 20.0, "meets_target": out["latency_p99_ms"] <= 20.0}
+    return {k: out[k] for k in keep} | {
+        "workload": w.describe(),
+        "target_p99_ms": 20.0,
+        "meets_target": out["latency_p99_ms"] <= 20.0,
+    }
 
 
 def run(
@@ -267,7 +357,9 @@ def run(
         raise ValueError(f"unknown benchmarks {unknown}; choose from {BENCHMARKS}")
     for b in PASSED_IN:
         if b in chosen and given[b] is None:
-            raise ValueError(f"the {b} benchmark needs its function: run(..., acquisition=bench_acquisition, importer=bench_import)")
+            raise ValueError(
+                f"the {b} benchmark needs its function: run(..., acquisition=bench_acquisition, importer=bench_import)"
+            )
     twin, note = (None, None)
     if {"training", "inference"} & set(chosen):
         twin, note = _torch_twin()
@@ -278,7 +370,9 @@ def run(
 
     def matmul_peak():  # measured once per operand dtype, in this process, for the training and the inference entry
         if not peak:
-            peak.update({d: program_timing.matmul_peak(repeats=2 if quick else 5, dtype=d) for d in program_timing.DTYPES})
+            peak.update(
+                {d: program_timing.matmul_peak(repeats=2 if quick else 5, dtype=d) for d in program_timing.DTYPES}
+            )
         return peak
 
     def comparison():  # one interleaved run serves both the training and the inference entry
@@ -332,90 +426,146 @@ def markdown(doc: dict[str, Any]) -> str:
             split = ", ".join(f"{k} over {v} devices" for k, v in mesh.items() if v > 1)
             secs = theirs.get("seconds_per_step")
             for dtype, ours in t[f"ours_{n}_seed"].items():
-                what = f"training step, {n} seed" + (("s vmapped" if n > 1 else "") + (f", {split}" if split else "")) + (
-                    f", {dtype} (batch {t['workload']['batch']}, N={t['workload']['seq_len']})"
+                what = (
+                    f"training step, {n} seed"
+                    + (("s vmapped" if n > 1 else "") + (f", {split}" if split else ""))
+                    + (f", {dtype} (batch {t['workload']['batch']}, N={t['workload']['seq_len']})")
                 )
-                rows.append([
-                    what, f"{ours['seconds_per_step'] * 1e3:.0f} ms",
-                    f"{theirs['variant']} {secs * 1e3:.0f} ms" if secs else "n/a",
-                    _ratio(ours.get("ratio")), *_machine(ours.get("xla")),
-                ])
-            for name, v in t.get("interleaved", {}).get("training", {}).get(f"{n}_seed", {}).get("torch_variants", {}).items():
-                variants.append([f"training, {n} seed" + ("s" if n > 1 else ""), name, _ms(v.get("s_per_step") and v["s_per_step"] * 1e3, 0), _ratios(v.get("ratio")), _built(v)])
+                rows.append(
+                    [
+                        what,
+                        f"{ours['seconds_per_step'] * 1e3:.0f} ms",
+                        f"{theirs['variant']} {secs * 1e3:.0f} ms" if secs else "n/a",
+                        _ratio(ours.get("ratio")),
+                        *_machine(ours.get("xla")),
+                    ]
+                )
+            for name, v in (
+                t.get("interleaved", {}).get("training", {}).get(f"{n}_seed", {}).get("torch_variants", {}).items()
+            ):
+                variants.append(
+                    [
+                        f"training, {n} seed" + ("s" if n > 1 else ""),
+                        name,
+                        _ms(v.get("s_per_step") and v["s_per_step"] * 1e3, 0),
+                        _ratios(v.get("ratio")),
+                        _built(v),
+                    ]
+                )
     if "camera" in b:
         c = b["camera"]
         r, w = c["rows"], c["workload"]
-        rows.append([
-            f"camera row's training step, {c['n_seeds']} seeds vmapped ({w['preset']} preset: batch {w['batch']}, N={w['seq_len']}, "
-            f"{w['image_size'][0]}x{w['image_size'][1]} frames; without rotation {r['camera_unrotated']['s_per_step'] * 1e3:.0f} ms)",
-            f"{r['camera']['s_per_step'] * 1e3:.0f} ms", f"audio row {r['audio']['s_per_step'] * 1e3:.0f} ms; target ratio <= {c['target_ratio']:g}",
-            _ratio(r["camera"]["ratio"]),
-        ])
+        rows.append(
+            [
+                f"camera row's training step, {c['n_seeds']} seeds vmapped ({w['preset']} preset: batch {w['batch']}, N={w['seq_len']}, "
+                f"{w['image_size'][0]}x{w['image_size'][1]} frames; without rotation {r['camera_unrotated']['s_per_step'] * 1e3:.0f} ms)",
+                f"{r['camera']['s_per_step'] * 1e3:.0f} ms",
+                f"audio row {r['audio']['s_per_step'] * 1e3:.0f} ms; target ratio <= {c['target_ratio']:g}",
+                _ratio(r["camera"]["ratio"]),
+            ]
+        )
     if "inference" in b:
         i = b["inference"]
         theirs = i.get("torch")
         for dtype, ours in i["ours"].items():
-            rows.append([
-                f"inference, one {i['workload']['seq_len']}-step sequence, {dtype}, p50 / p99",
-                f"{ours['p50_ms']:.2f} / {ours['p99_ms']:.2f} ms",
-                f"{theirs['variant']} {theirs['p50_ms']:.2f} / {theirs['p99_ms']:.2f} ms" if theirs else "n/a",
-                _ratio(ours.get("ratio_p50")), *_machine(ours.get("xla")),
-            ])
+            rows.append(
+                [
+                    f"inference, one {i['workload']['seq_len']}-step sequence, {dtype}, p50 / p99",
+                    f"{ours['p50_ms']:.2f} / {ours['p99_ms']:.2f} ms",
+                    f"{theirs['variant']} {theirs['p50_ms']:.2f} / {theirs['p99_ms']:.2f} ms" if theirs else "n/a",
+                    _ratio(ours.get("ratio_p50")),
+                    *_machine(ours.get("xla")),
+                ]
+            )
         for name, v in i.get("interleaved", {}).get("torch_variants", {}).items():
             timing = f"{v['p50_ms']:.2f} / {v['p99_ms']:.2f} ms" if "p50_ms" in v else "n/a"
             variants.append(["inference, p50 / p99", name, timing, _ratios(v.get("ratio_p50")), _built(v)])
     if "streaming" in b:
         s = b["streaming"]
-        rows.append([f"streaming update per step (N={s['workload']['seq_len']}), p50 / p99", f"{s['latency_p50_ms']:.2f} / {s['latency_p99_ms']:.2f} ms", "target p99 <= 20 ms", ""])
+        rows.append(
+            [
+                f"streaming update per step (N={s['workload']['seq_len']}), p50 / p99",
+                f"{s['latency_p50_ms']:.2f} / {s['latency_p99_ms']:.2f} ms",
+                "target p99 <= 20 ms",
+                "",
+            ]
+        )
     if "welch" in b:
         w = b["welch"]
-        rows.append([
-            f"Welch PSD, {w['n_windows']} windows x 2048", f"{w['welch_psd_s'] * 1e3:.1f} ms",
-            f"scipy {w['scipy_welch_s'] * 1e3:.1f} ms", f"{w['speedup_vs_scipy']:.1f}x faster",
-        ])
+        rows.append(
+            [
+                f"Welch PSD, {w['n_windows']} windows x 2048",
+                f"{w['welch_psd_s'] * 1e3:.1f} ms",
+                f"scipy {w['scipy_welch_s'] * 1e3:.1f} ms",
+                f"{w['speedup_vs_scipy']:.1f}x faster",
+            ]
+        )
     if "simulator" in b:
         s = b["simulator"]
         rows.append(["scene simulator (audio + joints)", f"{s['realtime_factor']:.1f}x real time", "", ""])
     if "extraction" in b:
         e = b["extraction"]
-        rows.append([
-            f"feature extraction, {e['dataset']} dataset ({e['steps']} steps)",
-            f"{e['cold_s']:.1f} s, peak {e['peak_rss_mb']:.0f} MB", f"paper scale ~{e['paper_scale_extrapolated_s'] / 60:.0f} min (extrapolated)", "",
-        ])
+        rows.append(
+            [
+                f"feature extraction, {e['dataset']} dataset ({e['steps']} steps)",
+                f"{e['cold_s']:.1f} s, peak {e['peak_rss_mb']:.0f} MB",
+                f"paper scale ~{e['paper_scale_extrapolated_s'] / 60:.0f} min (extrapolated)",
+                "",
+            ]
+        )
     if "flow" in b:
         f = b["flow"]
         for size, v in f["sizes"].items():
-            rows.append([
-                f"optical flow (Farneback) per frame pair, {size}: JAX on {f['jax_devices']} {f['device']} device(s), batch {f['batch']}",
-                f"{v['jax_s'] * 1e3:.1f} ms", f"OpenCV 1 thread {v['opencv_1_thread_s'] * 1e3:.1f} ms, {f['opencv_threads']} threads {v['opencv_all_cores_s'] * 1e3:.1f} ms",
-                _ratio(v["jax_s"] / min(v["opencv_1_thread_s"], v["opencv_all_cores_s"])),
-            ])
+            rows.append(
+                [
+                    f"optical flow (Farneback) per frame pair, {size}: JAX on {f['jax_devices']} {f['device']} device(s), batch {f['batch']}",
+                    f"{v['jax_s'] * 1e3:.1f} ms",
+                    f"OpenCV 1 thread {v['opencv_1_thread_s'] * 1e3:.1f} ms, {f['opencv_threads']} threads {v['opencv_all_cores_s'] * 1e3:.1f} ms",
+                    _ratio(v["jax_s"] / min(v["opencv_1_thread_s"], v["opencv_all_cores_s"])),
+                ]
+            )
     if "input" in b:
         i = b["input"]
         src = i["sources"]
-        rows.append([
-            f"training fed from the host: one step's minibatches of paper flow features ({i['n_seeds']} seeds x {i['batch']}, {i['step_mb']:.0f} MB)",
-            f"disk {src['disk_cold']['s_per_step'] * 1e3:.0f} ms ({src['disk_cold']['mb_per_s']:.0f} MB/s), page cache {src['disk_warm']['s_per_step'] * 1e3:.0f} ms",
-            f"memory {src['memory']['s_per_step'] * 1e3:.0f} ms ({src['memory']['mb_per_s']:.0f} MB/s)", _ratio(src["disk_cold"]["s_per_step"] / src["memory"]["s_per_step"]),
-        ])
+        rows.append(
+            [
+                f"training fed from the host: one step's minibatches of paper flow features ({i['n_seeds']} seeds x {i['batch']}, {i['step_mb']:.0f} MB)",
+                f"disk {src['disk_cold']['s_per_step'] * 1e3:.0f} ms ({src['disk_cold']['mb_per_s']:.0f} MB/s), page cache {src['disk_warm']['s_per_step'] * 1e3:.0f} ms",
+                f"memory {src['memory']['s_per_step'] * 1e3:.0f} ms ({src['memory']['mb_per_s']:.0f} MB/s)",
+                _ratio(src["disk_cold"]["s_per_step"] / src["memory"]["s_per_step"]),
+            ]
+        )
     if "acquisition" in b:
         a = b["acquisition"]
-        rows.append([
-            "acquisition loop, 50 Hz step p50 / p99", f"{a['p50_ms']:.1f} / {a['p99_ms']:.1f} ms",
-            f"{a['missed_deadlines']} of {a['steps']} deadlines missed", "",
-        ])
+        rows.append(
+            [
+                "acquisition loop, 50 Hz step p50 / p99",
+                f"{a['p50_ms']:.1f} / {a['p99_ms']:.1f} ms",
+                f"{a['missed_deadlines']} of {a['steps']} deadlines missed",
+                "",
+            ]
+        )
     if "import" in b:
         i = b["import"]
-        rows.append([
-            f"batch import, {i['trials']} trials of {i['seconds_per_trial'][0]:g}-{i['seconds_per_trial'][1]:g} s ({i['rig']})",
-            f"{i['wall_s']:.0f} s ({i['ms_per_trial']:.0f} ms per trial)", f"target <= {i['target_s']:.0f} s", "",
-        ])
+        rows.append(
+            [
+                f"batch import, {i['trials']} trials of {i['seconds_per_trial'][0]:g}-{i['seconds_per_trial'][1]:g} s ({i['rig']})",
+                f"{i['wall_s']:.0f} s ({i['ms_per_trial']:.0f} ms per trial)",
+                f"target <= {i['target_s']:.0f} s",
+                "",
+            ]
+        )
     env = "".join(f"{k}={v} " for k, v in m.get("env", {}).items())
     written = f" ({doc['code']}, {doc['date']})" if "code" in doc else ""
-    head = f"Measured by `{env}{doc['command']}`{written} on {m['cpu']} ({m['cores']} cores), JAX {m['jax']}" + (
-        f", PyTorch {doc['torch']}" if doc["torch"] else ""
-    ) + (" (--quick sizes)" if doc["quick"] else "") + (
-        ". Ratio: ours / the fastest PyTorch variant's time (named in the reference column)." if doc["torch"] else "."
+    head = (
+        f"Measured by `{env}{doc['command']}`{written} on {m['cpu']} ({m['cores']} cores), JAX {m['jax']}"
+        + (f", PyTorch {doc['torch']}" if doc["torch"] else "")
+        + (" (--quick sizes)" if doc["quick"] else "")
+        + (
+            ". Ratio: ours / the fastest PyTorch variant's time (named in the reference column)."
+            if doc["torch"]
+            else "."
+        )
     )
     if "matmul_peak" in doc:
         peaks = doc["matmul_peak"]
@@ -426,12 +576,21 @@ def markdown(doc: dict[str, Any]) -> str:
             + " and ".join(f"{d} operands ({v['gflop_per_s']:.1f} GFLOP/s)" for d, v in peaks.items())
             + f", float32 accumulation, on the same {p['devices']} device{'s' if p['devices'] > 1 else ''}, measured in this run."
         )
-    cols = ["benchmark", "fabricjax", "reference", "ratio", "GFLOP", "GFLOP/s (% peak: " + " / ".join(doc.get("matmul_peak", {})) + ")"]
+    cols = [
+        "benchmark",
+        "fabricjax",
+        "reference",
+        "ratio",
+        "GFLOP",
+        "GFLOP/s (% peak: " + " / ".join(doc.get("matmul_peak", {})) + ")",
+    ]
     text = head + "\n\n" + documents.markdown_table(cols, [r + [""] * (len(cols) - len(r)) for r in rows])
     if variants:
         adamw = b.get("training", {}).get("interleaved", {}).get("torch_adamw")
         text += (
-            "\nEvery PyTorch variant" + (f" (AdamW {adamw})" if adamw else "") + "; ratio: ours / its time, per our compute dtype; build + "
+            "\nEvery PyTorch variant"
+            + (f" (AdamW {adamw})" if adamw else "")
+            + "; ratio: ours / its time, per our compute dtype; build + "
             "compile: seconds to build it and run its first, compiling calls, not in its times.\n\n"
             + documents.markdown_table(["workload", "PyTorch variant", "time", "ratio", "build + compile"], variants)
         )

@@ -87,7 +87,9 @@ def _modules() -> SimpleNamespace:
             super().__init__()
             other = [m for m in config.modalities if m not in SUPPORTED]
             if other or config.backbone != "attention" or config.property_heads or not config.fabric_head:
-                raise ValueError("the twin covers the attention model on audio + proprioception with the fabric head only")
+                raise ValueError(
+                    "the twin covers the attention model on audio + proprioception with the fabric head only"
+                )
             # Our model's order (fabricjax.config.MODALITIES), whatever the config's order.
             self.modalities = tuple(m for m in MODALITIES if m in config.modalities)
             audio = [m for m in self.modalities if m != "proprio"]
@@ -96,7 +98,9 @@ def _modules() -> SimpleNamespace:
             if self.proprio is not None:  # the model's fixed joint standardisation (see FabricNet)
                 self.register_buffer("proprio_shift", torch.zeros(archive.N_PROPRIO))
                 self.register_buffer("proprio_scale", torch.ones(archive.N_PROPRIO))
-            dims = sum(config.proprio_hidden[-1] if m == "proprio" else config.audio_hidden[-1] for m in self.modalities)
+            dims = sum(
+                config.proprio_hidden[-1] if m == "proprio" else config.audio_hidden[-1] for m in self.modalities
+            )
             self.embed = nn.Linear(dims, config.width)
             self.position = nn.Parameter(torch.randn(config.seq_len, config.width) * 0.02)
             self.blocks = nn.ModuleList(
@@ -123,7 +127,9 @@ def _modules() -> SimpleNamespace:
 
         def forward(self, inputs):
             parts = [
-                self.proprio((inputs[m] - self.proprio_shift) * self.proprio_scale) if m == "proprio" else self.audio(inputs[m])
+                self.proprio((inputs[m] - self.proprio_shift) * self.proprio_scale)
+                if m == "proprio"
+                else self.audio(inputs[m])
                 for m in self.modalities
             ]
             x = torch.cat(parts, -1)
@@ -245,7 +251,10 @@ def _batch(config: Config, batch: int, n_bins: int, seed: int = 0):
 
     g = torch.Generator().manual_seed(seed)
     n = config.seq_len
-    inputs = {m: torch.randn(batch, n, archive.N_PROPRIO if m == "proprio" else n_bins, generator=g) for m in config.modalities}
+    inputs = {
+        m: torch.randn(batch, n, archive.N_PROPRIO if m == "proprio" else n_bins, generator=g)
+        for m in config.modalities
+    }
     return inputs, torch.randint(0, catalog.N_CLASSES, (batch,), generator=g)
 
 
@@ -358,8 +367,15 @@ ENSEMBLES = {IN_SEQUENCE: InSequence, VMAPPED: Vmapped}  # how the runners train
 
 
 def train_step_runner(
-    config: Config, *, n_seeds: int = 1, batch: int = 32, n_bins: int = 320, steps: int = 4, compile_mode: str | None = None,
-    autocast: bool = False, ensemble: str = IN_SEQUENCE,
+    config: Config,
+    *,
+    n_seeds: int = 1,
+    batch: int = 32,
+    n_bins: int = 320,
+    steps: int = 4,
+    compile_mode: str | None = None,
+    autocast: bool = False,
+    ensemble: str = IN_SEQUENCE,
 ) -> Callable[[], float]:
     """A warmed-up callable that runs `steps` training steps of `n_seeds` models, each on its own
     minibatch, trained as `ensemble` says (a key of `ENSEMBLES`: `InSequence`, `Vmapped`; with
@@ -385,10 +401,17 @@ def bench_train_step(config: Config, *, n_seeds: int = 1, batch: int = 32, n_bin
     torch = require()
     run = train_step_runner(config, n_seeds=n_seeds, batch=batch, n_bins=n_bins, steps=1)
     s = float(np.median([run() for _ in range(steps)]))
-    return {"seconds_per_step": s, "sequences_per_second_per_seed": batch / (s / n_seeds), "n_seeds": n_seeds, "threads": torch.get_num_threads()}
+    return {
+        "seconds_per_step": s,
+        "sequences_per_second_per_seed": batch / (s / n_seeds),
+        "n_seeds": n_seeds,
+        "threads": torch.get_num_threads(),
+    }
 
 
-def inference_runner(config: Config, *, n_bins: int = 320, compile_mode: str | None = None, autocast: bool = False) -> Callable[[], float]:
+def inference_runner(
+    config: Config, *, n_bins: int = 320, compile_mode: str | None = None, autocast: bool = False
+) -> Callable[[], float]:
     """A warmed-up callable returning the seconds of one eval-mode forward pass on one sequence
     (`compile_mode` and `autocast` as in `train_step_runner`)."""
     import torch

@@ -70,7 +70,12 @@ def save(path: Path, fingerprint: str, data: np.ndarray) -> None:
     """Features of 8 or 16 bits (frames, sparse flow) deflated (`archive.write_npz`): they shrink
     10-60x; 32-bit floats (PSDs, joints) stored, their noisy low mantissa bits deflate too little
     to pay for the time."""
-    _atomic_write(path, lambda f: archive.write_npz(f, {"data": data, "fingerprint": np.array(fingerprint)}, deflate=lambda a: a.dtype.itemsize < 4))
+    _atomic_write(
+        path,
+        lambda f: archive.write_npz(
+            f, {"data": data, "fingerprint": np.array(fingerprint)}, deflate=lambda a: a.dtype.itemsize < 4
+        ),
+    )
 
 
 def is_cached(path: Path, fingerprint: str) -> bool:
@@ -93,9 +98,13 @@ def _compute(job: tuple[str, str, list[str], dict[str, str]]) -> dict[str, np.nd
         names = ", ".join(f.name for f in features if f.needs_images)
         raise archive.ArchiveError(path, "images", f"absent, but the features {names} need frames")
     if any(f.needs_reference for f in features) and trial.reference is None:
-        raise archive.ArchiveError(path, "reference", f"absent ({archive.reference_note(trial.meta)}), but image_reference='session' reads every "
-                                   "frame against its session's no-contact reference: re-simulate or re-import the data with its reference "
-                                   "(docs/data.md), or read frames as they are: --set=image_reference=training_mean")
+        raise archive.ArchiveError(
+            path,
+            "reference",
+            f"absent ({archive.reference_note(trial.meta)}), but image_reference='session' reads every "
+            "frame against its session's no-contact reference: re-simulate or re-import the data with its reference "
+            "(docs/data.md), or read frames as they are: --set=image_reference=training_mean",
+        )
     out = {}
     for f in features:
         out[f.name] = f.compute(trial)
@@ -145,7 +154,12 @@ def trial_features(
             jobs.append((str(index.path(e)), e.fingerprint, [f.name for f in missing], files(e)))
     workers = min(workers or os.cpu_count() or 1, max(len(jobs), 1))
     if jobs:
-        bar = tqdm(total=len(jobs), desc=f"features ({', '.join(f.name for f in cached)}, {workers} processes)", unit="trial", disable=not progress)
+        bar = tqdm(
+            total=len(jobs),
+            desc=f"features ({', '.join(f.name for f in cached)}, {workers} processes)",
+            unit="trial",
+            disable=not progress,
+        )
         with bar:
             parallel.run_jobs(_compute_and_drop, jobs, workers, bar.update, initializer=_one_thread_per_worker)
 
@@ -157,4 +171,11 @@ def trial_features(
         return out
 
     with ThreadPoolExecutor(min(4, os.cpu_count() or 1)) as pool:
-        yield from tqdm(pool.map(one, entries), total=len(entries), desc="sequences", unit="trial", disable=not progress, leave=False)
+        yield from tqdm(
+            pool.map(one, entries),
+            total=len(entries),
+            desc="sequences",
+            unit="trial",
+            disable=not progress,
+            leave=False,
+        )

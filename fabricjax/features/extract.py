@@ -76,7 +76,10 @@ def log_psd(windows: np.ndarray, rate: int = archive.AUDIO_RATE) -> np.ndarray:
     n = len(windows)
     padded = np.pad(windows, ((0, -n % PSD_CHUNK), (0, 0)))
     chunks = np.split(padded, len(padded) // PSD_CHUNK)
-    out = [np.asarray(welch.welch_psd(c, bandwidth_khz=archive.nyquist_khz(rate), floor=welch.LOG_FLOOR, rate=rate)) for c in chunks]
+    out = [
+        np.asarray(welch.welch_psd(c, bandwidth_khz=archive.nyquist_khz(rate), floor=welch.LOG_FLOOR, rate=rate))
+        for c in chunks
+    ]
     return np.concatenate(out)[:n]
 
 
@@ -103,8 +106,13 @@ def _proprio(trial: archive.TrialArchive) -> np.ndarray:
 
 
 def feature_for(
-    modality: str, image_resolution: str = "down", image_size: tuple[int, int] = images.DOWN_SIZE, flow_sparsify: str = "keep_top",
-    window: int = archive.WINDOW, image_reference: str = "training_mean", flow_method: str = "opencv",
+    modality: str,
+    image_resolution: str = "down",
+    image_size: tuple[int, int] = images.DOWN_SIZE,
+    flow_sparsify: str = "keep_top",
+    window: int = archive.WINDOW,
+    image_reference: str = "training_mean",
+    flow_method: str = "opencv",
 ) -> Feature:
     """The feature behind a model input (a `config.MODALITIES` name); `image_size` is the
     downsampled ("down") frame size, `flow_sparsify` the flow's reading of the paper's filter
@@ -129,9 +137,23 @@ def feature_for(
     if modality == "image" and image_resolution == "down" and image_reference == "session":
         size = (int(image_size[0]), int(image_size[1]))
         params = {"size": size, "interpolation": "area", "reference": "session", "version": 1}
-        return Feature(f"image_session_{size[0]}x{size[1]}", params, True, True, lambda t: images.session_difference(t.images, t.reference, size), True)
+        return Feature(
+            f"image_session_{size[0]}x{size[1]}",
+            params,
+            True,
+            True,
+            lambda t: images.session_difference(t.images, t.reference, size),
+            True,
+        )
     if modality == "image" and image_resolution == "full" and image_reference == "session":
-        return Feature("image_session_full", {"reference": "session"}, True, False, lambda t: images.session_difference(t.images, t.reference, None), True)
+        return Feature(
+            "image_session_full",
+            {"reference": "session"},
+            True,
+            False,
+            lambda t: images.session_difference(t.images, t.reference, None),
+            True,
+        )
     if modality == "image" and image_resolution == "down":
         size = (int(image_size[0]), int(image_size[1]))
         params = {"size": size, "interpolation": "area", "version": 1}
@@ -150,8 +172,12 @@ def feature_named(name: str) -> Feature:
         return feature_for("image", "down", (int(m[1]), int(m[2])))
     if m := re.fullmatch(r"psd_(\w+)_w(\d+)", name):
         return feature_for(m[1], window=int(m[2]))
-    candidates = [feature_for(m) for m in (*archive.MIC_ROLES, "proprio")] + [feature_for("image", "full", image_reference=r) for r in ("none", "session")]
-    candidates += [feature_for("flow", flow_sparsify=mode, flow_method=method) for mode in flow.SPARSIFY for method in flow.METHODS]
+    candidates = [feature_for(m) for m in (*archive.MIC_ROLES, "proprio")] + [
+        feature_for("image", "full", image_reference=r) for r in ("none", "session")
+    ]
+    candidates += [
+        feature_for("flow", flow_sparsify=mode, flow_method=method) for mode in flow.SPARSIFY for method in flow.METHODS
+    ]
     for f in candidates:
         if f.name == name:
             return f

@@ -47,7 +47,9 @@ REGULARISER = 1e-3  # added to the determinant when the averaged system is solve
 SMALL_GAUSSIAN = {3: (0.25, 0.5, 0.25)}  # getGaussianKernel's fixed kernel for sigma <= 0 (the one used here)
 
 
-def pyramid_levels(height: int, width: int, pyr_scale: float = FARNEBACK["pyr_scale"], levels: int = FARNEBACK["levels"]) -> int:
+def pyramid_levels(
+    height: int, width: int, pyr_scale: float = FARNEBACK["pyr_scale"], levels: int = FARNEBACK["levels"]
+) -> int:
     """Levels below full resolution that OpenCV uses for a frame of this size."""
     scale = 1.0
     for k in range(levels):
@@ -113,7 +115,9 @@ def resize_linear(x: jax.Array, height: int, width: int) -> jax.Array:
 
 
 @functools.lru_cache(maxsize=None)
-def expansion_constants(n: int, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[float, float, float, float]]:
+def expansion_constants(
+    n: int, sigma: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[float, float, float, float]]:
     """FarnebackPrepareGaussian: the Gaussian g, x g and x^2 g over -n..n (float32) and the four
     entries of the inverse Gram matrix the fit needs (ig11, ig03, ig33, ig55)."""
     x = np.arange(-n, n + 1)
@@ -143,7 +147,13 @@ def poly_expansion(img: jax.Array, n: int = FARNEBACK["poly_n"], sigma: float = 
     def pairs(x, axis):  # (x[i - k], x[i + k]) for k = 1..n, replicated borders
         p = jnp.pad(x, [(n, n) if a == axis else (0, 0) for a in range(x.ndim)], mode="edge")
         size = x.shape[axis]
-        return [(jax.lax.slice_in_dim(p, n - k, n - k + size, axis=axis), jax.lax.slice_in_dim(p, n + k, n + k + size, axis=axis)) for k in range(1, n + 1)]
+        return [
+            (
+                jax.lax.slice_in_dim(p, n - k, n - k + size, axis=axis),
+                jax.lax.slice_in_dim(p, n + k, n + k + size, axis=axis),
+            )
+            for k in range(1, n + 1)
+        ]
 
     # vertical: smoothed, y-weighted and y^2-weighted rows
     row0, row1, row2 = img * g[n], jnp.zeros((h, w), img.dtype), jnp.zeros((h, w), img.dtype)
@@ -162,7 +172,9 @@ def poly_expansion(img: jax.Array, n: int = FARNEBACK["poly_n"], sigma: float = 
         b6 = b6 + (r1 - l1) * xg[n + k]
         b5 = b5 + (r2 + l2) * g[n + k]
     f = np.float32
-    return jnp.stack([b3 * f(ig11), b2 * f(ig11), b1 * f(ig03) + b5 * f(ig33), b1 * f(ig03) + b4 * f(ig33), b6 * f(ig55)], axis=-1)
+    return jnp.stack(
+        [b3 * f(ig11), b2 * f(ig11), b1 * f(ig03) + b5 * f(ig33), b1 * f(ig03) + b4 * f(ig33), b6 * f(ig55)], axis=-1
+    )
 
 
 def border_scale(height: int, width: int) -> np.ndarray:
@@ -197,14 +209,20 @@ def update_matrices(r0: jax.Array, r1: jax.Array, flow: jax.Array) -> jax.Array:
     s = a00 * r1[yc, xc] + a01 * r1[yc, xc + 1] + a10 * r1[yc + 1, xc] + a11 * r1[yc + 1, xc + 1]
     inside = inside[..., None]
     near = jnp.where(inside, s[..., :2], 0.0)
-    quad = jnp.where(inside, (r0[..., 2:] + s[..., 2:]) * jnp.asarray([0.5, 0.5, 0.25], jnp.float32), r0[..., 2:] * jnp.asarray([1, 1, 0.5], jnp.float32))
+    quad = jnp.where(
+        inside,
+        (r0[..., 2:] + s[..., 2:]) * jnp.asarray([0.5, 0.5, 0.25], jnp.float32),
+        r0[..., 2:] * jnp.asarray([1, 1, 0.5], jnp.float32),
+    )
     r2, r3 = (r0[..., 0] - near[..., 0]) * 0.5, (r0[..., 1] - near[..., 1]) * 0.5
     r4, r5, r6 = quad[..., 0], quad[..., 1], quad[..., 2]
     r2 = r2 + r4 * dy + r6 * dx
     r3 = r3 + r6 * dy + r5 * dx
     scale = jnp.asarray(border_scale(h, w))
     r2, r3, r4, r5, r6 = (v * scale for v in (r2, r3, r4, r5, r6))
-    return jnp.stack([r4 * r4 + r6 * r6, (r4 + r5) * r6, r5 * r5 + r6 * r6, r4 * r2 + r6 * r3, r6 * r2 + r5 * r3], axis=-1)
+    return jnp.stack(
+        [r4 * r4 + r6 * r6, (r4 + r5) * r6, r5 * r5 + r6 * r6, r4 * r2 + r6 * r3, r6 * r2 + r5 * r3], axis=-1
+    )
 
 
 def solve_flow(m: jax.Array, winsize: int = FARNEBACK["winsize"]) -> jax.Array:
@@ -231,7 +249,10 @@ def _pair(prev: jax.Array, nxt: jax.Array) -> jax.Array:
             flow = jnp.zeros((h, w, 2), jnp.float32)
         else:
             flow = resize_linear(flow, h, w) * np.float32(1.0 / p["pyr_scale"])
-        r0, r1 = (poly_expansion(resize_linear(_correlate(_correlate(f, taps, 0, "reflect"), taps, 1, "reflect"), h, w)) for f in (prev, nxt))
+        r0, r1 = (
+            poly_expansion(resize_linear(_correlate(_correlate(f, taps, 0, "reflect"), taps, 1, "reflect"), h, w))
+            for f in (prev, nxt)
+        )
         m = update_matrices(r0, r1, flow)
         for i in range(p["iterations"]):
             flow = solve_flow(m, p["winsize"])

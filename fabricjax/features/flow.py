@@ -63,7 +63,9 @@ def farneback(frames: np.ndarray, previous: np.ndarray | None = None, method: st
         raise ValueError(f"flow method must be one of {METHODS}, got {method!r}")
     gray = np.stack([cv2.cvtColor(f, cv2.COLOR_RGB2GRAY) for f in frames])
     if method == "jax":
-        before = np.concatenate([gray[:1] if previous is None else cv2.cvtColor(previous, cv2.COLOR_RGB2GRAY)[None], gray[:-1]])
+        before = np.concatenate(
+            [gray[:1] if previous is None else cv2.cvtColor(previous, cv2.COLOR_RGB2GRAY)[None], gray[:-1]]
+        )
         dense = jax_farneback.farneback(before, gray)
         return dense if previous is not None else dense.at[0].set(0.0)
     prev = None if previous is None else cv2.cvtColor(previous, cv2.COLOR_RGB2GRAY)

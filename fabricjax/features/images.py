@@ -35,7 +35,9 @@ def downsample(frames: np.ndarray, size: tuple[int, int] = DOWN_SIZE) -> np.ndar
     return np.stack([cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA) for f in frames])
 
 
-def session_difference(frames: np.ndarray, reference: np.ndarray, size: tuple[int, int] | None = DOWN_SIZE) -> np.ndarray:
+def session_difference(
+    frames: np.ndarray, reference: np.ndarray, size: tuple[int, int] | None = DOWN_SIZE
+) -> np.ndarray:
     """(T, H, W, 3) uint8 frames minus their session's (R, H, W, 3) no-contact reference, both
     area-downsampled to `size` first (None: at the frames' own size): (T, h, w, 3) int16, exact (no
     wrap-around; 0 is "as without contact"). Several reference frames are averaged and rounded to
@@ -63,9 +65,13 @@ def to_rows(frames, length: int | None = None):
     sequences = frames.reshape(-1, n, h * w, c)
     if length is not None:
         if len(lead) != 1 or length < lead[0]:
-            raise ValueError(f"rows of {length} sequences from frames of shape {frames.shape}: one sequence axis, at most that long")
+            raise ValueError(
+                f"rows of {length} sequences from frames of shape {frames.shape}: one sequence axis, at most that long"
+            )
         lead = [length]
-    rows = host_arrays.empty((math.prod(lead), h * w, c, n), frames.dtype)  # zeroed; placed without a copy on CPU devices
+    rows = host_arrays.empty(
+        (math.prod(lead), h * w, c, n), frames.dtype
+    )  # zeroed; placed without a copy on CPU devices
 
     def block(start: int) -> None:
         part = sequences[start : start + HOST_BLOCK]

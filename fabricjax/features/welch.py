@@ -61,7 +61,13 @@ USEFUL_BINS = 32  # fewer bins than this over a microphone's band are a coarse s
 # exact digital silence reaches it.
 LOG_FLOOR = 1e-20
 SCIPY_KWARGS = dict(
-    fs=AUDIO_RATE, window="hann", nperseg=NPERSEG, noverlap=NOVERLAP, detrend="constant", scaling="density", average="mean"
+    fs=AUDIO_RATE,
+    window="hann",
+    nperseg=NPERSEG,
+    noverlap=NOVERLAP,
+    detrend="constant",
+    scaling="density",
+    average="mean",
 )
 
 
@@ -129,7 +135,12 @@ def _scale(rate: int, n: int) -> np.ndarray:
 
 @partial(jax.jit, static_argnames=("bandwidth_khz", "log", "floor", "rate"))
 def welch_psd(
-    windows: jax.Array, *, bandwidth_khz: float = 15.0, log: bool = True, floor: float = LOG_FLOOR, rate: int = AUDIO_RATE
+    windows: jax.Array,
+    *,
+    bandwidth_khz: float = 15.0,
+    log: bool = True,
+    floor: float = LOG_FLOOR,
+    rate: int = AUDIO_RATE,
 ) -> jax.Array:
     """(..., W) windows of a microphone at `rate` Hz -> (..., n_bins(bandwidth_khz, rate, W)) PSD,
     or log10 of it (W: the paper's 2048, or another duration's samples, `window_samples`).

@@ -30,7 +30,9 @@ from fabricjax.sim import acoustics, air_path
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import Scene
 
-ROOM_RESPONSE_LEN = 2**16  # [numerics] samples of the drawn room responses (1.37 s: the 0.6 s T60 decay reaches -137 dB)
+ROOM_RESPONSE_LEN = (
+    2**16
+)  # [numerics] samples of the drawn room responses (1.37 s: the 0.6 s T60 decay reaches -137 dB)
 
 
 def octave_shape(f: np.ndarray, octave_db: dict[float, float]) -> np.ndarray:
@@ -144,7 +146,9 @@ def recording(grid: acoustics.Grid, rng: np.random.Generator) -> np.ndarray:
     """Spectrum (any scale) of the coffee-shop recording the loudspeaker plays."""
     babble = grid.irfft(acoustics.noise_spectrum(rng, grid, babble_shape(grid.f)))
     babble /= babble.std()
-    n_env = int(grid.n / archive.AUDIO_RATE * (2 * cal.SYLLABLE_HZ)) + 2  # syllable-rate envelope: two knots per syllable
+    n_env = (
+        int(grid.n / archive.AUDIO_RATE * (2 * cal.SYLLABLE_HZ)) + 2
+    )  # syllable-rate envelope: two knots per syllable
     env = np.interp(np.linspace(0, n_env - 1, grid.n), np.arange(n_env), rng.standard_normal(n_env))
     x = babble * (1.0 + cal.BABBLE_MODULATION * env)
     x += clatter(grid.n, rng) * 10 ** (cal.CLATTER_PEAK_DB / 20)
@@ -172,7 +176,9 @@ def loudspeaker(scene: Scene, grid: acoustics.Grid, level_db_a: float, room: tup
     return out[0] * scale, out[1] * scale
 
 
-def spectra(scene: Scene, level_db_a: float, grid: acoustics.Grid, rng: np.random.Generator) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def spectra(
+    scene: Scene, level_db_a: float, grid: acoustics.Grid, rng: np.random.Generator
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Spectra (Pa) of each room sound at (the palm microphone, the outside of Minsound's shell).
 
     `level_db_a` is the drawn level at the palm: the floor's in the lab, the loudspeaker's in the cafe

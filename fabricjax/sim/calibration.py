@@ -51,14 +51,20 @@ CONTROL_HZ = 2000  # [numerics] grid on which the finger motion is integrated (t
 GRASP_FORCE_N = 0.1  # [paper] closing stops when Minsight's force estimate reaches this
 CYCLES_PER_TRIAL = 50  # [paper, Experiments] rubbing cycles per trial (`Scene.cycles`' default)
 OPEN_GAP_MM = estimates.value("OPEN_GAP_MM")  # [estimate] fingertip gap of the open pose
-CLOSING_SPEED_MM_S = estimates.value("CLOSING_SPEED_MM_S")  # [estimate] relative fingertip closing speed (same for every fabric [paper])
+CLOSING_SPEED_MM_S = estimates.value(
+    "CLOSING_SPEED_MM_S"
+)  # [estimate] relative fingertip closing speed (same for every fabric [paper])
 # [estimate] two soft silicone shells in series, normal direction (Hertz with the Ecoflex datasheet's
 # modulus, below in "Minsight images", gives 0.27 mm per shell at 0.1 N: consistent)
 SHELL_NORMAL_STIFFNESS_N_MM = estimates.value("SHELL_NORMAL_STIFFNESS_N_MM")
-SHELL_SHEAR_STIFFNESS_N_MM = estimates.value("SHELL_SHEAR_STIFFNESS_N_MM")  # [estimate] shear stiffness of one shell at the contact
+SHELL_SHEAR_STIFFNESS_N_MM = estimates.value(
+    "SHELL_SHEAR_STIFFNESS_N_MM"
+)  # [estimate] shear stiffness of one shell at the contact
 SETTLE_S = estimates.value("SETTLE_S")  # [estimate] pause between the grasp and the first rubbing stroke
 STOP_S = estimates.value("STOP_S")  # [estimate] recording continues briefly after the last stroke
-RUB_AMPLITUDE_MM = estimates.value("RUB_AMPLITUDE_MM")  # [estimate] each fingertip moves +-3 mm laterally, the two in opposite phase
+RUB_AMPLITUDE_MM = estimates.value(
+    "RUB_AMPLITUDE_MM"
+)  # [estimate] each fingertip moves +-3 mm laterally, the two in opposite phase
 # [estimate] The preprogrammed strokes start from rest: the stroke's amplitude ramps up linearly over
 # this part of the first cycle (a servo's acceleration limit; the first quarter stroke)
 RUB_RAMP_CYCLES = estimates.value("RUB_RAMP_CYCLES")
@@ -75,7 +81,9 @@ SPEED_DROOP_PER_N = estimates.value("SPEED_DROOP_PER_N")  # [estimate]
 # 7.4 V, 0.16 s/60 deg at 12 V, i.e. ~6 %/V); a bench supply under a varying load sags by ~0.1-0.2 V:
 # a per-trial spread of ~2 % of the rubbing rate.
 SPEED_JITTER = estimates.value("SPEED_JITTER")
-CYCLE_PHASE_JITTER = estimates.value("CYCLE_PHASE_JITTER")  # [estimate] slow wander of the stroke rate within a trial: half the per-trial spread
+CYCLE_PHASE_JITTER = estimates.value(
+    "CYCLE_PHASE_JITTER"
+)  # [estimate] slow wander of the stroke rate within a trial: half the per-trial spread
 # [estimate] the wander is a random walk with one step per this time (linearly interpolated between
 # them): the supply's and the load's fluctuations change over tens of ms to a stroke
 CYCLE_WANDER_S = estimates.value("CYCLE_WANDER_S")
@@ -101,8 +109,12 @@ PROFILE_LEN_MM = 65.536  # [numerics] one simulated cloth strip per fabric (2**1
 # in the grasping location"] [estimate] The grasp lands anywhere in this range of the strip, at
 # least one contact length (~10 mm) from its ends: a different stretch of cloth for every trial.
 GRASP_RANGE_MM = (estimates.value("GRASP_RANGE_LOW_MM"), estimates.value("GRASP_RANGE_HIGH_MM"))
-ROUGHNESS_K_MIN = estimates.value("ROUGHNESS_K_MIN")  # [estimate] cycles/mm: below (2 mm wavelengths) the fabric drapes rather than vibrates
-WEAVE_SHARE = estimates.value("WEAVE_SHARE")  # [estimate] fraction of the RMS height in the periodic weave (the rest: random roughness)
+ROUGHNESS_K_MIN = estimates.value(
+    "ROUGHNESS_K_MIN"
+)  # [estimate] cycles/mm: below (2 mm wavelengths) the fabric drapes rather than vibrates
+WEAVE_SHARE = estimates.value(
+    "WEAVE_SHARE"
+)  # [estimate] fraction of the RMS height in the periodic weave (the rest: random roughness)
 WEAVE_HARMONICS = 8  # [numerics] the weave's Fourier series, cut where its harmonics' weights m^(-s/2) have faded
 # [estimate] each harmonic's weight departs from the m^(-s/2) trend by a factor U(1 - x, 1 + x), per fabric (yarn shape)
 WEAVE_HARMONIC_SPREAD = estimates.value("WEAVE_HARMONIC_SPREAD")
@@ -111,11 +123,17 @@ WEAVE_IRREGULARITY = estimates.value("WEAVE_IRREGULARITY")  # [estimate] yarn sp
 WEAVE_WANDER_PERIODS = estimates.value("WEAVE_WANDER_PERIODS")
 # [estimate] local roughness varies +-20 % along the strip (10 mm correlation): wear, creases, pile direction
 LOCAL_ROUGHNESS_SPREAD = estimates.value("LOCAL_ROUGHNESS_SPREAD")
-LOCAL_ROUGHNESS_LENGTH_MM = estimates.value("LOCAL_ROUGHNESS_LENGTH_MM")  # [estimate] that variation's correlation length: its spectrum ends at 1 / this
+LOCAL_ROUGHNESS_LENGTH_MM = estimates.value(
+    "LOCAL_ROUGHNESS_LENGTH_MM"
+)  # [estimate] that variation's correlation length: its spectrum ends at 1 / this
 FUZZ_FIBRES_PER_MM = estimates.value("FUZZ_FIBRES_PER_MM")  # [estimate] loose fibre ends per mm of path at fuzz = 1
-FUZZ_FIBRE_WIDTH_MM = estimates.value("FUZZ_FIBRE_WIDTH_MM")  # [estimate] a fibre end's bump: fibre diameters are ~10-20 um
+FUZZ_FIBRE_WIDTH_MM = estimates.value(
+    "FUZZ_FIBRE_WIDTH_MM"
+)  # [estimate] a fibre end's bump: fibre diameters are ~10-20 um
 FUZZ_HEIGHT = estimates.value("FUZZ_HEIGHT")  # [estimate] fibre bump height relative to the fabric's RMS roughness
-SHELL_ROUGHNESS_UM = estimates.value("SHELL_ROUGHNESS_UM")  # [estimate] the silicone skin's own micro-texture: all class 0 rubs against
+SHELL_ROUGHNESS_UM = estimates.value(
+    "SHELL_ROUGHNESS_UM"
+)  # [estimate] the silicone skin's own micro-texture: all class 0 rubs against
 SHELL_SPECTRAL_SLOPE = estimates.value("SHELL_SPECTRAL_SLOPE")  # [estimate] its height spectrum's slope
 
 # --- contact sound in the Minsound cavity ---------------------------------------------------------
@@ -140,9 +158,16 @@ SLIP_PA = estimates.value("SLIP_PA")  # click peak pressure at mu * F_n = 0.05 N
 SLIP_REF_FORCE_N = 0.05  # [numerics] the reference point SLIP_PA and RELEASE_PA are given at: mu * F_n
 SLIP_REF_ROUGHNESS_UM = 20.0  # [numerics] and asperity height (releases grow no further above it)
 RELEASE_PA = estimates.value("RELEASE_PA")  # reversal release at delta = 0.1 mm, mu * F_n = 0.05 N, 20 um asperities
-RELEASE_REF_SLIP_MM = 0.1  # [numerics] the stick length delta RELEASE_PA is given at (releases grow as sqrt(delta / this))
-SLIP_RING_HZ = (estimates.value("SLIP_RING_LOW_HZ"), estimates.value("SLIP_RING_HIGH_HZ"))  # contact/skin ring of a slip click
-SLIP_RING_SPREAD = estimates.value("SLIP_RING_SPREAD")  # the trial's ring is off the stiffness's by a factor U(1 - x, 1 + x)
+RELEASE_REF_SLIP_MM = (
+    0.1  # [numerics] the stick length delta RELEASE_PA is given at (releases grow as sqrt(delta / this))
+)
+SLIP_RING_HZ = (
+    estimates.value("SLIP_RING_LOW_HZ"),
+    estimates.value("SLIP_RING_HIGH_HZ"),
+)  # contact/skin ring of a slip click
+SLIP_RING_SPREAD = estimates.value(
+    "SLIP_RING_SPREAD"
+)  # the trial's ring is off the stiffness's by a factor U(1 - x, 1 + x)
 SLIP_DECAY_S = estimates.value("SLIP_DECAY_S")
 SLIP_SPREAD = estimates.value("SLIP_SPREAD")  # log-normal sigma of click amplitudes
 
@@ -156,7 +181,11 @@ SLIP_SPREAD = estimates.value("SLIP_SPREAD")  # log-normal sigma of click amplit
 # palm microphone sits "on the side of the palm" [paper] ~8 cm from the pinch, below and behind it.
 # The zeros place the fingertips on the pinch axis [numerics: the frame's choice].
 THUMB_TIP_M = (-estimates.value("FINGERTIP_OFFSET_M"), 0.0, 0.0)  # Minsound's shell (and its microphone) on the thumb
-MIDDLE_TIP_M = (estimates.value("FINGERTIP_OFFSET_M"), 0.0, 0.0)  # Minsight's shell on the middle finger [numerics: on the axis]
+MIDDLE_TIP_M = (
+    estimates.value("FINGERTIP_OFFSET_M"),
+    0.0,
+    0.0,
+)  # Minsight's shell on the middle finger [numerics: on the axis]
 # 7.9 cm from the pinch, 7.4 cm from the thumb, 8.6 cm from the middle finger
 PALM_MIC_M = (estimates.value("PALM_MIC_X_M"), estimates.value("PALM_MIC_Y_M"), estimates.value("PALM_MIC_Z_M"))
 SOUND_SPEED_M_S = 343.0  # [law] air at 20 C
@@ -210,8 +239,12 @@ FOLD_LINE_MM = (estimates.value("FOLD_LINE_NEAR_MM"), estimates.value("FOLD_LINE
 # silicone of 1.07-1.1 g/cm^3 (Smooth-On Ecoflex / Dragon Skin technical bulletins) times the
 # Minsight-section shell thickness (`shell.transmission_loss_db`).
 SILICONE_DENSITY_KG_M3 = 1100.0
-MASS_LAW_DB = 47.0  # [cited] Beranek & Ver 1992, Ch. 9: the field-incidence mass law's constant (f in Hz, m'' in kg/m^2)
-SHELL_TL_MIN_DB = estimates.value("SHELL_TL_MIN_DB")  # [estimate] leaks around the base and the stiffness-controlled region at low frequency
+MASS_LAW_DB = (
+    47.0  # [cited] Beranek & Ver 1992, Ch. 9: the field-incidence mass law's constant (f in Hz, m'' in kg/m^2)
+)
+SHELL_TL_MIN_DB = estimates.value(
+    "SHELL_TL_MIN_DB"
+)  # [estimate] leaks around the base and the stiffness-controlled region at low frequency
 SHELL_TL_MAX_DB = estimates.value("SHELL_TL_MAX_DB")  # [estimate] flanking through the aluminium skeleton
 
 # --- servo noise (heard by both microphones, also in class 0) ---------------------------------------
@@ -223,7 +256,9 @@ SHELL_TL_MAX_DB = estimates.value("SHELL_TL_MAX_DB")  # [estimate] flanking thro
 # order-of-magnitude estimates.
 GEAR_RATIO = 345.0  # [cited] STS3215 datasheet: 1:345 gear train
 GEAR_TEETH = estimates.value("GEAR_TEETH")  # [estimate] first-stage pinion: mesh frequency = motor rev/s * teeth
-SERVO_TONE_PA = estimates.value("SERVO_TONE_PA")  # [estimate] gear-mesh tone at 1 rad/s joint speed, as heard inside the shell (~50 dB)
+SERVO_TONE_PA = estimates.value(
+    "SERVO_TONE_PA"
+)  # [estimate] gear-mesh tone at 1 rad/s joint speed, as heard inside the shell (~50 dB)
 # [estimate] the tone's 2nd and 3rd harmonics, in amplitude relative to the mesh frequency's (-6 and -12 dB)
 SERVO_HARMONICS = (estimates.value("SERVO_HARMONIC_2"), estimates.value("SERVO_HARMONIC_3"))
 SERVO_BROADBAND_PA = estimates.value("SERVO_BROADBAND_PA")  # [estimate] motor/gear broadband noise at 1 rad/s
@@ -231,7 +266,9 @@ SERVO_HOLD_PA = estimates.value("SERVO_HOLD_PA")  # [estimate] holding servos' P
 SERVO_LOAD_REF_NM = estimates.value("SERVO_LOAD_REF_NM")  # [estimate] torque at which the gear noise doubles
 # [estimate] structure-borne band into the Minsound cavity
 SERVO_STRUCTURE_BAND_HZ = (estimates.value("SERVO_BAND_LOW_HZ"), estimates.value("SERVO_BAND_HIGH_HZ"))
-SERVO_PALM_GAIN_DB = estimates.value("SERVO_PALM_GAIN_DB")  # [estimate] airborne at the palm (the servos sit in the palm) vs structure-borne
+SERVO_PALM_GAIN_DB = estimates.value(
+    "SERVO_PALM_GAIN_DB"
+)  # [estimate] airborne at the palm (the servos sit in the palm) vs structure-borne
 
 # --- ambient sound: the room, its events and the cafe loudspeaker -----------------------------
 # [paper, Robustness] Sound meter (Sauter SU 130, A-weighted) near the palm microphone: lab 29-31 dB,
@@ -241,8 +278,12 @@ LAB_DB_A = (29.0, 31.0)
 # [estimate] within a day, each lab trial's floor is the day's +-this (uniform), kept within LAB_DB_A
 LAB_TRIAL_JITTER_DB = estimates.value("LAB_TRIAL_JITTER_DB")
 CAFE_DB_A = (47.0, 55.0)  # [paper]
-CAFE_DAY_SPREAD_DB = estimates.value("CAFE_DAY_SPREAD_DB")  # [estimate] a cafe day sits at U(48, 54), each trial +-1 dB, all within 47-55
-CAFE_TRIAL_JITTER_DB = estimates.value("CAFE_TRIAL_JITTER_DB")  # [estimate] each cafe trial is the day's level +-this (uniform), kept within CAFE_DB_A
+CAFE_DAY_SPREAD_DB = estimates.value(
+    "CAFE_DAY_SPREAD_DB"
+)  # [estimate] a cafe day sits at U(48, 54), each trial +-1 dB, all within 47-55
+CAFE_TRIAL_JITTER_DB = estimates.value(
+    "CAFE_TRIAL_JITTER_DB"
+)  # [estimate] each cafe trial is the day's level +-this (uniform), kept within CAFE_DB_A
 # [cited] The lab floor (ventilation, building services): the shape of Beranek's noise-criterion curve NC-25
 # (Beranek, Revised criteria for noise in buildings, Noise Control 3(1), 1957; ANSI S12.2), octave
 # band levels in dB at 63 Hz-8 kHz; only its shape is used, scaled to the drawn dB(A) level.
@@ -293,9 +334,21 @@ SABINE_S_PER_M = 0.161  # [law] Sabine's equation T60 = 0.161 V / A: 24 ln 10 / 
 # responses (beyond the 0.9 m critical distance the reverberant field dominates).
 # [cited] The voice's 50 dB(A) at 1 m (van Heusden et al.; Pearsons et al., above); every other number an estimate.
 LAB_EVENTS = {  # kind: (per minute, dB(A) at 1 m, (shortest, longest) seconds)
-    "voice": (estimates.value("LAB_VOICE_PER_MIN"), 50.0, (estimates.value("LAB_VOICE_SHORT_S"), estimates.value("LAB_VOICE_LONG_S"))),
-    "steps": (estimates.value("LAB_STEPS_PER_MIN"), estimates.value("LAB_STEPS_DB_A"), (estimates.value("LAB_STEPS_SHORT_S"), estimates.value("LAB_STEPS_LONG_S"))),
-    "door": (estimates.value("LAB_DOOR_PER_MIN"), estimates.value("LAB_DOOR_DB_A"), (estimates.value("LAB_DOOR_S"), estimates.value("LAB_DOOR_S"))),
+    "voice": (
+        estimates.value("LAB_VOICE_PER_MIN"),
+        50.0,
+        (estimates.value("LAB_VOICE_SHORT_S"), estimates.value("LAB_VOICE_LONG_S")),
+    ),
+    "steps": (
+        estimates.value("LAB_STEPS_PER_MIN"),
+        estimates.value("LAB_STEPS_DB_A"),
+        (estimates.value("LAB_STEPS_SHORT_S"), estimates.value("LAB_STEPS_LONG_S")),
+    ),
+    "door": (
+        estimates.value("LAB_DOOR_PER_MIN"),
+        estimates.value("LAB_DOOR_DB_A"),
+        (estimates.value("LAB_DOOR_S"), estimates.value("LAB_DOOR_S")),
+    ),
 }
 LAB_ACTIVITY_SIGMA = estimates.value("LAB_ACTIVITY_SIGMA")
 EVENT_DISTANCE_M = (estimates.value("EVENT_DISTANCE_NEAR_M"), estimates.value("EVENT_DISTANCE_FAR_M"))
@@ -303,7 +356,9 @@ SYLLABLE_HZ = 4.0  # [cited] Houtgast & Steeneken 1985: the speech envelope peak
 STEP_HZ = 1.9  # [cited] Pachi & Ji 2005: the walking cadence
 STEP_LOWPASS_HZ = 500.0  # [cited] a shod heel on a concrete floor: strongest below 500 Hz (ISO 717-2 reference spectra)
 STEP_DECAY_S = estimates.value("STEP_DECAY_S")  # [estimate] a heel strike on a floor slab rings down within tens of ms
-DOOR_DECAY_SHARE = estimates.value("DOOR_DECAY_SHARE")  # [estimate] the door's impact decays with a time constant of a third of its 0.3 s
+DOOR_DECAY_SHARE = estimates.value(
+    "DOOR_DECAY_SHARE"
+)  # [estimate] the door's impact decays with a time constant of a third of its 0.3 s
 # [cited] The cafe [paper: "loud background noise resembling ambient sound in a coffee shop", "while playing
 # audible noise"]: a recording played from a loudspeaker. Its long-term spectrum is that of babble,
 # i.e. of speech (many talkers sum to the long-term average speech spectrum, which is the same across
@@ -328,8 +383,12 @@ CLATTER_PER_S = estimates.value("CLATTER_PER_S")
 CLATTER_RING_HZ = (estimates.value("CLATTER_RING_LOW_HZ"), estimates.value("CLATTER_RING_HIGH_HZ"))
 CLATTER_DECAY_S = estimates.value("CLATTER_DECAY_S")
 CLATTER_PEAK_DB = estimates.value("CLATTER_PEAK_DB")  # clatter peaks above the babble RMS
-CLATTER_PARTIALS = 3  # [numerics] each clink is drawn as this many inharmonic partials in CLATTER_RING_HZ (the model's structure)
-CLATTER_DECAY_SPREAD = estimates.value("CLATTER_DECAY_SPREAD")  # each clink's decay is CLATTER_DECAY_S x U(1 - x, 1 + x)
+CLATTER_PARTIALS = (
+    3  # [numerics] each clink is drawn as this many inharmonic partials in CLATTER_RING_HZ (the model's structure)
+)
+CLATTER_DECAY_SPREAD = estimates.value(
+    "CLATTER_DECAY_SPREAD"
+)  # each clink's decay is CLATTER_DECAY_S x U(1 - x, 1 + x)
 CLATTER_LEVEL_SPREAD = estimates.value("CLATTER_LEVEL_SPREAD")  # log-normal sigma of the clinks' amplitudes
 # [estimate; the paper does not place the loudspeaker, and no description of its noise playback beyond
 # "while playing audible noise" was found] A loudspeaker on a table 0.5-2 m from the hand,
@@ -347,8 +406,12 @@ COUNTS_PER_PA = 10 ** (SENSITIVITY_DBFS / 20) * archive.FULL_SCALE / math.sqrt(2
 SELF_NOISE_DB_A = 94.0 - 65.0  # [ds] 65 dB(A) SNR re 94 dB SPL -> 29 dB(A) SPL equivalent input noise
 BAND_HZ = (50.0, 15_000.0)  # [ds] usable band: 2nd-order roll-offs at both ends
 DECIMATION_HZ = estimates.value("DECIMATION_HZ")  # [estimate] steep digital low-pass of the sigma-delta decimator
-DECIMATION_ORDER = estimates.value("DECIMATION_ORDER")  # [estimate] its steepness: amplitude 1 / (1 + (f / DECIMATION_HZ)^this)
-DC_OFFSET_COUNTS = estimates.value("DC_OFFSET_COUNTS")  # [estimate] large DC offset (of 2**17), drifting from day to day
+DECIMATION_ORDER = estimates.value(
+    "DECIMATION_ORDER"
+)  # [estimate] its steepness: amplitude 1 / (1 + (f / DECIMATION_HZ)^this)
+DC_OFFSET_COUNTS = estimates.value(
+    "DC_OFFSET_COUNTS"
+)  # [estimate] large DC offset (of 2**17), drifting from day to day
 # [estimate] The DC offset is set by the modulator's reference and drifts with temperature; 400
 # counts is 0.3 % of full scale (the datasheet gives no drift figure). It sits in the lowest Welch
 # bins only, which the detrend removes.
@@ -443,7 +506,9 @@ SHELL_CYLINDER_MM = 15.0  # [minsight] skeleton length ~25 mm (skeleton.STEP) le
 # and reaches 80 degrees off axis (the wall ~1.8 mm above the camera): a wide-angle estimate, since
 # the lens's field of view is not published.
 CAMERA_HALF_FOV_RAD = math.radians(estimates.value("CAMERA_HALF_FOV_DEG"))
-LED_RING_RADIUS_MM = estimates.value("LED_RING_RADIUS_MM")  # [estimate] the LED ring lies inside the 10.25 mm skeleton, around the camera
+LED_RING_RADIUS_MM = estimates.value(
+    "LED_RING_RADIUS_MM"
+)  # [estimate] the LED ring lies inside the 10.25 mm skeleton, around the camera
 # [minsight] Full-colour SMD chip LEDs (Wuerth WL-SFCC) on a ring: red, green and blue emitters from
 # three directions 120 degrees apart, the photometric-stereo lighting of [insight]: a tilt of the
 # wall changes the three colours differently.
@@ -456,7 +521,9 @@ COLLIMATOR_HALF_ANGLE_RAD = math.radians(estimates.value("COLLIMATOR_HALF_ANGLE_
 # [estimate] The camera's fixed exposure (camera.py: manual exposure 156, auto white balance off) is
 # set for an unsaturated reference: the brightest no-contact pixels sit near this level.
 EXPOSURE_LEVEL_DN = estimates.value("EXPOSURE_LEVEL_DN")
-EXPOSURE_PERCENTILE = 99.5  # [numerics] "the brightest pixels", where EXPOSURE_LEVEL_DN is given: this percentile (a robust maximum)
+EXPOSURE_PERCENTILE = (
+    99.5  # [numerics] "the brightest pixels", where EXPOSURE_LEVEL_DN is given: this percentile (a robust maximum)
+)
 # [minsight] The interior is Ecoflex 00-30 filled with 65 um aluminium powder and 75 um aluminium
 # flakes: a grainy metallic surface. [estimate] Each 75 um cell reflects a random share of the light
 # (flake orientation): albedo 1 + FLAKE_CONTRAST * N(0, 1) per cell (estimate: half the cells' light
@@ -469,7 +536,9 @@ FLAKE_CONTRAST = estimates.value("FLAKE_CONTRAST")
 # the node's bilinear resize to 410x308 blends 4 native pixels (noise x 2/3), and area-averaging a
 # frame to a smaller size divides it by the square root of the pixels averaged.
 CAMERA_FULL_WELL_E = estimates.value("CAMERA_FULL_WELL_E")
-RESIZE_NOISE_FACTOR = 2.0 / 3.0  # [minsight] camera.py's bilinear resize: sqrt(E[sum of squared bilinear weights]) = sqrt((2/3)^2)
+RESIZE_NOISE_FACTOR = (
+    2.0 / 3.0
+)  # [minsight] camera.py's bilinear resize: sqrt(E[sum of squared bilinear weights]) = sqrt((2/3)^2)
 # Contact mechanics. [cited] Hertz (1882): two equal elastic spheres (Minsight and the thumb's shell of
 # the same size, the thin cloth between them) at force F touch over a disc of radius
 # a = (3 F R_eff / (4 E*))^(1/3), R_eff = R / 2, 1 / E* = 2 (1 - nu^2) / E, and each shell is indented
@@ -516,8 +585,12 @@ BENDING_REF_THICKNESS_MM = 0.5  # [numerics] the reference point BENDING_REF_STR
 # shell of thickness d, surface relief of wavelength lambda reaches the inner wall attenuated by
 # exp(-2 pi d / lambda) (the same layer law as the contact); it removes weave textures of
 # sub-millimetre period entirely, so none is drawn.
-RIDGE_WAVELENGTH_PER_THICKNESS = estimates.value("RIDGE_WAVELENGTH_PER_THICKNESS")  # a ridge of width w has its relief at lambda ~ 4 w
-FOLD_ANGLE_SPREAD_RAD = estimates.value("FOLD_ANGLE_SPREAD_RAD")  # [paper: the hanger is moved between trials] the fold's direction varies
+RIDGE_WAVELENGTH_PER_THICKNESS = estimates.value(
+    "RIDGE_WAVELENGTH_PER_THICKNESS"
+)  # a ridge of width w has its relief at lambda ~ 4 w
+FOLD_ANGLE_SPREAD_RAD = estimates.value(
+    "FOLD_ANGLE_SPREAD_RAD"
+)  # [paper: the hanger is moved between trials] the fold's direction varies
 # The camera's day. [minsight, camera.py] Exposure and white balance are fixed by the camera node
 # (manual exposure, auto white balance off), so they do not move between days; what moves is:
 # * the LEDs' light with the room's temperature. [cited] Light output falls with junction temperature
@@ -546,8 +619,12 @@ SEATING_ROTATION_SD_RAD = SEATING_AXIAL_SD_MM / SKELETON_RADIUS_MM
 RENDER_SUPERSAMPLE = 2
 # [estimate] joint angles of the open hand: thumb (3 joints), middle finger (2), palm (1)
 OPEN_POSE_RAD = (
-    estimates.value("OPEN_POSE_THUMB1_RAD"), estimates.value("OPEN_POSE_THUMB2_RAD"), estimates.value("OPEN_POSE_THUMB3_RAD"),
-    estimates.value("OPEN_POSE_MIDDLE1_RAD"), estimates.value("OPEN_POSE_MIDDLE2_RAD"), estimates.value("OPEN_POSE_PALM_RAD"),
+    estimates.value("OPEN_POSE_THUMB1_RAD"),
+    estimates.value("OPEN_POSE_THUMB2_RAD"),
+    estimates.value("OPEN_POSE_THUMB3_RAD"),
+    estimates.value("OPEN_POSE_MIDDLE1_RAD"),
+    estimates.value("OPEN_POSE_MIDDLE2_RAD"),
+    estimates.value("OPEN_POSE_PALM_RAD"),
 )
 # How each finger's closing travel splits over its joints: the base joints rub and the palm holds
 # still (0), the middle finger closes with its second joint alone (1), the thumb splits its travel
@@ -558,6 +635,7 @@ CLOSING_SHARE = (0.0, _THUMB2, 1.0 - _THUMB2, 0.0, 1.0, 0.0)
 # [estimate] The palm joint holds still but takes this share of the rubbing joints' tangential load
 # torque (the hand's reaction to the strokes); the ISyHand's kinematics are unpublished.
 PALM_REACTION_SHARE = estimates.value("PALM_REACTION_SHARE")
-SERVO_STIFFNESS_NM_RAD = estimates.value("SERVO_STIFFNESS_NM_RAD")  # [estimate] position-loop stiffness: loaded joints lag their command
+SERVO_STIFFNESS_NM_RAD = estimates.value(
+    "SERVO_STIFFNESS_NM_RAD"
+)  # [estimate] position-loop stiffness: loaded joints lag their command
 READ_LATENCY_S = estimates.value("READ_LATENCY_S")  # [estimate] joints are read just before the frame is captured
-

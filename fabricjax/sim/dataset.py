@@ -26,7 +26,9 @@ from fabricjax.sim.trial import simulate
 def history(spec: splits.TrialSpec, dataset: splits.DatasetSpec) -> int:
     """How many of the dataset's trials rubbed `spec`'s cloth before it: the fabric's trials of
     earlier days (in day order, whatever the condition) and the earlier trials of its own day."""
-    return sum(1 for t in dataset.trials() if t.fabric_id == spec.fabric_id and (t.day, t.trial) < (spec.day, spec.trial))
+    return sum(
+        1 for t in dataset.trials() if t.fabric_id == spec.fabric_id and (t.day, t.trial) < (spec.day, spec.trial)
+    )
 
 
 def scene_for(spec: splits.TrialSpec, dataset: splits.DatasetSpec, streams: Iterable[str], seed: int = 0) -> Scene:
@@ -46,7 +48,9 @@ def scene_for(spec: splits.TrialSpec, dataset: splits.DatasetSpec, streams: Iter
 
 
 def filename(scene: Scene) -> str:
-    return archive.trial_filename({"fabric_id": scene.fabric_id, "day": scene.day, "trial": scene.trial, "condition": scene.condition})
+    return archive.trial_filename(
+        {"fabric_id": scene.fabric_id, "day": scene.day, "trial": scene.trial, "condition": scene.condition}
+    )
 
 
 def is_done(path: Path, scene: Scene) -> bool:
@@ -71,7 +75,9 @@ def trial_seconds(dataset: splits.DatasetSpec) -> float:
     """About how long one simulated trial of `dataset` lasts, at most: its cycles at the commanded
     rate, ~12 % slower on average under load (the servo droop of calibration.SPEED_DROOP_PER_N),
     plus ~1 s of closing and pauses."""
-    return dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0  # [numerics] a bound for the disk check and plans, see above
+    return (
+        dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0
+    )  # [numerics] a bound for the disk check and plans, see above
 
 
 def trial_steps(dataset: splits.DatasetSpec) -> int:
@@ -84,7 +90,9 @@ def trial_bytes(dataset: splits.DatasetSpec, images: bool) -> int:
     deflated (`archive.write_npz`): an upper bound, for the free-disk check."""
     seconds = trial_seconds(dataset)
     steps = seconds * archive.STEP_RATE
-    per_step = 8 + 2 * 8 + archive.N_PROPRIO * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)  # [numerics] bytes
+    per_step = (
+        8 + 2 * 8 + archive.N_PROPRIO * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)
+    )  # [numerics] bytes
     return int(steps * per_step + 2 * 4 * (seconds * archive.AUDIO_RATE + cal.LEAD_IN))
 
 
@@ -113,7 +121,9 @@ def ensure_dataset(
     folder = workspace.dataset_dir(preset_name, workdir)
     scenes = [scene_for(spec, dataset, streams, seed) for spec in dataset.trials()]
     wanted = {filename(s) for s in scenes}
-    if folder.is_dir() and not _to_write(folder, scenes, wanted):  # complete: only read, as readers may at the same time
+    if folder.is_dir() and not _to_write(
+        folder, scenes, wanted
+    ):  # complete: only read, as readers may at the same time
         dataset_index.load_index(folder, workdir)
         return folder
     doing = f"simulating preset {preset_name!r}"
@@ -129,7 +139,9 @@ def ensure_dataset(
         workers = workers or os.cpu_count() or 1
         if jobs:
             need = len(jobs) * trial_bytes(dataset, "images" in streams)
-            disk.require(folder, need, f"{len(jobs)} simulated trials of preset {preset_name!r}", margin=1 / 0.95)  # [numerics] a margin for other files
+            disk.require(
+                folder, need, f"{len(jobs)} simulated trials of preset {preset_name!r}", margin=1 / 0.95
+            )  # [numerics] a margin for other files
             if progress:
                 print(
                     f"Simulating {len(jobs)} of {len(scenes)} trials of preset {preset_name!r} ({', '.join(streams)}) into {folder}: "
@@ -137,7 +149,13 @@ def ensure_dataset(
                     "This happens once; later runs reuse the archives.",
                     flush=True,
                 )
-        bar = tqdm(total=len(scenes), initial=len(scenes) - len(jobs), desc=f"simulate {preset_name}", unit="trial", disable=not progress or not jobs)
+        bar = tqdm(
+            total=len(scenes),
+            initial=len(scenes) - len(jobs),
+            desc=f"simulate {preset_name}",
+            unit="trial",
+            disable=not progress or not jobs,
+        )
         with bar:
             parallel.run_jobs(_write, jobs, workers, bar.update)
         dataset_index.build_index(folder)
@@ -147,5 +165,8 @@ def ensure_dataset(
 def _to_write(folder: Path, scenes: list[Scene], wanted: set[str]) -> bool:
     """Whether the dataset in `folder` lacks an archive of `scenes`, holds one no scene makes
     (`wanted`: their file names), or a temporary file of an interrupted write."""
-    return (any(folder.glob(".*.partial")) or any(p.name not in wanted for p in folder.glob("*.npz"))
-            or any(not is_done(folder / filename(s), s) for s in scenes))
+    return (
+        any(folder.glob(".*.partial"))
+        or any(p.name not in wanted for p in folder.glob("*.npz"))
+        or any(not is_done(folder / filename(s), s) for s in scenes)
+    )

@@ -165,7 +165,10 @@ def _view(seed: int, h: int, w: int, axial: float, rotation: float) -> _View:
     jac = np.stack([np.stack([ds_dx, ds_dy], -1), np.stack([dc_dx, dc_dy], -1)], -2)  # d(s,c)/d(x,y)
     det = jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]
     det = np.where(np.abs(det) < 1e-12, 1e-12, det)
-    jac_inv = np.stack([np.stack([jac[..., 1, 1], -jac[..., 0, 1]], -1), np.stack([-jac[..., 1, 0], jac[..., 0, 0]], -1)], -2) / det[..., None, None]
+    jac_inv = (
+        np.stack([np.stack([jac[..., 1, 1], -jac[..., 0, 1]], -1), np.stack([-jac[..., 1, 0], jac[..., 0, 0]], -1)], -2)
+        / det[..., None, None]
+    )
     # a wall moving inward by w meets the ray earlier: the seen point moves by w d_t / (d . n)
     dn = np.minimum(np.sum(d * normal, -1), -0.05)  # [numerics] bounds the shift of grazing rays
     d_t = d - np.sum(d * normal, -1, keepdims=True) * normal
@@ -209,12 +212,13 @@ def inner_profile(force_n: float) -> tuple[np.ndarray, np.ndarray, float, float]
     r = np.hypot(*np.meshgrid(xy, xy))
     inside = np.clip(r / a, 0, 1)
     q = np.maximum(r / a, 1.0)
-    outer = np.where(r <= a, 1 - 0.5 * inside**2,
-                     (2 / np.pi) * ((1 - 0.5 * q**2) * np.arcsin(1 / q) + 0.5 * np.sqrt(q**2 - 1)))
+    outer = np.where(
+        r <= a, 1 - 0.5 * inside**2, (2 / np.pi) * ((1 - 0.5 * q**2) * np.arcsin(1 / q) + 0.5 * np.sqrt(q**2 - 1))
+    )
     k = 2 * np.pi * np.hypot(*np.meshgrid(np.fft.fftfreq(n, dx), np.fft.fftfreq(n, dx)))
     inner = np.real(np.fft.ifft2(np.fft.fft2(outer) * np.exp(-k * cal.SHELL_THICKNESS_MM)))
-    radii = xy[n // 2:]
-    line = inner[n // 2, n // 2:]
+    radii = xy[n // 2 :]
+    line = inner[n // 2, n // 2 :]
     line = np.clip(line - np.interp(cal.CONTACT_SUPPORT_MM, radii, line), 0.0, None)  # held by the skeleton
     return radii, line / line[0], float(indent), float(line[0])
 
@@ -227,7 +231,11 @@ def patch_geometry(fabric: catalog.Fabric, fold: float) -> tuple[float, float, f
         return 1.0, 1.0, 0.0
     stack_mm = 2.0 * fabric.thickness_mm * fold
     conform = 1.0 + cal.CONFORM_PER_MM * stack_mm * fabric.compressibility
-    bending = 2.0 * (fabric.stretch_stiffness / cal.BENDING_REF_STRETCH_N_MM) * (fabric.thickness_mm / cal.BENDING_REF_THICKNESS_MM) ** 2
+    bending = (
+        2.0
+        * (fabric.stretch_stiffness / cal.BENDING_REF_STRETCH_N_MM)
+        * (fabric.thickness_mm / cal.BENDING_REF_THICKNESS_MM) ** 2
+    )
     wavelength = cal.RIDGE_WAVELENGTH_PER_THICKNESS * stack_mm
     ridge = float(np.exp(-2 * np.pi * cal.SHELL_THICKNESS_MM / wavelength))
     return conform, conform * (1.0 + bending) ** (1 / 4), ridge
@@ -242,8 +250,16 @@ class _Contact:
     shading: np.ndarray  # (3, H, W) irradiance change per mm of centre indentation
 
 
-def _contact(view: _View, centre_sc: np.ndarray, fold_angle: float, along: float, across: float,
-             ridge: float, ridge_offset: float, ridge_width: float) -> _Contact:
+def _contact(
+    view: _View,
+    centre_sc: np.ndarray,
+    fold_angle: float,
+    along: float,
+    across: float,
+    ridge: float,
+    ridge_offset: float,
+    ridge_width: float,
+) -> _Contact:
     radii, profile, _, _ = inner_profile(cal.GRASP_FORCE_N)
     ds = view.s - centre_sc[0]
     dc = np.mod(view.c - centre_sc[1] + CIRCUMFERENCE_MM / 2, CIRCUMFERENCE_MM) - CIRCUMFERENCE_MM / 2
@@ -286,8 +302,13 @@ def _noise_sigma(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return np.sqrt(np.maximum(image, 0.0) * np.float32(dn_per_electron)) * np.float32(cal.RESIZE_NOISE_FACTOR * area)
 
 
-def physical_frames(scene: Scene, indent_mm: np.ndarray, shear_mm: np.ndarray, contact: dict | None = None,
-                    size: tuple[int, int] | None = None) -> np.ndarray:
+def physical_frames(
+    scene: Scene,
+    indent_mm: np.ndarray,
+    shear_mm: np.ndarray,
+    contact: dict | None = None,
+    size: tuple[int, int] | None = None,
+) -> np.ndarray:
     """Noise-free float32 frames (T, h, w, 3) in DN of `scene`'s day at `size` (the scene's by
     default) for centre indentations and shears (mm per frame), rendered on `render_size(size)` and
     area-averaged down. `contact` holds the trial's patch (`trial_contact`); None: no contact."""
@@ -298,7 +319,7 @@ def physical_frames(scene: Scene, indent_mm: np.ndarray, shear_mm: np.ndarray, c
     gain = _exposure(scene.seed) * np.asarray(day.led_gain)[:, None, None]  # DN per unit irradiance, per colour
     base = gain * view.light  # (3, H, W)
     albedo = np.where(view.valid, view.albedo, 0.0).astype(np.float32)
-    y, x = np.mgrid[0:big[0], 0:big[1]].astype(np.float32)
+    y, x = np.mgrid[0 : big[0], 0 : big[1]].astype(np.float32)
     frames = np.empty((len(indent_mm), *size, 3), np.float32)
     if contact is None:
         frames[:] = _area_down((albedo[..., None] * base.transpose(1, 2, 0))[None].astype(np.float32), size)
@@ -315,7 +336,9 @@ def physical_frames(scene: Scene, indent_mm: np.ndarray, shear_mm: np.ndarray, c
         stop = min(start + CHUNK, len(indent))
         for k in range(start, stop):
             a, s = indent[k], shear[k]
-            seen[k - start, ..., 0] = cv2.remap(albedo, x + a * px + s * sx, y + a * py + s * sy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            seen[k - start, ..., 0] = cv2.remap(
+                albedo, x + a * px + s * sx, y + a * py + s * sy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+            )
         light = base_t[None] + indent[start:stop, None, None, None] * shade[None]
         frames[start:stop] = _area_down(seen[: stop - start] * np.maximum(light, 0.0), size)
     return frames
@@ -333,8 +356,15 @@ def trial_contact(scene: Scene, nz: Nuisance, rng: np.random.Generator) -> dict:
     axial = cal.CONTACT_AXIAL_MM + cal.CONTACT_SHIFT_PER_STACK_MM * stack_mm
     centre = np.array([CAP_ARC_MM + cal.SHELL_CYLINDER_MM - axial, 0.0]) + nz.contact_offset_mm
     width = max(stack_mm, cal.FLAKE_SIZE_MM) if scene.fabric.is_fabric else 1.0
-    return dict(centre_sc=centre, fold_angle=float(fold_angle), along=along, across=across, ridge=ridge,
-                ridge_offset=float(ridge_offset), ridge_width=float(width))
+    return dict(
+        centre_sc=centre,
+        fold_angle=float(fold_angle),
+        along=along,
+        across=across,
+        ridge=ridge,
+        ridge_offset=float(ridge_offset),
+        ridge_width=float(width),
+    )
 
 
 def loads_mm(normal_n: np.ndarray, shear_n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -350,10 +380,10 @@ def quantise(frames: np.ndarray, size: tuple[int, int], rng: np.random.Generator
     frames, so the temporaries stay small)."""
     out = np.empty(frames.shape, np.uint8)
     for start in range(0, len(frames), CHUNK):
-        clean = frames[start:start + CHUNK]
+        clean = frames[start : start + CHUNK]
         noisy = clean + rng.standard_normal(clean.shape, dtype=np.float32) * _noise_sigma(clean, size)
         np.clip(np.rint(noisy, out=noisy), 0, 255, out=noisy)
-        out[start:start + CHUNK] = noisy
+        out[start : start + CHUNK] = noisy
     return out
 
 

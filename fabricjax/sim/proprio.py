@@ -32,7 +32,11 @@ def joints_and_force(motion: Motion, frame_t: np.ndarray, nz: Nuisance, rng: np.
     lever = cal.FINGER_LEVER_MM
     finger = motion.finger_mm / lever  # rad of each rubbing joint
     closing = motion.closing_mm / 2 / lever  # rad of closing per finger
-    angle = np.asarray(cal.OPEN_POSE_RAD)[:, None] + RUBBING[:, None] * finger + np.asarray(cal.CLOSING_SHARE)[:, None] * closing
+    angle = (
+        np.asarray(cal.OPEN_POSE_RAD)[:, None]
+        + RUBBING[:, None] * finger
+        + np.asarray(cal.CLOSING_SHARE)[:, None] * closing
+    )
     current = np.full_like(angle, cal.IDLE_CURRENT_A)
     if rng is not None:
         shear = motion.shear_n * lever * 1e-3  # N m, opposing the stroke

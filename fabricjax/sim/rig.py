@@ -21,6 +21,7 @@ import numpy as np
 
 from fabricjax.sim import calibration as cal
 
+
 def climate(rng: np.random.Generator) -> tuple[float, float]:
     """(temperature C, relative humidity %) of one recording day."""
     return float(rng.uniform(*cal.ROOM_TEMPERATURE_C)), float(rng.uniform(*cal.ROOM_HUMIDITY_PCT))

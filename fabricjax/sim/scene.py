@@ -28,7 +28,18 @@ from fabricjax import archive, catalog
 from fabricjax.sim import calibration as cal
 from fabricjax.sim import estimates, rig
 
-EFFECTS = ("texture", "stick_slip", "shell", "air_path", "servo_noise", "ambient", "sph0645", "proprioception", "climate", "wear")
+EFFECTS = (
+    "texture",
+    "stick_slip",
+    "shell",
+    "air_path",
+    "servo_noise",
+    "ambient",
+    "sph0645",
+    "proprioception",
+    "climate",
+    "wear",
+)
 """Optional physics. The finger motion (the procedure itself) always runs."""
 STREAMS = ("audio", "proprio", "images")
 REQUIRED_STREAMS = ("audio", "proprio")  # the archive format requires audio, joints and force
@@ -53,9 +64,13 @@ MAGNITUDES = magnitudes()
 # The catalog's physical parameters are our textbook-order choices: each kind is scaled, for every
 # fabric alike, by an estimate of the registry (1 in the published data: the catalog as it is).
 CATALOG_SCALES = {
-    "weave_period_mm": "CATALOG_WEAVE_PERIOD_SCALE", "roughness_um": "CATALOG_ROUGHNESS_SCALE", "friction": "CATALOG_FRICTION_SCALE",
-    "thickness_mm": "CATALOG_THICKNESS_SCALE", "compressibility": "CATALOG_COMPRESSIBILITY_SCALE",
-    "stretch_stiffness": "CATALOG_STRETCH_STIFFNESS_SCALE", "fuzz": "CATALOG_FUZZ_SCALE",
+    "weave_period_mm": "CATALOG_WEAVE_PERIOD_SCALE",
+    "roughness_um": "CATALOG_ROUGHNESS_SCALE",
+    "friction": "CATALOG_FRICTION_SCALE",
+    "thickness_mm": "CATALOG_THICKNESS_SCALE",
+    "compressibility": "CATALOG_COMPRESSIBILITY_SCALE",
+    "stretch_stiffness": "CATALOG_STRETCH_STIFFNESS_SCALE",
+    "fuzz": "CATALOG_FUZZ_SCALE",
 }
 
 
@@ -122,7 +137,8 @@ class Scene:
             del d["estimates"]  # the published simulator: its archives' scenes name no estimates
         return {
             **{k: list(v) if isinstance(v, tuple) else v for k, v in d.items()},
-            "simulator_version": SIMULATOR_VERSION, "magnitudes": MAGNITUDES,
+            "simulator_version": SIMULATOR_VERSION,
+            "magnitudes": MAGNITUDES,
         }
 
     def rng(self, name: str, scope: str) -> np.random.Generator:

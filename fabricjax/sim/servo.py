@@ -34,7 +34,9 @@ def source(motion: Motion, grid: acoustics.Grid, rng: np.random.Generator) -> np
     phase = 2 * np.pi * np.cumsum(mesh_hz) / archive.AUDIO_RATE + rng.uniform(0, 2 * np.pi)
     sin, cos = np.sin(phase), np.cos(phase)
     h2, h3 = cal.SERVO_HARMONICS
-    tone = sin + 2 * h2 * sin * cos + h3 * sin * (3.0 - 4.0 * sin * sin)  # harmonics 1, 2 (sin 2x = 2 sin cos), 3 (sin 3x = 3 sin - 4 sin^3)
+    tone = (
+        sin + 2 * h2 * sin * cos + h3 * sin * (3.0 - 4.0 * sin * sin)
+    )  # harmonics 1, 2 (sin 2x = 2 sin cos), 3 (sin 3x = 3 sin - 4 sin^3)
     x = cal.SERVO_TONE_PA * speed * load * tone
     x += (cal.SERVO_BROADBAND_PA * speed * load) * rng.standard_normal(grid.n, dtype=np.float32)
     spec = grid.rfft(x)

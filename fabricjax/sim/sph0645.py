@@ -43,11 +43,15 @@ def to_words(counts: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
     """Signed 18-bit samples -> int32 I2S words (clipped at full scale; optional junk bits)."""
     q = np.clip(np.round(counts), -archive.FULL_SCALE, archive.FULL_SCALE - 1).astype(np.int32) << archive.SAMPLE_SHIFT
     if rng is not None:
-        q |= rng.integers(0, 2**cal.JUNK_BITS, q.shape, dtype=np.int32) << (archive.SAMPLE_SHIFT - cal.JUNK_BITS)  # bits 13..8
+        q |= rng.integers(0, 2**cal.JUNK_BITS, q.shape, dtype=np.int32) << (
+            archive.SAMPLE_SHIFT - cal.JUNK_BITS
+        )  # bits 13..8
     return q
 
 
-def record(pressure_spectrum: np.ndarray, grid: acoustics.Grid, mic: int, nuisance, rng: np.random.Generator | None) -> np.ndarray:
+def record(
+    pressure_spectrum: np.ndarray, grid: acoustics.Grid, mic: int, nuisance, rng: np.random.Generator | None
+) -> np.ndarray:
     """One microphone's int32 word stream from the spectrum (Pa) of the sound at its port.
 
     `rng=None` means the effect is off: ideal microphone."""

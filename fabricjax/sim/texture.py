@@ -77,7 +77,11 @@ def sample_profile(profile: np.ndarray, position_mm: np.ndarray) -> np.ndarray:
 
 
 def vibration(
-    scene: Scene, slide_mm: np.ndarray, normal_n: np.ndarray, grasp_mm: float, rng: np.random.Generator,
+    scene: Scene,
+    slide_mm: np.ndarray,
+    normal_n: np.ndarray,
+    grasp_mm: float,
+    rng: np.random.Generator,
     fuzz_scale: float = 1.0,
 ) -> np.ndarray:
     """Cavity pressure (Pa) from the texture, given the slide position and normal force per sample,

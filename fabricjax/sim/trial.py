@@ -15,7 +15,20 @@ import importlib
 import numpy as np
 
 from fabricjax import archive
-from fabricjax.sim import acoustics, air_path, ambient, estimates, minsight, motion, proprio, servo, shell, sph0645, stick_slip, texture
+from fabricjax.sim import (
+    acoustics,
+    air_path,
+    ambient,
+    estimates,
+    minsight,
+    motion,
+    proprio,
+    servo,
+    shell,
+    sph0645,
+    stick_slip,
+    texture,
+)
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import Nuisance, Scene, nuisance
 
@@ -35,7 +48,12 @@ def middle_grasp_mm(grasp_mm: float, rng: np.random.Generator) -> float:
 
 
 def contact(
-    scene: Scene, mot: motion.Motion, grid: acoustics.Grid, slide_normal, grasp_mm: float, names: tuple[str, str],
+    scene: Scene,
+    mot: motion.Motion,
+    grid: acoustics.Grid,
+    slide_normal,
+    grasp_mm: float,
+    names: tuple[str, str],
     fuzz_scale: float,
 ) -> np.ndarray:
     """Spectrum (cavity-equivalent Pa) of one fingertip's contact: texture (read along `slide_normal`, the
@@ -49,7 +67,9 @@ def contact(
     return spec
 
 
-def sound_sources(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, nz) -> dict[str, tuple[np.ndarray | None, np.ndarray | None]]:
+def sound_sources(
+    scene: Scene, mot: motion.Motion, grid: acoustics.Grid, nz
+) -> dict[str, tuple[np.ndarray | None, np.ndarray | None]]:
     """Pressure spectra (Pa) of each sound the scene calls for at (Minsound's microphone, the palm microphone);
     None where a sound does not reach that microphone (calibration, "air paths", bounds what is left out)."""
     f = grid.f
@@ -65,7 +85,9 @@ def sound_sources(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, nz) ->
         out["thumb contact"] = (thumb * wall, None if paths is None else thumb * paths["thumb"])
         if paths is not None and scene.fabric.is_fabric:
             grasp = middle_grasp_mm(nz.grasp_mm, scene.rng("middle_patch", "trial"))
-            middle = contact(scene, mot, grid, (-slide, normal), grasp, ("texture_middle", "stick_slip_middle"), nz.fuzz_scale)  # opposite phase
+            middle = contact(
+                scene, mot, grid, (-slide, normal), grasp, ("texture_middle", "stick_slip_middle"), nz.fuzz_scale
+            )  # opposite phase
             out["middle contact"] = (None, middle * paths["middle"])
             out["cloth"] = (None, (thumb - middle) * paths["cloth"])
         elif paths is not None:  # no cloth: the two shells rub each other, one contact indents both
@@ -75,7 +97,9 @@ def sound_sources(scene: Scene, mot: motion.Motion, grid: acoustics.Grid, nz) ->
         out["servos"] = (src * servo.internal_transfer(f), src * servo.palm_transfer(f))
     if scene.wants("ambient"):
         loss = shell.airborne_transfer(f) if scene.wants("shell") else 1.0
-        for name, (palm, outside) in ambient.spectra(scene, nz.ambient_db_a, grid, scene.rng("ambient", "trial")).items():
+        for name, (palm, outside) in ambient.spectra(
+            scene, nz.ambient_db_a, grid, scene.rng("ambient", "trial")
+        ).items():
             out[name] = (outside * loss, palm)
     return out
 
@@ -138,7 +162,9 @@ def simulate(scene: Scene) -> archive.TrialArchive:
     proc = procedure(scene)
     nz, mot, t, window_end = proc.nuisance, proc.motion, proc.frame_times, proc.window_end
     audio = microphones(scene, mot, proc.grid, nz)
-    joints, force = proprio.joints_and_force(mot, t, nz, scene.rng("proprioception", "trial") if scene.wants("proprioception") else None)
+    joints, force = proprio.joints_and_force(
+        mot, t, nz, scene.rng("proprioception", "trial") if scene.wants("proprioception") else None
+    )
     images = minsight.render(scene, mot, t, nz, scene.rng("minsight", "trial")) if "images" in scene.streams else None
     meta = archive.make_meta(
         fabric_id=fab.id,
@@ -168,5 +194,8 @@ def simulate(scene: Scene) -> archive.TrialArchive:
 def reference_meta(scene: Scene) -> dict:
     """`meta.reference` of a simulated trial: its session (day and condition) took one no-contact
     frame at its start, as Minsight's camera node does after its warm-up (`minsight.reference`)."""
-    return {"how": "simulated: one no-contact frame after the camera's warm-up, at the session's start",
-            "session": f"day{scene.day}_{scene.condition}", "times_s": None}
+    return {
+        "how": "simulated: one no-contact frame after the camera's warm-up, at the session's start",
+        "session": f"day{scene.day}_{scene.condition}",
+        "times_s": None,
+    }

@@ -59,7 +59,11 @@ def machine() -> dict[str, Any]:
         "jax_backend": jax.default_backend(),
         "devices": [str(d) for d in jax.devices()],
         # settings that change speed without changing code; recorded so a timing can be rerun alike
-        "env": {k: os.environ[k] for k in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "GLIBC_TUNABLES", "OMP_NUM_THREADS") if k in os.environ},
+        "env": {
+            k: os.environ[k]
+            for k in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "GLIBC_TUNABLES", "OMP_NUM_THREADS")
+            if k in os.environ
+        },
     }
 
 
@@ -68,8 +72,13 @@ def git_commit() -> str:
     git sees any), or 'no git checkout'."""
     root = Path(__file__).resolve().parents[2]
     try:
-        run = lambda *a: subprocess.run(["git", "-C", str(root), *a], capture_output=True, text=True, timeout=10, check=True).stdout.strip()  # noqa: E731
-        head, dirty = run("rev-parse", "--short=12", "HEAD"), run("status", "--porcelain", "--untracked-files=no", "--", "fabricjax", "experiments")
+        run = lambda *a: subprocess.run(  # noqa: E731
+            ["git", "-C", str(root), *a], capture_output=True, text=True, timeout=10, check=True
+        ).stdout.strip()
+        head, dirty = (
+            run("rev-parse", "--short=12", "HEAD"),
+            run("status", "--porcelain", "--untracked-files=no", "--", "fabricjax", "experiments"),
+        )
     except (OSError, subprocess.SubprocessError):
         return "no git checkout"
     return f"commit {head}" + (" + uncommitted changes" if dirty else "")
@@ -140,8 +149,13 @@ def utc_now() -> str:
 
 
 def header(
-    study: str, *, command: str | None, seeds: Sequence[int] | None = None, dataset: Dataset | None = None,
-    compute_dtypes: Iterable[str] | None = None, **fields,
+    study: str,
+    *,
+    command: str | None,
+    seeds: Sequence[int] | None = None,
+    dataset: Dataset | None = None,
+    compute_dtypes: Iterable[str] | None = None,
+    **fields,
 ) -> dict[str, Any]:
     """The first fields of every results JSON: what ran (`study`; `command`: the command line,
     None when called from Python), from which code and with which `fingerprints`, when and on
@@ -178,7 +192,9 @@ def header_markdown(doc: dict[str, Any], time: str | None = None) -> str:
         seeds = doc["seeds"]
         lines.append(f"- seeds: {len(seeds)} ({seeds[0]}-{seeds[-1]}), mean ± SD (sample SD) over seeds")
     if "compute_dtype" in doc:
-        lines.append(f"- arithmetic: matrix products in {' and '.join(doc['compute_dtype'])} with float32 accumulation; parameters, normalisations, losses and statistics in float32")
+        lines.append(
+            f"- arithmetic: matrix products in {' and '.join(doc['compute_dtype'])} with float32 accumulation; parameters, normalisations, losses and statistics in float32"
+        )
     lines.append(machine_markdown(doc["machine"]))
     if time is None and "train_s" in doc:
         time = f"training {doc['train_s']:.0f} s in all (per row below, compilation included); {data_time_markdown(doc['dataset'])}"
@@ -193,7 +209,9 @@ def fingerprints_markdown(prints: dict[str, str | None]) -> str:
     return "- fingerprints: " + ", ".join(f"{named[k]} `{v}`" for k, v in prints.items() if v is not None)
 
 
-def write(results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str] | None, figures: Sequence[Path | None] = ()) -> dict[str, Any]:
+def write(
+    results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str] | None, figures: Sequence[Path | None] = ()
+) -> dict[str, Any]:
     """Write `doc` as results/<study>.json and `markdown(doc)` (None: no Markdown) as
     results/<study>.md, atomically; `figures` (drawn into the same folder; None: not drawn) are
     listed by file name under the document's "figures" key first, which is how the Markdown and
@@ -238,13 +256,15 @@ def replace_block(path: Path, begin: str, end: str, block: str) -> bool:
     start, stop = text.find(begin), text.find(end)
     if start < 0 or stop < start:
         return False
-    write_text(path, text[:start] + block + text[stop + len(end):])
+    write_text(path, text[:start] + block + text[stop + len(end) :])
     return True
 
 
 def data_time_markdown(d: dict[str, Any]) -> str:
     """The data's share of a study's time (`dataset_doc`): recorded data is read, never simulated."""
-    load = f"features and sequences {d['load_s']:.0f} s" + (f", camera inputs laid out for training {d['layout_s']:.1f} s" if d.get("layout_s") else "")
+    load = f"features and sequences {d['load_s']:.0f} s" + (
+        f", camera inputs laid out for training {d['layout_s']:.1f} s" if d.get("layout_s") else ""
+    )
     if d["source"] == "recorded":
         return f"data apart from that: {load} (recorded data, read as it is)"
     return f"data apart from that: simulation {d['generate_s']:.0f} s, {load}"
@@ -253,8 +273,10 @@ def data_time_markdown(d: dict[str, Any]) -> str:
 def data_markdown(preset: str, d: dict[str, Any]) -> str:
     """The preset and the dataset (`dataset_doc`) a study read."""
     if d["source"] == "recorded":
-        line = (f"- preset: {preset}; recorded data `{d['folder']}` ({len(d['classes'])} classes, chance "
-                f"{100 / len(d['classes']):.1f} %); trials {d['trials']}; sequences {d['sequences']}")
+        line = (
+            f"- preset: {preset}; recorded data `{d['folder']}` ({len(d['classes'])} classes, chance "
+            f"{100 / len(d['classes']):.1f} %); trials {d['trials']}; sequences {d['sequences']}"
+        )
         return line + ("\n" + provenance.markdown(d["provenance"]) if "provenance" in d else "")
     return f"- preset: {preset}; {d['source']} dataset `{d['folder']}`; sequences {d['sequences']}"
 
@@ -266,8 +288,10 @@ def machine_line(m: dict[str, Any]) -> str:
 
 def machine_markdown(m: dict[str, Any]) -> str:
     """The machine (`machine`) a study ran on."""
-    return (f"- machine: {m['cpu']} ({', '.join(m.get('vector_units') or ['vector units not recorded'])}), {m['cores']} cores, "
-            f"JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)")
+    return (
+        f"- machine: {m['cpu']} ({', '.join(m.get('vector_units') or ['vector units not recorded'])}), {m['cores']} cores, "
+        f"JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)"
+    )
 
 
 def command_markdown(command: str | None) -> str:
@@ -292,8 +316,12 @@ def dataset_doc(ds: Dataset) -> dict[str, Any]:
         "sequences": {k: len(v) for k, v in ds.sets.items()},
         "trials": {k: c["trials"] for k, c in ds.split_counts().items()},
         "classes": list(ds.classes),
-        **({"names": dict(next(iter(ds.sets.values())).names)} if ds.recorded else {}),  # how the data names its streams
-        **({"provenance": source} if ds.recorded and (source := provenance.read(ds.folder)) else {}),  # its README's source and terms
+        **(
+            {"names": dict(next(iter(ds.sets.values())).names)} if ds.recorded else {}
+        ),  # how the data names its streams
+        **(
+            {"provenance": source} if ds.recorded and (source := provenance.read(ds.folder)) else {}
+        ),  # its README's source and terms
     }
 
 

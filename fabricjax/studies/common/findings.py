@@ -57,19 +57,29 @@ def missing(claim: str, needed: Sequence[str], have: Mapping[str, Any]) -> Findi
     return Finding(claim, None, f"needs {', '.join(absent)}, not run") if absent else None
 
 
-def at_least(claim: str, a: tuple[str, Any], b: tuple[str, Any], margin_pp: float = 0.0, strict: bool = False) -> Finding:
+def at_least(
+    claim: str, a: tuple[str, Any], b: tuple[str, Any], margin_pp: float = 0.0, strict: bool = False
+) -> Finding:
     """Holds when mean(a) >= mean(b) + margin_pp (percentage points); > with `strict`."""
     (na, va), (nb, vb) = a, b
     diff = mean_pct(va) - mean_pct(vb)
-    rule = f"mean difference {diff:+.1f} pp" + (f" (rule: {'>' if strict else '>='} {margin_pp:+.1f} pp)" if margin_pp or strict else "")
-    return Finding(claim, bool(diff > margin_pp if strict else diff >= margin_pp), f"{describe(na, va)} vs {describe(nb, vb)}; {rule}")
+    rule = f"mean difference {diff:+.1f} pp" + (
+        f" (rule: {'>' if strict else '>='} {margin_pp:+.1f} pp)" if margin_pp or strict else ""
+    )
+    return Finding(
+        claim,
+        bool(diff > margin_pp if strict else diff >= margin_pp),
+        f"{describe(na, va)} vs {describe(nb, vb)}; {rule}",
+    )
 
 
 def below(claim: str, a: tuple[str, Any], b: tuple[str, Any]) -> Finding:
     """Holds when mean(a) < mean(b): `at_least` with the roles swapped, evidence in the claim's order."""
     (na, va), (nb, vb) = a, b
     diff = mean_pct(va) - mean_pct(vb)
-    return Finding(claim, bool(diff < 0), f"{describe(na, va)} vs {describe(nb, vb)}; mean difference {diff:+.1f} pp (rule: < 0)")
+    return Finding(
+        claim, bool(diff < 0), f"{describe(na, va)} vs {describe(nb, vb)}; mean difference {diff:+.1f} pp (rule: < 0)"
+    )
 
 
 def count(findings: Sequence[Finding]) -> tuple[int, int]:
@@ -92,7 +102,11 @@ def claims_markdown(doc: dict[str, Any], claims: str = "the paper's claims about
     data, which has no paper to check, the note that its rows are compared with each other."""
     if documents.recorded(doc):
         return [documents.RECORDED_NOTE, ""]
-    return [f"## Findings checklist ({claims})", "", markdown(doc["findings"], counted=not documents.counts_no_claims(doc))]
+    return [
+        f"## Findings checklist ({claims})",
+        "",
+        markdown(doc["findings"], counted=not documents.counts_no_claims(doc)),
+    ]
 
 
 # A model "collapsed" when it predicts one class (or level) for at least this share of the
@@ -153,9 +167,11 @@ def collapse_text(per_seed: Sequence[int | None], noun: str = "class") -> str:
 def baseline_note(noun: str = "class") -> str:
     """The sentence under a table with `majority` columns and `collapse_note` flags (`noun`:
     "level" for property heads)."""
-    return (f"Majority {noun}: the accuracy of always answering the split's most frequent {noun}, from its labels (the {noun} in "
-            f"brackets), the strongest trivial baseline; *collapsed to {noun} k*: a seed answered k for at least "
-            f"{100 * COLLAPSED_SHARE:.0f} % of the split's sequences.")
+    return (
+        f"Majority {noun}: the accuracy of always answering the split's most frequent {noun}, from its labels (the {noun} in "
+        f"brackets), the strongest trivial baseline; *collapsed to {noun} k*: a seed answered k for at least "
+        f"{100 * COLLAPSED_SHARE:.0f} % of the split's sequences."
+    )
 
 
 def above_majority(values, base: Mapping[str, Any] | None) -> bool | None:

@@ -68,15 +68,23 @@ class Input:
     def describe(self, modality: str) -> str:
         """One line in words: the input's dimensions from step to probe, and the time it took."""
         dims = self.to_json()
-        kept = "" if self.explained_variance is None else f" (PCA keeping {100 * self.explained_variance:.1f} % of the variance)"
-        return (f"{modality}: {dims['step_dims']} values per step, {dims['summary_dims']} per sequence summary, "
-                f"{dims['probe_dims']} into the probe{kept}; {self.seconds:.2f} s")
+        kept = (
+            ""
+            if self.explained_variance is None
+            else f" (PCA keeping {100 * self.explained_variance:.1f} % of the variance)"
+        )
+        return (
+            f"{modality}: {dims['step_dims']} values per step, {dims['summary_dims']} per sequence summary, "
+            f"{dims['probe_dims']} into the probe{kept}; {self.seconds:.2f} s"
+        )
 
     def to_json(self) -> dict[str, Any]:
         return {
-            "step_dims": self.step_dims, "summary_dims": self.summary_dims,
+            "step_dims": self.step_dims,
+            "summary_dims": self.summary_dims,
             "probe_dims": next(iter(self.features.values())).shape[1],
-            "explained_variance": self.explained_variance, "seconds": self.seconds,
+            "explained_variance": self.explained_variance,
+            "seconds": self.seconds,
         }
 
 
@@ -129,10 +137,15 @@ def fit_rows(sets: Mapping[str, Any], modality_sets: Sequence[Sequence[str]]) ->
     inputs = prepare_inputs(sets, sorted({m for ms in wanted.values() for m in ms}), splits)
     labels = {s: sets[s].labels["fabric"] for s in splits}
     with threadpool_limits(BLAS_THREADS):
-        return {k: fit({s: np.concatenate([inputs[m].features[s] for m in ms], axis=1) for s in splits}, labels) for k, ms in wanted.items()}
+        return {
+            k: fit({s: np.concatenate([inputs[m].features[s] for m in ms], axis=1) for s in splits}, labels)
+            for k, ms in wanted.items()
+        }
 
 
-def fit(x: Mapping[str, np.ndarray], labels: Mapping[str, np.ndarray], c_grid: Sequence[float] = C_GRID) -> dict[str, Any]:
+def fit(
+    x: Mapping[str, np.ndarray], labels: Mapping[str, np.ndarray], c_grid: Sequence[float] = C_GRID
+) -> dict[str, Any]:
     """Logistic regression on the features `x` of every split (fitted on `x["train"]`) for every
     C of `c_grid`, ascending, each fit warm-started from the last; the chosen C is the one with
     the best validation accuracy (the smallest on a tie). Returns every C's accuracy on every
@@ -145,14 +158,21 @@ def fit(x: Mapping[str, np.ndarray], labels: Mapping[str, np.ndarray], c_grid: S
             model.set_params(C=c).fit(x["train"], labels["train"])
         iterations = int(np.max(model.n_iter_))
         predicted = {s: model.predict(v) for s, v in x.items()}
-        per_c.append({
-            "C": c, "iterations": iterations, "converged": iterations < MAX_ITER,
-            "accuracy": {s: float(np.mean(p == labels[s])) for s, p in predicted.items()},
-        })
+        per_c.append(
+            {
+                "C": c,
+                "iterations": iterations,
+                "converged": iterations < MAX_ITER,
+                "accuracy": {s: float(np.mean(p == labels[s])) for s, p in predicted.items()},
+            }
+        )
         predictions.append(predicted)
     best = int(np.argmax([e["accuracy"]["val"] for e in per_c]))  # argmax: the first, i.e. the smallest C, on a tie
     chosen = per_c[best]
     return {
-        "C": chosen["C"], "converged": chosen["converged"], "accuracy": chosen["accuracy"], "per_c": per_c,
+        "C": chosen["C"],
+        "converged": chosen["converged"],
+        "accuracy": chosen["accuracy"],
+        "per_c": per_c,
         "predictions": {s: p.tolist() for s, p in predictions[best].items() if s != "train"},
     }

@@ -22,7 +22,18 @@ TRAIN_VAL_TEST = ("train", "val", "test")
 # The `Config` fields besides modalities and bandwidth that decide the sequences `data.load_sequences`
 # returns (which trials, how they are cut, which camera features): one load serves several rows
 # only where these agree (`data.narrow` then gives each row its modalities and band).
-SEQUENCE_FIELDS = ("preset", "seq_len", "exclude_fabrics", "image_resolution", "image_size", "flow_sparsify", "flow_method", "mic_window_s", "image_reference", "input_source")
+SEQUENCE_FIELDS = (
+    "preset",
+    "seq_len",
+    "exclude_fabrics",
+    "image_resolution",
+    "image_size",
+    "flow_sparsify",
+    "flow_method",
+    "mic_window_s",
+    "image_reference",
+    "input_source",
+)
 
 
 @dataclasses.dataclass
@@ -70,7 +81,9 @@ class Dataset:
 
     def split_counts(self) -> dict[str, dict[str, int]]:
         """Trials and sequences per split."""
-        return {k: {"trials": len(set(v.info["trial_key"].tolist())), "sequences": len(v)} for k, v in self.sets.items()}
+        return {
+            k: {"trials": len(set(v.info["trial_key"].tolist())), "sequences": len(v)} for k, v in self.sets.items()
+        }
 
 
 def epochs_for(config: Config, steps: int, n_train: int) -> int:
@@ -95,7 +108,9 @@ def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Se
     logging.info("dataset %s (%s): %s", folder, source, {k: len(v) for k, v in sets.items()})
     ds = Dataset(sets, Path(folder), source, t1 - t0, t2 - t1, workdir)
     if ds.recorded:  # the user's own splits: say what each got
-        counts = ", ".join(f"{k} {c['trials']} trials / {c['sequences']} sequences" for k, c in ds.split_counts().items())
+        counts = ", ".join(
+            f"{k} {c['trials']} trials / {c['sequences']} sequences" for k, c in ds.split_counts().items()
+        )
         print(f"recorded data {folder} ({ds.n_classes} classes): {counts}")
     return ds
 
@@ -104,7 +119,9 @@ def reading(preset: str, data_dir=None, workdir=None):
     """The dataset's lock held shared (`fabricjax.lock`) while the block reads it: runs that read
     one dataset go together; one that would simulate it anew at the same time is refused."""
     folder = workspace.dataset_dir(preset, workdir, data_dir)
-    return lock.hold(lock.lock_file(folder, workdir), f"the dataset {workspace.shown(folder)}", "reading it", shared=True)
+    return lock.hold(
+        lock.lock_file(folder, workdir), f"the dataset {workspace.shown(folder)}", "reading it", shared=True
+    )
 
 
 def sequence_key(config: Config) -> tuple:
@@ -116,7 +133,9 @@ def union_modalities(configs: Sequence[Config]) -> tuple[str, ...]:
     return tuple(sorted({m for c in configs for m in c.modalities}))
 
 
-def load_for_rows(configs: Sequence[Config], *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS) -> Dataset:
+def load_for_rows(
+    configs: Sequence[Config], *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS
+) -> Dataset:
     """The sequences of every modality any row uses, at the widest bandwidth any row uses, loaded
     once for all rows (each row takes its own with `data.narrow`). The rows must agree on
     `SEQUENCE_FIELDS`, which `data.narrow` cannot change."""

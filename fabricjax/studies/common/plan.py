@@ -54,9 +54,25 @@ PROBE_CYCLES = 2  # rubbing cycles of the probe's trial: its closing's share of 
 # (the same bits), the recipe (the width's share of the time is small beside the inputs' encoders) and
 # the fusion's normalisation (a rescale or a LayerNorm of each step's features: little of a step's work)
 RATE_NEUTRAL = (
-    "preset", "n_classes", "mic_window_s", "input_source", "bandwidth_khz", "exclude_fabrics",
-    "epochs", "patience", "train_steps", "patience_steps", "lr_grid", "width_grid", "learning_rate", "width", "lr_schedule",
-    "warmup_steps", "weight_decay", "dropout", "fusion_norm",
+    "preset",
+    "n_classes",
+    "mic_window_s",
+    "input_source",
+    "bandwidth_khz",
+    "exclude_fabrics",
+    "epochs",
+    "patience",
+    "train_steps",
+    "patience_steps",
+    "lr_grid",
+    "width_grid",
+    "learning_rate",
+    "width",
+    "lr_schedule",
+    "warmup_steps",
+    "weight_decay",
+    "dropout",
+    "fusion_norm",
 )
 
 
@@ -82,7 +98,15 @@ def probe(dataset: DatasetSpec, config: Config) -> dict[str, float]:
     cv2.setNumThreads(1)  # a feature process's one thread (`cache`)
     try:
         for m in camera:
-            feature = data.feature_for(m, config.image_resolution, config.image_size, config.flow_sparsify, archive.WINDOW, config.image_reference, config.flow_method)
+            feature = data.feature_for(
+                m,
+                config.image_resolution,
+                config.image_size,
+                config.flow_sparsify,
+                archive.WINDOW,
+                config.image_reference,
+                config.flow_method,
+            )
             frames = lambda n: types.SimpleNamespace(images=trial.images[:n], reference=trial.reference)  # noqa: E731
             feature.compute(frames(PROBE_FRAMES))  # compiles
             t0 = time.perf_counter()
@@ -101,7 +125,9 @@ def _bytes_per_step(config: Config, image_size: tuple[int, int]) -> float:
             out += 2 * math.prod(flow.pooled_shape(*image_size)) * 2  # float16
         elif m == "image":
             size = image_size if config.image_resolution == "full" else config.image_size
-            out += math.prod(size) * 3 * (2 if config.image_reference == "session" else 1)  # uint8, int16 against a reference
+            out += (
+                math.prod(size) * 3 * (2 if config.image_reference == "session" else 1)
+            )  # uint8, int16 against a reference
         elif m == "proprio":
             out += 4 * archive.N_PROPRIO
         else:
@@ -116,14 +142,26 @@ def _published_rates() -> list[tuple[str, dict[str, dict[str, float]]]]:
     try:
         manifest = json.loads(REPRODUCE_MANIFEST.read_text())
         for study, entry in manifest.items():
-            if entry.get("rates"):  # keys re-read under today's `RATE_NEUTRAL` (a key is the JSON of the fields it kept)
+            if entry.get(
+                "rates"
+            ):  # keys re-read under today's `RATE_NEUTRAL` (a key is the JSON of the fields it kept)
                 keyed = {rate_key(json.loads(k)): v for k, v in entry["rates"].items()}
-                out.append((f"{study} in {workspace.shown(REPRODUCE_MANIFEST)} ({entry.get('machine', 'host not recorded')}, {entry['finished']})", keyed))
+                out.append(
+                    (
+                        f"{study} in {workspace.shown(REPRODUCE_MANIFEST)} ({entry.get('machine', 'host not recorded')}, {entry['finished']})",
+                        keyed,
+                    )
+                )
     except (OSError, ValueError):
         pass
     try:
         sample = json.loads(SAMPLE_RESULTS.read_text())
-        out.append((f"{workspace.shown(SAMPLE_RESULTS)} ({sample['machine'].get('cpu')}, {sample['machine'].get('cores')} cores, {sample['date']})", rates(sample)))
+        out.append(
+            (
+                f"{workspace.shown(SAMPLE_RESULTS)} ({sample['machine'].get('cpu')}, {sample['machine'].get('cores')} cores, {sample['date']})",
+                rates(sample),
+            )
+        )
     except (OSError, ValueError, KeyError):
         pass
     return out
@@ -140,14 +178,30 @@ def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequence
         key = rate_key(config.to_json())
         source, rate = next(((src, r[key]) for src, r in published if key in r), (None, None))
         points = recipe.points(config)
-        epochs = loading.epochs_for(config, config.train_steps, train_sequences) if config.train_steps else config.epochs
+        epochs = (
+            loading.epochs_for(config, config.train_steps, train_sequences) if config.train_steps else config.epochs
+        )
         grid = f"{len(points)} grid points x " if len(points) > 1 else ""
         if rate is None:
-            out.append(Stage(f"training {name}", 0, None, f"unknown before the run: no published run of these inputs and this model; {grid}at most {epochs} epochs"))
+            out.append(
+                Stage(
+                    f"training {name}",
+                    0,
+                    None,
+                    f"unknown before the run: no published run of these inputs and this model; {grid}at most {epochs} epochs",
+                )
+            )
             continue
         seconds = len(points) * (rate["compile_s"] + rate["per_unit_s"] * train_sequences * epochs * n_seeds)
-        out.append(Stage(f"training {name}", 0, seconds, f"{grid}at most {epochs} epochs (early stopping ends sooner) of {train_sequences} sequences x "
-                         f"{n_seeds} seeds at {1e6 * rate['per_unit_s']:.0f} us per sequence, epoch and seed, as measured by {source}"))
+        out.append(
+            Stage(
+                f"training {name}",
+                0,
+                seconds,
+                f"{grid}at most {epochs} epochs (early stopping ends sooner) of {train_sequences} sequences x "
+                f"{n_seeds} seeds at {1e6 * rate['per_unit_s']:.0f} us per sequence, epoch and seed, as measured by {source}",
+            )
+        )
     return out
 
 
@@ -169,7 +223,10 @@ def rates(doc: dict[str, Any]) -> dict[str, dict[str, float]]:
         epochs_run = sum(max(p["epochs_trained"]) for p in grid)
         compile_s = row["time"].get("compile_s", 0.0)
         units = n_train * epochs_run * len(row["seeds"])
-        out[rate_key(row["config"])] = {"per_unit_s": max(row["wall_s"] - compile_s, 0.0) / max(units, 1), "compile_s": compile_s / len(grid)}
+        out[rate_key(row["config"])] = {
+            "per_unit_s": max(row["wall_s"] - compile_s, 0.0) / max(units, 1),
+            "compile_s": compile_s / len(grid),
+        }
     return out
 
 
@@ -186,32 +243,54 @@ def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, wor
     union = dataclasses.replace(configs[0][1], modalities=tuple(sorted({m for _, c in configs for m in c.modalities})))
     costs = probe(spec, union) if missing else {}
     per_frame = sum(v for k, v in costs.items() if k != "simulate")
-    out = [Stage(
-        f"simulation ({len(missing)} of {len(scenes)} trials missing)", len(missing) * sim_dataset.trial_bytes(spec, bool(camera)),
-        len(missing) * steps * costs.get("simulate", 0.0) / workers,
-        f"a {PROBE_CYCLES}-cycle trial simulated just now: {1e3 * costs['simulate']:.1f} ms per step, {workers} processes" if missing else "done",
-    )]
+    out = [
+        Stage(
+            f"simulation ({len(missing)} of {len(scenes)} trials missing)",
+            len(missing) * sim_dataset.trial_bytes(spec, bool(camera)),
+            len(missing) * steps * costs.get("simulate", 0.0) / workers,
+            f"a {PROBE_CYCLES}-cycle trial simulated just now: {1e3 * costs['simulate']:.1f} ms per step, {workers} processes"
+            if missing
+            else "done",
+        )
+    ]
     if camera:
         cameras = dataclasses.replace(union, modalities=tuple(sorted(camera)))
         timed = ", ".join(f"{k} {1e3 * v:.1f} ms" for k, v in costs.items() if k != "simulate")
-        out.append(Stage(
-            f"camera features ({len(missing)} trials' frames)", len(missing) * steps * _bytes_per_step(cameras, spec.image_size),
-            len(missing) * steps * per_frame / workers,
-            f"per frame on one thread just now ({timed}; flow by {union.flow_method}), {workers} processes" if missing
-            else "trials already simulated may have theirs cached",
-        ))
+        out.append(
+            Stage(
+                f"camera features ({len(missing)} trials' frames)",
+                len(missing) * steps * _bytes_per_step(cameras, spec.image_size),
+                len(missing) * steps * per_frame / workers,
+                f"per frame on one thread just now ({timed}; flow by {union.flow_method}), {workers} processes"
+                if missing
+                else "trials already simulated may have theirs cached",
+            )
+        )
     n = configs[0][1].seq_len
     per_trial = steps // n
-    train_sequences = sum(per_trial for t in spec.trials() if t.day in spec.splits.train_days and t.trial < spec.train_trials_per_day - spec.splits.val_trials_per_day)
+    train_sequences = sum(
+        per_trial
+        for t in spec.trials()
+        if t.day in spec.splits.train_days and t.trial < spec.train_trials_per_day - spec.splits.val_trials_per_day
+    )
     per_sequence = n * _bytes_per_step(union, spec.image_size)
     loaded = len(scenes) * per_trial * per_sequence
     to_disk = loaded > memo.memory_budget(data.MEMORY_FRACTION)
     peak = feed.host_bytes(int(per_sequence), union.batch_size, n_seeds) if to_disk else loaded
-    out.append(Stage(
-        "sequences", loaded if to_disk else 0, 0.0,
-        f"{size(loaded)} loaded: " + ("more than half of memory, so memory-mapped files in the workspace, read a block at a time" if to_disk else "held in memory")
-        + f"; peak host memory for training inputs {size(peak)}",
-    ))
+    out.append(
+        Stage(
+            "sequences",
+            loaded if to_disk else 0,
+            0.0,
+            f"{size(loaded)} loaded: "
+            + (
+                "more than half of memory, so memory-mapped files in the workspace, read a block at a time"
+                if to_disk
+                else "held in memory"
+            )
+            + f"; peak host memory for training inputs {size(peak)}",
+        )
+    )
     return out + training(configs, n_seeds, train_sequences)
 
 
@@ -220,15 +299,22 @@ def markdown(preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int, f
     need = sum(s.disk_bytes for s in stages_)
     lines = [
         f"Plan: {n_rows} rows x {n_seeds} seeds on preset {preset!r}: "
-        + (f"about {_duration(sum(known))}" if len(known) == len(stages_)
-           else f"{len(stages_) - len(known)} of {len(stages_)} stages unknown before the run (below), the others about {_duration(sum(known))}")
+        + (
+            f"about {_duration(sum(known))}"
+            if len(known) == len(stages_)
+            else f"{len(stages_) - len(known)} of {len(stages_)} stages unknown before the run (below), the others about {_duration(sum(known))}"
+        )
         + f", {size(need)} of disk at most ({size(free_bytes)} free"
-        + ("; it does not fit: free disk space or give --workdir on a larger disk" if need > free_bytes else "") + ")",
+        + ("; it does not fit: free disk space or give --workdir on a larger disk" if need > free_bytes else "")
+        + ")",
         "",
         "| stage | disk | time | from |",
         "|---|---|---|---|",
     ]
-    lines += [f"| {s.name} | {size(s.disk_bytes)} | {'unknown' if s.seconds is None else _duration(s.seconds)} | {s.basis} |" for s in stages_]
+    lines += [
+        f"| {s.name} | {size(s.disk_bytes)} | {'unknown' if s.seconds is None else _duration(s.seconds)} | {s.basis} |"
+        for s in stages_
+    ]
     return "\n".join(lines)
 
 
@@ -248,12 +334,28 @@ def _duration(seconds: float) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
-def write(where: workspace.Location, study: str, preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int) -> dict[str, Any]:
+def write(
+    where: workspace.Location, study: str, preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int
+) -> dict[str, Any]:
     """results/plan.md and plan.json: the plan, with the command, code, date and host it was made on."""
     doc = {
-        **documents.header("plan", command=where.command, preset=preset), "of_study": study, "rows": n_rows, "n_seeds": n_seeds,
-        "stages": [dataclasses.asdict(s) for s in stages_], "total_s": sum(s.seconds or 0.0 for s in stages_), "free_bytes": free_disk(where.workdir),
+        **documents.header("plan", command=where.command, preset=preset),
+        "of_study": study,
+        "rows": n_rows,
+        "n_seeds": n_seeds,
+        "stages": [dataclasses.asdict(s) for s in stages_],
+        "total_s": sum(s.seconds or 0.0 for s in stages_),
+        "free_bytes": free_disk(where.workdir),
     }
     spent = "seconds: the plan simulates one trial and computes its features to measure sizes"
-    return documents.write(where.results_dir(), doc, lambda d: f"# What {d['of_study']} needs on preset {d['preset']}\n\n"
-                           + documents.header_markdown(d, time=spent) + "\n" + markdown(preset, stages_, n_rows, n_seeds, d["free_bytes"]) + "\n")
+    return documents.write(
+        where.results_dir(),
+        doc,
+        lambda d: (
+            f"# What {d['of_study']} needs on preset {d['preset']}\n\n"
+            + documents.header_markdown(d, time=spent)
+            + "\n"
+            + markdown(preset, stages_, n_rows, n_seeds, d["free_bytes"])
+            + "\n"
+        ),
+    )

@@ -36,7 +36,9 @@ def points(config: Config) -> list[Config]:
         return [config]
     return [
         dataclasses.replace(config, learning_rate=lr, width=width, lr_grid=(), width_grid=())
-        for lr, width in itertools.product(config.lr_grid or (config.learning_rate,), config.width_grid or (config.width,))
+        for lr, width in itertools.product(
+            config.lr_grid or (config.learning_rate,), config.width_grid or (config.width,)
+        )
     ]
 
 
@@ -67,8 +69,11 @@ def document(config: Config, grid: Sequence[Row], chosen: Row) -> dict[str, Any]
         "chosen": {"learning_rate": chosen.config.learning_rate, "width": chosen.config.width},
         "grid": [
             {
-                "learning_rate": r.config.learning_rate, "width": r.config.width, "val": validation_score(r),
-                "epochs_trained": epochs_trained(r), "wall_s": r.seconds,
+                "learning_rate": r.config.learning_rate,
+                "width": r.config.width,
+                "val": validation_score(r),
+                "epochs_trained": epochs_trained(r),
+                "wall_s": r.seconds,
             }
             for r in grid
         ],
@@ -86,7 +91,9 @@ def epochs_trained(row: Row) -> list[int]:
 def line(doc: dict[str, Any]) -> str:
     """One line for a table: the point chosen, out of how many, and the epochs it trained."""
     chosen = doc["chosen"]
-    point = next(p for p in doc["grid"] if p["learning_rate"] == chosen["learning_rate"] and p["width"] == chosen["width"])
+    point = next(
+        p for p in doc["grid"] if p["learning_rate"] == chosen["learning_rate"] and p["width"] == chosen["width"]
+    )
     epochs = point["epochs_trained"]
     text = f"lr {chosen['learning_rate']:g}, width {chosen['width']}"
     if len(doc["grid"]) > 1:

@@ -73,7 +73,9 @@ def select_rows(rows: Sequence[StudyRow], names: Sequence[str] | None) -> list[S
 
     def row(name: str) -> StudyRow | None:
         key = name.casefold()
-        return next((r for r in rows if r.name.casefold() == key), None) or next((r for r in rows if r.label.casefold() == key), None)
+        return next((r for r in rows if r.name.casefold() == key), None) or next(
+            (r for r in rows if r.label.casefold() == key), None
+        )
 
     found = {n: row(n) for n in names}
     unknown = [n for n, r in found.items() if r is None]
@@ -102,8 +104,13 @@ def check_overrides(study: str, overrides: Mapping | None, rows: Sequence[StudyR
 
 
 def load_chosen_rows(
-    study: str, all_rows: Sequence[StudyRow], names: Sequence[str] | None, preset: str, overrides: Mapping | None,
-    where: Location, split_names: Sequence[str],
+    study: str,
+    all_rows: Sequence[StudyRow],
+    names: Sequence[str] | None,
+    preset: str,
+    overrides: Mapping | None,
+    where: Location,
+    split_names: Sequence[str],
 ) -> tuple[list[StudyRow], list[Config], list[loading.Dataset], list[str]]:
     """What a study without training (the probe, the day shift) reads: the chosen rows of
     `all_rows` (all for None), their configs, each row's sequences on `split_names` (rows that
@@ -126,14 +133,23 @@ def load_chosen_rows(
             lacking = [(c, tuple(m for m in c.modalities if m == "image" or m not in have)) for c in group]
             group = [dataclasses.replace(c, modalities=ms) for c, ms in lacking if ms]
         try:
-            ds = loading.load_for_rows(group, data_dir=where.data_dir, workdir=where.workdir, split_names=split_names) if group else base
+            ds = (
+                loading.load_for_rows(group, data_dir=where.data_dir, workdir=where.workdir, split_names=split_names)
+                if group
+                else base
+            )
         except archive.ArchiveError as e:
             if e.field != "reference" or names:
                 raise
             logging.warning("%s: rows that read frames against their session's reference left out: %s", study, e)
             continue
         if base is not None and ds is not base:
-            ds = dataclasses.replace(base, sets={s: dataclasses.replace(x, inputs={**x.inputs, **ds.sets[s].inputs}) for s, x in base.sets.items()})
+            ds = dataclasses.replace(
+                base,
+                sets={
+                    s: dataclasses.replace(x, inputs={**x.inputs, **ds.sets[s].inputs}) for s, x in base.sets.items()
+                },
+            )
         loads[key] = ds
     kept = [(r, c) for r, c in zip(chosen, configs) if loading.sequence_key(c) in loads]
     datasets = [loads[loading.sequence_key(c)] for _, c in kept]
@@ -154,7 +170,14 @@ def feedable_rows(study: str, rows: Sequence[StudyRow], where: Location) -> list
     if not fed:
         raise UserError(f"{study}: none of its rows can be fed by {where.data_dir}: it has {lay.describe()}")
     if left:
-        logging.warning("%s: %d of its %d rows left out (%s): they need %s, which the data lacks", study, len(left), len(rows), ", ".join(left), ", ".join(lacking))
+        logging.warning(
+            "%s: %d of its %d rows left out (%s): they need %s, which the data lacks",
+            study,
+            len(left),
+            len(rows),
+            ", ".join(left),
+            ", ".join(lacking),
+        )
     return fed
 
 
@@ -193,7 +216,9 @@ class Progress:
     done while none of its kind is), so a camera row run first does not inflate the estimate for
     the audio rows after it. The rates are this run's own: nothing measured elsewhere."""
 
-    def __init__(self, study: str, n_rows: int, kinds: Sequence[str] | None = None, work: Sequence[float] | None = None):
+    def __init__(
+        self, study: str, n_rows: int, kinds: Sequence[str] | None = None, work: Sequence[float] | None = None
+    ):
         self.kinds = list(kinds) if kinds is not None else ["other"] * n_rows
         self.work = list(work) if work is not None else [1.0] * n_rows
         if not len(self.kinds) == len(self.work) == n_rows:
@@ -226,7 +251,14 @@ class Progress:
         elapsed = time.perf_counter() - self.t0
         logging.info(
             "%s: row %d/%d %s done in %.1f s: %s (elapsed %s, ETA %s)",
-            self.study, self.done, self.n, name, seconds, summary, _hms(elapsed), _hms(self.eta()),
+            self.study,
+            self.done,
+            self.n,
+            name,
+            seconds,
+            summary,
+            _hms(elapsed),
+            _hms(self.eta()),
         )
 
 
@@ -267,8 +299,14 @@ class Row:
             "best_epoch": np.asarray(self.results.metrics["best_epoch"]).tolist(),
             "stopped_at": np.asarray(self.results.metrics["stopped_at"]).tolist(),
             "recipe": self.recipe,
-            "epochs": {t: [[None if np.isnan(x) else float(x) for x in s] for s in v] for t, v in self.results.metrics["epochs"].items()},
-            "accuracy": {s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()} for s in ("val", *splits)},
+            "epochs": {
+                t: [[None if np.isnan(x) else float(x) for x in s] for s in v]
+                for t, v in self.results.metrics["epochs"].items()
+            },
+            "accuracy": {
+                s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()}
+                for s in ("val", *splits)
+            },
             "predictions": {s: {h: np.asarray(p).tolist() for h, p in ev[s]["predictions"].items()} for s in splits},
         }
 
@@ -292,8 +330,14 @@ def train_row(
 
 
 def train_fitted(
-    study: str, name: str, config: Config, sets: Mapping[str, data.SequenceSet], seeds: Sequence[int], eval_splits: Sequence[str],
-    workdir=None, checkpoints: bool = False,
+    study: str,
+    name: str,
+    config: Config,
+    sets: Mapping[str, data.SequenceSet],
+    seeds: Sequence[int],
+    eval_splits: Sequence[str],
+    workdir=None,
+    checkpoints: bool = False,
 ) -> Row:
     """`train_row` of every point of `config`'s recipe grid (`recipe.points`), the point the
     validation split prefers kept (`recipe.choose`); its time is the whole grid's. A config
@@ -302,16 +346,28 @@ def train_fitted(
     grid = []
     for point in configs:
         sub = name if len(configs) == 1 else f"{name}/{recipe.point_name(point)}"
-        grid.append(train_row(
-            name, point, sets, seeds, eval_splits,
-            checkpoint_dir=checkpoint_dir(study, name, point, seeds, sets["train"].dataset, workdir) if checkpoints else None,
-            log_dir=workspace.logs_dir(study, sub, workdir),
-        ))
+        grid.append(
+            train_row(
+                name,
+                point,
+                sets,
+                seeds,
+                eval_splits,
+                checkpoint_dir=checkpoint_dir(study, name, point, seeds, sets["train"].dataset, workdir)
+                if checkpoints
+                else None,
+                log_dir=workspace.logs_dir(study, sub, workdir),
+            )
+        )
     chosen = recipe.choose(grid)
-    return dataclasses.replace(chosen, seconds=sum(r.seconds for r in grid), recipe=recipe.document(config, grid, chosen))
+    return dataclasses.replace(
+        chosen, seconds=sum(r.seconds for r in grid), recipe=recipe.document(config, grid, chosen)
+    )
 
 
-def checkpoint_dir(study: str, row: str, config: Config, seeds: Sequence[int], dataset: Mapping[str, str], workdir=None) -> Path:
+def checkpoint_dir(
+    study: str, row: str, config: Config, seeds: Sequence[int], dataset: Mapping[str, str], workdir=None
+) -> Path:
     """A checkpoint directory per (row, config, seeds, data, code): reruns resume; other settings,
     other data (`dataset`: `DatasetIndex.identity`, by content) or other code (`source.fingerprint`)
     start afresh instead of reusing what was trained on something else."""
@@ -363,16 +419,26 @@ def train_rows(
     for its inputs (the rig's microphones and joints), not by `label`."""
     configs = [c for _, c in rows]
     checkpoints_folder = workspace.checkpoints_dir(study, workdir)
-    with (lock.hold(lock.lock_file(checkpoints_folder, workdir), f"the {study} study's checkpoints ({workspace.shown(checkpoints_folder)})",
-                    f"training {len(rows)} rows"),
-          loading.reading(configs[0].preset, data_dir, workdir)):
+    with (
+        lock.hold(
+            lock.lock_file(checkpoints_folder, workdir),
+            f"the {study} study's checkpoints ({workspace.shown(checkpoints_folder)})",
+            f"training {len(rows)} rows",
+        ),
+        loading.reading(configs[0].preset, data_dir, workdir),
+    ):
         ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
         if check is not None:
             check(ds)
         rows = [(name, ds.fit(config)) for name, config in rows]  # the data's classes, step window and epochs
         if ds.recorded:  # what training will take, now that the data's size is known
             stages = plan.training(rows, len(seeds), len(ds.sets["train"]))
-            print(plan.markdown(f"{rows[0][1].preset} on recorded data", stages, len(rows), len(seeds), plan.free_disk(workdir)), flush=True)
+            print(
+                plan.markdown(
+                    f"{rows[0][1].preset} on recorded data", stages, len(rows), len(seeds), plan.free_disk(workdir)
+                ),
+                flush=True,
+            )
         if data_names and ds.recorded:
             names, inputs = next(iter(ds.sets.values())).names, {n: c.modalities for n, c in rows}
             label = lambda name: f"{name} ({data.inputs_name(inputs[name], names)})"  # noqa: E731
@@ -384,7 +450,9 @@ def train_rows(
         trained, laid_out = {}, set()
         for name, config in order:
             camera = row_kind(config)
-            if camera in CAMERA_INPUTS and camera not in laid_out:  # the group's camera input, once (`in_training_order`)
+            if (
+                camera in CAMERA_INPUTS and camera not in laid_out
+            ):  # the group's camera input, once (`in_training_order`)
                 t0 = time.perf_counter()
                 alone = dataclasses.replace(config, modalities=(camera,))
                 train.place_for_runs(alone, data.narrow({s: ds.sets[s] for s in ("train", "val", *eval_splits)}, alone))
@@ -396,7 +464,9 @@ def train_rows(
         return Trained(ds, {name: trained[name] for name, _ in rows})
 
 
-def paired_tests(a: Row, b: Row, split: str, labels: np.ndarray, head: str = "fabric") -> dict[str, stats.WilcoxonResult]:
+def paired_tests(
+    a: Row, b: Row, split: str, labels: np.ndarray, head: str = "fabric"
+) -> dict[str, stats.WilcoxonResult]:
     """Wilcoxon signed-rank tests of row `b` against row `a` on `split`, under both pairings.
 
     per_seed: accuracy of b and a for the same seed (same key, same data); the exact test over n
@@ -413,10 +483,13 @@ def paired_tests(a: Row, b: Row, split: str, labels: np.ndarray, head: str = "fa
     correct = lambda r: (r.predictions(split, head) == labels)[:, valid].astype(np.float64)  # noqa: E731
     return {
         "per_seed": stats.wilcoxon(
-            b.accuracy(split, head), a.accuracy(split, head), pairing=f"per seed: {split} accuracy of the same seed, {n} seeds"
+            b.accuracy(split, head),
+            a.accuracy(split, head),
+            pairing=f"per seed: {split} accuracy of the same seed, {n} seeds",
         ),
         "per_sample": stats.wilcoxon(
-            correct(b), correct(a),
+            correct(b),
+            correct(a),
             pairing=f"per {split} sequence: correctness (0/1) on the same sequence and seed, pooled over {n} seeds",
         ),
     }
@@ -474,7 +547,9 @@ def _with_fusion_twins(study: Study, rows: list[tuple[str, Config]]) -> list[tup
     names = {n for n, _ in rows}
     twins = [
         (fusion_twin(n, f), dataclasses.replace(c, fusion_norm=f))
-        for n, c in rows for f in study.recorded_fusions if c.fusion_norm != f and fusion_twin(n, f) not in names
+        for n, c in rows
+        for f in study.recorded_fusions
+        if c.fusion_norm != f and fusion_twin(n, f) not in names
     ]
     return rows + twins
 
@@ -513,15 +588,34 @@ def run_study(
     elif plan_only:
         raise UserError("--plan estimates what simulated data needs; recorded data (--data_dir) is there already")
     trained = train_rows(
-        study.name, row_configs, seeds,
-        eval_splits=study.eval_splits, split_names=study.split_names, data_dir=where.data_dir, workdir=where.workdir,
-        checkpoints=study.checkpoints, label=lambda name: labels.get(name, name), summary=study.summary, check=study.check,
+        study.name,
+        row_configs,
+        seeds,
+        eval_splits=study.eval_splits,
+        split_names=study.split_names,
+        data_dir=where.data_dir,
+        workdir=where.workdir,
+        checkpoints=study.checkpoints,
+        label=lambda name: labels.get(name, name),
+        summary=study.summary,
+        check=study.check,
         data_names=True,
     )
     with atomic.together():  # the figures, Markdown and JSON of this run, or none of them
         body, figures = study.document(trained, chosen, where.results_dir())
         dtypes = (config.compute_dtype for _, config in row_configs)
-        doc = {**documents.header(study.name, command=where.command, preset=preset, seeds=seeds, dataset=trained.dataset, compute_dtypes=dtypes, train_s=trained.train_s), **body}
+        doc = {
+            **documents.header(
+                study.name,
+                command=where.command,
+                preset=preset,
+                seeds=seeds,
+                dataset=trained.dataset,
+                compute_dtypes=dtypes,
+                train_s=trained.train_s,
+            ),
+            **body,
+        }
         # the checklist holds the paper's claims: recorded data is not the paper's
         doc["findings"] = [] if trained.dataset.recorded else [f.to_json() for f in study.checklist(doc)]
         return documents.write(where.results_dir(), doc, study.markdown, figures)

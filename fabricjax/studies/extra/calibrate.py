@@ -47,10 +47,17 @@ SEEDS = 10  # the noise study's
 def minsound_cafe_drop(point: Path) -> dict[str, Any]:
     """The noise study's Minsound row on the dataset of the estimates in force, trained with its
     seeds in the workspace `point`: lab test and cafe accuracy per seed, and the drop in pp."""
-    doc = noise.STUDY.run(n_seeds=SEEDS, preset=PRESET, rows=["internal"], where=Location(workdir=point, results=point / "results"))
+    doc = noise.STUDY.run(
+        n_seeds=SEEDS, preset=PRESET, rows=["internal"], where=Location(workdir=point, results=point / "results")
+    )
     acc = doc["rows"][0]["accuracy"]
     test, cafe = (100 * np.asarray(acc[s]["fabric"]) for s in ("test", "cafe"))
-    return {"test": test.tolist(), "cafe": cafe.tolist(), "number": float(test.mean() - cafe.mean()), "train_s": doc["train_s"]}
+    return {
+        "test": test.tolist(),
+        "cafe": cafe.tolist(),
+        "number": float(test.mean() - cafe.mean()),
+        "train_s": doc["train_s"],
+    }
 
 
 # What each calibration's `fitted_on` measures: estimate name -> measuring function.
@@ -63,11 +70,15 @@ def calibrated() -> list[estimates.Estimate]:
     seen: dict[str, str] = {}
     for e in out:
         if e.calibrated.measurement in seen:
-            raise UserError(f"estimates {seen[e.calibrated.measurement]} and {e.name} are both fitted to {e.calibrated.measurement!r}: one estimate per measurement")
+            raise UserError(
+                f"estimates {seen[e.calibrated.measurement]} and {e.name} are both fitted to {e.calibrated.measurement!r}: one estimate per measurement"
+            )
         seen[e.calibrated.measurement] = e.name
     for e in out:
         if e.name not in MEASURE:
-            raise UserError(f"estimate {e.name} is declared calibrated, but nothing measures {e.calibrated.fitted_on!r}")
+            raise UserError(
+                f"estimate {e.name} is declared calibrated, but nothing measures {e.calibrated.fitted_on!r}"
+            )
     return out
 
 
@@ -85,16 +96,25 @@ class _Points:
         key = f"{value:.6g}"
         if key not in self.points:
             point = folder / f"{e.name}={key}"
-            log(f"{e.name} = {key}: simulating the {PRESET} preset and training ({len(self.points) + 1} of at most {MAX_POINTS})")
+            log(
+                f"{e.name} = {key}: simulating the {PRESET} preset and training ({len(self.points) + 1} of at most {MAX_POINTS})"
+            )
             t0 = time.perf_counter()
             estimates.override({e.name: value})
             try:
                 result = MEASURE[e.name](point)
             finally:
                 estimates.override({})
-            self.points[key] = {"value": value, **result, "wall_s": time.perf_counter() - t0, "code": documents.git_commit()}
+            self.points[key] = {
+                "value": value,
+                **result,
+                "wall_s": time.perf_counter() - t0,
+                "code": documents.git_commit(),
+            }
             documents.write_json(self.path, {"others": self.others, "points": self.points})
-            shutil.rmtree(point, ignore_errors=True)  # the point's dataset, features and checkpoints: its numbers are kept
+            shutil.rmtree(
+                point, ignore_errors=True
+            )  # the point's dataset, features and checkpoints: its numbers are kept
         number = self.points[key]["number"]
         log(f"{e.name} = {key}: {number:.2f} (target {e.calibrated.paper_value:.2f})")
         return number
@@ -108,7 +128,12 @@ def fit(e: estimates.Estimate, folder: Path, log: Callable[[str], None] = print)
     fa, fb = points.measure(e, a, folder, log) - target, points.measure(e, b, folder, log) - target
     bracketed = fa * fb <= 0
     side = 0
-    while bracketed and len(points.points) < MAX_POINTS and min(abs(fa), abs(fb)) > TOLERANCE_PP and abs(b - a) > RESOLUTION * (e.high - e.low):
+    while (
+        bracketed
+        and len(points.points) < MAX_POINTS
+        and min(abs(fa), abs(fb)) > TOLERANCE_PP
+        and abs(b - a) > RESOLUTION * (e.high - e.low)
+    ):
         c = (a * fb - b * fa) / (fb - fa)
         fc = points.measure(e, c, folder, log) - target
         if fc * fb < 0:
@@ -124,9 +149,17 @@ def fit(e: estimates.Estimate, folder: Path, log: Callable[[str], None] = print)
     tried = sorted(points.points.values(), key=lambda p: p["value"])
     best = min(tried, key=lambda p: abs(p["number"] - target))
     return {
-        "estimate": e.name, "registry_value": e.value, "range": [e.low, e.high],
-        "measurement": e.calibrated.measurement, "paper_value": target, "where": e.calibrated.where, "fitted_on": e.calibrated.fitted_on,
-        "bracketed": bracketed, "fitted_value": best["value"], "fitted_number": best["number"], "points": tried,
+        "estimate": e.name,
+        "registry_value": e.value,
+        "range": [e.low, e.high],
+        "measurement": e.calibrated.measurement,
+        "paper_value": target,
+        "where": e.calibrated.where,
+        "fitted_on": e.calibrated.fitted_on,
+        "bracketed": bracketed,
+        "fitted_value": best["value"],
+        "fitted_number": best["number"],
+        "points": tried,
     }
 
 
@@ -135,28 +168,53 @@ def run(*, where: Location = Location()) -> dict[str, Any]:
     folder = workspace.root(where.workdir) / "calibration"
     t0 = time.perf_counter()
     fits = [fit(e, folder / e.name) for e in calibrated()]
-    doc = {**documents.header(STUDY, command=where.command, preset=PRESET, seeds=list(range(SEEDS)), wall_s=time.perf_counter() - t0), "fits": fits}
+    doc = {
+        **documents.header(
+            STUDY, command=where.command, preset=PRESET, seeds=list(range(SEEDS)), wall_s=time.perf_counter() - t0
+        ),
+        "fits": fits,
+    }
     return documents.write(where.results_dir(), doc, markdown)
 
 
 def markdown(doc: dict[str, Any]) -> str:
-    lines = ["# Declared calibrations: estimates fitted to one measurement of the paper each", "",
-             documents.header_markdown(doc), ""]
+    lines = [
+        "# Declared calibrations: estimates fitted to one measurement of the paper each",
+        "",
+        documents.header_markdown(doc),
+        "",
+    ]
     for f in doc["fits"]:
         lines += [
-            f"## {f['estimate']}", "",
+            f"## {f['estimate']}",
+            "",
             f"- measurement: {f['measurement']}, {f['paper_value']:.2f} pp ({f['where']})",
             f"- our number matched to it: {f['fitted_on']}",
             f"- declared range: {f['range'][0]:g} to {f['range'][1]:g}; the registry holds {f['registry_value']:g}",
-            f"- fitted: **{f['fitted_value']:.4g}**, where our number is {f['fitted_number']:.2f} pp" if f["bracketed"] else
-            f"- no value in the declared range reaches {f['paper_value']:.2f} pp: the closest is **{f['fitted_value']:.4g}**, the range's end "
+            f"- fitted: **{f['fitted_value']:.4g}**, where our number is {f['fitted_number']:.2f} pp"
+            if f["bracketed"]
+            else f"- no value in the declared range reaches {f['paper_value']:.2f} pp: the closest is **{f['fitted_value']:.4g}**, the range's end "
             f"({f['fitted_number']:.2f} pp), which is the calibrated value. The other {f['paper_value'] - f['fitted_number']:.2f} pp are not this "
             "estimate's to explain: [sensitivity.md](sensitivity.md) shows what else moves the number",
-            "", "Every point tried (measured by the code named beside it; a point is kept while every other magnitude of the simulator is unchanged):", "",
-            documents.markdown_table(["Value", "Lab test [%]", "Cafe [%]", "Drop [pp]", "Measured by"], [
-                [f"{p['value']:.4g}", f"{np.mean(p['test']):.2f}", f"{np.mean(p['cafe']):.2f}", f"{p['number']:.2f}", p["code"]]
-                for p in f["points"]
-            ]), "",
+            "",
+            "Every point tried (measured by the code named beside it; a point is kept while every other magnitude of the simulator is unchanged):",
+            "",
+            documents.markdown_table(
+                ["Value", "Lab test [%]", "Cafe [%]", "Drop [pp]", "Measured by"],
+                [
+                    [
+                        f"{p['value']:.4g}",
+                        f"{np.mean(p['test']):.2f}",
+                        f"{np.mean(p['cafe']):.2f}",
+                        f"{p['number']:.2f}",
+                        p["code"],
+                    ]
+                    for p in f["points"]
+                ],
+            ),
+            "",
         ]
-    lines.append("The fitted number is a calibration, not a finding; every other number of its table is a prediction (results/noise.md).")
+    lines.append(
+        "The fitted number is a calibration, not a finding; every other number of its table is a prediction (results/noise.md)."
+    )
     return "\n".join(lines) + "\n"

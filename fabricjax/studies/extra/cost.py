@@ -92,7 +92,9 @@ def sweep_points(
     max_len: int | None = None,
 ) -> tuple[list[Point], str | None]:
     """The sweep's points (duplicates dropped, first occurrence kept) and the paper point's name."""
-    candidates = [("N x backbone", dataclasses.replace(base, seq_len=n, backbone=b)) for b in backbones for n in seq_lens]
+    candidates = [
+        ("N x backbone", dataclasses.replace(base, seq_len=n, backbone=b)) for b in backbones for n in seq_lens
+    ]
     candidates += [("width", _with_width(base, w)) for w in widths]
     candidates += [("bandwidth", dataclasses.replace(base, bandwidth_khz=bw)) for bw in bandwidths]
     candidates += [("modalities", dataclasses.replace(base, modalities=tuple(ms))) for ms in modality_sets]
@@ -105,14 +107,18 @@ def sweep_points(
     points: dict[Config, Point] = {}
     for group, config in candidates:
         if max_len is not None and config.seq_len > max_len:
-            logging.warning("cost: skipping %s: N=%d exceeds the shortest trial (%d steps)", group, config.seq_len, max_len)
+            logging.warning(
+                "cost: skipping %s: N=%d exceeds the shortest trial (%d steps)", group, config.seq_len, max_len
+            )
             continue
         points.setdefault(config, Point(point_name(config, base), group, config))
     paper_name = points[paper_config].name if paper_config is not None else None
     return list(points.values()), paper_name
 
 
-def inference_latency(graphdef, params, inputs: dict[str, np.ndarray], repeats: int, warmup: int = 5) -> dict[str, float]:
+def inference_latency(
+    graphdef, params, inputs: dict[str, np.ndarray], repeats: int, warmup: int = 5
+) -> dict[str, float]:
     """p50 / p99 ms of `predict_one` compiled ahead of time on one sequence, result fetched to the host (`program_timing.predict_one_timer`)."""
     run = program_timing.predict_one_timer(graphdef, params, inputs, warmup=warmup)
     return {f"latency_{k}": v for k, v in stats.percentiles_ms([run() for _ in range(repeats)]).items()}
@@ -147,7 +153,9 @@ def steps_and_rate(folder, workdir=None) -> tuple[int, float]:
     entries = dataset_index.load_index(folder, workdir).entries
     rates = sorted({archive.layout(e.meta).step_rate for e in entries})
     if len(rates) > 1:
-        raise archive.ArchiveError(folder, "meta.streams.steps.rate", f"the trials step at {rates} Hz: touch time needs one step rate")
+        raise archive.ArchiveError(
+            folder, "meta.streams.steps.rate", f"the trials step at {rates} Hz: touch time needs one step rate"
+        )
     return min(e.n_steps - data.first_step(e.meta) for e in entries), rates[0]
 
 
@@ -189,7 +197,11 @@ def run(
     backbones: Sequence[str] = ("attention", "tcn"),
     widths: Sequence[int] = (32, 128),
     bandwidths: Sequence[float] = (2.5, 24.0),
-    modality_sets: Sequence[Sequence[str]] = (("internal", "external"), ("internal",), ("internal", "external", "proprio")),
+    modality_sets: Sequence[Sequence[str]] = (
+        ("internal", "external"),
+        ("internal",),
+        ("internal", "external", "proprio"),
+    ),
     paper: bool = True,
     overrides: dict[str, Any] | None = None,
     latency_repeats: int = 100,
@@ -199,15 +211,21 @@ def run(
     if not backbones or not modality_sets:
         raise ValueError("need at least one backbone and one modality set (the base point's)")
     seeds = runner.seed_list(n_seeds)
-    base = Config.from_preset(preset, **{"backbone": backbones[0], "modalities": tuple(modality_sets[0]), **(overrides or {})})
-    first = loading.load_dataset(base, data_dir=where.data_dir, workdir=where.workdir, split_names=loading.TRAIN_VAL_TEST)
+    base = Config.from_preset(
+        preset, **{"backbone": backbones[0], "modalities": tuple(modality_sets[0]), **(overrides or {})}
+    )
+    first = loading.load_dataset(
+        base, data_dir=where.data_dir, workdir=where.workdir, split_names=loading.TRAIN_VAL_TEST
+    )
     base = first.fit(base)  # the data's classes and step window
     max_len, step_rate = steps_and_rate(first.folder, where.workdir)
     paper = paper and not first.recorded  # recorded data is compared with itself, not with the paper's configuration
     points, paper_name = sweep_points(
         base, seq_lens, backbones, widths, bandwidths, [tuple(m) for m in modality_sets], paper=paper, max_len=max_len
     )
-    skipped = sorted({n for n in seq_lens if n > max_len} | ({PAPER["seq_len"]} if paper and PAPER["seq_len"] > max_len else set()))
+    skipped = sorted(
+        {n for n in seq_lens if n > max_len} | ({PAPER["seq_len"]} if paper and PAPER["seq_len"] > max_len else set())
+    )
     union = loading.union_modalities([p.config for p in points])
     widest = max(p.config.bandwidth_khz for p in points)
     progress = runner.Progress("cost", len(points))
@@ -217,12 +235,18 @@ def run(
         n = p.config.seq_len
         if n != loaded_n:  # every point of one N shares the sequences, loaded once at the widest band
             load = dataclasses.replace(base, seq_len=n, modalities=union, bandwidth_khz=widest)
-            sets = loading.load_dataset(load, data_dir=where.data_dir, workdir=where.workdir, split_names=loading.TRAIN_VAL_TEST).sets
+            sets = loading.load_dataset(
+                load, data_dir=where.data_dir, workdir=where.workdir, split_names=loading.TRAIN_VAL_TEST
+            ).sets
             loaded_n = n
         progress.start(p.name)
         r = measure(p, sets, seeds, latency_repeats, step_rate)
         rows.append(r)
-        progress.finish(p.name, r["train_s"], f"test {r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f} %, p50 {r['latency_p50_ms']:.2f} ms")
+        progress.finish(
+            p.name,
+            r["train_s"],
+            f"test {r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f} %, p50 {r['latency_p50_ms']:.2f} ms",
+        )
     order = {p.name: i for i, p in enumerate(points)}
     rows.sort(key=lambda r: order[r["name"]])
     fronts = {key: pareto_front(rows, key) for key, _ in X_AXES}
@@ -247,30 +271,63 @@ def markdown(doc: dict[str, Any]) -> str:
     lines = [
         documents.title(doc, "What accuracy costs in time"),
         "",
-        documents.header_markdown(doc, f"the sweep took {doc['total_s'] / 60:.1f} min; all seeds of a point train in one vmapped program").rstrip("\n"),
+        documents.header_markdown(
+            doc, f"the sweep took {doc['total_s'] / 60:.1f} min; all seeds of a point train in one vmapped program"
+        ).rstrip("\n"),
         f"- shortest trial {d['shortest_trial_steps']} steps"
-        + (f"; N = {', '.join(map(str, doc['skipped_seq_lens']))} skipped as longer" if doc["skipped_seq_lens"] else ""),
+        + (
+            f"; N = {', '.join(map(str, doc['skipped_seq_lens']))} skipped as longer" if doc["skipped_seq_lens"] else ""
+        ),
         f"- base point: {base['backbone']}, N={base['seq_len']}, width {base['width']}, {base['bandwidth_khz']:g} kHz, "
         f"{'+'.join(base['modalities'])}, {base['n_layers']} layers, {base['epochs']} epochs; one factor varied at a time",
         f"- touch time: N steps at {d['step_rate']:g} Hz; train: wall time of the multi-seed program incl. compilation; "
         "latency: `predict_one` compiled ahead of time on one test sequence after warm-up (p50 / p99 of repeated calls)",
         f"- Pareto front (marked T for touch time, L for latency): "
         f"{', '.join(doc['pareto_front']['touch_s'])} | {', '.join(doc['pareto_front']['latency_p50_ms'])}",
-        f"- figure: `{doc['figures'][0]}`" + ("; **bold**: the paper's configuration on this preset" if doc["paper_point"] else ""),
+        f"- figure: `{doc['figures'][0]}`"
+        + ("; **bold**: the paper's configuration on this preset" if doc["paper_point"] else ""),
         "",
         *([documents.RECORDED_NOTE, ""] if documents.recorded(doc) else []),
         "",
     ]
-    header = ["point", "N", "touch [s]", "backbone", "width", "band [kHz]", "modalities", "params",
-              "test acc [%]", "majority class, test [%]", "train [s]", "p50 [ms]", "p99 [ms]", "front"]
+    header = [
+        "point",
+        "N",
+        "touch [s]",
+        "backbone",
+        "width",
+        "band [kHz]",
+        "modalities",
+        "params",
+        "test acc [%]",
+        "majority class, test [%]",
+        "train [s]",
+        "p50 [ms]",
+        "p99 [ms]",
+        "front",
+    ]
     rows, names = [], documents.stream_names(doc)
     for r in doc["points"]:
-        front = "".join(t for t, k in (("T", "touch_s"), ("L", "latency_p50_ms")) if r["name"] in doc["pareto_front"][k])
+        front = "".join(
+            t for t, k in (("T", "touch_s"), ("L", "latency_p50_ms")) if r["name"] in doc["pareto_front"][k]
+        )
         name = f"**{r['name']}**" if r["name"] == doc["paper_point"] else r["name"]
-        rows.append([
-            name, r["seq_len"], f"{r['touch_s']:.2f}", r["backbone"], r["width"], f"{r['bandwidth_khz']:g}",
-            data.inputs_name(r["modalities"], names) if names else "+".join(r["modalities"]), f"{r['params']:,}",
-            f"{r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f}{findings.collapse_text(r['collapsed'])}", findings.majority_cell(r["majority"]),
-            f"{r['train_s']:.0f}", f"{r['latency_p50_ms']:.2f}", f"{r['latency_p99_ms']:.2f}", front,
-        ])
+        rows.append(
+            [
+                name,
+                r["seq_len"],
+                f"{r['touch_s']:.2f}",
+                r["backbone"],
+                r["width"],
+                f"{r['bandwidth_khz']:g}",
+                data.inputs_name(r["modalities"], names) if names else "+".join(r["modalities"]),
+                f"{r['params']:,}",
+                f"{r['accuracy_mean']:.2f} ± {r['accuracy_sd']:.2f}{findings.collapse_text(r['collapsed'])}",
+                findings.majority_cell(r["majority"]),
+                f"{r['train_s']:.0f}",
+                f"{r['latency_p50_ms']:.2f}",
+                f"{r['latency_p99_ms']:.2f}",
+                front,
+            ]
+        )
     return "\n".join(lines) + documents.markdown_table(header, rows) + f"\n{findings.baseline_note()}\n"

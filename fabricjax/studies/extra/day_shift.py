@@ -46,7 +46,11 @@ ROWS = (
     # the frames as they are: the "none" and "training_mean" readings differ from them by a per-pixel
     # constant, which standardising each dimension over the trials removes
     StudyRow("image", {"modalities": ("image",), "image_reference": "training_mean"}, data.inputs_name(("image",))),
-    StudyRow(probe.SESSION + "image", {"modalities": ("image",), "image_reference": "session"}, data.inputs_name(("image",)) + " − session reference"),
+    StudyRow(
+        probe.SESSION + "image",
+        {"modalities": ("image",), "image_reference": "session"},
+        data.inputs_name(("image",)) + " − session reference",
+    ),
 )
 SHARES = ("fabric", "day", "fabric x day", "trial")
 
@@ -116,11 +120,15 @@ def run(
 ) -> dict[str, Any]:
     """The shares and the probe's gap for the chosen inputs (all by default); writes
     results/day_shift.{md,json} and returns the JSON."""
-    chosen, _, datasets, present = runner.load_chosen_rows("day_shift", ROWS, rows, preset, overrides, where, loading.TRAIN_VAL_TEST)
+    chosen, _, datasets, present = runner.load_chosen_rows(
+        "day_shift", ROWS, rows, preset, overrides, where, loading.TRAIN_VAL_TEST
+    )
     ds = datasets[0]
     info = {k: np.concatenate([ds.sets[s].info[k] for s in present]) for k in ("fabric_id", "day", "trial_key")}
     if len(np.unique(info["day"])) < 2:
-        raise archive.ArchiveError(ds.folder, "day", "the lab trials come from fewer than two days: there is no day to tell apart")
+        raise archive.ArchiveError(
+            ds.folder, "day", "the lab trials come from fewer than two days: there is no day to tell apart"
+        )
     accuracy, no_probe = probe_accuracy(where.results_dir(), str(ds.folder))
 
     t0 = time.perf_counter()
@@ -132,18 +140,33 @@ def run(
         progress.start(display)
         t1 = time.perf_counter()
         m = r.modalities[0]
-        per_split = [trial_summaries(d.sets[s].inputs[m], d.sets[s].info["trial_key"]) for s in present]  # a trial lies in one split
+        per_split = [
+            trial_summaries(d.sets[s].inputs[m], d.sets[s].info["trial_key"]) for s in present
+        ]  # a trial lies in one split
         x = np.concatenate([x for x, _ in per_split])
-        labels = {k: np.concatenate([d.sets[s].info[k][first] for s, (_, first) in zip(present, per_split)]) for k in ("fabric_id", "day")}
+        labels = {
+            k: np.concatenate([d.sets[s].info[k][first] for s, (_, first) in zip(present, per_split)])
+            for k in ("fabric_id", "day")
+        }
         shares = variance_shares(x, labels["fabric_id"], labels["day"])
-        out_rows.append({
-            "name": r.name, "display_name": display, "summary_dims": int(x.shape[1]), "shares": shares,
-            "probe": accuracy.get(r.name), "wall_s": time.perf_counter() - t1,
-        })
-        progress.finish(display, time.perf_counter() - t1, f"fabric {100 * shares['fabric']:.0f} %, day {100 * shares['day']:.0f} %")
+        out_rows.append(
+            {
+                "name": r.name,
+                "display_name": display,
+                "summary_dims": int(x.shape[1]),
+                "shares": shares,
+                "probe": accuracy.get(r.name),
+                "wall_s": time.perf_counter() - t1,
+            }
+        )
+        progress.finish(
+            display, time.perf_counter() - t1, f"fabric {100 * shares['fabric']:.0f} %, day {100 * shares['day']:.0f} %"
+        )
 
     doc = {
-        **documents.header("day_shift", command=where.command, preset=preset, dataset=ds, study_s=time.perf_counter() - t0),
+        **documents.header(
+            "day_shift", command=where.command, preset=preset, dataset=ds, study_s=time.perf_counter() - t0
+        ),
         "splits": present,
         "trials": int(len(np.unique(info["trial_key"]))),
         "days": sorted(int(d) for d in np.unique(info["day"])),
@@ -165,9 +188,20 @@ def table(doc: Mapping[str, Any]) -> str:
         p = r["probe"] or {}
         val, test = p.get("val"), p.get("test")
         gap = "–" if val is None or test is None else f"{100 * (test - val):+.1f}"
-        body.append([r["display_name"], r["summary_dims"], *[_pct(r["shares"][k]) for k in SHARES], _pct(val), _pct(test), gap])
-    header = ["Input", "Summary dims", "Fabric [%]", "Day [%]", "Fabric x day [%]", "Trial [%]",
-              "Probe, validation (training days) [%]", "Probe, test (new day) [%]", "Test − validation [pp]"]
+        body.append(
+            [r["display_name"], r["summary_dims"], *[_pct(r["shares"][k]) for k in SHARES], _pct(val), _pct(test), gap]
+        )
+    header = [
+        "Input",
+        "Summary dims",
+        "Fabric [%]",
+        "Day [%]",
+        "Fabric x day [%]",
+        "Trial [%]",
+        "Probe, validation (training days) [%]",
+        "Probe, test (new day) [%]",
+        "Test − validation [pp]",
+    ]
     return documents.markdown_table(header, body)
 
 
@@ -175,7 +209,9 @@ def markdown(doc: Mapping[str, Any]) -> str:
     lines = [
         documents.title(doc, "Day shift: what the fabric, the day and the trial explain in each input"),
         "",
-        documents.header_markdown(doc, f"{doc['study_s']:.0f} s in all; {documents.data_time_markdown(doc['dataset'])}"),
+        documents.header_markdown(
+            doc, f"{doc['study_s']:.0f} s in all; {documents.data_time_markdown(doc['dataset'])}"
+        ),
         f"Every lab trial of days {', '.join(map(str, doc['days']))} ({doc['trials']} trials, {doc['fabrics']} fabrics): each "
         "input's per-sequence summaries as the linear probe reads them (each dimension's mean and SD over the steps), "
         "averaged per trial, each dimension standardised over the trials; the shares split its sum of squares into "

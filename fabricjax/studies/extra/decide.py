@@ -66,7 +66,10 @@ def outputs(run, params, ss: data.SequenceSet, modalities) -> tuple[np.ndarray, 
     logits, latents = [], []
     for i in range(0, len(ss), BATCH):
         n = min(BATCH, len(ss) - i)
-        x = {m: np.concatenate([ss.inputs[m][i : i + n], np.repeat(ss.inputs[m][i : i + 1], BATCH - n, axis=0)]) for m in modalities}
+        x = {
+            m: np.concatenate([ss.inputs[m][i : i + n], np.repeat(ss.inputs[m][i : i + 1], BATCH - n, axis=0)])
+            for m in modalities
+        }
         lo, la = run(params, x)
         logits.append(np.asarray(lo, np.float64)[:n])
         latents.append(np.asarray(la, np.float64)[:n])
@@ -87,7 +90,10 @@ def unknown_fabrics(config, recorded: bool, unknown_labels: Sequence[int] | None
 
 
 def _calibration(probs: dict[str, np.ndarray], labels: np.ndarray) -> dict[str, Any]:
-    return {k: {"ece": confidence.ece(p, labels), "reliability": confidence.reliability(p, labels)} for k, p in probs.items()}
+    return {
+        k: {"ece": confidence.ece(p, labels), "reliability": confidence.reliability(p, labels)}
+        for k, p in probs.items()
+    }
 
 
 def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Location()) -> dict[str, Any]:
@@ -95,17 +101,29 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Loc
     temperatures beside the checkpoint."""
     restored = train.restore(checkpoint_dir)
     graphdef, state, config, seeds = restored.graphdef, restored.state, restored.config, restored.seeds
-    checkpoint.require(checkpoint_dir, restored.trained_for, "the decision study", "a model with a fabric head",
-                       "fabric" in restored.trained_for["heads"])
+    checkpoint.require(
+        checkpoint_dir,
+        restored.trained_for,
+        "the decision study",
+        "a model with a fabric head",
+        "fabric" in restored.trained_for["heads"],
+    )
     index = int(np.argmax(np.asarray(state["best_val"], np.float64)))
     unknown = unknown_fabrics(config, bool(where.data_dir), unknown_labels)
     data_config = dataclasses.replace(config, exclude_fabrics=unknown)
-    ds = loading.load_dataset(data_config, data_dir=where.data_dir, workdir=where.workdir, split_names=("train", "val", *EVAL_SPLITS, "holdout"))
+    ds = loading.load_dataset(
+        data_config,
+        data_dir=where.data_dir,
+        workdir=where.workdir,
+        split_names=("train", "val", *EVAL_SPLITS, "holdout"),
+    )
     checkpoint.require_data(checkpoint_dir, restored.dataset, ds.sets["test"].dataset)
     sets = {k: v for k, v in ds.sets.items() if len(v)}
     for need in ("train", "val", "test"):
         if need not in sets:
-            raise archive.ArchiveError(ds.folder, "<folder>", f"no {need}-split trials: the decision study needs train, val and test")
+            raise archive.ArchiveError(
+                ds.folder, "<folder>", f"no {need}-split trials: the decision study needs train, val and test"
+            )
 
     encode = encoder(graphdef)
     temperatures = {}
@@ -131,9 +149,11 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Loc
         tl = [int(labels[g[0]]) for g in groups]
         predicted = np.argmax(cal, -1)
         splits_doc[split] = {
-            "sequences": len(labels), "trials": len(groups),
+            "sequences": len(labels),
+            "trials": len(groups),
             "accuracy": float(np.mean(predicted == labels)),
-            "majority": findings.majority(labels), "collapsed": findings.collapsed(predicted, labels)[0],
+            "majority": findings.majority(labels),
+            "collapsed": findings.collapsed(predicted, labels)[0],
             "majority_trials": findings.majority(tl),
             "calibration": _calibration({"before": raw, "after": cal}, labels),
             "curve": confidence.decision_curve([cal[g] for g in groups], tl, THRESHOLDS, None, window_s),
@@ -148,20 +168,37 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Loc
             "max_probability": (1 - known_cal.max(-1), 1 - unk_cal.max(-1)),
             "mahalanobis": (mahalanobis.score(out["test"][1]), mahalanobis.score(out["holdout"][1])),
         }
-        unknown_doc = {"fabrics": sorted(set(sets["holdout"].info["fabric_id"].tolist())), "known_sequences": len(known_cal), "unknown_sequences": len(unk_cal), "scores": {}}
+        unknown_doc = {
+            "fabrics": sorted(set(sets["holdout"].info["fabric_id"].tolist())),
+            "known_sequences": len(known_cal),
+            "unknown_sequences": len(unk_cal),
+            "scores": {},
+        }
         for name, (k, u) in scores.items():
             far, _ = confidence.false_accept_rate(k, u)
-            unknown_doc["scores"][name] = {"auroc": confidence.auroc(k, u), "false_accept_at_recall": far,
-                                          "known": np.asarray(k).tolist(), "unknown": np.asarray(u).tolist()}
+            unknown_doc["scores"][name] = {
+                "auroc": confidence.auroc(k, u),
+                "false_accept_at_recall": far,
+                "known": np.asarray(k).tolist(),
+                "unknown": np.asarray(u).tolist(),
+            }
         unknown_doc["decision"] = {
-            "threshold": confidence.DECISION_THRESHOLD, "reject_above": reject_above,
+            "threshold": confidence.DECISION_THRESHOLD,
+            "reject_above": reject_above,
             "known": _answers(sets["test"], known_cal, scores["mahalanobis"][0], reject_above),
             "unknown": _answers(sets["holdout"], unk_cal, scores["mahalanobis"][1], reject_above),
         }
     return {
-        "checkpoint": workspace.shown(checkpoint_dir), "config": config.to_json(), "seeds": list(seeds), "seed": seed,
-        "temperatures": {str(s): v for s, v in temperatures.items()}, "temperature": t,
-        "window_s": window_s, "splits": splits_doc, "unknown": unknown_doc, "dataset": documents.dataset_doc(ds),
+        "checkpoint": workspace.shown(checkpoint_dir),
+        "config": config.to_json(),
+        "seeds": list(seeds),
+        "seed": seed,
+        "temperatures": {str(s): v for s, v in temperatures.items()},
+        "temperature": t,
+        "window_s": window_s,
+        "splits": splits_doc,
+        "unknown": unknown_doc,
+        "dataset": documents.dataset_doc(ds),
         "cost_points": _cost_points(where.results_dir(), config.modalities),
     }
 
@@ -175,7 +212,11 @@ def _answers(ss: data.SequenceSet, probs: np.ndarray, scores: np.ndarray, reject
         is_unknown = bool(scores[g[: d.windows]].mean() > reject_above)
         unknown.append(is_unknown)
         right.append(not is_unknown and d.label == int(ss.labels["fabric"][g[0]]))
-    return {"trials": len(unknown), "answered_unknown": float(np.mean(unknown)), "answered_own_class": float(np.mean(right))}
+    return {
+        "trials": len(unknown),
+        "answered_unknown": float(np.mean(unknown)),
+        "answered_own_class": float(np.mean(right)),
+    }
 
 
 def _cost_points(results, modalities) -> list[dict[str, float]] | None:
@@ -185,12 +226,22 @@ def _cost_points(results, modalities) -> list[dict[str, float]] | None:
     if not path.exists():
         return None
     doc = json.loads(path.read_text())
-    return [{"touch_s": p["touch_s"], "accuracy": p["accuracy_mean"] / 100, "name": p["name"]}
-            for p in doc.get("points", []) if list(p["modalities"]) == list(modalities)]
+    return [
+        {"touch_s": p["touch_s"], "accuracy": p["accuracy_mean"] / 100, "name": p["name"]}
+        for p in doc.get("points", [])
+        if list(p["modalities"]) == list(modalities)
+    ]
 
 
-def run(checkpoint_dirs: Sequence = (), *, names: Sequence[str] | None = None, unknown_labels=None, preset: str = "default",
-        overrides=None, where: Location = Location()) -> dict[str, Any]:
+def run(
+    checkpoint_dirs: Sequence = (),
+    *,
+    names: Sequence[str] | None = None,
+    unknown_labels=None,
+    preset: str = "default",
+    overrides=None,
+    where: Location = Location(),
+) -> dict[str, Any]:
     """Evaluate every checkpoint (named by `names`, default by inputs; none given: the quick model
     of `preset` with `overrides`, as `experiments.stream`) and write results/decide.{md,json,png}."""
     if not checkpoint_dirs:
@@ -198,12 +249,18 @@ def run(checkpoint_dirs: Sequence = (), *, names: Sequence[str] | None = None, u
     models = []
     for i, d in enumerate(checkpoint_dirs):
         m = evaluate_model(d, unknown_labels=unknown_labels, where=where)
-        m["name"] = names[i] if names else data.inputs_name(m["config"]["modalities"], documents.stream_names(m))  # as tables name them
+        m["name"] = (
+            names[i] if names else data.inputs_name(m["config"]["modalities"], documents.stream_names(m))
+        )  # as tables name them
         models.append(m)
     with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
         png = plots.plot_decide(where.results_dir() / "decide.png", models)
-        doc = {**documents.header("decide", command=where.command, preset=models[0]["config"]["preset"]), "dataset": models[0].pop("dataset"),
-               "thresholds": list(THRESHOLDS), "models": models}
+        doc = {
+            **documents.header("decide", command=where.command, preset=models[0]["config"]["preset"]),
+            "dataset": models[0].pop("dataset"),
+            "thresholds": list(THRESHOLDS),
+            "models": models,
+        }
         for m in models[1:]:
             m.pop("dataset")
         return documents.write(where.results_dir(), doc, markdown, [png])
@@ -217,24 +274,58 @@ def markdown(doc: dict[str, Any]) -> str:
     lines = [documents.title(doc, TITLE), "", documents.header_markdown(doc).rstrip("\n"), ""]
     for m in doc["models"]:
         names = data.inputs_name(m["config"]["modalities"], documents.stream_names(doc))
-        lines += [f"## {m['name']} ({names})", "",
-                  f"- checkpoint: `{m['checkpoint']}`, seed {m['seed']} (best by validation of {m['seeds']}); "
-                  f"temperature {m['temperature']:.3f} (fitted on the validation split; written beside the checkpoint)",
-                  f"- one window: {m['window_s']:.2f} s of touch", "", "### Calibration", ""]
-        rows = [[s, d["sequences"], _pct(d["accuracy"]) + findings.collapse_text([d["collapsed"]]), findings.majority_cell(d["majority"]),
-                 _pct(d["calibration"]["before"]["ece"]), _pct(d["calibration"]["after"]["ece"])]
-                for s, d in m["splits"].items()]
-        lines += [documents.markdown_table(["split", "sequences", "accuracy [%]", "majority class [%]", "ECE before [%]", "ECE after [%]"], rows),
-                  findings.baseline_note(), ""]
+        lines += [
+            f"## {m['name']} ({names})",
+            "",
+            f"- checkpoint: `{m['checkpoint']}`, seed {m['seed']} (best by validation of {m['seeds']}); "
+            f"temperature {m['temperature']:.3f} (fitted on the validation split; written beside the checkpoint)",
+            f"- one window: {m['window_s']:.2f} s of touch",
+            "",
+            "### Calibration",
+            "",
+        ]
+        rows = [
+            [
+                s,
+                d["sequences"],
+                _pct(d["accuracy"]) + findings.collapse_text([d["collapsed"]]),
+                findings.majority_cell(d["majority"]),
+                _pct(d["calibration"]["before"]["ece"]),
+                _pct(d["calibration"]["after"]["ece"]),
+            ]
+            for s, d in m["splits"].items()
+        ]
+        lines += [
+            documents.markdown_table(
+                ["split", "sequences", "accuracy [%]", "majority class [%]", "ECE before [%]", "ECE after [%]"], rows
+            ),
+            findings.baseline_note(),
+            "",
+        ]
         lines += ["### When to stop rubbing (sequential rule over a trial's windows)", ""]
         for s, d in m["splits"].items():
-            rows = [[f"{c['threshold']:g}", _pct(c["accuracy"]), f"{c['mean_touch_s']:.2f}", _pct(c["confident"])] for c in d["curve"]]
-            lines += [f"{s} ({d['trials']} trials; majority class of the trials [%]: {findings.majority_cell(d['majority_trials'])}):", "",
-                      documents.markdown_table(["threshold", "accuracy [%]", "mean touch to decision [s]", "reached the threshold [%]"], rows), ""]
+            rows = [
+                [f"{c['threshold']:g}", _pct(c["accuracy"]), f"{c['mean_touch_s']:.2f}", _pct(c["confident"])]
+                for c in d["curve"]
+            ]
+            lines += [
+                f"{s} ({d['trials']} trials; majority class of the trials [%]: {findings.majority_cell(d['majority_trials'])}):",
+                "",
+                documents.markdown_table(
+                    ["threshold", "accuracy [%]", "mean touch to decision [s]", "reached the threshold [%]"], rows
+                ),
+                "",
+            ]
         if m["cost_points"] is None:
-            lines += ["The cost study's fixed-N points: no cost.json in this results folder (run `python -m experiments.cost`).", ""]
+            lines += [
+                "The cost study's fixed-N points: no cost.json in this results folder (run `python -m experiments.cost`).",
+                "",
+            ]
         else:
-            pts = ", ".join(f"{p['touch_s']:.2f} s: {_pct(p['accuracy'])} %" for p in m["cost_points"]) or "none of these inputs"
+            pts = (
+                ", ".join(f"{p['touch_s']:.2f} s: {_pct(p['accuracy'])} %" for p in m["cost_points"])
+                or "none of these inputs"
+            )
             lines += [f"The cost study's fixed-N points (test accuracy): {pts}.", ""]
         u = m["unknown"]
         lines += ["### Unknown fabrics", ""]
@@ -243,13 +334,19 @@ def markdown(doc: dict[str, Any]) -> str:
         else:
             rows = [[k, f"{v['auroc']:.3f}", _pct(v["false_accept_at_recall"])] for k, v in u["scores"].items()]
             dd = u["decision"]
-            lines += [f"Unknowns: fabrics {', '.join(map(str, u['fabrics']))} ({u['unknown_sequences']} sequences) against "
-                      f"{u['known_sequences']} known test sequences.", "",
-                      documents.markdown_table(["score", "AUROC", f"false accepts at {100 * confidence.KNOWN_RECALL:.0f} % known recall [%]"], rows), "",
-                      f"Decision rule at posterior {dd['threshold']:g} answering \"unknown\" above the Mahalanobis threshold of "
-                      f"{100 * confidence.KNOWN_RECALL:.0f} % validation recall: known trials {_pct(dd['known']['answered_own_class'])} % "
-                      f"right, {_pct(dd['known']['answered_unknown'])} % called unknown; unknown trials "
-                      f"{_pct(dd['unknown']['answered_unknown'])} % called unknown.", ""]
+            lines += [
+                f"Unknowns: fabrics {', '.join(map(str, u['fabrics']))} ({u['unknown_sequences']} sequences) against "
+                f"{u['known_sequences']} known test sequences.",
+                "",
+                documents.markdown_table(
+                    ["score", "AUROC", f"false accepts at {100 * confidence.KNOWN_RECALL:.0f} % known recall [%]"], rows
+                ),
+                "",
+                f'Decision rule at posterior {dd["threshold"]:g} answering "unknown" above the Mahalanobis threshold of '
+                f"{100 * confidence.KNOWN_RECALL:.0f} % validation recall: known trials {_pct(dd['known']['answered_own_class'])} % "
+                f"right, {_pct(dd['known']['answered_unknown'])} % called unknown; unknown trials "
+                f"{_pct(dd['unknown']['answered_unknown'])} % called unknown.",
+                "",
+            ]
     lines += ["![calibration, touch time and unknown scores](decide.png)", ""]
     return "\n".join(lines)
-

@@ -51,7 +51,9 @@ def minsight_frames(size: tuple[int, int], fabric_id: int, steps: int = STEPS) -
     shear = np.interp(proc.frame_times, proc.motion.t, proc.motion.shear_n)
     change = np.convolve(np.abs(np.diff(shear)), np.ones(steps - 1), "valid")
     start = int(np.argmax(change))
-    return minsight.render(scene, proc.motion, proc.frame_times[start:start + steps], proc.nuisance, scene.rng("minsight", "trial"))
+    return minsight.render(
+        scene, proc.motion, proc.frame_times[start : start + steps], proc.nuisance, scene.rng("minsight", "trial")
+    )
 
 
 def _one_over_f(size: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
@@ -76,7 +78,9 @@ def natural_frames(size: tuple[int, int], seed: int, steps: int = STEPS) -> tupl
     light = (0.55 + 0.35 * x / w + 0.1 * y / h) * (1 - 0.3 * (((x - w / 2) / w) ** 2 + ((y - h / 2) / h) ** 2))
     frames = []
     for k in range(steps):
-        moved = cv2.remap(texture.astype(np.float32), x - k * u, y - k * v, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT_101)
+        moved = cv2.remap(
+            texture.astype(np.float32), x - k * u, y - k * v, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT_101
+        )
         img = 255 * light * (0.5 + 0.15 * moved) + rng.normal(0, NOISE_DN, size)
         frames.append(np.clip(np.rint(img), 0, 255).astype(np.uint8))
     gray = np.stack(frames)
@@ -94,15 +98,26 @@ def compare(stretches: list[np.ndarray], truths: list[np.ndarray] | None = None)
     ours, ref = (np.concatenate([d[1:] for d in dense[m]]) for m in ("jax", "opencv"))
     epe = _epe(ours, ref)
     out = {
-        "pairs": len(ours), "epe_mean": float(epe.mean()), **{f"epe_p{p}": float(np.percentile(epe, p)) for p in PERCENTILES},
-        "epe_max": float(epe.max()), "opencv_magnitude_mean": float(np.hypot(ref[..., 0], ref[..., 1]).mean()),
+        "pairs": len(ours),
+        "epe_mean": float(epe.mean()),
+        **{f"epe_p{p}": float(np.percentile(epe, p)) for p in PERCENTILES},
+        "epe_max": float(epe.max()),
+        "opencv_magnitude_mean": float(np.hypot(ref[..., 0], ref[..., 1]).mean()),
     }
     if truths is not None:
         truth = np.concatenate([np.broadcast_to(t, (len(s) - 1, *t.shape)) for s, t in zip(stretches, truths)])
-        out.update(opencv_truth_epe_mean=float(_epe(ref, truth).mean()), jax_truth_epe_mean=float(_epe(ours, truth).mean()))
+        out.update(
+            opencv_truth_epe_mean=float(_epe(ref, truth).mean()), jax_truth_epe_mean=float(_epe(ours, truth).mean())
+        )
     for mode in flow.SPARSIFY:
-        a, b = (np.concatenate([np.asarray(flow.sparsify_and_pool(d, mode))[1:] for d in dense[m]]).ravel() for m in ("jax", "opencv"))
-        out[mode] = {"relative_l2": float(np.linalg.norm(a - b) / np.linalg.norm(b)), "correlation": float(np.corrcoef(a, b)[0, 1])}
+        a, b = (
+            np.concatenate([np.asarray(flow.sparsify_and_pool(d, mode))[1:] for d in dense[m]]).ravel()
+            for m in ("jax", "opencv")
+        )
+        out[mode] = {
+            "relative_l2": float(np.linalg.norm(a - b) / np.linalg.norm(b)),
+            "correlation": float(np.corrcoef(a, b)[0, 1]),
+        }
     return out
 
 
@@ -115,11 +130,22 @@ def run(*, quick: bool = False, where: Location = Location()) -> dict[str, Any]:
     for size in SIZES:
         sets.append({"frames": "minsight", "size": list(size), **compare([minsight_frames(size, f) for f in fabrics])})
         natural = [natural_frames(size, s) for s in seeds]
-        sets.append({"frames": "natural", "size": list(size), **compare([f for f, _ in natural], [t for _, t in natural])})
+        sets.append(
+            {"frames": "natural", "size": list(size), **compare([f for f, _ in natural], [t for _, t in natural])}
+        )
     timing = flow_timing.bench_flow(SIZES, batch=STEPS, repeats=1 if quick else 3)
     doc = {
-        **documents.header(STUDY, command=where.command, quick=quick, fabrics=list(fabrics), textures=list(seeds), steps=STEPS, wall_s=time.perf_counter() - t0),
-        "sets": sets, "timing": timing,
+        **documents.header(
+            STUDY,
+            command=where.command,
+            quick=quick,
+            fabrics=list(fabrics),
+            textures=list(seeds),
+            steps=STEPS,
+            wall_s=time.perf_counter() - t0,
+        ),
+        "sets": sets,
+        "timing": timing,
     }
     return documents.write(where.results_dir(), doc, markdown)
 
@@ -127,30 +153,85 @@ def run(*, quick: bool = False, where: Location = Location()) -> dict[str, Any]:
 def markdown(doc: dict[str, Any]) -> str:
     t = doc["timing"]
     lines = [
-        "# Farneback optical flow: the JAX reimplementation against OpenCV", "",
-        documents.header_markdown(doc, f"{doc['wall_s']:.0f} s" + (" (--quick: one trial and one texture per size)" if doc["quick"] else "")), "",
+        "# Farneback optical flow: the JAX reimplementation against OpenCV",
+        "",
+        documents.header_markdown(
+            doc, f"{doc['wall_s']:.0f} s" + (" (--quick: one trial and one texture per size)" if doc["quick"] else "")
+        ),
+        "",
         f"Frames: simulated Minsight frames, {doc['steps']} consecutive frames of one trial of each of fabrics {doc['fabrics']} where the "
         f"shear changes fastest; natural-like textures (seeds {doc['textures']}) moved by a smooth known field. End-point errors (EPE) "
-        "are in pixels, between the two methods' dense flow over every frame pair; features are `flow.sparsify_and_pool` of each.", "",
-        "## Dense flow", "",
+        "are in pixels, between the two methods' dense flow over every frame pair; features are `flow.sparsify_and_pool` of each.",
+        "",
+        "## Dense flow",
+        "",
         documents.markdown_table(
-            ["Frames", "Size", "Pairs", "EPE mean", "median", "p95", "p99", "max", "OpenCV |flow| mean", "EPE to truth (OpenCV / JAX)"],
-            [[s["frames"], f"{s['size'][0]}x{s['size'][1]}", s["pairs"], *(f"{s[k]:.2e}" for k in ("epe_mean", "epe_p50", "epe_p95", "epe_p99", "epe_max")),
-              f"{s['opencv_magnitude_mean']:.3f}",
-              f"{s['opencv_truth_epe_mean']:.4f} / {s['jax_truth_epe_mean']:.4f}" if "jax_truth_epe_mean" in s else "-"] for s in doc["sets"]],
-        ), "",
-        "## The model's input (sparsified, 3x3-pooled)", "",
+            [
+                "Frames",
+                "Size",
+                "Pairs",
+                "EPE mean",
+                "median",
+                "p95",
+                "p99",
+                "max",
+                "OpenCV |flow| mean",
+                "EPE to truth (OpenCV / JAX)",
+            ],
+            [
+                [
+                    s["frames"],
+                    f"{s['size'][0]}x{s['size'][1]}",
+                    s["pairs"],
+                    *(f"{s[k]:.2e}" for k in ("epe_mean", "epe_p50", "epe_p95", "epe_p99", "epe_max")),
+                    f"{s['opencv_magnitude_mean']:.3f}",
+                    f"{s['opencv_truth_epe_mean']:.4f} / {s['jax_truth_epe_mean']:.4f}"
+                    if "jax_truth_epe_mean" in s
+                    else "-",
+                ]
+                for s in doc["sets"]
+            ],
+        ),
+        "",
+        "## The model's input (sparsified, 3x3-pooled)",
+        "",
         documents.markdown_table(
             ["Frames", "Size", *(f"{m}: {k}" for m in flow.SPARSIFY for k in ("relative L2", "correlation"))],
-            [[s["frames"], f"{s['size'][0]}x{s['size'][1]}", *(f"{s[m][k]:.2e}" if k == "relative_l2" else f"{s[m][k]:.6f}" for m in flow.SPARSIFY for k in ("relative_l2", "correlation"))]
-             for s in doc["sets"]],
-        ), "",
-        "## Time per frame pair", "",
+            [
+                [
+                    s["frames"],
+                    f"{s['size'][0]}x{s['size'][1]}",
+                    *(
+                        f"{s[m][k]:.2e}" if k == "relative_l2" else f"{s[m][k]:.6f}"
+                        for m in flow.SPARSIFY
+                        for k in ("relative_l2", "correlation")
+                    ),
+                ]
+                for s in doc["sets"]
+            ],
+        ),
+        "",
+        "## Time per frame pair",
+        "",
         f"OpenCV on one thread (cv2.setNumThreads(1), one pair at a time) and on {t['opencv_threads']} threads (pairs in a thread pool); "
-        f"JAX on {t['jax_devices']} {t['device'].upper()} device(s), batches of {t['batch']} pairs split over them, after compilation.", "",
+        f"JAX on {t['jax_devices']} {t['device'].upper()} device(s), batches of {t['batch']} pairs split over them, after compilation.",
+        "",
         documents.markdown_table(
-            ["Size", "OpenCV, 1 thread [ms]", f"OpenCV, {t['opencv_threads']} threads [ms]", "JAX [ms]", "JAX compile [s]"],
-            [[size, *(f"{1e3 * v[k]:.2f}" for k in ("opencv_1_thread_s", "opencv_all_cores_s", "jax_s")), f"{v['jax_compile_s']:.1f}"] for size, v in t["sizes"].items()],
+            [
+                "Size",
+                "OpenCV, 1 thread [ms]",
+                f"OpenCV, {t['opencv_threads']} threads [ms]",
+                "JAX [ms]",
+                "JAX compile [s]",
+            ],
+            [
+                [
+                    size,
+                    *(f"{1e3 * v[k]:.2f}" for k in ("opencv_1_thread_s", "opencv_all_cores_s", "jax_s")),
+                    f"{v['jax_compile_s']:.1f}",
+                ]
+                for size, v in t["sizes"].items()
+            ],
         ),
     ]
     return "\n".join(lines) + "\n"

@@ -46,7 +46,9 @@ BANDWIDTH_KHZ = 15.0  # the model's PSD bandwidth [paper]
 OCTAVE_CENTRES_HZ = (125, 250, 500, 1000, 2000, 4000, 8000)
 # Octave bands (IEC 61260 base-2 edges f / sqrt 2 .. f * sqrt 2), and the 16 kHz octave cut at the
 # model's 15 kHz bandwidth.
-BANDS_HZ = tuple((c / np.sqrt(2), c * np.sqrt(2)) for c in OCTAVE_CENTRES_HZ) + ((16000 / np.sqrt(2), BANDWIDTH_KHZ * 1000),)
+BANDS_HZ = tuple((c / np.sqrt(2), c * np.sqrt(2)) for c in OCTAVE_CENTRES_HZ) + (
+    (16000 / np.sqrt(2), BANDWIDTH_KHZ * 1000),
+)
 BAND_NAMES = tuple(f"{c / 1000:g}k" if c >= 1000 else f"{c}" for c in OCTAVE_CENTRES_HZ) + ("16k (to 15k)",)
 MICS = ("Minsound", "palm")
 RUBBING = ("thumb contact", "middle contact", "cloth")  # what the palm hears of the fabric
@@ -75,7 +77,11 @@ def source_levels(scene: Scene) -> dict[str, dict[str, list[float]]]:
     rub = rubbing_samples(proc.window_end, int(np.searchsorted(proc.frame_times, proc.motion.rubbing_start_s)))
     out: dict[str, dict[str, list[float]]] = {}
     for name, at_mics in trial.sound_sources(scene, proc.motion, proc.grid, proc.nuisance).items():
-        out[name] = {MICS[m]: levels_db(proc.grid.irfft(spec)[rub]).tolist() for m, spec in enumerate(at_mics) if spec is not None}
+        out[name] = {
+            MICS[m]: levels_db(proc.grid.irfft(spec)[rub]).tolist()
+            for m, spec in enumerate(at_mics)
+            if spec is not None
+        }
     noise = sph0645.self_noise(proc.grid, scene.rng("sph0645_1", "trial"))
     out["SPH0645 self-noise"] = {"palm": levels_db(proc.grid.irfft(noise)[rub]).tolist()}
     return out
@@ -132,26 +138,53 @@ def measure(preset: str = "default", cycles: int = CYCLES, trials: int = TRIALS,
     conditions = ["lab"] * len(lab_days) + ["cafe"] * len(cafe_days)
     start = time.perf_counter()
     sources = {
-        condition: {fid: source_levels(Scene(fid, day=day, condition=condition, cycles=cycles, seed=seed)) for fid in tqdm(classes, desc=f"sources ({condition})", leave=False)}
+        condition: {
+            fid: source_levels(Scene(fid, day=day, condition=condition, cycles=cycles, seed=seed))
+            for fid in tqdm(classes, desc=f"sources ({condition})", leave=False)
+        }
         for condition, day_list in (("lab", lab_days), ("cafe", cafe_days))
         if day_list
         for day in day_list[:1]
     }
     events = {day: event_levels(day, seed) for day in lab_days}
-    full = np.array([
-        [[recorded_levels(Scene(fid, day=day, trial=t, condition=c, effects=EFFECTS, cycles=cycles, seed=seed)) for t in range(trials)] for day, c in zip(days, conditions)]
-        for fid in tqdm(classes, desc="complete signals", leave=False)
-    ])  # (fabric, day, trial, mic, band)
+    full = np.array(
+        [
+            [
+                [
+                    recorded_levels(
+                        Scene(fid, day=day, trial=t, condition=c, effects=EFFECTS, cycles=cycles, seed=seed)
+                    )
+                    for t in range(trials)
+                ]
+                for day, c in zip(days, conditions)
+            ]
+            for fid in tqdm(classes, desc="complete signals", leave=False)
+        ]
+    )  # (fabric, day, trial, mic, band)
     lab = np.array([c == "lab" for c in conditions])
     f = np.array([np.sqrt(lo * hi) for lo, hi in BANDS_HZ])
     paths = air_path.palm_transfers(f, shell.contact_transfer(f))
     return {
-        "preset": preset, "cycles": cycles, "trials": trials, "seed": seed, "classes": classes,
-        "lab_days": list(lab_days), "cafe_days": list(cafe_days), "bands": list(BAND_NAMES) + ["dB(A)"],
-        "sources": sources, "events": events, "event_minutes": EVENT_MINUTES,
+        "preset": preset,
+        "cycles": cycles,
+        "trials": trials,
+        "seed": seed,
+        "classes": classes,
+        "lab_days": list(lab_days),
+        "cafe_days": list(cafe_days),
+        "bands": list(BAND_NAMES) + ["dB(A)"],
+        "sources": sources,
+        "events": events,
+        "event_minutes": EVENT_MINUTES,
         "full_levels": {mic: full[..., m, :].tolist() for m, mic in enumerate(MICS)},
-        "shares_lab": {mic: {k: v.tolist() for k, v in variance_shares(full[:, lab][..., m, :]).items()} for m, mic in enumerate(MICS)},
-        "shares_all": {mic: {k: v.tolist() for k, v in variance_shares(full[..., m, :], conditions).items()} for m, mic in enumerate(MICS)},
+        "shares_lab": {
+            mic: {k: v.tolist() for k, v in variance_shares(full[:, lab][..., m, :]).items()}
+            for m, mic in enumerate(MICS)
+        },
+        "shares_all": {
+            mic: {k: v.tolist() for k, v in variance_shares(full[..., m, :], conditions).items()}
+            for m, mic in enumerate(MICS)
+        },
         "transfer": {
             "band_centre_hz": f.tolist(),
             **{f"{name} to palm [dB]": (20 * np.log10(np.abs(tf))).tolist() for name, tf in paths.items()},
@@ -213,7 +246,7 @@ def markdown(doc: dict[str, Any]) -> str:
         f"seed {doc['seed']}; {doc['wall_s']:.0f} s",
         "",
         "How each number is made: `fabricjax/studies/extra/palm.py`; where each simulator magnitude comes from: "
-        "`fabricjax/sim/calibration.py` (\"air paths\", \"ambient sound\", \"servo noise\"). Levels in dB SPL at the microphone's "
+        '`fabricjax/sim/calibration.py` ("air paths", "ambient sound", "servo noise"). Levels in dB SPL at the microphone\'s '
         "port per octave band and A-weighted over 50 Hz-15 kHz.",
         "",
         *summary(doc),
@@ -231,12 +264,29 @@ def markdown(doc: dict[str, Any]) -> str:
                     continue
                 stats = (("min", per.min(axis=0)), ("median", np.median(per, axis=0)), ("max", per.max(axis=0)))
                 for label, values in stats if name in RUBBING else stats[1:2]:
-                    rows.append([f"{name} at {mic}: {label}" + ("" if name in RUBBING else f" over {len(per)} classes' scenes"), *_fmt(values)])
+                    rows.append(
+                        [
+                            f"{name} at {mic}: {label}"
+                            + ("" if name in RUBBING else f" over {len(per)} classes' scenes"),
+                            *_fmt(values),
+                        ]
+                    )
         rub = np.array([rubbing_at_palm(v) for v in per_class.values()])
-        rows.append(["the fabric at the palm (power sum of the contacts and the cloth): median", *_fmt(np.median(rub, axis=0))])
-        rows.append(["everything else at the palm: median", *_fmt(np.median([room_at_palm(v) for v in per_class.values()], axis=0))])
+        rows.append(
+            ["the fabric at the palm (power sum of the contacts and the cloth): median", *_fmt(np.median(rub, axis=0))]
+        )
+        rows.append(
+            [
+                "everything else at the palm: median",
+                *_fmt(np.median([room_at_palm(v) for v in per_class.values()], axis=0)),
+            ]
+        )
         day = doc["lab_days"][0] if condition == "lab" else doc["cafe_days"][0]
-        lines += [f"## Each source at each microphone: {condition}, day {day}", "", documents.markdown_table(["source", *bands], rows)]
+        lines += [
+            f"## Each source at each microphone: {condition}, day {day}",
+            "",
+            documents.markdown_table(["source", *bands], rows),
+        ]
     lines += [
         f"## Lab events per day (equivalent level at the hand over {doc['event_minutes']:g} min)",
         "",
@@ -280,7 +330,10 @@ def markdown(doc: dict[str, Any]) -> str:
         "Palm pressure per contact pressure (the contact's equivalent Minsound cavity pressure) for each radiator "
         "(`sim.air_path.palm_transfers`), and the shell's transmission loss for outside sound, at each band's centre (dB).",
         "",
-        documents.markdown_table(["band centre [Hz]", *cols], [[f"{fc:.0f}", *[f"{t[c][i]:.1f}" for c in cols]] for i, fc in enumerate(t["band_centre_hz"])]),
+        documents.markdown_table(
+            ["band centre [Hz]", *cols],
+            [[f"{fc:.0f}", *[f"{t[c][i]:.1f}" for c in cols]] for i, fc in enumerate(t["band_centre_hz"])],
+        ),
     ]
     return "\n".join(lines)
 

@@ -34,7 +34,16 @@ from threadpoolctl import threadpool_limits
 
 from fabricjax import archive, data, stats
 from fabricjax.studies.common import documents, findings, loading, runner
-from fabricjax.studies.common.linear_probe import BLAS_THREADS, C_GRID, MAX_ITER, PCA_ABOVE, PCA_DIMS, Input, fit, prepare_inputs
+from fabricjax.studies.common.linear_probe import (
+    BLAS_THREADS,
+    C_GRID,
+    MAX_ITER,
+    PCA_ABOVE,
+    PCA_DIMS,
+    Input,
+    fit,
+    prepare_inputs,
+)
 from fabricjax.studies.paper import ablation
 from fabricjax.studies.common.runner import StudyRow
 from fabricjax.workspace import Location
@@ -58,8 +67,16 @@ def _rows() -> tuple[StudyRow, ...]:
         if "image" not in mods:
             seen[frozenset(mods)] = StudyRow("+".join(mods), {"modalities": mods}, label)
             continue
-        seen[frozenset(mods)] = StudyRow("+".join(mods), {"modalities": mods, "image_reference": "training_mean"}, label)
-        session.append(StudyRow(SESSION + "+".join(mods), {"modalities": mods, "image_reference": "session"}, f"{label}, frames − session reference"))
+        seen[frozenset(mods)] = StudyRow(
+            "+".join(mods), {"modalities": mods, "image_reference": "training_mean"}, label
+        )
+        session.append(
+            StudyRow(
+                SESSION + "+".join(mods),
+                {"modalities": mods, "image_reference": "session"},
+                f"{label}, frames − session reference",
+            )
+        )
     return (*seen.values(), *session)
 
 
@@ -72,11 +89,15 @@ def reading(image_reference: str | None) -> str:
     return "session" if image_reference == "session" else "frame"
 
 
-def row_for(modalities: Sequence[str], rows: Sequence[Mapping[str, Any]], image_reference: str | None = None) -> Mapping[str, Any] | None:
+def row_for(
+    modalities: Sequence[str], rows: Sequence[Mapping[str, Any]], image_reference: str | None = None
+) -> Mapping[str, Any] | None:
     """The probe row (as JSON) that reads exactly `modalities`, in any order, with the image (if
     any) read as `image_reference` reads it (`reading`); None if not probed."""
     want = reading(image_reference) if "image" in modalities else "frame"
-    return next((r for r in rows if set(r["modalities"]) == set(modalities) and reading(r.get("image_reference")) == want), None)
+    return next(
+        (r for r in rows if set(r["modalities"]) == set(modalities) and reading(r.get("image_reference")) == want), None
+    )
 
 
 def run(
@@ -91,27 +112,42 @@ def run(
     ds = datasets[0]
     for split in ("train", "val"):
         if split not in present:
-            raise archive.ArchiveError(ds.folder, "<folder>", f"no {split} sequences (check days and conditions): the probe fits on train and chooses C on val")
+            raise archive.ArchiveError(
+                ds.folder,
+                "<folder>",
+                f"no {split} sequences (check days and conditions): the probe fits on train and chooses C on val",
+            )
     labels = {s: ds.sets[s].labels["fabric"] for s in present}
     if len(np.unique(labels["train"])) < 2:
-        raise archive.ArchiveError(ds.folder, "label", "the training split holds fewer than two fabrics: nothing to probe")
+        raise archive.ArchiveError(
+            ds.folder, "label", "the training split holds fewer than two fabrics: nothing to probe"
+        )
 
     t0 = time.perf_counter()
     loads = {}  # per load (rows that read the frames alike share one): the load and its first row's config
     for c, d in zip(configs, datasets):
         loads.setdefault(id(d), (d, c))
-    inputs = {key: prepare_inputs(d.sets, loading.union_modalities([c for c, e in zip(configs, datasets) if e is d]), present)
-              for key, (d, _) in loads.items()}
+    inputs = {
+        key: prepare_inputs(d.sets, loading.union_modalities([c for c, e in zip(configs, datasets) if e is d]), present)
+        for key, (d, _) in loads.items()
+    }
     with threadpool_limits(BLAS_THREADS):
         progress = runner.Progress("probe", len(chosen))
         names = ds.sets["train"].names if ds.recorded else {}  # recorded data: its own names for its streams
-        out_rows = [_probe_row(r, c, inputs[id(d)], labels, present, progress, names) for r, c, d in zip(chosen, configs, datasets)]
+        out_rows = [
+            _probe_row(r, c, inputs[id(d)], labels, present, progress, names)
+            for r, c, d in zip(chosen, configs, datasets)
+        ]
 
     doc = {
         **documents.header("probe", command=where.command, preset=preset, dataset=ds, probe_s=time.perf_counter() - t0),
         "method": {
-            "summaries": ["mean", "sd"], "pca_above_step_dims": PCA_ABOVE, "pca_dims": PCA_DIMS,
-            "c_grid": list(C_GRID), "solver": "lbfgs", "max_iter": MAX_ITER,
+            "summaries": ["mean", "sd"],
+            "pca_above_step_dims": PCA_ABOVE,
+            "pca_dims": PCA_DIMS,
+            "c_grid": list(C_GRID),
+            "solver": "lbfgs",
+            "max_iter": MAX_ITER,
         },
         "splits": present,
         "classes": sorted(np.unique(labels["train"]).tolist()),
@@ -128,12 +164,22 @@ def _inputs_doc(inputs: Mapping[str, Input], config, names: Mapping[str, str]) -
     out = {}
     for m, i in inputs.items():
         session = m == "image" and config.image_reference == "session"
-        out[SESSION + m if session else m] = {**i.to_json(), "display_name": data.inputs_name((m,), names) + (" − session reference" if session else "")}
+        out[SESSION + m if session else m] = {
+            **i.to_json(),
+            "display_name": data.inputs_name((m,), names) + (" − session reference" if session else ""),
+        }
     return out
 
 
-def _probe_row(r: StudyRow, config, inputs: Mapping[str, Input], labels, splits: Sequence[str], progress: runner.Progress,
-               names: Mapping[str, str]) -> dict[str, Any]:
+def _probe_row(
+    r: StudyRow,
+    config,
+    inputs: Mapping[str, Input],
+    labels,
+    splits: Sequence[str],
+    progress: runner.Progress,
+    names: Mapping[str, str],
+) -> dict[str, Any]:
     """Row `r`'s probe on its inputs' features, concatenated, as the JSON row; `names`: the data's
     names for its streams (recorded data), else the paper's."""
     name = ablation.label(r.modalities, "attention", names=names) if names else r.label
@@ -144,9 +190,13 @@ def _probe_row(r: StudyRow, config, inputs: Mapping[str, Input], labels, splits:
     seconds = time.perf_counter() - t0
     progress.finish(name, seconds, f"C={result['C']:g}, test {100 * result['accuracy'].get('test', np.nan):.1f} %")
     return {
-        "name": r.name, "modalities": list(r.modalities), "display_name": name,
+        "name": r.name,
+        "modalities": list(r.modalities),
+        "display_name": name,
         **({"image_reference": config.image_reference} if "image" in r.modalities else {}),
-        "probe_dims": int(features["train"].shape[1]), "wall_s": seconds, **result,
+        "probe_dims": int(features["train"].shape[1]),
+        "wall_s": seconds,
+        **result,
     }
 
 
@@ -157,40 +207,70 @@ def _pct(accuracy: Mapping[str, float], split: str) -> str:
 def table(doc: Mapping[str, Any]) -> str:
     """One line per probe: its inputs, features, chosen C and accuracy on every split."""
     body = [
-        [r["display_name"], r["probe_dims"], f"{r['C']:g}" + ("" if r["converged"] else " (not converged)"),
-         *[_pct(r["accuracy"], s) + findings.collapse_note(r.get("predictions", {}).get(s, [])) * (s != "train") for s in SPLITS], f"{r['wall_s']:.1f}"]
+        [
+            r["display_name"],
+            r["probe_dims"],
+            f"{r['C']:g}" + ("" if r["converged"] else " (not converged)"),
+            *[
+                _pct(r["accuracy"], s) + findings.collapse_note(r.get("predictions", {}).get(s, [])) * (s != "train")
+                for s in SPLITS
+            ],
+            f"{r['wall_s']:.1f}",
+        ]
         for r in doc["rows"]
     ]
-    header = ["Inputs", "Probe features", "C (by validation)", "Train [%]", "Validation [%]", "Test [%]", "Cafe [%]", "Fit time [s]"]
+    header = [
+        "Inputs",
+        "Probe features",
+        "C (by validation)",
+        "Train [%]",
+        "Validation [%]",
+        "Test [%]",
+        "Cafe [%]",
+        "Fit time [s]",
+    ]
     return documents.markdown_table(header, body)
 
 
 def inputs_table(doc: Mapping[str, Any]) -> str:
     body = [
-        [i["display_name"] if "display_name" in i else data.inputs_name((m,)), i["step_dims"], i["summary_dims"],
-         f"{i['probe_dims']} (PCA, {100 * i['explained_variance']:.1f} % of the variance)" if i["explained_variance"] is not None else i["probe_dims"],
-         f"{i['seconds']:.1f}"]
+        [
+            i["display_name"] if "display_name" in i else data.inputs_name((m,)),
+            i["step_dims"],
+            i["summary_dims"],
+            f"{i['probe_dims']} (PCA, {100 * i['explained_variance']:.1f} % of the variance)"
+            if i["explained_variance"] is not None
+            else i["probe_dims"],
+            f"{i['seconds']:.1f}",
+        ]
         for m, i in doc["inputs"].items()
     ]
-    return documents.markdown_table(["Input", "Dimensions per step", "Summary (mean, SD)", "Probe features", "Time [s]"], body)
+    return documents.markdown_table(
+        ["Input", "Dimensions per step", "Summary (mean, SD)", "Probe features", "Time [s]"], body
+    )
 
 
 def markdown(doc: Mapping[str, Any]) -> str:
     m = doc["method"]
-    return "\n".join([
-        "# Linear probe: what each input carries before any model",
-        "",
-        documents.header_markdown(doc, f"probes {doc['probe_s']:.0f} s in all (summaries and PCA included); {documents.data_time_markdown(doc['dataset'])}"),
-        "Logistic regression (scikit-learn, lbfgs, L2) on each sequence's per-dimension mean and SD over its steps, "
-        "standardised on the training split; "
-        f"inputs with more than {m['pca_above_step_dims']} dimensions per step reduced to at most {m['pca_dims']} principal "
-        f"components fitted on the training split; C from {', '.join(f'{c:g}' for c in m['c_grid'])} by validation accuracy. "
-        f"Chance: {100 / len(doc['classes']):.2f} % ({len(doc['classes'])} classes in the training split). "
-        "One probe per distinct set of inputs of the modality ablation; REPORT.md sets it beside the ablation's rows.",
-        "",
-        table(doc),
-        inputs_table(doc),
-    ])
+    return "\n".join(
+        [
+            "# Linear probe: what each input carries before any model",
+            "",
+            documents.header_markdown(
+                doc,
+                f"probes {doc['probe_s']:.0f} s in all (summaries and PCA included); {documents.data_time_markdown(doc['dataset'])}",
+            ),
+            "Logistic regression (scikit-learn, lbfgs, L2) on each sequence's per-dimension mean and SD over its steps, "
+            "standardised on the training split; "
+            f"inputs with more than {m['pca_above_step_dims']} dimensions per step reduced to at most {m['pca_dims']} principal "
+            f"components fitted on the training split; C from {', '.join(f'{c:g}' for c in m['c_grid'])} by validation accuracy. "
+            f"Chance: {100 / len(doc['classes']):.2f} % ({len(doc['classes'])} classes in the training split). "
+            "One probe per distinct set of inputs of the modality ablation; REPORT.md sets it beside the ablation's rows.",
+            "",
+            table(doc),
+            inputs_table(doc),
+        ]
+    )
 
 
 def beside_ablation(probe_doc: Mapping[str, Any], ablation_doc: Mapping[str, Any]) -> str:
@@ -205,19 +285,27 @@ def beside_ablation(probe_doc: Mapping[str, Any], ablation_doc: Mapping[str, Any
         probe_test = None if p is None or p["accuracy"].get("test") is None else 100 * p["accuracy"]["test"]
         reached += probe_test is not None and mean >= probe_test
         probe_note = "" if p is None else findings.collapse_note(p.get("predictions", {}).get("test", []))
-        body.append([
-            r["display_name"], "–" if probe_test is None else f"{probe_test:.2f}{probe_note}",
-            f"{mean:.2f} ± {sd:.2f}{findings.collapse_note(r['predictions']['test']['fabric'])}",
-            "–" if probe_test is None else f"{mean - probe_test:+.2f}",
-        ])
+        body.append(
+            [
+                r["display_name"],
+                "–" if probe_test is None else f"{probe_test:.2f}{probe_note}",
+                f"{mean:.2f} ± {sd:.2f}{findings.collapse_note(r['predictions']['test']['fabric'])}",
+                "–" if probe_test is None else f"{mean - probe_test:+.2f}",
+            ]
+        )
     n_seeds = len(ablation_doc["seeds"])
     compared = sum(b[1] != "–" for b in body)
     lines = [
-        documents.markdown_table(["Ablation row", "Linear probe, test [%]", f"Model, test [%] ({n_seeds} seeds)", "Model − probe [pp]"], body),
+        documents.markdown_table(
+            ["Ablation row", "Linear probe, test [%]", f"Model, test [%] ({n_seeds} seeds)", "Model − probe [pp]"], body
+        ),
         f"{reached} of {compared} rows at or above their probe's test accuracy (model: mean over seeds).",
         "",
     ]
     a, p = ablation_doc["dataset"], probe_doc["dataset"]
     if (ablation_doc["preset"], a["folder"]) != (probe_doc["preset"], p["folder"]):
-        lines += [f"**Not the same data**: ablation on {ablation_doc['preset']} `{a['folder']}`, probe on {probe_doc['preset']} `{p['folder']}`.", ""]
+        lines += [
+            f"**Not the same data**: ablation on {ablation_doc['preset']} `{a['folder']}`, probe on {probe_doc['preset']} `{p['folder']}`.",
+            "",
+        ]
     return "\n".join(lines)

@@ -83,18 +83,36 @@ def _above_chance(accuracy: float, n: int, chance: float) -> bool:
 
 
 CLAIMS = (
-    Claim("Minsound is the best single input (probe, new day)", "Minsound margin over the best other single input [pp]",
-          lambda r, _: r["Minsound margin over the best other single input [pp]"] > 0),
-    Claim("the image reads below optical flow (probe, new day)", "optical flow − image, test [pp]",
-          lambda r, _: r["optical flow − image, test [pp]"] > 0),
-    Claim(f"proprioception is close to optical flow (within {CLOSE_PP} pp, probe, new day)", "proprioception − optical flow, test [pp]",
-          lambda r, _: abs(r["proprioception − optical flow, test [pp]"]) <= CLOSE_PP),
-    Claim("the palm microphone helps in the cafe (Minsound + proprioception + palm mic > Minsound + proprioception, probe)",
-          "palm's gain in the cafe [pp]", lambda r, _: r["palm's gain in the cafe [pp]"] > 0),
-    Claim(f"the camera carries thickness and roughness to a new day (image probe above chance, p < {ALPHA})",
-          "image property margin over chance, test [pp]", lambda r, s: all(s[f"image carries {p}"] for p in PROPERTIES)),
-    Claim(f"the image or optical flow carries the fabric to a new day (probe above chance, p < {ALPHA})",
-          "best camera input, test [%]", lambda r, s: s["camera carries the fabric"]),
+    Claim(
+        "Minsound is the best single input (probe, new day)",
+        "Minsound margin over the best other single input [pp]",
+        lambda r, _: r["Minsound margin over the best other single input [pp]"] > 0,
+    ),
+    Claim(
+        "the image reads below optical flow (probe, new day)",
+        "optical flow − image, test [pp]",
+        lambda r, _: r["optical flow − image, test [pp]"] > 0,
+    ),
+    Claim(
+        f"proprioception is close to optical flow (within {CLOSE_PP} pp, probe, new day)",
+        "proprioception − optical flow, test [pp]",
+        lambda r, _: abs(r["proprioception − optical flow, test [pp]"]) <= CLOSE_PP,
+    ),
+    Claim(
+        "the palm microphone helps in the cafe (Minsound + proprioception + palm mic > Minsound + proprioception, probe)",
+        "palm's gain in the cafe [pp]",
+        lambda r, _: r["palm's gain in the cafe [pp]"] > 0,
+    ),
+    Claim(
+        f"the camera carries thickness and roughness to a new day (image probe above chance, p < {ALPHA})",
+        "image property margin over chance, test [pp]",
+        lambda r, s: all(s[f"image carries {p}"] for p in PROPERTIES),
+    ),
+    Claim(
+        f"the image or optical flow carries the fabric to a new day (probe above chance, p < {ALPHA})",
+        "best camera input, test [%]",
+        lambda r, s: s["camera carries the fabric"],
+    ),
 )
 
 
@@ -156,18 +174,25 @@ def measure(point: Path, preset: str) -> tuple[dict[str, float], dict[str, Any]]
     out["Minsound lab → cafe drop [pp]"] = acc["internal"]["test"] - acc["internal"]["cafe"]
     out["palm mic lab → cafe drop [pp]"] = acc["external"]["test"] - acc["external"]["cafe"]
     image = probe.SESSION + "image"
-    out["Minsound margin over the best other single input [pp]"] = acc["internal"]["test"] - max(acc[r]["test"] for r in SINGLE if r != "internal")
+    out["Minsound margin over the best other single input [pp]"] = acc["internal"]["test"] - max(
+        acc[r]["test"] for r in SINGLE if r != "internal"
+    )
     out["optical flow − image, test [pp]"] = acc["flow"]["test"] - acc[image]["test"]
     out["proprioception − optical flow, test [pp]"] = acc["proprio"]["test"] - acc["flow"]["test"]
     out["palm's gain in the cafe [pp]"] = acc["internal+external+proprio"]["cafe"] - acc["internal+proprio"]["cafe"]
-    out["image property margin over chance, test [pp]"] = min(100 * (props[q]["test"] - props[q]["chance"]) for q in PROPERTIES)
+    out["image property margin over chance, test [pp]"] = min(
+        100 * (props[q]["test"] - props[q]["chance"]) for q in PROPERTIES
+    )
     out["best camera input, test [%]"] = max(acc["flow"]["test"], acc[image]["test"])
     n_test = len(p["flow"]["predictions"]["test"])
     chance = 1 / len(probe_doc["classes"])
     side = {
-        **{f"image carries {q}": _above_chance(props[q]["test"], props[q]["n"], props[q]["chance"]) for q in PROPERTIES},
+        **{
+            f"image carries {q}": _above_chance(props[q]["test"], props[q]["n"], props[q]["chance"]) for q in PROPERTIES
+        },
         "camera carries the fabric": any(_above_chance(acc[r]["test"] / 100, n_test, chance) for r in ("flow", image)),
-        "properties": props, "chance": chance,
+        "properties": props,
+        "chance": chance,
     }
     return out, side
 
@@ -199,13 +224,20 @@ def prior_estimate(preset: str, n_points: int) -> str:
     if doc.get("preset") != preset:
         return "The first point's time gives the estimate for the rest."
     m = doc["machine"]
-    return (f"Estimated {n_points * seconds / 60:.0f} min: the published run took {seconds:.0f} s a point on {m['cpu']}, {m['cores']} cores "
-            "(other machines differ); the first point's time refines it.")
+    return (
+        f"Estimated {n_points * seconds / 60:.0f} min: the published run took {seconds:.0f} s a point on {m['cpu']}, {m['cores']} cores "
+        "(other machines differ); the first point's time refines it."
+    )
 
 
 def run(
-    *, preset: str = PRESET, trajectories: int = TRAJECTORIES, groups: Sequence[str] | None = None, seed: int = 0,
-    where: Location = Location(), progress: bool = True,
+    *,
+    preset: str = PRESET,
+    trajectories: int = TRAJECTORIES,
+    groups: Sequence[str] | None = None,
+    seed: int = 0,
+    where: Location = Location(),
+    progress: bool = True,
 ) -> dict[str, Any]:
     """Screen the chosen groups (all by default) over `trajectories` Morris trajectories on
     `preset`; writes results/sensitivity.{md,json,png} and returns the JSON."""
@@ -219,8 +251,14 @@ def run(
     presets.get(preset)
     x = design(groups, trajectories, seed)
     folder = workspace.root(where.workdir) / "sensitivity" / f"{preset}-r{trajectories}-seed{seed}"
-    plan = {"preset": preset, "groups": list(groups), "trajectories": trajectories, "seed": seed, "design": x.tolist(),
-            "estimates": {e.name: dataclasses.asdict(e) for e in moved() if e.group in groups}}
+    plan = {
+        "preset": preset,
+        "groups": list(groups),
+        "trajectories": trajectories,
+        "seed": seed,
+        "design": x.tolist(),
+        "estimates": {e.name: dataclasses.asdict(e) for e in moved() if e.group in groups},
+    }
     folder.mkdir(parents=True, exist_ok=True)
     plan_path = folder / "plan.json"
     if plan_path.is_file() and json.loads(plan_path.read_text()) != json.loads(json.dumps(plan)):
@@ -228,8 +266,11 @@ def run(
         folder.mkdir(parents=True)
     documents.write_json(plan_path, plan)
     n_trials = len(presets.get(preset).dataset.trials())
-    print(f"Sensitivity: {len(groups)} groups x {trajectories} trajectories = {len(x)} points; each simulates the {preset} preset "
-          f"({n_trials} trials) and fits {len(PROBE_ROWS) + len(PROPERTIES)} probes. {prior_estimate(preset, len(x))}", flush=True)
+    print(
+        f"Sensitivity: {len(groups)} groups x {trajectories} trajectories = {len(x)} points; each simulates the {preset} preset "
+        f"({n_trials} trials) and fits {len(PROBE_ROWS) + len(PROPERTIES)} probes. {prior_estimate(preset, len(x))}",
+        flush=True,
+    )
     points, first = [], True
     t_start = time.perf_counter()
     bar = tqdm(total=len(x), desc="sensitivity", unit="point", disable=not progress)
@@ -249,20 +290,39 @@ def run(
             finally:
                 estimates.override({})
             shutil.rmtree(point, ignore_errors=True)
-            result = {"u": [float(v) for v in u], "values": values, "responses": responses, "side": side, "wall_s": time.perf_counter() - t0}
+            result = {
+                "u": [float(v) for v in u],
+                "values": values,
+                "responses": responses,
+                "side": side,
+                "wall_s": time.perf_counter() - t0,
+            }
             documents.write_json(path, result)
             points.append(result)
             bar.update()
             if first:
-                bar.write(f"first point: {result['wall_s']:.0f} s; about {result['wall_s'] * (len(x) - i - 1) / 60:.0f} min left")
+                bar.write(
+                    f"first point: {result['wall_s']:.0f} s; about {result['wall_s'] * (len(x) - i - 1) / 60:.0f} min left"
+                )
                 first = False
     doc = document(groups, x, points, seed)
-    doc = {**documents.header(STUDY, command=where.command, preset=preset, trajectories=trajectories, levels=LEVELS,
-                              wall_s=time.perf_counter() - t_start), **doc}
+    doc = {
+        **documents.header(
+            STUDY,
+            command=where.command,
+            preset=preset,
+            trajectories=trajectories,
+            levels=LEVELS,
+            wall_s=time.perf_counter() - t_start,
+        ),
+        **doc,
+    }
     with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
         figure = plot(where.results_dir() / "sensitivity.png", doc)
         doc = documents.write(where.results_dir(), doc, markdown, [figure])
-    documents.replace_block(where.results_dir() / "REPORT.md", REPORT_BEGIN, REPORT_END, report_block(where.results_dir()))
+    documents.replace_block(
+        where.results_dir() / "REPORT.md", REPORT_BEGIN, REPORT_END, report_block(where.results_dir())
+    )
     return doc
 
 
@@ -275,25 +335,39 @@ def document(groups: Sequence[str], x: np.ndarray, points: Sequence[Mapping[str,
         held = [bool(c.holds(p["responses"], p["side"])) for p in points]
         mu = influence[c.response]["mu_star"]
         order = np.argsort(mu)[::-1]
-        claims.append({
-            "claim": c.text, "response": c.response, "holds_at": int(sum(held)), "points": len(points),
-            "range": [float(y[c.response].min()), float(y[c.response].max())],
-            "deciding": [{"group": groups[j], "mu_star": mu[j]} for j in order[:3]],
-        })
+        claims.append(
+            {
+                "claim": c.text,
+                "response": c.response,
+                "holds_at": int(sum(held)),
+                "points": len(points),
+                "range": [float(y[c.response].min()), float(y[c.response].max())],
+                "deciding": [{"group": groups[j], "mu_star": mu[j]} for j in order[:3]],
+            }
+        )
     return {
         "groups": list(groups),
         "estimates": {g: [e.name for e in moved() if e.group == g] for g in groups},
         "held": {e.name: e.value for e in estimates.ESTIMATES.values() if e.calibrated is not None},
-        "points": [dict(p) for p in points], "responses": {n: {"min": float(y[n].min()), "max": float(y[n].max()), **influence[n]} for n in names},
+        "points": [dict(p) for p in points],
+        "responses": {n: {"min": float(y[n].min()), "max": float(y[n].max()), **influence[n]} for n in names},
         "claims": claims,
     }
 
 
 PLOTTED = (
-    "probe test: Minsound [%]", "probe test: palm mic [%]", "probe test: proprioception [%]", "probe test: optical flow [%]",
-    "probe test: Minsight image − session reference [%]", "day share: Minsight image − session reference [%]",
-    "day share: optical flow [%]", "fabric share: Minsight image − session reference [%]",
-    "Minsound lab → cafe drop [pp]", "palm mic lab → cafe drop [pp]", "palm's gain in the cafe [pp]", "image property margin over chance, test [pp]",
+    "probe test: Minsound [%]",
+    "probe test: palm mic [%]",
+    "probe test: proprioception [%]",
+    "probe test: optical flow [%]",
+    "probe test: Minsight image − session reference [%]",
+    "day share: Minsight image − session reference [%]",
+    "day share: optical flow [%]",
+    "fabric share: Minsight image − session reference [%]",
+    "Minsound lab → cafe drop [pp]",
+    "palm mic lab → cafe drop [pp]",
+    "palm's gain in the cafe [pp]",
+    "image property margin over chance, test [pp]",
 )
 
 
@@ -301,7 +375,9 @@ def plot(path: Path, doc: Mapping[str, Any]) -> Path:
     """A ranked bar chart of mu* (with its 95 % interval) per response, for the responses the claims and the camera turn on."""
     shown = [n for n in PLOTTED if n in doc["responses"]]
     panels = [(n, doc["responses"][n]) for n in shown]
-    return plots.ranked_bars(path, doc["groups"], panels, "Influence of each group of estimates (Morris mu*, 95 % interval)")
+    return plots.ranked_bars(
+        path, doc["groups"], panels, "Influence of each group of estimates (Morris mu*, 95 % interval)"
+    )
 
 
 def verdict(holds_at: int, points: int) -> str:
@@ -316,10 +392,23 @@ def verdict(holds_at: int, points: int) -> str:
 def claims_table(doc: Mapping[str, Any]) -> str:
     """Each claim: at how many points inside the declared ranges it holds, what that says, the
     response's range, and the groups that move it most."""
-    body = [[c["claim"], f"{c['holds_at']} of {c['points']}", verdict(c["holds_at"], c["points"]), f"{c['range'][0]:.1f} to {c['range'][1]:.1f}",
-             "; ".join(f"{d['group']} ({d['mu_star']:.1f})" for d in c["deciding"])]
-            for c in doc["claims"]]
-    header = ["Paper's claim (what a probe can say)", "Holds at points", "So", "Its response over the points", "Groups that move it most (mu*)"]
+    body = [
+        [
+            c["claim"],
+            f"{c['holds_at']} of {c['points']}",
+            verdict(c["holds_at"], c["points"]),
+            f"{c['range'][0]:.1f} to {c['range'][1]:.1f}",
+            "; ".join(f"{d['group']} ({d['mu_star']:.1f})" for d in c["deciding"]),
+        ]
+        for c in doc["claims"]
+    ]
+    header = [
+        "Paper's claim (what a probe can say)",
+        "Holds at points",
+        "So",
+        "Its response over the points",
+        "Groups that move it most (mu*)",
+    ]
     return documents.markdown_table(header, body)
 
 
@@ -328,12 +417,20 @@ def influence_table(doc: Mapping[str, Any]) -> str:
     body = []
     for n, r in doc["responses"].items():
         order = np.argsort(r["mu_star"])[::-1]
-        body.append([n, f"{r['min']:.1f} to {r['max']:.1f}", *[f"{r['mu_star'][j]:.1f} ± {r['mu_star_conf'][j]:.1f}" for j in range(len(groups))],
-                     groups[order[0]]])
+        body.append(
+            [
+                n,
+                f"{r['min']:.1f} to {r['max']:.1f}",
+                *[f"{r['mu_star'][j]:.1f} ± {r['mu_star_conf'][j]:.1f}" for j in range(len(groups))],
+                groups[order[0]],
+            ]
+        )
     return documents.markdown_table(["Response", "Over the points", *groups, "Most influential"], body)
 
 
-REPORT_BEGIN = "<!-- sensitivity: written by `python -m experiments.sensitivity` from sensitivity.json; edits are overwritten -->"
+REPORT_BEGIN = (
+    "<!-- sensitivity: written by `python -m experiments.sensitivity` from sensitivity.json; edits are overwritten -->"
+)
 REPORT_END = "<!-- end of sensitivity -->"
 
 
@@ -345,28 +442,44 @@ def report_block(results: Path) -> str:
         body = [
             f"Whether each claim a probe can speak to holds somewhere inside the simulator's declared ranges, and which "
             f"estimates move it ([sensitivity.md](sensitivity.md), from `{doc['command']}`, {doc['date']}). A claim that holds at "
-            "no point is not the simulator's unknowns; one that holds at some points is decided by them.", "", claims_table(doc),
+            "no point is not the simulator's unknowns; one that holds at some points is decided by them.",
+            "",
+            claims_table(doc),
         ]
     except (OSError, ValueError, KeyError):
-        body = ["The sensitivity study has not run in this folder: `python -m experiments.sensitivity --results=<this folder>` "
-                "writes it (it simulates the reduced preset anew at every point: about an hour on 2 cores)."]
+        body = [
+            "The sensitivity study has not run in this folder: `python -m experiments.sensitivity --results=<this folder>` "
+            "writes it (it simulates the reduced preset anew at every point: about an hour on 2 cores)."
+        ]
     return "\n".join([REPORT_BEGIN, *body, REPORT_END])
 
 
 def markdown(doc: Mapping[str, Any]) -> str:
     n = len(doc["points"])
     lines = [
-        "# Sensitivity: what each finding depends on among the simulator's estimates", "",
+        "# Sensitivity: what each finding depends on among the simulator's estimates",
+        "",
         documents.header_markdown(doc, f"{doc['wall_s'] / 60:.1f} min in all"),
         f"Morris screening (SALib) of {len(doc['groups'])} groups of estimates over their declared ranges "
         f"([docs/simulator.md](../docs/simulator.md#the-estimates)): {doc['trajectories']} trajectories of a {doc['levels']}-level grid, "
         f"{n} points, each the `{doc['preset']}` preset simulated anew and probed. mu*: the mean absolute change of a response when its group moves "
-        "across its ranges (in the response's unit), ± its bootstrap 95 % half-width; the groups' estimates:", "",
+        "across its ranges (in the response's unit), ± its bootstrap 95 % half-width; the groups' estimates:",
+        "",
         *[f"- {g}: {', '.join(f'`{e}`' for e in doc['estimates'][g])}" for g in doc["groups"]],
-        *[f"- held at its calibrated value ([calibration.md](calibration.md)): `{n}` = {v:g}" for n, v in doc["held"].items()], "",
-        "## The paper's claims against the estimates", "", claims_table(doc), "",
-        "## Influence of each group on every response (mu*)", "", influence_table(doc), "",
-        "Ranked charts: [sensitivity.png](sensitivity.png). \"Above chance\" is a one-sided binomial test on the test "
+        *[
+            f"- held at its calibrated value ([calibration.md](calibration.md)): `{n}` = {v:g}"
+            for n, v in doc["held"].items()
+        ],
+        "",
+        "## The paper's claims against the estimates",
+        "",
+        claims_table(doc),
+        "",
+        "## Influence of each group on every response (mu*)",
+        "",
+        influence_table(doc),
+        "",
+        'Ranked charts: [sensitivity.png](sensitivity.png). "Above chance" is a one-sided binomial test on the test '
         "sequences, which treats the sequences of one trial as independent (they are not): read it as descriptive.",
     ]
     return "\n".join(lines) + "\n"

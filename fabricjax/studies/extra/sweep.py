@@ -43,7 +43,9 @@ from fabricjax.workspace import Location
 # whose own items are comma-separated, e.g. cnn_features=4,8;8,16), ',' for a scalar field
 # without ';'.
 TUPLE_SEPARATOR, SCALAR_SEPARATOR = ";", ","
-GRID_HELP = "field=v1,v2,... e.g. --grid=epochs=2,4; ';' between values of a tuple field, e.g. --grid='cnn_features=4,8;8,16'"
+GRID_HELP = (
+    "field=v1,v2,... e.g. --grid=epochs=2,4; ';' between values of a tuple field, e.g. --grid='cnn_features=4,8;8,16'"
+)
 HEAD = "fabric"  # the sweep ranks recipes by fabric accuracy
 N_SEEDS = 2  # seeds per (point, row) by default
 
@@ -90,12 +92,18 @@ def check_grid(grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any]) 
     decide, no field both swept and fixed by --set."""
     if not grid or not all(grid.values()):
         raise UserError(f"--grid: give at least one field with at least one value: {GRID_HELP}")
-    grid = runner.check_overrides("sweep", {f: tuple(v) for f, v in grid.items()}, ablation.ROWS, "choose the ablation's rows with --rows")
+    grid = runner.check_overrides(
+        "sweep", {f: tuple(v) for f, v in grid.items()}, ablation.ROWS, "choose the ablation's rows with --rows"
+    )
     if "preset" in grid:
-        raise UserError("--grid: the preset is not a grid field (its dataset is loaded once); run one sweep per --preset")
+        raise UserError(
+            "--grid: the preset is not a grid field (its dataset is loaded once); run one sweep per --preset"
+        )
     both = sorted(set(grid) & set(overrides))
     if both:
-        raise UserError(f"--grid and --set both give {', '.join(both)}: a field is either swept (--grid) or fixed (--set)")
+        raise UserError(
+            f"--grid and --set both give {', '.join(both)}: a field is either swept (--grid) or fixed (--set)"
+        )
     return grid
 
 
@@ -112,8 +120,12 @@ def plan(
             except ValueError as e:
                 raise UserError(f"--grid point {point_name(fields)}: {e}") from None
             if not getattr(config, f"{HEAD}_head"):
-                raise UserError(f"--grid point {point_name(fields)}: the sweep ranks recipes by {HEAD} accuracy, so {HEAD}_head must stay on")
-            units.append(("/".join([*(format_override(f, v) for f, v in fields.items()), row.name]), config, fields, row))
+                raise UserError(
+                    f"--grid point {point_name(fields)}: the sweep ranks recipes by {HEAD} accuracy, so {HEAD}_head must stay on"
+                )
+            units.append(
+                ("/".join([*(format_override(f, v) for f, v in fields.items()), row.name]), config, fields, row)
+            )
     return units
 
 
@@ -121,7 +133,9 @@ def _pct(values) -> tuple[float, float]:
     return stats.mean_sd(100 * np.asarray(values, np.float64))
 
 
-def entry(trained: runner.Row, fields: Mapping[str, Any], row: StudyRow, test, latency_repeats: int, recorded: bool = False) -> dict[str, Any]:
+def entry(
+    trained: runner.Row, fields: Mapping[str, Any], row: StudyRow, test, latency_repeats: int, recorded: bool = False
+) -> dict[str, Any]:
     """One (point, row): accuracies (per seed and mean ± SD, %), cost, config and curves; on
     `recorded` data the row is named by the data's names for its inputs (`test.names`)."""
     val_mean, val_sd = _pct(trained.accuracy("val", HEAD))
@@ -133,7 +147,9 @@ def entry(trained: runner.Row, fields: Mapping[str, Any], row: StudyRow, test, l
         "point": point_name(fields),
         "fields": dict(fields),
         "row": row.name,
-        "display_name": ablation.label(row.modalities, trained.config.backbone, trained.config.fusion_norm, test.names) if recorded else row.label,
+        "display_name": ablation.label(row.modalities, trained.config.backbone, trained.config.fusion_norm, test.names)
+        if recorded
+        else row.label,
         "val_mean": val_mean,
         "val_sd": val_sd,
         "test_mean": test_mean,
@@ -153,14 +169,16 @@ def summarise(points: Sequence[dict[str, Any]], entries: Sequence[dict[str, Any]
     for fields in points:
         name = point_name(fields)
         of_point = [e for e in entries if e["point"] == name]
-        out.append({
-            "name": name,
-            "fields": dict(fields),
-            "rows": len(of_point),
-            "val_mean_over_rows": float(np.mean([e["val_mean"] for e in of_point])),
-            "test_mean_over_rows": float(np.mean([e["test_mean"] for e in of_point])),
-            "train_s": float(sum(e["train_s"] for e in of_point)),
-        })
+        out.append(
+            {
+                "name": name,
+                "fields": dict(fields),
+                "rows": len(of_point),
+                "val_mean_over_rows": float(np.mean([e["val_mean"] for e in of_point])),
+                "test_mean_over_rows": float(np.mean([e["test_mean"] for e in of_point])),
+                "train_s": float(sum(e["train_s"] for e in of_point)),
+            }
+        )
     best = int(np.argmax([p["val_mean_over_rows"] for p in out]))  # argmax: the first maximum
     return out, best
 
@@ -190,20 +208,38 @@ def run(
         by_key.setdefault(loading.sequence_key(unit[1]), []).append(unit)
     by_key = {key: runner.in_training_order(group, lambda unit: unit[1]) for key, group in by_key.items()}
     order = [u for group in by_key.values() for u in group]
-    progress = runner.Progress("sweep", len(order), [runner.row_kind(c) for _, c, _, _ in order], [c.epochs for _, c, _, _ in order])
+    progress = runner.Progress(
+        "sweep", len(order), [runner.row_kind(c) for _, c, _, _ in order], [c.epochs for _, c, _, _ in order]
+    )
     labels = {name: f"{point_name(fields)} | {row.label}" for name, _, fields, row in order}
-    summary = lambda r: f"val {stats.format_mean_sd(r.accuracy('val', HEAD))} %, test {stats.format_mean_sd(r.accuracy('test', HEAD))} %"  # noqa: E731
+    summary = lambda r: (  # noqa: E731
+        f"val {stats.format_mean_sd(r.accuracy('val', HEAD))} %, test {stats.format_mean_sd(r.accuracy('test', HEAD))} %"
+    )
     entries, loads, head = {}, [], None
     for group in by_key.values():
         study = runner.train_rows(
-            "sweep", [(name, config) for name, config, _, _ in group], seeds, eval_splits=["test"], split_names=loading.TRAIN_VAL_TEST,
-            data_dir=where.data_dir, workdir=where.workdir, label=labels.__getitem__, summary=summary, progress=progress,
+            "sweep",
+            [(name, config) for name, config, _, _ in group],
+            seeds,
+            eval_splits=["test"],
+            split_names=loading.TRAIN_VAL_TEST,
+            data_dir=where.data_dir,
+            workdir=where.workdir,
+            label=labels.__getitem__,
+            summary=summary,
+            progress=progress,
         )
         if head is None:
-            head = documents.header("sweep", command=where.command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=0.0)
-        loads.append({**{f: getattr(group[0][1], f) for f in loading.SEQUENCE_FIELDS}, **documents.dataset_doc(study.dataset)})
+            head = documents.header(
+                "sweep", command=where.command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=0.0
+            )
+        loads.append(
+            {**{f: getattr(group[0][1], f) for f in loading.SEQUENCE_FIELDS}, **documents.dataset_doc(study.dataset)}
+        )
         for name, _, fields, row in group:
-            entries[name] = entry(study.rows[name], fields, row, study.dataset.sets["test"], latency_repeats, study.dataset.recorded)
+            entries[name] = entry(
+                study.rows[name], fields, row, study.dataset.sets["test"], latency_repeats, study.dataset.recorded
+            )
         del study  # frees these sequences before the next load
 
     flat = [entries[name] for name, _, _, _ in units]  # grid order, then the table's row order
@@ -229,7 +265,12 @@ def _values(values: Sequence[Any]) -> str:
 
 def markdown(doc: dict[str, Any]) -> str:
     best, n_rows = doc["best"], len(doc["rows"])
-    fixed = ", ".join(f"`{format_override(f, tuple(v) if isinstance(v, list) else v)}`" for f, v in doc["overrides"].items()) or "none"
+    fixed = (
+        ", ".join(
+            f"`{format_override(f, tuple(v) if isinstance(v, list) else v)}`" for f, v in doc["overrides"].items()
+        )
+        or "none"
+    )
     lines = [
         "# Recipe sweep over the ablation's rows",
         "",
@@ -240,8 +281,13 @@ def markdown(doc: dict[str, Any]) -> str:
         "backbone, inputs and fusion normalisation",
     ]
     if len(doc["loads"]) > 1:
-        lines.append(f"- sequences loaded {len(doc['loads'])} times, once per distinct "
-                     + "; ".join(", ".join(f"{f}={d[f]}" for f in loading.SEQUENCE_FIELDS if f != "preset") + f": {d['sequences']}" for d in doc["loads"]))
+        lines.append(
+            f"- sequences loaded {len(doc['loads'])} times, once per distinct "
+            + "; ".join(
+                ", ".join(f"{f}={d[f]}" for f in loading.SEQUENCE_FIELDS if f != "preset") + f": {d['sequences']}"
+                for d in doc["loads"]
+            )
+        )
     lines += [
         "- val / test: the best-validation model's accuracy, mean ± SD over seeds; train, last epoch: training accuracy "
         "of the last epoch, counted on minibatches with dropout on; train [s]: wall time of the row's multi-seed program, "
@@ -255,18 +301,50 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
     ]
     body = [
-        [f"**{p['name']}**" if i == best["index"] else p["name"], f"{p['val_mean_over_rows']:.2f}", f"{p['test_mean_over_rows']:.2f}", f"{p['train_s']:.0f}"]
+        [
+            f"**{p['name']}**" if i == best["index"] else p["name"],
+            f"{p['val_mean_over_rows']:.2f}",
+            f"{p['test_mean_over_rows']:.2f}",
+            f"{p['train_s']:.0f}",
+        ]
         for i, p in enumerate(doc["points"])
     ]
-    lines.append(documents.markdown_table(["point", f"val, mean over {n_rows} rows [%]", f"test, mean over {n_rows} rows [%]", "training, all rows [s]"], body))
+    lines.append(
+        documents.markdown_table(
+            [
+                "point",
+                f"val, mean over {n_rows} rows [%]",
+                f"test, mean over {n_rows} rows [%]",
+                "training, all rows [s]",
+            ],
+            body,
+        )
+    )
     lines += ["## Per point and row", ""]
     body = [
         [
-            e["point"], e["display_name"], f"{e['val_mean']:.2f} ± {e['val_sd']:.2f}", f"{e['test_mean']:.2f} ± {e['test_sd']:.2f}",
-            f"{e['train_last_epoch_mean']:.1f}", f"{e['train_s']:.1f}", f"{e['params']:,}", f"{e['latency_p50_ms']:.2f}", f"{e['latency_p99_ms']:.2f}",
+            e["point"],
+            e["display_name"],
+            f"{e['val_mean']:.2f} ± {e['val_sd']:.2f}",
+            f"{e['test_mean']:.2f} ± {e['test_sd']:.2f}",
+            f"{e['train_last_epoch_mean']:.1f}",
+            f"{e['train_s']:.1f}",
+            f"{e['params']:,}",
+            f"{e['latency_p50_ms']:.2f}",
+            f"{e['latency_p99_ms']:.2f}",
         ]
         for e in doc["entries"]
     ]
-    header = ["point", "row", "val [%]", "test [%]", "train, last epoch [%]", "train [s]", "params", "latency p50 [ms]", "latency p99 [ms]"]
+    header = [
+        "point",
+        "row",
+        "val [%]",
+        "test [%]",
+        "train, last epoch [%]",
+        "train [s]",
+        "params",
+        "latency p50 [ms]",
+        "latency p99 [ms]",
+    ]
     lines.append(documents.markdown_table(header, body))
     return "\n".join(lines)

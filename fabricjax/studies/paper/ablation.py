@@ -35,7 +35,10 @@ from fabricjax.config import MODALITY_NAMES
 from fabricjax.studies.common import documents, findings, linear_probe, loading, recipe, runner
 from fabricjax.studies.common.runner import StudyRow
 
-TITLE, PAPER = "Modality ablation", "Table ablation_table"  # how results name the study, and what of the paper it reproduces
+TITLE, PAPER = (
+    "Modality ablation",
+    "Table ablation_table",
+)  # how results name the study, and what of the paper it reproduces
 
 WILCOXON_PAIR = ("internal", "internal+external")  # (baseline, compared), as in the paper
 PAPER_WILCOXON_P = 0.0254  # the paper's test of that pair
@@ -47,7 +50,12 @@ BELOW_PROBE_PP = 10.0  # on recorded data, a row this many points below its prob
 STEADY_BELOW = 0.2
 
 
-def label(modalities: Sequence[str], backbone: str, fusion_norm: str = "sequence_minmax", names: Mapping[str, str] | None = None) -> str:
+def label(
+    modalities: Sequence[str],
+    backbone: str,
+    fusion_norm: str = "sequence_minmax",
+    names: Mapping[str, str] | None = None,
+) -> str:
     """How the table names a row: 'TCN: Minsound + palm mic', '... (our step-LayerNorm fusion)';
     with `names` (recorded data: modality -> the data's name for its stream) the data's names."""
     text = data.inputs_name(modalities, names)
@@ -55,7 +63,9 @@ def label(modalities: Sequence[str], backbone: str, fusion_norm: str = "sequence
     return f"{text} (our step-LayerNorm fusion)" if fusion_norm == STEP_LAYERNORM else text
 
 
-def _row(modalities: Sequence[str], mean: float, sd: float, backbone: str = "attention", fusion_norm: str = "sequence_minmax") -> StudyRow:
+def _row(
+    modalities: Sequence[str], mean: float, sd: float, backbone: str = "attention", fusion_norm: str = "sequence_minmax"
+) -> StudyRow:
     """A row and the paper's test accuracy [%] (mean, SD over its seeds) for the same inputs."""
     name = ("tcn:" if backbone == "tcn" else "") + "+".join(modalities)
     if fusion_norm != "sequence_minmax":
@@ -87,8 +97,18 @@ PAPER_ROWS = (
 STEP_LAYERNORM_ROWS = tuple(
     _row(r.modalities, r.paper["mean"], r.paper["sd"], fusion_norm=STEP_LAYERNORM)
     for r in PAPER_ROWS
-    if r.name in ("image", "flow", "image+internal", "image+internal+external+proprio", "flow+internal",
-                  "flow+internal+external+proprio", "internal+proprio", "internal+external+proprio", "internal+external")
+    if r.name
+    in (
+        "image",
+        "flow",
+        "image+internal",
+        "image+internal+external+proprio",
+        "flow+internal",
+        "flow+internal+external+proprio",
+        "internal+proprio",
+        "internal+external+proprio",
+        "internal+external",
+    )
 )
 ROWS = PAPER_ROWS + STEP_LAYERNORM_ROWS
 # Minsound (no fusion) against our fused variant of Minsound + palm mic
@@ -112,13 +132,24 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
     tests = runner.paired_tests(rows[base], rows[compared], "test", labels) if base in rows and compared in rows else {}
     names = test.names if recorded else {}
     panels = [
-        (f"{data.inputs_name((n,), names)} only, {len(seeds)} seeds pooled", np.tile(labels, len(seeds)), rows[n].predictions("test").ravel())
+        (
+            f"{data.inputs_name((n,), names)} only, {len(seeds)} seeds pooled",
+            np.tile(labels, len(seeds)),
+            rows[n].predictions("test").ravel(),
+        )
         for n in CONFUSION_ROWS
         if n in rows
     ]
-    figure = plots.plot_confusions(
-        results / "ablation_confusion.png", panels, n_classes=trained.dataset.n_classes, class_names=trained.dataset.classes if recorded else None
-    ) if panels else None
+    figure = (
+        plots.plot_confusions(
+            results / "ablation_confusion.png",
+            panels,
+            n_classes=trained.dataset.n_classes,
+            class_names=trained.dataset.classes if recorded else None,
+        )
+        if panels
+        else None
+    )
     if recorded:
         return _recorded_body(trained, chosen, tests), [figure]
     body = {
@@ -160,10 +191,14 @@ def fusion_choices(rows: Mapping[str, runner.Row]) -> list[dict[str, Any]]:
         if twin is None or row.config.fusion_norm == STEP_LAYERNORM:
             continue
         val = {r.config.fusion_norm: stats.mean_sd(100 * r.accuracy("val"))[0] for r in (row, twin)}
-        out.append({
-            "name": name, "chosen": max(val, key=lambda f: (val[f], f == STEP_LAYERNORM)), "val": val,
-            "test": {r.config.fusion_norm: stats.mean_sd(100 * r.accuracy("test"))[0] for r in (row, twin)},
-        })
+        out.append(
+            {
+                "name": name,
+                "chosen": max(val, key=lambda f: (val[f], f == STEP_LAYERNORM)),
+                "val": val,
+                "test": {r.config.fusion_norm: stats.mean_sd(100 * r.accuracy("test"))[0] for r in (row, twin)},
+            }
+        )
     return out
 
 
@@ -171,12 +206,22 @@ def fusion_choice_markdown(choices: Sequence[dict[str, Any]]) -> list[str]:
     """The table's rows trained under both fusions, each with the fusion validation picks."""
     if not choices:
         return []
-    lines = ["## The fusion chosen by validation (rows trained under both)", "",
-             "| Inputs | Validation [%]: rescale / step-LayerNorm | Chosen | Test of the chosen [%] |", "|---|---|---|---|"]
+    lines = [
+        "## The fusion chosen by validation (rows trained under both)",
+        "",
+        "| Inputs | Validation [%]: rescale / step-LayerNorm | Chosen | Test of the chosen [%] |",
+        "|---|---|---|---|",
+    ]
     for c in choices:
-        lines.append(f"| {display_name(c['name'])} | {c['val']['sequence_minmax']:.2f} / {c['val'][STEP_LAYERNORM]:.2f} | "
-                     f"{FUSION_NAMES[c['chosen']]} | {c['test'][c['chosen']]:.2f} |")
-    return lines + ["", "The choice is made on the validation split alone, as on recorded data; the paper's rows above stay under its rescale.", ""]
+        lines.append(
+            f"| {display_name(c['name'])} | {c['val']['sequence_minmax']:.2f} / {c['val'][STEP_LAYERNORM]:.2f} | "
+            f"{FUSION_NAMES[c['chosen']]} | {c['test'][c['chosen']]:.2f} |"
+        )
+    return lines + [
+        "",
+        "The choice is made on the validation split alone, as on recorded data; the paper's rows above stay under its rescale.",
+        "",
+    ]
 
 
 def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -> dict[str, Any]:
@@ -190,9 +235,12 @@ def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -
     steady = {m: linear_probe.steadiness(a) for m, a in sets["train"].inputs.items()}
     for m, ratio in steady.items():
         if ratio < STEADY_BELOW:
-            logging.warning("%s is steady within sequences: its within-sequence variance is %.1f %% of its total (median over its "
-                            "dimensions); the [0, 1] rescale over the sequence erases it, step-LayerNorm fusion keeps it",
-                            names.get(m, m), 100 * ratio)
+            logging.warning(
+                "%s is steady within sequences: its within-sequence variance is %.1f %% of its total (median over its "
+                "dimensions); the [0, 1] rescale over the sequence erases it, step-LayerNorm fusion keeps it",
+                names.get(m, m),
+                100 * ratio,
+            )
     out = []
     for r in chosen:
         trained_as = [rows[n] for n in (r.name, runner.fusion_twin(r.name, STEP_LAYERNORM)) if n in rows]
@@ -200,22 +248,41 @@ def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -
         # on a tie, step-LayerNorm: it keeps the steady level the rescale erases, and loses nothing the rescale keeps
         best = max(trained_as, key=lambda t: (val[t.config.fusion_norm], t.config.fusion_norm == STEP_LAYERNORM))
         p = probes[frozenset(r.modalities)]
-        out.append({
-            "name": r.name, "backbone": best.config.backbone, "modalities": list(r.modalities),
-            "display_name": label(r.modalities, best.config.backbone, names=names), "fusion_norm": best.config.fusion_norm,
-            "fusion_choice": {
-                "by": "validation accuracy, mean over seeds [%]", "val": val,
-                "test": {t.config.fusion_norm: stats.mean_sd(100 * t.accuracy("test"))[0] for t in trained_as},
-            },
-            "probe": {"C": p["C"], "accuracy": p["accuracy"], "predictions": {"test": p["predictions"].get("test", [])}},
-            "collapsed": {"test": findings.collapsed(best.predictions("test"), sets["test"].labels["fabric"])},
-            **best.doc(["test"]),
-        })
+        out.append(
+            {
+                "name": r.name,
+                "backbone": best.config.backbone,
+                "modalities": list(r.modalities),
+                "display_name": label(r.modalities, best.config.backbone, names=names),
+                "fusion_norm": best.config.fusion_norm,
+                "fusion_choice": {
+                    "by": "validation accuracy, mean over seeds [%]",
+                    "val": val,
+                    "test": {t.config.fusion_norm: stats.mean_sd(100 * t.accuracy("test"))[0] for t in trained_as},
+                },
+                "probe": {
+                    "C": p["C"],
+                    "accuracy": p["accuracy"],
+                    "predictions": {"test": p["predictions"].get("test", [])},
+                },
+                "collapsed": {"test": findings.collapsed(best.predictions("test"), sets["test"].labels["fabric"])},
+                **best.doc(["test"]),
+            }
+        )
     return {
-        "rows": out, "names": dict(names), "steady_below": STEADY_BELOW, "steadiness": steady,
+        "rows": out,
+        "names": dict(names),
+        "steady_below": STEADY_BELOW,
+        "steadiness": steady,
         "majority": {"test": findings.majority(sets["test"].labels["fabric"])},
         "test_samples": documents.samples_doc(sets["test"]),
-        "wilcoxon": {"baseline": WILCOXON_PAIR[0], "compared": WILCOXON_PAIR[1], **{k: documents.wilcoxon_doc(v) for k, v in tests.items()}} if tests else None,
+        "wilcoxon": {
+            "baseline": WILCOXON_PAIR[0],
+            "compared": WILCOXON_PAIR[1],
+            **{k: documents.wilcoxon_doc(v) for k, v in tests.items()},
+        }
+        if tests
+        else None,
     }
 
 
@@ -224,8 +291,12 @@ SIMILAR_PP = 10.0  # "similar": within this many points of each other (the paper
 WELL_ABOVE_CHANCE_PP = 10.0  # "well above chance": at least this many points above the test split's majority class
 
 
-def checklist(test: dict[str, np.ndarray], majority: Mapping[str, Any] | None, n_classes: int,
-              notes: Mapping[str, str] | None = None) -> list[findings.Finding]:
+def checklist(
+    test: dict[str, np.ndarray],
+    majority: Mapping[str, Any] | None,
+    n_classes: int,
+    notes: Mapping[str, str] | None = None,
+) -> list[findings.Finding]:
     """The paper's qualitative claims about the ablation, as predicates over per-seed test
     accuracies (`test`: row name -> per-seed accuracies in [0, 1]; rows not run are skipped).
     `majority`: the test split's `findings.majority` baseline, which "above chance" is counted
@@ -241,38 +312,70 @@ def checklist(test: dict[str, np.ndarray], majority: Mapping[str, Any] | None, n
     claim = "Minsound (internal audio) is the best single modality"
     if not (f := findings.missing(claim, ["internal", *singles], test)):
         best_other = max(singles, key=lambda r: findings.mean_pct(test[r]))
-        f = findings.at_least(claim, (named("internal"), test["internal"]), (f"best other, {named(best_other)}", test[best_other]), strict=True)
+        f = findings.at_least(
+            claim,
+            (named("internal"), test["internal"]),
+            (f"best other, {named(best_other)}", test[best_other]),
+            strict=True,
+        )
     out.append(f)
     claim = f"the palm mic alone is clearly worse than Minsound (>= {CLEARLY_WORSE_PP:.0f} pp below)"
-    out.append(findings.missing(claim, ["internal", "external"], test) or findings.at_least(
-        claim, (named("internal"), test["internal"]), (named("external"), test["external"]), CLEARLY_WORSE_PP))
-    claim = (f"proprioception and optical flow alone are similar (within {SIMILAR_PP:.0f} pp) and well above chance "
-             f"(rule: each >= {WELL_ABOVE_CHANCE_PP:.0f} pp above the test split's majority class; 1 / classes shown beside it)")
+    out.append(
+        findings.missing(claim, ["internal", "external"], test)
+        or findings.at_least(
+            claim, (named("internal"), test["internal"]), (named("external"), test["external"]), CLEARLY_WORSE_PP
+        )
+    )
+    claim = (
+        f"proprioception and optical flow alone are similar (within {SIMILAR_PP:.0f} pp) and well above chance "
+        f"(rule: each >= {WELL_ABOVE_CHANCE_PP:.0f} pp above the test split's majority class; 1 / classes shown beside it)"
+    )
     if not (f := findings.missing(claim, ["proprio", "flow"], test)):
         p, fl = findings.mean_pct(test["proprio"]), findings.mean_pct(test["flow"])
-        evidence = (f"{findings.describe(named('proprio'), test['proprio'])}; {findings.describe(named('flow'), test['flow'])}; "
-                    f"1 / classes {100 / n_classes:.1f} %")
+        evidence = (
+            f"{findings.describe(named('proprio'), test['proprio'])}; {findings.describe(named('flow'), test['flow'])}; "
+            f"1 / classes {100 / n_classes:.1f} %"
+        )
         if majority is None:
             f = findings.Finding(claim, None, f"{evidence}; no test label known, so no majority class")
         else:
             floor = majority["accuracy"] + WELL_ABOVE_CHANCE_PP
-            f = findings.Finding(claim, abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor,
-                                 f"{evidence}; majority class {majority['accuracy']:.1f} % (class {majority['label']}), so at least {floor:.1f} %")
+            f = findings.Finding(
+                claim,
+                abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor,
+                f"{evidence}; majority class {majority['accuracy']:.1f} % (class {majority['label']}), so at least {floor:.1f} %",
+            )
     out.append(f)
     claim = "Minsight images alone are the weakest camera input (below optical flow)"
-    out.append(findings.missing(claim, ["image", "flow"], test) or findings.at_least(
-        claim, (named("flow"), test["flow"]), (named("image"), test["image"]), strict=True))
-    for base, compared, variant in ((WILCOXON_PAIR[0], WILCOXON_PAIR[1], ""), *[(b, c, " (our step-LayerNorm fusion)") for b, c in STEP_LAYERNORM_PAIRS]):
+    out.append(
+        findings.missing(claim, ["image", "flow"], test)
+        or findings.at_least(claim, (named("flow"), test["flow"]), (named("image"), test["image"]), strict=True)
+    )
+    for base, compared, variant in (
+        (WILCOXON_PAIR[0], WILCOXON_PAIR[1], ""),
+        *[(b, c, " (our step-LayerNorm fusion)") for b, c in STEP_LAYERNORM_PAIRS],
+    ):
         claim = f"Minsound + palm mic >= Minsound{variant}"
-        out.append(findings.missing(claim, [base, compared], test) or findings.at_least(
-            claim, (named(compared), test[compared]), (named(base), test[base])))
+        out.append(
+            findings.missing(claim, [base, compared], test)
+            or findings.at_least(claim, (named(compared), test[compared]), (named(base), test[base]))
+        )
     claim = "the TCN is below the transformer on the same inputs (Minsound + palm mic + proprioception)"
-    out.append(findings.missing(claim, ["internal+external+proprio", "tcn:internal+external+proprio"], test) or findings.at_least(
-        claim, ("Transformer", test["internal+external+proprio"]), ("TCN", test["tcn:internal+external+proprio"]), strict=True))
+    out.append(
+        findings.missing(claim, ["internal+external+proprio", "tcn:internal+external+proprio"], test)
+        or findings.at_least(
+            claim,
+            ("Transformer", test["internal+external+proprio"]),
+            ("TCN", test["tcn:internal+external+proprio"]),
+            strict=True,
+        )
+    )
     return out
 
 
-def table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None, recorded: bool = False, paper: bool = True) -> str:
+def table(
+    rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None, recorded: bool = False, paper: bool = True
+) -> str:
     """Our accuracy, flagged where seeds collapsed (each row's "collapsed"), beside the test
     split's `majority` class and the paper's, with the difference, one line per row; on recorded
     data each row beside the best row instead; without the paper's columns where `paper` is False
@@ -281,17 +384,27 @@ def table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None, re
     gaps = documents.best_gaps([m for m, _ in means])
     body = []
     for r, (mean, sd), gap in zip(rows, means, gaps):
-        body.append([
-            "TCN" if r["backbone"] == "tcn" else "Transformer",
-            label(r["modalities"], r["backbone"], r.get("fusion_norm", "sequence_minmax")).removeprefix("TCN: "),
-            f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}",
-            findings.majority_cell(majority),
-            *([gap] if recorded else [f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}", f"{mean - r['paper_mean']:+.2f}"] if paper else []),
-            f"{r['wall_s']:.1f}",
-        ])
+        body.append(
+            [
+                "TCN" if r["backbone"] == "tcn" else "Transformer",
+                label(r["modalities"], r["backbone"], r.get("fusion_norm", "sequence_minmax")).removeprefix("TCN: "),
+                f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}",
+                findings.majority_cell(majority),
+                *(
+                    [gap]
+                    if recorded
+                    else [f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}", f"{mean - r['paper_mean']:+.2f}"]
+                    if paper
+                    else []
+                ),
+                f"{r['wall_s']:.1f}",
+            ]
+        )
     accuracy = f"Test accuracy [%] ({'recorded data' if recorded else 'ours'}, {len(rows[0]['seeds'])} seeds)"
     compared = [documents.BEST_GAP] if recorded else ["Paper [%]", "Ours − paper [pp]"] if paper else []
-    return documents.markdown_table(["Backbone", "Modalities", accuracy, "Majority class, test [%]", *compared, "Train wall time [s]"], body)
+    return documents.markdown_table(
+        ["Backbone", "Modalities", accuracy, "Majority class, test [%]", *compared, "Train wall time [s]"], body
+    )
 
 
 def markdown(doc: dict[str, Any]) -> str:
@@ -305,10 +418,17 @@ def markdown(doc: dict[str, Any]) -> str:
         table(doc["rows"], doc["majority"]["test"], paper=paper),
         findings.baseline_note(),
         "",
-        *(["Rows marked *our step-LayerNorm fusion* are not in the paper: the same inputs with each step's "
-           "concatenated features normalised by a LayerNorm instead of the paper's per-sequence [0, 1] rescale "
-           "(`Config.fusion_norm`)" + ("; the paper column repeats the paper's row with the same inputs for reference." if paper else "."), ""]
-          if any(r.get("fusion_norm") == STEP_LAYERNORM for r in doc["rows"]) else []),
+        *(
+            [
+                "Rows marked *our step-LayerNorm fusion* are not in the paper: the same inputs with each step's "
+                "concatenated features normalised by a LayerNorm instead of the paper's per-sequence [0, 1] rescale "
+                "(`Config.fusion_norm`)"
+                + ("; the paper column repeats the paper's row with the same inputs for reference." if paper else "."),
+                "",
+            ]
+            if any(r.get("fusion_norm") == STEP_LAYERNORM for r in doc["rows"])
+            else []
+        ),
         *recipe.markdown(doc["rows"]),
         *fusion_choice_markdown(doc.get("fusion_choice", [])),
         "## Findings checklist (the paper's claims about this table)",
@@ -347,14 +467,32 @@ def recorded_table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] |
         choice, probe_test = r["fusion_choice"], 100 * r["probe"]["accuracy"]["test"]
         other = [f"{FUSION_NAMES[f]} {choice['test'][f]:.2f}" for f in choice["test"] if f != r["fusion_norm"]]
         val = ", ".join(f"{FUSION_NAMES[f]} {v:.2f}" for f, v in choice["val"].items())
-        body.append([
-            "TCN" if r["backbone"] == "tcn" else "Transformer", r["display_name"], f"{FUSION_NAMES[r['fusion_norm']]} (val {val})",
-            f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}", findings.majority_cell(majority),
-            ", ".join(other) or "–",
-            f"{probe_test:.2f}{findings.collapse_note(r['probe'].get('predictions', {}).get('test', []))}", f"{mean - probe_test:+.2f}", gap, f"{r['wall_s']:.1f}",
-        ])
-    header = ["Backbone", "Inputs", "Fusion (by validation)", f"Test accuracy [%] (recorded data, {len(rows[0]['seeds'])} seeds)",
-              "Majority class, test [%]", "Other fusion, test [%]", "Linear probe, test [%]", "Model − probe [pp]", documents.BEST_GAP, "Train wall time [s]"]
+        body.append(
+            [
+                "TCN" if r["backbone"] == "tcn" else "Transformer",
+                r["display_name"],
+                f"{FUSION_NAMES[r['fusion_norm']]} (val {val})",
+                f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}",
+                findings.majority_cell(majority),
+                ", ".join(other) or "–",
+                f"{probe_test:.2f}{findings.collapse_note(r['probe'].get('predictions', {}).get('test', []))}",
+                f"{mean - probe_test:+.2f}",
+                gap,
+                f"{r['wall_s']:.1f}",
+            ]
+        )
+    header = [
+        "Backbone",
+        "Inputs",
+        "Fusion (by validation)",
+        f"Test accuracy [%] (recorded data, {len(rows[0]['seeds'])} seeds)",
+        "Majority class, test [%]",
+        "Other fusion, test [%]",
+        "Linear probe, test [%]",
+        "Model − probe [pp]",
+        documents.BEST_GAP,
+        "Train wall time [s]",
+    ]
     return documents.markdown_table(header, body)
 
 
@@ -368,12 +506,16 @@ def recorded_notes(doc: dict[str, Any]) -> list[str]:
     for r in doc["rows"]:
         mean, probe_test = 100 * float(np.mean(r["accuracy"]["test"]["fabric"])), 100 * r["probe"]["accuracy"]["test"]
         if mean < probe_test - BELOW_PROBE_PP:
-            lines.append(f"- **{r['display_name']}** is {probe_test - mean:.1f} pp below the linear probe of its inputs "
-                         f"({mean:.1f} % against {probe_test:.1f} %): the model does not read what the inputs carry.")
+            lines.append(
+                f"- **{r['display_name']}** is {probe_test - mean:.1f} pp below the linear probe of its inputs "
+                f"({mean:.1f} % against {probe_test:.1f} %): the model does not read what the inputs carry."
+            )
     for m, ratio in doc["steadiness"].items():
         if ratio < doc["steady_below"]:
-            lines.append(f"- {doc['names'].get(m, m)} is steady within sequences: its within-sequence variance is {100 * ratio:.1f} % of "
-                         "its total (median over its dimensions); the [0, 1] rescale over the sequence erases it, step-LayerNorm keeps it.")
+            lines.append(
+                f"- {doc['names'].get(m, m)} is steady within sequences: its within-sequence variance is {100 * ratio:.1f} % of "
+                "its total (median over its dimensions); the [0, 1] rescale over the sequence erases it, step-LayerNorm keeps it."
+            )
     return lines + [""] if lines else []
 
 
@@ -387,7 +529,8 @@ def _recorded_markdown(doc: dict[str, Any]) -> str:
         recorded_table(doc["rows"], doc["majority"]["test"]),
         findings.baseline_note(),
         "",
-        documents.RECORDED_NOTE + " Each row is trained under both fusion normalisations and shown under the one with the better "
+        documents.RECORDED_NOTE
+        + " Each row is trained under both fusion normalisations and shown under the one with the better "
         "validation accuracy (step-LayerNorm on a tie: it keeps the steady level the rescale erases). The probe is a logistic regression on each sequence's per-dimension mean and SD "
         f"(`experiments.probe`), on the same sequences. Within-sequence share of each input's variance: {steadiness}.",
         "",
@@ -396,19 +539,36 @@ def _recorded_markdown(doc: dict[str, Any]) -> str:
     ]
     w = doc["wilcoxon"]
     if w:
-        lines += [f"## Wilcoxon signed-rank: {w['compared']} against {w['baseline']}", "", f"- {w['per_seed']['describe']}",
-                  f"- {w['per_sample']['describe']}", ""]
+        lines += [
+            f"## Wilcoxon signed-rank: {w['compared']} against {w['baseline']}",
+            "",
+            f"- {w['per_seed']['describe']}",
+            f"- {w['per_sample']['describe']}",
+            "",
+        ]
     if "ablation_confusion.png" in doc["figures"]:
-        shown = ", ".join(f"{doc['names'].get(m, m)} only" for m in CONFUSION_ROWS if any(r["name"] == m for r in doc["rows"]))
+        shown = ", ".join(
+            f"{doc['names'].get(m, m)} only" for m in CONFUSION_ROWS if any(r["name"] == m for r in doc["rows"])
+        )
         lines += [f"Confusion matrices ({shown}): `ablation_confusion.png`.", ""]
     return "\n".join(lines)
 
 
 STUDY = runner.Study(
-    "ablation", ROWS, n_seeds=5, eval_splits=("test",), split_names=loading.TRAIN_VAL_TEST,
-    document=document, checklist=lambda doc: checklist(
-        {r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]}, doc["majority"]["test"], len(doc["dataset"]["classes"]),
-        {r["name"]: findings.collapse_text(r["collapsed"]["test"]) for r in doc["rows"]}),
-    markdown=markdown, recorded_fusions=(STEP_LAYERNORM,), checkpoints=True,
+    "ablation",
+    ROWS,
+    n_seeds=5,
+    eval_splits=("test",),
+    split_names=loading.TRAIN_VAL_TEST,
+    document=document,
+    checklist=lambda doc: checklist(
+        {r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]},
+        doc["majority"]["test"],
+        len(doc["dataset"]["classes"]),
+        {r["name"]: findings.collapse_text(r["collapsed"]["test"]) for r in doc["rows"]},
+    ),
+    markdown=markdown,
+    recorded_fusions=(STEP_LAYERNORM,),
+    checkpoints=True,
 )
 run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

@@ -24,7 +24,10 @@ from fabricjax.features import welch
 from fabricjax.studies.common import documents, findings, loading, runner
 from fabricjax.studies.common.runner import StudyRow
 
-TITLE, PAPER = "PSD bandwidth", "Table bandwidth_classification"  # how results name the study, and what of the paper it reproduces
+TITLE, PAPER = (
+    "PSD bandwidth",
+    "Table bandwidth_classification",
+)  # how results name the study, and what of the paper it reproduces
 
 MODALITIES = ("internal",)
 SPLITS = ("val", "test")  # the splits the table reports
@@ -41,7 +44,12 @@ def _row(khz: float, val_mean: float, val_sd: float, test_mean: float, test_sd: 
 
 
 # The paper's Table bandwidth_classification.
-ROWS = (_row(2.5, 92.43, 1.13, 89.87, 3.31), _row(10.0, 97.45, 1.17, 93.07, 3.33), _row(15.0, 97.75, 1.62, 95.06, 1.85), _row(24.0, 98.20, 1.39, 91.94, 2.68))
+ROWS = (
+    _row(2.5, 92.43, 1.13, 89.87, 3.31),
+    _row(10.0, 97.45, 1.17, 93.07, 3.33),
+    _row(15.0, 97.75, 1.62, 95.06, 1.85),
+    _row(24.0, 98.20, 1.39, 91.94, 2.68),
+)
 
 
 def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
@@ -55,16 +63,26 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
     for r in chosen:
         khz = r.settings["bandwidth_khz"]
         row = trained.rows[r.name]
-        out_rows.append({
-            "name": r.name, "bandwidth_khz": khz, "psd_bins": welch.n_bins(khz, test.rates.get("internal", archive.AUDIO_RATE)),
-            **({} if recorded else {"paper": dict(r.paper)}),
-            "collapsed": {s: findings.collapsed(row.predictions(s), sets[s].labels["fabric"]) for s in SPLITS},
-            **row.doc(["test"]),
-        })
+        out_rows.append(
+            {
+                "name": r.name,
+                "bandwidth_khz": khz,
+                "psd_bins": welch.n_bins(khz, test.rates.get("internal", archive.AUDIO_RATE)),
+                **({} if recorded else {"paper": dict(r.paper)}),
+                "collapsed": {s: findings.collapsed(row.predictions(s), sets[s].labels["fabric"]) for s in SPLITS},
+                **row.doc(["test"]),
+            }
+        )
     mic = microphone(trained.dataset)
     figure = plot(results / "bandwidth.png", out_rows, mic)
     majority = {s: findings.majority(sets[s].labels["fabric"]) for s in SPLITS}
-    return {"modalities": list(MODALITIES), "microphone": mic, "rows": out_rows, "majority": majority, "test_samples": documents.samples_doc(test)}, [figure]
+    return {
+        "modalities": list(MODALITIES),
+        "microphone": mic,
+        "rows": out_rows,
+        "majority": majority,
+        "test_samples": documents.samples_doc(test),
+    }, [figure]
 
 
 def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
@@ -73,7 +91,10 @@ def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
     are skipped)."""
     low, mid, full = row_name(2.5), row_name(15.0), row_name(24.0)
     claim = "test accuracy at 15 kHz is at least that at 2.5 kHz (the band above 2.5 kHz carries fabric cues)"
-    out = [findings.missing(claim, [mid, low], acc) or findings.at_least(claim, ("15 kHz test", acc[mid]["test"]), ("2.5 kHz test", acc[low]["test"]))]
+    out = [
+        findings.missing(claim, [mid, low], acc)
+        or findings.at_least(claim, ("15 kHz test", acc[mid]["test"]), ("2.5 kHz test", acc[low]["test"]))
+    ]
     claim = "24 kHz overfits: its validation accuracy is at least 15 kHz's while its test accuracy is not higher"
     if not (f := findings.missing(claim, [full, mid], acc)):
         val = findings.at_least(claim, ("24 kHz val", acc[full]["val"]), ("15 kHz val", acc[mid]["val"]))
@@ -107,7 +128,9 @@ def plot(path, rows: Sequence[dict[str, Any]], microphone: str):
     return plots.plot_against_bandwidth(path, khz, series, microphone)
 
 
-def table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Mapping[str, Any] | None], recorded: bool = False) -> str:
+def table(
+    rows: Sequence[dict[str, Any]], majority: Mapping[str, Mapping[str, Any] | None], recorded: bool = False
+) -> str:
     """Validation and test accuracy per bandwidth, flagged where seeds collapsed (each row's
     "collapsed"), each beside its split's `majority` class and the paper's; on recorded data test
     accuracy beside the best row's instead."""
@@ -116,25 +139,49 @@ def table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Mapping[str, An
     gaps = documents.best_gaps([m for m, _ in test])
     body = []
     for r, v, t, gap in zip(rows, val, test, gaps):
-        ours = {s: f"{m:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed'][s])}" for s, (m, sd) in zip(SPLITS, (v, t))}
+        ours = {
+            s: f"{m:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed'][s])}" for s, (m, sd) in zip(SPLITS, (v, t))
+        }
         base = {s: findings.majority_cell(majority[s]) for s in SPLITS}
         if recorded:
             compared = [ours["val"], base["val"], ours["test"], base["test"], gap]
         else:
             p = r["paper"]
-            compared = [ours["val"], base["val"], f"{p['val_mean']:.2f} ± {p['val_sd']:.2f}", f"{v[0] - p['val_mean']:+.2f}",
-                        ours["test"], base["test"], f"{p['test_mean']:.2f} ± {p['test_sd']:.2f}", f"{t[0] - p['test_mean']:+.2f}"]
+            compared = [
+                ours["val"],
+                base["val"],
+                f"{p['val_mean']:.2f} ± {p['val_sd']:.2f}",
+                f"{v[0] - p['val_mean']:+.2f}",
+                ours["test"],
+                base["test"],
+                f"{p['test_mean']:.2f} ± {p['test_sd']:.2f}",
+                f"{t[0] - p['test_mean']:+.2f}",
+            ]
         body.append([f"{r['bandwidth_khz']:g}", r["psd_bins"], *compared, f"{r['wall_s']:.1f}"])
-    compared = (["Val [%]", "Majority class, val [%]", "Test [%]", "Majority class, test [%]", documents.BEST_GAP] if recorded else
-                ["Val [%] (ours)", "Majority class, val [%]", "Val [%] (paper)", "Val diff [pp]",
-                 "Test [%] (ours)", "Majority class, test [%]", "Test [%] (paper)", "Test diff [pp]"])
+    compared = (
+        ["Val [%]", "Majority class, val [%]", "Test [%]", "Majority class, test [%]", documents.BEST_GAP]
+        if recorded
+        else [
+            "Val [%] (ours)",
+            "Majority class, val [%]",
+            "Val [%] (paper)",
+            "Val diff [pp]",
+            "Test [%] (ours)",
+            "Majority class, test [%]",
+            "Test [%] (paper)",
+            "Test diff [pp]",
+        ]
+    )
     return documents.markdown_table(["Bandwidth [kHz]", "PSD bins", *compared, "Train wall time [s]"], body)
 
 
 def markdown(doc: dict[str, Any]) -> str:
     recorded = documents.recorded(doc)
-    inputs = (f"its microphone `{doc['microphone']}` only" if recorded else
-              "Minsound only; the paper's 15 kHz row equals its internal-audio ablation row")
+    inputs = (
+        f"its microphone `{doc['microphone']}` only"
+        if recorded
+        else "Minsound only; the paper's 15 kHz row equals its internal-audio ablation row"
+    )
     lines = [
         documents.title(doc, TITLE, PAPER),
         "",
@@ -152,9 +199,16 @@ def markdown(doc: dict[str, Any]) -> str:
 
 
 STUDY = runner.Study(
-    "bandwidth", ROWS, n_seeds=5, eval_splits=("test",),
-    split_names=loading.TRAIN_VAL_TEST, document=document,
-    checklist=lambda doc: checklist({r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in ("val", "test")} for r in doc["rows"]}),
-    markdown=markdown, choose_rows="choose bandwidths with --rows (e.g. 2.5,15)",
+    "bandwidth",
+    ROWS,
+    n_seeds=5,
+    eval_splits=("test",),
+    split_names=loading.TRAIN_VAL_TEST,
+    document=document,
+    checklist=lambda doc: checklist(
+        {r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in ("val", "test")} for r in doc["rows"]}
+    ),
+    markdown=markdown,
+    choose_rows="choose bandwidths with --rows (e.g. 2.5,15)",
 )
 run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

@@ -40,7 +40,9 @@ TITLE, PAPER = "Latent space", "Fig. latent_features"
 BATCH = 32  # sequences per latent evaluation
 
 
-def trial_means(graphdef, params, ss: data.SequenceSet, modalities, fabric_ids) -> tuple[np.ndarray, list[int], list[str], list[int]]:
+def trial_means(
+    graphdef, params, ss: data.SequenceSet, modalities, fabric_ids
+) -> tuple[np.ndarray, list[int], list[str], list[int]]:
     """Per fabric of `fabric_ids` in `ss`, its first test trial's latent mean: (points, fabric ids,
     trial keys, sequences per trial)."""
     encode = jax.jit(lambda p, x: nnx.merge(graphdef, p).latents(x).mean(axis=1))
@@ -79,13 +81,20 @@ def tsne(points: np.ndarray, seed: int = 0) -> tuple[np.ndarray, float | None]:
 
 def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()) -> dict[str, Any]:
     """Restore, encode, embed, plot: writes results/latents.{png,json}; returns the JSON."""
-    graphdef, state, config, seeds, for_, trained_on = train.restore(checkpoint_dir)  # under the checkpoint's own config
+    graphdef, state, config, seeds, for_, trained_on = train.restore(
+        checkpoint_dir
+    )  # under the checkpoint's own config
     if where.data_dir is None:  # the simulated hand's holdouts: the model must not have trained on them
-        trained_holdouts = sorted(set(catalog.PROPERTY_HOLDOUTS) - set(catalog.NEW_FABRICS) - set(for_["unseen_fabrics"]))
+        trained_holdouts = sorted(
+            set(catalog.PROPERTY_HOLDOUTS) - set(catalog.NEW_FABRICS) - set(for_["unseen_fabrics"])
+        )
         checkpoint.require(
-            checkpoint_dir, for_, "latents",
+            checkpoint_dir,
+            for_,
+            "latents",
             f"a model that never saw the holdout fabrics {', '.join(map(str, catalog.PROPERTY_HOLDOUTS))} "
-            "(a properties-study checkpoint, listed in its properties.md)", not trained_holdouts,
+            "(a properties-study checkpoint, listed in its properties.md)",
+            not trained_holdouts,
         )
     best_val = np.asarray(state["best_val"], np.float64)
     if seed is None:
@@ -100,7 +109,10 @@ def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()
     checkpoint.require_data(checkpoint_dir, trained_on, ds.sets["test"].dataset)
     test_day = _concat([ds.sets["test"], ds.sets["holdout"]])
     if ds.recorded:
-        known, holdouts = recorded_fabrics(test_day, ds.classes), sorted(set(ds.sets["holdout"].info["fabric_id"].tolist()))
+        known, holdouts = (
+            recorded_fabrics(test_day, ds.classes),
+            sorted(set(ds.sets["holdout"].info["fabric_id"].tolist())),
+        )
     else:  # the hand's fabrics 1-23: class 0 (no fabric) has no properties
         known, holdouts = catalog_fabrics(set(test_day.info["fabric_id"].tolist()) - {0}), catalog.PROPERTY_HOLDOUTS
     points, fabrics, keys, counts = trial_means(graphdef, params, test_day, config.modalities, known)
@@ -108,9 +120,13 @@ def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()
     agreement = neighbour_agreement(points, fabrics, known, holdouts)
     with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
         png = plots.plot_latents(
-            where.results_dir() / "latents.png", xy, fabrics, known, holdouts,
+            where.results_dir() / "latents.png",
+            xy,
+            fabrics,
+            known,
+            holdouts,
             title=f"t-SNE of latents, one point per fabric: its first test-day trial's mean\n"
-                  f"({data.inputs_name(config.modalities, ds.sets['test'].names if ds.recorded else None)}, seed {seeds[index]}; holdouts outlined)",
+            f"({data.inputs_name(config.modalities, ds.sets['test'].names if ds.recorded else None)}, seed {seeds[index]}; holdouts outlined)",
             neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
         )
         doc = {
@@ -148,12 +164,16 @@ def recorded_fabrics(ss: data.SequenceSet, classes: Sequence[str]) -> dict[int, 
         levels = {p: sorted(set(ss.labels[p][mine].tolist()) - {-1}) for p in catalog.PROPERTY_LEVELS}
         for p, v in levels.items():
             if len(v) > 1:
-                raise UserError(f"class {classes[fid]!r}: its trials give {p} levels {v}; one class, one level (the manifest's {p} column)")
+                raise UserError(
+                    f"class {classes[fid]!r}: its trials give {p} levels {v}; one class, one level (the manifest's {p} column)"
+                )
         out[int(fid)] = (classes[fid], {p: v[0] if v else None for p, v in levels.items()})
     return out
 
 
-def _agreement(a: int, b: int, fabrics: Mapping[int, tuple[str, Mapping[str, int | None]]] | None = None) -> float | None:
+def _agreement(
+    a: int, b: int, fabrics: Mapping[int, tuple[str, Mapping[str, int | None]]] | None = None
+) -> float | None:
     """Fraction of the properties known for both fabrics on which their levels are equal (levels
     from `fabrics`, id -> name and levels; None: the catalog's)."""
     fabrics = fabrics if fabrics is not None else catalog_fabrics((a, b))
@@ -162,8 +182,12 @@ def _agreement(a: int, b: int, fabrics: Mapping[int, tuple[str, Mapping[str, int
     return None if not known else float(np.mean([pa[p] == pb[p] for p in known]))
 
 
-def neighbour_agreement(points: np.ndarray, fabric_ids: list[int], fabrics: Mapping[int, tuple[str, Mapping[str, int | None]]] | None = None,
-                        holdouts=catalog.PROPERTY_HOLDOUTS) -> dict[str, Any]:
+def neighbour_agreement(
+    points: np.ndarray,
+    fabric_ids: list[int],
+    fabrics: Mapping[int, tuple[str, Mapping[str, int | None]]] | None = None,
+    holdouts=catalog.PROPERTY_HOLDOUTS,
+) -> dict[str, Any]:
     """How well the latent space groups unseen fabrics with trained fabrics of the same property
     levels (Euclidean distance between the fabrics' points; fabrics without properties skipped;
     levels from `fabrics` as in `_agreement`).
@@ -188,15 +212,28 @@ def neighbour_agreement(points: np.ndarray, fabric_ids: list[int], fabrics: Mapp
         if t is None:
             break
         chance = float(np.mean([agreement(ids[h], ids[j]) for j in train]))
-        pairs.append({"holdout": ids[h], "nearest": ids[t], "distance": float(dist[h, t]), "agreement": agreement(ids[h], ids[t]), "chance": chance})
+        pairs.append(
+            {
+                "holdout": ids[h],
+                "nearest": ids[t],
+                "distance": float(dist[h, t]),
+                "agreement": agreement(ids[h], ids[t]),
+                "chance": chance,
+            }
+        )
         for prop, level in fabrics[ids[h]][1].items():
             if level is None:  # unknown (a rig's level not given): nothing to share
                 continue
             share = [j for j in train if fabrics[ids[j]][1][prop] == level]
             other = [j for j in train if fabrics[ids[j]][1][prop] not in (None, level)]
             if share and other:
-                nearer[prop].append({"holdout": ids[h], "shared_mean_distance": float(dist[h, share].mean()),
-                                     "other_mean_distance": float(dist[h, other].mean())})
+                nearer[prop].append(
+                    {
+                        "holdout": ids[h],
+                        "shared_mean_distance": float(dist[h, share].mean()),
+                        "other_mean_distance": float(dist[h, other].mean()),
+                    }
+                )
     cases = [c["shared_mean_distance"] < c["other_mean_distance"] for v in nearer.values() for c in v]
     return {
         "pairs": pairs,
@@ -215,16 +252,28 @@ def checklist(agreement: dict[str, Any]) -> list[findings.Finding]:
         out = [findings.Finding(claim, None, "needs holdout and training fabrics with properties, not in the data")]
     else:
         pairs = ", ".join(f"{p['holdout']}->{p['nearest']} {100 * p['agreement']:.0f} %" for p in agreement["pairs"])
-        out = [findings.Finding(claim, bool(agreement["agreement"] > agreement["chance"]),
-                                f"nearest-neighbour property agreement {100 * agreement['agreement']:.1f} % against chance "
-                                f"{100 * agreement['chance']:.1f} % (holdout->nearest: {pairs})")]
+        out = [
+            findings.Finding(
+                claim,
+                bool(agreement["agreement"] > agreement["chance"]),
+                f"nearest-neighbour property agreement {100 * agreement['agreement']:.1f} % against chance "
+                f"{100 * agreement['chance']:.1f} % (holdout->nearest: {pairs})",
+            )
+        ]
     claim = "holdouts lie nearer to the training fabrics sharing a property level than to those that do not (most holdout-property cases)"
     if agreement["nearer_fraction"] is None:
-        out.append(findings.Finding(claim, None, "no holdout-property case with both sharing and other training fabrics"))
+        out.append(
+            findings.Finding(claim, None, "no holdout-property case with both sharing and other training fabrics")
+        )
     else:
-        out.append(findings.Finding(claim, bool(agreement["nearer_fraction"] > 0.5),
-                                    f"sharing fabrics nearer on average in {100 * agreement['nearer_fraction']:.0f} % of "
-                                    f"{agreement['nearer_cases']} holdout-property cases (chance 50 %)"))
+        out.append(
+            findings.Finding(
+                claim,
+                bool(agreement["nearer_fraction"] > 0.5),
+                f"sharing fabrics nearer on average in {100 * agreement['nearer_fraction']:.0f} % of "
+                f"{agreement['nearer_cases']} holdout-property cases (chance 50 %)",
+            )
+        )
     return out
 
 
@@ -243,10 +292,18 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
     ]
     if recorded:  # the measurements `checklist` would judge, without the paper's reading
-        lines += ["## Holdout classes and their neighbours in latent space", "",
-                  *[f"- {f.evidence}" for f in checklist(doc["neighbours"])], ""]
+        lines += [
+            "## Holdout classes and their neighbours in latent space",
+            "",
+            *[f"- {f.evidence}" for f in checklist(doc["neighbours"])],
+            "",
+        ]
     else:
-        lines += ["## Findings checklist (the paper's reading of its figure)", "", findings.markdown(doc["findings"], counted=not documents.counts_no_claims(doc))]
+        lines += [
+            "## Findings checklist (the paper's reading of its figure)",
+            "",
+            findings.markdown(doc["findings"], counted=not documents.counts_no_claims(doc)),
+        ]
     return "\n".join(lines)
 
 

@@ -35,11 +35,16 @@ from fabricjax import catalog, data, stats
 from fabricjax.studies.common import documents, findings, runner
 from fabricjax.studies.common.runner import StudyRow
 
-TITLE, PAPER = "Property perception", "Table property_perception"  # how results name the study, and what of the paper it reproduces
+TITLE, PAPER = (
+    "Property perception",
+    "Table property_perception",
+)  # how results name the study, and what of the paper it reproduces
 
 PROPERTIES = tuple(catalog.PROPERTY_LEVELS)
 SPLITS = {"test": "training fabrics", "holdout": "holdout fabrics"}
-SETTINGS = dict(property_heads=True, fabric_head=False, exclude_fabrics=catalog.PROPERTY_HOLDOUTS, image_resolution="down")
+SETTINGS = dict(
+    property_heads=True, fabric_head=False, exclude_fabrics=catalog.PROPERTY_HOLDOUTS, image_resolution="down"
+)
 
 
 def _row(modalities: tuple[str, ...], train: tuple[float, ...], holdout: tuple[float, ...]) -> StudyRow:
@@ -64,9 +69,15 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
     out_rows = []
     for r in chosen:
         row = trained.rows[r.name]
-        collapsed = {s: {p: findings.collapsed(row.predictions(s, p), ds.sets[s].labels[p]) for p in PROPERTIES} for s in SPLITS}
-        out_rows.append({"name": r.name, "modalities": list(r.modalities), "collapsed": collapsed, **row.doc(list(SPLITS))})
-    paper = {p: {f"{split}_{r.name}": r.paper[split][p] for r in ROWS for split in ("train", "holdout")} for p in PROPERTIES}
+        collapsed = {
+            s: {p: findings.collapsed(row.predictions(s, p), ds.sets[s].labels[p]) for p in PROPERTIES} for s in SPLITS
+        }
+        out_rows.append(
+            {"name": r.name, "modalities": list(r.modalities), "collapsed": collapsed, **row.doc(list(SPLITS))}
+        )
+    paper = {
+        p: {f"{split}_{r.name}": r.paper[split][p] for r in ROWS for split in ("train", "holdout")} for p in PROPERTIES
+    }
     return {
         "chance": {p: 100.0 / n for p, n in catalog.PROPERTY_LEVELS.items()},
         "majority": {s: {p: findings.majority(ds.sets[s].labels[p]) for p in PROPERTIES} for s in SPLITS},
@@ -77,8 +88,12 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
     }, []
 
 
-def checklist(holdout: dict[str, dict[str, np.ndarray]], chance: dict[str, float], majority: dict[str, dict[str, Any] | None],
-              notes: dict[str, dict[str, str]] | None = None) -> list[findings.Finding]:
+def checklist(
+    holdout: dict[str, dict[str, np.ndarray]],
+    chance: dict[str, float],
+    majority: dict[str, dict[str, Any] | None],
+    notes: dict[str, dict[str, str]] | None = None,
+) -> list[findings.Finding]:
     """The paper's claims about property perception on the holdout fabrics, as predicates over
     per-seed accuracies (`holdout`: row name -> property -> per-seed accuracy in [0, 1]; rows not
     run are skipped). `chance`: property -> the paper's chance, 1 / levels, in percent;
@@ -93,23 +108,38 @@ def checklist(holdout: dict[str, dict[str, np.ndarray]], chance: dict[str, float
 
     out = []
     for name in (r.name for r in ROWS):
-        claim = (f"{STUDY.row(name).label}: every property is above chance on the holdout fabrics "
-                 "(rule: each property's mean over seeds above its majority level; above 1 / levels shown beside it)")
+        claim = (
+            f"{STUDY.row(name).label}: every property is above chance on the holdout fabrics "
+            "(rule: each property's mean over seeds above its majority level; above 1 / levels shown beside it)"
+        )
         if not (f := findings.missing(claim, [name], holdout)):
             above = {p: findings.above_majority(holdout[name][p], majority[p]) for p in PROPERTIES}
             evidence = []
             for p in PROPERTIES:
                 base, mean = majority[p], findings.mean_pct(holdout[name][p])
-                said = "no level known" if base is None else f"{'above' if above[p] else 'not above'} its majority level {base['accuracy']:.1f} % (level {base['label']})"
-                evidence.append(f"{findings.describe(p, holdout[name][p])}{notes.get(name, {}).get(p, '')}: {said}; "
-                                f"{'above' if mean > chance[p] else 'not above'} 1 / levels {chance[p]:.1f} %")
+                said = (
+                    "no level known"
+                    if base is None
+                    else f"{'above' if above[p] else 'not above'} its majority level {base['accuracy']:.1f} % (level {base['label']})"
+                )
+                evidence.append(
+                    f"{findings.describe(p, holdout[name][p])}{notes.get(name, {}).get(p, '')}: {said}; "
+                    f"{'above' if mean > chance[p] else 'not above'} 1 / levels {chance[p]:.1f} %"
+                )
             f = findings.Finding(claim, None if None in above.values() else all(above.values()), "; ".join(evidence))
         out.append(f)
     ours, both = (r.name for r in ROWS)
     for prop, better, worse in (("stretchiness", both, ours), ("thickness", both, ours), ("roughness", ours, both)):
         claim = f"{STUDY.row(better).label} beats {STUDY.row(worse).label} on {prop} on the holdout fabrics"
-        out.append(findings.missing(claim, [better, worse], holdout) or findings.at_least(
-            claim, (named(better, prop), holdout[better][prop]), (named(worse, prop), holdout[worse][prop]), strict=True))
+        out.append(
+            findings.missing(claim, [better, worse], holdout)
+            or findings.at_least(
+                claim,
+                (named(better, prop), holdout[better][prop]),
+                (named(worse, prop), holdout[worse][prop]),
+                strict=True,
+            )
+        )
     return out
 
 
@@ -122,7 +152,10 @@ def row_title(row: dict[str, Any], names: dict[str, str]) -> str:
 def collapse_notes(doc: dict[str, Any], split: str) -> dict[str, dict[str, str]]:
     """Row name -> property -> its collapse flag on `split` (`findings.collapse_text`; '' where no
     seed collapsed)."""
-    return {r["name"]: {p: findings.collapse_text(r["collapsed"][split][p], "level") for p in PROPERTIES} for r in doc["rows"]}
+    return {
+        r["name"]: {p: findings.collapse_text(r["collapsed"][split][p], "level") for p in PROPERTIES}
+        for r in doc["rows"]
+    }
 
 
 def table(doc: dict[str, Any]) -> str:
@@ -132,7 +165,10 @@ def table(doc: dict[str, Any]) -> str:
     header = ["Property", "Chance, 1 / levels [%]"]
     for split, title in SPLITS.items():
         header.append(f"Majority level, {title} [%]")
-        header += [f"{title}: {row_title(r, names)} [%] ({'recorded data / row − best row [pp]' if recorded else 'ours / paper'})" for r in doc["rows"]]
+        header += [
+            f"{title}: {row_title(r, names)} [%] ({'recorded data / row − best row [pp]' if recorded else 'ours / paper'})"
+            for r in doc["rows"]
+        ]
     notes = {split: collapse_notes(doc, split) for split in SPLITS}
     body = []
     for p in PROPERTIES:
@@ -151,10 +187,13 @@ def table(doc: dict[str, Any]) -> str:
 
 def markdown(doc: dict[str, Any]) -> str:
     recorded = documents.recorded(doc)
-    fabrics = (f"Fabrics of the test trials: {doc['fabrics']['test']}; of the holdout trials: {doc['fabrics']['holdout']} "
-               "(trials without a property's level are ignored for it)." if recorded else
-               f"Training fabrics on the test day: {doc['fabrics']['test']} (class 0 has no properties and is ignored); "
-               f"holdout fabrics: {doc['fabrics']['holdout']}. The paper reports means only.")
+    fabrics = (
+        f"Fabrics of the test trials: {doc['fabrics']['test']}; of the holdout trials: {doc['fabrics']['holdout']} "
+        "(trials without a property's level are ignored for it)."
+        if recorded
+        else f"Training fabrics on the test day: {doc['fabrics']['test']} (class 0 has no properties and is ignored); "
+        f"holdout fabrics: {doc['fabrics']['holdout']}. The paper reports means only."
+    )
     lines = [
         documents.title(doc, TITLE, PAPER),
         "",
@@ -162,11 +201,15 @@ def markdown(doc: dict[str, Any]) -> str:
         fabrics,
         "",
         table(doc),
-        findings.baseline_note("level") + " A property counts as above chance only where its mean over seeds is above its majority level.",
+        findings.baseline_note("level")
+        + " A property counts as above chance only where its mean over seeds is above its majority level.",
         "",
         "| Row | Train wall time [s] | Checkpoint (all seeds) |",
         "|---|---|---|",
-        *[f"| {row_title(r, documents.stream_names(doc))} | {r['wall_s']:.1f} | `{r['checkpoint']}` |" for r in doc["rows"]],
+        *[
+            f"| {row_title(r, documents.stream_names(doc))} | {r['wall_s']:.1f} | `{r['checkpoint']}` |"
+            for r in doc["rows"]
+        ],
         "",
     ]
     lines += findings.claims_markdown(doc, "the paper's claims about this table, on the holdout fabrics")
@@ -174,12 +217,24 @@ def markdown(doc: dict[str, Any]) -> str:
 
 
 STUDY = runner.Study(
-    "properties", ROWS, n_seeds=5, eval_splits=tuple(SPLITS),
-    split_names=data.SPLITS, document=document,
-    checklist=lambda doc: checklist({r["name"]: {p: np.asarray(r["accuracy"]["holdout"][p]) for p in PROPERTIES} for r in doc["rows"]},
-                                    doc["chance"], doc["majority"]["holdout"], collapse_notes(doc, "holdout")),
-    markdown=markdown, choose_rows="choose the rows with --rows", checkpoints=True,
-    summary=lambda row: ", ".join(f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES),
+    "properties",
+    ROWS,
+    n_seeds=5,
+    eval_splits=tuple(SPLITS),
+    split_names=data.SPLITS,
+    document=document,
+    checklist=lambda doc: checklist(
+        {r["name"]: {p: np.asarray(r["accuracy"]["holdout"][p]) for p in PROPERTIES} for r in doc["rows"]},
+        doc["chance"],
+        doc["majority"]["holdout"],
+        collapse_notes(doc, "holdout"),
+    ),
+    markdown=markdown,
+    choose_rows="choose the rows with --rows",
+    checkpoints=True,
+    summary=lambda row: ", ".join(
+        f"holdout {p} {stats.format_mean_sd(row.accuracy('holdout', p))} %" for p in PROPERTIES
+    ),
     # recorded data's holdouts are its own holdout split: the catalog's fabric ids are not its classes
     recorded_settings={"exclude_fabrics": ()},
 )

@@ -67,20 +67,37 @@ from fabricjax.studies.paper import ablation, bandwidth, latents, noise, propert
 from fabricjax.workspace import Location
 
 STUDIES = {
-    "ablation": ablation, "probe": probe, "day_shift": day_shift, "bandwidth": bandwidth, "noise": noise,
-    "properties": properties, "latents": latents, "decide": decide,
+    "ablation": ablation,
+    "probe": probe,
+    "day_shift": day_shift,
+    "bandwidth": bandwidth,
+    "noise": noise,
+    "properties": properties,
+    "latents": latents,
+    "decide": decide,
 }
-UPSTREAM = {"latents": "properties", "day_shift": "probe", "decide": "ablation"}  # a study -> the study whose results it reads
+UPSTREAM = {
+    "latents": "properties",
+    "day_shift": "probe",
+    "decide": "ablation",
+}  # a study -> the study whose results it reads
 UNSEEDED = ("probe", "day_shift")  # deterministic studies of no paper table: no seeds, no claims
-LATENT_ROW = properties.ROWS[-1].name  # the paper's figure: its "Minsound + Minsight" model, which also reads proprioception
+LATENT_ROW = properties.ROWS[
+    -1
+].name  # the paper's figure: its "Minsound + Minsight" model, which also reads proprioception
 # the decision study's models: the ablation row the paper calls best (its highest mean) and Minsound alone
 DECIDE_ROWS = (max(ablation.PAPER_ROWS, key=lambda r: r.paper["mean"]).name, "internal")
-CHECKPOINT_STUDIES = ("latents", "decide")  # studies of another study's checkpoints: run by --checkpoint, no seeds or rows flags
+CHECKPOINT_STUDIES = (
+    "latents",
+    "decide",
+)  # studies of another study's checkpoints: run by --checkpoint, no seeds or rows flags
 MANIFEST = "reproduce.json"
 REPORT = "REPORT.md"
 HEADLINE = "headline.json"  # README's results block, as data (tracked, unlike the studies' JSON)
 # README's results block lies between these lines; `run` rewrites it in the README.md beside the results folder
-README_BEGIN = "<!-- results: written by `python -m experiments.reproduce` from results/headline.json; edits are overwritten -->"
+README_BEGIN = (
+    "<!-- results: written by `python -m experiments.reproduce` from results/headline.json; edits are overwritten -->"
+)
 README_END = "<!-- end of results -->"
 
 
@@ -89,16 +106,27 @@ class Step:
     """One study of the plan: its name (a key of `STUDIES`), seed count and rows (None: all)."""
 
     study: str
-    seeds: int | None = None  # None for `UNSEEDED` (deterministic) and the studies of another's checkpoints (latents, decide)
+    seeds: int | None = (
+        None  # None for `UNSEEDED` (deterministic) and the studies of another's checkpoints (latents, decide)
+    )
     rows: tuple[str, ...] | None = None
 
 
 PLAN = (
-    Step("ablation", 5), Step("probe"), Step("day_shift"), Step("bandwidth", 5), Step("noise", 10), Step("properties", 5),
-    Step("latents"), Step("decide", rows=DECIDE_ROWS),
+    Step("ablation", 5),
+    Step("probe"),
+    Step("day_shift"),
+    Step("bandwidth", 5),
+    Step("noise", 10),
+    Step("properties", 5),
+    Step("latents"),
+    Step("decide", rows=DECIDE_ROWS),
 )
 # The studies that need trials of the paper's protocol: the split they read, and what it is
-PROTOCOL = {"noise": ("cafe", "trials of the cafe condition (split cafe)"), "properties": ("holdout", "held-out fabrics (split holdout)")}
+PROTOCOL = {
+    "noise": ("cafe", "trials of the cafe condition (split cafe)"),
+    "properties": ("holdout", "held-out fabrics (split holdout)"),
+}
 
 # The manifest the repository publishes (results/reproduce.json): its recorded wall times are the
 # estimate for a run of the same preset before this folder has its own.
@@ -111,14 +139,19 @@ def title(study: str, recorded: bool = False) -> str:
     return module.TITLE if recorded else f"{module.TITLE} ({module.PAPER})"
 
 
-def step_key(step: Step, preset: str, overrides: Mapping[str, Any], prints: Mapping[str, str | None], upstream: str = "") -> str:
+def step_key(
+    step: Step, preset: str, overrides: Mapping[str, Any], prints: Mapping[str, str | None], upstream: str = ""
+) -> str:
     """What decides a study's results, as one key: the step, preset, overrides, the fingerprints
     of the code, the simulator's estimates and the data (`prints`: `documents.fingerprints`; the
     data's is recorded data's contents, None on the preset's simulated data, which the other two
     decide) and the upstream study's key."""
     parts = {
-        "step": dataclasses.asdict(step), "preset": preset, "overrides": dict(sorted(overrides.items())),
-        "fingerprints": dict(prints), "upstream": upstream,
+        "step": dataclasses.asdict(step),
+        "preset": preset,
+        "overrides": dict(sorted(overrides.items())),
+        "fingerprints": dict(prints),
+        "upstream": upstream,
     }
     return hashlib.sha256(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
@@ -141,7 +174,11 @@ def _data_fingerprint(data_dir, workdir) -> str | None:
     return dataset_index.load_index(data_dir, workdir).content_hash if data_dir else None
 
 
-FINGERPRINT_WORDS = {"code": "the code", "estimates": "the simulator's estimates", "data": "the data"}  # `documents.fingerprints`' keys
+FINGERPRINT_WORDS = {
+    "code": "the code",
+    "estimates": "the simulator's estimates",
+    "data": "the data",
+}  # `documents.fingerprints`' keys
 
 
 def stale(manifest: Mapping[str, Any], prints: Mapping[str, str | None]) -> dict[str, str]:
@@ -157,9 +194,14 @@ def stale(manifest: Mapping[str, Any], prints: Mapping[str, str | None]) -> dict
         if "fingerprints" not in entry:
             out[study] = f"{since}: it records no fingerprints of what it was computed from"
             continue
-        if step_key(Step(**entry["step"]), entry["preset"], entry["overrides"], prints, _upstream(study, {}, manifest)) != entry["key"]:
+        if (
+            step_key(Step(**entry["step"]), entry["preset"], entry["overrides"], prints, _upstream(study, {}, manifest))
+            != entry["key"]
+        ):
             moved = [words for k, words in FINGERPRINT_WORDS.items() if entry["fingerprints"].get(k) != prints[k]]
-            moved = moved or ([f"the {UPSTREAM[study]} study it reads"] if study in UPSTREAM else ["how its key is computed"])
+            moved = moved or (
+                [f"the {UPSTREAM[study]} study it reads"] if study in UPSTREAM else ["how its key is computed"]
+            )
             out[study] = f"{since}: {' and '.join(moved)} changed"
     return out
 
@@ -183,8 +225,11 @@ def other_stale(out: Path, manifest: Mapping[str, Any], prints: Mapping[str, str
             found[workspace.shown(path)] = f"{since}: it records no fingerprints of what it was computed from"
             continue
         saved = dict(re.findall(r"(code|simulator estimates) `(\w+)`", recorded.group(1)))
-        moved = [FINGERPRINT_WORDS[k] for k, named in (("code", "code"), ("estimates", "simulator estimates"))
-                 if named in saved and saved[named] != prints.get(k)]
+        moved = [
+            FINGERPRINT_WORDS[k]
+            for k, named in (("code", "code"), ("estimates", "simulator estimates"))
+            if named in saved and saved[named] != prints.get(k)
+        ]
         if moved:
             found[workspace.shown(path)] = f"{since}: {' and '.join(moved)} changed"
     return found
@@ -201,36 +246,65 @@ def check(where: Location, say: Callable[[str], None] = print) -> dict[str, str]
     prints = documents.fingerprints(_data_fingerprint(where.data_dir, where.workdir))
     notes = stale(manifest, prints)
     studies = [s for s in STUDIES if s in manifest]
-    lines = [f"reproduce --check: {len(notes)} of the {len(studies)} studies of {workspace.shown(out / MANIFEST)} are stale "
-             f"({documents.fingerprints_markdown(prints)[2:]} today)"]
+    lines = [
+        f"reproduce --check: {len(notes)} of the {len(studies)} studies of {workspace.shown(out / MANIFEST)} are stale "
+        f"({documents.fingerprints_markdown(prints)[2:]} today)"
+    ]
     for study, note in notes.items():
         files = ", ".join(workspace.shown(p) for p in _outputs(study, out) if p.exists())
         lines.append(f"  {study:<11} {note}: {files or 'no files'}")
     if notes:
-        first = manifest[next(iter(notes))]  # the flags of the run that wrote it: a step named reproduce is the whole plan's command
-        rerun = command(Step("reproduce"), first["preset"], first.get("overrides", {}), workspace.shown(out),
-                        data_dir=where.data_dir, workdir=where.workdir)
-        lines.append(f"  {workspace.shown(out / REPORT)} and {workspace.shown(out / HEADLINE)} (README's results block) gather them; "
-                     f"`{rerun}` reruns what is stale and rewrites both")
+        first = manifest[
+            next(iter(notes))
+        ]  # the flags of the run that wrote it: a step named reproduce is the whole plan's command
+        rerun = command(
+            Step("reproduce"),
+            first["preset"],
+            first.get("overrides", {}),
+            workspace.shown(out),
+            data_dir=where.data_dir,
+            workdir=where.workdir,
+        )
+        lines.append(
+            f"  {workspace.shown(out / REPORT)} and {workspace.shown(out / HEADLINE)} (README's results block) gather them; "
+            f"`{rerun}` reruns what is stale and rewrites both"
+        )
     others = other_stale(out, manifest, prints)
     if others:
-        lines.append(f"other results files in {workspace.shown(out)}, each rewritten by rerunning the command its header names:")
+        lines.append(
+            f"other results files in {workspace.shown(out)}, each rewritten by rerunning the command its header names:"
+        )
         lines += [f"  {path}: {note}" for path, note in others.items()]
     say("\n".join(lines))
     return {**notes, **others}
 
 
-def command(step: Step, preset: str, overrides: Mapping[str, Any], results: Path, checkpoint: str | None = None,
-            data_dir=None, workdir=None) -> str:
+def command(
+    step: Step,
+    preset: str,
+    overrides: Mapping[str, Any],
+    results: Path,
+    checkpoint: str | None = None,
+    data_dir=None,
+    workdir=None,
+) -> str:
     """The command that reruns `step` alone, as a user would type it (`checkpoint`: the
     checkpoint folders, comma-separated, of a study of another's checkpoints)."""
     args = [f"python -m experiments.{step.study}"]
     if step.study in CHECKPOINT_STUDIES:
         args.append(f"--checkpoint={checkpoint}")
     else:
-        args += [f"--seeds={step.seeds}"] * bool(step.seeds) + [f"--preset={preset}"] + ([f"--rows={','.join(step.rows)}"] if step.rows else [])
+        args += (
+            [f"--seeds={step.seeds}"] * bool(step.seeds)
+            + [f"--preset={preset}"]
+            + ([f"--rows={','.join(step.rows)}"] if step.rows else [])
+        )
         args += [shlex.quote(f"--set={format_override(k, v)}") for k, v in sorted(overrides.items())]
-    args += [f"--data_dir={data_dir}"] * bool(data_dir) + [f"--workdir={workdir}"] * bool(workdir) + [f"--results={results}"]
+    args += (
+        [f"--data_dir={data_dir}"] * bool(data_dir)
+        + [f"--workdir={workdir}"] * bool(workdir)
+        + [f"--results={results}"]
+    )
     return " ".join(args)
 
 
@@ -240,7 +314,12 @@ def estimate_s(step: Step, preset: str, *manifests: Mapping[str, Any]) -> float 
     entry = next((m[step.study] for m in manifests if m.get(step.study, {}).get("preset") == preset), None)
     if entry is None:
         return None
-    scale = (step.seeds or 1) / (entry["seeds"] or 1) * (len(step.rows) if step.rows else _n_rows(step.study)) / entry["rows"]
+    scale = (
+        (step.seeds or 1)
+        / (entry["seeds"] or 1)
+        * (len(step.rows) if step.rows else _n_rows(step.study))
+        / entry["rows"]
+    )
     return entry["wall_s"] * scale
 
 
@@ -272,14 +351,18 @@ def _decide_checkpoints(out: Path, rows: Sequence[str]) -> tuple[list[str], list
     have = {r["name"]: r.get("checkpoint") for r in (doc or {}).get("rows", [])}
     chosen = [r for r in rows if have.get(r)]
     if not chosen:
-        raise UserError(f"{out / 'ablation.json'}: field 'rows': the decision study needs the ablation's checkpoints of {list(rows)}; run it first")
+        raise UserError(
+            f"{out / 'ablation.json'}: field 'rows': the decision study needs the ablation's checkpoints of {list(rows)}; run it first"
+        )
     return [have[r] for r in chosen], chosen
 
 
 def _latent_checkpoint(out: Path) -> str:
     doc = _read_json(out / "properties.json")
     if not doc or not doc.get("rows"):
-        raise UserError(f"{out / 'properties.json'}: field 'rows': the latents need the property study's checkpoint; run it first")
+        raise UserError(
+            f"{out / 'properties.json'}: field 'rows': the latents need the property study's checkpoint; run it first"
+        )
     rows = {r["name"]: r["checkpoint"] for r in doc["rows"]}
     return rows.get(LATENT_ROW, doc["rows"][-1]["checkpoint"])
 
@@ -297,14 +380,20 @@ def fit_plan(plan: Sequence[Step], preset: str, data_dir, workdir, say: Callable
             continue
         if step.study == "decide":
             ablated = next((s for s in out if s.study == "ablation"), None)
-            fit = tuple(r for r in step.rows or () if ablated is not None and (ablated.rows is None or r in ablated.rows))
+            fit = tuple(
+                r for r in step.rows or () if ablated is not None and (ablated.rows is None or r in ablated.rows)
+            )
             if not fit:
-                say("  decide      skip  (it reads the ablation's checkpoints of its rows, which this data does not train)")
+                say(
+                    "  decide      skip  (it reads the ablation's checkpoints of its rows, which this data does not train)"
+                )
                 continue
             out.append(dataclasses.replace(step, rows=fit))
             continue
         if step.study in PROTOCOL and PROTOCOL[step.study][0] not in roles:
-            say(f"  {step.study:<11} skip  (the paper's protocol: it needs {PROTOCOL[step.study][1]}, and the data has none)")
+            say(
+                f"  {step.study:<11} skip  (the paper's protocol: it needs {PROTOCOL[step.study][1]}, and the data has none)"
+            )
             continue
         rows = getattr(STUDIES[step.study], "ROWS", None)
         if rows is None:
@@ -314,10 +403,14 @@ def fit_plan(plan: Sequence[Step], preset: str, data_dir, workdir, say: Callable
         fed, lacking = runner.split_by_inputs(named, have)
         fit = tuple(r.name for r in fed)
         if not fit:
-            say(f"  {step.study:<11} skip  (its rows need {', '.join(lacking)}, which the data lacks: it has {lay.describe()})")
+            say(
+                f"  {step.study:<11} skip  (its rows need {', '.join(lacking)}, which the data lacks: it has {lay.describe()})"
+            )
             continue
         if len(fit) < len(named):
-            say(f"  {step.study:<11} {len(named) - len(fit)} of its {len(named)} rows left out (they need {', '.join(lacking)}, which the data lacks)")
+            say(
+                f"  {step.study:<11} {len(named) - len(fit)} of its {len(named)} rows left out (they need {', '.join(lacking)}, which the data lacks)"
+            )
         out.append(step if len(fit) == len(named) else dataclasses.replace(step, rows=fit))
     return out
 
@@ -350,7 +443,13 @@ def run(
     keys: dict[str, str] = {}
     for step in plan:  # a study that reads another's results has that study's key in its own
         keys[step.study] = step_key(step, preset, overrides, prints, _upstream(step.study, keys, manifest))
-    todo = [s for s in plan if force or manifest.get(s.study, {}).get("key") != keys[s.study] or not all(p.exists() for p in _outputs(s.study, out))]
+    todo = [
+        s
+        for s in plan
+        if force
+        or manifest.get(s.study, {}).get("key") != keys[s.study]
+        or not all(p.exists() for p in _outputs(s.study, out))
+    ]
 
     lines = [f"reproduce: preset {preset}, results in {out}"]
     published = _read_json(PUBLISHED_MANIFEST) or {}
@@ -358,7 +457,9 @@ def run(
         if step in todo:
             lines.append(f"  {step.study:<11} run   ~{_minutes(estimate_s(step, preset, manifest, published))}")
         else:
-            lines.append(f"  {step.study:<11} skip  (up to date: ran {manifest[step.study]['finished']}, {_minutes(manifest[step.study]['wall_s'])})")
+            lines.append(
+                f"  {step.study:<11} skip  (up to date: ran {manifest[step.study]['finished']}, {_minutes(manifest[step.study]['wall_s'])})"
+            )
     total = [estimate_s(s, preset, manifest, published) for s in todo]
     known = sum(t for t in total if t is not None)
     data_note = ""
@@ -373,7 +474,9 @@ def run(
             f"its own, so the next one has an estimate{data_note}"
         )
     else:
-        lines.append(f"  estimated time: {_minutes(known)}{data_note} (scaled from an earlier run's wall times; other machines differ)")
+        lines.append(
+            f"  estimated time: {_minutes(known)}{data_note} (scaled from an earlier run's wall times; other machines differ)"
+        )
     say("\n".join(lines))
 
     t_all = time.perf_counter()
@@ -398,13 +501,24 @@ def run(
             doc = STUDIES[step.study].run(**seeds, preset=preset, rows=step.rows, overrides=overrides, **kwargs)
         wall = time.perf_counter() - t0
         manifest[step.study] = {
-            "key": keys[step.study], "wall_s": wall, "command": cmd,
-            "finished": documents.utc_now(), "commit": documents.git_commit(),
+            "key": keys[step.study],
+            "wall_s": wall,
+            "command": cmd,
+            "finished": documents.utc_now(),
+            "commit": documents.git_commit(),
             # what the key was computed from: `stale` recomputes it under later fingerprints
-            "step": _as_json(dataclasses.asdict(step)), "overrides": _as_json(overrides), "fingerprints": prints,
+            "step": _as_json(dataclasses.asdict(step)),
+            "overrides": _as_json(overrides),
+            "fingerprints": prints,
             # what an estimate of a later run scales from: the study's, and each training row's (`plan.rates`)
-            "preset": preset, "seeds": step.seeds, "rows": len(step.rows) if step.rows else _n_rows(step.study),
-            **({"rates": training_rates(doc), "machine": documents.machine_line(doc["machine"])} if doc and step.seeds else {}),
+            "preset": preset,
+            "seeds": step.seeds,
+            "rows": len(step.rows) if step.rows else _n_rows(step.study),
+            **(
+                {"rates": training_rates(doc), "machine": documents.machine_line(doc["machine"])}
+                if doc and step.seeds
+                else {}
+            ),
         }
         documents.write_json(manifest_path, manifest)
         say(f"reproduce: {step.study} done in {_minutes(wall)}")
@@ -421,7 +535,17 @@ def run(
 
 def versions() -> dict[str, str]:
     out = {}
-    for name in ("jax", "jaxlib", "flax", "optax", "orbax-checkpoint", "numpy", "scipy", "opencv-contrib-python-headless", "scikit-learn"):
+    for name in (
+        "jax",
+        "jaxlib",
+        "flax",
+        "optax",
+        "orbax-checkpoint",
+        "numpy",
+        "scipy",
+        "opencv-contrib-python-headless",
+        "scikit-learn",
+    ):
         try:
             out[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
@@ -437,8 +561,15 @@ def _demote(markdown: str) -> str:
     return "\n".join("#" + line if line.startswith("#") else line for line in lines).strip() + "\n"
 
 
-def write_report(path: Path, manifest: Mapping[str, Any], preset: str, prints: Mapping[str, str | None], command_line: str,
-                 run_s: float, n_run: int) -> Path:
+def write_report(
+    path: Path,
+    manifest: Mapping[str, Any],
+    preset: str,
+    prints: Mapping[str, str | None],
+    command_line: str,
+    run_s: float,
+    n_run: int,
+) -> Path:
     """REPORT.md over every study the manifest holds (this call's and earlier calls'), in `STUDIES`
     order, each stale one (`stale` under today's fingerprints, `prints`) saying so."""
     out = path.parent
@@ -462,8 +593,15 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, prints: M
             seeds = len(doc["seeds"]) if study != "latents" and doc.get("seeds") else "1 (best of the property study's)"
             claims = f"{held} of {evaluated}" if not presets.install_check(preset) else "not counted (install check)"
         finished = manifest[study]["finished"] + (f"; **{notes[study]}**" if study in notes else "")
-        summary.append([f"[{title(study, recorded)}](#{_anchor(title(study, recorded))})", seeds, *([] if recorded else [claims]),
-                        _minutes(manifest[study]["wall_s"]), finished])
+        summary.append(
+            [
+                f"[{title(study, recorded)}](#{_anchor(title(study, recorded))})",
+                seeds,
+                *([] if recorded else [claims]),
+                _minutes(manifest[study]["wall_s"]),
+                finished,
+            ]
+        )
     if recorded:
         heading = documents.title(first, f"Report: every study on the {preset} preset")
         data_note, numbers = "feature extraction, done once, is", documents.RECORDED_NOTE
@@ -472,8 +610,10 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, prints: M
         if presets.install_check(preset):
             heading += f"\n\n> {presets.INSTALL_CHECK_NOTE}"
         data_note = "data simulation and feature extraction, done once, are"
-        numbers = ("The simulator is the same for every study and was never tuned to a table: differences from the paper "
-                   "are findings.")
+        numbers = (
+            "The simulator is the same for every study and was never tuned to a table: differences from the paper "
+            "are findings."
+        )
     lines = [
         heading,
         "",
@@ -482,14 +622,17 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, prints: M
         f"- machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}, JAX on {m['jax_backend']} ({len(m['devices'])} devices)",
         f"- versions: {', '.join(f'{k} {v}' for k, v in versions().items())}",
         f"- code: fabricjax {fabricjax.__version__}, {documents.git_commit()}",
-        documents.fingerprints_markdown(prints) + " (today's; `python -m experiments.reproduce --check` lists the studies they do not match)",
+        documents.fingerprints_markdown(prints)
+        + " (today's; `python -m experiments.reproduce --check` lists the studies they do not match)",
         f"- wall time of the studies: {_minutes(total)} in all (each below; {data_note} in the first study's)",
         "",
         f"Every number below comes from the study's results file in this folder, written by the run named beside it. {numbers}",
         "",
         "## Summary",
         "",
-        documents.markdown_table(["Study", "Seeds", *([] if recorded else ["Paper's claims reproduced"]), "Wall time", "Finished"], summary),
+        documents.markdown_table(
+            ["Study", "Seeds", *([] if recorded else ["Paper's claims reproduced"]), "Wall time", "Finished"], summary
+        ),
         "",
     ]
     if not recorded:
@@ -502,14 +645,28 @@ def write_report(path: Path, manifest: Mapping[str, Any], preset: str, prints: M
             "",
             f"Wall time {_minutes(e['wall_s'])}, finished {e['finished']}. Rerun alone: `{e['command']}`",
             "",
-            *([f"> **{notes[study][0].upper() + notes[study][1:]}**: these are not today's numbers; `python -m experiments.reproduce` reruns it.", ""]
-              if study in notes else []),
+            *(
+                [
+                    f"> **{notes[study][0].upper() + notes[study][1:]}**: these are not today's numbers; `python -m experiments.reproduce` reruns it.",
+                    "",
+                ]
+                if study in notes
+                else []
+            ),
             _demote(md.read_text()) if md.exists() else f"({md.name} is missing)\n",
         ]
         figures = (docs[study] or {}).get("figures", [])
-        lines += [f"![{f}]({f})\n" for f in figures if (out / f).exists() and f"({f})" not in (md.read_text() if md.exists() else "")]
+        lines += [
+            f"![{f}]({f})\n"
+            for f in figures
+            if (out / f).exists() and f"({f})" not in (md.read_text() if md.exists() else "")
+        ]
         if study == "probe" and docs["probe"] and docs.get("ablation"):
-            lines += ["### The probe beside the model, row by row", "", probe.beside_ablation(docs["probe"], docs["ablation"])]
+            lines += [
+                "### The probe beside the model, row by row",
+                "",
+                probe.beside_ablation(docs["probe"], docs["ablation"]),
+            ]
     return documents.write_text(path, "\n".join(lines))
 
 
@@ -518,9 +675,9 @@ def _anchor(title: str) -> str:
     return "".join(c for c in title.lower().replace(" ", "-") if c.isalnum() or c in "-_")
 
 
-
-def headline(out: Path, manifest: Mapping[str, Any], preset: str, command_line: str | None,
-             prints: Mapping[str, str | None]) -> dict[str, Any] | None:
+def headline(
+    out: Path, manifest: Mapping[str, Any], preset: str, command_line: str | None, prints: Mapping[str, str | None]
+) -> dict[str, Any] | None:
     """README's results block as data, from the same results files as REPORT.md: the ablation's
     rows (the paper's rows on simulated data, every row on recorded data) beside the paper and
     the linear probe of the same inputs, each seeded study's checklist count, the stale studies
@@ -538,22 +695,36 @@ def headline(out: Path, manifest: Mapping[str, Any], preset: str, command_line: 
             continue  # our fusion variants: in REPORT.md, not the headline
         p = probe.row_for(r["modalities"], probe_rows, r.get("config", {}).get("image_reference"))
         probe_test = None if p is None or p["accuracy"].get("test") is None else 100 * p["accuracy"]["test"]
-        rows.append({
-            "inputs": r["display_name"],
-            "ours": stats.format_mean_sd(r["accuracy"]["test"]["fabric"]) + findings.collapse_note(r["predictions"]["test"]["fabric"]),
-            "paper": None if recorded else f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}",
-            "probe": None if probe_test is None else f"{probe_test:.2f}" + findings.collapse_note(p.get("predictions", {}).get("test", [])),
-        })
+        rows.append(
+            {
+                "inputs": r["display_name"],
+                "ours": stats.format_mean_sd(r["accuracy"]["test"]["fabric"])
+                + findings.collapse_note(r["predictions"]["test"]["fabric"]),
+                "paper": None if recorded else f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}",
+                "probe": None
+                if probe_test is None
+                else f"{probe_test:.2f}" + findings.collapse_note(p.get("predictions", {}).get("test", [])),
+            }
+        )
     claims = {}
     for study, doc in docs.items():
         if doc and study not in UNSEEDED and study != "decide" and doc.get("findings") and not recorded:
             held, evaluated = findings.count([findings.Finding.from_json(f) for f in doc["findings"]])
-            claims[title(study)] = "not counted (install check)" if presets.install_check(preset) else f"{held} of {evaluated}"
+            claims[title(study)] = (
+                "not counted (install check)" if presets.install_check(preset) else f"{held} of {evaluated}"
+            )
     m = abl["machine"]
     return {
-        "command": command_line, "preset": preset, "recorded": recorded, "date": documents.utc_now(), "code": documents.git_commit(),
+        "command": command_line,
+        "preset": preset,
+        "recorded": recorded,
+        "date": documents.utc_now(),
+        "code": documents.git_commit(),
         "machine": documents.machine_line(m),
-        "wall_s": sum(e["wall_s"] for s, e in manifest.items() if s in STUDIES), "seeds": len(abl["seeds"]), "rows": rows, "claims": claims,
+        "wall_s": sum(e["wall_s"] for s, e in manifest.items() if s in STUDIES),
+        "seeds": len(abl["seeds"]),
+        "rows": rows,
+        "claims": claims,
         "stale": {title(s, recorded): note for s, note in stale(manifest, prints).items()},
         "other_stale": len(other_stale(out, manifest, prints)),
     }
@@ -570,19 +741,29 @@ def readme_block(head: Mapping[str, Any], results: str = "results") -> str:
         "",
     ]
     paper = not head["recorded"]
-    header = ["Inputs", f"Ours, test [%] ({head['seeds']} seeds)", *(["Paper [%]"] if paper else []), "Linear probe, test [%]"]
+    header = [
+        "Inputs",
+        f"Ours, test [%] ({head['seeds']} seeds)",
+        *(["Paper [%]"] if paper else []),
+        "Linear probe, test [%]",
+    ]
     body = [[r["inputs"], r["ours"], *([r["paper"]] if paper else []), r["probe"] or "–"] for r in head["rows"]]
     lines.append(documents.markdown_table(header, body))
     if head["claims"]:
         lines.append("The paper's claims reproduced: " + "; ".join(f"{k} {v}" for k, v in head["claims"].items()) + ".")
         lines.append("")
     if head.get("stale"):  # a headline written before it recorded stale studies has none
-        lines.append("**Stale**, not today's numbers: " + "; ".join(f"{k} ({v})" for k, v in head["stale"].items())
-                     + " (`python -m experiments.reproduce --check` lists their files).")
+        lines.append(
+            "**Stale**, not today's numbers: "
+            + "; ".join(f"{k} ({v})" for k, v in head["stale"].items())
+            + " (`python -m experiments.reproduce --check` lists their files)."
+        )
         lines.append("")
     if head.get("other_stale"):
-        lines.append(f"{head['other_stale']} other results files in `{results}/` (studies run alone, sweeps, benchmarks) predate today's "
-                     "code or estimates: `python -m experiments.reproduce --check --results=results` names each.")
+        lines.append(
+            f"{head['other_stale']} other results files in `{results}/` (studies run alone, sweeps, benchmarks) predate today's "
+            "code or estimates: `python -m experiments.reproduce --check --results=results` names each."
+        )
         lines.append("")
     lines.append(README_END)
     return "\n".join(lines)

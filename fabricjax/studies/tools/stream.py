@@ -86,10 +86,14 @@ def run(
     if checkpoint_dir is not None:
         graphdef, params, config, temperature = live.restore_model(checkpoint_dir)
     else:
-        graphdef, params, config, checkpoint_dir = quick_model(preset, overrides, workdir=where.workdir, data_dir=where.data_dir)
+        graphdef, params, config, checkpoint_dir = quick_model(
+            preset, overrides, workdir=where.workdir, data_dir=where.data_dir
+        )
         temperature = confidence.load_temperature(checkpoint_dir, 0) or 1.0
     if archive_path is None:
-        folder = where.data_dir or sim.ensure_dataset(config.preset, where.workdir, streams=("audio", "proprio"), progress=False)
+        folder = where.data_dir or sim.ensure_dataset(
+            config.preset, where.workdir, streams=("audio", "proprio"), progress=False
+        )
         archive_path = first_test_trial(folder, where.workdir)
     trial = archive.read_archive(archive_path, images=watch)
     streamer = live.Streamer(graphdef, params, config, temperature, layout=archive.layout(trial.meta))
@@ -97,9 +101,11 @@ def run(
     if watch:
         rec = trial_view.open_recording(view_save)
         viewer = trial_view.TrialView(rec, label, trial.meta)
-    out(f"{archive_path}: {live.class_name(label, trial.meta)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
+    out(
+        f"{archive_path}: {live.class_name(label, trial.meta)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
         f"N={streamer.n} steps ({streamer.n / archive.STEP_RATE:.2f} s), {'+'.join(config.modalities)}, "
-        f"temperature {temperature:.3f}{'' if temperature != 1.0 else ' (none fitted: python -m experiments.decide)'}")
+        f"temperature {temperature:.3f}{'' if temperature != 1.0 else ' (none fitted: python -m experiments.decide)'}"
+    )
 
     def show(r: live.StepResult) -> None:
         if print_every and (r.step % print_every == 0 or r.step == trial.n_steps - 1):
@@ -114,8 +120,11 @@ def run(
     first, step, d = summary["time_to_first_correct_s"], summary["first_correct_step"], summary["decision"]
     out(
         f"sequential decision (posterior {confidence.DECISION_THRESHOLD:g}): "
-        + ("none before the trial ended" if d is None else
-           f"{d['fabric']} ({'correct' if d['correct'] else 'wrong'}) at {d['time_s']:.2f} s (step {d['step']}, {d['windows']} windows, posterior {d['posterior']:.3f})")
+        + (
+            "none before the trial ended"
+            if d is None
+            else f"{d['fabric']} ({'correct' if d['correct'] else 'wrong'}) at {d['time_s']:.2f} s (step {d['step']}, {d['windows']} windows, posterior {d['posterior']:.3f})"
+        )
     )
     out(
         f"first correct decision: {'never' if first is None else f'{first:.2f} s (step {step})'}; "
@@ -124,7 +133,13 @@ def run(
         + (f"; {summary['late_steps']} of {summary['steps']} results came after their 20 ms slot" if realtime else "")
     )
     doc = {
-        **documents.header("stream", command=where.command, archive=str(archive_path), checkpoint=str(checkpoint_dir), config=config.to_json()),
+        **documents.header(
+            "stream",
+            command=where.command,
+            archive=str(archive_path),
+            checkpoint=str(checkpoint_dir),
+            config=config.to_json(),
+        ),
         **summary,
     }
     return documents.write(where.results_dir(), doc, None)

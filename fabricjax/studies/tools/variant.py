@@ -52,8 +52,10 @@ def read(path: Path | str) -> dict[str, Any]:
 
 def _same(field: str, baseline_value: Any, variant_value: Any, variant_path: Path) -> None:
     if baseline_value != variant_value:
-        raise UserError(f"{variant_path}: field '{field}' is {variant_value!r} against the baseline's {baseline_value!r}: "
-                        "a variant must be the same study on the same data and seeds")
+        raise UserError(
+            f"{variant_path}: field '{field}' is {variant_value!r} against the baseline's {baseline_value!r}: "
+            "a variant must be the same study on the same data and seeds"
+        )
 
 
 def config_changes(baseline_rows: Sequence[dict], variant_rows: Sequence[dict]) -> dict[str, list]:
@@ -71,15 +73,21 @@ def config_changes(baseline_rows: Sequence[dict], variant_rows: Sequence[dict]) 
 def compare_row(b: dict[str, Any], v: dict[str, Any]) -> dict[str, Any]:
     """One row's comparison: per split, both runs' mean and SD, the mean difference and the SD of
     the per-seed differences, and the paired Wilcoxon test; the training wall times."""
-    out: dict[str, Any] = {"name": b["name"], "display_name": b["display_name"],
-                           "baseline_wall_s": b.get("wall_s"), "variant_wall_s": v.get("wall_s")}
+    out: dict[str, Any] = {
+        "name": b["name"],
+        "display_name": b["display_name"],
+        "baseline_wall_s": b.get("wall_s"),
+        "variant_wall_s": v.get("wall_s"),
+    }
     for split in SPLITS:
         base = np.asarray(b["accuracy"][split][HEAD], np.float64)
         var = np.asarray(v["accuracy"][split][HEAD], np.float64)
         diff_mean, diff_sd = stats.mean_sd(var - base)
         out[split] = {
-            "baseline": stats.mean_sd(base), "variant": stats.mean_sd(var),
-            "difference": diff_mean, "difference_sd": diff_sd,
+            "baseline": stats.mean_sd(base),
+            "variant": stats.mean_sd(var),
+            "difference": diff_mean,
+            "difference_sd": diff_sd,
             "wilcoxon": documents.wilcoxon_doc(stats.wilcoxon(var, base, pairing=PAIRING)),
         }
     return out
@@ -99,12 +107,26 @@ def compare(baseline_path: Path | str, variant_path: Path | str, *, command: str
         raise UserError(f"{variant_path}: field 'rows' shares no row with {baseline_path}")
     changes = config_changes([b for b, _ in pairs], [v for _, v in pairs])
     if not changes:
-        raise UserError(f"{variant_path}: field 'rows' trains every compared row with the baseline's config: nothing is varied")
+        raise UserError(
+            f"{variant_path}: field 'rows' trains every compared row with the baseline's config: nothing is varied"
+        )
     header = documents.header(STUDY, command=command, seeds=variant["seeds"], preset=variant["preset"])
     return {
-        **header, "of_study": variant["study"], "dataset": variant["dataset"],
-        "baseline": {"file": str(baseline_path), "code": baseline.get("code"), "date": baseline.get("date"), "command": baseline.get("command")},
-        "variant": {"file": str(variant_path), "code": variant.get("code"), "date": variant.get("date"), "command": variant.get("command")},
+        **header,
+        "of_study": variant["study"],
+        "dataset": variant["dataset"],
+        "baseline": {
+            "file": str(baseline_path),
+            "code": baseline.get("code"),
+            "date": baseline.get("date"),
+            "command": baseline.get("command"),
+        },
+        "variant": {
+            "file": str(variant_path),
+            "code": variant.get("code"),
+            "date": variant.get("date"),
+            "command": variant.get("command"),
+        },
         "changes": changes,
         "rows": [compare_row(b, v) for b, v in pairs],
         "rows_not_compared": sorted(set(by_name) ^ {r["name"] for r in variant["rows"]}),
@@ -121,33 +143,66 @@ def _seconds(s: float | None) -> str:
 
 def markdown(doc: dict[str, Any]) -> str:
     changed = ", ".join(f"`{f}`: {old!r} → {new!r}" for f, (old, new) in doc["changes"].items())
-    lines = [f"# {doc['of_study']}: a variant against its baseline", "", documents.header_markdown(doc).rstrip("\n"),
-             f"- baseline: `{doc['baseline']['file']}` ({doc['baseline']['code']}, {doc['baseline']['date']}): "
-             f"`{doc['baseline']['command']}`",
-             f"- variant: `{doc['variant']['file']}` ({doc['variant']['code']}, {doc['variant']['date']}): "
-             f"`{doc['variant']['command']}`",
-             f"- changed: {changed}",
-             f"- difference: variant − baseline in pp, mean ± SD over seeds of the per-seed differences (the same seed in both runs); "
-             "p: paired Wilcoxon signed-rank test over seeds, two-sided, exact "
-             f"(smallest attainable p with {len(doc['seeds'])} seeds: {stats.min_exact_p(len(doc['seeds'])):.4g}); "
-             "train [s]: each row's multi-seed training, compilation included, as each run measured it", ""]
+    lines = [
+        f"# {doc['of_study']}: a variant against its baseline",
+        "",
+        documents.header_markdown(doc).rstrip("\n"),
+        f"- baseline: `{doc['baseline']['file']}` ({doc['baseline']['code']}, {doc['baseline']['date']}): "
+        f"`{doc['baseline']['command']}`",
+        f"- variant: `{doc['variant']['file']}` ({doc['variant']['code']}, {doc['variant']['date']}): "
+        f"`{doc['variant']['command']}`",
+        f"- changed: {changed}",
+        f"- difference: variant − baseline in pp, mean ± SD over seeds of the per-seed differences (the same seed in both runs); "
+        "p: paired Wilcoxon signed-rank test over seeds, two-sided, exact "
+        f"(smallest attainable p with {len(doc['seeds'])} seeds: {stats.min_exact_p(len(doc['seeds'])):.4g}); "
+        "train [s]: each row's multi-seed training, compilation included, as each run measured it",
+        "",
+    ]
     table = []
     for r in doc["rows"]:
         val, test = r["val"], r["test"]
-        table.append([r["display_name"], _pct(test["baseline"]), _pct(test["variant"]),
-                      f"{100 * test['difference']:+.2f} ± {100 * test['difference_sd']:.2f}", f"{test['wilcoxon']['p_value']:.4g}",
-                      f"{100 * val['difference']:+.2f} ± {100 * val['difference_sd']:.2f}",
-                      _seconds(r["baseline_wall_s"]), _seconds(r["variant_wall_s"])])
-    lines.append(documents.markdown_table(
-        ["row", "baseline test [%]", "variant test [%]", "test difference [pp]", "p", "val difference [pp]",
-         "baseline train [s]", "variant train [s]"], table))
-    agree = [r["display_name"] for r in doc["rows"] if r["test"]["wilcoxon"]["n_nonzero"] == len(doc["seeds"])
-             and r["test"]["wilcoxon"]["p_value"] <= r["test"]["wilcoxon"]["min_attainable_p"]]
+        table.append(
+            [
+                r["display_name"],
+                _pct(test["baseline"]),
+                _pct(test["variant"]),
+                f"{100 * test['difference']:+.2f} ± {100 * test['difference_sd']:.2f}",
+                f"{test['wilcoxon']['p_value']:.4g}",
+                f"{100 * val['difference']:+.2f} ± {100 * val['difference_sd']:.2f}",
+                _seconds(r["baseline_wall_s"]),
+                _seconds(r["variant_wall_s"]),
+            ]
+        )
+    lines.append(
+        documents.markdown_table(
+            [
+                "row",
+                "baseline test [%]",
+                "variant test [%]",
+                "test difference [pp]",
+                "p",
+                "val difference [pp]",
+                "baseline train [s]",
+                "variant train [s]",
+            ],
+            table,
+        )
+    )
+    agree = [
+        r["display_name"]
+        for r in doc["rows"]
+        if r["test"]["wilcoxon"]["n_nonzero"] == len(doc["seeds"])
+        and r["test"]["wilcoxon"]["p_value"] <= r["test"]["wilcoxon"]["min_attainable_p"]
+    ]
     same = [r["display_name"] for r in doc["rows"] if r["test"]["wilcoxon"]["n_nonzero"] == 0]
     mean_abs = np.mean([abs(r["test"]["difference"]) for r in doc["rows"]])
-    lines.append(f"Test accuracy: mean absolute difference over the {len(doc['rows'])} rows {100 * mean_abs:.2f} pp; "
-                 f"every seed moved the same way (p at its floor) in {len(agree)} rows" + (f" ({', '.join(agree)})" if agree else "")
-                 + f"; no seed moved in {len(same)} rows" + (f" ({', '.join(same)})." if same else "."))
+    lines.append(
+        f"Test accuracy: mean absolute difference over the {len(doc['rows'])} rows {100 * mean_abs:.2f} pp; "
+        f"every seed moved the same way (p at its floor) in {len(agree)} rows"
+        + (f" ({', '.join(agree)})" if agree else "")
+        + f"; no seed moved in {len(same)} rows"
+        + (f" ({', '.join(same)})." if same else ".")
+    )
     if doc["rows_not_compared"]:
         lines.append(f"\nRows in only one of the files, not compared: {', '.join(doc['rows_not_compared'])}.")
     return "\n".join(lines) + "\n"
