@@ -2,8 +2,8 @@
 `data.load_sequences`) a block of steps at a time, for inputs larger than memory.
 
 `train.train_and_evaluate` places a set on the devices and runs whole epochs there
-(`Trainer.run`) when it fits. When it does not (`Config.input_source`: "disk", or "auto" and the
-loaded inputs are memory-mapped files) it runs the same epochs from here:
+(`Trainer.run`) when it fits. When it does not (`placement.reads_from_host`: `Config.input_source`
+"disk", or "auto" and the loaded inputs are memory-mapped files) it runs the same epochs from here:
 
   * each epoch's order is `Trainer.epoch_order`'s, computed on the devices from the same key;
   * the host gathers each block of steps' sequences for every seed (each seed reads its own
@@ -29,21 +29,11 @@ import numpy as np
 from jax.sharding import NamedSharding
 
 from fabricjax import host_arrays, sharding
-from fabricjax.config import Config
 from fabricjax.inputs import training_input
 
 # What one placed block of training steps (all seeds' minibatches) or of evaluation minibatches
 # holds at most, unless one step's minibatches alone hold more.
 BLOCK_BYTES = 64 << 20
-
-
-def reads_from_host(config: Config, train_set) -> bool:
-    """Whether a run of `config` on `train_set` is fed from the host: "disk", or "auto" where the
-    loaded inputs are memory-mapped files (`data.load_sequences` made them so: larger than memory)."""
-    if config.input_source != "auto":
-        return config.input_source == "disk"
-    inputs = train_set["inputs"] if isinstance(train_set, Mapping) else train_set.inputs
-    return any(isinstance(inputs[m], np.memmap) for m in config.modalities)
 
 
 def sequence_bytes(inputs: Mapping[str, np.ndarray]) -> int:
@@ -82,7 +72,7 @@ def _laid_out(inputs: Mapping[str, np.ndarray], rows: np.ndarray, length: int | 
 
 class HostFed:
     """`Trainer.run` and `Trainer.finish` with the sets on the host: the same signatures, run a
-    block at a time (see the module docstring). `sets` are `train.select`ed host sets."""
+    block at a time (see the module docstring). `sets` are `placement.select`ed host sets."""
 
     def __init__(self, trainer, per_seed: NamedSharding):
         self.trainer, self.per_seed = trainer, per_seed

@@ -1,27 +1,16 @@
-"""Pure, jitted multi-seed training (purejaxrl style), with one entry point: `train_and_evaluate`.
+"""Pure, jitted multi-seed training with one entry point, `train_and_evaluate`: the optimiser, the
+`Trainer` (a run as pure functions of one seed's state), its compiled programs and the epoch loop.
 
-A run is three pure functions of one seed's state (`Trainer.init(key)`, `Trainer.run(state, data,
-n_epochs)`, `Trainer.finish(state, sets)`), each `jax.jit(jax.vmap(...))`ed over the seeds. The
-data lives on the device; one epoch is a `lax.scan` over shuffled minibatches and the epoch loop
-is a `lax.scan` too, so epochs run without the host, which reads back only each chunk's curves
-(one chunk for the whole run unless checkpoints or curve files split the scan, see below). Seeds
-are `jax.vmap`ped and stay together; each minibatch's samples are split over the devices, those of
-every process in a multi-process run (`fabricjax.sharding`). Parameters are
-plain pytrees (`nnx.to_pure_dict`); the module is rebuilt with `nnx.merge` inside the loss.
-
-Optimiser: AdamW (decoupled weight decay on weight matrices only, not on biases, LayerNorm scales)
-after a global-norm clip at 1.0; the learning rate rises linearly over `warmup_steps` (the first updates
-stay small while Adam's moment estimates settle) and is scaled by a
-factor over the whole run (`decay_schedule`): none for `lr_schedule="constant"`, a cosine from 1
-to 0 for `"cosine"`. The whole schedule is the optax chain of `make_optimizer`. Best-validation selection keeps the parameters of the epoch with the highest
-validation accuracy (the earliest on ties) inside the scan with a tree select, so it costs no host
-sync.
+`Trainer.init`, `Trainer.run` and `Trainer.finish` are each `jax.jit(jax.vmap(...))`ed over the
+seeds, which stay together while each minibatch's samples are split over the devices
+(`fabricjax.sharding`). An epoch and the epochs of a chunk are `lax.scan`s, so training runs
+without the host, which reads back each chunk's curves. Where the inputs live (on the devices,
+kept for the next run, or on the host for `fabricjax.feed`) is `fabricjax.placement`'s.
 
 A data set is a mapping {"inputs": {modality: (n, N, ...)}, "labels": {head: int (n,)}} (objects
 with `.inputs` / `.labels` work too); label -1 means unknown and is masked out of losses and
-accuracies. Checkpointing (`train_and_evaluate(..., workdir=...)`) splits the epoch scan into
-chunks between saves, training curves (`log_dir=...`, `fabricjax.curves`) into single epochs;
-every epoch's randomness is `fold_in(key, epoch)`, so a resumed run is the uninterrupted run.
+accuracies. Every epoch's randomness is `fold_in(key, epoch)`, so a run resumed from a checkpoint
+is the uninterrupted run.
 """
 
 from __future__ import annotations
@@ -38,26 +27,13 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 from flax import nnx
-from jax.sharding import Mesh, NamedSharding
+from jax.sharding import Mesh
 
-from fabricjax import checkpoint, curves, feed, host_arrays, memo, runtime, sharding
+from fabricjax import checkpoint, curves, feed, runtime, sharding
 from fabricjax.config import Config
-from fabricjax.inputs import feature_shapes, input_statistics, training_input, with_input_statistics
-from fabricjax.model import FabricNet, head_sizes
-
-
-def select(config: Config, ds) -> dict[str, dict[str, np.ndarray]]:
-    """The arrays of `ds` this config uses, on the host: its modalities and its heads' labels
-    (int32)."""
-    inputs = ds["inputs"] if isinstance(ds, Mapping) else ds.inputs
-    labels = ds["labels"] if isinstance(ds, Mapping) else ds.labels
-    missing = [m for m in config.modalities if m not in inputs] + [h for h in head_sizes(config) if h not in labels]
-    if missing:
-        raise ValueError(f"data set lacks {missing} (has inputs {sorted(inputs)}, labels {sorted(labels)})")
-    return {
-        "inputs": {m: np.asarray(inputs[m]) for m in config.modalities},
-        "labels": {h: np.asarray(labels[h], np.int32) for h in head_sizes(config)},
-    }
+from fabricjax.inputs import feature_shapes, input_statistics, with_input_statistics
+from fabricjax.model import FabricNet
+from fabricjax.placement import place_sets, reads_from_host, select
 
 
 def warmup_schedule(config: Config) -> optax.ScalarOrSchedule:
@@ -89,8 +65,8 @@ def make_optimizer(config: Config, total_steps: int) -> optax.GradientTransforma
     matrices only), then the decay over `total_steps` (`decay_schedule`) scaling AdamW's step.
 
     AdamW is `optax.adamw`'s own chain, with the clip and Adam's moments on all parameters as one
-    flat vector (`optax.flatten`): per parameter array they were a few hundred small kernels a
-    step, which XLA compiled one by one (about a second of every row's compilation on CPU)."""
+    flat vector (`optax.flatten`): a few kernels a step instead of some for every parameter array,
+    each of which XLA would compile on its own."""
     decay_mask = lambda params: jax.tree.map(lambda p: p.ndim > 1, params)  # noqa: E731
     chain = [
         optax.flatten(optax.chain(optax.clip_by_global_norm(1.0), optax.scale_by_adam())),
@@ -332,92 +308,6 @@ def make_trainer(
     return Trainer(config, shapes, graphdef, make_optimizer(config, steps), steps, mesh)
 
 
-def _buffer_bytes(placed: jax.Array) -> int:
-    """Memory `placed` holds: each distinct buffer once (a replicated placement on CPU devices
-    without a copy shares one, `host_arrays`)."""
-    return sum({s.data.unsafe_buffer_pointer(): s.data.nbytes for s in placed.addressable_shards}.values())
-
-
-# Inputs as runs read them (padded, in training's layout, on the devices), kept from one run to the
-# next: the rows of a study share their arrays (`memo`), within `_placement_budget`.
-_PLACED = memo.ByArray(max_entries=12, size=lambda placed: _buffer_bytes(placed[1]))
-
-
-def _placement_budget(to: NamedSharding) -> int:
-    """What kept inputs may hold, every device's copy counted: a quarter of the memory they live
-    in, the host's for CPU devices, else a quarter of each accelerator's."""
-    limits = [(d.memory_stats() or {}).get("bytes_limit") for d in to.addressable_devices]
-    if None in limits:
-        return memo.memory_budget(0.25)
-    return min(limits) // 4 * len(limits)
-
-
-def _placed(a: np.ndarray, modality: str, multiple: int | None, to: NamedSharding) -> tuple[str, jax.Array]:
-    """(the input's name in training's layout, the array on `to`'s devices), padded to whole
-    minibatches of `multiple` where one is given (evaluation sets)."""
-
-    def make():
-        name, array = training_input(
-            modality, a, None if multiple is None else host_arrays.whole_minibatches(len(a), multiple)
-        )
-        return name, sharding.put(array, to)
-
-    # `a` itself, placed without a copy (`host_arrays`), is not kept: placing it again costs
-    # nothing, and the kept value would keep `a` alive past its data set
-    _PLACED.max_bytes = _placement_budget(to)
-    return _PLACED.get(
-        a, (modality, multiple, to), make, keep=lambda placed: not host_arrays.placed_in_place(placed[1], a)
-    )
-
-
-def prepare(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None, to: NamedSharding):
-    """(the run's data on `to`'s devices, evaluation set sizes): each set's inputs in training's
-    layout (`inputs.training_input`), evaluation sets padded to whole minibatches. A run fed from
-    the host (`feed.reads_from_host`) gets its sets as they are, on the host. Built on the
-    host with NumPy (copies of a camera row's GB of frames compile nothing that way), and large
-    inputs are kept on the devices for the next run on the same arrays (`_placed`)."""
-    sets = {k: select(config, v) for k, v in {"train": train_set, "val": val_set, **(eval_sets or {})}.items()}
-    sizes = {k: len(jax.tree.leaves(v["labels"])[0]) for k, v in sets.items() if k != "train"}
-    if feed.reads_from_host(config, train_set):  # the sets stay on the host (`fabricjax.feed`)
-        return {"train": sets.pop("train"), "val": sets.pop("val"), "eval": sets}, sizes
-    multiple = lambda k: None if k == "train" else config.batch_size  # noqa: E731
-    placed = {
-        k: {
-            "inputs": dict(_placed(a, m, multiple(k), to) for m, a in v["inputs"].items()),
-            "labels": sharding.put(
-                {
-                    h: a
-                    if multiple(k) is None
-                    else host_arrays.padded(a, host_arrays.whole_minibatches(len(a), multiple(k)), -1)
-                    for h, a in v["labels"].items()
-                },
-                to,
-            ),
-        }
-        for k, v in sets.items()
-    }
-    return {"train": placed.pop("train"), "val": placed.pop("val"), "eval": placed}, sizes
-
-
-def place_for_runs(config: Config, data_sets: Mapping[str, Any]) -> None:
-    """Place `data_sets`' inputs of `config` on the training devices as `train_and_evaluate` will
-    (in training's layout, evaluation sets padded: `prepare`) and compute their input statistics,
-    both kept for the runs after it on the same arrays. A study calls it for a camera input before
-    the first row that reads it, so that laying out the split's frames, which its rows share, is
-    timed as the data's cost, not as that row's."""
-    evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
-    jax.block_until_ready(
-        prepare(
-            config,
-            data_sets["train"],
-            data_sets["val"],
-            evals,
-            sharding.replicated(sharding.training_mesh(config.batch_size)),
-        )
-    )
-    input_statistics(config, data_sets["train"])
-
-
 class BestEpochValidation:
     """Each seed's validation results (predictions and accuracy per head) at its best epoch,
     taken from the epochs a call trains: the epoch scan evaluates the validation set anyway
@@ -468,10 +358,9 @@ def _programs(config: Config, shapes: tuple, n_train: int, mesh):
     """Jitted, seed-vmapped, seed-sharded init / run(n epochs) / finish, cached so that reruns of
     a config (a resume, another data set of the same shapes) reuse the compiled programs.
 
-    Only the latest run's: XLA:CPU compiles more slowly the more compiled programs a process holds.
-    Compiling the ablation's 22 rows' programs one after another took 175 s with the last 8 rows'
-    kept and 142 s with only the latest row's (default preset, 2 CPU devices); a study's rows differ
-    in their config, and the persistent compilation cache still serves a config that comes back."""
+    Only the latest run's: XLA:CPU compiles more slowly the more compiled programs a process holds,
+    a study's rows differ in their config, and the persistent compilation cache still serves a
+    config that comes back."""
     trainer = make_trainer(config, dict(shapes), mesh, n_train)
     per_seed = sharding.replicated(mesh)
     init = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)
@@ -593,13 +482,13 @@ def train_and_evaluate(
     account = TimeAccount()
     with account.phase("place_s"):
         data, sizes = jax.block_until_ready(
-            prepare(config, data_sets["train"], data_sets["val"], evals, per_seed)
+            place_sets(config, data_sets["train"], data_sets["val"], evals, per_seed)
         )  # replicated, like the state
     shapes = tuple(sorted(feature_shapes(select(config, data_sets["train"])["inputs"]).items()))
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
     with account.phase("initialise_s"):
         trainer, init, run, finish, fed = _programs(config, shapes, n_train, mesh)
-        if feed.reads_from_host(config, data_sets["train"]):
+        if reads_from_host(config, data_sets["train"]):
             run, finish = (lambda n: functools.partial(fed.run, n_epochs=n)), fed.finish
         keys = sharding.put(seed_keys(seeds), per_seed)
         mngr = checkpoint.manager(workdir) if workdir is not None else None

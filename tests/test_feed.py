@@ -7,7 +7,7 @@ import jax
 import numpy as np
 import pytest
 
-from fabricjax import feed
+from fabricjax import feed, placement
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.train import train_and_evaluate
@@ -62,10 +62,12 @@ def on_devices():
 
 
 def test_memory_mapped_inputs_are_read_from_the_host(tmp_path):
-    assert feed.reads_from_host(CAMERA, sets(CAMERA, tmp_path)["train"])
-    assert not feed.reads_from_host(CAMERA, sets(CAMERA)["train"])
-    assert feed.reads_from_host(dataclasses.replace(CAMERA, input_source="disk"), sets(CAMERA)["train"])
-    assert not feed.reads_from_host(dataclasses.replace(CAMERA, input_source="memory"), sets(CAMERA, tmp_path)["train"])
+    assert placement.reads_from_host(CAMERA, sets(CAMERA, tmp_path)["train"])
+    assert not placement.reads_from_host(CAMERA, sets(CAMERA)["train"])
+    assert placement.reads_from_host(dataclasses.replace(CAMERA, input_source="disk"), sets(CAMERA)["train"])
+    assert not placement.reads_from_host(
+        dataclasses.replace(CAMERA, input_source="memory"), sets(CAMERA, tmp_path)["train"]
+    )
 
 
 def test_training_from_memory_mapped_files_in_blocks_is_the_device_resident_run(on_devices, tmp_path, monkeypatch):

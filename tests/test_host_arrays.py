@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from fabricjax import host_arrays, memo, train
+from fabricjax import host_arrays, memo, placement
 from fabricjax.features import images
 
 pytestmark = pytest.mark.skipif(jax.default_backend() != "cpu", reason="placement in place is XLA:CPU's")
@@ -58,16 +58,16 @@ def test_pixel_rows_of_a_padded_set_are_the_padded_frames_rows():
 
 def test_training_keeps_placed_copies_but_not_an_array_placed_in_place(monkeypatch):
     """An input placed without a copy costs nothing to place again, and keeping it would keep its
-    data set alive (`train._placed`); a padded copy or pixel rows are kept for the next row."""
+    data set alive (`placement.place_input`); a padded copy or pixel rows are kept for the next row."""
     monkeypatch.setattr(memo, "MIN_BYTES", 0)
-    monkeypatch.setattr(train, "_PLACED", memo.ByArray(max_entries=12, size=train._PLACED.size))
+    monkeypatch.setattr(placement, "KEPT", memo.ByArray(max_entries=12, size=placement.KEPT.size))
     psd = host_arrays.empty((6, 4, 10), np.float32)
     psd[:] = 1.5
     frames = host_arrays.empty((6, 4, 3, 5, 3), np.uint8)
-    name, placed = train._placed(psd, "internal", None, replicated())
-    assert name == "internal" and host_arrays.placed_in_place(placed, psd) and len(train._PLACED) == 0
-    train._placed(psd, "internal", 4, replicated())  # padded to 8 sequences: a copy, kept
-    assert len(train._PLACED) == 1
-    name, rows = train._placed(frames, "image", None, replicated())
-    assert name == "image_rows" and rows.shape == (6, 15, 3, 4) and len(train._PLACED) == 2
-    assert train._placed(frames, "image", None, replicated())[1] is rows  # found, not made again
+    name, placed = placement.place_input(psd, "internal", None, replicated())
+    assert name == "internal" and host_arrays.placed_in_place(placed, psd) and len(placement.KEPT) == 0
+    placement.place_input(psd, "internal", 4, replicated())  # padded to 8 sequences: a copy, kept
+    assert len(placement.KEPT) == 1
+    name, rows = placement.place_input(frames, "image", None, replicated())
+    assert name == "image_rows" and rows.shape == (6, 15, 3, 4) and len(placement.KEPT) == 2
+    assert placement.place_input(frames, "image", None, replicated())[1] is rows  # found, not made again

@@ -3,7 +3,7 @@ import gc
 import numpy as np
 import pytest
 
-from fabricjax import memo, train
+from fabricjax import memo, placement, train
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.inputs import input_statistics
@@ -51,7 +51,7 @@ def test_small_arrays_and_device_arrays_are_recomputed():
 
 
 def test_a_run_on_kept_inputs_equals_a_run_that_places_them_anew(monkeypatch):
-    """The rows of a study share their placed inputs and statistics (`train._PLACED`,
+    """The rows of a study share their placed inputs and statistics (`placement.KEPT`,
     `inputs._STATISTICS`): a second run on the same arrays reuses them and gives the same
     results as runs that place everything anew."""
     cfg = Config(
@@ -73,9 +73,9 @@ def test_a_run_on_kept_inputs_equals_a_run_that_places_them_anew(monkeypatch):
     fresh = train.train_and_evaluate(cfg, sets, (0, 1))
     monkeypatch.setattr(memo, "MIN_BYTES", 0)
     first = train.train_and_evaluate(cfg, sets, (0, 1))
-    held = len(train._PLACED)
+    held = len(placement.KEPT)
     kept = train.train_and_evaluate(cfg, sets, (0, 1))
-    assert held > 0 and len(train._PLACED) == held  # nothing new placed: every input was found
+    assert held > 0 and len(placement.KEPT) == held  # nothing new placed: every input was found
     for r in (first, kept):
         np.testing.assert_array_equal(r.metrics["train_loss"], fresh.metrics["train_loss"])
         np.testing.assert_array_equal(

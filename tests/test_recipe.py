@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from fabricjax import feed, sharding, train
+from fabricjax import feed, placement, sharding, train
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.inputs import feature_shapes
@@ -108,7 +108,7 @@ def test_a_stopped_seed_no_longer_changes_while_the_others_train(from_host):
         fed = feed.HostFed(trainer, sharding.replicated(mesh))
         after, _ = fed.run(state, {"train": sets["train"], "val": sets["val"]}, n_epochs=1)
     else:
-        data, _ = train.prepare(cfg, sets["train"], sets["val"], {}, sharding.replicated(mesh))
+        data, _ = placement.place_sets(cfg, sets["train"], sets["val"], {}, sharding.replicated(mesh))
         after, _ = jax.jit(jax.vmap(lambda s, d: trainer.run(s, d, 1), in_axes=(0, None)))(state, data)
     for old, new in zip(jax.tree.leaves(before), jax.tree.leaves((after["params"], after["opt_state"]))):
         np.testing.assert_array_equal(np.asarray(new)[0], old[0])

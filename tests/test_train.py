@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from flax import nnx
 
-from fabricjax import runtime, sharding, train
+from fabricjax import placement, runtime, sharding, train
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.inputs import input_statistics, training_layout
@@ -343,7 +343,7 @@ def test_a_runs_time_account_adds_up_and_counts_the_building_of_its_programs(tmp
 
 
 def test_inputs_placed_before_a_run_serve_it_and_change_nothing(monkeypatch):
-    """`place_for_runs` lays out a camera input as a run will (pixel rows, evaluation sets padded)
+    """`placement.place_ahead` lays out a camera input as a run will (pixel rows, evaluation sets padded)
     and computes its statistics; the run after it builds neither again and trains to the same
     bits as a run that did it all itself."""
     from fabricjax import inputs, memo
@@ -354,10 +354,10 @@ def test_inputs_placed_before_a_run_serve_it_and_change_nothing(monkeypatch):
     )
     alone = train_and_evaluate(cfg, data_sets(cfg), (0,))
     monkeypatch.setattr(memo, "MIN_BYTES", 0)  # the tiny arrays are kept like a data set's
-    monkeypatch.setattr(train, "_PLACED", memo.ByArray(max_entries=12, size=train._PLACED.size))
+    monkeypatch.setattr(placement, "KEPT", memo.ByArray(max_entries=12, size=placement.KEPT.size))
     monkeypatch.setattr(inputs, "_STATISTICS", memo.ByArray(max_entries=16))
     sets = data_sets(cfg)  # arrays neither memo has seen
-    train.place_for_runs(cfg, sets)
+    placement.place_ahead(cfg, sets)
     built = []
     for module, name in ((images, "to_rows"), (inputs, "_moments")):
         monkeypatch.setattr(

@@ -27,6 +27,7 @@ from absl import logging
 from fabricjax import archive, atomic, checkpoint, data, dataset_index, lock, presets, source, stats, train, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
+from fabricjax.placement import place_ahead
 from fabricjax.studies.common import documents, loading, plan, recipe
 from fabricjax.workspace import Location
 
@@ -204,7 +205,7 @@ def row_kind(config: Config) -> str:
 def in_training_order(items: Sequence[T], config: Callable[[T], Config]) -> list[T]:
     """`items` (rows, each with its `config(item)`) in the order they train: grouped by their
     camera input (`row_kind`), in the given order within a group. A study's rows share the inputs
-    placed on the devices (`train.prepare`) within a memory budget, so a camera's frames are placed
+    placed on the devices (`placement.place_sets`) within a memory budget, so a camera's frames are placed
     once for its group, instead of again each time a row of the other camera has pushed them out."""
     return sorted(items, key=lambda item: ROW_KINDS.index(row_kind(config(item))))
 
@@ -455,7 +456,8 @@ def train_rows(
             ):  # the group's camera input, once (`in_training_order`)
                 t0 = time.perf_counter()
                 alone = dataclasses.replace(config, modalities=(camera,))
-                train.place_for_runs(alone, data.narrow({s: ds.sets[s] for s in ("train", "val", *eval_splits)}, alone))
+                # timed as the data's cost; each row's run finds these arrays kept (`placement.place_sets`)
+                place_ahead(alone, data.narrow({s: ds.sets[s] for s in ("train", "val", *eval_splits)}, alone))
                 ds.layout_s += time.perf_counter() - t0
                 laid_out.add(camera)
             progress.start(label(name))

@@ -1,0 +1,137 @@
+"""Where a run's inputs live: on the devices, or on the host for training fed a block at a time.
+
+`place_sets` is the one way a run's sets reach the devices: each set's arrays that its config uses
+(`select`), in training's layout (`inputs.training_input`), evaluation sets padded to whole
+minibatches, built on the host with NumPy (copies of a camera row's frames then compile nothing).
+A run whose training inputs are larger than memory keeps its sets on the host (`reads_from_host`)
+and `fabricjax.feed` places them a block at a time.
+
+The rows of a study train on the same loaded arrays, so a placed input is kept for the next run on
+the same array (`KEPT`, a `memo.ByArray`) within a memory budget (`budget`). A study places a
+camera input once before the first row that reads it (`place_ahead`), so that laying out the
+frames its rows share is the data's cost; each row's run then finds them through the same
+`place_sets`.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import jax
+import numpy as np
+from jax.sharding import NamedSharding
+
+from fabricjax import host_arrays, memo, sharding
+from fabricjax.config import Config
+from fabricjax.inputs import input_statistics, training_input
+from fabricjax.model import head_sizes
+
+
+def select(config: Config, ds) -> dict[str, dict[str, np.ndarray]]:
+    """The arrays of `ds` this config uses, on the host: its modalities and its heads' labels
+    (int32)."""
+    inputs = ds["inputs"] if isinstance(ds, Mapping) else ds.inputs
+    labels = ds["labels"] if isinstance(ds, Mapping) else ds.labels
+    missing = [m for m in config.modalities if m not in inputs] + [h for h in head_sizes(config) if h not in labels]
+    if missing:
+        raise ValueError(f"data set lacks {missing} (has inputs {sorted(inputs)}, labels {sorted(labels)})")
+    return {
+        "inputs": {m: np.asarray(inputs[m]) for m in config.modalities},
+        "labels": {h: np.asarray(labels[h], np.int32) for h in head_sizes(config)},
+    }
+
+
+def reads_from_host(config: Config, train_set) -> bool:
+    """Whether a run of `config` on `train_set` is fed from the host (`fabricjax.feed`): "disk", or
+    "auto" where the loaded inputs are memory-mapped files (`data.load_sequences` made them so:
+    larger than memory)."""
+    if config.input_source != "auto":
+        return config.input_source == "disk"
+    inputs = train_set["inputs"] if isinstance(train_set, Mapping) else train_set.inputs
+    return any(isinstance(inputs[m], np.memmap) for m in config.modalities)
+
+
+def buffer_bytes(placed: jax.Array) -> int:
+    """Memory `placed` holds: each distinct buffer once (a replicated placement on CPU devices
+    without a copy shares one, `host_arrays`)."""
+    return sum({s.data.unsafe_buffer_pointer(): s.data.nbytes for s in placed.addressable_shards}.values())
+
+
+# Inputs as runs read them (padded, in training's layout, on the devices), kept from one run to the
+# next: the rows of a study share their arrays (`memo`), within `budget`.
+KEPT = memo.ByArray(max_entries=12, size=lambda placed: buffer_bytes(placed[1]))
+
+
+def budget(to: NamedSharding) -> int:
+    """What kept inputs may hold, every device's copy counted: a quarter of the memory they live
+    in, the host's for CPU devices, else a quarter of each accelerator's."""
+    limits = [(d.memory_stats() or {}).get("bytes_limit") for d in to.addressable_devices]
+    if None in limits:
+        return memo.memory_budget(0.25)
+    return min(limits) // 4 * len(limits)
+
+
+def place_input(a: np.ndarray, modality: str, multiple: int | None, to: NamedSharding) -> tuple[str, jax.Array]:
+    """(the input's name in training's layout, the array on `to`'s devices), padded to whole
+    minibatches of `multiple` where one is given (evaluation sets); kept in `KEPT` for the next run
+    on the same array."""
+
+    def make():
+        name, array = training_input(
+            modality, a, None if multiple is None else host_arrays.whole_minibatches(len(a), multiple)
+        )
+        return name, sharding.put(array, to)
+
+    # `a` itself, placed without a copy (`host_arrays`), is not kept: placing it again costs
+    # nothing, and the kept value would keep `a` alive past its data set
+    KEPT.max_bytes = budget(to)
+    return KEPT.get(
+        a, (modality, multiple, to), make, keep=lambda placed: not host_arrays.placed_in_place(placed[1], a)
+    )
+
+
+def place_sets(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None, to: NamedSharding):
+    """(the run's data on `to`'s devices, evaluation set sizes): each set's inputs in training's
+    layout (`inputs.training_input`), evaluation sets padded to whole minibatches, large inputs
+    kept for the next run on the same arrays (`place_input`). A run fed from the host
+    (`reads_from_host`) gets its sets as they are, on the host."""
+    sets = {k: select(config, v) for k, v in {"train": train_set, "val": val_set, **(eval_sets or {})}.items()}
+    sizes = {k: len(jax.tree.leaves(v["labels"])[0]) for k, v in sets.items() if k != "train"}
+    if reads_from_host(config, train_set):  # the sets stay on the host (`fabricjax.feed`)
+        return {"train": sets.pop("train"), "val": sets.pop("val"), "eval": sets}, sizes
+    multiple = lambda k: None if k == "train" else config.batch_size  # noqa: E731
+    placed = {
+        k: {
+            "inputs": dict(place_input(a, m, multiple(k), to) for m, a in v["inputs"].items()),
+            "labels": sharding.put(
+                {
+                    h: a
+                    if multiple(k) is None
+                    else host_arrays.padded(a, host_arrays.whole_minibatches(len(a), multiple(k)), -1)
+                    for h, a in v["labels"].items()
+                },
+                to,
+            ),
+        }
+        for k, v in sets.items()
+    }
+    return {"train": placed.pop("train"), "val": placed.pop("val"), "eval": placed}, sizes
+
+
+def place_ahead(config: Config, data_sets: Mapping[str, Any]) -> None:
+    """Place `data_sets`' inputs of `config` on the training devices as `train.train_and_evaluate`
+    will (`place_sets` on the replicated training mesh) and compute their input statistics, both
+    kept for the runs after it on the same arrays. A study calls it for a camera input before the
+    first row that reads it, so that laying out the split's frames, which its rows share, is timed
+    as the data's cost, not as that row's."""
+    evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
+    jax.block_until_ready(
+        place_sets(
+            config,
+            data_sets["train"],
+            data_sets["val"],
+            evals,
+            sharding.replicated(sharding.training_mesh(config.batch_size)),
+        )
+    )
+    input_statistics(config, data_sets["train"])
