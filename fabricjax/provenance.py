@@ -25,6 +25,12 @@ READMES = ("README", "README.txt", "README.md")
 KEPT = ("source", "licen", "citation", "cite")  # section headings (lower case) whose text is kept, by prefix
 
 
+def repository_root() -> Path:
+    """The folder the `fabricjax` package sits in: the checkout's root, holding the published
+    results/ the plans and estimates read, and the tree whose commit results files name."""
+    return Path(__file__).resolve().parents[1]
+
+
 def _sections(lines: list[str]) -> list[tuple[str, list[str]]]:
     markdown = any(line.startswith("#") for line in lines)
     out: list[tuple[str, list[str]]] = []

@@ -70,7 +70,7 @@ def machine() -> dict[str, Any]:
 def git_commit() -> str:
     """'commit <hash>' of the source tree this package runs from (' + uncommitted changes' when
     git sees any), or 'no git checkout'."""
-    root = Path(__file__).resolve().parents[2]
+    root = provenance.repository_root()
     try:
         run = lambda *a: subprocess.run(  # noqa: E731
             ["git", "-C", str(root), *a], capture_output=True, text=True, timeout=10, check=True

@@ -44,7 +44,7 @@ from SALib.sample import morris as morris_sample
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from fabricjax import atomic, plots, presets, workspace
+from fabricjax import atomic, plots, presets, provenance, workspace
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.sim import estimates
@@ -69,6 +69,35 @@ CLOSE_PP = 5.12  # "close": within the larger seed SD of the paper's two rows co
 _NAMES = {r.name: r.label for r in day_shift.ROWS}
 
 
+class Response:
+    """The responses' names, one definition for what `measure` records, the claims read and the plot shows."""
+
+    MINSOUND_MARGIN = "Minsound margin over the best other single input [pp]"
+    FLOW_OVER_IMAGE = "optical flow − image, test [pp]"
+    PROPRIO_VS_FLOW = "proprioception − optical flow, test [pp]"
+    PALM_CAFE_GAIN = "palm's gain in the cafe [pp]"
+    IMAGE_PROPERTY_MARGIN = "image property margin over chance, test [pp]"
+    BEST_CAMERA = "best camera input, test [%]"
+    MINSOUND_CAFE_DROP = "Minsound lab → cafe drop [pp]"
+    PALM_CAFE_DROP = "palm mic lab → cafe drop [pp]"
+
+    @staticmethod
+    def probe_validation(row: str) -> str:
+        return f"probe validation: {_NAMES[row]} [%]"
+
+    @staticmethod
+    def probe_test(row: str) -> str:
+        return f"probe test: {_NAMES[row]} [%]"
+
+    @staticmethod
+    def fabric_share(row: str) -> str:
+        return f"fabric share: {_NAMES[row]} [%]"
+
+    @staticmethod
+    def day_share(row: str) -> str:
+        return f"day share: {_NAMES[row]} [%]"
+
+
 @dataclasses.dataclass(frozen=True)
 class Claim:
     """A paper claim as a predicate over one point's responses; `response` is the number it reads."""
@@ -85,32 +114,32 @@ def _above_chance(accuracy: float, n: int, chance: float) -> bool:
 CLAIMS = (
     Claim(
         "Minsound is the best single input (probe, new day)",
-        "Minsound margin over the best other single input [pp]",
-        lambda r, _: r["Minsound margin over the best other single input [pp]"] > 0,
+        Response.MINSOUND_MARGIN,
+        lambda r, _: r[Response.MINSOUND_MARGIN] > 0,
     ),
     Claim(
         "the image reads below optical flow (probe, new day)",
-        "optical flow − image, test [pp]",
-        lambda r, _: r["optical flow − image, test [pp]"] > 0,
+        Response.FLOW_OVER_IMAGE,
+        lambda r, _: r[Response.FLOW_OVER_IMAGE] > 0,
     ),
     Claim(
         f"proprioception is close to optical flow (within {CLOSE_PP} pp, probe, new day)",
-        "proprioception − optical flow, test [pp]",
-        lambda r, _: abs(r["proprioception − optical flow, test [pp]"]) <= CLOSE_PP,
+        Response.PROPRIO_VS_FLOW,
+        lambda r, _: abs(r[Response.PROPRIO_VS_FLOW]) <= CLOSE_PP,
     ),
     Claim(
         "the palm microphone helps in the cafe (Minsound + proprioception + palm mic > Minsound + proprioception, probe)",
-        "palm's gain in the cafe [pp]",
-        lambda r, _: r["palm's gain in the cafe [pp]"] > 0,
+        Response.PALM_CAFE_GAIN,
+        lambda r, _: r[Response.PALM_CAFE_GAIN] > 0,
     ),
     Claim(
         f"the camera carries thickness and roughness to a new day (image probe above chance, p < {ALPHA})",
-        "image property margin over chance, test [pp]",
+        Response.IMAGE_PROPERTY_MARGIN,
         lambda r, s: all(s[f"image carries {p}"] for p in PROPERTIES),
     ),
     Claim(
         f"the image or optical flow carries the fabric to a new day (probe above chance, p < {ALPHA})",
-        "best camera input, test [%]",
+        Response.BEST_CAMERA,
         lambda r, s: s["camera carries the fabric"],
     ),
 )
@@ -167,23 +196,19 @@ def measure(point: Path, preset: str) -> tuple[dict[str, float], dict[str, Any]]
     acc = {name: {s: 100 * v for s, v in r["accuracy"].items()} for name, r in p.items()}
     out: dict[str, float] = {}
     for row in SINGLE:
-        out[f"probe validation: {_NAMES[row]} [%]"] = acc[row]["val"]
-        out[f"probe test: {_NAMES[row]} [%]"] = acc[row]["test"]
-        out[f"fabric share: {_NAMES[row]} [%]"] = 100 * shares[row]["shares"]["fabric"]
-        out[f"day share: {_NAMES[row]} [%]"] = 100 * shares[row]["shares"]["day"]
-    out["Minsound lab → cafe drop [pp]"] = acc["internal"]["test"] - acc["internal"]["cafe"]
-    out["palm mic lab → cafe drop [pp]"] = acc["external"]["test"] - acc["external"]["cafe"]
+        out[Response.probe_validation(row)] = acc[row]["val"]
+        out[Response.probe_test(row)] = acc[row]["test"]
+        out[Response.fabric_share(row)] = 100 * shares[row]["shares"]["fabric"]
+        out[Response.day_share(row)] = 100 * shares[row]["shares"]["day"]
+    out[Response.MINSOUND_CAFE_DROP] = acc["internal"]["test"] - acc["internal"]["cafe"]
+    out[Response.PALM_CAFE_DROP] = acc["external"]["test"] - acc["external"]["cafe"]
     image = probe.SESSION + "image"
-    out["Minsound margin over the best other single input [pp]"] = acc["internal"]["test"] - max(
-        acc[r]["test"] for r in SINGLE if r != "internal"
-    )
-    out["optical flow − image, test [pp]"] = acc["flow"]["test"] - acc[image]["test"]
-    out["proprioception − optical flow, test [pp]"] = acc["proprio"]["test"] - acc["flow"]["test"]
-    out["palm's gain in the cafe [pp]"] = acc["internal+external+proprio"]["cafe"] - acc["internal+proprio"]["cafe"]
-    out["image property margin over chance, test [pp]"] = min(
-        100 * (props[q]["test"] - props[q]["chance"]) for q in PROPERTIES
-    )
-    out["best camera input, test [%]"] = max(acc["flow"]["test"], acc[image]["test"])
+    out[Response.MINSOUND_MARGIN] = acc["internal"]["test"] - max(acc[r]["test"] for r in SINGLE if r != "internal")
+    out[Response.FLOW_OVER_IMAGE] = acc["flow"]["test"] - acc[image]["test"]
+    out[Response.PROPRIO_VS_FLOW] = acc["proprio"]["test"] - acc["flow"]["test"]
+    out[Response.PALM_CAFE_GAIN] = acc["internal+external+proprio"]["cafe"] - acc["internal+proprio"]["cafe"]
+    out[Response.IMAGE_PROPERTY_MARGIN] = min(100 * (props[q]["test"] - props[q]["chance"]) for q in PROPERTIES)
+    out[Response.BEST_CAMERA] = max(acc["flow"]["test"], acc[image]["test"])
     n_test = len(p["flow"]["predictions"]["test"])
     chance = 1 / len(probe_doc["classes"])
     side = {
@@ -210,7 +235,7 @@ def analyse(groups: Sequence[str], x: np.ndarray, y: np.ndarray, seed: int) -> d
     return {k: [float(v) for v in a[k]] for k in ("mu", "mu_star", "sigma", "mu_star_conf")}
 
 
-PUBLISHED = Path(__file__).resolve().parents[3] / "results" / f"{STUDY}.json"
+PUBLISHED = provenance.repository_root() / "results" / f"{STUDY}.json"
 
 
 def prior_estimate(preset: str, n_points: int) -> str:
@@ -356,18 +381,18 @@ def document(groups: Sequence[str], x: np.ndarray, points: Sequence[Mapping[str,
 
 
 PLOTTED = (
-    "probe test: Minsound [%]",
-    "probe test: palm mic [%]",
-    "probe test: proprioception [%]",
-    "probe test: optical flow [%]",
-    "probe test: Minsight image − session reference [%]",
-    "day share: Minsight image − session reference [%]",
-    "day share: optical flow [%]",
-    "fabric share: Minsight image − session reference [%]",
-    "Minsound lab → cafe drop [pp]",
-    "palm mic lab → cafe drop [pp]",
-    "palm's gain in the cafe [pp]",
-    "image property margin over chance, test [pp]",
+    Response.probe_test("internal"),
+    Response.probe_test("external"),
+    Response.probe_test("proprio"),
+    Response.probe_test("flow"),
+    Response.probe_test(probe.SESSION + "image"),
+    Response.day_share(probe.SESSION + "image"),
+    Response.day_share("flow"),
+    Response.fabric_share(probe.SESSION + "image"),
+    Response.MINSOUND_CAFE_DROP,
+    Response.PALM_CAFE_DROP,
+    Response.PALM_CAFE_GAIN,
+    Response.IMAGE_PROPERTY_MARGIN,
 )
 
 

@@ -57,7 +57,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import fabricjax
-from fabricjax import archive, dataset_index, presets, splits, stats, workspace
+from fabricjax import archive, dataset_index, presets, provenance, splits, stats, workspace
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, findings, runner
@@ -130,7 +130,7 @@ PROTOCOL = {
 
 # The manifest the repository publishes (results/reproduce.json): its recorded wall times are the
 # estimate for a run of the same preset before this folder has its own.
-PUBLISHED_MANIFEST = Path(fabricjax.__file__).resolve().parents[1] / "results" / MANIFEST
+PUBLISHED_MANIFEST = provenance.repository_root() / "results" / MANIFEST
 
 
 def title(study: str, recorded: bool = False) -> str:
@@ -346,15 +346,17 @@ def _outputs(study: str, out: Path) -> list[Path]:
 
 
 def _decide_checkpoints(out: Path, rows: Sequence[str]) -> tuple[list[str], list[str]]:
-    """(checkpoint folders, row names) of the ablation's rows among `rows` that it kept models of."""
+    """(checkpoint folders, row labels) of the ablation's rows among `rows` that it kept models of:
+    the labels its tables print (`display_name`), which the decision study's figure titles show."""
     doc = _read_json(out / "ablation.json")
     have = {r["name"]: r.get("checkpoint") for r in (doc or {}).get("rows", [])}
+    labels = {r["name"]: r.get("display_name") or ablation.display_name(r["name"]) for r in (doc or {}).get("rows", [])}
     chosen = [r for r in rows if have.get(r)]
     if not chosen:
         raise UserError(
             f"{out / 'ablation.json'}: field 'rows': the decision study needs the ablation's checkpoints of {list(rows)}; run it first"
         )
-    return [have[r] for r in chosen], chosen
+    return [have[r] for r in chosen], [labels[r] for r in chosen]
 
 
 def _latent_checkpoint(out: Path) -> str:
