@@ -15,8 +15,6 @@ where no row of the command sets its inputs) and checked before anything runs. R
 
 from __future__ import annotations
 
-import shlex
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
@@ -204,14 +202,5 @@ def rows_kwargs() -> dict[str, Any]:
 def location() -> workspace.Location:
     """Where data and results live, and the command line (recorded in every results file)."""
     return workspace.Location(
-        workdir=FLAGS.workdir, data_dir=FLAGS.data_dir, results=results_dir(), command=command_line()
+        workdir=FLAGS.workdir, data_dir=FLAGS.data_dir, results=results_dir(), command=cli.command_line()
     )
-
-
-def command_line() -> str:
-    """How this process was started, as a command to paste."""
-    argv = list(sys.argv)
-    if argv and argv[0].endswith(".py") and "experiments" in argv[0]:
-        argv[0] = "-m experiments." + Path(argv[0]).stem
-        return "python " + " ".join([argv[0]] + [shlex.quote(a) for a in argv[1:]])
-    return " ".join(shlex.quote(a) for a in argv)

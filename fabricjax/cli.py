@@ -24,7 +24,9 @@ import importlib.metadata
 import importlib.util
 import logging as std_logging
 import os
+import shlex
 import sys
+from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 from absl import app, flags, logging
@@ -153,3 +155,14 @@ def run(main: Callable[[list[str]], object], before: Callable[[], None] = runtim
             fail(str(disk.DiskFull(path, "a file")))
 
     app.run(start, flags_parser=_parse)
+
+
+def command_line() -> str:
+    """This process's command as a user typed it (`python -m experiments.ablation ...`): recorded in
+    results files and in the notes of the locks a run holds."""
+    main = Path(sys.argv[0]) if sys.argv and sys.argv[0] else Path("python")
+    root = Path(__file__).resolve().parents[1]
+    if main.suffix == ".py" and main.resolve().is_relative_to(root):
+        module = ".".join(main.resolve().relative_to(root).with_suffix("").parts)
+        return shlex.join(["python", "-m", module, *sys.argv[1:]])
+    return shlex.join([main.name, *sys.argv[1:]])

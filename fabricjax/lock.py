@@ -20,12 +20,11 @@ import fcntl
 import hashlib
 import json
 import os
-import shlex
 import sys
 from pathlib import Path
 from typing import Iterator
 
-from fabricjax import workspace
+from fabricjax import cli, workspace
 from fabricjax.errors import UserError
 
 LOCKS = "locks"
@@ -39,7 +38,6 @@ class Busy(UserError):
 class _Held:
     fd: int
     shared: bool
-    depth: int
 
 
 _HELD: dict[Path, _Held] = {}  # this process's locks, by lock file
@@ -55,16 +53,6 @@ def lock_file(thing: str | os.PathLike, workdir=None) -> Path:
     )
 
 
-def command_line() -> str:
-    """This process's command as a user typed it (`python -m experiments.ablation ...`)."""
-    main = Path(sys.argv[0]) if sys.argv and sys.argv[0] else Path("python")
-    root = Path(__file__).resolve().parents[1]
-    if main.suffix == ".py" and main.resolve().is_relative_to(root):
-        module = ".".join(main.resolve().relative_to(root).with_suffix("").parts)
-        return shlex.join(["python", "-m", module, *sys.argv[1:]])
-    return shlex.join([main.name, *sys.argv[1:]])
-
-
 @contextlib.contextmanager
 def hold(
     lock: Path, what: str, doing: str, *, shared: bool = False, wait: bool = False, transient: bool = False
@@ -77,11 +65,7 @@ def hold(
     lock = Path(lock)
     held = _HELD.get(lock)
     if held is not None and (shared or not held.shared):  # held already, at least as strongly
-        held.depth += 1
-        try:
-            yield
-        finally:
-            held.depth -= 1
+        yield
         return
     if held is not None:  # this process reads it and now writes it: upgrade, then back to shared
         _flock(held.fd, lock, what, fcntl.LOCK_EX)
@@ -101,7 +85,7 @@ def hold(
     except BaseException:
         os.close(fd)
         raise
-    _HELD[lock] = _Held(fd, shared, 1)
+    _HELD[lock] = _Held(fd, shared)
     _others(lock)  # removes the notes a killed holder left
     _note(lock, doing, shared)
     try:
@@ -132,7 +116,7 @@ def _note_path(lock: Path, pid: int | None = None) -> Path:
 
 def _note(lock: Path, doing: str, shared: bool) -> None:
     """Say who holds `lock` for a refusal to name; the lock holds without it (a full disk)."""
-    note = {"pid": os.getpid(), "command": command_line(), "doing": doing, "shared": shared}
+    note = {"pid": os.getpid(), "command": cli.command_line(), "doing": doing, "shared": shared}
     try:
         _note_path(lock).write_text(json.dumps(note))
     except OSError:

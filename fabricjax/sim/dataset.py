@@ -135,6 +135,7 @@ def ensure_dataset(
             foreign.unlink()  # the simulator's own folder: a trial the preset no longer has (e.g. an older smoke preset's fabrics)
             if progress:
                 print(f"removed {foreign}: the preset {preset_name!r} has no such trial", flush=True)
+        # again under the lock: another run may have written some of them since `_to_write` looked
         jobs = [(s, str(folder / filename(s))) for s in scenes if not is_done(folder / filename(s), s)]
         workers = workers or os.cpu_count() or 1
         if jobs:
