@@ -58,11 +58,8 @@ def feature_shapes(inputs: Mapping[str, jax.Array]) -> dict[str, tuple[int, ...]
 
 
 # Bytes of a split summed at a time by `input_statistics` (one chunk per core at a time), so that
-# its temporaries (float64 or uint16 copies) can stay in the caches. The chunk size's gain is not
-# established: a camera row's frame statistics took 0.65 s over chunks of 16 sequences (5.8 MB)
-# against 1.35 s over chunks of 256 (92 MB) in one process, but 1.35 s at this default in another
-# (default preset, summed on one of the machine's 2 cores, just after loading). Summed on both
-# cores: 0.42-0.61 s (five profiling runs).
+# its temporaries (float64 or uint16 copies) can stay in the caches. Profiling has not shown the
+# chunk size to matter beyond run-to-run variation; both cores summing matters more.
 CHUNK_BYTES = 4 << 20
 
 
