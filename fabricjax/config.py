@@ -25,6 +25,7 @@ from fabricjax.errors import UserError
 # flow, "image" Minsight frames (downsampled to `image_size` or at the archive's resolution, see
 # `image_resolution`).
 MODALITIES = ("image", "flow", "internal", "external", "proprio")
+CAMERA_MODALITIES = ("image", "flow")  # the inputs read from Minsight's frames (its rendered images in simulation)
 AUDIO_MODALITIES = archive.MIC_NAMES  # a microphone's PSD is the modality of the same name
 # How tables and figures name each modality (the sensors of the paper).
 MODALITY_NAMES = {
@@ -35,6 +36,7 @@ MODALITY_NAMES = {
     "proprio": "proprioception",
 }
 BACKBONES = ("attention", "tcn")
+IMAGE_RESOLUTIONS = ("down", "full")  # `Config.image_size`, or the archive's own frame size
 PAPER_WINDOW_S = archive.WINDOW / archive.AUDIO_RATE  # the paper's step window: 2048 samples at 48 kHz, 42.67 ms
 # How the concatenated per-step features are normalised before the backbone: the paper's rescale of
 # each dimension to [0, 1] over the sequence, or our variant, a LayerNorm over each step's features
@@ -63,10 +65,43 @@ IMAGE_REFERENCES = ("none", "training_mean", "session")
 # units of CPUs that have them (x86 `avx512_bf16` / AMX, Arm `bf16`); float16 is kept for the
 # stability tests' overflow cases.
 COMPUTE_DTYPES = ("float32", "bfloat16", "float16")
-# Where training reads its inputs (`Config.input_source`); fields that do not change a run's
-# results, so a checkpoint resumes under either value (`checkpoint.check_meta`).
+# Where training reads its inputs (`Config.input_source`).
 INPUT_SOURCES = ("auto", "memory", "disk")
-RESULT_NEUTRAL_FIELDS = ("input_source",)
+
+# What a `Config` field decides, its metadata's "role". The lists of fields that must agree are derived
+# from these roles and two more metadata entries (see `_field`): `RESULT_NEUTRAL_FIELDS`,
+# `SEQUENCE_FIELDS` and `RATE_NEUTRAL_FIELDS`.
+SEQUENCES = "sequences"  # which trials are loaded and how they are cut into sequences
+FEATURES = "features"  # the per-step arrays of the loaded sequences: which inputs, computed how
+RESULT = "result"  # the model and its training
+NEUTRAL = "nothing"  # no result: a run gives the same bits under any value
+ROLES = (SEQUENCES, FEATURES, RESULT, NEUTRAL)
+# The fields that take one of a fixed set of values (`Config.__post_init__`), and how an error names
+# a set that it does not print as a tuple.
+_CHOICES = {
+    "backbone": BACKBONES,
+    "fusion_norm": FUSION_NORMS,
+    "lr_schedule": LR_SCHEDULES,
+    "flow_sparsify": FLOW_SPARSIFY,
+    "flow_method": FLOW_METHODS,
+    "image_reference": IMAGE_REFERENCES,
+    "input_source": INPUT_SOURCES,
+    "compute_dtype": COMPUTE_DTYPES,
+    "image_resolution": IMAGE_RESOLUTIONS,
+}
+_CHOICES_SAID = {"image_resolution": "'down' or 'full'"}
+
+
+def _field(default: Any, role: str, *, load: int | None = None, rate_neutral: bool = False) -> Any:
+    """A `Config` field with its default and what it decides (`role`, one of `ROLES`). `load`: the
+    field's place in the key of a load that several rows share (`SEQUENCE_FIELDS`), for every field
+    such rows must agree on; a field that decides the sequences without one is given to each row by
+    `data.narrow` from the shared load (modalities, bandwidth). `rate_neutral`: a published row that
+    differs in it still gives this row's training seconds per sequence (`RATE_NEUTRAL_FIELDS`)."""
+    metadata: dict[str, Any] = {"role": role, "rate_neutral": rate_neutral}
+    if load is not None:
+        metadata["load"] = load
+    return dataclasses.field(default=default, metadata=metadata)
 
 
 # A count of epochs and the budget in optimiser steps that replaces it on the data loaded
@@ -98,94 +133,84 @@ def _preset_fields_first(cls):
 @_preset_fields_first
 @dataclasses.dataclass(frozen=True)
 class Config:
-    preset: str = "paper"  # the dataset and training preset (presets.PRESETS)
-    modalities: tuple[str, ...] = ("internal",)
-    backbone: str = "attention"
-    seq_len: int = 200  # N, steps per sequence: the paper's 4 s at 50 Hz
-    bandwidth_khz: float = 15.0
+    # the dataset and training preset (presets.PRESETS)
+    preset: str = _field("paper", SEQUENCES, load=0, rate_neutral=True)
+    modalities: tuple[str, ...] = _field(("internal",), FEATURES)
+    backbone: str = _field("attention", RESULT)
+    seq_len: int = _field(200, SEQUENCES, load=1)  # N, steps per sequence: the paper's 4 s at 50 Hz
+    bandwidth_khz: float = _field(15.0, FEATURES, rate_neutral=True)
     # each microphone's step window [s] at its own rate (features/welch.py); None: the dataset's own (a rig
     # file's steps.mic_window_s, recorded in the archives), else PAPER_WINDOW_S. A value set here wins over the data's.
-    mic_window_s: float | None = None
-    image_resolution: str = "down"  # "down" = image_size, "full" = the archive's resolution
-    image_size: tuple[int, int] = (60, 80)  # the "down" frame size: the paper's 60x80
-    flow_sparsify: str = "keep_top"  # FLOW_SPARSIFY
-    flow_method: str = "opencv"  # FLOW_METHODS
+    mic_window_s: float | None = _field(None, FEATURES, load=7, rate_neutral=True)
+    # IMAGE_RESOLUTIONS: "down" = image_size, "full" = the archive's resolution
+    image_resolution: str = _field("down", FEATURES, load=3)
+    image_size: tuple[int, int] = _field((60, 80), FEATURES, load=4)  # the "down" frame size: the paper's 60x80
+    flow_sparsify: str = _field("keep_top", FEATURES, load=5)  # FLOW_SPARSIFY
+    flow_method: str = _field("opencv", FEATURES, load=6)  # FLOW_METHODS
     # model
-    width: int = 64
-    n_heads: int = 4
-    n_layers: int = 3
-    ffn: int = 128
-    audio_hidden: tuple[int, int] = (128, 64)
-    proprio_hidden: tuple[int, int] = (64, 64)
-    cnn_features: tuple[int, ...] = (16, 32, 64)  # image / flow CNN channels per strided conv
-    dropout: float = 0.1
-    fusion_norm: str = "sequence_minmax"  # FUSION_NORMS; the paper's is the default
-    fabric_head: bool = True
-    n_classes: int = (
-        catalog.N_CLASSES
-    )  # the fabric head's classes: the dataset's label map (studies set it from the data)
-    property_heads: bool = False
-    compute_dtype: str = "float32"  # COMPUTE_DTYPES
+    width: int = _field(64, RESULT, rate_neutral=True)
+    n_heads: int = _field(4, RESULT)
+    n_layers: int = _field(3, RESULT)
+    ffn: int = _field(128, RESULT)
+    audio_hidden: tuple[int, int] = _field((128, 64), RESULT)
+    proprio_hidden: tuple[int, int] = _field((64, 64), RESULT)
+    cnn_features: tuple[int, ...] = _field((16, 32, 64), RESULT)  # image / flow CNN channels per strided conv
+    dropout: float = _field(0.1, RESULT, rate_neutral=True)
+    fusion_norm: str = _field("sequence_minmax", RESULT, rate_neutral=True)  # FUSION_NORMS; the paper's is the default
+    fabric_head: bool = _field(True, RESULT)
+    # the fabric head's classes: the dataset's label map (studies set it from the data)
+    n_classes: int = _field(catalog.N_CLASSES, RESULT, rate_neutral=True)
+    property_heads: bool = _field(False, RESULT)
+    compute_dtype: str = _field("float32", RESULT)  # COMPUTE_DTYPES
     # training
-    epochs: int = 40  # the most epochs a seed trains (with `patience`, the cap of early stopping)
+    # the most epochs a seed trains (with `patience`, the cap of early stopping)
+    epochs: int = _field(40, RESULT, rate_neutral=True)
     # early stopping: a seed stops after this many epochs without a better validation accuracy and
     # keeps its best-validation parameters (0: every seed trains all `epochs`, the paper's recipe)
-    patience: int = 0
+    patience: int = _field(0, RESULT, rate_neutral=True)
     # the training budget and the patience in optimiser steps per seed, whatever the data's size (0:
     # `epochs` and `patience` as given): the data a study loads sets `epochs` and `patience` to the
     # fewest epochs that cover them (`loading.Dataset.fit`), so a small dataset gets as many updates
     # as a large one instead of as many passes
-    train_steps: int = 0
-    patience_steps: int = 0
+    train_steps: int = _field(0, RESULT, rate_neutral=True)
+    patience_steps: int = _field(0, RESULT, rate_neutral=True)
     # the recipe chosen by validation accuracy (`studies.common.recipe`): each learning rate and width of
     # these grids is trained, and a row keeps the best; empty: `learning_rate` and `width` as they are
-    lr_grid: tuple[float, ...] = ()
-    width_grid: tuple[int, ...] = ()
-    batch_size: int = 32
-    learning_rate: float = 1e-3
-    lr_schedule: str = "constant"  # LR_SCHEDULES, after the warm-up
-    warmup_steps: int = 100  # linear warm-up from 0: the first updates stay small while Adam's moments settle
-    weight_decay: float = 1e-4
-    augment_rotation: bool = True  # the paper's image augmentation (features/images.py), applied to the model's input
-    image_reference: str = (
-        "session"  # IMAGE_REFERENCES; chosen by measurement (docs/usage.md, "Can the model read each input?")
-    )
+    lr_grid: tuple[float, ...] = _field((), RESULT, rate_neutral=True)
+    width_grid: tuple[int, ...] = _field((), RESULT, rate_neutral=True)
+    batch_size: int = _field(32, RESULT)
+    learning_rate: float = _field(1e-3, RESULT, rate_neutral=True)
+    lr_schedule: str = _field("constant", RESULT, rate_neutral=True)  # LR_SCHEDULES, after the warm-up
+    # linear warm-up from 0: the first updates stay small while Adam's moments settle
+    warmup_steps: int = _field(100, RESULT, rate_neutral=True)
+    weight_decay: float = _field(1e-4, RESULT, rate_neutral=True)
+    # the paper's image augmentation (features/images.py), applied to the model's input
+    augment_rotation: bool = _field(True, RESULT)
+    # IMAGE_REFERENCES; chosen by measurement (docs/usage.md, "Can the model read each input?"). It decides the
+    # features ("session" is its own) and the model (the others subtract in `model.FabricNet.standardise`).
+    image_reference: str = _field("session", FEATURES, load=8)
     # training data selection: fabrics excluded from training (the property holdouts)
-    exclude_fabrics: tuple[int, ...] = ()
+    exclude_fabrics: tuple[int, ...] = _field((), SEQUENCES, load=2, rate_neutral=True)
     # where training reads its inputs (INPUT_SOURCES): placed whole on the devices ("memory"), or
     # minibatches read from the host (`fabricjax.feed`) out of memory-mapped sequence files
     # ("disk", `data.load_sequences`); "auto": from disk where the loaded inputs would take more
     # than `data.MEMORY_FRACTION` of this machine's memory. Results are the same bits either way.
-    input_source: str = "auto"
+    input_source: str = _field("auto", NEUTRAL, load=9, rate_neutral=True)
 
     def __post_init__(self):
         bad = [m for m in self.modalities if m not in MODALITIES]
         if bad or not self.modalities:
             raise ValueError(f"modalities must be a non-empty subset of {MODALITIES}, got {self.modalities}")
-        if self.backbone not in BACKBONES:
-            raise ValueError(f"backbone must be one of {BACKBONES}, got {self.backbone!r}")
+        for name, choices in _CHOICES.items():
+            value = getattr(self, name)
+            if value not in choices:
+                raise ValueError(f"{name} must be {_CHOICES_SAID.get(name, f'one of {choices}')}, got {value!r}")
         if not 0 < self.bandwidth_khz <= archive.NYQUIST_KHZ:
             raise ValueError(f"bandwidth_khz must be in (0, {archive.NYQUIST_KHZ:g}], got {self.bandwidth_khz}")
         if self.mic_window_s is not None and not 0 < self.mic_window_s < float("inf"):
             raise ValueError(
                 f"mic_window_s must be a duration in seconds > 0 (or none: the data's), got {self.mic_window_s}"
             )
-        if self.fusion_norm not in FUSION_NORMS:
-            raise ValueError(f"fusion_norm must be one of {FUSION_NORMS}, got {self.fusion_norm!r}")
-        if self.lr_schedule not in LR_SCHEDULES:
-            raise ValueError(f"lr_schedule must be one of {LR_SCHEDULES}, got {self.lr_schedule!r}")
-        if self.flow_sparsify not in FLOW_SPARSIFY:
-            raise ValueError(f"flow_sparsify must be one of {FLOW_SPARSIFY}, got {self.flow_sparsify!r}")
-        if self.flow_method not in FLOW_METHODS:
-            raise ValueError(f"flow_method must be one of {FLOW_METHODS}, got {self.flow_method!r}")
-        if self.image_reference not in IMAGE_REFERENCES:
-            raise ValueError(f"image_reference must be one of {IMAGE_REFERENCES}, got {self.image_reference!r}")
-        if self.input_source not in INPUT_SOURCES:
-            raise ValueError(f"input_source must be one of {INPUT_SOURCES}, got {self.input_source!r}")
-        if self.compute_dtype not in COMPUTE_DTYPES:
-            raise ValueError(f"compute_dtype must be one of {COMPUTE_DTYPES}, got {self.compute_dtype!r}")
-        if self.image_resolution not in ("down", "full"):
-            raise ValueError(f"image_resolution must be 'down' or 'full', got {self.image_resolution!r}")
         if not (self.fabric_head or self.property_heads):
             raise ValueError("at least one of fabric_head and property_heads must be on")
         if self.n_classes < 2:
@@ -229,6 +254,21 @@ class Config:
 
     def dumps(self) -> str:
         return json.dumps(self.to_json(), sort_keys=True)
+
+
+_FIELDS = dataclasses.fields(Config)
+# Fields that do not change a run's results, so a checkpoint resumes under any of their values
+# (`checkpoint.check_meta`).
+RESULT_NEUTRAL_FIELDS = tuple(f.name for f in _FIELDS if f.metadata.get("role") == NEUTRAL)
+# The fields besides modalities and bandwidth that decide the sequences `data.load_sequences` returns
+# (which trials, how they are cut, which features, where they are held), in the order of a load's key
+# (`loading.sequence_key`): one load serves several rows only where these agree.
+SEQUENCE_FIELDS = tuple(
+    f.name for f in sorted((f for f in _FIELDS if "load" in f.metadata), key=lambda f: f.metadata["load"])
+)
+# Fields a published row may differ in and still give a row's training seconds per sequence, epoch and
+# seed (`studies.common.plan.rate_key`).
+RATE_NEUTRAL_FIELDS = tuple(f.name for f in _FIELDS if f.metadata.get("rate_neutral"))
 
 
 def parse_override(text: str) -> tuple[str, Any]:

@@ -86,7 +86,7 @@ from fabricjax import archive, catalog, dataset_index, host_arrays, lock, memo, 
 from fabricjax.config import MODALITY_NAMES, PAPER_WINDOW_S, Config
 from fabricjax.errors import UserError
 from fabricjax.features import cache, welch
-from fabricjax.features.extract import feature_for
+from fabricjax.features.extract import features_for, window_of
 from fabricjax.sequence_store import SequenceStore
 
 SPLITS = archive.SPLITS
@@ -374,12 +374,6 @@ def _band(x: np.ndarray, modality: str, bandwidth_khz: float, rates: Mapping[str
     return x[..., : welch.n_bins(bandwidth_khz, rate, welch.window_samples(window_s, rate))]
 
 
-def window_of(config: Config, rate: int) -> int:
-    """A microphone's step window in samples at `rate` Hz: the config's duration (2048 for the hand;
-    a config that leaves it to the data, mic_window_s None, and has not been fitted to one gets the paper's)."""
-    return welch.window_samples(PAPER_WINDOW_S if config.mic_window_s is None else config.mic_window_s, rate)
-
-
 def step_window_s(
     config: Config, index: dataset_index.DatasetIndex, entries: Sequence[dataset_index.IndexEntry]
 ) -> float:
@@ -524,18 +518,7 @@ def load_sequences(
                 f"{e.n_steps} steps of which {e.n_steps - first_step(e.meta)} rubbing, fewer than one sequence of N={n} steps",
             )
     members = {s: [e for e, t in chosen if t == s] for s in wanted}
-    features = {
-        m: feature_for(
-            m,
-            config.image_resolution,
-            config.image_size,
-            config.flow_sparsify,
-            window_of(config, rates[m]) if m in rates else archive.WINDOW,
-            config.image_reference,
-            config.flow_method,
-        )
-        for m in config.modalities
-    }
+    features = features_for(config, rates)
     store = SequenceStore(
         workspace.sequences_dir(workdir),
         {

@@ -30,11 +30,12 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
 from fabricjax import archive
+from fabricjax.config import PAPER_WINDOW_S, Config
 from fabricjax.features import flow, images, welch
 
 PSD_CHUNK = 256  # windows per welch call: one compiled shape for every trial length
@@ -111,7 +112,7 @@ def feature_for(
     image_size: tuple[int, int] = images.DOWN_SIZE,
     flow_sparsify: str = "keep_top",
     window: int = archive.WINDOW,
-    image_reference: str = "training_mean",
+    image_reference: str = "session",
     flow_method: str = "opencv",
 ) -> Feature:
     """The feature behind a model input (a `config.MODALITIES` name); `image_size` is the
@@ -163,13 +164,39 @@ def feature_for(
     raise ValueError(f"no feature for modality {modality!r} at image resolution {image_resolution!r}")
 
 
+def window_of(config: Config, rate: int) -> int:
+    """A microphone's step window in samples at `rate` Hz: the config's duration (2048 for the hand;
+    a config that leaves it to the data, mic_window_s None, and has not been fitted to one gets the paper's)."""
+    return welch.window_samples(PAPER_WINDOW_S if config.mic_window_s is None else config.mic_window_s, rate)
+
+
+def features_for(config: Config, rates: Mapping[str, int] | None = None) -> dict[str, Feature]:
+    """The feature behind each of `config.modalities`, as `config` computes it. `rates`: each audio
+    modality's microphone rate [Hz] (`data.check_streams`), which with `config.mic_window_s` sets its
+    window (`window_of`); a modality it lacks, or every one where it is None, gets the paper's
+    2048-sample window (`archive.WINDOW`), which is no part of a camera or joint feature."""
+    rates = rates or {}
+    return {
+        m: feature_for(
+            m,
+            config.image_resolution,
+            config.image_size,
+            config.flow_sparsify,
+            window_of(config, rates[m]) if m in rates else archive.WINDOW,
+            config.image_reference,
+            config.flow_method,
+        )
+        for m in config.modalities
+    }
+
+
 def feature_named(name: str) -> Feature:
     """The feature called `name` (how a worker process rebuilds one: a Feature's function does
     not pickle)."""
     if m := re.fullmatch(r"image_session_(\d+)x(\d+)", name):
         return feature_for("image", "down", (int(m[1]), int(m[2])), image_reference="session")
     if m := re.fullmatch(r"image_(\d+)x(\d+)", name):
-        return feature_for("image", "down", (int(m[1]), int(m[2])))
+        return feature_for("image", "down", (int(m[1]), int(m[2])), image_reference="training_mean")
     if m := re.fullmatch(r"psd_(\w+)_w(\d+)", name):
         return feature_for(m[1], window=int(m[2]))
     candidates = [feature_for(m) for m in (*archive.MIC_ROLES, "proprio")] + [

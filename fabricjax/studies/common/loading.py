@@ -14,26 +14,17 @@ from typing import Sequence
 
 from absl import logging
 
+from fabricjax import config as config_fields
 from fabricjax import data, lock, sim, workspace
-from fabricjax.config import Config
+from fabricjax.config import CAMERA_MODALITIES, Config
 
 # The splits a study that evaluates on the lab test day needs (no cafe or holdout features computed).
 TRAIN_VAL_TEST = ("train", "val", "test")
 # The `Config` fields besides modalities and bandwidth that decide the sequences `data.load_sequences`
-# returns (which trials, how they are cut, which camera features): one load serves several rows
-# only where these agree (`data.narrow` then gives each row its modalities and band).
-SEQUENCE_FIELDS = (
-    "preset",
-    "seq_len",
-    "exclude_fabrics",
-    "image_resolution",
-    "image_size",
-    "flow_sparsify",
-    "flow_method",
-    "mic_window_s",
-    "image_reference",
-    "input_source",
-)
+# returns (which trials, how they are cut, which camera features), as each field's metadata says
+# (`config.SEQUENCE_FIELDS`): one load serves several rows only where these agree (`data.narrow`
+# then gives each row its modalities and band).
+SEQUENCE_FIELDS = config_fields.SEQUENCE_FIELDS
 
 
 @dataclasses.dataclass
@@ -100,7 +91,7 @@ def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Se
         if data_dir:
             folder, source = workspace.dataset_dir(config.preset, workdir, data_dir), "recorded"
         else:
-            streams = ("audio", "proprio") + (("images",) if {"image", "flow"} & set(config.modalities) else ())
+            streams = ("audio", "proprio") + (("images",) if set(CAMERA_MODALITIES) & set(config.modalities) else ())
             folder, source = sim.ensure_dataset(config.preset, workdir, streams=streams), "simulated"
         t1 = time.perf_counter()
         sets = data.load_sequences(config, folder, workdir=workdir, split_names=split_names)

@@ -33,7 +33,7 @@ from typing import Any, Sequence
 import cv2
 
 from fabricjax import archive, data, feed, memo, presets, workspace
-from fabricjax.config import Config
+from fabricjax.config import CAMERA_MODALITIES, RATE_NEUTRAL_FIELDS, Config
 from fabricjax.disk import size
 from fabricjax.features import flow, welch
 from fabricjax.sim import dataset as sim_dataset
@@ -50,30 +50,11 @@ REPRODUCE_MANIFEST = SAMPLE_RESULTS.parents[1] / "reproduce.json"
 PROBE_FRAMES = 16  # frames each camera feature is timed on (two of flow's chunks)
 PROBE_CYCLES = 2  # rubbing cycles of the probe's trial: its closing's share of the time stays small
 # Config fields a published row may differ in and still give this run's seconds per sequence, epoch
-# and seed: the data's own (preset, classes, step window, band, holdouts), where inputs are read from
-# (the same bits), the recipe (the width's share of the time is small beside the inputs' encoders) and
-# the fusion's normalisation (a rescale or a LayerNorm of each step's features: little of a step's work)
-RATE_NEUTRAL = (
-    "preset",
-    "n_classes",
-    "mic_window_s",
-    "input_source",
-    "bandwidth_khz",
-    "exclude_fabrics",
-    "epochs",
-    "patience",
-    "train_steps",
-    "patience_steps",
-    "lr_grid",
-    "width_grid",
-    "learning_rate",
-    "width",
-    "lr_schedule",
-    "warmup_steps",
-    "weight_decay",
-    "dropout",
-    "fusion_norm",
-)
+# and seed, as each field's metadata says (`config.RATE_NEUTRAL_FIELDS`): the data's own (preset,
+# classes, step window, band, holdouts), where inputs are read from (the same bits), the recipe (the
+# width's share of the time is small beside the inputs' encoders) and the fusion's normalisation (a
+# rescale or a LayerNorm of each step's features: little of a step's work)
+RATE_NEUTRAL = RATE_NEUTRAL_FIELDS
 
 
 @dataclasses.dataclass(frozen=True)
@@ -88,7 +69,7 @@ def probe(dataset: DatasetSpec, config: Config) -> dict[str, float]:
     """Seconds per simulated step ("simulate") and per frame of each camera feature of `config`
     (its name: flow with OpenCV on one thread, sparsified and pooled; frames downsampled), on this
     host now: a `PROBE_CYCLES` trial simulated, its features computed once to compile, then timed."""
-    camera = [m for m in config.modalities if m in ("image", "flow")]
+    camera = [m for m in config.modalities if m in CAMERA_MODALITIES]
     cycles = dataclasses.replace(dataset, cycles_per_trial=PROBE_CYCLES)
     scene = sim_dataset.scene_for(cycles.trials()[0], cycles, ("audio", "proprio") + (("images",) if camera else ()))
     t0 = time.perf_counter()
@@ -97,16 +78,9 @@ def probe(dataset: DatasetSpec, config: Config) -> dict[str, float]:
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)  # a feature process's one thread (`cache`)
     try:
+        features = data.features_for(config)  # camera features: the microphones' step window is no part of them
         for m in camera:
-            feature = data.feature_for(
-                m,
-                config.image_resolution,
-                config.image_size,
-                config.flow_sparsify,
-                archive.WINDOW,
-                config.image_reference,
-                config.flow_method,
-            )
+            feature = features[m]
             frames = lambda n: types.SimpleNamespace(images=trial.images[:n], reference=trial.reference)  # noqa: E731
             feature.compute(frames(PROBE_FRAMES))  # compiles
             t0 = time.perf_counter()
@@ -233,7 +207,7 @@ def rates(doc: dict[str, Any]) -> dict[str, dict[str, float]]:
 def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, workdir=None) -> list[Stage]:
     """The stages of a study of `configs` rows on the simulated data of `preset` (see the module docstring)."""
     spec = presets.get(preset).dataset
-    camera = {m for _, c in configs for m in c.modalities} & {"image", "flow"}
+    camera = {m for _, c in configs for m in c.modalities} & set(CAMERA_MODALITIES)
     folder = workspace.dataset_dir(preset, workdir)
     streams = ("audio", "proprio") + (("images",) if camera else ())
     scenes = [sim_dataset.scene_for(t, spec, streams) for t in spec.trials()]

@@ -25,7 +25,7 @@ import numpy as np
 from absl import logging
 
 from fabricjax import archive, atomic, checkpoint, data, dataset_index, lock, presets, source, stats, train, workspace
-from fabricjax.config import Config
+from fabricjax.config import CAMERA_MODALITIES, Config
 from fabricjax.errors import UserError
 from fabricjax.placement import place_ahead
 from fabricjax.studies.common import documents, loading, plan, recipe
@@ -192,8 +192,8 @@ def _which_rows(names: Sequence[str], n_rows: int) -> str:
     return f"every one of its {n_rows} rows" if len(names) == n_rows else f"rows {', '.join(names)}"
 
 
-ROW_KINDS = ("image", "flow", "other")
-CAMERA_INPUTS = ROW_KINDS[:-1]
+CAMERA_INPUTS = CAMERA_MODALITIES
+ROW_KINDS = (*CAMERA_INPUTS, "other")
 
 
 def row_kind(config: Config) -> str:
