@@ -32,7 +32,7 @@ TINY = Config(
 
 
 def _shapes(cfg):
-    return feature_shapes(train.select(cfg, synthetic.data_set(cfg, 2))["inputs"])
+    return feature_shapes(placement.select(cfg, synthetic.data_set(cfg, 2))["inputs"])
 
 
 def data_sets(cfg, n_train=32):
@@ -96,7 +96,7 @@ def test_a_stopped_seed_no_longer_changes_while_the_others_train(from_host):
     parameters and optimiser state bit for bit, and change the other's; on the devices and when
     fed from the host (`feed.HostFed`)."""
     cfg = dataclasses.replace(TINY, patience=2)
-    sets = {k: train.select(cfg, v) for k, v in data_sets(cfg).items()}
+    sets = {k: placement.select(cfg, v) for k, v in data_sets(cfg).items()}
     mesh = sharding.training_mesh(cfg.batch_size)
     trainer = make_trainer(cfg, _shapes(cfg), mesh, n_train=32)
     state = jax.jit(jax.vmap(trainer.init))(
@@ -156,7 +156,7 @@ def test_a_corrupted_test_split_changes_no_choice(monkeypatch):
         runner.data,
         "narrow",
         lambda sets, config: {
-            k: train.select(config, {"inputs": v.inputs, "labels": v.labels}) for k, v in sets.items()
+            k: placement.select(config, {"inputs": v.inputs, "labels": v.labels}) for k, v in sets.items()
         },
     )
     cfg = dataclasses.replace(TINY, patience=1, epochs=4, lr_grid=(1e-4, 3e-3))
