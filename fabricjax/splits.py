@@ -99,3 +99,10 @@ def validation_trials(metas: Iterable[dict[str, Any]], splits: Splits = Splits()
 def assign_roles(metas: list[dict[str, Any]], splits: Splits = Splits()) -> list[str | None]:
     val = validation_trials(metas, splits)
     return [role_of(m, val, splits) for m in metas]
+
+
+def dataset_roles(dataset: DatasetSpec) -> list[tuple[dict[str, Any], str | None]]:
+    """Each trial of `dataset` as the meta fields its archive will carry (fabric_id, day, trial,
+    condition) with the role `assign_roles` gives it: what a plan counts before the data exists."""
+    metas = [dataclasses.asdict(t) for t in dataset.trials()]
+    return list(zip(metas, assign_roles(metas, dataset.splits)))

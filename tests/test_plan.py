@@ -3,7 +3,7 @@
 import dataclasses
 import json
 
-from fabricjax import presets
+from fabricjax import catalog, presets
 from fabricjax.config import Config
 from fabricjax.sim import dataset as sim_dataset
 from fabricjax.studies.common import plan
@@ -92,3 +92,83 @@ def test_the_published_manifest_gives_each_rows_rate_and_a_step_budget_its_epoch
     epochs = -(-config.train_steps // (1600 // config.batch_size))
     assert abs(stage.seconds - (5.0 + 1e-4 * 1600 * epochs * 5)) < 1e-6
     assert f"at most {epochs} epochs" in stage.basis and "AMD EPYC" in stage.basis
+
+
+def test_each_feature_says_its_bytes_per_step():
+    """`Feature.step_bytes` is one step of the array the feature computes, for every camera reading
+    and a microphone window other than the paper's: what the plan sizes the cache and sequences by."""
+    import types
+
+    from fabricjax.features import extract
+    from fabricjax.sim.trial import simulate
+
+    spec = dataclasses.replace(presets.get("smoke").dataset, cycles_per_trial=1)
+    trial = simulate(sim_dataset.scene_for(spec.trials()[0], spec, ("audio", "proprio", "images")))
+    frames = types.SimpleNamespace(images=trial.images[:3], reference=trial.reference)
+    features = [extract.feature_for("internal", window=1024)]
+    for reference in ("session", "none"):
+        for resolution in ("down", "full"):
+            config = Config.from_preset(
+                "smoke",
+                modalities=("internal", "proprio", "flow", "image"),
+                image_reference=reference,
+                image_resolution=resolution,
+            )
+            features += extract.features_for(config).values()
+    for f in features:
+        computed = f.compute(frames if f.needs_images else trial)
+        assert computed[0].nbytes == f.step_bytes(spec.image_size), f.name
+
+
+def test_the_training_sequences_are_those_the_splits_train_on(tmp_path, monkeypatch):
+    """The plan counts the trials `splits` and `data` put in the training split: a fabric the rows
+    exclude (the property holdouts) trains on none, and a day of one trial keeps it for training."""
+    from fabricjax import splits
+
+    spec = presets.get("smoke").dataset
+    counted = {}
+
+    def training(configs, n_seeds, train_sequences):
+        counted[configs[0][1].exclude_fabrics] = train_sequences
+        return []
+
+    monkeypatch.setattr(plan, "probe", lambda dataset, config: {"simulate": 0.0})
+    monkeypatch.setattr(plan, "training", training)
+    for exclude in ((), (spec.fabrics[0],)):
+        plan.stages(
+            "smoke",
+            [("internal", Config.from_preset("smoke", modalities=("internal",), exclude_fabrics=exclude))],
+            2,
+            tmp_path,
+        )
+    trained = [f for f in spec.fabrics if f not in catalog.NEW_FABRICS]  # the new fabrics are only tested
+    per_fabric = counted[()] // len(trained)
+    assert counted[()] == per_fabric * len(trained) > 0
+    assert counted[(spec.fabrics[0],)] == counted[()] - per_fabric
+    one = dataclasses.replace(spec, train_trials_per_day=1)
+    roles = [
+        role
+        for meta, role in splits.dataset_roles(one)
+        if meta["condition"] == "lab" and meta["day"] in one.splits.train_days
+    ]
+    assert roles and set(roles) == {"train"}
+
+
+def test_the_paper_presets_rows_say_early_stopping_only_when_it_is_on(tmp_path, monkeypatch):
+    monkeypatch.setattr(
+        plan,
+        "_published_rates",
+        lambda: [
+            (
+                "a run",
+                {
+                    plan.rate_key(c.to_json()): {"per_unit_s": 1e-3, "compile_s": 1.0}
+                    for _, c in rows("paper", ("internal",))
+                },
+            )
+        ],
+    )
+    config = rows("paper", ("internal",))[0][1]
+    (off,) = plan.training([("internal", dataclasses.replace(config, patience=0, patience_steps=0))], 2, 100)
+    (on,) = plan.training([("internal", dataclasses.replace(config, patience=3))], 2, 100)
+    assert "early stopping" not in off.basis and "(early stopping ends sooner)" in on.basis

@@ -29,6 +29,7 @@ applied when sequences are built and is not part of the key. Arrays, per trial o
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from typing import Any, Callable, Mapping
 
@@ -49,6 +50,24 @@ class Feature:
     cached: bool
     compute: Callable[[archive.TrialArchive], np.ndarray]
     needs_reference: bool = False  # the session's no-contact reference (`archive.TrialArchive.reference`)
+
+    def step_bytes(
+        self, frame_size: tuple[int, int], bandwidth_khz: float | None = None, rate: int = archive.AUDIO_RATE
+    ) -> int:
+        """Bytes one step of this feature's array takes, by its dtype and shape (the module
+        docstring's table), for an archive of `frame_size` (H, W) frames; a PSD's bins are those a
+        study keeps of a microphone at `rate` Hz (`welch.n_bins` of `bandwidth_khz`; None: all),
+        so a plan can size the cache and the loaded sequences without restating the dtypes."""
+        if self.name.startswith("psd_"):
+            window = int(m[1]) if (m := re.search(r"_w(\d+)$", self.name)) else archive.WINDOW  # `_psd`'s names
+            bins = welch.full_bins(window) if bandwidth_khz is None else welch.n_bins(bandwidth_khz, rate, window)
+            return 4 * bins  # float32
+        if self.name == "proprio":
+            return 4 * archive.N_PROPRIO  # float32
+        if self.name.startswith("flow"):
+            return 2 * math.prod(flow.pooled_shape(*frame_size)) * 2  # float16, (2, h, w)
+        size = self.params.get("size", frame_size)
+        return math.prod(size) * 3 * (2 if self.needs_reference else 1)  # uint8, int16 against a reference
 
 
 def mic_index(trial: archive.TrialArchive, role: str) -> int:

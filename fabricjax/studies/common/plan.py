@@ -22,20 +22,17 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import os
 import shutil
 import time
 import types
-from pathlib import Path
 from typing import Any, Sequence
 
 import cv2
 
-from fabricjax import archive, data, feed, memo, presets, workspace
+from fabricjax import data, feed, memo, presets, provenance, splits, workspace
 from fabricjax.config import CAMERA_MODALITIES, RATE_NEUTRAL_FIELDS, Config
 from fabricjax.disk import size
-from fabricjax.features import flow, welch
 from fabricjax.sim import dataset as sim_dataset
 from fabricjax.sim.trial import simulate
 from fabricjax.splits import DatasetSpec
@@ -43,7 +40,7 @@ from fabricjax.studies.common import documents, loading, recipe
 
 # The published run the training line is extrapolated from (`python -m experiments.ablation
 # --preset=paper_sample --seeds=5 --results=results/paper_sample`).
-SAMPLE_RESULTS = Path(__file__).resolve().parents[3] / "results" / "paper_sample" / "ablation.json"
+SAMPLE_RESULTS = provenance.repository_root() / "results" / "paper_sample" / "ablation.json"
 # The manifest of the published `python -m experiments.reproduce --results=results`: each training
 # study's rate per row (`rates`), measured on the default preset.
 REPRODUCE_MANIFEST = SAMPLE_RESULTS.parents[1] / "reproduce.json"
@@ -92,21 +89,9 @@ def probe(dataset: DatasetSpec, config: Config) -> dict[str, float]:
 
 
 def _bytes_per_step(config: Config, image_size: tuple[int, int]) -> float:
-    """Bytes one step of `config`'s inputs takes, loaded (camera inputs as cached)."""
-    out = 0.0
-    for m in config.modalities:
-        if m == "flow":
-            out += 2 * math.prod(flow.pooled_shape(*image_size)) * 2  # float16
-        elif m == "image":
-            size = image_size if config.image_resolution == "full" else config.image_size
-            out += (
-                math.prod(size) * 3 * (2 if config.image_reference == "session" else 1)
-            )  # uint8, int16 against a reference
-        elif m == "proprio":
-            out += 4 * archive.N_PROPRIO
-        else:
-            out += 4 * welch.n_bins(config.bandwidth_khz, archive.AUDIO_RATE, archive.WINDOW)
-    return out
+    """Bytes one step of `config`'s inputs takes, loaded (camera inputs as cached), as each input's
+    feature says (`Feature.step_bytes`) for frames of `image_size` and the config's band."""
+    return float(sum(f.step_bytes(image_size, config.bandwidth_khz) for f in data.features_for(config).values()))
 
 
 def _published_rates() -> list[tuple[str, dict[str, dict[str, float]]]]:
@@ -143,7 +128,7 @@ def _published_rates() -> list[tuple[str, dict[str, dict[str, float]]]]:
 
 def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequences: int) -> list[Stage]:
     """One stage per row: its grid points (`recipe.points`) times its compilation and the cap of
-    its epochs on `train_sequences` (`loading.epochs_for`; early stopping ends sooner) times the
+    its epochs on `train_sequences` (`loading.epochs_for`; with a patience, early stopping may end sooner) times the
     published rate of a row with the same inputs and model (`rates`). A row no published run
     matches is unknown until the run's own progress log gives its ETA."""
     published = _published_rates()
@@ -156,6 +141,7 @@ def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequence
             loading.epochs_for(config, config.train_steps, train_sequences) if config.train_steps else config.epochs
         )
         grid = f"{len(points)} grid points x " if len(points) > 1 else ""
+        early = bool(config.patience or config.patience_steps)  # early stopping on: it may end sooner
         if rate is None:
             out.append(
                 Stage(
@@ -172,7 +158,8 @@ def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequence
                 f"training {name}",
                 0,
                 seconds,
-                f"{grid}at most {epochs} epochs (early stopping ends sooner) of {train_sequences} sequences x "
+                f"{grid}at most {epochs} epochs {'(early stopping ends sooner) ' if early else ''}"
+                f"of {train_sequences} sequences x "
                 f"{n_seeds} seeds at {1e6 * rate['per_unit_s']:.0f} us per sequence, epoch and seed, as measured by {source}",
             )
         )
@@ -242,10 +229,11 @@ def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, wor
         )
     n = configs[0][1].seq_len
     per_trial = steps // n
-    train_sequences = sum(
+    exclude = configs[0][1].exclude_fabrics
+    train_sequences = sum(  # the trials the data will place in the training split (`splits`, `data.split_of`)
         per_trial
-        for t in spec.trials()
-        if t.day in spec.splits.train_days and t.trial < spec.train_trials_per_day - spec.splits.val_trials_per_day
+        for meta, role in splits.dataset_roles(spec)
+        if role == "train" and data.split_of(meta, role, exclude) == "train"
     )
     per_sequence = n * _bytes_per_step(union, spec.image_size)
     loaded = len(scenes) * per_trial * per_sequence
