@@ -128,9 +128,9 @@ def _published_rates() -> list[tuple[str, dict[str, dict[str, float]]]]:
 
 def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequences: int) -> list[Stage]:
     """One stage per row: its grid points (`recipe.points`) times its compilation and the cap of
-    its epochs on `train_sequences` (`loading.epochs_for`; with a patience, early stopping may end sooner) times the
-    published rate of a row with the same inputs and model (`rates`). A row no published run
-    matches is unknown until the run's own progress log gives its ETA."""
+    its epochs on `train_sequences` (`loading.epochs_for`; with a patience, early stopping may end
+    sooner) times the published rate of a row with the same inputs and model (`rates`). A row no
+    published run matches is unknown until the run's own progress log gives its ETA."""
     published = _published_rates()
     out = []
     for name, config in configs:
