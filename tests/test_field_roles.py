@@ -12,7 +12,7 @@ from fabricjax.config import Config
 from fabricjax.features import extract
 from fabricjax.studies.common import loading, plan, runner
 
-# The lists as they were written by hand, once, so that a change of a field's metadata that moves one fails here.
+# The lists written out by hand, so that a change of a field's metadata that moves one fails here.
 RESULT_NEUTRAL = ("input_source",)
 SEQUENCE_FIELDS = (
     "preset",
