@@ -20,16 +20,7 @@ import scipy.signal
 from fabricjax import archive, data
 from fabricjax.config import Config
 from fabricjax.features import welch
-
-
-def best_of(fn, repeats: int) -> float:
-    """The shortest of `repeats` timed calls of `fn`, in seconds."""
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
+from fabricjax.timing import best_of
 
 
 def bench_welch(n_windows: int = 4096, repeats: int = 5, seed: int = 0) -> dict:

@@ -2,7 +2,7 @@
 the cost study).
 
 They time the real programs: `Trainer.train_epoch` (a scan over minibatches, vmapped over seeds,
-buffers donated) and the compiled `predict_one` (`predict_one_timer`), on synthetic data of the paper's shapes (320 PSD
+buffers donated) and the compiled `predict_one` (`timing.predict_one_timer`), on synthetic data of the paper's shapes (320 PSD
 bins = 15 kHz of 512, N=200 steps). Compilation is excluded; nothing here asserts a time.
 
 An epoch is timed as one call of `STEPS_PER_EPOCH` steps, as training runs it (one call per epoch
@@ -34,6 +34,7 @@ from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.inputs import feature_shapes, training_layout
 from fabricjax.model import compile_predict_one
+from fabricjax.timing import predict_one_timer
 from fabricjax.train import make_trainer, seed_keys, select
 
 STEPS_PER_EPOCH = 16
@@ -188,24 +189,6 @@ def train_step_flops(config: Config, n_seeds: int, batch: int = 32, seq_len: int
     counted on an epoch of one step: XLA counts the epoch's scan body once, whatever its length."""
     epoch, carry, keys, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps=1)
     return xla_flops(epoch, carry, keys, train)
-
-
-def predict_one_timer(graphdef, params, inputs, warmup: int = 3) -> Callable[[], float]:
-    """A warmed-up (`warmup` calls) callable returning the seconds of one `predict_one` call (the
-    ahead-of-time compiled `model.compile_predict_one`) on one sequence `inputs` {modality: (N, ...)}:
-    inputs already on the device, dropout off, logits fetched to the host."""
-    device = jax.devices()[0]
-    one = {m: jax.device_put(a, device) for m, a in inputs.items()}
-    predict_one = compile_predict_one(graphdef, params, one, device)
-
-    def run() -> float:
-        t = time.perf_counter()
-        jax.device_get(predict_one(one))
-        return time.perf_counter() - t
-
-    for _ in range(warmup):
-        run()
-    return run
 
 
 def _inference_program(config: Config, seq_len: int, psd_bins: int):

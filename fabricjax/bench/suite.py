@@ -54,12 +54,11 @@ from typing import Any, Callable, Sequence
 import jax
 from absl import logging
 
-from fabricjax import archive, dataset_index, live, presets, sharding, sim, train
-from fabricjax.bench import feature_timing, flow_timing, input_timing, program_timing, sim_throughput, torch_twin
+from fabricjax import archive, dataset_index, live, presets, results_files, sharding, sim, timing, train
+from fabricjax.bench import feature_timing, input_timing, program_timing, sim_throughput, torch_twin
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.sim import calibration as sim_calibration
-from fabricjax.studies.common import documents
 from fabricjax.workspace import Location
 
 BENCHMARKS = (
@@ -386,7 +385,7 @@ def run(
         "simulator": lambda: bench_simulator(quick),
         "welch": lambda: bench_welch(quick),
         "extraction": lambda: bench_extraction(quick, where.workdir),
-        "flow": lambda: flow_timing.bench_flow(batch=4 if quick else 8, repeats=1 if quick else 3),
+        "flow": lambda: timing.bench_flow(batch=4 if quick else 8, repeats=1 if quick else 3),
         "input": lambda: input_timing.bench_input(n_sequences=24 if quick else 96, steps=1 if quick else 3),
         "training": lambda: bench_training(quick, workload, comparison(), matmul_peak()),
         "camera": lambda: bench_camera(quick),
@@ -395,7 +394,7 @@ def run(
         "acquisition": lambda: acquisition(seconds=3.0 if quick else 10.0),
         "import": lambda: importer(trials=100 if quick else 1000),
     }
-    doc = documents.header("bench", command=where.command, quick=quick, torch=_torch_version(twin), benchmarks={})
+    doc = results_files.header("bench", command=where.command, quick=quick, torch=_torch_version(twin), benchmarks={})
     if note:
         doc["torch_note"] = note
     for name in (b for b in BENCHMARKS if b in chosen):
@@ -406,7 +405,7 @@ def run(
     if peak:
         doc["matmul_peak"] = peak
     out(markdown(doc))
-    return documents.write(where.results_dir(), doc, markdown)
+    return results_files.write(where.results_dir(), doc, markdown)
 
 
 def _torch_version(twin) -> str | None:
@@ -478,8 +477,8 @@ def markdown(doc: dict[str, Any]) -> str:
                 ]
             )
         for name, v in i.get("interleaved", {}).get("torch_variants", {}).items():
-            timing = f"{v['p50_ms']:.2f} / {v['p99_ms']:.2f} ms" if "p50_ms" in v else "n/a"
-            variants.append(["inference, p50 / p99", name, timing, _ratios(v.get("ratio_p50")), _built(v)])
+            times = f"{v['p50_ms']:.2f} / {v['p99_ms']:.2f} ms" if "p50_ms" in v else "n/a"
+            variants.append(["inference, p50 / p99", name, times, _ratios(v.get("ratio_p50")), _built(v)])
     if "streaming" in b:
         s = b["streaming"]
         rows.append(
@@ -584,7 +583,7 @@ def markdown(doc: dict[str, Any]) -> str:
         "GFLOP",
         "GFLOP/s (% peak: " + " / ".join(doc.get("matmul_peak", {})) + ")",
     ]
-    text = head + "\n\n" + documents.markdown_table(cols, [r + [""] * (len(cols) - len(r)) for r in rows])
+    text = head + "\n\n" + results_files.markdown_table(cols, [r + [""] * (len(cols) - len(r)) for r in rows])
     if variants:
         adamw = b.get("training", {}).get("interleaved", {}).get("torch_adamw")
         text += (
@@ -592,7 +591,9 @@ def markdown(doc: dict[str, Any]) -> str:
             + (f" (AdamW {adamw})" if adamw else "")
             + "; ratio: ours / its time, per our compute dtype; build + "
             "compile: seconds to build it and run its first, compiling calls, not in its times.\n\n"
-            + documents.markdown_table(["workload", "PyTorch variant", "time", "ratio", "build + compile"], variants)
+            + results_files.markdown_table(
+                ["workload", "PyTorch variant", "time", "ratio", "build + compile"], variants
+            )
         )
     return text
 

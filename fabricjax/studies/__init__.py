@@ -17,13 +17,18 @@ Our studies beyond the paper (`extra/`):
     cost         accuracy against touch time, training time and inference latency
     sweep        a recipe grid over Config fields on the ablation's rows, best point by mean validation
     palm         the palm microphone by physics: source levels at the palm, day against fabric (no model)
+    sensitivity  which simulator estimates each finding depends on: a Morris screening over their ranges
+    calibrate    the declared calibrations: each estimate fitted to the one measurement of the paper that pins it
+    flow_agreement  how closely the JAX Farneback reproduces OpenCV's flow, and what each costs
 
 Tools (`tools/`):
 
     reproduce    every study of the paper's plan in order, skipping those up to date, into REPORT.md
     stream       live classification of one trial (results/stream.json)
+    variant      a variant of a training study against its baseline: two results files, row by row
 
-The speed benchmarks are a package of their own, `fabricjax.bench`.
+The speed benchmarks are a package of their own, `fabricjax.bench`; neither imports the other:
+what both need lies beneath them (`fabricjax.timing`, `fabricjax.results_files`).
 
 Each study's `run(...)` trains or measures, writes <study>.md and .json into its results folder
 and returns the JSON document. The four training studies of the paper's tables (ablation,
@@ -38,4 +43,6 @@ the studies share (`common/`), one concept per module:
     documents    the results layer: every results file's header (command, code, date, machine, data),
                  tables, per-row and per-sample records, atomic writing with the figures listed
     findings     the paper's claims as predicates over per-seed results: a study's checklist
+    linear_probe the linear probe: per-sequence summaries of an input, standardised, a logistic regression
+    plan         what a study will cost before it starts: disk and time per stage
 """

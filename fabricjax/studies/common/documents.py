@@ -1,151 +1,43 @@
 """The results layer: every results file a command writes, and what it says about where its
 numbers come from.
 
-Every study (the training studies, the probe, cost, sweep, latents, stream, bench, palm) builds
-its JSON document on `header` (study, command, code and the `fingerprints` of what decides its
-numbers, machine, date, and the fields it adds: preset, seeds, dataset, ...), says where its
+Every study (the training studies, the probe, cost, sweep, latents, stream, palm) builds its JSON
+document on `header` (study, command, code and the `fingerprints` of what decides its numbers,
+machine, date, and the fields it adds: preset, seeds, dataset, ...), says where its
 numbers come from in Markdown with `header_markdown` and writes results/<study>.md and .json
 atomically with `write`, which also records the figures it drew under one key, "figures". Tables
 are `markdown_table`; per-row and per-sample records of a trained row are `runner.Row.doc` and
 `samples_doc`. The paper's claims checked on a study's rows live in `findings`; REPORT.md, which
-gathers every study, is `reproduce`'s."""
+gathers every study, is `reproduce`'s. What every results file shares, the benchmarks' included
+(header fields, machine, code, atomic writing, tables), is `fabricjax.results_files`, beneath."""
 
 from __future__ import annotations
 
 import dataclasses
-import datetime
-import json
-import os
-import platform
-import subprocess
-import sys
 from pathlib import Path
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
-import numpy as np
-
-from fabricjax import atomic, data, dataset_index, presets, provenance, runtime, source, stats, workspace
-from fabricjax.atomic import atomic_open
-from fabricjax.sim import estimates
+from fabricjax import data, dataset_index, presets, provenance, results_files, stats, workspace
 from fabricjax.studies.common.loading import Dataset
 
-
-# CPU features XLA:CPU compiles for: hosts that differ in them may round (and run) the same
-# program differently, so every results file records which the host has.
-VECTOR_UNITS = {"sse4_2", "avx", "avx2", "fma", "avx512f", "avx512bw", "avx512_bf16", "amx_tile"}
-
-
-def machine() -> dict[str, Any]:
-    """What a number was measured on; every results file carries this."""
-    import jax
-
-    cpu = platform.processor() or platform.machine()
-    vector_units: list[str] = []
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name") and cpu == (platform.processor() or platform.machine()):
-                cpu = line.split(":", 1)[1].strip()
-            elif line.startswith("flags") and not vector_units:
-                vector_units = sorted(set(line.split(":", 1)[1].split()) & VECTOR_UNITS)
-    except OSError:
-        pass
-    return {
-        "cpu": cpu,
-        "cores": os.cpu_count(),
-        "vector_units": vector_units,
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "jax": jax.__version__,
-        "jax_backend": jax.default_backend(),
-        "devices": [str(d) for d in jax.devices()],
-        # settings that change speed without changing code; recorded so a timing can be rerun alike
-        "env": {
-            k: os.environ[k]
-            for k in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "GLIBC_TUNABLES", "OMP_NUM_THREADS")
-            if k in os.environ
-        },
-    }
-
-
-def git_commit() -> str:
-    """'commit <hash>' of the source tree this package runs from (' + uncommitted changes' when
-    git sees any), or 'no git checkout'."""
-    root = provenance.repository_root()
-    try:
-        run = lambda *a: subprocess.run(  # noqa: E731
-            ["git", "-C", str(root), *a], capture_output=True, text=True, timeout=10, check=True
-        ).stdout.strip()
-        head, dirty = (
-            run("rev-parse", "--short=12", "HEAD"),
-            run("status", "--porcelain", "--untracked-files=no", "--", "fabricjax", "experiments"),
-        )
-    except (OSError, subprocess.SubprocessError):
-        return "no git checkout"
-    return f"commit {head}" + (" + uncommitted changes" if dirty else "")
-
-
-FINGERPRINT_DIGITS = 16  # hex digits of each fingerprint a results file records
-
-
-def fingerprints(data: str | None) -> dict[str, str | None]:
-    """What decides a study's numbers besides its command (study, preset, seeds, rows, --set), as
-    every results file (`header`) and `reproduce`'s manifest record it: "code", the `fabricjax`
-    package without comments and docstrings (`source.fingerprint`); "data", recorded data's
-    contents (`data`: `DatasetIndex.content_hash`), None for a preset's simulated data, which the
-    code, the preset and "estimates" decide: the simulator's magnitudes in force
-    (`sim.estimates.fingerprint`), None on recorded data, which no estimate decides."""
-    prints = {"code": source.fingerprint()[:FINGERPRINT_DIGITS], "estimates": None, "data": data}
-    if data is None:
-        prints["estimates"] = estimates.fingerprint()[:FINGERPRINT_DIGITS]
-    return prints
+# The results-file layer below the studies and the benchmarks (`results_files`), as the studies call it.
+VECTOR_UNITS = results_files.VECTOR_UNITS
+FINGERPRINT_DIGITS = results_files.FINGERPRINT_DIGITS
+machine = results_files.machine
+git_commit = results_files.git_commit
+fingerprints = results_files.fingerprints
+write_text = results_files.write_text
+write_json = results_files.write_json
+markdown_table = results_files.markdown_table
+results_path = results_files.results_path
+utc_now = results_files.utc_now
+write = results_files.write
+replacing = results_files.replacing
 
 
 def data_fingerprint(ds: Dataset | None) -> str | None:
     """The "data" of `fingerprints` for a study that read `ds`: recorded data's contents, else None."""
     return dataset_index.load_index(ds.folder, ds.workdir).content_hash if ds is not None and ds.recorded else None
-
-
-def _default(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, (set, tuple)):
-        return list(o)
-    if isinstance(o, Path):
-        return str(o)
-    raise TypeError(f"not JSON-serialisable: {type(o).__name__}")
-
-
-def write_text(path: os.PathLike | str, text: str) -> Path:
-    """Atomic: a reader sees the old file or the new one, never half of one. In a multi-process
-    run every process computes the same document and only process 0 writes it (`runtime.is_primary`)."""
-    if runtime.is_primary():
-        with atomic_open(path, "w", what="a results file") as f:
-            f.write(text)
-    return Path(path)
-
-
-def write_json(path: os.PathLike | str, doc: Any) -> Path:
-    return write_text(path, json.dumps(doc, indent=1, default=_default) + "\n")
-
-
-def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
-    def cell(x):
-        return str(x).replace("|", "\\|")
-
-    lines = ["| " + " | ".join(map(cell, header)) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(map(cell, r)) + " |" for r in rows]
-    return "\n".join(lines) + "\n"
-
-
-def results_path(results=None) -> Path:
-    return workspace.results_dir(results)
-
-
-def utc_now() -> str:
-    """The time results files record: '2026-11-25 10:55 UTC'."""
-    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
 
 
 def header(
@@ -161,14 +53,7 @@ def header(
     None when called from Python), from which code and with which `fingerprints`, when and on
     which machine, then the study's own `fields` (its preset, the seeds, the dataset it read as
     `dataset_doc`, the compute dtypes its models trained in (`Config.compute_dtype`), its times, ...)."""
-    doc = {
-        "study": study,
-        "command": command,
-        "code": git_commit(),
-        "fingerprints": fingerprints(data_fingerprint(dataset)),
-        "date": utc_now(),
-        "machine": machine(),
-    }
+    doc = results_files.header(study, command=command, data=data_fingerprint(dataset))
     if seeds is not None:
         doc["seeds"] = list(seeds)
     if dataset is not None:
@@ -207,43 +92,6 @@ def fingerprints_markdown(prints: dict[str, str | None]) -> str:
     """The `fingerprints` a results file records, as its header lists them."""
     named = {"code": "code", "estimates": "simulator estimates", "data": "recorded data"}
     return "- fingerprints: " + ", ".join(f"{named[k]} `{v}`" for k, v in prints.items() if v is not None)
-
-
-def write(
-    results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str] | None, figures: Sequence[Path | None] = ()
-) -> dict[str, Any]:
-    """Write `doc` as results/<study>.json and `markdown(doc)` (None: no Markdown) as
-    results/<study>.md, atomically; `figures` (drawn into the same folder; None: not drawn) are
-    listed by file name under the document's "figures" key first, which is how the Markdown and
-    `reproduce` know a study's figures."""
-    out = results_path(results)
-    doc["figures"] = [Path(f).name for f in figures if f is not None]
-    replaced = replacing(out / f"{doc['study']}.json", doc)
-    if replaced:
-        print(f"note: {replaced}", file=sys.stderr, flush=True)
-    with atomic.together():  # both files, or neither (a study drawing figures holds them in its own block)
-        if markdown is not None:
-            write_text(out / f"{doc['study']}.md", markdown(doc))
-        write_json(out / f"{doc['study']}.json", doc)
-    return doc
-
-
-def replacing(path: Path, doc: dict[str, Any]) -> str | None:
-    """What `doc` replaces in words where the results at `path` are of another preset or other
-    data (a user's run over the install check's, say), else None: a replaced run is said, not silent."""
-    try:
-        old = json.loads(Path(path).read_text())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(old, dict):
-        return None
-
-    def of(d: dict[str, Any]) -> str:
-        return f"preset {d.get('preset')} on {(d.get('dataset') or {}).get('folder', 'its data')}"
-
-    if of(old) == of(doc):
-        return None
-    return f"{workspace.shown(path)} held the results of {of(old)}; this run's, of {of(doc)}, replace them (--results=DIR keeps both)"
 
 
 def replace_block(path: Path, begin: str, end: str, block: str) -> bool:

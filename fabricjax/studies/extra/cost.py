@@ -44,8 +44,7 @@ import jax
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, atomic, data, dataset_index, plots, stats
-from fabricjax.bench import program_timing
+from fabricjax import archive, atomic, data, dataset_index, plots, stats, timing
 from fabricjax.config import Config
 from fabricjax.studies.common import documents, findings, loading, runner
 from fabricjax.workspace import Location
@@ -119,8 +118,8 @@ def sweep_points(
 def inference_latency(
     graphdef, params, inputs: dict[str, np.ndarray], repeats: int, warmup: int = 5
 ) -> dict[str, float]:
-    """p50 / p99 ms of `predict_one` compiled ahead of time on one sequence, result fetched to the host (`program_timing.predict_one_timer`)."""
-    run = program_timing.predict_one_timer(graphdef, params, inputs, warmup=warmup)
+    """p50 / p99 ms of `predict_one` compiled ahead of time on one sequence, result fetched to the host (`timing.predict_one_timer`)."""
+    run = timing.predict_one_timer(graphdef, params, inputs, warmup=warmup)
     return {f"latency_{k}": v for k, v in stats.percentiles_ms([run() for _ in range(repeats)]).items()}
 
 

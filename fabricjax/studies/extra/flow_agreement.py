@@ -16,7 +16,7 @@ Per set, over every frame pair: the end-point error (EPE) between the two method
 (mean, median, p95, p99, max, in pixels) beside OpenCV's mean flow magnitude for scale; for the
 natural frames also each method's mean EPE to the known motion; and the agreement of what the
 model reads, the sparsified and pooled feature (`flow.sparsify_and_pool`, both readings):
-relative L2 difference and correlation. Then seconds per frame pair (`bench.flow_timing`).
+relative L2 difference and correlation. Then seconds per frame pair (`timing.bench_flow`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from fabricjax.bench import flow_timing
+from fabricjax import timing
 from fabricjax.features import flow
 from fabricjax.sim import Scene, minsight, trial
 from fabricjax.studies.common import documents
@@ -133,7 +133,7 @@ def run(*, quick: bool = False, where: Location = Location()) -> dict[str, Any]:
         sets.append(
             {"frames": "natural", "size": list(size), **compare([f for f, _ in natural], [t for _, t in natural])}
         )
-    timing = flow_timing.bench_flow(SIZES, batch=STEPS, repeats=1 if quick else 3)
+    speed = timing.bench_flow(SIZES, batch=STEPS, repeats=1 if quick else 3)
     doc = {
         **documents.header(
             STUDY,
@@ -145,7 +145,7 @@ def run(*, quick: bool = False, where: Location = Location()) -> dict[str, Any]:
             wall_s=time.perf_counter() - t0,
         ),
         "sets": sets,
-        "timing": timing,
+        "timing": speed,
     }
     return documents.write(where.results_dir(), doc, markdown)
 

@@ -1,0 +1,193 @@
+"""Results files: what every command that writes one records and how it writes it, below the
+studies and the benchmarks alike (`studies.common.documents` builds a study's header on this one;
+`bench.suite` writes its results with it).
+
+`header` is the first fields of every results JSON: what ran, from which code (`git_commit`) and
+with which `fingerprints` of what decides its numbers, when (`utc_now`) and on which `machine`;
+`write` writes a document as results/<study>.json and its Markdown as .md atomically, saying what
+it replaces (`replacing`); tables are `markdown_table`.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import platform
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from fabricjax import atomic, provenance, runtime, source, workspace
+from fabricjax.atomic import atomic_open
+from fabricjax.sim import estimates
+
+# CPU features XLA:CPU compiles for: hosts that differ in them may round (and run) the same
+# program differently, so every results file records which the host has.
+VECTOR_UNITS = {"sse4_2", "avx", "avx2", "fma", "avx512f", "avx512bw", "avx512_bf16", "amx_tile"}
+
+
+def machine() -> dict[str, Any]:
+    """What a number was measured on; every results file carries this."""
+    import jax
+
+    cpu = platform.processor() or platform.machine()
+    vector_units: list[str] = []
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name") and cpu == (platform.processor() or platform.machine()):
+                cpu = line.split(":", 1)[1].strip()
+            elif line.startswith("flags") and not vector_units:
+                vector_units = sorted(set(line.split(":", 1)[1].split()) & VECTOR_UNITS)
+    except OSError:
+        pass
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "vector_units": vector_units,
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "jax": jax.__version__,
+        "jax_backend": jax.default_backend(),
+        "devices": [str(d) for d in jax.devices()],
+        # settings that change speed without changing code; recorded so a timing can be rerun alike
+        "env": {
+            k: os.environ[k]
+            for k in ("XLA_FLAGS", "JAX_NUM_CPU_DEVICES", "GLIBC_TUNABLES", "OMP_NUM_THREADS")
+            if k in os.environ
+        },
+    }
+
+
+def git_commit() -> str:
+    """'commit <hash>' of the source tree this package runs from (' + uncommitted changes' when
+    git sees any), or 'no git checkout'."""
+    root = provenance.repository_root()
+    try:
+        run = lambda *a: subprocess.run(  # noqa: E731
+            ["git", "-C", str(root), *a], capture_output=True, text=True, timeout=10, check=True
+        ).stdout.strip()
+        head, dirty = (
+            run("rev-parse", "--short=12", "HEAD"),
+            run("status", "--porcelain", "--untracked-files=no", "--", "fabricjax", "experiments"),
+        )
+    except (OSError, subprocess.SubprocessError):
+        return "no git checkout"
+    return f"commit {head}" + (" + uncommitted changes" if dirty else "")
+
+
+FINGERPRINT_DIGITS = 16  # hex digits of each fingerprint a results file records
+
+
+def fingerprints(data: str | None) -> dict[str, str | None]:
+    """What decides a study's numbers besides its command (study, preset, seeds, rows, --set), as
+    every results file (`header`) and `reproduce`'s manifest record it: "code", the `fabricjax`
+    package without comments and docstrings (`source.fingerprint`); "data", recorded data's
+    contents (`data`: `DatasetIndex.content_hash`), None for a preset's simulated data, which the
+    code, the preset and "estimates" decide: the simulator's magnitudes in force
+    (`sim.estimates.fingerprint`), None on recorded data, which no estimate decides."""
+    prints = {"code": source.fingerprint()[:FINGERPRINT_DIGITS], "estimates": None, "data": data}
+    if data is None:
+        prints["estimates"] = estimates.fingerprint()[:FINGERPRINT_DIGITS]
+    return prints
+
+
+def _default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (set, tuple)):
+        return list(o)
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON-serialisable: {type(o).__name__}")
+
+
+def write_text(path: os.PathLike | str, text: str) -> Path:
+    """Atomic: a reader sees the old file or the new one, never half of one. In a multi-process
+    run every process computes the same document and only process 0 writes it (`runtime.is_primary`)."""
+    if runtime.is_primary():
+        with atomic_open(path, "w", what="a results file") as f:
+            f.write(text)
+    return Path(path)
+
+
+def write_json(path: os.PathLike | str, doc: Any) -> Path:
+    return write_text(path, json.dumps(doc, indent=1, default=_default) + "\n")
+
+
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    def cell(x):
+        return str(x).replace("|", "\\|")
+
+    lines = ["| " + " | ".join(map(cell, header)) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(map(cell, r)) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def results_path(results=None) -> Path:
+    return workspace.results_dir(results)
+
+
+def utc_now() -> str:
+    """The time results files record: '2026-11-25 10:55 UTC'."""
+    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+
+def write(
+    results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str] | None, figures: Sequence[Path | None] = ()
+) -> dict[str, Any]:
+    """Write `doc` as results/<study>.json and `markdown(doc)` (None: no Markdown) as
+    results/<study>.md, atomically; `figures` (drawn into the same folder; None: not drawn) are
+    listed by file name under the document's "figures" key first, which is how the Markdown and
+    `reproduce` know a study's figures."""
+    out = results_path(results)
+    doc["figures"] = [Path(f).name for f in figures if f is not None]
+    replaced = replacing(out / f"{doc['study']}.json", doc)
+    if replaced:
+        print(f"note: {replaced}", file=sys.stderr, flush=True)
+    with atomic.together():  # both files, or neither (a study drawing figures holds them in its own block)
+        if markdown is not None:
+            write_text(out / f"{doc['study']}.md", markdown(doc))
+        write_json(out / f"{doc['study']}.json", doc)
+    return doc
+
+
+def replacing(path: Path, doc: dict[str, Any]) -> str | None:
+    """What `doc` replaces in words where the results at `path` are of another preset or other
+    data (a user's run over the install check's, say), else None: a replaced run is said, not silent."""
+    try:
+        old = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(old, dict):
+        return None
+
+    def of(d: dict[str, Any]) -> str:
+        return f"preset {d.get('preset')} on {(d.get('dataset') or {}).get('folder', 'its data')}"
+
+    if of(old) == of(doc):
+        return None
+    return (
+        f"{workspace.shown(path)} held the results of {of(old)}; this run's, of {of(doc)}, replace them"
+        " (--results=DIR keeps both)"
+    )
+
+
+def header(study: str, *, command: str | None, data: str | None = None, **fields) -> dict[str, Any]:
+    """The first fields of every results JSON: what ran (`study`; `command`: the command line,
+    None when called from Python), from which code and with which `fingerprints` (`data`: recorded
+    data's contents, None for simulated data), when and on which machine, then `fields`."""
+    return {
+        "study": study,
+        "command": command,
+        "code": git_commit(),
+        "fingerprints": fingerprints(data),
+        "date": utc_now(),
+        "machine": machine(),
+        **fields,
+    }
