@@ -15,43 +15,25 @@ from pathlib import Path
 
 from absl import flags
 
-from acquisition import hand_folder, mapping_file
+from acquisition import hand_folder, import_flags, mapping_file
 from acquisition.alignment import parse_reference
-from fabricjax import cli
-from fabricjax import archive
+from fabricjax import archive, cli
 from fabricjax.errors import UserError
 
 FLAGS = flags.FLAGS
-flags.DEFINE_string("out", None, "Folder to write the trial archive into.", required=True)
-flags.DEFINE_integer("fabric", None, "Fabric id.")
-flags.DEFINE_integer("day", None, "Recording day.")
-flags.DEFINE_integer("trial", None, "Trial index.")
-flags.DEFINE_enum("condition", "lab", list(archive.CONDITIONS), "Acoustic condition.")
-flags.DEFINE_string("session", None, "Session whose camera reference the trial shares (default: day and condition).")
-flags.DEFINE_string(
-    "reference",
-    None,
+import_flags.define_out("the trial archive")
+import_flags.define_trial(overrides=False, condition="lab")
+import_flags.define_reference(
     "The camera's session reference: a file relative to TRIAL_DIR (image, video or .npy), or pre_contact.",
+    "the trial's",
 )
-flags.DEFINE_integer(
-    "reference_frames", None, "With --reference=pre_contact: how many of the trial's first frames (default 5)."
-)
-flags.DEFINE_bool(
-    "resample", False, "Resample WAV files not at 48 kHz (scipy.signal.resample_poly; recorded in the meta)."
-)
+import_flags.define_resample("WAV files")
 
 
 def main(argv):
     if len(argv) != 2:
         raise UserError("give exactly one trial folder: python -m acquisition.import_folder TRIAL_DIR --out=DIR")
-    overrides = {
-        "fabric_id": FLAGS.fabric,
-        "day": FLAGS.day,
-        "trial": FLAGS.trial,
-        "condition": FLAGS.condition,
-        "session": FLAGS.session,
-    }
-    trial = mapping_file.trial_fields({}, overrides, "command line")
+    trial = mapping_file.trial_fields({}, import_flags.trial_overrides(FLAGS), "command line")
     reference = parse_reference(
         {"reference": FLAGS.reference, "reference_frames": FLAGS.reference_frames}, argv[1], flags=True
     )

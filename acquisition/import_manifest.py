@@ -76,7 +76,8 @@ from typing import Any, Callable
 from absl import flags
 from tqdm import tqdm
 
-from acquisition import hand_folder, mapping_file, ros_bag, rig as rig_mod
+from acquisition import hand_folder, import_flags, mapping_file, ros_bag
+from acquisition import rig as rig_mod
 from acquisition.alignment import ReferenceSource, parse_reference, session_of
 from fabricjax import archive, cli, dataset_index, lock, parallel, provenance, workspace
 from fabricjax.atomic import atomic_open
@@ -681,16 +682,12 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    flags.DEFINE_string("out", None, "Folder to write the trial archives into.", required=True)
+    import_flags.define_out("the trial archives")
     flags.DEFINE_string("rig", None, "Rig file (TOML): the streams of each trial folder (acquisition/rig.py).")
-    flags.DEFINE_string("map", None, "Mapping file (TOML) of ROS 2 bags (acquisition/import_bag.py).")
-    flags.DEFINE_string(
-        "reference",
-        None,
+    import_flags.define_map("Mapping file (TOML) of ROS 2 bags (acquisition/import_bag.py).")
+    import_flags.define_reference(
         "The hand's trial folders' camera reference: a file relative to each trial folder, or pre_contact.",
-    )
-    flags.DEFINE_integer(
-        "reference_frames", None, "With --reference=pre_contact: how many of each trial's first frames (default 5)."
+        "each trial's",
     )
     flags.DEFINE_string(
         "labels", None, "Label map: CSV with columns name, class (default: the manifest's labels, sorted)."
@@ -700,10 +697,8 @@ if __name__ == "__main__":
         None,
         "Split rule when the manifest has no split column: fraction:TRAIN,VAL,TEST, trial:SPLIT=FIRST-LAST,... or day.",
     )
-    flags.DEFINE_bool(
-        "overwrite",
-        False,
-        "Replace the dataset in --out by the manifest's (default: keep archives of the same rows, refuse anything else).",
+    import_flags.define_overwrite(
+        "Replace the dataset in --out by the manifest's (default: keep archives of the same rows, refuse anything else)."
     )
     flags.DEFINE_integer("workers", None, "Processes (default: one per core).", lower_bound=1)
     flags.DEFINE_string(

@@ -54,7 +54,7 @@ BOUNDARIES = {
     "fabricjax.studies.tools.reproduce.check": "checks a results folder's fingerprints",
     "fabricjax.bench.suite._torch_twin": "builds the PyTorch twin of the benchmarks",
 }
-BENCHMARK_PREFIX = "bench_"  # and every benchmark function (fabricjax.bench, acquisition): "runs a benchmark"
+BENCHMARK_PREFIX = "bench_"  # and every benchmark function (fabricjax.bench, .timing, acquisition): "runs a benchmark"
 TIMEOUT_S = 120  # per example: one that reaches no boundary by then is reported
 REFUSED = f"{PREFIX}ablation --set=backbone=tcn"  # the negative control: the ablation's rows set the backbone
 
@@ -241,7 +241,7 @@ def _patch_boundaries() -> None:
         targets[id(getattr(importlib.import_module(module), name))] = (dotted, work)
     for mod in list(sys.modules.values()):
         name = getattr(mod, "__name__", "")
-        if name.startswith(("fabricjax.bench", "acquisition")):
+        if name.startswith(("fabricjax.bench", "fabricjax.timing", "acquisition")):
             for attr, value in list(vars(mod).items()):
                 if attr.startswith(BENCHMARK_PREFIX) and callable(value) and getattr(value, "__module__", None) == name:
                     targets[id(value)] = (f"{name}.{attr}", "runs a benchmark")
