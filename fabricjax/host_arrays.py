@@ -4,12 +4,10 @@ XLA's CPU client places a C-contiguous NumPy array whose data starts on a 64-byt
 without copying it: the device buffer is the array's own memory (`jax.device_put` on CPU
 devices; PjRt's zero-copy host buffers), on every device of a replicated placement. NumPy's own
 large allocations start 16 bytes past such a boundary, so they are copied, once per device. The
-sets a study trains on are GBs (a camera row's training frames: 1.1 GB in the default preset,
-replicated on both CPU devices of a 2-core machine), so the arrays made to be placed (loaded
-sequences, pixel rows, padded evaluation sets) are allocated here: their placement then costs no
-copy and no memory on CPU devices (a camera row's training frames, laid out as pixel rows and
-placed: 1.56 s in NumPy's memory with a copy per device, 0.49 s here). On accelerators they are copied into device
-memory either way.
+sets a study trains on are GBs (a camera row's training frames, replicated on every CPU device),
+so the arrays made to be placed (loaded sequences, pixel rows, padded evaluation sets) are
+allocated here: their placement then costs no copy and no memory on CPU devices. On accelerators
+they are copied into device memory either way.
 
 Aliasing is safe only for arrays nobody writes after placing them: loaded data sets are read-only
 (`data.load_sequences`), and the copies made for placement are never written again.
@@ -36,9 +34,8 @@ def empty(shape: tuple[int, ...], dtype) -> np.ndarray:
     Not NumPy's allocation for another reason too: NumPy asks the kernel for transparent huge
     pages for large arrays (`madvise`), and where memory is fragmented (after a data set's GBs
     went through the page cache) the kernel may compact memory to find them, synchronously, at
-    the first write of each page: three fresh GB in a row took 0.35, 2.28 and 0.07 s to write with
-    that advice on this project's 2-core machine, 0.36-0.41 s without it. These arrays are read in
-    blocks of whole sequences (tens of kB and up), for which ordinary pages do as well."""
+    the first write of each page, which makes writing a fresh array erratically slow. These arrays
+    are read in blocks of whole sequences, for which ordinary pages do as well."""
     dtype = np.dtype(dtype)
     count = math.prod(shape)
     return np.frombuffer(mmap.mmap(-1, max(count * dtype.itemsize, 1)), dtype, count).reshape(shape)

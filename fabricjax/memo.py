@@ -2,12 +2,13 @@
 share instead of recomputing (a camera row's frames on the devices, their input statistics).
 
 A study trains many rows on the arrays it loaded once: every camera row reads the same GB of
-frames, which training lays out as pixel rows and places on every device (1.0 s for the default
-preset's three splits) and whose statistics it sums (0.4-0.6 s). An entry is keyed by the array's
+frames, which training lays out as pixel rows and places on every device (`placement`) and whose
+statistics it sums (`inputs.input_statistics`). An entry is keyed by the array's
 identity (a view's: its root array's, with the view's offset, shape and strides, so that the PSD
-cut to a row's bandwidth, a new view each row, is found again) and the caller's key, and dies with the root array (a weak reference),
-so a new data set never meets an old entry. Loaded data sets are read-only (`data.load_sequences`
-marks their arrays so): an array changed in place would meet its old entries. Arrays under `MIN_BYTES` are not worth holding and are recomputed each time.
+cut to a row's bandwidth, a new view each row, is found again) and the caller's key, and dies
+with the root array (a weak reference), so a new data set never meets an old entry. Loaded data
+sets are read-only (`data.load_sequences` marks their arrays so): an array changed in place would
+meet its old entries. Arrays under `MIN_BYTES` are not worth holding and are recomputed each time.
 """
 
 from __future__ import annotations

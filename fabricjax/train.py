@@ -183,9 +183,10 @@ class Trainer:
         """One pass over shuffled minibatches (`epoch_order`) in a scan: (params, opt_state, summary).
 
         `train` is in the layout training holds its set in (`inputs.training_layout`: frames as
-        rows; `train_and_evaluate` converts it once per training). `epoch` (0-based) places the pass in the run for the learning-rate schedule. `summary` is
-        `epoch_summary`'s: the accuracy is counted from the logits of the training steps themselves
-        (dropout and augmentation on, parameters changing)."""
+        rows; `train_and_evaluate` converts it once per training). `epoch` (0-based) places the
+        pass in the run for the learning-rate schedule. `summary` is `epoch_summary`'s: the
+        accuracy is counted from the logits of the training steps themselves (dropout and
+        augmentation on, parameters changing)."""
         order, keys = self.epoch_order(key, jax.tree.leaves(train)[0].shape[0])
 
         def step(carry, xs):
