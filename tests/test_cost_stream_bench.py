@@ -377,3 +377,22 @@ def test_comparison_times_every_dtype_against_every_twin_variant(monkeypatch):
     i = out["inference"]
     assert i["torch_variant"] == "eager +bf16 autocast" and set(i["ours"]) == set(program_timing.DTYPES)
     assert i["ours"]["float32"]["ratio_p50"] == pytest.approx(i["ours"]["float32"]["p50_ms"] / 200.0)
+
+
+def test_bench_and_studies_do_not_import_each_other():
+    """What the benchmarks and the studies share lies beneath both (`fabricjax.timing`,
+    `fabricjax.results_files`): no module of one imports the other."""
+    import ast
+    from pathlib import Path
+
+    package = Path(archive.__file__).parent
+    for here, other in (("bench", "fabricjax.studies"), ("studies", "fabricjax.bench")):
+        for path in (package / here).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.ImportFrom) and node.module:
+                    names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+                elif isinstance(node, ast.Import):
+                    names = [a.name for a in node.names]
+                else:
+                    continue
+                assert not any(n == other or n.startswith(other + ".") for n in names), (path, names)

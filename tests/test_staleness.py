@@ -171,3 +171,27 @@ def test_other_results_files_are_checked_by_the_fingerprints_their_headers_recor
         == "stale since commit abc123: it records no fingerprints of what it was computed from"
     )
     assert found[str(tmp_path / "palm.md")].endswith("the code changed")
+
+
+def test_the_decision_study_is_given_the_ablation_rows_labels(tmp_path):
+    """decide.png titles name the ablation's rows as its tables print them (`display_name`), not by
+    the rows' internal names."""
+    rows = [
+        {"name": name, "checkpoint": f"ckpt/{name}", "display_name": f"label of {name}"}
+        for name in reproduce.DECIDE_ROWS
+    ]
+    (tmp_path / "ablation.json").write_text(json.dumps({"rows": rows}))
+    folders, names = reproduce._decide_checkpoints(tmp_path, reproduce.DECIDE_ROWS)
+    assert folders == [f"ckpt/{n}" for n in reproduce.DECIDE_ROWS]
+    assert names == [f"label of {n}" for n in reproduce.DECIDE_ROWS]
+
+
+def test_the_published_files_are_found_under_one_repository_root():
+    from fabricjax import provenance
+    from fabricjax.studies.common import plan
+    from fabricjax.studies.extra import sensitivity
+
+    root = provenance.repository_root()
+    assert (root / "fabricjax" / "__init__.py").is_file()
+    assert reproduce.PUBLISHED_MANIFEST.parent == plan.REPRODUCE_MANIFEST.parent == sensitivity.PUBLISHED.parent
+    assert reproduce.PUBLISHED_MANIFEST.parent == root / "results"

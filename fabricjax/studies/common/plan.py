@@ -43,7 +43,7 @@ from fabricjax.studies.common import documents, loading, recipe
 SAMPLE_RESULTS = provenance.repository_root() / "results" / "paper_sample" / "ablation.json"
 # The manifest of the published `python -m experiments.reproduce --results=results`: each training
 # study's rate per row (`rates`), measured on the default preset.
-REPRODUCE_MANIFEST = SAMPLE_RESULTS.parents[1] / "reproduce.json"
+REPRODUCE_MANIFEST = provenance.repository_root() / "results" / "reproduce.json"
 PROBE_FRAMES = 16  # frames each camera feature is timed on (two of flow's chunks)
 PROBE_CYCLES = 2  # rubbing cycles of the probe's trial: its closing's share of the time stays small
 # Config fields a published row may differ in and still give this run's seconds per sequence, epoch
