@@ -14,13 +14,13 @@ from pathlib import Path
 
 from absl import flags
 
-from fabricjax import cli
+from fabricjax import cli, provenance
 from fabricjax.sim import estimates
 
 FLAGS = flags.FLAGS
 flags.DEFINE_bool("check", False, "only compare: exit 1 if the document's block differs from the registry")
 flags.DEFINE_string(
-    "doc", str(Path(__file__).parents[1] / "docs" / "simulator.md"), "the document holding the table's markers"
+    "doc", str(provenance.repository_root() / "docs" / "simulator.md"), "the document holding the table's markers"
 )
 
 

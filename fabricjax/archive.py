@@ -115,6 +115,7 @@ MIC_NAMES = ("internal", "external")
 # The model inputs a microphone can feed (its `role`): the one in the touching fingertip, and one
 # away from the contact (the hand's palm). Their names are the hand's microphones'.
 MIC_ROLES = MIC_NAMES
+CAMERA_MODALITIES = ("image", "flow")  # the model inputs read from the camera's frames (rendered ones in simulation)
 AUDIO_FORMAT = "SPH0645 I2S word (int32; 18 valid bits in bits 31..14)"
 UNITS = {
     "timestamps": "s",
@@ -234,7 +235,7 @@ class Layout:
         """The model inputs (`config.MODALITIES`) this data can feed."""
         out = tuple(m.role for m in self.mics if m.role is not None)
         out += ("proprio",) if self.has_joints and not self.joint_fields_absent else ()  # NaN fields: no input
-        return out + (("image", "flow") if self.image_size is not None else ())
+        return out + (CAMERA_MODALITIES if self.image_size is not None else ())
 
     def describe(self) -> str:
         """One line: what the data has."""

@@ -32,7 +32,7 @@ from typing import Callable, Mapping, Sequence
 from absl import app, flags, logging
 from tqdm import tqdm
 
-from fabricjax import disk, runtime, workspace
+from fabricjax import disk, provenance, runtime, workspace
 from fabricjax.errors import UserError
 
 FLAGS = flags.FLAGS
@@ -161,7 +161,7 @@ def command_line() -> str:
     """This process's command as a user typed it (`python -m experiments.ablation ...`): recorded in
     results files and in the notes of the locks a run holds."""
     main = Path(sys.argv[0]) if sys.argv and sys.argv[0] else Path("python")
-    root = Path(__file__).resolve().parents[1]
+    root = provenance.repository_root()
     if main.suffix == ".py" and main.resolve().is_relative_to(root):
         module = ".".join(main.resolve().relative_to(root).with_suffix("").parts)
         return shlex.join(["python", "-m", module, *sys.argv[1:]])

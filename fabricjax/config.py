@@ -25,7 +25,7 @@ from fabricjax.errors import UserError
 # flow, "image" Minsight frames (downsampled to `image_size` or at the archive's resolution, see
 # `image_resolution`).
 MODALITIES = ("image", "flow", "internal", "external", "proprio")
-CAMERA_MODALITIES = ("image", "flow")  # the inputs read from Minsight's frames (its rendered images in simulation)
+CAMERA_MODALITIES = archive.CAMERA_MODALITIES
 AUDIO_MODALITIES = archive.MIC_NAMES  # a microphone's PSD is the modality of the same name
 # How tables and figures name each modality (the sensors of the paper).
 MODALITY_NAMES = {
