@@ -322,7 +322,8 @@ def align(
             where,
             "camera",
             f"no frame comes after a full audio window and a joint reading: frames span "
-            f"{frame_times[0]:.3f}-{frame_times[-1]:.3f} s, the first with a full audio window: {first_full}, the first "
+            f"{frame_times[0]:.3f}-{frame_times[-1]:.3f} s, the first with a full audio window: "
+            f"{first_full}, the first "
             f"joint reading: {joint_times[0]:.3f} s (streams on different clocks? see the mapping's clock keys)",
         )
     first = int(np.argmax(usable))
@@ -337,7 +338,8 @@ def align(
         raise RecordingImportError(
             where,
             "audio",
-            f"the microphones' recordings differ in length: the shorter ({n_samples} samples) ends before the first frame",
+            f"the microphones' recordings differ in length: the shorter ({n_samples} samples) ends before "
+            f"the first frame",
         )
     frame_times, images, window_end, jk = frame_times[:inside], images[:inside], window_end[:inside], jk[:inside]
     rate, rate_from = (step_rate, "mapping camera.rate") if step_rate else step_rate_of(frame_times)

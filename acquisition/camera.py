@@ -105,7 +105,10 @@ def take_reference(camera: "Camera", session: str, n_frames: int = 1, warmup: in
         frames.append(camera.read())
         times.append(time.perf_counter())
     camera.dropped = 0
-    how = f"recorded: {n_frames} no-contact frame{'s' * (n_frames > 1)} after {warmup} warm-up frames, fingers open, before the first closing"
+    how = (
+        f"recorded: {n_frames} no-contact frame{'s' * (n_frames > 1)} after {warmup} warm-up frames, fingers "
+        f"open, before the first closing"
+    )
     return Reference(np.stack(frames), session, how, tuple(times))
 
 

@@ -1,10 +1,12 @@
 """Import one ROS 2 bag (sqlite3 or MCAP) as a trial archive:
-`python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR [--fabric=.. --day=.. --trial=.. --condition=.. --session=..] [--resample] [--overwrite]`.
+`python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR [--fabric=.. --day=.. --trial=.. --condition=..
+--session=..] [--resample] [--overwrite]`.
 
 The mapping file names the camera, microphone and joint topics (format in docs/data.md, "From ROS 2
 bags") and where the camera's session reference comes from (`reference_topic`, or
 `reference = "pre_contact"`: `acquisition.ros_bag`); the trial's fabric, day, trial, condition and
-optional session come from its [trial] table, and the flags override it. An archive already in DIR is not replaced without --overwrite. Needs the optional `rosbags` package: pip install -e ".[bags]".
+optional session come from its [trial] table, and the flags override it. An archive already in DIR is not replaced
+without --overwrite. Needs the optional `rosbags` package: pip install -e ".[bags]".
 """
 
 from __future__ import annotations

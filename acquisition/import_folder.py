@@ -1,5 +1,6 @@
 """Import one trial folder of WAV + CSV + video as a trial archive:
-`python -m acquisition.import_folder TRIAL_DIR --out=DIR --fabric=4 --day=1 --trial=0 --reference=reference.png [--condition=lab] [--session=..] [--resample]`.
+`python -m acquisition.import_folder TRIAL_DIR --out=DIR --fabric=4 --day=1 --trial=0 --reference=reference.png
+[--condition=lab] [--session=..] [--resample]`.
 
 The folder holds `internal.wav` and `external.wav`, `joints.csv` and `camera.avi` (or `camera/*.png`
 with `frames.csv`), laid out as docs/data.md describes; alignment and

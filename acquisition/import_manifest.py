@@ -1,7 +1,8 @@
 """Import every trial a manifest lists, in one process pool with one progress bar:
 
     python -m acquisition.import_manifest MANIFEST.csv --out=DIR [--rig=rig.toml | --map=mapping.toml |
-        --reference=FILE|pre_contact [--reference_frames=N]] [--labels=labels.csv] [--split=fraction:0.7,0.15,0.15 | --split=trial:train=0-3,val=4,test=5-6 | --split=day]
+        --reference=FILE|pre_contact [--reference_frames=N]] [--labels=labels.csv] [--split=fraction:0.7,0.15,0.15 |
+        --split=trial:train=0-3,val=4,test=5-6 | --split=day]
         [--overwrite] [--workers=N] [--workdir=WORKSPACE]
 
 The manifest is a CSV with a header row, one row per trial (docs/data.md, "Recordings from another
@@ -26,7 +27,8 @@ our fabric catalog is stamped on a rig's recordings. Splits are the manifest's `
 a rule: `--split=fraction:TRAIN,VAL,TEST` (per class, in trial order: the first fraction of its
 trials train, then val, then test), `--split=trial:train=0-3,val=4,test=5-6` (by trial index,
 inclusive ranges, the same in every class; every trial's index must be in one) or `--split=day`
-(by day, as the preset's days: the hand's protocol). A rig's trials without a split or a day would never be used, so that is an error.
+(by day, as the preset's days: the hand's protocol). A rig's trials without a split or a day would never be used, so
+that is an error.
 
 The import of a manifest is one transaction. Every problem that can be found before importing (a
 row's fields, a recording listed twice, two rows naming one archive, a missing trial folder or
@@ -399,12 +401,18 @@ def _difference(meta: dict[str, Any], job: Job) -> str | None:
     if meta["source"].get("path") != str(job.row.path):
         return f"was imported from {meta['source'].get('path')}, not from {job.row.path} as line {job.row.line} says"
     if meta.get("label_map") != job.meta_fields.get("label_map"):
-        return f"its label map {meta.get('label_map')} differs from the manifest's {job.meta_fields.get('label_map')} (classes added or renamed)"
+        return (
+            f"its label map {meta.get('label_map')} differs from the manifest's "
+            f"{job.meta_fields.get('label_map')} (classes added or renamed)"
+        )
     wanted_reference = None if job.reference is None else job.reference.describe()
     if meta["source"].get("reference") != wanted_reference:
         if "reference" not in meta["source"]:
             return "it holds no camera reference (imported before archives carried one)"
-        return f"its camera reference was read from {meta['source']['reference']}, not from {wanted_reference} as the import now names it"
+        return (
+            f"its camera reference was read from {meta['source']['reference']}, not from {wanted_reference} as "
+            f"the import now names it"
+        )
     wanted = {**{k: v for k, v in job.meta_fields.items() if k != "label_map"}, "split": job.split}
     changed = [
         f"{key} {meta.get(key)!r} where line {job.row.line} says {want!r}"
@@ -435,8 +443,10 @@ def check_out(
     if foreign:
         shown = ", ".join(p.name for p in foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
         problems.append(
-            f"{out}: --out: holds {len(foreign)} archive{'s' * (len(foreign) != 1)} no row of {manifest} produces ({shown}): "
-            "another dataset, or rows since removed or relabelled; choose another --out, or pass --overwrite to replace the dataset in it"
+            f"{out}: --out: holds {len(foreign)} archive{'s' * (len(foreign) != 1)} no row of {manifest} "
+            f"produces ({shown}): "
+            "another dataset, or rows since removed or relabelled; choose another --out, or pass --overwrite "
+            "to replace the dataset in it"
         )
     todo = []
     for j in jobs:
@@ -499,7 +509,8 @@ def run(
         raise UserError("give --rig (trial folders of another rig) or --map (ROS 2 bags), not both")
     if (rig is not None or mapping is not None) and (reference is not None or reference_frames is not None):
         raise UserError(
-            f"--reference names the session reference of the hand's trial folders; {'a rig file' if rig is not None else 'a mapping'} "
+            f"--reference names the session reference of the hand's trial folders; "
+            f"{'a rig file' if rig is not None else 'a mapping'} "
             f"names its camera's own ([camera] {'reference' if rig is not None else 'reference_topic or reference'})"
         )
     folder_reference = None
@@ -548,7 +559,8 @@ def run(
                     r.line,
                     "split",
                     "no split and no day: the trial would belong to no split "
-                    "(give a split column, --split=fraction:TRAIN,VAL,TEST or trial:SPLIT=FIRST-LAST,..., or days with --split=day)",
+                    "(give a split column, --split=fraction:TRAIN,VAL,TEST or trial:SPLIT=FIRST-LAST,..., or "
+                    "days with --split=day)",
                 )
             )
         )
@@ -559,7 +571,8 @@ def run(
         )
     elif labels:
         raise UserError(
-            "--labels names classes of a rig's recordings (--rig); the hand's folders and bags are labelled by fabric id"
+            "--labels names classes of a rig's recordings (--rig); the hand's folders and bags are labelled "
+            "by fabric id"
         )
     loaded_map = mapping_file.load_mapping(mapping) if mapping is not None else None
     out = Path(out)
@@ -617,15 +630,18 @@ def run(
         notes["joint_gaps"].update(["trials"] if meta.get("import", {}).get("joint_gaps") else [])
     if notes["columns"]:
         say(
-            f"note: joint columns not named in the rig file, not imported: {', '.join(f'{c} ({k} trials)' for c, k in sorted(notes['columns'].items()))}"
+            f"note: joint columns not named in the rig file, not imported: "
+            f"{', '.join(f'{c} ({k} trials)' for c, k in sorted(notes['columns'].items()))}"
         )
     if notes["incomplete"]:
         say(
-            f"note: {notes['incomplete']['trials']} trials are incomplete (complete: false; meta.import.truncated names the cut-off files)"
+            f"note: {notes['incomplete']['trials']} trials are incomplete (complete: false; "
+            f"meta.import.truncated names the cut-off files)"
         )
     if notes["joint_gaps"]:
         say(
-            f"note: {notes['joint_gaps']['trials']} trials have holes in the joints, where steps hold the last reading (meta.import.joint_gaps)"
+            f"note: {notes['joint_gaps']['trials']} trials have holes in the joints, where steps hold the "
+            f"last reading (meta.import.joint_gaps)"
         )
     per_split = Counter(s or "by day" for s in splits)
     n_classes = (
@@ -698,12 +714,14 @@ if __name__ == "__main__":
         "Split rule when the manifest has no split column: fraction:TRAIN,VAL,TEST, trial:SPLIT=FIRST-LAST,... or day.",
     )
     import_flags.define_overwrite(
-        "Replace the dataset in --out by the manifest's (default: keep archives of the same rows, refuse anything else)."
+        "Replace the dataset in --out by the manifest's (default: keep archives of the same rows, refuse "
+        "anything else)."
     )
     flags.DEFINE_integer("workers", None, "Processes (default: one per core).", lower_bound=1)
     flags.DEFINE_string(
         "workdir",
         None,
-        "Workspace that keeps DIR's index (default: $FABRICJAX_WORKDIR or ./workspace); give verify and the studies the same.",
+        "Workspace that keeps DIR's index (default: $FABRICJAX_WORKDIR or ./workspace); give verify and the "
+        "studies the same.",
     )
     cli.run(main)

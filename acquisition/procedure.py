@@ -2,7 +2,8 @@
 
 The paper closes thumb and middle finger until Minsight's force estimate reaches 0.1 N, then runs
 a preprogrammed rubbing motion with the same commanded speed for every fabric; 50 cycles give the
-~1500 steps of a trial at 50 Hz (~1 s of closing + 50 strokes of 0.5 s commanded, slower under friction). Angles are goal
+~1500 steps of a trial at 50 Hz (~1 s of closing + 50 strokes of 0.5 s commanded, slower under friction). Angles are
+goal
 positions in rad around each servo's mid-range, in `archive.JOINT_NAMES` order.
 """
 

@@ -4,7 +4,8 @@ Hardware: servos on --servo_port, Minsight on --camera (index or path), the Pi s
 --pi_host:--pi_port. Hold the fingers open at the start of each trial: the camera's no-contact
 reference is taken then, as Minsight's own camera node takes it (its warm-up frames discarded,
 then --reference_frames frames), stored in the trial's archive, and read by the force proxy (gain
-and deadband from --force_gain / --force_deadband, calibrated once against a load cell). With --simulate every device is a simulated one behind the real drivers,
+and deadband from --force_gain / --force_deadband, calibrated once against a load cell). With --simulate every device is
+a simulated one behind the real drivers,
 driven by the scene simulator. Stops at the first failed or interrupted trial (its archive is kept,
 marked complete=false) and exits non-zero.
 

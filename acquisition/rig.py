@@ -274,7 +274,8 @@ def align_rig(
             where,
             "steps",
             "no step has a full window of every microphone and a joint reading "
-            f"(microphones need {archive.WINDOW} samples, or the rig file's mic_window_s where longer, at their own rate before the first step)",
+            f"(microphones need {archive.WINDOW} samples, or the rig file's mic_window_s where longer, at "
+            f"their own rate before the first step)",
         )
     keep = np.flatnonzero(usable)
     first, last = int(keep[0]), int(keep[-1])

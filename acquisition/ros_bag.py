@@ -104,7 +104,8 @@ def check_mapping(mapping: dict[str, Any], where) -> None:
     try:
         if parse_reference(mapping["camera"], where, topic=True).name == mapping["camera"]["topic"]:
             problems.append(
-                "camera.reference_topic: is camera.topic: the reference is the session's no-contact frames, not the trial's "
+                "camera.reference_topic: is camera.topic: the reference is the session's no-contact frames, "
+                "not the trial's "
                 '(set reference = "pre_contact" to use the trial\'s first frames)'
             )
     except RecordingImportError as e:
@@ -136,7 +137,8 @@ def check_mapping(mapping: dict[str, Any], where) -> None:
         problems.append(f"joints.names: must be a list of joint names, got {names!r}")
     elif len(names) != archive.N_JOINTS:
         problems.append(
-            f"joints.names: expected {archive.N_JOINTS} names (archive order {list(archive.JOINT_NAMES)}), got {len(names)}"
+            f"joints.names: expected {archive.N_JOINTS} names (archive order {list(archive.JOINT_NAMES)}), "
+            f"got {len(names)}"
         )
     elif len(set(names)) != len(names):
         problems.append(f"joints.names: {sorted({n for n in names if names.count(n) > 1})} named more than once")
@@ -179,7 +181,8 @@ def _place(
         return header + offset, record
     if abs(offset) > tolerance:
         problems.append(
-            f"{topic}: header.stamp: {abs(offset):.3f} s {'behind' if offset > 0 else 'ahead of'} the bag's receive time "
+            f"{topic}: header.stamp: {abs(offset):.3f} s {'behind' if offset > 0 else 'ahead of'} the bag's "
+            f"receive time "
             f'(tolerance {tolerance} s): the stamps are on another clock; set clock = "device" in the mapping\'s '
             f'{name} table to shift them onto the bag\'s clock, or clock = "receive"'
         )
@@ -381,7 +384,8 @@ def _reference(
         return None
     if {f.shape for f in frames} != {images.shape[1:]}:
         problems.append(
-            f"{topic}: data: frames of {sorted({f.shape[:2] for f in frames})} pixels, the camera's are {images.shape[1:3]}: "
+            f"{topic}: data: frames of {sorted({f.shape[:2] for f in frames})} pixels, the camera's are "
+            f"{images.shape[1:3]}: "
             "a reference is the camera's own frames, at their size"
         )
         return None
@@ -446,7 +450,8 @@ def _audio_format(name: str, table: dict, infos: list[dict], problems: list[str]
         distinct = {tuple(sorted(i.items())) for i in infos}
         if len(distinct) > 1:
             problems.append(
-                f"{table['topic']}: audio info: the format changes during the recording ({len(distinct)} different AudioInfo)"
+                f"{table['topic']}: audio info: the format changes during the recording ({len(distinct)} "
+                f"different AudioInfo)"
             )
             return None
         info = infos[0]
@@ -458,7 +463,8 @@ def _audio_format(name: str, table: dict, infos: list[dict], problems: list[str]
             return None
         if info["sample_format"] not in rm.SAMPLE_FORMATS:
             problems.append(
-                f"{table['topic']}: sample_format: {info['sample_format']!r} not supported ({', '.join(rm.SAMPLE_FORMATS)})"
+                f"{table['topic']}: sample_format: {info['sample_format']!r} not supported "
+                f"({', '.join(rm.SAMPLE_FORMATS)})"
             )
             return None
         for key, value in given.items():
@@ -473,7 +479,8 @@ def _audio_format(name: str, table: dict, infos: list[dict], problems: list[str]
     channel = table.get("channel", 0)
     if channels > 1 and "channel" not in table:
         problems.append(
-            f"{where}.channel: missing: the audio has {channels} interleaved channels; name the one this microphone is (0-{channels - 1})"
+            f"{where}.channel: missing: the audio has {channels} interleaved channels; name the one this "
+            f"microphone is (0-{channels - 1})"
         )
         return None
     if channel >= channels:

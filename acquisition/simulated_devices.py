@@ -316,7 +316,8 @@ def simulated_rig(signals: SimulatedSignals, faults: Faults = Faults(), *, servo
             session = Reference(
                 reference[None],
                 f"day{scene.get('day', 1)}_{scene.get('condition', 'lab')}",
-                "simulated devices: the session's no-contact frame after the camera's warm-up, through the camera's codec",
+                "simulated devices: the session's no-contact frame after the camera's warm-up, through the "
+                "camera's codec",
                 None,
             )
             rig = Rig(

@@ -1,4 +1,5 @@
-"""Validation and test accuracy for PSD bandwidths 2.5 / 10 / 15 / 24 kHz, Minsound only (see fabricjax/studies/paper/bandwidth.py).
+"""Validation and test accuracy for PSD bandwidths 2.5 / 10 / 15 / 24 kHz, Minsound only (see
+fabricjax/studies/paper/bandwidth.py).
 
 python -m experiments.bandwidth --seeds=5
 """

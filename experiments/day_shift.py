@@ -1,4 +1,5 @@
-"""What a new recording day changes in each input, and the probe's gap from the training days to it (see fabricjax/studies/extra/day_shift.py).
+"""What a new recording day changes in each input, and the probe's gap from the training days to it (see
+fabricjax/studies/extra/day_shift.py).
 
 python -m experiments.day_shift                     # default preset, into workspace/results/
 python -m experiments.day_shift --results=results   # regenerates the table published in the repository

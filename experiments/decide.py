@@ -1,6 +1,7 @@
 """Calibrated confidence, when to stop rubbing, unknown fabrics (see fabricjax/studies/extra/decide.py).
 
-    python -m experiments.decide --checkpoint=DIR[,DIR...]   # checkpoints of training studies (ablation, properties, ...)
+    python -m experiments.decide --checkpoint=DIR[,DIR...]   # checkpoints of training studies (ablation, properties,
+    ...)
     python -m experiments.decide                             # the quick model of --preset `experiments.stream` uses
     python -m experiments.decide --checkpoint=DIR --data_dir=PATH --unknown_labels=7,8
 

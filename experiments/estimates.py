@@ -35,7 +35,8 @@ def main(argv):
     if FLAGS.check:
         if new != text:
             print(
-                f"{path}: the estimates table differs from fabricjax/sim/estimates.py; run python -m experiments.estimates",
+                f"{path}: the estimates table differs from fabricjax/sim/estimates.py; run python -m "
+                f"experiments.estimates",
                 file=sys.stderr,
             )
             sys.exit(1)

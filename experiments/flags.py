@@ -35,7 +35,8 @@ flags.DEFINE_string(
 flags.DEFINE_string(
     "data_dir",
     None,
-    "a folder of real recorded trial archives, only read (its index is kept under the workspace); default: the preset's simulated dataset",
+    "a folder of real recorded trial archives, only read (its index is kept under the workspace); default: "
+    "the preset's simulated dataset",
 )
 flags.DEFINE_string(
     "results",
@@ -55,7 +56,8 @@ flags.DEFINE_bool(
     "distributed",
     False,
     "join a run over several processes (hosts), each started with the same command: jax.distributed.initialize() "
-    "reads a cluster's environment (SLURM, Open MPI, ...); elsewhere give --coordinator_address, --num_processes and --process_id",
+    "reads a cluster's environment (SLURM, Open MPI, ...); elsewhere give --coordinator_address, "
+    "--num_processes and --process_id",
 )
 flags.DEFINE_string(
     "coordinator_address", None, "host:port of process 0 of a --distributed run outside a cluster scheduler"
@@ -127,7 +129,8 @@ def define_rows(row_names: Sequence[str], n_seeds: int) -> None:
     flags.DEFINE_list(
         "rows",
         None,
-        f"comma-separated rows, each by its name or by the label the tables print, in any case; names: {', '.join(row_names)} (default: every row of the table)",
+        f"comma-separated rows, each by its name or by the label the tables print, in any case; names: "
+        f"{', '.join(row_names)} (default: every row of the table)",
     )
     define_overrides()
 
@@ -157,7 +160,8 @@ def rows_study_command(study) -> None:
     flags.DEFINE_list(
         "rows",
         None,
-        f"comma-separated rows, each by its name or by the label the tables print, in any case; names: {', '.join(r.name for r in study.ROWS)} (default: every row)",
+        f"comma-separated rows, each by its name or by the label the tables print, in any case; names: "
+        f"{', '.join(r.name for r in study.ROWS)} (default: every row)",
     )
     define_overrides()
 

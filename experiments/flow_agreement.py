@@ -4,7 +4,8 @@
     python -m experiments.flow_agreement --results=results   # regenerates results/flow_agreement.md
     python -m experiments.flow_agreement --quick             # one trial and one texture per size
 
-Under a minute on a 2-core laptop (the first run compiles more); its timings are only comparable on an otherwise idle machine.
+Under a minute on a 2-core laptop (the first run compiles more); its timings are only comparable on an otherwise idle
+machine.
 """
 
 from absl import flags as absl_flags

@@ -1,6 +1,7 @@
 """t-SNE of per-trial mean latents from a checkpoint (see fabricjax/studies/paper/latents.py).
 
-python -m experiments.latents --checkpoint=DIR [--seed=1]    # DIR: listed in results/properties.md; default seed: the best by validation
+python -m experiments.latents --checkpoint=DIR [--seed=1]    # DIR: listed in results/properties.md; default seed: the
+best by validation
 """
 
 from absl import flags as absl_flags

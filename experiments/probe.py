@@ -1,4 +1,5 @@
-"""A linear probe per row of the modality ablation: what each input carries before any model (see fabricjax/studies/extra/probe.py).
+"""A linear probe per row of the modality ablation: what each input carries before any model (see
+fabricjax/studies/extra/probe.py).
 
 python -m experiments.probe                     # default preset, into workspace/results/
 python -m experiments.probe --results=results   # regenerates the table published in the repository

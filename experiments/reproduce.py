@@ -1,9 +1,11 @@
-"""Every study of the paper in order, skipping those up to date, and one report (see fabricjax/studies/tools/reproduce.py).
+"""Every study of the paper in order, skipping those up to date, and one report (see
+fabricjax/studies/tools/reproduce.py).
 
 python -m experiments.reproduce                      # default preset, into workspace/results/REPORT.md
 python -m experiments.reproduce --results=results    # regenerates the repository's results/REPORT.md
 python -m experiments.reproduce --set=epochs=4       # any Config field, for every study
-python -m experiments.reproduce --check --results=results   # runs nothing: lists the stale studies and their files, exit 1 if any
+python -m experiments.reproduce --check --results=results   # runs nothing: lists the stale studies and their files,
+exit 1 if any
 """
 
 import sys

@@ -31,7 +31,8 @@ def main(argv):
     hashed = (
         f"{counts['hashed']} hashed against {counts['index']}"
         if counts["index"]
-        else f"no index of {argv[1]} in this workspace, so no hashes to check: import_manifest and the first study reading it write one"
+        else f"no index of {argv[1]} in this workspace, so no hashes to check: import_manifest and the first "
+        f"study reading it write one"
     )
     print(
         f"{counts['archives']} archives checked ({hashed}): {len(problems) or 'no'} problem{'s' * (len(problems) != 1)}"
@@ -40,7 +41,8 @@ def main(argv):
         print(f)
     if counts["failures"]:
         print(
-            f"verify failed on {len(counts['failures'])} file{'s' * (len(counts['failures']) != 1)} (a bug of verify: the lines above name them)",
+            f"verify failed on {len(counts['failures'])} file{'s' * (len(counts['failures']) != 1)} (a bug "
+            f"of verify: the lines above name them)",
             file=sys.stderr,
         )
         sys.exit(2)

@@ -248,7 +248,10 @@ class Layout:
         )
         joints = f"{len(self.joint_names)} joints x {fields}" if self.has_joints else "no joints"
         camera = f"camera {self.image_size[0]}x{self.image_size[1]}" if self.image_size else "no camera"
-        return f"microphones: {mics or 'none'}; {joints}; {camera}; steps at {self.step_rate:g} Hz ({self.step_clock} clock)"
+        return (
+            f"microphones: {mics or 'none'}; {joints}; {camera}; steps at {self.step_rate:g} Hz "
+            f"({self.step_clock} clock)"
+        )
 
 
 def hand_streams(
@@ -604,7 +607,8 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
                 raise ArchiveError(
                     path,
                     "joints",
-                    f"fields {list(lay.joint_fields_absent)} are recorded as absent but hold values (NaN where not recorded)",
+                    f"fields {list(lay.joint_fields_absent)} are recorded as absent but hold values (NaN "
+                    f"where not recorded)",
                 )
             arr = np.where(absent, 0, arr).astype(
                 arr.dtype
@@ -650,7 +654,8 @@ def _check_reference(archive: TrialArchive, path, lay: Layout) -> None:
         raise ArchiveError(
             path,
             "reference",
-            f"present, but format {archive.meta['format_version']} has no session reference (format {REFERENCE_VERSION} has)",
+            f"present, but format {archive.meta['format_version']} has no session reference (format "
+            f"{REFERENCE_VERSION} has)",
         )
     if lay.image_size is None:
         raise ArchiveError(path, "reference", "present, but meta.streams declares no camera")
@@ -675,7 +680,8 @@ def _check_reference(archive: TrialArchive, path, lay: Layout) -> None:
         raise ArchiveError(
             path,
             "meta.reference.times_s",
-            f"must be null or {len(ref)} finite times in seconds (one per reference frame), got {json.dumps(times)[:60]}",
+            f"must be null or {len(ref)} finite times in seconds (one per reference frame), got "
+            f"{json.dumps(times)[:60]}",
         )
 
 
@@ -684,7 +690,10 @@ def reference_note(meta: dict[str, Any]) -> str | None:
     if layout(meta).image_size is None or "reference" in meta:
         return None
     if meta["format_version"] < REFERENCE_VERSION:
-        return f"a format-{meta['format_version']} archive: written before archives carried the session's no-contact reference"
+        return (
+            f"a format-{meta['format_version']} archive: written before archives carried the session's "
+            f"no-contact reference"
+        )
     return "its recording took no no-contact reference"
 
 
@@ -792,7 +801,8 @@ class _Members:
                     raise ArchiveError(
                         path,
                         name,
-                        f"the npy header's shape {shape} of {dtype} needs {nbytes} bytes, the zip member holds {info.file_size - f.tell()}",
+                        f"the npy header's shape {shape} of {dtype} needs {nbytes} bytes, the zip member "
+                        f"holds {info.file_size - f.tell()}",
                     )
                 arr = np.empty(shape[::-1] if fortran else shape, dtype)
                 view, done = memoryview(arr.reshape(-1).view(np.uint8)), 0

@@ -30,7 +30,8 @@ from fabricjax.model import head_sizes
 
 
 # The layout of the saved training state; bumped whenever it changes (2: the optimiser state holds
-# the cosine decay's own step counter; 3: Adam's moments are one flat vector; 4: each seed's early-stopping epoch), so a checkpoint of
+# the cosine decay's own step counter; 3: Adam's moments are one flat vector; 4: each seed's early-stopping epoch), so a
+# checkpoint of
 # another layout is refused by name instead of failing inside orbax, and a study's checkpoint
 # folder (tagged with it) starts afresh.
 STATE_VERSION = 4
@@ -119,7 +120,10 @@ def describe(for_: Mapping[str, Any]) -> str:
     heads = "+".join(for_["heads"]) or "no"
     classes = f" ({for_['n_classes']} classes)" if for_.get("n_classes") else ""
     unseen = ", ".join(map(str, for_["unseen_fabrics"])) or "none"
-    return f"heads {heads}{classes}, inputs {'+'.join(for_['inputs'])}, preset {for_['preset']}, fabrics never seen: {unseen}"
+    return (
+        f"heads {heads}{classes}, inputs {'+'.join(for_['inputs'])}, preset {for_['preset']}, fabrics never "
+        f"seen: {unseen}"
+    )
 
 
 def require(directory, for_: Mapping[str, Any], job: str, expected: str, ok: bool) -> None:
@@ -196,7 +200,8 @@ def require_data(
         )
     if trained_on.get("content") != reads.get("content"):
         raise error(
-            f"the checkpoint in {directory} was trained on {trained_on.get('folder')} (contents {trained_on.get('content')}), "
+            f"the checkpoint in {directory} was trained on {trained_on.get('folder')} (contents "
+            f"{trained_on.get('content')}), "
             f"not on {reads['folder']} (contents {reads['content']}) that this run reads"
         )
 

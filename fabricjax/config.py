@@ -217,11 +217,13 @@ class Config:
             raise ValueError(f"n_classes must be at least 2, got {self.n_classes}")
         if any(not 0 < lr < 1 for lr in self.lr_grid) or any(w < 1 for w in self.width_grid):
             raise ValueError(
-                f"lr_grid holds learning rates in (0, 1) and width_grid widths >= 1, got {self.lr_grid} and {self.width_grid}"
+                f"lr_grid holds learning rates in (0, 1) and width_grid widths >= 1, got {self.lr_grid} and "
+                f"{self.width_grid}"
             )
         if self.train_steps < 0 or self.patience_steps < 0:
             raise ValueError(
-                f"train_steps and patience_steps must be 0 (epochs as given) or numbers of optimiser steps, got {self.train_steps}, {self.patience_steps}"
+                f"train_steps and patience_steps must be 0 (epochs as given) or numbers of optimiser steps, "
+                f"got {self.train_steps}, {self.patience_steps}"
             )
         if self.patience < 0:
             raise ValueError(f"patience must be 0 (no early stopping) or a number of epochs, got {self.patience}")

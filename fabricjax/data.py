@@ -192,7 +192,8 @@ def check_streams(
                 raise archive.ArchiveError(
                     index.path(e),
                     "meta.streams.mics",
-                    f"the {m} microphone runs at {rate} Hz, but at {first[0]} Hz in {first[1].file} (one rate per microphone in a dataset)",
+                    f"the {m} microphone runs at {rate} Hz, but at {first[0]} Hz in {first[1].file} (one "
+                    f"rate per microphone in a dataset)",
                 )
     return {m: r for m, (r, _) in rates.items()}
 
@@ -299,7 +300,8 @@ def _fill(
                 raise archive.ArchiveError(
                     index.path(e),
                     _SOURCE_FIELD.get(m, "audio"),
-                    f"{m} sequences of shape {a.shape[1:]}, but the dataset's first trial gives {inputs[s][m].shape[1:]}",
+                    f"{m} sequences of shape {a.shape[1:]}, but the dataset's first trial gives "
+                    f"{inputs[s][m].shape[1:]}",
                 )
             inputs[s][m][filled[s] : filled[s] + n_seq] = a
         filled[s] += n_seq
@@ -388,7 +390,8 @@ def step_window_s(
         raise archive.ArchiveError(
             index.path(eb),
             "meta.streams.steps.mic_window_s",
-            f"{'absent' if b is None else f'{b:g} s'}, but {'absent' if a is None else f'{a:g} s'} in {ea.file} (one step window per dataset)",
+            f"{'absent' if b is None else f'{b:g} s'}, but {'absent' if a is None else f'{a:g} s'} in "
+            f"{ea.file} (one step window per dataset)",
         )
     data_s = next(iter(declared))
     if config.mic_window_s is None:
@@ -438,13 +441,15 @@ def _check_bands(config: Config, rates: Mapping[str, int], names: Mapping[str, s
         ms, full = 1e3 * config.mic_window_s, welch.full_bins(window)
         if window < welch.MIN_WINDOW:
             raise UserError(
-                f"mic_window_s={config.mic_window_s:g}: the {names[m]} microphone's window is {window} samples at {rate} Hz, "
+                f"mic_window_s={config.mic_window_s:g}: the {names[m]} microphone's window is {window} "
+                f"samples at {rate} Hz, "
                 f"too short for a Welch spectrum (at least {welch.MIN_WINDOW} samples)"
             )
         if full < welch.USEFUL_BINS:
             logging.warning(
                 "the %s microphone's %.2f ms step window is %d samples at %d Hz: its PSD has only %d bins (0-%g kHz, "
-                "%.1f Hz apart); a longer window (--set mic_window_s=..., or the rig file's steps.mic_window_s) gives a finer spectrum",
+                "%.1f Hz apart); a longer window (--set mic_window_s=..., or the rig file's "
+                "steps.mic_window_s) gives a finer spectrum",
                 names[m],
                 ms,
                 window,
@@ -468,7 +473,8 @@ def _check_bands(config: Config, rates: Mapping[str, int], names: Mapping[str, s
     bins = {m: welch.n_bins(config.bandwidth_khz, r, window_of(config, r)) for m, r in rates.items()}
     if len(set(bins.values())) > 1:
         raise UserError(
-            f"the microphones' PSDs have different bin counts at {config.bandwidth_khz:g} kHz ({bins}: rates {dict(rates)}); "
+            f"the microphones' PSDs have different bin counts at {config.bandwidth_khz:g} kHz ({bins}: rates "
+            f"{dict(rates)}); "
             "the shared audio encoder needs equal ones: use one microphone, or a bandwidth at or above both Nyquists"
         )
 
@@ -515,7 +521,8 @@ def load_sequences(
             raise archive.ArchiveError(
                 index.path(e),
                 "timestamps",
-                f"{e.n_steps} steps of which {e.n_steps - first_step(e.meta)} rubbing, fewer than one sequence of N={n} steps",
+                f"{e.n_steps} steps of which {e.n_steps - first_step(e.meta)} rubbing, fewer than one "
+                f"sequence of N={n} steps",
             )
     members = {s: [e for e, t in chosen if t == s] for s in wanted}
     features = features_for(config, rates)

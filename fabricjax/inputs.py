@@ -114,7 +114,8 @@ def _moments(x, axis: int, per_position: bool, chunk: int) -> tuple[np.ndarray, 
 def _sums(part: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, int]:
     """Sums of `part` (S, N, ...) and of its squares over sequences and steps, float64, with the
     channel `axis` moved last, and the count S x N. Frames (8-bit, or their 16-bit differences to a
-    reference) are summed in integers (squares fit uint16 or int32, sums int64) and converted after: every partial sum is an integer below 2**53, so
+    reference) are summed in integers (squares fit uint16 or int32, sums int64) and converted after: every partial sum
+    is an integer below 2**53, so
     float64 summation is exact too and the two agree bit for bit, at a fraction of the float64
     copy's time and memory."""
     if part.dtype in (np.uint8, np.int16):  # frames, and frames minus their session's reference (|x| <= 255)

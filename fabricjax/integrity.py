@@ -103,7 +103,8 @@ def verify(folder: os.PathLike | str, workdir: os.PathLike | str | None = None) 
             problems += _check_file(p, entry, ipath)
         except OSError as e:  # the file cannot be read at all (permissions, I/O): the dataset's problem
             problems.append(Problem(str(p), "<file>", f"unreadable: {e.strerror or e}"))
-        except Exception as e:  # noqa: BLE001 - verify's own failure on this file: named, and the other files still checked
+        # verify's own failure on this file: named, and the other files still checked
+        except Exception as e:  # noqa: BLE001
             failures.append(Problem(str(p), "<verify>", f"verify failed on this file: {type(e).__name__}: {e}"))
     on_disk = {p.name for p in files}
     for name in sorted(set(indexed or {}) - on_disk):

@@ -346,7 +346,8 @@ class FabricNet(nnx.Module):
         # channels, or most units start on one side of zero for every input and the rows never
         # leave chance. One (shift, scale) per joint value, colour channel or flow component.
         # Minsight frames are read as the difference to a reference frame (`config.image_reference`:
-        # the session's no-contact frame, or the training split's mean): without it the LEDs' fixed colour field dominates every
+        # the session's no-contact frame, or the training split's mean): without it the LEDs' fixed colour field
+        # dominates every
         # frame, and under the paper's rotation it turns with the angle, a nuisance far larger than
         # the deformation that tells fabrics apart.
         for m in STANDARDISED:

@@ -2,7 +2,8 @@
 
 Jobs run in spawned processes through `concurrent.futures` (not `multiprocessing.Pool`): a worker
 that dies raises `BrokenProcessPool` in the caller instead of hanging the run, and its workers are
-not daemonic, so a job may start processes of its own. One worker runs the jobs in this process. Every worker watches its parent
+not daemonic, so a job may start processes of its own. One worker runs the jobs in this process. Every worker watches
+its parent
 (`_exit_with_parent`): killing the parent (kill -9 included) ends its workers too.
 """
 

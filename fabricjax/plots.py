@@ -173,7 +173,8 @@ def _seed_dots(ax, x: float, values: np.ndarray, colour: str, spread: float) -> 
 def plot_against_bandwidth(
     path, khz: Sequence[float], series: dict[str, tuple[Sequence[np.ndarray], Sequence[float]]], microphone: str
 ) -> Path:
-    """Accuracy [%] of `microphone` (the data's name for it) against PSD bandwidth: per split (`series`: split -> (per-seed values per
+    """Accuracy [%] of `microphone` (the data's name for it) against PSD bandwidth: per split (`series`: split ->
+    (per-seed values per
     bandwidth, the paper's mean per bandwidth or None: recorded data), every seed as a dot, our
     mean as a line, the paper's mean dashed."""
     fig, ax = plt.subplots(figsize=(8.8, 4.4), layout="constrained")

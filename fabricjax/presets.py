@@ -24,7 +24,8 @@ Python or from the command line (`--set field=value`).
              out either way); rendering each frame at 308x410 instead costs many times as much
              (the paper preset's frames).
              Optical flow is computed on the 60x80 frames (pooled 3x3 to 20x27) instead of at
-             308x410, which keeps the camera rows within a laptop's time and disk. The model is narrower than the paper's, with small CNNs
+             308x410, which keeps the camera rows within a laptop's time and disk. The model is narrower than the
+             paper's, with small CNNs
              (its width and step chosen by the recipe sweep, `python -m experiments.sweep`), and it
              trains with the fitted recipe (`FITTED_RECIPE`): a budget of optimiser steps and early
              stopping on the validation split. On recorded data (`--data_dir`) the same recipe
@@ -154,9 +155,12 @@ PRESETS: Mapping[str, Preset] = MappingProxyType(
                     image_size=archive.MINSIGHT_SIZE,
                 ),
                 note=(
-                    "The paper_sample preset is the paper preset (its trials, 308x410 frames, N=200, its model and recipe) on a sample "
-                    "of its data: 5 fabrics, one training trial per day. Its numbers are not the paper's table (5 classes, a 20th of the "
-                    "training sequences), and none of the paper's claims is counted: it measures what the paper's scale costs and shows "
+                    "The paper_sample preset is the paper preset (its trials, 308x410 frames, N=200, its "
+                    "model and recipe) on a sample "
+                    "of its data: 5 fabrics, one training trial per day. Its numbers are not the paper's "
+                    "table (5 classes, a 20th of the "
+                    "training sequences), and none of the paper's claims is counted: it measures what the "
+                    "paper's scale costs and shows "
                     "that its camera rows run."
                 ),
             ),

@@ -64,8 +64,10 @@ class SequenceStore:
         free = shutil.disk_usage(self.folder.parent).free
         if need > free:
             raise UserError(
-                f"{self.folder.parent}: the loaded sequences need {disk.size(need)} of memory-mapped files, only {disk.size(free)} free "
-                "(free disk space, give --workdir on a larger disk, or --set=input_source=memory where memory holds them)"
+                f"{self.folder.parent}: the loaded sequences need {disk.size(need)} of memory-mapped files, "
+                f"only {disk.size(free)} free "
+                "(free disk space, give --workdir on a larger disk, or --set=input_source=memory where "
+                "memory holds them)"
             )
         self._partial.mkdir(parents=True)
         return {

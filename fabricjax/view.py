@@ -188,7 +188,8 @@ class TrialView:
                 rec.log(
                     "prediction/decision",
                     rr.TextLog(
-                        f"decided: {live.class_name(j, self.meta)} posterior {r.posterior[j]:.3f} after {r.windows} windows"
+                        f"decided: {live.class_name(j, self.meta)} posterior {r.posterior[j]:.3f} after "
+                        f"{r.windows} windows"
                     ),
                 )
             self.decided = r.decided
@@ -219,7 +220,8 @@ def view_archive(path, *, checkpoint=None, save=None) -> dict[str, Any]:
         or not lay.force
     ):
         raise UserError(
-            f"{path}: meta.streams: the viewer shows the hand's streams ({live.HAND.describe()}); this trial has {lay.describe()}"
+            f"{path}: meta.streams: the viewer shows the hand's streams ({live.HAND.describe()}); this trial "
+            f"has {lay.describe()}"
         )
     streamer = None
     if checkpoint is not None:

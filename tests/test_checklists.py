@@ -76,14 +76,16 @@ def test_properties_checklist():
     # Minsound stretchiness below 50 % chance; both rows above chance; Minsound wins thickness; loses roughness
     assert _holds(properties.checklist(wrong, chance, majority)) == [False, False, False, False, False]
     assert _holds(properties.checklist({ours: paper_like[ours]}, chance, majority)) == [True, None, None, None, None]
-    # unbalanced holdouts: above 1 / levels is not enough, the majority level must be beaten (issue 61: 60.28 % under 60.64 %)
+    # unbalanced holdouts: above 1 / levels is not enough, the majority level must be beaten (issue 61: 60.28 % under
+    # 60.64 %)
     unbalanced = {**majority, "stretchiness": {"label": 1, "accuracy": 80.0, "known": 100}}
     f = properties.checklist(
         paper_like, chance, unbalanced, {ours: {"stretchiness": " (collapsed to level 1: 2 of 2 seeds)"}}
     )
     assert _holds(f)[:2] == [False, True]
     assert (
-        "stretchiness 76.5 % (seeds: 76.0, 77.0) (collapsed to level 1: 2 of 2 seeds): not above its majority level 80.0 % (level 1); "
+        "stretchiness 76.5 % (seeds: 76.0, 77.0) (collapsed to level 1: 2 of 2 seeds): not above its "
+        "majority level 80.0 % (level 1); "
         "above 1 / levels 50.0 %"
     ) in f[0].evidence
     assert "rule: each property's mean over seeds above its majority level" in f[0].claim

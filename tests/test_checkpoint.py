@@ -174,7 +174,8 @@ assert jax.device_count() == int(sys.argv[2])
 if len(sys.argv) > 3:
     train_and_evaluate(TINY, data_sets(), SEEDS, workdir=sys.argv[1])
 graphdef, state, *_ = restore(sys.argv[1], seed=7)
-print("logits", repr(np.asarray(make_predict(graphdef)(state["best_params"], data_sets()["test"]["inputs"])["fabric"]).tolist()))
+logits = make_predict(graphdef)(state["best_params"], data_sets()["test"]["inputs"])["fabric"]
+print("logits", repr(np.asarray(logits).tolist()))
 """
 
 
@@ -225,7 +226,8 @@ def test_a_checkpoint_made_for_another_job_is_refused_naming_both(uninterrupted,
     with pytest.raises(
         checkpoint.WrongCheckpoint,
         match=(
-            rf"streaming needs a model with a fabric head .*; the checkpoint in {tmp_path / 'properties'} holds a model with "
+            rf"streaming needs a model with a fabric head .*; the checkpoint in {tmp_path / 'properties'} "
+            rf"holds a model with "
             r"heads stretchiness\+roughness\+thickness, inputs internal"
         ),
     ):

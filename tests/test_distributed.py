@@ -26,13 +26,21 @@ from test_train import TINY, data_sets
 from fabricjax.train import train_and_evaluate
 out, folder = sys.argv[2], sys.argv[3]
 saves = []
-res = train_and_evaluate(TINY, data_sets(TINY), seeds=[3, 4], workdir=folder + "/ckpt", save_every=2, on_save=saves.append, log_dir=folder + "/logs")
+res = train_and_evaluate(
+    TINY, data_sets(TINY), seeds=[3, 4], workdir=folder + "/ckpt", save_every=2, on_save=saves.append,
+    log_dir=folder + "/logs",
+)
 again = train_and_evaluate(TINY, data_sets(TINY), seeds=[3, 4], workdir=folder + "/ckpt")  # restored, not retrained
 documents.write_text(f"{{folder}}/written_by_{{jax.process_index()}}", "")
 test = res.metrics["eval"]["test"]
-np.savez(f"{{out}}.{{jax.process_index()}}.npz", devices=jax.device_count(), saves=saves, train_loss=res.metrics["train_loss"],
-         accuracy=test["accuracy"]["fabric"], predictions=test["predictions"]["fabric"],
-         restored=again.metrics["eval"]["test"]["predictions"]["fabric"], **{{jax.tree_util.keystr(k): v for k, v in jax.tree_util.tree_leaves_with_path(jax.device_get(res.params(1)))}})
+leaves = jax.tree_util.tree_leaves_with_path(jax.device_get(res.params(1)))
+np.savez(
+    f"{{out}}.{{jax.process_index()}}.npz", devices=jax.device_count(), saves=saves,
+    train_loss=res.metrics["train_loss"],
+    accuracy=test["accuracy"]["fabric"], predictions=test["predictions"]["fabric"],
+    restored=again.metrics["eval"]["test"]["predictions"]["fabric"],
+    **{{jax.tree_util.keystr(k): v for k, v in leaves}},
+)
 """
 
 

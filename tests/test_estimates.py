@@ -140,7 +140,8 @@ def test_every_number_of_the_simulator_is_sourced_or_a_registry_estimate():
     # the registry's own numbers are the estimates' declarations
     bad = [line for path in _modules() if path.name != "estimates.py" for line in _unsourced(path)]
     assert not bad, (
-        "module-level numbers with neither a source tag ([paper], [ds], [minsight], [insight], [FACTS], [cited], [law], "
+        "module-level numbers with neither a source tag ([paper], [ds], [minsight], [insight], [FACTS], "
+        "[cited], [law], "
         "[numerics]) in their comment nor a registry estimate (estimates.value), see calibration's docstring:\n"
         + "\n".join(bad)
     )
@@ -205,9 +206,10 @@ def _unexplained_literals(path: Path) -> list[str]:
 def test_no_magnitude_is_written_into_the_simulators_code():
     bad = [line for path in _modules() for line in _unexplained_literals(path)]
     assert not bad, (
-        "numbers in the simulator's functions that are neither mathematics (MATHEMATICAL) nor a numerical setting tagged "
-        "[numerics] on their line: make each a calibration constant (sourced, or a registry estimate) and read it as cal.NAME:\n"
-        + "\n".join(bad)
+        "numbers in the simulator's functions that are neither mathematics (MATHEMATICAL) nor a numerical "
+        "setting tagged "
+        "[numerics] on their line: make each a calibration constant (sourced, or a registry estimate) and "
+        "read it as cal.NAME:\n" + "\n".join(bad)
     )
 
 

@@ -99,8 +99,17 @@ from fabricjax import runtime
 runtime.configure_jax()
 from fabricjax.config import Config
 from fabricjax.train import train_and_evaluate
-cfg = Config(preset="smoke", modalities=("flow",), width=16, n_layers=1, ffn=32, cnn_features=(4, 8), seq_len={n}, epochs=1, batch_size=8)
-sets = {{s: {{"inputs": {{"flow": np.load(f"{{sys.argv[1]}}/{{s}}.npy", mmap_mode="r")}}, "labels": {{"fabric": np.load(f"{{sys.argv[1]}}/{{s}}.labels.npy")}}}} for s in ("train", "val")}}
+cfg = Config(
+    preset="smoke", modalities=("flow",), width=16, n_layers=1, ffn=32, cnn_features=(4, 8), seq_len={n}, epochs=1,
+    batch_size=8,
+)
+sets = {{
+    s: {{
+        "inputs": {{"flow": np.load(f"{{sys.argv[1]}}/{{s}}.npy", mmap_mode="r")}},
+        "labels": {{"fabric": np.load(f"{{sys.argv[1]}}/{{s}}.labels.npy")}},
+    }}
+    for s in ("train", "val")
+}}
 try:
     np.array(sets["train"]["inputs"]["flow"])
     sys.exit("the limit does not bind: the training set fits in memory")

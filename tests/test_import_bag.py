@@ -217,7 +217,8 @@ def test_a_camera_without_a_reference_is_a_one_line_error_and_pre_contact_is_onl
         ros_bag.import_bag(bag, {**MAPPING, "camera": camera}, MAPPING["trial"])
     assert str(e.value) == (
         "mapping: camera.reference_topic: missing: a camera needs its session's no-contact reference: name the topic "
-        'that carries it (set reference_topic = "/minsight/reference"), or set reference = "pre_contact" to use the trial\'s first frames'
+        'that carries it (set reference_topic = "/minsight/reference"), or set reference = "pre_contact" to '
+        "use the trial's first frames"
     )
     a = ros_bag.import_bag(
         bag, {**MAPPING, "camera": {**camera, "reference": "pre_contact", "reference_frames": 3}}, MAPPING["trial"]

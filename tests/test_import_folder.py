@@ -111,7 +111,8 @@ def test_a_reference_file_npy_or_pre_contact_frames_and_none_is_a_one_line_error
         hand_folder.import_folder(tmp_path / "t", TRIAL, reference=ReferenceSource("small.npy"))
     with pytest.raises(
         RecordingImportError,
-        match=r"t: <folder>: not a trial folder of the hand's layout: missing gone\.png \(the reference --reference names\)",
+        match=r"t: <folder>: not a trial folder of the hand's layout: missing gone\.png \(the reference "
+        r"--reference names\)",
     ):
         hand_folder.import_folder(tmp_path / "t", TRIAL, reference=ReferenceSource("gone.png"))
     cmd = [

@@ -91,7 +91,8 @@ def test_rerun_resumes_and_a_foreign_archive_needs_overwrite(recordings, tmp_pat
     before = victim.read_bytes()
     with pytest.raises(
         UserError,
-        match="oak_trial000_lab.npz: exists, but was imported from .*02_001, not from .*02_000 as line 10 says; pass --overwrite",
+        match="oak_trial000_lab.npz: exists, but was imported from .*02_001, not from .*02_000 as line 10 says; "
+        "pass --overwrite",
     ):
         _run(recordings, out)
     assert victim.read_bytes() == before
@@ -397,15 +398,18 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     (tmp_path / "rig" / "rig.toml").write_text(other_rig.RIG_TOML + '\n[camera]\nreference = "pre_contact"\n')
     with pytest.raises(
         UserError,
-        match=r"exists, but its camera reference was read from reference\.npy, not from pre_contact: the first 5 frames",
+        match=r"exists, but its camera reference was read from reference\.npy, not from pre_contact: the first 5 "
+        r"frames",
     ):
         _run(manifest, tmp_path / "out2")  # a rerun notices the rig file's new reference
     (tmp_path / "rig" / "rig.toml").write_text(other_rig.RIG_TOML + "\n[camera]\n")
     with pytest.raises(UserError) as e:
         _run(manifest, tmp_path / "out3")
     assert str(e.value) == (
-        f"{tmp_path / 'rig' / 'rig.toml'}: camera.reference: missing: a camera needs its session's no-contact reference: name the "
-        'file of the trial folder that holds it (set reference = "reference.png"), or set reference = "pre_contact" to use the trial\'s first frames'
+        f"{tmp_path / 'rig' / 'rig.toml'}: camera.reference: missing: a camera needs its session's "
+        f"no-contact reference: name the "
+        'file of the trial folder that holds it (set reference = "reference.png"), or set reference = '
+        '"pre_contact" to use the trial\'s first frames'
     )
     assert not (tmp_path / "out3").exists()
 
@@ -513,8 +517,10 @@ def test_the_hands_folders_import_through_a_manifest(tmp_path):
     with pytest.raises(UserError) as e:
         _run_hand(manifest, tmp_path / "out")
     assert str(e.value) == (
-        f"{manifest}: --reference: missing: a camera needs its session's no-contact reference: name the file of the trial "
-        "folder that holds it (pass --reference=reference.png), or pass --reference=pre_contact to use the trial's first frames"
+        f"{manifest}: --reference: missing: a camera needs its session's no-contact reference: name the file "
+        f"of the trial "
+        "folder that holds it (pass --reference=reference.png), or pass --reference=pre_contact to use the "
+        "trial's first frames"
     )
     assert not (tmp_path / "out").exists()
     summary, _ = _run_hand(manifest, tmp_path / "out", reference="reference.png")
@@ -705,7 +711,8 @@ def test_a_new_class_changes_the_label_map_which_needs_overwrite_and_then_replac
         _run(grown, tmp_path / "out")
     assert str(e.value).splitlines()[0] == (
         f"{tmp_path / 'out' / 'felt_trial000_lab.npz'}: exists, but its label map {{'felt': 0, 'oak': 1}} differs "
-        "from the manifest's {'cotton': 0, 'felt': 1, 'oak': 2} (classes added or renamed); pass --overwrite to replace the dataset"
+        "from the manifest's {'cotton': 0, 'felt': 1, 'oak': 2} (classes added or renamed); pass --overwrite "
+        "to replace the dataset"
     )
     summary, _ = _run(grown, tmp_path / "out", overwrite=True)
     assert summary["imported"] == 6 and len(list((tmp_path / "out").glob("*.npz"))) == 6
@@ -948,7 +955,8 @@ HOLD_IMPORT = """
 import sys, time
 from acquisition import import_manifest
 from fabricjax import lock
-with lock.hold(__import__("pathlib").Path(sys.argv[1]) / import_manifest.IMPORT_LOCK, "the import", "importing for a test", transient=True):
+out_lock = __import__("pathlib").Path(sys.argv[1]) / import_manifest.IMPORT_LOCK
+with lock.hold(out_lock, "the import", "importing for a test", transient=True):
     print("held", flush=True)
     time.sleep(120)
 """

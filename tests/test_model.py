@@ -132,8 +132,11 @@ def test_mismatched_audio_bins_and_missing_modalities_are_clear_errors():
 def test_self_attention_and_its_gradient_match_jax_reference():
     q, k, v = 4 * jax.random.normal(jax.random.PRNGKey(0), (3, 2, 4, 7, 8))  # each (B, H, T, D)
     w = jax.random.normal(jax.random.PRNGKey(1), (2, 4, 7, 8))
+
     # jax.nn.dot_product_attention takes (B, T, H, D)
-    ref = lambda q, k, v: jnp.swapaxes(jax.nn.dot_product_attention(*(jnp.swapaxes(a, 1, 2) for a in (q, k, v))), 1, 2)  # noqa: E731
+    def ref(q, k, v):
+        return jnp.swapaxes(jax.nn.dot_product_attention(*(jnp.swapaxes(a, 1, 2) for a in (q, k, v))), 1, 2)
+
     np.testing.assert_allclose(self_attention(q, k, v), ref(q, k, v), rtol=1e-5, atol=1e-5)
     grad = lambda f: jax.grad(lambda *a: (f(*a) * w).sum(), argnums=(0, 1, 2))(q, k, v)  # noqa: E731
     for ours, theirs in zip(grad(self_attention), grad(ref)):

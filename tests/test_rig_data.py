@@ -108,7 +108,8 @@ def test_trials_declaring_different_step_windows_are_refused(tmp_path):
     archive.write_archive(ds / archive.trial_filename(a.meta), a)
     with pytest.raises(
         archive.ArchiveError,
-        match=r"meta\.streams\.steps\.mic_window_s': 0\.5 s, but 0\.25 s in felt_trial009_lab\.npz \(one step window per dataset\)",
+        match=r"meta\.streams\.steps\.mic_window_s': 0\.5 s, but 0\.25 s in felt_trial009_lab\.npz \(one step "
+        r"window per dataset\)",
     ):
         data.load_sequences(_config(modalities=("internal",)), ds, workdir=tmp_path / "ws", progress=False)
 
@@ -163,7 +164,8 @@ def test_a_training_label_outside_the_classes_is_an_error(tmp_path):
     ds = tiny_dataset(tmp_path / "ds", [(4, 1, 0, "lab"), (21, 1, 0, "lab"), (4, 3, 0, "lab")], n_steps=45)
     with pytest.raises(
         archive.ArchiveError,
-        match=r"fabric21_day1_trial00_lab\.npz: field 'meta.label': label 21 of a train trial is outside the 5 classes 0..4",
+        match=r"fabric21_day1_trial00_lab\.npz: field 'meta.label': label 21 of a train trial is outside the 5 "
+        r"classes 0..4",
     ):
         data.load_sequences(_config(), ds, workdir=tmp_path / "ws", progress=False)
 

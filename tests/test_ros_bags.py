@@ -317,7 +317,8 @@ def test_every_problem_of_a_bag_is_listed_in_one_line(tmp_path):
         ros_bag.import_bag(bag, mapping, TRIAL)
     assert str(e.value) == (
         f"{bag}: topics ['/hand/joints', '/palm/mic'] not in the bag (it has ['/joint_states', '/minsight/image', "
-        "'/minsight/reference', '/minsound/audio', '/palm/audio']); /minsight/image: type std_msgs/msg/String, expected sensor_msgs/msg/Image "
+        "'/minsight/reference', '/minsound/audio', '/palm/audio']); /minsight/image: type "
+        "std_msgs/msg/String, expected sensor_msgs/msg/Image "
         "or sensor_msgs/msg/CompressedImage"
     )
 

@@ -191,7 +191,10 @@ def test_a_trivial_level_statistic_does_not_identify_the_fabric():
 
 
 def test_generation_killed_midway_resumes_and_keeps_finished_archives(tmp_path):
-    code = "from fabricjax.sim import ensure_dataset; ensure_dataset('smoke', workdir=%r, streams=('audio', 'proprio'), progress=False, workers=1)"
+    code = (
+        "from fabricjax.sim import ensure_dataset; ensure_dataset('smoke', workdir=%r, streams=('audio', "
+        "'proprio'), progress=False, workers=1)"
+    )
     proc = subprocess.Popen([sys.executable, "-c", code % str(tmp_path)], start_new_session=True)
     folder = tmp_path / "datasets" / "smoke"
     deadline = time.time() + 60

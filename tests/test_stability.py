@@ -444,7 +444,8 @@ train.train_and_evaluate(RESUME, resume_sets(), [0, 1], workdir={workdir!r}, sav
 """
 
 
-@pytest.mark.slow  # a fresh process compiles the run: ~15-35 s; the on_save interruption in test_checkpoint.py runs always
+# a fresh process compiles the run: ~15-35 s; the on_save interruption in test_checkpoint.py runs always
+@pytest.mark.slow
 def test_training_killed_mid_epoch_resumes_from_its_last_checkpoint(tmp_path):
     workdir = tmp_path / "ckpt"
     code = _KILLED_TRAINER.format(root=str(ROOT), workdir=str(workdir))
@@ -470,7 +471,10 @@ def test_training_killed_mid_epoch_resumes_from_its_last_checkpoint(tmp_path):
     )
     assert saved == [3, 4, 5]  # continued after epoch 2, did not start over
     full = train.train_and_evaluate(RESUME, resume_sets(), [0, 1], save_every=1)  # the same compiled chunks
-    outcome = lambda m: {k: v for k, v in m.items() if k not in ("epochs", "time")}  # noqa: E731  (curves: NaN before the resume, own wall times)
+
+    def outcome(m):  # not the curves (NaN before the resume) nor the wall times
+        return {k: v for k, v in m.items() if k not in ("epochs", "time")}
+
     for a, b in zip(jax.tree.leaves(outcome(resumed.metrics)), jax.tree.leaves(outcome(full.metrics))):
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
     assert finite(resumed.state["params"])
@@ -505,7 +509,10 @@ def _command(module, *args, results):
 
 def test_debug_nans_is_read_from_the_environment():
     env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_DEBUG_NANS": "True"}
-    code = "import jax, jax.numpy as jnp\nassert jax.config.jax_debug_nans\ntry:\n jnp.log(jnp.float32(-1))\nexcept FloatingPointError:\n print('caught')"
+    code = (
+        "import jax, jax.numpy as jnp\nassert jax.config.jax_debug_nans\ntry:\n jnp.log(jnp.float32(-1))\nexcept "
+        "FloatingPointError:\n print('caught')"
+    )
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=60)
     assert out.stdout.strip().endswith("caught"), out.stderr[-2000:]
 

@@ -244,7 +244,8 @@ def test_properties_report_training_and_holdout_fabrics_and_checkpoint(property_
     assert Path(row["checkpoint"]).is_dir()
     md = (results / "properties.md").read_text()
     assert "97.40" in md and "76.15" in md and row["checkpoint"] in md
-    # every accuracy beside its split's majority level, from the split's own labels, and each seed's collapse in the JSON
+    # every accuracy beside its split's majority level, from the split's own labels, and each seed's collapse in the
+    # JSON
     for split in properties.SPLITS:
         for p in properties.PROPERTIES:
             labels = np.asarray(doc["samples"][split]["labels"][p])
@@ -309,12 +310,15 @@ def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
     ]
     lines = ablation.table(rows, findings.majority(labels)).splitlines()
     assert lines[0].startswith(
-        "| Backbone | Modalities | Test accuracy [%] (ours, 3 seeds) | Majority class, test [%] | Paper [%] | Ours − paper [pp]"
+        "| Backbone | Modalities | Test accuracy [%] (ours, 3 seeds) | Majority class, test [%] | Paper [%] "
+        "| Ours − paper [pp]"
     )
     assert lines[2] == "| Transformer | Minsound | 95.00 ± 5.00 | 50.00 (class 2) | 95.06 ± 1.85 | -0.06 | 12.3 |"
-    # two of its seeds predict one class for every sequence: the table says so beside the accuracy, and beside the majority class
+    # two of its seeds predict one class for every sequence: the table says so beside the accuracy, and beside the
+    # majority class
     assert lines[3] == (
-        "| TCN | Minsound + palm mic + proprioception | 50.00 ± 0.00 (collapsed to class 2: 2 of 3 seeds) | 50.00 (class 2) | "
+        "| TCN | Minsound + palm mic + proprioception | 50.00 ± 0.00 (collapsed to class 2: 2 of 3 seeds) | "
+        "50.00 (class 2) | "
         "75.41 ± 11.20 | -25.41 | 5.0 |"
     )
 
@@ -345,7 +349,8 @@ def test_noise_and_bandwidth_tables():
     majority = {"cafe": findings.majority([4, 4, 1]), "test": findings.majority([0, 1, 1, 2])}
     lines = noise.table(rows, majority).splitlines()
     assert lines[2] == (
-        "| Minsound | 70.00 ± 0.00 (collapsed to class 4: 1 of 2 seeds) | 66.67 (class 4) | 67.51 ± 5.05 | +2.49 | – | – | – | "
+        "| Minsound | 70.00 ± 0.00 (collapsed to class 4: 1 of 2 seeds) | 66.67 (class 4) | 67.51 ± 5.05 | "
+        "+2.49 | – | – | – | "
         "90.00 ± 0.00 | 50.00 (class 1) | 1.0 |"
     )
     assert "0.001953 (floor 0.002, exact)" in lines[3] and "< 0.0001" in lines[3]
@@ -360,7 +365,8 @@ def test_noise_and_bandwidth_tables():
         }
     ]
     assert bandwidth.table(bw, {"val": majority["cafe"], "test": None}).splitlines()[2] == (
-        "| 2.5 | 54 | 90.00 ± 0.00 | 66.67 (class 4) | 92.43 ± 1.13 | -2.43 | 80.00 ± 0.00 | – | 89.87 ± 3.31 | -9.87 | 3.0 |"
+        "| 2.5 | 54 | 90.00 ± 0.00 | 66.67 (class 4) | 92.43 ± 1.13 | -2.43 | 80.00 ± 0.00 | – | 89.87 ± "
+        "3.31 | -9.87 | 3.0 |"
     )
 
 
@@ -452,7 +458,8 @@ def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp
     settings, run = STUDIES_WITH_ROWS[study]
     with pytest.raises(
         UserError,
-        match=f"the {study} study sets {field} per row itself \\((every one of its {len(settings)} rows|rows .+)\\); choose",
+        match=f"the {study} study sets {field} per row itself \\((every one of its {len(settings)} rows|rows "
+        f".+)\\); choose",
     ) as e:
         run(
             preset="smoke",
@@ -581,8 +588,8 @@ def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_p
     assert list(first) == [s.study for s in SMOKE_PLAN]
     assert all(f"{s.study:<11} run" in said[0] for s in SMOKE_PLAN)
     assert (
-        f"estimated time: none for probe, bandwidth, properties, latents: no earlier run of the smoke preset in {tmp_path}"
-        in said[0]
+        f"estimated time: none for probe, bandwidth, properties, latents: no earlier run of the smoke preset "
+        f"in {tmp_path}" in said[0]
     )
     text = (tmp_path / "REPORT.md").read_text()
     for s in SMOKE_PLAN:
@@ -642,7 +649,8 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
     )
     assert len(source.fingerprint()) == 64
     assert reproduce.command(step, "default", {"epochs": 3, "modalities": ("internal", "proprio")}, "results") == (
-        "python -m experiments.noise --seeds=10 --preset=default --set=epochs=3 --set=modalities=internal,proprio --results=results"
+        "python -m experiments.noise --seeds=10 --preset=default --set=epochs=3 "
+        "--set=modalities=internal,proprio --results=results"
     )
 
 

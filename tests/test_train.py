@@ -132,7 +132,8 @@ assert jax.device_count() == 4
 out = {{"mesh": dict(sharding.training_mesh(TINY.batch_size).shape)}}
 mesh = sharding.training_mesh(4)  # seeds together, samples over 4 devices
 split = jax.jit(sharding.vmap_seeds(lambda x: 2 * sharding.split_samples(x, mesh, axis=1)))
-out["split"] = [[len(s.device_set), list(getattr(s, "spec", []))] for s in (split(np.zeros((2, 2, n, 3))).sharding for n in (4, 3))]
+shardings = [split(np.zeros((2, 2, n, 3))).sharding for n in (4, 3)]
+out["split"] = [[len(s.device_set), list(getattr(s, "spec", []))] for s in shardings]
 for name, seeds in (("seeds", [3, 4, 3, 5]), ("samples", [4])):
     res = train_and_evaluate(TINY, data_sets(TINY), seeds=seeds)
     out[name] = {{"devices": len(res.state["epoch"].sharding.device_set),
@@ -382,7 +383,8 @@ from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.train import train_and_evaluate
 cfg = Config(**{{**TINY.to_json(), "modalities": ("image", "internal", "proprio"), "cnn_features": (4,), "epochs": 1}})
-sets = {{k: synthetic.data_set(cfg, n, seed=i, image_hw=(12, 16)) for i, (k, n) in enumerate((("train", 24), ("val", 10), ("test", 12)))}}
+sizes = (("train", 24), ("val", 10), ("test", 12))
+sets = {{k: synthetic.data_set(cfg, n, seed=i, image_hw=(12, 16)) for i, (k, n) in enumerate(sizes)}}
 res = train_and_evaluate(cfg, sets, seeds=[0, 1])
 print(hashlib.sha256(b"".join(np.asarray(x).tobytes() for x in jax.tree.leaves(res.state["params"]))).hexdigest())
 """
@@ -395,8 +397,8 @@ def test_the_backend_optimisation_level_changes_no_bit_of_a_trained_model(monkey
     monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=2")
     runtime.compile_at_backend_level()
     assert (
-        os.environ["XLA_FLAGS"]
-        == f"--xla_force_host_platform_device_count=2 --xla_backend_optimization_level={runtime.BACKEND_OPTIMIZATION_LEVEL}"
+        os.environ["XLA_FLAGS"] == f"--xla_force_host_platform_device_count=2 "
+        f"--xla_backend_optimization_level={runtime.BACKEND_OPTIMIZATION_LEVEL}"
     )
     monkeypatch.setenv("XLA_FLAGS", "--xla_backend_optimization_level=3")
     runtime.compile_at_backend_level()

@@ -98,7 +98,10 @@ def test_view_save_with_a_checkpoint_adds_the_models_predictions(smoke_trial, ch
 
 def test_without_the_sdk_a_one_line_error_says_what_to_install(smoke_trial, tmp_path):
     path, _ = smoke_trial
-    code = "import sys; sys.modules['rerun'] = None; sys.argv[0] = 'view'; from experiments import view; from fabricjax import cli; cli.run(view.main)"
+    code = (
+        "import sys; sys.modules['rerun'] = None; sys.argv[0] = 'view'; from experiments import view; from "
+        "fabricjax import cli; cli.run(view.main)"
+    )
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     out = subprocess.run(
         [sys.executable, "-c", code, str(path), f"--save={tmp_path / 'x.rrd'}"],
@@ -192,7 +195,8 @@ def test_viewing_another_rigs_trial_is_one_line_saying_what_it_has(tmp_path):
     archive.write_archive(path, rig_archive())
     with pytest.raises(
         UserError,
-        match=r"rig\.npz: meta\.streams: the viewer shows the hand's streams .*; this trial has microphones: vibration \(2200 Hz",
+        match=r"rig\.npz: meta\.streams: the viewer shows the hand's streams .*; this trial has microphones: "
+        r"vibration \(2200 Hz",
     ):
         view.view_archive(path, save=tmp_path / "rig.rrd")
     assert not (tmp_path / "rig.rrd").exists()

@@ -2,7 +2,8 @@
 the cost study).
 
 They time the real programs: `Trainer.train_epoch` (a scan over minibatches, vmapped over seeds,
-buffers donated) and the compiled `predict_one` (`timing.predict_one_timer`), on synthetic data of the paper's shapes (320 PSD
+buffers donated) and the compiled `predict_one` (`timing.predict_one_timer`), on synthetic data of the paper's shapes
+(320 PSD
 bins = 15 kHz of 512, N=200 steps). Compilation is excluded; nothing here asserts a time.
 
 An epoch is timed as one call of `STEPS_PER_EPOCH` steps, as training runs it (one call per epoch
@@ -152,7 +153,8 @@ def train_step_runner(
 
     Seeds and samples are split over the devices as in training (`sharding.training_mesh`): with
     one CPU device per core (`runtime.use_cpu_cores`), seeds or each minibatch's samples run on
-    separate cores. `image_hw` is the size of the synthetic camera frames (image rows only; None: `synthetic.data_set`'s)."""
+    separate cores. `image_hw` is the size of the synthetic camera frames (image rows only; None:
+    `synthetic.data_set`'s)."""
     epoch, first, keys, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps, image_hw)
     carry = [first]
     del first

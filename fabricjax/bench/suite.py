@@ -19,7 +19,8 @@ Benchmarks (names for --only):
     camera       a camera row's training step against an audio row's (target: at most 1.5x), the
                  ablation's rows on the default preset (batch 16, N=50, 30x40 frames, 5 vmapped seeds),
                  interleaved: audio (Minsound), image, and image without the rotation augmentation
-    inference    one 200-step sequence, p50 / p99: ours (`predict_one` compiled ahead of time, each compute dtype) and the
+    inference    one 200-step sequence, p50 / p99: ours (`predict_one` compiled ahead of time, each compute dtype) and
+    the
                  twin's (eager, compiled; float32 and bfloat16 autocast)
     streaming    per-step update of `fabricjax.live` (newest PSDs + model over N=200 steps)
                  on a simulated trial replayed as fast as possible
@@ -157,7 +158,8 @@ def bench_extraction(quick: bool, workdir) -> dict:
         "ms_per_step": 1e3 * out["cold_s"] / steps,
         "paper_scale_extrapolated_s": out["cold_s"] / steps * paper_steps,
         "paper_scale_note": f"extrapolated linearly in steps to {paper_steps} steps "
-        f"({len(presets.get('paper').dataset.trials())} trials x ~{PAPER_STEPS_PER_TRIAL}), audio + proprioception only; not measured",
+        f"({len(presets.get('paper').dataset.trials())} trials x ~{PAPER_STEPS_PER_TRIAL}), audio + "
+        f"proprioception only; not measured",
     }
 
 
@@ -456,8 +458,10 @@ def markdown(doc: dict[str, Any]) -> str:
         r, w = c["rows"], c["workload"]
         rows.append(
             [
-                f"camera row's training step, {c['n_seeds']} seeds vmapped ({w['preset']} preset: batch {w['batch']}, N={w['seq_len']}, "
-                f"{w['image_size'][0]}x{w['image_size'][1]} frames; without rotation {r['camera_unrotated']['s_per_step'] * 1e3:.0f} ms)",
+                f"camera row's training step, {c['n_seeds']} seeds vmapped ({w['preset']} preset: batch "
+                f"{w['batch']}, N={w['seq_len']}, "
+                f"{w['image_size'][0]}x{w['image_size'][1]} frames; without rotation "
+                f"{r['camera_unrotated']['s_per_step'] * 1e3:.0f} ms)",
                 f"{r['camera']['s_per_step'] * 1e3:.0f} ms",
                 f"audio row {r['audio']['s_per_step'] * 1e3:.0f} ms; target ratio <= {c['target_ratio']:g}",
                 _ratio(r["camera"]["ratio"]),
@@ -517,9 +521,11 @@ def markdown(doc: dict[str, Any]) -> str:
         for size, v in f["sizes"].items():
             rows.append(
                 [
-                    f"optical flow (Farneback) per frame pair, {size}: JAX on {f['jax_devices']} {f['device']} device(s), batch {f['batch']}",
+                    f"optical flow (Farneback) per frame pair, {size}: JAX on {f['jax_devices']} "
+                    f"{f['device']} device(s), batch {f['batch']}",
                     f"{v['jax_s'] * 1e3:.1f} ms",
-                    f"OpenCV 1 thread {v['opencv_1_thread_s'] * 1e3:.1f} ms, {f['opencv_threads']} threads {v['opencv_all_cores_s'] * 1e3:.1f} ms",
+                    f"OpenCV 1 thread {v['opencv_1_thread_s'] * 1e3:.1f} ms, {f['opencv_threads']} threads "
+                    f"{v['opencv_all_cores_s'] * 1e3:.1f} ms",
                     _ratio(v["jax_s"] / min(v["opencv_1_thread_s"], v["opencv_all_cores_s"])),
                 ]
             )
@@ -528,8 +534,10 @@ def markdown(doc: dict[str, Any]) -> str:
         src = i["sources"]
         rows.append(
             [
-                f"training fed from the host: one step's minibatches of paper flow features ({i['n_seeds']} seeds x {i['batch']}, {i['step_mb']:.0f} MB)",
-                f"disk {src['disk_cold']['s_per_step'] * 1e3:.0f} ms ({src['disk_cold']['mb_per_s']:.0f} MB/s), page cache {src['disk_warm']['s_per_step'] * 1e3:.0f} ms",
+                f"training fed from the host: one step's minibatches of paper flow features ({i['n_seeds']} "
+                f"seeds x {i['batch']}, {i['step_mb']:.0f} MB)",
+                f"disk {src['disk_cold']['s_per_step'] * 1e3:.0f} ms ({src['disk_cold']['mb_per_s']:.0f} "
+                f"MB/s), page cache {src['disk_warm']['s_per_step'] * 1e3:.0f} ms",
                 f"memory {src['memory']['s_per_step'] * 1e3:.0f} ms ({src['memory']['mb_per_s']:.0f} MB/s)",
                 _ratio(src["disk_cold"]["s_per_step"] / src["memory"]["s_per_step"]),
             ]
@@ -548,7 +556,8 @@ def markdown(doc: dict[str, Any]) -> str:
         i = b["import"]
         rows.append(
             [
-                f"batch import, {i['trials']} trials of {i['seconds_per_trial'][0]:g}-{i['seconds_per_trial'][1]:g} s ({i['rig']})",
+                f"batch import, {i['trials']} trials of "
+                f"{i['seconds_per_trial'][0]:g}-{i['seconds_per_trial'][1]:g} s ({i['rig']})",
                 f"{i['wall_s']:.0f} s ({i['ms_per_trial']:.0f} ms per trial)",
                 f"target <= {i['target_s']:.0f} s",
                 "",
@@ -570,10 +579,12 @@ def markdown(doc: dict[str, Any]) -> str:
         peaks = doc["matmul_peak"]
         p = next(iter(peaks.values()))
         head += (
-            f" Rows name our compute dtype (`compute_dtype`: matrix products' inputs, float32 accumulation). GFLOP: XLA's cost analysis of "
+            f" Rows name our compute dtype (`compute_dtype`: matrix products' inputs, float32 accumulation). "
+            f"GFLOP: XLA's cost analysis of "
             f"our compiled step or call; % peak: its GFLOP/s over a {p['n']}x{p['n']} matmul's with "
             + " and ".join(f"{d} operands ({v['gflop_per_s']:.1f} GFLOP/s)" for d, v in peaks.items())
-            + f", float32 accumulation, on the same {p['devices']} device{'s' if p['devices'] > 1 else ''}, measured in this run."
+            + f", float32 accumulation, on the same {p['devices']} device{'s' if p['devices'] > 1 else ''}, "
+            f"measured in this run."
         )
     cols = [
         "benchmark",

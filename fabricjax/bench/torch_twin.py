@@ -231,7 +231,8 @@ def _optimizer(config: Config, params, seed_axes: int = 0):
 
 
 def _clip_factor(grads):
-    """optax.clip_by_global_norm(MAX_GRAD_NORM)'s factor for one model's gradients: MAX_GRAD_NORM / max(global norm, MAX_GRAD_NORM)."""
+    """optax.clip_by_global_norm(MAX_GRAD_NORM)'s factor for one model's gradients:
+    MAX_GRAD_NORM / max(global norm, MAX_GRAD_NORM)."""
     import torch
 
     norm = torch.linalg.vector_norm(torch.stack([torch.linalg.vector_norm(g) for g in grads]))

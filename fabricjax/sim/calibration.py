@@ -119,7 +119,8 @@ WEAVE_HARMONICS = 8  # [numerics] the weave's Fourier series, cut where its harm
 # [estimate] each harmonic's weight departs from the m^(-s/2) trend by a factor U(1 - x, 1 + x), per fabric (yarn shape)
 WEAVE_HARMONIC_SPREAD = estimates.value("WEAVE_HARMONIC_SPREAD")
 WEAVE_IRREGULARITY = estimates.value("WEAVE_IRREGULARITY")  # [estimate] yarn spacing varies by ~3 % of the period
-# [estimate] the spacing's irregularity is smooth over this many weave periods (its spectrum ends at 1 / (this x period))
+# [estimate] the spacing's irregularity is smooth over this many weave periods (its spectrum ends at 1 / (this x
+# period))
 WEAVE_WANDER_PERIODS = estimates.value("WEAVE_WANDER_PERIODS")
 # [estimate] local roughness varies +-20 % along the strip (10 mm correlation): wear, creases, pile direction
 LOCAL_ROUGHNESS_SPREAD = estimates.value("LOCAL_ROUGHNESS_SPREAD")

@@ -132,7 +132,8 @@ def ensure_dataset(
         for stale in folder.glob(".*.partial"):
             stale.unlink()
         for foreign in sorted(p for p in folder.glob("*.npz") if p.name not in wanted):
-            foreign.unlink()  # the simulator's own folder: a trial the preset no longer has (e.g. an older smoke preset's fabrics)
+            # the simulator's own folder: a trial the preset no longer has (e.g. an older smoke preset's fabrics)
+            foreign.unlink()
             if progress:
                 print(f"removed {foreign}: the preset {preset_name!r} has no such trial", flush=True)
         # again under the lock: another run may have written some of them since `_to_write` looked
@@ -145,7 +146,8 @@ def ensure_dataset(
             )  # [numerics] a margin for other files
             if progress:
                 print(
-                    f"Simulating {len(jobs)} of {len(scenes)} trials of preset {preset_name!r} ({', '.join(streams)}) into {folder}: "
+                    f"Simulating {len(jobs)} of {len(scenes)} trials of preset {preset_name!r} "
+                    f"({', '.join(streams)}) into {folder}: "
                     f"at most {disk.size(need)} on disk (less: members are deflated), on {workers} processes. "
                     "This happens once; later runs reuse the archives.",
                     flush=True,

@@ -90,7 +90,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 3.0,
                 0.0,
                 10.0,
-                "a sealed soft wall cannot block below its stiffness-controlled region; leaks at the base pass what the mass law would stop",
+                "a sealed soft wall cannot block below its stiffness-controlled region; leaks at the base "
+                "pass what the mass law would stop",
                 "the room sound Minsound hears at low frequency (lab floor, cafe babble)",
                 "shell airborne",
                 _AUDIO,
@@ -100,7 +101,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 6.0,
                 6.0,
                 40.0,
-                "flanking through the rigid skeleton and the seam at the base caps any wall's loss; 40 dB is a sealed enclosure's, 6 dB an open seam's",
+                "flanking through the rigid skeleton and the seam at the base caps any wall's loss; 40 dB is "
+                "a sealed enclosure's, 6 dB an open seam's",
                 "how much room sound Minsound hears above ~300 Hz: the cafe's cost to Minsound",
                 "shell airborne",
                 _AUDIO,
@@ -108,7 +110,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                     "Minsound's drop from the lab test day (95.06 %) to the cafe (67.51 %)",
                     95.06 - 67.51,
                     "Table ablation (Minsound alone, 95.06 %) and Table new_noise_results (Minsound, cafe, 67.51 %)",
-                    "the noise study's Minsound row: lab test minus cafe accuracy, mean of its 10 seeds, default preset",
+                    "the noise study's Minsound row: lab test minus cafe accuracy, mean of its 10 seeds, "
+                    "default preset",
                     "noise",
                 ),
             ),
@@ -129,7 +132,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.5,
                 0.2,
                 1.0,
-                "gear-mesh noise carries harmonics of the mesh frequency from tooth-profile errors, within some 0-14 dB of it; unmeasured for the STS3215",
+                "gear-mesh noise carries harmonics of the mesh frequency from tooth-profile errors, within "
+                "some 0-14 dB of it; unmeasured for the STS3215",
                 "the gear-mesh tone's second harmonic (amplitude relative to the first)",
                 "servo noise",
                 _AUDIO,
@@ -193,7 +197,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.01,
                 0.003,
                 0.03,
-                "gear noise grows with the transmitted torque; a 0.1 N pinch loads a joint with mN m: the doubling torque is of that order",
+                "gear noise grows with the transmitted torque; a 0.1 N pinch loads a joint with mN m: the "
+                "doubling torque is of that order",
                 "how much the contact's load raises the servo noise (its friction information)",
                 "servo noise",
                 _AUDIO,
@@ -290,7 +295,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.5,
                 0.2,
                 0.8,
-                "cups, plates and cutlery ring down at different rates: the longest ring 1.5 to 9 times the shortest ((1 + x) / (1 - x))",
+                "cups, plates and cutlery ring down at different rates: the longest ring 1.5 to 9 times the "
+                "shortest ((1 + x) / (1 - x))",
                 "the spread of the clinks' ring times",
                 "cafe scene",
                 _AUDIO,
@@ -320,7 +326,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 1.0,
                 0.3,
                 2.0,
-                "the paper's 47-55 dB(A) spans cafe days and trials together; a played recording's half-minute excerpts differ by tenths of a dB to a few dB",
+                "the paper's 47-55 dB(A) spans cafe days and trials together; a played recording's "
+                "half-minute excerpts differ by tenths of a dB to a few dB",
                 "the cafe level's change from trial to trial within a day",
                 "cafe scene",
                 _AUDIO,
@@ -351,7 +358,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 2.0,
                 1.0,
                 4.0,
-                "a small closed box is omnidirectional (Q = 1) at low and beamed (Q ~ 4) at high frequency (Beranek, Acoustics, Ch. 4)",
+                "a small closed box is omnidirectional (Q = 1) at low and beamed (Q ~ 4) at high frequency "
+                "(Beranek, Acoustics, Ch. 4)",
                 "the loudspeaker's direct sound against the reverberant",
                 "cafe scene",
                 _AUDIO,
@@ -363,7 +371,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.01,
                 0.003,
                 0.03,
-                "a 3 mm silicone wall over a 5 mm patch passes a few per cent of the skin's displacement to its inner face",
+                "a 3 mm silicone wall over a 5 mm patch passes a few per cent of the skin's displacement to "
+                "its inner face",
                 "the texture sound's level in Minsound against its noise",
                 "contact sound",
                 _AUDIO,
@@ -396,8 +405,10 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 20e-6,
                 8e-6,
                 40e-6,
-                "Hertz at 0.1 N with Ecoflex 00-30's datasheet modulus gives a 3.6 mm disc (10 mm^2); a cloth stack conforms and spreads it",
-                "the volume the contact displaces (texture level), the cloth's radiating disc, the rubbed share of the strip",
+                "Hertz at 0.1 N with Ecoflex 00-30's datasheet modulus gives a 3.6 mm disc (10 mm^2); a "
+                "cloth stack conforms and spreads it",
+                "the volume the contact displaces (texture level), the cloth's radiating disc, the rubbed "
+                "share of the strip",
                 "contact sound",
                 _AUDIO,
                 log=True,
@@ -407,7 +418,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 8e-6,
                 3e-6,
                 12e-6,
-                "a fingertip of Minsight's size (10.25 mm radius, 15 mm cylinder and cap) holds ~7 cm^3, less its skeleton and board",
+                "a fingertip of Minsight's size (10.25 mm radius, 15 mm cylinder and cap) holds ~7 cm^3, "
+                "less its skeleton and board",
                 "the cavity pressure per displaced volume (Minsound's contact sound)",
                 "contact sound",
                 _AUDIO,
@@ -451,7 +463,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 6.0,
                 2.0,
                 18.0,
-                "micro-slips at the spacing of fibres (tens of um) to yarns (~1 mm): a few to tens per mm slid at mu = 1",
+                "micro-slips at the spacing of fibres (tens of um) to yarns (~1 mm): a few to tens per mm "
+                "slid at mu = 1",
                 "how many stick-slip clicks a stroke makes",
                 "contact sound",
                 _AUDIO,
@@ -484,7 +497,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.1,
                 0.03,
                 0.3,
-                "the ring follows the skin's mass on the contact's stiffness, which vary with where the patch sits and how the stack lies: a few to tens of per cent",
+                "the ring follows the skin's mass on the contact's stiffness, which vary with where the "
+                "patch sits and how the stack lies: a few to tens of per cent",
                 "the clicks' ring from trial to trial at one stiffness",
                 "contact sound",
                 _AUDIO,
@@ -516,7 +530,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.015,
                 0.012,
                 0.018,
-                "the shell's radius (11.8 mm [minsight]) plus half the stack puts a centre 12-14 mm from the pinch; 15 mm is the earlier width estimate",
+                "the shell's radius (11.8 mm [minsight]) plus half the stack puts a centre 12-14 mm from the "
+                "pinch; 15 mm is the earlier width estimate",
                 "the fingertips' distances to the palm microphone",
                 "contact sound",
                 _AUDIO,
@@ -526,7 +541,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 -0.03,
                 -0.05,
                 -0.01,
-                "'on the side of the palm' [paper], the ISyHand's dimensions unpublished: each coordinate within +-2 cm",
+                "'on the side of the palm' [paper], the ISyHand's dimensions unpublished: each coordinate "
+                "within +-2 cm",
                 "where the palm microphone sits along the pinch axis (thumb side)",
                 "contact sound",
                 _AUDIO,
@@ -556,7 +572,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.5,
                 0.3,
                 0.7,
-                "equal shells in series put the sheet midway; unequal shells or a compliant stack move it by tens of per cent",
+                "equal shells in series put the sheet midway; unequal shells or a compliant stack move it by "
+                "tens of per cent",
                 "the cloth's dipole at the palm microphone",
                 "contact sound",
                 _AUDIO,
@@ -577,7 +594,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.5,
                 0.2,
                 1.0,
-                "half the light from diffuse powder, the flakes' share varying with up to unit coefficient of variation",
+                "half the light from diffuse powder, the flakes' share varying with up to unit coefficient "
+                "of variation",
                 "the interior's grain, which a seating shift moves under every pixel",
                 "camera day",
                 _IMAGES,
@@ -598,7 +616,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 80.0,
                 65.0,
                 90.0,
-                "the image must reach the wall near the base (80 deg off axis at ~1.8 mm above the camera); the lens is unpublished",
+                "the image must reach the wall near the base (80 deg off axis at ~1.8 mm above the camera); "
+                "the lens is unpublished",
                 "how much of the wall each frame sees, and at what scale",
                 "camera day",
                 _IMAGES,
@@ -618,7 +637,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 35.0,
                 20.0,
                 50.0,
-                "the cone must light the wall from ~6 mm above the camera to the tip; the collimator's optics are unpublished",
+                "the cone must light the wall from ~6 mm above the camera to the tip; the collimator's "
+                "optics are unpublished",
                 "where on the wall the light falls off",
                 "camera day",
                 _IMAGES,
@@ -670,7 +690,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.25,
                 0.15,
                 0.4,
-                "Hertz between two Ecoflex 00-30 shells (datasheet modulus) gives 0.19 N/mm secant, 0.28 tangent at 0.1 N; the skeleton stiffens it",
+                "Hertz between two Ecoflex 00-30 shells (datasheet modulus) gives 0.19 N/mm secant, 0.28 "
+                "tangent at 0.1 N; the skeleton stiffens it",
                 "the closing travel, the grasp's overshoot and the load's swing over a stroke",
                 "contact on Minsight",
                 _ALL,
@@ -680,7 +701,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 5.0,
                 2.0,
                 12.0,
-                "the layer whose bending starts to widen the patch: a shirting cotton's in-plane stiffness, a few N/mm at 0.5 mm",
+                "the layer whose bending starts to widen the patch: a shirting cotton's in-plane stiffness, "
+                "a few N/mm at 0.5 mm",
                 "how much a stiff stack widens the patch across the fold",
                 "contact on Minsight",
                 _IMAGES,
@@ -691,7 +713,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 4.0,
                 2.0,
                 8.0,
-                "a ridge of width w has its relief at wavelengths of 2 w (a half-sine bump) to several w (a smooth crease)",
+                "a ridge of width w has its relief at wavelengths of 2 w (a half-sine bump) to several w (a "
+                "smooth crease)",
                 "how much of the fold ridge thick stacks press through to the inner wall",
                 "contact on Minsight",
                 _IMAGES,
@@ -714,7 +737,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.0008,
                 0.0002,
                 0.002,
-                "a UVC camera's frames timestamped on the host: a USB 2.0 microframe (125 us) to user-space wake-up latency (~1 ms)",
+                "a UVC camera's frames timestamped on the host: a USB 2.0 microframe (125 us) to user-space "
+                "wake-up latency (~1 ms)",
                 "each frame's capture time, with it the audio window and joint reading it carries",
                 "procedure",
                 _ALL,
@@ -735,7 +759,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 20.0,
                 10.0,
                 40.0,
-                "a closing checked once per 20 ms frame: slow enough to stop within ~0.5 mm of the threshold, fast enough to close in a second",
+                "a closing checked once per 20 ms frame: slow enough to stop within ~0.5 mm of the "
+                "threshold, fast enough to close in a second",
                 "the grasp force's overshoot past 0.1 N, and the closing time",
                 "procedure",
                 _ALL,
@@ -779,7 +804,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.25,
                 0.1,
                 0.5,
-                "a servo starting a preprogrammed stroke from rest reaches its amplitude within a tenth to half a cycle (its acceleration limit); unpublished",
+                "a servo starting a preprogrammed stroke from rest reaches its amplitude within a tenth to "
+                "half a cycle (its acceleration limit); unpublished",
                 "the first stroke's run-up: its slide speed and joint swing",
                 "procedure",
                 _ALL,
@@ -790,7 +816,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 2.0,
                 1.7,
                 2.4,
-                "the paper's ~1500 steps (30 s) per 50-cycle trial, with the closing and the load's droop, bound the commanded rate",
+                "the paper's ~1500 steps (30 s) per 50-cycle trial, with the closing and the load's droop, "
+                "bound the commanded rate",
                 "the rubbing rate: trial length, slide speed, texture frequencies",
                 "procedure",
                 _ALL,
@@ -800,7 +827,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.15,
                 0.05,
                 0.4,
-                "the sagitta of two fingertips' +-3 mm arcs on 60 mm levers is 0.15 mm; the other joints and the pad's curvature change it",
+                "the sagitta of two fingertips' +-3 mm arcs on 60 mm levers is 0.15 mm; the other joints and "
+                "the pad's curvature change it",
                 "the normal force's swing at the stroke ends",
                 "procedure",
                 _ALL,
@@ -811,7 +839,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 2.0,
                 0.7,
                 5.0,
-                "position-controlled servos lose a few to ~40 % of their speed at these loads; the paper: slower on high friction",
+                "position-controlled servos lose a few to ~40 % of their speed at these loads; the paper: "
+                "slower on high friction",
                 "how trial length follows friction",
                 "procedure",
                 _ALL,
@@ -822,7 +851,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.02,
                 0.006,
                 0.05,
-                "the STS3215's speed moves ~6 %/V (datasheet speeds at 7.4 and 12 V); a supply sags by 0.1-0.5 V under load",
+                "the STS3215's speed moves ~6 %/V (datasheet speeds at 7.4 and 12 V); a supply sags by "
+                "0.1-0.5 V under load",
                 "the rubbing rate's spread between trials",
                 "procedure",
                 _ALL,
@@ -833,7 +863,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.01,
                 0.003,
                 0.03,
-                "the stroke rate's wander within a trial: below the spread between trials, from the same supply and load",
+                "the stroke rate's wander within a trial: below the spread between trials, from the same "
+                "supply and load",
                 "the stroke rate's wander within a trial",
                 "procedure",
                 _ALL,
@@ -844,7 +875,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.1,
                 0.03,
                 0.5,
-                "the supply's and the load's fluctuations change over a servo's control periods (tens of ms) to a stroke (0.5 s)",
+                "the supply's and the load's fluctuations change over a servo's control periods (tens of ms) "
+                "to a stroke (0.5 s)",
                 "how fast the stroke rate wanders within a trial",
                 "procedure",
                 _ALL,
@@ -866,7 +898,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 12.0,
                 8.0,
                 22.0,
-                "how far the hanger's adjustment moves the grasp is unmeasured: a 20-48 mm spread, ~8 mm or more from the strip's ends",
+                "how far the hanger's adjustment moves the grasp is unmeasured: a 20-48 mm spread, ~8 mm or "
+                "more from the strip's ends",
                 "which stretch of cloth a trial reads, and how often trials share a spot (wear)",
                 "procedure",
                 _AUDIO,
@@ -950,7 +983,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.5,
                 0.2,
                 0.8,
-                "a yarn's cross-section sets each harmonic's weight: tens of per cent off a smooth 1/k^s trend either way",
+                "a yarn's cross-section sets each harmonic's weight: tens of per cent off a smooth 1/k^s "
+                "trend either way",
                 "the relative levels of each fabric's weave lines",
                 "fabric surface",
                 _AUDIO,
@@ -1080,7 +1114,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.3,
                 0.1,
                 1.0,
-                "the meter's 29-31 dB(A) spans the lab's days and trials; a ventilation floor moves by tenths of a dB in a day, ~1 dB with the building services",
+                "the meter's 29-31 dB(A) spans the lab's days and trials; a ventilation floor moves by "
+                "tenths of a dB in a day, ~1 dB with the building services",
                 "the lab floor's level from trial to trial within a day",
                 "room and lab events",
                 _AUDIO,
@@ -1124,7 +1159,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 45.0,
                 38.0,
                 52.0,
-                "a footfall at 1 m sits some dB below conversational speech (50 dB(A)); hard heels on a hard floor reach it",
+                "a footfall at 1 m sits some dB below conversational speech (50 dB(A)); hard heels on a hard "
+                "floor reach it",
                 "the footsteps' level",
                 "room and lab events",
                 _AUDIO,
@@ -1199,7 +1235,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.7,
                 0.4,
                 1.2,
-                "an ICU's day-to-day level spread is 0.40 in log-activity (Naef et al. 2023), a lower bound for a lab's irregular occupancy",
+                "an ICU's day-to-day level spread is 0.40 in log-activity (Naef et al. 2023), a lower bound "
+                "for a lab's irregular occupancy",
                 "how busy one recording day is against another",
                 "room and lab events",
                 _AUDIO,
@@ -1332,7 +1369,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.3,
                 0.1,
                 0.6,
-                "the palm joint's axis against the rubbing direction sets how much of the strokes' reaction torque it carries; the ISyHand's kinematics are unpublished",
+                "the palm joint's axis against the rubbing direction sets how much of the strokes' reaction "
+                "torque it carries; the ISyHand's kinematics are unpublished",
                 "the palm joint's lag and current under the rubbing load",
                 "proprioception",
                 _PROPRIO,
@@ -1342,7 +1380,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 4.0,
                 2.0,
                 30.0,
-                "a position loop's torque per rad of lag: the 1.9 N m stall torque over a proportional band of 0.06-1 rad",
+                "a position loop's torque per rad of lag: the 1.9 N m stall torque over a proportional band "
+                "of 0.06-1 rad",
                 "how far loaded joints lag their command",
                 "proprioception",
                 _PROPRIO,
@@ -1408,7 +1447,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.004,
                 0.0015,
                 0.01,
-                "Insight's ~0.03 N accuracy over many contacts [insight] bounds a repeated contact's; its split into noise and day bias is unmeasured",
+                "Insight's ~0.03 N accuracy over many contacts [insight] bounds a repeated contact's; its "
+                "split into noise and day bias is unmeasured",
                 "the force proxy's frame-to-frame noise",
                 "proprioception",
                 _PROPRIO,
@@ -1441,7 +1481,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 400.0,
                 100.0,
                 1500.0,
-                "the offset follows the modulator's reference and temperature; the datasheet gives no drift: 0.1-1 % of full scale",
+                "the offset follows the modulator's reference and temperature; the datasheet gives no drift: "
+                "0.1-1 % of full scale",
                 "the DC's day-to-day change",
                 "microphones",
                 _AUDIO,
@@ -1452,7 +1493,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 21_000.0,
                 19_000.0,
                 23_000.0,
-                "a sigma-delta decimator's passband ends at 0.40-0.48 of the 48 kHz rate (converters: 0.45-0.47); the SPH0645's is unstated",
+                "a sigma-delta decimator's passband ends at 0.40-0.48 of the 48 kHz rate (converters: "
+                "0.45-0.47); the SPH0645's is unstated",
                 "where the microphones' response ends above the 15 kHz band",
                 "microphones",
                 _AUDIO,
@@ -1462,7 +1504,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 24.0,
                 12.0,
                 48.0,
-                "the stopband starts near the 24 kHz Nyquist rate, ~1.15 times the edge: an order of 12-48 cuts 15-55 dB there; the SPH0645's is unstated",
+                "the stopband starts near the 24 kHz Nyquist rate, ~1.15 times the edge: an order of 12-48 "
+                "cuts 15-55 dB there; the SPH0645's is unstated",
                 "how steeply the microphones' response ends above the decimator's edge",
                 "microphones",
                 _AUDIO,
@@ -1550,7 +1593,8 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 0.0,
                 0.0,
                 0.2,
-                "closing on arcs, a stack thicker by t turns the contact along the shell by R t / 2L: 0.1-0.2 mm per mm for L 60-30 mm; 0 leaves it out",
+                "closing on arcs, a stack thicker by t turns the contact along the shell by R t / 2L: "
+                "0.1-0.2 mm per mm for L 60-30 mm; 0 leaves it out",
                 "where the contact lands in the frame with the fabric's thickness (up to ~1 mm, a few pixels at 60x80)",
                 "camera effects left out",
                 _IMAGES,

@@ -2,7 +2,8 @@
 
 [paper, Finger Movement] Force-controlled closing of thumb and middle finger until Minsight's
 force estimate reaches 0.1 N (the estimate, not the force: its day's bias and the silicone's
-stiffness of the day, which the estimate reads as deformation, move where the closing stops), then a preprogrammed rubbing motion of `cycles` back-and-forth
+stiffness of the day, which the estimate reads as deformation, move where the closing stops), then a preprogrammed
+rubbing motion of `cycles` back-and-forth
 strokes with the same commanded speed for every fabric; "the fingers move more slowly when
 finger-fabric friction is high", so trial length varies with friction.
 

@@ -7,7 +7,8 @@ contact (click amplitude ~ mu * F_n * asperity height). At each reversal the con
 while the shell shears and the cloth stretches by delta = mu * F_n / k, then lets go: a larger
 release whose amplitude grows with the stored elastic displacement. Each event rings the skin and
 contact: a mass on the contact spring, so stiffer contacts (thin,
-incompressible stacks) ring higher, within ~1-3.5 kHz. Returned as the spectrum of the whole click train (one FFT, no sample loop).
+incompressible stacks) ring higher, within ~1-3.5 kHz. Returned as the spectrum of the whole click train (one FFT, no
+sample loop).
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 
 Order of work: the finger motion (always: it is the procedure and fixes the time base), then each
 listed sound effect computes its sources (both fingertips' contacts, the cloth, the servos, the
-room) at the two microphones through their paths (`sound_sources`), which are summed and recorded; proprioception and force are sampled at the frame
+room) at the two microphones through their paths (`sound_sources`), which are summed and recorded; proprioception and
+force are sampled at the frame
 times; images are rendered only when "images" is among the streams. Each effect draws from its own
 generator (`Scene.rng`), so switching one effect off leaves the others' draws unchanged.
 """

@@ -78,11 +78,15 @@ def header_markdown(doc: dict[str, Any], time: str | None = None) -> str:
         lines.append(f"- seeds: {len(seeds)} ({seeds[0]}-{seeds[-1]}), mean ± SD (sample SD) over seeds")
     if "compute_dtype" in doc:
         lines.append(
-            f"- arithmetic: matrix products in {' and '.join(doc['compute_dtype'])} with float32 accumulation; parameters, normalisations, losses and statistics in float32"
+            f"- arithmetic: matrix products in {' and '.join(doc['compute_dtype'])} with float32 "
+            f"accumulation; parameters, normalisations, losses and statistics in float32"
         )
     lines.append(machine_markdown(doc["machine"]))
     if time is None and "train_s" in doc:
-        time = f"training {doc['train_s']:.0f} s in all (per row below, compilation included); {data_time_markdown(doc['dataset'])}"
+        time = (
+            f"training {doc['train_s']:.0f} s in all (per row below, compilation included); "
+            f"{data_time_markdown(doc['dataset'])}"
+        )
     if time:
         lines.append(f"- time: {time}")
     return "\n".join([*lines, ""])
@@ -137,7 +141,8 @@ def machine_line(m: dict[str, Any]) -> str:
 def machine_markdown(m: dict[str, Any]) -> str:
     """The machine (`machine`) a study ran on."""
     return (
-        f"- machine: {m['cpu']} ({', '.join(m.get('vector_units') or ['vector units not recorded'])}), {m['cores']} cores, "
+        f"- machine: {m['cpu']} ({', '.join(m.get('vector_units') or ['vector units not recorded'])}), "
+        f"{m['cores']} cores, "
         f"JAX {m['jax']} on {m['jax_backend']} ({len(m['devices'])} devices)"
     )
 

@@ -168,7 +168,8 @@ def baseline_note(noun: str = "class") -> str:
     """The sentence under a table with `majority` columns and `collapse_note` flags (`noun`:
     "level" for property heads)."""
     return (
-        f"Majority {noun}: the accuracy of always answering the split's most frequent {noun}, from its labels (the {noun} in "
+        f"Majority {noun}: the accuracy of always answering the split's most frequent {noun}, from its "
+        f"labels (the {noun} in "
         f"brackets), the strongest trivial baseline; *collapsed to {noun} k*: a seed answered k for at least "
         f"{100 * COLLAPSED_SHARE:.0f} % of the split's sequences."
     )
@@ -180,4 +181,7 @@ def above_majority(values, base: Mapping[str, Any] | None) -> bool | None:
     return None if base is None else mean_pct(values) > base["accuracy"]
 
 
-NOT_COUNTED = "Not counted: these results are not the paper's table (the note at the top says what they are); the paper's checks run, none is counted."
+NOT_COUNTED = (
+    "Not counted: these results are not the paper's table (the note at the top says what they are); the paper's "
+    "checks run, none is counted."
+)

@@ -37,7 +37,8 @@ class Dataset:
     generate_s: float  # simulating missing archives (0 for recorded data or a finished dataset)
     load_s: float  # features (cached after the first run) and sequences
     workdir: str | Path | None = None  # the workspace it was loaded under (a recorded folder's index lives there)
-    layout_s: float = 0.0  # the camera inputs laid out and placed for training, once for the rows that share them (`runner.train_rows`)
+    # the camera inputs laid out and placed for training, once for the rows that share them (`runner.train_rows`)
+    layout_s: float = 0.0
 
     @property
     def classes(self) -> tuple[str, ...]:

@@ -107,7 +107,8 @@ def _published_rates() -> list[tuple[str, dict[str, dict[str, float]]]]:
                 keyed = {rate_key(json.loads(k)): v for k, v in entry["rates"].items()}
                 out.append(
                     (
-                        f"{study} in {workspace.shown(REPRODUCE_MANIFEST)} ({entry.get('machine', 'host not recorded')}, {entry['finished']})",
+                        f"{study} in {workspace.shown(REPRODUCE_MANIFEST)} "
+                        f"({entry.get('machine', 'host not recorded')}, {entry['finished']})",
                         keyed,
                     )
                 )
@@ -117,7 +118,8 @@ def _published_rates() -> list[tuple[str, dict[str, dict[str, float]]]]:
         sample = json.loads(SAMPLE_RESULTS.read_text())
         out.append(
             (
-                f"{workspace.shown(SAMPLE_RESULTS)} ({sample['machine'].get('cpu')}, {sample['machine'].get('cores')} cores, {sample['date']})",
+                f"{workspace.shown(SAMPLE_RESULTS)} ({sample['machine'].get('cpu')}, "
+                f"{sample['machine'].get('cores')} cores, {sample['date']})",
                 rates(sample),
             )
         )
@@ -148,7 +150,8 @@ def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequence
                     f"training {name}",
                     0,
                     None,
-                    f"unknown before the run: no published run of these inputs and this model; {grid}at most {epochs} epochs",
+                    f"unknown before the run: no published run of these inputs and this model; {grid}at most "
+                    f"{epochs} epochs",
                 )
             )
             continue
@@ -160,7 +163,8 @@ def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequence
                 seconds,
                 f"{grid}at most {epochs} epochs {'(early stopping ends sooner) ' if early else ''}"
                 f"of {train_sequences} sequences x "
-                f"{n_seeds} seeds at {1e6 * rate['per_unit_s']:.0f} us per sequence, epoch and seed, as measured by {source}",
+                f"{n_seeds} seeds at {1e6 * rate['per_unit_s']:.0f} us per sequence, epoch and seed, as "
+                f"measured by {source}",
             )
         )
     return out
@@ -209,7 +213,8 @@ def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, wor
             f"simulation ({len(missing)} of {len(scenes)} trials missing)",
             len(missing) * sim_dataset.trial_bytes(spec, bool(camera)),
             len(missing) * steps * costs.get("simulate", 0.0) / workers,
-            f"a {PROBE_CYCLES}-cycle trial simulated just now: {1e3 * costs['simulate']:.1f} ms per step, {workers} processes"
+            f"a {PROBE_CYCLES}-cycle trial simulated just now: {1e3 * costs['simulate']:.1f} ms per step, "
+            f"{workers} processes"
             if missing
             else "done",
         )
@@ -264,7 +269,8 @@ def markdown(preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int, f
         + (
             f"about {_duration(sum(known))}"
             if len(known) == len(stages_)
-            else f"{len(stages_) - len(known)} of {len(stages_)} stages unknown before the run (below), the others about {_duration(sum(known))}"
+            else f"{len(stages_) - len(known)} of {len(stages_)} stages unknown before the run (below), the "
+            f"others about {_duration(sum(known))}"
         )
         + f", {size(need)} of disk at most ({size(free_bytes)} free"
         + ("; it does not fit: free disk space or give --workdir on a larger disk" if need > free_bytes else "")

@@ -100,7 +100,10 @@ def line(doc: dict[str, Any]) -> str:
         text += f" (best of {len(doc['grid'])} by validation)"
     if doc["patience"]:
         span = f"{min(epochs)}-{max(epochs)}" if min(epochs) != max(epochs) else f"{epochs[0]}"
-        text += f"; {span} epochs of at most {doc['max_epochs']} (early stopping after {doc['patience']} without a better validation)"
+        text += (
+            f"; {span} epochs of at most {doc['max_epochs']} (early stopping after {doc['patience']} without a "
+            f"better validation)"
+        )
     else:
         text += f"; {doc['max_epochs']} epochs (no early stopping)"
     return text

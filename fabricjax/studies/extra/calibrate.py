@@ -71,7 +71,8 @@ def calibrated() -> list[estimates.Estimate]:
     for e in out:
         if e.calibrated.measurement in seen:
             raise UserError(
-                f"estimates {seen[e.calibrated.measurement]} and {e.name} are both fitted to {e.calibrated.measurement!r}: one estimate per measurement"
+                f"estimates {seen[e.calibrated.measurement]} and {e.name} are both fitted to "
+                f"{e.calibrated.measurement!r}: one estimate per measurement"
             )
         seen[e.calibrated.measurement] = e.name
     for e in out:
@@ -97,7 +98,8 @@ class _Points:
         if key not in self.points:
             point = folder / f"{e.name}={key}"
             log(
-                f"{e.name} = {key}: simulating the {PRESET} preset and training ({len(self.points) + 1} of at most {MAX_POINTS})"
+                f"{e.name} = {key}: simulating the {PRESET} preset and training ({len(self.points) + 1} of "
+                f"at most {MAX_POINTS})"
             )
             t0 = time.perf_counter()
             estimates.override({e.name: value})
@@ -193,11 +195,14 @@ def markdown(doc: dict[str, Any]) -> str:
             f"- declared range: {f['range'][0]:g} to {f['range'][1]:g}; the registry holds {f['registry_value']:g}",
             f"- fitted: **{f['fitted_value']:.4g}**, where our number is {f['fitted_number']:.2f} pp"
             if f["bracketed"]
-            else f"- no value in the declared range reaches {f['paper_value']:.2f} pp: the closest is **{f['fitted_value']:.4g}**, the range's end "
-            f"({f['fitted_number']:.2f} pp), which is the calibrated value. The other {f['paper_value'] - f['fitted_number']:.2f} pp are not this "
+            else f"- no value in the declared range reaches {f['paper_value']:.2f} pp: the closest is "
+            f"**{f['fitted_value']:.4g}**, the range's end "
+            f"({f['fitted_number']:.2f} pp), which is the calibrated value. The other "
+            f"{f['paper_value'] - f['fitted_number']:.2f} pp are not this "
             "estimate's to explain: [sensitivity.md](sensitivity.md) shows what else moves the number",
             "",
-            "Every point tried (measured by the code named beside it; a point is kept while every other magnitude of the simulator is unchanged):",
+            "Every point tried (measured by the code named beside it; a point is kept while every other "
+            "magnitude of the simulator is unchanged):",
             "",
             documents.markdown_table(
                 ["Value", "Lab test [%]", "Cafe [%]", "Drop [pp]", "Measured by"],
@@ -215,6 +220,7 @@ def markdown(doc: dict[str, Any]) -> str:
             "",
         ]
     lines.append(
-        "The fitted number is a calibration, not a finding; every other number of its table is a prediction (results/noise.md)."
+        "The fitted number is a calibration, not a finding; every other number of its table is a prediction "
+        "(results/noise.md)."
     )
     return "\n".join(lines) + "\n"

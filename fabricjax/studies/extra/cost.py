@@ -118,7 +118,8 @@ def sweep_points(
 def inference_latency(
     graphdef, params, inputs: dict[str, np.ndarray], repeats: int, warmup: int = 5
 ) -> dict[str, float]:
-    """p50 / p99 ms of `predict_one` compiled ahead of time on one sequence, result fetched to the host (`timing.predict_one_timer`)."""
+    """p50 / p99 ms of `predict_one` compiled ahead of time on one sequence, result fetched to the
+    host (`timing.predict_one_timer`)."""
     run = timing.predict_one_timer(graphdef, params, inputs, warmup=warmup)
     return {f"latency_{k}": v for k, v in stats.percentiles_ms([run() for _ in range(repeats)]).items()}
 
@@ -278,9 +279,12 @@ def markdown(doc: dict[str, Any]) -> str:
             f"; N = {', '.join(map(str, doc['skipped_seq_lens']))} skipped as longer" if doc["skipped_seq_lens"] else ""
         ),
         f"- base point: {base['backbone']}, N={base['seq_len']}, width {base['width']}, {base['bandwidth_khz']:g} kHz, "
-        f"{'+'.join(base['modalities'])}, {base['n_layers']} layers, {base['epochs']} epochs; one factor varied at a time",
-        f"- touch time: N steps at {d['step_rate']:g} Hz; train: wall time of the multi-seed program incl. compilation; "
-        "latency: `predict_one` compiled ahead of time on one test sequence after warm-up (p50 / p99 of repeated calls)",
+        f"{'+'.join(base['modalities'])}, {base['n_layers']} layers, {base['epochs']} epochs; one factor "
+        f"varied at a time",
+        f"- touch time: N steps at {d['step_rate']:g} Hz; train: wall time of the multi-seed program incl. "
+        f"compilation; "
+        "latency: `predict_one` compiled ahead of time on one test sequence after warm-up (p50 / p99 of "
+        "repeated calls)",
         f"- Pareto front (marked T for touch time, L for latency): "
         f"{', '.join(doc['pareto_front']['touch_s'])} | {', '.join(doc['pareto_front']['latency_p50_ms'])}",
         f"- figure: `{doc['figures'][0]}`"

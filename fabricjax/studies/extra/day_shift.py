@@ -212,14 +212,17 @@ def markdown(doc: Mapping[str, Any]) -> str:
         documents.header_markdown(
             doc, f"{doc['study_s']:.0f} s in all; {documents.data_time_markdown(doc['dataset'])}"
         ),
-        f"Every lab trial of days {', '.join(map(str, doc['days']))} ({doc['trials']} trials, {doc['fabrics']} fabrics): each "
+        f"Every lab trial of days {', '.join(map(str, doc['days']))} ({doc['trials']} trials, "
+        f"{doc['fabrics']} fabrics): each "
         "input's per-sequence summaries as the linear probe reads them (each dimension's mean and SD over the steps), "
         "averaged per trial, each dimension standardised over the trials; the shares split its sum of squares into "
         "fabric, day (after the fabric), fabric x day and trial (within one fabric and day), averaged over the "
         "dimensions. A large day share is what a model can learn about a day and lose on a new one; the probe's "
         "validation and test accuracy show whether it does. The Minsight image appears as it is (the `none` and "
-        "`training_mean` readings of `Config.image_reference` differ from it by a per-pixel constant, which standardising "
-        "each dimension removes) and minus its session's no-contact reference (`session`); optical flow is computed from "
+        "`training_mean` readings of `Config.image_reference` differ from it by a per-pixel constant, which "
+        "standardising "
+        "each dimension removes) and minus its session's no-contact reference (`session`); optical flow is "
+        "computed from "
         "the frames under every reading.",
         "",
         table(doc),

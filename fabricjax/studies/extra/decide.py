@@ -309,7 +309,8 @@ def markdown(doc: dict[str, Any]) -> str:
                 for c in d["curve"]
             ]
             lines += [
-                f"{s} ({d['trials']} trials; majority class of the trials [%]: {findings.majority_cell(d['majority_trials'])}):",
+                f"{s} ({d['trials']} trials; majority class of the trials [%]: "
+                f"{findings.majority_cell(d['majority_trials'])}):",
                 "",
                 documents.markdown_table(
                     ["threshold", "accuracy [%]", "mean touch to decision [s]", "reached the threshold [%]"], rows
@@ -318,7 +319,8 @@ def markdown(doc: dict[str, Any]) -> str:
             ]
         if m["cost_points"] is None:
             lines += [
-                "The cost study's fixed-N points: no cost.json in this results folder (run `python -m experiments.cost`).",
+                "The cost study's fixed-N points: no cost.json in this results folder (run `python -m "
+                "experiments.cost`).",
                 "",
             ]
         else:
@@ -342,8 +344,10 @@ def markdown(doc: dict[str, Any]) -> str:
                     ["score", "AUROC", f"false accepts at {100 * confidence.KNOWN_RECALL:.0f} % known recall [%]"], rows
                 ),
                 "",
-                f'Decision rule at posterior {dd["threshold"]:g} answering "unknown" above the Mahalanobis threshold of '
-                f"{100 * confidence.KNOWN_RECALL:.0f} % validation recall: known trials {_pct(dd['known']['answered_own_class'])} % "
+                f'Decision rule at posterior {dd["threshold"]:g} answering "unknown" above the Mahalanobis '
+                f"threshold of "
+                f"{100 * confidence.KNOWN_RECALL:.0f} % validation recall: known trials "
+                f"{_pct(dd['known']['answered_own_class'])} % "
                 f"right, {_pct(dd['known']['answered_unknown'])} % called unknown; unknown trials "
                 f"{_pct(dd['unknown']['answered_unknown'])} % called unknown.",
                 "",

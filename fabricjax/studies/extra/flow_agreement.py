@@ -159,9 +159,12 @@ def markdown(doc: dict[str, Any]) -> str:
             doc, f"{doc['wall_s']:.0f} s" + (" (--quick: one trial and one texture per size)" if doc["quick"] else "")
         ),
         "",
-        f"Frames: simulated Minsight frames, {doc['steps']} consecutive frames of one trial of each of fabrics {doc['fabrics']} where the "
-        f"shear changes fastest; natural-like textures (seeds {doc['textures']}) moved by a smooth known field. End-point errors (EPE) "
-        "are in pixels, between the two methods' dense flow over every frame pair; features are `flow.sparsify_and_pool` of each.",
+        f"Frames: simulated Minsight frames, {doc['steps']} consecutive frames of one trial of each of "
+        f"fabrics {doc['fabrics']} where the "
+        f"shear changes fastest; natural-like textures (seeds {doc['textures']}) moved by a smooth known "
+        f"field. End-point errors (EPE) "
+        "are in pixels, between the two methods' dense flow over every frame pair; features are "
+        "`flow.sparsify_and_pool` of each.",
         "",
         "## Dense flow",
         "",
@@ -213,8 +216,10 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
         "## Time per frame pair",
         "",
-        f"OpenCV on one thread (cv2.setNumThreads(1), one pair at a time) and on {t['opencv_threads']} threads (pairs in a thread pool); "
-        f"JAX on {t['jax_devices']} {t['device'].upper()} device(s), batches of {t['batch']} pairs split over them, after compilation.",
+        f"OpenCV on one thread (cv2.setNumThreads(1), one pair at a time) and on {t['opencv_threads']} "
+        f"threads (pairs in a thread pool); "
+        f"JAX on {t['jax_devices']} {t['device'].upper()} device(s), batches of {t['batch']} pairs split "
+        f"over them, after compilation.",
         "",
         documents.markdown_table(
             [

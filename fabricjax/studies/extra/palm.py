@@ -220,17 +220,23 @@ def summary(doc: dict[str, Any]) -> list[str]:
         rest = np.array([room_at_palm(v) for v in per_class.values()])
         above = int(sum(np.any(r[:-1] > o[:-1]) for r, o in zip(rub, rest)))
         lines.append(
-            f"- {condition}: the fabric at the palm (both contacts and the cloth) {rub[:, -1].min():.0f}-{rub[:, -1].max():.0f} dB(A) "
-            f"over the classes (median {np.median(rub[:, -1]):.0f}), everything else {np.median(rest[:, -1]):.0f} dB(A); the fabric stands "
+            f"- {condition}: the fabric at the palm (both contacts and the cloth) "
+            f"{rub[:, -1].min():.0f}-{rub[:, -1].max():.0f} dB(A) "
+            f"over the classes (median {np.median(rub[:, -1]):.0f}), everything else "
+            f"{np.median(rest[:, -1]):.0f} dB(A); the fabric stands "
             f"above everything else in at least one octave band for {above} of {len(rub)} classes"
         )
     for mic in MICS:
         a, lab = doc["shares_all"][mic], doc["shares_lab"][mic]
         lines.append(
-            f"- {mic}, share of the per-trial dB(A) variance: over all days fabric {100 * a['fabric'][-1]:.1f} %, condition "
-            f"{100 * a['condition'][-1]:.1f} %, day within condition {100 * a['day within condition'][-1]:.1f} %, fabric x day "
-            f"{100 * a['fabric x day'][-1]:.1f} %, trial {100 * a['trial'][-1]:.1f} %; over the lab days fabric {100 * lab['fabric'][-1]:.1f} %, "
-            f"day {100 * lab['day'][-1]:.1f} % (per octave band: day {100 * min(lab['day'][:-1]):.1f}-{100 * max(lab['day'][:-1]):.1f} %)"
+            f"- {mic}, share of the per-trial dB(A) variance: over all days fabric "
+            f"{100 * a['fabric'][-1]:.1f} %, condition "
+            f"{100 * a['condition'][-1]:.1f} %, day within condition "
+            f"{100 * a['day within condition'][-1]:.1f} %, fabric x day "
+            f"{100 * a['fabric x day'][-1]:.1f} %, trial {100 * a['trial'][-1]:.1f} %; over the lab days "
+            f"fabric {100 * lab['fabric'][-1]:.1f} %, "
+            f"day {100 * lab['day'][-1]:.1f} % (per octave band: day "
+            f"{100 * min(lab['day'][:-1]):.1f}-{100 * max(lab['day'][:-1]):.1f} %)"
         )
     return lines
 
@@ -241,12 +247,15 @@ def markdown(doc: dict[str, Any]) -> str:
         "# Each sound at each microphone: the fabric against the room; fabric, day and condition",
         "",
         documents.header_markdown(doc).rstrip("\n"),
-        f"- scenes: preset {doc['preset']}'s {len(doc['classes'])} training classes, lab days {doc['lab_days']}, cafe days "
-        f"{doc['cafe_days']}, {doc['trials']} trials per day, {doc['cycles']} rubbing cycles per trial (levels over the rubbing), "
+        f"- scenes: preset {doc['preset']}'s {len(doc['classes'])} training classes, lab days "
+        f"{doc['lab_days']}, cafe days "
+        f"{doc['cafe_days']}, {doc['trials']} trials per day, {doc['cycles']} rubbing cycles per trial "
+        f"(levels over the rubbing), "
         f"seed {doc['seed']}; {doc['wall_s']:.0f} s",
         "",
         "How each number is made: `fabricjax/studies/extra/palm.py`; where each simulator magnitude comes from: "
-        '`fabricjax/sim/calibration.py` ("air paths", "ambient sound", "servo noise"). Levels in dB SPL at the microphone\'s '
+        '`fabricjax/sim/calibration.py` ("air paths", "ambient sound", "servo noise"). Levels in dB SPL at '
+        "the microphone's "
         "port per octave band and A-weighted over 50 Hz-15 kHz.",
         "",
         *summary(doc),
@@ -290,7 +299,8 @@ def markdown(doc: dict[str, Any]) -> str:
     lines += [
         f"## Lab events per day (equivalent level at the hand over {doc['event_minutes']:g} min)",
         "",
-        "The day's activity (`sim.ambient.events`: voices, footsteps, doors at their sourced rates and levels) sets how "
+        "The day's activity (`sim.ambient.events`: voices, footsteps, doors at their sourced rates and "
+        "levels) sets how "
         "much the lab's sound changes between days; -inf-like values: no event that day.",
         "",
         documents.markdown_table(["lab day", *bands], [[d, *_fmt(v)] for d, v in doc["events"].items()]),
@@ -312,9 +322,11 @@ def markdown(doc: dict[str, Any]) -> str:
     lines += [
         "## Fabric, day and condition: shares of the per-trial level variance (complete signals)",
         "",
-        "Analysis of variance of each trial's band level (dB, recorded words at nominal sensitivity) over classes x days x "
+        "Analysis of variance of each trial's band level (dB, recorded words at nominal sensitivity) over "
+        "classes x days x "
         "trials; the shares add up to 1 per band. Lab days alone, then all days with the day split into the condition "
-        "(lab or cafe) and the day within it. `day SD` / `fabric SD`: SD of the day / class means about the grand mean (dB).",
+        "(lab or cafe) and the day within it. `day SD` / `fabric SD`: SD of the day / class means about the "
+        "grand mean (dB).",
         "",
     ]
     for key, label in (("shares_lab", "lab days"), ("shares_all", "all days")):
@@ -328,7 +340,8 @@ def markdown(doc: dict[str, Any]) -> str:
         "## The paths",
         "",
         "Palm pressure per contact pressure (the contact's equivalent Minsound cavity pressure) for each radiator "
-        "(`sim.air_path.palm_transfers`), and the shell's transmission loss for outside sound, at each band's centre (dB).",
+        "(`sim.air_path.palm_transfers`), and the shell's transmission loss for outside sound, at each "
+        "band's centre (dB).",
         "",
         documents.markdown_table(
             ["band centre [Hz]", *cols],

@@ -258,14 +258,19 @@ def markdown(doc: Mapping[str, Any]) -> str:
             "",
             documents.header_markdown(
                 doc,
-                f"probes {doc['probe_s']:.0f} s in all (summaries and PCA included); {documents.data_time_markdown(doc['dataset'])}",
+                f"probes {doc['probe_s']:.0f} s in all (summaries and PCA included); "
+                f"{documents.data_time_markdown(doc['dataset'])}",
             ),
-            "Logistic regression (scikit-learn, lbfgs, L2) on each sequence's per-dimension mean and SD over its steps, "
+            "Logistic regression (scikit-learn, lbfgs, L2) on each sequence's per-dimension mean and SD over "
+            "its steps, "
             "standardised on the training split; "
-            f"inputs with more than {m['pca_above_step_dims']} dimensions per step reduced to at most {m['pca_dims']} principal "
-            f"components fitted on the training split; C from {', '.join(f'{c:g}' for c in m['c_grid'])} by validation accuracy. "
+            f"inputs with more than {m['pca_above_step_dims']} dimensions per step reduced to at most "
+            f"{m['pca_dims']} principal "
+            f"components fitted on the training split; C from {', '.join(f'{c:g}' for c in m['c_grid'])} by "
+            f"validation accuracy. "
             f"Chance: {100 / len(doc['classes']):.2f} % ({len(doc['classes'])} classes in the training split). "
-            "One probe per distinct set of inputs of the modality ablation; REPORT.md sets it beside the ablation's rows.",
+            "One probe per distinct set of inputs of the modality ablation; REPORT.md sets it beside the "
+            "ablation's rows.",
             "",
             table(doc),
             inputs_table(doc),
@@ -305,7 +310,8 @@ def beside_ablation(probe_doc: Mapping[str, Any], ablation_doc: Mapping[str, Any
     a, p = ablation_doc["dataset"], probe_doc["dataset"]
     if (ablation_doc["preset"], a["folder"]) != (probe_doc["preset"], p["folder"]):
         lines += [
-            f"**Not the same data**: ablation on {ablation_doc['preset']} `{a['folder']}`, probe on {probe_doc['preset']} `{p['folder']}`.",
+            f"**Not the same data**: ablation on {ablation_doc['preset']} `{a['folder']}`, probe on "
+            f"{probe_doc['preset']} `{p['folder']}`.",
             "",
         ]
     return "\n".join(lines)

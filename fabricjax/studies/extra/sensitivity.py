@@ -62,7 +62,8 @@ PROBE_ROWS = (*SINGLE, "internal+proprio", "internal+external+proprio")
 SHIFT_ROWS = SINGLE
 PROPERTIES = ("thickness", "roughness")
 ALPHA = 0.01  # a probe "carries" a label when its test accuracy beats its chance at this level (binomial, one-sided)
-CLOSE_PP = 5.12  # "close": within the larger seed SD of the paper's two rows compared (flow 47.16 +- 5.12, proprioception 47.10 +- 3.72)
+# "close": within the larger seed SD of the paper's two rows compared (flow 47.16 +- 5.12, proprioception 47.10 +- 3.72)
+CLOSE_PP = 5.12
 
 
 # A row's inputs by the paper's names, as the day shift names them (every single input is one of its rows).
@@ -128,7 +129,8 @@ CLAIMS = (
         lambda r, _: abs(r[Response.PROPRIO_VS_FLOW]) <= CLOSE_PP,
     ),
     Claim(
-        "the palm microphone helps in the cafe (Minsound + proprioception + palm mic > Minsound + proprioception, probe)",
+        "the palm microphone helps in the cafe (Minsound + proprioception + palm mic > Minsound + "
+        "proprioception, probe)",
         Response.PALM_CAFE_GAIN,
         lambda r, _: r[Response.PALM_CAFE_GAIN] > 0,
     ),
@@ -250,7 +252,8 @@ def prior_estimate(preset: str, n_points: int) -> str:
         return "The first point's time gives the estimate for the rest."
     m = doc["machine"]
     return (
-        f"Estimated {n_points * seconds / 60:.0f} min: the published run took {seconds:.0f} s a point on {m['cpu']}, {m['cores']} cores "
+        f"Estimated {n_points * seconds / 60:.0f} min: the published run took {seconds:.0f} s a point on "
+        f"{m['cpu']}, {m['cores']} cores "
         "(other machines differ); the first point's time refines it."
     )
 
@@ -292,7 +295,8 @@ def run(
     documents.write_json(plan_path, plan)
     n_trials = len(presets.get(preset).dataset.trials())
     print(
-        f"Sensitivity: {len(groups)} groups x {trajectories} trajectories = {len(x)} points; each simulates the {preset} preset "
+        f"Sensitivity: {len(groups)} groups x {trajectories} trajectories = {len(x)} points; each simulates "
+        f"the {preset} preset "
         f"({n_trials} trials) and fits {len(PROBE_ROWS) + len(PROPERTIES)} probes. {prior_estimate(preset, len(x))}",
         flush=True,
     )
@@ -327,7 +331,8 @@ def run(
             bar.update()
             if first:
                 bar.write(
-                    f"first point: {result['wall_s']:.0f} s; about {result['wall_s'] * (len(x) - i - 1) / 60:.0f} min left"
+                    f"first point: {result['wall_s']:.0f} s; about "
+                    f"{result['wall_s'] * (len(x) - i - 1) / 60:.0f} min left"
                 )
                 first = False
     doc = document(groups, x, points, seed)
@@ -397,7 +402,8 @@ PLOTTED = (
 
 
 def plot(path: Path, doc: Mapping[str, Any]) -> Path:
-    """A ranked bar chart of mu* (with its 95 % interval) per response, for the responses the claims and the camera turn on."""
+    """A ranked bar chart of mu* (with its 95 % interval) per response, for the responses the claims
+    and the camera turn on."""
     shown = [n for n in PLOTTED if n in doc["responses"]]
     panels = [(n, doc["responses"][n]) for n in shown]
     return plots.ranked_bars(
@@ -465,15 +471,18 @@ def report_block(results: Path) -> str:
     try:
         doc = json.loads((Path(results) / f"{STUDY}.json").read_text())
         body = [
-            f"Whether each claim a probe can speak to holds somewhere inside the simulator's declared ranges, and which "
-            f"estimates move it ([sensitivity.md](sensitivity.md), from `{doc['command']}`, {doc['date']}). A claim that holds at "
+            f"Whether each claim a probe can speak to holds somewhere inside the simulator's declared "
+            f"ranges, and which "
+            f"estimates move it ([sensitivity.md](sensitivity.md), from `{doc['command']}`, {doc['date']}). "
+            f"A claim that holds at "
             "no point is not the simulator's unknowns; one that holds at some points is decided by them.",
             "",
             claims_table(doc),
         ]
     except (OSError, ValueError, KeyError):
         body = [
-            "The sensitivity study has not run in this folder: `python -m experiments.sensitivity --results=<this folder>` "
+            "The sensitivity study has not run in this folder: `python -m experiments.sensitivity "
+            "--results=<this folder>` "
             "writes it (it simulates the reduced preset anew at every point: about an hour on 2 cores)."
         ]
     return "\n".join([REPORT_BEGIN, *body, REPORT_END])
@@ -486,8 +495,10 @@ def markdown(doc: Mapping[str, Any]) -> str:
         "",
         documents.header_markdown(doc, f"{doc['wall_s'] / 60:.1f} min in all"),
         f"Morris screening (SALib) of {len(doc['groups'])} groups of estimates over their declared ranges "
-        f"([docs/simulator.md](../docs/simulator.md#the-estimates)): {doc['trajectories']} trajectories of a {doc['levels']}-level grid, "
-        f"{n} points, each the `{doc['preset']}` preset simulated anew and probed. mu*: the mean absolute change of a response when its group moves "
+        f"([docs/simulator.md](../docs/simulator.md#the-estimates)): {doc['trajectories']} trajectories of a "
+        f"{doc['levels']}-level grid, "
+        f"{n} points, each the `{doc['preset']}` preset simulated anew and probed. mu*: the mean absolute "
+        f"change of a response when its group moves "
         "across its ranges (in the response's unit), ± its bootstrap 95 % half-width; the groups' estimates:",
         "",
         *[f"- {g}: {', '.join(f'`{e}`' for e in doc['estimates'][g])}" for g in doc["groups"]],

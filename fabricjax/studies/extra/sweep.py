@@ -121,7 +121,8 @@ def plan(
                 raise UserError(f"--grid point {point_name(fields)}: {e}") from None
             if not getattr(config, f"{HEAD}_head"):
                 raise UserError(
-                    f"--grid point {point_name(fields)}: the sweep ranks recipes by {HEAD} accuracy, so {HEAD}_head must stay on"
+                    f"--grid point {point_name(fields)}: the sweep ranks recipes by {HEAD} accuracy, so "
+                    f"{HEAD}_head must stay on"
                 )
             units.append(
                 ("/".join([*(format_override(f, v) for f, v in fields.items()), row.name]), config, fields, row)
@@ -213,7 +214,8 @@ def run(
     )
     labels = {name: f"{point_name(fields)} | {row.label}" for name, _, fields, row in order}
     summary = lambda r: (  # noqa: E731
-        f"val {stats.format_mean_sd(r.accuracy('val', HEAD))} %, test {stats.format_mean_sd(r.accuracy('test', HEAD))} %"
+        f"val {stats.format_mean_sd(r.accuracy('val', HEAD))} %, test "
+        f"{stats.format_mean_sd(r.accuracy('test', HEAD))} %"
     )
     entries, loads, head = {}, [], None
     for group in by_key.values():
@@ -277,7 +279,8 @@ def markdown(doc: dict[str, Any]) -> str:
         documents.header_markdown(doc),
         f"- grid: {'; '.join(f'`{f}` in {{{_values(v)}}}' for f, v in doc['grid'].items())}: "
         f"{len(doc['points'])} points x {n_rows} rows ({', '.join(doc['rows'])})",
-        f"- every point is the preset `{doc['preset']}`, the fixed fields ({fixed}) and its own fields; each row sets its "
+        f"- every point is the preset `{doc['preset']}`, the fixed fields ({fixed}) and its own fields; each "
+        f"row sets its "
         "backbone, inputs and fusion normalisation",
     ]
     if len(doc["loads"]) > 1:
@@ -289,9 +292,12 @@ def markdown(doc: dict[str, Any]) -> str:
             )
         )
     lines += [
-        "- val / test: the best-validation model's accuracy, mean ± SD over seeds; train, last epoch: training accuracy "
-        "of the last epoch, counted on minibatches with dropout on; train [s]: wall time of the row's multi-seed program, "
-        "compilation included; latency: `predict_one` compiled ahead of time on one test sequence after warm-up, first seed's model",
+        "- val / test: the best-validation model's accuracy, mean ± SD over seeds; train, last epoch: "
+        "training accuracy "
+        "of the last epoch, counted on minibatches with dropout on; train [s]: wall time of the row's "
+        "multi-seed program, "
+        "compilation included; latency: `predict_one` compiled ahead of time on one test sequence after "
+        "warm-up, first seed's model",
         "",
         f"**Best point by validation accuracy averaged over the {n_rows} rows: `{best['name']}`**, "
         f"mean validation {best['val_mean_over_rows']:.2f} %, mean test {best['test_mean_over_rows']:.2f} %, "

@@ -16,7 +16,8 @@ On recorded data (`--data_dir`, only the rows the data supports, chosen with --r
 compared with each other: no paper column, no checklist of the paper's claims, the data's own classes
 and the data's own names for its streams (the rig file's microphones and joints; --rows still names
 inputs by role). Each row is trained under both fusion normalisations and reported under the one
-with the better validation accuracy (mean over seeds; step-LayerNorm on a tie), the other's beside it: another rig may carry
+with the better validation accuracy (mean over seeds; step-LayerNorm on a tie), the other's beside it: another rig may
+carry
 its cue in a level that is steady within a sequence, which the paper's rescale erases. Each input's
 steadiness (`linear_probe.steadiness`) is reported once, flagged below `STEADY_BELOW`, and the linear probe
 of each row's inputs on the same sequences (`linear_probe.fit_rows`) stands beside it; a row more than
@@ -219,7 +220,8 @@ def fusion_choice_markdown(choices: Sequence[dict[str, Any]]) -> list[str]:
         )
     return lines + [
         "",
-        "The choice is made on the validation split alone, as on recorded data; the paper's rows above stay under its rescale.",
+        "The choice is made on the validation split alone, as on recorded data; the paper's rows above stay "
+        "under its rescale.",
         "",
     ]
 
@@ -328,12 +330,14 @@ def checklist(
     )
     claim = (
         f"proprioception and optical flow alone are similar (within {SIMILAR_PP:.0f} pp) and well above chance "
-        f"(rule: each >= {WELL_ABOVE_CHANCE_PP:.0f} pp above the test split's majority class; 1 / classes shown beside it)"
+        f"(rule: each >= {WELL_ABOVE_CHANCE_PP:.0f} pp above the test split's majority class; 1 / classes "
+        f"shown beside it)"
     )
     if not (f := findings.missing(claim, ["proprio", "flow"], test)):
         p, fl = findings.mean_pct(test["proprio"]), findings.mean_pct(test["flow"])
         evidence = (
-            f"{findings.describe(named('proprio'), test['proprio'])}; {findings.describe(named('flow'), test['flow'])}; "
+            f"{findings.describe(named('proprio'), test['proprio'])}; "
+            f"{findings.describe(named('flow'), test['flow'])}; "
             f"1 / classes {100 / n_classes:.1f} %"
         )
         if majority is None:
@@ -343,7 +347,8 @@ def checklist(
             f = findings.Finding(
                 claim,
                 abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor,
-                f"{evidence}; majority class {majority['accuracy']:.1f} % (class {majority['label']}), so at least {floor:.1f} %",
+                f"{evidence}; majority class {majority['accuracy']:.1f} % (class {majority['label']}), so at "
+                f"least {floor:.1f} %",
             )
     out.append(f)
     claim = "Minsight images alone are the weakest camera input (below optical flow)"
@@ -513,8 +518,10 @@ def recorded_notes(doc: dict[str, Any]) -> list[str]:
     for m, ratio in doc["steadiness"].items():
         if ratio < doc["steady_below"]:
             lines.append(
-                f"- {doc['names'].get(m, m)} is steady within sequences: its within-sequence variance is {100 * ratio:.1f} % of "
-                "its total (median over its dimensions); the [0, 1] rescale over the sequence erases it, step-LayerNorm keeps it."
+                f"- {doc['names'].get(m, m)} is steady within sequences: its within-sequence variance is "
+                f"{100 * ratio:.1f} % of "
+                "its total (median over its dimensions); the [0, 1] rescale over the sequence erases it, "
+                "step-LayerNorm keeps it."
             )
     return lines + [""] if lines else []
 
@@ -531,7 +538,8 @@ def _recorded_markdown(doc: dict[str, Any]) -> str:
         "",
         documents.RECORDED_NOTE
         + " Each row is trained under both fusion normalisations and shown under the one with the better "
-        "validation accuracy (step-LayerNorm on a tie: it keeps the steady level the rescale erases). The probe is a logistic regression on each sequence's per-dimension mean and SD "
+        "validation accuracy (step-LayerNorm on a tie: it keeps the steady level the rescale erases). The "
+        "probe is a logistic regression on each sequence's per-dimension mean and SD "
         f"(`experiments.probe`), on the same sequences. Within-sequence share of each input's variance: {steadiness}.",
         "",
         *recorded_notes(doc),

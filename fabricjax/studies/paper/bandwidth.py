@@ -5,7 +5,8 @@
 
 Input: the internal microphone (Minsound) alone, the setting of the paper's 15 kHz row, which
 equals its internal-audio ablation row (95.06 ± 1.85). The PSDs are loaded once at the widest
-bandwidth chosen and cut per row to the bins at or below its bandwidth (`data.narrow`, `welch.n_bins`). Reports validation
+bandwidth chosen and cut per row to the bins at or below its bandwidth (`data.narrow`, `welch.n_bins`). Reports
+validation
 accuracy (the best-validation epoch's) and test accuracy, beside the paper's, the paper's two
 claims about the table as a findings checklist (`checklist`) and accuracy against bandwidth with
 every seed's point (results/bandwidth.png). On recorded data (`--data_dir`) the rows are compared
@@ -186,7 +187,8 @@ def markdown(doc: dict[str, Any]) -> str:
         documents.title(doc, TITLE, PAPER),
         "",
         documents.header_markdown(doc),
-        f"Inputs: {' + '.join(doc['modalities'])} ({inputs}). Validation accuracy is that of the best-validation epoch, "
+        f"Inputs: {' + '.join(doc['modalities'])} ({inputs}). Validation accuracy is that of the "
+        f"best-validation epoch, "
         "the model every test number uses.",
         "",
         table(doc["rows"], doc["majority"], recorded),

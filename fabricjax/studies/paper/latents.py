@@ -1,4 +1,5 @@
-"""t-SNE of latents (one point per fabric: its first test-day trial's mean) from a restored checkpoint (the paper's Fig. latent_features).
+"""t-SNE of latents (one point per fabric: its first test-day trial's mean) from a restored checkpoint (the paper's Fig.
+latent_features).
 
     python -m experiments.properties --seeds=5          # prints and records its checkpoints
     python -m experiments.latents --checkpoint=workspace/checkpoints/properties/internal+proprio+image-<tag>
@@ -126,7 +127,8 @@ def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()
             known,
             holdouts,
             title=f"t-SNE of latents, one point per fabric: its first test-day trial's mean\n"
-            f"({data.inputs_name(config.modalities, ds.sets['test'].names if ds.recorded else None)}, seed {seeds[index]}; holdouts outlined)",
+            f"({data.inputs_name(config.modalities, ds.sets['test'].names if ds.recorded else None)}, seed "
+            f"{seeds[index]}; holdouts outlined)",
             neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
         )
         doc = {
@@ -165,7 +167,8 @@ def recorded_fabrics(ss: data.SequenceSet, classes: Sequence[str]) -> dict[int, 
         for p, v in levels.items():
             if len(v) > 1:
                 raise UserError(
-                    f"class {classes[fid]!r}: its trials give {p} levels {v}; one class, one level (the manifest's {p} column)"
+                    f"class {classes[fid]!r}: its trials give {p} levels {v}; one class, one level (the "
+                    f"manifest's {p} column)"
                 )
         out[int(fid)] = (classes[fid], {p: v[0] if v else None for p, v in levels.items()})
     return out
@@ -247,7 +250,10 @@ def neighbour_agreement(
 
 def checklist(agreement: dict[str, Any]) -> list[findings.Finding]:
     """The paper's reading of its t-SNE figure as predicates over `neighbour_agreement`'s numbers."""
-    claim = "a holdout's nearest training fabric in latent space shares more of its property levels than a random training fabric"
+    claim = (
+        "a holdout's nearest training fabric in latent space shares more of its property levels than a random "
+        "training fabric"
+    )
     if agreement["agreement"] is None:
         out = [findings.Finding(claim, None, "needs holdout and training fabrics with properties, not in the data")]
     else:
@@ -260,7 +266,10 @@ def checklist(agreement: dict[str, Any]) -> list[findings.Finding]:
                 f"{100 * agreement['chance']:.1f} % (holdout->nearest: {pairs})",
             )
         ]
-    claim = "holdouts lie nearer to the training fabrics sharing a property level than to those that do not (most holdout-property cases)"
+    claim = (
+        "holdouts lie nearer to the training fabrics sharing a property level than to those that do not (most "
+        "holdout-property cases)"
+    )
     if agreement["nearer_fraction"] is None:
         out.append(
             findings.Finding(claim, None, "no holdout-property case with both sharing and other training fabrics")
@@ -285,7 +294,8 @@ def markdown(doc: dict[str, Any]) -> str:
         documents.title(doc, TITLE, PAPER),
         "",
         documents.header_markdown(doc).rstrip("\n"),
-        f"- checkpoint: `{doc['checkpoint']}` ({'+'.join(c['modalities'])}; seed {doc['seed']}, the best by validation of seeds {doc['checkpoint_seeds']})",
+        f"- checkpoint: `{doc['checkpoint']}` ({'+'.join(c['modalities'])}; seed {doc['seed']}, the best by "
+        f"validation of seeds {doc['checkpoint_seeds']})",
         f"- points: {len(doc['points'])} {points}, one trial each; t-SNE perplexity {doc['perplexity'] or 0:.2f}",
         "",
         "![t-SNE of latents, one point per fabric: its first test-day trial's mean](latents.png)",

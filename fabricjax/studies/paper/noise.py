@@ -212,7 +212,10 @@ def markdown(doc: dict[str, Any]) -> str:
     for r in doc["rows"]:
         for w in (r["wilcoxon"] or {}).values():
             lines.append(f"- {display_name(r['name'], names)} vs {display_name(r['against'], names)}: {w['describe']}")
-    caveat = "per-sequence test treats sequences of one trial and of different seeds as independent, which they are not: read it as descriptive."
+    caveat = (
+        "per-sequence test treats sequences of one trial and of different seeds as independent, which they are "
+        "not: read it as descriptive."
+    )
     lines += [
         "",
         f"The {caveat}" if recorded else f"The per-seed test is the one comparable to the paper's; the {caveat}",
@@ -220,8 +223,10 @@ def markdown(doc: dict[str, Any]) -> str:
     ]
     for c in doc.get("calibrated", []):
         lines += [
-            f"**Calibrated, not a finding**: the simulator's estimate `{c['estimate']}` = {c['value']:g} is fitted to {c['measurement']} "
-            f"on {c['fitted_on']} ([calibration.md](calibration.md)), so that number is a calibration. Every other number of this "
+            f"**Calibrated, not a finding**: the simulator's estimate `{c['estimate']}` = {c['value']:g} is "
+            f"fitted to {c['measurement']} "
+            f"on {c['fitted_on']} ([calibration.md](calibration.md)), so that number is a calibration. Every "
+            f"other number of this "
             "table is a prediction.",
             "",
         ]

@@ -120,7 +120,8 @@ def checklist(
                 said = (
                     "no level known"
                     if base is None
-                    else f"{'above' if above[p] else 'not above'} its majority level {base['accuracy']:.1f} % (level {base['label']})"
+                    else f"{'above' if above[p] else 'not above'} its majority level {base['accuracy']:.1f} % "
+                    f"(level {base['label']})"
                 )
                 evidence.append(
                     f"{findings.describe(p, holdout[name][p])}{notes.get(name, {}).get(p, '')}: {said}; "
@@ -166,7 +167,8 @@ def table(doc: dict[str, Any]) -> str:
     for split, title in SPLITS.items():
         header.append(f"Majority level, {title} [%]")
         header += [
-            f"{title}: {row_title(r, names)} [%] ({'recorded data / row − best row [pp]' if recorded else 'ours / paper'})"
+            f"{title}: {row_title(r, names)} [%] "
+            f"({'recorded data / row − best row [pp]' if recorded else 'ours / paper'})"
             for r in doc["rows"]
         ]
     notes = {split: collapse_notes(doc, split) for split in SPLITS}

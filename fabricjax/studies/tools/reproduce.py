@@ -7,9 +7,11 @@ The plan (`PLAN`, data): the modality ablation (5 seeds), the linear probe of ev
 row's inputs (no seeds: deterministic, and cheap), the day shift of every input (what the fabric,
 the day and the trial explain, beside the probe's training-day and new-day accuracy; no seeds),
 the PSD bandwidth (5), cafe noise (10, as the paper), property perception (5, saving its
-checkpoints) and the latent t-SNE from the property study's checkpoint of its Minsound + proprioception + Minsight row, then the
+checkpoints) and the latent t-SNE from the property study's checkpoint of its Minsound + proprioception + Minsight row,
+then the
 decision study (calibration, when to stop rubbing, unknown fabrics) on the ablation's checkpoints
-of the row the paper calls best and of Minsound alone (`DECIDE_ROWS`; no training). The dataset is simulated once (or read from
+of the row the paper calls best and of Minsound alone (`DECIDE_ROWS`; no training). The dataset is simulated once (or
+read from
 `data_dir`), features and compiled programs are cached, checkpoints resume, so every study after
 the first pays only for its training.
 
@@ -40,7 +42,8 @@ names the data and compares rows with each other: no paper in its titles or summ
 On recorded data the plan follows what the data has (`fit_plan`): a study's rows that need a
 stream the data lacks are left out, a study none of whose rows it can feed is skipped, and the
 studies of the paper's protocol (`PROTOCOL`: cafe noise needs cafe-split trials, the property study
-held-out fabrics, the latents the property study, the decision study the ablation) are skipped when the data has no such trials,
+held-out fabrics, the latents the property study, the decision study the ablation) are skipped when the data has no such
+trials,
 each with one line saying why.
 """
 
@@ -266,7 +269,8 @@ def check(where: Location, say: Callable[[str], None] = print) -> dict[str, str]
             workdir=where.workdir,
         )
         lines.append(
-            f"  {workspace.shown(out / REPORT)} and {workspace.shown(out / HEADLINE)} (README's results block) gather them; "
+            f"  {workspace.shown(out / REPORT)} and {workspace.shown(out / HEADLINE)} (README's results "
+            f"block) gather them; "
             f"`{rerun}` reruns what is stale and rewrites both"
         )
     others = other_stale(out, manifest, prints)
@@ -354,7 +358,8 @@ def _decide_checkpoints(out: Path, rows: Sequence[str]) -> tuple[list[str], list
     chosen = [r for r in rows if have.get(r)]
     if not chosen:
         raise UserError(
-            f"{out / 'ablation.json'}: field 'rows': the decision study needs the ablation's checkpoints of {list(rows)}; run it first"
+            f"{out / 'ablation.json'}: field 'rows': the decision study needs the ablation's checkpoints of "
+            f"{list(rows)}; run it first"
         )
     return [have[r] for r in chosen], [labels[r] for r in chosen]
 
@@ -387,14 +392,16 @@ def fit_plan(plan: Sequence[Step], preset: str, data_dir, workdir, say: Callable
             )
             if not fit:
                 say(
-                    "  decide      skip  (it reads the ablation's checkpoints of its rows, which this data does not train)"
+                    "  decide      skip  (it reads the ablation's checkpoints of its rows, which this data "
+                    "does not train)"
                 )
                 continue
             out.append(dataclasses.replace(step, rows=fit))
             continue
         if step.study in PROTOCOL and PROTOCOL[step.study][0] not in roles:
             say(
-                f"  {step.study:<11} skip  (the paper's protocol: it needs {PROTOCOL[step.study][1]}, and the data has none)"
+                f"  {step.study:<11} skip  (the paper's protocol: it needs {PROTOCOL[step.study][1]}, and "
+                f"the data has none)"
             )
             continue
         rows = getattr(STUDIES[step.study], "ROWS", None)
@@ -406,12 +413,14 @@ def fit_plan(plan: Sequence[Step], preset: str, data_dir, workdir, say: Callable
         fit = tuple(r.name for r in fed)
         if not fit:
             say(
-                f"  {step.study:<11} skip  (its rows need {', '.join(lacking)}, which the data lacks: it has {lay.describe()})"
+                f"  {step.study:<11} skip  (its rows need {', '.join(lacking)}, which the data lacks: it has "
+                f"{lay.describe()})"
             )
             continue
         if len(fit) < len(named):
             say(
-                f"  {step.study:<11} {len(named) - len(fit)} of its {len(named)} rows left out (they need {', '.join(lacking)}, which the data lacks)"
+                f"  {step.study:<11} {len(named) - len(fit)} of its {len(named)} rows left out (they need "
+                f"{', '.join(lacking)}, which the data lacks)"
             )
         out.append(step if len(fit) == len(named) else dataclasses.replace(step, rows=fit))
     return out
@@ -460,7 +469,8 @@ def run(
             lines.append(f"  {step.study:<11} run   ~{_minutes(estimate_s(step, preset, manifest, published))}")
         else:
             lines.append(
-                f"  {step.study:<11} skip  (up to date: ran {manifest[step.study]['finished']}, {_minutes(manifest[step.study]['wall_s'])})"
+                f"  {step.study:<11} skip  (up to date: ran {manifest[step.study]['finished']}, "
+                f"{_minutes(manifest[step.study]['wall_s'])})"
             )
     total = [estimate_s(s, preset, manifest, published) for s in todo]
     known = sum(t for t in total if t is not None)
@@ -471,13 +481,16 @@ def run(
         unknown = ", ".join(s.study for s, t in zip(todo, total) if t is None)
         published_presets = sorted({e.get("preset") for e in published.values() if isinstance(e, dict)} - {None})
         lines.append(
-            f"  estimated time: none for {unknown}: no earlier run of the {preset} preset in {out} recorded its wall time, "
-            f"and the repository publishes those of the {', '.join(published_presets) or 'no'} preset; this run records "
+            f"  estimated time: none for {unknown}: no earlier run of the {preset} preset in {out} recorded "
+            f"its wall time, "
+            f"and the repository publishes those of the {', '.join(published_presets) or 'no'} preset; this "
+            f"run records "
             f"its own, so the next one has an estimate{data_note}"
         )
     else:
         lines.append(
-            f"  estimated time: {_minutes(known)}{data_note} (scaled from an earlier run's wall times; other machines differ)"
+            f"  estimated time: {_minutes(known)}{data_note} (scaled from an earlier run's wall times; other "
+            f"machines differ)"
         )
     say("\n".join(lines))
 
@@ -621,14 +634,16 @@ def write_report(
         "",
         f"- command: `{command_line}` ({n_run} of {len(studies)} studies run by this call, in {_minutes(run_s)}; "
         "the others were up to date and kept)",
-        f"- machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}, JAX on {m['jax_backend']} ({len(m['devices'])} devices)",
+        f"- machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}, JAX on "
+        f"{m['jax_backend']} ({len(m['devices'])} devices)",
         f"- versions: {', '.join(f'{k} {v}' for k, v in versions().items())}",
         f"- code: fabricjax {fabricjax.__version__}, {documents.git_commit()}",
         documents.fingerprints_markdown(prints)
         + " (today's; `python -m experiments.reproduce --check` lists the studies they do not match)",
         f"- wall time of the studies: {_minutes(total)} in all (each below; {data_note} in the first study's)",
         "",
-        f"Every number below comes from the study's results file in this folder, written by the run named beside it. {numbers}",
+        f"Every number below comes from the study's results file in this folder, written by the run named "
+        f"beside it. {numbers}",
         "",
         "## Summary",
         "",
@@ -649,7 +664,8 @@ def write_report(
             "",
             *(
                 [
-                    f"> **{notes[study][0].upper() + notes[study][1:]}**: these are not today's numbers; `python -m experiments.reproduce` reruns it.",
+                    f"> **{notes[study][0].upper() + notes[study][1:]}**: these are not today's numbers; "
+                    f"`python -m experiments.reproduce` reruns it.",
                     "",
                 ]
                 if study in notes
@@ -739,7 +755,8 @@ def readme_block(head: Mapping[str, Any], results: str = "results") -> str:
     lines = [
         README_BEGIN,
         f"From {command_line} on the {head['preset']} preset, {head['date']}, on {head['machine']} ({head['code']}); "
-        f"its studies took {_minutes(head['wall_s'])}. Every table, figure, test and time: [{results}/{REPORT}]({results}/{REPORT}).",
+        f"its studies took {_minutes(head['wall_s'])}. Every table, figure, test and time: "
+        f"[{results}/{REPORT}]({results}/{REPORT}).",
         "",
     ]
     paper = not head["recorded"]
@@ -763,7 +780,8 @@ def readme_block(head: Mapping[str, Any], results: str = "results") -> str:
         lines.append("")
     if head.get("other_stale"):
         lines.append(
-            f"{head['other_stale']} other results files in `{results}/` (studies run alone, sweeps, benchmarks) predate today's "
+            f"{head['other_stale']} other results files in `{results}/` (studies run alone, sweeps, "
+            f"benchmarks) predate today's "
             "code or estimates: `python -m experiments.reproduce --check --results=results` names each."
         )
         lines.append("")

@@ -24,8 +24,14 @@ def format_step(r: live.StepResult, label: int, meta: dict | None = None) -> str
         return f"step {r.step:5d}  {r.time_s:6.2f} s  filling window  {r.latency_ms:6.2f} ms"
     k, j = int(np.argmax(r.probs)), int(np.argmax(r.posterior))
     mark = "correct" if k == label else "wrong"
-    post = f"posterior {live.class_name(j, meta)} {r.posterior[j]:.3f} ({r.windows} windows){'  decided' if r.decided else ''}"
-    return f"step {r.step:5d}  {r.time_s:6.2f} s  {live.class_name(k, meta):<28s} p={r.probs[k]:.2f}  {mark:<7s} {r.latency_ms:6.2f} ms  {post}"
+    post = (
+        f"posterior {live.class_name(j, meta)} {r.posterior[j]:.3f} ({r.windows} "
+        f"windows){'  decided' if r.decided else ''}"
+    )
+    return (
+        f"step {r.step:5d}  {r.time_s:6.2f} s  {live.class_name(k, meta):<28s} p={r.probs[k]:.2f}  {mark:<7s} "
+        f"{r.latency_ms:6.2f} ms  {post}"
+    )
 
 
 # The quick model's inputs unless overridden: both microphones, what the streamer updates per step.
@@ -102,7 +108,8 @@ def run(
         rec = trial_view.open_recording(view_save)
         viewer = trial_view.TrialView(rec, label, trial.meta)
     out(
-        f"{archive_path}: {live.class_name(label, trial.meta)} (class {label}), {trial.n_steps} steps; model {checkpoint_dir}, "
+        f"{archive_path}: {live.class_name(label, trial.meta)} (class {label}), {trial.n_steps} steps; model "
+        f"{checkpoint_dir}, "
         f"N={streamer.n} steps ({streamer.n / archive.STEP_RATE:.2f} s), {'+'.join(config.modalities)}, "
         f"temperature {temperature:.3f}{'' if temperature != 1.0 else ' (none fitted: python -m experiments.decide)'}"
     )
@@ -123,12 +130,14 @@ def run(
         + (
             "none before the trial ended"
             if d is None
-            else f"{d['fabric']} ({'correct' if d['correct'] else 'wrong'}) at {d['time_s']:.2f} s (step {d['step']}, {d['windows']} windows, posterior {d['posterior']:.3f})"
+            else f"{d['fabric']} ({'correct' if d['correct'] else 'wrong'}) at {d['time_s']:.2f} s (step "
+            f"{d['step']}, {d['windows']} windows, posterior {d['posterior']:.3f})"
         )
     )
     out(
         f"first correct decision: {'never' if first is None else f'{first:.2f} s (step {step})'}; "
-        f"accuracy over {summary['decided_steps']} decided steps {100 * (summary['accuracy_over_decided_steps'] or 0):.1f} %; "
+        f"accuracy over {summary['decided_steps']} decided steps "
+        f"{100 * (summary['accuracy_over_decided_steps'] or 0):.1f} %; "
         f"per-step latency p50 {summary['latency_p50_ms']:.2f} ms, p99 {summary['latency_p99_ms']:.2f} ms"
         + (f"; {summary['late_steps']} of {summary['steps']} results came after their 20 ms slot" if realtime else "")
     )

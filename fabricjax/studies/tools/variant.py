@@ -152,7 +152,8 @@ def markdown(doc: dict[str, Any]) -> str:
         f"- variant: `{doc['variant']['file']}` ({doc['variant']['code']}, {doc['variant']['date']}): "
         f"`{doc['variant']['command']}`",
         f"- changed: {changed}",
-        f"- difference: variant − baseline in pp, mean ± SD over seeds of the per-seed differences (the same seed in both runs); "
+        f"- difference: variant − baseline in pp, mean ± SD over seeds of the per-seed differences (the same "
+        f"seed in both runs); "
         "p: paired Wilcoxon signed-rank test over seeds, two-sided, exact "
         f"(smallest attainable p with {len(doc['seeds'])} seeds: {stats.min_exact_p(len(doc['seeds'])):.4g}); "
         "train [s]: each row's multi-seed training, compilation included, as each run measured it",
