@@ -64,3 +64,34 @@ def test_no_library_module_imports_the_commands_even_lazily():
                 continue
             found += [f"{path.relative_to(ROOT)}:{node.lineno}: {n}" for n in names if n.split(".")[0] == "experiments"]
     assert found == []
+
+
+def _imports(path: Path) -> list[str]:
+    """The `fabricjax` modules `path` imports, anywhere in it, as dotted names."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("fabricjax"):
+            found += [f"{node.module}.{a.name}" for a in node.names] if node.module == "fabricjax" else [node.module]
+        elif isinstance(node, ast.Import):
+            found += [a.name for a in node.names if a.name.startswith("fabricjax")]
+    return found
+
+
+# Subpackages by layer: a module imports only its own subpackage, the package's modules and the
+# subpackages of lower layers. The studies and the benchmarks are the top, side by side.
+LOWER = {"features": set(), "sim": set(), "bench": {"features", "sim"}, "studies": {"features", "sim"}}
+
+
+def test_no_subpackage_imports_one_beside_or_above_it():
+    subpackages = {p.name for p in (ROOT / "fabricjax").iterdir() if (p / "__init__.py").is_file()}
+    assert subpackages == set(LOWER), "give the new subpackage its layer in LOWER"
+    found = []
+    for path in sorted((ROOT / "fabricjax").rglob("*.py")):
+        parts = path.relative_to(ROOT / "fabricjax").parts
+        own = parts[0] if len(parts) > 1 else None
+        allowed = {own} | LOWER.get(own, set()) if own else {"features", "sim"}
+        for name in _imports(path):
+            target = name.split(".")[1] if name.count(".") else None
+            if target in subpackages and target not in allowed:
+                found.append(f"{path.relative_to(ROOT)}: {name}")
+    assert found == []
