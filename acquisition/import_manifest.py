@@ -593,9 +593,8 @@ def run(
             problems + ([f"{out}: nothing was written ({len(problems)} problems above)"] if len(problems) > 1 else [])
         )
     _writable(out)
-    with lock.hold(
-        out / IMPORT_LOCK, f"the import into {out}", f"importing {len(todo)} trials", transient=True
-    ):  # one import at a time
+    # one import at a time
+    with lock.hold(out / IMPORT_LOCK, f"the import into {out}", f"importing {len(todo)} trials", transient=True):
         staging = _staging(out)
         try:
             staged = [dataclasses.replace(j, target=str(staging / Path(j.target).name)) for j in todo]

@@ -635,9 +635,8 @@ def validate(archive: TrialArchive, path: os.PathLike | str = "<memory>") -> Tri
         _check_array(path, "images", archive.images, n, lay)
     _check_reference(archive, path, lay)
     closing = archive.meta.get("closing_steps", 0)
-    if closing > n or (
-        closing == n and archive.meta["complete"]
-    ):  # a trial interrupted while closing has no rubbing steps
+    # a trial interrupted while closing has no rubbing steps
+    if closing > n or (closing == n and archive.meta["complete"]):
         raise ArchiveError(
             path, "meta.closing_steps", f"{closing} closing steps leave none of the trial's {n} steps to rub"
         )
@@ -826,9 +825,8 @@ def _npy_header(f, path: Path, name: str) -> tuple[np.dtype, tuple[int, ...], bo
         shape, fortran, dtype = read(f)
     except KeyError:
         raise ArchiveError(path, name, "unknown npy format version") from None
-    except (
-        Exception
-    ) as e:  # numpy parses the header with ast and tokenize: any damage is a broken header, not a bug of ours
+    # numpy parses the header with ast and tokenize: any damage is a broken header, not a bug of ours
+    except Exception as e:
         raise ArchiveError(path, name, f"not an npy array (its header is damaged): {type(e).__name__}: {e}") from None
     if any(d > MAX_INT for d in shape) or np.prod([float(d) for d in shape]) * dtype.itemsize > MAX_MEMBER_BYTES:
         raise ArchiveError(
@@ -891,10 +889,11 @@ def _read_streams(
     ts = members.read("timestamps", lambda dtype, shape: _check_form(path, "timestamps", dtype, shape, None, lay))
     out: dict[str, np.ndarray | None] = {"timestamps": ts}
     for name in names:
+        # `validate` says "missing" for a declared stream the file lacks
         if name in members or name in (
             "window_end",
             "audio",
-        ):  # `validate` says "missing" for a declared stream the file lacks
+        ):
             out[name] = members.read(
                 name, lambda dtype, shape, name=name: _check_form(path, name, dtype, shape, ts.shape[0], lay)
             )

@@ -248,9 +248,8 @@ class Config:
         if unknown:
             raise ValueError(f"unknown config fields {sorted(unknown)}")
         d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
-        if (
-            "seq_len" in d and d["seq_len"] is None
-        ):  # a saved config may hold seq_len null (N unset): read as its preset's N, so such checkpoints still restore
+        # a saved config may hold seq_len null (N unset): read as its preset's N, so such checkpoints still restore
+        if "seq_len" in d and d["seq_len"] is None:
             d["seq_len"] = presets.get(d.get("preset", cls.preset)).training.get("seq_len", cls.seq_len)
         return cls(**d)
 

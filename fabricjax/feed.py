@@ -83,9 +83,8 @@ class HostFed:
             static_argnums=2,
         )
 
-        def scan(
-            carry, block, keys, stopped_at
-        ):  # a stopped seed's carry passes through unchanged (`Trainer.unless_stopped`)
+        # a stopped seed's carry passes through unchanged (`Trainer.unless_stopped`)
+        def scan(carry, block, keys, stopped_at):
             def step(c, xs):
                 new, out = trainer.train_step(c, *xs)
                 return trainer.unless_stopped(stopped_at, new, c), out

@@ -637,11 +637,12 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
     assert key != reproduce.step_key(reproduce.Step("noise", 5), "default", {}, prints)
     assert key != reproduce.step_key(step, "smoke", {}, prints)
     assert key != reproduce.step_key(step, "default", {"epochs": 3}, prints)
+    # other recordings, too
     for name, other in (
         ("code", "other code"),
         ("estimates", "other estimates"),
         ("data", "a" * 16),
-    ):  # other recordings, too
+    ):
         assert key != reproduce.step_key(step, "default", {}, {**prints, name: other}), name
     latents_step = reproduce.Step("latents")
     assert reproduce.step_key(latents_step, "default", {}, prints, "props-a") != reproduce.step_key(

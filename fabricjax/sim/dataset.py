@@ -121,9 +121,8 @@ def ensure_dataset(
     folder = workspace.dataset_dir(preset_name, workdir)
     scenes = [scene_for(spec, dataset, streams, seed) for spec in dataset.trials()]
     wanted = {filename(s) for s in scenes}
-    if folder.is_dir() and not _to_write(
-        folder, scenes, wanted
-    ):  # complete: only read, as readers may at the same time
+    # complete: only read, as readers may at the same time
+    if folder.is_dir() and not _to_write(folder, scenes, wanted):
         dataset_index.load_index(folder, workdir)
         return folder
     doing = f"simulating preset {preset_name!r}"

@@ -101,9 +101,8 @@ def _published_rates() -> list[tuple[str, dict[str, dict[str, float]]]]:
     try:
         manifest = json.loads(REPRODUCE_MANIFEST.read_text())
         for study, entry in manifest.items():
-            if entry.get(
-                "rates"
-            ):  # keys re-read under today's `RATE_NEUTRAL` (a key is the JSON of the fields it kept)
+            # keys re-read under today's `RATE_NEUTRAL` (a key is the JSON of the fields it kept)
+            if entry.get("rates"):
                 keyed = {rate_key(json.loads(k)): v for k, v in entry["rates"].items()}
                 out.append(
                     (

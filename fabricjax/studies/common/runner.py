@@ -451,9 +451,8 @@ def train_rows(
         trained, laid_out = {}, set()
         for name, config in order:
             camera = row_kind(config)
-            if (
-                camera in CAMERA_INPUTS and camera not in laid_out
-            ):  # the group's camera input, once (`in_training_order`)
+            # the group's camera input, once (`in_training_order`)
+            if camera in CAMERA_INPUTS and camera not in laid_out:
                 t0 = time.perf_counter()
                 alone = dataclasses.replace(config, modalities=(camera,))
                 # timed as the data's cost; each row's run finds these arrays kept (`placement.place_sets`)
