@@ -75,9 +75,7 @@ def trial_seconds(dataset: splits.DatasetSpec) -> float:
     """About how long one simulated trial of `dataset` lasts, at most: its cycles at the commanded
     rate, ~12 % slower on average under load (the servo droop of calibration.SPEED_DROOP_PER_N),
     plus ~1 s of closing and pauses."""
-    return (
-        dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0
-    )  # [numerics] a bound for the disk check and plans, see above
+    return dataset.cycles_per_trial / cal.CYCLE_HZ * 1.12 + 1.0  # [numerics] a bound for disk checks and plans
 
 
 def trial_steps(dataset: splits.DatasetSpec) -> int:
@@ -90,9 +88,8 @@ def trial_bytes(dataset: splits.DatasetSpec, images: bool) -> int:
     deflated (`archive.write_npz`): an upper bound, for the free-disk check."""
     seconds = trial_seconds(dataset)
     steps = seconds * archive.STEP_RATE
-    per_step = (
-        8 + 2 * 8 + archive.N_PROPRIO * 4 + 4 + (3 * dataset.image_size[0] * dataset.image_size[1] if images else 0)
-    )  # [numerics] bytes
+    frame = 3 * dataset.image_size[0] * dataset.image_size[1] if images else 0  # [numerics] bytes
+    per_step = 8 + 2 * 8 + archive.N_PROPRIO * 4 + 4 + frame  # [numerics] bytes
     return int(steps * per_step + 2 * 4 * (seconds * archive.AUDIO_RATE + cal.LEAD_IN))
 
 
@@ -141,8 +138,11 @@ def ensure_dataset(
         if jobs:
             need = len(jobs) * trial_bytes(dataset, "images" in streams)
             disk.require(
-                folder, need, f"{len(jobs)} simulated trials of preset {preset_name!r}", margin=1 / 0.95
-            )  # [numerics] a margin for other files
+                folder,
+                need,
+                f"{len(jobs)} simulated trials of preset {preset_name!r}",
+                margin=1 / 0.95,  # [numerics] a margin for other files
+            )
             if progress:
                 print(
                     f"Simulating {len(jobs)} of {len(scenes)} trials of preset {preset_name!r} "

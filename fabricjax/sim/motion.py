@@ -102,9 +102,7 @@ def finger_motion(fabric: catalog.Fabric, cycles: int, nz: Nuisance, rng: np.ran
     mu = fabric.friction * nz.friction_scale
     rate = cal.CYCLE_HZ * nz.speed / (1.0 + cal.SPEED_DROOP_PER_N * mu * grasp_force)
     t_rub = t_stop + cal.SETTLE_S
-    n_rub = int(
-        np.ceil(cycles / rate * 1.1 * cal.CONTROL_HZ)
-    )  # [numerics] 10 % headroom for the wander (trimmed below)
+    n_rub = int(np.ceil(cycles / rate * 1.1 * cal.CONTROL_HZ))  # [numerics] headroom for the wander (trimmed below)
     knot = round(cal.CYCLE_WANDER_S * cal.CONTROL_HZ)  # control samples per step of the wander's random walk
     wander = np.cumsum(rng.normal(0.0, 1.0, n_rub // knot + 2))
     wander = np.interp(np.arange(n_rub) / knot, np.arange(len(wander)), wander)
