@@ -139,8 +139,8 @@ def save(mngr: ocp.CheckpointManager, step: int, state, run_meta: dict[str, Any]
     """Save and wait: callers treat a returned save as durable (e.g. before a kill).
 
     The state is copied to the host first: orbax saves a device array from each device's shard,
-    and compiled a slicing program per array shape and device to do so (1.2 s at a run's first save,
-    against 0.05 s from host copies, for a camera row's state on 2 CPU devices). A restore places
+    and compiles a slicing program per array shape and device to do so, which costs a run's first
+    save far more than the host copy does. A restore places
     the arrays on the devices whichever way they were saved (`restore`). A save that would not fit
     on the disk is a `disk.DiskFull` before orbax starts (orbax's own threads would print a
     traceback each); one that fills the disk all the same leaves no unfinished step behind."""
