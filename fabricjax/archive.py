@@ -103,6 +103,9 @@ WINDOW = 2048  # audio samples per step (the Welch window), at each microphone's
 AUDIO_RATE = 48000  # Hz, the hand's microphones
 STEP_RATE = 50  # Hz, the hand: one step per Minsight frame
 MINSIGHT_SIZE = (308, 410)  # H, W of a Minsight frame as its sensor code delivers it (cropped, resized)
+# [protocol] no-contact frames a session's reference averages (recorder and simulator alike): one frame's
+# shot noise would stay in every difference of that day, 30 frames cut it to 0.18 of that
+REFERENCE_FRAMES = 30
 VALID_BITS = 18  # valid bits of an SPH0645 I2S word, in bits 31..14
 SAMPLE_SHIFT = 32 - VALID_BITS  # word = sample << SAMPLE_SHIFT; sample = word >> SAMPLE_SHIFT (arithmetic)
 FULL_SCALE = 2.0 ** (VALID_BITS - 1)  # a signed 18-bit sample of this magnitude is full scale (+-1)
