@@ -6,15 +6,22 @@ force network (reference-difference and gradient images -> 3x40x40 force map) is
 here, so `ForceProxy` is a calibrated proxy for its scalar normal force: the mean absolute
 difference to a no-contact reference image, mapped linearly to newtons. It is only meant to detect
 the 0.1 N grasp threshold, not to replace the network.
+
+A no-contact reference is only a reference while the camera's exposure and white balance stay
+where they were when it was taken, so a device camera is put on fixed ones (`controls_for`) and reads
+each back: a camera that refuses one still records, and says so in one logged line.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
+import os
 import time
 
 import cv2
 import numpy as np
+from absl import logging
 
 from fabricjax import archive
 
@@ -25,6 +32,43 @@ RAW_SIZE = (1280, 960)  # W, H
 WARMUP_FRAMES = 20
 CROP_COLUMNS = (160, 1120)
 IMAGE_SIZE = archive.MINSIGHT_SIZE  # H, W (archive order)
+
+# Fixed exposure and white balance, set in this order (a V4L2 driver ignores or refuses a manual
+# exposure or colour temperature while the matching automatic control is on).
+# CAP_PROP_AUTO_EXPOSURE is V4L2's exposure_auto menu, passed through as is by OpenCV's V4L2 backend
+# (modules/videoio/src/cap_v4l.cpp, capPropertyToV4L2: V4L2_CID_EXPOSURE_AUTO): 1 is
+# V4L2_EXPOSURE_MANUAL (3, aperture priority, is the usual UVC default). Only with the environment
+# variable OPENCV_VIDEOIO_V4L_RANGE_NORMALIZED on (default off, OpenCV's environment-variable
+# reference) does the backend map that menu's 0..4 onto [0, 1), making manual 0.25. Other backends
+# document no value; they get 0.25, the normalised value OpenCV 3.x used everywhere, and the
+# read-back says whether it took.
+MANUAL_EXPOSURE_V4L2 = 1.0
+MANUAL_EXPOSURE_NORMALISED = 0.25
+# Minsight's own camera node sets this exposure (cap.set(cv2.CAP_PROP_EXPOSURE, 156.0), same file as
+# WARMUP_FRAMES): V4L2's exposure_time_absolute in 100 us units, 15.6 ms, inside a 60 fps frame (16.7 ms).
+EXPOSURE = 156.0
+# Minsight's node tries to turn automatic white balance off (it passes -1); 0 is off for V4L2's
+# white_balance_automatic. The colour temperature then used is 4600 K, the factory default of the
+# white_balance_temperature control (2800..6500 K) that UVC cameras commonly list (v4l2-ctl
+# --list-ctrls): the colours stay those the automatic balance starts from, and no longer re-adapt to
+# the image as contact deforms the shell, which would move them away from the reference's.
+WB_TEMPERATURE = 4600.0
+
+
+def manual_exposure(backend: str) -> float:
+    """The CAP_PROP_AUTO_EXPOSURE value that means manual exposure on OpenCV backend `backend`."""
+    normalised = os.environ.get("OPENCV_VIDEOIO_V4L_RANGE_NORMALIZED", "").strip().lower() in ("1", "true", "on", "yes")
+    return MANUAL_EXPOSURE_V4L2 if backend == "V4L2" and not normalised else MANUAL_EXPOSURE_NORMALISED
+
+
+def controls_for(backend: str) -> tuple[tuple[str, int, float], ...]:
+    """(name, OpenCV property, value asked) of each fixed control, in the order they are set."""
+    return (
+        ("auto_exposure", cv2.CAP_PROP_AUTO_EXPOSURE, manual_exposure(backend)),
+        ("exposure", cv2.CAP_PROP_EXPOSURE, EXPOSURE),
+        ("auto_wb", cv2.CAP_PROP_AUTO_WB, 0.0),
+        ("wb_temperature", cv2.CAP_PROP_WB_TEMPERATURE, WB_TEMPERATURE),
+    )
 
 
 class CameraError(RuntimeError):
@@ -40,10 +84,15 @@ def preprocess(raw: np.ndarray) -> np.ndarray:
 
 class Camera:
     """A `cv2.VideoCapture` on a device index or a path. A frame identical to the previous one is a
-    repeated buffer, i.e. the sensor dropped a frame: it is counted, and kept so the step has an image."""
+    repeated buffer, i.e. the sensor dropped a frame: it is counted, and kept so the step has an image.
+
+    A device gets fixed exposure and white balance (`controls_for`); `controls` holds, for each, the
+    value asked and the value the camera reads back (None where it reads no number), for the
+    trial's meta.source. A file has no controls: `controls` is empty."""
 
     def __init__(self, source: int | str, *, retries: int = 3):
         self.source, self.retries, self.dropped = source, retries, 0
+        self.controls: dict[str, dict[str, float | None]] = {}
         self.cap = cv2.VideoCapture(source)
         if not self.cap.isOpened():
             raise CameraError(f"camera {source!r}: cannot open")
@@ -52,7 +101,31 @@ class Camera:
             self.cap.set(cv2.CAP_PROP_FRAME_HEIGHT, RAW_SIZE[1])
             self.cap.set(cv2.CAP_PROP_FPS, 60)
             self.cap.set(cv2.CAP_PROP_BUFFERSIZE, 1)  # the newest frame, not a queued one
+            self._fix_controls()
         self._last: np.ndarray | None = None
+
+    def _fix_controls(self) -> None:
+        """Set each fixed control and read it back; one warning line per control the camera refuses
+        (set fails, or it reads something else), and recording goes on with what it reads."""
+        try:
+            backend = self.cap.getBackendName()
+        except cv2.error:
+            backend = "unknown"
+        for name, prop, asked in controls_for(backend):
+            accepted = bool(self.cap.set(prop, asked))
+            value = float(self.cap.get(prop))
+            read = value if math.isfinite(value) else None
+            self.controls[name] = {"asked": asked, "read": read}
+            if not accepted or read is None or not math.isclose(read, asked, rel_tol=1e-6, abs_tol=1e-6):
+                logging.warning(
+                    "camera %r (%s): %s not fixed: asked %g, %s, reads %s; recording goes on with the camera's value",
+                    self.source,
+                    backend,
+                    name,
+                    asked,
+                    "set accepted" if accepted else "set refused",
+                    "no number" if read is None else f"{read:g}",
+                )
 
     def read(self) -> np.ndarray:
         """The next frame, preprocessed to 308x410x3 RGB uint8."""
@@ -88,16 +161,25 @@ class Reference:
     how: str
     taken_at: tuple[float, ...] | None  # perf_counter of each frame; None: not known (simulated)
 
+    def mean_frame(self) -> np.ndarray:
+        """(H, W, 3) uint8: the frames' mean, rounded to the nearest grey level, as
+        `fabricjax.features.images.session_difference` reads several reference frames."""
+        return np.rint(self.frames.astype(np.float32).mean(0)).astype(np.uint8)
+
     def meta(self, t0: float) -> dict:
         """`meta.reference` of a trial whose step clock started at perf_counter `t0`."""
         times = None if self.taken_at is None else [t - t0 for t in self.taken_at]
         return {"how": self.how, "session": self.session, "times_s": times}
 
 
-def take_reference(camera: "Camera", session: str, n_frames: int = 1, warmup: int = WARMUP_FRAMES) -> Reference:
+def take_reference(
+    camera: "Camera", session: str, n_frames: int = archive.REFERENCE_FRAMES, warmup: int = WARMUP_FRAMES
+) -> Reference:
     """The reference as Minsight's camera node takes it: `warmup` frames read and discarded, then
-    `n_frames` frames with the fingers open (no contact), before the first closing. Frames the
-    sensor repeated during the warm-up are not counted as the trial's dropped frames."""
+    `n_frames` frames with the fingers open (no contact), before the first closing. Minsight's node
+    keeps one frame; several are averaged where they are read (`Reference.mean_frame`), so the
+    reference carries less of one frame's sensor noise. Frames the sensor repeated during the
+    warm-up are not counted as the trial's dropped frames."""
     for _ in range(warmup):
         camera.read()
     frames, times = [], []

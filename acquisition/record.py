@@ -2,12 +2,15 @@
 
 Hardware: servos on --servo_port, Minsight on --camera (index or path), the Pi sender at
 --pi_host:--pi_port. Hold the fingers open at the start of each trial: the camera's no-contact
-reference is taken then, as Minsight's own camera node takes it (its warm-up frames discarded,
-then --reference_frames frames), stored in the trial's archive, and read by the force proxy (gain
-and deadband from --force_gain / --force_deadband, calibrated once against a load cell). With --simulate every device is
-a simulated one behind the real drivers,
-driven by the scene simulator. Stops at the first failed or interrupted trial (its archive is kept,
-marked complete=false) and exits non-zero.
+reference is taken then, as Minsight's own camera node takes it (its warm-up frames discarded),
+but of --reference_frames frames (default `archive.REFERENCE_FRAMES`, averaged where they are
+read) where Minsight's node keeps one. It is stored in the trial's archive, and the force proxy
+reads against the frames' mean (gain and deadband from --force_gain / --force_deadband, calibrated
+once against a load cell). The camera runs on fixed exposure and white balance
+(`acquisition.camera.controls_for`): what it reads back goes into meta.source.camera_controls, and
+a control it refuses is one logged line. With --simulate every device is a simulated one behind
+the real drivers, driven by the scene simulator. Stops at the first failed or interrupted trial
+(its archive is kept, marked complete=false) and exits non-zero.
 
 --view streams each step to the Rerun viewer as it is recorded (--view_save=FILE.rrd: to a
 recording instead; `pip install -e ".[viz]"`), the same entities as `experiments.view`; with
@@ -30,7 +33,7 @@ from absl import flags
 
 from acquisition import recorder
 from acquisition.camera import IMAGE_SIZE
-from fabricjax import cli
+from fabricjax import archive, cli
 from fabricjax.errors import UserError
 
 FLAGS = flags.FLAGS
@@ -50,9 +53,10 @@ flags.DEFINE_float("force_gain", 0.05, "Force proxy gain, N per grey level of me
 flags.DEFINE_float("force_deadband", 0.5, "Force proxy deadband, grey levels.")
 flags.DEFINE_integer(
     "reference_frames",
-    1,
-    "No-contact frames of the camera's reference, taken after its warm-up with the fingers open.",
+    archive.REFERENCE_FRAMES,
+    "No-contact frames of the camera's reference, taken after its warm-up with the fingers open (averaged where read).",
     lower_bound=1,
+    upper_bound=archive.MAX_REFERENCE_FRAMES,
 )
 flags.DEFINE_bool("view", False, "Stream each step to the Rerun viewer as it is recorded.")
 flags.DEFINE_string("view_save", None, "Log what --view shows to this .rrd file instead.")
@@ -73,11 +77,12 @@ def hardware_rig(session: str) -> recorder.Rig:
     bus.set_torque(True)
     cam = Camera(int(FLAGS.camera) if FLAGS.camera.isdigit() else FLAGS.camera)
     reference = take_reference(cam, session, FLAGS.reference_frames)
-    force = ForceProxy(reference.frames[0], gain=FLAGS.force_gain, deadband=FLAGS.force_deadband)
+    force = ForceProxy(reference.mean_frame(), gain=FLAGS.force_gain, deadband=FLAGS.force_deadband)
     source = {
         "kind": "hardware",
         "servo_port": FLAGS.servo_port,
         "camera": FLAGS.camera,
+        "camera_controls": cam.controls,
         "pi": f"{FLAGS.pi_host}:{FLAGS.pi_port}",
     }
     return recorder.Rig(
