@@ -114,7 +114,7 @@ def test_the_simulator_writes_each_session_s_reference():
         return sim.simulate(scene)
 
     a, b, c = trial(1, 0), trial(1, 1), trial(2, 0)
-    assert a.reference.shape == (1, 30, 40, 3) and a.meta["reference"]["session"] == "day1_lab"
+    assert a.reference.shape == (archive.REFERENCE_FRAMES, 30, 40, 3) and a.meta["reference"]["session"] == "day1_lab"
     np.testing.assert_array_equal(a.reference, b.reference)  # one session, one reference
     assert not np.array_equal(a.reference, c.reference) and c.meta["reference"]["session"] == "day2_lab"
     # the difference reads the contact: no-contact steps (the grasp's start) are near the reference, rubbing moves it

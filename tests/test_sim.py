@@ -263,11 +263,11 @@ def test_not_enough_disk_is_a_clear_error_before_any_write(tmp_path, monkeypatch
 
 def test_minsight_patch_follows_the_stack_and_thin_cloth_shows_no_fold_ridge():
     """At the same 0.1 N: thick, compressible, bending-stiff stacks spread a wider patch and press a
-    fold ridge that the shell passes; a thin silk's ridge is filtered out (exp(-2 pi d / lambda))."""
+    fold ridge that the shell passes; a thin silk's ridge is filtered out (the layer's kernel)."""
     silk, hat, denim = (minsight.patch_geometry(catalog.fabric(i), 1.0) for i in (12, 6, 1))
-    assert silk[2] < 1e-3 < denim[2] < hat[2]
-    assert silk[0] <= denim[0] < hat[0] and silk[1] < denim[1]
-    assert minsight.patch_geometry(catalog.fabric(0), 1.0) == (1.0, 1.0, 0.0)
+    assert silk.ridge < 1e-2 < denim.ridge < hat.ridge
+    assert silk.along <= denim.along < hat.along and silk.across < denim.across
+    assert minsight.patch_geometry(catalog.fabric(0), 1.0) == minsight.Patch(1.0, 1.0, 1.0, 0.0, 0.0)
 
 
 def test_the_fingertip_radiates_as_a_pulsating_sphere_and_the_cloth_as_a_weaker_dipole():

@@ -515,16 +515,32 @@ LED_RING_RADIUS_MM = estimates.value(
 # wall changes the three colours differently.
 LED_ANGLES_RAD = (math.radians(90.0), math.radians(210.0), math.radians(330.0))  # red, green, blue
 # [insight, minsight] A collimator in front of the LED ring shapes their light into a cone inside the
-# shell ("structured light"): [estimate] each LED's light leaves within 35 degrees of the axis, fading
-# linearly in cos to that edge (estimate: the cone must reach the wall from ~6 mm above the camera
-# to the tip; the collimator's drawing gives its aperture, not its optics).
+# shell ("structured light"). [minsight: NoContact_avg.png, the averaged no-contact reference] The
+# whole image circle is lit, and the colours meet in zones with sharp edges ([insight]: contact "moves
+# the elastomer from one colour zone to another"). [estimate] Each LED's light leaves within a cone
+# about the axis wide enough to reach the wall next to the camera, its edge a penumbra of a few
+# degrees (the collimator's drawing gives its aperture, not its optics): where one LED's cone ends
+# on the far wall, the other colours remain, and that border is a colour zone's edge.
 COLLIMATOR_HALF_ANGLE_RAD = math.radians(estimates.value("COLLIMATOR_HALF_ANGLE_DEG"))
-# [estimate] The camera's fixed exposure (camera.py: manual exposure 156, auto white balance off) is
-# set for an unsaturated reference: the brightest no-contact pixels sit near this level.
+COLLIMATOR_EDGE_RAD = math.radians(estimates.value("COLLIMATOR_EDGE_DEG"))
+# [minsight: NoContact_avg.png, the mould insert's STL] The interior is moulded with radial ridges,
+# about 30 around the circumference, running along the meridians: the reference image shows them as
+# lines radiating from its centre. [estimate] Their relief, a tenth of a millimetre or so (a printed
+# insert's features), tilts the wall to and fro, so each LED lights their flanks differently.
+INTERIOR_RIDGES = 30
+# [cited] The closed shell's aluminium-filled interior reflects much of the light it receives, and the
+# reflections light the whole wall as in an integrating cavity: an evenly spread irradiance of
+# rho / (1 - rho) times the wall's mean direct irradiance (the integrating sphere's multiplier;
+# Goebel, "Generalized integrating-sphere theory", Applied Optics 6, 1967), which is what lights
+# the reference image to its edge. [estimate] rho, the interior's diffuse reflectance:
+INTERIOR_REFLECTANCE = estimates.value("INTERIOR_REFLECTANCE")
+INTERIOR_RIDGE_HEIGHT_MM = estimates.value("INTERIOR_RIDGE_HEIGHT_MM")
+# [minsight: NoContact_avg.png] The camera's fixed exposure (camera.py: manual exposure 156, auto
+# white balance off) shows the lit interior at mid-scale: the averaged reference's side-wall band
+# reads ~135 DN. [estimate] The median pixel of the image circle's brightest channel sits at
+# EXPOSURE_LEVEL_DN; pixels the LEDs light more strongly saturate at 255, as a fixed exposure does.
 EXPOSURE_LEVEL_DN = estimates.value("EXPOSURE_LEVEL_DN")
-EXPOSURE_PERCENTILE = (
-    99.5  # [numerics] "the brightest pixels", where EXPOSURE_LEVEL_DN is given: this percentile (a robust maximum)
-)
+EXPOSURE_PERCENTILE = 50.0  # [numerics] where EXPOSURE_LEVEL_DN is given: the median
 # [minsight] The interior is Ecoflex 00-30 filled with 65 um aluminium powder and 75 um aluminium
 # flakes: a grainy metallic surface. [estimate] Each 75 um cell reflects a random share of the light
 # (flake orientation): albedo 1 + FLAKE_CONTRAST * N(0, 1) per cell (estimate: half the cells' light
@@ -544,8 +560,11 @@ RESIZE_NOISE_FACTOR = (
 # the same size, the thin cloth between them) at force F touch over a disc of radius
 # a = (3 F R_eff / (4 E*))^(1/3), R_eff = R / 2, 1 / E* = 2 (1 - nu^2) / E, and each shell is indented
 # by a^2 / R. The displacement of the outer surface (Johnson, Contact Mechanics, 1985, eq. 3.41) reaches
-# the inner wall through the layer low-passed by exp(-|k| d) (the decay of a periodic surface load in
-# an elastic layer). E from the Ecoflex 00-30 datasheet (Smooth-On): 100 % modulus 10 psi = 69 kPa,
+# the inner wall through the layer with the kernel (1 + |k| d) e^(-|k| d): the displacement at depth d
+# under a surface load of wavenumber k in an incompressible (nu = 0.5) elastic half-space (Johnson,
+# Contact Mechanics, 1985, ch. 2: the Boussinesq solution's normal displacement,
+# (2 (1 - nu) + k z) e^(-k z) / (2 (1 - nu))); about 0.6 of the indentation reaches the centre of
+# the inner wall at 0.1 N. E from the Ecoflex 00-30 datasheet (Smooth-On): 100 % modulus 10 psi = 69 kPa,
 # i.e. E = 3 * 69 kPa / (2 - 1/4) = 118 kPa for a neo-Hookean solid, nu = 0.5 (rubber). At 0.1 N:
 # a = 1.8 mm, 0.27 mm per shell, consistent with SHELL_NORMAL_STIFFNESS_N_MM above.
 ELASTOMER_E_PA = 3 * 69e3 / (2.0 - 0.25)
@@ -553,6 +572,17 @@ ELASTOMER_POISSON = 0.5  # [FACTS] rubber is incompressible
 # [estimate] The skeleton holds the shell's global shape: the displacement vanishes one outer radius
 # from the contact centre (the half-space's slow 1/r tail is cut there).
 CONTACT_SUPPORT_MM = SHELL_OUTER_RADIUS_MM
+# [estimate] Minsight's skeleton is an open cage of struts: between them the inner face is free, and
+# a free face moves at least as the half-space's interior point at that depth and at most with the
+# outer surface. INNER_FACE_FREE_GAIN scales the half-space's share (capped at all of it), and the
+# shear the inner face keeps is an estimate of its own (a tangential load does not follow the
+# normal kernel): INNER_SHEAR_SHARE of the skin's drag.
+INNER_FACE_FREE_GAIN = estimates.value("INNER_FACE_FREE_GAIN")
+INNER_SHEAR_SHARE = estimates.value("INNER_SHEAR_SHARE")
+# [cited] The stroke rolls the contact: the fingertips are convex, and two spheres touch on the line
+# of their centres, so offsetting the tips by +-x (the stroke) moves the contact along each shell by
+# x 2R / (2R + t) over a stack of thickness t (geometry): +-3 mm for silk, +-2.5 mm for a 5 mm stack.
+TRAVEL_STEP_MM = 0.25  # [numerics] the contact's fields are computed this far apart and interpolated
 # The shear of the contact: the tangential load over the shell's shear stiffness
 # (SHELL_SHEAR_STIFFNESS_N_MM above), spread like the indentation and along the rubbing, which runs
 # across the finger (circumferentially on the shell).
@@ -570,11 +600,14 @@ CONTACT_SHIFT_PER_STACK_MM = estimates.value("CONTACT_SHIFT_PER_STACK_MM")
 FORCE_ACCURACY_N = 0.03
 # What the fabric stack changes in the image at a fixed 0.1 N (the force-controlled closing makes
 # the force itself the same for every fabric):
-# [estimate] Patch size: a compressible stack conforms to the fingertip and spreads the load (the
-# patch grows ~15 % per mm of compressible stack), and a bending-stiff stack bridges it like a
-# plate on an elastic foundation, whose load spreads over (B / k)^(1/4) (Hetenyi 1946): the patch
-# widens across the fold as the quarter power of the stack's bending stiffness.
-CONFORM_PER_MM = estimates.value("CONFORM_PER_MM")
+# [cited] Patch size: a compressible stack between the shells acts as an elastic foundation
+# (Johnson, Contact Mechanics, 1985, section 4.3: a thin compliant layer between curved bodies): the
+# contact spreads to a ~ sqrt(2 R_eff (d_shell + d_stack)), the geometric overlap of the shells'
+# indentation and the stack's give at 0.1 N (`compressibility x stack`), about 1.8 mm for silk and
+# 5-6 mm for fleece or terry. At the same force the shell is indented less, as a flat punch's
+# d = F / (2 a E*) (Johnson, eq. 3.36): the centre's depth falls as 1 / a. [cited] A bending-stiff
+# stack bridges it like a plate on an elastic foundation, whose load spreads over (B / k)^(1/4)
+# (Hetenyi 1946): the patch widens across the fold as the quarter power of the stack's bending stiffness.
 # [estimate] Bending stiffness of a layer ~ E h^3 / 12, and its in-plane stiffness ~ E h, so relative
 # to a reference layer B scales as stretch_stiffness * thickness^2 (reference: 5 N/mm, 0.5 mm, a
 # shirting cotton). Only stretch * thickness^2 of the reference enters: its thickness is where the
@@ -583,9 +616,10 @@ BENDING_REF_STRETCH_N_MM = estimates.value("BENDING_REF_STRETCH_N_MM")
 BENDING_REF_THICKNESS_MM = 0.5  # [numerics] the reference point BENDING_REF_STRETCH_N_MM is given at
 # [estimate] The fold of the folded stack is a ridge (a U-turn of the cloth, about one stack thickness
 # wide) that presses a line into the shell where it lies inside the patch. Through an elastic
-# shell of thickness d, surface relief of wavelength lambda reaches the inner wall attenuated by
-# exp(-2 pi d / lambda) (the same layer law as the contact); it removes weave textures of
-# sub-millimetre period entirely, so none is drawn.
+# shell of thickness d, surface relief of wavelength lambda reaches the inner wall by the layer's
+# kernel at k = 2 pi / lambda (the same law as the contact). The cloth's own weave or knit relief
+# passes the same way (`minsight.texture_relief`): 14 % of a 2.8 mm corduroy wale, under 1 % at
+# 1 mm, so only the coarse textures ripple the patch as the cloth slides.
 RIDGE_WAVELENGTH_PER_THICKNESS = estimates.value(
     "RIDGE_WAVELENGTH_PER_THICKNESS"
 )  # a ridge of width w has its relief at lambda ~ 4 w
@@ -601,20 +635,23 @@ FOLD_ANGLE_SPREAD_RAD = estimates.value(
 #   against the camera's broad colour filters. The room's temperature is the day's climate
 #   (`ROOM_TEMPERATURE_C`, section "the rig between sessions"), relative to its centre.
 LED_T1_K = (95.0, 1600.0, 1600.0)
-# * the LEDs' drive: [cited] series-resistor LEDs on the USB supply, whose VBUS the USB 2.0
-#   specification allows within 4.75-5.25 V; a day's VBUS is drawn within that bound and the current
-#   follows (V - Vf) / R, Vf ~2.0 V (red) and ~3.0 V (green, blue) (full-colour chip LED datasheets).
-USB_VBUS_V = 5.0
-USB_VBUS_TOLERANCE_V = 0.25  # [cited] USB 2.0 specification
+# * the LEDs' drive: [cited] series-resistor LEDs on the USB supply; the current follows (V - Vf) / R,
+#   Vf ~2.0 V (red) and ~3.0 V (green, blue) (full-colour chip LED datasheets). The USB 2.0
+#   specification's 4.75-5.25 V bounds every host and load; [estimate] one port of the one host the
+#   rig uses moves by tens of millivolts between days (`USB_VBUS_DAY_SPREAD_V`, uniform either way).
+USB_VBUS_V = 5.0  # [cited] USB 2.0 specification, nominal
+USB_VBUS_DAY_SPREAD_V = estimates.value("USB_VBUS_DAY_SPREAD_V")
 LED_FORWARD_V = (2.0, 3.0, 3.0)  # [cited] full-colour chip LED datasheets, as above
-# * the seating of the shell on the base after remounting: [estimate] SLA-printed mating parts (the
-#   camera holder and base are Form 3 prints [minsight]) fit to ~0.1 mm (Formlabs' tolerance guide),
-#   so the shell sits up to ~0.05 mm higher or lower (SD) and turns about its axis by that much over
-#   its 10 mm radius.
+# Not a day term: the seating of the shell on the base. [minsight] The elastomer is over-moulded on
+# its skeleton, and the paper never remounts it, so where it sits is the device's, one draw:
+# [estimate] SLA-printed mating parts (the camera holder and base are Form 3 prints [minsight]) fit
+# to ~0.1 mm (Formlabs' tolerance guide), so it sits up to ~0.05 mm higher or lower (SD) and turned
+# about its axis by that much over its 10 mm radius.
 SEATING_AXIAL_SD_MM = estimates.value("SEATING_AXIAL_SD_MM")
 SEATING_ROTATION_SD_RAD = SEATING_AXIAL_SD_MM / SKELETON_RADIUS_MM
-# * the reference (no-contact) frame is taken anew each day [minsight, camera.py: one frame after
-#   the warm-up], so it carries that day's LEDs and seating.
+# * the reference (no-contact) frames are taken anew each session and averaged
+#   (`archive.REFERENCE_FRAMES`), so the reference carries that day's LEDs, and a thirtieth of one
+#   frame's noise variance.
 # [numerics] Frames smaller than 308x410 are rendered at RENDER_SUPERSAMPLE times their size (at most the full
 # 308x410) from the same millimetre scene and area-averaged down, as the paper downsamples.
 RENDER_SUPERSAMPLE = 2

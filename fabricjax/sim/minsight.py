@@ -7,19 +7,29 @@ elastomer, an RGB LED ring beside the camera, an equidistant fisheye on the axis
 field is delivered at 308x410 as Minsight's camera node does. Each pixel sees one point of the wall
 (`_View`), lit by each LED as a Lambertian surface (cos of incidence over distance squared).
 
-The contact: Hertz's contact between two equal shells at the measured normal force gives the
-indentation of the outer surface; the layer low-passes it on its way to the inner wall
-(`inner_profile`). The wall moving toward the camera moves where each ray meets it (a shift along
-the wall of w / tan of the ray's incidence) and tilts it (the LEDs' incidence changes: shading from
-the normal, per colour); the tangential load drags it along the rubbing (`SHELL_SHEAR_STIFFNESS`),
-which optical flow picks up. The folded stack sets the patch's shape and presses its fold ridge
-through thick stacks only (`patch_geometry`). Weave textures and stick-slip micro-jumps are not
-drawn: the layer filters sub-millimetre relief out, and slips average out within a 20 ms frame.
+The interior as Minsight images it: the mould insert's radial ridges (`INTERIOR_RIDGES`) tilt the
+wall to and fro around the circumference, so each LED lights their flanks differently, and each
+LED's collimated cone ends in a sharp edge, so the colours meet in zones with sharp borders; the
+whole image circle is lit (`_rest`).
+
+The contact (`patch_geometry`, `_contact`, `frame_loads`): Hertz's contact between two equal shells
+at the measured normal force gives the indentation of the outer surface; a compressible stack
+spreads it like an elastic foundation (a wider, shallower patch); the incompressible layer passes
+it to the inner wall with the kernel (1 + kd) e^(-kd) (`layer_transfer`, `inner_profile`). The
+wall moving toward the camera moves where each ray meets it (a shift along the wall of w / tan of
+the ray's incidence) and tilts it (the LEDs' incidence changes: shading from the normal, per
+colour); the tangential load drags it along the rubbing (`SHELL_SHEAR_STIFFNESS`), which optical
+flow picks up. The two convex fingertips, offset by the stroke, roll the contact along the shell
+(`travel_mm`), so the patch travels with every stroke. The folded stack presses its fold ridge
+through thick stacks only, and a coarse weave or knit (periods of millimetres) ripples the patch
+as the cloth slides across it; finer textures the layer filters out.
 
 Every day the camera differs (`day_state`, drawn from the scene's "minsight_day" generator): the
-LEDs' light (room temperature, supply voltage; the red channel drifts most, so the colour moves),
-the shell's seating on the base after remounting, and the reference frame taken that day
-(`reference`). Exposure and white balance are fixed by the camera node, so they do not drift.
+LEDs' light (room temperature, the port's supply voltage; the red channel drifts most, so the
+colour moves). The shell is over-moulded on its skeleton and never remounted, so where it sits on
+the camera is one draw for the device. The session's reference averages `archive.REFERENCE_FRAMES`
+no-contact frames (`reference`). Exposure and white balance are fixed by the camera node, so they
+do not drift.
 
 Frames smaller than 308x410 are the same physical image area-averaged down (as the paper
 downsamples): rendered at `calibration.RENDER_SUPERSAMPLE` times their size (at most 308x410),
@@ -51,7 +61,8 @@ CHUNK = 32  # [numerics] frames processed together: vectorised, with temporaries
 
 @dataclasses.dataclass(frozen=True)
 class CameraDay:
-    """One recording day's camera: per-channel LED light and the shell's seating on the base."""
+    """One recording day's camera: per-channel LED light, and the shell's seating on the base (the
+    device's, the same every day)."""
 
     led_gain: tuple[float, float, float]  # red, green, blue light relative to nominal
     seat_axial_mm: float  # the shell sits this much further from the camera
@@ -63,13 +74,14 @@ def day_state(scene: Scene) -> CameraDay:
     rng = scene.rng("minsight_day", "day")
     temperature_c = nuisance(scene).temperature_c  # the day's room ("climate"; None: the climate's centre)
     d_temp = 0.0 if temperature_c is None else temperature_c - float(np.mean(cal.ROOM_TEMPERATURE_C))
-    vbus = cal.USB_VBUS_V + rng.uniform(-cal.USB_VBUS_TOLERANCE_V, cal.USB_VBUS_TOLERANCE_V)
+    vbus = cal.USB_VBUS_V + rng.uniform(-cal.USB_VBUS_DAY_SPREAD_V, cal.USB_VBUS_DAY_SPREAD_V)
     vf, t1 = np.asarray(cal.LED_FORWARD_V), np.asarray(cal.LED_T1_K)
     gain = (vbus - vf) / (cal.USB_VBUS_V - vf) * np.exp(-d_temp / t1)
+    seating = scene.rng("minsight_seating", "hardware")
     return CameraDay(
         led_gain=tuple(float(g) for g in gain),
-        seat_axial_mm=float(rng.normal(0.0, cal.SEATING_AXIAL_SD_MM)),
-        seat_rotation_rad=float(rng.normal(0.0, cal.SEATING_ROTATION_SD_RAD)),
+        seat_axial_mm=float(seating.normal(0.0, cal.SEATING_AXIAL_SD_MM)),
+        seat_rotation_rad=float(seating.normal(0.0, cal.SEATING_ROTATION_SD_RAD)),
     )
 
 
@@ -127,6 +139,8 @@ class _View:
     light: np.ndarray  # (3, H, W) irradiance of each LED (cos incidence / distance^2, emitter cosine)
     light_tangent: np.ndarray  # (3, H, W, 2): each LED's unit direction projected on (e_s, e_c), / distance^2
     albedo: np.ndarray  # (H, W) flake albedo averaged over the pixel's footprint
+    ridge_slope: np.ndarray  # (H, W) the ridges' slope along e_c, averaged over the pixel's footprint
+    area: np.ndarray  # (H, W) the wall's area each pixel sees, mm^2 (0 outside the image circle)
 
 
 def _hit(h: int, w: int, axial: float, rotation: float):
@@ -179,34 +193,70 @@ def _view(seed: int, h: int, w: int, axial: float, rotation: float) -> _View:
         to_led = led - p
         dist2 = np.sum(to_led**2, -1)
         unit = to_led / np.sqrt(dist2)[..., None]
-        # the collimator passes the LED's light within a cone about the axis, fading to its edge
-        cone = np.cos(cal.COLLIMATOR_HALF_ANGLE_RAD)
-        emit = np.maximum((-unit[..., 2] - cone) / (1 - cone), 0.0)
+        # the collimator passes the LED's light within a cone about the axis, its edge a penumbra
+        off_axis = np.arccos(np.clip(-unit[..., 2], -1.0, 1.0))
+        emit = np.clip((cal.COLLIMATOR_HALF_ANGLE_RAD - off_axis) / cal.COLLIMATOR_EDGE_RAD + 0.5, 0.0, 1.0)
         lights.append(np.maximum(np.sum(unit * normal, -1), 0.0) * emit / dist2)
         tangents.append(np.stack([np.sum(unit * e_s, -1), np.sum(unit * e_c, -1)], -1) * (emit / dist2)[..., None])
     half_s = 0.5 * np.hypot(ds_dx, ds_dy).clip(cal.FLAKE_SIZE_MM / 4)
     half_c = 0.5 * np.hypot(dc_dx, dc_dy).clip(cal.FLAKE_SIZE_MM / 4)
     albedo = _box_average(_flake_table(seed), s - half_s, s + half_s, c - half_c, c + half_c)
-    return _View(valid, s, c, jac_inv, shift_n, np.stack(lights), np.stack(tangents), albedo)
+    area = np.where(valid, np.abs(jac[..., 0, 0] * jac[..., 1, 1] - jac[..., 0, 1] * jac[..., 1, 0]), 0.0)
+    lights, tangents = np.stack(lights), np.stack(tangents)
+    return _View(valid, s, c, jac_inv, shift_n, lights, tangents, albedo, ridge_slope(c, 2 * half_c), area)
+
+
+def ridge_slope(c: np.ndarray, footprint_mm: np.ndarray) -> np.ndarray:
+    """Slope along the circumference of the interior's moulded ridges, h(c) = H/2 (1 - cos(2 pi N c / C)),
+    averaged over a footprint (mm along c): the box average of a sine is the sine times sinc."""
+    k = 2 * np.pi * cal.INTERIOR_RIDGES / CIRCUMFERENCE_MM
+    return 0.5 * cal.INTERIOR_RIDGE_HEIGHT_MM * k * np.sin(k * c) * np.sinc(footprint_mm * k / (2 * np.pi))
+
+
+def _rest(view: _View) -> np.ndarray:
+    """(3, H, W) irradiance of the resting wall per colour: each LED's direct light, its ridges'
+    flanks tilted toward or away from it (cos of incidence changes by the slope times the LED's
+    direction along e_c), plus the light the reflective interior passes around the closed shell, as
+    in an integrating cavity: rho / (1 - rho) times the wall's mean direct irradiance, even over the
+    wall (see calibration)."""
+    tilted = view.light - view.ridge_slope[None] * view.light_tangent[..., 1]
+    direct = np.where(view.valid[None], np.maximum(tilted, 0.0), 0.0)
+    rho = cal.INTERIOR_REFLECTANCE
+    around = rho / (1 - rho) * np.sum(direct * view.area, (1, 2)) / np.sum(view.area)
+    return np.where(view.valid[None], direct + around[:, None, None], 0.0)
 
 
 @functools.lru_cache(maxsize=2)
 def _exposure(seed: int) -> float:
-    """DN per unit radiance: the nominal no-contact frame's brightest pixels at EXPOSURE_LEVEL_DN."""
+    """DN per unit radiance: the nominal no-contact frame's median pixel (its brightest channel) at
+    EXPOSURE_LEVEL_DN."""
     v = _view(seed, *FULL_SIZE, 0.0, 0.0)
-    radiance = (v.albedo * v.light)[:, v.valid]
+    radiance = (v.albedo * _rest(v))[:, v.valid]
     return cal.EXPOSURE_LEVEL_DN / float(np.percentile(radiance.max(0), cal.EXPOSURE_PERCENTILE))
 
 
-@functools.lru_cache(maxsize=4)  # [numerics]
-def inner_profile(force_n: float) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """The inner wall's displacement profile at `force_n`: (radii mm, profile normalised to 1 at
-    the centre, the outer surface's indentation per shell in mm, the share of it the inner wall
-    keeps at the centre), see calibration (Hertz, layer low-pass, held by the skeleton)."""
+def hertz(force_n: float) -> tuple[float, float]:
+    """(contact radius, indentation of each shell), mm, of two equal shells pressed by `force_n`
+    (Hertz, see calibration)."""
     e_star = cal.ELASTOMER_E_PA / (2 * (1 - cal.ELASTOMER_POISSON**2))
     r_eff = cal.SHELL_OUTER_RADIUS_MM / 2 * 1e-3
-    a = (3 * force_n * r_eff / (4 * e_star)) ** (1 / 3) * 1e3  # mm
-    indent = a**2 / cal.SHELL_OUTER_RADIUS_MM  # per shell
+    a = (3 * force_n * r_eff / (4 * e_star)) ** (1 / 3) * 1e3
+    return a, a**2 / cal.SHELL_OUTER_RADIUS_MM
+
+
+def layer_transfer(k: np.ndarray, depth_mm: float) -> np.ndarray:
+    """Share of a surface displacement of wavenumber `k` (rad/mm) that reaches `depth_mm` in an
+    incompressible elastic solid: (1 + k d) e^(-k d) (see calibration)."""
+    kd = np.abs(k) * depth_mm
+    return (1.0 + kd) * np.exp(-kd)
+
+
+@functools.lru_cache(maxsize=64)  # [numerics]
+def inner_profile(radius_mm: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """The inner wall's displacement under a Hertz patch of contact radius `radius_mm`: (radii mm,
+    profile normalised to 1 at the centre, the share of the outer indentation the inner wall keeps
+    at the centre), see calibration (the layer's kernel, held by the skeleton, the free inner face)."""
+    a = radius_mm
     n, dx = 256, 2 * cal.CONTACT_SUPPORT_MM * 2 / 256  # [numerics] FFT grid over twice the support's diameter
     xy = (np.arange(n) - n // 2) * dx
     r = np.hypot(*np.meshgrid(xy, xy))
@@ -216,73 +266,147 @@ def inner_profile(force_n: float) -> tuple[np.ndarray, np.ndarray, float, float]
         r <= a, 1 - 0.5 * inside**2, (2 / np.pi) * ((1 - 0.5 * q**2) * np.arcsin(1 / q) + 0.5 * np.sqrt(q**2 - 1))
     )
     k = 2 * np.pi * np.hypot(*np.meshgrid(np.fft.fftfreq(n, dx), np.fft.fftfreq(n, dx)))
-    inner = np.real(np.fft.ifft2(np.fft.fft2(outer) * np.exp(-k * cal.SHELL_THICKNESS_MM)))
+    inner = np.real(np.fft.ifft2(np.fft.fft2(outer) * layer_transfer(k, cal.SHELL_THICKNESS_MM)))
     radii = xy[n // 2 :]
     line = inner[n // 2, n // 2 :]
     line = np.clip(line - np.interp(cal.CONTACT_SUPPORT_MM, radii, line), 0.0, None)  # held by the skeleton
-    return radii, line / line[0], float(indent), float(line[0])
+    return radii, line / line[0], float(min(line[0] * cal.INNER_FACE_FREE_GAIN, 1.0))
 
 
-def patch_geometry(fabric: catalog.Fabric, fold: float) -> tuple[float, float, float]:
-    """(along, across, ridge) for the folded stack at 0.1 N, see calibration: the patch's size along
-    and across the fold relative to a thin, soft fabric's, and how much of the fold ridge's relief
-    reaches the inner wall (0 for thin cloth, ~0.5 for a knitted hat)."""
+@dataclasses.dataclass(frozen=True)
+class Patch:
+    """The folded stack's patch at the grasp's force, relative to two bare shells' Hertz patch."""
+
+    along: float  # radius along the fold
+    across: float  # radius across the fold
+    depth: float  # the outer surface's indentation at the centre
+    ridge: float  # share of the fold ridge's relief that reaches the inner wall
+    stack_mm: float  # the stack's thickness (two layers of the folded cloth)
+
+
+def patch_geometry(fabric: catalog.Fabric, fold: float) -> Patch:
+    """The patch of the folded stack at 0.1 N, see calibration: a compressible stack spreads it like
+    an elastic foundation, a ~ sqrt(2 R_eff (d_shell + d_stack)), and makes it shallower at the same
+    force (d ~ F / (a E*)); a bending-stiff stack widens it across the fold; the fold ridge reaches
+    the inner wall through the layer's kernel (0 for thin cloth, ~0.5 for a knitted hat)."""
     if not fabric.is_fabric:
-        return 1.0, 1.0, 0.0
+        return Patch(1.0, 1.0, 1.0, 0.0, 0.0)
     stack_mm = 2.0 * fabric.thickness_mm * fold
-    conform = 1.0 + cal.CONFORM_PER_MM * stack_mm * fabric.compressibility
+    _, d_shell = hertz(cal.GRASP_FORCE_N)
+    spread = float(np.sqrt((d_shell + fabric.compressibility * stack_mm) / d_shell))
     bending = (
         2.0
         * (fabric.stretch_stiffness / cal.BENDING_REF_STRETCH_N_MM)
         * (fabric.thickness_mm / cal.BENDING_REF_THICKNESS_MM) ** 2
     )
     wavelength = cal.RIDGE_WAVELENGTH_PER_THICKNESS * stack_mm
-    ridge = float(np.exp(-2 * np.pi * cal.SHELL_THICKNESS_MM / wavelength))
-    return conform, conform * (1.0 + bending) ** (1 / 4), ridge
+    ridge = float(layer_transfer(2 * np.pi / wavelength, cal.SHELL_THICKNESS_MM))
+    return Patch(spread, spread * (1.0 + bending) ** (1 / 4), 1.0 / spread, ridge, stack_mm)
+
+
+def travel_mm(finger_mm: np.ndarray, stack_mm: float) -> np.ndarray:
+    """How far the contact rolls along each shell when the fingertips are offset by +-finger_mm:
+    the contact of two spheres of radius R lies on the line of their centres, which a lateral offset
+    of 2 x turns by arctan(2 x / (2 R + t)) over a stack of thickness t, and the contact moves R times
+    that along each shell (~ x 2R / (2R + t))."""
+    r = cal.SHELL_OUTER_RADIUS_MM
+    return r * np.arctan(2 * np.asarray(finger_mm) / (2 * r + stack_mm))
+
+
+def texture_relief(fabric: catalog.Fabric) -> tuple[float, float]:
+    """(amplitude mm, wavelength mm) of the cloth's dominant weave or knit relief along the rubbing,
+    as it reaches the inner wall: all its roughness in that period (an upper bound, sqrt(2) x RMS),
+    passed by the layer's kernel; none for bare fingers."""
+    if not fabric.is_fabric:
+        return 0.0, 1.0
+    wavelength = fabric.weave_period_mm
+    passed = layer_transfer(2 * np.pi / wavelength, cal.SHELL_THICKNESS_MM) * cal.INNER_FACE_FREE_GAIN
+    return float(np.sqrt(2) * fabric.roughness_um * 1e-3 * passed), float(wavelength)
+
+
+BASES = ("indent", "shear", "texture_cos", "texture_sin")  # the loads a frame's contact is a sum of
 
 
 @dataclasses.dataclass(frozen=True)
 class _Contact:
-    """Per pixel of a render grid, per unit load: where the seen point moves and how the light changes."""
+    """Per pixel of a render grid, per unit of each load of `BASES`: where the seen point moves and
+    how the light changes."""
 
-    per_indent: np.ndarray  # (H, W, 2) pixel shift per mm of centre indentation
-    per_shear: np.ndarray  # (H, W, 2) pixel shift per mm of centre shear
-    shading: np.ndarray  # (3, H, W) irradiance change per mm of centre indentation
+    shift: np.ndarray  # (B, H, W, 2) pixel shift per mm
+    shading: np.ndarray  # (B, 3, H, W) irradiance change per mm
 
 
-def _contact(
-    view: _View,
-    centre_sc: np.ndarray,
-    fold_angle: float,
-    along: float,
-    across: float,
-    ridge: float,
-    ridge_offset: float,
-    ridge_width: float,
-) -> _Contact:
-    radii, profile, _, _ = inner_profile(cal.GRASP_FORCE_N)
-    ds = view.s - centre_sc[0]
-    dc = np.mod(view.c - centre_sc[1] + CIRCUMFERENCE_MM / 2, CIRCUMFERENCE_MM) - CIRCUMFERENCE_MM / 2
+def _contact(view: _View, contact: dict, centre_c: float) -> _Contact:
+    """The contact's fields with its centre at circumferential arc `centre_c` (mm)."""
+    patch, fold_angle = contact["patch"], contact["fold_angle"]
+    a, _ = hertz(cal.GRASP_FORCE_N)
+    radii, profile, share = inner_profile(round(a * patch.along, 2))  # [numerics] patches within 10 um share a profile
+    along, across = 1.0, patch.across / patch.along  # the profile is the along radius's
+    ds = view.s - contact["centre_s"]
+    dc = np.mod(view.c - centre_c + CIRCUMFERENCE_MM / 2, CIRCUMFERENCE_MM) - CIRCUMFERENCE_MM / 2
     cos, sin = np.cos(fold_angle), np.sin(fold_angle)
     u, v = ds * cos + dc * sin, -ds * sin + dc * cos  # along and across the fold line
     rho = np.hypot(u / along, v / across)
     g = np.interp(rho, radii, profile, right=0.0)
-    dg = np.gradient(profile, radii)
-    dg_drho = np.interp(rho, radii, dg, right=0.0)
+    dg_drho = np.interp(rho, radii, np.gradient(profile, radii), right=0.0)
     rho_safe = np.maximum(rho, 1e-6)
     dg_du, dg_dv = dg_drho * u / (along**2 * rho_safe), dg_drho * v / (across**2 * rho_safe)
-    dv = v - ridge_offset
-    line = ridge * np.exp(-(dv**2) / (2 * ridge_width**2))
-    w = g * (1 + line)
-    dw_du = dg_du * (1 + line)
-    dw_dv = dg_dv * (1 + line) - g * line * dv / ridge_width**2
-    grad = np.stack([dw_du * cos - dw_dv * sin, dw_du * sin + dw_dv * cos], -1)  # d w / d(s, c)
+    rotate = lambda du, dv: np.stack([du * cos - dv * sin, du * sin + dv * cos], -1)  # noqa: E731  d/d(s, c)
+    grad_g = rotate(dg_du, dg_dv)
+    dv = v - contact["ridge_offset"]
+    width = contact["ridge_width"]
+    line = patch.ridge * np.exp(-(dv**2) / (2 * width**2))
+    grad_line = rotate(np.zeros_like(u), -line * dv / width**2)
+    indent = share * patch.depth
+    normal_fields = [  # (w, grad w) per unit load
+        (indent * g * (1 + line), indent * ((1 + line)[..., None] * grad_g + g[..., None] * grad_line))
+    ]
+    k = 2 * np.pi / contact["texture_wavelength"]
+    for wave, dwave in ((np.cos(k * dc), -k * np.sin(k * dc)), (np.sin(k * dc), k * np.cos(k * dc))):
+        grad = wave[..., None] * grad_g + np.stack([np.zeros_like(g), g * dwave], -1)
+        normal_fields.append((g * wave, grad))
     to_px = lambda sc: np.einsum("hwij,hwj->hwi", view.jac_inv, sc)  # noqa: E731
-    per_indent = to_px(view.shift_n * w[..., None])
-    per_shear = to_px(-np.stack([np.zeros_like(g), w], -1))  # material dragged along +c is seen from -c
+    shifts = [to_px(view.shift_n * w[..., None]) for w, _ in normal_fields]
     # the tilted wall: n' = n - grad w, so each LED's cos of incidence drops by grad w . its direction
-    shading = -np.sum(view.light_tangent * grad[None], -1)
-    return _Contact(per_indent, per_shear, np.where(view.valid, shading, 0.0))
+    shades = [np.where(view.valid, -np.sum(view.light_tangent * grad[None], -1), 0.0) for _, grad in normal_fields]
+    shear = to_px(-np.stack([np.zeros_like(g), g], -1))  # material dragged along +c is seen from -c
+    shift = np.stack([shifts[0], shear, shifts[1], shifts[2]]).astype(np.float32)
+    shading = np.stack([shades[0], np.zeros_like(shades[0]), shades[1], shades[2]]).astype(np.float32)
+    return _Contact(shift, shading)
+
+
+@dataclasses.dataclass(frozen=True)
+class FrameLoads:
+    """What the contact does at each frame, in mm: the outer surface's indentation per shell at the
+    centre, the skin's drag, the contact's travel along the shell and the cloth's slide across it."""
+
+    indent_mm: np.ndarray
+    shear_mm: np.ndarray
+    travel_mm: np.ndarray
+    slide_mm: np.ndarray
+
+    @staticmethod
+    def still(indent_mm, shear_mm=None) -> "FrameLoads":
+        """Loads of a contact that neither travels nor slides."""
+        indent = np.asarray(indent_mm, np.float64)
+        zero = np.zeros_like(indent)
+        return FrameLoads(indent, zero if shear_mm is None else np.asarray(shear_mm, np.float64), zero, zero)
+
+
+def loads_mm(normal_n: np.ndarray, shear_n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The outer surface's centre indentation per shell (Hertz: a^2 / R ~ F^(2/3)) and the inner
+    wall's shear drag (F_t over the shell's shear stiffness, the share the inner face keeps), mm."""
+    _, indent_ref = hertz(cal.GRASP_FORCE_N)
+    indent = indent_ref * (np.maximum(normal_n, 0.0) / cal.GRASP_FORCE_N) ** (2 / 3)
+    return indent, cal.INNER_SHEAR_SHARE * np.asarray(shear_n) / cal.SHELL_SHEAR_STIFFNESS_N_MM
+
+
+def frame_loads(motion: Motion, frame_t: np.ndarray, contact: dict) -> FrameLoads:
+    """The loads of `contact` at the frame times, from the trial's motion."""
+    at = lambda x: np.interp(frame_t, motion.t, x)  # noqa: E731
+    indent, shear = loads_mm(at(motion.normal_n), at(motion.shear_n))
+    travel = travel_mm(at(motion.finger_mm), contact["patch"].stack_mm)
+    return FrameLoads(indent, shear, travel, at(motion.slide_mm))
 
 
 def _area_down(frames: np.ndarray, size: tuple[int, int]) -> np.ndarray:
@@ -302,77 +426,90 @@ def _noise_sigma(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return np.sqrt(np.maximum(image, 0.0) * np.float32(dn_per_electron)) * np.float32(cal.RESIZE_NOISE_FACTOR * area)
 
 
-def physical_frames(
-    scene: Scene,
-    indent_mm: np.ndarray,
-    shear_mm: np.ndarray,
-    contact: dict | None = None,
-    size: tuple[int, int] | None = None,
-) -> np.ndarray:
-    """Noise-free float32 frames (T, h, w, 3) in DN of `scene`'s day at `size` (the scene's by
-    default) for centre indentations and shears (mm per frame), rendered on `render_size(size)` and
-    area-averaged down. `contact` holds the trial's patch (`trial_contact`); None: no contact."""
-    size = tuple(size or scene.image_size)
-    big = render_size(size)
+def _scene_view(scene: Scene, big: tuple[int, int]) -> tuple[_View, np.ndarray]:
+    """The render grid's view of `scene`'s day and its DN per unit irradiance per colour (3, 1, 1)."""
     day = day_state(scene)
     view = _view(scene.seed, *big, day.seat_axial_mm, day.seat_rotation_rad)
-    gain = _exposure(scene.seed) * np.asarray(day.led_gain)[:, None, None]  # DN per unit irradiance, per colour
-    base = gain * view.light  # (3, H, W)
-    albedo = np.where(view.valid, view.albedo, 0.0).astype(np.float32)
+    return view, _exposure(scene.seed) * np.asarray(day.led_gain)[:, None, None]
+
+
+def no_contact_frame(scene: Scene, size: tuple[int, int] | None = None) -> np.ndarray:
+    """Noise-free float32 (h, w, 3) frame in DN of `scene`'s day without contact: what the session's
+    averaged reference converges to."""
+    size = tuple(size or scene.image_size)
+    view, gain = _scene_view(scene, render_size(size))
+    rest = (gain * view.albedo[None] * _rest(view)).transpose(1, 2, 0)
+    return _area_down(rest[None].astype(np.float32), size)[0]
+
+
+def physical_frames(scene: Scene, loads: FrameLoads, contact: dict, size: tuple[int, int] | None = None) -> np.ndarray:
+    """Noise-free float32 frames (T, h, w, 3) in DN of `scene`'s day at `size` (the scene's by
+    default) under `loads`, rendered on `render_size(size)` and area-averaged down. `contact` is the
+    trial's patch (`trial_contact`). The contact's fields are computed at centres `TRAVEL_STEP_MM`
+    apart over the trial's travel and interpolated linearly between them."""
+    size = tuple(size or scene.image_size)
+    big = render_size(size)
+    view, gain = _scene_view(scene, big)
+    albedo = np.where(view.valid, view.albedo, 0.0)
+    texture = np.concatenate([(gain * albedo[None] * _rest(view)).transpose(1, 2, 0), albedo[..., None]], -1)
+    texture = texture.astype(np.float32)  # (H, W, 4): the resting wall's DN per colour, and its albedo
+    step = cal.TRAVEL_STEP_MM
+    lo, hi = np.floor(loads.travel_mm.min() / step), np.ceil(loads.travel_mm.max() / step)
+    offsets = np.arange(lo, hi + 1) * step
+    fields = [_contact(view, contact, contact["centre_c"] + o) for o in offsets]
+    shift = np.stack([f.shift for f in fields])  # (K, B, H, W, 2)
+    shading = np.stack([f.shading * gain[None].astype(np.float32) for f in fields])  # (K, B, 3, H, W)
+    amplitude, wavelength = contact["texture_amplitude"], contact["texture_wavelength"]
+    phase = 2 * np.pi * loads.slide_mm / wavelength
+    coef = np.stack([loads.indent_mm, loads.shear_mm, amplitude * np.cos(phase), amplitude * np.sin(phase)], -1).astype(
+        np.float32
+    )  # (T, B)
+    position = np.clip((loads.travel_mm - offsets[0]) / step, 0, len(offsets) - 1)
     y, x = np.mgrid[0 : big[0], 0 : big[1]].astype(np.float32)
-    frames = np.empty((len(indent_mm), *size, 3), np.float32)
-    if contact is None:
-        frames[:] = _area_down((albedo[..., None] * base.transpose(1, 2, 0))[None].astype(np.float32), size)
-        return frames
-    c = _contact(view, **contact)
-    valid = view.valid[..., None]
-    base_t = np.where(valid, base.transpose(1, 2, 0), 0.0).astype(np.float32)
-    shade = np.where(valid, (gain * c.shading).transpose(1, 2, 0), 0.0).astype(np.float32)
-    px, py = c.per_indent[..., 0].astype(np.float32), c.per_indent[..., 1].astype(np.float32)
-    sx, sy = c.per_shear[..., 0].astype(np.float32), c.per_shear[..., 1].astype(np.float32)
-    indent, shear = np.asarray(indent_mm, np.float32), np.asarray(shear_mm, np.float32)
-    seen = np.empty((CHUNK, *big, 1), np.float32)
-    for start in range(0, len(indent), CHUNK):
-        stop = min(start + CHUNK, len(indent))
+    frames = np.empty((len(coef), *size, 3), np.float32)
+    seen = np.empty((CHUNK, *big, 3), np.float32)
+    for start in range(0, len(coef), CHUNK):
+        stop = min(start + CHUNK, len(coef))
         for k in range(start, stop):
-            a, s = indent[k], shear[k]
-            seen[k - start, ..., 0] = cv2.remap(
-                albedo, x + a * px + s * sx, y + a * py + s * sy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+            i = min(int(position[k]), len(offsets) - 2) if len(offsets) > 1 else 0
+            frac = np.float32(position[k] - i)
+            near = np.tensordot(coef[k], shift[i], 1)
+            far = np.tensordot(coef[k], shift[min(i + 1, len(offsets) - 1)], 1)
+            move = near + frac * (far - near)
+            wall = cv2.remap(
+                texture, x + move[..., 0], y + move[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
             )
-        light = base_t[None] + indent[start:stop, None, None, None] * shade[None]
-        frames[start:stop] = _area_down(seen[: stop - start] * np.maximum(light, 0.0), size)
+            tilt_near = np.tensordot(coef[k], shading[i], 1)
+            tilt = tilt_near + frac * (np.tensordot(coef[k], shading[min(i + 1, len(offsets) - 1)], 1) - tilt_near)
+            seen[k - start] = np.maximum(wall[..., :3] + wall[..., 3:] * tilt.transpose(1, 2, 0), 0.0)
+        frames[start:stop] = _area_down(seen[: stop - start], size)
     return frames
 
 
 def trial_contact(scene: Scene, nz: Nuisance, rng: np.random.Generator) -> dict:
-    """The trial's patch on the wall: centre (s, c mm), fold direction and ridge (the trial's draws)."""
-    along, across, ridge = patch_geometry(scene.fabric, nz.fold)
+    """The trial's patch on the wall: centre (s, c mm), its geometry, fold direction and ridge, and the
+    cloth's texture (the trial's draws)."""
+    patch = patch_geometry(scene.fabric, nz.fold)
     fold_angle = np.pi / 2 + rng.normal(0.0, cal.FOLD_ANGLE_SPREAD_RAD)  # the fold runs roughly along the finger
-    radii, profile, _, _ = inner_profile(cal.GRASP_FORCE_N)
+    a, _ = hertz(cal.GRASP_FORCE_N)
+    radii, profile, _ = inner_profile(round(a * patch.along, 2))  # [numerics] as `_contact`
     half = float(np.interp(0.5, profile[::-1], radii[::-1]))  # half-displacement radius
-    ridge_offset = rng.uniform(-1.0, 1.0) * half * across
-    stack_mm = 2.0 * scene.fabric.thickness_mm * nz.fold if scene.fabric.is_fabric else 0.0
+    ridge_offset = rng.uniform(-1.0, 1.0) * half * patch.across / patch.along
     # a thicker stack stops the closing fingers earlier, so the contact lands further towards the tip
-    axial = cal.CONTACT_AXIAL_MM + cal.CONTACT_SHIFT_PER_STACK_MM * stack_mm
+    axial = cal.CONTACT_AXIAL_MM + cal.CONTACT_SHIFT_PER_STACK_MM * patch.stack_mm
     centre = np.array([CAP_ARC_MM + cal.SHELL_CYLINDER_MM - axial, 0.0]) + nz.contact_offset_mm
-    width = max(stack_mm, cal.FLAKE_SIZE_MM) if scene.fabric.is_fabric else 1.0
+    width = max(patch.stack_mm, cal.FLAKE_SIZE_MM) if scene.fabric.is_fabric else 1.0
+    amplitude, wavelength = texture_relief(scene.fabric)
     return dict(
-        centre_sc=centre,
+        patch=patch,
+        centre_s=float(centre[0]),
+        centre_c=float(centre[1]),
         fold_angle=float(fold_angle),
-        along=along,
-        across=across,
-        ridge=ridge,
         ridge_offset=float(ridge_offset),
         ridge_width=float(width),
+        texture_amplitude=amplitude,
+        texture_wavelength=wavelength,
     )
-
-
-def loads_mm(normal_n: np.ndarray, shear_n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The inner wall's centre indentation (Hertz: a^2 / R ~ F^(2/3)) and shear (F_t over the
-    shell's shear stiffness), both as the layer passes them to the inner wall, mm per frame."""
-    _, _, indent_ref, share = inner_profile(cal.GRASP_FORCE_N)
-    indent = indent_ref * (np.maximum(normal_n, 0.0) / cal.GRASP_FORCE_N) ** (2 / 3)
-    return share * indent, share * np.asarray(shear_n) / cal.SHELL_SHEAR_STIFFNESS_N_MM
 
 
 def quantise(frames: np.ndarray, size: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
@@ -388,16 +525,26 @@ def quantise(frames: np.ndarray, size: tuple[int, int], rng: np.random.Generator
 
 
 def reference(scene: Scene) -> np.ndarray:
-    """uint8 (H, W, 3): the no-contact frame `scene`'s day takes as its reference (one frame after
-    the camera's warm-up, with its noise), e.g. the reference of a force proxy."""
-    clean = physical_frames(scene, np.zeros(1), np.zeros(1))
-    return quantise(clean, scene.image_size, scene.rng("minsight_reference", "day"))[0]
+    """uint8 (R, H, W, 3): the `archive.REFERENCE_FRAMES` no-contact frames `scene`'s session takes
+    as its reference (each with its own noise; the features average them)."""
+    clean = np.broadcast_to(no_contact_frame(scene), (archive.REFERENCE_FRAMES, *scene.image_size, 3))
+    return quantise(np.ascontiguousarray(clean), scene.image_size, scene.rng("minsight_reference", "day"))
+
+
+def stroke_frames(
+    scene: Scene,
+    motion: Motion,
+    frame_t: np.ndarray,
+    nz: Nuisance,
+    rng: np.random.Generator,
+    size: tuple[int, int] | None = None,
+) -> np.ndarray:
+    """Noise-free float32 frames (T, h, w, 3) in DN of the trial at the frame times (its patch drawn
+    from `rng`, as `render` draws it)."""
+    contact = trial_contact(scene, nz, rng)
+    return physical_frames(scene, frame_loads(motion, frame_t, contact), contact, size)
 
 
 def render(scene: Scene, motion: Motion, frame_t: np.ndarray, nz: Nuisance, rng: np.random.Generator) -> np.ndarray:
     """uint8 frames (T, H, W, 3) at the frame times."""
-    contact = trial_contact(scene, nz, rng)
-    normal = np.interp(frame_t, motion.t, motion.normal_n)
-    shear = np.interp(frame_t, motion.t, motion.shear_n)
-    indent, drag = loads_mm(normal, shear)
-    return quantise(physical_frames(scene, indent, drag, contact), scene.image_size, rng)
+    return quantise(stroke_frames(scene, motion, frame_t, nz, rng), scene.image_size, rng)

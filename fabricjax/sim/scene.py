@@ -47,7 +47,7 @@ SCOPES = ("hardware", "fabric", "day", "trial")
 # The simulator's version, part of every simulated archive's scene (`Scene.to_json`): a dataset
 # written by another version is simulated again (`dataset.is_done`). Raised with every change of
 # how a scene is simulated; a change of a magnitude changes `MAGNITUDES` instead. [numerics]
-SIMULATOR_VERSION = 2
+SIMULATOR_VERSION = 3
 
 
 def magnitudes(besides: str | None = None) -> str:

@@ -187,16 +187,18 @@ def simulate(scene: Scene) -> archive.TrialArchive:
             force=force,
             audio=audio,
             images=images,
-            reference=None if images is None else minsight.reference(scene)[None],
+            reference=None if images is None else minsight.reference(scene),
         )
     )
 
 
 def reference_meta(scene: Scene) -> dict:
-    """`meta.reference` of a simulated trial: its session (day and condition) took one no-contact
-    frame at its start, as Minsight's camera node does after its warm-up (`minsight.reference`)."""
+    """`meta.reference` of a simulated trial: its session (day and condition) took
+    `archive.REFERENCE_FRAMES` no-contact frames at its start, after the camera's warm-up, as the
+    recorder does (`minsight.reference`)."""
     return {
-        "how": "simulated: one no-contact frame after the camera's warm-up, at the session's start",
+        "how": f"simulated: {archive.REFERENCE_FRAMES} no-contact frames after the camera's warm-up, at the "
+        "session's start",
         "session": f"day{scene.day}_{scene.condition}",
         "times_s": None,
     }
