@@ -434,3 +434,47 @@ def ranked_bars(
         ax.axis("off")
     fig.suptitle(title, fontsize=13)
     return _save(fig, path)
+
+
+def plot_difference_panels(
+    path,
+    blocks: Sequence[Sequence[Sequence[tuple[str, np.ndarray]]]],
+    vmax: float,
+    linear: float,
+    label: str,
+    title: str,
+) -> Path:
+    """Images of signed values on one diverging colour scale shared by every panel, white at 0:
+    linear within +-`linear` and logarithmic beyond it up to +-`vmax`, so that differences a few
+    times `linear` stay visible beside ones a hundred times larger. `blocks` are groups of panels
+    set side by side with a narrow gap between groups, each a list of rows of (title, (h, w)
+    image). Pixels are drawn as squares without smoothing, so a small image shows its own pixels."""
+    from matplotlib.colors import SymLogNorm
+
+    rows = max(len(b) for b in blocks)
+    widths = [len(b[0]) for b in blocks]
+    ratios = [r for i, w in enumerate(widths) for r in ([0.12] if i else []) + [1.0] * w]
+    fig, axes = plt.subplots(
+        rows,
+        len(ratios),
+        figsize=(3.3 * sum(ratios) + 1.4, 2.75 * rows + 0.7),
+        layout="constrained",
+        squeeze=False,
+        gridspec_kw={"width_ratios": ratios},
+    )
+    for ax in axes.flat:
+        ax.axis("off")
+    norm = SymLogNorm(linthresh=linear, linscale=1.0, vmin=-vmax, vmax=vmax, base=10)
+    shown, col = None, 0
+    for i, block in enumerate(blocks):
+        col += 1 if i else 0
+        for r, panels in enumerate(block):
+            for c, (name, image) in enumerate(panels):
+                ax = axes[r, col + c]
+                shown = ax.imshow(image, cmap="RdBu_r", norm=norm, interpolation="nearest")
+                ax.set_title(name, fontsize=9)
+        col += len(block[0])
+    if shown is not None:
+        fig.colorbar(shown, ax=axes, shrink=0.85, label=label, extend="both")
+    fig.suptitle(title, fontsize=11)
+    return _save(fig, path)

@@ -342,6 +342,7 @@ def _drive() -> None:
     import fabricjax.integrity  # noqa: F401
     import fabricjax.sim  # noqa: F401
     import fabricjax.studies.extra.calibrate  # noqa: F401
+    import fabricjax.studies.extra.camera_frames  # noqa: F401
     import fabricjax.studies.extra.flow_agreement  # noqa: F401
     import fabricjax.studies.extra.palm  # noqa: F401
     import fabricjax.studies.extra.sweep  # noqa: F401

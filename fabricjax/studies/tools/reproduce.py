@@ -10,8 +10,9 @@ the PSD bandwidth (5), cafe noise (10, as the paper), property perception (5, sa
 checkpoints) and the latent t-SNE from the property study's checkpoint of its Minsound + proprioception + Minsight row,
 then the
 decision study (calibration, when to stop rubbing, unknown fabrics) on the ablation's checkpoints
-of the row the paper calls best and of Minsound alone (`DECIDE_ROWS`; no training). The dataset is simulated once (or
-read from
+of the row the paper calls best and of Minsound alone (`DECIDE_ROWS`; no training), and last what Minsight's
+camera sees of a stroke (`camera_frames`: the simulator's frames, no data, no training). The dataset is simulated once
+(or read from
 `data_dir`), features and compiled programs are cached, checkpoints resume, so every study after
 the first pays only for its training.
 
@@ -43,7 +44,7 @@ On recorded data the plan follows what the data has (`fit_plan`): a study's rows
 stream the data lacks are left out, a study none of whose rows it can feed is skipped, and the
 studies of the paper's protocol (`PROTOCOL`: cafe noise needs cafe-split trials, the property study
 held-out fabrics, the latents the property study, the decision study the ablation) are skipped when the data has no such
-trials,
+trials, and the studies of the simulator itself (`SIMULATOR_ONLY`: the camera frames) always,
 each with one line saying why.
 """
 
@@ -65,7 +66,7 @@ from fabricjax.config import format_override
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, findings, runner
 from fabricjax.studies.common.plan import rates as training_rates
-from fabricjax.studies.extra import day_shift, decide, probe, sensitivity
+from fabricjax.studies.extra import camera_frames, day_shift, decide, probe, sensitivity
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
 from fabricjax.workspace import Location
 
@@ -78,13 +79,15 @@ STUDIES = {
     "properties": properties,
     "latents": latents,
     "decide": decide,
+    "camera_frames": camera_frames,
 }
 UPSTREAM = {
     "latents": "properties",
     "day_shift": "probe",
     "decide": "ablation",
 }  # a study -> the study whose results it reads
-UNSEEDED = ("probe", "day_shift")  # deterministic studies of no paper table: no seeds, no claims
+UNSEEDED = ("probe", "day_shift", "camera_frames")  # deterministic studies of no paper table: no seeds, no claims
+SIMULATOR_ONLY = ("camera_frames",)  # studies of the simulator itself: skipped on recorded data
 LATENT_ROW = properties.ROWS[
     -1
 ].name  # the paper's figure: its "Minsound + Minsight" model, which also reads proprioception
@@ -124,6 +127,7 @@ PLAN = (
     Step("properties", 5),
     Step("latents"),
     Step("decide", rows=DECIDE_ROWS),
+    Step("camera_frames"),
 )
 # The studies that need trials of the paper's protocol: the split they read, and what it is
 PROTOCOL = {
@@ -382,6 +386,9 @@ def fit_plan(plan: Sequence[Step], preset: str, data_dir, workdir, say: Callable
     roles = set(splits.assign_roles([e.meta for e in index.entries], presets.get(preset).dataset.splits))
     out: list[Step] = []
     for step in plan:
+        if step.study in SIMULATOR_ONLY:
+            say(f"  {step.study:<11} skip  (it draws the simulator's frames, not the data's)")
+            continue
         if step.study == "latents" and not any(s.study == "properties" for s in out):
             say("  latents     skip  (it reads the property study's checkpoint, which this data does not train)")
             continue

@@ -1,0 +1,355 @@
+"""What Minsight's camera sees of a stroke: one moment on four fabrics, and on three days of one.
+
+    python -m experiments.camera_frames --results=results
+
+Minsight's camera looks at the inside of the silicone fingertip (`sim/minsight.py`); a model reads
+its frames minus the session's no-contact reference (`Config.image_reference="session"`). This
+study draws that difference so that a reader can judge by eye what the contact changes, and asks
+whether a fabric changes it more than a new recording day does.
+
+The moment: in each trial, the camera frame of rubbing cycle `CYCLE` (the second) at which the
+thumb's lateral displacement (`Motion.finger_mm`) is largest (`moment`): the same point of the stroke in
+every trial, each at its own time. The trials: trial 0 (lab) of each of `FABRICS` (a thin smooth
+weave, denim, fleece, corduroy) on day 1, and of denim (`DAY_FABRIC`) on each of `DAYS` (the
+paper's two training days and its test day), each scene as the preset simulates it
+(`sim.dataset.scene_for`: its cycles per trial, its estimates in force). Each panel is the
+noise-free frame (`minsight.stroke_frames`, with the trial's contact draws) minus its day's
+noise-free no-contact frame (`minsight.no_contact_frame`, what the session's averaged reference
+converges to), both rendered at each of `SIZES`, and shown as the mean of the three colour
+channels' differences. The camera's shot noise is left out, so that the form of the difference
+is visible; its level at each size is stated beside it (`noise_levels`).
+
+Numbers, all from the panels' arrays: per panel its largest |difference| and its RMS over the
+pixels; per size, the RMS difference between two panels (`pair_rms`), pooled over the 6 pairs of
+fabrics and over the 3 pairs of denim's days (`compare`), and which is larger. Both kinds of pair
+differ in the trial's own draws too (contact place, fold, speed), so the day pairs hold the
+trial-to-trial variation of one fabric besides the day's camera.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from fabricjax import archive, atomic, catalog, plots, presets, splits
+from fabricjax.errors import UserError
+from fabricjax.sim import Scene, minsight, trial
+from fabricjax.sim import dataset as sim_dataset
+from fabricjax.sim.motion import Motion
+from fabricjax.studies.common import documents
+from fabricjax.workspace import Location
+
+STUDY = "camera_frames"
+TITLE, PAPER = "What Minsight's camera sees of a stroke", "not in the paper"
+FABRICS = (12, 1, 10, 9)  # real silk, cotton denim, polar fleece, corduroy
+DAY_FABRIC = 1  # cotton denim
+DAYS = (1, 2, 3)  # the paper's training days and its test day
+SIZES = ((60, 80), (308, 410))
+CYCLE = 2  # the rubbing cycle whose moment is shown: past the first stroke's start from rest
+STREAMS = ("audio", "proprio", "images")
+LABEL = "frame - session reference (DN)"
+CHANNELS = "mean of the R, G and B differences"
+
+
+def moment(motion: Motion, frame_times: np.ndarray, cycle: int = CYCLE) -> int:
+    """Index of the frame (of `frame_times`, s) within rubbing cycle `cycle` (1: the first) at which
+    the thumb is furthest out (largest `finger_mm`). A stroke goes out first, so a cycle starts
+    where `finger_mm` crosses zero upward after rubbing starts, the first at the start itself."""
+    t, x = np.asarray(motion.t), np.asarray(motion.finger_mm)
+    rubbing = t[1:] >= motion.rubbing_start_s
+    up = np.flatnonzero(rubbing & (x[:-1] < 0) & (x[1:] >= 0)) + 1
+    starts = np.concatenate([[motion.rubbing_start_s], t[up]])
+    if cycle < 1 or len(starts) <= cycle:
+        raise ValueError(f"rubbing cycle {cycle} is not in this trial: it rubs {len(starts) - 1} whole cycles")
+    frame_times = np.asarray(frame_times)
+    inside = np.flatnonzero((frame_times >= starts[cycle - 1]) & (frame_times < starts[cycle]))
+    if not len(inside):
+        raise ValueError(f"no camera frame falls within rubbing cycle {cycle}")
+    return int(inside[np.argmax(np.interp(frame_times[inside], t, x))])
+
+
+def shown(difference: np.ndarray) -> np.ndarray:
+    """(h, w) float64: what a panel shows of a (h, w, 3) difference in DN (`CHANNELS`)."""
+    return np.asarray(difference, np.float64).mean(axis=-1)
+
+
+def pair_rms(images: Sequence[np.ndarray]) -> float:
+    """Root mean square over the pixels and over every pair of `images` of their difference."""
+    pairs = list(itertools.combinations(images, 2))
+    if not pairs:
+        raise ValueError("need at least two images to compare")
+    return float(np.sqrt(np.mean([np.mean((a - b) ** 2) for a, b in pairs])))
+
+
+def compare(fabrics: Sequence[np.ndarray], days: Sequence[np.ndarray]) -> dict[str, Any]:
+    """The RMS difference between the fabrics' panels and between one fabric's days' panels (one
+    size), and which is larger."""
+    f, d = pair_rms(fabrics), pair_rms(days)
+    return {
+        "fabric_rms_dn": f,
+        "fabric_pairs": len(fabrics) * (len(fabrics) - 1) // 2,
+        "day_rms_dn": d,
+        "day_pairs": len(days) * (len(days) - 1) // 2,
+        "fabric_over_day": f / d if d > 0 else None,
+        "larger": "fabric" if f > d else "day" if d > f else "neither",
+    }
+
+
+def panel_numbers(image: np.ndarray) -> dict[str, float]:
+    return {"max_abs_dn": float(np.abs(image).max()), "rms_dn": float(np.sqrt(np.mean(image**2)))}
+
+
+def noise_levels(reference: np.ndarray, size: tuple[int, int]) -> dict[str, float]:
+    """The camera's shot noise (DN) at `size` over the pixels the shell fills (no-contact frame
+    above 0 DN), per pixel and channel of one frame (`minsight._noise_sigma`), and of what a panel
+    shows were the frames recorded: the mean of three channels (sigma / sqrt 3) of one frame minus a
+    reference averaged over `archive.REFERENCE_FRAMES` frames. Also how many pixels of the
+    no-contact frame lie below 0 DN, and its least value."""
+    sigma = minsight._noise_sigma(np.asarray(reference, np.float32), size)
+    filled = np.asarray(reference).max(axis=-1) > 0
+    per_channel = sigma[filled]
+    panel = np.sqrt(np.mean(per_channel**2, axis=-1) / 3 * (1 + 1 / archive.REFERENCE_FRAMES))
+    return {
+        "channel_median_dn": float(np.median(per_channel)),
+        "channel_max_dn": float(per_channel.max()),
+        "panel_median_dn": float(np.median(panel)),
+        # light cannot be negative: such pixels differ from any frame without any contact
+        "reference_below_zero_px": int((np.asarray(reference).min(axis=-1) < 0).sum()),
+        "reference_min_dn": float(np.asarray(reference).min()),
+    }
+
+
+def _scene(preset: str, fabric_id: int, day: int) -> Scene:
+    spec = splits.TrialSpec(fabric_id, day, 0, "lab")
+    return sim_dataset.scene_for(spec, presets.get(preset).dataset, STREAMS)
+
+
+def render(scene: Scene, sizes: Sequence[tuple[int, int]]) -> tuple[dict[str, Any], dict, dict]:
+    """The chosen moment of `scene`'s trial ({frame, t_s, finger_mm, normal_n, shear_n}), and per
+    size the (h, w, 3) difference from the no-contact frame and the no-contact frame itself."""
+    trial.use_estimates(scene.estimates)
+    proc = trial.procedure(scene)
+    k = moment(proc.motion, proc.frame_times)
+    t = proc.frame_times[k : k + 1]
+    m = proc.motion
+    when = {
+        "frame": k,
+        "t_s": float(t[0]),
+        **{f: float(np.interp(t[0], m.t, getattr(m, f))) for f in ("finger_mm", "normal_n", "shear_n")},
+    }
+    diffs, refs = {}, {}
+    for size in sizes:
+        frame = minsight.stroke_frames(scene, m, t, proc.nuisance, scene.rng("minsight", "trial"), size=size)[0]
+        refs[size] = minsight.no_contact_frame(scene, size=size)
+        diffs[size] = frame - refs[size]
+    return when, diffs, refs
+
+
+def _name(fabric_id: int) -> str:
+    return catalog.fabric(fabric_id).name
+
+
+def _size(size: Sequence[int]) -> str:
+    return f"{size[0]}x{size[1]}"
+
+
+def run(
+    *,
+    preset: str = "default",
+    rows: Sequence[str] | None = None,
+    overrides: Mapping[str, Any] | None = None,
+    sizes: Sequence[tuple[int, int]] = SIZES,
+    where: Location = Location(),
+) -> dict[str, Any]:
+    """Render every panel, compare them, draw results/camera_frames.png and write
+    results/camera_frames.{md,json}; returns the JSON. `rows` and `overrides` are what `reproduce`
+    passes every study: this one has no rows, and `Config` fields (training settings) do not change
+    the simulator's frames, so the overrides are only recorded."""
+    if rows:
+        raise UserError(f"{STUDY} has no rows to choose, got --rows={','.join(rows)}")
+    if where.data_dir:
+        raise UserError(f"{STUDY} draws the simulator's frames: --data_dir has no say in it")
+    presets.get(preset)
+    sizes = [tuple(int(v) for v in s) for s in sizes]
+    t0 = time.perf_counter()
+    keys = [*((f, 1) for f in FABRICS), *((DAY_FABRIC, d) for d in DAYS if (DAY_FABRIC, d) != (DAY_FABRIC, 1))]
+    rendered = {key: render(_scene(preset, *key), sizes) for key in keys}
+    images = {(key, size): shown(rendered[key][1][size]) for key in keys for size in sizes}
+
+    panels, comparison, noise = [], {}, {}
+    for size in sizes:
+        block = [((f, 1), "fabric") for f in FABRICS] + [((DAY_FABRIC, d), "day") for d in DAYS]
+        for (fabric, day), kind in block:
+            panels.append(
+                {
+                    "block": kind,
+                    "fabric": fabric,
+                    "name": _name(fabric),
+                    "day": day,
+                    "size": list(size),
+                    **rendered[(fabric, day)][0],
+                    **panel_numbers(images[((fabric, day), size)]),
+                }
+            )
+        comparison[_size(size)] = compare(
+            [images[((f, 1), size)] for f in FABRICS], [images[((DAY_FABRIC, d), size)] for d in DAYS]
+        )
+        noise[_size(size)] = noise_levels(rendered[(DAY_FABRIC, 1)][2][size], size)
+    # the colour scale: linear up to the noise a recorded panel of the smallest size would carry, so
+    # that what lies below any camera's noise is not stretched, logarithmic beyond up to the largest |difference|
+    linear = min(n["panel_median_dn"] for n in noise.values())
+    vmax = max(max(p["max_abs_dn"] for p in panels), 10 * linear)
+    blocks = [
+        [[(f"{_name(f)}, {_size(size)}, day 1", images[((f, 1), size)]) for f in FABRICS] for size in sizes],
+        [
+            [(f"{_name(DAY_FABRIC)}, {_size(size)}, day {d}", images[((DAY_FABRIC, d), size)]) for d in DAYS]
+            for size in sizes
+        ],
+    ]
+    path = where.results_dir() / f"{STUDY}.png"
+    with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
+        png = plots.plot_difference_panels(
+            path,
+            blocks,
+            vmax,
+            linear,
+            LABEL,
+            f"Minsight, noise-free, at the largest thumb displacement of rubbing cycle {CYCLE} ({CHANNELS})",
+        )
+        doc = {
+            **documents.header(
+                STUDY,
+                command=where.command,
+                preset=preset,
+                overrides=dict(overrides or {}),
+                fabrics=list(FABRICS),
+                day_fabric=DAY_FABRIC,
+                days=list(DAYS),
+                sizes=[list(s) for s in sizes],
+                cycle=CYCLE,
+                channels=CHANNELS,
+                colour_limit_dn=vmax,
+                colour_linear_dn=linear,
+                wall_s=time.perf_counter() - t0,
+            ),
+            "panels": panels,
+            "comparison": comparison,
+            "noise": noise,
+        }
+        return documents.write(where.results_dir(), doc, markdown, [png])
+
+
+def verdict(c: Mapping[str, Any]) -> str:
+    """Which RMS difference is larger, in words."""
+    if c["larger"] == "neither":
+        return "neither is larger"
+    ratio = f" ({c['fabric_over_day']:.2f} times)" if c["fabric_over_day"] is not None else ""
+    return (
+        f"the fabrics differ more than denim's days{ratio}"
+        if c["larger"] == "fabric"
+        else (f"denim's days differ more than the fabrics{ratio}")
+    )
+
+
+def markdown(doc: dict[str, Any]) -> str:
+    days = ", ".join(str(d) for d in doc["days"])
+    fabrics = ", ".join(f"{f} {_name(f)}" for f in doc["fabrics"])
+    lines = [
+        f"# {TITLE}",
+        "",
+        documents.header_markdown(doc, f"{doc['wall_s']:.0f} s"),
+        f"![Minsight frames minus the session reference]({STUDY}.png)",
+        "",
+        f"What Minsight's camera sees at one moment of a stroke: the frame of rubbing cycle {doc['cycle']} at "
+        "which the thumb's lateral displacement (`motion.finger_mm`) is largest, minus the same day's "
+        "no-contact frame (what the session's reference converges to). Left: trial 0 (lab) of each of the "
+        f"fabrics {fabrics} on day 1; right: {_name(doc['day_fabric'])} on days {days} (the first the same "
+        f"panel as on the left), each row at one size ({', '.join(_size(s) for s in doc['sizes'])}). Each "
+        f"panel shows the {doc['channels']}, on one colour scale for all panels: linear within "
+        f"±{doc['colour_linear_dn']:.2f} DN (the noise a recorded panel of the smallest size would carry, "
+        f"last table), logarithmic beyond it up to ±{doc['colour_limit_dn']:.1f} DN (the largest |difference| "
+        "of any panel). The frames are "
+        "noise-free: the camera's shot noise is left out, so that the form of the difference is visible; "
+        "its level is in the last table. Every trial is the preset's own scene, each at its own frame time.",
+        "",
+        "## Fabric against day",
+        "",
+        "RMS over the pixels of the difference between two panels of one size, pooled (root mean square) "
+        "over the pairs: the fabrics' pairs (day 1) and the pairs of denim's days. Both also differ in "
+        "the trial's own draws (where the contact lands, the fold, the speed).",
+        "",
+        documents.markdown_table(
+            ["Size", "Fabrics: RMS difference [DN]", "Denim's days: RMS difference [DN]", "Larger"],
+            [
+                [
+                    size,
+                    f"{c['fabric_rms_dn']:.2f} ({c['fabric_pairs']} pairs)",
+                    f"{c['day_rms_dn']:.2f} ({c['day_pairs']} pairs)",
+                    verdict(c),
+                ]
+                for size, c in doc["comparison"].items()
+            ],
+        ),
+        "## Each panel",
+        "",
+        documents.markdown_table(
+            [
+                "Panel",
+                "Size",
+                "Fabric",
+                "Day",
+                "Frame",
+                "t [s]",
+                "finger [mm]",
+                "normal [N]",
+                "shear [N]",
+                "max |difference| [DN]",
+                "RMS [DN]",
+            ],
+            [
+                [
+                    "fabrics" if p["block"] == "fabric" else "days",
+                    _size(p["size"]),
+                    f"{p['fabric']} {p['name']}",
+                    p["day"],
+                    p["frame"],
+                    f"{p['t_s']:.3f}",
+                    f"{p['finger_mm']:.2f}",
+                    f"{p['normal_n']:.3f}",
+                    f"{p['shear_n']:+.3f}",
+                    f"{p['max_abs_dn']:.2f}",
+                    f"{p['rms_dn']:.2f}",
+                ]
+                for p in doc["panels"]
+            ],
+        ),
+        "## The noise the figure leaves out",
+        "",
+        f"The camera's shot noise (`minsight._noise_sigma`) on {_name(doc['day_fabric'])}'s day-1 no-contact "
+        "frame, over the pixels the shell fills: per pixel and channel of one frame, and of what a panel "
+        "shows were the frames recorded (the channels' mean, one frame minus a reference averaged over "
+        f"{archive.REFERENCE_FRAMES} frames).",
+        "",
+        documents.markdown_table(
+            ["Size", "Per channel: median [DN]", "Per channel: max [DN]", "Panel: median [DN]"],
+            [
+                [size, f"{n['channel_median_dn']:.2f}", f"{n['channel_max_dn']:.2f}", f"{n['panel_median_dn']:.2f}"]
+                for size, n in doc["noise"].items()
+            ],
+        ),
+    ]
+    below = {size: n for size, n in doc["noise"].items() if n["reference_below_zero_px"]}
+    if below:
+        lines += [
+            "Where the no-contact frame lies below 0 DN, which light cannot, every panel of that day differs "
+            "from 0 without any contact, and those pixels show as isolated dots: "
+            + "; ".join(
+                f"{n['reference_below_zero_px']} pixels at {size} (least {n['reference_min_dn']:.1f} DN)"
+                for size, n in below.items()
+            )
+            + f" ({_name(doc['day_fabric'])}'s day 1).",
+        ]
+    return "\n".join(lines)
