@@ -438,7 +438,7 @@ def no_contact_frame(scene: Scene, size: tuple[int, int] | None = None) -> np.nd
     averaged reference converges to."""
     size = tuple(size or scene.image_size)
     view, gain = _scene_view(scene, render_size(size))
-    rest = (gain * view.albedo[None] * _rest(view)).transpose(1, 2, 0)
+    rest = np.maximum(gain * view.albedo[None] * _rest(view), 0.0).transpose(1, 2, 0)  # as `physical_frames`
     return _area_down(rest[None].astype(np.float32), size)[0]
 
 
