@@ -153,11 +153,12 @@ def test_simulated_trial_through_sdk_opencv_and_tcp(signals, tmp_path):
     assert arch.window_end.min() >= archive.WINDOW
     np.testing.assert_allclose(arch.joints, signals.joints[: arch.n_steps], atol=servos.RAD_PER_COUNT)
     assert arch.images.shape[1:] == (308, 410, 3)
-    assert np.abs(arch.images.astype(float) - signals.images[: arch.n_steps]).mean() < 3  # JPEG round trip
+    # JPEG round trip: the wall's flake grain at mid-scale is fine, bright detail the codec rounds by several DN
+    assert np.abs(arch.images.astype(float) - signals.images[: arch.n_steps]).mean() < 10
     assert arch.force[meta["closing_steps"]] >= 0.1 > arch.force[0]  # the step that stopped the closing
     # the session's no-contact reference, through the same codec, as the force proxy read it
     assert arch.reference.shape == (1, 308, 410, 3) and meta["reference"]["session"] == "day1_lab"
-    assert np.abs(arch.reference[0].astype(float) - signals.reference).mean() < 3
+    assert np.abs(arch.reference[0].astype(float) - signals.reference).mean() < 10
     assert {"p50_ms", "p99_ms", "missed_deadlines"} <= set(meta["step_time"])
 
 
