@@ -219,10 +219,10 @@ CLOTH_DISPLACEMENT_SHARE = estimates.value("CLOTH_DISPLACEMENT_SHARE")
 FOLD_LINE_MM = (estimates.value("FOLD_LINE_NEAR_MM"), estimates.value("FOLD_LINE_FAR_MM"))
 # Paths judged and left out, each bounded by the magnitudes above:
 # * Relief of one face reaching the other fingertip through the stack: through an elastic layer of
-#   thickness d, relief of wavelength lambda decays as exp(-2 pi d / lambda) (see the Minsight
-#   section); at the rubbing speed (<= 40 mm/s) audio frequencies have lambda <= 0.8 mm and the
-#   folded stack is >= 0.16 mm thick (two layers of the thinnest cloth): >= 11 dB down at 50 Hz,
-#   > 100 dB down from 500 Hz.
+#   thickness d, relief of wavenumber k = 2 pi / lambda passes as (1 + kd) e^(-kd) (incompressible,
+#   see the Minsight section; a compressible stack passes less); at the rubbing speed (<= 40 mm/s)
+#   audio frequencies have lambda <= 0.8 mm and the folded stack is >= 0.16 mm thick (two layers of
+#   the thinnest cloth): >= 3.8 dB down at 50 Hz, > 85 dB down from 500 Hz.
 # * Cloth-on-cloth rubbing inside the fold: the motion keeps the cloth in place and the fingertips
 #   slide on it [paper: the hanger holds the cloth], so the two layers move against each other only
 #   by the cloth's stretch under the friction load, mu F_n / stretch_stiffness <= 0.13 N / 0.5 N/mm

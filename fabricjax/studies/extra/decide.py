@@ -275,7 +275,7 @@ def markdown(doc: dict[str, Any]) -> str:
     for m in doc["models"]:
         names = data.inputs_name(m["config"]["modalities"], documents.stream_names(doc))
         lines += [
-            f"## {m['name']} ({names})",
+            f"## {m['name']}" + ("" if names == m["name"] else f" ({names})"),
             "",
             f"- checkpoint: `{m['checkpoint']}`, seed {m['seed']} (best by validation of {m['seeds']}); "
             f"temperature {m['temperature']:.3f} (fitted on the validation split; written beside the checkpoint)",
