@@ -116,3 +116,15 @@ def reference_rotate_batch(key, frames, max_degrees=90.0):
     keys = jax.random.split(key, frames.shape[0])
     angles = jax.vmap(lambda k: jax.random.uniform(k, (), minval=-max_degrees, maxval=max_degrees))(keys)
     return jax.vmap(reference_rotate)(frames, angles)
+
+
+class CountingCamera:
+    """Frames 0, 1, 2, ... (each filled with its index), the way `Camera.read` delivers them; starts
+    with `dropped` frames already counted."""
+
+    def __init__(self, dropped: int = 0):
+        self.count, self.dropped = 0, dropped
+
+    def read(self):
+        self.count += 1
+        return np.full((4, 6, 3), self.count - 1, np.uint8)

@@ -9,6 +9,7 @@ import pytest
 
 from acquisition import camera
 from fabricjax import archive
+from tests.helpers import CountingCamera
 
 
 class _FakeCapture:
@@ -118,20 +119,9 @@ def test_a_file_is_not_sent_camera_controls(fake, caplog):
     assert cam.controls == {} and cam.cap.order == [] and _warnings(caplog) == []
 
 
-class _Frames:
-    """Frames 0, 1, 2, ... (each filled with its index), as `Camera.read` delivers them."""
-
-    def __init__(self):
-        self.count, self.dropped = 0, 0
-
-    def read(self):
-        self.count += 1
-        return np.full((4, 6, 3), self.count - 1, np.uint8)
-
-
 def test_the_reference_defaults_to_archive_reference_frames_and_reads_as_their_mean():
     assert archive.REFERENCE_FRAMES == 30
-    cam = _Frames()
+    cam = CountingCamera()
     ref = camera.take_reference(cam, "day1_lab")
     assert ref.frames.shape == (archive.REFERENCE_FRAMES, 4, 6, 3) and len(ref.taken_at) == archive.REFERENCE_FRAMES
     assert cam.count == camera.WARMUP_FRAMES + archive.REFERENCE_FRAMES

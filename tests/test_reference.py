@@ -9,7 +9,7 @@ import pytest
 from fabricjax import archive, sim
 from fabricjax.config import Config
 from fabricjax.features import extract, images
-from tests.helpers import npz_fields, tiny_archive
+from tests.helpers import CountingCamera, npz_fields, tiny_archive
 
 
 def test_the_reference_survives_a_round_trip(tmp_path):
@@ -128,21 +128,10 @@ def test_session_is_a_reading_of_the_config():
         Config(image_reference="yesterday")
 
 
-class _FakeCamera:
-    """Frames 0, 1, 2, ... (each filled with its index), the way `Camera.read` delivers them."""
-
-    def __init__(self):
-        self.count, self.dropped = 0, 5
-
-    def read(self):
-        self.count += 1
-        return np.full((4, 6, 3), self.count - 1, np.uint8)
-
-
 def test_the_recorder_takes_the_reference_as_minsight_s_node_does():
     from acquisition import camera
 
-    cam = _FakeCamera()
+    cam = CountingCamera(dropped=5)
     ref = camera.take_reference(cam, "day3_lab", n_frames=2)
     # the warm-up frames are discarded, the next frames kept; repeats during the warm-up are not the trial's drops
     assert [int(f[0, 0, 0]) for f in ref.frames] == [
