@@ -525,7 +525,8 @@ COLLIMATOR_HALF_ANGLE_RAD = math.radians(estimates.value("COLLIMATOR_HALF_ANGLE_
 COLLIMATOR_EDGE_RAD = math.radians(estimates.value("COLLIMATOR_EDGE_DEG"))
 # [minsight: NoContact_avg.png, the mould insert's STL] The interior is moulded with radial ridges,
 # about 30 around the circumference, running along the meridians: the reference image shows them as
-# lines radiating from its centre. [estimate] Their relief, a tenth of a millimetre or so (a printed
+# lines radiating from its centre (30 is read off that image; the STL would give the exact count, and
+# one ridge more or less moves their period by 3 %). [estimate] Their relief, a tenth of a millimetre or so (a printed
 # insert's features), tilts the wall to and fro, so each LED lights their flanks differently.
 INTERIOR_RIDGES = 30
 # [cited] The closed shell's aluminium-filled interior reflects much of the light it receives, and the
