@@ -118,8 +118,9 @@ def ensure_dataset(
     folder = workspace.dataset_dir(preset_name, workdir)
     scenes = [scene_for(spec, dataset, streams, seed) for spec in dataset.trials()]
     wanted = {filename(s) for s in scenes}
+    missing = [s for s in scenes if not is_done(folder / filename(s), s)]
     # complete: only read, as readers may at the same time
-    if folder.is_dir() and not _to_write(folder, scenes, wanted):
+    if folder.is_dir() and not missing and not _stray(folder, wanted):
         dataset_index.load_index(folder, workdir)
         return folder
     doing = f"simulating preset {preset_name!r}"
@@ -132,8 +133,9 @@ def ensure_dataset(
             foreign.unlink()
             if progress:
                 print(f"removed {foreign}: the preset {preset_name!r} has no such trial", flush=True)
-        # again under the lock: another run may have written some of them since `_to_write` looked
-        jobs = [(s, str(folder / filename(s))) for s in scenes if not is_done(folder / filename(s), s)]
+        # again under the lock, the missing ones only (a finished archive is never unfinished): another
+        # run may have written some of them since `missing` was taken
+        jobs = [(s, str(folder / filename(s))) for s in missing if not is_done(folder / filename(s), s)]
         workers = workers or os.cpu_count() or 1
         if jobs:
             need = len(jobs) * trial_bytes(dataset, "images" in streams)
@@ -164,11 +166,7 @@ def ensure_dataset(
     return folder
 
 
-def _to_write(folder: Path, scenes: list[Scene], wanted: set[str]) -> bool:
-    """Whether the dataset in `folder` lacks an archive of `scenes`, holds one no scene makes
-    (`wanted`: their file names), or a temporary file of an interrupted write."""
-    return (
-        any(folder.glob(".*.partial"))
-        or any(p.name not in wanted for p in folder.glob("*.npz"))
-        or any(not is_done(folder / filename(s), s) for s in scenes)
-    )
+def _stray(folder: Path, wanted: set[str]) -> bool:
+    """Whether the dataset in `folder` holds an archive that no trial makes (`wanted`: their file
+    names), or a temporary file of an interrupted write."""
+    return any(folder.glob(".*.partial")) or any(p.name not in wanted for p in folder.glob("*.npz"))

@@ -324,13 +324,11 @@ def texture_relief(fabric: catalog.Fabric) -> tuple[float, float]:
     return float(np.sqrt(2) * fabric.roughness_um * 1e-3 * passed), float(wavelength)
 
 
-BASES = ("indent", "shear", "texture_cos", "texture_sin")  # the loads a frame's contact is a sum of
-
-
 @dataclasses.dataclass(frozen=True)
 class _Contact:
-    """Per pixel of a render grid, per unit of each load of `BASES`: where the seen point moves and
-    how the light changes."""
+    """Per pixel of a render grid, per unit of each load a frame's contact is a sum of (B: the
+    indentation, the shear drag, the cloth's relief in cosine and in sine phase): where the seen
+    point moves and how the light changes."""
 
     shift: np.ndarray  # (B, H, W, 2) pixel shift per mm
     shading: np.ndarray  # (B, 3, H, W) irradiance change per mm
@@ -410,12 +408,12 @@ def frame_loads(motion: Motion, frame_t: np.ndarray, contact: dict) -> FrameLoad
 
 
 def _area_down(frames: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """(T, H, W, C) -> (T, h, w, C) mean over each output pixel's k x k block (H = k h, W = k w)."""
-    k = frames.shape[1] // size[0]
-    out = np.zeros((frames.shape[0], *size, frames.shape[3]), np.float32)
+    """(T, C, H, W) -> (T, C, h, w) mean over each output pixel's k x k block (H = k h, W = k w)."""
+    k = frames.shape[2] // size[0]
+    out = np.zeros((*frames.shape[:2], *size), np.float32)
     for di in range(k):
         for dj in range(k):
-            out += frames[:, di::k, dj::k]
+            out += frames[..., di::k, dj::k]
     return out / np.float32(k * k)
 
 
@@ -433,56 +431,80 @@ def _scene_view(scene: Scene, big: tuple[int, int]) -> tuple[_View, np.ndarray]:
     return view, _exposure(scene.seed) * np.asarray(day.led_gain)[:, None, None]
 
 
+def resting_wall(view: _View, gain: np.ndarray) -> np.ndarray:
+    """(3, H, W) DN of the wall at rest: each colour's irradiance (`_rest`) times the flake albedo and
+    the day's DN per unit irradiance (`gain`, `_scene_view`)."""
+    return gain * view.albedo[None] * _rest(view)
+
+
 def no_contact_frame(scene: Scene, size: tuple[int, int] | None = None) -> np.ndarray:
     """Noise-free float32 (h, w, 3) frame in DN of `scene`'s day without contact: what the session's
     averaged reference converges to."""
     size = tuple(size or scene.image_size)
     view, gain = _scene_view(scene, render_size(size))
-    rest = np.maximum(gain * view.albedo[None] * _rest(view), 0.0).transpose(1, 2, 0)  # as `physical_frames`
-    return _area_down(rest[None].astype(np.float32), size)[0]
+    rest = np.maximum(resting_wall(view, gain), 0.0)  # as `physical_frames`
+    return _area_down(rest[None].astype(np.float32), size)[0].transpose(1, 2, 0)
 
 
 def physical_frames(scene: Scene, loads: FrameLoads, contact: dict, size: tuple[int, int] | None = None) -> np.ndarray:
     """Noise-free float32 frames (T, h, w, 3) in DN of `scene`'s day at `size` (the scene's by
     default) under `loads`, rendered on `render_size(size)` and area-averaged down. `contact` is the
     trial's patch (`trial_contact`). The contact's fields are computed at centres `TRAVEL_STEP_MM`
-    apart over the trial's travel and interpolated linearly between them."""
+    apart over the trial's travel and interpolated linearly between them (a trial that does not
+    travel has one centre, and nothing to interpolate)."""
     size = tuple(size or scene.image_size)
     big = render_size(size)
     view, gain = _scene_view(scene, big)
     albedo = np.where(view.valid, view.albedo, 0.0)
-    texture = np.concatenate([(gain * albedo[None] * _rest(view)).transpose(1, 2, 0), albedo[..., None]], -1)
+    texture = np.concatenate([resting_wall(view, gain).transpose(1, 2, 0), albedo[..., None]], -1)
     texture = texture.astype(np.float32)  # (H, W, 4): the resting wall's DN per colour, and its albedo
     step = cal.TRAVEL_STEP_MM
     lo, hi = np.floor(loads.travel_mm.min() / step), np.ceil(loads.travel_mm.max() / step)
     offsets = np.arange(lo, hi + 1) * step
     fields = [_contact(view, contact, contact["centre_c"] + o) for o in offsets]
-    shift = np.stack([f.shift for f in fields])  # (K, B, H, W, 2)
-    shading = np.stack([f.shading * gain[None].astype(np.float32) for f in fields])  # (K, B, 3, H, W)
+    loads_per_field = len(fields[0].shift)
+    # per centre (K) and unit load (B), flat: the pixels' shift (H W 2) and the shading in DN (3 H W)
+    shift = np.stack([f.shift.reshape(loads_per_field, -1) for f in fields])
+    shading = np.stack([(f.shading * gain[None].astype(np.float32)).reshape(loads_per_field, -1) for f in fields])
     amplitude, wavelength = contact["texture_amplitude"], contact["texture_wavelength"]
     phase = 2 * np.pi * loads.slide_mm / wavelength
     coef = np.stack([loads.indent_mm, loads.shear_mm, amplitude * np.cos(phase), amplitude * np.sin(phase)], -1).astype(
         np.float32
     )  # (T, B)
+    travels = len(offsets) > 1
     position = np.clip((loads.travel_mm - offsets[0]) / step, 0, len(offsets) - 1)
+    below = np.minimum(position.astype(np.int64), max(len(offsets) - 2, 0))  # the centre at or below each frame's
+    frac = (position - below).astype(np.float32)[:, None]  # and how far on towards the next
     y, x = np.mgrid[0 : big[0], 0 : big[1]].astype(np.float32)
+    xy = np.stack([x, y], -1)  # (H, W, 2): each pixel's own place in the resting wall's image
     frames = np.empty((len(coef), *size, 3), np.float32)
-    seen = np.empty((CHUNK, *big, 3), np.float32)
+    move, move_next = np.empty((2, CHUNK, shift.shape[-1]), np.float32)
+    tilt, tilt_next = np.empty((2, CHUNK, shading.shape[-1]), np.float32)
+    seen = np.empty((CHUNK, 3, *big), np.float32)
     for start in range(0, len(coef), CHUNK):
-        stop = min(start + CHUNK, len(coef))
-        for k in range(start, stop):
-            i = min(int(position[k]), len(offsets) - 2) if len(offsets) > 1 else 0
-            frac = np.float32(position[k] - i)
-            near = np.tensordot(coef[k], shift[i], 1)
-            far = np.tensordot(coef[k], shift[min(i + 1, len(offsets) - 1)], 1)
-            move = near + frac * (far - near)
-            wall = cv2.remap(
-                texture, x + move[..., 0], y + move[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-            )
-            tilt_near = np.tensordot(coef[k], shading[i], 1)
-            tilt = tilt_near + frac * (np.tensordot(coef[k], shading[min(i + 1, len(offsets) - 1)], 1) - tilt_near)
-            seen[k - start] = np.maximum(wall[..., :3] + wall[..., 3:] * tilt.transpose(1, 2, 0), 0.0)
-        frames[start:stop] = _area_down(seen[: stop - start], size)
+        n = min(CHUNK, len(coef) - start)
+        for k in range(n):  # frame by frame: a product over many frames at once may sum in another order
+            i, load = below[start + k], coef[start + k]
+            np.dot(load, shift[i], out=move[k])
+            np.dot(load, shading[i], out=tilt[k])
+            if travels:
+                np.dot(load, shift[i + 1], out=move_next[k])
+                np.dot(load, shading[i + 1], out=tilt_next[k])
+        if travels:
+            for at, at_next in ((move[:n], move_next[:n]), (tilt[:n], tilt_next[:n])):
+                at_next -= at
+                at_next *= frac[start : start + n]
+                at += at_next
+        # where each pixel sees the resting wall, the chunk's frames stacked as one tall image (each
+        # pixel is sampled on its own), split into planes as the shading is laid out: r, g, b, albedo
+        where = (move[:n].reshape(n, *big, 2) + xy).reshape(n * big[0], big[1], 2)
+        wall = cv2.split(cv2.remap(texture, where, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE))
+        shade = tilt[:n].reshape(n, 3, *big)
+        for colour in range(3):
+            np.multiply(wall[3].reshape(n, *big), shade[:, colour], out=seen[:n, colour])
+            seen[:n, colour] += wall[colour].reshape(n, *big)
+        np.maximum(seen[:n], 0.0, out=seen[:n])
+        frames[start : start + n] = _area_down(seen[:n], size).transpose(0, 2, 3, 1)
     return frames
 
 
