@@ -16,7 +16,7 @@ where no row of the command sets its inputs) and checked before anything runs. R
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import TYPE_CHECKING, Any
 
 from absl import flags
 
@@ -119,9 +119,11 @@ def results_dir() -> Path:
     return workspace.results_dir(FLAGS.results, FLAGS.workdir)
 
 
-def define_rows(row_names: Sequence[str], n_seeds: int) -> None:
-    """The flags of a command that trains rows: --seeds (default `n_seeds`), --preset, --rows
-    (from `row_names`) and --set."""
+def define_rows(study: Study, n_seeds: int) -> None:
+    """The flags of a command that trains rows of `study`: --seeds (default `n_seeds`), --preset,
+    --rows (its rows and groups) and --set."""
+    from fabricjax.studies.common.runner import ALL_ROWS
+
     flags.DEFINE_integer(
         "seeds", n_seeds, "number of seeds (0..n-1) trained together (the study's count by default)", lower_bound=1
     )
@@ -129,8 +131,10 @@ def define_rows(row_names: Sequence[str], n_seeds: int) -> None:
     flags.DEFINE_list(
         "rows",
         None,
-        f"comma-separated rows, each by its name or by the label the tables print, in any case; names: "
-        f"{', '.join(row_names)} (default: every row of the table)",
+        f"comma-separated rows, each by its name or by the label the tables print, in any case, or a group of "
+        f"rows ({', '.join([ALL_ROWS, *study.groups])}); names: {', '.join(study.row_names)} (default: "
+        + (f"the rows {', '.join(study.default_rows)}" if study.default_rows is not None else "every row of the table")
+        + ")",
     )
     define_overrides()
 
@@ -138,7 +142,7 @@ def define_rows(row_names: Sequence[str], n_seeds: int) -> None:
 def study_command(study: Study) -> None:
     """The whole command line of a training study (experiments/ablation.py and its three twins):
     its flags, then `study.run` with them."""
-    define_rows(study.row_names, study.n_seeds)
+    define_rows(study, study.n_seeds)
 
     flags.DEFINE_bool(
         "plan",

@@ -1,6 +1,6 @@
 """A recipe sweep: every grid point on the ablation's rows (see fabricjax/studies/extra/sweep.py).
 
-    python -m experiments.sweep --grid=width=32,64 --grid=epochs=2,4 --seeds=2          # every row
+    python -m experiments.sweep --grid=width=32,64 --grid=epochs=2,4 --seeds=2          # the paper's rows
     python -m experiments.sweep --grid='cnn_features=4,8;8,16' --rows=image,flow --seeds=2
     python -m experiments.sweep --grid=learning_rate=1e-3,2e-3 --set=epochs=4 --results=results
 
@@ -16,7 +16,7 @@ from fabricjax.studies.extra import sweep
 from fabricjax.studies.paper import ablation
 
 FLAGS = absl_flags.FLAGS
-flags.define_rows(ablation.STUDY.row_names, sweep.N_SEEDS)
+flags.define_rows(ablation.STUDY, sweep.N_SEEDS)
 absl_flags.DEFINE_multi_string(
     "grid", [], f"a swept Config field, repeatable (the points are the cartesian product): {sweep.GRID_HELP}"
 )

@@ -13,7 +13,7 @@ Python or from the command line (`--set field=value`).
              model trained briskly (15 epochs of minibatches of 8, a 5-step warm-up) so that Minsound
              lands well above chance: "it learns" is the proof. XLA compilation dominates its time; its reports say
              that they check the install and count none of the paper's claims (`install_check`).
-    default  the README's main command (22-row ablation x 5 seeds) on a 2-core laptop CPU, at the
+    default  the README's main command (the paper's 13-row ablation x 5 seeds) on a 2-core laptop CPU, at the
              paper's data scale: all 24 fabrics, 6 training trials per day, 2 test and 2 cafe
              trials, 50 rubbing cycles per trial (~30 s, ~1500 steps), N=50 (1 s), ~5900 training
              sequences. Minsight frames are 60x80, the paper's image-row input size (it

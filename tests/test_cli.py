@@ -64,7 +64,8 @@ USER_ERRORS = {  # flags -> what the one line must say
     "no_seeds": (["--seeds=0"], r"flag --seeds=0: 0 is not a positive integer"),
     "unknown_row": (
         ["--rows=foo"],
-        r"unknown rows \['foo'\]; choose a row's name or its label, in any case: image \(Minsight image\), ",
+        r"unknown rows \['foo'\]; choose a row's name or its label, in any case, or a group \(all, paper, ours\): "
+        r"image \(Minsight image\), ",
     ),
     "empty_data_dir": (["--data_dir={tmp}/empty"], r"empty: field '<folder>': the folder holds no trial archives"),
     "missing_data_dir": (["--data_dir={tmp}/nope"], r"nope: field '<folder>': dataset folder does not exist"),

@@ -427,9 +427,22 @@ def test_rows_are_chosen_by_name_or_by_the_label_the_tables_print():
     with pytest.raises(UserError) as e:
         runner.select_rows(noise.ROWS, ["Minsound", "audio"])
     assert str(e.value) == (
-        "unknown rows ['audio']; choose a row's name or its label, in any case: internal (Minsound), "
+        "unknown rows ['audio']; choose a row's name or its label, in any case, or a group (all): internal (Minsound), "
         "internal+proprio (Minsound + proprioception), internal+proprio+external (Minsound + proprioception + palm mic)"
     )
+
+
+def test_the_ablation_trains_the_papers_rows_unless_asked_for_a_group():
+    """Without --rows the ablation trains the paper's table; "all", "ours" and "paper" name groups in
+    any case, beside names and labels; an empty --rows is refused, not read as every row."""
+    names = lambda chosen: [r.name for r in chosen]  # noqa: E731
+    assert names(ablation.STUDY.select(None)) == names(ablation.PAPER_ROWS)
+    assert names(ablation.STUDY.select(["ALL"])) == names(ablation.ROWS)
+    assert names(ablation.STUDY.select(["ours"])) == names(ablation.STEP_LAYERNORM_ROWS)
+    assert names(ablation.STUDY.select(["ours", "Minsound"])) == ["internal", *names(ablation.STEP_LAYERNORM_ROWS)]
+    assert names(runner.select_rows(noise.ROWS, None)) == names(noise.ROWS)
+    with pytest.raises(UserError, match="no rows given"):
+        ablation.STUDY.select([])
     # a name or label picks one row in every study: no label repeats, or is another row's name
     for rows in (ablation.ROWS, bandwidth.ROWS, noise.ROWS, properties.ROWS, probe.ROWS, day_shift.ROWS):
         keys = [k.casefold() for r in rows for k in {r.name, r.label}]
@@ -504,9 +517,8 @@ def test_the_ablation_row_counts_the_docs_state_are_the_code_s():
         ],
         "experiments/ablation.py": [f"its {paper} rows and our {variants} fusion-variant rows"],
         "docs/usage.md": [
-            f"{paper - tcn} transformer rows + TCN, and {variants} rows again",
-            f"{len(ablation.ROWS)} rows in all",
-            f"8 points x {len(ablation.ROWS)} rows",
+            f"the paper's {paper - tcn} transformer rows + TCN (`--rows=all` adds {variants} rows again",
+            f"8 points x {len(ablation.STUDY.select(None))} rows",
         ],
     }
     for path, texts in said.items():

@@ -64,13 +64,23 @@ class StudyRow:
         return Config.from_preset(preset, **{**overrides, **self.settings, **(last or {})})
 
 
-def select_rows(rows: Sequence[StudyRow], names: Sequence[str] | None) -> list[StudyRow]:
-    """The rows named in `names` (all when None), in the table's order. Each of `names` is a row's
-    name (what logs and checkpoints call it) or, where no name is, its label (what the tables
-    print, such as "Minsound"), in any case; one that is neither is a one-line error listing the
-    choices."""
-    if not names:
-        return list(rows)
+ALL_ROWS = "all"  # the word --rows takes for every row of a study's table
+
+
+def select_rows(
+    rows: Sequence[StudyRow],
+    names: Sequence[str] | None,
+    groups: Mapping[str, Sequence[str]] | None = None,
+    default: Sequence[str] | None = None,
+) -> list[StudyRow]:
+    """The rows named in `names`, in the table's order; None: the rows named in `default` (every
+    row where it is None). Each of `names` is a row's name (what logs and checkpoints call it),
+    its label (what the tables print, such as "Minsound"), a key of `groups` (a named set of
+    rows, e.g. the ablation's "paper") or `ALL_ROWS`, in any case; one that is none of these, or
+    no name at all (`--rows=`), is a one-line error listing the choices."""
+    groups = {ALL_ROWS: [r.name for r in rows], **{k.casefold(): list(v) for k, v in (groups or {}).items()}}
+    if names is None:
+        names = list(default) if default is not None else groups[ALL_ROWS]
 
     def row(name: str) -> StudyRow | None:
         key = name.casefold()
@@ -78,11 +88,15 @@ def select_rows(rows: Sequence[StudyRow], names: Sequence[str] | None) -> list[S
             (r for r in rows if r.label.casefold() == key), None
         )
 
-    found = {n: row(n) for n in names}
+    wanted = [n for name in names for n in groups.get(name.strip().casefold(), [name])]
+    found = {n: row(n) for n in wanted}
     unknown = [n for n, r in found.items() if r is None]
-    if unknown:
+    if unknown or not wanted:
         choices = ", ".join(r.name if r.label == r.name else f"{r.name} ({r.label})" for r in rows)
-        raise UserError(f"unknown rows {unknown}; choose a row's name or its label, in any case: {choices}")
+        said = f"unknown rows {unknown}" if unknown else "no rows given"
+        raise UserError(
+            f"{said}; choose a row's name or its label, in any case, or a group ({', '.join(groups)}): {choices}"
+        )
     chosen = {r.name for r in found.values()}
     return [r for r in rows if r.name in chosen]
 
@@ -524,6 +538,10 @@ class Study:
     check: Callable[[loading.Dataset], None] | None = None
     recorded_settings: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     recorded_fusions: tuple[str, ...] = ()
+    # named sets of rows that --rows takes as one word (besides `ALL_ROWS`), and the rows trained
+    # when --rows is not given (None: every row)
+    groups: Mapping[str, tuple[str, ...]] = dataclasses.field(default_factory=dict)
+    default_rows: tuple[str, ...] | None = None
 
     def row(self, name: str) -> StudyRow:
         return next(r for r in self.rows if r.name == name)
@@ -531,6 +549,10 @@ class Study:
     @property
     def row_names(self) -> list[str]:
         return [r.name for r in self.rows]
+
+    def select(self, names: Sequence[str] | None) -> list[StudyRow]:
+        """The rows `names` stand for (`select_rows`; None: the study's default rows)."""
+        return select_rows(self.rows, names, self.groups, self.default_rows)
 
     def run(self, **kwargs) -> dict[str, Any]:
         """`run_study(self, **kwargs)`."""
@@ -572,7 +594,7 @@ def run_study(
     overrides = check_overrides(study.name, overrides, study.rows, study.choose_rows)
     if where.data_dir:  # the preset's recipe for recorded data, beneath the command line's
         overrides = {**presets.get(preset).recorded_training, **overrides}
-    chosen = select_rows(study.rows, rows)
+    chosen = study.select(rows)
     if where.data_dir and not rows:  # recorded data: the rows it can feed, the others left out in one line
         chosen = feedable_rows(study.name, chosen, where)
     seeds = seed_list(study.n_seeds if n_seeds is None else n_seeds)

@@ -198,7 +198,7 @@ def run(
     results/sweep.{md,json}; return the JSON."""
     overrides = runner.check_overrides("sweep", overrides, ablation.ROWS, "choose the ablation's rows with --rows")
     grid = check_grid(grid, overrides)
-    chosen = runner.select_rows(ablation.ROWS, rows)
+    chosen = ablation.STUDY.select(rows)
     seeds = runner.seed_list(n_seeds)
     units = plan(preset, grid, overrides, chosen)
 

@@ -332,8 +332,10 @@ def estimate_s(step: Step, preset: str, *manifests: Mapping[str, Any]) -> float 
 
 
 def _n_rows(study: str) -> int:
-    """Rows of a study's whole table (1 for the latents, which have none)."""
-    return len(getattr(STUDIES[study], "ROWS", (None,)))
+    """Rows a study trains without --rows (1 for the latents, which have none)."""
+    module = STUDIES[study]
+    default = getattr(getattr(module, "STUDY", None), "default_rows", None)
+    return len(default if default is not None else getattr(module, "ROWS", (None,)))
 
 
 def _minutes(seconds: float | None) -> str:
