@@ -189,6 +189,7 @@ def on_devices(folder, devices: int, train: bool = False) -> np.ndarray:
     return np.asarray(eval(out.stdout.split("logits", 1)[1]))
 
 
+@pytest.mark.slow  # ~17 s on 2 cores: another device count, in its own process
 def test_a_checkpoint_restores_on_another_device_count(uninterrupted, tmp_path):
     """Saved on this process's one device, restored on two; saved on two, restored on one."""
     assert jax.device_count() == 1

@@ -330,6 +330,7 @@ def test_bench_rejects_unknown_names(tmp_path):
         bench.run(only=["acquisition"], where=Location(results=tmp_path))
 
 
+@pytest.mark.slow  # ~20 s on 2 cores: the benchmark suite's comparison
 def test_comparison_times_every_dtype_against_every_twin_variant(monkeypatch):
     """`compare_with_torch`'s bookkeeping with a stand-in twin (torch is optional): ours in each
     compute dtype against eager and compiled variants, each in float32 and under autocast; a

@@ -190,6 +190,7 @@ def test_a_trivial_level_statistic_does_not_identify_the_fabric():
     assert acc["rms"] <= 0.6 * acc["shape"], acc
 
 
+@pytest.mark.slow  # ~20 s on 2 cores: a generation killed and resumed
 def test_generation_killed_midway_resumes_and_keeps_finished_archives(tmp_path):
     code = (
         "from fabricjax.sim import ensure_dataset; ensure_dataset('smoke', workdir=%r, streams=('audio', "

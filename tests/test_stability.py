@@ -517,6 +517,7 @@ def test_debug_nans_is_read_from_the_environment():
     assert out.stdout.strip().endswith("caught"), out.stderr[-2000:]
 
 
+@pytest.mark.slow  # ~17 s on 2 cores: a command under debug-NaNs
 def test_ablation_command_under_debug_nans(smoke_workdir, tmp_path):
     _command(
         "experiments.ablation",

@@ -390,6 +390,7 @@ print(hashlib.sha256(b"".join(np.asarray(x).tobytes() for x in jax.tree.leaves(r
 """
 
 
+@pytest.mark.slow  # ~20 s on 2 cores: two trainings compiled at two LLVM levels
 def test_the_backend_optimisation_level_changes_no_bit_of_a_trained_model(monkeypatch):
     """`configure_jax` compiles at LLVM level 2 (`runtime.compile_at_backend_level`), where XLA
     builds programs faster; a model trained at XLA's default level 3 has the same parameters, bit

@@ -69,6 +69,7 @@ def command(*args):
     )
 
 
+@pytest.mark.slow  # ~15 s on 2 cores: a Rerun recording written and read back
 def test_view_save_writes_every_sensor_entity_at_every_step(smoke_trial, tmp_path):
     path, trial = smoke_trial
     out = command(path, f"--save={tmp_path / 'trial.rrd'}")
@@ -133,6 +134,7 @@ def test_stream_view_save_logs_each_steps_sensors_and_result(smoke_trial, checkp
     assert len(read["/prediction/probabilities"]["steps"]) == doc["decided_steps"]
 
 
+@pytest.mark.slow  # ~15 s on 2 cores: a Rerun recording written and read back
 def test_record_view_save_logs_the_trial_as_it_is_recorded(checkpoint, tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     args = [
