@@ -3,6 +3,8 @@
 import dataclasses
 import json
 
+import pytest
+
 from fabricjax import catalog, presets
 from fabricjax.config import Config
 from fabricjax.sim import dataset as sim_dataset
@@ -172,3 +174,16 @@ def test_the_paper_presets_rows_say_early_stopping_only_when_it_is_on(tmp_path, 
     (off,) = plan.training([("internal", dataclasses.replace(config, patience=0, patience_steps=0))], 2, 100)
     (on,) = plan.training([("internal", dataclasses.replace(config, patience=3))], 2, 100)
     assert "early stopping" not in off.basis and "(early stopping ends sooner)" in on.basis
+
+
+def test_a_row_with_early_stopping_is_planned_at_the_epochs_its_published_run_went_through(monkeypatch):
+    """The cap of a row's epochs overstates a run that stops early: where its published rate says
+    how many epochs the row went through, the plan counts those (never more than the cap), and says so."""
+    config = dataclasses.replace(rows("paper", ("internal",))[0][1], epochs=13, patience=3)
+    rate = {"per_unit_s": 1e-3, "compile_s": 1.0, "epochs_run": 9.0}
+    monkeypatch.setattr(plan, "_published_rates", lambda: [("a run", {plan.rate_key(config.to_json()): rate})])
+    (stage,) = plan.training([("internal", config)], 2, 100)
+    assert stage.seconds == pytest.approx(1.0 + 1e-3 * 100 * 9 * 2)
+    assert "9 epochs as it ran when published (at most 13)" in stage.basis
+    (capped,) = plan.training([("internal", dataclasses.replace(config, epochs=5))], 2, 100)
+    assert capped.seconds == pytest.approx(1.0 + 1e-3 * 100 * 5 * 2) and "at most 5 epochs" in capped.basis

@@ -24,13 +24,15 @@ import dataclasses
 import json
 import os
 import shutil
+import tempfile
 import time
 import types
+from pathlib import Path
 from typing import Any, Sequence
 
 import cv2
 
-from fabricjax import data, feed, memo, presets, provenance, splits, workspace
+from fabricjax import archive, data, feed, memo, presets, provenance, splits, workspace
 from fabricjax.config import CAMERA_MODALITIES, RATE_NEUTRAL_FIELDS, Config
 from fabricjax.disk import size
 from fabricjax.sim import dataset as sim_dataset
@@ -65,13 +67,18 @@ class Stage:
 def probe(dataset: DatasetSpec, config: Config) -> dict[str, float]:
     """Seconds per simulated step ("simulate") and per frame of each camera feature of `config`
     (its name: flow with OpenCV on one thread, sparsified and pooled; frames downsampled), on this
-    host now: a `PROBE_CYCLES` trial simulated, its features computed once to compile, then timed."""
+    host now: a `PROBE_CYCLES` trial simulated and written as a worker does after its first trial
+    (whose caches serve every later one), its features computed once to compile, then timed."""
     camera = [m for m in config.modalities if m in CAMERA_MODALITIES]
     cycles = dataclasses.replace(dataset, cycles_per_trial=PROBE_CYCLES)
     scene = sim_dataset.scene_for(cycles.trials()[0], cycles, ("audio", "proprio") + (("images",) if camera else ()))
-    t0 = time.perf_counter()
-    trial = simulate(scene)
-    out = {"simulate": (time.perf_counter() - t0) / len(trial.timestamps)}
+    # a worker's first trial fills its caches (rooms, textures, the camera's views) for every later one
+    simulate(scene)
+    with tempfile.TemporaryDirectory() as scratch:
+        t0 = time.perf_counter()
+        trial = simulate(scene)
+        archive.write_archive(Path(scratch) / sim_dataset.filename(scene), trial)  # deflating is part of the cost
+        out = {"simulate": (time.perf_counter() - t0) / len(trial.timestamps)}
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)  # a feature process's one thread (`cache`)
     try:
@@ -128,9 +135,10 @@ def _published_rates() -> list[tuple[str, dict[str, dict[str, float]]]]:
 
 
 def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequences: int) -> list[Stage]:
-    """One stage per row: its grid points (`recipe.points`) times its compilation and the cap of
-    its epochs on `train_sequences` (`loading.epochs_for`; with a patience, early stopping may end
-    sooner) times the published rate of a row with the same inputs and model (`rates`). A row no
+    """One stage per row: its grid points (`recipe.points`) times its compilation and its epochs on
+    `train_sequences` times the published rate of a row with the same inputs and model (`rates`):
+    the cap of its epochs (`loading.epochs_for`), or with a patience the epochs the published run
+    of the row went through, where that is fewer (early stopping ends each run on its own data). A row no
     published run matches is unknown until the run's own progress log gives its ETA."""
     published = _published_rates()
     out = []
@@ -154,13 +162,17 @@ def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequence
                 )
             )
             continue
-        seconds = len(points) * (rate["compile_s"] + rate["per_unit_s"] * train_sequences * epochs * n_seeds)
+        # with early stopping, the epochs the published run of this row went through (its rate's own)
+        expected = min(epochs, rate["epochs_run"]) if early and rate.get("epochs_run") else epochs
+        seconds = len(points) * (rate["compile_s"] + rate["per_unit_s"] * train_sequences * expected * n_seeds)
+        ran = f"{expected:.3g} epochs as it ran when published (at most {epochs}) " if expected != epochs else ""
         out.append(
             Stage(
                 f"training {name}",
                 0,
                 seconds,
-                f"{grid}at most {epochs} epochs {'(early stopping ends sooner) ' if early else ''}"
+                f"{grid}{ran or f'at most {epochs} epochs '}"
+                f"{'(early stopping ends sooner) ' if early and not ran else ''}"
                 f"of {train_sequences} sequences x "
                 f"{n_seeds} seeds at {1e6 * rate['per_unit_s']:.0f} us per sequence, epoch and seed, as "
                 f"measured by {source}",
@@ -190,6 +202,7 @@ def rates(doc: dict[str, Any]) -> dict[str, dict[str, float]]:
         out[rate_key(row["config"])] = {
             "per_unit_s": max(row["wall_s"] - compile_s, 0.0) / max(units, 1),
             "compile_s": compile_s / len(grid),
+            "epochs_run": epochs_run / len(grid),
         }
     return out
 
@@ -212,7 +225,7 @@ def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, wor
             f"simulation ({len(missing)} of {len(scenes)} trials missing)",
             len(missing) * sim_dataset.trial_bytes(spec, bool(camera)),
             len(missing) * steps * costs.get("simulate", 0.0) / workers,
-            f"a {PROBE_CYCLES}-cycle trial simulated just now: {1e3 * costs['simulate']:.1f} ms per step, "
+            f"a {PROBE_CYCLES}-cycle trial simulated and written just now: {1e3 * costs['simulate']:.1f} ms per step, "
             f"{workers} processes"
             if missing
             else "done",
