@@ -234,6 +234,32 @@ def plot_seed_bars(
     return _save(fig, path)
 
 
+def plot_time_to_accuracy(path, curves: Sequence[tuple[str, np.ndarray, np.ndarray]], title: str) -> Path:
+    """Validation accuracy [%] against training seconds, one line per row (`curves`: label, each
+    epoch's end in seconds since the row started training, compilation in the first, and its
+    validation accuracy per seed (seeds, epochs), NaN for an epoch the run did not train): the
+    mean over seeds as a line, each seed's best epoch as a dot (the model the row keeps). Rows
+    share a 0-100 % scale; camera rows (labels naming a camera input) get their own panel, so
+    that neither panel's lines crowd the other's."""
+    camera = [c for c in curves if "Minsight" in c[0] or "optical flow" in c[0]]
+    panels = [p for p in ([c for c in curves if c not in camera], camera) if p]
+    fig, axes = plt.subplots(1, len(panels), figsize=(7.2 * len(panels), 5.0), squeeze=False, layout="constrained")
+    colours = plt.get_cmap("tab20")(np.linspace(0, 1, 20))
+    for ax, panel in zip(axes[0], panels):
+        for i, (label, seconds, per_seed) in enumerate(panel):
+            colour = colours[(2 * i) % 20]
+            mean = 100 * np.nanmean(per_seed, axis=0)
+            ax.plot(seconds, mean, "-", color=colour, lw=1.6, label=label)
+            best = np.nanargmax(np.where(np.isnan(per_seed), -np.inf, per_seed), axis=1)
+            ax.plot(seconds[best], 100 * per_seed[np.arange(len(best)), best], "o", color=colour, ms=3.5, alpha=0.8)
+        ax.set(xlabel="training time [s] (the first epoch includes compiling)", ylabel="validation accuracy [%]")
+        ax.set(ylim=(0, 100), xlim=(0, None))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="lower right")
+    fig.suptitle(title + " (lines: mean over seeds; dots: each seed's best epoch, the model kept)", fontsize=10)
+    return _save(fig, path)
+
+
 def clipped_errors(means: np.ndarray, sds: np.ndarray, low: float = 0.0, high: float = 100.0) -> np.ndarray:
     """(2, n) error bar extents (below, above) of mean ± SD, clipped to the range [low, high] an
     accuracy can take."""

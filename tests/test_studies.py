@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from fabricjax import data, presets, sim, source, stats, train
+from fabricjax import curves, data, presets, sim, source, stats, train
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.studies.common import documents, findings, runner
@@ -49,8 +49,10 @@ def test_ablation_writes_table_statistics_and_confusions(workdir, tmp_path):
     assert w["per_seed"]["pairing"].startswith("per seed") and w["per_seed"]["n_pairs"] == 2
     assert w["per_sample"]["n_pairs"] == 2 * n_test
     assert (tmp_path / "ablation_confusion.png").stat().st_size > 0
+    assert doc["figures"] == ["ablation_confusion.png", "ablation_time_to_accuracy.png"]
+    assert (tmp_path / "ablation_time_to_accuracy.png").stat().st_size > 0
     md = (tmp_path / "ablation.md").read_text()
-    assert "smallest attainable p" in md and "command: `test`" in md
+    assert "smallest attainable p" in md and "command: `test`" in md and "`ablation_time_to_accuracy.png`" in md
     assert (
         "Paper [%]" not in md and "95.06 ± 1.85" not in md
     )  # the install check is not the paper's table: no paper columns
@@ -432,6 +434,27 @@ def test_rows_are_chosen_by_name_or_by_the_label_the_tables_print():
     )
 
 
+def test_a_label_matches_in_any_spacing_around_plus_and_any_order_of_its_inputs():
+    """--rows="Minsound+palm mic", and the noise study's "Minsound + proprioception + palm mic" for the
+    ablation's "Minsound + palm mic + proprioception"; "TCN: " and "(our step-LayerNorm fusion)" still
+    tell rows of the same inputs apart, and no two rows of a study share a label read so."""
+    names = lambda rows, *chosen: [r.name for r in runner.select_rows(rows, chosen)]  # noqa: E731
+    assert names(ablation.ROWS, "Minsound+palm mic") == ["internal+external"]
+    assert names(ablation.ROWS, noise.ROWS[-1].label) == ["internal+external+proprio"]
+    assert names(ablation.ROWS, "TCN:proprioception+Minsound + PALM MIC") == ["tcn:internal+external+proprio"]
+    assert names(ablation.ROWS, "palm mic+minsound (our step-LayerNorm fusion)") == [
+        f"{ablation.STEP_LAYERNORM}:internal+external"
+    ]
+    assert names(probe.ROWS, "Minsound + Minsight image, frames − session reference") == [
+        probe.SESSION + "image+internal"
+    ]
+    for bad in ("Minsound palm mic", "Minsound + palm", "TCN: Minsound + palm mic"):
+        with pytest.raises(UserError, match="unknown rows"):
+            runner.select_rows(ablation.ROWS, [bad])
+    for rows in (ablation.ROWS, noise.ROWS, bandwidth.ROWS, properties.ROWS, probe.ROWS, day_shift.ROWS):
+        assert len({runner.label_key(r.label) for r in rows}) == len(rows)
+
+
 def test_the_ablation_trains_the_papers_rows_unless_asked_for_a_group():
     """Without --rows the ablation trains the paper's table; "all", "ours" and "paper" name groups in
     any case, beside names and labels; an empty --rows is refused, not read as every row."""
@@ -552,7 +575,8 @@ def test_ablation_command_end_to_end(workdir):
         cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True, timeout=300
     )
     results = workdir / "results"  # the default: under the workspace, not in the repository
-    assert out.stdout.strip().splitlines()[-1] == f"wrote {results / 'ablation.json'}, {results / 'ablation.md'}"
+    written = ", ".join(str(results / f) for f in ("ablation.json", "ablation.md", "ablation_time_to_accuracy.png"))
+    assert out.stdout.strip().splitlines()[-1] == f"wrote {written}"
     doc = json.loads((results / "ablation.json").read_text())
     assert [r["name"] for r in doc["rows"]] == ["internal"] and doc["seeds"] == [0]
     assert doc["machine"]["devices"] == ["cpu:0", "cpu:1"]  # --cpu_devices took effect before JAX started
@@ -738,3 +762,15 @@ def test_reproduce_writes_the_readme_block_of_a_scratch_copy(workdir, tmp_path):
         tmp_path / "results" / "nothing.md", block
     )  # no README there: nothing written
     assert not (tmp_path / "results" / "nothing.md").exists()
+
+
+def test_a_rows_time_to_accuracy_is_its_validation_curve_against_its_cumulative_epoch_seconds():
+    """The curve the ablation draws: each trained epoch's end (the epochs' wall times summed) beside
+    every seed's validation accuracy, epochs the run never trained (every seed stopped) left out."""
+    wall = np.array([[3.0, 1.0, 1.0, np.nan]] * 2)
+    val = np.array([[0.2, 0.5, 0.6, np.nan], [0.3, 0.4, 0.7, np.nan]])
+    row = fake_row("a", np.array([0.6, 0.7]), np.zeros((2, 4), int), range(2))
+    row.results.metrics["epochs"] = {curves.WALL_TAG: wall, "val/accuracy/fabric": val}
+    seconds, per_seed = row.time_to_accuracy()
+    np.testing.assert_array_equal(seconds, [3.0, 4.0, 5.0])
+    np.testing.assert_array_equal(per_seed, val[:, :3])

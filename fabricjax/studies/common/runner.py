@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import re
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence, TypeVar
@@ -24,7 +25,20 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence, TypeVar
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, atomic, checkpoint, data, dataset_index, lock, presets, source, stats, train, workspace
+from fabricjax import (
+    archive,
+    atomic,
+    checkpoint,
+    curves,
+    data,
+    dataset_index,
+    lock,
+    presets,
+    source,
+    stats,
+    train,
+    workspace,
+)
 from fabricjax.config import CAMERA_MODALITIES, Config
 from fabricjax.errors import UserError
 from fabricjax.placement import place_ahead
@@ -65,6 +79,20 @@ class StudyRow:
 
 
 ALL_ROWS = "all"  # the word --rows takes for every row of a study's table
+# A label's parts: what stands before a ':' ("TCN:"), its '+'-joined inputs, and what follows them ("(our
+# step-LayerNorm fusion)", ", frames − session reference").
+_LABEL_PARTS = re.compile(r"(?P<before>[^:]*:)?(?P<inputs>[^(,−]*)(?P<after>.*)")
+
+
+def label_key(label: str) -> tuple[str, frozenset[str], str]:
+    """A label as `select_rows` matches it. A user types "minsound+palm mic" for the row the tables
+    print as "Minsound + palm mic", and the noise study prints "Minsound + proprioception + palm mic"
+    for the inputs the ablation prints as "Minsound + palm mic + proprioception", so case, the spaces
+    around '+' and the order of the inputs do not count; what stands before or after the inputs does
+    (the ablation's "TCN: " and "(our step-LayerNorm fusion)" rows read the same inputs as another)."""
+    parts = _LABEL_PARTS.fullmatch(" ".join(label.casefold().split()))
+    before, inputs, after = (parts[k] or "" for k in ("before", "inputs", "after"))
+    return before.removesuffix(":").strip(), frozenset(x.strip() for x in inputs.split("+")), after.strip()
 
 
 def select_rows(
@@ -75,17 +103,16 @@ def select_rows(
 ) -> list[StudyRow]:
     """The rows named in `names`, in the table's order; None: the rows named in `default` (every
     row where it is None). Each of `names` is a row's name (what logs and checkpoints call it),
-    its label (what the tables print, such as "Minsound"), a key of `groups` (a named set of
-    rows, e.g. the ablation's "paper") or `ALL_ROWS`, in any case; one that is none of these, or
-    no name at all (`--rows=`), is a one-line error listing the choices."""
+    its label (what the tables print, such as "Minsound + palm mic", matched by `label_key`), a key
+    of `groups` (a named set of rows, e.g. the ablation's "paper") or `ALL_ROWS`, in any case; one
+    that is none of these, or no name at all (`--rows=`), is a one-line error listing the choices."""
     groups = {ALL_ROWS: [r.name for r in rows], **{k.casefold(): list(v) for k, v in (groups or {}).items()}}
     if names is None:
         names = list(default) if default is not None else groups[ALL_ROWS]
 
     def row(name: str) -> StudyRow | None:
-        key = name.casefold()
-        return next((r for r in rows if r.name.casefold() == key), None) or next(
-            (r for r in rows if r.label.casefold() == key), None
+        return next((r for r in rows if r.name.casefold() == name.casefold()), None) or next(
+            (r for r in rows if label_key(r.label) == label_key(name)), None
         )
 
     wanted = [n for name in names for n in groups.get(name.strip().casefold(), [name])]
@@ -299,6 +326,15 @@ class Row:
 
     def predictions(self, split: str, head: str = "fabric") -> np.ndarray:
         return np.asarray(self.results.metrics["eval"][split]["predictions"][head])
+
+    def time_to_accuracy(self, head: str = "fabric") -> tuple[np.ndarray, np.ndarray]:
+        """The row's time-to-accuracy curve: each trained epoch's end in seconds since its training
+        began (the first epoch's with the compilation) and the validation accuracy of `head` per
+        seed and epoch (seeds, epochs), over the epochs the run went through."""
+        epochs = self.results.metrics["epochs"]
+        wall = np.asarray(epochs[curves.WALL_TAG], np.float64)[0]
+        trained = ~np.isnan(wall)
+        return np.cumsum(wall[trained]), np.asarray(epochs[f"val/accuracy/{head}"], np.float64)[:, trained]
 
     def doc(self, splits: Sequence[str]) -> dict[str, Any]:
         """The row's config, checkpoint (None where the study keeps no models), wall time and its

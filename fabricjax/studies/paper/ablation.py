@@ -155,8 +155,20 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
         if panels
         else None
     )
+    curves = plots.plot_time_to_accuracy(
+        results / "ablation_time_to_accuracy.png",
+        [
+            (
+                label(r.modalities, r.settings["backbone"], r.settings["fusion_norm"], names),
+                *rows[r.name].time_to_accuracy(),
+            )
+            for r in chosen
+            if r.name in rows
+        ],
+        f"What accuracy costs in training time, {len(seeds)} seeds a row in one program",
+    )
     if recorded:
-        return _recorded_body(trained, chosen, tests), [figure]
+        return _recorded_body(trained, chosen, tests), [figure, curves]
     body = {
         "rows": [
             {
@@ -183,7 +195,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
         if tests
         else None,
     }
-    return body, [figure]
+    return body, [figure, curves]
 
 
 def fusion_choices(rows: Mapping[str, runner.Row]) -> list[dict[str, Any]]:
@@ -459,6 +471,7 @@ def markdown(doc: dict[str, Any]) -> str:
         ]
     if "ablation_confusion.png" in doc["figures"]:
         lines += ["Confusion matrices (proprioception only, optical flow only): `ablation_confusion.png`.", ""]
+    lines += _time_to_accuracy_line(doc)
     lines += [
         "The simulator is the same for every row (never tuned per row): differences from the paper are findings.",
         "",
@@ -563,7 +576,18 @@ def _recorded_markdown(doc: dict[str, Any]) -> str:
             f"{doc['names'].get(m, m)} only" for m in CONFUSION_ROWS if any(r["name"] == m for r in doc["rows"])
         )
         lines += [f"Confusion matrices ({shown}): `ablation_confusion.png`.", ""]
+    lines += _time_to_accuracy_line(doc)
     return "\n".join(lines)
+
+
+def _time_to_accuracy_line(doc: Mapping[str, Any]) -> list[str]:
+    if "ablation_time_to_accuracy.png" not in doc["figures"]:
+        return []
+    return [
+        "What accuracy costs in training time, row by row (validation accuracy after each epoch against the "
+        "row's training seconds): `ablation_time_to_accuracy.png`.",
+        "",
+    ]
 
 
 STUDY = runner.Study(
