@@ -178,9 +178,10 @@ def test_the_paper_presets_rows_say_early_stopping_only_when_it_is_on(tmp_path, 
 
 def test_a_row_with_early_stopping_is_planned_at_the_epochs_its_published_run_went_through(monkeypatch):
     """The cap of a row's epochs overstates a run that stops early: where its published rate says
-    how many epochs the row went through, the plan counts those (never more than the cap), and says so."""
+    how many epochs the row went through under the same cap, the plan counts those, and says so;
+    under another cap (other data, another budget), the cap."""
     config = dataclasses.replace(rows("paper", ("internal",))[0][1], epochs=13, patience=3)
-    rate = {"per_unit_s": 1e-3, "compile_s": 1.0, "epochs_run": 9.0}
+    rate = {"per_unit_s": 1e-3, "compile_s": 1.0, "epochs_run": 9.0, "epochs_cap": 13}
     monkeypatch.setattr(plan, "_published_rates", lambda: [("a run", {plan.rate_key(config.to_json()): rate})])
     (stage,) = plan.training([("internal", config)], 2, 100)
     assert stage.seconds == pytest.approx(1.0 + 1e-3 * 100 * 9 * 2)

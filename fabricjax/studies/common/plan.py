@@ -138,7 +138,7 @@ def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequence
     """One stage per row: its grid points (`recipe.points`) times its compilation and its epochs on
     `train_sequences` times the published rate of a row with the same inputs and model (`rates`):
     the cap of its epochs (`loading.epochs_for`), or with a patience the epochs the published run
-    of the row went through, where that is fewer (early stopping ends each run on its own data). A row no
+    of the row went through under the same cap (early stopping ends each run on its own data). A row no
     published run matches is unknown until the run's own progress log gives its ETA."""
     published = _published_rates()
     out = []
@@ -162,8 +162,9 @@ def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequence
                 )
             )
             continue
-        # with early stopping, the epochs the published run of this row went through (its rate's own)
-        expected = min(epochs, rate["epochs_run"]) if early and rate.get("epochs_run") else epochs
+        # with early stopping, the epochs the published run of this row went through, where it ran to the same cap
+        same_cap = early and rate.get("epochs_run") and rate.get("epochs_cap") == epochs
+        expected = min(epochs, rate["epochs_run"]) if same_cap else epochs
         seconds = len(points) * (rate["compile_s"] + rate["per_unit_s"] * train_sequences * expected * n_seeds)
         ran = f"{expected:.3g} epochs as it ran when published (at most {epochs}) " if expected != epochs else ""
         out.append(
@@ -203,6 +204,7 @@ def rates(doc: dict[str, Any]) -> dict[str, dict[str, float]]:
             "per_unit_s": max(row["wall_s"] - compile_s, 0.0) / max(units, 1),
             "compile_s": compile_s / len(grid),
             "epochs_run": epochs_run / len(grid),
+            "epochs_cap": row["config"]["epochs"],
         }
     return out
 
