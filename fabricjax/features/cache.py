@@ -25,6 +25,7 @@ import hashlib
 import json
 import os
 import sys
+import threading
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -57,10 +58,17 @@ def _atomic_write(path: Path, write) -> None:
 _UNREADABLE = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
 
 
+# numpy parses each .npy member's header with `ast.literal_eval`, and CPython 3.11's AST constructor
+# keeps one recursion counter for every thread (python/cpython#106905): threads parsing at once fail
+# now and then with "SystemError: AST constructor recursion depth mismatch". The threads that load a
+# study's cached features (`trial_features`) therefore read one cache file at a time.
+_READING = threading.Lock()
+
+
 def load(path: Path, fingerprint: str) -> np.ndarray | None:
     """The cached array, or None when absent, unreadable or made from another archive version."""
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with _READING, np.load(path, allow_pickle=False) as z:
             return z["data"] if str(z["fingerprint"]) == fingerprint else None
     except _UNREADABLE:
         return None
@@ -81,7 +89,7 @@ def save(path: Path, fingerprint: str, data: np.ndarray) -> None:
 def is_cached(path: Path, fingerprint: str) -> bool:
     """The cache file exists and was made from this archive version (reads only the fingerprint)."""
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with _READING, np.load(path, allow_pickle=False) as z:
             return str(z["fingerprint"]) == fingerprint
     except _UNREADABLE:
         return False
