@@ -188,3 +188,11 @@ def test_a_row_with_early_stopping_is_planned_at_the_epochs_its_published_run_we
     assert "9 epochs as it ran when published (at most 13)" in stage.basis
     (capped,) = plan.training([("internal", dataclasses.replace(config, epochs=5))], 2, 100)
     assert capped.seconds == pytest.approx(1.0 + 1e-3 * 100 * 5 * 2) and "at most 5 epochs" in capped.basis
+
+
+def test_the_peak_memory_counts_minsight_frames_again_as_trainings_rows(tmp_path):
+    """Training holds an image row's frames twice (as loaded and as pixel rows): the plan's peak says
+    so and counts both; without image rows the peak is the loaded sequences."""
+    with_image = plan.stages("smoke", rows("smoke", ("image", "internal")), 1, tmp_path)[2]
+    without = plan.stages("smoke", rows("smoke", ("internal",)), 1, tmp_path)[1]
+    assert "Minsight frames a second time" in with_image.basis and "second time" not in without.basis

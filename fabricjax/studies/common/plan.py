@@ -257,7 +257,10 @@ def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, wor
     per_sequence = n * _bytes_per_step(union, spec.image_size)
     loaded = len(scenes) * per_trial * per_sequence
     to_disk = loaded > memo.memory_budget(data.MEMORY_FRACTION)
-    peak = feed.host_bytes(int(per_sequence), union.batch_size, n_seeds) if to_disk else loaded
+    # held in memory, Minsight frames are held twice: as loaded, and as training's rows (`inputs.training_layout`)
+    frames = dataclasses.replace(union, modalities=("image",)) if "image" in union.modalities else None
+    rows = len(scenes) * per_trial * n * _bytes_per_step(frames, spec.image_size) if frames else 0.0
+    peak = feed.host_bytes(int(per_sequence), union.batch_size, n_seeds) if to_disk else loaded + rows
     out.append(
         Stage(
             "sequences",
@@ -269,7 +272,8 @@ def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, wor
                 if to_disk
                 else "held in memory"
             )
-            + f"; peak host memory for training inputs {size(peak)}",
+            + f"; peak host memory for training inputs {size(peak)}"
+            + (" (Minsight frames a second time, as training's rows)" if rows and not to_disk else ""),
         )
     )
     return out + training(configs, n_seeds, train_sequences)
