@@ -59,7 +59,7 @@ def test_training_is_extrapolated_from_the_published_sample_per_row(tmp_path, mo
     monkeypatch.setattr(plan, "SAMPLE_RESULTS", path)
     monkeypatch.setattr(plan, "REPRODUCE_MANIFEST", tmp_path / "absent.json")
     (training,) = plan.training(rows("paper", ("internal",)), 5, 1000)
-    assert abs(training.seconds - (10.0 + 1000 * sample.epochs * 5 * 0.01)) < 1e-6 and "AMD EPYC" in training.basis
+    assert abs(training.seconds - (10.0 + 1000 * sample.epochs * 5 * 0.01)) < 1e-6 and "AMD EPYC" in training.source
     assert plan.training(rows("default", ("internal",)), 5, 1000)[0].seconds is None  # another model: not extrapolated
     grid = dataclasses.replace(
         Config.from_preset("paper", modalities=("internal",)), lr_grid=(1e-3, 3e-3), width_grid=(32, 64)
@@ -93,7 +93,9 @@ def test_the_published_manifest_gives_each_rows_rate_and_a_step_budget_its_epoch
     (stage,) = plan.training([("proprio", config)], 5, 1600)
     epochs = -(-config.train_steps // (1600 // config.batch_size))
     assert abs(stage.seconds - (5.0 + 1e-4 * 1600 * epochs * 5)) < 1e-6
-    assert f"at most {epochs} epochs" in stage.basis and "AMD EPYC" in stage.basis
+    assert f"at most {epochs} epochs" in stage.basis and "AMD EPYC" in stage.source
+    said = plan.markdown("default", [stage, stage], 2, 5, free_bytes=1e15)
+    assert said.count("AMD EPYC") == 1 and said.endswith(f"Training rates as measured by {stage.source}.")
 
 
 def test_each_feature_says_its_bytes_per_step():

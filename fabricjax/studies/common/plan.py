@@ -62,6 +62,7 @@ class Stage:
     disk_bytes: float
     seconds: float | None  # None: unknown before the run
     basis: str
+    source: str | None = None  # the published run a training stage's rate comes from, said once under the table
 
 
 def probe(dataset: DatasetSpec, config: Config) -> dict[str, float]:
@@ -175,8 +176,8 @@ def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequence
                 f"{grid}{ran or f'at most {epochs} epochs '}"
                 f"{'(early stopping ends sooner) ' if early and not ran else ''}"
                 f"of {train_sequences} sequences x "
-                f"{n_seeds} seeds at {1e6 * rate['per_unit_s']:.0f} us per sequence, epoch and seed, as "
-                f"measured by {source}",
+                f"{n_seeds} seeds at {1e6 * rate['per_unit_s']:.0f} us per sequence, epoch and seed",
+                source,
             )
         )
     return out
@@ -301,6 +302,9 @@ def markdown(preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int, f
         f"| {s.name} | {size(s.disk_bytes)} | {'unknown' if s.seconds is None else _duration(s.seconds)} | {s.basis} |"
         for s in stages_
     ]
+    sources = list(dict.fromkeys(s.source for s in stages_ if s.source))
+    if sources:
+        lines += ["", "Training rates as measured by " + "; ".join(sources) + "."]
     return "\n".join(lines)
 
 
