@@ -227,8 +227,9 @@ class Config:
             )
         if self.patience < 0:
             raise ValueError(f"patience must be 0 (no early stopping) or a number of epochs, got {self.patience}")
-        if self.seq_len < 1:
-            raise ValueError(f"seq_len must be at least 1, got {self.seq_len}")
+        for name in ("seq_len", "epochs", "batch_size"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
 
     @classmethod
     def from_preset(cls, name: str, **overrides) -> "Config":

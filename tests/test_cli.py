@@ -73,6 +73,8 @@ USER_ERRORS = {  # flags -> what the one line must say
         ["--set=backbone=lstm"],
         r"--set: backbone must be one of \('attention', 'tcn'\), got 'lstm'",
     ),
+    "no_epochs": (["--set=epochs=0"], r"--set: epochs must be at least 1, got 0"),
+    "no_batch": (["--set=batch_size=0"], r"--set: batch_size must be at least 1, got 0"),
     "damaged_archive": (
         ["--data_dir={tmp}/damaged"],
         r"fabric04_day1_trial00_lab\.npz: field '<file>': not a readable \.npz archive",
