@@ -109,13 +109,14 @@ def run(main, cpu_devices: int | None = None) -> None:
 
 
 def _snapshot(folder: Path) -> dict[Path, tuple[int, int, int]]:
-    """Identity of every file in `folder` (inode, size, mtime): atomic writes change the inode."""
-    files = {p: p.stat() for p in folder.iterdir() if p.is_file()}
+    """Identity of every file in `folder` (inode, size, mtime): atomic writes change the inode. A
+    folder not made yet holds none (its first write makes it)."""
+    files = {p: p.stat() for p in folder.iterdir() if p.is_file()} if folder.is_dir() else {}
     return {p: (st.st_ino, st.st_size, st.st_mtime_ns) for p, st in files.items()}
 
 
 def results_dir() -> Path:
-    """--results, else <workspace>/results (created)."""
+    """--results, else <workspace>/results (`workspace.results_dir`)."""
     return workspace.results_dir(FLAGS.results, FLAGS.workdir)
 
 

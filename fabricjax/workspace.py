@@ -24,7 +24,7 @@ class Location:
     command: str | None = None  # the command line that started the run; None: called from Python
 
     def results_dir(self) -> Path:
-        """The results folder (created)."""
+        """The results folder (`results_dir`)."""
         return results_dir(self.results, self.workdir)
 
 
@@ -80,11 +80,10 @@ def logs_dir(study: str, row: str, workdir=None) -> Path:
 
 
 def results_dir(results=None, workdir=None) -> Path:
-    """`results` if given, else <root>/results (created). Runs write there, outside the repository;
-    the tables published in the repository are regenerated with `--results=results`."""
-    p = Path(results) if results else root(workdir) / "results"
-    p.mkdir(parents=True, exist_ok=True)
-    return p
+    """`results` if given, else <root>/results. Runs write there, outside the repository; the tables
+    published in the repository are regenerated with `--results=results`. The folder is made by the
+    first file written into it (`atomic.atomic_open`), so a command refused before it writes leaves none."""
+    return Path(results) if results else root(workdir) / "results"
 
 
 def compilation_cache_dir(workdir=None) -> Path:

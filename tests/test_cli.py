@@ -83,16 +83,22 @@ USER_ERRORS = {  # flags -> what the one line must say
 
 
 @pytest.mark.parametrize("case", list(USER_ERRORS))
-def test_a_user_error_is_one_line_with_status_2(case, tmp_path):
+def test_a_user_error_is_one_line_with_status_2_and_leaves_no_results_folder(case, tmp_path):
     args, message = USER_ERRORS[case]
     (tmp_path / "empty").mkdir()
     damaged_folder(tmp_path)
-    out = command("--preset=smoke", f"--workdir={tmp_path}/ws", *[a.format(tmp=tmp_path) for a in args])
+    out = command(
+        "--preset=smoke",
+        f"--workdir={tmp_path}/ws",
+        f"--results={tmp_path}/new",
+        *[a.format(tmp=tmp_path) for a in args],
+    )
     assert out.returncode == 2, out.stderr
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: "), out.stderr
     assert re.search(message, lines[0]), lines[0]
     assert "pickle" not in lines[0]  # numpy's advice to unpickle a damaged file is not repeated
+    assert not (tmp_path / "new").exists()  # the folder is made by the first file written into it
 
 
 def test_a_bug_keeps_its_traceback_and_debug_shows_a_user_errors():
@@ -165,7 +171,7 @@ def test_progress_names_rows_as_the_table_does():
 
 
 def test_results_default_to_the_workspace(tmp_path):
-    assert workspace.results_dir(None, tmp_path) == tmp_path / "results" and (tmp_path / "results").is_dir()
+    assert workspace.results_dir(None, tmp_path) == tmp_path / "results" and not (tmp_path / "results").exists()
     assert workspace.results_dir(tmp_path / "mine", tmp_path) == tmp_path / "mine"
 
 
