@@ -13,7 +13,6 @@ import sys
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.errors import UserError
 from fabricjax.studies.tools import reproduce
 
 flags.define_preset()
@@ -21,7 +20,8 @@ flags.define_overrides()
 STUDIES = absl_flags.DEFINE_list(
     "studies",
     None,
-    f"comma-separated studies to run, from: {', '.join(reproduce.STUDIES)} (default: all, in that order)",
+    f"comma-separated studies to run (with --check: to check), from: {', '.join(reproduce.STUDIES)} (default: all, "
+    "in that order)",
 )
 FORCE = absl_flags.DEFINE_bool("force", False, "rerun every study, even those whose results are up to date")
 CHECK = absl_flags.DEFINE_bool(
@@ -35,17 +35,10 @@ CHECK = absl_flags.DEFINE_bool(
 def main(argv):
     del argv
     if CHECK.value:
-        sys.exit(1 if reproduce.check(flags.location()) else 0)
-    plan = reproduce.PLAN
-    if STUDIES.value:
-        known = [s.study for s in plan]
-        unknown = [s for s in STUDIES.value if s not in known]
-        if unknown:
-            raise UserError(f"--studies: unknown {unknown}; choose from {known}")
-        plan = tuple(s for s in plan if s.study in STUDIES.value)
+        sys.exit(1 if reproduce.check(flags.location(), studies=STUDIES.value) else 0)
     reproduce.run(
         preset=absl_flags.FLAGS.preset,
-        plan=plan,
+        plan=reproduce.chosen(STUDIES.value),
         overrides=flags.overrides(),
         force=FORCE.value,
         where=flags.location(),

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from fabricjax import sim, source
+from fabricjax.errors import UserError
 from fabricjax.sim import estimates
 from fabricjax.studies.common import documents
 from fabricjax.studies.tools import reproduce
@@ -31,7 +32,7 @@ def published(tmp_path_factory):
     return where
 
 
-def _check_command(where: Location) -> subprocess.CompletedProcess:
+def _check_command(where: Location, *args: str) -> subprocess.CompletedProcess:
     cmd = [
         sys.executable,
         "-m",
@@ -39,6 +40,7 @@ def _check_command(where: Location) -> subprocess.CompletedProcess:
         "--check",
         f"--results={where.results}",
         f"--workdir={where.workdir}",
+        *args,
     ]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=300, cwd=REPO)
 
@@ -71,6 +73,17 @@ def test_an_unchanged_state_lists_nothing_stale(published):
     done = _check_command(published)
     assert done.returncode == 0, done.stderr
     assert "0 of the 2 studies" in done.stdout
+
+
+def test_check_of_named_studies_checks_those_and_an_unknown_name_is_a_one_line_error(published):
+    said = []
+    assert reproduce.check(published, say=said.append, studies=["day_shift"]) == {}
+    assert said[0].startswith("reproduce --check: 0 of the 1 studies of ")
+    with pytest.raises(UserError, match=r"--studies: unknown studies \['ablatoin'\]; choose from ablation, probe, "):
+        reproduce.check(published, studies=["ablatoin"])
+    done = _check_command(published, "--studies=ablatoin")
+    assert done.returncode == 2 and done.stdout == "", done.stderr
+    assert done.stderr.startswith("error: --studies: unknown studies ['ablatoin']") and done.stderr.count("\n") == 1
 
 
 def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(published):

@@ -242,19 +242,37 @@ def other_stale(out: Path, manifest: Mapping[str, Any], prints: Mapping[str, str
     return found
 
 
-def check(where: Location, say: Callable[[str], None] = print) -> dict[str, str]:
+def refuse_unknown(studies: Sequence[str]) -> None:
+    """A one-line error naming the studies of `studies` that are not of `STUDIES`, and those that are
+    (before anything runs or is read, so a misspelt name is never a silent no-op)."""
+    unknown = [s for s in studies if s not in STUDIES]
+    if unknown:
+        raise UserError(f"--studies: unknown studies {unknown}; choose from {', '.join(STUDIES)}")
+
+
+def chosen(studies: Sequence[str] | None) -> tuple[Step, ...]:
+    """The steps of `PLAN` of the studies named in `studies` (None: all), in the plan's order."""
+    refuse_unknown(studies or ())
+    return tuple(s for s in PLAN if studies is None or s.study in studies)
+
+
+def check(where: Location, say: Callable[[str], None] = print, studies: Sequence[str] | None = None) -> dict[str, str]:
     """Say which studies of the manifest in `where`'s results folder are stale (`stale`, under the
     fingerprints of today's code, estimates and `where.data_dir`'s data), each with its files
-    there, and which files gather them; runs nothing, writes nothing. Returns `stale`'s dict."""
+    there, and which files gather them, and which other results files there are stale
+    (`other_stale`); runs nothing, writes nothing. `studies` (None: all) narrows the check to
+    those studies of the manifest, without the other files. Returns the stale ones as
+    {study or file: note}."""
+    asked = [s.study for s in chosen(studies)]
     out = where.results_dir()
     manifest = _read_json(out / MANIFEST)
     if manifest is None:
         raise UserError(f"{workspace.shown(out / MANIFEST)}: no manifest of experiments.reproduce to check")
     prints = documents.fingerprints(_data_fingerprint(where.data_dir, where.workdir))
-    notes = stale(manifest, prints)
-    studies = [s for s in STUDIES if s in manifest]
+    notes = {study: note for study, note in stale(manifest, prints).items() if study in asked}
+    checked = [s for s in asked if s in manifest]
     lines = [
-        f"reproduce --check: {len(notes)} of the {len(studies)} studies of {workspace.shown(out / MANIFEST)} are stale "
+        f"reproduce --check: {len(notes)} of the {len(checked)} studies of {workspace.shown(out / MANIFEST)} are stale "
         f"({documents.fingerprints_markdown(prints)[2:]} today)"
     ]
     for study, note in notes.items():
@@ -277,7 +295,7 @@ def check(where: Location, say: Callable[[str], None] = print) -> dict[str, str]
             f"block) gather them; "
             f"`{rerun}` reruns what is stale and rewrites both"
         )
-    others = other_stale(out, manifest, prints)
+    others = other_stale(out, manifest, prints) if studies is None else {}
     if others:
         lines.append(
             f"other results files in {workspace.shown(out)}, each rewritten by rerunning the command its header names:"
@@ -449,9 +467,7 @@ def run(
     names for the whole run."""
     workdir, data_dir = where.workdir, where.data_dir
     presets.get(preset)  # an unknown preset is a one-line error before anything runs
-    unknown = [s.study for s in plan if s.study not in STUDIES]
-    if unknown:
-        raise UserError(f"unknown studies {unknown}; choose from {list(STUDIES)}")
+    refuse_unknown([s.study for s in plan])
     overrides = dict(overrides or {})
     if data_dir:
         plan = fit_plan(plan, preset, data_dir, workdir, say)
