@@ -1,4 +1,5 @@
-"""Every speed benchmark in one command, side by side in one process; writes results/bench.json.
+"""Every speed benchmark in one command, side by side in one process; prints the table and writes
+bench.md and bench.json into workspace/results/ (--results=DIR: into DIR).
 
     python -m experiments.bench                       # everything (README's speed section says how long it takes)
     python -m experiments.bench --quick               # a small model, fewer repeats: a smoke check, not a measurement

@@ -19,14 +19,13 @@ from fabricjax.sim import estimates
 
 FLAGS = flags.FLAGS
 flags.DEFINE_bool("check", False, "only compare: exit 1 if the document's block differs from the registry")
-flags.DEFINE_string(
-    "doc", str(provenance.repository_root() / "docs" / "simulator.md"), "the document holding the table's markers"
-)
+DOC = Path("docs") / "simulator.md"  # in the repository
+flags.DEFINE_string("doc", None, f"the document holding the table's markers (default: the repository's {DOC})")
 
 
 def main(argv):
     del argv
-    path = Path(FLAGS.doc)
+    path = Path(FLAGS.doc) if FLAGS.doc else provenance.repository_root() / DOC
     text = path.read_text()
     try:
         new = estimates.with_table(text)

@@ -36,7 +36,7 @@ flags.DEFINE_string(
     "data_dir",
     None,
     "a folder of real recorded trial archives, only read (its index is kept under the workspace); default: "
-    "the preset's simulated dataset",
+    "the simulated dataset of the run's preset (of a command that reads a checkpoint: the checkpoint's)",
 )
 flags.DEFINE_string(
     "results",
@@ -137,7 +137,7 @@ def define_rows(study: Study, n_seeds: int) -> None:
         + (f"the rows {', '.join(study.default_rows)}" if study.default_rows is not None else "every row of the table")
         + ")",
     )
-    define_overrides()
+    define_overrides(ROWS_REFUSE)
 
 
 def study_command(study: Study) -> None:
@@ -168,7 +168,7 @@ def rows_study_command(study) -> None:
         f"comma-separated rows, each by its name or by the label the tables print, in any case; names: "
         f"{', '.join(r.name for r in study.ROWS)} (default: every row)",
     )
-    define_overrides()
+    define_overrides(ROWS_REFUSE)
 
     def main(argv):
         del argv
@@ -183,12 +183,17 @@ def define_preset() -> None:
     )
 
 
-def define_overrides() -> None:
+ROWS_REFUSE = "a field the command's rows set themselves is refused (choose those with --rows)"
+
+
+def define_overrides(refused: str | None = None) -> None:
+    """--set; `refused` tells which fields the command refuses and what chooses them instead (None:
+    it refuses none), so that the help names no flag the command lacks."""
     flags.DEFINE_multi_string(
         "set",
         [],
         "override a Config field on top of the preset, field=value (repeatable), e.g. --set=seq_len=100 "
-        "--set=compute_dtype=bfloat16; a field the command's rows set themselves is refused (choose those with --rows)",
+        "--set=compute_dtype=bfloat16" + (f"; {refused}" if refused else ""),
     )
 
 

@@ -16,7 +16,7 @@ from experiments import flags
 from fabricjax.studies.tools import reproduce
 
 flags.define_preset()
-flags.define_overrides()
+flags.define_overrides("a field a study's rows set themselves is refused")
 STUDIES = absl_flags.DEFINE_list(
     "studies",
     None,

@@ -7,7 +7,8 @@
   line a user sees; such a machine can only be a CPU, so the CPU is chosen. With a CUDA, ROCm or
   TPU plugin installed, or JAX_PLATFORMS set, JAX chooses as usual: a real GPU is never hidden.
 * `--help` lists the project's own flags (those of the command and of `experiments.flags`), not
-  absl's, orbax's and JAX's (`--helpfull` still shows everything), and exits 0.
+  absl's, orbax's and JAX's (`--helpfull` still shows everything), under the command as a user
+  runs it (`python -m experiments.ablation`), and exits 0.
 * Log lines: INFO lines of other libraries (orbax's per-save lines, absl's) are dropped unless
   `--verbosity` is given; warnings always show. Log lines go out through `tqdm.write`, so they never
   share a line with a progress bar (the bar is cleared, the line written, the bar redrawn).
@@ -82,14 +83,23 @@ def project_flags() -> list[flags.Flag]:
     ]
 
 
+def usage() -> None:
+    """absl's short help, the command's docstring and then its flags, with the flags headed by the
+    command as a user runs it (`python -m experiments.ablation`): absl heads them with the main
+    module's absolute path, which names this machine's folders and no command a user could type."""
+    main, shown = sys.argv[0], shlex.join(program())
+    for f in project_flags():
+        FLAGS.register_key_flag_for_module(main, f)
+    doc = sys.modules["__main__"].__doc__ or f"\nUSAGE: {shown} [flags]\n"
+    print(f"{doc}\nflags:\n{FLAGS.module_help(main).replace(f'{main}:', f'{shown}:', 1)}")
+    print("\nFlags of absl, JAX and orbax (logging, verbosity, ...): --helpfull")
+
+
 def _parse(argv: list[str]) -> list[str]:
-    """absl's flag parsing, with `--help` listing the project's flags (exit 0) and a bad flag
-    value reported as a user error."""
+    """absl's flag parsing, with `--help` listing the project's flags (`usage`, exit 0) and a bad
+    flag value reported as a user error."""
     if any(a in HELP_ARGS for a in argv[1:]):
-        for f in project_flags():
-            FLAGS.register_key_flag_for_module(sys.argv[0], f)
-        app.usage(shorthelp=True, writeto_stdout=True)
-        print("\nFlags of absl, JAX and orbax (logging, verbosity, ...): --helpfull")
+        usage()
         sys.exit(0)
     try:
         return FLAGS(argv)
@@ -157,12 +167,17 @@ def run(main: Callable[[list[str]], object], before: Callable[[], None] = runtim
     app.run(start, flags_parser=_parse)
 
 
-def command_line() -> str:
-    """This process's command as a user typed it (`python -m experiments.ablation ...`): recorded in
-    results files and in the notes of the locks a run holds."""
+def program() -> list[str]:
+    """This process's program as a user runs it: `python -m <module>` for a module of the
+    repository, else its file's name."""
     main = Path(sys.argv[0]) if sys.argv and sys.argv[0] else Path("python")
     root = provenance.repository_root()
     if main.suffix == ".py" and main.resolve().is_relative_to(root):
-        module = ".".join(main.resolve().relative_to(root).with_suffix("").parts)
-        return shlex.join(["python", "-m", module, *sys.argv[1:]])
-    return shlex.join([main.name, *sys.argv[1:]])
+        return ["python", "-m", ".".join(main.resolve().relative_to(root).with_suffix("").parts)]
+    return [main.name]
+
+
+def command_line() -> str:
+    """This process's command as a user typed it (`python -m experiments.ablation ...`): recorded in
+    results files and in the notes of the locks a run holds."""
+    return shlex.join([*program(), *sys.argv[1:]])

@@ -42,6 +42,20 @@ def test_help_lists_the_project_flags_and_exits_0():
     assert "libtpu" not in out.stdout + out.stderr
 
 
+@pytest.mark.parametrize("module", ["experiments.reproduce", "experiments.latents", "experiments.bench"])
+def test_help_names_the_command_as_typed_and_no_flag_it_lacks(module):
+    """The flags are headed by `python -m <module>`, not by the file's path on this machine, and every
+    --flag its text names (the docstring's examples, the flags' help) is one of the command's."""
+    out = subprocess.run(
+        [sys.executable, "-m", module, "--help"], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
+    assert out.returncode == 0, out.stderr
+    assert f"\npython -m {module}:\n" in out.stdout and str(ROOT.resolve()) not in out.stdout
+    defined = set(re.findall(r"^ +--(?:\[no\])?(\w+):", out.stdout, re.M))
+    named = set(re.findall(r"--(?:\[no\])?(\w+)", out.stdout)) - {"helpfull"}
+    assert "workdir" in defined and named <= defined, sorted(named - defined)
+
+
 @pytest.mark.parametrize(
     "module",
     ["experiments.psds", "experiments.stream", "experiments.latents", "experiments.probe", "experiments.decide"],
