@@ -157,13 +157,11 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
     )
     curves = plots.plot_time_to_accuracy(
         results / "ablation_time_to_accuracy.png",
+        # every row trained, so that on recorded data each input shows under both fusions, the one its
+        # table reports (chosen by validation) among them
         [
-            (
-                label(r.modalities, r.settings["backbone"], r.settings["fusion_norm"], names),
-                *rows[r.name].time_to_accuracy(),
-            )
-            for r in chosen
-            if r.name in rows
+            (label(t.config.modalities, t.config.backbone, t.config.fusion_norm, names), *t.time_to_accuracy())
+            for t in rows.values()
         ],
         f"What accuracy costs in training time, {len(seeds)} seeds a row in one program",
     )
