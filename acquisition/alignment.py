@@ -41,7 +41,8 @@ import numpy as np
 from acquisition.camera import ForceProxy
 from acquisition.readers import REFERENCE_SUFFIXES, read_reference
 from acquisition.recording import RecordingImportError, Stream
-from fabricjax import archive, catalog, integrity
+from fabricjax import catalog
+from fabricjax.store import archive, integrity
 
 HOLE_STEPS = 3  # a stream silent for more than this many step periods has a hole (declared in meta.import)
 SPAN_FACTOR = 10  # timestamps spanning this many times the audio's duration are not seconds

@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 from absl import logging
 
-from fabricjax import archive
+from fabricjax.store import archive
 
 RAW_SIZE = (1280, 960)  # W, H
 # Minsight's camera node reads and discards 20 frames after opening the camera (the sensor's

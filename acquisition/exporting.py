@@ -11,8 +11,8 @@ from pathlib import Path
 
 from scipy.io import wavfile
 
-from fabricjax import archive
-from fabricjax.atomic import atomic_open
+from fabricjax.store import archive
+from fabricjax.store.atomic import atomic_open
 
 
 def export_wav(path: str | Path, out_dir: str | Path) -> list[Path]:

@@ -18,7 +18,7 @@ from typing import Any
 from acquisition.alignment import ReferenceSource, align, check_seconds, file_reference
 from acquisition.readers import IMAGE_SUFFIXES, VIDEO_SUFFIXES, read_camera, read_joints_csv, read_wav
 from acquisition.recording import RecordingImportError
-from fabricjax import archive
+from fabricjax.store import archive
 
 JOINTS_FILE = "joints.csv"
 OTHER_RIG = (

@@ -17,8 +17,9 @@ from absl import flags
 
 from acquisition import import_flags, mapping_file, ros_bag
 from acquisition.recording import RecordingImportError
-from fabricjax import archive, cli
+from fabricjax import cli
 from fabricjax.errors import UserError
+from fabricjax.store import archive
 
 FLAGS = flags.FLAGS
 import_flags.define_map("Mapping file (TOML) naming the topics.", required=True)

@@ -12,7 +12,7 @@ from typing import Any
 
 from absl import flags
 
-from fabricjax import archive
+from fabricjax.store import archive
 
 
 def define_out(what: str) -> None:

@@ -18,8 +18,9 @@ from absl import flags
 
 from acquisition import hand_folder, import_flags, mapping_file
 from acquisition.alignment import parse_reference
-from fabricjax import archive, cli
+from fabricjax import cli
 from fabricjax.errors import UserError
+from fabricjax.store import archive
 
 FLAGS = flags.FLAGS
 import_flags.define_out("the trial archive")

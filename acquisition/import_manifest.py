@@ -81,14 +81,15 @@ from tqdm import tqdm
 from acquisition import hand_folder, import_flags, mapping_file, ros_bag
 from acquisition import rig as rig_mod
 from acquisition.alignment import ReferenceSource, parse_reference, session_of
-from fabricjax import archive, cli, dataset_index, lock, parallel, provenance, workspace
-from fabricjax.atomic import atomic_open
+from fabricjax import cli, parallel
 from fabricjax.errors import UserError
+from fabricjax.store import archive, dataset_index, lock, provenance, workspace
+from fabricjax.store.atomic import atomic_open
 
 COLUMNS = ("path", "label", "split", "day", "trial", "condition", "session", *archive.PROPERTY_NAMES)
 HAND_COLUMNS = COLUMNS[:7]  # the hand's folders and bags: property levels come from the fabric catalog
 STAGING = (".import-", ".partial")  # prefix and suffix of the staging folder in DIR
-IMPORT_LOCK = ".import.lock"  # in DIR: a second import into it at the same time is refused (`fabricjax.lock`)
+IMPORT_LOCK = ".import.lock"  # in DIR: a second import into it at the same time is refused (`fabricjax.store.lock`)
 
 
 @dataclasses.dataclass(frozen=True)

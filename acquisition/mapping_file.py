@@ -12,7 +12,7 @@ from typing import Any
 
 from acquisition import ros_bag
 from acquisition.recording import RecordingImportError
-from fabricjax import archive
+from fabricjax.store import archive
 
 TRIAL_KEYS = ("fabric_id", "day", "trial", "condition")
 

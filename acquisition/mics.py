@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from acquisition import wire
-from fabricjax import archive
+from fabricjax.store import archive
 
 LATE_S = 0.03  # a packet this much later than the best-case latency counts as late
 

@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 
 from acquisition.recording import RecordingImportError, Stream, recorded_as, to_words
-from fabricjax import archive
+from fabricjax.store import archive
 
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")

@@ -28,13 +28,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from absl import flags
 
 from acquisition import recorder
 from acquisition.camera import IMAGE_SIZE
-from fabricjax import archive, cli
+from fabricjax import cli
 from fabricjax.errors import UserError
+from fabricjax.store import archive
 
 FLAGS = flags.FLAGS
 flags.DEFINE_integer("fabric", None, "Fabric id (0 = no fabric).", required=True)
@@ -97,7 +97,7 @@ def hardware_rig(session: str) -> recorder.Rig:
 
 class Watcher:
     """--view / --view_save for one trial: `on_step` (the `on_step` of `recorder.record_trial`)
-    hands each step to a thread that logs it (`fabricjax.view.TrialView`) and, with a model, runs
+    hands each step to a thread that logs it (`fabricjax.inference.view.TrialView`) and, with a model, runs
     the streaming classifier on it, so the 50 Hz loop only pays for a queue put. A viewer that
     falls `BACKLOG` steps behind drops the newest steps (counted in `dropped`) rather than hold
     the trial's frames in memory."""
@@ -147,7 +147,7 @@ def watcher():
         raise UserError("--checkpoint shows a model's predictions in the viewer: add --view or --view_save")
     if not (FLAGS.view or FLAGS.view_save):
         return None
-    from fabricjax import live, view
+    from fabricjax.inference import live, view
 
     if not FLAGS.view_save:
         view.require_display("--view_save")

@@ -22,7 +22,9 @@ from acquisition.camera import Camera, CameraError, ForceProxy, Reference
 from acquisition.mics import MicError, MicReceiver
 from acquisition.procedure import ExploratoryProcedure, ProcedureError
 from acquisition.servos import ServoBus, ServoError
-from fabricjax import archive, catalog, stats
+from fabricjax import catalog
+from fabricjax.reporting import stats
+from fabricjax.store import archive
 
 PERIOD = 1 / archive.STEP_RATE  # s: one step per Minsight frame (0.02)
 DEVICE_ERRORS = (ServoError, CameraError, MicError, ProcedureError)
@@ -90,7 +92,7 @@ def record_trial(
     """Run the procedure on `rig` and write the trial archive into `out_dir`.
 
     `on_step` sees each step's data as it is recorded, as the keyword arguments of
-    `fabricjax.view.Step` (`acquisition.record --view`); it runs after the step's timed work, so
+    `fabricjax.inference.view.Step` (`acquisition.record --view`); it runs after the step's timed work, so
     its time shows as lateness of the next step, not as step time."""
     cap = procedure.max_steps(period)
     images = np.empty((cap, *camera_mod.IMAGE_SIZE, 3), np.uint8)

@@ -69,8 +69,8 @@ from acquisition.alignment import (
 from acquisition.mapping_file import read_toml
 from acquisition.readers import read_camera, read_wav
 from acquisition.recording import RecordingImportError, Stream
-from fabricjax import archive
 from fabricjax.features import welch
+from fabricjax.store import archive
 
 
 @dataclasses.dataclass(frozen=True)

@@ -54,8 +54,8 @@ from acquisition import ros_messages as rm
 from acquisition.alignment import ImportedReference, ReferenceSource, align, parse_reference
 from acquisition.camera import ForceProxy
 from acquisition.recording import RecordingImportError, Stream, to_words
-from fabricjax import archive
 from fabricjax.errors import UserError
+from fabricjax.store import archive
 
 CLOCKS = ("receive", "header", "device")
 DEFAULT_CLOCK = {"camera": "header", "joints": "header", "mic": "receive"}

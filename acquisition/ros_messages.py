@@ -22,7 +22,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from fabricjax import archive
+from fabricjax.store import archive
 
 AUDIO_COMMON_MSGS = {
     "audio_common_msgs/msg/AudioData": "uint8[] data",
@@ -63,8 +63,8 @@ def normalize_type(name: str) -> str:
 def typestore_for(connections) -> Any:
     """A typestore holding ROS 2 Humble's types, audio_common's and every definition the bag stores
     (the bag's win: they describe what was recorded), under the `pkg/msg/Name` spelling."""
-    from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
     from rosbags.interfaces import MessageDefinitionFormat
+    from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 
     types = dict(get_typestore(Stores.ROS2_HUMBLE).fielddefs)
     for name, text in AUDIO_COMMON_MSGS.items():

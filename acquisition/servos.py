@@ -33,7 +33,7 @@ import time
 import numpy as np
 import scservo_sdk as scs
 
-from fabricjax import archive
+from fabricjax.store import archive
 
 ADDR_MODEL, ADDR_TORQUE_ENABLE, ADDR_GOAL_POSITION, ADDR_STATE = 3, 40, 42, 56
 STATE_BYTES = 15  # 56..70: position .. current

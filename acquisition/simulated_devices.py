@@ -38,7 +38,7 @@ from acquisition import servos, wire
 from acquisition.camera import Camera, ForceProxy, Reference
 from acquisition.mics import MicReceiver
 from acquisition.recorder import Rig
-from fabricjax import archive
+from fabricjax.store import archive
 
 
 @dataclasses.dataclass(frozen=True)

@@ -19,7 +19,7 @@ import struct
 import subprocess
 from typing import Callable, Iterable
 
-RATE = 48000  # fabricjax.archive.AUDIO_RATE, repeated because this module is stdlib-only (tested equal)
+RATE = 48000  # fabricjax.store.archive.AUDIO_RATE, repeated because this module is stdlib-only (tested equal)
 CHANNELS = 2
 PERIOD = 512
 HEADER = struct.Struct("<4sIQI")  # magic, sequence, first frame, frames

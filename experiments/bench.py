@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from absl import app, flags as absl_flags
+from absl import app
+from absl import flags as absl_flags
 
 from acquisition.other_rig import bench_import
 from acquisition.simulated_signals import bench_acquisition

@@ -14,8 +14,9 @@ from pathlib import Path
 
 from absl import flags
 
-from fabricjax import cli, provenance
+from fabricjax import cli
 from fabricjax.sim import estimates
+from fabricjax.store import provenance
 
 FLAGS = flags.FLAGS
 flags.DEFINE_bool("check", False, "only compare: exit 1 if the document's block differs from the registry")

@@ -20,9 +20,10 @@ from typing import TYPE_CHECKING, Any
 
 from absl import flags
 
-from fabricjax import cli, presets, runtime, workspace
+from fabricjax import cli, presets, runtime
 from fabricjax.config import Config, parse_override
 from fabricjax.errors import UserError
+from fabricjax.store import provenance, workspace
 
 if TYPE_CHECKING:
     from fabricjax.studies.common.runner import Study
@@ -216,5 +217,5 @@ def rows_kwargs() -> dict[str, Any]:
 def location() -> workspace.Location:
     """Where data and results live, and the command line (recorded in every results file)."""
     return workspace.Location(
-        workdir=FLAGS.workdir, data_dir=FLAGS.data_dir, results=results_dir(), command=cli.command_line()
+        workdir=FLAGS.workdir, data_dir=FLAGS.data_dir, results=results_dir(), command=provenance.command_line()
     )

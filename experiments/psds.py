@@ -16,9 +16,11 @@ import scipy.signal
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax import archive, catalog, plots, presets
+from fabricjax import catalog, presets
 from fabricjax.features import welch
+from fabricjax.reporting import plots
 from fabricjax.sim import Scene, scene_for, simulate
+from fabricjax.store import archive
 
 FLAGS = absl_flags.FLAGS
 flags.define_preset()

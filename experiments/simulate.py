@@ -8,7 +8,6 @@ from __future__ import annotations
 from absl import flags
 
 from fabricjax import cli, presets
-
 from fabricjax.sim import ensure_dataset
 
 FLAGS = flags.FLAGS

@@ -1,4 +1,4 @@
-"""Live classification of one trial at 50 Hz (fabricjax/studies/tools/stream.py; the streaming: fabricjax/live.py).
+"""Live classification of one trial at 50 Hz (fabricjax/studies/tools/stream.py; streaming: fabricjax/inference/live.py)
 
     python -m experiments.stream                                  # quick default-preset model, first test trial
     python -m experiments.stream --archive=PATH --checkpoint=DIR  # any trial, any streamable checkpoint

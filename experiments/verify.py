@@ -3,7 +3,7 @@
 Re-hashes every archive against the sha256 its index recorded (the index that `import_manifest`,
 or the first study reading DIR, wrote in the workspace `--workdir`; without one it says so and
 hashes nothing), re-validates every field and reports irregular step timestamps
-(`fabricjax.integrity`); prints each problem as `file: field: reason` and exits 1 if there is any.
+(`fabricjax.store.integrity`); prints each problem as `file: field: reason` and exits 1 if there is any.
 Every file is checked whatever another holds; a file verify itself fails on (a bug, not a finding
 about the data) is printed with the exception, and the exit status is then 2, as for any error of
 the command. Writes nothing, in DIR or elsewhere."""
@@ -15,8 +15,8 @@ import sys
 from absl import flags
 
 from fabricjax import cli
-from fabricjax import integrity
 from fabricjax.errors import UserError
+from fabricjax.store import integrity
 
 FLAGS = flags.FLAGS
 flags.DEFINE_string("workdir", None, "Workspace whose index of DIR to check against (default: the usual workspace).")

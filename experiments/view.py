@@ -1,4 +1,4 @@
-"""One trial in Rerun (see fabricjax/view.py for what is logged where).
+"""One trial in Rerun (see fabricjax/inference/view.py for what is logged where).
 
     python -m experiments.view ARCHIVE                      # opens the Rerun viewer
     python -m experiments.view ARCHIVE --save=trial.rrd     # writes a recording (headless); open it
@@ -12,7 +12,7 @@ Needs the optional Rerun SDK: pip install -e ".[viz]".
 from absl import flags as absl_flags
 
 from fabricjax import cli
-from fabricjax import view
+from fabricjax.inference import view
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_string("save", None, "write the recording to this .rrd file instead of opening the viewer")

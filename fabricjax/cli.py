@@ -15,7 +15,7 @@
 * A user's mistake (a bad flag value, or a `fabricjax.errors.UserError` such as a damaged archive,
   an empty data folder or an unknown row) ends in one line `error: <message>` on stderr and exit
   status 2; `--verbosity=1` (absl's debug level) shows its traceback. So does a full disk, also
-  where a library's write found it (`fabricjax.disk`). Anything else is a bug and keeps its
+  where a library's write found it (`fabricjax.store.disk`). Anything else is a bug and keeps its
   traceback.
 """
 
@@ -27,14 +27,14 @@ import logging as std_logging
 import os
 import shlex
 import sys
-from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 from absl import app, flags, logging
 from tqdm import tqdm
 
-from fabricjax import disk, provenance, runtime, workspace
+from fabricjax import runtime
 from fabricjax.errors import UserError
+from fabricjax.store import disk, provenance, workspace
 
 FLAGS = flags.FLAGS
 USER_ERROR_STATUS = 2
@@ -87,7 +87,7 @@ def usage() -> None:
     """absl's short help, the command's docstring and then its flags, with the flags headed by the
     command as a user runs it (`python -m experiments.ablation`): absl heads them with the main
     module's absolute path, which names this machine's folders and no command a user could type."""
-    main, shown = sys.argv[0], shlex.join(program())
+    main, shown = sys.argv[0], shlex.join(provenance.program())
     for f in project_flags():
         FLAGS.register_key_flag_for_module(main, f)
     doc = sys.modules["__main__"].__doc__ or f"\nUSAGE: {shown} [flags]\n"
@@ -120,8 +120,7 @@ class _BelowProgressBars:
         """At exit, logging closes its handlers' streams: stderr stays open."""
 
 
-_PROJECT_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-_PROJECT_DIRS = tuple(os.path.join(_PROJECT_ROOT, p) + os.sep for p in PROJECT_PACKAGES)
+_PROJECT_DIRS = tuple(os.path.join(provenance.repository_root(), p) + os.sep for p in PROJECT_PACKAGES)
 
 
 def _shown(record: std_logging.LogRecord) -> bool:
@@ -165,19 +164,3 @@ def run(main: Callable[[list[str]], object], before: Callable[[], None] = runtim
             fail(str(disk.DiskFull(path, "a file")))
 
     app.run(start, flags_parser=_parse)
-
-
-def program() -> list[str]:
-    """This process's program as a user runs it: `python -m <module>` for a module of the
-    repository, else its file's name."""
-    main = Path(sys.argv[0]) if sys.argv and sys.argv[0] else Path("python")
-    root = provenance.repository_root()
-    if main.suffix == ".py" and main.resolve().is_relative_to(root):
-        return ["python", "-m", ".".join(main.resolve().relative_to(root).with_suffix("").parts)]
-    return [main.name]
-
-
-def command_line() -> str:
-    """This process's command as a user typed it (`python -m experiments.ablation ...`): recorded in
-    results files and in the notes of the locks a run holds."""
-    return shlex.join([*program(), *sys.argv[1:]])

@@ -17,8 +17,9 @@ import json
 import typing
 from typing import Any
 
-from fabricjax import archive, catalog, presets
+from fabricjax import catalog, presets
 from fabricjax.errors import UserError
+from fabricjax.store import archive
 
 # Input streams by name. "internal"/"external" are the Minsound / palm microphone PSDs (one shared
 # encoder), "proprio" the joint values (`archive.N_PROPRIO`), "flow" the patch-pooled optical
@@ -192,7 +193,7 @@ class Config:
     # training data selection: fabrics excluded from training (the property holdouts)
     exclude_fabrics: tuple[int, ...] = _field((), SEQUENCES, load=2, rate_neutral=True)
     # where training reads its inputs (INPUT_SOURCES): placed whole on the devices ("memory"), or
-    # minibatches read from the host (`fabricjax.feed`) out of memory-mapped sequence files
+    # minibatches read from the host (`fabricjax.training.feed`) out of memory-mapped sequence files
     # ("disk", `data.load_sequences`); "auto": from disk where the loaded inputs would take more
     # than `data.MEMORY_FRACTION` of this machine's memory. Results are the same bits either way.
     input_source: str = _field("auto", NEUTRAL, load=9, rate_neutral=True)

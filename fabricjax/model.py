@@ -30,7 +30,7 @@ from flax import nnx
 
 from fabricjax import catalog
 from fabricjax.config import AUDIO_MODALITIES, MODALITIES, Config
-from fabricjax.inputs import STANDARDISED, channel_shape, shift_shape, standardised_channels
+from fabricjax.sequences.inputs import STANDARDISED, channel_shape, shift_shape, standardised_channels
 
 RESCALE_EPS = 1e-6
 

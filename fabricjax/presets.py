@@ -53,9 +53,10 @@ import dataclasses
 from types import MappingProxyType
 from typing import Any, Mapping
 
-from fabricjax import archive, catalog
+from fabricjax import catalog
 from fabricjax.errors import UserError
-from fabricjax.splits import DatasetSpec
+from fabricjax.store import archive
+from fabricjax.store.splits import DatasetSpec
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)

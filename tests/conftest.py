@@ -14,7 +14,7 @@ runtime.configure_jax()  # as every command does (fabricjax.cli.run)
 
 import pytest  # noqa: E402
 
-from fabricjax import workspace  # noqa: E402
+from fabricjax.store import workspace  # noqa: E402
 
 
 @pytest.fixture(autouse=True, scope="session")

@@ -6,7 +6,8 @@ from typing import Any
 
 import numpy as np
 
-from fabricjax import archive, catalog
+from fabricjax import catalog
+from fabricjax.store import archive
 
 
 def tiny_archive(n_steps=30, fabric_id=4, day=1, trial=0, condition="lab", images=(12, 16), seed=0, reference=True):

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from acquisition import mics, recorder, servos, simulated_devices, simulated_signals, wire
-from fabricjax import archive
+from fabricjax.store import archive
 
 
 @pytest.fixture(scope="module")

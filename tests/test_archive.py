@@ -9,7 +9,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from fabricjax import archive, dataset_index, workspace
+from fabricjax.store import archive, dataset_index, workspace
 from tests.helpers import npz_fields, tiny_archive
 
 

@@ -12,7 +12,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from fabricjax import archive
+from fabricjax.store import archive
 from tests.helpers import npz_fields, tiny_archive
 
 N_STEPS = 8

@@ -10,15 +10,17 @@ other seeds.
 """
 
 import json
-import re
 import os
+import re
 
 import numpy as np
 import pytest
 
-from fabricjax import archive, checkpoint, data, dataset_index, train, workspace
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
+from fabricjax.sequences import data
+from fabricjax.store import archive, dataset_index, workspace
+from fabricjax.training import checkpoint, train
 from tests.helpers import npz_fields, tiny_archive, tiny_dataset
 
 TRIALS = [(4, 1, 0, "lab"), (4, 1, 1, "lab"), (4, 3, 0, "lab")]  # train, val, test

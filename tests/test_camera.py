@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from acquisition import camera
-from fabricjax import archive
+from fabricjax.store import archive
 from tests.helpers import CountingCamera
 
 

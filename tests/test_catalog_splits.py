@@ -2,7 +2,8 @@ import dataclasses
 
 import pytest
 
-from fabricjax import catalog, config, errors, presets, splits
+from fabricjax import catalog, config, errors, presets
+from fabricjax.store import splits
 
 
 def test_catalog_complete_and_in_range():

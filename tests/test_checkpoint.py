@@ -7,12 +7,12 @@ import jax
 import numpy as np
 import pytest
 
-from fabricjax import checkpoint
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.model import make_predict
-from fabricjax.train import restore, train_and_evaluate
-from fabricjax.workspace import Location
+from fabricjax.store.workspace import Location
+from fabricjax.training import checkpoint
+from fabricjax.training.train import restore, train_and_evaluate
 
 TINY = Config(
     preset="smoke",
@@ -130,7 +130,7 @@ def test_a_studys_checkpoint_folder_changes_with_the_code_and_the_data(monkeypat
     """A rerun after a change to the code, or on other data, trains afresh: the folder is tagged
     with the source's fingerprint and the data's contents, not only the config and seeds (a change
     in how training rounds, or a second dataset with the same classes, leaves both alike)."""
-    from fabricjax import source
+    from fabricjax.reporting import source
     from fabricjax.studies.common import runner
 
     cfg = Config.from_preset("smoke")
@@ -169,7 +169,7 @@ import numpy as np
 sys.path.insert(0, {tests!r})
 from test_checkpoint import SEEDS, TINY, data_sets
 from fabricjax.model import make_predict
-from fabricjax.train import restore, train_and_evaluate
+from fabricjax.training.train import restore, train_and_evaluate
 assert jax.device_count() == int(sys.argv[2])
 if len(sys.argv) > 3:
     train_and_evaluate(TINY, data_sets(), SEEDS, workdir=sys.argv[1])
@@ -218,7 +218,7 @@ def test_a_path_without_a_checkpoint_is_one_line_and_creates_nothing(uninterrupt
 
 def test_a_checkpoint_made_for_another_job_is_refused_naming_both(uninterrupted, tmp_path):
     """Streaming needs a fabric head; latents a model that never saw the property holdouts."""
-    from fabricjax import live
+    from fabricjax.inference import live
     from fabricjax.studies.paper import latents
 
     properties_only = dataclasses.replace(TINY, fabric_head=False, property_heads=True, epochs=1)

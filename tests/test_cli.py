@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from fabricjax import cli
-from fabricjax import workspace
 from fabricjax.config import Config
+from fabricjax.store import workspace
 from fabricjax.studies.common import runner
 from fabricjax.studies.paper import ablation
 

@@ -43,13 +43,13 @@ DOCUMENTS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 BOUNDARIES = {
     "fabricjax.studies.common.loading.load_dataset": "loads a study's data",
     "fabricjax.studies.common.loading.load_for_rows": "loads a study's data",
-    "fabricjax.dataset_index.load_index": "indexes a data folder",
+    "fabricjax.store.dataset_index.load_index": "indexes a data folder",
     "fabricjax.sim.dataset.ensure_dataset": "simulates a preset's dataset",
     "fabricjax.sim.trial.simulate": "simulates a trial",
     "fabricjax.sim.trial.procedure": "simulates a trial's motion",
-    "fabricjax.archive.read_archive": "reads a trial archive",
-    "fabricjax.train.restore": "restores a checkpoint",
-    "fabricjax.integrity.verify": "verifies a folder of archives",
+    "fabricjax.store.archive.read_archive": "reads a trial archive",
+    "fabricjax.training.train.restore": "restores a checkpoint",
+    "fabricjax.store.integrity.verify": "verifies a folder of archives",
     "fabricjax.studies.tools.variant.read": "reads a results file",
     "fabricjax.studies.tools.reproduce.check": "checks a results folder's fingerprints",
     "fabricjax.bench.suite._torch_twin": "builds the PyTorch twin of the benchmarks",
@@ -339,8 +339,9 @@ def _drive() -> None:
     scratch = Path(jobs["scratch"])
     # the libraries every command imports, once, before forking (no JAX backend starts here)
     import fabricjax.bench.suite  # noqa: F401
-    import fabricjax.integrity  # noqa: F401
+    import fabricjax.inference.view  # noqa: F401
     import fabricjax.sim  # noqa: F401
+    import fabricjax.store.integrity  # noqa: F401
     import fabricjax.studies.extra.calibrate  # noqa: F401
     import fabricjax.studies.extra.camera_frames  # noqa: F401
     import fabricjax.studies.extra.flow_agreement  # noqa: F401
@@ -348,7 +349,6 @@ def _drive() -> None:
     import fabricjax.studies.extra.sweep  # noqa: F401
     import fabricjax.studies.tools.reproduce  # noqa: F401
     import fabricjax.studies.tools.variant  # noqa: F401
-    import fabricjax.view  # noqa: F401
 
     _patch_boundaries()
     examples = [tuple(e) for e in jobs["examples"]]

@@ -11,15 +11,18 @@ import pytest
 
 from acquisition.other_rig import bench_import
 from acquisition.simulated_signals import bench_acquisition
-from fabricjax import archive, catalog, live, sim, train
+from fabricjax import catalog, sim
 from fabricjax.bench import program_timing
+from fabricjax.bench import suite as bench
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.features.extract import log_psd, mic_windows
-from fabricjax.bench import suite as bench
+from fabricjax.inference import live
+from fabricjax.store import archive
+from fabricjax.store.workspace import Location
 from fabricjax.studies.extra import cost
 from fabricjax.studies.tools import stream as stream_command
-from fabricjax.workspace import Location
+from fabricjax.training import train
 
 PNG = b"\x89PNG\r\n\x1a\n"
 TINY = dict(width=16, n_heads=4, n_layers=1, ffn=32, audio_hidden=(32, 16), proprio_hidden=(16, 16))
@@ -158,8 +161,8 @@ def test_streaming_a_rig_uses_the_window_by_duration_at_its_mics_rate():
     """A rig's 2.2 kHz vibration microphone and 7 x 3 joints, a 0.3 s step window: each step's PSD is
     the batch feature's (the loader's window, `data.window_of`), the joints its 21 values, and the
     classes the trial's label map."""
-    from fabricjax import data
     from fabricjax.features import extract
+    from fabricjax.sequences import data
     from tests.test_rig_archive import rig_archive
 
     trial = rig_archive(n_steps=12)
@@ -382,7 +385,7 @@ def test_comparison_times_every_dtype_against_every_twin_variant(monkeypatch):
 
 def test_bench_and_studies_do_not_import_each_other():
     """What the benchmarks and the studies share lies beneath both (`fabricjax.timing`,
-    `fabricjax.results_files`): no module of one imports the other."""
+    `fabricjax.reporting.results_files`): no module of one imports the other."""
     import ast
     from pathlib import Path
 

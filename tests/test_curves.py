@@ -6,10 +6,12 @@ import sys
 import numpy as np
 import pytest
 
-from fabricjax import curves, sim, workspace
+from fabricjax import sim
+from fabricjax.store import workspace
+from fabricjax.store.workspace import Location
 from fabricjax.studies.paper import ablation
-from fabricjax.train import train_and_evaluate
-from fabricjax.workspace import Location
+from fabricjax.training import curves
+from fabricjax.training.train import train_and_evaluate
 from tests.test_train import TINY, data_sets
 
 pytest.importorskip("tensorboardX")

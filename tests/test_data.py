@@ -5,9 +5,10 @@ import zipfile
 import numpy as np
 import pytest
 
-from fabricjax import archive, data, dataset_index
 from fabricjax.config import Config
 from fabricjax.features import images, welch
+from fabricjax.sequences import data
+from fabricjax.store import archive, dataset_index
 from tests.helpers import tiny_archive, tiny_dataset
 
 # fabric 4 and class 0: two trials on each training day, one test trial, one cafe trial;

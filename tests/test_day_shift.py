@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from fabricjax import sim
+from fabricjax.store.workspace import Location
 from fabricjax.studies.extra import day_shift, palm
 from fabricjax.studies.tools import reproduce
-from fabricjax.workspace import Location
 
 TINY = dict(epochs=1, width=16, n_layers=1)
 

@@ -1,4 +1,4 @@
-"""Calibrated confidence, the sequential stopping rule and unknown-fabric scores (fabricjax.confidence),
+"""Calibrated confidence, the sequential stopping rule and unknown-fabric scores (fabricjax.inference.confidence),
 and the decision study end to end on the smoke preset."""
 
 import json
@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax import confidence
-from fabricjax.workspace import Location
+from fabricjax.inference import confidence
+from fabricjax.store.workspace import Location
 from tests.helpers import read_rrd
 
 

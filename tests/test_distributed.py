@@ -23,7 +23,7 @@ from fabricjax.studies.common import documents
 import numpy as np
 sys.path.insert(0, {tests!r})
 from test_train import TINY, data_sets
-from fabricjax.train import train_and_evaluate
+from fabricjax.training.train import train_and_evaluate
 out, folder = sys.argv[2], sys.argv[3]
 saves = []
 res = train_and_evaluate(

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fabricjax import workspace
+from fabricjax.store import workspace
 from fabricjax.studies.common import findings
 from fabricjax.studies.tools import reproduce
 

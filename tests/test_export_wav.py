@@ -8,7 +8,7 @@ import numpy as np
 from scipy.io import wavfile
 
 from acquisition import exporting
-from fabricjax import archive
+from fabricjax.store import archive
 from tests.helpers import tiny_archive
 
 

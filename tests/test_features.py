@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from fabricjax import archive
 from fabricjax.features import extract, flow, images, welch
+from fabricjax.store import archive
 from tests import helpers
 from tests.helpers import tiny_archive
 
@@ -221,8 +221,8 @@ def test_the_papers_window_by_duration_is_todays_feature_bit_for_bit():
     """The default step window (42.67 ms) at the hand's 48 kHz is 2048 samples: the same feature
     name and cache key as the paper's fixed window, so cached features stay valid, and the same
     numbers as slicing the 2048 samples before each window end directly."""
-    from fabricjax import data
     from fabricjax.config import Config
+    from fabricjax.sequences import data
 
     cfg = Config.from_preset("smoke")
     assert data.window_of(cfg, archive.AUDIO_RATE) == archive.WINDOW

@@ -1,4 +1,4 @@
-"""Training fed from the host (fabricjax/feed.py): the device-resident run's bits, from memory or
+"""Training fed from the host (fabricjax/training/feed.py): the device-resident run's bits, from memory or
 from memory-mapped files, in blocks of any size."""
 
 import dataclasses
@@ -7,10 +7,10 @@ import jax
 import numpy as np
 import pytest
 
-from fabricjax import feed, placement
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
-from fabricjax.train import train_and_evaluate
+from fabricjax.training import feed, placement
+from fabricjax.training.train import train_and_evaluate
 
 # every kind of input: frames (laid out as rows per block), flow, a PSD, joints; two seeds, each
 # with its own shuffle; a remainder batch dropped; evaluation sets that are not whole minibatches
@@ -98,7 +98,7 @@ import numpy as np
 from fabricjax import runtime
 runtime.configure_jax()
 from fabricjax.config import Config
-from fabricjax.train import train_and_evaluate
+from fabricjax.training.train import train_and_evaluate
 cfg = Config(
     preset="smoke", modalities=("flow",), width=16, n_layers=1, ffn=32, cnn_features=(4, 8), seq_len={n}, epochs=1,
     batch_size=8,

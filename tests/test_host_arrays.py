@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from fabricjax import host_arrays, memo, placement
+from fabricjax import host_arrays, memo
 from fabricjax.features import images
+from fabricjax.training import placement
 
 pytestmark = pytest.mark.skipif(jax.default_backend() != "cpu", reason="placement in place is XLA:CPU's")
 

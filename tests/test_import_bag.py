@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from acquisition.recording import RecordingImportError
-from fabricjax import archive
+from fabricjax.store import archive
 
 pytest.importorskip("rosbags")
 

@@ -11,8 +11,8 @@ from scipy.io import wavfile
 from acquisition import hand_folder, ros_bag
 from acquisition.alignment import ReferenceSource
 from acquisition.recording import RecordingImportError
-from fabricjax import archive
 from fabricjax.errors import UserError
+from fabricjax.store import archive
 
 N, H, W, FPS = 15, 8, 10, 50
 TRIAL = {"fabric_id": 4, "day": 1, "trial": 2, "condition": "lab"}

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from acquisition import import_manifest, other_rig
-from fabricjax import archive
 from fabricjax.errors import UserError
-from fabricjax.workspace import Location
+from fabricjax.store import archive
+from fabricjax.store.workspace import Location
 
 LABELS = ["cotton canvas", "felt", "oak"]
 SPLITS = {0: "train", 1: "train", 2: "val", 3: "test"}
@@ -209,9 +209,9 @@ def test_rig_file_mistakes_are_named(tmp_path):
 def test_the_rig_files_step_window_is_recorded_and_loads_by_default(tmp_path):
     """steps.mic_window_s: in every archive's meta, full from the first step, and the window the
     default config loads (3072 samples at 2.2 kHz: 767 bins)."""
-    from fabricjax import data
     from fabricjax.config import Config
     from fabricjax.features import welch
+    from fabricjax.sequences import data
 
     window_s = archive.WINDOW * 1.5 / other_rig.VIBRATION_RATE
     toml = other_rig.RIG_TOML.replace(
@@ -417,9 +417,9 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
 def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path):
     from scipy.io import wavfile
 
-    from fabricjax import data
     from fabricjax.config import Config
     from fabricjax.features import welch
+    from fabricjax.sequences import data
 
     room = other_rig.RIG_TOML.replace(
         "[joints]", '[[mics]]\nname = "room"\nfile = "room.wav"\nrole = "external"\n\n[joints]'
@@ -444,8 +444,8 @@ def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path):
 
 
 def test_a_labels_file_sets_the_classes_and_their_count(recordings, tmp_path):
-    from fabricjax import data
     from fabricjax.config import Config
+    from fabricjax.sequences import data
 
     labels = tmp_path / "labels.csv"  # two names, one class; the classes in the file's order, not sorted
     labels.write_text("name,class\noak,0\nfelt,1\ncotton canvas,1\n")
@@ -470,8 +470,8 @@ def test_a_labels_file_sets_the_classes_and_their_count(recordings, tmp_path):
 
 
 def test_property_columns_give_levels_only_where_given(tmp_path):
-    from fabricjax import data
     from fabricjax.config import Config
+    from fabricjax.sequences import data
 
     manifest = other_rig.write_recordings(
         tmp_path / "rig", LABELS[:2], 2, seconds=(2.0, 2.0), splits={0: "train", 1: "test"}
@@ -906,7 +906,7 @@ def test_the_readme_beside_the_manifest_gives_every_results_page_its_source_and_
     (root / "README.txt").write_text(README)
     out = tmp_path / "archives"
     _run(root / recordings.name, out)
-    from fabricjax import provenance
+    from fabricjax.store import provenance
     from fabricjax.studies.common import documents
 
     source = provenance.read(out)

@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 
 from acquisition import ros_bag
-from fabricjax import archive, presets
+from fabricjax import presets
+from fabricjax.store import archive
+from fabricjax.store.workspace import Location
 from fabricjax.studies.paper import ablation
-from fabricjax.workspace import Location
 
 pytest.importorskip("rosbags")
 
@@ -35,8 +36,8 @@ def test_smoke_study_trains_on_imported_bags(tmp_path):
 
 @pytest.mark.slow  # ~45 s: 31 MCAP bags resampled from 16 kHz, one training run
 def test_smoke_study_trains_on_bags_recorded_as_a_ros2_lab_records(tmp_path):
-    from tests.test_ros_bags import LAB_MAPPING, lab_messages
     from tests.test_import_bag import write_messages
+    from tests.test_ros_bags import LAB_MAPPING, lab_messages
 
     data = tmp_path / "imported"
     for i, spec in enumerate(presets.get("smoke").dataset.trials()):

@@ -77,9 +77,23 @@ def _imports(path: Path) -> list[str]:
     return found
 
 
-# Subpackages by layer: a module imports only its own subpackage, the package's modules and the
-# subpackages of lower layers. The studies and the benchmarks are the top, side by side.
-LOWER = {"features": set(), "sim": set(), "bench": {"features", "sim"}, "studies": {"features", "sim"}}
+# Subpackages by layer, in the order of the data path: a module imports only its own subpackage, the
+# package's top-level modules and the subpackages of lower layers. The studies and the benchmarks
+# are the top, side by side.
+LOWER = {
+    "store": set(),
+    "sim": {"store"},
+    "features": {"store"},
+    "sequences": {"store", "features"},
+    "training": {"store", "features", "sequences"},
+    "reporting": {"store", "sim"},
+    "inference": {"store", "features", "sequences", "training", "reporting"},
+    "bench": {"store", "sim", "features", "sequences", "training", "reporting", "inference"},
+    "studies": {"store", "sim", "features", "sequences", "training", "reporting", "inference"},
+}
+# The package's top-level modules (the core: config, presets, the model, the process) read only the
+# storage, features and sequences below them.
+TOP_LEVEL = {"store", "features", "sequences"}
 
 
 def test_no_subpackage_imports_one_beside_or_above_it():
@@ -89,9 +103,51 @@ def test_no_subpackage_imports_one_beside_or_above_it():
     for path in sorted((ROOT / "fabricjax").rglob("*.py")):
         parts = path.relative_to(ROOT / "fabricjax").parts
         own = parts[0] if len(parts) > 1 else None
-        allowed = {own} | LOWER.get(own, set()) if own else {"features", "sim"}
+        allowed = {own} | LOWER.get(own, set()) if own else TOP_LEVEL
         for name in _imports(path):
             target = name.split(".")[1] if name.count(".") else None
             if target in subpackages and target not in allowed:
                 found.append(f"{path.relative_to(ROOT)}: {name}")
     assert found == []
+
+
+def _imported_modules(path: Path, modules: set[str]) -> set[str]:
+    """The package modules `path` imports, anywhere in it: `from fabricjax.store import archive` is the
+    archive module, `from fabricjax.store.archive import read` too."""
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("fabricjax"):
+            names = [f"{node.module}.{a.name}" for a in node.names]
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names if a.name.startswith("fabricjax")]
+        else:
+            continue
+        for name in names:
+            while name and name not in modules:
+                name = name.rpartition(".")[0]
+            found |= {name} if name else set()
+    return found
+
+
+def test_no_import_circle():
+    """No module reaches itself through the imports of the modules it imports, at any depth."""
+    paths = {
+        ".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__"): p
+        for p in (ROOT / "fabricjax").rglob("*.py")
+    }
+    graph = {m: {t for t in _imported_modules(p, set(paths)) if not m.startswith(t)} for m, p in paths.items()}
+    circles, state = [], {}
+
+    def visit(m: str, trail: list[str]) -> None:
+        state[m] = "open"
+        for t in sorted(graph[m]):
+            if state.get(t) == "open":
+                circles.append(" -> ".join(trail[trail.index(t) :] + [m, t]) if t in trail else f"{m} -> {t}")
+            elif t not in state:
+                visit(t, trail + [m])
+        state[m] = "done"
+
+    for m in sorted(graph):
+        if m not in state:
+            visit(m, [])
+    assert circles == []

@@ -3,10 +3,11 @@ import gc
 import numpy as np
 import pytest
 
-from fabricjax import memo, placement, train
+from fabricjax import memo
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
-from fabricjax.inputs import input_statistics
+from fabricjax.sequences.inputs import input_statistics
+from fabricjax.training import placement, train
 
 
 @pytest.fixture

@@ -6,10 +6,11 @@ import cv2
 import numpy as np
 import pytest
 
-from fabricjax import archive, catalog
+from fabricjax import catalog
 from fabricjax.sim import Scene, minsight
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import nuisance
+from fabricjax.store import archive
 
 IMAGES = ("audio", "proprio", "images")
 

@@ -9,7 +9,6 @@ from flax import nnx
 from fabricjax import catalog
 from fabricjax.bench import synthetic
 from fabricjax.config import MODALITIES, Config
-from fabricjax.inputs import feature_shapes
 from fabricjax.model import (
     FabricNet,
     causal_conv,
@@ -19,6 +18,7 @@ from fabricjax.model import (
     rescale_unit,
     self_attention,
 )
+from fabricjax.sequences.inputs import feature_shapes
 
 TINY = dict(
     preset="smoke",

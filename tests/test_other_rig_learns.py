@@ -10,8 +10,8 @@ dataset of the issue's size gives in two."""
 import pytest
 
 from acquisition import import_manifest, other_rig
+from fabricjax.store.workspace import Location
 from fabricjax.studies.paper import ablation
-from fabricjax.workspace import Location
 
 LABELS = ["cotton canvas", "felt", "oak"]
 

@@ -127,7 +127,7 @@ def test_each_feature_says_its_bytes_per_step():
 def test_the_training_sequences_are_those_the_splits_train_on(tmp_path, monkeypatch):
     """The plan counts the trials `splits` and `data` put in the training split: a fabric the rows
     exclude (the property holdouts) trains on none, and a day of one trial keeps it for training."""
-    from fabricjax import splits
+    from fabricjax.store import splits
 
     spec = presets.get("smoke").dataset
     counted = {}

@@ -1,6 +1,7 @@
 import numpy as np
 
-from fabricjax import catalog, plots
+from fabricjax import catalog
+from fabricjax.reporting import plots
 
 
 def test_confusion_matrix_counts():

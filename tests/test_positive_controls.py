@@ -16,9 +16,9 @@ runs under both compute dtypes (`Config.compute_dtype`); the bfloat16 ones are m
 import numpy as np
 import pytest
 
-from fabricjax import train
 from fabricjax.bench import synthetic
 from fabricjax.config import IMAGE_REFERENCES, Config
+from fabricjax.training import train
 
 N_CLASSES = 4  # chance: 25 %
 PASS = 0.6

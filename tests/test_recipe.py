@@ -8,12 +8,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from fabricjax import feed, placement, sharding, train
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
-from fabricjax.inputs import feature_shapes
+from fabricjax.sequences.inputs import feature_shapes
 from fabricjax.studies.common import recipe, runner
-from fabricjax.train import make_trainer, train_and_evaluate
+from fabricjax.training import feed, placement, sharding, train
+from fabricjax.training.train import make_trainer, train_and_evaluate
 
 TINY = Config(
     preset="smoke",
@@ -203,8 +203,8 @@ def test_real_contact_sound_trains_to_its_linear_probe(tmp_path):
     """Real recordings (LMT-108, 22 materials): imported as they are and trained with the fitted
     recipe and no other setting, the row lands within 3 pp of the linear probe of its inputs."""
     from acquisition import import_manifest
+    from fabricjax.store.workspace import Location
     from fabricjax.studies.paper import ablation
-    from fabricjax.workspace import Location
 
     out = tmp_path / "lmt108"
     import_manifest.run(LMT108 / "manifest.csv", out, rig=LMT108 / "rig.toml", progress=False, say=lambda s: None)

@@ -8,8 +8,9 @@ import re
 import numpy as np
 import pytest
 
-from fabricjax import data, plots
 from fabricjax.errors import UserError
+from fabricjax.reporting import plots
+from fabricjax.sequences import data
 from fabricjax.studies.common import documents
 from fabricjax.studies.extra import cost
 from fabricjax.studies.paper import bandwidth, latents, noise, properties

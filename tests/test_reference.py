@@ -6,9 +6,10 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax import archive, sim
+from fabricjax import sim
 from fabricjax.config import Config
 from fabricjax.features import extract, images
+from fabricjax.store import archive
 from tests.helpers import CountingCamera, npz_fields, tiny_archive
 
 

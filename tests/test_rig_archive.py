@@ -6,7 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax import archive, catalog
+from fabricjax import catalog
+from fabricjax.store import archive
 from tests.helpers import tiny_archive
 
 ARM = [f"arm_{k}" for k in range(7)]

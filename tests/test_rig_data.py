@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from fabricjax import archive, data
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.features import welch
+from fabricjax.sequences import data
+from fabricjax.store import archive
 from tests.helpers import tiny_dataset
 from tests.test_rig_archive import rig_archive, rig_streams
 

@@ -11,7 +11,7 @@ import pytest
 
 from acquisition import mapping_file
 from acquisition.recording import RecordingImportError
-from fabricjax import archive, integrity
+from fabricjax.store import archive, integrity
 
 pytest.importorskip("rosbags")
 
@@ -544,8 +544,8 @@ def test_lab_bag_becomes_an_archive_read_archive_and_verify_accept(tmp_path):
 
 
 def test_proprio_on_absent_joint_fields_is_a_one_line_error(tmp_path):
-    from fabricjax import data
     from fabricjax.config import Config
+    from fabricjax.sequences import data
 
     folder = tmp_path / "data"
     a = ros_bag.import_bag(

@@ -11,17 +11,20 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from fabricjax import archive, catalog, dataset_index, presets
-from fabricjax.sim import EFFECTS, Scene, ensure_dataset, simulate
+from fabricjax import catalog, presets
 from fabricjax.sim import (
+    EFFECTS,
+    Scene,
     acoustics,
     air_path,
     ambient,
+    ensure_dataset,
     minsight,
     motion,
     rig,
     servo,
     shell,
+    simulate,
     sph0645,
     stick_slip,
     texture,
@@ -31,6 +34,7 @@ from fabricjax.sim import calibration as cal
 from fabricjax.sim import dataset as dataset_mod
 from fabricjax.sim import scene as scene_mod
 from fabricjax.sim.scene import SIMULATOR_VERSION, nuisance
+from fabricjax.store import archive, dataset_index
 
 SHORT = dict(cycles=2)
 
@@ -252,7 +256,7 @@ def test_not_enough_disk_is_a_clear_error_before_any_write(tmp_path, monkeypatch
     import shutil
     from collections import namedtuple
 
-    from fabricjax.disk import DiskFull
+    from fabricjax.store.disk import DiskFull
 
     monkeypatch.setattr(shutil, "disk_usage", lambda p: namedtuple("u", "total used free")(10**9, 10**9, 10**6))
     with pytest.raises(

@@ -35,12 +35,16 @@ from hypothesis.extra import numpy as hnp
 from scipy import stats as sps
 from threadpoolctl import threadpool_limits
 
-from fabricjax import archive, catalog, data, sim, stats, train
+from fabricjax import catalog, sim
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.features import extract, welch
 from fabricjax.model import self_attention
+from fabricjax.reporting import stats
+from fabricjax.sequences import data
+from fabricjax.store import archive
 from fabricjax.studies.paper import latents
+from fabricjax.training import train
 from tests.helpers import tiny_archive
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -462,7 +466,7 @@ def test_training_killed_mid_epoch_resumes_from_its_last_checkpoint(tmp_path):
     finally:
         proc.kill()
         proc.wait()
-    from fabricjax import checkpoint
+    from fabricjax.training import checkpoint
 
     assert checkpoint.manager(workdir).latest_step() == 2  # epoch 3 was never saved
     saved = []

@@ -10,12 +10,13 @@ from pathlib import Path
 
 import pytest
 
-from fabricjax import sim, source
+from fabricjax import sim
 from fabricjax.errors import UserError
+from fabricjax.reporting import source
 from fabricjax.sim import estimates
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
 from fabricjax.studies.tools import reproduce
-from fabricjax.workspace import Location
 
 REPO = Path(__file__).resolve().parents[1]
 PLAN = (reproduce.Step("probe", rows=("proprio",)), reproduce.Step("day_shift", rows=("proprio",)))
@@ -200,7 +201,7 @@ def test_the_decision_study_is_given_the_ablation_rows_labels(tmp_path):
 
 
 def test_the_published_files_are_found_under_one_repository_root():
-    from fabricjax import provenance
+    from fabricjax.store import provenance
     from fabricjax.studies.common import plan
     from fabricjax.studies.extra import sensitivity
 

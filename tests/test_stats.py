@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats as sps
 
-from fabricjax import stats
+from fabricjax.reporting import stats
 
 
 def test_mean_sd_one_seed_and_many():
@@ -41,7 +41,7 @@ def test_all_zero_differences_do_not_crash():
 
 def brute_force_p(a, b):
     """Two-sided signed-rank p by listing every sign pattern of the non-zero differences (zeros
-    dropped, tied |differences| at their mean rank), written apart from fabricjax.stats."""
+    dropped, tied |differences| at their mean rank), written apart from fabricjax.reporting.stats."""
     d = np.asarray(a, float) - np.asarray(b, float)
     d = d[d != 0]
     ranks = sps.rankdata(np.abs(d))

@@ -11,14 +11,17 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from fabricjax import curves, data, presets, sim, source, stats, train
+from fabricjax import presets, sim
 from fabricjax.config import Config
 from fabricjax.errors import UserError
+from fabricjax.reporting import source, stats
+from fabricjax.sequences import data
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, findings, runner
 from fabricjax.studies.extra import day_shift, probe, sweep
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
 from fabricjax.studies.tools import reproduce
-from fabricjax.workspace import Location
+from fabricjax.training import curves, train
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
 TINY = dict(epochs=1, width=16, n_layers=1)

@@ -15,10 +15,10 @@ import pytest
 from fabricjax import sim
 from fabricjax.config import Config
 from fabricjax.errors import UserError
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import loading
 from fabricjax.studies.extra import sweep
 from fabricjax.studies.paper import ablation
-from fabricjax.workspace import Location
 
 REPO = Path(__file__).parents[1]
 ENV = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_DISABLE_MOST_OPTIMIZATIONS": "1"}

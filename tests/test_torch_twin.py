@@ -12,9 +12,9 @@ torch = pytest.importorskip("torch")
 from fabricjax import catalog  # noqa: E402
 from fabricjax.bench import synthetic, torch_twin  # noqa: E402
 from fabricjax.config import Config  # noqa: E402
-from fabricjax.inputs import feature_shapes  # noqa: E402
 from fabricjax.model import make_predict  # noqa: E402
-from fabricjax.train import make_trainer, select  # noqa: E402
+from fabricjax.sequences.inputs import feature_shapes  # noqa: E402
+from fabricjax.training.train import make_trainer, select  # noqa: E402
 
 SMALL = dict(
     preset="smoke", width=32, n_heads=4, n_layers=2, ffn=48, audio_hidden=(40, 24), proprio_hidden=(24, 16), seq_len=30

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 from flax import nnx
 
-from fabricjax import placement, runtime, sharding, train
+from fabricjax import runtime
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
-from fabricjax.inputs import input_statistics, training_layout
 from fabricjax.model import FabricNet, make_predict
-from fabricjax.train import make_trainer, masked_accuracy, masked_cross_entropy, train_and_evaluate
+from fabricjax.sequences.inputs import input_statistics, training_layout
+from fabricjax.training import placement, sharding, train
+from fabricjax.training.train import make_trainer, masked_accuracy, masked_cross_entropy, train_and_evaluate
 from tests import helpers
 
 TINY = Config(
@@ -127,7 +128,7 @@ import jax, numpy as np
 sys.path.insert(0, {tests!r})
 from test_train import TINY, data_sets
 from fabricjax import sharding
-from fabricjax.train import train_and_evaluate
+from fabricjax.training.train import train_and_evaluate
 assert jax.device_count() == 4
 out = {{"mesh": dict(sharding.training_mesh(TINY.batch_size).shape)}}
 mesh = sharding.training_mesh(4)  # seeds together, samples over 4 devices
@@ -347,8 +348,9 @@ def test_inputs_placed_before_a_run_serve_it_and_change_nothing(monkeypatch):
     """`placement.place_ahead` lays out a camera input as a run will (pixel rows, evaluation sets padded)
     and computes its statistics; the run after it builds neither again and trains to the same
     bits as a run that did it all itself."""
-    from fabricjax import inputs, memo
+    from fabricjax import memo
     from fabricjax.features import images
+    from fabricjax.sequences import inputs
 
     cfg = Config(
         **{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "property_heads": False, "epochs": 1}
@@ -381,7 +383,7 @@ runtime.configure_jax()
 from test_train import TINY
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
-from fabricjax.train import train_and_evaluate
+from fabricjax.training.train import train_and_evaluate
 cfg = Config(**{{**TINY.to_json(), "modalities": ("image", "internal", "proprio"), "cnn_features": (4,), "epochs": 1}})
 sizes = (("train", 24), ("val", 10), ("test", 12))
 sets = {{k: synthetic.data_set(cfg, n, seed=i, image_hw=(12, 16)) for i, (k, n) in enumerate(sizes)}}

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from fabricjax.errors import UserError
+from fabricjax.store.workspace import Location
 from fabricjax.studies.tools import variant
-from fabricjax.workspace import Location
 
 
 def _row(name, test, val, dtype="float32", wall_s=10.0):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from acquisition import import_manifest, other_rig
-from fabricjax import archive, dataset_index, integrity, workspace
+from fabricjax.store import archive, dataset_index, integrity, workspace
 from tests.helpers import npz_fields, tiny_archive, tiny_dataset
 
 TRIALS = [(4, 1, 0, "lab"), (4, 1, 1, "lab"), (5, 1, 0, "lab")]

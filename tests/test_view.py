@@ -9,14 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fabricjax import archive, presets, view
+from fabricjax import presets
 from fabricjax.bench import synthetic
 from fabricjax.features import welch
+from fabricjax.inference import view
 from fabricjax.sim.dataset import scene_for
 from fabricjax.sim.trial import simulate
+from fabricjax.store import archive
+from fabricjax.store.workspace import Location
 from fabricjax.studies.tools import stream as stream_command
-from fabricjax.train import train_and_evaluate
-from fabricjax.workspace import Location
+from fabricjax.training.train import train_and_evaluate
 from tests.helpers import read_rrd
 from tests.test_train import TINY
 

@@ -1,5 +1,5 @@
-"""A workspace that cannot mix runs: one writer at a time (`fabricjax.lock`), a full disk in one
-line with nothing half-written (`fabricjax.disk`, `fabricjax.atomic`), results written as a set,
+"""A workspace that cannot mix runs: one writer at a time (`fabricjax.store.lock`), a full disk in one
+line with nothing half-written (`fabricjax.store.disk`, `fabricjax.store.atomic`), results written as a set,
 and no process pool outliving its parent (`fabricjax.parallel`)."""
 
 import errno
@@ -14,8 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fabricjax import atomic, checkpoint, disk, lock
 from fabricjax.config import Config
+from fabricjax.store import atomic, disk, lock
+from fabricjax.training import checkpoint
 
 REPO = Path(__file__).resolve().parents[1]
 

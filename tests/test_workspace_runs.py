@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from fabricjax import presets
+from fabricjax.store.workspace import Location
 from fabricjax.studies.paper import ablation
-from fabricjax.workspace import Location
 from tests.helpers import tiny_dataset
 
 REPO = Path(__file__).resolve().parents[1]
@@ -82,7 +82,7 @@ def _session_processes(sid: int) -> list[int]:
 
 @pytest.mark.slow  # ~2 min: three smoke trainings of 6 epochs
 def test_a_row_killed_mid_way_resumes_from_its_last_save_to_the_uninterrupted_bits(tmp_path):
-    from fabricjax import train
+    from fabricjax.training import train
 
     clean, killed = tmp_path / "clean", tmp_path / "killed"
     command = lambda ws, res: _command(ws, res, epochs=6, seeds=2)  # noqa: E731  saves at epochs 2, 4 and 6

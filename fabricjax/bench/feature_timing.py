@@ -17,9 +17,10 @@ import jax
 import numpy as np
 import scipy.signal
 
-from fabricjax import archive, data
 from fabricjax.config import Config
 from fabricjax.features import welch
+from fabricjax.sequences import data
+from fabricjax.store import archive
 from fabricjax.timing import best_of
 
 

@@ -1,4 +1,4 @@
-"""Minibatch throughput of training fed from the host (`fabricjax.feed`): the same blocks of
+"""Minibatch throughput of training fed from the host (`fabricjax.training.feed`): the same blocks of
 shuffled sequences gathered from an array in memory, from a memory-mapped file whose pages the
 kernel has just dropped (read from disk), and from the same file again (from the page cache).
 
@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fabricjax import feed, host_arrays
+from fabricjax import host_arrays
 from fabricjax.features import flow
+from fabricjax.training import feed
 
 PAPER_FLOW_STEP = (2, *flow.pooled_shape(308, 410))
 

@@ -30,13 +30,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fabricjax import sharding, stats
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
-from fabricjax.inputs import feature_shapes, training_layout
 from fabricjax.model import compile_predict_one
+from fabricjax.reporting import stats
+from fabricjax.sequences.inputs import feature_shapes, training_layout
 from fabricjax.timing import predict_one_timer
-from fabricjax.train import make_trainer, seed_keys, select
+from fabricjax.training import sharding
+from fabricjax.training.train import make_trainer, seed_keys, select
 
 STEPS_PER_EPOCH = 16
 MATMUL_N = 2048  # the practical peak's matmul: (N x N) @ (N x N), large enough to run at the BLAS's best

@@ -6,7 +6,7 @@ Benchmarks (names for --only):
     welch        `welch_psd` against `scipy.signal.welch` on 4096 windows x 2048 (float32 samples)
     flow         dense Farneback flow per frame pair at 308x410 and 60x80: OpenCV on one thread and on
                  every core, the JAX reimplementation batched on JAX's devices (CPU, or an accelerator)
-    input        training fed from the host (`fabricjax.feed`): one step's minibatches of the paper's
+    input        training fed from the host (`fabricjax.training.feed`): one step's minibatches of the paper's
                  flow features (5 seeds x batch 32, N=200) gathered from memory, from disk (the
                  file's pages dropped first) and from the page cache
     extraction   cold feature extraction (audio PSDs + proprioception) of the smoke dataset and the
@@ -22,7 +22,7 @@ Benchmarks (names for --only):
     inference    one 200-step sequence, p50 / p99: ours (`predict_one` compiled ahead of time, each compute dtype) and
     the
                  twin's (eager, compiled; float32 and bfloat16 autocast)
-    streaming    per-step update of `fabricjax.live` (newest PSDs + model over N=200 steps)
+    streaming    per-step update of `fabricjax.inference.live` (newest PSDs + model over N=200 steps)
                  on a simulated trial replayed as fast as possible
     acquisition  the 50 Hz recording loop against the simulated devices: step times, deadline misses
                  (the acquisition package's benchmark, passed in by the command: `run(acquisition=...)`)
@@ -55,12 +55,16 @@ from typing import Any, Callable, Sequence
 import jax
 from absl import logging
 
-from fabricjax import archive, dataset_index, live, presets, results_files, sharding, sim, timing, train
+from fabricjax import presets, sim, timing
 from fabricjax.bench import feature_timing, input_timing, program_timing, sim_throughput, torch_twin
 from fabricjax.config import Config
 from fabricjax.features import welch
+from fabricjax.inference import live
+from fabricjax.reporting import results_files
 from fabricjax.sim import calibration as sim_calibration
-from fabricjax.workspace import Location
+from fabricjax.store import archive, dataset_index
+from fabricjax.store.workspace import Location
+from fabricjax.training import sharding, train
 
 BENCHMARKS = (
     "simulator",

@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from fabricjax import archive, catalog
+from fabricjax import catalog
 from fabricjax.config import Config
+from fabricjax.store import archive
 
 
 def data_set(

@@ -6,7 +6,7 @@ encoder shared by both microphones, [0, 1] rescale over time, Dense + learned po
 pre-LayerNorm attention blocks with fused QKV and `scaled_dot_product_attention`, final
 LayerNorm (epsilon 1e-6 like Flax), mean over time, ReLU hidden layer, linear head), initialised
 from the same distributions (LeCun-normal truncated kernels, zero biases, N(0, 0.02) positions),
-and trained like `fabricjax.train` (global-norm clip 1.0, AdamW decaying weight matrices only; the
+and trained like `fabricjax.training.train` (global-norm clip 1.0, AdamW decaying weight matrices only; the
 twin keeps a constant learning rate, which costs the same per step as our warm-up schedule).
 `build(config, n_bins)` makes the twin; `state_dict_from_params` converts our parameter pytree to
 its `state_dict`, so the two can be checked for equal logits (tests/test_torch_twin.py).
@@ -31,8 +31,10 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from fabricjax import archive, catalog, stats
+from fabricjax import catalog
 from fabricjax.config import MODALITIES, Config
+from fabricjax.reporting import stats
+from fabricjax.store import archive
 
 LN_EPS = 1e-6  # flax.nnx.LayerNorm's default epsilon
 SUPPORTED = ("internal", "external", "proprio")
@@ -40,7 +42,7 @@ SUPPORTED = ("internal", "external", "proprio")
 # one that works without a GPU (CUDA graphs are GPU-only).
 COMPILE_MODES = ("default", "max-autotune-no-cudagraphs")
 ADAMW_IMPLS = ("fused", "foreach")  # fastest first; `adamw_impl` picks the first this torch builds
-MAX_GRAD_NORM = 1.0  # the global-norm clip of fabricjax.train
+MAX_GRAD_NORM = 1.0  # the global-norm clip of fabricjax.training.train
 
 
 @functools.cache

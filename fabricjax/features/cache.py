@@ -34,9 +34,10 @@ from typing import Iterator
 import numpy as np
 from tqdm import tqdm
 
-from fabricjax import archive, dataset_index, parallel
-from fabricjax.atomic import atomic_open
+from fabricjax import parallel
 from fabricjax.features.extract import Feature, feature_named
+from fabricjax.store import archive, dataset_index
+from fabricjax.store.atomic import atomic_open
 
 
 def folder(features_root: Path, dataset_root: Path, feature: Feature) -> Path:

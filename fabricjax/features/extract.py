@@ -35,9 +35,9 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from fabricjax import archive
 from fabricjax.config import PAPER_WINDOW_S, Config
 from fabricjax.features import flow, images, welch
+from fabricjax.store import archive
 
 PSD_CHUNK = 256  # windows per welch call: one compiled shape for every trial length
 

@@ -7,7 +7,7 @@ Parameters (`scipy.signal.welch` with the same arguments gives the same numbers)
 A 2048-sample window then holds 3 segments starting at 0, 511 and 1022 (the last 4 samples are
 unused) and the density has nperseg // 2 + 1 = 512 bins at k * 48000 / 1022 Hz (46.97 Hz apart,
 bin 511 is Nyquist, 24 kHz): the paper's 512 bins without dropping one. The sample rate, the
-window and the word format are the archive's (`fabricjax.archive`: AUDIO_RATE, WINDOW, VALID_BITS,
+window and the word format are the archive's (`fabricjax.store.archive`: AUDIO_RATE, WINDOW, VALID_BITS,
 SAMPLE_SHIFT, FULL_SCALE).
 
 Raw SPH0645 I2S words (int32) carry 18 valid bits in bits 31..14: an arithmetic shift right by 14
@@ -48,7 +48,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from fabricjax.archive import AUDIO_RATE, FULL_SCALE, NYQUIST_KHZ, SAMPLE_SHIFT, WINDOW
+from fabricjax.store.archive import AUDIO_RATE, FULL_SCALE, NYQUIST_KHZ, SAMPLE_SHIFT, WINDOW
 
 NPERSEG = 1022
 NOVERLAP = 511

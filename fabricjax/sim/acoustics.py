@@ -14,8 +14,8 @@ import functools
 import numpy as np
 import scipy.fft
 
-from fabricjax import archive
 from fabricjax.sim import calibration as cal
+from fabricjax.store import archive
 
 P_REF = 20e-6  # [cited] the reference sound pressure of SPL, 20 uPa (IEC 61672, ISO 1683)
 # [cited] IEC 61672-1, Annex E: the A-weighting's pole frequencies (Hz, rounded as the standard gives

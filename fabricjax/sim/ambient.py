@@ -25,10 +25,10 @@ import functools
 
 import numpy as np
 
-from fabricjax import archive
 from fabricjax.sim import acoustics, air_path
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import Scene
+from fabricjax.store import archive
 
 ROOM_RESPONSE_LEN = (
     2**16

@@ -34,8 +34,8 @@ from __future__ import annotations
 
 import math
 
-from fabricjax import archive
 from fabricjax.sim import estimates
+from fabricjax.store import archive
 
 # --- time base --------------------------------------------------------------------------------
 # [paper] The audio sample rate (48 kHz), the step rate (50 Hz, one step per Minsight frame) and the

@@ -3,7 +3,7 @@
 Archives are written atomically (`archive.write_archive`), so an interrupted run leaves only
 finished archives (plus temporary `.partial` files, removed on the next run); rerunning skips
 every archive that already exists, matches its scene and holds the wanted streams. Writing holds
-the dataset's lock (`fabricjax.lock`): a run that reads the dataset, or simulates it, at the same
+the dataset's lock (`fabricjax.store.lock`): a run that reads the dataset, or simulates it, at the same
 time makes this one end in a line naming it, before anything is written.
 """
 
@@ -16,11 +16,12 @@ from typing import Iterable
 import numpy as np
 from tqdm import tqdm
 
-from fabricjax import archive, dataset_index, disk, lock, parallel, presets, splits, workspace
+from fabricjax import parallel, presets
 from fabricjax.sim import calibration as cal
 from fabricjax.sim import estimates
 from fabricjax.sim.scene import EFFECTS, Scene
 from fabricjax.sim.trial import simulate
+from fabricjax.store import archive, dataset_index, disk, lock, splits, workspace
 
 
 def history(spec: splits.TrialSpec, dataset: splits.DatasetSpec) -> int:

@@ -47,10 +47,11 @@ import functools
 import cv2
 import numpy as np
 
-from fabricjax import archive, catalog
+from fabricjax import catalog
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.motion import Motion
 from fabricjax.sim.scene import Nuisance, Scene, nuisance
+from fabricjax.store import archive
 
 FULL_SIZE = archive.MINSIGHT_SIZE
 R_IN = cal.SKELETON_RADIUS_MM

@@ -26,9 +26,10 @@ import dataclasses
 
 import numpy as np
 
-from fabricjax import archive, catalog
+from fabricjax import catalog
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import Nuisance
+from fabricjax.store import archive
 
 
 @dataclasses.dataclass(frozen=True)

@@ -24,9 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from fabricjax import archive, catalog
+from fabricjax import catalog
 from fabricjax.sim import calibration as cal
 from fabricjax.sim import estimates, rig
+from fabricjax.store import archive
 
 EFFECTS = (
     "texture",

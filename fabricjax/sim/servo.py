@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from fabricjax import archive
 from fabricjax.sim import acoustics
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.motion import Motion
+from fabricjax.store import archive
 
 
 def joint_speed(motion: Motion) -> np.ndarray:

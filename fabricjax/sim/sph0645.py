@@ -16,9 +16,9 @@ import functools
 
 import numpy as np
 
-from fabricjax import archive
 from fabricjax.sim import acoustics
 from fabricjax.sim import calibration as cal
+from fabricjax.store import archive
 
 
 def band_transfer(f: np.ndarray) -> np.ndarray:

@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from fabricjax import archive
 from fabricjax.sim import acoustics
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.motion import Motion
 from fabricjax.sim.scene import Scene
+from fabricjax.store import archive
 
 
 def asperity_um(scene: Scene) -> float:

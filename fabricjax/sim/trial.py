@@ -15,7 +15,6 @@ import importlib
 
 import numpy as np
 
-from fabricjax import archive
 from fabricjax.sim import (
     acoustics,
     air_path,
@@ -32,6 +31,7 @@ from fabricjax.sim import (
 )
 from fabricjax.sim import calibration as cal
 from fabricjax.sim.scene import Nuisance, Scene, nuisance
+from fabricjax.store import archive
 
 
 def frame_times(duration_s: float, phase_s: float, rng: np.random.Generator) -> np.ndarray:

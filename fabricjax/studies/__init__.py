@@ -29,7 +29,7 @@ Tools (`tools/`):
     variant      a variant of a training study against its baseline: two results files, row by row
 
 The speed benchmarks are a package of their own, `fabricjax.bench`; neither imports the other:
-what both need lies beneath them (`fabricjax.timing`, `fabricjax.results_files`).
+what both need lies beneath them (`fabricjax.timing`, `fabricjax.reporting.results_files`).
 
 Each study's `run(...)` trains or measures, writes <study>.md and .json into its results folder
 and returns the JSON document. The four training studies of the paper's tables (ablation,

@@ -9,7 +9,7 @@ atomically with `write`, which also records the figures it drew under one key, "
 are `markdown_table`; per-row and per-sample records of a trained row are `runner.Row.doc` and
 `samples_doc`. The paper's claims checked on a study's rows live in `findings`; REPORT.md, which
 gathers every study, is `reproduce`'s. What every results file shares, the benchmarks' included
-(header fields, machine, code, atomic writing, tables), is `fabricjax.results_files`, beneath."""
+(header fields, machine, code, atomic writing, tables), is `fabricjax.reporting.results_files`, beneath."""
 
 from __future__ import annotations
 
@@ -17,7 +17,10 @@ import dataclasses
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
-from fabricjax import data, dataset_index, presets, provenance, results_files, stats, workspace
+from fabricjax import presets
+from fabricjax.reporting import results_files, stats
+from fabricjax.sequences import data
+from fabricjax.store import dataset_index, provenance, workspace
 from fabricjax.studies.common.loading import Dataset
 
 # The results-file layer below the studies and the benchmarks (`results_files`), as the studies call it.

@@ -15,8 +15,10 @@ from typing import Sequence
 from absl import logging
 
 from fabricjax import config as config_fields
-from fabricjax import data, lock, sim, workspace
+from fabricjax import sim
 from fabricjax.config import CAMERA_MODALITIES, Config
+from fabricjax.sequences import data
+from fabricjax.store import lock, workspace
 
 # The splits a study that evaluates on the lab test day needs (no cafe or holdout features computed).
 TRAIN_VAL_TEST = ("train", "val", "test")
@@ -108,7 +110,7 @@ def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Se
 
 
 def reading(preset: str, data_dir=None, workdir=None):
-    """The dataset's lock held shared (`fabricjax.lock`) while the block reads it: runs that read
+    """The dataset's lock held shared (`fabricjax.store.lock`) while the block reads it: runs that read
     one dataset go together; one that would simulate it anew at the same time is refused."""
     folder = workspace.dataset_dir(preset, workdir, data_dir)
     return lock.hold(

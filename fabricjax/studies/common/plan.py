@@ -32,13 +32,16 @@ from typing import Any, Sequence
 
 import cv2
 
-from fabricjax import archive, data, feed, memo, presets, provenance, splits, workspace
+from fabricjax import memo, presets
 from fabricjax.config import CAMERA_MODALITIES, RATE_NEUTRAL_FIELDS, Config
-from fabricjax.disk import size
+from fabricjax.sequences import data
 from fabricjax.sim import dataset as sim_dataset
 from fabricjax.sim.trial import simulate
-from fabricjax.splits import DatasetSpec
+from fabricjax.store import archive, provenance, splits, workspace
+from fabricjax.store.disk import size
+from fabricjax.store.splits import DatasetSpec
 from fabricjax.studies.common import documents, loading, recipe
+from fabricjax.training import feed
 
 # The published run the training line is extrapolated from (`python -m experiments.ablation
 # --preset=paper_sample --seeds=5 --results=results/paper_sample`).

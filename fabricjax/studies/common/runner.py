@@ -25,25 +25,16 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence, TypeVar
 import numpy as np
 from absl import logging
 
-from fabricjax import (
-    archive,
-    atomic,
-    checkpoint,
-    curves,
-    data,
-    dataset_index,
-    lock,
-    presets,
-    source,
-    stats,
-    train,
-    workspace,
-)
+from fabricjax import presets
 from fabricjax.config import CAMERA_MODALITIES, Config
 from fabricjax.errors import UserError
-from fabricjax.placement import place_ahead
+from fabricjax.reporting import source, stats
+from fabricjax.sequences import data
+from fabricjax.store import archive, atomic, dataset_index, lock, workspace
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, loading, plan, recipe
-from fabricjax.workspace import Location
+from fabricjax.training import checkpoint, curves, train
+from fabricjax.training.placement import place_ahead
 
 if TYPE_CHECKING:
     from fabricjax.studies.common.findings import Finding

@@ -29,12 +29,12 @@ from typing import Any, Callable
 
 import numpy as np
 
-from fabricjax import workspace
 from fabricjax.errors import UserError
 from fabricjax.sim import estimates, scene
+from fabricjax.store import workspace
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
 from fabricjax.studies.paper import noise
-from fabricjax.workspace import Location
 
 STUDY = "calibration"
 TOLERANCE_PP = 1.0  # close enough: well within the paper's seed SD of the cafe accuracy (5.05 pp)

@@ -34,13 +34,15 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax import archive, atomic, catalog, plots, presets, splits
+from fabricjax import catalog, presets
 from fabricjax.errors import UserError
+from fabricjax.reporting import plots
 from fabricjax.sim import Scene, minsight, trial
 from fabricjax.sim import dataset as sim_dataset
 from fabricjax.sim.motion import Motion
+from fabricjax.store import archive, atomic, splits
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
-from fabricjax.workspace import Location
 
 STUDY = "camera_frames"
 TITLE, PAPER = "What Minsight's camera sees of a stroke", "not in the paper"

@@ -44,10 +44,13 @@ import jax
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, atomic, data, dataset_index, plots, stats, timing
+from fabricjax import timing
 from fabricjax.config import Config
+from fabricjax.reporting import plots, stats
+from fabricjax.sequences import data
+from fabricjax.store import archive, atomic, dataset_index
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, findings, loading, runner
-from fabricjax.workspace import Location
 
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
 MODALITY_ABBREVIATIONS = {"internal": "int", "external": "ext", "proprio": "prop", "flow": "flow", "image": "img"}

@@ -34,11 +34,12 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax import archive, data
+from fabricjax.sequences import data
+from fabricjax.store import archive
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, linear_probe, loading, runner
-from fabricjax.studies.extra import probe
 from fabricjax.studies.common.runner import StudyRow
-from fabricjax.workspace import Location
+from fabricjax.studies.extra import probe
 
 TITLE, PAPER = "Day shift: what the fabric, the day and the trial explain in each input", "not in the paper"
 ROWS = (

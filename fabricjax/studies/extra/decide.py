@@ -38,11 +38,16 @@ import jax
 import numpy as np
 from flax import nnx
 
-from fabricjax import archive, atomic, catalog, checkpoint, confidence, data, plots, train, workspace
+from fabricjax import catalog
+from fabricjax.inference import confidence
+from fabricjax.reporting import plots
+from fabricjax.sequences import data
+from fabricjax.store import archive, atomic, workspace
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, findings, loading
 from fabricjax.studies.extra import cost
 from fabricjax.studies.tools import stream
-from fabricjax.workspace import Location
+from fabricjax.training import checkpoint, train
 
 TITLE, PAPER = "Deciding on the robot", "not in the paper"
 THRESHOLDS = (0.5, 0.7, 0.8, 0.9, 0.95, 0.99, 0.999, 0.9999)  # posterior thresholds of the sequential rule

@@ -30,8 +30,8 @@ import numpy as np
 from fabricjax import timing
 from fabricjax.features import flow
 from fabricjax.sim import Scene, minsight, trial
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
-from fabricjax.workspace import Location
 
 STUDY = "flow_agreement"
 SIZES = ((308, 410), (60, 80))

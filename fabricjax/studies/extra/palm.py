@@ -33,11 +33,12 @@ from typing import Any, Sequence
 import numpy as np
 from tqdm import tqdm
 
-from fabricjax import archive, catalog, presets
+from fabricjax import catalog, presets
 from fabricjax.sim import EFFECTS, Scene, acoustics, air_path, ambient, shell, simulate, sph0645, trial
 from fabricjax.sim import calibration as cal
+from fabricjax.store import archive
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
-from fabricjax.workspace import Location
 
 CYCLES = 3
 TRIALS = 2

@@ -32,7 +32,10 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from fabricjax import archive, data, stats
+from fabricjax.reporting import stats
+from fabricjax.sequences import data
+from fabricjax.store import archive
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, findings, loading, runner
 from fabricjax.studies.common.linear_probe import (
     BLAS_THREADS,
@@ -44,9 +47,8 @@ from fabricjax.studies.common.linear_probe import (
     fit,
     prepare_inputs,
 )
-from fabricjax.studies.paper import ablation
 from fabricjax.studies.common.runner import StudyRow
-from fabricjax.workspace import Location
+from fabricjax.studies.paper import ablation
 
 TITLE, PAPER = "Linear probe of every ablation row's inputs", "not in the paper"
 SPLITS = (*loading.TRAIN_VAL_TEST, "cafe")  # the ablation's, and the cafe condition where the data has it

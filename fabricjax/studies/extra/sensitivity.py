@@ -38,20 +38,22 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
-from scipy import stats as sstats
 from SALib.analyze import morris as morris_analyze
 from SALib.sample import morris as morris_sample
+from scipy import stats as sstats
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from fabricjax import atomic, plots, presets, provenance, workspace
+from fabricjax import presets
 from fabricjax.config import Config
 from fabricjax.errors import UserError
+from fabricjax.reporting import plots
 from fabricjax.sim import estimates
+from fabricjax.store import atomic, provenance, workspace
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, loading
 from fabricjax.studies.common.linear_probe import BLAS_THREADS, fit, prepare_inputs
 from fabricjax.studies.extra import day_shift, probe
-from fabricjax.workspace import Location
 
 STUDY = "sensitivity"
 PRESET = "sensitivity"

@@ -30,14 +30,14 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax import stats
 from fabricjax.config import Config, format_override, parse_override
 from fabricjax.errors import UserError
+from fabricjax.reporting import stats
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, loading, runner
+from fabricjax.studies.common.runner import StudyRow
 from fabricjax.studies.extra import cost
 from fabricjax.studies.paper import ablation
-from fabricjax.studies.common.runner import StudyRow
-from fabricjax.workspace import Location
 
 # The separators between a --grid field's values: ';' always (needed when the field is a tuple,
 # whose own items are comma-separated, e.g. cnn_features=4,8;8,16), ',' for a scalar field

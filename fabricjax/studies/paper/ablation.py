@@ -32,8 +32,9 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import data, plots, stats
 from fabricjax.config import MODALITY_NAMES
+from fabricjax.reporting import plots, stats
+from fabricjax.sequences import data
 from fabricjax.studies.common import documents, findings, linear_probe, loading, recipe, runner
 from fabricjax.studies.common.runner import StudyRow
 

@@ -19,9 +19,10 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax import archive, dataset_index, plots, stats
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.features import welch
+from fabricjax.reporting import plots, stats
+from fabricjax.store import archive, dataset_index
 from fabricjax.studies.common import documents, findings, loading, runner
 from fabricjax.studies.common.runner import StudyRow
 

@@ -32,10 +32,14 @@ import numpy as np
 from flax import nnx
 from sklearn.manifold import TSNE
 
-from fabricjax import atomic, catalog, checkpoint, data, plots, train, workspace
+from fabricjax import catalog
 from fabricjax.errors import UserError
+from fabricjax.reporting import plots
+from fabricjax.sequences import data
+from fabricjax.store import atomic, workspace
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, findings, loading
-from fabricjax.workspace import Location
+from fabricjax.training import checkpoint, train
 
 TITLE, PAPER = "Latent space", "Fig. latent_features"
 BATCH = 32  # sequences per latent evaluation

@@ -19,8 +19,9 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax import data, plots, stats
 from fabricjax.errors import UserError
+from fabricjax.reporting import plots, stats
+from fabricjax.sequences import data
 from fabricjax.sim import estimates
 from fabricjax.studies.common import documents, findings, loading, runner
 from fabricjax.studies.common.runner import StudyRow

@@ -31,7 +31,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import catalog, data, stats
+from fabricjax import catalog
+from fabricjax.reporting import stats
+from fabricjax.sequences import data
 from fabricjax.studies.common import documents, findings, runner
 from fabricjax.studies.common.runner import StudyRow
 

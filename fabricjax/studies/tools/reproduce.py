@@ -61,14 +61,16 @@ from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import fabricjax
-from fabricjax import archive, dataset_index, presets, provenance, splits, stats, workspace
+from fabricjax import presets
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
+from fabricjax.reporting import stats
+from fabricjax.store import archive, dataset_index, provenance, splits, workspace
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, findings, runner
 from fabricjax.studies.common.plan import rates as training_rates
 from fabricjax.studies.extra import camera_frames, day_shift, decide, probe, sensitivity
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
-from fabricjax.workspace import Location
 
 STUDIES = {
     "ablation": ablation,

@@ -1,7 +1,7 @@
 """Live classification of one trial as a command (`python -m experiments.stream`): the model
 (a checkpoint, or a quick one-seed model of a preset, trained once and checkpointed), the trial
 (an archive, or the first test-day trial of the model's dataset), the live printout and
-results/stream.json. The streaming itself is `fabricjax.live`.
+results/stream.json. The streaming itself is `fabricjax.inference.live`.
 """
 
 from __future__ import annotations
@@ -10,10 +10,12 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from fabricjax import archive, catalog, confidence, dataset_index, live, sim, splits
+from fabricjax import catalog, sim
 from fabricjax.config import Config
+from fabricjax.inference import confidence, live
+from fabricjax.store import archive, dataset_index, splits
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, loading, runner
-from fabricjax.workspace import Location
 
 
 def format_step(r: live.StepResult, label: int, meta: dict | None = None) -> str:
@@ -80,12 +82,12 @@ def run(
     checkpoint).
     The trial is `archive_path`, else the first test-day trial of the model's dataset.
     With `view` (a Rerun viewer) or `view_save` (a .rrd file) each step's sensor data and result
-    are logged as they come (`fabricjax.view`); the logging runs between the timed updates, so
+    are logged as they come (`fabricjax.inference.view`); the logging runs between the timed updates, so
     the latencies are the model's, but in real time it can make steps late.
     """
     watch = view or view_save is not None
     if watch:
-        from fabricjax import view as trial_view
+        from fabricjax.inference import view as trial_view
 
         if view_save is None:
             trial_view.require_display("--view_save")

@@ -24,10 +24,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from fabricjax import stats
 from fabricjax.errors import UserError
+from fabricjax.reporting import stats
+from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
-from fabricjax.workspace import Location
 
 STUDY = "variant"
 SPLITS = ("val", "test")

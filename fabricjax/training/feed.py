@@ -28,8 +28,9 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import NamedSharding
 
-from fabricjax import host_arrays, sharding
-from fabricjax.inputs import training_input
+from fabricjax import host_arrays
+from fabricjax.sequences.inputs import training_input
+from fabricjax.training import sharding
 
 # What one placed block of training steps (all seeds' minibatches) or of evaluation minibatches
 # holds at most, unless one step's minibatches alone hold more.

@@ -4,7 +4,7 @@
 (`select`), in training's layout (`inputs.training_input`), evaluation sets padded to whole
 minibatches, built on the host with NumPy (copies of a camera row's frames then compile nothing).
 A run whose training inputs are larger than memory keeps its sets on the host (`reads_from_host`)
-and `fabricjax.feed` places them a block at a time.
+and `fabricjax.training.feed` places them a block at a time.
 
 The rows of a study train on the same loaded arrays, so a placed input is kept for the next run on
 the same array (`KEPT`, a `memo.ByArray`) within a memory budget (`budget`). A study places a
@@ -21,10 +21,11 @@ import jax
 import numpy as np
 from jax.sharding import NamedSharding
 
-from fabricjax import host_arrays, memo, sharding
+from fabricjax import host_arrays, memo
 from fabricjax.config import Config
-from fabricjax.inputs import input_statistics, training_input
 from fabricjax.model import head_sizes
+from fabricjax.sequences.inputs import input_statistics, training_input
+from fabricjax.training import sharding
 
 
 def select(config: Config, ds) -> dict[str, dict[str, np.ndarray]]:
@@ -42,7 +43,7 @@ def select(config: Config, ds) -> dict[str, dict[str, np.ndarray]]:
 
 
 def reads_from_host(config: Config, train_set) -> bool:
-    """Whether a run of `config` on `train_set` is fed from the host (`fabricjax.feed`): "disk", or
+    """Whether a run of `config` on `train_set` is fed from the host (`fabricjax.training.feed`): "disk", or
     "auto" where the loaded inputs are memory-mapped files (`data.load_sequences` made them so:
     larger than memory)."""
     if config.input_source != "auto":
@@ -97,7 +98,7 @@ def place_sets(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] 
     (`reads_from_host`) gets its sets as they are, on the host."""
     sets = {k: select(config, v) for k, v in {"train": train_set, "val": val_set, **(eval_sets or {})}.items()}
     sizes = {k: len(jax.tree.leaves(v["labels"])[0]) for k, v in sets.items() if k != "train"}
-    if reads_from_host(config, train_set):  # the sets stay on the host (`fabricjax.feed`)
+    if reads_from_host(config, train_set):  # the sets stay on the host (`fabricjax.training.feed`)
         return {"train": sets.pop("train"), "val": sets.pop("val"), "eval": sets}, sizes
     multiple = lambda k: None if k == "train" else config.batch_size  # noqa: E731
     placed = {

@@ -3,9 +3,9 @@
 
 `Trainer.init`, `Trainer.run` and `Trainer.finish` are each `jax.jit(jax.vmap(...))`ed over the
 seeds, which stay together while each minibatch's samples are split over the devices
-(`fabricjax.sharding`). An epoch and the epochs of a chunk are `lax.scan`s, so training runs
+(`fabricjax.training.sharding`). An epoch and the epochs of a chunk are `lax.scan`s, so training runs
 without the host, which reads back each chunk's curves. Where the inputs live (on the devices,
-kept for the next run, or on the host for `fabricjax.feed`) is `fabricjax.placement`'s.
+kept for the next run, or on the host for `fabricjax.training.feed`) is `fabricjax.training.placement`'s.
 
 A data set is a mapping {"inputs": {modality: (n, N, ...)}, "labels": {head: int (n,)}} (objects
 with `.inputs` / `.labels` work too); label -1 means unknown and is masked out of losses and
@@ -29,11 +29,12 @@ import optax
 from flax import nnx
 from jax.sharding import Mesh
 
-from fabricjax import checkpoint, curves, feed, runtime, sharding
+from fabricjax import runtime
 from fabricjax.config import Config
-from fabricjax.inputs import feature_shapes, input_statistics, with_input_statistics
 from fabricjax.model import FabricNet
-from fabricjax.placement import place_sets, reads_from_host, select
+from fabricjax.sequences.inputs import feature_shapes, input_statistics, with_input_statistics
+from fabricjax.training import checkpoint, curves, feed, sharding
+from fabricjax.training.placement import place_sets, reads_from_host, select
 
 
 def warmup_schedule(config: Config) -> optax.ScalarOrSchedule:
@@ -152,7 +153,7 @@ class Trainer:
     def epoch_order(self, key, n: int) -> tuple[jax.Array, jax.Array]:
         """An epoch's minibatches over `n` training sequences, from its key: (indices (steps,
         batch): a permutation, the remainder dropped; each step's key (steps, 2)). Training from
-        the devices and from the host (`fabricjax.feed`) read the same order."""
+        the devices and from the host (`fabricjax.training.feed`) read the same order."""
         batch = min(self.config.batch_size, n)
         steps = n // batch
         k_perm, k_steps = jax.random.split(key)

@@ -3,7 +3,7 @@ and sha256. It is `index.json` beside the simulator's own archives (`<workspace>
 `<workspace>/indexes/` for any other folder, even one inside the workspace: a folder of
 recordings is only read (`workspace.index_file`). `load_index` builds it on first use and
 rebuilds it when archives were added or rewritten, reading and hashing only those;
-`fabricjax.integrity` re-hashes a dataset against it."""
+`fabricjax.store.integrity` re-hashes a dataset against it."""
 
 from __future__ import annotations
 
@@ -14,9 +14,9 @@ import os
 from pathlib import Path
 from typing import Any
 
-from fabricjax import workspace
-from fabricjax.archive import ArchiveError, read_meta
-from fabricjax.atomic import atomic_open
+from fabricjax.store import workspace
+from fabricjax.store.archive import ArchiveError, read_meta
+from fabricjax.store.atomic import atomic_open
 
 INDEX_VERSION = 1  # the index's own format (its entries hold each archive's meta)
 
@@ -81,7 +81,7 @@ def _indexed_entries(ipath: Path) -> dict[str, IndexEntry]:
 def build_index(folder: os.PathLike | str, index_file: os.PathLike | str | None = None) -> DatasetIndex:
     """Scan a folder of archives (hardware or simulated) and write its index to `index_file`
     (default: `index.json` in the folder, as the simulator does for the datasets it writes).
-    Each entry records the archive's sha256 (`fabricjax.integrity.verify` re-hashes against it); an
+    Each entry records the archive's sha256 (`fabricjax.store.integrity.verify` re-hashes against it); an
     entry of the existing index whose file kept its size and mtime is kept, so only new or rewritten
     archives are read and hashed (the simulator re-indexes its 11 GB dataset on every run)."""
     root = Path(folder)

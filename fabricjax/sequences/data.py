@@ -82,17 +82,18 @@ from typing import Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import archive, catalog, dataset_index, host_arrays, lock, memo, presets, splits, workspace
+from fabricjax import catalog, host_arrays, memo, presets
 from fabricjax.config import MODALITY_NAMES, PAPER_WINDOW_S, Config
 from fabricjax.errors import UserError
 from fabricjax.features import cache, welch
 from fabricjax.features.extract import features_for, window_of
-from fabricjax.sequence_store import SequenceStore
+from fabricjax.sequences.sequence_store import SequenceStore
+from fabricjax.store import archive, dataset_index, lock, splits, workspace
 
 SPLITS = archive.SPLITS
 # Loaded sequences that would take more than this fraction of the machine's memory are filled into
 # memory-mapped files instead (`sequence_store`), and training reads them from the host
-# (`fabricjax.feed`): the rest is left to the model, the features being computed, the page cache.
+# (`fabricjax.training.feed`): the rest is left to the model, the features being computed, the page cache.
 MEMORY_FRACTION = 0.5
 _SOURCE_FIELD = {"image": "images", "flow": "images", "proprio": "joints"}  # archive field behind a modality
 
@@ -307,7 +308,7 @@ def _fill(
         filled[s] += n_seq
     if any(isinstance(a, np.memmap) for d in inputs.values() for a in d.values()):
         return store.finish(inputs)
-    for arrays in inputs.values():  # read-only from here: training keeps what it derives from them (`fabricjax.memo`)
+    for arrays in inputs.values():  # read-only from here: training keeps what it derives (`fabricjax.memo`)
         for a in arrays.values():
             a.flags.writeable = False
     return inputs

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fabricjax import archive, dataset_index, workspace
+from fabricjax.store import archive, dataset_index, workspace
 
 GAP_FACTOR = 1.5  # capture jitter stays well below half a period; a lost frame makes 2 periods
 

@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from fabricjax import catalog, runtime  # noqa: E402
-from fabricjax.atomic import atomic_open  # noqa: E402
+from fabricjax.store.atomic import atomic_open  # noqa: E402
 
 
 def _save(fig, path) -> Path:

@@ -54,7 +54,7 @@ def fingerprint() -> str:
     """sha256 over every module of the `fabricjax` package: its path and what it executes
     (`executed`: without comments, docstrings and blank lines)."""
     h = hashlib.sha256()
-    root = Path(__file__).parent
+    root = Path(__file__).resolve().parents[1]
     for path in sorted(root.rglob("*.py")):
         h.update(str(path.relative_to(root)).encode() + b"\0" + executed(path.read_text()).encode() + b"\0")
     return h.hexdigest()

@@ -42,9 +42,10 @@ from typing import Any
 
 import numpy as np
 
-from fabricjax import archive, false_colour, live
 from fabricjax.errors import UserError
 from fabricjax.features import flow, welch
+from fabricjax.inference import false_colour, live
+from fabricjax.store import archive
 
 EXTRA = 'pip install -e ".[viz]"'
 APPLICATION_ID = "fabricjax"

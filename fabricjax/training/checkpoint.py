@@ -23,11 +23,10 @@ import numpy as np
 import orbax.checkpoint as ocp
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-from fabricjax import disk
 from fabricjax.config import RESULT_NEUTRAL_FIELDS, Config
 from fabricjax.errors import UserError
 from fabricjax.model import head_sizes
-
+from fabricjax.store import disk
 
 # The layout of the saved training state; bumped whenever it changes (2: the optimiser state holds
 # the cosine decay's own step counter; 3: Adam's moments are one flat vector; 4: each seed's early-stopping epoch), so a

@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
+import sys
 from pathlib import Path
 from typing import Any
 
-from fabricjax import atomic
+from fabricjax.store import atomic
 
 FILE = "data_source.json"
 READMES = ("README", "README.txt", "README.md")
@@ -28,7 +30,23 @@ KEPT = ("source", "licen", "citation", "cite")  # section headings (lower case) 
 def repository_root() -> Path:
     """The folder the `fabricjax` package sits in: the checkout's root, holding the published
     results/ the plans and estimates read, and the tree whose commit results files name."""
-    return Path(__file__).resolve().parents[1]
+    return Path(__file__).resolve().parents[2]
+
+
+def program() -> list[str]:
+    """This process's program as a user runs it: `python -m <module>` for a module of the
+    repository, else its file's name."""
+    main = Path(sys.argv[0]) if sys.argv and sys.argv[0] else Path("python")
+    root = repository_root()
+    if main.suffix == ".py" and main.resolve().is_relative_to(root):
+        return ["python", "-m", ".".join(main.resolve().relative_to(root).with_suffix("").parts)]
+    return [main.name]
+
+
+def command_line() -> str:
+    """This process's command as a user typed it (`python -m experiments.ablation ...`): recorded in
+    results files and in the notes of the locks a run holds."""
+    return shlex.join([*program(), *sys.argv[1:]])
 
 
 def _sections(lines: list[str]) -> list[tuple[str, list[str]]]:

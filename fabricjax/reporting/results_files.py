@@ -21,9 +21,11 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from fabricjax import atomic, provenance, runtime, source, workspace
-from fabricjax.atomic import atomic_open
+from fabricjax import runtime
+from fabricjax.reporting import source
 from fabricjax.sim import estimates
+from fabricjax.store import atomic, provenance, workspace
+from fabricjax.store.atomic import atomic_open
 
 # CPU features XLA:CPU compiles for: hosts that differ in them may round (and run) the same
 # program differently, so every results file records which the host has.

@@ -31,8 +31,8 @@ from typing import Sequence
 import numpy as np
 from scipy import optimize, special, stats
 
-from fabricjax import atomic
 from fabricjax.errors import UserError
+from fabricjax.store import atomic
 
 TEMPERATURE_FILE = "confidence.json"  # in a checkpoint folder: {"temperature": {seed: T}, "fitted_on": split}
 ECE_BINS = 15  # equal-width confidence bins of the expected calibration error and the reliability diagram

@@ -71,8 +71,8 @@ the problem. It trusts no size a file declares: the meta JSON is bounded in leng
 number size before it is parsed, each member's npy header is checked against the meta and the step
 count before its data is inflated, inflation is bounded per member, and every member is checked
 against its CRC-32.
-A dataset is a folder of archives plus an index (`fabricjax.dataset_index`) recording each
-archive's meta, size, mtime and sha256; `fabricjax.integrity` checks a dataset against it.
+A dataset is a folder of archives plus an index (`fabricjax.store.dataset_index`) recording each
+archive's meta, size, mtime and sha256; `fabricjax.store.integrity` checks a dataset against it.
 """
 
 from __future__ import annotations
@@ -89,8 +89,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from fabricjax.atomic import atomic_open
 from fabricjax.errors import UserError
+from fabricjax.store.atomic import atomic_open
 
 FORMAT_VERSION = 3  # what `write_archive` writes; READ_VERSIONS are read
 READ_VERSIONS = (1, 2, 3)

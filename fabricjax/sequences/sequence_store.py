@@ -2,7 +2,7 @@
 
 `data.load_sequences` fills a split's arrays in memory where they fit; where they would take
 more than `data.MEMORY_FRACTION` of this machine's memory (or `Config.input_source` is "disk") it
-fills `.npy` files here instead, and training reads them from the host (`fabricjax.feed`):
+fills `.npy` files here instead, and training reads them from the host (`fabricjax.training.feed`):
 the page cache holds what was read recently, and the process holds only its blocks.
 
 Layout under `workspace.sequences_dir(workdir)`:
@@ -27,8 +27,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from fabricjax import disk
 from fabricjax.errors import UserError
+from fabricjax.store import disk
 
 
 class SequenceStore:

@@ -20,7 +20,7 @@ import tempfile
 from pathlib import Path
 from typing import IO, Iterator
 
-from fabricjax import disk
+from fabricjax.store import disk
 
 
 def _umask() -> int:

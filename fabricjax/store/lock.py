@@ -24,8 +24,8 @@ import sys
 from pathlib import Path
 from typing import Iterator
 
-from fabricjax import cli, workspace
 from fabricjax.errors import UserError
+from fabricjax.store import provenance, workspace
 
 LOCKS = "locks"
 
@@ -116,7 +116,7 @@ def _note_path(lock: Path, pid: int | None = None) -> Path:
 
 def _note(lock: Path, doing: str, shared: bool) -> None:
     """Say who holds `lock` for a refusal to name; the lock holds without it (a full disk)."""
-    note = {"pid": os.getpid(), "command": cli.command_line(), "doing": doing, "shared": shared}
+    note = {"pid": os.getpid(), "command": provenance.command_line(), "doing": doing, "shared": shared}
     try:
         _note_path(lock).write_text(json.dumps(note))
     except OSError:

@@ -43,9 +43,13 @@ import jax.numpy as jnp
 import numpy as np
 from flax import nnx
 
-from fabricjax import archive, catalog, confidence, data, stats
+from fabricjax import catalog
 from fabricjax.config import Config
 from fabricjax.features import welch
+from fabricjax.inference import confidence
+from fabricjax.reporting import stats
+from fabricjax.sequences import data
+from fabricjax.store import archive
 
 STREAMABLE = ("internal", "external", "proprio")
 HAND = archive.layout(
@@ -248,7 +252,7 @@ def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config, float]:
     fitted for that seed (`confidence.load_temperature`), 1 where none was. A checkpoint of a model
     that cannot stream (no fabric head, or inputs other than `STREAMABLE`) is a
     `checkpoint.WrongCheckpoint`."""
-    from fabricjax import checkpoint, train
+    from fabricjax.training import checkpoint, train
 
     restored = train.restore(directory)
     for_ = restored.trained_for

@@ -65,7 +65,7 @@ def features_dir(workdir=None) -> Path:
 
 
 def sequences_dir(workdir=None) -> Path:
-    """Loaded sequences too large for memory, as memory-mapped files (`fabricjax.sequence_store`)."""
+    """Loaded sequences too large for memory, as memory-mapped files (`fabricjax.sequences.sequence_store`)."""
     return root(workdir) / "sequences"
 
 
@@ -75,7 +75,7 @@ def checkpoints_dir(name: str, workdir=None) -> Path:
 
 def logs_dir(study: str, row: str, workdir=None) -> Path:
     """A study row's training curves (TensorBoard event files, one folder per seed, see
-    `fabricjax.curves`): the latest run of the row, whatever its settings."""
+    `fabricjax.training.curves`): the latest run of the row, whatever its settings."""
     return (root(workdir) / "logs" / study / row).absolute()
 
 

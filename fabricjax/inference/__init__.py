@@ -1,0 +1,1 @@
+"""A trained model in use: temperature calibration, the stopping rule, the streaming classifier, the viewer."""

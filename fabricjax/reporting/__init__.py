@@ -1,0 +1,1 @@
+"""What a results file records: its header and fingerprint, statistics and figures."""

@@ -1,0 +1,1 @@
+"""One training loop over vmapped seeds: placement, sharding, checkpoints, curves."""
