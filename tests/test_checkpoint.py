@@ -130,7 +130,7 @@ def test_a_studys_checkpoint_folder_changes_with_the_code_and_the_data(monkeypat
     """A rerun after a change to the code, or on other data, trains afresh: the folder is tagged
     with the source's fingerprint and the data's contents, not only the config and seeds (a change
     in how training rounds, or a second dataset with the same classes, leaves both alike)."""
-    from fabricjax.reporting import source
+    from fabricjax import source
     from fabricjax.studies.common import runner
 
     cfg = Config.from_preset("smoke")
@@ -141,7 +141,7 @@ def test_a_studys_checkpoint_folder_changes_with_the_code_and_the_data(monkeypat
     )
     assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 2], data_a, tmp_path)
     assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], data_b, tmp_path)
-    monkeypatch.setattr(source, "fingerprint", lambda: "other code")
+    monkeypatch.setattr(source, "training", lambda: "other code")
     assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], data_a, tmp_path)
 
 

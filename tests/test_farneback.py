@@ -120,7 +120,6 @@ def test_flow_method_is_its_own_feature_and_opencv_keeps_its_key(tmp_path):
         "farneback": dict(pyr_scale=0.5, levels=3, winsize=15, iterations=3, poly_n=5, poly_sigma=1.2, flags=0),
         "top_fraction": 0.001,
         "patch": 3,
-        "version": 1,
     }
     for mode, name, extra in [("keep_top", "flow", {}), ("drop_top", "flow_drop_top", {"sparsify": "drop_top"})]:
         ours = extract.feature_for("flow", flow_sparsify=mode)

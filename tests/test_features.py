@@ -228,7 +228,7 @@ def test_the_papers_window_by_duration_is_todays_feature_bit_for_bit():
     assert data.window_of(cfg, archive.AUDIO_RATE) == archive.WINDOW
     f = extract.feature_for("internal", window=data.window_of(cfg, archive.AUDIO_RATE))
     assert f.name == "psd_internal"
-    assert f.params == {"mic": "internal", **welch.SCIPY_KWARGS, "log10_floor": welch.LOG_FLOOR, "version": 1}
+    assert f.params == {"mic": "internal", **welch.SCIPY_KWARGS, "log10_floor": welch.LOG_FLOOR}
     a = tiny_archive(fabric_id=3, n_steps=12)
     k = extract.mic_index(a, "internal")
     direct = np.stack([a.audio[k, e - archive.WINDOW : e] for e in a.window_end[:, k]])

@@ -111,7 +111,7 @@ def test_features_for_is_feature_for_with_the_configs_fields(fields):
 
 
 def test_a_cached_image_feature_keeps_its_name():
-    assert extract.feature_named("image_6x8").params == {"size": (6, 8), "interpolation": "area", "version": 1}
+    assert extract.feature_named("image_6x8").params == {"size": (6, 8), "interpolation": "area"}
     assert extract.feature_named("image_session_6x8").params["reference"] == "session"
 
 

@@ -10,9 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from fabricjax import sim
+from fabricjax import sim, source
 from fabricjax.errors import UserError
-from fabricjax.reporting import source
 from fabricjax.sim import estimates
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents

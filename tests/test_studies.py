@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from fabricjax import presets, sim
+from fabricjax import presets, sim, source
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.reporting import source, stats
+from fabricjax.reporting import stats
 from fabricjax.sequences import data
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, findings, runner
@@ -687,7 +687,7 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
     assert reproduce.step_key(latents_step, "default", {}, prints, "props-a") != reproduce.step_key(
         latents_step, "default", {}, prints, "props-b"
     )
-    assert len(source.fingerprint()) == 64
+    assert len(source.package()) == 64
     assert reproduce.command(step, "default", {"epochs": 3, "modalities": ("internal", "proprio")}, "results") == (
         "python -m experiments.noise --seeds=10 --preset=default --set=epochs=3 "
         "--set=modalities=internal,proprio --results=results"

@@ -2,11 +2,12 @@
 
 Layout under `workspace.features_dir(workdir)`:
 
-    <feature name>-<key>/key.json          what the key stands for (feature, params, dataset)
+    <feature name>-<key>/key.json          what the key stands for (feature, params, dataset, code)
     <feature name>-<key>/<archive stem>.npz    {"data": array, "fingerprint": archive fingerprint}
 
-`key` hashes the feature's parameters and the dataset folder's absolute path, so a changed
-parameter starts a new folder. Inside, a file is trusted only if its stored fingerprint equals
+`key` hashes the feature's parameters, the dataset folder's absolute path and the features' code
+(`source.fingerprint` of `features.extract`: every module it runs), so a changed parameter or a
+change in how a feature is computed starts a new folder. Inside, a file is trusted only if its stored fingerprint equals
 the archive's current `IndexEntry.fingerprint` (name, size, mtime): a rewritten archive is
 recomputed and its entry overwritten. Files are written to a temporary name and renamed.
 
@@ -34,14 +35,21 @@ from typing import Iterator
 import numpy as np
 from tqdm import tqdm
 
-from fabricjax import parallel
+from fabricjax import parallel, source
 from fabricjax.features.extract import Feature, feature_named
 from fabricjax.store import archive, dataset_index
 from fabricjax.store.atomic import atomic_open
 
+CODE = ("fabricjax.features.extract",)  # the module every feature is computed by, and what it runs
+
 
 def folder(features_root: Path, dataset_root: Path, feature: Feature) -> Path:
-    key = {"feature": feature.name, "params": feature.params, "dataset": str(Path(dataset_root).resolve())}
+    key = {
+        "feature": feature.name,
+        "params": feature.params,
+        "dataset": str(Path(dataset_root).resolve()),
+        "code": source.fingerprint(CODE)[:16],
+    }
     digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
     out = Path(features_root) / f"{feature.name}-{digest}"
     if not (out / "key.json").exists():

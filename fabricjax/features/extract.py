@@ -114,10 +114,10 @@ def _psd(role: str, window: int) -> Feature:
     is analysed at its own rate, which its archive (and so the cache's archive fingerprint)
     records. Another window is another feature, with its own name and key."""
     if window == archive.WINDOW:
-        params = {"mic": role, **welch.SCIPY_KWARGS, "log10_floor": welch.LOG_FLOOR, "version": 1}
+        params = {"mic": role, **welch.SCIPY_KWARGS, "log10_floor": welch.LOG_FLOOR}
         return Feature(f"psd_{role}", params, False, True, lambda t: _trial_psd(t, role, window))
     kwargs = {k: v for k, v in welch.scipy_kwargs(window).items() if k != "fs"}  # fs: the archive's rate
-    params = {"mic": role, "window": window, **kwargs, "log10_floor": welch.LOG_FLOOR, "version": 1}
+    params = {"mic": role, "window": window, **kwargs, "log10_floor": welch.LOG_FLOOR}
     return Feature(f"psd_{role}_w{window}", params, False, True, lambda t: _trial_psd(t, role, window))
 
 
@@ -144,9 +144,9 @@ def feature_for(
     if modality in archive.MIC_ROLES:
         return _psd(modality, window)
     if modality == "proprio":
-        return Feature("proprio", {"version": 1}, False, True, _proprio)
+        return Feature("proprio", {}, False, True, _proprio)
     if modality == "flow":
-        params = {"farneback": flow.FARNEBACK, "top_fraction": flow.TOP_FRACTION, "patch": flow.PATCH, "version": 1}
+        params = {"farneback": flow.FARNEBACK, "top_fraction": flow.TOP_FRACTION, "patch": flow.PATCH}
         if flow_sparsify != flow.SPARSIFY[0]:  # the default reading keeps its name and cache key
             params["sparsify"] = flow_sparsify
         name = "flow" if flow_sparsify == flow.SPARSIFY[0] else f"flow_{flow_sparsify}"
@@ -156,7 +156,7 @@ def feature_for(
         return Feature(name, params, True, True, lambda t: flow.trial_flow(t.images, flow_sparsify, method=flow_method))
     if modality == "image" and image_resolution == "down" and image_reference == "session":
         size = (int(image_size[0]), int(image_size[1]))
-        params = {"size": size, "interpolation": "area", "reference": "session", "version": 1}
+        params = {"size": size, "interpolation": "area", "reference": "session"}
         return Feature(
             f"image_session_{size[0]}x{size[1]}",
             params,
@@ -176,7 +176,7 @@ def feature_for(
         )
     if modality == "image" and image_resolution == "down":
         size = (int(image_size[0]), int(image_size[1]))
-        params = {"size": size, "interpolation": "area", "version": 1}
+        params = {"size": size, "interpolation": "area"}
         return Feature(f"image_{size[0]}x{size[1]}", params, True, True, lambda t: images.downsample(t.images, size))
     if modality == "image" and image_resolution == "full":
         return Feature("image_full", {}, True, False, lambda t: t.images)

@@ -21,8 +21,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from fabricjax import runtime
-from fabricjax.reporting import source
+from fabricjax import runtime, source
 from fabricjax.sim import estimates
 from fabricjax.store import atomic, provenance, workspace
 from fabricjax.store.atomic import atomic_open
@@ -87,11 +86,11 @@ FINGERPRINT_DIGITS = 16  # hex digits of each fingerprint a results file records
 def fingerprints(data: str | None) -> dict[str, str | None]:
     """What decides a study's numbers besides its command (study, preset, seeds, rows, --set), as
     every results file (`header`) and `reproduce`'s manifest record it: "code", the `fabricjax`
-    package without comments and docstrings (`source.fingerprint`); "data", recorded data's
+    package without comments and docstrings (`source.package`); "data", recorded data's
     contents (`data`: `DatasetIndex.content_hash`), None for a preset's simulated data, which the
     code, the preset and "estimates" decide: the simulator's magnitudes in force
     (`sim.estimates.fingerprint`), None on recorded data, which no estimate decides."""
-    prints = {"code": source.fingerprint()[:FINGERPRINT_DIGITS], "estimates": None, "data": data}
+    prints = {"code": source.package()[:FINGERPRINT_DIGITS], "estimates": None, "data": data}
     if data is None:
         prints["estimates"] = estimates.fingerprint()[:FINGERPRINT_DIGITS]
     return prints

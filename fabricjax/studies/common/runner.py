@@ -25,10 +25,10 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence, TypeVar
 import numpy as np
 from absl import logging
 
-from fabricjax import presets
+from fabricjax import presets, source
 from fabricjax.config import CAMERA_MODALITIES, Config
 from fabricjax.errors import UserError
-from fabricjax.reporting import source, stats
+from fabricjax.reporting import stats
 from fabricjax.sequences import data
 from fabricjax.store import archive, atomic, dataset_index, lock, workspace
 from fabricjax.store.workspace import Location
@@ -411,9 +411,9 @@ def checkpoint_dir(
     study: str, row: str, config: Config, seeds: Sequence[int], dataset: Mapping[str, str], workdir=None
 ) -> Path:
     """A checkpoint directory per (row, config, seeds, data, code): reruns resume; other settings,
-    other data (`dataset`: `DatasetIndex.identity`, by content) or other code (`source.fingerprint`)
+    other data (`dataset`: `DatasetIndex.identity`, by content) or other code (`source.training`)
     start afresh instead of reusing what was trained on something else."""
-    key = f"{config.dumps()}{list(seeds)}{checkpoint.STATE_VERSION}{dataset.get('content')}{source.fingerprint()}"
+    key = f"{config.dumps()}{list(seeds)}{checkpoint.STATE_VERSION}{dataset.get('content')}{source.training()}"
     return workspace.checkpoints_dir(f"{study}/{row}-{hashlib.sha1(key.encode()).hexdigest()[:8]}", workdir)
 
 
