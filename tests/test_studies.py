@@ -18,6 +18,7 @@ from fabricjax.reporting import stats
 from fabricjax.sequences import data
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, findings, runner
+from fabricjax.studies.common.trained import TrainedRow
 from fabricjax.studies.extra import day_shift, probe, sweep
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
 from fabricjax.studies.tools import reproduce
@@ -381,7 +382,7 @@ def fake_row(name, accuracy, predictions, seeds):
             "test": {"accuracy": {"fabric": np.asarray(accuracy)}, "predictions": {"fabric": np.asarray(predictions)}}
         }
     }
-    return runner.Row(name, None, train.Results(None, tuple(seeds), None, None, metrics), 1.0)
+    return TrainedRow(name, None, train.Results(None, tuple(seeds), None, None, metrics), 1.0)
 
 
 def test_paired_tests_pair_per_seed_and_per_sample_like_scipy():

@@ -6,7 +6,7 @@ document on `header` (study, command, code and the `fingerprints` of what decide
 machine, date, and the fields it adds: preset, seeds, dataset, ...), says where its
 numbers come from in Markdown with `header_markdown` and writes results/<study>.md and .json
 atomically with `write`, which also records the figures it drew under one key, "figures". Tables
-are `markdown_table`; per-row and per-sample records of a trained row are `runner.Row.doc` and
+are `markdown_table`; per-row and per-sample records of a trained row are `trained.TrainedRow.doc` and
 `samples_doc`. The paper's claims checked on a study's rows live in `findings`; REPORT.md, which
 gathers every study, is `reproduce`'s. What every results file shares, the benchmarks' included
 (header fields, machine, code, atomic writing, tables), is `fabricjax.reporting.results_files`, beneath."""

@@ -20,7 +20,7 @@ import numpy as np
 from fabricjax.config import Config
 
 if TYPE_CHECKING:
-    from fabricjax.studies.common.runner import Row
+    from fabricjax.studies.common.trained import TrainedRow
 
 CHOSEN_BY = "validation accuracy at each seed's best epoch, mean over seeds (ties: the earlier grid point)"
 
@@ -47,19 +47,19 @@ def point_name(config: Config) -> str:
     return f"lr={config.learning_rate:g},width={config.width}"
 
 
-def validation_score(row: Row) -> float:
+def validation_score(row: TrainedRow) -> float:
     """The mean over seeds of each seed's validation accuracy at its best epoch [%]."""
     return float(100 * np.mean(row.results.metrics["best_val_acc"]))
 
 
-def choose(grid: Sequence[Row]) -> Row:
+def choose(grid: Sequence[TrainedRow]) -> TrainedRow:
     """The point of `grid` (trained rows, in the grid's order) whose `validation_score` is highest;
     the earliest on a tie."""
     scores = [validation_score(r) for r in grid]
     return grid[int(np.argmax(scores))]
 
 
-def document(config: Config, grid: Sequence[Row], chosen: Row) -> dict[str, Any]:
+def document(config: Config, grid: Sequence[TrainedRow], chosen: TrainedRow) -> dict[str, Any]:
     """What the results JSON says of a row's recipe: the grid, each point's validation score,
     epochs trained and time, the point chosen and why, the cap and patience of early stopping."""
     return {
@@ -81,7 +81,7 @@ def document(config: Config, grid: Sequence[Row], chosen: Row) -> dict[str, Any]
     }
 
 
-def epochs_trained(row: Row) -> list[int]:
+def epochs_trained(row: TrainedRow) -> list[int]:
     """Per seed, the epochs whose training changed its parameters: to the epoch it stopped at
     (inclusive), else all of the run's (`Config.epochs`: a seed that never stopped kept the run
     going to its cap)."""

@@ -33,7 +33,8 @@ from fabricjax.sequences import data
 from fabricjax.store import archive, atomic, dataset_index, lock, workspace
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, loading, plan, recipe
-from fabricjax.training import checkpoint, curves, train
+from fabricjax.studies.common.trained import TrainedRow, TrainingRun
+from fabricjax.training import checkpoint, train
 from fabricjax.training.placement import place_ahead
 
 if TYPE_CHECKING:
@@ -300,59 +301,6 @@ def _hms(seconds: float) -> str:
     return f"{m}m{s:02d}s"
 
 
-@dataclasses.dataclass
-class Row:
-    """One trained row: all seeds' metrics (leading seed axis), its wall time and, where the study
-    keeps the models, its checkpoint directory."""
-
-    name: str
-    config: Config
-    results: train.Results
-    seconds: float
-    checkpoint: Path | None = None
-    recipe: dict[str, Any] | None = None  # how its recipe was chosen on validation (`recipe.document`), where it was
-
-    def accuracy(self, split: str, head: str = "fabric") -> np.ndarray:
-        return np.asarray(self.results.metrics["eval"][split]["accuracy"][head], np.float64)
-
-    def predictions(self, split: str, head: str = "fabric") -> np.ndarray:
-        return np.asarray(self.results.metrics["eval"][split]["predictions"][head])
-
-    def time_to_accuracy(self, head: str = "fabric") -> tuple[np.ndarray, np.ndarray]:
-        """The row's time-to-accuracy curve: each trained epoch's end in seconds since its training
-        began (the first epoch's with the compilation) and the validation accuracy of `head` per
-        seed and epoch (seeds, epochs), over the epochs the run went through."""
-        epochs = self.results.metrics["epochs"]
-        wall = np.asarray(epochs[curves.WALL_TAG], np.float64)[0]
-        trained = ~np.isnan(wall)
-        return np.cumsum(wall[trained]), np.asarray(epochs[f"val/accuracy/{head}"], np.float64)[:, trained]
-
-    def doc(self, splits: Sequence[str]) -> dict[str, Any]:
-        """The row's config, checkpoint (None where the study keeps no models), wall time and its
-        account (`train.TimeAccount`) and, per
-        seed, accuracies and per-sample predictions of every head."""
-        ev = self.results.metrics["eval"]
-        return {
-            "config": self.config.to_json(),
-            "checkpoint": None if self.checkpoint is None else workspace.shown(self.checkpoint),
-            "seeds": list(self.results.seeds),
-            "wall_s": self.seconds,
-            "time": self.results.metrics["time"],
-            "best_epoch": np.asarray(self.results.metrics["best_epoch"]).tolist(),
-            "stopped_at": np.asarray(self.results.metrics["stopped_at"]).tolist(),
-            "recipe": self.recipe,
-            "epochs": {
-                t: [[None if np.isnan(x) else float(x) for x in s] for s in v]
-                for t, v in self.results.metrics["epochs"].items()
-            },
-            "accuracy": {
-                s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()}
-                for s in ("val", *splits)
-            },
-            "predictions": {s: {h: np.asarray(p).tolist() for h, p in ev[s]["predictions"].items()} for s in splits},
-        }
-
-
 def train_row(
     name: str,
     config: Config,
@@ -361,14 +309,14 @@ def train_row(
     eval_splits: Sequence[str],
     checkpoint_dir=None,
     log_dir=None,
-) -> Row:
+) -> TrainedRow:
     """Train all seeds of one row on its part of `sets` (`data.narrow`) and evaluate the
     best-validation models on `eval_splits`; with `checkpoint_dir` the models are saved there,
     with `log_dir` (`workspace.logs_dir`) the training curves are written there as it trains."""
     row_sets = data.narrow({s: sets[s] for s in ("train", "val", *eval_splits)}, config)
     t0 = time.perf_counter()
     results = train.train_and_evaluate(config, row_sets, seeds, workdir=checkpoint_dir, log_dir=log_dir)
-    return Row(name, config, results, time.perf_counter() - t0, Path(checkpoint_dir) if checkpoint_dir else None)
+    return TrainedRow(name, config, results, time.perf_counter() - t0, Path(checkpoint_dir) if checkpoint_dir else None)
 
 
 def train_fitted(
@@ -380,7 +328,7 @@ def train_fitted(
     eval_splits: Sequence[str],
     workdir=None,
     checkpoints: bool = False,
-) -> Row:
+) -> TrainedRow:
     """`train_row` of every point of `config`'s recipe grid (`recipe.points`), the point the
     validation split prefers kept (`recipe.choose`); its time is the whole grid's. A config
     without a grid is one point, reported as is."""
@@ -417,20 +365,8 @@ def checkpoint_dir(
     return workspace.checkpoints_dir(f"{study}/{row}-{hashlib.sha1(key.encode()).hexdigest()[:8]}", workdir)
 
 
-def _test_summary(row: Row) -> str:
+def _test_summary(row: TrainedRow) -> str:
     return f"test {stats.format_mean_sd(row.accuracy('test'))} %"
-
-
-@dataclasses.dataclass
-class Trained:
-    """A study's trained rows, in the order given, and the dataset they were trained on."""
-
-    dataset: loading.Dataset
-    rows: dict[str, Row]
-
-    @property
-    def train_s(self) -> float:
-        return sum(r.seconds for r in self.rows.values())
 
 
 def train_rows(
@@ -444,11 +380,11 @@ def train_rows(
     workdir=None,
     checkpoints: bool = False,
     label: Callable[[str], str] = str,
-    summary: Callable[[Row], str] = _test_summary,
+    summary: Callable[[TrainedRow], str] = _test_summary,
     check: Callable[[loading.Dataset], None] | None = None,
     progress: Progress | None = None,
     data_names: bool = False,
-) -> Trained:
+) -> TrainingRun:
     """Load the data every row needs once, then train each (name, config) row's seeds, in
     `in_training_order` (the rows come back in the order given).
 
@@ -503,11 +439,11 @@ def train_rows(
             progress.start(label(name))
             trained[name] = row = train_fitted(study, name, config, ds.sets, seeds, eval_splits, workdir, checkpoints)
             progress.finish(label(name), row.seconds, summary(row))
-        return Trained(ds, {name: trained[name] for name, _ in rows})
+        return TrainingRun(ds, {name: trained[name] for name, _ in rows})
 
 
 def paired_tests(
-    a: Row, b: Row, split: str, labels: np.ndarray, head: str = "fabric"
+    a: TrainedRow, b: TrainedRow, split: str, labels: np.ndarray, head: str = "fabric"
 ) -> dict[str, stats.WilcoxonResult]:
     """Wilcoxon signed-rank tests of row `b` against row `a` on `split`, under both pairings.
 
@@ -556,12 +492,12 @@ class Study:
     n_seeds: int
     eval_splits: tuple[str, ...]
     split_names: tuple[str, ...]
-    document: Callable[[Trained, Sequence[StudyRow], Path], tuple[dict[str, Any], list[Path | None]]]
+    document: Callable[[TrainingRun, Sequence[StudyRow], Path], tuple[dict[str, Any], list[Path | None]]]
     checklist: Callable[[dict[str, Any]], list[Finding]]
     markdown: Callable[[dict[str, Any]], str]
     choose_rows: str = "choose them with --rows"  # how to pick what a row sets instead of --set
     checkpoints: bool = True  # save each row as it trains (`train.SAVE_EVERY_EPOCHS`): a killed run resumes mid-row
-    summary: Callable[[Row], str] = _test_summary
+    summary: Callable[[TrainedRow], str] = _test_summary
     check: Callable[[loading.Dataset], None] | None = None
     recorded_settings: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     recorded_fusions: tuple[str, ...] = ()

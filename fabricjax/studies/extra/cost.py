@@ -51,6 +51,7 @@ from fabricjax.sequences import data
 from fabricjax.store import archive, atomic, dataset_index
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, findings, loading, runner
+from fabricjax.studies.common.trained import TrainedRow
 
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
 MODALITY_ABBREVIATIONS = {"internal": "int", "external": "ext", "proprio": "prop", "flow": "flow", "image": "img"}
@@ -127,7 +128,7 @@ def inference_latency(
     return {f"latency_{k}": v for k, v in stats.percentiles_ms([run() for _ in range(repeats)]).items()}
 
 
-def measure_inference(row: runner.Row, test: data.SequenceSet, repeats: int) -> dict[str, Any]:
+def measure_inference(row: TrainedRow, test: data.SequenceSet, repeats: int) -> dict[str, Any]:
     """A trained row's size and inference latency: the parameter count of its first seed's model
     and `inference_latency` on the first sequence of `test` (loaded for several rows: narrowed
     to the row's inputs here)."""

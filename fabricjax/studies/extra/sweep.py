@@ -36,6 +36,7 @@ from fabricjax.reporting import stats
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, loading, runner
 from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common.trained import TrainedRow
 from fabricjax.studies.extra import cost
 from fabricjax.studies.paper import ablation
 
@@ -135,7 +136,7 @@ def _pct(values) -> tuple[float, float]:
 
 
 def entry(
-    trained: runner.Row, fields: Mapping[str, Any], row: StudyRow, test, latency_repeats: int, recorded: bool = False
+    trained: TrainedRow, fields: Mapping[str, Any], row: StudyRow, test, latency_repeats: int, recorded: bool = False
 ) -> dict[str, Any]:
     """One (point, row): accuracies (per seed and mean ± SD, %), cost, config and curves; on
     `recorded` data the row is named by the data's names for its inputs (`test.names`)."""

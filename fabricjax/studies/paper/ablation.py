@@ -37,6 +37,7 @@ from fabricjax.reporting import plots, stats
 from fabricjax.sequences import data
 from fabricjax.studies.common import documents, findings, linear_probe, loading, recipe, runner
 from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common.trained import TrainedRow, TrainingRun
 
 TITLE, PAPER = (
     "Modality ablation",
@@ -126,7 +127,7 @@ def display_name(row_name: str) -> str:
     return STUDY.row(row_name).label
 
 
-def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
     """The rows beside the paper's, each with the class each seed collapsed to (`findings.collapsed`),
     the test split's majority class (`findings.majority`), the Wilcoxon tests of `WILCOXON_PAIR` and
     the confusion matrices of `CONFUSION_ROWS` (results/ablation_confusion.png)."""
@@ -197,7 +198,7 @@ def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tu
     return body, [figure, curves]
 
 
-def fusion_choices(rows: Mapping[str, runner.Row]) -> list[dict[str, Any]]:
+def fusion_choices(rows: Mapping[str, TrainedRow]) -> list[dict[str, Any]]:
     """For each row trained under both fusions (the paper's and its `STEP_LAYERNORM_ROWS` twin),
     the fusion its validation accuracy picks (mean over seeds; step-LayerNorm on a tie), as on
     recorded data, with both fusions' validation and test accuracy [%]."""
@@ -241,7 +242,7 @@ def fusion_choice_markdown(choices: Sequence[dict[str, Any]]) -> list[str]:
     ]
 
 
-def _recorded_body(trained: runner.Trained, chosen: Sequence[StudyRow], tests) -> dict[str, Any]:
+def _recorded_body(trained: TrainingRun, chosen: Sequence[StudyRow], tests) -> dict[str, Any]:
     """The rows on recorded data: each under the fusion its validation accuracy picks, beside the
     other fusion and the probe of its inputs; every input's steadiness."""
     sets, rows = trained.dataset.sets, trained.rows

@@ -25,6 +25,7 @@ from fabricjax.reporting import plots, stats
 from fabricjax.store import archive, dataset_index
 from fabricjax.studies.common import documents, findings, loading, runner
 from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common.trained import TrainingRun
 
 TITLE, PAPER = (
     "PSD bandwidth",
@@ -54,7 +55,7 @@ ROWS = (
 )
 
 
-def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
     """Every row's PSD bins beside the paper's, with the class each seed collapsed to on the
     validation and test splits (`findings.collapsed`); both splits' majority class
     (`findings.majority`), the microphone read and results/bandwidth.png."""

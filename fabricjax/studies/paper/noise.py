@@ -25,6 +25,7 @@ from fabricjax.sequences import data
 from fabricjax.sim import estimates
 from fabricjax.studies.common import documents, findings, loading, runner
 from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common.trained import TrainingRun
 
 TITLE, PAPER = (
     "Cafe noise",
@@ -55,7 +56,7 @@ ROWS = (
 )
 
 
-def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
     """Every row with its tests against the preceding row on the cafe split and the class each
     seed collapsed to on the cafe and lab test splits (`findings.collapsed`); both splits'
     majority class (`findings.majority`), and results/noise.png."""

@@ -36,6 +36,7 @@ from fabricjax.reporting import stats
 from fabricjax.sequences import data
 from fabricjax.studies.common import documents, findings, runner
 from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common.trained import TrainingRun
 
 TITLE, PAPER = (
     "Property perception",
@@ -63,7 +64,7 @@ ROWS = (
 )
 
 
-def document(trained: runner.Trained, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
     """Per row its checkpoint, accuracies per property and, per split and property, the level
     each seed collapsed to (`findings.collapsed`, None where it did not); chance (1 / levels), the
     majority level (`findings.majority`) and the fabrics of each evaluated split; the paper's numbers."""

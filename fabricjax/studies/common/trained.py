@@ -1,0 +1,86 @@
+"""What training a study's rows gives: each row's seeds' metrics, wall time and checkpoint, and
+the rows of one training call with the dataset they were trained on.
+
+A trained row is what the recipe compares (`recipe.choose`), what the Wilcoxon tests pair and
+what a study's document records (`TrainedRow.doc`); it lies beneath all of them, so that none of them
+reads another through it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from fabricjax.config import Config
+from fabricjax.store import workspace
+from fabricjax.studies.common import loading
+from fabricjax.training import curves, train
+
+
+@dataclasses.dataclass
+class TrainedRow:
+    """A row after training: all seeds' metrics (leading seed axis), its wall time and, where the
+    study keeps the models, its checkpoint directory."""
+
+    name: str
+    config: Config
+    results: train.Results
+    seconds: float
+    checkpoint: Path | None = None
+    recipe: dict[str, Any] | None = None  # how its recipe was chosen on validation (`recipe.document`), where it was
+
+    def accuracy(self, split: str, head: str = "fabric") -> np.ndarray:
+        return np.asarray(self.results.metrics["eval"][split]["accuracy"][head], np.float64)
+
+    def predictions(self, split: str, head: str = "fabric") -> np.ndarray:
+        return np.asarray(self.results.metrics["eval"][split]["predictions"][head])
+
+    def time_to_accuracy(self, head: str = "fabric") -> tuple[np.ndarray, np.ndarray]:
+        """The row's time-to-accuracy curve: each trained epoch's end in seconds since its training
+        began (the first epoch's with the compilation) and the validation accuracy of `head` per
+        seed and epoch (seeds, epochs), over the epochs the run went through."""
+        epochs = self.results.metrics["epochs"]
+        wall = np.asarray(epochs[curves.WALL_TAG], np.float64)[0]
+        trained = ~np.isnan(wall)
+        return np.cumsum(wall[trained]), np.asarray(epochs[f"val/accuracy/{head}"], np.float64)[:, trained]
+
+    def doc(self, splits: Sequence[str]) -> dict[str, Any]:
+        """The row's config, checkpoint (None where the study keeps no models), wall time and its
+        account (`train.TimeAccount`) and, per
+        seed, accuracies and per-sample predictions of every head."""
+        ev = self.results.metrics["eval"]
+        return {
+            "config": self.config.to_json(),
+            "checkpoint": None if self.checkpoint is None else workspace.shown(self.checkpoint),
+            "seeds": list(self.results.seeds),
+            "wall_s": self.seconds,
+            "time": self.results.metrics["time"],
+            "best_epoch": np.asarray(self.results.metrics["best_epoch"]).tolist(),
+            "stopped_at": np.asarray(self.results.metrics["stopped_at"]).tolist(),
+            "recipe": self.recipe,
+            "epochs": {
+                t: [[None if np.isnan(x) else float(x) for x in s] for s in v]
+                for t, v in self.results.metrics["epochs"].items()
+            },
+            "accuracy": {
+                s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()}
+                for s in ("val", *splits)
+            },
+            "predictions": {s: {h: np.asarray(p).tolist() for h, p in ev[s]["predictions"].items()} for s in splits},
+        }
+
+
+@dataclasses.dataclass
+class TrainingRun:
+    """The rows one call of `runner.train_rows` trained, in the order given, and the dataset it
+    loaded once for them."""
+
+    dataset: loading.Dataset
+    rows: dict[str, TrainedRow]
+
+    @property
+    def train_s(self) -> float:
+        return sum(r.seconds for r in self.rows.values())
