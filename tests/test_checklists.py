@@ -144,7 +144,31 @@ def test_findings_round_trip_through_json_and_markdown():
     f = findings.below("a below b", ("a", _pct([10, 20])), ("b", _pct([30, 30])))
     assert f.holds and findings.Finding.from_json(f.to_json()) == f
     md = findings.markdown([f.to_json(), findings.Finding("c", None, "needs x, not run")])
-    assert "1 of 1 evaluated claims reproduced" in md and "not evaluated" in md
+    assert "1 of 1 counted claims reproduced." in md and "not evaluated" in md
+
+
+def test_a_claim_counts_only_where_its_evidence_carries_it():
+    base = {"label": 0, "accuracy": 25.0, "known": 100}
+    f = findings.at_least("b >= a", ("b", _pct([60, 62])), ("a", _pct([40, 41])))
+    fine = findings.counted_where(
+        f, [("b", _pct([60, 62]), [None, None], base), ("a", _pct([40, 41]), [None, None], base)]
+    )
+    assert fine.counted and fine == f
+    fell = findings.counted_where(
+        f, [("b", _pct([60, 62]), [None, None], base), ("a", _pct([40, 41]), [3, None], base)]
+    )
+    assert fell.holds and not fell.counted and fell.not_counted == "a collapsed on 1 of 2 seeds"
+    low = findings.counted_where(f, [("a", _pct([20, 25]), [None, None], base)])
+    assert low.not_counted == "a 22.5 % is not above its majority class 25.0 %"
+    ours = findings.counted_where(f, [], variant=True)
+    assert not ours.counted and "variant" in ours.not_counted and ours.verdict == "reproduced, not counted"
+    unrun = findings.Finding("c", None, "needs x, not run")
+    assert findings.counted_where(unrun, [("a", _pct([20]), [1], base)], variant=True) == unrun
+    assert findings.count([fine, fell, low, ours, unrun]) == (1, 1)
+    assert findings.Finding.from_json(fell.to_json()) == fell
+    md = findings.markdown([fine, fell])
+    assert "1 of 1 counted claims reproduced; 1 evaluated but not counted" in md
+    assert "Not counted: a collapsed on 1 of 2 seeds" in md and "**reproduced**" in md
 
 
 @pytest.mark.parametrize("split", ["val", "test"])

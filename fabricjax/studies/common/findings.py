@@ -10,6 +10,11 @@ answering the split's most frequent class (or level), computed from its labels. 
 beside each accuracy, with `collapse_note` wherever a seed predicts one class for nearly every
 sequence (`COLLAPSED_SHARE`), and a claim that something is above chance counts only where its
 mean over seeds is above that baseline (`above_majority`); 1 / classes is shown beside it.
+
+A verdict counts only where its evidence can carry it (`counted_where`): a row that collapsed, or
+whose mean is at or below its majority baseline, says nothing of what its inputs carry, so a
+claim comparing it is shown with its verdict and not counted; nor is a claim about one of our
+variant rows, which is reported beside the paper's claims and never as one of them.
 """
 
 from __future__ import annotations
@@ -24,20 +29,34 @@ from fabricjax.studies.common import documents
 
 @dataclasses.dataclass(frozen=True)
 class Finding:
+    """One claim of the paper checked against our per-seed results."""
+
     claim: str
     holds: bool | None  # None: not evaluated (a row the claim needs is missing)
     evidence: str
+    not_counted: str = ""  # why the verdict does not count (`counted_where`); "" where it does
+
+    @property
+    def counted(self) -> bool:
+        return self.holds is not None and not self.not_counted
 
     @property
     def verdict(self) -> str:
-        return {True: "reproduced", False: "not reproduced", None: "not evaluated"}[self.holds]
+        said = {True: "reproduced", False: "not reproduced", None: "not evaluated"}[self.holds]
+        return f"{said}, not counted" if self.holds is not None and self.not_counted else said
 
     def to_json(self) -> dict[str, Any]:
-        return {"claim": self.claim, "holds": self.holds, "verdict": self.verdict, "evidence": self.evidence}
+        return {
+            "claim": self.claim,
+            "holds": self.holds,
+            "verdict": self.verdict,
+            "evidence": self.evidence,
+            "not_counted": self.not_counted,
+        }
 
     @classmethod
     def from_json(cls, doc: Mapping[str, Any]) -> "Finding":
-        return cls(doc["claim"], doc["holds"], doc["evidence"])
+        return cls(doc["claim"], doc["holds"], doc["evidence"], doc.get("not_counted", ""))
 
 
 def mean_pct(values) -> float:
@@ -83,17 +102,58 @@ def below(claim: str, a: tuple[str, Any], b: tuple[str, Any]) -> Finding:
 
 
 def count(findings: Sequence[Finding]) -> tuple[int, int]:
-    """(claims reproduced, claims evaluated)."""
-    return sum(f.holds is True for f in findings), sum(f.holds is not None for f in findings)
+    """(claims reproduced, claims counted): only verdicts whose evidence carries them."""
+    return sum(f.holds is True and f.counted for f in findings), sum(f.counted for f in findings)
+
+
+def why_not_evidence(name: str, values, collapsed_seeds: Sequence[int | None], base: Mapping[str, Any] | None) -> str:
+    """Why row `name` (per-seed accuracies `values` in [0, 1], each seed's `collapsed` class) cannot
+    carry a claim: '' where it can, else that a seed collapsed or that its mean is at or below the
+    `majority` baseline `base`."""
+    hit = sum(k is not None for k in collapsed_seeds)
+    if hit:
+        return f"{name} collapsed on {hit} of {len(collapsed_seeds)} seeds"
+    if base is not None and mean_pct(values) <= base["accuracy"]:
+        return f"{name} {mean_pct(values):.1f} % is not above its majority class {base['accuracy']:.1f} %"
+    return ""
+
+
+def counted_where(
+    finding: Finding,
+    rows: Sequence[tuple[str, Any, Sequence[int | None], Mapping[str, Any] | None]],
+    variant: bool = False,
+) -> Finding:
+    """`finding`, not counted where a row it compares cannot carry it (`rows`: (name, per-seed
+    accuracies, per-seed collapsed class, majority baseline) each, `why_not_evidence`) or where it
+    is a claim about our `variant` row rather than the paper's."""
+    if finding.holds is None:
+        return finding
+    reasons = (["a claim about our variant row, reported beside the paper's"] if variant else []) + [
+        why for row in rows if (why := why_not_evidence(*row))
+    ]
+    return dataclasses.replace(finding, not_counted="; ".join(reasons))
 
 
 def markdown(findings: Sequence[Finding | Mapping[str, Any]], counted: bool = True) -> str:
     """A table: claim, verdict, evidence (findings as objects or as their JSON), under the count of
     claims reproduced, or (not `counted`: an install check) the note that none is counted."""
     findings = [f if isinstance(f, Finding) else Finding.from_json(f) for f in findings]
-    rows = [[f.claim, f"**{f.verdict}**" if f.holds else f.verdict, f.evidence] for f in findings]
-    n_true, n_eval = count(findings)
-    tally = f"{n_true} of {n_eval} evaluated claims reproduced." if counted else NOT_COUNTED
+    rows = [
+        [
+            f.claim,
+            f"**{f.verdict}**" if f.holds and f.counted else f.verdict,
+            f.evidence + (f". Not counted: {f.not_counted}" if f.not_counted else ""),
+        ]
+        for f in findings
+    ]
+    n_true, n_counted = count(findings)
+    skipped = sum(f.holds is not None and not f.counted for f in findings)
+    tally = (
+        f"{n_true} of {n_counted} counted claims reproduced"
+        + (f"; {skipped} evaluated but not counted, as their evidence cannot carry them (below)." if skipped else ".")
+        if counted
+        else NOT_COUNTED
+    )
     return f"{tally}\n\n" + documents.markdown_table(["Paper's claim", "Ours", "Evidence (per-seed results)"], rows)
 
 
