@@ -106,8 +106,15 @@ MAJORITY = {
 }  # the test split's majority class, as `findings.majority` gives it
 
 
+SIGNIFICANT = {"per_sample": {"p_value": 0.01}, "per_seed": {"p_value": 0.0625}}  # the JSON's Wilcoxon tests
+
+
+def _checklist(test: dict, majority=MAJORITY, collapsed=None, wilcoxon=SIGNIFICANT) -> list:
+    return ablation.checklist({k: np.asarray(v) / 100 for k, v in test.items()}, majority, 21, collapsed, wilcoxon)
+
+
 def _holds(test: dict, majority=MAJORITY) -> list[bool | None]:
-    return [f.holds for f in ablation.checklist({k: np.asarray(v) / 100 for k, v in test.items()}, majority, 21)]
+    return [f.holds for f in _checklist(test, majority)]
 
 
 def test_ablation_checklist_predicates_on_synthetic_per_seed_results():
@@ -141,11 +148,19 @@ def test_ablation_checklist_predicates_on_synthetic_per_seed_results():
     # "well above chance" counts against the majority class, not 1 / classes: 47 % is not 10 pp above a 40 % majority
     unbalanced = {"label": 3, "accuracy": 40.0, "known": 100}
     assert _holds(paper_like, unbalanced)[2] is False and _holds(paper_like, None)[2] is None
-    claim = ablation.checklist({k: np.asarray(v) / 100 for k, v in paper_like.items()}, unbalanced, 21)[2]
+    claim = _checklist(paper_like, unbalanced)[2]
     assert (
         "majority class 40.0 % (class 3), so at least 50.0 %" in claim.evidence
         and "1 / classes 4.8 %" in claim.evidence
     )
+    # counted only where the evidence carries it: a collapsed image row, our variant's claim
+    fs = _checklist(paper_like, collapsed={"image": [7, 7]})
+    assert [f.counted for f in fs] == [True, True, True, False, True, False, True]
+    assert fs[3].holds and "Minsight image collapsed on 2 of 2 seeds" == fs[3].not_counted
+    assert findings.count(fs) == (5, 5)
+    # the paper's significance: above by the mean but not by its test, or without a test at all
+    assert _checklist(paper_like, wilcoxon={**SIGNIFICANT, "per_sample": {"p_value": 0.2}})[4].holds is False
+    assert _checklist(paper_like, wilcoxon=None)[4].holds is None
 
 
 def test_bandwidth_narrows_the_psd_per_row(workdir, tmp_path):

@@ -46,6 +46,7 @@ TITLE, PAPER = (
 
 WILCOXON_PAIR = ("internal", "internal+external")  # (baseline, compared), as in the paper
 PAPER_WILCOXON_P = 0.0254  # the paper's test of that pair
+SIGNIFICANCE = 0.05  # the level "significantly higher" claims, as the paper's p reads against it
 CONFUSION_ROWS = ("proprio", "flow")
 STEP_LAYERNORM = "step_layernorm"  # our fusion normalisation (config.FUSION_NORMS), beside the paper's sequence_minmax
 BELOW_PROBE_PP = 10.0  # on recorded data, a row this many points below its probe's test accuracy is said so
@@ -313,35 +314,52 @@ def checklist(
     test: dict[str, np.ndarray],
     majority: Mapping[str, Any] | None,
     n_classes: int,
-    notes: Mapping[str, str] | None = None,
+    collapsed: Mapping[str, Sequence[int | None]] | None = None,
+    wilcoxon: Mapping[str, Any] | None = None,
 ) -> list[findings.Finding]:
     """The paper's qualitative claims about the ablation, as predicates over per-seed test
     accuracies (`test`: row name -> per-seed accuracies in [0, 1]; rows not run are skipped).
     `majority`: the test split's `findings.majority` baseline, which "above chance" is counted
     against; `n_classes`: the data's classes, whose 1 / classes is the paper's chance, shown beside
-    it; `notes`: row name -> what its evidence adds to its name (`findings.collapse_note`)."""
-    notes = notes or {}
+    it; `collapsed`: row name -> the class each seed collapsed to (`findings.collapsed`);
+    `wilcoxon`: the results JSON's tests of `WILCOXON_PAIR`, which the paper's significance claim
+    reads. A verdict counts only where its rows can carry it (`findings.counted_where`)."""
+    collapsed = collapsed or {}
+
+    def plain(row: str) -> str:
+        return MODALITY_NAMES[row] if row in MODALITY_NAMES else display_name(row)
 
     def named(row: str) -> str:
-        return (MODALITY_NAMES[row] if row in MODALITY_NAMES else display_name(row)) + notes.get(row, "")
+        return plain(row) + findings.collapse_text(collapsed.get(row, []))
+
+    def gated(f: findings.Finding, rows: Sequence[str], variant: bool = False) -> findings.Finding:
+        return findings.counted_where(
+            f, [(plain(r), test[r], collapsed.get(r, []), majority) for r in rows if r in test], variant
+        )
 
     out = []
     singles = ["image", "flow", "external", "proprio"]
     claim = "Minsound (internal audio) is the best single modality"
     if not (f := findings.missing(claim, ["internal", *singles], test)):
         best_other = max(singles, key=lambda r: findings.mean_pct(test[r]))
-        f = findings.at_least(
-            claim,
-            (named("internal"), test["internal"]),
-            (f"best other, {named(best_other)}", test[best_other]),
-            strict=True,
+        f = gated(
+            findings.at_least(
+                claim,
+                (named("internal"), test["internal"]),
+                (f"best other, {named(best_other)}", test[best_other]),
+                strict=True,
+            ),
+            ["internal", best_other],
         )
     out.append(f)
     claim = f"the palm mic alone is clearly worse than Minsound (>= {CLEARLY_WORSE_PP:.0f} pp below)"
     out.append(
         findings.missing(claim, ["internal", "external"], test)
-        or findings.at_least(
-            claim, (named("internal"), test["internal"]), (named("external"), test["external"]), CLEARLY_WORSE_PP
+        or gated(
+            findings.at_least(
+                claim, (named("internal"), test["internal"]), (named("external"), test["external"]), CLEARLY_WORSE_PP
+            ),
+            ["internal", "external"],
         )
     )
     claim = (
@@ -360,35 +378,67 @@ def checklist(
             f = findings.Finding(claim, None, f"{evidence}; no test label known, so no majority class")
         else:
             floor = majority["accuracy"] + WELL_ABOVE_CHANCE_PP
-            f = findings.Finding(
-                claim,
-                abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor,
-                f"{evidence}; majority class {majority['accuracy']:.1f} % (class {majority['label']}), so at "
-                f"least {floor:.1f} %",
+            f = gated(
+                findings.Finding(
+                    claim,
+                    abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor,
+                    f"{evidence}; majority class {majority['accuracy']:.1f} % (class {majority['label']}), so at "
+                    f"least {floor:.1f} %",
+                ),
+                ["proprio", "flow"],
             )
     out.append(f)
     claim = "Minsight images alone are the weakest camera input (below optical flow)"
     out.append(
         findings.missing(claim, ["image", "flow"], test)
-        or findings.at_least(claim, (named("flow"), test["flow"]), (named("image"), test["image"]), strict=True)
+        or gated(
+            findings.at_least(claim, (named("flow"), test["flow"]), (named("image"), test["image"]), strict=True),
+            ["image", "flow"],
+        )
     )
-    for base, compared, variant in (
-        (WILCOXON_PAIR[0], WILCOXON_PAIR[1], ""),
-        *[(b, c, " (our step-LayerNorm fusion)") for b, c in STEP_LAYERNORM_PAIRS],
-    ):
-        claim = f"Minsound + palm mic >= Minsound{variant}"
+    base, compared = WILCOXON_PAIR
+    claim = (
+        f"Minsound + palm mic is significantly above Minsound (Wilcoxon signed-rank per test sequence, "
+        f"p < {SIGNIFICANCE}; the paper: p = {PAPER_WILCOXON_P})"
+    )
+    if not (f := findings.missing(claim, [base, compared], test)):
+        above = findings.at_least(claim, (named(compared), test[compared]), (named(base), test[base]), strict=True)
+        tests = wilcoxon or {}
+        if "per_sample" not in tests:
+            f = findings.Finding(claim, None, f"{above.evidence}; no Wilcoxon test in the results")
+        else:
+            p_sample, p_seed = tests["per_sample"]["p_value"], tests["per_seed"]["p_value"]
+            f = gated(
+                findings.Finding(
+                    claim,
+                    bool(above.holds and p_sample < SIGNIFICANCE),
+                    f"{above.evidence}; p = {p_sample:.3g} per test sequence, the pairing that can reach the "
+                    f"paper's p at five seeds (per seed: p = {p_seed:.3g})",
+                ),
+                [base, compared],
+            )
+    out.append(f)
+    for base, compared in STEP_LAYERNORM_PAIRS:
+        claim = "Minsound + palm mic >= Minsound (our step-LayerNorm fusion)"
         out.append(
             findings.missing(claim, [base, compared], test)
-            or findings.at_least(claim, (named(compared), test[compared]), (named(base), test[base]))
+            or gated(
+                findings.at_least(claim, (named(compared), test[compared]), (named(base), test[base])),
+                [base, compared],
+                variant=True,
+            )
         )
     claim = "the TCN is below the transformer on the same inputs (Minsound + palm mic + proprioception)"
     out.append(
         findings.missing(claim, ["internal+external+proprio", "tcn:internal+external+proprio"], test)
-        or findings.at_least(
-            claim,
-            ("Transformer", test["internal+external+proprio"]),
-            ("TCN", test["tcn:internal+external+proprio"]),
-            strict=True,
+        or gated(
+            findings.at_least(
+                claim,
+                ("Transformer", test["internal+external+proprio"]),
+                ("TCN", test["tcn:internal+external+proprio"]),
+                strict=True,
+            ),
+            ["internal+external+proprio", "tcn:internal+external+proprio"],
         )
     )
     return out
@@ -601,7 +651,8 @@ STUDY = runner.Study(
         {r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]},
         doc["majority"]["test"],
         len(doc["dataset"]["classes"]),
-        {r["name"]: findings.collapse_text(r["collapsed"]["test"]) for r in doc["rows"]},
+        {r["name"]: r["collapsed"]["test"] for r in doc["rows"]},
+        doc.get("wilcoxon"),
     ),
     markdown=markdown,
     recorded_fusions=(STEP_LAYERNORM,),
