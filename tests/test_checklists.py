@@ -93,6 +93,13 @@ def test_properties_checklist():
         None,
         None,
     ]  # no level known: not evaluated
+    # a comparison of two accuracies at or below their majority level, or of a collapsed row, is not counted
+    low = {**majority, "stretchiness": {"label": 1, "accuracy": 85.0, "known": 100}}
+    f = properties.checklist(paper_like, chance, low)
+    assert f[2].holds and not f[2].counted and "not above its majority class 85.0 %" in f[2].not_counted
+    assert f[0].counted and f[0].holds is False  # "above chance" reads the majority level as its rule
+    f = properties.checklist(paper_like, chance, majority, collapsed={both: {"thickness": [None, 2]}})
+    assert [x.counted for x in f] == [True, False, True, False, True]
 
 
 def _ids():

@@ -96,6 +96,7 @@ def checklist(
     chance: dict[str, float],
     majority: dict[str, dict[str, Any] | None],
     notes: dict[str, dict[str, str]] | None = None,
+    collapsed: dict[str, dict[str, list[int | None]]] | None = None,
 ) -> list[findings.Finding]:
     """The paper's claims about property perception on the holdout fabrics, as predicates over
     per-seed accuracies (`holdout`: row name -> property -> per-seed accuracy in [0, 1]; rows not
@@ -103,8 +104,26 @@ def checklist(
     `majority`: property -> the holdouts' `findings.majority` baseline. "Above chance" counts only
     where every property's mean over seeds is above its majority level (`findings.above_majority`),
     the strongest trivial baseline; the evidence gives both readings. `notes`: row name ->
-    property -> what the evidence adds to its accuracy (`findings.collapse_note`)."""
-    notes = notes or {}
+    property -> what the evidence adds to its accuracy (`findings.collapse_note`); `collapsed`: row
+    name -> property -> the level each seed collapsed to. A verdict counts only where every
+    accuracy it reads can carry it (`findings.counted_where`)."""
+    notes, collapsed = notes or {}, collapsed or {}
+
+    def gated(f: findings.Finding, reads: list[tuple[str, str]], compared: bool = True) -> findings.Finding:
+        """`compared`: a claim that one accuracy beats another, which a row at or below its majority
+        level cannot carry; a claim that each is above that level reads it as its rule instead."""
+        return findings.counted_where(
+            f,
+            [
+                (
+                    f"{STUDY.row(r).label}, {p}",
+                    holdout[r][p],
+                    collapsed.get(r, {}).get(p, []),
+                    majority[p] if compared else None,
+                )
+                for r, p in reads
+            ],
+        )
 
     def named(row: str, prop: str) -> str:
         return f"{STUDY.row(row).label}, {prop}{notes.get(row, {}).get(prop, '')}"
@@ -130,18 +149,25 @@ def checklist(
                     f"{findings.describe(p, holdout[name][p])}{notes.get(name, {}).get(p, '')}: {said}; "
                     f"{'above' if mean > chance[p] else 'not above'} 1 / levels {chance[p]:.1f} %"
                 )
-            f = findings.Finding(claim, None if None in above.values() else all(above.values()), "; ".join(evidence))
+            f = gated(
+                findings.Finding(claim, None if None in above.values() else all(above.values()), "; ".join(evidence)),
+                [(name, p) for p in PROPERTIES],
+                compared=False,
+            )
         out.append(f)
     ours, both = (r.name for r in ROWS)
     for prop, better, worse in (("stretchiness", both, ours), ("thickness", both, ours), ("roughness", ours, both)):
         claim = f"{STUDY.row(better).label} beats {STUDY.row(worse).label} on {prop} on the holdout fabrics"
         out.append(
             findings.missing(claim, [better, worse], holdout)
-            or findings.at_least(
-                claim,
-                (named(better, prop), holdout[better][prop]),
-                (named(worse, prop), holdout[worse][prop]),
-                strict=True,
+            or gated(
+                findings.at_least(
+                    claim,
+                    (named(better, prop), holdout[better][prop]),
+                    (named(worse, prop), holdout[worse][prop]),
+                    strict=True,
+                ),
+                [(better, prop), (worse, prop)],
             )
         )
     return out
@@ -233,6 +259,7 @@ STUDY = runner.Study(
         doc["chance"],
         doc["majority"]["holdout"],
         collapse_notes(doc, "holdout"),
+        {r["name"]: r["collapsed"]["holdout"] for r in doc["rows"]},
     ),
     markdown=markdown,
     choose_rows="choose the rows with --rows",
