@@ -70,7 +70,7 @@ def _rows() -> tuple[StudyRow, ...]:
             seen[frozenset(mods)] = StudyRow("+".join(mods), {"modalities": mods}, label)
             continue
         seen[frozenset(mods)] = StudyRow(
-            "+".join(mods), {"modalities": mods, "image_reference": "training_mean"}, label
+            "+".join(mods), {"modalities": mods, "image_reference": "training_mean"}, f"{label}, frames as they are"
         )
         session.append(
             StudyRow(
