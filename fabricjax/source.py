@@ -80,8 +80,10 @@ def _modules() -> dict[str, Path]:
 @functools.cache
 def _imports(module: str) -> frozenset[str]:
     """The package modules `module` imports anywhere in it: `from fabricjax.store import archive`
-    is the archive module, `from fabricjax.store.archive import read` too; a submodule's package
-    comes with it, as Python runs the package's `__init__` first."""
+    is the archive module, `from fabricjax.store.archive import read` too, and a name a package
+    re-exports (`from fabricjax.sim import simulate`) is the package's `__init__`, whose imports
+    the closure then follows. A package's `__init__` that Python runs on the way to a submodule
+    computes nothing of it, so it is not counted."""
     modules = _modules()
     found = set()
     for node in ast.walk(ast.parse(modules[module].read_text(), str(modules[module]))):
@@ -94,9 +96,8 @@ def _imports(module: str) -> frozenset[str]:
         for name in names:
             while name not in modules:
                 name = name.rpartition(".")[0]
-            parts = name.split(".")
-            found |= {".".join(parts[:k]) for k in range(2, len(parts) + 1)} & modules.keys()
-    return frozenset(found - {module})
+            found.add(name)
+    return frozenset(found - {module, "fabricjax"})
 
 
 def _left_out(module: str, leave_out: Iterable[str]) -> bool:
@@ -137,9 +138,13 @@ def training() -> str:
     return without_simulator(TRAINING)
 
 
+SIMULATION = ("fabricjax.sim.trial", "fabricjax.store.archive")  # a scene to an archive on disk
+
+
 def simulator() -> str:
-    """The simulator's code: what decides a simulated archive besides its scene."""
-    return fingerprint([f"{SIMULATOR}.dataset"])
+    """The code that turns a scene into an archive: what decides a simulated archive besides its
+    scene (which names the preset's trial, its effects and the estimates in force)."""
+    return fingerprint(SIMULATION)
 
 
 def package() -> str:
