@@ -18,10 +18,12 @@ Nothing here was tuned to a classification accuracy. Every number has one of thr
     [cited]     a named publication, standard or datasheet, given in that comment
     [law]       a physical constant or law (sound speed in air, gamma P0, 0 C in kelvin)
 
-* an estimate: `estimates.value("NAME")`, declared in `fabricjax.sim.estimates` with its range, a
-  physical reason for that range and what it drives (`[estimate]` in the comments here; the
-  comments give the longer reasons). A calibration to one measurement of the paper is an estimate
-  whose registry entry says so (`calibrated`).
+* an estimate, declared in `fabricjax.sim.estimates` with its range, a physical reason for that
+  range and what it drives (`[estimate]` in the comments here, which give the longer reasons and
+  name it in backquotes where it enters). It is a constant of this module under its own name, bound
+  from the registry below; an element of a range, a position or a unit conversion is read with
+  `estimates.value("NAME")` where that constant is built. A calibration to one measurement of the
+  paper is an estimate whose registry entry says so (`calibrated`).
 * `[numerics]`: a numerical or implementation setting (grid, supersampling, lead-in, a reference
   point that only states where an estimate is given), not a physical magnitude.
 
@@ -37,70 +39,57 @@ import math
 from fabricjax.sim import estimates
 from fabricjax.store import archive
 
+# Every estimate of the registry, at the value in force when this module is executed: the
+# registry's, or an override's (`trial.use_estimates` executes the module again after one).
+globals().update(estimates.constants())
+
 # --- time base --------------------------------------------------------------------------------
 # [paper] The audio sample rate (48 kHz), the step rate (50 Hz, one step per Minsight frame) and the
 # audio samples per step (2048) are the archive format's: `archive.AUDIO_RATE`, `STEP_RATE`, `WINDOW`.
 LEAD_IN = 4096  # [numerics] samples recorded before the procedure starts (>= archive.WINDOW so every window is full)
-# [estimate] USB camera frame-time jitter: a UVC camera delivers frames on its own clock; the host
-# timestamps them at USB transfer with ~1 ms scheduling jitter (a USB 2.0 microframe is 125 us; Linux
-# user-space wake-up latency is ~0.1-1 ms), hence +-0.8 ms
-FRAME_JITTER_S = estimates.value("FRAME_JITTER_S")
+# [estimate] `FRAME_JITTER_S`, USB camera frame-time jitter: a UVC camera delivers frames on its own
+# clock; the host timestamps them at USB transfer with ~1 ms scheduling jitter (a USB 2.0 microframe
+# is 125 us; Linux user-space wake-up latency is ~0.1-1 ms), hence +-0.8 ms
 CONTROL_HZ = 2000  # [numerics] grid on which the finger motion is integrated (then interpolated to 48 kHz)
 
 # --- finger motion [paper: force-controlled closing until 0.1 N, then rubbing cycles] ---------
 GRASP_FORCE_N = 0.1  # [paper] closing stops when Minsight's force estimate reaches this
 CYCLES_PER_TRIAL = 50  # [paper, Experiments] rubbing cycles per trial (`Scene.cycles`' default)
-OPEN_GAP_MM = estimates.value("OPEN_GAP_MM")  # [estimate] fingertip gap of the open pose
-CLOSING_SPEED_MM_S = estimates.value(
-    "CLOSING_SPEED_MM_S"
-)  # [estimate] relative fingertip closing speed (same for every fabric [paper])
-# [estimate] two soft silicone shells in series, normal direction (Hertz with the Ecoflex datasheet's
-# modulus, below in "Minsight images", gives 0.27 mm per shell at 0.1 N: consistent)
-SHELL_NORMAL_STIFFNESS_N_MM = estimates.value("SHELL_NORMAL_STIFFNESS_N_MM")
-SHELL_SHEAR_STIFFNESS_N_MM = estimates.value(
-    "SHELL_SHEAR_STIFFNESS_N_MM"
-)  # [estimate] shear stiffness of one shell at the contact
-SETTLE_S = estimates.value("SETTLE_S")  # [estimate] pause between the grasp and the first rubbing stroke
-STOP_S = estimates.value("STOP_S")  # [estimate] recording continues briefly after the last stroke
-RUB_AMPLITUDE_MM = estimates.value(
-    "RUB_AMPLITUDE_MM"
-)  # [estimate] each fingertip moves +-3 mm laterally, the two in opposite phase
-# [estimate] The preprogrammed strokes start from rest: the stroke's amplitude ramps up linearly over
-# this part of the first cycle (a servo's acceleration limit; the first quarter stroke)
-RUB_RAMP_CYCLES = estimates.value("RUB_RAMP_CYCLES")
-# [estimate] commanded rubbing frequency: 50 cycles ~ 25 s before the load droop; with the closing and
-# the droop, the paper's ~1500 steps per 50-cycle trial [paper, Experiments]
-CYCLE_HZ = estimates.value("CYCLE_HZ")
-ARC_MM = estimates.value("ARC_MM")  # [estimate] extra indentation at the stroke ends (the fingertips move on arcs)
-FINGER_LEVER_MM = estimates.value("FINGER_LEVER_MM")  # [estimate] joint axis to fingertip contact
+# [estimate] `OPEN_GAP_MM`: fingertip gap of the open pose
+# [estimate] `CLOSING_SPEED_MM_S`: relative fingertip closing speed (same for every fabric [paper])
+# [estimate] `SHELL_NORMAL_STIFFNESS_N_MM`: two soft silicone shells in series, normal direction (Hertz
+# with the Ecoflex datasheet's modulus, below in "Minsight images", gives 0.27 mm per shell at 0.1 N:
+# consistent)
+# [estimate] `SHELL_SHEAR_STIFFNESS_N_MM`: shear stiffness of one shell at the contact
+# [estimate] `SETTLE_S`: pause between the grasp and the first rubbing stroke
+# [estimate] `STOP_S`: recording continues briefly after the last stroke
+# [estimate] `RUB_AMPLITUDE_MM`: each fingertip moves +-3 mm laterally, the two in opposite phase
+# [estimate] `RUB_RAMP_CYCLES`: the preprogrammed strokes start from rest: the stroke's amplitude ramps
+# up linearly over this part of the first cycle (a servo's acceleration limit; the first quarter stroke)
+# [estimate] `CYCLE_HZ`, the commanded rubbing frequency: 50 cycles ~ 25 s before the load droop; with
+# the closing and the droop, the paper's ~1500 steps per 50-cycle trial [paper, Experiments]
+# [estimate] `ARC_MM`: extra indentation at the stroke ends (the fingertips move on arcs)
+# [estimate] `FINGER_LEVER_MM`: joint axis to fingertip contact
 # [paper: "the fingers move more slowly when finger-fabric friction is high"] Position-controlled
 # hobby servos lose speed under load: speed = commanded / (1 + SPEED_DROOP_PER_N * mu * F_n).
-# 2 / N gives ~6 % (mu = 0.25) to ~22 % (mu = 0.95) slower cycles at 0.1-0.15 N: trials of ~1300-1550 steps.
-SPEED_DROOP_PER_N = estimates.value("SPEED_DROOP_PER_N")  # [estimate]
-# [estimate] An STS3215's no-load speed is proportional to its supply voltage (datasheet: 0.222 s/60 deg at
-# 7.4 V, 0.16 s/60 deg at 12 V, i.e. ~6 %/V); a bench supply under a varying load sags by ~0.1-0.2 V:
-# a per-trial spread of ~2 % of the rubbing rate.
-SPEED_JITTER = estimates.value("SPEED_JITTER")
-CYCLE_PHASE_JITTER = estimates.value(
-    "CYCLE_PHASE_JITTER"
-)  # [estimate] slow wander of the stroke rate within a trial: half the per-trial spread
-# [estimate] the wander is a random walk with one step per this time (linearly interpolated between
-# them): the supply's and the load's fluctuations change over tens of ms to a stroke
-CYCLE_WANDER_S = estimates.value("CYCLE_WANDER_S")
-# [estimate] The hanging cloth creeps between strokes (random walk): a stroke's net slip is the
-# stick length mu F_n / k_t ~ 0.1-0.3 mm; about a third of it is not recovered on the way back.
-CLOTH_CREEP_MM_PER_CYCLE = estimates.value("CLOTH_CREEP_MM_PER_CYCLE")
+# [estimate] `SPEED_DROOP_PER_N`: 2 / N gives ~6 % (mu = 0.25) to ~22 % (mu = 0.95) slower cycles at
+# 0.1-0.15 N: trials of ~1300-1550 steps.
+# [estimate] `SPEED_JITTER`: an STS3215's no-load speed is proportional to its supply voltage
+# (datasheet: 0.222 s/60 deg at 7.4 V, 0.16 s/60 deg at 12 V, i.e. ~6 %/V); a bench supply under a
+# varying load sags by ~0.1-0.2 V: a per-trial spread of ~2 % of the rubbing rate.
+# [estimate] `CYCLE_PHASE_JITTER`: slow wander of the stroke rate within a trial: half the per-trial spread
+# [estimate] `CYCLE_WANDER_S`: the wander is a random walk with one step per this time (linearly
+# interpolated between them): the supply's and the load's fluctuations change over tens of ms to a stroke
+# [estimate] `CLOTH_CREEP_MM_PER_CYCLE`: the hanging cloth creeps between strokes (random walk): a
+# stroke's net slip is the stick length mu F_n / k_t ~ 0.1-0.3 mm; about a third of it is not
+# recovered on the way back.
 
 # --- the catalog's physical parameters (`catalog.py`: our textbook-order choices, not measurements) ---
 # [estimate] Each kind of parameter is scaled by one factor for every fabric alike (`scene.simulated_fabric`):
-# 1, the catalog as it is, in the published data; the registry declares how far each could be off.
-CATALOG_WEAVE_PERIOD_SCALE = estimates.value("CATALOG_WEAVE_PERIOD_SCALE")
-CATALOG_ROUGHNESS_SCALE = estimates.value("CATALOG_ROUGHNESS_SCALE")
-CATALOG_FRICTION_SCALE = estimates.value("CATALOG_FRICTION_SCALE")
-CATALOG_THICKNESS_SCALE = estimates.value("CATALOG_THICKNESS_SCALE")
-CATALOG_COMPRESSIBILITY_SCALE = estimates.value("CATALOG_COMPRESSIBILITY_SCALE")
-CATALOG_STRETCH_STIFFNESS_SCALE = estimates.value("CATALOG_STRETCH_STIFFNESS_SCALE")
-CATALOG_FUZZ_SCALE = estimates.value("CATALOG_FUZZ_SCALE")
+# 1, the catalog as it is, in the published data; the registry declares how far each could be off
+# (`CATALOG_WEAVE_PERIOD_SCALE`, `CATALOG_ROUGHNESS_SCALE`, `CATALOG_FRICTION_SCALE`,
+# `CATALOG_THICKNESS_SCALE`, `CATALOG_COMPRESSIBILITY_SCALE`, `CATALOG_STRETCH_STIFFNESS_SCALE`,
+# `CATALOG_FUZZ_SCALE`).
 
 # --- fabric surface [FACTS: f = v / lambda; roughness spectrum 1/f^s; fuzz] -----------------------
 PROFILE_DX_MM = 0.001  # [numerics] 1 um grid: resolves content to > 20 kHz at the fastest slide speed
@@ -109,56 +98,49 @@ PROFILE_LEN_MM = 65.536  # [numerics] one simulated cloth strip per fabric (2**1
 # in the grasping location"] [estimate] The grasp lands anywhere in this range of the strip, at
 # least one contact length (~10 mm) from its ends: a different stretch of cloth for every trial.
 GRASP_RANGE_MM = (estimates.value("GRASP_RANGE_LOW_MM"), estimates.value("GRASP_RANGE_HIGH_MM"))
-ROUGHNESS_K_MIN = estimates.value(
-    "ROUGHNESS_K_MIN"
-)  # [estimate] cycles/mm: below (2 mm wavelengths) the fabric drapes rather than vibrates
-WEAVE_SHARE = estimates.value(
-    "WEAVE_SHARE"
-)  # [estimate] fraction of the RMS height in the periodic weave (the rest: random roughness)
+# [estimate] `ROUGHNESS_K_MIN`: cycles/mm: below (2 mm wavelengths) the fabric drapes rather than vibrates
+# [estimate] `WEAVE_SHARE`: fraction of the RMS height in the periodic weave (the rest: random roughness)
 WEAVE_HARMONICS = 8  # [numerics] the weave's Fourier series, cut where its harmonics' weights m^(-s/2) have faded
-# [estimate] each harmonic's weight departs from the m^(-s/2) trend by a factor U(1 - x, 1 + x), per fabric (yarn shape)
-WEAVE_HARMONIC_SPREAD = estimates.value("WEAVE_HARMONIC_SPREAD")
-WEAVE_IRREGULARITY = estimates.value("WEAVE_IRREGULARITY")  # [estimate] yarn spacing varies by ~3 % of the period
-# [estimate] the spacing's irregularity is smooth over this many weave periods (its spectrum ends at 1 / (this x
-# period))
-WEAVE_WANDER_PERIODS = estimates.value("WEAVE_WANDER_PERIODS")
-# [estimate] local roughness varies +-20 % along the strip (10 mm correlation): wear, creases, pile direction
-LOCAL_ROUGHNESS_SPREAD = estimates.value("LOCAL_ROUGHNESS_SPREAD")
-LOCAL_ROUGHNESS_LENGTH_MM = estimates.value(
-    "LOCAL_ROUGHNESS_LENGTH_MM"
-)  # [estimate] that variation's correlation length: its spectrum ends at 1 / this
-FUZZ_FIBRES_PER_MM = estimates.value("FUZZ_FIBRES_PER_MM")  # [estimate] loose fibre ends per mm of path at fuzz = 1
-FUZZ_FIBRE_WIDTH_MM = estimates.value(
-    "FUZZ_FIBRE_WIDTH_MM"
-)  # [estimate] a fibre end's bump: fibre diameters are ~10-20 um
-FUZZ_HEIGHT = estimates.value("FUZZ_HEIGHT")  # [estimate] fibre bump height relative to the fabric's RMS roughness
-SHELL_ROUGHNESS_UM = estimates.value(
-    "SHELL_ROUGHNESS_UM"
-)  # [estimate] the silicone skin's own micro-texture: all class 0 rubs against
-SHELL_SPECTRAL_SLOPE = estimates.value("SHELL_SPECTRAL_SLOPE")  # [estimate] its height spectrum's slope
+# [estimate] `WEAVE_HARMONIC_SPREAD`: each harmonic's weight departs from the m^(-s/2) trend by a factor
+# U(1 - x, 1 + x), per fabric (yarn shape)
+# [estimate] `WEAVE_IRREGULARITY`: yarn spacing varies by ~3 % of the period
+# [estimate] `WEAVE_WANDER_PERIODS`: the spacing's irregularity is smooth over this many weave periods
+# (its spectrum ends at 1 / (this x period))
+# [estimate] `LOCAL_ROUGHNESS_SPREAD`: local roughness varies +-20 % along the strip (10 mm correlation):
+# wear, creases, pile direction
+# [estimate] `LOCAL_ROUGHNESS_LENGTH_MM`: that variation's correlation length: its spectrum ends at 1 / this
+# [estimate] `FUZZ_FIBRES_PER_MM`: loose fibre ends per mm of path at fuzz = 1
+# [estimate] `FUZZ_FIBRE_WIDTH_MM`: a fibre end's bump: fibre diameters are ~10-20 um
+# [estimate] `FUZZ_HEIGHT`: fibre bump height relative to the fabric's RMS roughness
+# [estimate] `SHELL_ROUGHNESS_UM`: the silicone skin's own micro-texture: all class 0 rubs against
+# [estimate] `SHELL_SPECTRAL_SLOPE`: its height spectrum's slope
 
 # --- contact sound in the Minsound cavity ---------------------------------------------------------
 # [law] Adiabatic cavity: p = gamma * P0 * dV / V (air: gamma = 1.4, P0 = 101 325 Pa). The fabric
 # profile displaces the outer skin; a fraction of that reaches the inner wall through ~3 mm of
 # silicone over the contact patch.
 GAMMA_P0_PA = 1.4 * 101_325.0
-CONTACT_AREA_M2 = estimates.value("CONTACT_AREA_M2")  # [estimate] ~5 mm x 4 mm contact patch at 0.1 N
-WALL_COUPLING = estimates.value("WALL_COUPLING")  # [estimate] inner-wall displacement per outer-surface displacement
-CAVITY_VOLUME_M3 = estimates.value("CAVITY_VOLUME_M3")  # [estimate] ~8 cm^3 of air inside the shell
-TEXTURE_PA_PER_UM = GAMMA_P0_PA * CONTACT_AREA_M2 * WALL_COUPLING * 1e-6 / CAVITY_VOLUME_M3  # ~3.5e-3
-# [estimates] Shell wall: mass-spring wall mode with viscoelastic losses (silicone damping rises with f).
-SHELL_MODE_HZ = estimates.value("SHELL_MODE_HZ")
-SHELL_MODE_Q = estimates.value("SHELL_MODE_Q")
-SHELL_LOSS_HZ = estimates.value("SHELL_LOSS_HZ")  # exp(-f / SHELL_LOSS_HZ) extra viscoelastic loss
+# [estimate] `CONTACT_AREA_M2`: ~5 mm x 4 mm contact patch at 0.1 N
+# [estimate] `WALL_COUPLING`: inner-wall displacement per outer-surface displacement
+# [estimate] `CAVITY_VOLUME_M3`: ~8 cm^3 of air inside the shell
+TEXTURE_PA_PER_UM = (  # ~3.5e-3
+    GAMMA_P0_PA
+    * estimates.value("CONTACT_AREA_M2")
+    * estimates.value("WALL_COUPLING")
+    * 1e-6
+    / estimates.value("CAVITY_VOLUME_M3")
+)
+# [estimates] Shell wall: mass-spring wall mode (`SHELL_MODE_HZ`, `SHELL_MODE_Q`) with viscoelastic
+# losses (silicone damping rises with f: exp(-f / `SHELL_LOSS_HZ`) extra).
 # Stick-slip: micro-slips per mm slid grow with friction; each releases energy at asperity scale
 # (amplitude ~ mu * F_n * asperity height), plus one larger release at every stroke reversal
 # (elastic energy 1/2 k delta^2 stored in the stuck shell and stretched cloth).
 # [estimates] all but the reference point (SLIP_PA and RELEASE_PA are given at it).
-SLIPS_PER_MM = estimates.value("SLIPS_PER_MM")  # at mu = 1
-SLIP_PA = estimates.value("SLIP_PA")  # click peak pressure at mu * F_n = 0.05 N and 20 um asperities
+# `SLIPS_PER_MM`: at mu = 1
+# `SLIP_PA`: click peak pressure at mu * F_n = 0.05 N and 20 um asperities
 SLIP_REF_FORCE_N = 0.05  # [numerics] the reference point SLIP_PA and RELEASE_PA are given at: mu * F_n
 SLIP_REF_ROUGHNESS_UM = 20.0  # [numerics] and asperity height (releases grow no further above it)
-RELEASE_PA = estimates.value("RELEASE_PA")  # reversal release at delta = 0.1 mm, mu * F_n = 0.05 N, 20 um asperities
+# `RELEASE_PA`: reversal release at delta = 0.1 mm, mu * F_n = 0.05 N, 20 um asperities
 RELEASE_REF_SLIP_MM = (
     0.1  # [numerics] the stick length delta RELEASE_PA is given at (releases grow as sqrt(delta / this))
 )
@@ -166,11 +148,9 @@ SLIP_RING_HZ = (
     estimates.value("SLIP_RING_LOW_HZ"),
     estimates.value("SLIP_RING_HIGH_HZ"),
 )  # contact/skin ring of a slip click
-SLIP_RING_SPREAD = estimates.value(
-    "SLIP_RING_SPREAD"
-)  # the trial's ring is off the stiffness's by a factor U(1 - x, 1 + x)
-SLIP_DECAY_S = estimates.value("SLIP_DECAY_S")
-SLIP_SPREAD = estimates.value("SLIP_SPREAD")  # log-normal sigma of click amplitudes
+# `SLIP_RING_SPREAD`: the trial's ring is off the stiffness's by a factor U(1 - x, 1 + x)
+# `SLIP_DECAY_S`: how long each click rings
+# `SLIP_SPREAD`: log-normal sigma of click amplitudes
 
 # --- air paths: what each microphone hears of the contacts -------------------------------------
 # Geometry [estimates for the ISyHand: the paper gives no drawing with dimensions]: the pinch
@@ -182,11 +162,7 @@ SLIP_SPREAD = estimates.value("SLIP_SPREAD")  # log-normal sigma of click amplit
 # palm microphone sits "on the side of the palm" [paper] ~8 cm from the pinch, below and behind it.
 # The zeros place the fingertips on the pinch axis [numerics: the frame's choice].
 THUMB_TIP_M = (-estimates.value("FINGERTIP_OFFSET_M"), 0.0, 0.0)  # Minsound's shell (and its microphone) on the thumb
-MIDDLE_TIP_M = (
-    estimates.value("FINGERTIP_OFFSET_M"),
-    0.0,
-    0.0,
-)  # Minsight's shell on the middle finger [numerics: on the axis]
+MIDDLE_TIP_M = (-THUMB_TIP_M[0], 0.0, 0.0)  # Minsight's shell on the middle finger, opposite [numerics: on the axis]
 # 7.9 cm from the pinch, 7.4 cm from the thumb, 8.6 cm from the middle finger
 PALM_MIC_M = (estimates.value("PALM_MIC_X_M"), estimates.value("PALM_MIC_Y_M"), estimates.value("PALM_MIC_Z_M"))
 SOUND_SPEED_M_S = 343.0  # [law] air at 20 C
@@ -204,14 +180,13 @@ AIR_DENSITY_KG_M3 = 1.2  # [law] air at 20 C; rho c^2 = gamma P0 for an ideal ga
 # far field is p = rho c^2 k^3 (2 a^3 / (3 pi)) xi cos(theta) / r (Lamb, Hydrodynamics, 6th ed.
 # 1932, Sec. 102: added mass 8 rho a^3 / 3 of a disc; Pierce, Acoustics, ASA 1989, Sec. 4.4: far
 # field of a dipole of that strength): +18 dB per octave for a given displacement.
-CLOTH_RADIATOR_RADIUS_M = math.sqrt(CONTACT_AREA_M2 / math.pi)  # 2.5 mm: the contact patch
+CLOTH_RADIATOR_RADIUS_M = math.sqrt(estimates.value("CONTACT_AREA_M2") / math.pi)  # 2.5 mm: the contact patch
 # [estimate] Only the patch's area-mean motion radiates (relief of microns to a millimetre, far shorter
 # than the 5 mm patch, averages out; its mean is what changes the cavity volume, `WALL_COUPLING`),
 # and the sheet between two equal soft shells in series moves by half the difference of the two
 # skins' mean displacements (the stack is far stiffer than the shells at 0.1 N). So the cloth's
 # dipole is ~0.16 k a below a fingertip's monopole: -30 dB at 4 kHz; it matters only above ~8 kHz,
-# where the shell's wall mode has cut the fingertips' own radiation.
-CLOTH_DISPLACEMENT_SHARE = estimates.value("CLOTH_DISPLACEMENT_SHARE")
+# where the shell's wall mode has cut the fingertips' own radiation: `CLOTH_DISPLACEMENT_SHARE`.
 # [paper: the fingers rub a fold of the hanging cloth] [estimate] The middle finger's Minsight shell rubs
 # the other face of the fold: an independent patch of the same cloth strip, as far along the strip
 # as twice the pinch's distance from the fold line (the grasp lands 5-15 mm above the fold: the
@@ -243,10 +218,8 @@ SILICONE_DENSITY_KG_M3 = 1100.0
 MASS_LAW_DB = (
     47.0  # [cited] Beranek & Ver 1992, Ch. 9: the field-incidence mass law's constant (f in Hz, m'' in kg/m^2)
 )
-SHELL_TL_MIN_DB = estimates.value(
-    "SHELL_TL_MIN_DB"
-)  # [estimate] leaks around the base and the stiffness-controlled region at low frequency
-SHELL_TL_MAX_DB = estimates.value("SHELL_TL_MAX_DB")  # [estimate] flanking through the aluminium skeleton
+# [estimate] `SHELL_TL_MIN_DB`: leaks around the base and the stiffness-controlled region at low frequency
+# [estimate] `SHELL_TL_MAX_DB`: flanking through the aluminium skeleton
 
 # --- servo noise (heard by both microphones, also in class 0) ---------------------------------------
 # [estimates] No published acoustic measurement of the STS3215 or of a comparable serial-bus or
@@ -256,46 +229,36 @@ SHELL_TL_MAX_DB = estimates.value("SHELL_TL_MAX_DB")  # [estimate] flanking thro
 # levels (dB SPL inside the shell), the pinion, the load reference, the band and the palm's share are
 # order-of-magnitude estimates.
 GEAR_RATIO = 345.0  # [cited] STS3215 datasheet: 1:345 gear train
-GEAR_TEETH = estimates.value("GEAR_TEETH")  # [estimate] first-stage pinion: mesh frequency = motor rev/s * teeth
-SERVO_TONE_PA = estimates.value(
-    "SERVO_TONE_PA"
-)  # [estimate] gear-mesh tone at 1 rad/s joint speed, as heard inside the shell (~50 dB)
+# [estimate] `GEAR_TEETH`: first-stage pinion: mesh frequency = motor rev/s * teeth
+# [estimate] `SERVO_TONE_PA`: gear-mesh tone at 1 rad/s joint speed, as heard inside the shell (~50 dB)
 # [estimate] the tone's 2nd and 3rd harmonics, in amplitude relative to the mesh frequency's (-6 and -12 dB)
 SERVO_HARMONICS = (estimates.value("SERVO_HARMONIC_2"), estimates.value("SERVO_HARMONIC_3"))
-SERVO_BROADBAND_PA = estimates.value("SERVO_BROADBAND_PA")  # [estimate] motor/gear broadband noise at 1 rad/s
-SERVO_HOLD_PA = estimates.value("SERVO_HOLD_PA")  # [estimate] holding servos' PWM hum (always present, ~34 dB)
-SERVO_LOAD_REF_NM = estimates.value("SERVO_LOAD_REF_NM")  # [estimate] torque at which the gear noise doubles
+# [estimate] `SERVO_BROADBAND_PA`: motor/gear broadband noise at 1 rad/s
+# [estimate] `SERVO_HOLD_PA`: holding servos' PWM hum (always present, ~34 dB)
+# [estimate] `SERVO_LOAD_REF_NM`: torque at which the gear noise doubles
 # [estimate] structure-borne band into the Minsound cavity
 SERVO_STRUCTURE_BAND_HZ = (estimates.value("SERVO_BAND_LOW_HZ"), estimates.value("SERVO_BAND_HIGH_HZ"))
-SERVO_PALM_GAIN_DB = estimates.value(
-    "SERVO_PALM_GAIN_DB"
-)  # [estimate] airborne at the palm (the servos sit in the palm) vs structure-borne
+# [estimate] `SERVO_PALM_GAIN_DB`: airborne at the palm (the servos sit in the palm) vs structure-borne
 
 # --- ambient sound: the room, its events and the cafe loudspeaker -----------------------------
 # [paper, Robustness] Sound meter (Sauter SU 130, A-weighted) near the palm microphone: lab 29-31 dB,
 # cafe noise 47-55 dB. `scene.nuisance` draws the level per day and trial within these ranges: the
 # lab's steady floor, and the loudspeaker's sound at the palm in the cafe condition.
 LAB_DB_A = (29.0, 31.0)
-# [estimate] within a day, each lab trial's floor is the day's +-this (uniform), kept within LAB_DB_A
-LAB_TRIAL_JITTER_DB = estimates.value("LAB_TRIAL_JITTER_DB")
+# [estimate] `LAB_TRIAL_JITTER_DB`: within a day, each lab trial's floor is the day's +-this (uniform),
+# kept within LAB_DB_A
 CAFE_DB_A = (47.0, 55.0)  # [paper]
-CAFE_DAY_SPREAD_DB = estimates.value(
-    "CAFE_DAY_SPREAD_DB"
-)  # [estimate] a cafe day sits at U(48, 54), each trial +-1 dB, all within 47-55
-CAFE_TRIAL_JITTER_DB = estimates.value(
-    "CAFE_TRIAL_JITTER_DB"
-)  # [estimate] each cafe trial is the day's level +-this (uniform), kept within CAFE_DB_A
+# [estimate] `CAFE_DAY_SPREAD_DB`: a cafe day sits at U(48, 54), each trial +-1 dB, all within 47-55
+# [estimate] `CAFE_TRIAL_JITTER_DB`: each cafe trial is the day's level +-this (uniform), kept within CAFE_DB_A
 # [cited] The lab floor (ventilation, building services): the shape of Beranek's noise-criterion curve NC-25
 # (Beranek, Revised criteria for noise in buildings, Noise Control 3(1), 1957; ANSI S12.2), octave
 # band levels in dB at 63 Hz-8 kHz; only its shape is used, scaled to the drawn dB(A) level.
 LAB_FLOOR_OCTAVE_DB = {63: 54.0, 125: 44.0, 250: 37.0, 500: 31.0, 1000: 27.0, 2000: 24.0, 4000: 22.0, 8000: 21.0}
-# The room [estimates for a university lab; the paper names none]: 8 x 6 x 3 m with a mid-frequency
-# reverberation time of 0.6 s (the classroom target of ANSI S12.60-2002; offices 0.4-0.8 s). Sabine
-# absorption A = 0.161 V / T60 = 39 m^2, room constant R ~ A: the reverberant field (4 / R) equals the
-# direct field of a Q = 1 source (Q / 4 pi r^2) at 0.9 m (Hopkins & Stryker 1948, in Beranek,
-# Acoustics, 1954, Ch. 10).
-ROOM_VOLUME_M3 = estimates.value("ROOM_VOLUME_M3")
-ROOM_T60_S = estimates.value("ROOM_T60_S")
+# The room [estimates for a university lab; the paper names none]: 8 x 6 x 3 m (`ROOM_VOLUME_M3`) with a
+# mid-frequency reverberation time (`ROOM_T60_S`) of 0.6 s (the classroom target of ANSI S12.60-2002;
+# offices 0.4-0.8 s). Sabine absorption A = 0.161 V / T60 = 39 m^2, room constant R ~ A: the reverberant
+# field (4 / R) equals the direct field of a Q = 1 source (Q / 4 pi r^2) at 0.9 m (Hopkins & Stryker
+# 1948, in Beranek, Acoustics, 1954, Ch. 10).
 SABINE_S_PER_M = 0.161  # [law] Sabine's equation T60 = 0.161 V / A: 24 ln 10 / c, in s/m
 # Between the palm microphone and Minsound (7.4 cm apart) a diffuse field has the coherence
 # sin(k d) / (k d) (Cook, Waterhouse, Berendt, Edelman & Thompson, Measurement of correlation
@@ -323,15 +286,15 @@ SABINE_S_PER_M = 0.161  # [law] Sabine's equation T60 = 0.161 V / A: 24 ln 10 / 
 # and the distances stay estimates.
 # With these rates a trial of ~30 s holds an event about one time in three, and the events' long-term
 # level (~34 dB(A)) stays a few dB above the meter's 29-31 dB: the paper's reading is the floor between
-# events. Each day draws its activity (a log-normal factor on every rate, sigma 0.7 [an estimate]: a
-# quiet day has a quarter, a busy one four times the mean rate). The nearest published day-to-day
-# spread, an intensive care unit's 8-h day-shift level over one week, 52.0 +- 1.75 dB(A) (Naef et al.,
-# Characterization of sound pressure levels and sound sources in the intensive care unit: a 1 week
-# observational study, Frontiers in Medicine 10, 2023), is 1.75 / (10 log10 e) = 0.40 in log-activity
-# if occupancy sets the level: a lower bound for a university lab, whose occupancy is far less regular
-# than a ward's round-the-clock staffing. Each event's distance is uniform in 2-8 m (the far
-# side of the hand's bench to the far side of the room); its level at the hand is the direct plus the
-# reverberant field (Hopkins-Stryker), its sound reaches the two microphones through the room's
+# events. Each day draws its activity (a log-normal factor on every rate, sigma 0.7 [an estimate,
+# `LAB_ACTIVITY_SIGMA`]: a quiet day has a quarter, a busy one four times the mean rate). The nearest
+# published day-to-day spread, an intensive care unit's 8-h day-shift level over one week, 52.0 +- 1.75
+# dB(A) (Naef et al., Characterization of sound pressure levels and sound sources in the intensive care
+# unit: a 1 week observational study, Frontiers in Medicine 10, 2023), is 1.75 / (10 log10 e) = 0.40 in
+# log-activity if occupancy sets the level: a lower bound for a university lab, whose occupancy is far
+# less regular than a ward's round-the-clock staffing. Each event's distance is uniform in 2-8 m (the
+# far side of the hand's bench to the far side of the room); its level at the hand is the direct plus
+# the reverberant field (Hopkins-Stryker), its sound reaches the two microphones through the room's
 # responses (beyond the 0.9 m critical distance the reverberant field dominates).
 # [cited] The voice's 50 dB(A) at 1 m (van Heusden et al.; Pearsons et al., above); every other number an estimate.
 LAB_EVENTS = {  # kind: (per minute, dB(A) at 1 m, (shortest, longest) seconds)
@@ -351,15 +314,12 @@ LAB_EVENTS = {  # kind: (per minute, dB(A) at 1 m, (shortest, longest) seconds)
         (estimates.value("LAB_DOOR_S"), estimates.value("LAB_DOOR_S")),
     ),
 }
-LAB_ACTIVITY_SIGMA = estimates.value("LAB_ACTIVITY_SIGMA")
 EVENT_DISTANCE_M = (estimates.value("EVENT_DISTANCE_NEAR_M"), estimates.value("EVENT_DISTANCE_FAR_M"))
 SYLLABLE_HZ = 4.0  # [cited] Houtgast & Steeneken 1985: the speech envelope peaks at 3-4 Hz
 STEP_HZ = 1.9  # [cited] Pachi & Ji 2005: the walking cadence
 STEP_LOWPASS_HZ = 500.0  # [cited] a shod heel on a concrete floor: strongest below 500 Hz (ISO 717-2 reference spectra)
-STEP_DECAY_S = estimates.value("STEP_DECAY_S")  # [estimate] a heel strike on a floor slab rings down within tens of ms
-DOOR_DECAY_SHARE = estimates.value(
-    "DOOR_DECAY_SHARE"
-)  # [estimate] the door's impact decays with a time constant of a third of its 0.3 s
+# [estimate] `STEP_DECAY_S`: a heel strike on a floor slab rings down within tens of ms
+# [estimate] `DOOR_DECAY_SHARE`: the door's impact decays with a time constant of a third of its 0.3 s
 # [cited] The cafe [paper: "loud background noise resembling ambient sound in a coffee shop", "while playing
 # audible noise"]: a recording played from a loudspeaker. Its long-term spectrum is that of babble,
 # i.e. of speech (many talkers sum to the long-term average speech spectrum, which is the same across
@@ -369,36 +329,30 @@ DOOR_DECAY_SHARE = estimates.value(
 # and the 125 Hz and 8 kHz octaves from Byrne et al. 1994's universal LTASS (125 Hz ~3 dB below the
 # 250 Hz octave; flat from 4 to 8 kHz). Only the shape is used; the level is the paper's.
 SPEECH_OCTAVE_DB = {125: 57.5, 250: 60.5, 500: 62.0, 1000: 56.0, 2000: 50.0, 4000: 45.0, 8000: 45.0}
-# [estimate] The babble's residual syllabic modulation: the summed envelope of N independent talkers
-# fluctuates about 1 / sqrt(N) as much as one talker's, so it shrinks as the room fills; 0.25 is many
-# talkers (~16 at a single talker's full modulation). Neither the paper's recording's talker count nor
-# a published modulation depth of coffee-shop noise was found.
-BABBLE_MODULATION = estimates.value("BABBLE_MODULATION")
-# [estimates] Clatter of cups, plates and cutlery: rate, ring band, decay and peak level. The one
-# published figure found, dish handling in a home kitchen ("Common Transient Sounds: The Kitchen is a
-# Very Noisy Place", The Hearing Review, January 1995), has instantaneous peaks usually above 80 dB
-# against a sound-meter reading of 70-75 dB(A): peaks at least 5-10 dB above the meter's average, a
-# bound the 12 dB below is consistent with, not a value for a cafe; restaurant surveys report
-# equivalent levels, not clatter events.
-CLATTER_PER_S = estimates.value("CLATTER_PER_S")
+# [estimate] `BABBLE_MODULATION`, the babble's residual syllabic modulation: the summed envelope of N
+# independent talkers fluctuates about 1 / sqrt(N) as much as one talker's, so it shrinks as the room
+# fills; 0.25 is many talkers (~16 at a single talker's full modulation). Neither the paper's
+# recording's talker count nor a published modulation depth of coffee-shop noise was found.
+# [estimates] Clatter of cups, plates and cutlery: rate (`CLATTER_PER_S`), ring band, decay
+# (`CLATTER_DECAY_S`) and peak level. The one published figure found, dish handling in a home kitchen
+# ("Common Transient Sounds: The Kitchen is a Very Noisy Place", The Hearing Review, January 1995), has
+# instantaneous peaks usually above 80 dB against a sound-meter reading of 70-75 dB(A): peaks at least
+# 5-10 dB above the meter's average, a bound the 12 dB below is consistent with, not a value for a cafe;
+# restaurant surveys report equivalent levels, not clatter events.
 CLATTER_RING_HZ = (estimates.value("CLATTER_RING_LOW_HZ"), estimates.value("CLATTER_RING_HIGH_HZ"))
-CLATTER_DECAY_S = estimates.value("CLATTER_DECAY_S")
-CLATTER_PEAK_DB = estimates.value("CLATTER_PEAK_DB")  # clatter peaks above the babble RMS
+# `CLATTER_PEAK_DB`: clatter peaks above the babble RMS
 CLATTER_PARTIALS = (
     3  # [numerics] each clink is drawn as this many inharmonic partials in CLATTER_RING_HZ (the model's structure)
 )
-CLATTER_DECAY_SPREAD = estimates.value(
-    "CLATTER_DECAY_SPREAD"
-)  # each clink's decay is CLATTER_DECAY_S x U(1 - x, 1 + x)
-CLATTER_LEVEL_SPREAD = estimates.value("CLATTER_LEVEL_SPREAD")  # log-normal sigma of the clinks' amplitudes
+# `CLATTER_DECAY_SPREAD`: each clink's decay is CLATTER_DECAY_S x U(1 - x, 1 + x)
+# `CLATTER_LEVEL_SPREAD`: log-normal sigma of the clinks' amplitudes
 # [estimate; the paper does not place the loudspeaker, and no description of its noise playback beyond
-# "while playing audible noise" was found] A loudspeaker on a table 0.5-2 m from the hand,
-# in a direction drawn per cafe day; a small box radiates with directivity Q ~ 2 towards the hand
-# (Beranek, Acoustics, 1954, Ch. 4: a closed box is omnidirectional at low and beamed at high
-# frequencies). Its direct sound reaches each microphone along its own path and delay; the
-# reverberant sound through the room's response at each microphone.
+# "while playing audible noise" was found] A loudspeaker on a table 0.5-2 m from the hand, in a
+# direction drawn per cafe day; a small box radiates with directivity Q ~ 2 (`SPEAKER_Q`) towards the
+# hand (Beranek, Acoustics, 1954, Ch. 4: a closed box is omnidirectional at low and beamed at high
+# frequencies). Its direct sound reaches each microphone along its own path and delay; the reverberant
+# sound through the room's response at each microphone.
 SPEAKER_DISTANCE_M = (estimates.value("SPEAKER_DISTANCE_NEAR_M"), estimates.value("SPEAKER_DISTANCE_FAR_M"))
-SPEAKER_Q = estimates.value("SPEAKER_Q")
 
 # --- SPH0645 [ds] -------------------------------------------------------------------------------
 SENSITIVITY_DBFS = -26.0  # at 94 dB SPL (1 Pa)
@@ -406,17 +360,12 @@ SENSITIVITY_DBFS = -26.0  # at 94 dB SPL (1 Pa)
 COUNTS_PER_PA = 10 ** (SENSITIVITY_DBFS / 20) * archive.FULL_SCALE / math.sqrt(2)  # RMS counts per Pa RMS
 SELF_NOISE_DB_A = 94.0 - 65.0  # [ds] 65 dB(A) SNR re 94 dB SPL -> 29 dB(A) SPL equivalent input noise
 BAND_HZ = (50.0, 15_000.0)  # [ds] usable band: 2nd-order roll-offs at both ends
-DECIMATION_HZ = estimates.value("DECIMATION_HZ")  # [estimate] steep digital low-pass of the sigma-delta decimator
-DECIMATION_ORDER = estimates.value(
-    "DECIMATION_ORDER"
-)  # [estimate] its steepness: amplitude 1 / (1 + (f / DECIMATION_HZ)^this)
-DC_OFFSET_COUNTS = estimates.value(
-    "DC_OFFSET_COUNTS"
-)  # [estimate] large DC offset (of 2**17), drifting from day to day
-# [estimate] The DC offset is set by the modulator's reference and drifts with temperature; 400
-# counts is 0.3 % of full scale (the datasheet gives no drift figure). It sits in the lowest Welch
-# bins only, which the detrend removes.
-DC_DRIFT_COUNTS = estimates.value("DC_DRIFT_COUNTS")
+# [estimate] `DECIMATION_HZ`: steep digital low-pass of the sigma-delta decimator
+# [estimate] `DECIMATION_ORDER`: its steepness: amplitude 1 / (1 + (f / DECIMATION_HZ)^this)
+# [estimate] `DC_OFFSET_COUNTS`: large DC offset (of 2**17), drifting from day to day
+# [estimate] `DC_DRIFT_COUNTS`: the DC offset is set by the modulator's reference and drifts with
+# temperature; 400 counts is 0.3 % of full scale (the datasheet gives no drift figure). It sits in the
+# lowest Welch bins only, which the detrend removes.
 # [ds] Sensitivity tolerance is +-1 dB between parts; a part's sensitivity moves far less with
 # temperature (MEMS microphones: < 0.5 dB over -40..85 C). 0.5 dB is the day-to-day bound: each
 # day's gain is drawn uniformly within +-GAIN_DRIFT_DB (a bound, not a standard deviation; a lab's
@@ -426,12 +375,12 @@ JUNK_BITS = 6  # [ds] 18 valid bits of the 24-bit word: bits 13..8 carry no info
 
 # --- proprioception ------------------------------------------------------------------------------
 ANGLE_LSB_RAD = 2 * math.pi / 4096  # [cited] STS3215 datasheet: 12-bit magnetic encoder, 4096 steps per turn
-VELOCITY_NOISE_RAD_S = estimates.value("VELOCITY_NOISE_RAD_S")  # [estimate]
+# [estimate] `VELOCITY_NOISE_RAD_S`: the joints' velocity noise
 CURRENT_LSB_A = 0.0065  # [cited] STS3215 memory table: the present-current register's unit, 6.5 mA
-CURRENT_NOISE_A = estimates.value("CURRENT_NOISE_A")  # [estimate] PWM ripple
-IDLE_CURRENT_A = estimates.value("IDLE_CURRENT_A")  # [estimate] a holding servo's draw
+# [estimate] `CURRENT_NOISE_A`: PWM ripple
+# [estimate] `IDLE_CURRENT_A`: a holding servo's draw
 TORQUE_PER_AMP_NM = 0.7  # [cited] STS3215 datasheet: ~1.9 N m (19.5 kg cm) stall torque at ~2.7 A stall current, 7.4 V
-VISCOUS_NM_PER_RAD_S = estimates.value("VISCOUS_NM_PER_RAD_S")  # [estimate] gear-train drag of a moving joint
+# [estimate] `VISCOUS_NM_PER_RAD_S`: gear-train drag of a moving joint
 # No day-to-day joint calibration drift: the STS3215 reads its angle from an absolute 12-bit
 # magnetic encoder [FACTS], which has no offset to drift unless the horn or hand is reassembled,
 # and the current reading has no documented offset drift (its 6.5 mA LSB and the PWM ripple
@@ -442,15 +391,13 @@ VISCOUS_NM_PER_RAD_S = estimates.value("VISCOUS_NM_PER_RAD_S")  # [estimate] gea
 # across many contacts (Sun, Martius, Kuchenbecker, "A soft thumb-sized vision-based sensor with
 # accurate all-round force perception", Nature Machine Intelligence 4, 2022); at one repeated
 # contact near 0.1 N the error splits into frame-to-frame noise and a bias that holds for a day
-# (the reference image is re-taken daily): 4 mN each (SD), a seventh of that figure apiece.
-FORCE_NOISE_N = estimates.value("FORCE_NOISE_N")
-FORCE_BIAS_N = estimates.value("FORCE_BIAS_N")
-# [estimate] The hanging fabric is folded by hand on the hanger: where the grasp lands the stack is
-# two layers plus local slack and seams, +-10 % of its nominal thickness.
-FOLD_SPREAD = estimates.value("FOLD_SPREAD")
-# [estimate] Where the contact centre lands on Minsight's shell: the grasp is force-controlled, not
-# placed, so the patch wanders by about a third of its ~5 mm size between trials (SD, mm).
-CONTACT_OFFSET_MM = estimates.value("CONTACT_OFFSET_MM")
+# (the reference image is re-taken daily): 4 mN each (SD, `FORCE_NOISE_N` and `FORCE_BIAS_N`), a
+# seventh of that figure apiece.
+# [estimate] `FOLD_SPREAD`: the hanging fabric is folded by hand on the hanger: where the grasp lands
+# the stack is two layers plus local slack and seams, +-10 % of its nominal thickness.
+# [estimate] `CONTACT_OFFSET_MM`: where the contact centre lands on Minsight's shell: the grasp is
+# force-controlled, not placed, so the patch wanders by about a third of its ~5 mm size between
+# trials (SD, mm).
 
 # --- the rig between sessions (`sim.rig`) ---------------------------------------------------------
 # [cited] The lab's climate on a recording day. Building climate control holds 75 +- 2 F, i.e.
@@ -485,7 +432,6 @@ SILICONE_REFERENCE_K = CELSIUS_K + sum(ROOM_TEMPERATURE_C) / 2
 # middle of those stages (an estimate: the test grades pills, not a fibre density).
 # A spot is rubbed in a trial when the grasp lands within a patch diameter (of `CONTACT_AREA_M2`) plus
 # a stroke of it: a share (5 + 6) / (40 + 11) of the trials on the 40 mm grasp range, two passes a cycle.
-WEAR_DOUBLING_RUBS = estimates.value("WEAR_DOUBLING_RUBS")
 
 # --- Minsight images --------------------------------------------------------------------------
 # Sources: [minsight] Andrussow, Sun, Kuchenbecker, Martius, "Minsight: A Fingertip-Sized Vision-Based
@@ -507,9 +453,7 @@ SHELL_CYLINDER_MM = 15.0  # [minsight] skeleton length ~25 mm (skeleton.STEP) le
 # and reaches 80 degrees off axis (the wall ~1.8 mm above the camera): a wide-angle estimate, since
 # the lens's field of view is not published.
 CAMERA_HALF_FOV_RAD = math.radians(estimates.value("CAMERA_HALF_FOV_DEG"))
-LED_RING_RADIUS_MM = estimates.value(
-    "LED_RING_RADIUS_MM"
-)  # [estimate] the LED ring lies inside the 10.25 mm skeleton, around the camera
+# [estimate] `LED_RING_RADIUS_MM`: the LED ring lies inside the 10.25 mm skeleton, around the camera
 # [minsight] Full-colour SMD chip LEDs (Wuerth WL-SFCC) on a ring: red, green and blue emitters from
 # three directions 120 degrees apart, the photometric-stereo lighting of [insight]: a tilt of the
 # wall changes the three colours differently.
@@ -534,13 +478,11 @@ INTERIOR_RIDGES = 30
 # rho / (1 - rho) times the wall's mean direct irradiance (the integrating sphere's multiplier;
 # Goebel, "Generalized integrating-sphere theory", Applied Optics 6, 1967), which is what lights
 # the reference image to its edge. [estimate] rho, the interior's diffuse reflectance:
-INTERIOR_REFLECTANCE = estimates.value("INTERIOR_REFLECTANCE")
-INTERIOR_RIDGE_HEIGHT_MM = estimates.value("INTERIOR_RIDGE_HEIGHT_MM")
+# `INTERIOR_REFLECTANCE`. The ridges' relief: `INTERIOR_RIDGE_HEIGHT_MM`.
 # [minsight: NoContact_avg.png] The camera's fixed exposure (camera.py: manual exposure 156, auto
 # white balance off) shows the lit interior at mid-scale: the averaged reference's side-wall band
 # reads ~135 DN. [estimate] The median pixel of the image circle's brightest channel sits at
 # EXPOSURE_LEVEL_DN; pixels the LEDs light more strongly saturate at 255, as a fixed exposure does.
-EXPOSURE_LEVEL_DN = estimates.value("EXPOSURE_LEVEL_DN")
 EXPOSURE_PERCENTILE = 50.0  # [numerics] where EXPOSURE_LEVEL_DN is given: the median
 # [minsight] The interior is Ecoflex 00-30 filled with 65 um aluminium powder and 75 um aluminium
 # flakes: a grainy metallic surface. [estimate] Each 75 um cell reflects a random share of the light
@@ -548,12 +490,10 @@ EXPOSURE_PERCENTILE = 50.0  # [numerics] where EXPOSURE_LEVEL_DN is given: the m
 # is the diffuse powder, the flake half varies with unit coefficient of variation); a pixel shows the
 # average over the cells in its footprint, so the grain fades with the pixel's area.
 FLAKE_SIZE_MM = 0.075
-FLAKE_CONTRAST = estimates.value("FLAKE_CONTRAST")
 # [estimate] Camera noise: shot noise of a small-pixel CMOS sensor, sigma = sqrt(DN / gain) with
-# gain = full well / 255 electrons per DN (full well ~6000 e-: order of magnitude for 1.4-2 um pixels);
-# the node's bilinear resize to 410x308 blends 4 native pixels (noise x 2/3), and area-averaging a
-# frame to a smaller size divides it by the square root of the pixels averaged.
-CAMERA_FULL_WELL_E = estimates.value("CAMERA_FULL_WELL_E")
+# gain = full well / 255 electrons per DN (full well `CAMERA_FULL_WELL_E` ~6000 e-: order of magnitude
+# for 1.4-2 um pixels); the node's bilinear resize to 410x308 blends 4 native pixels (noise x 2/3), and
+# area-averaging a frame to a smaller size divides it by the square root of the pixels averaged.
 RESIZE_NOISE_FACTOR = (
     2.0 / 3.0
 )  # [minsight] camera.py's bilinear resize: sqrt(E[sum of squared bilinear weights]) = sqrt((2/3)^2)
@@ -578,8 +518,6 @@ CONTACT_SUPPORT_MM = SHELL_OUTER_RADIUS_MM
 # outer surface. INNER_FACE_FREE_GAIN scales the half-space's share (capped at all of it), and the
 # shear the inner face keeps is an estimate of its own (a tangential load does not follow the
 # normal kernel): INNER_SHEAR_SHARE of the skin's drag.
-INNER_FACE_FREE_GAIN = estimates.value("INNER_FACE_FREE_GAIN")
-INNER_SHEAR_SHARE = estimates.value("INNER_SHEAR_SHARE")
 # [cited] The stroke rolls the contact: the fingertips are convex, and two spheres touch on the line
 # of their centres, so offsetting the tips by +-x (the stroke) moves the contact along each shell by
 # x 2R / (2R + t) over a stack of thickness t (geometry): +-3 mm for silk, +-2.5 mm for a 5 mm stack.
@@ -593,8 +531,8 @@ CONTACT_AXIAL_MM = SHELL_CYLINDER_MM
 # [estimate] The fingers close on arcs about their joints: a stack thicker by t stops each finger t / 2
 # earlier, which turns the contact along the shell by about R t / (2 L) (R the shell's 11.8 mm radius,
 # L the 30-60 mm from the joint to the contact), towards the tip. Left out of the published simulator
-# (0, the range's low end); the sensitivity study measures what it would change in the frames.
-CONTACT_SHIFT_PER_STACK_MM = estimates.value("CONTACT_SHIFT_PER_STACK_MM")
+# (0, the range's low end); the sensitivity study measures what it would change in the frames:
+# `CONTACT_SHIFT_PER_STACK_MM`.
 # [minsight, insight] Force accuracy: mean absolute force error 0.07 N (Minsight, over its surface),
 # force magnitude accuracy ~0.03 N over 0.03-2 N (Insight); the image test checks that a step of
 # this size is far above the camera noise for an ideal observer.
@@ -611,9 +549,8 @@ FORCE_ACCURACY_N = 0.03
 # (Hetenyi 1946): the patch widens across the fold as the quarter power of the stack's bending stiffness.
 # [estimate] Bending stiffness of a layer ~ E h^3 / 12, and its in-plane stiffness ~ E h, so relative
 # to a reference layer B scales as stretch_stiffness * thickness^2 (reference: 5 N/mm, 0.5 mm, a
-# shirting cotton). Only stretch * thickness^2 of the reference enters: its thickness is where the
-# estimated stiffness is given.
-BENDING_REF_STRETCH_N_MM = estimates.value("BENDING_REF_STRETCH_N_MM")
+# shirting cotton, `BENDING_REF_STRETCH_N_MM`). Only stretch * thickness^2 of the reference enters:
+# its thickness is where the estimated stiffness is given.
 BENDING_REF_THICKNESS_MM = 0.5  # [numerics] the reference point BENDING_REF_STRETCH_N_MM is given at
 # [estimate] The fold of the folded stack is a ridge (a U-turn of the cloth, about one stack thickness
 # wide) that presses a line into the shell where it lies inside the patch. Through an elastic
@@ -621,12 +558,8 @@ BENDING_REF_THICKNESS_MM = 0.5  # [numerics] the reference point BENDING_REF_STR
 # kernel at k = 2 pi / lambda (the same law as the contact). The cloth's own weave or knit relief
 # passes the same way (`minsight.texture_relief`): 14 % of a 2.8 mm corduroy wale, under 1 % at
 # 1 mm, so only the coarse textures ripple the patch as the cloth slides.
-RIDGE_WAVELENGTH_PER_THICKNESS = estimates.value(
-    "RIDGE_WAVELENGTH_PER_THICKNESS"
-)  # a ridge of width w has its relief at lambda ~ 4 w
-FOLD_ANGLE_SPREAD_RAD = estimates.value(
-    "FOLD_ANGLE_SPREAD_RAD"
-)  # [paper: the hanger is moved between trials] the fold's direction varies
+# `RIDGE_WAVELENGTH_PER_THICKNESS`: a ridge of width w has its relief at lambda ~ 4 w
+# `FOLD_ANGLE_SPREAD_RAD`: [paper: the hanger is moved between trials] the fold's direction varies
 # The camera's day. [minsight, camera.py] Exposure and white balance are fixed by the camera node
 # (manual exposure, auto white balance off), so they do not move between days; what moves is:
 # * the LEDs' light with the room's temperature. [cited] Light output falls with junction temperature
@@ -641,15 +574,13 @@ LED_T1_K = (95.0, 1600.0, 1600.0)
 #   specification's 4.75-5.25 V bounds every host and load; [estimate] one port of the one host the
 #   rig uses moves by tens of millivolts between days (`USB_VBUS_DAY_SPREAD_V`, uniform either way).
 USB_VBUS_V = 5.0  # [cited] USB 2.0 specification, nominal
-USB_VBUS_DAY_SPREAD_V = estimates.value("USB_VBUS_DAY_SPREAD_V")
 LED_FORWARD_V = (2.0, 3.0, 3.0)  # [cited] full-colour chip LED datasheets, as above
 # Not a day term: the seating of the shell on the base. [minsight] The elastomer is over-moulded on
 # its skeleton, and the paper never remounts it, so where it sits is the device's, one draw:
 # [estimate] SLA-printed mating parts (the camera holder and base are Form 3 prints [minsight]) fit
-# to ~0.1 mm (Formlabs' tolerance guide), so it sits up to ~0.05 mm higher or lower (SD) and turned
-# about its axis by that much over its 10 mm radius.
-SEATING_AXIAL_SD_MM = estimates.value("SEATING_AXIAL_SD_MM")
-SEATING_ROTATION_SD_RAD = SEATING_AXIAL_SD_MM / SKELETON_RADIUS_MM
+# to ~0.1 mm (Formlabs' tolerance guide), so it sits up to ~0.05 mm higher or lower (SD,
+# `SEATING_AXIAL_SD_MM`) and turned about its axis by that much over its 10 mm radius.
+SEATING_ROTATION_SD_RAD = estimates.value("SEATING_AXIAL_SD_MM") / SKELETON_RADIUS_MM
 # * the reference (no-contact) frames are taken anew each session and averaged
 #   (`archive.REFERENCE_FRAMES`), so the reference carries that day's LEDs, and a thirtieth of one
 #   frame's noise variance.
@@ -671,10 +602,8 @@ OPEN_POSE_RAD = (
 # structure, not magnitudes].
 _THUMB2 = estimates.value("CLOSING_SHARE_THUMB2")
 CLOSING_SHARE = (0.0, _THUMB2, 1.0 - _THUMB2, 0.0, 1.0, 0.0)
-# [estimate] The palm joint holds still but takes this share of the rubbing joints' tangential load
-# torque (the hand's reaction to the strokes); the ISyHand's kinematics are unpublished.
-PALM_REACTION_SHARE = estimates.value("PALM_REACTION_SHARE")
-SERVO_STIFFNESS_NM_RAD = estimates.value(
-    "SERVO_STIFFNESS_NM_RAD"
-)  # [estimate] position-loop stiffness: loaded joints lag their command
-READ_LATENCY_S = estimates.value("READ_LATENCY_S")  # [estimate] joints are read just before the frame is captured
+# [estimate] `PALM_REACTION_SHARE`: the palm joint holds still but takes this share of the rubbing
+# joints' tangential load torque (the hand's reaction to the strokes); the ISyHand's kinematics are
+# unpublished.
+# [estimate] `SERVO_STIFFNESS_NM_RAD`: position-loop stiffness: loaded joints lag their command
+# [estimate] `READ_LATENCY_S`: joints are read just before the frame is captured

@@ -3,7 +3,7 @@
 A magnitude of the simulator either has a published source (cited where `calibration` sets it),
 or it is an estimate declared here: its value, the low and high ends of the range a physical
 reason allows, that reason in one line, and what it drives. The simulator reads every estimate
-from this registry (`calibration` sets its constants from `value`), and the sensitivity study
+from this registry (`calibration` holds each at the value in force), and the sensitivity study
 (`python -m experiments.sensitivity`) moves them within their ranges to measure what each
 finding depends on. An estimate pinned by one measurement of the paper says so in `calibrated`:
 its value is then fitted to that measurement (`experiments.calibrate`), and that number of ours
@@ -12,7 +12,10 @@ is a calibration, no longer a finding.
 Groups are the sensitivity study's factors: the estimates of one group act on one mechanism and
 move together (each to the same relative place in its own range).
 
-A tuple of `calibration` (a draw range, a position, a joint pose) has one estimate per element
+An estimate is a `calibration` constant of its own name (`constants`), declared here only: the
+registry is the one place that names it. A tuple of `calibration` (a draw range, a position, a
+joint pose) or a constant in other units has one estimate per element, which names that constant
+in `element_of` and which `calibration` reads with `value` where it builds it
 (`SPEAKER_DISTANCE_M` is `SPEAKER_DISTANCE_NEAR_M` to `SPEAKER_DISTANCE_FAR_M`), so the registry
 holds scalars only. `markdown_table` renders the registry for docs/simulator.md
 (`python -m experiments.estimates` writes it there); `tests/test_estimates.py` checks that every
@@ -43,7 +46,7 @@ class Calibrated:
 
 @dataclasses.dataclass(frozen=True)
 class Estimate:
-    name: str  # the `calibration` constant it sets
+    name: str  # the `calibration` constant it is (unless `element_of`)
     value: float
     low: float
     high: float
@@ -53,6 +56,7 @@ class Estimate:
     streams: tuple[str, ...]  # what it touches: only these need simulating again when it moves
     log: bool = False  # the range spans orders of magnitude: moved on a log scale
     calibrated: Calibrated | None = None
+    element_of: str | None = None  # the `calibration` constant it is an element of, not one of its own
 
     def __post_init__(self):
         if not self.low <= self.value <= self.high or self.low == self.high:
@@ -138,6 +142,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "servo noise",
                 _AUDIO,
                 log=True,
+                element_of="SERVO_HARMONICS",
             ),
             Estimate(
                 "SERVO_HARMONIC_3",
@@ -149,6 +154,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "servo noise",
                 _AUDIO,
                 log=True,
+                element_of="SERVO_HARMONICS",
             ),
             Estimate(
                 "SERVO_BROADBAND_PA",
@@ -214,6 +220,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "servo noise",
                 _AUDIO,
                 log=True,
+                element_of="SERVO_STRUCTURE_BAND_HZ",
             ),
             Estimate(
                 "SERVO_BAND_HIGH_HZ",
@@ -225,6 +232,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "servo noise",
                 _AUDIO,
                 log=True,
+                element_of="SERVO_STRUCTURE_BAND_HZ",
             ),
             # --- the cafe's sound besides its level -------------------------------------------------------
             Estimate(
@@ -267,6 +275,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the lowest ring of the cafe's clatter",
                 "cafe scene",
                 _AUDIO,
+                element_of="CLATTER_RING_HZ",
             ),
             Estimate(
                 "CLATTER_RING_HIGH_HZ",
@@ -278,6 +287,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "cafe scene",
                 _AUDIO,
                 log=True,
+                element_of="CLATTER_RING_HZ",
             ),
             Estimate(
                 "CLATTER_DECAY_S",
@@ -341,6 +351,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the loudspeaker's nearest place: its direct sound against the room's at each microphone",
                 "cafe scene",
                 _AUDIO,
+                element_of="SPEAKER_DISTANCE_M",
             ),
             Estimate(
                 "SPEAKER_DISTANCE_FAR_M",
@@ -352,6 +363,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "cafe scene",
                 _AUDIO,
                 log=True,
+                element_of="SPEAKER_DISTANCE_M",
             ),
             Estimate(
                 "SPEAKER_Q",
@@ -480,6 +492,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "contact sound",
                 _AUDIO,
                 log=True,
+                element_of="SLIP_RING_HZ",
             ),
             Estimate(
                 "SLIP_RING_HIGH_HZ",
@@ -491,6 +504,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "contact sound",
                 _AUDIO,
                 log=True,
+                element_of="SLIP_RING_HZ",
             ),
             Estimate(
                 "SLIP_RING_SPREAD",
@@ -535,6 +549,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the fingertips' distances to the palm microphone",
                 "contact sound",
                 _AUDIO,
+                element_of="THUMB_TIP_M",
             ),
             Estimate(
                 "PALM_MIC_X_M",
@@ -546,6 +561,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "where the palm microphone sits along the pinch axis (thumb side)",
                 "contact sound",
                 _AUDIO,
+                element_of="PALM_MIC_M",
             ),
             Estimate(
                 "PALM_MIC_Y_M",
@@ -556,6 +572,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "how far below the pinch the palm microphone sits",
                 "contact sound",
                 _AUDIO,
+                element_of="PALM_MIC_M",
             ),
             Estimate(
                 "PALM_MIC_Z_M",
@@ -566,6 +583,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "how far behind the pinch the palm microphone sits",
                 "contact sound",
                 _AUDIO,
+                element_of="PALM_MIC_M",
             ),
             Estimate(
                 "CLOTH_DISPLACEMENT_SHARE",
@@ -621,6 +639,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "how much of the wall each frame sees, and at what scale",
                 "camera day",
                 _IMAGES,
+                element_of="CAMERA_HALF_FOV_RAD",
             ),
             Estimate(
                 "LED_RING_RADIUS_MM",
@@ -642,6 +661,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "where on the wall each LED's light ends: the colour zones' borders",
                 "camera day",
                 _IMAGES,
+                element_of="COLLIMATOR_HALF_ANGLE_RAD",
             ),
             Estimate(
                 "COLLIMATOR_EDGE_DEG",
@@ -653,6 +673,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "camera day",
                 _IMAGES,
                 log=True,
+                element_of="COLLIMATOR_EDGE_RAD",
             ),
             Estimate(
                 "INTERIOR_RIDGE_HEIGHT_MM",
@@ -961,6 +982,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "which stretch of cloth a trial reads, and how often trials share a spot (wear)",
                 "procedure",
                 _AUDIO,
+                element_of="GRASP_RANGE_MM",
             ),
             Estimate(
                 "GRASP_RANGE_HIGH_MM",
@@ -971,6 +993,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "which stretch of cloth a trial reads, and how often trials share a spot (wear)",
                 "procedure",
                 _AUDIO,
+                element_of="GRASP_RANGE_MM",
             ),
             Estimate(
                 "FOLD_LINE_NEAR_MM",
@@ -981,6 +1004,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "where on the strip the middle finger rubs, relative to the thumb",
                 "procedure",
                 _AUDIO,
+                element_of="FOLD_LINE_MM",
             ),
             Estimate(
                 "FOLD_LINE_FAR_MM",
@@ -991,6 +1015,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "where on the strip the middle finger rubs, relative to the thumb",
                 "procedure",
                 _AUDIO,
+                element_of="FOLD_LINE_MM",
             ),
             # --- the fabric's surface and its wear ----------------------------------------------------------
             Estimate(
@@ -1189,6 +1214,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "room and lab events",
                 _AUDIO,
                 log=True,
+                element_of="LAB_EVENTS",
             ),
             Estimate(
                 "LAB_STEPS_PER_MIN",
@@ -1200,6 +1226,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "room and lab events",
                 _AUDIO,
                 log=True,
+                element_of="LAB_EVENTS",
             ),
             Estimate(
                 "LAB_DOOR_PER_MIN",
@@ -1211,6 +1238,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "room and lab events",
                 _AUDIO,
                 log=True,
+                element_of="LAB_EVENTS",
             ),
             Estimate(
                 "LAB_STEPS_DB_A",
@@ -1222,6 +1250,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the footsteps' level",
                 "room and lab events",
                 _AUDIO,
+                element_of="LAB_EVENTS",
             ),
             Estimate(
                 "LAB_DOOR_DB_A",
@@ -1232,6 +1261,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the door's level",
                 "room and lab events",
                 _AUDIO,
+                element_of="LAB_EVENTS",
             ),
             Estimate(
                 "LAB_VOICE_SHORT_S",
@@ -1243,6 +1273,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "room and lab events",
                 _AUDIO,
                 log=True,
+                element_of="LAB_EVENTS",
             ),
             Estimate(
                 "LAB_VOICE_LONG_S",
@@ -1254,6 +1285,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "room and lab events",
                 _AUDIO,
                 log=True,
+                element_of="LAB_EVENTS",
             ),
             Estimate(
                 "LAB_STEPS_SHORT_S",
@@ -1265,6 +1297,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "room and lab events",
                 _AUDIO,
                 log=True,
+                element_of="LAB_EVENTS",
             ),
             Estimate(
                 "LAB_STEPS_LONG_S",
@@ -1276,6 +1309,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "room and lab events",
                 _AUDIO,
                 log=True,
+                element_of="LAB_EVENTS",
             ),
             Estimate(
                 "LAB_DOOR_S",
@@ -1287,6 +1321,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "room and lab events",
                 _AUDIO,
                 log=True,
+                element_of="LAB_EVENTS",
             ),
             Estimate(
                 "LAB_ACTIVITY_SIGMA",
@@ -1308,6 +1343,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the nearest event",
                 "room and lab events",
                 _AUDIO,
+                element_of="EVENT_DISTANCE_M",
             ),
             Estimate(
                 "EVENT_DISTANCE_FAR_M",
@@ -1319,6 +1355,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "room and lab events",
                 _AUDIO,
                 log=True,
+                element_of="EVENT_DISTANCE_M",
             ),
             Estimate(
                 "STEP_DECAY_S",
@@ -1361,6 +1398,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the thumb's first joint angle (an offset)",
                 "proprioception",
                 _PROPRIO,
+                element_of="OPEN_POSE_RAD",
             ),
             Estimate(
                 "OPEN_POSE_THUMB2_RAD",
@@ -1371,6 +1409,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the thumb's second joint angle (an offset)",
                 "proprioception",
                 _PROPRIO,
+                element_of="OPEN_POSE_RAD",
             ),
             Estimate(
                 "OPEN_POSE_THUMB3_RAD",
@@ -1381,6 +1420,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the thumb's third joint angle (an offset)",
                 "proprioception",
                 _PROPRIO,
+                element_of="OPEN_POSE_RAD",
             ),
             Estimate(
                 "OPEN_POSE_MIDDLE1_RAD",
@@ -1391,6 +1431,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the middle finger's first joint angle (an offset)",
                 "proprioception",
                 _PROPRIO,
+                element_of="OPEN_POSE_RAD",
             ),
             Estimate(
                 "OPEN_POSE_MIDDLE2_RAD",
@@ -1401,6 +1442,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the middle finger's second joint angle (an offset)",
                 "proprioception",
                 _PROPRIO,
+                element_of="OPEN_POSE_RAD",
             ),
             Estimate(
                 "OPEN_POSE_PALM_RAD",
@@ -1411,6 +1453,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the palm joint's angle (an offset)",
                 "proprioception",
                 _PROPRIO,
+                element_of="OPEN_POSE_RAD",
             ),
             Estimate(
                 "CLOSING_SHARE_THUMB2",
@@ -1421,6 +1464,7 @@ ESTIMATES: Mapping[str, Estimate] = MappingProxyType(
                 "the thumb's closing angles and loads (the rest goes to its third joint)",
                 "proprioception",
                 _PROPRIO,
+                element_of="CLOSING_SHARE",
             ),
             Estimate(
                 "PALM_REACTION_SHARE",
@@ -1670,6 +1714,12 @@ _overrides: dict[str, float] = {}  # set by `override`: the values in force inst
 def value(name: str) -> float:
     """The value of estimate `name` in force: the registry's, unless `override` set another."""
     return _overrides.get(name, ESTIMATES[name].value)
+
+
+def constants() -> dict[str, float]:
+    """Every estimate that is a `calibration` constant of its own name (no `element_of`), at the
+    value in force (`value`): `calibration` binds them when it is executed."""
+    return {e.name: value(e.name) for e in ESTIMATES.values() if e.element_of is None}
 
 
 def in_force() -> tuple[tuple[str, float], ...]:
