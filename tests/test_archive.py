@@ -140,7 +140,7 @@ def test_write_refuses_invalid_and_leaves_nothing(tmp_path):
 _KILLED_WRITER = """
 import sys, numpy as np
 sys.path.insert(0, {root!r})
-from fabricjax import archive, workspace
+from fabricjax.store import archive, workspace
 from tests.helpers import tiny_archive
 a = tiny_archive(n_steps=400, images=(120, 160))
 def slow_write(f, arrays, deflate):

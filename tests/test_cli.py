@@ -195,7 +195,8 @@ import sys
 import numpy as np
 from absl import logging
 from tqdm import tqdm
-from fabricjax import checkpoint, cli
+from fabricjax import cli
+from fabricjax.training import checkpoint
 
 def main(argv):
     mngr = checkpoint.manager(sys.argv[1])

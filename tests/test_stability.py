@@ -434,7 +434,7 @@ sys.path.insert(0, {root!r})
 from fabricjax import runtime
 runtime.configure_jax()
 from tests.test_stability import RESUME, resume_sets
-from fabricjax import train
+from fabricjax.training import train
 
 loss = train.Trainer.loss
 

@@ -127,7 +127,7 @@ import json, sys
 import jax, numpy as np
 sys.path.insert(0, {tests!r})
 from test_train import TINY, data_sets
-from fabricjax import sharding
+from fabricjax.training import sharding
 from fabricjax.training.train import train_and_evaluate
 assert jax.device_count() == 4
 out = {{"mesh": dict(sharding.training_mesh(TINY.batch_size).shape)}}

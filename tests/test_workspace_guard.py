@@ -22,7 +22,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 HOLD = """
 import sys, time
-from fabricjax import lock
+from fabricjax.store import lock
 thing = lock.lock_file(sys.argv[1], sys.argv[2])
 with lock.hold(thing, "the thing", "writing it for a test", shared=sys.argv[3] == "shared"):
     print("held", flush=True)
