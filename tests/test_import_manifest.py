@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acquisition import import_manifest, other_rig
+from acquisition import batch_import, manifest_file, other_rig
 from fabricjax.errors import UserError
 from fabricjax.store import archive
 from fabricjax.store.workspace import Location
@@ -37,7 +37,7 @@ def archives(recordings, tmp_path_factory):
 
 def _run(manifest, out, **kw):
     said = []
-    summary = import_manifest.run(
+    summary = batch_import.run(
         manifest, out, rig=manifest.parent / "rig.toml", workers=1, progress=False, say=said.append, **kw
     )
     return summary, "\n".join(said)
@@ -125,8 +125,8 @@ def test_trial_rule_splits_every_class_by_trial_index(tmp_path):
         _run(manifest, tmp_path / "out2", split="trial:train=0-1,val=2")
     for bad in ("trial:train=0-2,val=2", "trial:train=3-1", "trial:dev=0-3", "trial:train=0-x"):
         with pytest.raises(UserError, match=f"--split={bad}: expected trial:SPLIT=FIRST-LAST"):
-            import_manifest.parse_split_rule(bad)
-    assert import_manifest.parse_split_rule("trial:test=2,train=0-1") == ("trial", {2: "test", 0: "train", 1: "train"})
+            manifest_file.parse_split_rule(bad)
+    assert manifest_file.parse_split_rule("trial:test=2,train=0-1") == ("trial", {2: "test", 0: "train", 1: "train"})
 
 
 def _edit_manifest(manifest, out_path, change):
@@ -203,7 +203,7 @@ def test_rig_file_mistakes_are_named(tmp_path):
         UserError,
         match=r"--reference names the session reference of the hand's trial folders; a rig file names its camera's own",
     ):
-        import_manifest.run(tmp_path / "manifest.csv", tmp_path / "out", rig=bad, reference="pre_contact")
+        batch_import.run(tmp_path / "manifest.csv", tmp_path / "out", rig=bad, reference="pre_contact")
 
 
 def test_the_rig_files_step_window_is_recorded_and_loads_by_default(tmp_path):
@@ -579,9 +579,9 @@ def test_bags_import_through_a_manifest_with_a_map(tmp_path):
 
 
 def _run_hand(manifest, out, **kw):
-    """`import_manifest` without a rig file: the hand's folders, or bags with `mapping`."""
+    """`batch_import.run` without a rig file: the hand's folders, or bags with `mapping`."""
     said = []
-    return import_manifest.run(manifest, out, workers=1, progress=False, say=said.append, **kw), "\n".join(said)
+    return batch_import.run(manifest, out, workers=1, progress=False, say=said.append, **kw), "\n".join(said)
 
 
 @pytest.mark.slow  # ~1-2 min on 2 shared cores: one smoke-size point
@@ -666,7 +666,7 @@ def test_every_problem_of_a_manifest_is_listed_and_nothing_written(tmp_path):
     (tmp_path / "rig" / "recordings" / "00_001" / "vibration.wav").unlink()
     (tmp_path / "rig" / "recordings" / "01_000" / "joints.csv").unlink()
     _edit_manifest(manifest, manifest, lambda rows: rows + [rows[1]] + [[rows[2][0], rows[2][1], "x", rows[2][3]]])
-    with pytest.raises(import_manifest.ImportProblems) as e:
+    with pytest.raises(batch_import.ImportProblems) as e:
         _run(manifest, tmp_path / "out")
     lines = str(e.value).splitlines()
     assert lines[0] == f"{manifest}: line 7: trial: 'x' is not an integer"
@@ -690,8 +690,8 @@ def test_a_trial_failing_in_a_worker_is_the_same_one_line_error_and_nothing_is_w
     manifest = _small(tmp_path / "rig")
     joints = tmp_path / "rig" / "recordings" / "01_001" / "joints.csv"
     joints.write_text(joints.read_text().splitlines()[0] + "\n")  # a header only
-    with pytest.raises(import_manifest.ImportProblems) as e:
-        import_manifest.run(
+    with pytest.raises(batch_import.ImportProblems) as e:
+        batch_import.run(
             manifest,
             tmp_path / "out",
             rig=tmp_path / "rig" / "rig.toml",
@@ -820,8 +820,8 @@ def test_latin1_manifest_read_only_out_and_unread_columns_are_one_line(tmp_path)
 _KILL_IMPORT = """
 import sys
 sys.path.insert(0, {root!r})
-from acquisition import import_manifest
-import_manifest.run({manifest!r}, {out!r}, rig={rig!r}, workers=2, progress=False)
+from acquisition import batch_import
+batch_import.run({manifest!r}, {out!r}, rig={rig!r}, workers=2, progress=False)
 """
 
 
@@ -953,9 +953,9 @@ def test_without_rows_a_study_on_recorded_data_runs_the_rows_it_can_feed(archive
 
 HOLD_IMPORT = """
 import sys, time
-from acquisition import import_manifest
-from fabricjax import lock
-out_lock = __import__("pathlib").Path(sys.argv[1]) / import_manifest.IMPORT_LOCK
+from acquisition import batch_import
+from fabricjax.store import lock
+out_lock = __import__("pathlib").Path(sys.argv[1]) / batch_import.IMPORT_LOCK
 with lock.hold(out_lock, "the import", "importing for a test", transient=True):
     print("held", flush=True)
     time.sleep(120)

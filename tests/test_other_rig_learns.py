@@ -9,7 +9,7 @@ dataset of the issue's size gives in two."""
 
 import pytest
 
-from acquisition import import_manifest, other_rig
+from acquisition import batch_import, other_rig
 from fabricjax.store.workspace import Location
 from fabricjax.studies.paper import ablation
 
@@ -19,7 +19,7 @@ LABELS = ["cotton canvas", "felt", "oak"]
 def _archives(root, trials, seconds):
     splits = {k: "train" for k in range(trials - 2)} | {trials - 2: "val", trials - 1: "test"}
     manifest = other_rig.write_recordings(root / "rig", LABELS, trials, seconds=seconds, splits=splits)
-    import_manifest.run(
+    batch_import.run(
         manifest, root / "archives", rig=root / "rig" / "rig.toml", workers=1, progress=False, say=lambda s: None
     )
     return root / "archives"

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acquisition import import_manifest, other_rig
+from acquisition import batch_import, other_rig
 from fabricjax.store import archive, dataset_index, integrity, workspace
 from tests.helpers import npz_fields, tiny_archive, tiny_dataset
 
@@ -79,7 +79,7 @@ def test_a_fresh_import_is_hashed_against_the_index_the_import_wrote(tmp_path):
         tmp_path / "rig", ["felt", "oak"], 2, seconds=(2.0, 2.5), splits={0: "train", 1: "test"}
     )
     out, ws = tmp_path / "archives", tmp_path / "ws"
-    summary = import_manifest.run(
+    summary = batch_import.run(
         manifest, out, rig=manifest.parent / "rig.toml", workers=1, progress=False, say=lambda s: None, workdir=ws
     )
     assert Path(summary["index"]) == workspace.index_file(out, ws) and Path(summary["index"]).parent == ws / "indexes"
@@ -173,7 +173,8 @@ def test_a_data_dir_inside_the_workspace_gets_no_index(tmp_path):
 
 _BROKEN_VERIFY = """
 import sys
-from fabricjax import cli, integrity
+from fabricjax import cli
+from fabricjax.store import integrity
 def broken(p, entry, ipath):
     raise TypeError("a reader bug")
 integrity._check_file = broken
