@@ -131,18 +131,16 @@ def test_a_studys_checkpoint_folder_changes_with_the_code_and_the_data(monkeypat
     with the source's fingerprint and the data's contents, not only the config and seeds (a change
     in how training rounds, or a second dataset with the same classes, leaves both alike)."""
     from fabricjax import source
-    from fabricjax.studies.common import runner
+    from fabricjax.studies.common.checkpoints import checkpoint_dir
 
     cfg = Config.from_preset("smoke")
     data_a, data_b = {"folder": "a", "content": "1" * 16}, {"folder": "b", "content": "2" * 16}
-    folder = runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], data_a, tmp_path)
-    assert folder == runner.checkpoint_dir(
-        "properties", "minsound", cfg, [0, 1], {**data_a, "folder": "moved"}, tmp_path
-    )
-    assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 2], data_a, tmp_path)
-    assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], data_b, tmp_path)
+    folder = checkpoint_dir("properties", "minsound", cfg, [0, 1], data_a, tmp_path)
+    assert folder == checkpoint_dir("properties", "minsound", cfg, [0, 1], {**data_a, "folder": "moved"}, tmp_path)
+    assert folder != checkpoint_dir("properties", "minsound", cfg, [0, 2], data_a, tmp_path)
+    assert folder != checkpoint_dir("properties", "minsound", cfg, [0, 1], data_b, tmp_path)
     monkeypatch.setattr(source, "training", lambda: "other code")
-    assert folder != runner.checkpoint_dir("properties", "minsound", cfg, [0, 1], data_a, tmp_path)
+    assert folder != checkpoint_dir("properties", "minsound", cfg, [0, 1], data_a, tmp_path)
 
 
 def test_a_checkpoint_of_other_data_is_refused_naming_both_datasets():

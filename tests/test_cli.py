@@ -12,7 +12,8 @@ import pytest
 from fabricjax import cli
 from fabricjax.config import Config
 from fabricjax.store import workspace
-from fabricjax.studies.common import runner
+from fabricjax.studies.common import row_training
+from fabricjax.studies.common.progress import Progress
 from fabricjax.studies.paper import ablation
 
 ROOT = Path(__file__).parents[1]
@@ -149,18 +150,18 @@ def test_jax_platforms_is_cpu_only_where_no_accelerator_can_be():
 
 def test_eta_learns_each_kind_of_row_s_time_from_the_rows_done():
     assert [
-        runner.row_kind(Config(modalities=m)) for m in (("internal",), ("image", "internal"), ("flow", "proprio"))
+        row_training.row_kind(Config(modalities=m)) for m in (("internal",), ("image", "internal"), ("flow", "proprio"))
     ] == ["other", "image", "flow"]
-    progress = runner.Progress("x", 4, ["image", "other", "other", "image"])
+    progress = Progress("x", 4, ["image", "other", "other", "image"])
     progress.finish("a", 150.0, "")  # a camera row first: no audio row done yet, so its rate stands in
     assert progress.eta() == pytest.approx(450.0)
     progress.finish("b", 20.0, "")
     assert progress.eta() == pytest.approx(20.0 + 150.0)  # each kind at its own rate: 20 s per audio row, not 150
-    sweep = runner.Progress("s", 2, ["other", "other"], work=[2, 4])  # work: epochs
+    sweep = Progress("s", 2, ["other", "other"], work=[2, 4])  # work: epochs
     sweep.finish("c", 10.0, "")
     assert sweep.eta() == pytest.approx(20.0)
     with pytest.raises(ValueError):
-        runner.Progress("z", 3, ["other"])
+        Progress("z", 3, ["other"])
 
 
 def test_rows_train_grouped_by_camera_in_the_given_order_within_a_group():
@@ -168,7 +169,7 @@ def test_rows_train_grouped_by_camera_in_the_given_order_within_a_group():
         (m, Config(modalities=m))
         for m in (("image",), ("flow",), ("internal",), ("image", "internal"), ("flow", "internal"), ("proprio",))
     ]
-    order = runner.in_training_order(rows, lambda row: row[1])
+    order = row_training.in_training_order(rows, lambda row: row[1])
     assert [m for m, _ in order] == [
         ("image",),
         ("image", "internal"),

@@ -11,7 +11,7 @@ import pytest
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.sequences.inputs import feature_shapes
-from fabricjax.studies.common import recipe, runner
+from fabricjax.studies.common import recipe, row_training
 from fabricjax.training import feed, placement, sharding, train
 from fabricjax.training.train import make_trainer, train_and_evaluate
 
@@ -68,8 +68,10 @@ def test_early_stopping_picks_the_epoch_a_validation_curve_dictates():
         )
         # a stopped seed's parameters are frozen, so its validation accuracy is that of its last trained epoch
         acc = acc if state["stopped_at"] < 0 else curve[int(state["stopped_at"])]
-        state = trainer.end_epoch(
-            state, params, opt_state, jnp.float32(1.0), {"accuracy": {"fabric": jnp.float32(acc)}}
+        state, _ = trainer.end_epoch(
+            {**state, "params": params, "opt_state": opt_state},
+            {"train_loss": jnp.float32(1.0)},
+            {"accuracy": {"fabric": jnp.float32(acc)}, "predictions": {}},
         )
     assert int(state["best_epoch"]) == 3
     assert int(state["stopped_at"]) == 6
@@ -84,8 +86,8 @@ def test_no_patience_never_stops():
     trainer = make_trainer(TINY, _shapes(TINY))
     state = trainer.init(jax.random.PRNGKey(0))
     for _ in range(5):
-        state = trainer.end_epoch(
-            state, state["params"], state["opt_state"], jnp.float32(1.0), {"accuracy": {"fabric": jnp.float32(0.1)}}
+        state, _ = trainer.end_epoch(
+            state, {"train_loss": jnp.float32(1.0)}, {"accuracy": {"fabric": jnp.float32(0.1)}, "predictions": {}}
         )
     assert int(state["stopped_at"]) == -1
 
@@ -94,7 +96,7 @@ def test_no_patience_never_stops():
 def test_a_stopped_seed_no_longer_changes_while_the_others_train(from_host):
     """Two seeds in one vmapped program, the first marked stopped: another epoch leaves its
     parameters and optimiser state bit for bit, and change the other's; on the devices and when
-    fed from the host (`feed.HostFed`)."""
+    fed from the host (`feed.HostFeed`)."""
     cfg = dataclasses.replace(TINY, patience=2)
     sets = {k: placement.select(cfg, v) for k, v in data_sets(cfg).items()}
     mesh = sharding.training_mesh(cfg.batch_size)
@@ -105,11 +107,12 @@ def test_a_stopped_seed_no_longer_changes_while_the_others_train(from_host):
     state["stopped_at"] = jnp.array([0, -1], jnp.int32)
     before = jax.tree.map(np.array, (state["params"], state["opt_state"]))
     if from_host:
-        fed = feed.HostFed(trainer, sharding.replicated(mesh))
-        after, _ = fed.run(state, {"train": sets["train"], "val": sets["val"]}, n_epochs=1)
+        host = feed.HostFeed(trainer, sharding.replicated(mesh))
+        after, _ = trainer.run(state, {"train": sets["train"], "val": sets["val"]}, host, n_epochs=1)
     else:
         data, _ = placement.place_sets(cfg, sets["train"], sets["val"], {}, sharding.replicated(mesh))
-        after, _ = jax.jit(jax.vmap(lambda s, d: trainer.run(s, d, 1), in_axes=(0, None)))(state, data)
+        on_devices = train.DeviceFeed(trainer)
+        after, _ = jax.jit(jax.vmap(lambda s, d: trainer.run(s, d, on_devices, 1), in_axes=(0, None)))(state, data)
     for old, new in zip(jax.tree.leaves(before), jax.tree.leaves((after["params"], after["opt_state"]))):
         np.testing.assert_array_equal(np.asarray(new)[0], old[0])
     moved = [
@@ -153,7 +156,7 @@ def test_a_corrupted_test_split_changes_no_choice(monkeypatch):
     """Every choice (the grid point, each seed's best and stopping epoch, the validation scores)
     is the same whether the test split is the real one or noise with shuffled labels."""
     monkeypatch.setattr(
-        runner.data,
+        row_training.data,
         "narrow",
         lambda sets, config: {
             k: placement.select(config, {"inputs": v.inputs, "labels": v.labels}) for k, v in sets.items()
@@ -174,7 +177,7 @@ def test_a_corrupted_test_split_changes_no_choice(monkeypatch):
     )
 
     def fit(sets):
-        row = runner.train_fitted("t", "row", cfg, sets, [0, 1], ["test"])
+        row = row_training.train_fitted("t", "row", cfg, sets, [0, 1], ["test"])
         return (
             row.recipe,
             row.results.metrics["best_epoch"].tolist(),

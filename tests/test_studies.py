@@ -17,7 +17,8 @@ from fabricjax.errors import UserError
 from fabricjax.reporting import stats
 from fabricjax.sequences import data
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, findings, runner
+from fabricjax.studies.common import documents, findings, wilcoxon
+from fabricjax.studies.common.rows import StudyRow, check_overrides, label_key, select_rows
 from fabricjax.studies.common.trained import TrainedRow
 from fabricjax.studies.extra import day_shift, probe, sweep
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
@@ -409,44 +410,44 @@ def test_paired_tests_pair_per_seed_and_per_sample_like_scipy():
     acc_a = np.array([0.50, 0.55, 0.61, 0.58, 0.52])
     acc_b = acc_a + np.array([0.03, -0.01, 0.05, 0.07, 0.02])
     a, b = fake_row("a", acc_a, pa, range(5)), fake_row("b", acc_b, pb, range(5))
-    res = runner.paired_tests(a, b, "test", labels)
+    res = wilcoxon.paired_tests(a, b, "test", labels)
     assert res["per_seed"].p_value == pytest.approx(sps.wilcoxon(acc_b, acc_a, method="exact").pvalue)
     assert res["per_seed"].method == stats.EXACT and res["per_seed"].min_attainable_p == pytest.approx(0.0625)
     cb, ca = ((pb == labels)[:, 3:]).ravel().astype(float), ((pa == labels)[:, 3:]).ravel().astype(float)
     expected = sps.wilcoxon(cb, ca, zero_method="wilcox", method="approx")
     assert res["per_sample"].n_pairs == 5 * 37 and res["per_sample"].method == stats.APPROX
     assert res["per_sample"].p_value == pytest.approx(expected.pvalue)
-    same = runner.paired_tests(a, a, "test", labels)
+    same = wilcoxon.paired_tests(a, a, "test", labels)
     assert same["per_seed"].p_value == 1.0 and same["per_sample"].n_nonzero == 0
     with pytest.raises(ValueError, match="different seeds"):
-        runner.paired_tests(a, fake_row("c", acc_b, pb, range(1, 6)), "test", labels)
+        wilcoxon.paired_tests(a, fake_row("c", acc_b, pb, range(1, 6)), "test", labels)
 
 
 def test_ten_seed_floor_and_row_selection():
     a = fake_row("a", np.linspace(0.5, 0.6, 10), np.zeros((10, 4), int), range(10))
     b = fake_row("b", np.linspace(0.5, 0.6, 10) + np.arange(1, 11) / 100, np.zeros((10, 4), int), range(10))
-    res = runner.paired_tests(a, b, "test", np.zeros(4, int))["per_seed"]
+    res = wilcoxon.paired_tests(a, b, "test", np.zeros(4, int))["per_seed"]
     assert res.p_value == pytest.approx(2 / 2**10) and res.min_attainable_p == pytest.approx(0.001953125)
-    assert [r.name for r in runner.select_rows(ablation.PAPER_ROWS, None)] == [r.name for r in ablation.PAPER_ROWS]
+    assert [r.name for r in select_rows(ablation.PAPER_ROWS, None)] == [r.name for r in ablation.PAPER_ROWS]
     with pytest.raises(ValueError, match="unknown rows"):
-        runner.select_rows(ablation.PAPER_ROWS, ["audio"])
+        select_rows(ablation.PAPER_ROWS, ["audio"])
 
 
 def test_rows_are_chosen_by_name_or_by_the_label_the_tables_print():
     """--rows=Minsound,proprioception: what the tables print, in any case, beside the names logs and
     checkpoints use; the rows come back in the table's order, an unknown one is a one-line error."""
     names = lambda chosen: [r.name for r in chosen]  # noqa: E731
-    assert names(runner.select_rows(ablation.ROWS, ["Minsound", "proprioception"])) == ["internal", "proprio"]
-    assert names(runner.select_rows(ablation.ROWS, ["PROPRIO", "minsound", "internal"])) == ["internal", "proprio"]
-    assert names(runner.select_rows(ablation.ROWS, ["tcn: minsound + palm mic + proprioception"])) == [
+    assert names(select_rows(ablation.ROWS, ["Minsound", "proprioception"])) == ["internal", "proprio"]
+    assert names(select_rows(ablation.ROWS, ["PROPRIO", "minsound", "internal"])) == ["internal", "proprio"]
+    assert names(select_rows(ablation.ROWS, ["tcn: minsound + palm mic + proprioception"])) == [
         "tcn:internal+external+proprio"
     ]
-    assert names(runner.select_rows(bandwidth.ROWS, ["15 kHz", "2.5"])) == ["2.5", "15"]
-    assert names(runner.select_rows(properties.ROWS, ["Minsound + Proprioception + Minsight image"])) == [
+    assert names(select_rows(bandwidth.ROWS, ["15 kHz", "2.5"])) == ["2.5", "15"]
+    assert names(select_rows(properties.ROWS, ["Minsound + Proprioception + Minsight image"])) == [
         "internal+proprio+image"
     ]
     with pytest.raises(UserError) as e:
-        runner.select_rows(noise.ROWS, ["Minsound", "audio"])
+        select_rows(noise.ROWS, ["Minsound", "audio"])
     assert str(e.value) == (
         "unknown rows ['audio']; choose a row's name or its label, in any case, or a group (all): internal (Minsound), "
         "internal+proprio (Minsound + proprioception), internal+proprio+external (Minsound + proprioception + palm mic)"
@@ -457,7 +458,7 @@ def test_a_label_matches_in_any_spacing_around_plus_and_any_order_of_its_inputs(
     """--rows="Minsound+palm mic", and the noise study's "Minsound + proprioception + palm mic" for the
     ablation's "Minsound + palm mic + proprioception"; "TCN: " and "(our step-LayerNorm fusion)" still
     tell rows of the same inputs apart, and no two rows of a study share a label read so."""
-    names = lambda rows, *chosen: [r.name for r in runner.select_rows(rows, chosen)]  # noqa: E731
+    names = lambda rows, *chosen: [r.name for r in select_rows(rows, chosen)]  # noqa: E731
     assert names(ablation.ROWS, "Minsound+palm mic") == ["internal+external"]
     assert names(ablation.ROWS, noise.ROWS[-1].label) == ["internal+external+proprio"]
     assert names(ablation.ROWS, "TCN:proprioception+Minsound + PALM MIC") == ["tcn:internal+external+proprio"]
@@ -469,9 +470,9 @@ def test_a_label_matches_in_any_spacing_around_plus_and_any_order_of_its_inputs(
     ]
     for bad in ("Minsound palm mic", "Minsound + palm", "TCN: Minsound + palm mic"):
         with pytest.raises(UserError, match="unknown rows"):
-            runner.select_rows(ablation.ROWS, [bad])
+            select_rows(ablation.ROWS, [bad])
     for rows in (ablation.ROWS, noise.ROWS, bandwidth.ROWS, properties.ROWS, probe.ROWS, day_shift.ROWS):
-        assert len({runner.label_key(r.label) for r in rows}) == len(rows)
+        assert len({label_key(r.label) for r in rows}) == len(rows)
 
 
 def test_the_ablation_trains_the_papers_rows_unless_asked_for_a_group():
@@ -482,7 +483,7 @@ def test_the_ablation_trains_the_papers_rows_unless_asked_for_a_group():
     assert names(ablation.STUDY.select(["ALL"])) == names(ablation.ROWS)
     assert names(ablation.STUDY.select(["ours"])) == names(ablation.STEP_LAYERNORM_ROWS)
     assert names(ablation.STUDY.select(["ours", "Minsound"])) == ["internal", *names(ablation.STEP_LAYERNORM_ROWS)]
-    assert names(runner.select_rows(noise.ROWS, None)) == names(noise.ROWS)
+    assert names(select_rows(noise.ROWS, None)) == names(noise.ROWS)
     with pytest.raises(UserError, match="no rows given"):
         ablation.STUDY.select([])
     # a name or label picks one row in every study: no label repeats, or is another row's name
@@ -527,7 +528,7 @@ def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp
 
 def test_the_override_error_names_the_rows_that_set_the_field():
     rows = [
-        runner.StudyRow(n, s, n)
+        StudyRow(n, s, n)
         for n, s in (
             ("a", {"backbone": "tcn", "modalities": ("internal",)}),
             ("b", {"modalities": ("proprio",)}),
@@ -535,14 +536,14 @@ def test_the_override_error_names_the_rows_that_set_the_field():
         )
     ]
     with pytest.raises(UserError) as e:
-        runner.check_overrides(
+        check_overrides(
             "toy", {"backbone": "attention", "modalities": ("internal",), "epochs": 1}, rows, "choose them with --rows"
         )
     assert str(e.value) == (
         "the toy study sets backbone per row itself (rows a); modalities per row itself (every one of its 3 rows); "
         "choose them with --rows"
     )
-    assert runner.check_overrides("toy", {"epochs": 1}, rows, "") == {"epochs": 1}
+    assert check_overrides("toy", {"epochs": 1}, rows, "") == {"epochs": 1}
 
 
 def test_the_ablation_row_counts_the_docs_state_are_the_code_s():

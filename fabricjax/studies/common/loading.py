@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from pathlib import Path
-from typing import Sequence
+from typing import Mapping, Sequence
 
 from absl import logging
 
@@ -18,7 +18,9 @@ from fabricjax import config as config_fields
 from fabricjax import sim
 from fabricjax.config import CAMERA_MODALITIES, Config
 from fabricjax.sequences import data
-from fabricjax.store import lock, workspace
+from fabricjax.store import archive, lock, workspace
+from fabricjax.store.workspace import Location
+from fabricjax.studies.common.rows import StudyRow, check_overrides, feedable_rows, select_rows
 
 # The splits a study that evaluates on the lab test day needs (no cafe or holdout features computed).
 TRAIN_VAL_TEST = ("train", "val", "test")
@@ -39,7 +41,7 @@ class Dataset:
     generate_s: float  # simulating missing archives (0 for recorded data or a finished dataset)
     load_s: float  # features (cached after the first run) and sequences
     workdir: str | Path | None = None  # the workspace it was loaded under (a recorded folder's index lives there)
-    # the camera inputs laid out and placed for training, once for the rows that share them (`runner.train_rows`)
+    # the camera inputs laid out and placed for training, once for the rows that share them (`row_training.train_rows`)
     layout_s: float = 0.0
 
     @property
@@ -140,3 +142,62 @@ def load_for_rows(
         configs[0], modalities=union_modalities(configs), bandwidth_khz=max(c.bandwidth_khz for c in configs)
     )
     return load_dataset(merged, data_dir=data_dir, workdir=workdir, split_names=split_names)
+
+
+def load_chosen_rows(
+    study: str,
+    all_rows: Sequence[StudyRow],
+    names: Sequence[str] | None,
+    preset: str,
+    overrides: Mapping | None,
+    where: Location,
+    split_names: Sequence[str],
+) -> tuple[list[StudyRow], list[Config], list[Dataset], list[str]]:
+    """What a study without training (the probe, the day shift) reads: the chosen rows of
+    `all_rows` (all for None), their configs, each row's sequences on `split_names` (rows that
+    agree on `SEQUENCE_FIELDS` share one load: the same object), and the splits that hold
+    any. Rows that read frames against their session's reference are left out, with a warning,
+    when the data has none and the rows were not asked for by name."""
+    overrides = check_overrides(study, overrides, all_rows, "choose them with --rows")
+    chosen = select_rows(all_rows, names)
+    if where.data_dir and not names:  # recorded data: the rows it can feed, the others left out in one line
+        chosen = feedable_rows(study, chosen, where)
+    configs = [r.config(preset, overrides) for r in chosen]
+    loads: dict[tuple, Dataset] = {}
+    for key in dict.fromkeys(sequence_key(c) for c in configs):
+        group = [c for c in configs if sequence_key(c) == key]
+        # another reading of the frames decides only the image's sequences: an earlier load that
+        # differs in nothing else gives the rest, and only what it lacks is loaded
+        base = next((d for k, d in loads.items() if _apart_from_reading(k, key)), None)
+        if base is not None:
+            have = set(next(iter(base.sets.values())).inputs)
+            lacking = [(c, tuple(m for m in c.modalities if m == "image" or m not in have)) for c in group]
+            group = [dataclasses.replace(c, modalities=ms) for c, ms in lacking if ms]
+        try:
+            ds = (
+                load_for_rows(group, data_dir=where.data_dir, workdir=where.workdir, split_names=split_names)
+                if group
+                else base
+            )
+        except archive.ArchiveError as e:
+            if e.field != "reference" or names:
+                raise
+            logging.warning("%s: rows that read frames against their session's reference left out: %s", study, e)
+            continue
+        if base is not None and ds is not base:
+            ds = dataclasses.replace(
+                base,
+                sets={
+                    s: dataclasses.replace(x, inputs={**x.inputs, **ds.sets[s].inputs}) for s, x in base.sets.items()
+                },
+            )
+        loads[key] = ds
+    kept = [(r, c) for r, c in zip(chosen, configs) if sequence_key(c) in loads]
+    datasets = [loads[sequence_key(c)] for _, c in kept]
+    return [r for r, _ in kept], [c for _, c in kept], datasets, [s for s in split_names if len(datasets[0].sets[s])]
+
+
+def _apart_from_reading(a: tuple, b: tuple) -> bool:
+    """Two `sequence_key`s that differ in `image_reference` alone."""
+    reading = SEQUENCE_FIELDS.index("image_reference")
+    return a != b and a[:reading] + a[reading + 1 :] == b[:reading] + b[reading + 1 :]

@@ -75,7 +75,7 @@ class TrainedRow:
 
 @dataclasses.dataclass
 class TrainingRun:
-    """The rows one call of `runner.train_rows` trained, in the order given, and the dataset it
+    """The rows one call of `row_training.train_rows` trained, in the order given, and the dataset it
     loaded once for them."""
 
     dataset: loading.Dataset

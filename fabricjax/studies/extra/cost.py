@@ -50,7 +50,8 @@ from fabricjax.reporting import plots, stats
 from fabricjax.sequences import data
 from fabricjax.store import archive, atomic, dataset_index
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, findings, loading, runner
+from fabricjax.studies.common import documents, findings, loading, row_training, runner
+from fabricjax.studies.common.progress import Progress
 from fabricjax.studies.common.trained import TrainedRow
 
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
@@ -167,7 +168,7 @@ def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int, step
     """Train all seeds of one point and measure what it costs (touch time at `step_rate`); its
     test sequences' majority class (`findings.majority`: a point's N decides its sequences) and the
     class each seed collapsed to (`findings.collapsed`)."""
-    row = runner.train_row(point.name, point.config, sets, seeds, ["test"])
+    row = row_training.train_row(point.name, point.config, sets, seeds, ["test"])
     labels = sets["test"].labels["fabric"]
     acc = 100 * row.accuracy("test")
     mean, sd = stats.mean_sd(acc)
@@ -232,7 +233,7 @@ def run(
     )
     union = loading.union_modalities([p.config for p in points])
     widest = max(p.config.bandwidth_khz for p in points)
-    progress = runner.Progress("cost", len(points))
+    progress = Progress("cost", len(points))
     rows, sets, loaded_n = [], None, None
     t_all = time.perf_counter()
     for p in sorted(points, key=lambda p: p.config.seq_len):

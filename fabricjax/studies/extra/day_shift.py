@@ -37,8 +37,9 @@ import numpy as np
 from fabricjax.sequences import data
 from fabricjax.store import archive
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, linear_probe, loading, runner
-from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common import documents, linear_probe, loading
+from fabricjax.studies.common.progress import Progress
+from fabricjax.studies.common.rows import StudyRow
 from fabricjax.studies.extra import probe
 
 TITLE, PAPER = "Day shift: what the fabric, the day and the trial explain in each input", "not in the paper"
@@ -121,7 +122,7 @@ def run(
 ) -> dict[str, Any]:
     """The shares and the probe's gap for the chosen inputs (all by default); writes
     results/day_shift.{md,json} and returns the JSON."""
-    chosen, _, datasets, present = runner.load_chosen_rows(
+    chosen, _, datasets, present = loading.load_chosen_rows(
         "day_shift", ROWS, rows, preset, overrides, where, loading.TRAIN_VAL_TEST
     )
     ds = datasets[0]
@@ -133,7 +134,7 @@ def run(
     accuracy, no_probe = probe_accuracy(where.results_dir(), str(ds.folder))
 
     t0 = time.perf_counter()
-    progress = runner.Progress("day_shift", len(chosen))
+    progress = Progress("day_shift", len(chosen))
     out_rows = []
     names = ds.sets[present[0]].names if ds.recorded else {}  # recorded data: its own names for its streams
     for r, d in zip(chosen, datasets):

@@ -36,7 +36,7 @@ from fabricjax.reporting import stats
 from fabricjax.sequences import data
 from fabricjax.store import archive
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, findings, loading, runner
+from fabricjax.studies.common import documents, findings, loading
 from fabricjax.studies.common.linear_probe import (
     BLAS_THREADS,
     C_GRID,
@@ -47,7 +47,8 @@ from fabricjax.studies.common.linear_probe import (
     fit,
     prepare_inputs,
 )
-from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common.progress import Progress
+from fabricjax.studies.common.rows import StudyRow
 from fabricjax.studies.paper import ablation
 
 TITLE, PAPER = "Linear probe of every ablation row's inputs", "not in the paper"
@@ -110,7 +111,7 @@ def run(
     where: Location = Location(),
 ) -> dict[str, Any]:
     """Probe the chosen rows' inputs (all by default) and write results/probe.{md,json}; returns the JSON."""
-    chosen, configs, datasets, present = runner.load_chosen_rows("probe", ROWS, rows, preset, overrides, where, SPLITS)
+    chosen, configs, datasets, present = loading.load_chosen_rows("probe", ROWS, rows, preset, overrides, where, SPLITS)
     ds = datasets[0]
     for split in ("train", "val"):
         if split not in present:
@@ -134,7 +135,7 @@ def run(
         for key, (d, _) in loads.items()
     }
     with threadpool_limits(BLAS_THREADS):
-        progress = runner.Progress("probe", len(chosen))
+        progress = Progress("probe", len(chosen))
         names = ds.sets["train"].names if ds.recorded else {}  # recorded data: its own names for its streams
         out_rows = [
             _probe_row(r, c, inputs[id(d)], labels, present, progress, names)
@@ -179,7 +180,7 @@ def _probe_row(
     inputs: Mapping[str, Input],
     labels,
     splits: Sequence[str],
-    progress: runner.Progress,
+    progress: Progress,
     names: Mapping[str, str],
 ) -> dict[str, Any]:
     """Row `r`'s probe on its inputs' features, concatenated, as the JSON row; `names`: the data's

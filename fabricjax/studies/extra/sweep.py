@@ -8,7 +8,7 @@ of the modality ablation at once, so it is judged by the validation accuracy ave
 rows, not by one row's. The grid is the cartesian product of the `--grid` fields' values; every
 point is the preset, the `--set` overrides and the point's fields (`StudyRow.config`: a row
 sets its backbone, inputs and fusion itself, so those are chosen with `--rows`, never swept). Every
-(point, row) trains all seeds in one vmapped program (`runner.train_rows`) on sequences loaded
+(point, row) trains all seeds in one vmapped program (`row_training.train_rows`) on sequences loaded
 once for the whole sweep, or once per distinct value of the fields that decide the sequences
 (`loading.SEQUENCE_FIELDS`, e.g. seq_len) where the grid varies one. No checkpoints: a rerun
 measures afresh.
@@ -34,8 +34,9 @@ from fabricjax.config import Config, format_override, parse_override
 from fabricjax.errors import UserError
 from fabricjax.reporting import stats
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, loading, runner
-from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common import documents, loading, row_training, runner
+from fabricjax.studies.common.progress import Progress
+from fabricjax.studies.common.rows import StudyRow, check_overrides
 from fabricjax.studies.common.trained import TrainedRow
 from fabricjax.studies.extra import cost
 from fabricjax.studies.paper import ablation
@@ -93,7 +94,7 @@ def check_grid(grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any]) 
     decide, no field both swept and fixed by --set."""
     if not grid or not all(grid.values()):
         raise UserError(f"--grid: give at least one field with at least one value: {GRID_HELP}")
-    grid = runner.check_overrides(
+    grid = check_overrides(
         "sweep", {f: tuple(v) for f, v in grid.items()}, ablation.ROWS, "choose the ablation's rows with --rows"
     )
     if "preset" in grid:
@@ -197,7 +198,7 @@ def run(
 ) -> dict[str, Any]:
     """Train every grid point on every chosen row of the ablation (all by default); write
     results/sweep.{md,json}; return the JSON."""
-    overrides = runner.check_overrides("sweep", overrides, ablation.ROWS, "choose the ablation's rows with --rows")
+    overrides = check_overrides("sweep", overrides, ablation.ROWS, "choose the ablation's rows with --rows")
     grid = check_grid(grid, overrides)
     chosen = ablation.STUDY.select(rows)
     seeds = runner.seed_list(n_seeds)
@@ -208,10 +209,10 @@ def run(
     by_key: dict[tuple, list] = {}
     for unit in units:
         by_key.setdefault(loading.sequence_key(unit[1]), []).append(unit)
-    by_key = {key: runner.in_training_order(group, lambda unit: unit[1]) for key, group in by_key.items()}
+    by_key = {key: row_training.in_training_order(group, lambda unit: unit[1]) for key, group in by_key.items()}
     order = [u for group in by_key.values() for u in group]
-    progress = runner.Progress(
-        "sweep", len(order), [runner.row_kind(c) for _, c, _, _ in order], [c.epochs for _, c, _, _ in order]
+    progress = Progress(
+        "sweep", len(order), [row_training.row_kind(c) for _, c, _, _ in order], [c.epochs for _, c, _, _ in order]
     )
     labels = {name: f"{point_name(fields)} | {row.label}" for name, _, fields, row in order}
     summary = lambda r: (  # noqa: E731
@@ -220,7 +221,7 @@ def run(
     )
     entries, loads, head = {}, [], None
     for group in by_key.values():
-        study = runner.train_rows(
+        study = row_training.train_rows(
             "sweep",
             [(name, config) for name, config, _, _ in group],
             seeds,

@@ -8,7 +8,7 @@
 
 Each row trains all seeds in one vmapped program and reports mean ± SD test accuracy beside the
 paper's number and the difference. Internal audio is compared with internal + palm audio by
-Wilcoxon signed-rank tests (per seed and per test sequence, see `runner.paired_tests`), and the
+Wilcoxon signed-rank tests (per seed and per test sequence, see `wilcoxon.paired_tests`), and the
 proprioception-only and flow-only models' confusion matrices are drawn (results/ablation_confusion.png).
 Each row's models are kept as a checkpoint (its row's "checkpoint" in the results JSON), which
 `experiments.decide` restores.
@@ -35,8 +35,8 @@ from absl import logging
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.reporting import plots, stats
 from fabricjax.sequences import data
-from fabricjax.studies.common import documents, findings, linear_probe, loading, recipe, runner
-from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common import documents, findings, linear_probe, loading, recipe, runner, wilcoxon
+from fabricjax.studies.common.rows import StudyRow
 from fabricjax.studies.common.trained import TrainedRow, TrainingRun
 
 TITLE, PAPER = (
@@ -137,7 +137,9 @@ def document(trained: TrainingRun, chosen: Sequence[StudyRow], results) -> tuple
     labels = test.labels["fabric"]
     recorded = trained.dataset.recorded
     base, compared = WILCOXON_PAIR
-    tests = runner.paired_tests(rows[base], rows[compared], "test", labels) if base in rows and compared in rows else {}
+    tests = (
+        wilcoxon.paired_tests(rows[base], rows[compared], "test", labels) if base in rows and compared in rows else {}
+    )
     names = test.names if recorded else {}
     panels = [
         (

@@ -24,7 +24,7 @@ from fabricjax.features import welch
 from fabricjax.reporting import plots, stats
 from fabricjax.store import archive, dataset_index
 from fabricjax.studies.common import documents, findings, loading, runner
-from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common.rows import StudyRow
 from fabricjax.studies.common.trained import TrainingRun
 
 TITLE, PAPER = (

@@ -5,7 +5,7 @@
 Rows: Minsound; + proprioception; + palm microphone. Every row is trained on the lab training
 days and evaluated on the cafe split (and, for reference, the lab test day). Each row is compared
 with the preceding one by Wilcoxon signed-rank tests on the cafe split, paired per seed (exact
-over 10 seeds: p >= 2 / 2^10 = 0.002) and per cafe sequence pooled over seeds (`runner.paired_tests`).
+over 10 seeds: p >= 2 / 2^10 = 0.002) and per cafe sequence pooled over seeds (`wilcoxon.paired_tests`).
 The paper's claims about the table are checked by `checklist`; results/noise.png shows every
 seed's lab and cafe accuracy per row. On recorded data (`--data_dir`, its cafe split) the rows are
 compared with each other instead (`documents.recorded`), and the table, the tests and the figure
@@ -23,8 +23,8 @@ from fabricjax.errors import UserError
 from fabricjax.reporting import plots, stats
 from fabricjax.sequences import data
 from fabricjax.sim import estimates
-from fabricjax.studies.common import documents, findings, loading, runner
-from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common import documents, findings, loading, runner, wilcoxon
+from fabricjax.studies.common.rows import StudyRow
 from fabricjax.studies.common.trained import TrainingRun
 
 TITLE, PAPER = (
@@ -66,7 +66,7 @@ def document(trained: TrainingRun, chosen: Sequence[StudyRow], results) -> tuple
     out_rows, previous = [], None
     for r in chosen:
         row = trained.rows[r.name]
-        tests = runner.paired_tests(previous, row, SPLIT, labels) if previous is not None else {}
+        tests = wilcoxon.paired_tests(previous, row, SPLIT, labels) if previous is not None else {}
         out_rows.append(
             {
                 "name": r.name,

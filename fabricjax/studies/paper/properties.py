@@ -35,7 +35,7 @@ from fabricjax import catalog
 from fabricjax.reporting import stats
 from fabricjax.sequences import data
 from fabricjax.studies.common import documents, findings, runner
-from fabricjax.studies.common.runner import StudyRow
+from fabricjax.studies.common.rows import StudyRow
 from fabricjax.studies.common.trained import TrainingRun
 
 TITLE, PAPER = (

@@ -67,8 +67,9 @@ from fabricjax.errors import UserError
 from fabricjax.reporting import stats
 from fabricjax.store import archive, dataset_index, provenance, splits, workspace
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, findings, runner
+from fabricjax.studies.common import documents, findings
 from fabricjax.studies.common.plan import rates as training_rates
+from fabricjax.studies.common.rows import split_by_inputs
 from fabricjax.studies.extra import camera_frames, day_shift, decide, probe, sensitivity
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
 
@@ -438,7 +439,7 @@ def fit_plan(plan: Sequence[Step], preset: str, data_dir, workdir, say: Callable
             out.append(step)
             continue
         named = [r for r in rows if step.rows is None or r.name in step.rows]
-        fed, lacking = runner.split_by_inputs(named, have)
+        fed, lacking = split_by_inputs(named, have)
         fit = tuple(r.name for r in fed)
         if not fit:
             say(

@@ -15,7 +15,8 @@ from fabricjax.config import Config
 from fabricjax.inference import confidence, live
 from fabricjax.store import archive, dataset_index, splits
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, loading, runner
+from fabricjax.studies.common import documents, loading, row_training
+from fabricjax.studies.common.checkpoints import checkpoint_dir
 
 
 def format_step(r: live.StepResult, label: int, meta: dict | None = None) -> str:
@@ -47,8 +48,8 @@ def quick_model(preset: str, overrides: Mapping[str, Any] | None = None, *, work
     config = Config.from_preset(preset, **{"modalities": QUICK_MODALITIES, **(overrides or {})})
     ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir)
     config = ds.fit(config)  # the data's classes and step window
-    directory = runner.checkpoint_dir("stream", "quick", config, [0], ds.sets["train"].dataset, workdir)
-    row = runner.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
+    directory = checkpoint_dir("stream", "quick", config, [0], ds.sets["train"].dataset, workdir)
+    row = row_training.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
     return row.results.graphdef, row.results.params(0), config, directory
 
 
