@@ -13,15 +13,15 @@ import sys
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.tools import reproduce
+from fabricjax.studies.tools import reproduce, reproduce_plan, staleness
 
 flags.define_preset()
 flags.define_overrides("a field a study's rows set themselves is refused")
 STUDIES = absl_flags.DEFINE_list(
     "studies",
     None,
-    f"comma-separated studies to run (with --check: to check), from: {', '.join(reproduce.STUDIES)} (default: all, "
-    "in that order)",
+    f"comma-separated studies to run (with --check: to check), from: {', '.join(reproduce_plan.STUDIES)} "
+    "(default: all, in that order)",
 )
 FORCE = absl_flags.DEFINE_bool("force", False, "rerun every study, even those whose results are up to date")
 CHECK = absl_flags.DEFINE_bool(
@@ -35,10 +35,10 @@ CHECK = absl_flags.DEFINE_bool(
 def main(argv):
     del argv
     if CHECK.value:
-        sys.exit(1 if reproduce.check(flags.location(), studies=STUDIES.value) else 0)
+        sys.exit(1 if staleness.check(flags.location(), studies=STUDIES.value) else 0)
     reproduce.run(
         preset=absl_flags.FLAGS.preset,
-        plan=reproduce.chosen(STUDIES.value),
+        plan=reproduce_plan.chosen(STUDIES.value),
         overrides=flags.overrides(),
         force=FORCE.value,
         where=flags.location(),

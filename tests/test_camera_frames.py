@@ -10,7 +10,7 @@ from fabricjax.errors import UserError
 from fabricjax.sim import trial
 from fabricjax.store.workspace import Location
 from fabricjax.studies.extra import camera_frames as cf
-from fabricjax.studies.tools import reproduce
+from fabricjax.studies.tools import reproduce_plan
 
 
 def strokes(cycles=3, start=0.5, hz=1.0, amplitude=3.0):
@@ -127,9 +127,11 @@ def test_it_has_no_rows_and_reads_no_data(tmp_path):
 
 
 def test_reproduce_runs_it_last_without_seeds_and_names_its_command():
-    assert reproduce.PLAN[-1] == reproduce.Step("camera_frames") and "camera_frames" in reproduce.UNSEEDED
-    assert reproduce.STUDIES["camera_frames"] is cf
     assert (
-        reproduce.command(reproduce.Step("camera_frames"), "default", {}, "results")
+        reproduce_plan.PLAN[-1] == reproduce_plan.Step("camera_frames") and "camera_frames" in reproduce_plan.UNSEEDED
+    )
+    assert reproduce_plan.STUDIES["camera_frames"] is cf
+    assert (
+        reproduce_plan.command(reproduce_plan.Step("camera_frames"), "default", {}, "results")
         == "python -m experiments.camera_frames --preset=default --results=results"
     )

@@ -10,7 +10,7 @@ import pytest
 from fabricjax import sim
 from fabricjax.store.workspace import Location
 from fabricjax.studies.extra import day_shift, palm
-from fabricjax.studies.tools import reproduce
+from fabricjax.studies.tools import reproduce, reproduce_plan, staleness
 
 TINY = dict(epochs=1, width=16, n_layers=1)
 
@@ -54,8 +54,8 @@ def workdir(tmp_path_factory):
 @pytest.mark.slow
 def test_day_shift_runs_after_the_probe_in_reproduce_and_shows_its_gap(workdir, tmp_path):
     plan = (
-        reproduce.Step("probe", rows=("proprio", "internal")),
-        reproduce.Step("day_shift", rows=("proprio", "internal")),
+        reproduce_plan.Step("probe", rows=("proprio", "internal")),
+        reproduce_plan.Step("day_shift", rows=("proprio", "internal")),
     )
     reproduce.run(
         preset="smoke", plan=plan, overrides=TINY, where=Location(workdir=workdir, results=tmp_path), say=lambda s: None
@@ -72,14 +72,14 @@ def test_day_shift_runs_after_the_probe_in_reproduce_and_shows_its_gap(workdir, 
             s: next(p for p in probe_doc["rows"] if p["name"] == r["name"])["accuracy"][s] for s in ("val", "test")
         }
     report = (tmp_path / "REPORT.md").read_text()
-    assert f"## {reproduce.title('day_shift')}" in report and "Test − validation [pp]" in report
+    assert f"## {reproduce_plan.title('day_shift')}" in report and "Test − validation [pp]" in report
     assert report.count("| – (deterministic) | – (not in the paper) |") == 2
-    manifest = json.loads((tmp_path / reproduce.MANIFEST).read_text())
+    manifest = json.loads((tmp_path / reproduce_plan.MANIFEST).read_text())
     prints = manifest["day_shift"]["fingerprints"]
-    other = reproduce.step_key(plan[1], "smoke", TINY, prints, manifest["probe"]["key"] + "0")
+    other = staleness.step_key(plan[1], "smoke", TINY, prints, manifest["probe"]["key"] + "0")
     assert (
         other
-        != reproduce.step_key(plan[1], "smoke", TINY, prints, manifest["probe"]["key"])
+        != staleness.step_key(plan[1], "smoke", TINY, prints, manifest["probe"]["key"])
         == manifest["day_shift"]["key"]
     )  # the probe's key is in the day shift's
 

@@ -117,9 +117,9 @@ def test_decide_on_the_smoke_preset_writes_its_reports_and_the_stream_applies_th
 
 @pytest.mark.slow
 def test_reproduce_runs_decide_on_the_ablations_checkpoint(tmp_path):
-    from fabricjax.studies.tools import reproduce
+    from fabricjax.studies.tools import reproduce, reproduce_plan
 
-    plan = (reproduce.Step("ablation", 1, ("internal",)), reproduce.Step("decide", rows=("internal",)))
+    plan = (reproduce_plan.Step("ablation", 1, ("internal",)), reproduce_plan.Step("decide", rows=("internal",)))
     said = []
     reproduce.run(
         preset="smoke",
@@ -132,7 +132,7 @@ def test_reproduce_runs_decide_on_the_ablations_checkpoint(tmp_path):
     doc = json.loads((tmp_path / "out" / "decide.json").read_text())
     assert [m["checkpoint"] for m in doc["models"]] == [ablation["rows"][0]["checkpoint"]]
     assert doc["models"][0]["name"] == "internal" and "--checkpoint=" in doc["command"]
-    assert f"## {reproduce.title('decide')}" in (tmp_path / "out" / "REPORT.md").read_text()
+    assert f"## {reproduce_plan.title('decide')}" in (tmp_path / "out" / "REPORT.md").read_text()
 
 
 @pytest.mark.slow

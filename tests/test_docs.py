@@ -10,7 +10,7 @@ import numpy as np
 
 from fabricjax.store import workspace
 from fabricjax.studies.common import findings
-from fabricjax.studies.tools import reproduce
+from fabricjax.studies.tools import reproduce_plan, reproduce_readme
 
 REPO = Path(__file__).parents[1]
 DOCUMENTS = [REPO / "README.md", REPO / "WORKSPACE.md", REPO / "CHANGELOG.md", *sorted((REPO / "docs").glob("*.md"))]
@@ -18,15 +18,15 @@ DOCUMENTS = [REPO / "README.md", REPO / "WORKSPACE.md", REPO / "CHANGELOG.md", *
 
 def _readme_parts() -> tuple[str, str, str]:
     text = (REPO / "README.md").read_text()
-    before, rest = text.split(reproduce.README_BEGIN)
-    block, after = rest.split(reproduce.README_END)
-    return before, reproduce.README_BEGIN + block + reproduce.README_END, after
+    before, rest = text.split(reproduce_readme.README_BEGIN)
+    block, after = rest.split(reproduce_readme.README_END)
+    return before, reproduce_readme.README_BEGIN + block + reproduce_readme.README_END, after
 
 
 def test_readme_results_block_is_what_the_published_results_render():
-    head = json.loads((REPO / "results" / reproduce.HEADLINE).read_text())
+    head = json.loads((REPO / "results" / reproduce_plan.HEADLINE).read_text())
     _, block, _ = _readme_parts()
-    assert block == reproduce.readme_block(head), (
+    assert block == reproduce_readme.readme_block(head), (
         "README's results block differs from results/headline.json: rerun experiments.reproduce"
     )
     ablation_md = (REPO / "results" / "ablation.md").read_text()

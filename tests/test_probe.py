@@ -10,7 +10,7 @@ import pytest
 from fabricjax.studies.common import documents, linear_probe
 from fabricjax.studies.extra import probe
 from fabricjax.studies.paper import ablation
-from fabricjax.studies.tools import reproduce
+from fabricjax.studies.tools import reproduce_plan, reproduce_report
 
 N_CLASSES, PER_CLASS, N_STEPS = 6, 60, 10
 SPLIT_SEEDS = {"train": 1, "val": 2, "test": 3}
@@ -170,7 +170,7 @@ def test_report_sets_the_probe_beside_the_ablation_from_their_json(tmp_path):
     manifest = {
         s: {"wall_s": 60.0, "finished": "today", "command": f"python -m experiments.{s}"} for s in ("ablation", "probe")
     }
-    text = reproduce.write_report(
+    text = reproduce_report.write_report(
         tmp_path / "REPORT.md", manifest, "default", documents.fingerprints(None), "test", 1.0, 2
     ).read_text()
     assert (
@@ -184,22 +184,24 @@ def test_report_sets_the_probe_beside_the_ablation_from_their_json(tmp_path):
     del manifest["ablation"]
     assert (
         "beside the model"
-        not in reproduce.write_report(
+        not in reproduce_report.write_report(
             tmp_path / "REPORT.md", manifest, "default", documents.fingerprints(None), "test", 1.0, 1
         ).read_text()
     )
 
 
 def test_reproduce_runs_the_probe_without_seeds():
-    step = next(s for s in reproduce.PLAN if s.study == "probe")
-    assert step.seeds is None and reproduce.PLAN.index(step) == 1  # right after the ablation
+    step = next(s for s in reproduce_plan.PLAN if s.study == "probe")
+    assert step.seeds is None and reproduce_plan.PLAN.index(step) == 1  # right after the ablation
     assert (
-        reproduce.command(step, "default", {"epochs": 3}, "results")
+        reproduce_plan.command(step, "default", {"epochs": 3}, "results")
         == "python -m experiments.probe --preset=default --set=epochs=3 --results=results"
     )
     recorded = {"probe": {"preset": "default", "seeds": None, "rows": len(probe.ROWS), "wall_s": 60.0}}
-    assert reproduce.estimate_s(step, "default", {}, recorded) == 60.0  # the first manifest that recorded the preset
-    assert reproduce.estimate_s(reproduce.Step("probe", rows=("proprio",)), "default", recorded) == pytest.approx(
-        60.0 / len(probe.ROWS)
-    )
-    assert reproduce.estimate_s(step, "smoke", recorded) is None
+    assert (
+        reproduce_plan.estimate_s(step, "default", {}, recorded) == 60.0
+    )  # the first manifest that recorded the preset
+    assert reproduce_plan.estimate_s(
+        reproduce_plan.Step("probe", rows=("proprio",)), "default", recorded
+    ) == pytest.approx(60.0 / len(probe.ROWS))
+    assert reproduce_plan.estimate_s(step, "smoke", recorded) is None

@@ -14,7 +14,7 @@ from fabricjax.sequences import data
 from fabricjax.studies.common import documents
 from fabricjax.studies.extra import cost
 from fabricjax.studies.paper import bandwidth, latents, noise, properties
-from fabricjax.studies.tools import reproduce
+from fabricjax.studies.tools import reproduce_report
 
 MACHINE = {
     "cpu": "test cpu",
@@ -323,7 +323,7 @@ def test_the_report_of_recorded_data_names_no_paper(tmp_path):
             "finished": "2026-11-25 08:00 UTC",
         }
     }
-    text = reproduce.write_report(
+    text = reproduce_report.write_report(
         tmp_path / "REPORT.md", manifest, "smoke", documents.fingerprints("d" * 16), "test", 1.0, 1
     ).read_text()
     assert text.splitlines()[0] == "# Report: every study on the smoke preset on recorded data"

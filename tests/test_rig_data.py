@@ -214,11 +214,11 @@ def test_reproduce_on_a_rig_runs_what_its_streams_and_splits_allow(tmp_path):
     """A camera-less rig without cafe or holdout trials: the ablation and probe keep the rows of its
     streams, the bandwidth study runs whole, the protocol's studies are skipped, one line each."""
     from fabricjax.studies.paper import ablation
-    from fabricjax.studies.tools import reproduce
+    from fabricjax.studies.tools import reproduce_plan
 
     ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "train"), (2, "val"), (0, "test")])
     said = []
-    plan = {s.study: s for s in reproduce.fit_plan(reproduce.PLAN, "smoke", ds, tmp_path / "ws", said.append)}
+    plan = {s.study: s for s in reproduce_plan.fit_plan(reproduce_plan.PLAN, "smoke", ds, tmp_path / "ws", said.append)}
     assert list(plan) == ["ablation", "probe", "day_shift", "bandwidth", "decide"]
     assert plan["decide"].rows == ("internal",)  # of its rows, the one the ablation trains here
     assert set(plan["ablation"].rows) == {r.name for r in ablation.ROWS if set(r.modalities) <= {"internal", "proprio"}}

@@ -15,10 +15,10 @@ from fabricjax.errors import UserError
 from fabricjax.sim import estimates
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
-from fabricjax.studies.tools import reproduce
+from fabricjax.studies.tools import reproduce, reproduce_plan, reproduce_readme, reproduce_report, staleness
 
 REPO = Path(__file__).resolve().parents[1]
-PLAN = (reproduce.Step("probe", rows=("proprio",)), reproduce.Step("day_shift", rows=("proprio",)))
+PLAN = (reproduce_plan.Step("probe", rows=("proprio",)), reproduce_plan.Step("day_shift", rows=("proprio",)))
 
 
 @pytest.fixture(scope="module")
@@ -60,15 +60,15 @@ def test_every_results_file_records_the_fingerprints(published):
         None
     )  # simulated data: decided by the code, estimates and preset
     assert documents.fingerprints_markdown(doc["fingerprints"]) in (published.results / "probe.md").read_text()
-    manifest = json.loads((published.results / reproduce.MANIFEST).read_text())
+    manifest = json.loads((published.results / reproduce_plan.MANIFEST).read_text())
     assert manifest["probe"]["fingerprints"] == doc["fingerprints"] and manifest["probe"]["commit"] == doc["code"]
 
 
 def test_an_unchanged_state_lists_nothing_stale(published):
     said = []
-    assert reproduce.check(published, say=said.append) == {}
+    assert staleness.check(published, say=said.append) == {}
     assert said[0].startswith("reproduce --check: 0 of the 2 studies of ")
-    report = (published.results / reproduce.REPORT).read_text()
+    report = (published.results / reproduce_plan.REPORT).read_text()
     assert "stale since" not in report.lower()
     done = _check_command(published)
     assert done.returncode == 0, done.stderr
@@ -77,22 +77,22 @@ def test_an_unchanged_state_lists_nothing_stale(published):
 
 def test_check_of_named_studies_checks_those_and_an_unknown_name_is_a_one_line_error(published):
     said = []
-    assert reproduce.check(published, say=said.append, studies=["day_shift"]) == {}
+    assert staleness.check(published, say=said.append, studies=["day_shift"]) == {}
     assert said[0].startswith("reproduce --check: 0 of the 1 studies of ")
     with pytest.raises(UserError, match=r"--studies: unknown studies \['ablatoin'\]; choose from ablation, probe, "):
-        reproduce.check(published, studies=["ablatoin"])
+        staleness.check(published, studies=["ablatoin"])
     done = _check_command(published, "--studies=ablatoin")
     assert done.returncode == 2 and done.stdout == "", done.stderr
     assert done.stderr.startswith("error: --studies: unknown studies ['ablatoin']") and done.stderr.count("\n") == 1
 
 
 def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(published):
-    manifest = json.loads((published.results / reproduce.MANIFEST).read_text())
+    manifest = json.loads((published.results / reproduce_plan.MANIFEST).read_text())
     estimates.override({"SERVO_TONE_PA": estimates.ESTIMATES["SERVO_TONE_PA"].value * 2})
     try:
         said = []
-        notes = reproduce.check(published, say=said.append)
-        stale_report = reproduce.write_report(
+        notes = staleness.check(published, say=said.append)
+        stale_report = reproduce_report.write_report(
             published.results / "STALE.md", manifest, "smoke", documents.fingerprints(None), "test", 1.0, 0
         )
         report = stale_report.read_text()
@@ -112,45 +112,45 @@ def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(publishe
     assert (
         f"**{notes['probe']}**" in report and f"> **S{notes['day_shift'][1:]}**" in report
     )  # the summary and the study's section
-    assert reproduce.check(published, say=lambda s: None) == {}  # the registry's values again: nothing stale
+    assert staleness.check(published, say=lambda s: None) == {}  # the registry's values again: nothing stale
 
 
 def test_changed_code_marks_the_studies_stale_and_the_reader_of_a_rerun_study(published, monkeypatch):
     monkeypatch.setattr(source, "fingerprint", lambda: "f" * 64)
-    notes = reproduce.stale(
-        json.loads((published.results / reproduce.MANIFEST).read_text()), documents.fingerprints(None)
+    notes = staleness.stale(
+        json.loads((published.results / reproduce_plan.MANIFEST).read_text()), documents.fingerprints(None)
     )
     assert list(notes) == ["probe", "day_shift"] and all(n.endswith(": the code changed") for n in notes.values())
     monkeypatch.undo()
-    manifest = json.loads((published.results / reproduce.MANIFEST).read_text())
+    manifest = json.loads((published.results / reproduce_plan.MANIFEST).read_text())
     manifest["probe"]["key"] = "0" * 16  # the probe rerun since: the day shift read the results of another probe
-    notes = reproduce.stale(manifest, documents.fingerprints(None))
+    notes = staleness.stale(manifest, documents.fingerprints(None))
     assert notes["day_shift"].endswith(": the probe study it reads changed")
 
 
 def test_check_exits_1_on_results_of_other_code_and_readme_says_stale(published, tmp_path):
     results = tmp_path / "results"
     shutil.copytree(published.results, results)
-    manifest = json.loads((results / reproduce.MANIFEST).read_text())
+    manifest = json.loads((results / reproduce_plan.MANIFEST).read_text())
     keys: dict[str, str] = {}
     for study in ("probe", "day_shift"):  # as a run of other code would have recorded them
         e = manifest[study]
         e["fingerprints"]["code"] = "0" * 16
-        e["key"] = keys[study] = reproduce.step_key(
-            reproduce.Step(**e["step"]), e["preset"], e["overrides"], e["fingerprints"], keys.get("probe", "")
+        e["key"] = keys[study] = staleness.step_key(
+            reproduce_plan.Step(**e["step"]), e["preset"], e["overrides"], e["fingerprints"], keys.get("probe", "")
         )
-    (results / reproduce.MANIFEST).write_text(json.dumps(manifest))
+    (results / reproduce_plan.MANIFEST).write_text(json.dumps(manifest))
     done = _check_command(Location(workdir=published.workdir, results=results))
     assert done.returncode == 1, done.stderr
     assert "2 of the 2 studies" in done.stdout and done.stdout.count(": the code changed: ") == 2
     assert str(results / "day_shift.md") in done.stdout
     head = {
-        **json.loads((REPO / "results" / reproduce.HEADLINE).read_text()),
-        "stale": {reproduce.title("probe"): "stale since commit abc: the code changed"},
+        **json.loads((REPO / "results" / reproduce_plan.HEADLINE).read_text()),
+        "stale": {reproduce_plan.title("probe"): "stale since commit abc: the code changed"},
     }
-    block = reproduce.readme_block(head)
+    block = reproduce_readme.readme_block(head)
     assert (
-        f"**Stale**, not today's numbers: {reproduce.title('probe')} (stale since commit abc: the code changed)"
+        f"**Stale**, not today's numbers: {reproduce_plan.title('probe')} (stale since commit abc: the code changed)"
         in block
     )
 
@@ -168,7 +168,7 @@ def test_other_results_files_are_checked_by_the_fingerprints_their_headers_recor
     """A study run alone, a sweep or a benchmark is not in the manifest: its header's fingerprints
     decide, and a header without any is stale (nothing says what it was computed from)."""
     from fabricjax.studies.common import documents
-    from fabricjax.studies.tools import reproduce
+    from fabricjax.studies.tools import staleness
 
     prints = documents.fingerprints(None)
     (tmp_path / "sweeps").mkdir()
@@ -177,7 +177,7 @@ def test_other_results_files_are_checked_by_the_fingerprints_their_headers_recor
     (tmp_path / "palm.md").write_text(
         "# Palm\n\n" + documents.fingerprints_markdown({**prints, "code": "0" * 16}) + "\n"
     )
-    found = reproduce.other_stale(tmp_path, {}, prints)
+    found = staleness.other_stale(tmp_path, {}, prints)
     assert set(found) == {str(tmp_path / "cost.md"), str(tmp_path / "palm.md")}
     assert (
         found[str(tmp_path / "cost.md")]
@@ -191,12 +191,12 @@ def test_the_decision_study_is_given_the_ablation_rows_labels(tmp_path):
     the rows' internal names."""
     rows = [
         {"name": name, "checkpoint": f"ckpt/{name}", "display_name": f"label of {name}"}
-        for name in reproduce.DECIDE_ROWS
+        for name in reproduce_plan.DECIDE_ROWS
     ]
     (tmp_path / "ablation.json").write_text(json.dumps({"rows": rows}))
-    folders, names = reproduce._decide_checkpoints(tmp_path, reproduce.DECIDE_ROWS)
-    assert folders == [f"ckpt/{n}" for n in reproduce.DECIDE_ROWS]
-    assert names == [f"label of {n}" for n in reproduce.DECIDE_ROWS]
+    folders, names = reproduce._decide_checkpoints(tmp_path, reproduce_plan.DECIDE_ROWS)
+    assert folders == [f"ckpt/{n}" for n in reproduce_plan.DECIDE_ROWS]
+    assert names == [f"label of {n}" for n in reproduce_plan.DECIDE_ROWS]
 
 
 def test_the_published_files_are_found_under_one_repository_root():
@@ -206,5 +206,5 @@ def test_the_published_files_are_found_under_one_repository_root():
 
     root = provenance.repository_root()
     assert (root / "fabricjax" / "__init__.py").is_file()
-    assert reproduce.PUBLISHED_MANIFEST.parent == plan.REPRODUCE_MANIFEST.parent == sensitivity.PUBLISHED.parent
-    assert reproduce.PUBLISHED_MANIFEST.parent == root / "results"
+    assert reproduce_plan.PUBLISHED_MANIFEST.parent == plan.REPRODUCE_MANIFEST.parent == sensitivity.PUBLISHED.parent
+    assert reproduce_plan.PUBLISHED_MANIFEST.parent == root / "results"

@@ -22,7 +22,7 @@ from fabricjax.studies.common.rows import StudyRow, check_overrides, label_key, 
 from fabricjax.studies.common.trained import TrainedRow
 from fabricjax.studies.extra import day_shift, probe, sweep
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
-from fabricjax.studies.tools import reproduce
+from fabricjax.studies.tools import reproduce, reproduce_plan, reproduce_readme, staleness
 from fabricjax.training import curves, train
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
@@ -624,10 +624,10 @@ def test_camera_rows(workdir, tmp_path):
 # The smallest plan that still has a study that depends on another (latents on properties) and
 # one without seeds (the probe); the other studies' own runs are tested above.
 SMOKE_PLAN = (
-    reproduce.Step("probe", rows=("proprio",)),
-    reproduce.Step("bandwidth", 1, ("2.5",)),
-    reproduce.Step("properties", 1, ("internal+proprio",)),
-    reproduce.Step("latents"),
+    reproduce_plan.Step("probe", rows=("proprio",)),
+    reproduce_plan.Step("bandwidth", 1, ("2.5",)),
+    reproduce_plan.Step("properties", 1, ("internal+proprio",)),
+    reproduce_plan.Step("latents"),
 )
 
 
@@ -649,7 +649,7 @@ def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_p
     )
     text = (tmp_path / "REPORT.md").read_text()
     for s in SMOKE_PLAN:
-        assert f"## {reproduce.title(s.study)}" in text
+        assert f"## {reproduce_plan.title(s.study)}" in text
     assert (
         text.count("Rerun alone: `python -m experiments.") == 4
         and "`python -m experiments.bandwidth --seeds=1 --preset=smoke --rows=2.5" in text
@@ -680,32 +680,32 @@ def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_p
     assert {p.name: p.stat().st_ino for p in tmp_path.iterdir() if p.name in outputs} == outputs  # nothing rewritten
     assert "0 of 4 studies run by this call" in (tmp_path / "REPORT.md").read_text()
     said.clear()
-    reproduce.run(**{**kw, "plan": (reproduce.Step("latents"),)})  # alone: keyed on the manifest's property study
+    reproduce.run(**{**kw, "plan": (reproduce_plan.Step("latents"),)})  # alone: keyed on the manifest's property study
     assert "latents     skip" in said[0]
-    assert all(f"## {reproduce.title(s.study)}" in (tmp_path / "REPORT.md").read_text() for s in SMOKE_PLAN)
+    assert all(f"## {reproduce_plan.title(s.study)}" in (tmp_path / "REPORT.md").read_text() for s in SMOKE_PLAN)
 
 
 def test_reproduce_keys_follow_what_decides_the_numbers():
     prints = {"code": "c0de", "estimates": "e5", "data": None}
-    step = reproduce.Step("noise", 10)
-    key = reproduce.step_key(step, "default", {}, prints)
-    assert key == reproduce.step_key(step, "default", {}, dict(prints))
-    assert key != reproduce.step_key(reproduce.Step("noise", 5), "default", {}, prints)
-    assert key != reproduce.step_key(step, "smoke", {}, prints)
-    assert key != reproduce.step_key(step, "default", {"epochs": 3}, prints)
+    step = reproduce_plan.Step("noise", 10)
+    key = staleness.step_key(step, "default", {}, prints)
+    assert key == staleness.step_key(step, "default", {}, dict(prints))
+    assert key != staleness.step_key(reproduce_plan.Step("noise", 5), "default", {}, prints)
+    assert key != staleness.step_key(step, "smoke", {}, prints)
+    assert key != staleness.step_key(step, "default", {"epochs": 3}, prints)
     # other recordings, too
     for name, other in (
         ("code", "other code"),
         ("estimates", "other estimates"),
         ("data", "a" * 16),
     ):
-        assert key != reproduce.step_key(step, "default", {}, {**prints, name: other}), name
-    latents_step = reproduce.Step("latents")
-    assert reproduce.step_key(latents_step, "default", {}, prints, "props-a") != reproduce.step_key(
+        assert key != staleness.step_key(step, "default", {}, {**prints, name: other}), name
+    latents_step = reproduce_plan.Step("latents")
+    assert staleness.step_key(latents_step, "default", {}, prints, "props-a") != staleness.step_key(
         latents_step, "default", {}, prints, "props-b"
     )
     assert len(source.package()) == 64
-    assert reproduce.command(step, "default", {"epochs": 3, "modalities": ("internal", "proprio")}, "results") == (
+    assert reproduce_plan.command(step, "default", {"epochs": 3, "modalities": ("internal", "proprio")}, "results") == (
         "python -m experiments.noise --seeds=10 --preset=default --set=epochs=3 "
         "--set=modalities=internal,proprio --results=results"
     )
@@ -757,7 +757,7 @@ def test_reproduce_writes_the_readme_block_of_a_scratch_copy(workdir, tmp_path):
     readme = tmp_path / "README.md"
     before = (Path(__file__).parents[1] / "README.md").read_text()
     readme.write_text(before)
-    plan = (reproduce.Step("ablation", 1, ("internal",)), reproduce.Step("probe", rows=("internal",)))
+    plan = (reproduce_plan.Step("ablation", 1, ("internal",)), reproduce_plan.Step("probe", rows=("internal",)))
     said = []
     reproduce.run(
         preset="smoke",
@@ -766,19 +766,19 @@ def test_reproduce_writes_the_readme_block_of_a_scratch_copy(workdir, tmp_path):
         where=Location(workdir=workdir, results=tmp_path / "results", command="test"),
         say=said.append,
     )
-    head = json.loads((tmp_path / "results" / reproduce.HEADLINE).read_text())
-    block = reproduce.readme_block(head)
+    head = json.loads((tmp_path / "results" / reproduce_plan.HEADLINE).read_text())
+    block = reproduce_readme.readme_block(head)
     after = readme.read_text()
     assert block in after and f"reproduce: wrote the results block of {readme}" in said
-    assert after.split(reproduce.README_BEGIN)[0] == before.split(reproduce.README_BEGIN)[0]
-    assert after.split(reproduce.README_END)[1] == before.split(reproduce.README_END)[1]
+    assert after.split(reproduce_readme.README_BEGIN)[0] == before.split(reproduce_readme.README_BEGIN)[0]
+    assert after.split(reproduce_readme.README_END)[1] == before.split(reproduce_readme.README_END)[1]
     [row] = head["rows"]
     assert (
         row["inputs"] == "Minsound"
         and f"| {row['ours'].split(' (')[0]} |" in (tmp_path / "results" / "ablation.md").read_text()
     )
     assert "from `test` on the smoke preset".lower() in block.lower() and "not counted (install check)" in block
-    assert not reproduce.write_readme_block(
+    assert not reproduce_readme.write_readme_block(
         tmp_path / "results" / "nothing.md", block
     )  # no README there: nothing written
     assert not (tmp_path / "results" / "nothing.md").exists()

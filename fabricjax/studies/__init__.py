@@ -25,6 +25,10 @@ Our studies beyond the paper (`extra/`):
 Tools (`tools/`):
 
     reproduce    every study of the paper's plan in order, skipping those up to date, into REPORT.md
+      reproduce_plan    the plan: its studies in order, fitted to recorded data, each step's command
+      staleness         which results are not today's: each study's key, stale studies and files, --check
+      reproduce_report  REPORT.md: every study of the manifest in one page
+      reproduce_readme  README's results block, as data (headline.json) and as Markdown
     stream       live classification of one trial (results/stream.json)
     variant      a variant of a training study against its baseline: two results files, row by row
 
@@ -33,13 +37,18 @@ what both need lies beneath them (`fabricjax.timing`, `fabricjax.reporting.resul
 
 Each study's `run(...)` trains or measures, writes <study>.md and .json into its results folder
 and returns the JSON document. The four training studies of the paper's tables (ablation,
-bandwidth, noise, properties) are data: a `runner.Study` of `runner.StudyRow`s (name, the
+bandwidth, noise, properties) are data: a `runner.Study` of `rows.StudyRow`s (name, the
 `Config` fields the row sets, its label, the paper's numbers), run by `runner.run_study`. What
 the studies share (`common/`), one concept per module:
 
+    rows         StudyRow, a row of a study's table; which rows --rows names; --set against a row's fields
     loading      the data a study needs, loaded once for all its rows
-    runner       Study / StudyRow and run_study; named rows -> trained seeds (`train_rows`), progress
-                 with ETA, paired Wilcoxon tests
+    runner       Study and run_study: a training study from its rows to its results files
+    row_training named rows -> trained seeds (`train_rows`), each row's recipe grid, in camera order
+    trained      what training gives: TrainedRow (a row's seeds' metrics) and TrainingRun
+    progress     row i/n with the elapsed time and an ETA
+    checkpoints  where a row's models are kept: one folder per row, config, seeds, data and code
+    wilcoxon     paired Wilcoxon tests of one trained row against another
     recipe       a row's grid of learning rates and widths, and the point the validation split prefers
     documents    the results layer: every results file's header (command, code, date, machine, data),
                  tables, per-row and per-sample records, atomic writing with the figures listed
