@@ -175,7 +175,7 @@ def session_of(fields: dict[str, Any]) -> str:
     if fields.get("session"):
         return str(fields["session"])
     if fields.get("day") is not None:
-        return f"day{fields['day']}_{fields['condition']}"
+        return f"day{fields['day']}" + ("" if fields.get("condition") is None else f"_{fields['condition']}")
     return Path(archive.trial_filename(fields)).stem
 
 

@@ -153,7 +153,6 @@ def plan(
                     )
                 cls = label_map[r.label]
                 fields = dict(
-                    fabric_id=cls,
                     label=cls,
                     label_name=r.label,
                     label_map=label_map,
@@ -168,7 +167,8 @@ def plan(
                 fid = manifest_file.integer(r.label, manifest, r.line, "label")
                 if r.day is None:
                     raise ManifestError(manifest, r.line, "day", "missing: the hand's importers need a day")
-                fields = {"fabric_id": fid, "day": r.day, "trial": r.trial, "condition": r.condition}
+                # the hand's protocol: a trial is lab unless the row says cafe (as `import_folder`'s flag)
+                fields = {"fabric_id": fid, "day": r.day, "trial": r.trial, "condition": r.condition or "lab"}
                 if kind == "folder":
                     hand_folder.check_layout(r.path, reference)
                 elif not r.path.exists():

@@ -6,7 +6,8 @@
                 relative to the manifest's folder
     label       the trial's class by name (with --rig; e.g. "felt"), or the hand's fabric id
     split       optional: train | val | test | cafe | holdout
-    day, trial, condition     optional (condition: lab | cafe, default lab; trial: default the
+    day, trial, condition     optional (condition: lab | cafe; a rig's trial without one has
+                none, the hand's folders and bags are lab, as import_folder's; trial: default the
                 row's index among its label's rows)
     session     optional: the session whose camera reference the trial shares
                 (meta.reference.session; default: the trial's day and condition, without days the
@@ -46,7 +47,7 @@ class Row:
     split: str | None
     day: int | None
     trial: int | None
-    condition: str
+    condition: str | None  # None: the manifest gives none
     properties: dict[str, int]
     session: str | None = None  # the session whose camera reference the trial shares
 
@@ -116,8 +117,8 @@ def _row(manifest: Path, line: int, r: dict[str, str]) -> Row:
     split = r.get("split") or None
     if split is not None and split not in archive.SPLITS:
         raise ManifestError(manifest, line, "split", f"must be one of {archive.SPLITS}, got {split!r}")
-    condition = r.get("condition") or "lab"
-    if condition not in archive.CONDITIONS:
+    condition = r.get("condition") or None
+    if condition is not None and condition not in archive.CONDITIONS:
         raise ManifestError(manifest, line, "condition", f"must be one of {archive.CONDITIONS}, got {condition!r}")
     props = {p: v for p in archive.PROPERTY_NAMES if (v := integer(r.get(p, ""), manifest, line, p)) is not None}
     return Row(

@@ -21,7 +21,8 @@ CHECKPOINT = absl_flags.DEFINE_list(
 UNKNOWN = absl_flags.DEFINE_list(
     "unknown_labels",
     [],
-    "fabric ids (archives' meta.fabric_id) whose test trials are the unknowns, beside the model's excluded fabrics",
+    "fabric ids (archives' meta.fabric_id; a rig's classes, meta.label) whose test trials are the unknowns, beside "
+    "the model's excluded fabrics",
 )
 flags.define_preset()
 flags.define_overrides()

@@ -65,7 +65,15 @@ FIELDS = [
     "streams.force",
 ]
 COUNTS = {"fabric_id", "label", "trial", "closing_steps", "properties.stretchiness", "properties.roughness", "day"}
-NULLABLE = {"day", "properties.stretchiness", "properties.roughness", "split", "streams.mics.0.role", "streams.force"}
+NULLABLE = {
+    "day",
+    "condition",
+    "properties.stretchiness",
+    "properties.roughness",
+    "split",
+    "streams.mics.0.role",
+    "streams.force",
+}
 ENUMS = {
     "condition": archive.CONDITIONS,
     "split": archive.SPLITS,

@@ -2,6 +2,7 @@
 with torque, no camera, no palm microphone, string labels, no days."""
 
 import csv
+import dataclasses
 import os
 import re
 import shutil
@@ -62,8 +63,8 @@ def test_one_command_imports_the_rig_as_it_is(recordings, tmp_path):
     assert "12 trials imported" in proc.stdout and "3 classes" in proc.stdout
     assert "gripper_temperature (12 trials)" in proc.stdout  # the column the rig file does not name is reported
     files = sorted(p.name for p in out.glob("*.npz"))
-    assert files[0] == "cotton_canvas_trial000_lab.npz" and len(files) == 12
-    a = archive.read_archive(out / "felt_trial003_lab.npz")
+    assert files[0] == "cotton_canvas_trial000.npz" and len(files) == 12
+    a = archive.read_archive(out / "felt_trial003.npz")
     lay = archive.layout(a.meta)
     assert [(m.name, m.rate, m.role) for m in lay.mics] == [("vibration", 2200, "internal")]
     assert lay.joint_names == tuple(f"arm_{k}" for k in range(7)) and lay.joint_units == ("rad", "rad/s", "N m")
@@ -79,19 +80,60 @@ def test_one_command_imports_the_rig_as_it_is(recordings, tmp_path):
     assert a.meta["import"]["ignored_columns"] == ["gripper_temperature"]
 
 
+def test_a_rigs_class_is_stored_as_its_class_and_no_condition_is_made_up(archives):
+    """A rig's recordings (LMT-108's materials, say) touch no fabric of our catalog and name no lab
+    or cafe: the archive holds the class as the label map's (label, label_name), no fabric_id,
+    and no condition where the manifest gives none."""
+    (path,) = archives.glob("felt_trial003*.npz")
+    meta = archive.read_meta(path)[0]
+    assert "fabric_id" not in meta and (meta["label"], meta["label_name"]) == (1, "felt")
+    assert meta["condition"] is None and path.name == "felt_trial003.npz"
+    assert archive.fabric_or_class(meta) == 1  # what the studies group trials by
+
+
+def test_a_condition_the_manifest_gives_is_kept(recordings, tmp_path):
+    manifest = _edit_manifest(
+        recordings,
+        recordings.parent / "conditions.csv",
+        lambda rows: [r + ["condition" if i == 0 else "cafe" if r[1] == "oak" else ""] for i, r in enumerate(rows)],
+    )
+    _run(manifest, tmp_path / "out")
+    assert archive.read_meta(tmp_path / "out" / "oak_trial000_cafe.npz")[0]["condition"] == "cafe"
+    assert archive.read_meta(tmp_path / "out" / "felt_trial000.npz")[0]["condition"] is None
+
+
+def test_an_archive_that_stored_the_class_as_a_fabric_and_lab_still_reads(archives, tmp_path):
+    """Rig archives that carry fabric_id (the class) and condition "lab" read, and group, as before."""
+    a = archive.read_archive(archives / "felt_trial003.npz")
+    old = archive.write_archive(
+        tmp_path / "felt_trial003_lab.npz",
+        dataclasses.replace(a, meta={**a.meta, "fabric_id": a.meta["label"], "condition": "lab"}),
+    )
+    meta = archive.read_archive(old).meta
+    assert meta["fabric_id"] == meta["label"] == archive.fabric_or_class(meta) == 1
+
+
+def test_a_trial_without_a_label_map_needs_its_fabric(archives, tmp_path):
+    a = archive.read_archive(next(archives.glob("felt_trial003*.npz")))
+    meta = {k: v for k, v in a.meta.items() if k not in ("label_map", "label_name")}
+    with pytest.raises(archive.ArchiveError, match="meta.fabric_id.*missing") as e:
+        archive.write_archive(tmp_path / "x.npz", dataclasses.replace(a, meta=meta))
+    assert "\n" not in str(e.value)
+
+
 def test_rerun_resumes_and_a_foreign_archive_needs_overwrite(recordings, tmp_path):
     out = tmp_path / "archives"
     first, _ = _run(recordings, out)
     assert first["imported"] == 12
     again, said = _run(recordings, out)
     assert again["imported"] == 0 and again["resumed"] == 12 and "12 already there (resumed)" in said
-    victim = out / "oak_trial000_lab.npz"
-    foreign = archive.read_archive(out / "oak_trial001_lab.npz")
+    victim = out / "oak_trial000.npz"
+    foreign = archive.read_archive(out / "oak_trial001.npz")
     archive.write_archive(victim, foreign)  # an archive of another recording under this row's name
     before = victim.read_bytes()
     with pytest.raises(
         UserError,
-        match="oak_trial000_lab.npz: exists, but was imported from .*02_001, not from .*02_000 as line 10 says; "
+        match="oak_trial000.npz: exists, but was imported from .*02_001, not from .*02_000 as line 10 says; "
         "pass --overwrite",
     ):
         _run(recordings, out)
@@ -105,15 +147,15 @@ def test_fraction_rule_splits_each_class_in_trial_order(tmp_path):
     manifest = other_rig.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
     summary, _ = _run(manifest, tmp_path / "out", split="fraction:0.5,0.25,0.25")
     assert summary["splits"] == {"train": 4, "val": 2, "test": 2}
-    assert archive.read_meta(tmp_path / "out" / "felt_trial003_lab.npz")[0]["split"] == "test"
-    assert archive.read_meta(tmp_path / "out" / "felt_trial000_lab.npz")[0]["split"] == "train"
+    assert archive.read_meta(tmp_path / "out" / "felt_trial003.npz")[0]["split"] == "test"
+    assert archive.read_meta(tmp_path / "out" / "felt_trial000.npz")[0]["split"] == "train"
 
 
 def test_trial_rule_splits_every_class_by_trial_index(tmp_path):
     manifest = other_rig.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
     summary, _ = _run(manifest, tmp_path / "out", split="trial:train=0-1,val=2,test=3")
     assert summary["splits"] == {"train": 4, "val": 2, "test": 2}
-    assert [archive.read_meta(tmp_path / "out" / f"felt_trial00{k}_lab.npz")[0]["split"] for k in range(4)] == [
+    assert [archive.read_meta(tmp_path / "out" / f"felt_trial00{k}.npz")[0]["split"] for k in range(4)] == [
         "train",
         "train",
         "val",
@@ -164,7 +206,7 @@ def test_silent_cases_are_messages(recordings, tmp_path):
         recordings, recordings.parent / "dup.csv", lambda rows: rows + [["recordings/extra", *rows[1][1:]]]
     )
     with pytest.raises(
-        UserError, match=r"dup\.csv: line 14: trial: gives the archive cotton_canvas_trial000_lab\.npz, as line 2 does"
+        UserError, match=r"dup\.csv: line 14: trial: gives the archive cotton_canvas_trial000\.npz, as line 2 does"
     ):
         _run(dup, tmp_path / "out2")
     with pytest.raises(UserError, match="--split=fraction:0.5,0.5,0.5: expected"):
@@ -218,7 +260,7 @@ def test_the_rig_files_step_window_is_recorded_and_loads_by_default(tmp_path):
         f"rate = {other_rig.STEP_RATE}\n", f"rate = {other_rig.STEP_RATE}\nmic_window_s = {window_s!r}\n"
     )
     _run(_rig_manifest(tmp_path / "rig", toml), tmp_path / "out")
-    a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")
+    a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000.npz")
     assert archive.layout(a.meta).mic_window_s == window_s
     assert a.window_end[0, 0] >= 1.5 * archive.WINDOW  # the longer window is full at the first step
     config = Config.from_preset("smoke", modalities=("internal",), seq_len=4)
@@ -336,7 +378,7 @@ def test_without_a_camera_or_a_rate_the_joints_timestamps_are_the_steps(tmp_path
         tmp_path / "rig", other_rig.RIG_TOML.replace(f"[steps]\nrate = {other_rig.STEP_RATE}\n", "")
     )
     _run(manifest, tmp_path / "out")
-    a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")
+    a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000.npz")
     lay = archive.layout(a.meta)
     assert lay.step_clock == "joints" and lay.step_rate == other_rig.JOINT_RATE
     np.testing.assert_allclose(np.diff(a.timestamps), 1 / other_rig.JOINT_RATE, atol=1e-9)
@@ -368,7 +410,7 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     frame_t = 1.0005 + np.arange(len(frames)) / 30  # 30 fps, from after the first full window
     np.savetxt(folder / "frames.csv", frame_t, header="time", comments="", fmt="%.6f")
     _run(manifest, tmp_path / "out")  # the declared rate gives way to the camera's frames
-    a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")
+    a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000.npz")
     lay = archive.layout(a.meta)
     assert lay.step_clock == "camera" and lay.step_rate == pytest.approx(30.0, abs=1e-3) and lay.image_size == (6, 8)
     np.testing.assert_allclose(a.timestamps, frame_t - frame_t[0], atol=1e-6)
@@ -378,7 +420,7 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     np.testing.assert_array_equal(a.reference, frames[:2])  # the rig file asks for the trial's first frames
     assert a.meta["reference"] == {
         "how": "imported: the trial's first 2 frames (pre-contact, as the rig file asks)",
-        "session": "cotton_canvas_trial000_lab",
+        "session": "cotton_canvas_trial000",
         "times_s": pytest.approx([0.0, 1 / 30], abs=1e-6),
     }  # no days: the trial's own name
     # a reference file the rig file names, and the manifest's session column; the rig file must name one
@@ -388,7 +430,7 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
         manifest, manifest, lambda rows: [r + ["session" if i == 0 else "bench 2"] for i, r in enumerate(rows)]
     )
     _run(manifest, tmp_path / "out2")
-    b = archive.read_archive(tmp_path / "out2" / "cotton_canvas_trial000_lab.npz")
+    b = archive.read_archive(tmp_path / "out2" / "cotton_canvas_trial000.npz")
     np.testing.assert_array_equal(b.reference, frames[-1:])
     assert b.meta["reference"] == {
         "how": "imported: 1 frame of the file reference.npy (relative to the trial folder)",
@@ -430,7 +472,7 @@ def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path):
         wavfile.write(folder / "vibration.wav", 2200, rng.normal(0, 2**12, 2 * 2200).astype(np.int16))
         wavfile.write(folder / "room.wav", 4400, rng.normal(0, 2**12, 2 * 4400).astype(np.int16))
     _run(manifest, tmp_path / "out")
-    lay = archive.layout(archive.read_meta(tmp_path / "out" / "felt_trial001_lab.npz")[0])
+    lay = archive.layout(archive.read_meta(tmp_path / "out" / "felt_trial001.npz")[0])
     assert [(m.name, m.rate, m.role) for m in lay.mics] == [("vibration", 2200, "internal"), ("room", 4400, "external")]
     # one step window (42.67 ms): 94 and 188 samples, bins ~47 Hz apart in both, 21 up to 1 kHz
     config = Config.from_preset("smoke", modalities=("internal", "external"), bandwidth_khz=1.0, seq_len=10)
@@ -451,13 +493,13 @@ def test_a_labels_file_sets_the_classes_and_their_count(recordings, tmp_path):
     labels.write_text("name,class\noak,0\nfelt,1\ncotton canvas,1\n")
     summary, said = _run(recordings, tmp_path / "out", labels=labels)
     assert summary["classes"] == 2 and "; 2 classes" in said
-    meta = archive.read_meta(tmp_path / "out" / "felt_trial003_lab.npz")[0]
+    meta = archive.read_meta(tmp_path / "out" / "felt_trial003.npz")[0]
     assert (
         meta["label_map"] == {"oak": 0, "felt": 1, "cotton canvas": 1}
         and meta["label"] == 1
         and meta["label_name"] == "felt"
     )
-    assert archive.read_meta(tmp_path / "out" / "oak_trial000_lab.npz")[0]["label"] == 0
+    assert archive.read_meta(tmp_path / "out" / "oak_trial000.npz")[0]["label"] == 0
     sets = data.load_sequences(
         Config.from_preset("smoke", modalities=("proprio",)),
         tmp_path / "out",
@@ -486,11 +528,11 @@ def test_property_columns_give_levels_only_where_given(tmp_path):
         ],
     )
     _run(manifest, tmp_path / "out")
-    assert archive.read_meta(tmp_path / "out" / "cotton_canvas_trial001_lab.npz")[0]["properties"] == {
+    assert archive.read_meta(tmp_path / "out" / "cotton_canvas_trial001.npz")[0]["properties"] == {
         "stretchiness": 1,
         "roughness": 3,
     }
-    assert archive.read_meta(tmp_path / "out" / "felt_trial000_lab.npz")[0]["properties"] == {"stretchiness": 0}
+    assert archive.read_meta(tmp_path / "out" / "felt_trial000.npz")[0]["properties"] == {"stretchiness": 0}
     sets = data.load_sequences(
         Config.from_preset("smoke", modalities=("proprio",)),
         tmp_path / "out",
@@ -710,7 +752,7 @@ def test_a_new_class_changes_the_label_map_which_needs_overwrite_and_then_replac
     with pytest.raises(UserError) as e:
         _run(grown, tmp_path / "out")
     assert str(e.value).splitlines()[0] == (
-        f"{tmp_path / 'out' / 'felt_trial000_lab.npz'}: exists, but its label map {{'felt': 0, 'oak': 1}} differs "
+        f"{tmp_path / 'out' / 'felt_trial000.npz'}: exists, but its label map {{'felt': 0, 'oak': 1}} differs "
         "from the manifest's {'cotton': 0, 'felt': 1, 'oak': 2} (classes added or renamed); pass --overwrite "
         "to replace the dataset"
     )
@@ -729,24 +771,24 @@ def test_a_relabelled_row_with_overwrite_leaves_no_stale_archive_and_a_foreign_o
     )
     with pytest.raises(
         UserError,
-        match=r"holds 1 archive no row of .*relabelled\.csv produces \(felt_trial001_lab\.npz\): another dataset, "
+        match=r"holds 1 archive no row of .*relabelled\.csv produces \(felt_trial001\.npz\): another dataset, "
         r"or rows since removed or relabelled; choose another --out, or pass --overwrite",
     ):
         _run(relabelled, tmp_path / "out")
     summary, said = _run(relabelled, tmp_path / "out", overwrite=True)
     assert summary["removed"] == 1 and "1 archives no row produces removed (--overwrite)" in said
     assert sorted(p.name for p in (tmp_path / "out").glob("*.npz")) == [
-        "cotton_canvas_trial000_lab.npz",
-        "cotton_canvas_trial001_lab.npz",
-        "cotton_canvas_trial005_lab.npz",
-        "felt_trial000_lab.npz",
+        "cotton_canvas_trial000.npz",
+        "cotton_canvas_trial001.npz",
+        "cotton_canvas_trial005.npz",
+        "felt_trial000.npz",
     ]
 
 
 def test_resume_imports_a_damaged_archive_again(tmp_path):
     manifest = _small(tmp_path / "rig")
     _run(manifest, tmp_path / "out")
-    victim = tmp_path / "out" / "felt_trial000_lab.npz"
+    victim = tmp_path / "out" / "felt_trial000.npz"
     good = victim.read_bytes()
     data = bytearray(good)
     data[len(data) // 2] ^= 0x04  # one bit of a stream: only the member's CRC tells
@@ -776,13 +818,13 @@ def test_timestamps_in_milliseconds_holes_and_cut_off_wavs(tmp_path):
     wav = rec / "00_001" / "vibration.wav"
     wav.write_bytes(wav.read_bytes()[: wav.stat().st_size // 2])
     _, said = _run(manifest, tmp_path / "out")
-    gaps = archive.read_meta(tmp_path / "out" / "cotton_canvas_trial000_lab.npz")[0]["import"]["joint_gaps"]
+    gaps = archive.read_meta(tmp_path / "out" / "cotton_canvas_trial000.npz")[0]["import"]["joint_gaps"]
     assert gaps == [
         {"from_s": pytest.approx(1.2), "seconds": pytest.approx(0.59), "steps": 29}
     ]  # steps 1.22 .. 1.78 s hold the 1.2 s reading
-    cut = archive.read_meta(tmp_path / "out" / "cotton_canvas_trial001_lab.npz")[0]
+    cut = archive.read_meta(tmp_path / "out" / "cotton_canvas_trial001.npz")[0]
     assert cut["complete"] is False and cut["import"]["truncated"] == ["vibration.wav"]
-    assert archive.read_meta(tmp_path / "out" / "cotton_canvas_trial002_lab.npz")[0]["complete"] is True
+    assert archive.read_meta(tmp_path / "out" / "cotton_canvas_trial002.npz")[0]["complete"] is True
     assert "note: 1 trials are incomplete" in said and "note: 1 trials have holes in the joints" in said
 
 

@@ -57,12 +57,11 @@ def rig_archive(n_steps=40, streams=None, **meta):
     rng = np.random.default_rng(0)
     n_samples = archive.WINDOW + 44 * n_steps  # 2200 Hz / 50 Hz = 44 samples per step
     m = archive.make_meta(
-        fabric_id=2,
         label=2,
         properties={},
         day=None,
         trial=3,
-        condition="lab",
+        condition=None,
         source={"kind": "test"},
         image_size=None,
         streams=streams,
@@ -156,7 +155,7 @@ def test_absent_joint_fields_in_format_2(tmp_path):
 def test_rig_without_camera_force_or_palm_mic_round_trips(tmp_path):
     a = rig_archive()
     p = archive.write_archive(tmp_path / archive.trial_filename(a.meta), a)
-    assert p.name == "felt_trial003_lab.npz"
+    assert p.name == "felt_trial003.npz"
     b = archive.read_archive(p)
     assert b.images is None and b.force is None and b.joints.shape == (40, 7, 3)
     lay = archive.layout(b.meta)

@@ -35,7 +35,7 @@ def test_welch_at_another_rate_is_scipys():
 def _rig_dataset(folder, labels_splits, n_steps=60, streams=None):
     for t, (label, split) in enumerate(labels_splits):
         a = rig_archive(n_steps=n_steps, streams=streams, split=split)
-        a.meta.update(label=label, fabric_id=label, trial=t, label_name=["oak", "pine", "felt"][label])
+        a.meta.update(label=label, trial=t, label_name=["oak", "pine", "felt"][label])
         archive.write_archive(folder / archive.trial_filename(a.meta), a)
     return folder
 
@@ -109,7 +109,7 @@ def test_trials_declaring_different_step_windows_are_refused(tmp_path):
     archive.write_archive(ds / archive.trial_filename(a.meta), a)
     with pytest.raises(
         archive.ArchiveError,
-        match=r"meta\.streams\.steps\.mic_window_s': 0\.5 s, but 0\.25 s in felt_trial009_lab\.npz \(one step "
+        match=r"meta\.streams\.steps\.mic_window_s': 0\.5 s, but 0\.25 s in felt_trial009\.npz \(one step "
         r"window per dataset\)",
     ):
         data.load_sequences(_config(modalities=("internal",)), ds, workdir=tmp_path / "ws", progress=False)

@@ -57,8 +57,10 @@ and holdout) are counted in an info line: never silent.
     labels   int32 (S,): "fabric" (meta label: 0..n_classes-1; the hand's 21 classes or the first of them, in
              "holdout" up to 23), "stretchiness", "roughness", "thickness" (property levels, -1
              when unknown, e.g. class 0 or a property the recording does not give)
-    info     (S,): "fabric_id" int32, "day" int32 (-1: no day), "trial" int32, "start" int32
-             (first step), "condition" str ("lab"/"cafe"), "trial_key" str (archive file name)
+    info     (S,): "fabric_id" int32 (the catalog fabric, or the class of a label map's trial:
+             `archive.fabric_or_class`), "day" int32 (-1: no day), "trial" int32, "start" int32
+             (first step), "condition" str ("lab"/"cafe", "" where the recording names none),
+             "trial_key" str (archive file name)
     rates    {audio modality: its microphone's sample rate, Hz} (what `narrow` cuts bands by)
     names    {modality: how the data names its stream}: a microphone by its name (the rig file's),
              the joints by theirs and their fields (`stream_names`)
@@ -121,7 +123,7 @@ class SequenceSet:
 
 def split_of(meta: dict, role: str | None, exclude: tuple[int, ...], n_classes: int = catalog.N_CLASSES) -> str | None:
     """The `SPLITS` entry a trial belongs to under a config's exclusions (None: unused)."""
-    fid = meta["fabric_id"]
+    fid = archive.fabric_or_class(meta)
     if role == "test" and fid in exclude:
         return "holdout"
     if role is None or fid in exclude or (role in ("test", "cafe") and meta["label"] >= n_classes):
@@ -353,9 +355,10 @@ def _describe(entries: list[dataset_index.IndexEntry], n: int) -> tuple[dict, di
     labels = {"fabric": column(lambda m, f, s: m["label"], np.int32)}
     for p in archive.PROPERTY_NAMES:
         labels[p] = column(lambda m, f, s: -1 if m["properties"].get(p) is None else m["properties"][p], np.int32)
-    info = {k: column(lambda m, f, s: -1 if m[k] is None else m[k], np.int32) for k in ("fabric_id", "day", "trial")}
+    info = {"fabric_id": column(lambda m, f, s: archive.fabric_or_class(m), np.int32)}
+    info |= {k: column(lambda m, f, s: -1 if m[k] is None else m[k], np.int32) for k in ("day", "trial")}
     info["start"] = column(lambda m, f, s: s, np.int32)
-    info["condition"] = column(lambda m, f, s: m["condition"], str)
+    info["condition"] = column(lambda m, f, s: m["condition"] or "", str)
     info["trial_key"] = column(lambda m, f, s: f, str)
     return labels, info
 

@@ -48,6 +48,12 @@ another) and with NaN in the fields an optional top-level meta.joint_fields_abse
     label_map    optional {name: class}: the dataset's classes (0..K-1), set by the user; absent:
                   the catalog's 21 fabric classes (the paper's hand)
     label_name   optional, the trial's label as the user named it
+    fabric_id    the catalog fabric the trial touched (the hand's and simulated trials); absent
+                  where a label map names the trial's class (`label`, `label_name`): a rig's
+                  recordings touch no catalog fabric. An archive carrying both reads the same
+                  (its fabric_id is its label).
+    condition    "lab" | "cafe", or null where the recording names none (a rig's manifest
+                  without the column): the hand's protocol is not stamped on another rig's data
     split        optional "train" | "val" | "test" | "cafe" | "holdout": the user's split (absent:
                   by day, `splits.role_of`)
     day          int, or null for recordings without days
@@ -129,27 +135,28 @@ UNITS = {
 STEP_CLOCKS = ("camera", "rate", "joints")
 _COMMON_META = {
     "format_version": int,
-    "fabric_id": int,
     "label": int,
     "properties": dict,
     "trial": int,
-    "condition": str,
     "source": dict,
     "complete": bool,
 }
 REQUIRED_META = {  # by format version; an int is never a bool, a float is finite
     1: {
         **_COMMON_META,
+        "fabric_id": int,
+        "condition": str,
         "day": int,
         "sample_rates": dict,
         "image_size": (list, type(None)),
         "joint_names": list,
         "units": dict,
     },
-    2: {**_COMMON_META, "day": (int, type(None)), "streams": dict},
+    2: {**_COMMON_META, "condition": (str, type(None)), "day": (int, type(None)), "streams": dict},
 }
 REQUIRED_META[3] = REQUIRED_META[2]  # format 3 adds the optional session reference
 OPTIONAL_META = {
+    "fabric_id": int,  # format 2: required unless a label map names the trial's class
     "closing_steps": int,
     "label_name": str,
     "label_map": dict,
@@ -301,6 +308,12 @@ def layout(meta: dict[str, Any]) -> Layout:
     )
 
 
+def fabric_or_class(meta: dict[str, Any]) -> int:
+    """What the trial touched, by number: its catalog fabric (`fabric_id`), or for a trial a label
+    map names, its class (`label`)."""
+    return meta["fabric_id"] if "fabric_id" in meta else meta["label"]
+
+
 def n_classes(meta: dict[str, Any]) -> int | None:
     """Classes of the trial's label map (K: classes 0..K-1), None without one (the catalog's)."""
     label_map = meta.get("label_map")
@@ -346,11 +359,11 @@ def _spec(name: str, lay: Layout) -> tuple[Any, tuple]:
 
 def make_meta(
     *,
-    fabric_id: int,
+    fabric_id: int | None = None,
     properties: dict[str, int | None],
     day: int | None,
     trial: int,
-    condition: str,
+    condition: str | None,
     source: dict[str, Any],
     image_size: tuple[int, int] | None,
     complete: bool = True,
@@ -359,10 +372,14 @@ def make_meta(
     **extra: Any,
 ) -> dict[str, Any]:
     """Meta with every required field filled in the canonical way; `streams` defaults to the
-    hand's (`hand_streams(image_size)`), and only the given property levels are kept."""
+    hand's (`hand_streams(image_size)`), and only the given property levels are kept. A catalog
+    fabric's trial gives `fabric_id` (its label defaults to it), a trial of a label map its class
+    `label` alone."""
+    if fabric_id is None and label is None:
+        raise ValueError("a trial needs its catalog fabric (fabric_id) or its class (label)")
     return {
         "format_version": FORMAT_VERSION,
-        "fabric_id": int(fabric_id),
+        **({} if fabric_id is None else {"fabric_id": int(fabric_id)}),
         "label": int(fabric_id if label is None else label),
         "properties": {k: (None if v is None else int(v)) for k, v in properties.items()},
         "day": None if day is None else int(day),
@@ -506,8 +523,8 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
             _check_count(meta[key], path, f"meta.{key}")
     if meta["day"] is not None:
         _check_count(meta["day"], path, "meta.day")
-    if meta["condition"] not in CONDITIONS:
-        raise ArchiveError(path, "meta.condition", f"must be one of {CONDITIONS}, got {meta['condition']!r}")
+    if meta["condition"] is not None and meta["condition"] not in CONDITIONS:
+        raise ArchiveError(path, "meta.condition", f"must be one of {CONDITIONS} or null, got {meta['condition']!r}")
     unknown = sorted(set(meta["properties"]) - set(PROPERTY_NAMES))
     if unknown:
         raise ArchiveError(path, "meta.properties", f"unknown properties {unknown}; known: {PROPERTY_NAMES}")
@@ -549,6 +566,8 @@ def validate_meta(meta: Any, path: os.PathLike | str) -> dict[str, Any]:
             raise ArchiveError(
                 path, "meta.label", f"class {meta['label']} is not in the label map's classes 0..{max(classes)}"
             )
+    elif "fabric_id" not in meta:
+        raise ArchiveError(path, "meta.fabric_id", "missing (a trial without a label map is a catalog fabric's)")
     return meta
 
 
@@ -924,10 +943,11 @@ def read_archive(path: os.PathLike | str, *, images: bool = True) -> TrialArchiv
 
 
 def trial_filename(meta: dict[str, Any]) -> str:
-    """`fabric04_day1_trial00_lab.npz`; a trial labelled by name and without a day:
-    `<label name>_trial000_lab.npz` (characters other than letters, digits, '-' and '.' become '_')."""
-    if "label_name" in meta:
-        who = re.sub(r"[^A-Za-z0-9.-]+", "_", meta["label_name"]).strip("_") or f"class{meta['label']:02d}"
+    """`fabric04_day1_trial00_lab.npz`; a trial labelled by name, without a day or a condition:
+    `<label name>_trial000.npz` (characters other than letters, digits, '-' and '.' become '_')."""
+    if "label_name" in meta or "fabric_id" not in meta:
+        who = re.sub(r"[^A-Za-z0-9.-]+", "_", meta.get("label_name", "")).strip("_") or f"class{meta['label']:02d}"
         when = "" if meta["day"] is None else f"_day{meta['day']}"
-        return f"{who}{when}_trial{meta['trial']:03d}_{meta['condition']}.npz"
+        condition = "" if meta["condition"] is None else f"_{meta['condition']}"
+        return f"{who}{when}_trial{meta['trial']:03d}{condition}.npz"
     return f"fabric{meta['fabric_id']:02d}_day{meta['day']}_trial{meta['trial']:02d}_{meta['condition']}.npz"

@@ -21,6 +21,7 @@ from collections import defaultdict
 from typing import Any, Iterable
 
 from fabricjax import catalog
+from fabricjax.store import archive
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,7 +79,7 @@ def role_of(meta: dict[str, Any], val_trials: Iterable[tuple[int, int, int]], sp
     if day in splits.test_days:
         return "test"
     if day in splits.train_days:
-        return "val" if (meta["fabric_id"], day, meta["trial"]) in set(val_trials) else "train"
+        return "val" if (archive.fabric_or_class(meta), day, meta["trial"]) in set(val_trials) else "train"
     return None
 
 
@@ -86,8 +87,8 @@ def validation_trials(metas: Iterable[dict[str, Any]], splits: Splits = Splits()
     """The last `val_trials_per_day` trial indices of each (fabric, training day) with >1 trial."""
     by_key: dict[tuple[int, int], list[int]] = defaultdict(list)
     for m in metas:
-        if m.get("split") is None and m["condition"] == "lab" and m["day"] in splits.train_days:
-            by_key[(m["fabric_id"], m["day"])].append(m["trial"])
+        if m.get("split") is None and m["condition"] != "cafe" and m["day"] in splits.train_days:
+            by_key[(archive.fabric_or_class(m), m["day"])].append(m["trial"])
     out = set()
     for (fid, day), trials in by_key.items():
         trials = sorted(trials)
