@@ -19,6 +19,7 @@ import jax
 jax.config.update("jax_disable_most_optimizations", True)
 from fabricjax import runtime
 runtime.configure_jax(distributed=json.loads(sys.argv[1]))
+from fabricjax.reporting import results_files
 from fabricjax.studies.common import documents
 import numpy as np
 sys.path.insert(0, {tests!r})
@@ -31,7 +32,7 @@ res = train_and_evaluate(
     log_dir=folder + "/logs",
 )
 again = train_and_evaluate(TINY, data_sets(TINY), seeds=[3, 4], workdir=folder + "/ckpt")  # restored, not retrained
-documents.write_text(f"{{folder}}/written_by_{{jax.process_index()}}", "")
+results_files.write_text(f"{{folder}}/written_by_{{jax.process_index()}}", "")
 test = res.metrics["eval"]["test"]
 leaves = jax.tree_util.tree_leaves_with_path(jax.device_get(res.params(1)))
 np.savez(

@@ -7,7 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax.studies.common import documents, linear_probe
+from fabricjax.reporting import results_files
+from fabricjax.studies.common import linear_probe
 from fabricjax.studies.extra import probe
 from fabricjax.studies.paper import ablation
 from fabricjax.studies.tools import reproduce_plan, reproduce_report
@@ -171,7 +172,7 @@ def test_report_sets_the_probe_beside_the_ablation_from_their_json(tmp_path):
         s: {"wall_s": 60.0, "finished": "today", "command": f"python -m experiments.{s}"} for s in ("ablation", "probe")
     }
     text = reproduce_report.write_report(
-        tmp_path / "REPORT.md", manifest, "default", documents.fingerprints(None), "test", 1.0, 2
+        tmp_path / "REPORT.md", manifest, "default", results_files.fingerprints(None), "test", 1.0, 2
     ).read_text()
     assert (
         text.index("## Modality ablation")
@@ -185,7 +186,7 @@ def test_report_sets_the_probe_beside_the_ablation_from_their_json(tmp_path):
     assert (
         "beside the model"
         not in reproduce_report.write_report(
-            tmp_path / "REPORT.md", manifest, "default", documents.fingerprints(None), "test", 1.0, 1
+            tmp_path / "REPORT.md", manifest, "default", results_files.fingerprints(None), "test", 1.0, 1
         ).read_text()
     )
 

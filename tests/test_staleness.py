@@ -12,6 +12,7 @@ import pytest
 
 from fabricjax import sim, source
 from fabricjax.errors import UserError
+from fabricjax.reporting import results_files
 from fabricjax.sim import estimates
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
@@ -56,7 +57,7 @@ def test_the_code_fingerprint_ignores_comments_docstrings_and_blank_lines():
 
 def test_every_results_file_records_the_fingerprints(published):
     doc = json.loads((published.results / "probe.json").read_text())
-    assert doc["fingerprints"] == documents.fingerprints(
+    assert doc["fingerprints"] == results_files.fingerprints(
         None
     )  # simulated data: decided by the code, estimates and preset
     assert documents.fingerprints_markdown(doc["fingerprints"]) in (published.results / "probe.md").read_text()
@@ -93,7 +94,7 @@ def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(publishe
         said = []
         notes = staleness.check(published, say=said.append)
         stale_report = reproduce_report.write_report(
-            published.results / "STALE.md", manifest, "smoke", documents.fingerprints(None), "test", 1.0, 0
+            published.results / "STALE.md", manifest, "smoke", results_files.fingerprints(None), "test", 1.0, 0
         )
         report = stale_report.read_text()
         stale_report.unlink()  # a report under another name would be checked as a results file of its own
@@ -118,13 +119,13 @@ def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(publishe
 def test_changed_code_marks_the_studies_stale_and_the_reader_of_a_rerun_study(published, monkeypatch):
     monkeypatch.setattr(source, "fingerprint", lambda: "f" * 64)
     notes = staleness.stale(
-        json.loads((published.results / reproduce_plan.MANIFEST).read_text()), documents.fingerprints(None)
+        json.loads((published.results / reproduce_plan.MANIFEST).read_text()), results_files.fingerprints(None)
     )
     assert list(notes) == ["probe", "day_shift"] and all(n.endswith(": the code changed") for n in notes.values())
     monkeypatch.undo()
     manifest = json.loads((published.results / reproduce_plan.MANIFEST).read_text())
     manifest["probe"]["key"] = "0" * 16  # the probe rerun since: the day shift read the results of another probe
-    notes = staleness.stale(manifest, documents.fingerprints(None))
+    notes = staleness.stale(manifest, results_files.fingerprints(None))
     assert notes["day_shift"].endswith(": the probe study it reads changed")
 
 
@@ -164,26 +165,36 @@ def test_check_of_a_folder_without_a_manifest_is_a_one_line_error(tmp_path):
     )
 
 
-def test_other_results_files_are_checked_by_the_fingerprints_their_headers_record(tmp_path):
-    """A study run alone, a sweep or a benchmark is not in the manifest: its header's fingerprints
-    decide, and a header without any is stale (nothing says what it was computed from)."""
-    from fabricjax.studies.common import documents
-    from fabricjax.studies.tools import staleness
+def test_other_results_files_are_checked_by_the_fingerprints_their_results_json_records(tmp_path):
+    """A study run alone, a sweep or a benchmark is not in the manifest: the fingerprints its results
+    JSON records decide, and one that records none is stale (nothing says what it was computed from).
+    A REPORT.md in a folder below gathers studies that are checked by their own files."""
+    prints = results_files.fingerprints(None)
 
-    prints = documents.fingerprints(None)
-    (tmp_path / "sweeps").mkdir()
-    (tmp_path / "cost.md").write_text("# Cost\n\n- code: commit abc123; written today\n")
-    (tmp_path / "sweeps" / "sweep.md").write_text("# Sweep\n\n" + documents.fingerprints_markdown(prints) + "\n")
-    (tmp_path / "palm.md").write_text(
-        "# Palm\n\n" + documents.fingerprints_markdown({**prints, "code": "0" * 16}) + "\n"
-    )
+    def results_file(name: str, doc: dict) -> None:
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).with_suffix(".md").write_text(f"# {name}\n")
+        (tmp_path / name).with_suffix(".json").write_text(json.dumps(doc))
+
+    results_file("cost", {"code": "commit abc123 + uncommitted changes"})
+    results_file("sweeps/sweep", {"code": "commit abc123", "fingerprints": prints})
+    results_file("palm", {"fingerprints": {**prints, "code": "0" * 16}})
+    (tmp_path / "sweeps" / "REPORT.md").write_text("# Report\n")
     found = staleness.other_stale(tmp_path, {}, prints)
     assert set(found) == {str(tmp_path / "cost.md"), str(tmp_path / "palm.md")}
     assert (
         found[str(tmp_path / "cost.md")]
         == "stale since commit abc123: it records no fingerprints of what it was computed from"
     )
-    assert found[str(tmp_path / "palm.md")].endswith("the code changed")
+    assert found[str(tmp_path / "palm.md")] == "stale: the code changed"
+
+
+def test_the_fingerprints_are_recorded_and_listed_as_their_kinds_say():
+    prints = results_files.fingerprints(None)
+    assert list(prints) == list(results_files.FINGERPRINT_KINDS) == ["code", "estimates", "data"]
+    assert documents.fingerprints_markdown(prints) == (
+        f"- fingerprints: code `{prints['code']}`, simulator estimates `{prints['estimates']}`"
+    )
 
 
 def test_the_decision_study_is_given_the_ablation_rows_labels(tmp_path):

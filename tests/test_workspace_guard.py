@@ -177,12 +177,12 @@ def _running(pid: int) -> bool:
 
 
 def test_results_of_another_preset_or_data_are_replaced_with_a_note(tmp_path, capsys):
-    from fabricjax.studies.common import documents
+    from fabricjax.reporting import results_files
 
     doc = lambda preset, folder: {"study": "ablation", "preset": preset, "dataset": {"folder": folder}}  # noqa: E731
-    documents.write(tmp_path, doc("smoke", "workspace/datasets/smoke"), None)
-    documents.write(tmp_path, doc("smoke", "workspace/datasets/smoke"), None)  # the same run again: nothing to say
+    results_files.write(tmp_path, doc("smoke", "workspace/datasets/smoke"), None)
+    results_files.write(tmp_path, doc("smoke", "workspace/datasets/smoke"), None)  # the same run again: nothing to say
     assert "note:" not in capsys.readouterr().err
-    documents.write(tmp_path, doc("default", "workspace/datasets/default"), None)
+    results_files.write(tmp_path, doc("default", "workspace/datasets/default"), None)
     err = capsys.readouterr().err
     assert "held the results of preset smoke on workspace/datasets/smoke" in err and "--results=DIR keeps both" in err

@@ -17,7 +17,7 @@ import platform
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
 
@@ -83,6 +83,21 @@ def git_commit() -> str:
 FINGERPRINT_DIGITS = 16  # hex digits of each fingerprint a results file records
 
 
+class FingerprintKind(NamedTuple):
+    """One thing a results file fingerprints: how its header lists it and how a note that it changed names it."""
+
+    listed: str
+    changed: str
+
+
+# What `fingerprints` records, by its key, in the order results list them.
+FINGERPRINT_KINDS = {
+    "code": FingerprintKind("code", "the code"),
+    "estimates": FingerprintKind("simulator estimates", "the simulator's estimates"),
+    "data": FingerprintKind("recorded data", "the data"),
+}
+
+
 def fingerprints(data: str | None) -> dict[str, str | None]:
     """What decides a study's numbers besides its command (study, preset, seeds, rows, --set), as
     every results file (`header`) and `reproduce`'s manifest record it: "code", the `fabricjax`
@@ -90,10 +105,12 @@ def fingerprints(data: str | None) -> dict[str, str | None]:
     contents (`data`: `DatasetIndex.content_hash`), None for a preset's simulated data, which the
     code, the preset and "estimates" decide: the simulator's magnitudes in force
     (`sim.estimates.fingerprint`), None on recorded data, which no estimate decides."""
-    prints = {"code": source.package()[:FINGERPRINT_DIGITS], "estimates": None, "data": data}
-    if data is None:
-        prints["estimates"] = estimates.fingerprint()[:FINGERPRINT_DIGITS]
-    return prints
+    prints = {
+        "code": source.package()[:FINGERPRINT_DIGITS],
+        "estimates": estimates.fingerprint()[:FINGERPRINT_DIGITS] if data is None else None,
+        "data": data,
+    }
+    return {kind: prints[kind] for kind in FINGERPRINT_KINDS}
 
 
 def _default(o):

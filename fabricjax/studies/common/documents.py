@@ -1,15 +1,16 @@
-"""The results layer: every results file a command writes, and what it says about where its
-numbers come from.
+"""The results layer of the studies: what a study's results file says about where its numbers
+come from.
 
 Every study (the training studies, the probe, cost, sweep, latents, stream, palm) builds its JSON
-document on `header` (study, command, code and the `fingerprints` of what decides its numbers,
-machine, date, and the fields it adds: preset, seeds, dataset, ...), says where its
-numbers come from in Markdown with `header_markdown` and writes results/<study>.md and .json
-atomically with `write`, which also records the figures it drew under one key, "figures". Tables
-are `markdown_table`; per-row and per-sample records of a trained row are `trained.TrainedRow.doc` and
-`samples_doc`. The paper's claims checked on a study's rows live in `findings`; REPORT.md, which
-gathers every study, is `reproduce`'s. What every results file shares, the benchmarks' included
-(header fields, machine, code, atomic writing, tables), is `fabricjax.reporting.results_files`, beneath."""
+document on `header` (`results_files.header`: study, command, code and the fingerprints of what
+decides its numbers, machine, date; then the fields it adds: preset, seeds, dataset, ...), says
+where its numbers come from in Markdown with `header_markdown` and writes results/<study>.md and
+.json atomically with `results_files.write`, which also records the figures it drew under one
+key, "figures". Tables are `results_files.markdown_table`; per-row and per-sample records of a
+trained row are `trained.TrainedRow.doc` and `samples_doc`. The paper's claims checked on a
+study's rows live in `findings`; REPORT.md, which gathers every study, is `reproduce_report`'s.
+What every results file shares, the benchmarks' included (header fields, machine, code, atomic
+writing, tables), is `fabricjax.reporting.results_files`, beneath; the studies call it by that name."""
 
 from __future__ import annotations
 
@@ -22,20 +23,6 @@ from fabricjax.reporting import results_files, stats
 from fabricjax.sequences import data
 from fabricjax.store import dataset_index, provenance, workspace
 from fabricjax.studies.common.loading import Dataset
-
-# The results-file layer below the studies and the benchmarks (`results_files`), as the studies call it.
-VECTOR_UNITS = results_files.VECTOR_UNITS
-FINGERPRINT_DIGITS = results_files.FINGERPRINT_DIGITS
-machine = results_files.machine
-git_commit = results_files.git_commit
-fingerprints = results_files.fingerprints
-write_text = results_files.write_text
-write_json = results_files.write_json
-markdown_table = results_files.markdown_table
-results_path = results_files.results_path
-utc_now = results_files.utc_now
-write = results_files.write
-replacing = results_files.replacing
 
 
 def data_fingerprint(ds: Dataset | None) -> str | None:
@@ -97,8 +84,8 @@ def header_markdown(doc: dict[str, Any], time: str | None = None) -> str:
 
 def fingerprints_markdown(prints: dict[str, str | None]) -> str:
     """The `fingerprints` a results file records, as its header lists them."""
-    named = {"code": "code", "estimates": "simulator estimates", "data": "recorded data"}
-    return "- fingerprints: " + ", ".join(f"{named[k]} `{v}`" for k, v in prints.items() if v is not None)
+    named = results_files.FINGERPRINT_KINDS
+    return "- fingerprints: " + ", ".join(f"{named[k].listed} `{v}`" for k, v in prints.items() if v is not None)
 
 
 def replace_block(path: Path, begin: str, end: str, block: str) -> bool:
@@ -111,7 +98,7 @@ def replace_block(path: Path, begin: str, end: str, block: str) -> bool:
     start, stop = text.find(begin), text.find(end)
     if start < 0 or stop < start:
         return False
-    write_text(path, text[:start] + block + text[stop + len(end) :])
+    results_files.write_text(path, text[:start] + block + text[stop + len(end) :])
     return True
 
 

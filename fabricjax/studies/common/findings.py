@@ -24,6 +24,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from fabricjax.reporting import results_files
 from fabricjax.studies.common import documents
 
 
@@ -154,7 +155,7 @@ def markdown(findings: Sequence[Finding | Mapping[str, Any]], counted: bool = Tr
         if counted
         else NOT_COUNTED
     )
-    return f"{tally}\n\n" + documents.markdown_table(["Paper's claim", "Ours", "Evidence (per-seed results)"], rows)
+    return f"{tally}\n\n" + results_files.markdown_table(["Paper's claim", "Ours", "Evidence (per-seed results)"], rows)
 
 
 def claims_markdown(doc: dict[str, Any], claims: str = "the paper's claims about this table") -> list[str]:

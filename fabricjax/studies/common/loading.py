@@ -89,6 +89,13 @@ def epochs_for(config: Config, steps: int, n_train: int) -> int:
     return max(1, -(-steps // per_epoch))
 
 
+def simulated_streams(modalities: Sequence[str]) -> tuple[str, ...]:
+    """The streams a simulated trial records for rows that read `modalities`: those every archive
+    has, and the camera's frames where an input is computed from them (rendering them is most of
+    a trial's cost)."""
+    return sim.REQUIRED_STREAMS + (("images",) if set(CAMERA_MODALITIES) & set(modalities) else ())
+
+
 def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS) -> Dataset:
     """The splits a study evaluates as sequences of `config.modalities`, loaded once."""
     t0 = time.perf_counter()
@@ -96,7 +103,7 @@ def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Se
         if data_dir:
             folder, source = workspace.dataset_dir(config.preset, workdir, data_dir), "recorded"
         else:
-            streams = ("audio", "proprio") + (("images",) if set(CAMERA_MODALITIES) & set(config.modalities) else ())
+            streams = simulated_streams(config.modalities)
             folder, source = sim.ensure_dataset(config.preset, workdir, streams=streams), "simulated"
         t1 = time.perf_counter()
         sets = data.load_sequences(config, folder, workdir=workdir, split_names=split_names)

@@ -34,6 +34,7 @@ import cv2
 
 from fabricjax import memo, presets
 from fabricjax.config import CAMERA_MODALITIES, RATE_NEUTRAL_FIELDS, Config
+from fabricjax.reporting import results_files
 from fabricjax.sequences import data
 from fabricjax.sim import dataset as sim_dataset
 from fabricjax.sim.trial import simulate
@@ -75,7 +76,7 @@ def probe(dataset: DatasetSpec, config: Config) -> dict[str, float]:
     (whose caches serve every later one), its features computed once to compile, then timed."""
     camera = [m for m in config.modalities if m in CAMERA_MODALITIES]
     cycles = dataclasses.replace(dataset, cycles_per_trial=PROBE_CYCLES)
-    scene = sim_dataset.scene_for(cycles.trials()[0], cycles, ("audio", "proprio") + (("images",) if camera else ()))
+    scene = sim_dataset.scene_for(cycles.trials()[0], cycles, loading.simulated_streams(config.modalities))
     # a worker's first trial fills its caches (rooms, textures, the camera's views) for every later one
     simulate(scene)
     with tempfile.TemporaryDirectory() as scratch:
@@ -216,14 +217,15 @@ def rates(doc: dict[str, Any]) -> dict[str, dict[str, float]]:
 def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, workdir=None) -> list[Stage]:
     """The stages of a study of `configs` rows on the simulated data of `preset` (see the module docstring)."""
     spec = presets.get(preset).dataset
-    camera = {m for _, c in configs for m in c.modalities} & set(CAMERA_MODALITIES)
+    modalities = loading.union_modalities([c for _, c in configs])
+    camera = set(modalities) & set(CAMERA_MODALITIES)
     folder = workspace.dataset_dir(preset, workdir)
-    streams = ("audio", "proprio") + (("images",) if camera else ())
+    streams = loading.simulated_streams(modalities)
     scenes = [sim_dataset.scene_for(t, spec, streams) for t in spec.trials()]
     missing = [s for s in scenes if not sim_dataset.is_done(folder / sim_dataset.filename(s), s)]
     steps = sim_dataset.trial_steps(spec)
     workers = os.cpu_count() or 1
-    union = dataclasses.replace(configs[0][1], modalities=tuple(sorted({m for _, c in configs for m in c.modalities})))
+    union = dataclasses.replace(configs[0][1], modalities=modalities)
     costs = probe(spec, union) if missing else {}
     per_frame = sum(v for k, v in costs.items() if k != "simulate")
     out = [
@@ -341,7 +343,7 @@ def write(
         "free_bytes": free_disk(where.workdir),
     }
     spent = "seconds: the plan simulates one trial and computes its features to measure sizes"
-    return documents.write(
+    return results_files.write(
         where.results_dir(),
         doc,
         lambda d: (

@@ -10,7 +10,7 @@ claims as predicates over that document) and `markdown` (its table). `run_study`
 the same way for every study: it refuses a `--set` of a field a row sets, picks the rows, builds
 their configs, trains them (`row_training.train_rows`: sequences loaded ONCE for the union of
 the rows' inputs, each row's seeds in one vmapped program), checks the paper's claims (never on
-recorded data) and writes results/<study>.md and .json (`documents.write`).
+recorded data) and writes results/<study>.md and .json (`results_files.write`).
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 from fabricjax import presets
 from fabricjax.config import Config
 from fabricjax.errors import UserError
+from fabricjax.reporting import results_files
 from fabricjax.store import atomic
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, loading, plan, row_training
@@ -169,4 +170,4 @@ def run_study(
         }
         # the checklist holds the paper's claims: recorded data is not the paper's
         doc["findings"] = [] if trained.dataset.recorded else [f.to_json() for f in study.checklist(doc)]
-        return documents.write(where.results_dir(), doc, study.markdown, figures)
+        return results_files.write(where.results_dir(), doc, study.markdown, figures)

@@ -30,6 +30,7 @@ from typing import Any, Callable
 import numpy as np
 
 from fabricjax.errors import UserError
+from fabricjax.reporting import results_files
 from fabricjax.sim import estimates, scene
 from fabricjax.store import workspace
 from fabricjax.store.workspace import Location
@@ -111,9 +112,9 @@ class _Points:
                 "value": value,
                 **result,
                 "wall_s": time.perf_counter() - t0,
-                "code": documents.git_commit(),
+                "code": results_files.git_commit(),
             }
-            documents.write_json(self.path, {"others": self.others, "points": self.points})
+            results_files.write_json(self.path, {"others": self.others, "points": self.points})
             shutil.rmtree(
                 point, ignore_errors=True
             )  # the point's dataset, features and checkpoints: its numbers are kept
@@ -176,7 +177,7 @@ def run(*, where: Location = Location()) -> dict[str, Any]:
         ),
         "fits": fits,
     }
-    return documents.write(where.results_dir(), doc, markdown)
+    return results_files.write(where.results_dir(), doc, markdown)
 
 
 def markdown(doc: dict[str, Any]) -> str:
@@ -204,7 +205,7 @@ def markdown(doc: dict[str, Any]) -> str:
             "Every point tried (measured by the code named beside it; a point is kept while every other "
             "magnitude of the simulator is unchanged):",
             "",
-            documents.markdown_table(
+            results_files.markdown_table(
                 ["Value", "Lab test [%]", "Cafe [%]", "Drop [pp]", "Measured by"],
                 [
                     [

@@ -36,7 +36,7 @@ import numpy as np
 
 from fabricjax import catalog, presets
 from fabricjax.errors import UserError
-from fabricjax.reporting import plots
+from fabricjax.reporting import plots, results_files
 from fabricjax.sim import Scene, minsight, trial
 from fabricjax.sim import dataset as sim_dataset
 from fabricjax.sim.motion import Motion
@@ -241,7 +241,7 @@ def run(
             "comparison": comparison,
             "noise": noise,
         }
-        return documents.write(where.results_dir(), doc, markdown, [png])
+        return results_files.write(where.results_dir(), doc, markdown, [png])
 
 
 def verdict(c: Mapping[str, Any]) -> str:
@@ -283,7 +283,7 @@ def markdown(doc: dict[str, Any]) -> str:
         "over the pairs: the fabrics' pairs (day 1) and the pairs of denim's days. Both also differ in "
         "the trial's own draws (where the contact lands, the fold, the speed).",
         "",
-        documents.markdown_table(
+        results_files.markdown_table(
             ["Size", "Fabrics: RMS difference [DN]", "Denim's days: RMS difference [DN]", "Larger"],
             [
                 [
@@ -297,7 +297,7 @@ def markdown(doc: dict[str, Any]) -> str:
         ),
         "## Each panel",
         "",
-        documents.markdown_table(
+        results_files.markdown_table(
             [
                 "Panel",
                 "Size",
@@ -335,7 +335,7 @@ def markdown(doc: dict[str, Any]) -> str:
         "shows were the frames recorded (the channels' mean, one frame minus a reference averaged over "
         f"{archive.REFERENCE_FRAMES} frames).",
         "",
-        documents.markdown_table(
+        results_files.markdown_table(
             ["Size", "Per channel: median [DN]", "Per channel: max [DN]", "Panel: median [DN]"],
             [
                 [size, f"{n['channel_median_dn']:.2f}", f"{n['channel_max_dn']:.2f}", f"{n['panel_median_dn']:.2f}"]

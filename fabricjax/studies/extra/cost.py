@@ -46,7 +46,7 @@ from absl import logging
 
 from fabricjax import timing
 from fabricjax.config import Config
-from fabricjax.reporting import plots, stats
+from fabricjax.reporting import plots, results_files, stats
 from fabricjax.sequences import data
 from fabricjax.store import archive, atomic, dataset_index
 from fabricjax.store.workspace import Location
@@ -268,7 +268,7 @@ def run(
     }
     with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
         figure = plots.plot_pareto(where.results_dir() / "cost_pareto.png", rows, X_AXES, highlight=paper_name)
-        return documents.write(where.results_dir(), doc, markdown, [figure])
+        return results_files.write(where.results_dir(), doc, markdown, [figure])
 
 
 def markdown(doc: dict[str, Any]) -> str:
@@ -338,4 +338,4 @@ def markdown(doc: dict[str, Any]) -> str:
                 front,
             ]
         )
-    return "\n".join(lines) + documents.markdown_table(header, rows) + f"\n{findings.baseline_note()}\n"
+    return "\n".join(lines) + results_files.markdown_table(header, rows) + f"\n{findings.baseline_note()}\n"

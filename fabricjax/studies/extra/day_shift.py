@@ -34,6 +34,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from fabricjax.reporting import results_files
 from fabricjax.sequences import data
 from fabricjax.store import archive
 from fabricjax.store.workspace import Location
@@ -98,7 +99,7 @@ def variance_shares(x: np.ndarray, fabric: np.ndarray, day: np.ndarray) -> dict[
 def probe_accuracy(results, folder: str) -> tuple[dict[str, dict[str, float | None]], str | None]:
     """Each input's single-input probe accuracy on val and test from results/probe.json, and why
     there is none (None when the probe ran on the same data folder)."""
-    path = documents.results_path(results) / "probe.json"
+    path = results_files.results_path(results) / "probe.json"
     try:
         doc = json.loads(path.read_text())
     except (OSError, ValueError):
@@ -176,7 +177,7 @@ def run(
         "probe_missing": no_probe,
         "rows": out_rows,
     }
-    return documents.write(where.results_dir(), doc, markdown)
+    return results_files.write(where.results_dir(), doc, markdown)
 
 
 def _pct(x: float | None) -> str:
@@ -204,7 +205,7 @@ def table(doc: Mapping[str, Any]) -> str:
         "Probe, test (new day) [%]",
         "Test − validation [pp]",
     ]
-    return documents.markdown_table(header, body)
+    return results_files.markdown_table(header, body)
 
 
 def markdown(doc: Mapping[str, Any]) -> str:

@@ -40,7 +40,7 @@ from flax import nnx
 
 from fabricjax import catalog
 from fabricjax.inference import confidence
-from fabricjax.reporting import plots
+from fabricjax.reporting import plots, results_files
 from fabricjax.sequences import data
 from fabricjax.store import archive, atomic, workspace
 from fabricjax.store.workspace import Location
@@ -227,7 +227,7 @@ def _answers(ss: data.SequenceSet, probs: np.ndarray, scores: np.ndarray, reject
 def _cost_points(results, modalities) -> list[dict[str, float]] | None:
     """The cost study's fixed-N points of the same inputs (touch time, mean accuracy), None without
     its results/cost.json."""
-    path = documents.results_path(results) / "cost.json"
+    path = results_files.results_path(results) / "cost.json"
     if not path.exists():
         return None
     doc = json.loads(path.read_text())
@@ -268,7 +268,7 @@ def run(
         }
         for m in models[1:]:
             m.pop("dataset")
-        return documents.write(where.results_dir(), doc, markdown, [png])
+        return results_files.write(where.results_dir(), doc, markdown, [png])
 
 
 def _pct(x) -> str:
@@ -301,7 +301,7 @@ def markdown(doc: dict[str, Any]) -> str:
             for s, d in m["splits"].items()
         ]
         lines += [
-            documents.markdown_table(
+            results_files.markdown_table(
                 ["split", "sequences", "accuracy [%]", "majority class [%]", "ECE before [%]", "ECE after [%]"], rows
             ),
             findings.baseline_note(),
@@ -317,7 +317,7 @@ def markdown(doc: dict[str, Any]) -> str:
                 f"{s} ({d['trials']} trials; majority class of the trials [%]: "
                 f"{findings.majority_cell(d['majority_trials'])}):",
                 "",
-                documents.markdown_table(
+                results_files.markdown_table(
                     ["threshold", "accuracy [%]", "mean touch to decision [s]", "reached the threshold [%]"], rows
                 ),
                 "",
@@ -345,7 +345,7 @@ def markdown(doc: dict[str, Any]) -> str:
                 f"Unknowns: fabrics {', '.join(map(str, u['fabrics']))} ({u['unknown_sequences']} sequences) against "
                 f"{u['known_sequences']} known test sequences.",
                 "",
-                documents.markdown_table(
+                results_files.markdown_table(
                     ["score", "AUROC", f"false accepts at {100 * confidence.KNOWN_RECALL:.0f} % known recall [%]"], rows
                 ),
                 "",

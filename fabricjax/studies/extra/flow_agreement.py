@@ -29,6 +29,7 @@ import numpy as np
 
 from fabricjax import timing
 from fabricjax.features import flow
+from fabricjax.reporting import results_files
 from fabricjax.sim import Scene, minsight, trial
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
@@ -147,7 +148,7 @@ def run(*, quick: bool = False, where: Location = Location()) -> dict[str, Any]:
         "sets": sets,
         "timing": speed,
     }
-    return documents.write(where.results_dir(), doc, markdown)
+    return results_files.write(where.results_dir(), doc, markdown)
 
 
 def markdown(doc: dict[str, Any]) -> str:
@@ -168,7 +169,7 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
         "## Dense flow",
         "",
-        documents.markdown_table(
+        results_files.markdown_table(
             [
                 "Frames",
                 "Size",
@@ -198,7 +199,7 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
         "## The model's input (sparsified, 3x3-pooled)",
         "",
-        documents.markdown_table(
+        results_files.markdown_table(
             ["Frames", "Size", *(f"{m}: {k}" for m in flow.SPARSIFY for k in ("relative L2", "correlation"))],
             [
                 [
@@ -221,7 +222,7 @@ def markdown(doc: dict[str, Any]) -> str:
         f"JAX on {t['jax_devices']} {t['device'].upper()} device(s), batches of {t['batch']} pairs split "
         f"over them, after compilation.",
         "",
-        documents.markdown_table(
+        results_files.markdown_table(
             [
                 "Size",
                 "OpenCV, 1 thread [ms]",

@@ -34,6 +34,7 @@ import numpy as np
 from tqdm import tqdm
 
 from fabricjax import catalog, presets
+from fabricjax.reporting import results_files
 from fabricjax.sim import EFFECTS, Scene, acoustics, air_path, ambient, shell, simulate, sph0645, trial
 from fabricjax.sim import calibration as cal
 from fabricjax.store import archive
@@ -295,7 +296,7 @@ def markdown(doc: dict[str, Any]) -> str:
         lines += [
             f"## Each source at each microphone: {condition}, day {day}",
             "",
-            documents.markdown_table(["source", *bands], rows),
+            results_files.markdown_table(["source", *bands], rows),
         ]
     lines += [
         f"## Lab events per day (equivalent level at the hand over {doc['event_minutes']:g} min)",
@@ -304,7 +305,7 @@ def markdown(doc: dict[str, Any]) -> str:
         "levels) sets how "
         "much the lab's sound changes between days; -inf-like values: no event that day.",
         "",
-        documents.markdown_table(["lab day", *bands], [[d, *_fmt(v)] for d, v in doc["events"].items()]),
+        results_files.markdown_table(["lab day", *bands], [[d, *_fmt(v)] for d, v in doc["events"].items()]),
         "## Rubbing against everything else at the palm, per class (dB)",
         "",
         "The fabric at the palm minus the power sum of everything else it hears (room, servos, self-noise), per band. "
@@ -319,7 +320,7 @@ def markdown(doc: dict[str, Any]) -> str:
             v = per_cond[condition][fid]
             cells += _fmt(rubbing_at_palm(v) - room_at_palm(v))
         rows.append([f"{fid} {catalog.fabric(int(fid)).name}", *cells])
-    lines += [documents.markdown_table(["class", *[f"{c} {b}" for c in per_cond for b in bands]], rows)]
+    lines += [results_files.markdown_table(["class", *[f"{c} {b}" for c in per_cond for b in bands]], rows)]
     lines += [
         "## Fabric, day and condition: shares of the per-trial level variance (complete signals)",
         "",
@@ -334,7 +335,7 @@ def markdown(doc: dict[str, Any]) -> str:
         for mic in ("palm", "Minsound"):
             sh = doc[key][mic]
             rows = [[k, *[f"{v:.2f}" if "SD" in k else f"{100 * v:.1f} %" for v in sh[k]]] for k in sh]
-            lines += [f"**{mic}, {label}**", "", documents.markdown_table(["share", *bands], rows)]
+            lines += [f"**{mic}, {label}**", "", results_files.markdown_table(["share", *bands], rows)]
     t = doc["transfer"]
     cols = [k for k in t if k != "band_centre_hz"]
     lines += [
@@ -344,7 +345,7 @@ def markdown(doc: dict[str, Any]) -> str:
         "(`sim.air_path.palm_transfers`), and the shell's transmission loss for outside sound, at each "
         "band's centre (dB).",
         "",
-        documents.markdown_table(
+        results_files.markdown_table(
             ["band centre [Hz]", *cols],
             [[f"{fc:.0f}", *[f"{t[c][i]:.1f}" for c in cols]] for i, fc in enumerate(t["band_centre_hz"])],
         ),
@@ -355,4 +356,4 @@ def markdown(doc: dict[str, Any]) -> str:
 def run(preset: str = "default", cycles: int = CYCLES, where: Location = Location()) -> dict[str, Any]:
     """Measure, then write results/palm_physics.md and .json atomically."""
     doc = {**documents.header("palm_physics", command=where.command), **measure(preset, cycles)}
-    return documents.write(where.results_dir(), doc, markdown)
+    return results_files.write(where.results_dir(), doc, markdown)

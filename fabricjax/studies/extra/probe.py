@@ -32,7 +32,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from fabricjax.reporting import stats
+from fabricjax.reporting import results_files, stats
 from fabricjax.sequences import data
 from fabricjax.store import archive
 from fabricjax.store.workspace import Location
@@ -158,7 +158,7 @@ def run(
         "rows": out_rows,
         "samples": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
     }
-    return documents.write(where.results_dir(), doc, markdown)
+    return results_files.write(where.results_dir(), doc, markdown)
 
 
 def _inputs_doc(inputs: Mapping[str, Input], config, names: Mapping[str, str]) -> dict[str, Any]:
@@ -232,7 +232,7 @@ def table(doc: Mapping[str, Any]) -> str:
         "Cafe [%]",
         "Fit time [s]",
     ]
-    return documents.markdown_table(header, body)
+    return results_files.markdown_table(header, body)
 
 
 def inputs_table(doc: Mapping[str, Any]) -> str:
@@ -248,7 +248,7 @@ def inputs_table(doc: Mapping[str, Any]) -> str:
         ]
         for m, i in doc["inputs"].items()
     ]
-    return documents.markdown_table(
+    return results_files.markdown_table(
         ["Input", "Dimensions per step", "Summary (mean, SD)", "Probe features", "Time [s]"], body
     )
 
@@ -304,7 +304,7 @@ def beside_ablation(probe_doc: Mapping[str, Any], ablation_doc: Mapping[str, Any
     n_seeds = len(ablation_doc["seeds"])
     compared = sum(b[1] != "–" for b in body)
     lines = [
-        documents.markdown_table(
+        results_files.markdown_table(
             ["Ablation row", "Linear probe, test [%]", f"Model, test [%] ({n_seeds} seeds)", "Model − probe [pp]"], body
         ),
         f"{reached} of {compared} rows at or above their probe's test accuracy (model: mean over seeds).",

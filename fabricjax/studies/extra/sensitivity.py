@@ -47,7 +47,7 @@ from tqdm import tqdm
 from fabricjax import presets
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.reporting import plots
+from fabricjax.reporting import plots, results_files
 from fabricjax.sim import estimates
 from fabricjax.store import atomic, provenance, workspace
 from fabricjax.store.workspace import Location
@@ -294,7 +294,7 @@ def run(
     if plan_path.is_file() and json.loads(plan_path.read_text()) != json.loads(json.dumps(plan)):
         shutil.rmtree(folder)  # another registry or design: its points measure something else
         folder.mkdir(parents=True)
-    documents.write_json(plan_path, plan)
+    results_files.write_json(plan_path, plan)
     n_trials = len(presets.get(preset).dataset.trials())
     print(
         f"Sensitivity: {len(groups)} groups x {trajectories} trajectories = {len(x)} points; each simulates "
@@ -328,7 +328,7 @@ def run(
                 "side": side,
                 "wall_s": time.perf_counter() - t0,
             }
-            documents.write_json(path, result)
+            results_files.write_json(path, result)
             points.append(result)
             bar.update()
             if first:
@@ -351,7 +351,7 @@ def run(
     }
     with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
         figure = plot(where.results_dir() / "sensitivity.png", doc)
-        doc = documents.write(where.results_dir(), doc, markdown, [figure])
+        doc = results_files.write(where.results_dir(), doc, markdown, [figure])
     documents.replace_block(
         where.results_dir() / "REPORT.md", REPORT_BEGIN, REPORT_END, report_block(where.results_dir())
     )
@@ -442,7 +442,7 @@ def claims_table(doc: Mapping[str, Any]) -> str:
         "Its response over the points",
         "Groups that move it most (mu*)",
     ]
-    return documents.markdown_table(header, body)
+    return results_files.markdown_table(header, body)
 
 
 def influence_table(doc: Mapping[str, Any]) -> str:
@@ -458,7 +458,7 @@ def influence_table(doc: Mapping[str, Any]) -> str:
                 groups[order[0]],
             ]
         )
-    return documents.markdown_table(["Response", "Over the points", *groups, "Most influential"], body)
+    return results_files.markdown_table(["Response", "Over the points", *groups, "Most influential"], body)
 
 
 REPORT_BEGIN = (

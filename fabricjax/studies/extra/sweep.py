@@ -32,7 +32,7 @@ import numpy as np
 
 from fabricjax.config import Config, format_override, parse_override
 from fabricjax.errors import UserError
-from fabricjax.reporting import stats
+from fabricjax.reporting import results_files, stats
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, loading, row_training, runner
 from fabricjax.studies.common.progress import Progress
@@ -260,7 +260,7 @@ def run(
         "points": points,
         "entries": flat,
     }
-    return documents.write(where.results_dir(), doc, markdown)
+    return results_files.write(where.results_dir(), doc, markdown)
 
 
 def _values(values: Sequence[Any]) -> str:
@@ -318,7 +318,7 @@ def markdown(doc: dict[str, Any]) -> str:
         for i, p in enumerate(doc["points"])
     ]
     lines.append(
-        documents.markdown_table(
+        results_files.markdown_table(
             [
                 "point",
                 f"val, mean over {n_rows} rows [%]",
@@ -354,5 +354,5 @@ def markdown(doc: dict[str, Any]) -> str:
         "latency p50 [ms]",
         "latency p99 [ms]",
     ]
-    lines.append(documents.markdown_table(header, body))
+    lines.append(results_files.markdown_table(header, body))
     return "\n".join(lines)

@@ -33,7 +33,7 @@ import numpy as np
 from absl import logging
 
 from fabricjax.config import MODALITY_NAMES
-from fabricjax.reporting import plots, stats
+from fabricjax.reporting import plots, results_files, stats
 from fabricjax.sequences import data
 from fabricjax.studies.common import documents, findings, linear_probe, loading, recipe, runner, wilcoxon
 from fabricjax.studies.common.rows import StudyRow
@@ -475,7 +475,7 @@ def table(
         )
     accuracy = f"Test accuracy [%] ({'recorded data' if recorded else 'ours'}, {len(rows[0]['seeds'])} seeds)"
     compared = [documents.BEST_GAP] if recorded else ["Paper [%]", "Ours − paper [pp]"] if paper else []
-    return documents.markdown_table(
+    return results_files.markdown_table(
         ["Backbone", "Modalities", accuracy, "Majority class, test [%]", *compared, "Train wall time [s]"], body
     )
 
@@ -567,7 +567,7 @@ def recorded_table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] |
         documents.BEST_GAP,
         "Train wall time [s]",
     ]
-    return documents.markdown_table(header, body)
+    return results_files.markdown_table(header, body)
 
 
 # how recorded-data tables name the fusions (config.FUSION_NORMS); the paper's is not named after it there

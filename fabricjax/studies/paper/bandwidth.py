@@ -21,7 +21,7 @@ import numpy as np
 
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.features import welch
-from fabricjax.reporting import plots, stats
+from fabricjax.reporting import plots, results_files, stats
 from fabricjax.store import archive, dataset_index
 from fabricjax.studies.common import documents, findings, loading, runner
 from fabricjax.studies.common.rows import StudyRow
@@ -175,7 +175,7 @@ def table(
             "Test diff [pp]",
         ]
     )
-    return documents.markdown_table(["Bandwidth [kHz]", "PSD bins", *compared, "Train wall time [s]"], body)
+    return results_files.markdown_table(["Bandwidth [kHz]", "PSD bins", *compared, "Train wall time [s]"], body)
 
 
 def markdown(doc: dict[str, Any]) -> str:

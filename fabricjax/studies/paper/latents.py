@@ -34,7 +34,7 @@ from sklearn.manifold import TSNE
 
 from fabricjax import catalog
 from fabricjax.errors import UserError
-from fabricjax.reporting import plots
+from fabricjax.reporting import plots, results_files
 from fabricjax.sequences import data
 from fabricjax.store import atomic, workspace
 from fabricjax.store.workspace import Location
@@ -152,7 +152,7 @@ def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()
             # the checklist holds the paper's reading of its figure: recorded data is not the paper's
             "findings": [] if ds.recorded else [f.to_json() for f in checklist(agreement)],
         }
-        return documents.write(where.results_dir(), doc, markdown, [png])
+        return results_files.write(where.results_dir(), doc, markdown, [png])
 
 
 def catalog_fabrics(ids) -> dict[int, tuple[str, dict[str, int | None]]]:

@@ -20,7 +20,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from fabricjax.errors import UserError
-from fabricjax.reporting import plots, stats
+from fabricjax.reporting import plots, results_files, stats
 from fabricjax.sequences import data
 from fabricjax.sim import estimates
 from fabricjax.studies.common import documents, findings, loading, runner, wilcoxon
@@ -185,7 +185,7 @@ def table(
     tests = ["p per seed", "p per sequence"]
     compared = [documents.BEST_GAP, *tests] if recorded else ["Paper [%]", "Ours − paper [pp]", *tests, "Paper p"]
     ours = "recorded data" if recorded else "ours"
-    return documents.markdown_table(
+    return results_files.markdown_table(
         [
             "Modalities",
             f"Cafe test [%] ({ours})",

@@ -32,7 +32,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from fabricjax import catalog
-from fabricjax.reporting import stats
+from fabricjax.reporting import results_files, stats
 from fabricjax.sequences import data
 from fabricjax.studies.common import documents, findings, runner
 from fabricjax.studies.common.rows import StudyRow
@@ -213,7 +213,7 @@ def table(doc: dict[str, Any]) -> str:
                 compared = gap if recorded else f"{doc['paper'][p][paper + '_' + r['name']]:.2f}"
                 line.append(f"{mean:.2f} ± {sd:.2f}{notes[split][r['name']][p]} / {compared}")
         body.append(line)
-    return documents.markdown_table(header, body)
+    return results_files.markdown_table(header, body)
 
 
 def markdown(doc: dict[str, Any]) -> str:

@@ -20,6 +20,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 from fabricjax import presets
 from fabricjax.errors import UserError
+from fabricjax.reporting import results_files
 from fabricjax.store import workspace
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
@@ -70,7 +71,7 @@ def run(
     out = where.results_dir()
     manifest_path = out / MANIFEST
     manifest = read_json(manifest_path) or {}
-    prints = documents.fingerprints(data_fingerprint(data_dir, workdir))
+    prints = results_files.fingerprints(data_fingerprint(data_dir, workdir))
 
     keys: dict[str, str] = {}
     for step in plan:  # a study that reads another's results has that study's key in its own
@@ -140,8 +141,8 @@ def run(
             "key": keys[step.study],
             "wall_s": wall,
             "command": cmd,
-            "finished": documents.utc_now(),
-            "commit": documents.git_commit(),
+            "finished": results_files.utc_now(),
+            "commit": results_files.git_commit(),
             # what the key was computed from: `stale` recomputes it under later fingerprints
             "step": _as_json(dataclasses.asdict(step)),
             "overrides": _as_json(overrides),
@@ -156,13 +157,13 @@ def run(
                 else {}
             ),
         }
-        documents.write_json(manifest_path, manifest)
+        results_files.write_json(manifest_path, manifest)
         say(f"reproduce: {step.study} done in {minutes(wall)}")
     write_report(out / REPORT, manifest, preset, prints, where.command, time.perf_counter() - t_all, len(todo))
     say(f"reproduce: wrote {out / REPORT}")
     head = headline(out, manifest, preset, where.command, prints)
     if head is not None:
-        documents.write_json(out / HEADLINE, head)
+        results_files.write_json(out / HEADLINE, head)
         readme = out.parent / "README.md"
         if write_readme_block(readme, readme_block(head, out.name)):
             say(f"reproduce: wrote the results block of {readme}")

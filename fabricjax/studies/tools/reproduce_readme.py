@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from fabricjax import presets
-from fabricjax.reporting import stats
+from fabricjax.reporting import results_files, stats
 from fabricjax.studies.common import documents, findings
 from fabricjax.studies.extra import probe
 from fabricjax.studies.tools.reproduce_plan import REPORT, STUDIES, UNSEEDED, minutes, read_json, title
@@ -65,8 +65,8 @@ def headline(
         "command": command_line,
         "preset": preset,
         "recorded": recorded,
-        "date": documents.utc_now(),
-        "code": documents.git_commit(),
+        "date": results_files.utc_now(),
+        "code": results_files.git_commit(),
         "machine": documents.machine_line(m),
         "wall_s": sum(e["wall_s"] for s, e in manifest.items() if s in STUDIES),
         "seeds": len(abl["seeds"]),
@@ -96,7 +96,7 @@ def readme_block(head: Mapping[str, Any], results: str = "results") -> str:
         "Linear probe, test [%]",
     ]
     body = [[r["inputs"], r["ours"], *([r["paper"]] if paper else []), r["probe"] or "–"] for r in head["rows"]]
-    lines.append(documents.markdown_table(header, body))
+    lines.append(results_files.markdown_table(header, body))
     if head["claims"]:
         lines.append("The paper's claims reproduced: " + "; ".join(f"{k} {v}" for k, v in head["claims"].items()) + ".")
         lines.append("")

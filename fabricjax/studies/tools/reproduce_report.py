@@ -17,6 +17,7 @@ from typing import Any, Mapping
 
 import fabricjax
 from fabricjax import presets
+from fabricjax.reporting import results_files
 from fabricjax.studies.common import documents, findings
 from fabricjax.studies.extra import probe, sensitivity
 from fabricjax.studies.tools.reproduce_plan import STUDIES, UNSEEDED, minutes, read_json, title
@@ -67,7 +68,7 @@ def write_report(
     notes = stale(manifest, prints)
     docs = {s: read_json(out / f"{s}.json") for s in studies}
     first = next((d for d in docs.values() if d), None)
-    m = first["machine"] if first else documents.machine()
+    m = first["machine"] if first else results_files.machine()
     # recorded data (`--data_dir`): its studies compare rows with each other, so no paper in titles or summary
     recorded = first is not None and documents.recorded(first)
     total = sum(e["wall_s"] for e in manifest.values())
@@ -112,7 +113,7 @@ def write_report(
         f"- machine: {m['cpu']}, {m['cores']} cores, {m['platform']}, Python {m['python']}, JAX on "
         f"{m['jax_backend']} ({len(m['devices'])} devices)",
         f"- versions: {', '.join(f'{k} {v}' for k, v in versions().items())}",
-        f"- code: fabricjax {fabricjax.__version__}, {documents.git_commit()}",
+        f"- code: fabricjax {fabricjax.__version__}, {results_files.git_commit()}",
         documents.fingerprints_markdown(prints)
         + " (today's; `python -m experiments.reproduce --check` lists the studies they do not match)",
         f"- wall time of the studies: {minutes(total)} in all (each below; {data_note} in the first study's)",
@@ -122,7 +123,7 @@ def write_report(
         "",
         "## Summary",
         "",
-        documents.markdown_table(
+        results_files.markdown_table(
             ["Study", "Seeds", *([] if recorded else ["Paper's claims reproduced"]), "Wall time", "Finished"], summary
         ),
         "",
@@ -160,7 +161,7 @@ def write_report(
                 "",
                 probe.beside_ablation(docs["probe"], docs["ablation"]),
             ]
-    return documents.write_text(path, "\n".join(lines))
+    return results_files.write_text(path, "\n".join(lines))
 
 
 def _anchor(title: str) -> str:

@@ -13,7 +13,7 @@ Each manifest entry also records what its key was computed from (its step, prese
 and fingerprints) and the commit it ran at, so `stale` recomputes every study's key under
 today's fingerprints without running anything: a study whose key moved is stale, since that
 commit, and its numbers are not today's code's, estimates' or data's. Every other results file
-(a study run alone, a sweep, a benchmark) is stale when the fingerprints its header
+(a study run alone, a sweep, a benchmark) is stale when the fingerprints its results JSON
 records differ from today's (`other_stale`). `check` (`python -m experiments.reproduce --check`)
 lists both, with their files; REPORT.md and README's results block say "stale since <commit>"
 beside each stale study.
@@ -24,11 +24,11 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import re
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 from fabricjax.errors import UserError
+from fabricjax.reporting import results_files
 from fabricjax.store import dataset_index, workspace
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
@@ -50,7 +50,7 @@ def step_key(
     step: Step, preset: str, overrides: Mapping[str, Any], prints: Mapping[str, str | None], upstream: str = ""
 ) -> str:
     """What decides a study's results, as one key: the step, preset, overrides, the fingerprints
-    of the code, the simulator's estimates and the data (`prints`: `documents.fingerprints`; the
+    of the code, the simulator's estimates and the data (`prints`: `results_files.fingerprints`; the
     data's is recorded data's contents, None on the preset's simulated data, which the other two
     decide) and the upstream study's key."""
     parts = {
@@ -71,15 +71,8 @@ def upstream_key(study: str, keys: Mapping[str, str], manifest: Mapping[str, Any
 
 
 def data_fingerprint(data_dir, workdir) -> str | None:
-    """The "data" of `documents.fingerprints` for a run on `data_dir` (None: the preset's simulated data)."""
+    """The "data" of `results_files.fingerprints` for a run on `data_dir` (None: the preset's simulated data)."""
     return dataset_index.load_index(data_dir, workdir).content_hash if data_dir else None
-
-
-FINGERPRINT_WORDS = {
-    "code": "the code",
-    "estimates": "the simulator's estimates",
-    "data": "the data",
-}  # `documents.fingerprints`' keys
 
 
 def stale(manifest: Mapping[str, Any], prints: Mapping[str, str | None]) -> dict[str, str]:
@@ -101,7 +94,11 @@ def stale(manifest: Mapping[str, Any], prints: Mapping[str, str | None]) -> dict
             )
             != entry["key"]
         ):
-            moved = [words for k, words in FINGERPRINT_WORDS.items() if entry["fingerprints"].get(k) != prints[k]]
+            moved = [
+                kind.changed
+                for k, kind in results_files.FINGERPRINT_KINDS.items()
+                if entry["fingerprints"].get(k) != prints[k]
+            ]
             moved = moved or (
                 [f"the {UPSTREAM[study]} study it reads"] if study in UPSTREAM else ["how its key is computed"]
             )
@@ -110,28 +107,27 @@ def stale(manifest: Mapping[str, Any], prints: Mapping[str, str | None]) -> dict
 
 
 def other_stale(out: Path, manifest: Mapping[str, Any], prints: Mapping[str, str | None]) -> dict[str, str]:
-    """{file: "stale since <commit>: ..."} for every other results file under `out` (each `.md` that
-    is not a study of the manifest or REPORT.md: a study run alone, a sweep, a benchmark, a folder
-    of recorded data) whose header records no fingerprints, or another code or estimates
-    fingerprint than today's (`prints`); recorded data's fingerprint is not compared (its folder is
-    not known here)."""
-    own = {out / REPORT, *(out / f"{s}.md" for s in manifest if s in STUDIES)}
+    """{file: "stale since <commit>: ..."} for every other results file under `out` (each `.md`
+    that is not a study of the manifest nor a REPORT.md, which gathers studies checked by their
+    own files: a study run alone, a sweep, a benchmark, a folder of recorded data) whose results
+    JSON beside it records no fingerprints, or another code or estimates fingerprint than today's
+    (`prints`); recorded data's fingerprint is not compared (its folder is not known here)."""
+    own = {out / f"{s}.md" for s in manifest if s in STUDIES}
     found = {}
     for path in sorted(out.rglob("*.md")):
-        if path in own:
+        if path in own or path.name == REPORT:
             continue
-        head = path.read_text(errors="replace").split("\n## ", 1)[0]
-        commit = re.search(r"^- code: commit (\w+)", head, re.M)
-        since = f"stale since commit {commit.group(1)}" if commit else "stale"
-        recorded = re.search(r"^- fingerprints: (.*)$", head, re.M)
+        doc = read_json(path.with_suffix(".json")) or {}
+        code = doc.get("code", "")  # "commit <hash>", and " + uncommitted changes" where there were any
+        since = f"stale since {code.split(' + ')[0]}" if code.startswith("commit ") else "stale"
+        recorded = doc.get("fingerprints")
         if recorded is None:
             found[workspace.shown(path)] = f"{since}: it records no fingerprints of what it was computed from"
             continue
-        saved = dict(re.findall(r"(code|simulator estimates) `(\w+)`", recorded.group(1)))
         moved = [
-            FINGERPRINT_WORDS[k]
-            for k, named in (("code", "code"), ("estimates", "simulator estimates"))
-            if named in saved and saved[named] != prints.get(k)
+            kind.changed
+            for k, kind in results_files.FINGERPRINT_KINDS.items()
+            if k != "data" and recorded.get(k) is not None and recorded[k] != prints.get(k)
         ]
         if moved:
             found[workspace.shown(path)] = f"{since}: {' and '.join(moved)} changed"
@@ -150,7 +146,7 @@ def check(where: Location, say: Callable[[str], None] = print, studies: Sequence
     manifest = read_json(out / MANIFEST)
     if manifest is None:
         raise UserError(f"{workspace.shown(out / MANIFEST)}: no manifest of experiments.reproduce to check")
-    prints = documents.fingerprints(data_fingerprint(where.data_dir, where.workdir))
+    prints = results_files.fingerprints(data_fingerprint(where.data_dir, where.workdir))
     notes = {study: note for study, note in stale(manifest, prints).items() if study in asked}
     checked = [s for s in asked if s in manifest]
     lines = [

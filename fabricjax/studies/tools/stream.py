@@ -13,6 +13,7 @@ import numpy as np
 from fabricjax import catalog, sim
 from fabricjax.config import Config
 from fabricjax.inference import confidence, live
+from fabricjax.reporting import results_files
 from fabricjax.store import archive, dataset_index, splits
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, loading, row_training
@@ -154,4 +155,4 @@ def run(
         ),
         **summary,
     }
-    return documents.write(where.results_dir(), doc, None)
+    return results_files.write(where.results_dir(), doc, None)

@@ -25,7 +25,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from fabricjax.errors import UserError
-from fabricjax.reporting import stats
+from fabricjax.reporting import results_files, stats
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
 
@@ -36,7 +36,7 @@ PAIRING = "per seed: the same seed's accuracy in both runs"
 
 
 def read(path: Path | str) -> dict[str, Any]:
-    """A training study's results JSON (`documents.write`), checked for the fields compared."""
+    """A training study's results JSON (`results_files.write`), checked for the fields compared."""
     path = Path(path)
     try:
         doc = json.loads(path.read_text())
@@ -175,7 +175,7 @@ def markdown(doc: dict[str, Any]) -> str:
             ]
         )
     lines.append(
-        documents.markdown_table(
+        results_files.markdown_table(
             [
                 "row",
                 "baseline test [%]",
@@ -212,6 +212,6 @@ def markdown(doc: dict[str, Any]) -> str:
 def run(baseline: Path | str, variant: Path | str, *, where: Location = Location()) -> dict[str, Any]:
     """Compare and write variant.md and .json into `where`'s results folder."""
     doc = compare(baseline, variant, command=where.command)
-    documents.write(where.results_dir(), doc, markdown)
+    results_files.write(where.results_dir(), doc, markdown)
     print(markdown(doc))
     return doc
