@@ -43,6 +43,10 @@ PAPER_WINDOW_S = archive.WINDOW / archive.AUDIO_RATE  # the paper's step window:
 # each dimension to [0, 1] over the sequence, or our variant, a LayerNorm over each step's features
 # (keeps each feature's steady level, which the rescale discards).
 FUSION_NORMS = ("sequence_minmax", "step_layernorm")
+# How the image and flow CNNs (`model.ConvEncoder`) turn their last layer's grid of cells into one
+# step's features: the mean over the cells (translation-invariant; the paper does not say), or every
+# cell's features side by side, which keeps where on the imaged wall a response sits.
+CNN_POOLS = ("mean", "grid")
 LR_SCHEDULES = ("constant", "cosine")
 # The two readings of the paper's flow filter, "filter for the top 0.1 percentile according to
 # magnitude" (fabricjax/features/flow.py): keep the strongest 0.1 % of vectors, or drop them.
@@ -82,6 +86,7 @@ ROLES = (SEQUENCES, FEATURES, RESULT, NEUTRAL)
 _CHOICES = {
     "backbone": BACKBONES,
     "fusion_norm": FUSION_NORMS,
+    "cnn_pool": CNN_POOLS,
     "lr_schedule": LR_SCHEDULES,
     "flow_sparsify": FLOW_SPARSIFY,
     "flow_method": FLOW_METHODS,
@@ -156,6 +161,7 @@ class Config:
     audio_hidden: tuple[int, int] = _field((128, 64), RESULT)
     proprio_hidden: tuple[int, int] = _field((64, 64), RESULT)
     cnn_features: tuple[int, ...] = _field((16, 32, 64), RESULT)  # image / flow CNN channels per strided conv
+    cnn_pool: str = _field("mean", RESULT)  # CNN_POOLS
     dropout: float = _field(0.1, RESULT, rate_neutral=True)
     fusion_norm: str = _field("sequence_minmax", RESULT, rate_neutral=True)  # FUSION_NORMS; the paper's is the default
     fabric_head: bool = _field(True, RESULT)

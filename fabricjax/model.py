@@ -15,7 +15,8 @@ Inputs are a dict keyed by modality, every array with leading (batch, steps):
     image_rows           uint8 (B, H*W, 3, N)  the same frames as pixel rows, instead of "image":
                                               how training holds its set (`inputs.training_layout`)
     flow                 float (B, N, 2, h, w)
-The CNNs end in a global mean pool, so any image/flow resolution works with the same weights.
+The CNNs end in a global mean pool, so any image/flow resolution works with the same weights
+(`config.cnn_pool` "grid" keeps each cell instead, and fixes the resolution).
 Only the encoders named in `config.modalities` are built.
 """
 
@@ -140,7 +141,9 @@ class MLP(nnx.Module):
 
 class ConvEncoder(nnx.Module):
     """Non-overlapping strided convolutions (kernel = stride: 5x5, then 2x2 merges), ReLU, and a
-    global mean pool: resolution-independent per-frame features.
+    pool over the last layer's cells (`pool`, `config.CNN_POOLS`): their mean, resolution-independent
+    per-frame features, or every cell's features side by side ("grid"), which keep where in the
+    frame a response sits.
 
     Why kernel = stride: XLA's CPU convolutions with a handful of channels run far below its matrix
     product speed, and a non-overlapping convolution is a reshape plus one matrix product. Frames
@@ -149,13 +152,24 @@ class ConvEncoder(nnx.Module):
 
     PATCHES = (5, 2, 2, 2)
 
-    def __init__(self, in_channels: int, features: tuple[int, ...], *, dtype, rngs: nnx.Rngs):
+    def __init__(self, in_channels: int, features: tuple[int, ...], *, dtype, rngs: nnx.Rngs, pool: str = "mean"):
         if len(features) > len(self.PATCHES):
             raise ValueError(f"at most {len(self.PATCHES)} CNN layers, got {features}")
         sizes = (in_channels, *features)
         self.layers = nnx.List(
             [dense(p * p * a, b, dtype=dtype, rngs=rngs) for p, a, b in zip(self.PATCHES, sizes[:-1], sizes[1:])]
         )
+        self.pool = pool
+
+    def out_features(self, h: int, w: int) -> int:
+        """Features per frame of an (h, w) input: the last layer's channels, times its cells under "grid"."""
+        channels = self.layers[-1].out_features
+        if self.pool == "mean":
+            return channels
+        for p in self.PATCHES[: len(self.layers)]:
+            side = _patch_side(p, h, w)
+            h, w = h // side, w // side
+        return channels * h * w
 
     def __call__(self, x):  # (M, H, W, C)
         return self.after_first(jax.nn.relu(self.layers[0](_patches(x, self.first_patch(*x.shape[1:3])))))
@@ -177,10 +191,10 @@ class ConvEncoder(nnx.Module):
         return self.after_first(jax.nn.relu(jnp.moveaxis(y, 3, 1).reshape(b * n, *grid, f)))
 
     def after_first(self, x):
-        """The layers after the first, on its (M, h, w, F) output, then the global mean pool."""
+        """The layers after the first, on its (M, h, w, F) output, then the pool over the cells."""
         for p, layer in zip(self.PATCHES[1:], self.layers[1:]):
             x = jax.nn.relu(layer(_patches(x, _patch_side(p, *x.shape[1:3]))))
-        return x.mean(axis=(1, 2))
+        return x.mean(axis=(1, 2)) if self.pool == "mean" else x.reshape(x.shape[0], -1)
 
 
 def _patch_side(p: int, h: int, w: int) -> int:
@@ -356,10 +370,15 @@ class FabricNet(nnx.Module):
                 setattr(self, f"{m}_shift", nnx.Param(jnp.zeros(shift_shape(config, m, shapes[m]), jnp.float32)))
                 setattr(self, f"{m}_scale", nnx.Param(jnp.ones(n, jnp.float32)))
         self.rotate_images = "image" in self.modalities and config.augment_rotation
-        self.image = ConvEncoder(3, cnn, dtype=dtype, rngs=rngs) if "image" in self.modalities else None
+        pool = config.cnn_pool
+        self.image = ConvEncoder(3, cnn, dtype=dtype, rngs=rngs, pool=pool) if "image" in self.modalities else None
         self.image_hw = tuple(shapes["image"][:2]) if "image" in self.modalities else None  # (H, W) of its frames
-        self.flow = ConvEncoder(2, cnn, dtype=dtype, rngs=rngs) if "flow" in self.modalities else None
-        out = {"proprio": config.proprio_hidden[-1], "image": cnn[-1], "flow": cnn[-1]}
+        self.flow = ConvEncoder(2, cnn, dtype=dtype, rngs=rngs, pool=pool) if "flow" in self.modalities else None
+        out = {"proprio": config.proprio_hidden[-1]}
+        if self.image is not None:
+            out["image"] = self.image.out_features(*self.image_hw)
+        if self.flow is not None:
+            out["flow"] = self.flow.out_features(*shapes["flow"][1:])
         dims = sum(out.get(m, config.audio_hidden[-1]) for m in self.modalities)
         # Fusion normalisation (config.FUSION_NORMS): the paper's [0, 1] rescale over each sequence
         # discards every feature's steady level (a palm microphone's loudness, a joint's load),

@@ -8,8 +8,9 @@ from flax import nnx
 
 from fabricjax import catalog
 from fabricjax.bench import synthetic
-from fabricjax.config import MODALITIES, Config
+from fabricjax.config import CNN_POOLS, MODALITIES, Config
 from fabricjax.model import (
+    ConvEncoder,
     FabricNet,
     causal_conv,
     compile_predict_one,
@@ -65,6 +66,27 @@ def test_all_modalities_forward_is_finite_at_any_flow_resolution(backbone):
         logits = jax.jit(lambda p, x: nnx.merge(graphdef, p)(x, rngs=nnx.Rngs(dropout=1, augment=2)))(params, inputs)
         assert logits["fabric"].shape == (2, catalog.N_CLASSES)
         assert np.isfinite(logits["fabric"]).all()
+
+
+def test_grid_pool_keeps_where_in_the_frame_a_response_sits():
+    """The mean pool answers the same for a response moved by a whole cell; "grid" keeps each cell's
+    features, so it answers where the response sits, and sizes the model's fusion by the cells."""
+    rng = np.random.default_rng(0)
+    blob = rng.normal(size=(10, 10, 3)).astype(np.float32)
+    frames = np.zeros((2, 30, 40, 3), np.float32)
+    frames[0, :10, :10], frames[1, 10:20, 20:30] = blob, blob  # the last layer's cells are 10 x 10 pixels
+    encoders = {pool: ConvEncoder(3, (4, 8), dtype=jnp.float32, rngs=nnx.Rngs(0), pool=pool) for pool in CNN_POOLS}
+    mean, grid = (np.asarray(encoders[p](jnp.asarray(frames))) for p in ("mean", "grid"))
+    np.testing.assert_allclose(mean[0], mean[1], atol=1e-6)
+    assert grid.shape == (2, 8 * 3 * 4) == (2, encoders["grid"].out_features(30, 40))
+    assert not np.allclose(grid[0], grid[1], atol=1e-3)
+    cfg = Config(modalities=("image", "flow"), cnn_pool="grid", **TINY)
+    inputs = synthetic.data_set(cfg, 2, flow_hw=(20, 27), image_hw=(30, 40))["inputs"]
+    model = build(cfg, inputs)
+    assert model.flow.out_features(20, 27) == 8 * 2 * 2  # 20 x 27 -> 4 x 5 cells -> 2 x 2
+    assert model.embed.in_features == 8 * 3 * 4 + 8 * 2 * 2
+    logits = model(inputs, rngs=nnx.Rngs(dropout=1, augment=2))["fabric"]
+    assert logits.shape == (2, catalog.N_CLASSES) and np.isfinite(logits).all()
 
 
 def test_shared_audio_encoder_is_one_set_of_weights():
