@@ -111,7 +111,7 @@ def _field(default: Any, role: str, *, load: int | None = None, rate_neutral: bo
 
 
 # A count of epochs and the budget in optimiser steps that replaces it on the data loaded
-# (`loading.Dataset.fit`): a count given without its budget sets the budget to 0 (none).
+# (`loading.Dataset.config_for`): a count given without its budget sets the budget to 0 (none).
 _BUDGETS = (("epochs", "train_steps"), ("patience", "patience_steps"))
 
 
@@ -177,8 +177,8 @@ class Config:
     patience: int = _field(0, RESULT, rate_neutral=True)
     # the training budget and the patience in optimiser steps per seed, whatever the data's size (0:
     # `epochs` and `patience` as given): the data a study loads sets `epochs` and `patience` to the
-    # fewest epochs that cover them (`loading.Dataset.fit`), so a small dataset gets as many updates
-    # as a large one instead of as many passes
+    # fewest epochs that cover them (`loading.Dataset.config_for`), so a small dataset gets as many
+    # updates as a large one instead of as many passes
     train_steps: int = _field(0, RESULT, rate_neutral=True)
     patience_steps: int = _field(0, RESULT, rate_neutral=True)
     # the recipe chosen by validation accuracy (`studies.common.recipe`): each learning rate and width of

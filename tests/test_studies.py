@@ -18,7 +18,7 @@ from fabricjax.reporting import stats
 from fabricjax.sequences import data
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, findings, wilcoxon
-from fabricjax.studies.common.rows import StudyRow, check_overrides, label_key, select_rows
+from fabricjax.studies.common.rows import RowSpec, check_overrides, label_key, select_rows
 from fabricjax.studies.common.trained import TrainedRow
 from fabricjax.studies.extra import day_shift, probe, sweep
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
@@ -528,7 +528,7 @@ def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp
 
 def test_the_override_error_names_the_rows_that_set_the_field():
     rows = [
-        StudyRow(n, s, n)
+        RowSpec(n, s, n)
         for n, s in (
             ("a", {"backbone": "tcn", "modalities": ("internal",)}),
             ("b", {"modalities": ("proprio",)}),

@@ -261,7 +261,7 @@ def test_the_best_point_is_the_argmax_of_mean_validation_accuracy(swept):
 @pytest.mark.slow
 def test_each_point_trains_the_preset_with_its_own_fields(swept, workdir):
     """Each point's config is the preset's with the row's settings and the point's fields, as
-    trained on the data (`loading.Dataset.fit`: the data's classes and microphone window)."""
+    trained on the data (`loading.Dataset.config_for`: the data's classes and microphone window)."""
     doc, _ = swept
     rows = {r.name: r for r in ablation.ROWS}
     for e in doc["entries"]:
@@ -273,7 +273,7 @@ def test_each_point_trains_the_preset_with_its_own_fields(swept, workdir):
             epochs=e["fields"]["epochs"],
         )
         ds = loading.load_for_rows([expected], workdir=workdir, split_names=loading.TRAIN_VAL_TEST)
-        assert Config.from_json(e["config"]) == ds.fit(expected)
+        assert Config.from_json(e["config"]) == ds.config_for(expected)
 
 
 @pytest.mark.slow

@@ -37,11 +37,11 @@ what both need lies beneath them (`fabricjax.timing`, `fabricjax.reporting.resul
 
 Each study's `run(...)` trains or measures, writes <study>.md and .json into its results folder
 and returns the JSON document. The four training studies of the paper's tables (ablation,
-bandwidth, noise, properties) are data: a `runner.Study` of `rows.StudyRow`s (name, the
+bandwidth, noise, properties) are data: a `runner.Study` of `rows.RowSpec`s (name, the
 `Config` fields the row sets, its label, the paper's numbers), run by `runner.run_study`. What
 the studies share (`common/`), one concept per module:
 
-    rows         StudyRow, a row of a study's table; which rows --rows names; --set against a row's fields
+    rows         RowSpec, a row of a study's table; which rows --rows names; --set against a row's fields
     loading      the data a study needs, loaded once for all its rows
     runner       Study and run_study: a training study from its rows to its results files
     row_training named rows -> trained seeds (`train_rows`), each row's recipe grid, in camera order

@@ -20,7 +20,7 @@ from fabricjax.config import CAMERA_MODALITIES, Config
 from fabricjax.sequences import data
 from fabricjax.store import archive, lock, workspace
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common.rows import StudyRow, check_overrides, feedable_rows, select_rows
+from fabricjax.studies.common.rows import RowSpec, check_overrides, feedable_rows, select_rows
 
 # The splits a study that evaluates on the lab test day needs (no cafe or holdout features computed).
 TRAIN_VAL_TEST = ("train", "val", "test")
@@ -33,7 +33,8 @@ SEQUENCE_FIELDS = config_fields.SEQUENCE_FIELDS
 
 @dataclasses.dataclass
 class Dataset:
-    """Sequences of every split, and what it took to get them (reported apart from training)."""
+    """A study's data: the sequences of every split, and what it took to get them (reported apart
+    from training)."""
 
     sets: dict[str, data.SequenceSet]
     folder: Path
@@ -58,7 +59,7 @@ class Dataset:
         """The microphones' step window [s] the sequences were cut with (`data.step_window_s`)."""
         return next(iter(self.sets.values())).window_s
 
-    def fit(self, config: Config) -> Config:
+    def config_for(self, config: Config) -> Config:
         """`config` as trained on this data: its classes (the fabric head's size), its
         microphones' step window, so a checkpoint's config says what its features were, and,
         where it gives its budget or patience in optimiser steps (`Config.train_steps`,
@@ -99,7 +100,7 @@ def simulated_streams(modalities: Sequence[str]) -> tuple[str, ...]:
 def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Sequence[str] = data.SPLITS) -> Dataset:
     """The splits a study evaluates as sequences of `config.modalities`, loaded once."""
     t0 = time.perf_counter()
-    with reading(config.preset, data_dir, workdir):
+    with dataset_read_lock(config.preset, data_dir, workdir):
         if data_dir:
             folder, source = workspace.dataset_dir(config.preset, workdir, data_dir), "recorded"
         else:
@@ -118,7 +119,7 @@ def load_dataset(config: Config, *, data_dir=None, workdir=None, split_names: Se
     return ds
 
 
-def reading(preset: str, data_dir=None, workdir=None):
+def dataset_read_lock(preset: str, data_dir=None, workdir=None):
     """The dataset's lock held shared (`fabricjax.store.lock`) while the block reads it: runs that read
     one dataset go together; one that would simulate it anew at the same time is refused."""
     folder = workspace.dataset_dir(preset, workdir, data_dir)
@@ -153,13 +154,13 @@ def load_for_rows(
 
 def load_chosen_rows(
     study: str,
-    all_rows: Sequence[StudyRow],
+    all_rows: Sequence[RowSpec],
     names: Sequence[str] | None,
     preset: str,
     overrides: Mapping | None,
     where: Location,
     split_names: Sequence[str],
-) -> tuple[list[StudyRow], list[Config], list[Dataset], list[str]]:
+) -> tuple[list[RowSpec], list[Config], list[Dataset], list[str]]:
     """What a study without training (the probe, the day shift) reads: the chosen rows of
     `all_rows` (all for None), their configs, each row's sequences on `split_names` (rows that
     agree on `SEQUENCE_FIELDS` share one load: the same object), and the splits that hold
@@ -175,7 +176,7 @@ def load_chosen_rows(
         group = [c for c in configs if sequence_key(c) == key]
         # another reading of the frames decides only the image's sequences: an earlier load that
         # differs in nothing else gives the rest, and only what it lacks is loaded
-        base = next((d for k, d in loads.items() if _apart_from_reading(k, key)), None)
+        base = next((d for k, d in loads.items() if _apart_from_image_reference(k, key)), None)
         if base is not None:
             have = set(next(iter(base.sets.values())).inputs)
             lacking = [(c, tuple(m for m in c.modalities if m == "image" or m not in have)) for c in group]
@@ -204,7 +205,7 @@ def load_chosen_rows(
     return [r for r, _ in kept], [c for _, c in kept], datasets, [s for s in split_names if len(datasets[0].sets[s])]
 
 
-def _apart_from_reading(a: tuple, b: tuple) -> bool:
+def _apart_from_image_reference(a: tuple, b: tuple) -> bool:
     """Two `sequence_key`s that differ in `image_reference` alone."""
-    reading = SEQUENCE_FIELDS.index("image_reference")
-    return a != b and a[:reading] + a[reading + 1 :] == b[:reading] + b[reading + 1 :]
+    i = SEQUENCE_FIELDS.index("image_reference")
+    return a != b and a[:i] + a[i + 1 :] == b[:i] + b[i + 1 :]

@@ -62,6 +62,8 @@ RATE_NEUTRAL = RATE_NEUTRAL_FIELDS
 
 @dataclasses.dataclass(frozen=True)
 class Stage:
+    """One line of the plan: what a stage of the run takes on disk and in time, and from what."""
+
     name: str
     disk_bytes: float
     seconds: float | None  # None: unknown before the run

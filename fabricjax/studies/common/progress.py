@@ -9,11 +9,13 @@ from absl import logging
 
 
 class Progress:
-    """Logs 'row i/n' with the elapsed time and an ETA. Each row has a kind (`row_kind`) and an
-    amount of work (default 1; the sweep's rows: their epochs); a row left is expected to take
-    its work times the seconds per unit of work of the rows of its kind done so far (of every row
-    done while none of its kind is), so a camera row run first does not inflate the estimate for
-    the audio rows after it. The rates are this run's own: nothing measured elsewhere."""
+    """The progress log of a study's rows: 'row i/n' with the elapsed time and an ETA.
+
+    Each row has a kind (`row_training.row_kind`) and an amount of work (default 1; the sweep's
+    rows: their epochs); a row left is expected to take its work times the seconds per unit of
+    work of the rows of its kind done so far (of every row done while none of its kind is), so a
+    camera row run first does not inflate the estimate for the audio rows after it. The rates are
+    this run's own: nothing measured elsewhere."""
 
     def __init__(
         self, study: str, n_rows: int, kinds: Sequence[str] | None = None, work: Sequence[float] | None = None

@@ -137,12 +137,12 @@ def train_rows(
             f"the {study} study's checkpoints ({workspace.shown(checkpoints_folder)})",
             f"training {len(rows)} rows",
         ),
-        loading.reading(configs[0].preset, data_dir, workdir),
+        loading.dataset_read_lock(configs[0].preset, data_dir, workdir),
     ):
         ds = loading.load_for_rows(configs, data_dir=data_dir, workdir=workdir, split_names=split_names)
         if check is not None:
             check(ds)
-        rows = [(name, ds.fit(config)) for name, config in rows]  # the data's classes, step window and epochs
+        rows = [(name, ds.config_for(config)) for name, config in rows]  # the data's classes, step window and epochs
         if ds.recorded:  # what training will take, now that the data's size is known
             stages = plan.training(rows, len(seeds), len(ds.sets["train"]))
             print(

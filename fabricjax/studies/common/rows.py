@@ -1,6 +1,6 @@
 """A study's rows as it declares them and as a command chooses them.
 
-`StudyRow` is one row of a study's table; `select_rows` finds the rows `--rows` names (by name,
+`RowSpec` is one row of a study's table; `select_rows` finds the rows `--rows` names (by name,
 by label or by group), `check_overrides` refuses a `--set` of a field a row sets itself, and
 `feedable_rows` keeps the rows whose inputs recorded data has.
 """
@@ -20,10 +20,12 @@ from fabricjax.store.workspace import Location
 
 
 @dataclasses.dataclass(frozen=True)
-class StudyRow:
-    """A row of a study's table: `name` (what --rows, logs and checkpoints call it), the `Config`
-    fields it sets on top of the preset and the overrides (`settings`), how tables label it, and
-    the paper's numbers for it (None where the paper has no such row)."""
+class RowSpec:
+    """A row of a study's table as the study declares it, before anything is trained.
+
+    `name` is what --rows, logs and checkpoints call it, `settings` the `Config` fields it sets on
+    top of the preset and the overrides, `label` how tables name it, `paper` the paper's numbers
+    for it (None where the paper has no such row)."""
 
     name: str
     settings: Mapping[str, Any]
@@ -60,11 +62,11 @@ def label_key(label: str) -> tuple[str, frozenset[str], str]:
 
 
 def select_rows(
-    rows: Sequence[StudyRow],
+    rows: Sequence[RowSpec],
     names: Sequence[str] | None,
     groups: Mapping[str, Sequence[str]] | None = None,
     default: Sequence[str] | None = None,
-) -> list[StudyRow]:
+) -> list[RowSpec]:
     """The rows named in `names`, in the table's order; None: the rows named in `default` (every
     row where it is None). Each of `names` is a row's name (what logs and checkpoints call it),
     its label (what the tables print, such as "Minsound + palm mic", matched by `label_key`), a key
@@ -74,7 +76,7 @@ def select_rows(
     if names is None:
         names = list(default) if default is not None else groups[ALL_ROWS]
 
-    def row(name: str) -> StudyRow | None:
+    def row(name: str) -> RowSpec | None:
         return next((r for r in rows if r.name.casefold() == name.casefold()), None) or next(
             (r for r in rows if label_key(r.label) == label_key(name)), None
         )
@@ -92,7 +94,7 @@ def select_rows(
     return [r for r in rows if r.name in chosen]
 
 
-def check_overrides(study: str, overrides: Mapping | None, rows: Sequence[StudyRow], instead: str) -> dict:
+def check_overrides(study: str, overrides: Mapping | None, rows: Sequence[RowSpec], instead: str) -> dict:
     """`overrides` as a dict, after checking that none of them is a `Config` field that one of the
     study's `rows` sets itself: the row would silently replace the override, or the override
     would silently turn the row into another one. Such an override is a one-line error naming the
@@ -109,12 +111,12 @@ def check_overrides(study: str, overrides: Mapping | None, rows: Sequence[StudyR
     return overrides
 
 
-def split_by_inputs(rows: Sequence[StudyRow], have: set[str]) -> tuple[list[StudyRow], list[str]]:
+def split_by_inputs(rows: Sequence[RowSpec], have: set[str]) -> tuple[list[RowSpec], list[str]]:
     """(the rows whose inputs are all in `have`, the inputs some row needs that `have` lacks)."""
     return [r for r in rows if set(r.modalities) <= have], sorted({m for r in rows for m in r.modalities} - have)
 
 
-def feedable_rows(study: str, rows: Sequence[StudyRow], where: Location) -> list[StudyRow]:
+def feedable_rows(study: str, rows: Sequence[RowSpec], where: Location) -> list[RowSpec]:
     """The rows of `rows` whose inputs the recorded data in `where.data_dir` has, saying in one
     line which it leaves out and why; none fed is a one-line error."""
     lay = archive.layout(dataset_index.load_index(where.data_dir, where.workdir).entries[0].meta)

@@ -1,9 +1,9 @@
 """Training studies as data, and the one runner they all go through.
 
-    STUDY = runner.Study("noise", rows=(StudyRow(...), ...), n_seeds=10, eval_splits=("cafe", "test"), ...)
+    STUDY = runner.Study("noise", rows=(RowSpec(...), ...), n_seeds=10, eval_splits=("cafe", "test"), ...)
     doc = runner.run_study(STUDY, n_seeds=10, preset="default")     # what `experiments.noise` calls
 
-A `Study` is its rows (`rows.StudyRow`: a name, the `Config` fields the row sets, its label and
+A `Study` is its rows (`rows.RowSpec`: a name, the `Config` fields the row sets, its label and
 the paper's numbers for it), the splits it evaluates, and three functions: `document` (the
 study's own part of the results JSON: its statistics and figures), `checklist` (the paper's
 claims as predicates over that document) and `markdown` (its table). `run_study` does the rest,
@@ -26,7 +26,7 @@ from fabricjax.reporting import results_files
 from fabricjax.store import atomic
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, loading, plan, row_training
-from fabricjax.studies.common.rows import StudyRow, check_overrides, feedable_rows, select_rows
+from fabricjax.studies.common.rows import RowSpec, check_overrides, feedable_rows, select_rows
 from fabricjax.studies.common.trained import TrainedRow, TrainingRun
 
 if TYPE_CHECKING:
@@ -54,11 +54,11 @@ class Study:
     what another rig may carry."""
 
     name: str
-    rows: tuple[StudyRow, ...]
+    rows: tuple[RowSpec, ...]
     n_seeds: int
     eval_splits: tuple[str, ...]
     split_names: tuple[str, ...]
-    document: Callable[[TrainingRun, Sequence[StudyRow], Path], tuple[dict[str, Any], list[Path | None]]]
+    document: Callable[[TrainingRun, Sequence[RowSpec], Path], tuple[dict[str, Any], list[Path | None]]]
     checklist: Callable[[dict[str, Any]], list[Finding]]
     markdown: Callable[[dict[str, Any]], str]
     choose_rows: str = "choose them with --rows"  # how to pick what a row sets instead of --set
@@ -72,14 +72,14 @@ class Study:
     groups: Mapping[str, tuple[str, ...]] = dataclasses.field(default_factory=dict)
     default_rows: tuple[str, ...] | None = None
 
-    def row(self, name: str) -> StudyRow:
+    def row(self, name: str) -> RowSpec:
         return next(r for r in self.rows if r.name == name)
 
     @property
     def row_names(self) -> list[str]:
         return [r.name for r in self.rows]
 
-    def select(self, names: Sequence[str] | None) -> list[StudyRow]:
+    def select(self, names: Sequence[str] | None) -> list[RowSpec]:
         """The rows `names` stand for (`rows.select_rows`; None: the study's default rows)."""
         return select_rows(self.rows, names, self.groups, self.default_rows)
 

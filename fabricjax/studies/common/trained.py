@@ -22,8 +22,9 @@ from fabricjax.training import curves, train
 
 @dataclasses.dataclass
 class TrainedRow:
-    """A row after training: all seeds' metrics (leading seed axis), its wall time and, where the
-    study keeps the models, its checkpoint directory."""
+    """A row after training: every seed's metrics, its wall time and its checkpoint.
+
+    The metrics have a leading seed axis; `checkpoint` is None where the study keeps no models."""
 
     name: str
     config: Config
@@ -75,8 +76,9 @@ class TrainedRow:
 
 @dataclasses.dataclass
 class TrainingRun:
-    """The rows one call of `row_training.train_rows` trained, in the order given, and the dataset it
-    loaded once for them."""
+    """The rows one training call trained, and the dataset it loaded once for them.
+
+    `row_training.train_rows` gives one, its rows in the order they were asked for."""
 
     dataset: loading.Dataset
     rows: dict[str, TrainedRow]

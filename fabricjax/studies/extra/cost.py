@@ -222,7 +222,7 @@ def run(
     first = loading.load_dataset(
         base, data_dir=where.data_dir, workdir=where.workdir, split_names=loading.TRAIN_VAL_TEST
     )
-    base = first.fit(base)  # the data's classes and step window
+    base = first.config_for(base)  # the data's classes and step window
     max_len, step_rate = steps_and_rate(first.folder, where.workdir)
     paper = paper and not first.recorded  # recorded data is compared with itself, not with the paper's configuration
     points, paper_name = sweep_points(

@@ -40,16 +40,16 @@ from fabricjax.store import archive
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, linear_probe, loading
 from fabricjax.studies.common.progress import Progress
-from fabricjax.studies.common.rows import StudyRow
+from fabricjax.studies.common.rows import RowSpec
 from fabricjax.studies.extra import probe
 
 TITLE, PAPER = "Day shift: what the fabric, the day and the trial explain in each input", "not in the paper"
 ROWS = (
-    *(StudyRow(m, {"modalities": (m,)}, data.inputs_name((m,))) for m in ("internal", "external", "proprio", "flow")),
+    *(RowSpec(m, {"modalities": (m,)}, data.inputs_name((m,))) for m in ("internal", "external", "proprio", "flow")),
     # the frames as they are: the "none" and "training_mean" readings differ from them by a per-pixel
     # constant, which standardising each dimension over the trials removes
-    StudyRow("image", {"modalities": ("image",), "image_reference": "training_mean"}, data.inputs_name(("image",))),
-    StudyRow(
+    RowSpec("image", {"modalities": ("image",), "image_reference": "training_mean"}, data.inputs_name(("image",))),
+    RowSpec(
         probe.SESSION + "image",
         {"modalities": ("image",), "image_reference": "session"},
         data.inputs_name(("image",)) + " − session reference",

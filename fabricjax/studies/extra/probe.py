@@ -48,7 +48,7 @@ from fabricjax.studies.common.linear_probe import (
     prepare_inputs,
 )
 from fabricjax.studies.common.progress import Progress
-from fabricjax.studies.common.rows import StudyRow
+from fabricjax.studies.common.rows import RowSpec
 from fabricjax.studies.paper import ablation
 
 TITLE, PAPER = "Linear probe of every ablation row's inputs", "not in the paper"
@@ -58,23 +58,23 @@ SPLITS = (*loading.TRAIN_VAL_TEST, "cafe")  # the ablation's, and the cafe condi
 SESSION = "session:"  # the name prefix of a probe that reads frames minus their session's reference
 
 
-def _rows() -> tuple[StudyRow, ...]:
+def _rows() -> tuple[RowSpec, ...]:
     """One probe per distinct set of inputs among the ablation's rows, named like its first row;
     with the image, a second reading its frames against their session's reference."""
-    seen: dict[frozenset, StudyRow] = {}
+    seen: dict[frozenset, RowSpec] = {}
     session = []
     for r in ablation.ROWS:
         mods, label = r.modalities, ablation.label(r.modalities, "attention")
         if frozenset(mods) in seen:
             continue
         if "image" not in mods:
-            seen[frozenset(mods)] = StudyRow("+".join(mods), {"modalities": mods}, label)
+            seen[frozenset(mods)] = RowSpec("+".join(mods), {"modalities": mods}, label)
             continue
-        seen[frozenset(mods)] = StudyRow(
+        seen[frozenset(mods)] = RowSpec(
             "+".join(mods), {"modalities": mods, "image_reference": "training_mean"}, f"{label}, frames as they are"
         )
         session.append(
-            StudyRow(
+            RowSpec(
                 SESSION + "+".join(mods),
                 {"modalities": mods, "image_reference": "session"},
                 f"{label}, frames − session reference",
@@ -175,7 +175,7 @@ def _inputs_doc(inputs: Mapping[str, Input], config, names: Mapping[str, str]) -
 
 
 def _probe_row(
-    r: StudyRow,
+    r: RowSpec,
     config,
     inputs: Mapping[str, Input],
     labels,

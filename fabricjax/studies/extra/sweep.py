@@ -6,7 +6,7 @@
 A recipe (width, epochs, learning rate, the camera encoder's size, ...) is chosen for every row
 of the modality ablation at once, so it is judged by the validation accuracy averaged over the
 rows, not by one row's. The grid is the cartesian product of the `--grid` fields' values; every
-point is the preset, the `--set` overrides and the point's fields (`StudyRow.config`: a row
+point is the preset, the `--set` overrides and the point's fields (`RowSpec.config`: a row
 sets its backbone, inputs and fusion itself, so those are chosen with `--rows`, never swept). Every
 (point, row) trains all seeds in one vmapped program (`row_training.train_rows`) on sequences loaded
 once for the whole sweep, or once per distinct value of the fields that decide the sequences
@@ -36,7 +36,7 @@ from fabricjax.reporting import results_files, stats
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, loading, row_training, runner
 from fabricjax.studies.common.progress import Progress
-from fabricjax.studies.common.rows import StudyRow, check_overrides
+from fabricjax.studies.common.rows import RowSpec, check_overrides
 from fabricjax.studies.common.trained import TrainedRow
 from fabricjax.studies.extra import cost
 from fabricjax.studies.paper import ablation
@@ -110,8 +110,8 @@ def check_grid(grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any]) 
 
 
 def plan(
-    preset: str, grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any], rows: Sequence[StudyRow]
-) -> list[tuple[str, Config, dict[str, Any], StudyRow]]:
+    preset: str, grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any], rows: Sequence[RowSpec]
+) -> list[tuple[str, Config, dict[str, Any], RowSpec]]:
     """Every (point, row) as (unit name, config, point fields, row), every config built (and so
     checked) before any data is read. The unit name is also its log folder: <field=value>/.../<row>."""
     units = []
@@ -137,7 +137,7 @@ def _pct(values) -> tuple[float, float]:
 
 
 def entry(
-    trained: TrainedRow, fields: Mapping[str, Any], row: StudyRow, test, latency_repeats: int, recorded: bool = False
+    trained: TrainedRow, fields: Mapping[str, Any], row: RowSpec, test, latency_repeats: int, recorded: bool = False
 ) -> dict[str, Any]:
     """One (point, row): accuracies (per seed and mean ± SD, %), cost, config and curves; on
     `recorded` data the row is named by the data's names for its inputs (`test.names`)."""

@@ -36,7 +36,7 @@ from fabricjax.config import MODALITY_NAMES
 from fabricjax.reporting import plots, results_files, stats
 from fabricjax.sequences import data
 from fabricjax.studies.common import documents, findings, linear_probe, loading, recipe, runner, wilcoxon
-from fabricjax.studies.common.rows import StudyRow
+from fabricjax.studies.common.rows import RowSpec
 from fabricjax.studies.common.trained import TrainedRow, TrainingRun
 
 TITLE, PAPER = (
@@ -70,13 +70,13 @@ def label(
 
 def _row(
     modalities: Sequence[str], mean: float, sd: float, backbone: str = "attention", fusion_norm: str = "sequence_minmax"
-) -> StudyRow:
+) -> RowSpec:
     """A row and the paper's test accuracy [%] (mean, SD over its seeds) for the same inputs."""
     name = ("tcn:" if backbone == "tcn" else "") + "+".join(modalities)
     if fusion_norm != "sequence_minmax":
         name = f"{fusion_norm}:{name}"
     settings = {"backbone": backbone, "modalities": tuple(modalities), "fusion_norm": fusion_norm}
-    return StudyRow(name, settings, label(modalities, backbone, fusion_norm), {"mean": mean, "sd": sd})
+    return RowSpec(name, settings, label(modalities, backbone, fusion_norm), {"mean": mean, "sd": sd})
 
 
 # The paper's Table ablation_table: 12 transformer rows and the TCN row.
@@ -128,7 +128,7 @@ def display_name(row_name: str) -> str:
     return STUDY.row(row_name).label
 
 
-def document(trained: TrainingRun, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[dict[str, Any], list]:
     """The rows beside the paper's, each with the class each seed collapsed to (`findings.collapsed`),
     the test split's majority class (`findings.majority`), the Wilcoxon tests of `WILCOXON_PAIR` and
     the confusion matrices of `CONFUSION_ROWS` (results/ablation_confusion.png)."""
@@ -245,7 +245,7 @@ def fusion_choice_markdown(choices: Sequence[dict[str, Any]]) -> list[str]:
     ]
 
 
-def _recorded_body(trained: TrainingRun, chosen: Sequence[StudyRow], tests) -> dict[str, Any]:
+def _recorded_body(trained: TrainingRun, chosen: Sequence[RowSpec], tests) -> dict[str, Any]:
     """The rows on recorded data: each under the fusion its validation accuracy picks, beside the
     other fusion and the probe of its inputs; every input's steadiness."""
     sets, rows = trained.dataset.sets, trained.rows

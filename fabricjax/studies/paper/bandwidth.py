@@ -24,7 +24,7 @@ from fabricjax.features import welch
 from fabricjax.reporting import plots, results_files, stats
 from fabricjax.store import archive, dataset_index
 from fabricjax.studies.common import documents, findings, loading, runner
-from fabricjax.studies.common.rows import StudyRow
+from fabricjax.studies.common.rows import RowSpec
 from fabricjax.studies.common.trained import TrainingRun
 
 TITLE, PAPER = (
@@ -40,10 +40,10 @@ def row_name(khz: float) -> str:
     return f"{khz:g}"
 
 
-def _row(khz: float, val_mean: float, val_sd: float, test_mean: float, test_sd: float) -> StudyRow:
+def _row(khz: float, val_mean: float, val_sd: float, test_mean: float, test_sd: float) -> RowSpec:
     """The row of bandwidth `khz` and the paper's validation and test accuracy [%] (5 seeds)."""
     paper = {"val_mean": val_mean, "val_sd": val_sd, "test_mean": test_mean, "test_sd": test_sd}
-    return StudyRow(row_name(khz), {"modalities": MODALITIES, "bandwidth_khz": khz}, f"{khz:g} kHz", paper)
+    return RowSpec(row_name(khz), {"modalities": MODALITIES, "bandwidth_khz": khz}, f"{khz:g} kHz", paper)
 
 
 # The paper's Table bandwidth_classification.
@@ -55,7 +55,7 @@ ROWS = (
 )
 
 
-def document(trained: TrainingRun, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[dict[str, Any], list]:
     """Every row's PSD bins beside the paper's, with the class each seed collapsed to on the
     validation and test splits (`findings.collapsed`); both splits' majority class
     (`findings.majority`), the microphone read and results/bandwidth.png."""

@@ -24,7 +24,7 @@ from fabricjax.reporting import plots, results_files, stats
 from fabricjax.sequences import data
 from fabricjax.sim import estimates
 from fabricjax.studies.common import documents, findings, loading, runner, wilcoxon
-from fabricjax.studies.common.rows import StudyRow
+from fabricjax.studies.common.rows import RowSpec
 from fabricjax.studies.common.trained import TrainingRun
 
 TITLE, PAPER = (
@@ -42,10 +42,10 @@ def display_name(row_name: str, names: Mapping[str, str] | None = None) -> str:
     return data.inputs_name(row_name.split("+"), names)
 
 
-def _row(modalities: tuple[str, ...], mean: float, sd: float, p: str | None) -> StudyRow:
+def _row(modalities: tuple[str, ...], mean: float, sd: float, p: str | None) -> RowSpec:
     """A row and the paper's cafe accuracy [%] (10 seeds) with its p against the preceding row."""
     name = "+".join(modalities)
-    return StudyRow(name, {"modalities": modalities}, display_name(name), {"mean": mean, "sd": sd, "p": p})
+    return RowSpec(name, {"modalities": modalities}, display_name(name), {"mean": mean, "sd": sd, "p": p})
 
 
 # The paper's Table new_noise_results.
@@ -56,7 +56,7 @@ ROWS = (
 )
 
 
-def document(trained: TrainingRun, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[dict[str, Any], list]:
     """Every row with its tests against the preceding row on the cafe split and the class each
     seed collapsed to on the cafe and lab test splits (`findings.collapsed`); both splits'
     majority class (`findings.majority`), and results/noise.png."""

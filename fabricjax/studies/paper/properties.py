@@ -35,7 +35,7 @@ from fabricjax import catalog
 from fabricjax.reporting import results_files, stats
 from fabricjax.sequences import data
 from fabricjax.studies.common import documents, findings, runner
-from fabricjax.studies.common.rows import StudyRow
+from fabricjax.studies.common.rows import RowSpec
 from fabricjax.studies.common.trained import TrainingRun
 
 TITLE, PAPER = (
@@ -50,11 +50,11 @@ SETTINGS = dict(
 )
 
 
-def _row(modalities: tuple[str, ...], train: tuple[float, ...], holdout: tuple[float, ...]) -> StudyRow:
+def _row(modalities: tuple[str, ...], train: tuple[float, ...], holdout: tuple[float, ...]) -> RowSpec:
     """The row of `modalities`, named and labelled by them, and the paper's mean accuracy [%]
     (5 seeds) per property (`PROPERTIES` order) on the training fabrics and on the holdout fabrics."""
     paper = {"train": dict(zip(PROPERTIES, train)), "holdout": dict(zip(PROPERTIES, holdout))}
-    return StudyRow("+".join(modalities), {**SETTINGS, "modalities": modalities}, data.inputs_name(modalities), paper)
+    return RowSpec("+".join(modalities), {**SETTINGS, "modalities": modalities}, data.inputs_name(modalities), paper)
 
 
 # The paper's Table property_perception (its rows "Minsound" and "Minsound + Minsight"); proprioception is always on.
@@ -64,7 +64,7 @@ ROWS = (
 )
 
 
-def document(trained: TrainingRun, chosen: Sequence[StudyRow], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[dict[str, Any], list]:
     """Per row its checkpoint, accuracies per property and, per split and property, the level
     each seed collapsed to (`findings.collapsed`, None where it did not); chance (1 / levels), the
     majority level (`findings.majority`) and the fabrics of each evaluated split; the paper's numbers."""
