@@ -213,7 +213,7 @@ def test_one_load_serves_only_rows_with_the_same_sequences():
 def test_sequence_fields_name_every_config_field_the_data_pipeline_reads():
     """A field that decides the loaded sequences but is missing from SEQUENCE_FIELDS would let one
     load serve sweep points it does not fit."""
-    sources = [REPO / "fabricjax" / "data.py", *sorted((REPO / "fabricjax" / "features").glob("*.py"))]
+    sources = [REPO / "fabricjax" / "sequences" / "data.py", *sorted((REPO / "fabricjax" / "features").glob("*.py"))]
     read = {m for p in sources for m in re.findall(r"\bconfig\.([a-z_]+)\b", p.read_text())} & set(
         Config.__dataclass_fields__
     )
