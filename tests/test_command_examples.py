@@ -51,7 +51,7 @@ BOUNDARIES = {
     "fabricjax.training.train.restore": "restores a checkpoint",
     "fabricjax.store.integrity.verify": "verifies a folder of archives",
     "fabricjax.studies.tools.variant.read": "reads a results file",
-    "fabricjax.studies.tools.reproduce.check": "checks a results folder's fingerprints",
+    "fabricjax.studies.tools.staleness.check": "checks a results folder's fingerprints",
     "fabricjax.bench.suite._torch_twin": "builds the PyTorch twin of the benchmarks",
 }
 BENCHMARK_PREFIX = "bench_"  # and every benchmark function (fabricjax.bench, .timing, acquisition): "runs a benchmark"
