@@ -256,8 +256,8 @@ def test_image_configs_reuse_their_cached_programs():
     cfg = Config(**{**TINY.to_json(), "modalities": ("image",), "cnn_features": (4,), "property_heads": False})
     mesh = sharding.training_mesh(cfg.batch_size)
     shapes = (("image", (12, 16, 3)),)
-    first = train._programs(cfg, shapes, 24, mesh)
-    assert train._programs(cfg, shapes, 24, mesh) is first
+    first = train._programs(cfg, shapes, 24, mesh, False)
+    assert train._programs(cfg, shapes, 24, mesh, False) is first
 
 
 def test_joint_standardisation_comes_from_the_training_split_and_stays_fixed():

@@ -37,7 +37,7 @@ from fabricjax.reporting import stats
 from fabricjax.sequences.inputs import feature_shapes, training_layout
 from fabricjax.timing import predict_one_timer
 from fabricjax.training import sharding
-from fabricjax.training.train import make_trainer, seed_keys, select
+from fabricjax.training.train import DeviceFeed, make_trainer, seed_keys, select
 
 STEPS_PER_EPOCH = 16
 MATMUL_N = 2048  # the practical peak's matmul: (N x N) @ (N x N), large enough to run at the BLAS's best
@@ -121,8 +121,8 @@ def _epoch_program(
     steps: int,
     image_hw: tuple[int, int] | None = None,
 ):
-    """The jitted, vmapped `Trainer.train_epoch` and its arguments (carry, keys, data), placed as
-    training places them (`sharding.training_mesh`)."""
+    """The jitted, vmapped `Trainer.train_epoch` and its arguments (the seeds' states, the
+    training set), placed as training places them (`sharding.training_mesh`)."""
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
     mesh = sharding.training_mesh(batch)
     frames = {} if image_hw is None else {"image_hw": tuple(image_hw)}  # None: synthetic's own frame size
@@ -134,10 +134,11 @@ def _epoch_program(
     states = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)(
         jax.device_put(seed_keys(range(n_seeds)), per_seed)
     )
+    on_devices = DeviceFeed(trainer)
     epoch = jax.jit(
-        sharding.vmap_seeds(lambda c, k, d: trainer.train_epoch(*c, k, d), in_axes=(0, 0, None)), donate_argnums=0
+        sharding.vmap_seeds(lambda s, d: trainer.train_epoch(s, d, on_devices), in_axes=(0, None)), donate_argnums=0
     )
-    return epoch, (states["params"], states["opt_state"]), states["key"], train
+    return epoch, states, train
 
 
 def train_step_runner(
@@ -156,16 +157,16 @@ def train_step_runner(
     one CPU device per core (`runtime.use_cpu_cores`), seeds or each minibatch's samples run on
     separate cores. `image_hw` is the size of the synthetic camera frames (image rows only; None:
     `synthetic.data_set`'s)."""
-    epoch, first, keys, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps, image_hw)
-    carry = [first]
+    epoch, first, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps, image_hw)
+    state = [first]
     del first
 
     def run() -> float:
         t = time.perf_counter()
-        params, opt_state, curves = epoch(carry[0], keys, train)
-        jax.block_until_ready(curves)
+        trained, summary = epoch(state[0], train)
+        jax.block_until_ready(summary)
         seconds = time.perf_counter() - t
-        carry[0] = (params, opt_state)
+        state[0] = trained
         return seconds / steps
 
     run()  # compile and warm up
@@ -190,8 +191,8 @@ def bench_train_step(
 def train_step_flops(config: Config, n_seeds: int, batch: int = 32, seq_len: int = 200, psd_bins: int = 320) -> float:
     """FLOPs of one training step of `n_seeds` vmapped seeds over all their devices (`xla_flops`),
     counted on an epoch of one step: XLA counts the epoch's scan body once, whatever its length."""
-    epoch, carry, keys, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps=1)
-    return xla_flops(epoch, carry, keys, train)
+    epoch, state, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps=1)
+    return xla_flops(epoch, state, train)
 
 
 def _inference_program(config: Config, seq_len: int, psd_bins: int):

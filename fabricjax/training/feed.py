@@ -1,9 +1,10 @@
 """Training fed from the host: minibatches read from host arrays (memory-mapped sequence files,
 `data.load_sequences`) a block of steps at a time, for inputs larger than memory.
 
-`train.train_and_evaluate` places a set on the devices and runs whole epochs there
-(`Trainer.run`) when it fits. When it does not (`placement.reads_from_host`: `Config.input_source`
-"disk", or "auto" and the loaded inputs are memory-mapped files) it runs the same epochs from here:
+`train.train_and_evaluate` places a set on the devices and runs whole epochs there when it fits.
+When it does not (`placement.reads_from_host`: `Config.input_source` "disk", or "auto" and the
+loaded inputs are memory-mapped files) the same epoch (`Trainer.epoch`) reads its sets through
+`HostFeed`:
 
   * each epoch's order is `Trainer.epoch_order`'s, computed on the devices from the same key;
   * the host gathers each block of steps' sequences for every seed (each seed reads its own
@@ -12,16 +13,19 @@
     resident epoch runs. JAX dispatches asynchronously, so the next block is read while the
     devices train on this one;
   * validation and evaluation read their sets a block of minibatches at a time
-    (`Trainer.predict`), padded as `host_arrays.whole_minibatches` pads them.
+    (`Trainer.predict`), padded as `host_arrays.whole_minibatches` pads them;
+  * the epoch's other pieces (`Trainer.epoch_summary`, `Trainer.end_epoch`) run as programs of
+    their own, vmapped over the seeds (`HostFeed.per_seed`).
 
-The parameters are the device-resident run's, bit for bit (tests/test_feed.py). The host holds
-about two blocks at a time, each `BLOCK_BYTES` or one step's minibatches where that is more
-(`host_bytes`), whatever the size of the data.
+The computation is the device-resident run's; compiled without XLA's fusions, as the tests compile,
+the parameters are its bits (tests/test_feed.py). The host holds about two blocks at a time, each
+`BLOCK_BYTES` or one step's minibatches where that is more (`host_bytes`), whatever the size of the
+data.
 """
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import jax
 import jax.numpy as jnp
@@ -71,20 +75,17 @@ def _laid_out(inputs: Mapping[str, np.ndarray], rows: np.ndarray, length: int | 
     return out
 
 
-class HostFed:
-    """`Trainer.run` and `Trainer.finish` with the sets on the host: the same signatures, run a
-    block at a time (see the module docstring). `sets` are `placement.select`ed host sets."""
+class HostFeed:
+    """A run's sets on the host, read a block at a time (see the module docstring): what
+    `train.DeviceFeed` is for sets on the devices, so that `Trainer.run` is the run's epochs
+    either way. Sets are `placement.select`ed host sets."""
 
     def __init__(self, trainer, per_seed: NamedSharding):
-        self.trainer, self.per_seed = trainer, per_seed
-        self._plan = jax.jit(
-            sharding.vmap_seeds(
-                lambda key, epoch, n: trainer.epoch_order(jax.random.fold_in(key, epoch), n), in_axes=(0, None, None)
-            ),
-            static_argnums=2,
-        )
+        self.trainer, self.per_seed_sharding = trainer, per_seed
+        self._compiled: dict[Callable, Callable] = {}
 
-        # a stopped seed's carry passes through unchanged (`Trainer.unless_stopped`)
+        # the carry is donated a block at a time, so a stopped seed's carry passes through each
+        # step unchanged (`Trainer.unless_stopped`)
         def scan(carry, block, keys, stopped_at):
             def step(c, xs):
                 new, out = trainer.train_step(c, *xs)
@@ -93,50 +94,48 @@ class HostFed:
             return jax.lax.scan(step, carry, (block, keys))
 
         self._steps = jax.jit(sharding.vmap_seeds(scan), donate_argnums=0)
-        self._summary = jax.jit(sharding.vmap_seeds(trainer.epoch_summary, in_axes=(0, 0, None)))
         self._predict = jax.jit(sharding.vmap_seeds(trainer.predict, in_axes=(0, None)))
-        self._end_epoch = jax.jit(sharding.vmap_seeds(trainer.end_epoch))
+
+    def per_seed(self, fn: Callable) -> Callable:
+        """`fn`, written for one seed, jitted and vmapped over the seeds (compiled once)."""
+        if fn not in self._compiled:
+            self._compiled[fn] = jax.jit(sharding.vmap_seeds(fn))
+        return self._compiled[fn]
+
+    @staticmethod
+    def repeat(epoch, state, n: int):
+        """`epoch` `n` times: (state, the epochs' outputs stacked on the axis after the seeds')."""
+        outputs = []
+        for _ in range(n):
+            state, out = epoch(state)
+            outputs.append(out)
+        return state, jax.tree.map(lambda *xs: jnp.stack(xs, axis=1), *outputs)
 
     def _place(self, tree):
-        return sharding.put(tree, self.per_seed)
+        return sharding.put(tree, self.per_seed_sharding)
 
-    def run(self, state: dict[str, Any], data: Mapping[str, Any], n_epochs: int):
-        """`n_epochs` more epochs: (state, per-epoch summary) as `Trainer.run` gives them."""
-        train = data["train"]
-        n = len(next(iter(train["labels"].values())))
-        n_seeds = len(state["best_val"])
-        outputs = []
-        for _ in range(n_epochs):
-            epoch = jnp.int32(jax.device_get(state["epoch"])[0])  # every seed is at the same epoch
-            order, keys = self._plan(state["key"], epoch, n)
-            order = np.asarray(order)
-            k = block_steps(train["inputs"], order.shape[2], n_seeds, order.shape[1])
-            carry, losses, counts = (state["params"], state["opt_state"]), [], []
-            for start in range(0, order.shape[1], k):
-                rows = order[:, start : start + k]  # (seeds, steps, batch)
-                block = {
-                    "inputs": {
-                        m: a.reshape(*rows.shape, *a.shape[1:])
-                        for m, a in _laid_out(train["inputs"], rows.reshape(-1)).items()
-                    },
-                    "labels": {h: a[rows] for h, a in train["labels"].items()},
-                }
-                carry, (loss, count) = self._steps(
-                    carry, self._place(block), keys[:, start : start + k], state["stopped_at"]
-                )
-                losses.append(loss)
-                counts.append(count)
-            losses, counts = (
-                jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=1), *parts) for parts in (losses, counts)
-            )
-            summary = self._summary(losses, counts, epoch)
-            validation = self.evaluate(carry[0], data["val"])
-            rest = {k: v for k, v in state.items() if k not in ("params", "opt_state")}
-            state = self._end_epoch(rest, *carry, summary["train_loss"], validation)
-            outputs.append(
-                {**summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]}
-            )
-        return state, jax.tree.map(lambda *xs: jnp.stack(xs, axis=1), *outputs)
+    def train_steps(self, state, order, step_keys, train: Mapping[str, Any]):
+        """The epoch's steps over minibatches `order` (seeds, steps, batch) of host set `train`,
+        a block of steps at a time: as `train.DeviceFeed.train_steps`."""
+        order = np.asarray(order)
+        n_seeds, steps, batch = order.shape
+        k = block_steps(train["inputs"], batch, n_seeds, steps)
+        carry, outputs = (state["params"], state["opt_state"]), []
+        for start in range(0, steps, k):
+            rows = order[:, start : start + k]  # (seeds, steps, batch)
+            block = {
+                "inputs": {
+                    m: a.reshape(*rows.shape, *a.shape[1:])
+                    for m, a in _laid_out(train["inputs"], rows.reshape(-1)).items()
+                },
+                "labels": {h: a[rows] for h, a in train["labels"].items()},
+            }
+            carry, out = self._steps(carry, self._place(block), step_keys[:, start : start + k], state["stopped_at"])
+            outputs.append(out)
+        params, opt_state = carry
+        return {**state, "params": params, "opt_state": opt_state}, jax.tree.map(
+            lambda *xs: jnp.concatenate(xs, axis=1), *outputs
+        )
 
     def evaluate(self, params, ds: Mapping[str, Any]) -> dict[str, dict[str, jax.Array]]:
         """`Trainer.evaluate` of every seed's `params` on host set `ds`, a block of minibatches at a time."""
@@ -155,9 +154,3 @@ class HostFed:
         }
         accuracy = jax.vmap(self.trainer.accuracy, in_axes=(0, None))(preds, labels)
         return {"accuracy": accuracy, "predictions": preds}
-
-    def finish(self, state: dict[str, Any], sets: Mapping[str, Any]) -> dict[str, Any]:
-        """`Trainer.finish`: the curves and the best-validation model on every set of `sets`."""
-        return self.trainer.finished(
-            state, {name: self.evaluate(state["best_params"], ds) for name, ds in sets.items()}
-        )

@@ -1,11 +1,14 @@
 """Pure, jitted multi-seed training with one entry point, `train_and_evaluate`: the optimiser, the
-`Trainer` (a run as pure functions of one seed's state), its compiled programs and the epoch loop.
+`Trainer` (a run as pure functions of one seed's state, and the one epoch they make), its compiled
+programs and the loop over chunks of epochs.
 
-`Trainer.init`, `Trainer.run` and `Trainer.finish` are each `jax.jit(jax.vmap(...))`ed over the
-seeds, which stay together while each minibatch's samples are split over the devices
-(`fabricjax.training.sharding`). An epoch and the epochs of a chunk are `lax.scan`s, so training runs
-without the host, which reads back each chunk's curves. Where the inputs live (on the devices,
-kept for the next run, or on the host for `fabricjax.training.feed`) is `fabricjax.training.placement`'s.
+`Trainer.init`, `Trainer.run` and `Trainer.evaluate_sets` are each `jax.jit(jax.vmap(...))`ed over
+the seeds, which stay together while each minibatch's samples are split over the devices
+(`fabricjax.training.sharding`). An epoch and the epochs of a chunk are `lax.scan`s, so training
+runs without the host, which reads back each chunk's curves. The epoch (`Trainer.epoch`) reads its
+sets through a feed: on the devices (`DeviceFeed`), or from the host a block of steps at a time
+for inputs larger than memory (`fabricjax.training.feed.HostFeed`, which compiles the epoch's
+pieces one by one). Where the inputs live is `fabricjax.training.placement`'s.
 
 A data set is a mapping {"inputs": {modality: (n, N, ...)}, "labels": {head: int (n,)}} (objects
 with `.inputs` / `.labels` work too); label -1 means unknown and is masked out of losses and
@@ -110,13 +113,14 @@ def _correct_and_known(
 
 @dataclasses.dataclass(frozen=True)
 class Trainer:
-    """The pure pieces of a run, each a function of one seed's state (vmap them over seeds)."""
+    """The pure pieces of a run, each a function of one seed's state, and the one epoch they make
+    (`epoch`), which reads its sets through a feed (`DeviceFeed`, `feed.HostFeed`)."""
 
     config: Config
     shapes: dict[str, tuple[int, ...]]
     graphdef: Any
     tx: optax.GradientTransformation
-    total_steps: int  # of the whole run: the learning-rate schedule's length (`make_optimizer`)
+    n_train: int  # training sequences: an epoch's minibatches and the learning-rate schedule's length
     mesh: Mesh | None = None  # splits minibatch samples over its "batch" devices (`sharding.split_samples`)
 
     def init(self, key: jax.Array) -> dict[str, Any]:
@@ -135,6 +139,40 @@ class Trainer:
             "history": {"train_loss": zeros, "val_acc": zeros},
         }
 
+    def run(self, state, sets, feed, n_epochs: int):
+        """`n_epochs` more epochs (`epoch`): (state, their curves, each with a leading epoch axis)."""
+        return feed.repeat(lambda s: self.epoch(s, sets, feed), state, n_epochs)
+
+    def epoch(self, state, sets, feed):
+        """One epoch of the run: (state, its curves). It trains (`train_epoch`), evaluates the
+        validation set and keeps the best-validation parameters (`end_epoch`). `sets` ({"train",
+        "val", ...}, as `placement.place_sets` gives them) are read through `feed`: on the
+        devices inside one jitted program (`DeviceFeed`), or from the host a block at a time
+        (`feed.HostFeed`); whichever it is, this is the run's epoch."""
+        state, summary = self.train_epoch(state, sets["train"], feed)
+        validation = feed.evaluate(state["params"], sets["val"])
+        return feed.per_seed(self.end_epoch)(state, summary, validation)
+
+    def train_epoch(self, state, train, feed):
+        """One pass over the training set in shuffled minibatches (`epoch_order`, `train_step`):
+        (state with the new parameters and optimiser state, `epoch_summary`). A stopped seed's
+        parameters stay as they were (`unless_stopped`)."""
+        order, step_keys = feed.per_seed(self.epoch_order)(state["key"], state["epoch"])
+        state, steps = feed.train_steps(state, order, step_keys, train)
+        return state, feed.per_seed(self.epoch_summary)(steps, state["epoch"])
+
+    def epoch_order(self, key, epoch) -> tuple[jax.Array, jax.Array]:
+        """Epoch `epoch`'s minibatches over the `n_train` training sequences, from the run's key:
+        (indices (steps, batch): a permutation, the remainder dropped; each step's key (steps, 2)).
+        Its randomness is `fold_in(key, epoch)`, so a resumed run draws what the uninterrupted
+        one drew."""
+        batch = min(self.config.batch_size, self.n_train)
+        steps = self.n_train // batch
+        k_perm, k_steps = jax.random.split(jax.random.fold_in(key, epoch))
+        return jax.random.permutation(k_perm, self.n_train)[: steps * batch].reshape(steps, batch), jax.random.split(
+            k_steps, steps
+        )
+
     def logits(self, params, inputs, key=None) -> dict[str, jax.Array]:
         """Logits per head; with `key` in training mode: dropout and the model's own augmentation
         (the image rotation) on, each from its own stream."""
@@ -150,17 +188,6 @@ class Trainer:
         logits = self.logits(params, batch["inputs"], key)
         return sum(masked_cross_entropy(logits[h], batch["labels"][h]) for h in logits), logits
 
-    def epoch_order(self, key, n: int) -> tuple[jax.Array, jax.Array]:
-        """An epoch's minibatches over `n` training sequences, from its key: (indices (steps,
-        batch): a permutation, the remainder dropped; each step's key (steps, 2)). Training from
-        the devices and from the host (`fabricjax.training.feed`) read the same order."""
-        batch = min(self.config.batch_size, n)
-        steps = n // batch
-        k_perm, k_steps = jax.random.split(key)
-        return jax.random.permutation(k_perm, n)[: steps * batch].reshape(steps, batch), jax.random.split(
-            k_steps, steps
-        )
-
     def train_step(self, carry, mb, key):
         """One optimiser step on minibatch `mb`: ((params, opt_state), (loss, right and known
         labels per head))."""
@@ -170,32 +197,24 @@ class Trainer:
         updates, opt_state = self.tx.update(grads, opt_state, params)
         return (optax.apply_updates(params, updates), opt_state), (loss, _correct_and_known(logits, mb["labels"]))
 
-    def epoch_summary(self, losses, counts, epoch) -> dict[str, Any]:
+    @staticmethod
+    def unless_stopped(stopped_at, new, old):
+        """`new` (what training made of `old`: parameters, optimiser state), or `old` where the
+        seed has stopped (`stopped_at` >= 0, `end_epoch`): a stopped seed's parameters no longer
+        change, while the seeds beside it in the vmapped program train on."""
+        return jax.tree.map(lambda a, b: jnp.where(stopped_at >= 0, b, a), new, old)
+
+    def epoch_summary(self, steps, epoch) -> dict[str, Any]:
         """An epoch's mean loss, its training accuracy per head over the minibatches as they were
-        trained, and the learning rate of its last step, from its steps' outputs."""
-        steps = losses.shape[0]
+        trained (dropout and augmentation on, parameters changing) and the learning rate of its
+        last step, from its steps' outputs (`train_step`'s, stacked)."""
+        losses, counts = steps
+        n = losses.shape[0]
         return {
             "train_loss": losses.mean(),
             "train_accuracy": {h: right.sum() / jnp.maximum(known.sum(), 1) for h, (right, known) in counts.items()},
-            "lr": learning_rate(self.config, self.total_steps, epoch * steps + steps - 1),
+            "lr": learning_rate(self.config, total_steps(self.config, self.n_train), epoch * n + n - 1),
         }
-
-    def train_epoch(self, params, opt_state, key, train, epoch=0):
-        """One pass over shuffled minibatches (`epoch_order`) in a scan: (params, opt_state, summary).
-
-        `train` is in the layout training holds its set in (`inputs.training_layout`: frames as
-        rows; `train_and_evaluate` converts it once per training). `epoch` (0-based) places the
-        pass in the run for the learning-rate schedule. `summary` is `epoch_summary`'s: the
-        accuracy is counted from the logits of the training steps themselves (dropout and
-        augmentation on, parameters changing)."""
-        order, keys = self.epoch_order(key, jax.tree.leaves(train)[0].shape[0])
-
-        def step(carry, xs):
-            idx, k = xs
-            return self.train_step(carry, jax.tree.map(lambda a: a[idx], train), k)
-
-        (params, opt_state), (losses, counts) = jax.lax.scan(step, (params, opt_state), (order, keys))
-        return params, opt_state, self.epoch_summary(losses, counts, epoch)
 
     def predict(self, params, inputs) -> dict[str, jax.Array]:
         """Predicted class per head of a set padded to whole minibatches (see `pad`), a
@@ -222,43 +241,14 @@ class Trainer:
             return accuracy["fabric"]
         return sum(accuracy.values()) / len(accuracy)
 
-    def run(self, state, data, n_epochs: int):
-        """`n_epochs` more epochs in one scan, with best-validation selection: (state, per-epoch summary),
-        the summary of `train_epoch` plus the validation accuracy and predictions per head
-        ("val_accuracy", "val_predictions"), each with a leading epoch axis (the scan's outputs:
-        they leave the device with the state; the best epoch's predictions are the validation
-        results, see `BestEpochValidation`). Every set is in training's layout
-        (`inputs.training_layout`)."""
-
-        def epoch(state, _):
-            e = state["epoch"]
-            params, opt_state, summary = self.train_epoch(
-                state["params"], state["opt_state"], jax.random.fold_in(state["key"], e), data["train"], e
-            )
-            params, opt_state = self.unless_stopped(
-                state["stopped_at"], (params, opt_state), (state["params"], state["opt_state"])
-            )
-            validation = self.evaluate(params, data["val"])
-            return self.end_epoch(state, params, opt_state, summary["train_loss"], validation), {
-                **summary,
-                "val_accuracy": validation["accuracy"],
-                "val_predictions": validation["predictions"],
-            }
-
-        return jax.lax.scan(epoch, state, length=n_epochs)
-
-    @staticmethod
-    def unless_stopped(stopped_at, new, old):
-        """`new` (what training made of `old`: parameters, optimiser state), or `old` where the
-        seed has stopped (`stopped_at` >= 0, `end_epoch`): a stopped seed's parameters no longer
-        change, while the seeds beside it in the vmapped program train on."""
-        return jax.tree.map(lambda a, b: jnp.where(stopped_at >= 0, b, a), new, old)
-
-    def end_epoch(self, state, params, opt_state, loss, validation) -> dict[str, Any]:
-        """The state after an epoch that trained `params` to `loss` and `validation` (`evaluate`'s
-        on the validation set): the best-validation parameters kept, the curves written, and the
-        seed stopped once `config.patience` epochs have passed without a better validation
-        accuracy (early stopping; the seed's best-validation parameters are its result)."""
+    def end_epoch(self, state, summary, validation):
+        """(the state after an epoch that trained it to `summary` (`epoch_summary`'s) and
+        `validation` (`evaluate`'s on the validation set), the epoch's curves). The best-validation
+        parameters are kept and the seed stops once `config.patience` epochs have passed without
+        a better validation accuracy (early stopping; the seed's best-validation parameters are
+        its result). The curves are `summary` with the validation accuracy and predictions per
+        head ("val_accuracy", "val_predictions"; the best epoch's predictions are the validation
+        results, see `BestEpochValidation`)."""
         e = state["epoch"]
         val = self.selection_metric(validation["accuracy"])
         better = val > state["best_val"]
@@ -266,33 +256,59 @@ class Trainer:
         patience = self.config.patience
         stop = (state["stopped_at"] < 0) & (patience > 0) & (e - best_epoch >= patience)
         hist = state["history"]
+        params = state["params"]
         return {
             "params": params,
-            "opt_state": opt_state,
+            "opt_state": state["opt_state"],
             "best_params": jax.tree.map(lambda a, b: jnp.where(better, a, b), params, state["best_params"]),
             "best_val": jnp.where(better, val, state["best_val"]),
             "best_epoch": best_epoch,
             "stopped_at": jnp.where(stop, e, state["stopped_at"]),
             "epoch": e + 1,
             "key": state["key"],
-            "history": {"train_loss": hist["train_loss"].at[e].set(loss), "val_acc": hist["val_acc"].at[e].set(val)},
-        }
+            "history": {
+                "train_loss": hist["train_loss"].at[e].set(summary["train_loss"]),
+                "val_acc": hist["val_acc"].at[e].set(val),
+            },
+        }, {**summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]}
 
-    def finish(self, state, sets) -> dict[str, Any]:
-        """Metrics of a finished run: learning curves and the best-validation model on `sets`
-        ({name: set}, in training's layout)."""
-        return self.finished(state, {name: self.evaluate(state["best_params"], ds) for name, ds in sets.items()})
+    def evaluate_sets(self, params, sets, feed) -> dict[str, dict[str, jax.Array]]:
+        """`evaluate`'s of `params` on every set of `sets` ({name: set}), read through `feed`."""
+        return {name: feed.evaluate(params, ds) for name, ds in sets.items()}
+
+
+@dataclasses.dataclass(frozen=True)
+class DeviceFeed:
+    """A run's sets on the devices (`placement.place_sets`), read inside the one jitted,
+    seed-vmapped program that runs `Trainer.run`: code written for one seed runs as it is, and
+    the epochs are a `lax.scan`. `feed.HostFeed` is the same for sets on the host."""
+
+    trainer: Trainer
 
     @staticmethod
-    def finished(state, evaluations: Mapping[str, Any]) -> dict[str, Any]:
-        """`finish`'s metrics from the best-validation model's `evaluations` ({name: `evaluate`'s})."""
-        return {
-            **state["history"],
-            "best_epoch": state["best_epoch"],
-            "stopped_at": state["stopped_at"],
-            "best_val_acc": state["best_val"],
-            "eval": dict(evaluations),
-        }
+    def per_seed(fn):
+        return fn
+
+    @staticmethod
+    def repeat(epoch, state, n: int):
+        return jax.lax.scan(lambda s, _: epoch(s), state, length=n)
+
+    def train_steps(self, state, order, step_keys, train):
+        """The epoch's steps (`Trainer.train_step`) over minibatches `order` of `train` in a
+        scan: (state with the trained parameters and optimiser state, the steps' outputs)."""
+        trainer = self.trainer
+
+        def step(carry, xs):
+            idx, k = xs
+            return trainer.train_step(carry, jax.tree.map(lambda a: a[idx], train), k)
+
+        old = (state["params"], state["opt_state"])
+        new, steps = jax.lax.scan(step, old, (order, step_keys))
+        params, opt_state = trainer.unless_stopped(state["stopped_at"], new, old)
+        return {**state, "params": params, "opt_state": opt_state}, steps
+
+    def evaluate(self, params, ds):
+        return self.trainer.evaluate(params, ds)
 
 
 def make_trainer(
@@ -306,8 +322,8 @@ def make_trainer(
     trainer built to initialise, restore or predict, whose optimiser never steps)."""
     shapes = {m: tuple(shapes[m]) for m in config.modalities}
     graphdef = nnx.split(nnx.eval_shape(lambda: FabricNet(config, shapes, rngs=nnx.Rngs(0))))[0]
-    steps = total_steps(config, config.batch_size if n_train is None else n_train)
-    return Trainer(config, shapes, graphdef, make_optimizer(config, steps), steps, mesh)
+    n_train = config.batch_size if n_train is None else n_train
+    return Trainer(config, shapes, graphdef, make_optimizer(config, total_steps(config, n_train)), n_train, mesh)
 
 
 class BestEpochValidation:
@@ -355,10 +371,23 @@ def unpad(metrics, sizes: Mapping[str, int]):
     }
 
 
+class Programs(NamedTuple):
+    """A run's programs, for where its sets live: `init` (the seeds' keys to their stacked
+    states), `epochs(n)` ((state, sets) to n more epochs: `Trainer.run`) and `evaluate`
+    ((parameters, sets) to `Trainer.evaluate_sets`). With the sets on the devices each is one
+    jitted, seed-vmapped, seed-sharded program (`DeviceFeed`); from the host, `Trainer.run` and
+    `Trainer.evaluate_sets` run with `feed.HostFeed`, which compiles their pieces."""
+
+    trainer: Trainer
+    init: Callable
+    epochs: Callable[[int], Callable]
+    evaluate: Callable
+
+
 @functools.lru_cache(maxsize=1)
-def _programs(config: Config, shapes: tuple, n_train: int, mesh):
-    """Jitted, seed-vmapped, seed-sharded init / run(n epochs) / finish, cached so that reruns of
-    a config (a resume, another data set of the same shapes) reuse the compiled programs.
+def _programs(config: Config, shapes: tuple, n_train: int, mesh, from_host: bool) -> Programs:
+    """The `Programs` of a run, cached so that reruns of a config (a resume, another data set of
+    the same shapes) reuse the compiled programs.
 
     Only the latest run's: XLA:CPU compiles more slowly the more compiled programs a process holds,
     a study's rows differ in their config, and the persistent compilation cache still serves a
@@ -366,15 +395,27 @@ def _programs(config: Config, shapes: tuple, n_train: int, mesh):
     trainer = make_trainer(config, dict(shapes), mesh, n_train)
     per_seed = sharding.replicated(mesh)
     init = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)
-    finish = jax.jit(sharding.vmap_seeds(trainer.finish, in_axes=(0, None)), out_shardings=per_seed)
-    run = functools.lru_cache(
+    if from_host:
+        host = feed.HostFeed(trainer, per_seed)
+        return Programs(
+            trainer,
+            init,
+            lambda n: functools.partial(trainer.run, feed=host, n_epochs=n),
+            functools.partial(trainer.evaluate_sets, feed=host),
+        )
+    on_devices = DeviceFeed(trainer)
+    evaluate = jax.jit(
+        sharding.vmap_seeds(functools.partial(trainer.evaluate_sets, feed=on_devices), in_axes=(0, None)),
+        out_shardings=per_seed,
+    )
+    epochs = functools.lru_cache(
         lambda n: jax.jit(
-            sharding.vmap_seeds(functools.partial(trainer.run, n_epochs=n), in_axes=(0, None)),
+            sharding.vmap_seeds(functools.partial(trainer.run, feed=on_devices, n_epochs=n), in_axes=(0, None)),
             donate_argnums=0,
             out_shardings=per_seed,
         )
     )
-    return trainer, init, run, finish, feed.HostFed(trainer, per_seed)
+    return Programs(trainer, init, epochs, evaluate)
 
 
 @dataclasses.dataclass
@@ -489,9 +530,8 @@ def train_and_evaluate(
     shapes = tuple(sorted(feature_shapes(select(config, data_sets["train"])["inputs"]).items()))
     n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
     with account.phase("initialise_s"):
-        trainer, init, run, finish, fed = _programs(config, shapes, n_train, mesh)
-        if reads_from_host(config, data_sets["train"]):
-            run, finish = (lambda n: functools.partial(fed.run, n_epochs=n)), fed.finish
+        programs = _programs(config, shapes, n_train, mesh, reads_from_host(config, data_sets["train"]))
+        trainer, init = programs.trainer, programs.init
         keys = sharding.put(seed_keys(seeds), per_seed)
         mngr = checkpoint.manager(workdir) if workdir is not None else None
         train_set = data_sets["train"]
@@ -524,7 +564,7 @@ def train_and_evaluate(
         n = min(chunk, save_every - done % save_every, config.epochs - done)
         t0 = time.perf_counter()
         with account.phase("epochs_s"):
-            state, chunk_curves = run(n)(state, data)
+            state, chunk_curves = programs.epochs(n)(state, data)
             chunk_curves = jax.device_get(chunk_curves)  # waits for the chunk
         history.add(done, chunk_curves, (time.perf_counter() - t0) / n)
         validation.add(
@@ -542,11 +582,18 @@ def train_and_evaluate(
         writer.close()
     val = validation.results()
     with account.phase("evaluate_s"):
-        metrics = jax.device_get(
-            finish(state, data["eval"] if val is not None else {"val": data["val"], **data["eval"]})
+        evaluations = jax.device_get(
+            programs.evaluate(
+                state["best_params"], data["eval"] if val is not None else {"val": data["val"], **data["eval"]}
+            )
         )
-    if val is not None:
-        metrics["eval"] = {"val": val, **metrics["eval"]}
+    metrics = {
+        **jax.device_get(state["history"]),
+        "best_epoch": jax.device_get(state["best_epoch"]),
+        "stopped_at": jax.device_get(state["stopped_at"]),
+        "best_val_acc": jax.device_get(state["best_val"]),
+        "eval": evaluations if val is None else {"val": val, **evaluations},
+    }
     metrics = unpad(metrics, sizes)
     return Results(
         config, seeds, trainer.graphdef, state, {**metrics, "epochs": history.scalars, "time": account.result()}
