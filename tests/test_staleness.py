@@ -117,7 +117,7 @@ def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(publishe
 
 
 def test_changed_code_marks_the_studies_stale_and_the_reader_of_a_rerun_study(published, monkeypatch):
-    monkeypatch.setattr(source, "fingerprint", lambda: "f" * 64)
+    monkeypatch.setattr(source, "package", lambda: "f" * 64)
     notes = staleness.stale(
         json.loads((published.results / reproduce_plan.MANIFEST).read_text()), results_files.fingerprints(None)
     )

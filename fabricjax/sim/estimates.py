@@ -1728,7 +1728,7 @@ def in_force() -> tuple[tuple[str, float], ...]:
 
 
 def fingerprint() -> str:
-    """The simulator's magnitudes as results record them (`studies.common.documents.fingerprints`):
+    """The simulator's magnitudes as results record them (`reporting.results_files.fingerprints`):
     sha256 over every estimate's name and the value in force (`value`)."""
     text = "\n".join(f"{name}={value(name)!r}" for name in sorted(ESTIMATES))
     return hashlib.sha256(text.encode()).hexdigest()
