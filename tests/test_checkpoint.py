@@ -59,7 +59,7 @@ def test_restore_one_seed_gives_identical_predictions(uninterrupted):
         "unseen_fabrics": [],
     }
     test = data_sets()["test"]["inputs"]
-    restored = make_predict(graphdef)(state["best_params"], test)["fabric"]
+    restored = make_predict(graphdef)(state.best_params, test)["fabric"]
     trained = make_predict(res.graphdef)(res.params(1), test)["fabric"]
     np.testing.assert_array_equal(restored, trained)
     np.testing.assert_array_equal(np.argmax(restored, -1), res.metrics["eval"]["test"]["predictions"]["fabric"][1])
@@ -172,7 +172,7 @@ assert jax.device_count() == int(sys.argv[2])
 if len(sys.argv) > 3:
     train_and_evaluate(TINY, data_sets(), SEEDS, workdir=sys.argv[1])
 graphdef, state, *_ = restore(sys.argv[1], seed=7)
-logits = make_predict(graphdef)(state["best_params"], data_sets()["test"]["inputs"])["fabric"]
+logits = make_predict(graphdef)(state.best_params, data_sets()["test"]["inputs"])["fabric"]
 print("logits", repr(np.asarray(logits).tolist()))
 """
 
@@ -197,7 +197,7 @@ def test_a_checkpoint_restores_on_another_device_count(uninterrupted, tmp_path):
     np.testing.assert_allclose(on_devices(workdir, 2), trained, rtol=1e-6)
     two = on_devices(tmp_path / "two", 2, train=True)
     graphdef, state, *_ = restore(tmp_path / "two", seed=7)
-    np.testing.assert_allclose(np.asarray(make_predict(graphdef)(state["best_params"], test)["fabric"]), two, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(make_predict(graphdef)(state.best_params, test)["fabric"]), two, rtol=1e-6)
 
 
 def test_a_path_without_a_checkpoint_is_one_line_and_creates_nothing(uninterrupted, tmp_path):

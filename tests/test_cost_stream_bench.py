@@ -131,9 +131,7 @@ def _tiny_streamer(config, shapes=None, layout=live.HAND):
         m: (18,) if m == "proprio" else (welch.n_bins(config.bandwidth_khz),) for m in config.modalities
     }
     trainer = train.make_trainer(config, shapes)
-    return live.Streamer(
-        trainer.graphdef, jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"], config, layout=layout
-    )
+    return live.Streamer(trainer.graphdef, jax.jit(trainer.init)(jax.random.PRNGKey(0)).params, config, layout=layout)
 
 
 def test_streaming_psd_of_the_newest_step_equals_the_batch_feature(smoke_workdir):

@@ -62,24 +62,22 @@ def test_early_stopping_picks_the_epoch_a_validation_curve_dictates():
         0.97,
     ]  # best 0.6 at epoch 3; epochs 4, 5, 6 no better: stops at 6
     for e, acc in enumerate(curve):
-        params = jax.tree.map(lambda a: jnp.full_like(a, e), state["params"])  # each epoch's parameters are its number
+        params = jax.tree.map(lambda a: jnp.full_like(a, e), state.params)  # each epoch's parameters are its number
         params, opt_state = trainer.unless_stopped(
-            state["stopped_at"], (params, state["opt_state"]), (state["params"], state["opt_state"])
+            state.stopped_at, (params, state.opt_state), (state.params, state.opt_state)
         )
         # a stopped seed's parameters are frozen, so its validation accuracy is that of its last trained epoch
-        acc = acc if state["stopped_at"] < 0 else curve[int(state["stopped_at"])]
+        acc = acc if state.stopped_at < 0 else curve[int(state.stopped_at)]
         state, _ = trainer.end_epoch(
-            {**state, "params": params, "opt_state": opt_state},
+            state.replace(params=params, opt_state=opt_state),
             {"train_loss": jnp.float32(1.0)},
             {"accuracy": {"fabric": jnp.float32(acc)}, "predictions": {}},
         )
-    assert int(state["best_epoch"]) == 3
-    assert int(state["stopped_at"]) == 6
-    assert float(state["best_val"]) == pytest.approx(0.6)
-    assert all(np.all(np.asarray(a) == 3) for a in jax.tree.leaves(state["best_params"]))
-    assert all(
-        np.all(np.asarray(a) == 6) for a in jax.tree.leaves(state["params"])
-    )  # trained up to the stop, then frozen
+    assert int(state.best_epoch) == 3
+    assert int(state.stopped_at) == 6
+    assert float(state.best_val) == pytest.approx(0.6)
+    assert all(np.all(np.asarray(a) == 3) for a in jax.tree.leaves(state.best_params))
+    assert all(np.all(np.asarray(a) == 6) for a in jax.tree.leaves(state.params))  # trained up to the stop, then frozen
 
 
 def test_no_patience_never_stops():
@@ -89,7 +87,7 @@ def test_no_patience_never_stops():
         state, _ = trainer.end_epoch(
             state, {"train_loss": jnp.float32(1.0)}, {"accuracy": {"fabric": jnp.float32(0.1)}, "predictions": {}}
         )
-    assert int(state["stopped_at"]) == -1
+    assert int(state.stopped_at) == -1
 
 
 @pytest.mark.parametrize("from_host", [False, True], ids=["devices", "host"])
@@ -104,8 +102,8 @@ def test_a_stopped_seed_no_longer_changes_while_the_others_train(from_host):
     state = jax.jit(jax.vmap(trainer.init))(
         train.seed_keys([0, 1])
     )  # distinct buffers: the host feed donates the parameters
-    state["stopped_at"] = jnp.array([0, -1], jnp.int32)
-    before = jax.tree.map(np.array, (state["params"], state["opt_state"]))
+    state = state.replace(stopped_at=jnp.array([0, -1], jnp.int32))
+    before = jax.tree.map(np.array, (state.params, state.opt_state))
     if from_host:
         host = feed.HostFeed(trainer, sharding.replicated(mesh))
         after, _ = trainer.run(state, {"train": sets["train"], "val": sets["val"]}, host, n_epochs=1)
@@ -113,11 +111,11 @@ def test_a_stopped_seed_no_longer_changes_while_the_others_train(from_host):
         data, _ = placement.place_sets(cfg, sets["train"], sets["val"], {}, sharding.replicated(mesh))
         on_devices = train.DeviceFeed(trainer)
         after, _ = jax.jit(jax.vmap(lambda s, d: trainer.run(s, d, on_devices, 1), in_axes=(0, None)))(state, data)
-    for old, new in zip(jax.tree.leaves(before), jax.tree.leaves((after["params"], after["opt_state"]))):
+    for old, new in zip(jax.tree.leaves(before), jax.tree.leaves((after.params, after.opt_state))):
         np.testing.assert_array_equal(np.asarray(new)[0], old[0])
     moved = [
         not np.array_equal(np.asarray(new)[1], old[1])
-        for old, new in zip(jax.tree.leaves(before[0]), jax.tree.leaves(after["params"]))
+        for old, new in zip(jax.tree.leaves(before[0]), jax.tree.leaves(after.params))
     ]
     assert any(moved)
 

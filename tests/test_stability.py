@@ -207,8 +207,8 @@ def one_step(config: Config, ds, params=None):
     n = jax.tree.leaves(batch["labels"])[0].shape[0]
     trainer, step, logits = _stepper(dataclasses.replace(config, batch_size=n), shapes)
     state = trainer.init(jax.random.PRNGKey(0))
-    params = state["params"] if params is None else params
-    loss, grads, new = step(params, state["opt_state"], batch, jax.random.PRNGKey(1))
+    params = state.params if params is None else params
+    loss, grads, new = step(params, state.opt_state, batch, jax.random.PRNGKey(1))
     return {"loss": loss, "grads": grads, "params": params, "new": new, "logits": logits(params, batch["inputs"])}
 
 
@@ -481,7 +481,7 @@ def test_training_killed_mid_epoch_resumes_from_its_last_checkpoint(tmp_path):
 
     for a, b in zip(jax.tree.leaves(outcome(resumed.metrics)), jax.tree.leaves(outcome(full.metrics))):
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-6)
-    assert finite(resumed.state["params"])
+    assert finite(resumed.state.params)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -29,7 +29,7 @@ def test_twin_logits_equal_ours_with_the_same_weights(modalities):
     # Huge inputs: the rescale maps them to [0, 1]; scaled positions give large attention logits.
     inputs = {k: v * 1e3 for k, v in inputs.items()}
     trainer = make_trainer(cfg, feature_shapes(inputs))
-    params = trainer.init(jax.random.PRNGKey(3))["params"]
+    params = trainer.init(jax.random.PRNGKey(3)).params
     # Every parameter moved off its initial value (LayerNorm scales off 1, biases off 0), so a
     # parameter the two models use differently cannot hide behind its initialisation.
     leaves, tree = jax.tree.flatten(params)
@@ -51,7 +51,7 @@ def test_twin_initialisation_matches_ours_in_scale():
     cfg = Config(modalities=("internal", "proprio"), **SMALL)
     twin = torch_twin.build(cfg, n_bins=20)
     trainer = make_trainer(cfg, {"internal": (20,), "proprio": (18,)})
-    ours = torch_twin.state_dict_from_params(trainer.init(jax.random.PRNGKey(0))["params"])
+    ours = torch_twin.state_dict_from_params(trainer.init(jax.random.PRNGKey(0)).params)
     theirs = twin.state_dict()
     assert set(ours) == set(theirs)
     for name, value in ours.items():

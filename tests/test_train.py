@@ -137,7 +137,7 @@ shardings = [split(np.zeros((2, 2, n, 3))).sharding for n in (4, 3)]
 out["split"] = [[len(s.device_set), list(getattr(s, "spec", []))] for s in shardings]
 for name, seeds in (("seeds", [3, 4, 3, 5]), ("samples", [4])):
     res = train_and_evaluate(TINY, data_sets(TINY), seeds=seeds)
-    out[name] = {{"devices": len(res.state["epoch"].sharding.device_set),
+    out[name] = {{"devices": len(res.state.epoch.sharding.device_set),
                   "train_loss": res.metrics["train_loss"].tolist(),
                   "pred": res.metrics["eval"]["test"]["predictions"]["fabric"].tolist()}}
 def kill(epoch):
@@ -167,7 +167,7 @@ def test_four_host_devices_give_the_same_results_as_one(four_seeds, tmp_path):
     assert sharded["mesh"] == {"batch": 4}
     assert sharded["split"] == [[4, [None, None, "batch"]], [1, []]]  # 3 samples: left alone (no constraint)
     single = four_seeds
-    assert len(single.state["epoch"].sharding.device_set) == 1
+    assert len(single.state.epoch.sharding.device_set) == 1
     assert sharded["seeds"]["devices"] == sharded["samples"]["devices"] == 4
     np.testing.assert_allclose(sharded["seeds"]["train_loss"], single.metrics["train_loss"], rtol=1e-5)
     np.testing.assert_array_equal(sharded["seeds"]["pred"], single.metrics["eval"]["test"]["predictions"]["fabric"])
@@ -268,8 +268,7 @@ def test_joint_standardisation_comes_from_the_training_split_and_stays_fixed():
     sets["train"]["inputs"]["proprio"] = sets["train"]["inputs"]["proprio"] * 1e-3 + 5.0  # tiny spread, large offset
     x = sets["train"]["inputs"]["proprio"].reshape(-1, 18)
     r = train_and_evaluate(cfg, sets, (0, 1))
-    for key in ("params", "best_params"):
-        p = r.state[key]
+    for p in (r.state.params, r.state.best_params):
         np.testing.assert_allclose(np.asarray(p["proprio_shift"])[1], x.mean(0), rtol=1e-5)
         np.testing.assert_allclose(np.asarray(p["proprio_scale"])[0], 1 / x.std(0), rtol=1e-3)
     assert np.all(np.isfinite(r.metrics["train_loss"]))
@@ -388,7 +387,7 @@ cfg = Config(**{{**TINY.to_json(), "modalities": ("image", "internal", "proprio"
 sizes = (("train", 24), ("val", 10), ("test", 12))
 sets = {{k: synthetic.data_set(cfg, n, seed=i, image_hw=(12, 16)) for i, (k, n) in enumerate(sizes)}}
 res = train_and_evaluate(cfg, sets, seeds=[0, 1])
-print(hashlib.sha256(b"".join(np.asarray(x).tobytes() for x in jax.tree.leaves(res.state["params"]))).hexdigest())
+print(hashlib.sha256(b"".join(np.asarray(x).tobytes() for x in jax.tree.leaves(res.state.params))).hexdigest())
 """
 
 

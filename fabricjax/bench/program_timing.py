@@ -200,7 +200,7 @@ def _inference_program(config: Config, seq_len: int, psd_bins: int):
     cfg = dataclasses.replace(config, seq_len=seq_len)
     inputs = select(cfg, synthetic.data_set(cfg, 1, psd_bins=psd_bins))["inputs"]
     trainer = make_trainer(cfg, feature_shapes(inputs))
-    params = jax.jit(trainer.init)(seed_keys([0])[0])["params"]
+    params = jax.jit(trainer.init)(seed_keys([0])[0]).params
     return trainer.graphdef, params, {k: v[0] for k, v in inputs.items()}
 
 

@@ -329,7 +329,7 @@ def bench_streaming(quick: bool, w: Workload) -> dict:
         for m in w.model.modalities
     }
     trainer = train.make_trainer(w.model, shapes)
-    params = jax.jit(trainer.init)(jax.random.PRNGKey(0))["params"]
+    params = jax.jit(trainer.init)(jax.random.PRNGKey(0)).params
     out = live.replay(live.Streamer(trainer.graphdef, params, w.model), trial, realtime=False)
     keep = ("steps", "window_steps", "decided_steps", "latency_p50_ms", "latency_p99_ms", "latency_max_ms")
     return {k: out[k] for k in keep} | {

@@ -266,7 +266,7 @@ def restore_model(directory) -> tuple[nnx.GraphDef, dict, Config, float]:
     t = confidence.load_temperature(directory, restored.seeds[0])
     return (
         restored.graphdef,
-        checkpoint.select_seed(restored.state["best_params"], 0),
+        checkpoint.select_seed(restored.state.best_params, 0),
         restored.config,
         1.0 if t is None else t,
     )

@@ -5,7 +5,7 @@ by, and the layout training holds its sets in.
                           which inputs are standardised, along which channel axis, and the shapes
                           of their fixed (shift, scale) parameters in `model.FabricNet`
     input_statistics      those parameters' values from the training split
-    with_input_statistics a training state with them written into its parameters
+    with_input_statistics a model's parameters with them written in
     training_layout       a set's inputs as training and its evaluation read them (frames as rows)
     training_input        one input of it
     feature_shapes        the per-step shapes a model is built for
@@ -131,13 +131,9 @@ def _sums(part: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, int]:
     return part.sum(0), (part * part).sum(0), len(part)
 
 
-def with_input_statistics(state: dict[str, Any], stats: Mapping[str, jax.Array]) -> dict[str, Any]:
-    """`state` (one seed's, or stacked over seeds) with the input statistics written into its parameters."""
-
-    def put(params):
-        return {**params, **{k: jnp.broadcast_to(v, params[k].shape).astype(params[k].dtype) for k, v in stats.items()}}
-
-    return {**state, "params": put(state["params"]), "best_params": put(state["best_params"])}
+def with_input_statistics(params: dict[str, Any], stats: Mapping[str, jax.Array]) -> dict[str, Any]:
+    """`params` (one seed's, or stacked over seeds) with the input statistics written into them."""
+    return {**params, **{k: jnp.broadcast_to(v, params[k].shape).astype(params[k].dtype) for k, v in stats.items()}}
 
 
 def training_layout(inputs: Mapping[str, jax.Array]) -> dict[str, jax.Array]:

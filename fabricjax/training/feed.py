@@ -120,7 +120,7 @@ class HostFeed:
         order = np.asarray(order)
         n_seeds, steps, batch = order.shape
         k = block_steps(train["inputs"], batch, n_seeds, steps)
-        carry, outputs = (state["params"], state["opt_state"]), []
+        carry, outputs = (state.params, state.opt_state), []
         for start in range(0, steps, k):
             rows = order[:, start : start + k]  # (seeds, steps, batch)
             block = {
@@ -130,10 +130,10 @@ class HostFeed:
                 },
                 "labels": {h: a[rows] for h, a in train["labels"].items()},
             }
-            carry, out = self._steps(carry, self._place(block), step_keys[:, start : start + k], state["stopped_at"])
+            carry, out = self._steps(carry, self._place(block), step_keys[:, start : start + k], state.stopped_at)
             outputs.append(out)
         params, opt_state = carry
-        return {**state, "params": params, "opt_state": opt_state}, jax.tree.map(
+        return state.replace(params=params, opt_state=opt_state), jax.tree.map(
             lambda *xs: jnp.concatenate(xs, axis=1), *outputs
         )
 

@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
-from flax import nnx
+from flax import nnx, struct
 from jax.sharding import Mesh
 
 from fabricjax import runtime
@@ -111,6 +111,31 @@ def _correct_and_known(
     }
 
 
+@struct.dataclass
+class EpochHistory:
+    """Each epoch's training loss and validation accuracy (`Trainer.selection_metric`), (epochs,)
+    each, 0 for the epochs not trained: written into the state so that they leave the devices,
+    and are saved, with it."""
+
+    train_loss: jax.Array
+    val_acc: jax.Array
+
+
+@struct.dataclass
+class TrainState:
+    """One seed's run between epochs; stacked over seeds, every leaf has a leading seed axis."""
+
+    params: Any
+    opt_state: Any
+    key: jax.Array  # the run's: epoch e's randomness is fold_in(key, e)
+    epoch: jax.Array  # epochs trained
+    best_params: Any  # the parameters of the best validation epoch so far: the seed's result
+    best_val: jax.Array  # their validation accuracy (`Trainer.selection_metric`), -1 before the first epoch
+    best_epoch: jax.Array
+    stopped_at: jax.Array  # the epoch the seed stopped early at (`Trainer.end_epoch`), -1 while it trains
+    history: EpochHistory
+
+
 @dataclasses.dataclass(frozen=True)
 class Trainer:
     """The pure pieces of a run, each a function of one seed's state, and the one epoch they make
@@ -123,21 +148,21 @@ class Trainer:
     n_train: int  # training sequences: an epoch's minibatches and the learning-rate schedule's length
     mesh: Mesh | None = None  # splits minibatch samples over its "batch" devices (`sharding.split_samples`)
 
-    def init(self, key: jax.Array) -> dict[str, Any]:
+    def init(self, key: jax.Array) -> TrainState:
         k_params, k_run = jax.random.split(key)
         params = nnx.to_pure_dict(nnx.state(FabricNet(self.config, self.shapes, rngs=nnx.Rngs(k_params))))
         zeros = jnp.zeros(self.config.epochs, jnp.float32)
-        return {
-            "params": params,
-            "opt_state": self.tx.init(params),
-            "best_params": params,
-            "best_val": jnp.float32(-1.0),
-            "best_epoch": jnp.int32(-1),
-            "stopped_at": jnp.int32(-1),
-            "epoch": jnp.int32(0),
-            "key": k_run,
-            "history": {"train_loss": zeros, "val_acc": zeros},
-        }
+        return TrainState(
+            params=params,
+            opt_state=self.tx.init(params),
+            key=k_run,
+            epoch=jnp.int32(0),
+            best_params=params,
+            best_val=jnp.float32(-1.0),
+            best_epoch=jnp.int32(-1),
+            stopped_at=jnp.int32(-1),
+            history=EpochHistory(train_loss=zeros, val_acc=zeros),
+        )
 
     def run(self, state, sets, feed, n_epochs: int):
         """`n_epochs` more epochs (`epoch`): (state, their curves, each with a leading epoch axis)."""
@@ -150,16 +175,16 @@ class Trainer:
         devices inside one jitted program (`DeviceFeed`), or from the host a block at a time
         (`feed.HostFeed`); whichever it is, this is the run's epoch."""
         state, summary = self.train_epoch(state, sets["train"], feed)
-        validation = feed.evaluate(state["params"], sets["val"])
+        validation = feed.evaluate(state.params, sets["val"])
         return feed.per_seed(self.end_epoch)(state, summary, validation)
 
     def train_epoch(self, state, train, feed):
         """One pass over the training set in shuffled minibatches (`epoch_order`, `train_step`):
         (state with the new parameters and optimiser state, `epoch_summary`). A stopped seed's
         parameters stay as they were (`unless_stopped`)."""
-        order, step_keys = feed.per_seed(self.epoch_order)(state["key"], state["epoch"])
+        order, step_keys = feed.per_seed(self.epoch_order)(state.key, state.epoch)
         state, steps = feed.train_steps(state, order, step_keys, train)
-        return state, feed.per_seed(self.epoch_summary)(steps, state["epoch"])
+        return state, feed.per_seed(self.epoch_summary)(steps, state.epoch)
 
     def epoch_order(self, key, epoch) -> tuple[jax.Array, jax.Array]:
         """Epoch `epoch`'s minibatches over the `n_train` training sequences, from the run's key:
@@ -249,28 +274,23 @@ class Trainer:
         its result). The curves are `summary` with the validation accuracy and predictions per
         head ("val_accuracy", "val_predictions"; the best epoch's predictions are the validation
         results, see `BestEpochValidation`)."""
-        e = state["epoch"]
+        e = state.epoch
         val = self.selection_metric(validation["accuracy"])
-        better = val > state["best_val"]
-        best_epoch = jnp.where(better, e, state["best_epoch"])
+        better = val > state.best_val
+        best_epoch = jnp.where(better, e, state.best_epoch)
         patience = self.config.patience
-        stop = (state["stopped_at"] < 0) & (patience > 0) & (e - best_epoch >= patience)
-        hist = state["history"]
-        params = state["params"]
-        return {
-            "params": params,
-            "opt_state": state["opt_state"],
-            "best_params": jax.tree.map(lambda a, b: jnp.where(better, a, b), params, state["best_params"]),
-            "best_val": jnp.where(better, val, state["best_val"]),
-            "best_epoch": best_epoch,
-            "stopped_at": jnp.where(stop, e, state["stopped_at"]),
-            "epoch": e + 1,
-            "key": state["key"],
-            "history": {
-                "train_loss": hist["train_loss"].at[e].set(summary["train_loss"]),
-                "val_acc": hist["val_acc"].at[e].set(val),
-            },
-        }, {**summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]}
+        stop = (state.stopped_at < 0) & (patience > 0) & (e - best_epoch >= patience)
+        return state.replace(
+            best_params=jax.tree.map(lambda a, b: jnp.where(better, a, b), state.params, state.best_params),
+            best_val=jnp.where(better, val, state.best_val),
+            best_epoch=best_epoch,
+            stopped_at=jnp.where(stop, e, state.stopped_at),
+            epoch=e + 1,
+            history=EpochHistory(
+                train_loss=state.history.train_loss.at[e].set(summary["train_loss"]),
+                val_acc=state.history.val_acc.at[e].set(val),
+            ),
+        ), {**summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]}
 
     def evaluate_sets(self, params, sets, feed) -> dict[str, dict[str, jax.Array]]:
         """`evaluate`'s of `params` on every set of `sets` ({name: set}), read through `feed`."""
@@ -302,10 +322,10 @@ class DeviceFeed:
             idx, k = xs
             return trainer.train_step(carry, jax.tree.map(lambda a: a[idx], train), k)
 
-        old = (state["params"], state["opt_state"])
+        old = (state.params, state.opt_state)
         new, steps = jax.lax.scan(step, old, (order, step_keys))
-        params, opt_state = trainer.unless_stopped(state["stopped_at"], new, old)
-        return {**state, "params": params, "opt_state": opt_state}, steps
+        params, opt_state = trainer.unless_stopped(state.stopped_at, new, old)
+        return state.replace(params=params, opt_state=opt_state), steps
 
     def evaluate(self, params, ds):
         return self.trainer.evaluate(params, ds)
@@ -425,12 +445,12 @@ class Results:
     config: Config
     seeds: tuple[int, ...]
     graphdef: Any
-    state: dict[str, Any]
+    state: TrainState
     metrics: dict[str, Any]
 
     def params(self, index: int):
         """Best-validation parameters of the `index`-th seed."""
-        return checkpoint.select_seed(self.state["best_params"], index)
+        return checkpoint.select_seed(self.state.best_params, index)
 
     def model(self, index: int) -> FabricNet:
         return nnx.merge(self.graphdef, self.params(index))
@@ -479,7 +499,7 @@ class TimeAccount:
 def stopped(state) -> bool:
     """Whether every seed of a run has stopped early (`Trainer.end_epoch`): its remaining epochs
     would change nothing."""
-    return bool(np.all(jax.device_get(state["stopped_at"]) >= 0))
+    return bool(np.all(jax.device_get(state.stopped_at) >= 0))
 
 
 def seed_keys(seeds: Sequence[int]) -> jax.Array:
@@ -547,7 +567,12 @@ def train_and_evaluate(
             saved_curves = checkpoint.read_meta(mngr, done).get("curves")
         else:
             stats = input_statistics(config, data_sets["train"])
-            state, done = sharding.put(with_input_statistics(init(keys), stats), per_seed), 0
+            state = init(keys)
+            state = state.replace(
+                params=with_input_statistics(state.params, stats),
+                best_params=with_input_statistics(state.best_params, stats),
+            )
+            state, done = sharding.put(state, per_seed), 0
         state = jax.block_until_ready(state)
     history, validation = curves.History(len(seeds), config.epochs), BestEpochValidation(len(seeds))
     if done and saved_curves:
@@ -568,7 +593,7 @@ def train_and_evaluate(
             chunk_curves = jax.device_get(chunk_curves)  # waits for the chunk
         history.add(done, chunk_curves, (time.perf_counter() - t0) / n)
         validation.add(
-            done, chunk_curves.pop("val_predictions"), chunk_curves["val_accuracy"], jax.device_get(state["best_epoch"])
+            done, chunk_curves.pop("val_predictions"), chunk_curves["val_accuracy"], jax.device_get(state.best_epoch)
         )
         if writer is not None:
             writer.write(history, done, done + n)
@@ -584,14 +609,14 @@ def train_and_evaluate(
     with account.phase("evaluate_s"):
         evaluations = jax.device_get(
             programs.evaluate(
-                state["best_params"], data["eval"] if val is not None else {"val": data["val"], **data["eval"]}
+                state.best_params, data["eval"] if val is not None else {"val": data["val"], **data["eval"]}
             )
         )
     metrics = {
-        **jax.device_get(state["history"]),
-        "best_epoch": jax.device_get(state["best_epoch"]),
-        "stopped_at": jax.device_get(state["stopped_at"]),
-        "best_val_acc": jax.device_get(state["best_val"]),
+        **dataclasses.asdict(jax.device_get(state.history)),
+        "best_epoch": jax.device_get(state.best_epoch),
+        "stopped_at": jax.device_get(state.stopped_at),
+        "best_val_acc": jax.device_get(state.best_val),
         "eval": evaluations if val is None else {"val": val, **evaluations},
     }
     metrics = unpad(metrics, sizes)
@@ -606,7 +631,7 @@ class Restored(NamedTuple):
     (`checkpoint.trained_for`)."""
 
     graphdef: Any
-    state: dict[str, Any]
+    state: TrainState
     config: Config
     seeds: list[int]
     trained_for: dict[str, Any]

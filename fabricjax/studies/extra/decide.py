@@ -113,7 +113,7 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Loc
         "a model with a fabric head",
         "fabric" in restored.trained_for["heads"],
     )
-    index = int(np.argmax(np.asarray(state["best_val"], np.float64)))
+    index = int(np.argmax(np.asarray(state.best_val, np.float64)))
     unknown = unknown_fabrics(config, bool(where.data_dir), unknown_labels)
     data_config = dataclasses.replace(config, exclude_fabrics=unknown)
     ds = loading.load_dataset(
@@ -133,11 +133,11 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Loc
     encode = encoder(graphdef)
     temperatures = {}
     for i, s in enumerate(seeds):
-        logits, _ = outputs(encode, checkpoint.select_seed(state["best_params"], i), sets["val"], config.modalities)
+        logits, _ = outputs(encode, checkpoint.select_seed(state.best_params, i), sets["val"], config.modalities)
         temperatures[s] = confidence.fit_temperature(logits, sets["val"].labels["fabric"])
     confidence.save_temperatures(checkpoint_dir, temperatures, "val")
     seed, t = seeds[index], temperatures[seeds[index]]
-    params = checkpoint.select_seed(state["best_params"], index)
+    params = checkpoint.select_seed(state.best_params, index)
     out = {name: outputs(encode, params, ss, config.modalities) for name, ss in sets.items()}
     mahalanobis = confidence.Mahalanobis.fit(out["train"][1], sets["train"].labels["fabric"])
     known_val = mahalanobis.score(out["val"][1])

@@ -101,14 +101,14 @@ def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()
             "(a properties-study checkpoint, listed in its properties.md)",
             not trained_holdouts,
         )
-    best_val = np.asarray(state["best_val"], np.float64)
+    best_val = np.asarray(state.best_val, np.float64)
     if seed is None:
         index = int(np.argmax(best_val))
     elif seed in seeds:
         index = seeds.index(seed)
     else:
         raise UserError(f"seed {seed} is not in the checkpoint in {checkpoint_dir} (seeds {seeds})")
-    params = checkpoint.select_seed(state["best_params"], index)
+    params = checkpoint.select_seed(state.best_params, index)
 
     ds = loading.load_dataset(config, data_dir=where.data_dir, workdir=where.workdir, split_names=("test", "holdout"))
     checkpoint.require_data(checkpoint_dir, trained_on, ds.sets["test"].dataset)
