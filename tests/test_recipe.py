@@ -108,7 +108,7 @@ def test_a_stopped_seed_no_longer_changes_while_the_others_train(from_host):
         host = feed.HostFeed(trainer, sharding.replicated(mesh))
         after, _ = trainer.run(state, {"train": sets["train"], "val": sets["val"]}, host, n_epochs=1)
     else:
-        data, _ = placement.place_sets(cfg, sets["train"], sets["val"], {}, sharding.replicated(mesh))
+        data = placement.place_sets(cfg, {"train": sets["train"], "val": sets["val"]}, sharding.replicated(mesh)).sets
         on_devices = train.DeviceFeed(trainer)
         after, _ = jax.jit(jax.vmap(lambda s, d: trainer.run(s, d, on_devices, 1), in_axes=(0, None)))(state, data)
     for old, new in zip(jax.tree.leaves(before), jax.tree.leaves((after.params, after.opt_state))):

@@ -44,7 +44,7 @@ from fabricjax.reporting import stats
 from fabricjax.sequences import data
 from fabricjax.store import archive
 from fabricjax.studies.paper import latents
-from fabricjax.training import train
+from fabricjax.training import placement, train
 from tests.helpers import tiny_archive
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -202,7 +202,7 @@ def _stepper(config: Config, shapes: tuple):
 
 
 def one_step(config: Config, ds, params=None):
-    batch = train.select(config, ds)
+    batch = placement.select(config, ds)
     shapes = tuple(sorted((k, tuple(v.shape[2:])) for k, v in batch["inputs"].items()))
     n = jax.tree.leaves(batch["labels"])[0].shape[0]
     trainer, step, logits = _stepper(dataclasses.replace(config, batch_size=n), shapes)
@@ -315,7 +315,7 @@ def test_huge_attention_logits_in_the_model_stay_finite(dtype):
     inputs, labels = _variants()
     ds = {"inputs": inputs["random"], "labels": labels}
     params = _qkv_scaled(one_step(cfg, ds)["params"], 300.0)
-    assert _max_logit(cfg, params, train.select(cfg, ds)["inputs"]) > 1e4
+    assert _max_logit(cfg, params, placement.select(cfg, ds)["inputs"]) > 1e4
     check_step(one_step(cfg, ds, params))
 
 
@@ -352,7 +352,7 @@ def test_a_batch_of_one_class_without_properties():
     trainer = _stepper(
         dataclasses.replace(TINY, batch_size=6), tuple(sorted((k, v.shape[2:]) for k, v in inputs["random"].items()))
     )[0]
-    loss, _ = trainer.loss(out["params"], train.select(TINY, {"inputs": inputs["random"], "labels": labels}), None)
+    loss, _ = trainer.loss(out["params"], placement.select(TINY, {"inputs": inputs["random"], "labels": labels}), None)
     assert float(loss) == pytest.approx(float(expected), rel=1e-5)
     for p in catalog.PROPERTY_LEVELS:
         assert not np.asarray(out["grads"]["heads"][p]["kernel"]).any()

@@ -398,7 +398,7 @@ def fake_row(name, accuracy, predictions, seeds):
             "test": {"accuracy": {"fabric": np.asarray(accuracy)}, "predictions": {"fabric": np.asarray(predictions)}}
         }
     }
-    return TrainedRow(name, None, train.Results(None, tuple(seeds), None, None, metrics), 1.0)
+    return TrainedRow(name, None, train.TrainedSeeds(None, tuple(seeds), None, None, metrics), 1.0)
 
 
 def test_paired_tests_pair_per_seed_and_per_sample_like_scipy():

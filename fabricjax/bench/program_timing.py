@@ -37,7 +37,8 @@ from fabricjax.reporting import stats
 from fabricjax.sequences.inputs import feature_shapes, training_layout
 from fabricjax.timing import predict_one_timer
 from fabricjax.training import sharding
-from fabricjax.training.train import DeviceFeed, make_trainer, seed_keys, select
+from fabricjax.training.placement import select
+from fabricjax.training.train import DeviceFeed, make_trainer, seed_keys
 
 STEPS_PER_EPOCH = 16
 MATMUL_N = 2048  # the practical peak's matmul: (N x N) @ (N x N), large enough to run at the BLAS's best

@@ -11,7 +11,7 @@ TensorBoard overlays the seeds of a row:
 The step of a scalar is the epoch, counted from 1. tensorboardX is an optional extra
 (`pip install -e ".[logs]"`): without it the process logs one line saying so (once, however many
 rows it trains) and trains without curves,
-because the curves are for watching a run, and the results (`Results.metrics["epochs"]`, the
+because the curves are for watching a run, and the results (`TrainedSeeds.metrics["epochs"]`, the
 studies' JSON) carry the same numbers anyway. `read_scalars` reads event files back (tests, and
 anyone comparing runs without TensorBoard).
 """

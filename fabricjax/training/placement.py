@@ -15,7 +15,7 @@ frames its rows share is the data's cost; each row's run then finds them through
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Mapping, NamedTuple
 
 import jax
 import numpy as np
@@ -24,7 +24,7 @@ from jax.sharding import NamedSharding
 from fabricjax import host_arrays, memo
 from fabricjax.config import Config
 from fabricjax.model import head_sizes
-from fabricjax.sequences.inputs import input_statistics, training_input
+from fabricjax.sequences.inputs import feature_shapes, input_statistics, training_input
 from fabricjax.training import sharding
 
 
@@ -91,32 +91,56 @@ def place_input(a: np.ndarray, modality: str, multiple: int | None, to: NamedSha
     )
 
 
-def place_sets(config: Config, train_set, val_set, eval_sets: Mapping[str, Any] | None, to: NamedSharding):
-    """(the run's data on `to`'s devices, evaluation set sizes): each set's inputs in training's
-    layout (`inputs.training_input`), evaluation sets padded to whole minibatches, large inputs
-    kept for the next run on the same arrays (`place_input`). A run fed from the host
-    (`reads_from_host`) gets its sets as they are, on the host."""
-    sets = {k: select(config, v) for k, v in {"train": train_set, "val": val_set, **(eval_sets or {})}.items()}
+class Placed(NamedTuple):
+    """A run's data as training reads it (`place_sets`)."""
+
+    sets: dict[str, Any]  # {"train", "val", "eval": {name: set}}, each as `select` and `place_input` leave it
+    sizes: dict[str, int]  # the sequences of every set but the training set, before padding to whole minibatches
+    shapes: tuple[tuple[str, tuple[int, ...]], ...]  # (input, per-step shape) the model is built for, sorted
+    from_host: bool  # the sets stay on the host, fed a block at a time (`reads_from_host`)
+    training_set: Any  # the training set as given: its input statistics, classes and data identity
+
+    @property
+    def n_train(self) -> int:
+        return int(jax.tree.leaves(self.sets["train"]["labels"])[0].shape[0])
+
+
+def place_sets(config: Config, data_sets: Mapping[str, Any], to: NamedSharding | None = None) -> Placed:
+    """`data_sets` ({"train", "val" and any evaluation sets}) as a run of `config` reads them, on
+    `to`'s devices (default: every device of the training mesh holds them whole, like the state):
+    each set's arrays that the config uses (`select`), in training's layout
+    (`inputs.training_input`), evaluation sets padded to whole minibatches, large inputs kept for
+    the next run on the same arrays (`place_input`). Every set is laid out, so that training and
+    evaluation compile one image path (`FabricNet.image_features`), and once per run, not per
+    chunk of its epochs. A run fed from the host (`reads_from_host`) gets its sets as they are,
+    on the host."""
+    to = to or sharding.replicated(sharding.training_mesh(config.batch_size))
+    train_set = data_sets["train"]
+    evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
+    sets = {k: select(config, v) for k, v in {"train": train_set, "val": data_sets["val"], **evals}.items()}
     sizes = {k: len(jax.tree.leaves(v["labels"])[0]) for k, v in sets.items() if k != "train"}
-    if reads_from_host(config, train_set):  # the sets stay on the host (`fabricjax.training.feed`)
-        return {"train": sets.pop("train"), "val": sets.pop("val"), "eval": sets}, sizes
-    multiple = lambda k: None if k == "train" else config.batch_size  # noqa: E731
-    placed = {
-        k: {
-            "inputs": dict(place_input(a, m, multiple(k), to) for m, a in v["inputs"].items()),
-            "labels": sharding.put(
-                {
-                    h: a
-                    if multiple(k) is None
-                    else host_arrays.padded(a, host_arrays.whole_minibatches(len(a), multiple(k)), -1)
-                    for h, a in v["labels"].items()
-                },
-                to,
-            ),
+    shapes = tuple(sorted(feature_shapes(sets["train"]["inputs"]).items()))
+    from_host = reads_from_host(config, train_set)
+    if not from_host:
+        multiple = lambda k: None if k == "train" else config.batch_size  # noqa: E731
+        sets = {
+            k: {
+                "inputs": dict(place_input(a, m, multiple(k), to) for m, a in v["inputs"].items()),
+                "labels": sharding.put(
+                    {
+                        h: a
+                        if multiple(k) is None
+                        else host_arrays.padded(a, host_arrays.whole_minibatches(len(a), multiple(k)), -1)
+                        for h, a in v["labels"].items()
+                    },
+                    to,
+                ),
+            }
+            for k, v in sets.items()
         }
-        for k, v in sets.items()
-    }
-    return {"train": placed.pop("train"), "val": placed.pop("val"), "eval": placed}, sizes
+    return Placed(
+        {"train": sets.pop("train"), "val": sets.pop("val"), "eval": sets}, sizes, shapes, from_host, train_set
+    )
 
 
 def place_ahead(config: Config, data_sets: Mapping[str, Any]) -> None:
@@ -125,14 +149,5 @@ def place_ahead(config: Config, data_sets: Mapping[str, Any]) -> None:
     kept for the runs after it on the same arrays. A study calls it for a camera input before the
     first row that reads it, so that laying out the split's frames, which its rows share, is timed
     as the data's cost, not as that row's."""
-    evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
-    jax.block_until_ready(
-        place_sets(
-            config,
-            data_sets["train"],
-            data_sets["val"],
-            evals,
-            sharding.replicated(sharding.training_mesh(config.batch_size)),
-        )
-    )
+    jax.block_until_ready(place_sets(config, data_sets).sets)
     input_statistics(config, data_sets["train"])

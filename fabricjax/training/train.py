@@ -30,14 +30,14 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 from flax import nnx, struct
-from jax.sharding import Mesh
+from jax.sharding import Mesh, NamedSharding
 
 from fabricjax import runtime
 from fabricjax.config import Config
 from fabricjax.model import FabricNet
-from fabricjax.sequences.inputs import feature_shapes, input_statistics, with_input_statistics
+from fabricjax.sequences.inputs import input_statistics, with_input_statistics
 from fabricjax.training import checkpoint, curves, feed, sharding
-from fabricjax.training.placement import place_sets, reads_from_host, select
+from fabricjax.training.placement import Placed, place_sets
 
 
 def warmup_schedule(config: Config) -> optax.ScalarOrSchedule:
@@ -349,8 +349,8 @@ def make_trainer(
 class BestEpochValidation:
     """Each seed's validation results (predictions and accuracy per head) at its best epoch,
     taken from the epochs a call trains: the epoch scan evaluates the validation set anyway
-    (`Trainer.run`), so `finish` evaluates it again only for a seed whose best epoch came before a
-    resume. Saves a camera row a second pass over its validation frames."""
+    (`Trainer.epoch`), so the final evaluation (`_evaluate_best`) evaluates it again only where a
+    seed's best epoch came before a resume. Saves a camera row a second pass over its validation frames."""
 
     def __init__(self, n_seeds: int):
         self.found = np.zeros(n_seeds, bool)
@@ -402,6 +402,7 @@ class Programs(NamedTuple):
     init: Callable
     epochs: Callable[[int], Callable]
     evaluate: Callable
+    replicated: NamedSharding  # where the states live: whole on every device, like the sets
 
 
 @functools.lru_cache(maxsize=1)
@@ -422,6 +423,7 @@ def _programs(config: Config, shapes: tuple, n_train: int, mesh, from_host: bool
             init,
             lambda n: functools.partial(trainer.run, feed=host, n_epochs=n),
             functools.partial(trainer.evaluate_sets, feed=host),
+            per_seed,
         )
     on_devices = DeviceFeed(trainer)
     evaluate = jax.jit(
@@ -435,12 +437,13 @@ def _programs(config: Config, shapes: tuple, n_train: int, mesh, from_host: bool
             out_shardings=per_seed,
         )
     )
-    return Programs(trainer, init, epochs, evaluate)
+    return Programs(trainer, init, epochs, evaluate, per_seed)
 
 
 @dataclasses.dataclass
-class Results:
-    """A multi-seed run: stacked final state (leading seed axis) and metrics as NumPy arrays."""
+class TrainedSeeds:
+    """The seeds of a run as `train_and_evaluate` leaves them: their stacked final state (a
+    leading seed axis) and their metrics as NumPy arrays."""
 
     config: Config
     seeds: tuple[int, ...]
@@ -511,22 +514,64 @@ def seed_keys(seeds: Sequence[int]) -> jax.Array:
 SAVE_EVERY_EPOCHS = 2
 
 
+@dataclasses.dataclass(frozen=True)
+class Saves:
+    """Where and when a run saves: its state and its curves so far into `mngr` (none: the run saves
+    nothing) every `every` epochs and at its end, with `meta` (the run's identity,
+    `checkpoint.meta`); `on_save(epoch)` is for the caller to call after each durable save. A
+    run's epochs go in chunks that end where a save would, whether it saves or not
+    (`chunk_length`)."""
+
+    mngr: Any
+    meta: dict[str, Any]
+    every: int
+    on_save: Callable[[int], None] | None = None
+
+    def exist(self) -> bool:
+        return self.mngr is not None and self.mngr.latest_step() is not None
+
+    def latest(self, abstract_state) -> tuple[TrainState, int, dict[str, list] | None]:
+        """(state, epochs done, the curves saved with it) of the latest save, its arrays as
+        `abstract_state` (`checkpoint.restore`)."""
+        state, done = checkpoint.restore(self.mngr, abstract_state, self.meta)
+        return state, done, checkpoint.read_meta(self.mngr, done).get("curves")
+
+    def due(self, done: int, epochs: int, state: TrainState) -> bool:
+        """Whether a run that has trained `done` of its `epochs` saves now: every `every` epochs, at
+        the end, and once every seed has stopped."""
+        return self.mngr is not None and (done % self.every == 0 or done == epochs or stopped(state))
+
+    def save(self, done: int, state: TrainState, history: curves.History) -> None:
+        checkpoint.save(self.mngr, done, state, {**self.meta, "curves": history.to_json()})
+
+
+def chunk_length(config: Config, done: int, save_every: int, epoch_per_call: bool) -> int:
+    """Epochs the next call of `Programs.epochs` trains, after `done`: up to the next save and at
+    most `config.patience`, so that a chunk ends at most `patience` epochs after a seed could have
+    stopped (the run ends when every seed has, `stopped`); one where the epochs' curves are watched
+    (`epoch_per_call`), so that each epoch's wall time is its own, the first's with the
+    compilation."""
+    chunk = 1 if epoch_per_call else min(save_every, config.patience or save_every)
+    return min(chunk, save_every - done % save_every, config.epochs - done)
+
+
 def train_and_evaluate(
     config: Config,
-    data_sets: Mapping[str, Any],
+    data_sets: Mapping[str, Any] | Placed,
     seeds: Sequence[int],
     workdir: str | os.PathLike | None = None,
     save_every: int | None = None,
     on_save: Callable[[int], None] | None = None,
     log_dir: str | os.PathLike | None = None,
-) -> Results:
+) -> TrainedSeeds:
     """Train one model per seed in a single program and evaluate it on every set.
 
-    `data_sets` holds "train", "val" and any number of evaluation sets ("test", "cafe", ...).
-    With `workdir` (this run's checkpoint directory) the state and the curves so far are saved
-    every `save_every` epochs (default `SAVE_EVERY_EPOCHS`) and at the end, and a rerun resumes
-    from the latest save to the uninterrupted run's bits; `on_save(epoch)` is called after each
-    durable save.
+    `data_sets` holds "train", "val" and any number of evaluation sets ("test", "cafe", ...), as
+    loaded or placed already (`placement.place_sets`: a study places a row's sets once for every
+    point of its recipe grid). With `workdir` (this run's checkpoint directory) the state and the
+    curves so far are saved every `save_every` epochs (default `SAVE_EVERY_EPOCHS`) and at the
+    end, and a rerun resumes from the latest save to the uninterrupted run's bits; `on_save(epoch)`
+    is called after each durable save.
 
     The per-epoch curves (`curves.tags`: loss, accuracies per head, learning rate, epoch wall
     time) come back in `metrics["epochs"]` as {tag: (seeds, epochs)} arrays, NaN for epochs a
@@ -537,59 +582,91 @@ def train_and_evaluate(
     epoch's wall time is its own, also where tensorboardX is not installed).
     """
     seeds = tuple(int(s) for s in seeds)
-    evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
     mesh = sharding.training_mesh(config.batch_size)
-    per_seed = sharding.replicated(mesh)
-    # in training's layout once per training, not per `run` call (studies write curves, so they run one
-    # epoch per call); every set, so that training and evaluation compile one image path (`FabricNet.image_features`)
     account = TimeAccount()
     with account.phase("place_s"):
-        data, sizes = jax.block_until_ready(
-            place_sets(config, data_sets["train"], data_sets["val"], evals, per_seed)
-        )  # replicated, like the state
-    shapes = tuple(sorted(feature_shapes(select(config, data_sets["train"])["inputs"]).items()))
-    n_train = int(jax.tree.leaves(data["train"]["labels"])[0].shape[0])
-    with account.phase("initialise_s"):
-        programs = _programs(config, shapes, n_train, mesh, reads_from_host(config, data_sets["train"]))
-        trainer, init = programs.trainer, programs.init
-        keys = sharding.put(seed_keys(seeds), per_seed)
-        mngr = checkpoint.manager(workdir) if workdir is not None else None
-        train_set = data_sets["train"]
-        run_meta = checkpoint.meta(
-            config, seeds, trainer.shapes, getattr(train_set, "classes", None), getattr(train_set, "dataset", None)
+        placed = (
+            data_sets if isinstance(data_sets, Placed) else place_sets(config, data_sets, sharding.replicated(mesh))
         )
-        saved_curves = None
-        if mngr is not None and mngr.latest_step() is not None:
-            abstract = jax.tree.map(
-                lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=per_seed), jax.eval_shape(init, keys)
-            )
-            state, done = checkpoint.restore(mngr, abstract, run_meta)
-            saved_curves = checkpoint.read_meta(mngr, done).get("curves")
-        else:
-            stats = input_statistics(config, data_sets["train"])
-            state = init(keys)
-            state = state.replace(
-                params=with_input_statistics(state.params, stats),
-                best_params=with_input_statistics(state.best_params, stats),
-            )
-            state, done = sharding.put(state, per_seed), 0
-        state = jax.block_until_ready(state)
-    history, validation = curves.History(len(seeds), config.epochs), BestEpochValidation(len(seeds))
+        jax.block_until_ready(placed.sets)
+    with account.phase("initialise_s"):
+        programs = _programs(config, placed.shapes, placed.n_train, mesh, placed.from_host)
+        train_set = placed.training_set
+        saves = Saves(
+            checkpoint.manager(workdir) if workdir is not None else None,
+            checkpoint.meta(
+                config,
+                seeds,
+                programs.trainer.shapes,
+                getattr(train_set, "classes", None),
+                getattr(train_set, "dataset", None),
+            ),
+            save_every or SAVE_EVERY_EPOCHS,
+            on_save,
+        )
+        state, done, saved_curves = _start(config, programs, seeds, train_set, saves)
+    history = curves.History(len(seeds), config.epochs)
     if done and saved_curves:
         history.restore(saved_curves)
+    state, validation = _train(config, programs, state, placed.sets, done, history, saves, account, seeds, log_dir)
+    with account.phase("evaluate_s"):
+        metrics = _evaluate_best(programs, state, placed, validation)
+    return TrainedSeeds(
+        config,
+        seeds,
+        programs.trainer.graphdef,
+        state,
+        {**metrics, "epochs": history.scalars, "time": account.result()},
+    )
+
+
+def _start(
+    config: Config, programs: Programs, seeds: tuple[int, ...], train_set, saves: Saves
+) -> tuple[TrainState, int, dict[str, list] | None]:
+    """(the seeds' stacked states, epochs done, the curves saved with them): the latest save's
+    (`Saves.latest`), else new states with `train_set`'s input statistics written into their
+    parameters."""
+    keys = sharding.put(seed_keys(seeds), programs.replicated)
+    if saves.exist():
+        abstract = jax.tree.map(
+            lambda x: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=programs.replicated),
+            jax.eval_shape(programs.init, keys),
+        )
+        state, done, saved_curves = saves.latest(abstract)
+        return jax.block_until_ready(state), done, saved_curves
+    stats = input_statistics(config, train_set)
+    state = programs.init(keys)
+    state = state.replace(
+        params=with_input_statistics(state.params, stats),
+        best_params=with_input_statistics(state.best_params, stats),
+    )
+    return jax.block_until_ready(sharding.put(state, programs.replicated)), 0, None
+
+
+def _train(
+    config: Config,
+    programs: Programs,
+    state: TrainState,
+    sets: Mapping[str, Any],
+    done: int,
+    history: curves.History,
+    saves: Saves,
+    account: TimeAccount,
+    seeds: tuple[int, ...],
+    log_dir: str | os.PathLike | None,
+) -> tuple[TrainState, BestEpochValidation]:
+    """The run's epochs after `done`, a chunk at a time (`chunk_length`), until `config.epochs` or
+    until every seed has stopped: (state, the validation results of each seed's best epoch among
+    them). After each chunk its curves go into `history` and, with `log_dir`, onto disk, and the
+    run saves where a save is due (`Saves`)."""
+    validation = BestEpochValidation(len(seeds))
     # in a multi-process run only process 0 writes curves; the others open no files but chunk alike
     writer = curves.open_writer(log_dir, seeds if runtime.is_primary() else (), done) if log_dir is not None else None
-    save_every = save_every or SAVE_EVERY_EPOCHS
-    # one epoch per call wherever curves were asked for, written or not (tensorboardX is optional):
-    # each epoch's wall time is then its own, the first's with the compilation, in every install
-    # early stopping: a chunk ends at most `patience` epochs after a seed could have stopped, and
-    # the run ends when every seed has (`stopped`)
-    chunk = 1 if log_dir is not None else min(save_every, config.patience or save_every)
     while done < config.epochs and not stopped(state):
-        n = min(chunk, save_every - done % save_every, config.epochs - done)
+        n = chunk_length(config, done, saves.every, epoch_per_call=log_dir is not None)
         t0 = time.perf_counter()
         with account.phase("epochs_s"):
-            state, chunk_curves = programs.epochs(n)(state, data)
+            state, chunk_curves = programs.epochs(n)(state, sets)
             chunk_curves = jax.device_get(chunk_curves)  # waits for the chunk
         history.add(done, chunk_curves, (time.perf_counter() - t0) / n)
         validation.add(
@@ -598,37 +675,43 @@ def train_and_evaluate(
         if writer is not None:
             writer.write(history, done, done + n)
         done += n
-        if mngr is not None and (done % save_every == 0 or done == config.epochs or stopped(state)):
+        if saves.due(done, config.epochs, state):
             with account.phase("save_s"):
-                checkpoint.save(mngr, done, state, {**run_meta, "curves": history.to_json()})
-            if on_save is not None:
-                on_save(done)
+                saves.save(done, state, history)
+            if saves.on_save is not None:
+                saves.on_save(done)
     if writer is not None:
         writer.close()
+    return state, validation
+
+
+def _evaluate_best(
+    programs: Programs, state: TrainState, placed: Placed, validation: BestEpochValidation
+) -> dict[str, Any]:
+    """The run's metrics (NumPy arrays, a leading seed axis): its curves in the state
+    (`EpochHistory`), each seed's best epoch, stop and best validation accuracy, and the
+    best-validation models' predictions and accuracy on every set ("eval"), cut to the sets' real
+    sizes. The validation set's are the best epoch's own where the epochs trained here include it
+    (`BestEpochValidation`), else evaluated again."""
     val = validation.results()
-    with account.phase("evaluate_s"):
-        evaluations = jax.device_get(
-            programs.evaluate(
-                state.best_params, data["eval"] if val is not None else {"val": data["val"], **data["eval"]}
-            )
-        )
-    metrics = {
-        **dataclasses.asdict(jax.device_get(state.history)),
-        "best_epoch": jax.device_get(state.best_epoch),
-        "stopped_at": jax.device_get(state.stopped_at),
-        "best_val_acc": jax.device_get(state.best_val),
-        "eval": evaluations if val is None else {"val": val, **evaluations},
-    }
-    metrics = unpad(metrics, sizes)
-    return Results(
-        config, seeds, trainer.graphdef, state, {**metrics, "epochs": history.scalars, "time": account.result()}
+    sets = placed.sets["eval"] if val is not None else {"val": placed.sets["val"], **placed.sets["eval"]}
+    evaluations = jax.device_get(programs.evaluate(state.best_params, sets))
+    return unpad(
+        {
+            **dataclasses.asdict(jax.device_get(state.history)),
+            "best_epoch": jax.device_get(state.best_epoch),
+            "stopped_at": jax.device_get(state.stopped_at),
+            "best_val_acc": jax.device_get(state.best_val),
+            "eval": evaluations if val is None else {"val": val, **evaluations},
+        },
+        placed.sizes,
     )
 
 
-class Restored(NamedTuple):
-    """A `train_and_evaluate` checkpoint: the model's graphdef, its state (all seeds stacked, or
-    one seed's), the run's config and seeds as saved with it, and what the model was trained for
-    (`checkpoint.trained_for`)."""
+class SavedSeeds(NamedTuple):
+    """The seeds of a run as its checkpoint holds them (`restore`): the model's graphdef, its state
+    (all seeds stacked, or one seed's), the run's config and seeds as saved with it, and what the
+    model was trained for (`checkpoint.trained_for`)."""
 
     graphdef: Any
     state: TrainState
@@ -640,12 +723,12 @@ class Restored(NamedTuple):
     ]  # the data it was trained on (`DatasetIndex.identity`; empty where the checkpoint does not say)
 
 
-def restore(directory: str | os.PathLike, config: Config | None = None, seed: int | None = None) -> Restored:
+def restore(directory: str | os.PathLike, config: Config | None = None, seed: int | None = None) -> SavedSeeds:
     """The run saved by `train_and_evaluate` in `directory`: all seeds stacked, or the one `seed`
     (a seed value). `config` None restores under the config saved with the run; a given config
     must be the saved one (else `checkpoint.CheckpointMismatch`). A path holding no checkpoint is a
     `checkpoint.NoCheckpoint` and creates nothing; the arrays come back on this run's devices,
-    whatever the device and process count of the run that saved them. `Restored.trained_for` says
+    whatever the device and process count of the run that saved them. `SavedSeeds.trained_for` says
     what the model is for (`checkpoint.trained_for`)."""
     mngr = checkpoint.open_existing(directory)
     saved = checkpoint.read_meta(mngr)
@@ -658,10 +741,10 @@ def restore(directory: str | os.PathLike, config: Config | None = None, seed: in
     state, _ = checkpoint.restore(mngr, checkpoint.on_devices(abstract), expected)
     for_ = saved.get("trained_for") or checkpoint.trained_for(config)  # older checkpoints: from their config
     if seed is None:
-        return Restored(trainer.graphdef, state, config, saved["seeds"], for_, saved.get("dataset") or {})
+        return SavedSeeds(trainer.graphdef, state, config, saved["seeds"], for_, saved.get("dataset") or {})
     if seed not in saved["seeds"]:
         raise KeyError(f"seed {seed} is not in the checkpoint in {mngr.directory} (seeds {saved['seeds']})")
-    return Restored(
+    return SavedSeeds(
         trainer.graphdef,
         checkpoint.select_seed(state, saved["seeds"].index(seed)),
         config,

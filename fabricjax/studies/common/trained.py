@@ -28,7 +28,7 @@ class TrainedRow:
 
     name: str
     config: Config
-    results: train.Results
+    results: train.TrainedSeeds
     seconds: float
     checkpoint: Path | None = None
     recipe: dict[str, Any] | None = None  # how its recipe was chosen on validation (`recipe.document`), where it was
