@@ -175,7 +175,7 @@ def test_a_corrupted_test_split_changes_no_choice(monkeypatch):
     )
 
     def fit(sets):
-        row = row_training.train_fitted("t", "row", cfg, sets, [0, 1], ["test"])
+        row = row_training.train_fitted("t", "row", cfg, row_training.place_row(cfg, sets, ["test"]), [0, 1])
         return (
             row.recipe,
             row.results.metrics["best_epoch"].tolist(),

@@ -344,9 +344,10 @@ def test_a_runs_time_account_adds_up_and_counts_the_building_of_its_programs(tmp
 
 
 def test_inputs_placed_before_a_run_serve_it_and_change_nothing(monkeypatch):
-    """`placement.place_ahead` lays out a camera input as a run will (pixel rows, evaluation sets padded)
-    and computes its statistics; the run after it builds neither again and trains to the same
-    bits as a run that did it all itself."""
+    """A camera input placed (pixel rows, evaluation sets padded) and its statistics computed
+    before a run, as a study does for a camera's first row, serve the run given the placed sets
+    and a later run on the same arrays: neither builds them again, and both train to the bits of a
+    run that did it all itself."""
     from fabricjax import memo
     from fabricjax.features import images
     from fabricjax.sequences import inputs
@@ -359,18 +360,20 @@ def test_inputs_placed_before_a_run_serve_it_and_change_nothing(monkeypatch):
     monkeypatch.setattr(placement, "KEPT", memo.ByArray(max_entries=12, size=placement.KEPT.size))
     monkeypatch.setattr(inputs, "_STATISTICS", memo.ByArray(max_entries=16))
     sets = data_sets(cfg)  # arrays neither memo has seen
-    placement.place_ahead(cfg, sets)
+    placed = placement.place_sets(cfg, sets)
+    input_statistics(cfg, sets["train"])
     built = []
     for module, name in ((images, "to_rows"), (inputs, "_moments")):
         monkeypatch.setattr(
             module, name, lambda *a, _f=getattr(module, name), _n=name, **k: built.append(_n) or _f(*a, **k)
         )
-    after = train_and_evaluate(cfg, sets, (0,))
-    assert built == []
-    np.testing.assert_array_equal(after.metrics["train_loss"], alone.metrics["train_loss"])
-    np.testing.assert_array_equal(
-        after.metrics["eval"]["test"]["predictions"]["fabric"], alone.metrics["eval"]["test"]["predictions"]["fabric"]
-    )
+    for after in (train_and_evaluate(cfg, placed, (0,)), train_and_evaluate(cfg, sets, (0,))):
+        assert built == []
+        np.testing.assert_array_equal(after.metrics["train_loss"], alone.metrics["train_loss"])
+        np.testing.assert_array_equal(
+            after.metrics["eval"]["test"]["predictions"]["fabric"],
+            alone.metrics["eval"]["test"]["predictions"]["fabric"],
+        )
 
 
 LEVEL_RUN = """

@@ -7,10 +7,9 @@ A run whose training inputs are larger than memory keeps its sets on the host (`
 and `fabricjax.training.feed` places them a block at a time.
 
 The rows of a study train on the same loaded arrays, so a placed input is kept for the next run on
-the same array (`KEPT`, a `memo.ByArray`) within a memory budget (`budget`). A study places a
-camera input once before the first row that reads it (`place_ahead`), so that laying out the
-frames its rows share is the data's cost; each row's run then finds them through the same
-`place_sets`.
+the same array (`KEPT`, a `memo.ByArray`) within a memory budget (`budget`): a camera's frames,
+which its rows share, are laid out for the first row that reads them, and the others find them
+kept. A study places each row's sets once (`Placed`), for every point of its recipe grid.
 """
 
 from __future__ import annotations
@@ -24,7 +23,7 @@ from jax.sharding import NamedSharding
 from fabricjax import host_arrays, memo
 from fabricjax.config import Config
 from fabricjax.model import head_sizes
-from fabricjax.sequences.inputs import feature_shapes, input_statistics, training_input
+from fabricjax.sequences.inputs import feature_shapes, training_input
 from fabricjax.training import sharding
 
 
@@ -141,13 +140,3 @@ def place_sets(config: Config, data_sets: Mapping[str, Any], to: NamedSharding |
     return Placed(
         {"train": sets.pop("train"), "val": sets.pop("val"), "eval": sets}, sizes, shapes, from_host, train_set
     )
-
-
-def place_ahead(config: Config, data_sets: Mapping[str, Any]) -> None:
-    """Place `data_sets`' inputs of `config` on the training devices as `train.train_and_evaluate`
-    will (`place_sets` on the replicated training mesh) and compute their input statistics, both
-    kept for the runs after it on the same arrays. A study calls it for a camera input before the
-    first row that reads it, so that laying out the split's frames, which its rows share, is timed
-    as the data's cost, not as that row's."""
-    jax.block_until_ready(place_sets(config, data_sets).sets)
-    input_statistics(config, data_sets["train"])

@@ -16,13 +16,13 @@ from typing import Callable, Mapping, Sequence, TypeVar
 from fabricjax.config import CAMERA_MODALITIES, Config
 from fabricjax.reporting import stats
 from fabricjax.sequences import data
+from fabricjax.sequences.inputs import input_statistics
 from fabricjax.store import lock, workspace
 from fabricjax.studies.common import loading, plan, recipe
 from fabricjax.studies.common.checkpoints import checkpoint_dir
 from fabricjax.studies.common.progress import Progress
 from fabricjax.studies.common.trained import TrainedRow, TrainingRun
-from fabricjax.training import train
-from fabricjax.training.placement import place_ahead
+from fabricjax.training import placement, train
 
 T = TypeVar("T")
 
@@ -44,21 +44,25 @@ def in_training_order(items: Sequence[T], config: Callable[[T], Config]) -> list
     return sorted(items, key=lambda item: ROW_KINDS.index(row_kind(config(item))))
 
 
+def place_row(config: Config, sets: Mapping[str, data.SequenceSet], eval_splits: Sequence[str]) -> placement.Placed:
+    """A row's part of `sets` ("train", "val" and `eval_splits`; its inputs, `data.narrow`) placed
+    as its runs read it (`placement.place_sets`): once, for every point of its recipe grid."""
+    return placement.place_sets(config, data.narrow({s: sets[s] for s in ("train", "val", *eval_splits)}, config))
+
+
 def train_row(
     name: str,
     config: Config,
-    sets: Mapping[str, data.SequenceSet],
+    placed: placement.Placed,
     seeds: Sequence[int],
-    eval_splits: Sequence[str],
     checkpoint_dir=None,
     log_dir=None,
 ) -> TrainedRow:
-    """Train all seeds of one row on its part of `sets` (`data.narrow`) and evaluate the
-    best-validation models on `eval_splits`; with `checkpoint_dir` the models are saved there,
-    with `log_dir` (`workspace.logs_dir`) the training curves are written there as it trains."""
-    row_sets = data.narrow({s: sets[s] for s in ("train", "val", *eval_splits)}, config)
+    """Train all seeds of one row on its placed sets (`place_row`) and evaluate the
+    best-validation models on each; with `checkpoint_dir` the models are saved there, with
+    `log_dir` (`workspace.logs_dir`) the training curves are written there as it trains."""
     t0 = time.perf_counter()
-    results = train.train_and_evaluate(config, row_sets, seeds, workdir=checkpoint_dir, log_dir=log_dir)
+    results = train.train_and_evaluate(config, placed, seeds, workdir=checkpoint_dir, log_dir=log_dir)
     return TrainedRow(name, config, results, time.perf_counter() - t0, Path(checkpoint_dir) if checkpoint_dir else None)
 
 
@@ -66,13 +70,13 @@ def train_fitted(
     study: str,
     name: str,
     config: Config,
-    sets: Mapping[str, data.SequenceSet],
+    placed: placement.Placed,
     seeds: Sequence[int],
-    eval_splits: Sequence[str],
     workdir=None,
     checkpoints: bool = False,
 ) -> TrainedRow:
-    """`train_row` of every point of `config`'s recipe grid (`recipe.points`), the point the
+    """`train_row` of every point of `config`'s recipe grid (`recipe.points`) on the row's placed
+    sets (`place_row`: the points differ in learning rate and width only), the point the
     validation split prefers kept (`recipe.choose`); its time is the whole grid's. A config
     without a grid is one point, reported as is."""
     configs = recipe.points(config)
@@ -83,10 +87,9 @@ def train_fitted(
             train_row(
                 name,
                 point,
-                sets,
+                placed,
                 seeds,
-                eval_splits,
-                checkpoint_dir=checkpoint_dir(study, name, point, seeds, sets["train"].dataset, workdir)
+                checkpoint_dir=checkpoint_dir(study, name, point, seeds, placed.training_set.dataset, workdir)
                 if checkpoints
                 else None,
                 log_dir=workspace.logs_dir(study, sub, workdir),
@@ -161,16 +164,18 @@ def train_rows(
             progress.exclude(ds.generate_s + ds.load_s)
         trained, laid_out = {}, set()
         for name, config in order:
+            t0 = time.perf_counter()
+            placed = place_row(config, ds.sets, eval_splits)
             camera = row_kind(config)
-            # the group's camera input, once (`in_training_order`)
+            # the group's camera input is laid out with its first row (`in_training_order`) and its
+            # statistics computed, timed as the data's cost, not as that row's: the group's other
+            # rows find both kept (`placement.KEPT`)
             if camera in CAMERA_MODALITIES and camera not in laid_out:
-                t0 = time.perf_counter()
-                alone = dataclasses.replace(config, modalities=(camera,))
-                # timed as the data's cost; each row's run finds these arrays kept (`placement.place_sets`)
-                place_ahead(alone, data.narrow({s: ds.sets[s] for s in ("train", "val", *eval_splits)}, alone))
+                input_statistics(config, placed.training_set)
                 ds.layout_s += time.perf_counter() - t0
                 laid_out.add(camera)
             progress.start(label(name))
-            trained[name] = row = train_fitted(study, name, config, ds.sets, seeds, eval_splits, workdir, checkpoints)
+            trained[name] = row = train_fitted(study, name, config, placed, seeds, workdir, checkpoints)
+            del placed  # before the next row's: inputs `placement.KEPT` lets go leave the devices
             progress.finish(label(name), row.seconds, summary(row))
         return TrainingRun(ds, {name: trained[name] for name, _ in rows})

@@ -168,7 +168,7 @@ def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int, step
     """Train all seeds of one point and measure what it costs (touch time at `step_rate`); its
     test sequences' majority class (`findings.majority`: a point's N decides its sequences) and the
     class each seed collapsed to (`findings.collapsed`)."""
-    row = row_training.train_row(point.name, point.config, sets, seeds, ["test"])
+    row = row_training.train_row(point.name, point.config, row_training.place_row(point.config, sets, ["test"]), seeds)
     labels = sets["test"].labels["fabric"]
     acc = 100 * row.accuracy("test")
     mean, sd = stats.mean_sd(acc)

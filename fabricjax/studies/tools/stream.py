@@ -50,7 +50,9 @@ def quick_model(preset: str, overrides: Mapping[str, Any] | None = None, *, work
     ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir)
     config = ds.config_for(config)  # the data's classes and step window
     directory = checkpoint_dir("stream", "quick", config, [0], ds.sets["train"].dataset, workdir)
-    row = row_training.train_row("quick", config, ds.sets, [0], [], checkpoint_dir=directory)
+    row = row_training.train_row(
+        "quick", config, row_training.place_row(config, ds.sets, []), [0], checkpoint_dir=directory
+    )
     return row.results.graphdef, row.results.params(0), config, directory
 
 
