@@ -76,9 +76,8 @@ def _laid_out(inputs: Mapping[str, np.ndarray], rows: np.ndarray, length: int | 
 
 
 class HostFeed:
-    """A run's sets on the host, read a block at a time (see the module docstring): what
-    `train.DeviceFeed` is for sets on the devices, so that `Trainer.run` is the run's epochs
-    either way. Sets are `placement.select`ed host sets."""
+    """The `train.Feed` of a run's sets on the host (`placement.select`ed), read a block at a time
+    (see the module docstring), so that `Trainer.run` is the run's epochs wherever its sets are."""
 
     def __init__(self, trainer, per_seed: NamedSharding):
         self.trainer, self.per_seed_sharding = trainer, per_seed
@@ -115,8 +114,8 @@ class HostFeed:
         return sharding.put(tree, self.per_seed_sharding)
 
     def train_steps(self, state, order, step_keys, train: Mapping[str, Any]):
-        """The epoch's steps over minibatches `order` (seeds, steps, batch) of host set `train`,
-        a block of steps at a time: as `train.DeviceFeed.train_steps`."""
+        """The epoch's steps over minibatches `order` (seeds, steps, batch) of host set `train`, a
+        block of steps at a time (`train.Feed.train_steps`)."""
         order = np.asarray(order)
         n_seeds, steps, batch = order.shape
         k = block_steps(train["inputs"], batch, n_seeds, steps)

@@ -23,7 +23,7 @@ import dataclasses
 import functools
 import os
 import time
-from typing import Any, Callable, Mapping, NamedTuple, Sequence
+from typing import Any, Callable, Mapping, NamedTuple, Protocol, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -136,6 +136,26 @@ class TrainState:
     history: EpochHistory
 
 
+class Feed(Protocol):
+    """Where the run's epoch (`Trainer.epoch`) reads its sets, and how its pieces, each written for
+    one seed, run on the seeds: `DeviceFeed` inside one jitted, seed-vmapped program, or
+    `feed.HostFeed` from the host."""
+
+    def per_seed(self, fn: Callable) -> Callable:
+        """`fn`, written for one seed, as it runs on this feed's seeds."""
+
+    def repeat(self, epoch: Callable, state: TrainState, n: int) -> tuple[TrainState, Any]:
+        """`epoch` (state to (state, outputs)) `n` times: (state, the epochs' outputs stacked)."""
+
+    def train_steps(self, state: TrainState, order, step_keys, train) -> tuple[TrainState, Any]:
+        """An epoch's optimiser steps (`Trainer.train_step`) over minibatches `order` of set
+        `train`: (state with the trained parameters and optimiser state, a stopped seed's as they
+        were; the steps' outputs, stacked)."""
+
+    def evaluate(self, params, ds) -> dict[str, dict[str, jax.Array]]:
+        """`Trainer.evaluate`'s of `params` on set `ds`."""
+
+
 @dataclasses.dataclass(frozen=True)
 class Trainer:
     """The pure pieces of a run, each a function of one seed's state, and the one epoch they make
@@ -164,11 +184,11 @@ class Trainer:
             history=EpochHistory(train_loss=zeros, val_acc=zeros),
         )
 
-    def run(self, state, sets, feed, n_epochs: int):
+    def run(self, state: TrainState, sets: Mapping[str, Any], feed: Feed, n_epochs: int):
         """`n_epochs` more epochs (`epoch`): (state, their curves, each with a leading epoch axis)."""
         return feed.repeat(lambda s: self.epoch(s, sets, feed), state, n_epochs)
 
-    def epoch(self, state, sets, feed):
+    def epoch(self, state: TrainState, sets: Mapping[str, Any], feed: Feed):
         """One epoch of the run: (state, its curves). It trains (`train_epoch`), evaluates the
         validation set and keeps the best-validation parameters (`end_epoch`). `sets` ({"train",
         "val", ...}, as `placement.place_sets` gives them) are read through `feed`: on the
@@ -178,7 +198,7 @@ class Trainer:
         validation = feed.evaluate(state.params, sets["val"])
         return feed.per_seed(self.end_epoch)(state, summary, validation)
 
-    def train_epoch(self, state, train, feed):
+    def train_epoch(self, state: TrainState, train: Mapping[str, Any], feed: Feed):
         """One pass over the training set in shuffled minibatches (`epoch_order`, `train_step`):
         (state with the new parameters and optimiser state, `epoch_summary`). A stopped seed's
         parameters stay as they were (`unless_stopped`)."""
@@ -292,16 +312,16 @@ class Trainer:
             ),
         ), {**summary, "val_accuracy": validation["accuracy"], "val_predictions": validation["predictions"]}
 
-    def evaluate_sets(self, params, sets, feed) -> dict[str, dict[str, jax.Array]]:
+    def evaluate_sets(self, params, sets: Mapping[str, Any], feed: Feed) -> dict[str, dict[str, jax.Array]]:
         """`evaluate`'s of `params` on every set of `sets` ({name: set}), read through `feed`."""
         return {name: feed.evaluate(params, ds) for name, ds in sets.items()}
 
 
 @dataclasses.dataclass(frozen=True)
 class DeviceFeed:
-    """A run's sets on the devices (`placement.place_sets`), read inside the one jitted,
-    seed-vmapped program that runs `Trainer.run`: code written for one seed runs as it is, and
-    the epochs are a `lax.scan`. `feed.HostFeed` is the same for sets on the host."""
+    """The `Feed` of a run's sets on the devices (`placement.place_sets`), read inside the one
+    jitted, seed-vmapped program that runs `Trainer.run`: code written for one seed runs as it is,
+    and the epochs are a `lax.scan`."""
 
     trainer: Trainer
 
