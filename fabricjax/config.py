@@ -64,6 +64,11 @@ FLOW_METHODS = ("opencv", "jax")
 # follows them. "training_mean" subtracts the training split's mean frame per pixel instead, and
 # "none" centres each colour channel on its training mean, as the paper's pipeline reads the frame.
 IMAGE_REFERENCES = ("none", "training_mean", "session")
+# What the image input's fixed standardisation divides by (`inputs.input_statistics`): one SD per colour
+# over every pixel of the training split, or one per pixel and colour (with each pixel's own mean),
+# as the linear probe standardises each of its dimensions: the contact patch's few pixels then weigh
+# no more than the quiet rest of the wall.
+IMAGE_STANDARDISATIONS = ("channel", "pixel")
 # The dtype of the model's matrix-product and convolution inputs (`model.dense`): products
 # accumulate in float32, and parameters, optimiser state, LayerNorms, softmax, the [0, 1] rescale,
 # the loss and every statistic stay float32 whatever it is. bfloat16 runs on the bfloat16 dot
@@ -91,6 +96,7 @@ _CHOICES = {
     "flow_sparsify": FLOW_SPARSIFY,
     "flow_method": FLOW_METHODS,
     "image_reference": IMAGE_REFERENCES,
+    "image_standardisation": IMAGE_STANDARDISATIONS,
     "input_source": INPUT_SOURCES,
     "compute_dtype": COMPUTE_DTYPES,
     "image_resolution": IMAGE_RESOLUTIONS,
@@ -196,6 +202,7 @@ class Config:
     # IMAGE_REFERENCES; chosen by measurement (docs/usage.md, "Can the model read each input?"). It decides the
     # features ("session" is its own) and the model (the others subtract in `model.FabricNet.standardise`).
     image_reference: str = _field("session", FEATURES, load=8)
+    image_standardisation: str = _field("channel", RESULT)  # IMAGE_STANDARDISATIONS
     # training data selection: fabrics excluded from training (the property holdouts)
     exclude_fabrics: tuple[int, ...] = _field((), SEQUENCES, load=2, rate_neutral=True)
     # where training reads its inputs (INPUT_SOURCES): placed whole on the devices ("memory"), or

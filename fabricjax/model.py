@@ -31,7 +31,7 @@ from flax import nnx
 
 from fabricjax import catalog
 from fabricjax.config import AUDIO_MODALITIES, MODALITIES, Config
-from fabricjax.sequences.inputs import STANDARDISED, channel_shape, shift_shape, standardised_channels
+from fabricjax.sequences.inputs import STANDARDISED, channel_shape, scale_shape, shift_shape
 
 RESCALE_EPS = 1e-6
 
@@ -358,17 +358,16 @@ class FabricNet(nnx.Module):
         # apart, velocities ~1 rad/s) and their absolute levels carry the load; camera pixels (0-255)
         # and sparse flow (mostly exact zeros) must be centred and scaled before a handful of ReLU
         # channels, or most units start on one side of zero for every input and the rows never
-        # leave chance. One (shift, scale) per joint value, colour channel or flow component.
-        # Minsight frames are read as the difference to a reference frame (`config.image_reference`:
-        # the session's no-contact frame, or the training split's mean): without it the LEDs' fixed colour field
-        # dominates every
+        # leave chance. One (shift, scale) per joint value, colour channel or flow component (per
+        # pixel and colour under `config.image_standardisation`). Minsight frames are read as the
+        # difference to a reference frame (`config.image_reference`: the session's no-contact frame,
+        # or the training split's mean): without it the LEDs' fixed colour field dominates every
         # frame, and under the paper's rotation it turns with the angle, a nuisance far larger than
         # the deformation that tells fabrics apart.
         for m in STANDARDISED:
             if m in self.modalities:
-                n = standardised_channels(m, shapes[m])
                 setattr(self, f"{m}_shift", nnx.Param(jnp.zeros(shift_shape(config, m, shapes[m]), jnp.float32)))
-                setattr(self, f"{m}_scale", nnx.Param(jnp.ones(n, jnp.float32)))
+                setattr(self, f"{m}_scale", nnx.Param(jnp.ones(scale_shape(config, m, shapes[m]), jnp.float32)))
         self.rotate_images = "image" in self.modalities and config.augment_rotation
         pool = config.cnn_pool
         self.image = ConvEncoder(3, cnn, dtype=dtype, rngs=rngs, pool=pool) if "image" in self.modalities else None
@@ -444,8 +443,9 @@ class FabricNet(nnx.Module):
         (h, w), p = self.image_hw, self.image.first_patch(*self.image_hw)
         pixels = images.patch_pixels(h, w, p)
         shift, scale = jax.lax.stop_gradient((self.image_shift[...], self.image_scale[...]))
-        reference = jnp.broadcast_to(shift, (h, w, c)).reshape(h * w, c, 1)  # a frame, or one value per colour
-        rows = (rows.astype(jnp.float32) - reference) * scale[:, None]
+        # each a frame, or one value per colour
+        reference, scale = (jnp.broadcast_to(v, (h, w, c)).reshape(h * w, c, 1) for v in (shift, scale))
+        rows = (rows.astype(jnp.float32) - reference) * scale
         if self.rotate_images and rngs is not None:
             degrees = images.random_angles(rngs.augment(), b)
             rows = jax.vmap(lambda r, d: images.rotate_rows(r, d, h, w, pixels))(rows, degrees)
@@ -460,8 +460,9 @@ class FabricNet(nnx.Module):
             (getattr(self, f"{modality}_shift")[...], getattr(self, f"{modality}_scale")[...])
         )
         shape = channel_shape(modality, x.ndim - 1)
-        shift = shift.reshape(shape) if shift.ndim == 1 else shift  # a reference frame broadcasts as it is
-        return ((x.astype(jnp.float32) - shift) * scale.reshape(shape)).astype(self.dtype)
+        # a frame of shifts or scales (one per pixel and colour) broadcasts as it is
+        shift, scale = (v.reshape(shape) if v.ndim == 1 else v for v in (shift, scale))
+        return ((x.astype(jnp.float32) - shift) * scale).astype(self.dtype)
 
     def latents(self, inputs: Mapping[str, jax.Array], rngs: nnx.Rngs | None = None) -> jax.Array:
         """Backbone output per step (B, N, width): the representation the t-SNE analysis plots."""

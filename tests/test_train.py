@@ -298,6 +298,36 @@ def test_pixel_and_flow_standardisation_is_per_channel_over_the_training_split()
     np.testing.assert_allclose(ref["flow_scale"], stats["flow_scale"])
 
 
+@pytest.mark.parametrize("reference", ["none", "training_mean", "session"])
+def test_pixel_standardisation_centres_and_scales_each_pixel_and_colour(reference):
+    """`image_standardisation="pixel"`: every pixel and colour its own mean and 1 / SD over the
+    training split's sequences and steps, whatever the reference; the model's training rows and its
+    frames read them alike, and a frame at the training mean is 0 everywhere."""
+    cfg = Config(
+        **{
+            **TINY.to_json(),
+            "modalities": ("image",),
+            "cnn_features": (4,),
+            "property_heads": False,
+            "image_reference": reference,
+            "image_standardisation": "pixel",
+        }
+    )
+    ds = synthetic.data_set(cfg, 10, image_hw=(10, 15))
+    stats = input_statistics(cfg, ds, chunk=3)
+    pixels = ds["inputs"]["image"].astype(np.float64).reshape(-1, 10, 15, 3)
+    np.testing.assert_allclose(stats["image_shift"], pixels.mean(0), rtol=1e-5)
+    np.testing.assert_allclose(stats["image_scale"], 1 / pixels.std(0), rtol=1e-4)
+    model = FabricNet(cfg, {"image": (10, 15, 3)}, rngs=nnx.Rngs(0))
+    for k, v in stats.items():
+        getattr(model, k).value = v
+    frames = jnp.asarray(ds["inputs"]["image"][:2])
+    standardised = model.standardise("image", frames.reshape(-1, 10, 15, 3))
+    np.testing.assert_allclose(standardised, (pixels[: len(standardised)] - pixels.mean(0)) / pixels.std(0), atol=1e-4)
+    evaluation = model.image_features({"image": frames}, None)
+    np.testing.assert_allclose(model.image_features(training_layout({"image": frames}), None), evaluation, atol=1e-5)
+
+
 @pytest.mark.parametrize("reference", ["none", "training_mean"])
 def test_frame_statistics_summed_in_integers_equal_the_float64_path_bit_for_bit(reference):
     """8-bit frames take the integer sums (`inputs._sums`); the same frames as float64 take the float

@@ -1,7 +1,7 @@
 """The input pipeline between the data and the model: what the model's inputs are standardised
 by, and the layout training holds its sets in.
 
-    STANDARDISED / per_position_shift / shift_shape / channel_shape
+    STANDARDISED / per_position_shift / per_position_scale / shift_shape / scale_shape / channel_shape
                           which inputs are standardised, along which channel axis, and the shapes
                           of their fixed (shift, scale) parameters in `model.FabricNet`
     input_statistics      those parameters' values from the training split
@@ -37,12 +37,23 @@ def standardised_channels(modality: str, step_shape: tuple[int, ...]) -> int:
 
 def per_position_shift(config: Config, modality: str) -> bool:
     """Whether `modality`'s shift is a whole reference frame (one value per pixel and colour,
-    `config.image_reference`) rather than one value per channel."""
-    return modality == "image" and config.image_reference == "training_mean"
+    `config.image_reference`, or each pixel's own mean under `config.image_standardisation`) rather
+    than one value per channel."""
+    return modality == "image" and (config.image_reference == "training_mean" or per_position_scale(config, modality))
+
+
+def per_position_scale(config: Config, modality: str) -> bool:
+    """Whether `modality`'s scale is one value per pixel and colour (`config.image_standardisation`)
+    rather than one value per channel."""
+    return modality == "image" and config.image_standardisation == "pixel"
 
 
 def shift_shape(config: Config, modality: str, step_shape: tuple[int, ...]) -> tuple[int, ...]:
     return tuple(step_shape) if per_position_shift(config, modality) else (standardised_channels(modality, step_shape),)
+
+
+def scale_shape(config: Config, modality: str, step_shape: tuple[int, ...]) -> tuple[int, ...]:
+    return tuple(step_shape) if per_position_scale(config, modality) else (standardised_channels(modality, step_shape),)
 
 
 def channel_shape(modality: str, ndim: int) -> tuple[int, ...]:
@@ -67,7 +78,8 @@ def input_statistics(config: Config, train_set, chunk: int | None = None) -> dic
     """The model's fixed input standardisation (`STANDARDISED`) from the (unpadded) training
     split: per channel, the mean and 1 / SD over every sequence, step and position; for images
     read from a reference frame (`per_position_shift`), the mean frame (per pixel and colour)
-    and 1 / SD of the frames' difference to it, per colour. Accumulated on the host in float64 over
+    and 1 / SD of the frames' difference to it, per colour, or per pixel and colour
+    (`per_position_scale`). Accumulated on the host in float64 over
     chunks of sequences (`chunk`; default: as many as fit `CHUNK_BYTES`), so a camera split (GBs
     of uint8 frames) is never copied whole into float32."""
     inputs = train_set["inputs"] if isinstance(train_set, Mapping) else train_set.inputs
@@ -76,12 +88,10 @@ def input_statistics(config: Config, train_set, chunk: int | None = None) -> dic
         if m not in STANDARDISED:
             continue
         x = inputs[m]
-        axis, per_position = (
-            STANDARDISED[m] % (x.ndim - 2) + 2,
-            per_position_shift(config, m),
-        )  # the channel axis of (S, N, ...)
+        axis = STANDARDISED[m] % (x.ndim - 2) + 2  # the channel axis of (S, N, ...)
+        per_position = per_position_shift(config, m), per_position_scale(config, m)
         n = chunk or max(1, CHUNK_BYTES // max(x[0].nbytes, 1))
-        mean, variance = _STATISTICS.get(x, (axis, per_position, n), lambda: _moments(x, axis, per_position, n))
+        mean, variance = _STATISTICS.get(x, (axis, *per_position, n), lambda: _moments(x, axis, *per_position, n))
         stats[f"{m}_shift"] = jnp.asarray(mean, jnp.float32)
         stats[f"{m}_scale"] = jnp.asarray(1.0 / np.maximum(np.sqrt(variance), 1e-6), jnp.float32)
     return stats
@@ -91,9 +101,10 @@ def input_statistics(config: Config, train_set, chunk: int | None = None) -> dic
 _STATISTICS = memo.ByArray(max_entries=16)
 
 
-def _moments(x, axis: int, per_position: bool, chunk: int) -> tuple[np.ndarray, np.ndarray]:
+def _moments(x, axis: int, per_position: bool, per_position_variance: bool, chunk: int) -> tuple[np.ndarray, ...]:
     """(mean, variance) of `x` (S, N, ...) about each channel's mean, or each position's
-    (`per_position`), summed over chunks of `chunk` sequences along the channel `axis`. The chunks
+    (`per_position`), summed over chunks of `chunk` sequences along the channel `axis`; the
+    variance per channel, or per position and channel (`per_position_variance`). The chunks
     are summed on every core (NumPy's reductions release the GIL) and their sums added in order,
     so the result does not depend on the number of cores."""
     total, total_sq, count = 0.0, 0.0, 0
@@ -106,7 +117,8 @@ def _moments(x, axis: int, per_position: bool, chunk: int) -> tuple[np.ndarray, 
     mean, mean_sq = total / max(count, 1), total_sq / max(count, 1)  # per position and channel
     positions = tuple(range(mean.ndim - 1))
     if per_position:  # spread about each position's own mean
-        return mean, np.maximum(mean_sq - mean * mean, 0.0).mean(positions)
+        variance = np.maximum(mean_sq - mean * mean, 0.0)
+        return mean, variance if per_position_variance else variance.mean(positions)
     mean, mean_sq = mean.mean(positions), mean_sq.mean(positions)
     return mean, np.maximum(mean_sq - mean * mean, 0.0)
 
