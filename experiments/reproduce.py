@@ -27,8 +27,8 @@ FORCE = absl_flags.DEFINE_bool("force", False, "rerun every study, even those wh
 CHECK = absl_flags.DEFINE_bool(
     "check",
     False,
-    "run nothing: list the studies of --results whose fingerprints (code, simulator estimates, --data_dir's data) "
-    "no longer match today's, with their files; exit status 1 if any",
+    "run nothing: list the studies of --results whose fingerprints (their code, the simulator and its "
+    "estimates, --data_dir's data) no longer match today's, with their files; exit status 1 if any",
 )
 
 

@@ -100,6 +100,11 @@ def _imports(module: str) -> frozenset[str]:
     return frozenset(found - {module, "fabricjax"})
 
 
+def is_module(name: str) -> bool:
+    """`name` is a module of the package (a results file may name one since renamed)."""
+    return name in _modules()
+
+
 def _left_out(module: str, leave_out: Iterable[str]) -> bool:
     return any(module == m or module.startswith(m + ".") for m in leave_out)
 
@@ -145,11 +150,6 @@ def simulator() -> str:
     """The code that turns a scene into an archive: what decides a simulated archive besides its
     scene (which names the preset's trial, its effects and the estimates in force)."""
     return fingerprint(SIMULATION)
-
-
-def package() -> str:
-    """Every module of the package that computes, the simulator left out (`without_simulator`)."""
-    return without_simulator(_modules())
 
 
 def without_simulator(roots: Iterable[str]) -> str:

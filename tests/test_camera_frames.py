@@ -104,7 +104,7 @@ def test_the_page_prints_the_numbers_of_the_panels_it_drew(tmp_path, monkeypatch
     saved = json.loads((tmp_path / "camera_frames.json").read_text())
     assert saved["comparison"]["12x16"]["fabric_rms_dn"] == pytest.approx(fabric)
     assert saved["colour_limit_dn"] == pytest.approx(12.1)
-    assert saved["fingerprints"]["code"] and saved["fingerprints"]["estimates"]
+    assert saved["fingerprints"]["code"] and saved["fingerprints"]["simulator"]
 
 
 def test_a_run_renders_every_panel_at_small_sizes(tmp_path):

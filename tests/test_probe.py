@@ -7,7 +7,6 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax.reporting import results_files
 from fabricjax.studies.common import linear_probe
 from fabricjax.studies.extra import probe
 from fabricjax.studies.paper import ablation
@@ -171,9 +170,7 @@ def test_report_sets_the_probe_beside_the_ablation_from_their_json(tmp_path):
     manifest = {
         s: {"wall_s": 60.0, "finished": "today", "command": f"python -m experiments.{s}"} for s in ("ablation", "probe")
     }
-    text = reproduce_report.write_report(
-        tmp_path / "REPORT.md", manifest, "default", results_files.fingerprints(None), "test", 1.0, 2
-    ).read_text()
+    text = reproduce_report.write_report(tmp_path / "REPORT.md", manifest, "default", None, "test", 1.0, 2).read_text()
     assert (
         text.index("## Modality ablation")
         < text.index("## Linear probe")
@@ -186,7 +183,7 @@ def test_report_sets_the_probe_beside_the_ablation_from_their_json(tmp_path):
     assert (
         "beside the model"
         not in reproduce_report.write_report(
-            tmp_path / "REPORT.md", manifest, "default", results_files.fingerprints(None), "test", 1.0, 1
+            tmp_path / "REPORT.md", manifest, "default", None, "test", 1.0, 1
         ).read_text()
     )
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from fabricjax.errors import UserError
-from fabricjax.reporting import plots, results_files
+from fabricjax.reporting import plots
 from fabricjax.sequences import data
 from fabricjax.studies.common import documents
 from fabricjax.studies.extra import cost
@@ -324,7 +324,7 @@ def test_the_report_of_recorded_data_names_no_paper(tmp_path):
         }
     }
     text = reproduce_report.write_report(
-        tmp_path / "REPORT.md", manifest, "smoke", results_files.fingerprints("d" * 16), "test", 1.0, 1
+        tmp_path / "REPORT.md", manifest, "smoke", "d" * 16, "test", 1.0, 1
     ).read_text()
     assert text.splitlines()[0] == "# Report: every study on the smoke preset on recorded data"
     assert "## PSD bandwidth\n" in text and "| [PSD bandwidth](#psd-bandwidth) | 2 | 1.0 min |" in text

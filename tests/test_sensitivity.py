@@ -46,7 +46,12 @@ def test_a_measurement_outside_the_range_takes_the_closest_end_and_resumes(tmp_p
         calibrate.MEASURE, "SHELL_TL_MAX_DB", lambda point: pytest.fail("a measured point was measured again")
     )
     assert calibrate.fit(_with_target(29.0), tmp_path, log=lambda s: None)["points"] == fit["points"]
-    doc = {**documents.header(calibrate.STUDY, command=None, seeds=list(range(calibrate.SEEDS))), "fits": [fit]}
+    doc = {
+        **documents.header(
+            calibrate.STUDY, module=calibrate.__name__, command=None, seeds=list(range(calibrate.SEEDS))
+        ),
+        "fits": [fit],
+    }
     assert "the range's end" in calibrate.markdown(doc)
 
 

@@ -1,7 +1,9 @@
-"""Staleness by construction: results record the fingerprints of what decides them (code without
-comments and docstrings, the simulator's estimates in force, the data), and `reproduce --check`,
-REPORT.md and README's results block flag the studies whose fingerprints no longer match today's."""
+"""Staleness by construction: results record the fingerprints of what decides them (the code that
+computes them without comments and docstrings, the simulator and its estimates in force, the
+data), and `reproduce --check`, REPORT.md and README's results block flag the studies whose
+fingerprints no longer match today's: exactly those an edit can move."""
 
+import dataclasses
 import json
 import shutil
 import subprocess
@@ -16,6 +18,7 @@ from fabricjax.reporting import results_files
 from fabricjax.sim import estimates
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents
+from fabricjax.studies.extra import probe
 from fabricjax.studies.tools import reproduce, reproduce_plan, reproduce_readme, reproduce_report, staleness
 
 REPO = Path(__file__).resolve().parents[1]
@@ -57,9 +60,9 @@ def test_the_code_fingerprint_ignores_comments_docstrings_and_blank_lines():
 
 def test_every_results_file_records_the_fingerprints(published):
     doc = json.loads((published.results / "probe.json").read_text())
-    assert doc["fingerprints"] == results_files.fingerprints(
-        None
-    )  # simulated data: decided by the code, estimates and preset
+    assert doc["module"] == probe.__name__ == "fabricjax.studies.extra.probe"
+    # simulated data: decided by the probe's code, the simulator with its estimates and the preset
+    assert doc["fingerprints"] == results_files.fingerprints(probe.__name__, None) == staleness.today("probe", None)
     assert documents.fingerprints_markdown(doc["fingerprints"]) in (published.results / "probe.md").read_text()
     manifest = json.loads((published.results / reproduce_plan.MANIFEST).read_text())
     assert manifest["probe"]["fingerprints"] == doc["fingerprints"] and manifest["probe"]["commit"] == doc["code"]
@@ -94,7 +97,7 @@ def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(publishe
         said = []
         notes = staleness.check(published, say=said.append)
         stale_report = reproduce_report.write_report(
-            published.results / "STALE.md", manifest, "smoke", results_files.fingerprints(None), "test", 1.0, 0
+            published.results / "STALE.md", manifest, "smoke", None, "test", 1.0, 0
         )
         report = stale_report.read_text()
         stale_report.unlink()  # a report under another name would be checked as a results file of its own
@@ -102,8 +105,8 @@ def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(publishe
         estimates.override({})
     since = f"stale since {manifest['probe']['commit']}"
     assert notes == {
-        "probe": f"{since}: the simulator's estimates changed",
-        "day_shift": f"{since}: the simulator's estimates changed",
+        "probe": f"{since}: the simulator or its estimates changed",
+        "day_shift": f"{since}: the simulator or its estimates changed",
     }
     text = "\n".join(said)
     assert (
@@ -116,16 +119,21 @@ def test_a_changed_estimate_marks_every_study_stale_in_check_and_report(publishe
     assert staleness.check(published, say=lambda s: None) == {}  # the registry's values again: nothing stale
 
 
+def _edit(monkeypatch, module: str) -> None:
+    """As if `module`'s code had changed: its executed text hashes otherwise."""
+    unedited = source._executed_hash
+    monkeypatch.setattr(source, "_executed_hash", lambda m: "edited" if m == module else unedited(m))
+
+
 def test_changed_code_marks_the_studies_stale_and_the_reader_of_a_rerun_study(published, monkeypatch):
-    monkeypatch.setattr(source, "package", lambda: "f" * 64)
-    notes = staleness.stale(
-        json.loads((published.results / reproduce_plan.MANIFEST).read_text()), results_files.fingerprints(None)
-    )
-    assert list(notes) == ["probe", "day_shift"] and all(n.endswith(": the code changed") for n in notes.values())
+    _edit(monkeypatch, "fabricjax.sequences.data")
+    notes = staleness.stale(json.loads((published.results / reproduce_plan.MANIFEST).read_text()), None)
+    assert list(notes) == ["probe", "day_shift"]
+    assert all(n.endswith(": the code that computes it changed") for n in notes.values())
     monkeypatch.undo()
     manifest = json.loads((published.results / reproduce_plan.MANIFEST).read_text())
     manifest["probe"]["key"] = "0" * 16  # the probe rerun since: the day shift read the results of another probe
-    notes = staleness.stale(manifest, results_files.fingerprints(None))
+    notes = staleness.stale(manifest, None)
     assert notes["day_shift"].endswith(": the probe study it reads changed")
 
 
@@ -143,7 +151,7 @@ def test_check_exits_1_on_results_of_other_code_and_readme_says_stale(published,
     (results / reproduce_plan.MANIFEST).write_text(json.dumps(manifest))
     done = _check_command(Location(workdir=published.workdir, results=results))
     assert done.returncode == 1, done.stderr
-    assert "2 of the 2 studies" in done.stdout and done.stdout.count(": the code changed: ") == 2
+    assert "2 of the 2 studies" in done.stdout and done.stdout.count(": the code that computes it changed: ") == 2
     assert str(results / "day_shift.md") in done.stdout
     head = {
         **json.loads((REPO / "results" / reproduce_plan.HEADLINE).read_text()),
@@ -169,7 +177,7 @@ def test_other_results_files_are_checked_by_the_fingerprints_their_results_json_
     """A study run alone, a sweep or a benchmark is not in the manifest: the fingerprints its results
     JSON records decide, and one that records none is stale (nothing says what it was computed from).
     A REPORT.md in a folder below gathers studies that are checked by their own files."""
-    prints = results_files.fingerprints(None)
+    prints = results_files.fingerprints(probe.__name__, None)
 
     def results_file(name: str, doc: dict) -> None:
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
@@ -177,24 +185,90 @@ def test_other_results_files_are_checked_by_the_fingerprints_their_results_json_
         (tmp_path / name).with_suffix(".json").write_text(json.dumps(doc))
 
     results_file("cost", {"code": "commit abc123 + uncommitted changes"})
-    results_file("sweeps/sweep", {"code": "commit abc123", "fingerprints": prints})
-    results_file("palm", {"fingerprints": {**prints, "code": "0" * 16}})
+    results_file("sweeps/sweep", {"code": "commit abc123", "module": probe.__name__, "fingerprints": prints})
+    results_file("palm", {"module": probe.__name__, "fingerprints": {**prints, "code": "0" * 16}})
+    results_file("gone", {"module": "fabricjax.studies.gone", "fingerprints": prints})
     (tmp_path / "sweeps" / "REPORT.md").write_text("# Report\n")
-    found = staleness.other_stale(tmp_path, {}, prints)
-    assert set(found) == {str(tmp_path / "cost.md"), str(tmp_path / "palm.md")}
+    found = staleness.other_stale(tmp_path, {})
+    assert set(found) == {str(tmp_path / f"{f}.md") for f in ("cost", "palm", "gone")}
     assert (
         found[str(tmp_path / "cost.md")]
-        == "stale since commit abc123: it records no fingerprints of what it was computed from"
+        == "stale since commit abc123: it records no fingerprints of the code that computed it"
     )
-    assert found[str(tmp_path / "palm.md")] == "stale: the code changed"
+    assert found[str(tmp_path / "palm.md")] == "stale: the code that computes it changed"
+    assert found[str(tmp_path / "gone.md")] == "stale: the module that computed it, fabricjax.studies.gone, is gone"
 
 
 def test_the_fingerprints_are_recorded_and_listed_as_their_kinds_say():
-    prints = results_files.fingerprints(None)
-    assert list(prints) == list(results_files.FINGERPRINT_KINDS) == ["code", "estimates", "data"]
+    prints = results_files.fingerprints(probe.__name__, None)
+    assert list(prints) == list(results_files.FINGERPRINT_KINDS) == ["code", "simulator", "data"]
     assert documents.fingerprints_markdown(prints) == (
-        f"- fingerprints: code `{prints['code']}`, simulator estimates `{prints['estimates']}`"
+        f"- fingerprints: code `{prints['code']}`, simulator `{prints['simulator']}`"
     )
+    recorded = results_files.fingerprints(probe.__name__, "d" * 16)
+    assert recorded == {"code": prints["code"], "simulator": None, "data": "d" * 16}
+
+
+def _plan_manifest(data: str | None) -> dict:
+    """A manifest of every study of the plan as a run of today's code on `data` would record it."""
+    manifest: dict = {}
+    for step in reproduce_plan.PLAN:
+        prints = staleness.today(step.study, data)
+        upstream = staleness.upstream_key(step.study, {s: e["key"] for s, e in manifest.items()}, {})
+        manifest[step.study] = {
+            "key": staleness.step_key(step, "smoke", {}, prints, upstream),
+            "step": dataclasses.asdict(step),
+            "preset": "smoke",
+            "overrides": {},
+            "fingerprints": prints,
+            "commit": "commit abc",
+            "finished": "today",
+        }
+    return manifest
+
+
+def _results_file(folder: Path, name: str, module: str, data: str | None) -> None:
+    """A results file outside the manifest (a sweep, the bench) as today's code of `module` writes it."""
+    (folder / f"{name}.md").write_text(f"# {name}\n")
+    doc = {"code": "commit abc", "module": module, "fingerprints": results_files.fingerprints(module, data)}
+    (folder / f"{name}.json").write_text(json.dumps(doc))
+
+
+@pytest.mark.parametrize("view", source.VIEWS)
+def test_a_rendering_only_change_leaves_every_study_fresh(view, monkeypatch, tmp_path):
+    _results_file(tmp_path, "sweep", "fabricjax.studies.extra.sweep", None)
+    _results_file(tmp_path, "bench", "fabricjax.bench.suite", None)
+    manifest = _plan_manifest(None)
+    _edit(monkeypatch, view)
+    assert staleness.stale(manifest, None) == {} and staleness.other_stale(tmp_path, manifest) == {}
+
+
+def test_a_model_constant_stales_exactly_the_studies_whose_code_reads_it(monkeypatch, tmp_path):
+    _results_file(tmp_path, "sweep", "fabricjax.studies.extra.sweep", None)
+    _results_file(tmp_path, "bench", "fabricjax.bench.suite", None)
+    _results_file(tmp_path, "camera_frames_alone", "fabricjax.studies.extra.camera_frames", None)
+    manifest = _plan_manifest(None)
+    _edit(monkeypatch, "fabricjax.model")  # model.RESCALE_EPS, say
+    notes = staleness.stale(manifest, None)
+    reads = [s for s, m in reproduce_plan.STUDIES.items() if "fabricjax.model" in source.closure([m.__name__])]
+    assert "ablation" in notes and list(notes) == reads and "camera_frames" not in notes
+    assert notes["ablation"] == "stale since commit abc: the code that computes it changed"
+    assert set(staleness.other_stale(tmp_path, manifest)) == {str(tmp_path / "sweep.md"), str(tmp_path / "bench.md")}
+
+
+def test_a_simulator_estimate_stales_only_the_studies_on_simulated_data(tmp_path):
+    simulated, recorded = _plan_manifest(None), _plan_manifest("d" * 16)
+    _results_file(tmp_path, "sweep", "fabricjax.studies.extra.sweep", None)
+    _results_file(tmp_path, "sweep_recorded", "fabricjax.studies.extra.sweep", "d" * 16)
+    estimates.override({"SERVO_TONE_PA": estimates.ESTIMATES["SERVO_TONE_PA"].value * 2})
+    try:
+        on_simulated, on_recorded = staleness.stale(simulated, None), staleness.stale(recorded, "d" * 16)
+        others = staleness.other_stale(tmp_path, {})
+    finally:
+        estimates.override({})
+    assert list(on_simulated) == list(reproduce_plan.STUDIES) and on_recorded == {}
+    assert set(on_simulated.values()) == {"stale since commit abc: the simulator or its estimates changed"}
+    assert list(others) == [str(tmp_path / "sweep.md")]
 
 
 def test_the_decision_study_is_given_the_ablation_rows_labels(tmp_path):

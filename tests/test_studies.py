@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from fabricjax import presets, sim, source
+from fabricjax import presets, sim
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.reporting import stats
@@ -686,7 +686,7 @@ def test_reproduce_runs_every_study_then_skips_what_is_up_to_date(workdir, tmp_p
 
 
 def test_reproduce_keys_follow_what_decides_the_numbers():
-    prints = {"code": "c0de", "estimates": "e5", "data": None}
+    prints = {"code": "c0de", "simulator": "e5", "data": None}
     step = reproduce_plan.Step("noise", 10)
     key = staleness.step_key(step, "default", {}, prints)
     assert key == staleness.step_key(step, "default", {}, dict(prints))
@@ -696,7 +696,7 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
     # other recordings, too
     for name, other in (
         ("code", "other code"),
-        ("estimates", "other estimates"),
+        ("simulator", "other simulator"),
         ("data", "a" * 16),
     ):
         assert key != staleness.step_key(step, "default", {}, {**prints, name: other}), name
@@ -704,7 +704,6 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
     assert staleness.step_key(latents_step, "default", {}, prints, "props-a") != staleness.step_key(
         latents_step, "default", {}, prints, "props-b"
     )
-    assert len(source.package()) == 64
     assert reproduce_plan.command(step, "default", {"epochs": 3, "modalities": ("internal", "proprio")}, "results") == (
         "python -m experiments.noise --seeds=10 --preset=default --set=epochs=3 "
         "--set=modalities=internal,proprio --results=results"

@@ -400,7 +400,9 @@ def run(
         "acquisition": lambda: acquisition(seconds=3.0 if quick else 10.0),
         "import": lambda: importer(trials=100 if quick else 1000),
     }
-    doc = results_files.header("bench", command=where.command, quick=quick, torch=_torch_version(twin), benchmarks={})
+    doc = results_files.header(
+        "bench", module=__name__, command=where.command, quick=quick, torch=_torch_version(twin), benchmarks={}
+    )
     if note:
         doc["torch_note"] = note
     for name in (b for b in BENCHMARKS if b in chosen):

@@ -11,6 +11,7 @@ it replaces (`replacing`); tables are `markdown_table`.
 from __future__ import annotations
 
 import datetime
+import hashlib
 import json
 import os
 import platform
@@ -92,25 +93,32 @@ class FingerprintKind(NamedTuple):
 
 # What `fingerprints` records, by its key, in the order results list them.
 FINGERPRINT_KINDS = {
-    "code": FingerprintKind("code", "the code"),
-    "estimates": FingerprintKind("simulator estimates", "the simulator's estimates"),
+    "code": FingerprintKind("code", "the code that computes it"),
+    "simulator": FingerprintKind("simulator", "the simulator or its estimates"),
     "data": FingerprintKind("recorded data", "the data"),
 }
 
 
-def fingerprints(data: str | None) -> dict[str, str | None]:
-    """What decides a study's numbers besides its command (study, preset, seeds, rows, --set), as
-    every results file (`header`) and `reproduce`'s manifest record it: "code", the `fabricjax`
-    package without comments and docstrings (`source.package`); "data", recorded data's
-    contents (`data`: `DatasetIndex.content_hash`), None for a preset's simulated data, which the
-    code, the preset and "estimates" decide: the simulator's magnitudes in force
-    (`sim.estimates.fingerprint`), None on recorded data, which no estimate decides."""
-    prints = {
-        "code": source.package()[:FINGERPRINT_DIGITS],
-        "estimates": estimates.fingerprint()[:FINGERPRINT_DIGITS] if data is None else None,
-        "data": data,
-    }
+def simulated_data() -> str:
+    """What decides a preset's simulated data besides the preset: the code that turns a scene into
+    an archive (`source.simulator`) and the simulator's estimates in force (`sim.estimates.fingerprint`)."""
+    return hashlib.sha256(f"{source.simulator()}\0{estimates.fingerprint()}".encode()).hexdigest()
+
+
+def fingerprints(module: str, data: str | None) -> dict[str, str | None]:
+    """What decides the numbers `module` computes besides its command (study, preset, seeds, rows,
+    --set), as every results file (`header`) and `reproduce`'s manifest record it: "code", the
+    modules `module` runs, without the simulator (`source.without_simulator`), so that an edit of a
+    figure or of another study's module leaves it current; then the data's (`data_fingerprints`)."""
+    prints = {"code": source.without_simulator([module])[:FINGERPRINT_DIGITS], **data_fingerprints(data)}
     return {kind: prints[kind] for kind in FINGERPRINT_KINDS}
+
+
+def data_fingerprints(data: str | None) -> dict[str, str | None]:
+    """The fingerprints of what a run read, the same for every module: "data", recorded data's
+    contents (`data`: `DatasetIndex.content_hash`), None for a preset's simulated data, which
+    "simulator" decides instead (`simulated_data`), None on recorded data."""
+    return {"simulator": simulated_data()[:FINGERPRINT_DIGITS] if data is None else None, "data": data}
 
 
 def _default(o):
@@ -196,15 +204,17 @@ def replacing(path: Path, doc: dict[str, Any]) -> str | None:
     )
 
 
-def header(study: str, *, command: str | None, data: str | None = None, **fields) -> dict[str, Any]:
-    """The first fields of every results JSON: what ran (`study`; `command`: the command line,
-    None when called from Python), from which code and with which `fingerprints` (`data`: recorded
-    data's contents, None for simulated data), when and on which machine, then `fields`."""
+def header(study: str, *, module: str, command: str | None, data: str | None = None, **fields) -> dict[str, Any]:
+    """The first fields of every results JSON: what ran (`study`; `module`: the module that computes
+    it, whose code `fingerprints` covers; `command`: the command line, None when called from
+    Python), from which code and with which `fingerprints` (`data`: recorded data's contents, None
+    for simulated data), when and on which machine, then `fields`."""
     return {
         "study": study,
         "command": command,
         "code": git_commit(),
-        "fingerprints": fingerprints(data),
+        "module": module,
+        "fingerprints": fingerprints(module, data),
         "date": utc_now(),
         "machine": machine(),
         **fields,

@@ -33,17 +33,19 @@ def data_fingerprint(ds: Dataset | None) -> str | None:
 def header(
     study: str,
     *,
+    module: str,
     command: str | None,
     seeds: Sequence[int] | None = None,
     dataset: Dataset | None = None,
     compute_dtypes: Iterable[str] | None = None,
     **fields,
 ) -> dict[str, Any]:
-    """The first fields of every results JSON: what ran (`study`; `command`: the command line,
-    None when called from Python), from which code and with which `fingerprints`, when and on
-    which machine, then the study's own `fields` (its preset, the seeds, the dataset it read as
-    `dataset_doc`, the compute dtypes its models trained in (`Config.compute_dtype`), its times, ...)."""
-    doc = results_files.header(study, command=command, data=data_fingerprint(dataset))
+    """The first fields of every results JSON: what ran (`study`; `module`: the module that
+    computes it; `command`: the command line, None when called from Python), from which code and
+    with which `fingerprints`, when and on which machine, then the study's own `fields` (its
+    preset, the seeds, the dataset it read as `dataset_doc`, the compute dtypes its models trained
+    in (`Config.compute_dtype`), its times, ...)."""
+    doc = results_files.header(study, module=module, command=command, data=data_fingerprint(dataset))
     if seeds is not None:
         doc["seeds"] = list(seeds)
     if dataset is not None:

@@ -336,7 +336,7 @@ def write(
 ) -> dict[str, Any]:
     """results/plan.md and plan.json: the plan, with the command, code, date and host it was made on."""
     doc = {
-        **documents.header("plan", command=where.command, preset=preset),
+        **documents.header("plan", module=__name__, command=where.command, preset=preset),
         "of_study": study,
         "rows": n_rows,
         "n_seeds": n_seeds,

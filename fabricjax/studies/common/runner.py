@@ -61,6 +61,7 @@ class Study:
     document: Callable[[TrainingRun, Sequence[RowSpec], Path], tuple[dict[str, Any], list[Path | None]]]
     checklist: Callable[[dict[str, Any]], list[Finding]]
     markdown: Callable[[dict[str, Any]], str]
+    module: str  # the module that defines the study: its import closure is the code of its results
     choose_rows: str = "choose them with --rows"  # how to pick what a row sets instead of --set
     checkpoints: bool = True  # save each row as it trains (`train.SAVE_EVERY_EPOCHS`): a killed run resumes mid-row
     summary: Callable[[TrainedRow], str] = row_training.summary_by_test
@@ -159,6 +160,7 @@ def run_study(
         doc = {
             **documents.header(
                 study.name,
+                module=study.module,
                 command=where.command,
                 preset=preset,
                 seeds=seeds,

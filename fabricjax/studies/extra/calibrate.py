@@ -173,7 +173,12 @@ def run(*, where: Location = Location()) -> dict[str, Any]:
     fits = [fit(e, folder / e.name) for e in calibrated()]
     doc = {
         **documents.header(
-            STUDY, command=where.command, preset=PRESET, seeds=list(range(SEEDS)), wall_s=time.perf_counter() - t0
+            STUDY,
+            module=__name__,
+            command=where.command,
+            preset=PRESET,
+            seeds=list(range(SEEDS)),
+            wall_s=time.perf_counter() - t0,
         ),
         "fits": fits,
     }

@@ -224,6 +224,7 @@ def run(
         doc = {
             **documents.header(
                 STUDY,
+                module=__name__,
                 command=where.command,
                 preset=preset,
                 overrides=dict(overrides or {}),

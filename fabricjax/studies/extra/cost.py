@@ -255,7 +255,7 @@ def run(
     order = {p.name: i for i, p in enumerate(points)}
     rows.sort(key=lambda r: order[r["name"]])
     fronts = {key: pareto_front(rows, key) for key, _ in X_AXES}
-    doc = documents.header("cost", command=where.command, preset=preset, seeds=seeds, dataset=first)
+    doc = documents.header("cost", module=__name__, command=where.command, preset=preset, seeds=seeds, dataset=first)
     doc["dataset"].update(shortest_trial_steps=max_len, step_rate=step_rate)
     doc = {
         **doc,

@@ -168,7 +168,12 @@ def run(
 
     doc = {
         **documents.header(
-            "day_shift", command=where.command, preset=preset, dataset=ds, study_s=time.perf_counter() - t0
+            "day_shift",
+            module=__name__,
+            command=where.command,
+            preset=preset,
+            dataset=ds,
+            study_s=time.perf_counter() - t0,
         ),
         "splits": present,
         "trials": int(len(np.unique(info["trial_key"]))),

@@ -261,7 +261,7 @@ def run(
     with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
         png = plots.plot_decide(where.results_dir() / "decide.png", models)
         doc = {
-            **documents.header("decide", command=where.command, preset=models[0]["config"]["preset"]),
+            **documents.header("decide", module=__name__, command=where.command, preset=models[0]["config"]["preset"]),
             "dataset": models[0].pop("dataset"),
             "thresholds": list(THRESHOLDS),
             "models": models,

@@ -138,6 +138,7 @@ def run(*, quick: bool = False, where: Location = Location()) -> dict[str, Any]:
     doc = {
         **documents.header(
             STUDY,
+            module=__name__,
             command=where.command,
             quick=quick,
             fabrics=list(fabrics),

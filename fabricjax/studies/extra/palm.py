@@ -355,5 +355,5 @@ def markdown(doc: dict[str, Any]) -> str:
 
 def run(preset: str = "default", cycles: int = CYCLES, where: Location = Location()) -> dict[str, Any]:
     """Measure, then write results/palm_physics.md and .json atomically."""
-    doc = {**documents.header("palm_physics", command=where.command), **measure(preset, cycles)}
+    doc = {**documents.header("palm_physics", module=__name__, command=where.command), **measure(preset, cycles)}
     return results_files.write(where.results_dir(), doc, markdown)

@@ -143,7 +143,9 @@ def run(
         ]
 
     doc = {
-        **documents.header("probe", command=where.command, preset=preset, dataset=ds, probe_s=time.perf_counter() - t0),
+        **documents.header(
+            "probe", module=__name__, command=where.command, preset=preset, dataset=ds, probe_s=time.perf_counter() - t0
+        ),
         "method": {
             "summaries": ["mean", "sd"],
             "pca_above_step_dims": PCA_ABOVE,

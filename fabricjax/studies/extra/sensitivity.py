@@ -341,6 +341,7 @@ def run(
     doc = {
         **documents.header(
             STUDY,
+            module=__name__,
             command=where.command,
             preset=preset,
             trajectories=trajectories,

@@ -235,7 +235,13 @@ def run(
         )
         if head is None:
             head = documents.header(
-                "sweep", command=where.command, preset=preset, seeds=seeds, dataset=study.dataset, train_s=0.0
+                "sweep",
+                module=__name__,
+                command=where.command,
+                preset=preset,
+                seeds=seeds,
+                dataset=study.dataset,
+                train_s=0.0,
             )
         loads.append(
             {**{f: getattr(group[0][1], f) for f in loading.SEQUENCE_FIELDS}, **documents.dataset_doc(study.dataset)}

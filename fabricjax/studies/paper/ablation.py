@@ -657,6 +657,7 @@ STUDY = runner.Study(
         doc.get("wilcoxon"),
     ),
     markdown=markdown,
+    module=__name__,
     recorded_fusions=(STEP_LAYERNORM,),
     checkpoints=True,
     groups=ROW_GROUPS,

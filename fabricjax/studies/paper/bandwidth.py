@@ -213,6 +213,7 @@ STUDY = runner.Study(
         {r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in ("val", "test")} for r in doc["rows"]}
     ),
     markdown=markdown,
+    module=__name__,
     choose_rows="choose bandwidths with --rows (e.g. 2.5,15)",
 )
 run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

@@ -136,7 +136,7 @@ def run(checkpoint_dir, *, seed: int | None = None, where: Location = Location()
             neighbours={p["holdout"]: p["nearest"] for p in agreement["pairs"]},
         )
         doc = {
-            **documents.header("latents", command=where.command, preset=config.preset, dataset=ds),
+            **documents.header("latents", module=__name__, command=where.command, preset=config.preset, dataset=ds),
             "checkpoint": workspace.shown(checkpoint_dir),
             "config": config.to_json(),
             "checkpoint_seeds": seeds,

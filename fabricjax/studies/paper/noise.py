@@ -248,6 +248,7 @@ STUDY = runner.Study(
         {r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in SPLITS} for r in doc["rows"]}
     ),
     markdown=markdown,
+    module=__name__,
     summary=lambda row: f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %",
     check=_has_cafe_trials,
 )

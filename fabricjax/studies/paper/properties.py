@@ -262,6 +262,7 @@ STUDY = runner.Study(
         {r["name"]: r["collapsed"]["holdout"] for r in doc["rows"]},
     ),
     markdown=markdown,
+    module=__name__,
     choose_rows="choose the rows with --rows",
     checkpoints=True,
     summary=lambda row: ", ".join(

@@ -47,7 +47,7 @@ from fabricjax.studies.tools.reproduce_plan import (
 )
 from fabricjax.studies.tools.reproduce_readme import headline, readme_block, write_readme_block
 from fabricjax.studies.tools.reproduce_report import write_report
-from fabricjax.studies.tools.staleness import data_fingerprint, step_key, upstream_key
+from fabricjax.studies.tools.staleness import data_fingerprint, step_key, today, upstream_key
 
 
 def run(
@@ -71,11 +71,14 @@ def run(
     out = where.results_dir()
     manifest_path = out / MANIFEST
     manifest = read_json(manifest_path) or {}
-    prints = results_files.fingerprints(data_fingerprint(data_dir, workdir))
+    data = data_fingerprint(data_dir, workdir)
+    prints = {step.study: today(step.study, data) for step in plan}
 
     keys: dict[str, str] = {}
     for step in plan:  # a study that reads another's results has that study's key in its own
-        keys[step.study] = step_key(step, preset, overrides, prints, upstream_key(step.study, keys, manifest))
+        keys[step.study] = step_key(
+            step, preset, overrides, prints[step.study], upstream_key(step.study, keys, manifest)
+        )
     todo = [
         s
         for s in plan
@@ -146,7 +149,7 @@ def run(
             # what the key was computed from: `stale` recomputes it under later fingerprints
             "step": _as_json(dataclasses.asdict(step)),
             "overrides": _as_json(overrides),
-            "fingerprints": prints,
+            "fingerprints": prints[step.study],
             # what an estimate of a later run scales from: the study's, and each training row's (`plan.rates`)
             "preset": preset,
             "seeds": step.seeds,
@@ -159,9 +162,9 @@ def run(
         }
         results_files.write_json(manifest_path, manifest)
         say(f"reproduce: {step.study} done in {minutes(wall)}")
-    write_report(out / REPORT, manifest, preset, prints, where.command, time.perf_counter() - t_all, len(todo))
+    write_report(out / REPORT, manifest, preset, data, where.command, time.perf_counter() - t_all, len(todo))
     say(f"reproduce: wrote {out / REPORT}")
-    head = headline(out, manifest, preset, where.command, prints)
+    head = headline(out, manifest, preset, where.command, data)
     if head is not None:
         results_files.write_json(out / HEADLINE, head)
         readme = out.parent / "README.md"

@@ -23,13 +23,13 @@ README_END = "<!-- end of results -->"
 
 
 def headline(
-    out: Path, manifest: Mapping[str, Any], preset: str, command_line: str | None, prints: Mapping[str, str | None]
+    out: Path, manifest: Mapping[str, Any], preset: str, command_line: str | None, data: str | None
 ) -> dict[str, Any] | None:
     """README's results block as data, from the same results files as REPORT.md: the ablation's
     rows (the paper's rows on simulated data, every row on recorded data) beside the paper and
     the linear probe of the same inputs, each seeded study's checklist count, the stale studies
-    (`stale` under today's fingerprints, `prints`) by title, and the run's command, date, machine
-    and wall time. None when the folder holds no ablation."""
+    (`stale` under today's fingerprints, on recorded data of contents `data`) by title, and the
+    run's command, date, machine and wall time. None when the folder holds no ablation."""
     docs = {s: read_json(out / f"{s}.json") for s in STUDIES if s in manifest}
     abl = docs.get("ablation")
     if not abl:
@@ -72,8 +72,8 @@ def headline(
         "seeds": len(abl["seeds"]),
         "rows": rows,
         "claims": claims,
-        "stale": {title(s, recorded): note for s, note in stale(manifest, prints).items()},
-        "other_stale": len(other_stale(out, manifest, prints)),
+        "stale": {title(s, recorded): note for s, note in stale(manifest, data).items()},
+        "other_stale": len(other_stale(out, manifest)),
     }
 
 

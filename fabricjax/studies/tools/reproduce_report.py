@@ -56,16 +56,17 @@ def write_report(
     path: Path,
     manifest: Mapping[str, Any],
     preset: str,
-    prints: Mapping[str, str | None],
+    data: str | None,
     command_line: str,
     run_s: float,
     n_run: int,
 ) -> Path:
     """REPORT.md over every study the manifest holds (this call's and earlier calls'), in `STUDIES`
-    order, each stale one (`stale` under today's fingerprints, `prints`) saying so."""
+    order, each stale one (`stale` under today's fingerprints, on recorded data of contents `data`,
+    None for simulated data) saying so."""
     out = path.parent
     studies = [s for s in STUDIES if s in manifest]
-    notes = stale(manifest, prints)
+    notes = stale(manifest, data)
     docs = {s: read_json(out / f"{s}.json") for s in studies}
     first = next((d for d in docs.values() if d), None)
     m = first["machine"] if first else results_files.machine()
@@ -114,8 +115,9 @@ def write_report(
         f"{m['jax_backend']} ({len(m['devices'])} devices)",
         f"- versions: {', '.join(f'{k} {v}' for k, v in versions().items())}",
         f"- code: fabricjax {fabricjax.__version__}, {results_files.git_commit()}",
-        documents.fingerprints_markdown(prints)
-        + " (today's; `python -m experiments.reproduce --check` lists the studies they do not match)",
+        documents.fingerprints_markdown(results_files.data_fingerprints(data))
+        + " (today's; each study's header gives the code's, of the module that computes it; "
+        "`python -m experiments.reproduce --check` lists the studies whose fingerprints moved)",
         f"- wall time of the studies: {minutes(total)} in all (each below; {data_note} in the first study's)",
         "",
         f"Every number below comes from the study's results file in this folder, written by the run named "

@@ -150,6 +150,7 @@ def run(
     doc = {
         **documents.header(
             "stream",
+            module=__name__,
             command=where.command,
             archive=str(archive_path),
             checkpoint=str(checkpoint_dir),

@@ -110,7 +110,7 @@ def compare(baseline_path: Path | str, variant_path: Path | str, *, command: str
         raise UserError(
             f"{variant_path}: field 'rows' trains every compared row with the baseline's config: nothing is varied"
         )
-    header = documents.header(STUDY, command=command, seeds=variant["seeds"], preset=variant["preset"])
+    header = documents.header(STUDY, module=__name__, command=command, seeds=variant["seeds"], preset=variant["preset"])
     return {
         **header,
         "of_study": variant["study"],
