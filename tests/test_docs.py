@@ -80,14 +80,14 @@ def test_results_name_paths_inside_the_working_directory_relatively(tmp_path, mo
 
 def test_a_collapsed_model_is_named_not_measured():
     one_class = np.zeros((5, 100), int)
-    assert findings.collapse_note(one_class) == " (collapsed to class 0: 5 of 5 seeds)"
+    assert findings.collapse_text(findings.collapsed(one_class)) == " (collapsed to class 0: 5 of 5 seeds)"
     mixed = np.tile(np.arange(4), (2, 25))
-    assert findings.collapse_note(mixed) == ""
+    assert findings.collapse_text(findings.collapsed(mixed)) == ""
     nearly = np.zeros(100, int)
     nearly[:4] = 3  # 96 % one class: collapsed; a single model names no seeds
-    assert findings.collapse_note(nearly) == " (collapsed to class 0)"
+    assert findings.collapse_text(findings.collapsed(nearly)) == " (collapsed to class 0)"
     nearly[:6] = 3
-    assert findings.collapse_note(nearly) == "" and findings.collapsed([]) == [None]
+    assert findings.collapse_text(findings.collapsed(nearly)) == "" and findings.collapsed([]) == [None]
 
 
 def test_the_majority_baseline_comes_from_the_splits_own_labels():
@@ -101,7 +101,7 @@ def test_the_majority_baseline_comes_from_the_splits_own_labels():
     assert findings.majority_cell(findings.majority([1, 1, 0]), "level") == "66.67 (level 1)"
     # collapse counts the sequences whose label is known: one seed answers 3 for every known one
     assert findings.collapsed([[0, 3, 3, 3]], [-1, 1, 1, 1]) == [3] and findings.collapsed([[0, 3, 3, 3]]) == [None]
-    assert findings.collapse_note([[0, 3, 3, 3]], [-1, 1, 1, 1], "level") == " (collapsed to level 3)"
+    assert findings.collapse_text([3], "level") == " (collapsed to level 3)"
     assert findings.above_majority([0.61, 0.60], {"label": 1, "accuracy": 60.64, "known": 100}) is False
     assert findings.above_majority([0.61, 0.61], None) is None
 

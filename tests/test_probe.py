@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax.studies.common import linear_probe
+from fabricjax.studies.common import findings, linear_probe
 from fabricjax.studies.extra import probe
 from fabricjax.studies.paper import ablation
 from fabricjax.studies.tools import reproduce_plan, reproduce_report
@@ -96,7 +96,7 @@ def _ablation_row(name, test, predictions=None):
         "modalities": list(r.modalities),
         "display_name": ablation.display_name(name),
         "accuracy": {"test": {"fabric": test}},
-        "predictions": {"test": {"fabric": predictions or [[0, 1, 2, 3]] * len(test)}},
+        "collapsed": {"test": findings.collapsed(predictions or [[0, 1, 2, 3]] * len(test))},
     }
 
 
@@ -104,7 +104,7 @@ PROBE_DOC = {
     "preset": "default",
     "dataset": {"folder": "/w/datasets/default", "source": "simulated"},
     "rows": [
-        {"name": "internal", "modalities": ["internal"], "accuracy": {"test": 0.65}, "predictions": {"test": [1] * 20}},
+        {"name": "internal", "modalities": ["internal"], "accuracy": {"test": 0.65}, "collapsed": {"test": [1]}},
         {
             "name": "internal+external+proprio",
             "modalities": ["internal", "external", "proprio"],

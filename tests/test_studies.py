@@ -14,7 +14,7 @@ from scipy import stats as sps
 from fabricjax import presets, sim
 from fabricjax.config import Config
 from fabricjax.errors import UserError
-from fabricjax.reporting import stats
+from fabricjax.reporting import results_files, stats
 from fabricjax.sequences import data
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common import documents, findings, wilcoxon
@@ -45,10 +45,13 @@ def test_ablation_writes_table_statistics_and_confusions(workdir, tmp_path):
     rows = ["internal", "proprio", "internal+external"]
     doc = ablation.run(n_seeds=2, rows=rows, **run_kwargs(workdir, tmp_path))
     assert [r["name"] for r in doc["rows"]] == rows  # the table's order
-    n_test = len(doc["test_samples"]["labels"]["fabric"])
+    # per-sample records beside the results JSON, not in it: the JSON is tracked, the records are not
+    samples = json.loads((tmp_path / f"ablation{results_files.SAMPLES}").read_text())
+    n_test = len(samples["sequences"]["test"]["labels"]["fabric"])
+    assert "predictions" not in json.dumps(doc) and "trial_key" not in json.dumps(doc)
     for r in doc["rows"]:
         assert len(r["accuracy"]["test"]["fabric"]) == 2
-        assert np.asarray(r["predictions"]["test"]["fabric"]).shape == (2, n_test)
+        assert np.asarray(samples["rows"][r["name"]]["test"]["fabric"]).shape == (2, n_test)
         assert r["wall_s"] > 0 and r["config"]["epochs"] == 1
     w = doc["wilcoxon"]
     assert w["per_seed"]["pairing"].startswith("per seed") and w["per_seed"]["n_pairs"] == 2
@@ -73,12 +76,13 @@ def test_the_smoke_preset_learns_and_says_it_checks_the_install(workdir, tmp_pat
     doc = ablation.run(
         n_seeds=1, rows=["internal"], preset="smoke", where=Location(workdir=workdir, results=tmp_path, command="test")
     )
-    labels = doc["test_samples"]["labels"]["fabric"]
+    samples = json.loads((tmp_path / f"ablation{results_files.SAMPLES}").read_text())
+    labels = samples["sequences"]["test"]["labels"]["fabric"]
     chance = 1 / len(set(labels))
     assert doc["rows"][0]["accuracy"]["test"]["fabric"][0] >= 2 * chance
     # the classifier has the smoke data's classes, no other, and predicts only those
     assert doc["rows"][0]["config"]["n_classes"] == len(set(labels)) == 5
-    assert set(doc["rows"][0]["predictions"]["test"]["fabric"][0]) <= set(labels)
+    assert set(samples["rows"]["internal"]["test"]["fabric"][0]) <= set(labels)
     md = (tmp_path / "ablation.md").read_text()
     assert presets.INSTALL_CHECK_NOTE in md.split("\n")[2] and findings.NOT_COUNTED in md
     assert "evaluated claims reproduced" not in md
@@ -203,7 +207,10 @@ def test_probe_writes_its_table_for_the_ablation_rows_inputs(workdir, tmp_path):
     for r in doc["rows"]:
         assert set(r["accuracy"]) == {"train", "val", "test", "cafe"} and r["C"] in probe.C_GRID
         assert all(0 <= a <= 1 for a in r["accuracy"].values())
-        assert len(r["predictions"]["test"]) == len(doc["samples"]["test"]["labels"]["fabric"])
+    samples = json.loads((tmp_path / f"probe{results_files.SAMPLES}").read_text())
+    for r in doc["rows"]:
+        assert len(samples["rows"][r["name"]]["test"]) == len(samples["sequences"]["test"]["labels"]["fabric"])
+        assert "predictions" not in r and set(r["collapsed"]) == {"val", "test", "cafe"}
     image = doc["inputs"]["image"]  # the smoke preset's 60x80 frames: 14400 dims per step, reduced
     assert (
         image["step_dims"] == 60 * 80 * 3
@@ -240,7 +247,9 @@ def test_probe_command_reads_a_data_dir_and_writes_nothing_there(workdir, tmp_pa
         cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True, timeout=300
     )
     results = tmp_path / "results"
-    assert out.stdout.strip().splitlines()[-1] == f"wrote {results / 'probe.json'}, {results / 'probe.md'}"
+    assert out.stdout.strip().splitlines()[-1] == (
+        f"wrote {results / 'probe.json'}, {results / 'probe.md'}, {results / f'probe{results_files.SAMPLES}'}"
+    )
     doc = json.loads((results / "probe.json").read_text())
     assert doc["dataset"]["source"] == "recorded" and doc["dataset"]["folder"] == str(folder)
     assert [r["name"] for r in doc["rows"]] == ["proprio"] and doc["command"].startswith(

@@ -5,7 +5,10 @@ studies and the benchmarks alike (`studies.common.documents` builds a study's he
 `header` is the first fields of every results JSON: what ran, from which code (`git_commit`) and
 with which `fingerprints` of what decides its numbers, when (`utc_now`) and on which `machine`;
 `write` writes a document as results/<study>.json and its Markdown as .md atomically, saying what
-it replaces (`replacing`); tables are `markdown_table`.
+it replaces (`replacing`); tables are `markdown_table`. The document holds the numbers a study
+reports (per-seed accuracies, confusion counts, curves, times, fingerprints: kilobytes, tracked
+beside its Markdown); what it says of every evaluated sequence (per-sample predictions and where
+each sequence comes from: megabytes) goes to results/<study>`SAMPLES`, which is not tracked.
 """
 
 from __future__ import annotations
@@ -164,13 +167,20 @@ def utc_now() -> str:
     return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
 
 
+SAMPLES = ".samples.json"  # the suffix of a study's per-sample records beside its results JSON
+
+
 def write(
-    results, doc: dict[str, Any], markdown: Callable[[dict[str, Any]], str] | None, figures: Sequence[Path | None] = ()
+    results,
+    doc: dict[str, Any],
+    markdown: Callable[[dict[str, Any]], str] | None,
+    figures: Sequence[Path | None] = (),
+    samples: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Write `doc` as results/<study>.json and `markdown(doc)` (None: no Markdown) as
-    results/<study>.md, atomically; `figures` (drawn into the same folder; None: not drawn) are
-    listed by file name under the document's "figures" key first, which is how the Markdown and
-    `reproduce` know a study's figures."""
+    results/<study>.md, atomically, and `samples` (None: none) as results/<study>`SAMPLES`;
+    `figures` (drawn into the same folder; None: not drawn) are listed by file name under the
+    document's "figures" key first, which is how the Markdown and `reproduce` know a study's figures."""
     out = results_path(results)
     doc["figures"] = [Path(f).name for f in figures if f is not None]
     replaced = replacing(out / f"{doc['study']}.json", doc)
@@ -180,6 +190,8 @@ def write(
         if markdown is not None:
             write_text(out / f"{doc['study']}.md", markdown(doc))
         write_json(out / f"{doc['study']}.json", doc)
+        if samples is not None:
+            write_json(out / f"{doc['study']}{SAMPLES}", samples)
     return doc
 
 

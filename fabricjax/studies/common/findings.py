@@ -7,7 +7,7 @@ unless they say otherwise; the rule is part of the claim's text.
 
 Every accuracy is judged against the strongest trivial baseline of its split, `majority`: always
 answering the split's most frequent class (or level), computed from its labels. The tables show it
-beside each accuracy, with `collapse_note` wherever a seed predicts one class for nearly every
+beside each accuracy, with `collapse_text` wherever a seed predicts one class for nearly every
 sequence (`COLLAPSED_SHARE`), and a claim that something is above chance counts only where its
 mean over seeds is above that baseline (`above_majority`); 1 / classes is shown beside it.
 
@@ -209,14 +209,10 @@ def collapsed(predictions, labels=None) -> list[int | None]:
     return out
 
 
-def collapse_note(predictions, labels=None, noun: str = "class") -> str:
-    """' (collapsed to class k: n of m seeds)' beside an accuracy (`noun`: "level" for a property
-    head), or '' when no seed collapsed: `collapse_text` of `collapsed`."""
-    return collapse_text(collapsed(predictions, labels), noun)
-
-
 def collapse_text(per_seed: Sequence[int | None], noun: str = "class") -> str:
-    """`collapse_note` of the per-seed result of `collapsed`, as a results JSON stores it."""
+    """' (collapsed to class k: n of m seeds)' beside an accuracy (`noun`: "level" for a property
+    head), or '' when no seed collapsed, from the per-seed result of `collapsed` as a results JSON
+    stores it."""
     hit = [k for k in per_seed if k is not None]
     if not hit:
         return ""
@@ -226,7 +222,7 @@ def collapse_text(per_seed: Sequence[int | None], noun: str = "class") -> str:
 
 
 def baseline_note(noun: str = "class") -> str:
-    """The sentence under a table with `majority` columns and `collapse_note` flags (`noun`:
+    """The sentence under a table with `majority` columns and `collapse_text` flags (`noun`:
     "level" for property heads)."""
     return (
         f"Majority {noun}: the accuracy of always answering the split's most frequent {noun}, from its "

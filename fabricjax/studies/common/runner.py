@@ -172,4 +172,14 @@ def run_study(
         }
         # the checklist holds the paper's claims: recorded data is not the paper's
         doc["findings"] = [] if trained.dataset.recorded else [f.to_json() for f in study.checklist(doc)]
-        return results_files.write(where.results_dir(), doc, study.markdown, figures)
+        return results_files.write(where.results_dir(), doc, study.markdown, figures, samples(study, trained))
+
+
+def samples(study: Study, trained: TrainingRun) -> dict[str, Any]:
+    """The per-sample records of a training study (`results_files.SAMPLES`): every trained row's
+    predictions on the study's evaluated splits, and what each evaluated sequence is."""
+    sets = trained.dataset.sets
+    return {
+        "rows": {name: row.samples(study.eval_splits) for name, row in trained.rows.items()},
+        "sequences": {s: documents.samples_doc(sets[s]) for s in study.eval_splits},
+    }

@@ -50,8 +50,8 @@ class TrainedRow:
 
     def doc(self, splits: Sequence[str]) -> dict[str, Any]:
         """The row's config, checkpoint (None where the study keeps no models), wall time and its
-        account (`train.TimeAccount`) and, per
-        seed, accuracies and per-sample predictions of every head."""
+        account (`train.TimeAccount`), per-epoch curves and, per seed, the accuracies of every
+        head on "val" and `splits`; its per-sample predictions are `samples`."""
         ev = self.results.metrics["eval"]
         return {
             "config": self.config.to_json(),
@@ -70,8 +70,13 @@ class TrainedRow:
                 s: {h: np.asarray(a, np.float64).tolist() for h, a in ev[s]["accuracy"].items()}
                 for s in ("val", *splits)
             },
-            "predictions": {s: {h: np.asarray(p).tolist() for h, p in ev[s]["predictions"].items()} for s in splits},
         }
+
+    def samples(self, splits: Sequence[str]) -> dict[str, Any]:
+        """Per split of `splits` and head, every seed's prediction of every sequence (seeds x
+        sequences): the results' per-sample records, apart from the compact document (`doc`)."""
+        ev = self.results.metrics["eval"]
+        return {s: {h: np.asarray(p).tolist() for h, p in ev[s]["predictions"].items()} for s in splits}
 
 
 @dataclasses.dataclass

@@ -157,10 +157,13 @@ def run(
         "splits": present,
         "classes": sorted(np.unique(labels["train"]).tolist()),
         "inputs": {name: i for key, (_, c) in loads.items() for name, i in _inputs_doc(inputs[key], c, names).items()},
-        "rows": out_rows,
-        "samples": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
+        "rows": [{k: v for k, v in r.items() if k != "predictions"} for r in out_rows],
     }
-    return results_files.write(where.results_dir(), doc, markdown)
+    samples = {
+        "rows": {r["name"]: r["predictions"] for r in out_rows},
+        "sequences": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
+    }
+    return results_files.write(where.results_dir(), doc, markdown, samples=samples)
 
 
 def _inputs_doc(inputs: Mapping[str, Input], config, names: Mapping[str, str]) -> dict[str, Any]:
@@ -202,6 +205,7 @@ def _probe_row(
         "probe_dims": int(features["train"].shape[1]),
         "wall_s": seconds,
         **result,
+        "collapsed": {s: findings.collapsed(p) for s, p in result["predictions"].items()},
     }
 
 
@@ -217,7 +221,7 @@ def table(doc: Mapping[str, Any]) -> str:
             r["probe_dims"],
             f"{r['C']:g}" + ("" if r["converged"] else " (not converged)"),
             *[
-                _pct(r["accuracy"], s) + findings.collapse_note(r.get("predictions", {}).get(s, [])) * (s != "train")
+                _pct(r["accuracy"], s) + findings.collapse_text(r.get("collapsed", {}).get(s, [])) * (s != "train")
                 for s in SPLITS
             ],
             f"{r['wall_s']:.1f}",
@@ -294,12 +298,12 @@ def beside_ablation(probe_doc: Mapping[str, Any], ablation_doc: Mapping[str, Any
         mean, sd = stats.mean_sd(test)
         probe_test = None if p is None or p["accuracy"].get("test") is None else 100 * p["accuracy"]["test"]
         reached += probe_test is not None and mean >= probe_test
-        probe_note = "" if p is None else findings.collapse_note(p.get("predictions", {}).get("test", []))
+        probe_note = "" if p is None else findings.collapse_text(p.get("collapsed", {}).get("test", []))
         body.append(
             [
                 r["display_name"],
                 "–" if probe_test is None else f"{probe_test:.2f}{probe_note}",
-                f"{mean:.2f} ± {sd:.2f}{findings.collapse_note(r['predictions']['test']['fabric'])}",
+                f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}",
                 "–" if probe_test is None else f"{mean - probe_test:+.2f}",
             ]
         )

@@ -213,7 +213,7 @@ def measure(point: Path, preset: str) -> tuple[dict[str, float], dict[str, Any]]
     out[Response.PALM_CAFE_GAIN] = acc["internal+external+proprio"]["cafe"] - acc["internal+proprio"]["cafe"]
     out[Response.IMAGE_PROPERTY_MARGIN] = min(100 * (props[q]["test"] - props[q]["chance"]) for q in PROPERTIES)
     out[Response.BEST_CAMERA] = max(acc["flow"]["test"], acc[image]["test"])
-    n_test = len(p["flow"]["predictions"]["test"])
+    n_test = probe_doc["dataset"]["sequences"]["test"]
     chance = 1 / len(probe_doc["classes"])
     side = {
         **{

@@ -145,7 +145,6 @@ def entry(
     test_mean, test_sd = _pct(trained.accuracy("test", HEAD))
     last_train = np.asarray(trained.results.metrics["epochs"][f"train/accuracy/{HEAD}"], np.float64)[:, -1]
     record = trained.doc(["test"])
-    del record["predictions"]  # per-sample predictions are the ablation's; here they would multiply by the points
     return {
         "point": point_name(fields),
         "fields": dict(fields),

@@ -188,7 +188,6 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[
         ],
         "fusion_choice": fusion_choices(rows),
         "majority": {"test": findings.majority(labels)},
-        "test_samples": documents.samples_doc(test),
         "wilcoxon": {
             "baseline": base,
             "compared": compared,
@@ -284,7 +283,7 @@ def _recorded_body(trained: TrainingRun, chosen: Sequence[RowSpec], tests) -> di
                 "probe": {
                     "C": p["C"],
                     "accuracy": p["accuracy"],
-                    "predictions": {"test": p["predictions"].get("test", [])},
+                    "collapsed": {"test": findings.collapsed(p["predictions"].get("test", []))},
                 },
                 "collapsed": {"test": findings.collapsed(best.predictions("test"), sets["test"].labels["fabric"])},
                 **best.doc(["test"]),
@@ -296,7 +295,6 @@ def _recorded_body(trained: TrainingRun, chosen: Sequence[RowSpec], tests) -> di
         "steady_below": STEADY_BELOW,
         "steadiness": steady,
         "majority": {"test": findings.majority(sets["test"].labels["fabric"])},
-        "test_samples": documents.samples_doc(sets["test"]),
         "wilcoxon": {
             "baseline": WILCOXON_PAIR[0],
             "compared": WILCOXON_PAIR[1],
@@ -549,7 +547,7 @@ def recorded_table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] |
                 f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}",
                 findings.majority_cell(majority),
                 ", ".join(other) or "–",
-                f"{probe_test:.2f}{findings.collapse_note(r['probe'].get('predictions', {}).get('test', []))}",
+                f"{probe_test:.2f}{findings.collapse_text(r['probe']['collapsed']['test'])}",
                 f"{mean - probe_test:+.2f}",
                 gap,
                 f"{r['wall_s']:.1f}",

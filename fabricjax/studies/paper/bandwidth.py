@@ -84,7 +84,6 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[
         "microphone": mic,
         "rows": out_rows,
         "majority": majority,
-        "test_samples": documents.samples_doc(test),
     }, [figure]
 
 

@@ -85,7 +85,6 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[
     return {
         "rows": out_rows,
         "majority": majority,
-        "cafe_samples": documents.samples_doc(sets[SPLIT]),
         "calibrated": calibrated,
     }, [figure]
 

@@ -87,7 +87,6 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[
         "fabrics": {s: sorted(set(ds.sets[s].info["fabric_id"].tolist())) for s in SPLITS},
         **({} if ds.recorded else {"paper": paper}),
         "rows": out_rows,
-        "samples": {s: documents.samples_doc(ds.sets[s]) for s in SPLITS},
     }, []
 
 
@@ -104,7 +103,7 @@ def checklist(
     `majority`: property -> the holdouts' `findings.majority` baseline. "Above chance" counts only
     where every property's mean over seeds is above its majority level (`findings.above_majority`),
     the strongest trivial baseline; the evidence gives both readings. `notes`: row name ->
-    property -> what the evidence adds to its accuracy (`findings.collapse_note`); `collapsed`: row
+    property -> what the evidence adds to its accuracy (`findings.collapse_text`); `collapsed`: row
     name -> property -> the level each seed collapsed to. A verdict counts only where every
     accuracy it reads can carry it (`findings.counted_where`)."""
     notes, collapsed = notes or {}, collapsed or {}

@@ -46,11 +46,11 @@ def headline(
             {
                 "inputs": r["display_name"],
                 "ours": stats.format_mean_sd(r["accuracy"]["test"]["fabric"])
-                + findings.collapse_note(r["predictions"]["test"]["fabric"]),
+                + findings.collapse_text(r["collapsed"]["test"]),
                 "paper": None if recorded else f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}",
                 "probe": None
                 if probe_test is None
-                else f"{probe_test:.2f}" + findings.collapse_note(p.get("predictions", {}).get("test", [])),
+                else f"{probe_test:.2f}" + findings.collapse_text(p.get("collapsed", {}).get("test", [])),
             }
         )
     claims = {}
