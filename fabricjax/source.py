@@ -127,12 +127,23 @@ def _executed_hash(module: str) -> str:
     return hashlib.sha256(executed(_modules()[module].read_text()).encode()).hexdigest()
 
 
-def fingerprint(roots: Iterable[str], leave_out: Iterable[str] = VIEWS) -> str:
-    """sha256 over the modules `roots` run (`closure`): each one's name and what it executes."""
+def _hash(modules: Iterable[str]) -> str:
+    """sha256 over `modules`: each one's name and what it executes."""
     h = hashlib.sha256()
-    for m in closure(roots, leave_out):
+    for m in modules:
         h.update(m.encode() + b"\0" + _executed_hash(m).encode() + b"\0")
     return h.hexdigest()
+
+
+def fingerprint(roots: Iterable[str], leave_out: Iterable[str] = VIEWS) -> str:
+    """sha256 over the modules `roots` run (`closure`): each one's name and what it executes."""
+    return _hash(closure(roots, leave_out))
+
+
+def views() -> str:
+    """sha256 over the modules that only present numbers (`VIEWS`), each alone: what a study's
+    pages are drawn with besides its own module, whose code its results' fingerprint covers."""
+    return _hash(sorted(VIEWS))
 
 
 TRAINING = ("fabricjax.training.train", "fabricjax.sequences.data")  # what trains a row from archives

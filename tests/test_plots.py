@@ -1,11 +1,11 @@
 import numpy as np
 
 from fabricjax import catalog
-from fabricjax.reporting import plots
+from fabricjax.reporting import plots, stats
 
 
 def test_confusion_matrix_counts():
-    cm = plots.confusion_matrix([0, 1, 1, 2], [0, 1, 2, 2], 3)
+    cm = stats.confusion_matrix([0, 1, 1, 2], [0, 1, 2, 2], 3)
     assert cm.tolist() == [[1, 0, 0], [0, 1, 1], [0, 0, 1]]
 
 
@@ -17,7 +17,11 @@ def test_confusion_classes_are_named_from_the_catalog():
 def test_figures_are_written(tmp_path):
     rng = np.random.default_rng(0)
     y = rng.integers(0, 21, 200)
-    p1 = plots.plot_confusions(tmp_path / "cm.png", [("proprio", y, y), ("flow", y, rng.integers(0, 21, 200))])
+    panels = [
+        ("proprio", stats.confusion_matrix(y, y, 21)),
+        ("flow", stats.confusion_matrix(y, rng.integers(0, 21, 200), 21)),
+    ]
+    p1 = plots.plot_confusions(tmp_path / "cm.png", panels)
     ids = list(range(1, 24))
     fabrics = {f: (catalog.fabric(f).name, catalog.fabric(f).properties) for f in ids}
     p2 = plots.plot_latents(

@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from fabricjax import presets, sim
+from fabricjax import presets, sim, source
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.reporting import results_files, stats
 from fabricjax.sequences import data
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, findings, wilcoxon
+from fabricjax.studies.common import documents, findings, row_training, wilcoxon
 from fabricjax.studies.common.rows import RowSpec, check_overrides, label_key, select_rows
 from fabricjax.studies.common.trained import TrainedRow
 from fabricjax.studies.extra import day_shift, probe, sweep
@@ -96,8 +96,10 @@ def test_ablation_rerun_gives_identical_per_seed_accuracies(workdir, tmp_path):
     for r in first["rows"]:
         shutil.rmtree(r["checkpoint"])
     second = ablation.run(n_seeds=2, rows=rows, **run_kwargs(workdir, tmp_path / "b"))
+    samples = [json.loads((tmp_path / f / f"ablation{results_files.SAMPLES}").read_text()) for f in "ab"]
+    assert samples[0]["rows"] == samples[1]["rows"]  # every prediction
     for a, b in zip(first["rows"], second["rows"]):
-        assert a["accuracy"] == b["accuracy"] and a["predictions"] == b["predictions"]
+        assert a["accuracy"] == b["accuracy"]
     assert (
         first["rows"][1]["fusion_norm"] == "step_layernorm"
         and "our step-LayerNorm fusion" in first["rows"][1]["display_name"]
@@ -277,11 +279,13 @@ def test_properties_report_training_and_holdout_fabrics_and_checkpoint(property_
     assert "97.40" in md and "76.15" in md and row["checkpoint"] in md
     # every accuracy beside its split's majority level, from the split's own labels, and each seed's collapse in the
     # JSON
+    samples = json.loads((results / f"properties{results_files.SAMPLES}").read_text())
     for split in properties.SPLITS:
         for p in properties.PROPERTIES:
-            labels = np.asarray(doc["samples"][split]["labels"][p])
+            labels = np.asarray(samples["sequences"][split]["labels"][p])
             assert doc["majority"][split][p] == findings.majority(labels)
-            assert row["collapsed"][split][p] == findings.collapsed(row["predictions"][split][p], labels)
+            predictions = samples["rows"][row["name"]][split][p]
+            assert row["collapsed"][split][p] == findings.collapsed(predictions, labels)
     assert "Majority level, holdout fabrics [%]" in md and "above its majority level" in md
     # "above chance" is counted against the majority level alone
     claim = doc["findings"][0]
@@ -604,7 +608,10 @@ def test_ablation_command_end_to_end(workdir):
         cmd, check=True, env=env, cwd=Path(__file__).parents[1], capture_output=True, text=True, timeout=300
     )
     results = workdir / "results"  # the default: under the workspace, not in the repository
-    written = ", ".join(str(results / f) for f in ("ablation.json", "ablation.md", "ablation_time_to_accuracy.png"))
+    written = ", ".join(
+        str(results / f)
+        for f in ("ablation.json", "ablation.md", f"ablation{results_files.SAMPLES}", "ablation_time_to_accuracy.png")
+    )
     assert out.stdout.strip().splitlines()[-1] == f"wrote {written}"
     doc = json.loads((results / "ablation.json").read_text())
     assert [r["name"] for r in doc["rows"]] == ["internal"] and doc["seeds"] == [0]
@@ -802,3 +809,37 @@ def test_a_rows_time_to_accuracy_is_its_validation_curve_against_its_cumulative_
     seconds, per_seed = row.time_to_accuracy()
     np.testing.assert_array_equal(seconds, [3.0, 4.0, 5.0])
     np.testing.assert_array_equal(per_seed, val[:, :3])
+
+
+def test_a_change_of_what_presents_numbers_redraws_the_pages_and_trains_nothing(workdir, tmp_path, monkeypatch):
+    """Only the code that presents numbers changed (a view's, `source.VIEWS`): reproduce draws the
+    training studies' Markdown and figures again from their results JSON, training and reading
+    nothing else, and their numbers are the ones it had."""
+    plan = (reproduce_plan.Step("bandwidth", 1, ("2.5",)), reproduce_plan.Step("probe", rows=("proprio",)))
+    kw = dict(
+        preset="smoke",
+        plan=plan,
+        overrides=TINY,
+        where=Location(workdir=workdir, results=tmp_path, command="test"),
+        say=lambda s: None,
+    )
+    reproduce.run(**kw)
+    numbers, figure = (tmp_path / "bandwidth.json").read_text(), (tmp_path / "bandwidth.png").stat().st_ino
+    probe_page = (tmp_path / "probe.md").stat().st_ino
+    unedited, plots = source._executed_hash, "fabricjax.reporting.plots"
+    monkeypatch.setattr(source, "_executed_hash", lambda m: "edited" if m == plots else unedited(m))
+    monkeypatch.setattr(bandwidth, "TITLE", "PSD bandwidth, drawn again")  # what the edited view would draw
+    monkeypatch.setattr(row_training, "train_rows", lambda *a, **k: pytest.fail("a study trained"))
+    said = []
+    reproduce.run(**{**kw, "say": said.append})
+    assert "bandwidth   draw" in said[0] and "probe       run" in said[0]  # the probe has no path but running
+    assert "reproduce: bandwidth drawn again from bandwidth.json" in said
+    assert (tmp_path / "bandwidth.md").read_text().startswith("# PSD bandwidth, drawn again")
+    assert (tmp_path / "bandwidth.png").stat().st_ino != figure and (tmp_path / "probe.md").stat().st_ino != probe_page
+    redrawn = json.loads((tmp_path / "bandwidth.json").read_text())
+    assert {k: v for k, v in redrawn.items() if k != "figures"} == {
+        k: v for k, v in json.loads(numbers).items() if k != "figures"
+    }
+    said.clear()
+    reproduce.run(**{**kw, "say": said.append})  # drawn with today's views: nothing again
+    assert all(f"{s.study:<11} skip" in said[0] for s in plan)

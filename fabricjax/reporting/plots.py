@@ -30,34 +30,22 @@ def _save(fig, path) -> Path:
     return Path(path)
 
 
-def confusion_matrix(labels, predictions, n_classes: int) -> np.ndarray:
-    cm = np.zeros((n_classes, n_classes), np.int64)
-    np.add.at(cm, (np.asarray(labels), np.asarray(predictions)), 1)
-    return cm
-
-
 def class_label(class_id: int) -> str:
     """'<id> <fabric name>' without the name's parenthesis, short enough for an axis tick."""
     return f"{class_id} {catalog.fabric(class_id).name.split(' (')[0]}"
 
 
-def plot_confusions(
-    path,
-    panels: Sequence[tuple[str, np.ndarray, np.ndarray]],
-    n_classes: int = catalog.N_CLASSES,
-    class_names: Sequence[str] | None = None,
-) -> Path:
-    """One row-normalised confusion matrix per (title, labels, predictions) panel, side by side.
+def plot_confusions(path, panels: Sequence[tuple[str, np.ndarray]], class_names: Sequence[str] | None = None) -> Path:
+    """One row-normalised confusion matrix per (title, counts) panel (`stats.confusion_matrix`:
+    true class by row, predicted by column), side by side.
 
-    Classes are labelled with `class_names` (a dataset's own label map; then `n_classes` is their
-    number), else with the catalog's fabric names; the colour scale runs from 0 to the
-    largest cell of any panel (shared, so panels compare), since near-chance models peak far
-    below 1 and a fixed 0-1 scale would leave them white."""
-    if class_names is not None:
-        n_classes = len(class_names)
+    Classes are labelled with `class_names` (a dataset's own label map), else with the catalog's
+    fabric names; the colour scale runs from 0 to the largest cell of any panel (shared, so panels
+    compare), since near-chance models peak far below 1 and a fixed 0-1 scale would leave them white."""
+    n_classes = len(panels[0][1])
     norms, titles = [], []
-    for title, y, p in panels:
-        cm = confusion_matrix(y, p, n_classes).astype(float)
+    for title, counts in panels:
+        cm = np.asarray(counts, float)
         rows = cm.sum(1, keepdims=True)
         norms.append(np.divide(cm, rows, out=np.zeros_like(cm), where=rows > 0))
         titles.append(f"{title}\n{100.0 * np.trace(cm) / max(cm.sum(), 1):.1f}% correct of {int(cm.sum())}")

@@ -16,6 +16,13 @@ import numpy as np
 from scipy import stats as sps
 
 
+def confusion_matrix(labels, predictions, n_classes: int) -> np.ndarray:
+    """Counts of (true class, predicted class), true class by row."""
+    cm = np.zeros((n_classes, n_classes), np.int64)
+    np.add.at(cm, (np.asarray(labels), np.asarray(predictions)), 1)
+    return cm
+
+
 def mean_sd(values) -> tuple[float, float]:
     """Mean and sample SD (ddof=1); the SD of a single value is 0, not NaN."""
     v = np.asarray(values, dtype=np.float64).ravel()

@@ -4,9 +4,12 @@
     doc = runner.run_study(STUDY, n_seeds=10, preset="default")     # what `experiments.noise` calls
 
 A `Study` is its rows (`rows.RowSpec`: a name, the `Config` fields the row sets, its label and
-the paper's numbers for it), the splits it evaluates, and three functions: `document` (the
-study's own part of the results JSON: its statistics and figures), `checklist` (the paper's
-claims as predicates over that document) and `markdown` (its table). `run_study` does the rest,
+the paper's numbers for it), the splits it evaluates, and four functions: `document` (the
+study's own part of the results JSON: its statistics), `checklist` (the paper's claims as
+predicates over that document), `markdown` (its table) and `figures` (drawn from the document).
+The last two read the results JSON alone, so `render` draws a study's pages again from it,
+training and reading nothing else: what `experiments.reproduce` does when only the code that
+presents numbers changed. `run_study` does the rest,
 the same way for every study: it refuses a `--set` of a field a row sets, picks the rows, builds
 their configs, trains them (`row_training.train_rows`: sequences loaded ONCE for the union of
 the rows' inputs, each row's seeds in one vmapped program), checks the paper's claims (never on
@@ -16,6 +19,7 @@ recorded data) and writes results/<study>.md and .json (`results_files.write`).
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
@@ -43,11 +47,12 @@ def seed_list(n_seeds: int) -> tuple[int, ...]:
 class Study:
     """A training study as data: what `run_study` needs to train, check and write it.
 
-    `document(trained, chosen, results)` returns the study's own part of the results JSON (rows,
-    statistics, samples) and the figures it drew into the `results` folder; `checklist(doc)` the
-    paper's claims about the table as `findings.Finding`s (skipped on recorded data);
-    `markdown(doc)` the table people read. `recorded_settings`: `Config` fields every row sets on
-    recorded data only (the property study's holdouts are the data's own holdout split).
+    `document(trained, chosen)` returns the study's own part of the results JSON (rows,
+    statistics, what its figures show); `checklist(doc)` the paper's claims about the table as
+    `findings.Finding`s (skipped on recorded data); `markdown(doc)` the table people read;
+    `figures(doc, results)` the figures drawn from the JSON into the `results` folder.
+    `recorded_settings`: `Config` fields every row sets on recorded data only (the property
+    study's holdouts are the data's own holdout split).
     `recorded_fusions`: other `Config.fusion_norm`s each chosen row is also trained under on
     recorded data, as the row `<fusion>:<name>` (`fusion_twin`), so that the study can say which
     fusion the data needs: a cue steady within a sequence, which the paper's rescale erases, is
@@ -58,10 +63,11 @@ class Study:
     n_seeds: int
     eval_splits: tuple[str, ...]
     split_names: tuple[str, ...]
-    document: Callable[[TrainingRun, Sequence[RowSpec], Path], tuple[dict[str, Any], list[Path | None]]]
+    document: Callable[[TrainingRun, Sequence[RowSpec]], dict[str, Any]]
     checklist: Callable[[dict[str, Any]], list[Finding]]
     markdown: Callable[[dict[str, Any]], str]
     module: str  # the module that defines the study: its import closure is the code of its results
+    figures: Callable[[dict[str, Any], Path], list[Path | None]] = lambda doc, results: []
     choose_rows: str = "choose them with --rows"  # how to pick what a row sets instead of --set
     checkpoints: bool = True  # save each row as it trains (`train.SAVE_EVERY_EPOCHS`): a killed run resumes mid-row
     summary: Callable[[TrainedRow], str] = row_training.summary_by_test
@@ -155,7 +161,7 @@ def run_study(
         data_names=True,
     )
     with atomic.together():  # the figures, Markdown and JSON of this run, or none of them
-        body, figures = study.document(trained, chosen, where.results_dir())
+        body = study.document(trained, chosen)
         dtypes = (config.compute_dtype for _, config in row_configs)
         doc = {
             **documents.header(
@@ -172,7 +178,16 @@ def run_study(
         }
         # the checklist holds the paper's claims: recorded data is not the paper's
         doc["findings"] = [] if trained.dataset.recorded else [f.to_json() for f in study.checklist(doc)]
+        figures = study.figures(doc, where.results_dir())
         return results_files.write(where.results_dir(), doc, study.markdown, figures, samples(study, trained))
+
+
+def render(study: Study, results: Path) -> dict[str, Any]:
+    """Draw `study`'s Markdown and figures again from its results JSON in the `results` folder
+    and rewrite both with the JSON (its numbers as they were); trains and reads nothing else."""
+    doc = json.loads((results / f"{study.name}.json").read_text())
+    with atomic.together():
+        return results_files.write(results, doc, study.markdown, study.figures(doc, results))
 
 
 def samples(study: Study, trained: TrainingRun) -> dict[str, Any]:

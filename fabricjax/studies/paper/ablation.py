@@ -27,6 +27,7 @@ of each row's inputs on the same sequences (`linear_probe.fit_rows`) stands besi
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -128,10 +129,11 @@ def display_name(row_name: str) -> str:
     return STUDY.row(row_name).label
 
 
-def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
     """The rows beside the paper's, each with the class each seed collapsed to (`findings.collapsed`),
-    the test split's majority class (`findings.majority`), the Wilcoxon tests of `WILCOXON_PAIR` and
-    the confusion matrices of `CONFUSION_ROWS` (results/ablation_confusion.png)."""
+    the test split's majority class (`findings.majority`), the Wilcoxon tests of `WILCOXON_PAIR`,
+    the confusion counts of `CONFUSION_ROWS` and every trained row's time-to-accuracy curve (what
+    `figures` draws)."""
     rows, seeds = trained.rows, next(iter(trained.rows.values())).results.seeds
     test = trained.dataset.sets["test"]
     labels = test.labels["fabric"]
@@ -141,38 +143,21 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[
         wilcoxon.paired_tests(rows[base], rows[compared], "test", labels) if base in rows and compared in rows else {}
     )
     names = test.names if recorded else {}
-    panels = [
-        (
-            f"{data.inputs_name((n,), names)} only, {len(seeds)} seeds pooled",
-            np.tile(labels, len(seeds)),
-            rows[n].predictions("test").ravel(),
-        )
-        for n in CONFUSION_ROWS
-        if n in rows
-    ]
-    figure = (
-        plots.plot_confusions(
-            results / "ablation_confusion.png",
-            panels,
-            n_classes=trained.dataset.n_classes,
-            class_names=trained.dataset.classes if recorded else None,
-        )
-        if panels
-        else None
-    )
-    curves = plots.plot_time_to_accuracy(
-        results / "ablation_time_to_accuracy.png",
+    drawn = {
+        "confusion": {
+            n: stats.confusion_matrix(
+                np.tile(labels, len(seeds)), rows[n].predictions("test").ravel(), trained.dataset.n_classes
+            ).tolist()
+            for n in CONFUSION_ROWS
+            if n in rows
+        },
         # every row trained, so that on recorded data each input shows under both fusions, the one its
         # table reports (chosen by validation) among them
-        [
-            (label(t.config.modalities, t.config.backbone, t.config.fusion_norm, names), *t.time_to_accuracy())
-            for t in rows.values()
-        ],
-        f"What accuracy costs in training time, {len(seeds)} seeds a row in one program",
-    )
+        "time_to_accuracy": [_time_to_accuracy(t, names) for t in rows.values()],
+    }
     if recorded:
-        return _recorded_body(trained, chosen, tests), [figure, curves]
-    body = {
+        return {**_recorded_body(trained, chosen, tests), **drawn}
+    return {
         "rows": [
             {
                 "name": r.name,
@@ -196,8 +181,41 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[
         }
         if tests
         else None,
+        **drawn,
     }
-    return body, [figure, curves]
+
+
+def _time_to_accuracy(row: TrainedRow, names: Mapping[str, str]) -> dict[str, Any]:
+    """A row's curve of `TrainedRow.time_to_accuracy` as the results JSON holds it (None: an
+    epoch a seed did not train), under its table label."""
+    seconds, per_seed = row.time_to_accuracy()
+    return {
+        "label": label(row.config.modalities, row.config.backbone, row.config.fusion_norm, names),
+        "seconds": seconds.tolist(),
+        "val_accuracy": [[None if np.isnan(x) else float(x) for x in s] for s in per_seed],
+    }
+
+
+def figures(doc: dict[str, Any], results: Path) -> list[Path | None]:
+    """From the results JSON: the confusion matrices of `CONFUSION_ROWS`, pooled over seeds
+    (results/ablation_confusion.png, where any of them ran), and each row's validation accuracy
+    against its training seconds (results/ablation_time_to_accuracy.png)."""
+    names, seeds = documents.stream_names(doc), len(doc["seeds"])
+    panels = [(f"{data.inputs_name((n,), names)} only, {seeds} seeds pooled", c) for n, c in doc["confusion"].items()]
+    recorded = documents.recorded(doc)
+    confusion = (
+        plots.plot_confusions(
+            results / "ablation_confusion.png", panels, class_names=doc["dataset"]["classes"] if recorded else None
+        )
+        if panels
+        else None
+    )
+    curves = [
+        (c["label"], np.asarray(c["seconds"], np.float64), np.asarray(c["val_accuracy"], np.float64))
+        for c in doc["time_to_accuracy"]
+    ]
+    title = f"What accuracy costs in training time, {seeds} seeds a row in one program"
+    return [confusion, plots.plot_time_to_accuracy(results / "ablation_time_to_accuracy.png", curves, title)]
 
 
 def fusion_choices(rows: Mapping[str, TrainedRow]) -> list[dict[str, Any]]:
@@ -656,6 +674,7 @@ STUDY = runner.Study(
     ),
     markdown=markdown,
     module=__name__,
+    figures=figures,
     recorded_fusions=(STEP_LAYERNORM,),
     checkpoints=True,
     groups=ROW_GROUPS,

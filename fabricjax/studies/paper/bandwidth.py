@@ -15,6 +15,7 @@ with each other instead (`documents.recorded`), and the PSD bins are those at it
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -55,10 +56,10 @@ ROWS = (
 )
 
 
-def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
     """Every row's PSD bins beside the paper's, with the class each seed collapsed to on the
     validation and test splits (`findings.collapsed`); both splits' majority class
-    (`findings.majority`), the microphone read and results/bandwidth.png."""
+    (`findings.majority`) and the microphone read."""
     sets = trained.dataset.sets
     test = sets["test"]
     recorded = trained.dataset.recorded
@@ -77,14 +78,18 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[
             }
         )
     mic = microphone(trained.dataset)
-    figure = plot(results / "bandwidth.png", out_rows, mic)
     majority = {s: findings.majority(sets[s].labels["fabric"]) for s in SPLITS}
     return {
         "modalities": list(MODALITIES),
         "microphone": mic,
         "rows": out_rows,
         "majority": majority,
-    }, [figure]
+    }
+
+
+def figures(doc: dict[str, Any], results: Path) -> list[Path]:
+    """results/bandwidth.png (`plot`), drawn from the results JSON."""
+    return [plot(results / "bandwidth.png", doc["rows"], doc["microphone"])]
 
 
 def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
@@ -213,6 +218,7 @@ STUDY = runner.Study(
     ),
     markdown=markdown,
     module=__name__,
+    figures=figures,
     choose_rows="choose bandwidths with --rows (e.g. 2.5,15)",
 )
 run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

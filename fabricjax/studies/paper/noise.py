@@ -15,6 +15,7 @@ and joints); --rows still names rows by role (internal, internal+proprio, ...).
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -56,10 +57,10 @@ ROWS = (
 )
 
 
-def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
     """Every row with its tests against the preceding row on the cafe split and the class each
     seed collapsed to on the cafe and lab test splits (`findings.collapsed`); both splits'
-    majority class (`findings.majority`), and results/noise.png."""
+    majority class (`findings.majority`)."""
     sets = trained.dataset.sets
     labels = sets[SPLIT].labels["fabric"]
     recorded = trained.dataset.recorded
@@ -79,14 +80,18 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[
             }
         )
         previous = row
-    figure = plot(results / "noise.png", out_rows, trained.dataset.sets[SPLIT].names if recorded else None)
     calibrated = [] if recorded else estimates.calibrated_in("noise")
     majority = {s: findings.majority(sets[s].labels["fabric"]) for s in SPLITS}
     return {
         "rows": out_rows,
         "majority": majority,
         "calibrated": calibrated,
-    }, [figure]
+    }
+
+
+def figures(doc: dict[str, Any], results: Path) -> list[Path]:
+    """results/noise.png (`plot`), drawn from the results JSON."""
+    return [plot(results / "noise.png", doc["rows"], documents.stream_names(doc) if documents.recorded(doc) else None)]
 
 
 def _has_cafe_trials(ds: loading.Dataset) -> None:
@@ -248,6 +253,7 @@ STUDY = runner.Study(
     ),
     markdown=markdown,
     module=__name__,
+    figures=figures,
     summary=lambda row: f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %",
     check=_has_cafe_trials,
 )

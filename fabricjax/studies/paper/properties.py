@@ -64,7 +64,7 @@ ROWS = (
 )
 
 
-def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[dict[str, Any], list]:
+def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
     """Per row its checkpoint, accuracies per property and, per split and property, the level
     each seed collapsed to (`findings.collapsed`, None where it did not); chance (1 / levels), the
     majority level (`findings.majority`) and the fabrics of each evaluated split; the paper's numbers."""
@@ -87,7 +87,7 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec], results) -> tuple[
         "fabrics": {s: sorted(set(ds.sets[s].info["fabric_id"].tolist())) for s in SPLITS},
         **({} if ds.recorded else {"paper": paper}),
         "rows": out_rows,
-    }, []
+    }
 
 
 def checklist(

@@ -4,10 +4,12 @@
     python -m experiments.reproduce --results=results    # regenerates the report published in the repository
 
 `run` goes through the plan (`reproduce_plan.PLAN`, fitted to recorded data by
-`reproduce_plan.fit_plan`), skips each study that is up to date (`staleness.step_key`) and runs
-the others, rewriting the manifest after every study so that an interrupted run picks up where
-it stopped; then it writes REPORT.md (`reproduce_report`) and README's results block
-(`reproduce_readme`).
+`reproduce_plan.fit_plan`), skips each study that is up to date (`staleness.step_key`), draws
+again from its results JSON each up-to-date study whose pages were drawn by other code that
+presents numbers (`source.views`; `runner.render`: the training studies; the others have no
+such path and run again) and runs the others, rewriting the manifest after every study so that
+an interrupted run picks up where it stopped; then it writes REPORT.md (`reproduce_report`) and
+README's results block (`reproduce_readme`).
 """
 
 from __future__ import annotations
@@ -18,12 +20,12 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from fabricjax import presets
+from fabricjax import presets, source
 from fabricjax.errors import UserError
 from fabricjax.reporting import results_files
 from fabricjax.store import workspace
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents
+from fabricjax.studies.common import documents, runner
 from fabricjax.studies.common.plan import rates as training_rates
 from fabricjax.studies.extra import decide
 from fabricjax.studies.paper import ablation, latents
@@ -79,19 +81,25 @@ def run(
         keys[step.study] = step_key(
             step, preset, overrides, prints[step.study], upstream_key(step.study, keys, manifest)
         )
+    rendering = source.views()[: results_files.FINGERPRINT_DIGITS]
+    redrawn = [s for s in plan if manifest.get(s.study, {}).get("rendering") != rendering]
     todo = [
         s
         for s in plan
         if force
         or manifest.get(s.study, {}).get("key") != keys[s.study]
         or not all(p.exists() for p in outputs(s.study, out))
+        or (s in redrawn and _drawn_again(s.study) is None)
     ]
+    redraw = [s for s in redrawn if s not in todo]
 
     lines = [f"reproduce: preset {preset}, results in {out}"]
     published = read_json(PUBLISHED_MANIFEST) or {}
     for step in plan:
         if step in todo:
             lines.append(f"  {step.study:<11} run   ~{minutes(estimate_s(step, preset, manifest, published))}")
+        elif step in redraw:
+            lines.append(f"  {step.study:<11} draw  (up to date; its pages again from its results JSON)")
         else:
             lines.append(
                 f"  {step.study:<11} skip  (up to date: ran {manifest[step.study]['finished']}, "
@@ -120,6 +128,11 @@ def run(
     say("\n".join(lines))
 
     t_all = time.perf_counter()
+    for step in redraw:  # only the code that presents numbers changed: nothing trained, simulated or read
+        runner.render(_drawn_again(step.study), out)
+        manifest[step.study]["rendering"] = rendering
+        results_files.write_json(manifest_path, manifest)
+        say(f"reproduce: {step.study} drawn again from {step.study}.json")
     for step in todo:
         say(f"reproduce: {step.study} ...")
         t0 = time.perf_counter()
@@ -150,6 +163,7 @@ def run(
             "step": _as_json(dataclasses.asdict(step)),
             "overrides": _as_json(overrides),
             "fingerprints": prints[step.study],
+            "rendering": rendering,  # the code its pages were drawn with (`source.views`)
             # what an estimate of a later run scales from: the study's, and each training row's (`plan.rates`)
             "preset": preset,
             "seeds": step.seeds,
@@ -171,6 +185,13 @@ def run(
         if write_readme_block(readme, readme_block(head, out.name)):
             say(f"reproduce: wrote the results block of {readme}")
     return {s.study: manifest[s.study] for s in plan}
+
+
+def _drawn_again(study: str) -> runner.Study | None:
+    """`study` as a `runner.Study`, whose pages `runner.render` draws from its results JSON alone;
+    None for a study without that path."""
+    found = getattr(STUDIES[study], "STUDY", None)
+    return found if isinstance(found, runner.Study) else None
 
 
 def _as_json(value: Any) -> Any:
