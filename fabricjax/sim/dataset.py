@@ -55,9 +55,9 @@ def filename(scene: Scene) -> str:
 
 
 def is_done(path: Path, scene: Scene) -> bool:
-    """The archive exists, is readable, was made from this scene by this simulator version
-    (`scene.SIMULATOR_VERSION`, part of the scene's JSON) and has the wanted streams (frames with
-    their session's no-contact reference, which archives before format 3 lack)."""
+    """The archive exists, is readable, was made from this scene by today's simulator code
+    (`source.simulator`, part of the scene's JSON) and has the wanted streams (frames with their
+    session's no-contact reference, which archives before format 3 lack)."""
     if not path.is_file():
         return False
     try:

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from fabricjax import catalog
+from fabricjax import catalog, source
 from fabricjax.sim import calibration as cal
 from fabricjax.sim import estimates, rig
 from fabricjax.store import archive
@@ -45,10 +45,6 @@ EFFECTS = (
 STREAMS = ("audio", "proprio", "images")
 REQUIRED_STREAMS = ("audio", "proprio")  # the archive format requires audio, joints and force
 SCOPES = ("hardware", "fabric", "day", "trial")
-# The simulator's version, part of every simulated archive's scene (`Scene.to_json`): a dataset
-# written by another version is simulated again (`dataset.is_done`). Raised with every change of
-# how a scene is simulated; a change of a magnitude changes `MAGNITUDES` instead. [numerics]
-SIMULATOR_VERSION = 3
 
 
 def magnitudes(besides: str | None = None) -> str:
@@ -138,7 +134,9 @@ class Scene:
             del d["estimates"]  # the published simulator: its archives' scenes name no estimates
         return {
             **{k: list(v) if isinstance(v, tuple) else v for k, v in d.items()},
-            "simulator_version": SIMULATOR_VERSION,
+            # the code that simulates it (`source.simulator`): an archive that other code made is
+            # simulated again (`dataset.is_done`)
+            "simulator": source.simulator()[:16],
             "magnitudes": MAGNITUDES,
         }
 
