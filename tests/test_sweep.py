@@ -201,6 +201,11 @@ def test_the_best_point_is_the_first_argmax_of_the_validation_accuracy_averaged_
     assert summary[1]["train_s"] == 2.0 and summary[1]["rows"] == 2
 
 
+def test_the_last_epoch_is_each_seeds_last_trained_one():
+    stopped_early = [[0.2, 0.5, np.nan], [0.1, 0.3, 0.4]]
+    assert sweep.last_epoch(stopped_early).tolist() == [0.5, 0.4]
+
+
 def test_one_load_serves_only_rows_with_the_same_sequences():
     a, b = Config.from_preset("smoke"), Config.from_preset("smoke", seq_len=10, modalities=("proprio",))
     assert loading.sequence_key(a) == loading.sequence_key(

@@ -136,6 +136,12 @@ def _pct(values) -> tuple[float, float]:
     return stats.mean_sd(100 * np.asarray(values, np.float64))
 
 
+def last_epoch(curves) -> np.ndarray:
+    """Each seed's value at its last trained epoch, from (seeds, epochs) curves: early stopping
+    leaves the epochs after it NaN."""
+    return np.array([seed[~np.isnan(seed)][-1] for seed in np.asarray(curves, np.float64)])
+
+
 def entry(
     trained: TrainedRow, fields: Mapping[str, Any], row: RowSpec, test, latency_repeats: int, recorded: bool = False
 ) -> dict[str, Any]:
@@ -143,7 +149,7 @@ def entry(
     `recorded` data the row is named by the data's names for its inputs (`test.names`)."""
     val_mean, val_sd = _pct(trained.accuracy("val", HEAD))
     test_mean, test_sd = _pct(trained.accuracy("test", HEAD))
-    last_train = np.asarray(trained.results.metrics["epochs"][f"train/accuracy/{HEAD}"], np.float64)[:, -1]
+    last_train = last_epoch(trained.results.metrics["epochs"][f"train/accuracy/{HEAD}"])
     record = trained.doc(["test"])
     return {
         "point": point_name(fields),
