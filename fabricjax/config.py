@@ -208,7 +208,9 @@ class Config:
     # where training reads its inputs (INPUT_SOURCES): placed whole on the devices ("memory"), or
     # minibatches read from the host (`fabricjax.training.feed`) out of memory-mapped sequence files
     # ("disk", `data.load_sequences`); "auto": from disk where the loaded inputs would take more
-    # than `data.MEMORY_FRACTION` of this machine's memory. Results are the same bits either way.
+    # than `data.MEMORY_FRACTION` of this machine's memory. Either way it is the same computation,
+    # the same bits where XLA's fusions are off (tests/test_feed.py); with them, XLA compiles the two
+    # programs apart and may round a sum differently.
     input_source: str = _field("auto", NEUTRAL, load=9, rate_neutral=True)
 
     def __post_init__(self):
