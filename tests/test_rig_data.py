@@ -224,8 +224,9 @@ def test_reproduce_on_a_rig_runs_what_its_streams_and_splits_allow(tmp_path):
     assert set(plan["ablation"].rows) == {r.name for r in ablation.ROWS if set(r.modalities) <= {"internal", "proprio"}}
     assert plan["bandwidth"].rows is None
     text = "\n".join(said)
-    assert len(said) == 7 and "ablation" in said[0] and "rows left out (they need external, flow, image" in said[0]
+    assert len(said) == 8 and "ablation" in said[0] and "rows left out (they need external, flow, image" in said[0]
     assert "noise       skip  (the paper's protocol: it needs trials of the cafe condition (split cafe)" in text
     assert "properties  skip  (the paper's protocol: it needs held-out fabrics (split holdout)" in text
     assert "latents     skip" in text
     assert "camera_frames skip  (it draws the simulator's frames, not the data's)" in text
+    assert "flow_budget skip  (it draws the simulator's frames, not the data's)" in text

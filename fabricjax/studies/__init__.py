@@ -20,6 +20,7 @@ Our studies beyond the paper (`extra/`):
     sensitivity  which simulator estimates each finding depends on: a Morris screening over their ranges
     calibrate    the declared calibrations: each estimate fitted to the one measurement of the paper that pins it
     flow_agreement  how closely the JAX Farneback reproduces OpenCV's flow, and what each costs
+    flow_budget     what moves Minsight's imaged wall over a stroke, effect by effect, and what optical flow sees
     camera_frames   what Minsight's camera sees of a stroke: four fabrics and three days of one, one moment
 
 Tools (`tools/`):

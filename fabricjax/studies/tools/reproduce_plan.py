@@ -7,8 +7,9 @@ bandwidth (5), cafe noise (10, as the paper), property perception (5, saving its
 and the latent t-SNE from the property study's checkpoint of its Minsound + proprioception +
 Minsight row, then the decision study (calibration, when to stop rubbing, unknown fabrics) on the
 ablation's checkpoints of the row the paper calls best and of Minsound alone (`DECIDE_ROWS`; no
-training), and last what Minsight's camera sees of a stroke (`camera_frames`: the simulator's
-frames, no data, no training). The dataset is simulated once (or read from `data_dir`), features
+training), then what moves Minsight's imaged wall over a stroke and what optical flow sees of it
+(`flow_budget`), and last what Minsight's camera sees of a stroke (`camera_frames`); these two
+render the simulator's frames: no data, no training. The dataset is simulated once (or read from `data_dir`), features
 and compiled programs are cached, checkpoints resume, so every study after the first pays only
 for its training.
 
@@ -17,7 +18,7 @@ stream the data lacks are left out, a study none of whose rows it can feed is sk
 studies of the paper's protocol (`PROTOCOL`: cafe noise needs cafe-split trials, the property
 study held-out fabrics, the latents the property study, the decision study the ablation) are
 skipped when the data has no such trials, and the studies of the simulator itself
-(`SIMULATOR_ONLY`: the camera frames) always, each with one line saying why.
+(`SIMULATOR_ONLY`: the flow budget, the camera frames) always, each with one line saying why.
 
 Each step reruns alone by the command `command` gives; `estimate_s` expects its wall time from
 an earlier run's manifest. The files a run keeps in its results folder: the manifest
@@ -38,7 +39,7 @@ from fabricjax.config import format_override
 from fabricjax.errors import UserError
 from fabricjax.store import archive, dataset_index, provenance, splits
 from fabricjax.studies.common.rows import split_by_inputs
-from fabricjax.studies.extra import camera_frames, day_shift, decide, probe
+from fabricjax.studies.extra import camera_frames, day_shift, decide, flow_budget, probe
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
 
 STUDIES = {
@@ -50,12 +51,14 @@ STUDIES = {
     "properties": properties,
     "latents": latents,
     "decide": decide,
+    "flow_budget": flow_budget,
     "camera_frames": camera_frames,
 }
 # a study -> the study whose results it reads
 UPSTREAM = {"latents": "properties", "day_shift": "probe", "decide": "ablation"}
-UNSEEDED = ("probe", "day_shift", "camera_frames")  # deterministic studies of no paper table: no seeds, no claims
-SIMULATOR_ONLY = ("camera_frames",)  # studies of the simulator itself: skipped on recorded data
+# deterministic studies of no paper table: no seeds, no claims
+UNSEEDED = ("probe", "day_shift", "flow_budget", "camera_frames")
+SIMULATOR_ONLY = ("flow_budget", "camera_frames")  # studies of the simulator itself: skipped on recorded data
 # the paper's figure: its "Minsound + Minsight" model, which also reads proprioception
 LATENT_ROW = properties.ROWS[-1].name
 # the decision study's models: the ablation row the paper calls best (its highest mean) and Minsound alone
@@ -87,6 +90,7 @@ PLAN = (
     Step("properties", 5),
     Step("latents"),
     Step("decide", rows=DECIDE_ROWS),
+    Step("flow_budget"),
     Step("camera_frames"),
 )
 # The studies that need trials of the paper's protocol: the split they read, and what it is
