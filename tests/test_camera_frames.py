@@ -135,3 +135,53 @@ def test_reproduce_runs_it_last_without_seeds_and_names_its_command():
         reproduce_plan.command(reproduce_plan.Step("camera_frames"), "default", {}, "results")
         == "python -m experiments.camera_frames --preset=default --results=results"
     )
+
+
+def test_smoothing_removes_pixel_speckle_and_keeps_a_broad_patch_at_any_size():
+    for h, w in ((60, 80), (308, 410)):
+        y, x = np.mgrid[0:h, 0:w]
+        speckle = np.where((x + y) % 2, 1.0, -1.0)
+        patch = np.exp(-(((x - w / 2) / (w / 8)) ** 2 + ((y - h / 2) / (h / 8)) ** 2))
+        rms = lambda a: np.sqrt(np.mean(a**2))  # noqa: E731
+        assert rms(cf.smoothed(speckle)[h // 4 : -h // 4, w // 4 : -w // 4]) < 0.01  # away from the frame's edge
+        assert rms(cf.smoothed(patch) - patch) < 0.1 * rms(patch)
+    # the same extent on the wall: a 5.13 times larger frame is smoothed over 5.13 times more pixels
+    one = np.zeros((60, 80))
+    one[30, 40] = 1.0
+    big = np.zeros((308, 410))
+    big[154, 205] = 1.0
+    spread = lambda a: np.sqrt(np.sum(a * (np.arange(a.shape[1]) - a.shape[1] // 2) ** 2) / a.sum())  # noqa: E731
+    assert spread(cf.smoothed(big)) / spread(cf.smoothed(one)) == pytest.approx(410 / 80, rel=0.02)
+
+
+def test_concentration_counts_the_fewest_pixels_that_hold_half_of_the_difference():
+    filled = np.ones((2, 5), bool)
+    a, b = np.zeros((2, 5)), np.zeros((2, 5))
+    b[0, 0] = 3.0  # one pixel holds all of it
+    assert cf.concentration([a, b], filled) == pytest.approx(0.1)
+    assert cf.concentration([a, a + 1.0], filled) == pytest.approx(0.5)  # every pixel alike: half of them
+    b[:] = 1.0
+    b[0, 0] = 2.0  # 4 + 9 x 1 = 13: the large pixel and three more reach half
+    assert cf.concentration([a, b], filled) == pytest.approx(0.4)
+    filled[1] = False  # only the pixels the shell fills count: 4 + 4 x 1 = 8, the large pixel holds half
+    assert cf.concentration([a, b], filled) == pytest.approx(0.2)
+    assert np.isnan(cf.concentration([a, a], filled))
+
+
+def test_the_page_carries_the_sentence_it_shares_with_day_shift_and_its_own_number(tmp_path, monkeypatch):
+    def fake(scene, sizes):
+        when = {"frame": 7, "t_s": 0.14, "finger_mm": 3.0, "normal_n": 0.1, "shear_n": 0.05}
+        diffs = {}
+        for s in sizes:
+            d = np.zeros((*s, 3), np.float32)
+            d[: s[0] // 10, :, :] = scene.fabric_id + scene.day / 10  # the contact: a tenth of the rows
+            diffs[s] = d
+        return when, diffs, {s: np.full((*s, 3), 100.0, np.float32) for s in sizes}
+
+    monkeypatch.setattr(cf, "render", fake)
+    cf.run(sizes=((30, 40), (60, 80)), where=Location(results=tmp_path))
+    md = (tmp_path / "camera_frames.md").read_text()
+    assert cf.camera_variation.RECONCILE in md
+    # the default preset's model reads 30x40: the fabrics differ on its first 3 of 30 rows, alike on each
+    assert "Here, at 30x40, half of the fabrics' squared difference lies on 5.0 % of the pixels the shell fills." in md
+    assert "| 60x80 | " in md and " | 5.0 |" in md

@@ -452,43 +452,50 @@ def ranked_bars(
 
 def plot_difference_panels(
     path,
-    blocks: Sequence[Sequence[Sequence[tuple[str, np.ndarray]]]],
+    rows: Sequence[Sequence[tuple[str, np.ndarray]]],
+    row_labels: Sequence[str],
     vmax: float,
     linear: float,
     label: str,
     title: str,
+    width_in: float = 7.7,
 ) -> Path:
-    """Images of signed values on one diverging colour scale shared by every panel, white at 0:
-    linear within +-`linear` and logarithmic beyond it up to +-`vmax`, so that differences a few
-    times `linear` stay visible beside ones a hundred times larger. `blocks` are groups of panels
-    set side by side with a narrow gap between groups, each a list of rows of (title, (h, w)
-    image). Pixels are drawn as squares without smoothing, so a small image shows its own pixels."""
+    """Images of signed values in a grid, one row of panels per entry of `rows` (each a list of
+    (title, (h, w) image)), on one diverging colour scale shared by every panel, white at 0: linear
+    within +-`linear` and logarithmic beyond it up to +-`vmax`, so that differences a few times
+    `linear` stay visible beside ones a hundred times larger. `row_labels` name each row at its
+    left. The figure is `width_in` inches wide (1000 px at the saved 130 dpi), so that its titles
+    stay legible at page width. Pixels are drawn as squares without smoothing, so a small image
+    shows its own pixels."""
     from matplotlib.colors import SymLogNorm
 
-    rows = max(len(b) for b in blocks)
-    widths = [len(b[0]) for b in blocks]
-    ratios = [r for i, w in enumerate(widths) for r in ([0.12] if i else []) + [1.0] * w]
+    cols = max(len(r) for r in rows)
+    panel_in = (width_in - 1.2) / cols
+    h, w = rows[0][0][1].shape
     fig, axes = plt.subplots(
-        rows,
-        len(ratios),
-        figsize=(3.3 * sum(ratios) + 1.4, 2.75 * rows + 0.7),
+        len(rows),
+        cols,
+        figsize=(width_in, len(rows) * (panel_in * h / w + 0.45) + 0.6),
         layout="constrained",
         squeeze=False,
-        gridspec_kw={"width_ratios": ratios},
     )
-    for ax in axes.flat:
-        ax.axis("off")
     norm = SymLogNorm(linthresh=linear, linscale=1.0, vmin=-vmax, vmax=vmax, base=10)
-    shown, col = None, 0
-    for i, block in enumerate(blocks):
-        col += 1 if i else 0
-        for r, panels in enumerate(block):
-            for c, (name, image) in enumerate(panels):
-                ax = axes[r, col + c]
-                shown = ax.imshow(image, cmap="RdBu_r", norm=norm, interpolation="nearest")
-                ax.set_title(name, fontsize=9)
-        col += len(block[0])
+    shown = None
+    for r, panels in enumerate(rows):
+        for c in range(cols):
+            ax = axes[r, c]
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if c >= len(panels):
+                ax.axis("off")
+                continue
+            name, image = panels[c]
+            shown = ax.imshow(image, cmap="RdBu_r", norm=norm, interpolation="nearest")
+            ax.set_title(name, fontsize=8)
+            for side in ax.spines.values():
+                side.set_visible(False)
+        axes[r, 0].set_ylabel(row_labels[r], fontsize=8)
     if shown is not None:
-        fig.colorbar(shown, ax=axes, shrink=0.85, label=label, extend="both")
-    fig.suptitle(title, fontsize=11)
+        fig.colorbar(shown, ax=axes, shrink=0.8, label=label, extend="both", aspect=30)
+    fig.suptitle(title, fontsize=9)
     return _save(fig, path)

@@ -15,15 +15,30 @@ paper's two training days and its test day), each scene as the preset simulates 
 (`sim.dataset.scene_for`: its cycles per trial, its estimates in force). Each panel is the
 noise-free frame (`minsight.stroke_frames`, with the trial's contact draws) minus its day's
 noise-free no-contact frame (`minsight.no_contact_frame`, what the session's averaged reference
-converges to), both rendered at each of `SIZES`, and shown as the mean of the three colour
+converges to), both rendered at each of `SIZES` (30x40, the default preset's model input; 60x80,
+its frames; 308x410, the paper's), and shown as the mean of the three colour
 channels' differences. The camera's shot noise is left out, so that the form of the difference
 is visible; its level at each size is stated beside it (`noise_levels`).
 
-Numbers, all from the panels' arrays: per panel its largest |difference| and its RMS over the
-pixels; per size, the RMS difference between two panels (`pair_rms`), pooled over the 6 pairs of
-fabrics and over the 3 pairs of denim's days (`compare`), and which is larger. Both kinds of pair
-differ in the trial's own draws too (contact place, fold, speed), so the day pairs hold the
-trial-to-trial variation of one fabric besides the day's camera.
+The figure (`plots.plot_difference_panels`, a grid about 1000 px wide): at `FIGURE_SIZE` the four
+fabrics as rendered, the same smoothed (`smoothed`: a Gaussian of `SMOOTH_PX` pixels at 60x80, the
+same extent on the wall at every size), denim's three days smoothed, and at `DETAIL_SIZE` denim
+and polar fleece (`DETAIL_FABRICS`) as rendered and smoothed. The speckle of the panels as
+rendered is the wall's flake grain (`minsight._flake_table`) moving under the pixels where the
+contact pushes the wall toward the camera: the render warps the resting wall's image by the
+contact's shift (`minsight.physical_frames`), and a sub-pixel shift of a grain that varies from
+pixel to pixel changes every pixel; at 308x410 no pixel averages it (smaller sizes are rendered at
+twice their size and averaged down), so it is largest there. The smoothed view leaves the
+contact's own form.
+
+Numbers, all from the panels' arrays: per panel its largest |difference|, its RMS over the pixels
+and its smoothed RMS; per size, the RMS difference between two panels (`pair_rms`), pooled over
+the 6 pairs of fabrics and over the 3 pairs of denim's days (`compare`), as rendered and smoothed,
+and which is larger; and how few pixels hold half of the fabrics' squared difference
+(`concentration`), the number behind the sentence this page shares with the day-shift page
+(`camera_variation.RECONCILE`). Both kinds of pair differ in the trial's own draws too (contact
+place, fold, speed), so the day pairs hold the trial-to-trial variation of one fabric besides the
+day's camera.
 """
 
 from __future__ import annotations
@@ -33,6 +48,7 @@ import time
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+from scipy import ndimage
 
 from fabricjax import catalog, presets
 from fabricjax.errors import UserError
@@ -42,14 +58,18 @@ from fabricjax.sim import dataset as sim_dataset
 from fabricjax.sim.motion import Motion
 from fabricjax.store import archive, atomic, splits
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents
+from fabricjax.studies.common import camera_variation, documents
 
 STUDY = "camera_frames"
 TITLE, PAPER = "What Minsight's camera sees of a stroke", "not in the paper"
 FABRICS = (12, 1, 10, 9)  # real silk, cotton denim, polar fleece, corduroy
 DAY_FABRIC = 1  # cotton denim
 DAYS = (1, 2, 3)  # the paper's training days and its test day
-SIZES = ((60, 80), (308, 410))
+SIZES = ((30, 40), (60, 80), (308, 410))  # the default model's input, the default preset's frames, the paper's
+FIGURE_SIZE, DETAIL_SIZE = (60, 80), (308, 410)  # the figure's panels; the size whose speckle it shows beside
+SMOOTH_PX = 1.5  # the smoothed view: a Gaussian of this SD in pixels at 60x80, the same extent on the wall at any size
+DETAIL_FABRICS = (DAY_FABRIC, 10)  # shown at DETAIL_SIZE: denim, and polar fleece, whose patch moves the wall most
+HALF = 0.5  # `concentration`: the share of the fabrics' squared difference whose pixels are counted
 CYCLE = 2  # the rubbing cycle whose moment is shown: past the first stroke's start from rest
 STREAMS = ("audio", "proprio", "images")
 LABEL = "frame - session reference (DN)"
@@ -100,8 +120,34 @@ def compare(fabrics: Sequence[np.ndarray], days: Sequence[np.ndarray]) -> dict[s
     }
 
 
+def smoothed(image: np.ndarray) -> np.ndarray:
+    """A panel (h, w) smoothed by a Gaussian of `SMOOTH_PX` pixels at 60x80 (scaled with the width,
+    so the same extent on the wall at any size; 0 outside the frame): the grain's speckle averages
+    out, the contact's smooth form stays."""
+    return ndimage.gaussian_filter(np.asarray(image, np.float64), SMOOTH_PX * image.shape[1] / 80, mode="constant")
+
+
 def panel_numbers(image: np.ndarray) -> dict[str, float]:
-    return {"max_abs_dn": float(np.abs(image).max()), "rms_dn": float(np.sqrt(np.mean(image**2)))}
+    return {
+        "max_abs_dn": float(np.abs(image).max()),
+        "rms_dn": float(np.sqrt(np.mean(image**2))),
+        "smoothed_rms_dn": float(np.sqrt(np.mean(smoothed(image) ** 2))),
+    }
+
+
+def concentration(images: Sequence[np.ndarray], filled: np.ndarray, share: float = HALF) -> float:
+    """The fewest pixels, as a share of those the shell fills (`filled`, (h, w) bool), that hold
+    `share` of the squared difference between `images`, summed over every pair: how few pixels
+    carry what tells the panels apart."""
+    pairs = list(itertools.combinations(images, 2))
+    if not pairs:
+        raise ValueError("need at least two images to compare")
+    sq = np.sum([(np.asarray(a, np.float64) - b) ** 2 for a, b in pairs], axis=0)[filled]
+    ordered = np.sort(sq)[::-1]
+    if ordered.sum() <= 0:
+        return float("nan")
+    held = np.cumsum(ordered) / ordered.sum()
+    return float((np.searchsorted(held, share - 1e-12) + 1) / len(ordered))
 
 
 def noise_levels(reference: np.ndarray, size: tuple[int, int]) -> dict[str, float]:
@@ -196,30 +242,53 @@ def run(
                     **panel_numbers(images[((fabric, day), size)]),
                 }
             )
-        comparison[_size(size)] = compare(
-            [images[((f, 1), size)] for f in FABRICS], [images[((DAY_FABRIC, d), size)] for d in DAYS]
-        )
-        noise[_size(size)] = noise_levels(rendered[(DAY_FABRIC, 1)][2][size], size)
-    # the colour scale: linear up to the noise a recorded panel of the smallest size would carry, so
-    # that what lies below any camera's noise is not stretched, logarithmic beyond up to the largest |difference|
-    linear = min(n["panel_median_dn"] for n in noise.values())
-    vmax = max(max(p["max_abs_dn"] for p in panels), 10 * linear)
-    blocks = [
-        [[(f"{_name(f)}, {_size(size)}, day 1", images[((f, 1), size)]) for f in FABRICS] for size in sizes],
-        [
-            [(f"{_name(DAY_FABRIC)}, {_size(size)}, day {d}", images[((DAY_FABRIC, d), size)]) for d in DAYS]
-            for size in sizes
-        ],
+        fabric_images = [images[((f, 1), size)] for f in FABRICS]
+        day_images = [images[((DAY_FABRIC, d), size)] for d in DAYS]
+        reference = rendered[(DAY_FABRIC, 1)][2][size]
+        comparison[_size(size)] = {
+            **compare(fabric_images, day_images),
+            "smoothed": compare([smoothed(i) for i in fabric_images], [smoothed(i) for i in day_images]),
+            "fabric_half_px": concentration(fabric_images, np.asarray(reference).max(axis=-1) > 0),
+        }
+        noise[_size(size)] = noise_levels(reference, size)
+    # the colour scale: linear up to the noise a recorded panel of the figure's size would carry, so
+    # that what lies below the camera's noise is not stretched, logarithmic beyond up to the largest |difference|
+    figure = FIGURE_SIZE if FIGURE_SIZE in sizes else sizes[0]
+    detail = DETAIL_SIZE if DETAIL_SIZE in sizes and DETAIL_SIZE != figure else None
+    linear = noise[_size(figure)]["panel_median_dn"]
+    vmax = max(max(p["max_abs_dn"] for p in panels if tuple(p["size"]) in (figure, detail)), 10 * linear)
+    short = {f: _name(f).split(" ")[-1] for f in {*FABRICS, DAY_FABRIC}}  # "silk", "denim", "fleece", "corduroy"
+    denim = short[DAY_FABRIC]
+    rows = [
+        [(f"{short[f]}, day 1", images[((f, 1), figure)]) for f in FABRICS],
+        [(f"{short[f]}, day 1", smoothed(images[((f, 1), figure)])) for f in FABRICS],
+        [(f"{denim}, day {d}", smoothed(images[((DAY_FABRIC, d), figure)])) for d in DAYS],
     ]
+    row_labels = [f"{_size(figure)}, as rendered", f"{_size(figure)}, smoothed", f"{_size(figure)}, smoothed"]
+    if detail is not None:
+        rows.append(
+            [
+                (f"{short[f]}, day 1{view}", image)
+                for f in DETAIL_FABRICS
+                for view, image in (
+                    (", as rendered", images[((f, 1), detail)]),
+                    (", smoothed", smoothed(images[((f, 1), detail)])),
+                )
+            ]
+        )
+        row_labels.append(_size(detail))
     path = where.results_dir() / f"{STUDY}.png"
     with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
         png = plots.plot_difference_panels(
             path,
-            blocks,
+            rows,
+            row_labels,
             vmax,
             linear,
             LABEL,
-            f"Minsight, noise-free, at the largest thumb displacement of rubbing cycle {CYCLE} ({CHANNELS})",
+            f"Minsight frame - session reference, noise-free, at the thumb's furthest reach in rubbing cycle {CYCLE}\n"
+            f"(mean of R, G, B; the speckle is the wall's grain moving under the contact; smoothed: "
+            f"Gaussian, SD {SMOOTH_PX:g} px at 60x80)",
         )
         doc = {
             **documents.header(
@@ -232,6 +301,9 @@ def run(
                 day_fabric=DAY_FABRIC,
                 days=list(DAYS),
                 sizes=[list(s) for s in sizes],
+                figure_size=list(figure),
+                detail_size=list(detail) if detail else None,
+                smooth_px=SMOOTH_PX,
                 cycle=CYCLE,
                 channels=CHANNELS,
                 colour_limit_dn=vmax,
@@ -260,6 +332,10 @@ def verdict(c: Mapping[str, Any]) -> str:
 def markdown(doc: dict[str, Any]) -> str:
     days = ", ".join(str(d) for d in doc["days"])
     fabrics = ", ".join(f"{f} {_name(f)}" for f in doc["fabrics"])
+    figure, detail = _size(doc["figure_size"]), doc["detail_size"] and _size(doc["detail_size"])
+    smooth = f"a Gaussian of SD {doc['smooth_px']:g} pixels at 60x80, the same extent on the wall at every size"
+    compared = doc["comparison"]
+    model = _size(presets.get(doc["preset"]).training.get("image_size", doc["figure_size"]))
     lines = [
         f"# {TITLE}",
         "",
@@ -268,34 +344,72 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
         f"What Minsight's camera sees at one moment of a stroke: the frame of rubbing cycle {doc['cycle']} at "
         "which the thumb's lateral displacement (`motion.finger_mm`) is largest, minus the same day's "
-        "no-contact frame (what the session's reference converges to). Left: trial 0 (lab) of each of the "
-        f"fabrics {fabrics} on day 1; right: {_name(doc['day_fabric'])} on days {days} (the first the same "
-        f"panel as on the left), each row at one size ({', '.join(_size(s) for s in doc['sizes'])}). Each "
-        f"panel shows the {doc['channels']}, on one colour scale for all panels: linear within "
-        f"±{doc['colour_linear_dn']:.2f} DN (the noise a recorded panel of the smallest size would carry, "
-        f"last table), logarithmic beyond it up to ±{doc['colour_limit_dn']:.1f} DN (the largest |difference| "
-        "of any panel). The frames are "
-        "noise-free: the camera's shot noise is left out, so that the form of the difference is visible; "
-        "its level is in the last table. Every trial is the preset's own scene, each at its own frame time.",
+        "no-contact frame (what the session's reference converges to), each panel the "
+        f"{doc['channels']}. Rows of the figure, at {figure}: trial 0 (lab) of each of the fabrics {fabrics} "
+        f"on day 1 as rendered; the same smoothed; {_name(doc['day_fabric'])} on days {days} smoothed"
+        + (
+            f"; and at {detail}, {' and '.join(_name(f) for f in DETAIL_FABRICS)} (day 1) as rendered and smoothed"
+            if detail
+            else ""
+        )
+        + ". "
+        "The speckle is the wall's grain, its aluminium flakes (`FLAKE_CONTRAST`, cells of "
+        "`FLAKE_SIZE_MM`), moving under the pixels where the contact pushes the wall toward the camera: "
+        "the render warps the resting wall's image (`minsight.physical_frames`), so a shift of a fraction "
+        "of a pixel changes each pixel by the grain's contrast times the shift. At 308x410 each pixel sees "
+        "a few flake cells and nothing averages them (smaller frames are rendered at twice their size and "
+        f"averaged down), so the speckle is largest there. The smoothed view ({smooth}) averages the grain "
+        "out and leaves the contact's own form: the per-panel table gives both RMS. "
+        "One colour scale for all panels: linear within "
+        f"±{doc['colour_linear_dn']:.2f} DN (the noise a recorded {figure} panel would carry, last table), "
+        f"logarithmic beyond it up to ±{doc['colour_limit_dn']:.1f} DN (the largest |difference| of any panel "
+        "shown). The frames are noise-free: the camera's shot noise is left out, so that the form of the "
+        "difference is visible; its level is in the last table. Every trial is the preset's own scene, each "
+        "at its own frame time.",
         "",
         "## Fabric against day",
         "",
         "RMS over the pixels of the difference between two panels of one size, pooled (root mean square) "
-        "over the pairs: the fabrics' pairs (day 1) and the pairs of denim's days. Both also differ in "
-        "the trial's own draws (where the contact lands, the fold, the speed).",
+        "over the pairs: the fabrics' pairs (day 1) and the pairs of denim's days, as rendered and smoothed "
+        f"({smooth}). Both also differ in the trial's own draws (where the contact lands, the fold, the "
+        f"speed). {model} is what the preset's model reads (`Config.image_size`). The last column: the "
+        "fewest pixels, of those the shell fills, that hold half of the fabrics' squared difference.",
         "",
         results_files.markdown_table(
-            ["Size", "Fabrics: RMS difference [DN]", "Denim's days: RMS difference [DN]", "Larger"],
+            [
+                "Size",
+                "Fabrics: RMS difference [DN]",
+                "Denim's days: RMS difference [DN]",
+                "Larger",
+                "Smoothed: fabrics [DN]",
+                "Smoothed: days [DN]",
+                "Smoothed: larger",
+                "Pixels holding half the fabrics' difference [%]",
+            ],
             [
                 [
                     size,
                     f"{c['fabric_rms_dn']:.2f} ({c['fabric_pairs']} pairs)",
                     f"{c['day_rms_dn']:.2f} ({c['day_pairs']} pairs)",
                     verdict(c),
+                    f"{c['smoothed']['fabric_rms_dn']:.3f}",
+                    f"{c['smoothed']['day_rms_dn']:.3f}",
+                    verdict(c["smoothed"]),
+                    f"{100 * c['fabric_half_px']:.1f}",
                 ]
-                for size, c in doc["comparison"].items()
+                for size, c in compared.items()
             ],
         ),
+        "## Against day_shift",
+        "",
+        camera_variation.RECONCILE
+        + (
+            f" Here, at {model}, half of the fabrics' squared difference lies on "
+            f"{100 * compared[model]['fabric_half_px']:.1f} % of the pixels the shell fills."
+            if model in compared
+            else ""
+        ),
+        "",
         "## Each panel",
         "",
         results_files.markdown_table(
@@ -311,6 +425,7 @@ def markdown(doc: dict[str, Any]) -> str:
                 "shear [N]",
                 "max |difference| [DN]",
                 "RMS [DN]",
+                "smoothed: RMS [DN]",
             ],
             [
                 [
@@ -325,6 +440,7 @@ def markdown(doc: dict[str, Any]) -> str:
                     f"{p['shear_n']:+.3f}",
                     f"{p['max_abs_dn']:.2f}",
                     f"{p['rms_dn']:.2f}",
+                    f"{p['smoothed_rms_dn']:.3f}",
                 ]
                 for p in doc["panels"]
             ],
