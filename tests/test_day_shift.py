@@ -3,6 +3,7 @@ recorded folder and inside `reproduce` after the probe."""
 
 import json
 import os
+import types
 
 import numpy as np
 import pytest
@@ -104,3 +105,84 @@ def test_day_shift_reads_a_recorded_folder_and_says_when_the_probe_is_missing(wo
     md = (tmp_path / "results" / "day_shift.md").read_text()
     assert md.startswith("# Day shift") and "on recorded data" in md and "Probe columns: no probe results" in md
     assert sorted((p.name, p.stat().st_mtime_ns) for p in folder.rglob("*")) == before
+
+
+def test_weighted_by_variance_a_few_loud_fabric_dimensions_outweigh_many_quiet_day_ones():
+    """Day_shift against camera_frames in small: 90 quiet dimensions that only the day moves (a
+    session's reference rounding) and 10 loud ones that the fabric moves (the contact)."""
+    rng = np.random.default_rng(2)
+    fabric, day = _design()
+    quiet = 0.01 * rng.standard_normal((3, 90))[day - 1] + 0.001 * rng.standard_normal((len(day), 90))
+    loud = 5.0 * rng.standard_normal((4, 10))[fabric] + 0.5 * rng.standard_normal((len(day), 10))
+    x = np.concatenate([quiet, loud], axis=1)
+    alike = day_shift.variance_shares(x, fabric, day)
+    weighted = day_shift.variance_shares(x, fabric, day, weighted=True)
+    assert alike["day"] > 0.8 and alike["fabric"] < 0.2
+    assert weighted["fabric"] > 0.95 and weighted["day"] < 0.01
+    assert sum(weighted.values()) == pytest.approx(1.0)
+    assert 0.85 <= day_shift.day_led_dims(x, fabric, day) <= 0.9  # the quiet ones, bar a day drawn near 0
+    # one dimension, or dimensions on one scale alike: the two weighings agree
+    same = np.tile(x[:, :1], (1, 3))
+    assert day_shift.variance_shares(same, fabric, day, weighted=True) == pytest.approx(
+        day_shift.variance_shares(same, fabric, day)
+    )
+
+
+def test_the_page_shares_the_camera_frames_sentence_with_the_image_rows_weighted():
+    row = dict(summary_dims=4, probe=None, shares={k: 0.25 for k in day_shift.SHARES})
+    doc = {
+        "rows": [
+            {
+                **row,
+                "name": "internal",
+                "display_name": "Minsound",
+                "shares_weighted": dict(row["shares"]),
+                "day_led_dims": 0.0,
+            },
+            {
+                **row,
+                "name": "session:image",
+                "display_name": "Minsight image − session reference",
+                "shares_weighted": {"fabric": 0.6, "day": 0.1, "fabric x day": 0.1, "trial": 0.2},
+                "day_led_dims": 0.75,
+            },
+        ]
+    }
+    text = "\n".join(day_shift.image_weighting(doc))
+    assert day_shift.camera_variation.RECONCILE in text
+    assert "Minsight image − session reference gives the fabric 60.0 % of its variation and the day 10.0 %" in text
+    assert "in 75.0 % of its 4 dimensions" in text and "| Minsound |" not in text and "unrounded" not in text
+    doc["rows"][1]["unrounded_reference"] = {
+        "shares": {"fabric": 0.2, "day": 0.5},
+        "shares_weighted": {"fabric": 0.7, "day": 0.05},
+    }
+    text = "\n".join(day_shift.image_weighting(doc))
+    assert "take 20.0 % and 50.0 % with each dimension alike, 70.0 % and 5.0 % weighted by variance." in text
+    assert day_shift.image_weighting({"rows": doc["rows"][:1]}) == []
+
+
+def test_the_reference_rounding_is_what_rint_adds_per_session(monkeypatch, tmp_path):
+    """Two sessions of 2x2-pixel frames (downsampled to 1x1): the rounding is rint(mean) - mean of
+    each session's reference, read once per session, the same for each of its trials."""
+    refs = {"s1": np.full((3, 2, 2, 3), 100, np.uint8), "s2": np.full((3, 2, 2, 3), 50, np.uint8)}
+    refs["s1"][0] = 101  # mean 100.33: rounded down by 0.33
+    refs["s2"][:2] = 51  # mean 50.67: rounded up by 0.33
+    session = {"a.npz": "s1", "b.npz": "s2", "c.npz": "s1"}
+    reads = []
+
+    def meta(path):
+        return {"reference": {"session": session[path.name]}}, 10
+
+    def read(path, images=True):
+        reads.append(path.name)
+        return types.SimpleNamespace(reference=refs[session[path.name]])
+
+    monkeypatch.setattr(day_shift.archive, "read_meta", meta)
+    monkeypatch.setattr(day_shift.archive, "read_archive", read)
+    r = day_shift.reference_rounding(tmp_path, ["a.npz", "b.npz", "c.npz"], (1, 1))
+    assert r.shape == (3, 3)
+    assert r[0] == pytest.approx([-1 / 3] * 3, abs=1e-5) and r[1] == pytest.approx([1 / 3] * 3, abs=1e-5)
+    assert np.array_equal(r[2], r[0]) and sorted(reads) == ["a.npz", "b.npz"]
+    session["b.npz"] = None  # a trial without a reference: nothing to take out
+    monkeypatch.setattr(day_shift.archive, "read_meta", lambda path: ({"reference": None}, 10))
+    assert day_shift.reference_rounding(tmp_path, ["a.npz"], (1, 1)) is None

@@ -19,10 +19,15 @@ and its sum of squares split, for fabric f and day d:
     trial         within a cell: the trial-to-trial variation of one fabric on one day
 
 The shares are averaged over the input's dimensions (every standardised dimension weighs the
-same). Trials are every lab trial of the training and test days (`loading.TRAIN_VAL_TEST`), in
-the classes of the data. The probe's validation (whole trials of the training days) and test (the
-new day) accuracy per input come from the probe's own results file in the same results folder
-(`python -m experiments.probe`, which `reproduce` runs first); where it is missing or ran on
+same). For the Minsight image the page also weighs each dimension by its variance in DN (the sums
+of squares pooled over the dimensions before they are divided, `variance_shares(weighted=True)`)
+and counts the dimensions in which the day explains more than the fabric (`day_led_dims`): the
+numbers behind the sentence this page shares with the camera-frames page
+(`camera_variation.RECONCILE`), which measures the image's difference in DN. Trials are every
+lab trial of the training and test days (`loading.TRAIN_VAL_TEST`), in the classes of the data.
+The probe's validation (whole trials of the training days) and test (the new day) accuracy per
+input come from the probe's own results file in the same results folder (`python -m
+experiments.probe`, which `reproduce` runs first); where it is missing or ran on
 other data, the table says so instead of numbers.
 """
 
@@ -30,15 +35,17 @@ from __future__ import annotations
 
 import json
 import time
+from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from fabricjax.features import images
 from fabricjax.reporting import results_files
 from fabricjax.sequences import data
 from fabricjax.store import archive
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, linear_probe, loading
+from fabricjax.studies.common import camera_variation, documents, linear_probe, loading
 from fabricjax.studies.common.progress import Progress
 from fabricjax.studies.common.rows import RowSpec
 from fabricjax.studies.extra import probe
@@ -79,13 +86,18 @@ def _between(x: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return means[inverse], (counts[:, None] * means**2).sum(axis=0)
 
 
-def variance_shares(x: np.ndarray, fabric: np.ndarray, day: np.ndarray) -> dict[str, float]:
+def variance_shares(x: np.ndarray, fabric: np.ndarray, day: np.ndarray, weighted: bool = False) -> dict[str, float]:
     """Shares of the per-trial variation of `x` (trials, dims) by fabric, day, fabric x day and
-    trial (see the module docstring), averaged over the dimensions that vary; they sum to 1."""
+    trial (see the module docstring), averaged over the dimensions that vary; they sum to 1. With
+    `weighted`, each dimension weighs as its variance in the input's own units (the sums of squares
+    are pooled over the dimensions before they are divided), instead of every standardised
+    dimension the same."""
     x = x[:, x.std(axis=0) > 0]
     if x.shape[1] == 0:
         return {k: float("nan") for k in SHARES}
-    x = (x - x.mean(axis=0)) / x.std(axis=0)
+    x = x - x.mean(axis=0)
+    if not weighted:
+        x = x / x.std(axis=0)
     fabric_means, ss_fabric = _between(x, fabric)
     left = x - fabric_means
     _, ss_day = _between(left, day)
@@ -93,7 +105,41 @@ def variance_shares(x: np.ndarray, fabric: np.ndarray, day: np.ndarray) -> dict[
     ss_trial = ((left - cell_means) ** 2).sum(axis=0)
     total = (x**2).sum(axis=0)
     parts = {"fabric": ss_fabric, "day": ss_day, "fabric x day": ss_cells - ss_day, "trial": ss_trial}
+    if weighted:
+        return {k: float(v.sum() / total.sum()) for k, v in parts.items()}
     return {k: float(np.mean(v / total)) for k, v in parts.items()}
+
+
+def day_led_dims(x: np.ndarray, fabric: np.ndarray, day: np.ndarray) -> float:
+    """The share of the dimensions that vary in which the day explains more than the fabric does."""
+    x = x[:, x.std(axis=0) > 0]
+    if x.shape[1] == 0:
+        return float("nan")
+    x = x - x.mean(axis=0)
+    fabric_means, ss_fabric = _between(x, fabric)
+    _, ss_day = _between(x - fabric_means, day)
+    return float(np.mean(ss_day > ss_fabric))
+
+
+def reference_rounding(folder, trial_keys: Sequence[str], size: tuple[int, int]) -> np.ndarray | None:
+    """(trials, h w 3) float64: per trial (archive name in `folder`), what reading its frames against
+    its session's reference rounded to whole grey levels (`images.session_difference`) adds to
+    every frame's difference, pixel by pixel at `size`: the rounded reference minus the unrounded
+    one (the mean of its frames, each area-downsampled). One archive per session is read (the
+    session as its meta names it). None where a trial has no reference."""
+    folder = Path(folder)
+    session_of, rounding = {}, {}
+    for key in dict.fromkeys(trial_keys):
+        meta, _ = archive.read_meta(folder / key)
+        session = (meta.get("reference") or {}).get("session")
+        if session is None:
+            return None
+        session_of[key] = session
+        if session not in rounding:
+            frames = archive.read_archive(folder / key, images=False).reference
+            mean = images.downsample(frames, size).astype(np.float32).mean(axis=0)  # as session_difference
+            rounding[session] = (np.rint(mean) - mean).astype(np.float64).ravel()
+    return np.stack([rounding[session_of[k]] for k in trial_keys])
 
 
 def probe_accuracy(results, folder: str) -> tuple[dict[str, dict[str, float | None]], str | None]:
@@ -152,12 +198,26 @@ def run(
             for k in ("fabric_id", "day")
         }
         shares = variance_shares(x, labels["fabric_id"], labels["day"])
+        unrounded = None
+        if r.settings.get("image_reference") == "session":
+            keys = np.concatenate([d.sets[s].info["trial_key"][first] for s, (_, first) in zip(present, per_split)])
+            rounding = reference_rounding(d.folder, list(keys), d.sets[present[0]].inputs[m].shape[2:4])
+            if rounding is not None:  # each trial's mean difference with the rounding taken back out
+                x_exact = x.copy()
+                x_exact[:, : rounding.shape[1]] += rounding
+                unrounded = {
+                    "shares": variance_shares(x_exact, labels["fabric_id"], labels["day"]),
+                    "shares_weighted": variance_shares(x_exact, labels["fabric_id"], labels["day"], weighted=True),
+                }
         out_rows.append(
             {
                 "name": r.name,
                 "display_name": display,
                 "summary_dims": int(x.shape[1]),
                 "shares": shares,
+                "shares_weighted": variance_shares(x, labels["fabric_id"], labels["day"], weighted=True),
+                "day_led_dims": day_led_dims(x, labels["fabric_id"], labels["day"]),
+                "unrounded_reference": unrounded,
                 "probe": accuracy.get(r.name),
                 "wall_s": time.perf_counter() - t1,
             }
@@ -213,6 +273,55 @@ def table(doc: Mapping[str, Any]) -> str:
     return results_files.markdown_table(header, body)
 
 
+def image_weighting(doc: Mapping[str, Any]) -> list[str]:
+    """The Minsight image's rows weighed two ways, after the sentence the camera-frames page carries
+    too (`camera_variation.RECONCILE`); nothing where the doc has no image row (or was written
+    before the weighted shares were)."""
+    rows = [r for r in doc["rows"] if r["name"].removeprefix(probe.SESSION) == "image" and "shares_weighted" in r]
+    if not rows:
+        return []
+    body = [
+        [
+            r["display_name"],
+            *[_pct(r["shares"][k]) for k in ("fabric", "day")],
+            *[_pct(r["shares_weighted"][k]) for k in ("fabric", "day")],
+            _pct(r["day_led_dims"]),
+        ]
+        for r in rows
+    ]
+    session = next((r for r in rows if r["name"].startswith(probe.SESSION)), rows[-1])
+    header = [
+        "Input",
+        "Fabric, each dimension alike [%]",
+        "Day, each dimension alike [%]",
+        "Fabric, weighted by variance [%]",
+        "Day, weighted by variance [%]",
+        "Dimensions where the day explains more than the fabric [%]",
+    ]
+    exact = session.get("unrounded_reference")
+    unrounded = (
+        f" Against an unrounded reference (the rounding to whole grey levels that `images.session_difference` "
+        f"adds to every frame's difference taken back out), the fabric and the day take "
+        f"{_pct(exact['shares']['fabric'])} % and {_pct(exact['shares']['day'])} % with each dimension alike, "
+        f"{_pct(exact['shares_weighted']['fabric'])} % and {_pct(exact['shares_weighted']['day'])} % weighted "
+        "by variance."
+        if exact
+        else ""
+    )
+    return [
+        "## The image, weighted by variance",
+        "",
+        camera_variation.RECONCILE
+        + f" Weighted by each dimension's variance in DN instead (the sums of squares pooled over the "
+        f"dimensions, as an RMS in DN pools pixels), {session['display_name']} gives the fabric "
+        f"{_pct(session['shares_weighted']['fabric'])} % of its variation and the day "
+        f"{_pct(session['shares_weighted']['day'])} %; the day explains more than the fabric in "
+        f"{_pct(session['day_led_dims'])} % of its {session['summary_dims']} dimensions." + unrounded,
+        "",
+        results_files.markdown_table(header, body),
+    ]
+
+
 def markdown(doc: Mapping[str, Any]) -> str:
     lines = [
         documents.title(doc, "Day shift: what the fabric, the day and the trial explain in each input"),
@@ -237,4 +346,5 @@ def markdown(doc: Mapping[str, Any]) -> str:
     ]
     if doc["probe_missing"]:
         lines += [f"Probe columns: {doc['probe_missing']}.", ""]
+    lines += image_weighting(doc)
     return "\n".join(lines)
