@@ -137,6 +137,9 @@ def test_the_published_figures_are_compared_with_the_simulated_range(tiny):
     assert drag["simulated"] == pytest.approx([min(measured), max(measured)]) and drag["published"] == 0.4
     assert "Nature Machine Intelligence 4 (2022)" in drag["source"]
     assert rows["frames per rubbing cycle"]["published"] == pytest.approx(25.0)
+    shear = rows["the tangential load's swing over the rubbing (N)"]
+    sentence = fb.published_sentence(doc)
+    assert f"swings by {shear['simulated'][0] / 0.03:.0f}-{shear['simulated'][1] / 0.03:.0f} times" in sentence
 
 
 def test_it_has_no_rows_and_reads_no_data(tmp_path):

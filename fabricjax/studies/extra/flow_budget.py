@@ -469,6 +469,23 @@ def gap_sentence(doc: Mapping[str, Any]) -> str:
     return text
 
 
+def published_sentence(doc: Mapping[str, Any]) -> str:
+    """What the comparison with the published figures says, in words (`published_comparison`'s rows)."""
+    drag, roll, pitch, normal, shear, _ = doc["published"]
+    return (
+        f"As a force the stroke is within Minsight's reach: its tangential load swings by "
+        f"{shear['simulated'][0] / shear['published']:.0f}-{shear['simulated'][1] / shear['published']:.0f} "
+        f"times Insight's force accuracy (its normal force by at most "
+        f"{normal['simulated'][1] / normal['published']:.2f} of Minsight's force error). As image motion at "
+        f"{_size(doc['size'])} it stays under about a pixel per frame: between two frames the drag moves the "
+        f"wall by {drag['simulated'][0] / drag['published']:.2f}-"
+        f"{drag['simulated'][1] / drag['published']:.2f} of Insight's spatial resolution and the patch rolls by "
+        f"{roll['simulated'][0] / roll['published']:.1f}-{roll['simulated'][1] / roll['published']:.1f} of it, "
+        f"while one pixel of a {_size(doc['size'])} frame spans {pitch['simulated'][0] / pitch['published']:.1f}-"
+        f"{pitch['simulated'][1] / pitch['published']:.1f} of it at the contact."
+    )
+
+
 def _size(size: Sequence[int]) -> str:
     return f"{size[0]}x{size[1]}"
 
@@ -617,6 +634,7 @@ def markdown(doc: dict[str, Any]) -> str:
                 for c in doc["published"]
             ],
         ),
+        published_sentence(doc),
     ]
     if doc["at_paper_size"] is not None:
         lines += [
