@@ -3,7 +3,6 @@ recorded folder and inside `reproduce` after the probe."""
 
 import json
 import os
-import types
 
 import numpy as np
 import pytest
@@ -108,8 +107,8 @@ def test_day_shift_reads_a_recorded_folder_and_says_when_the_probe_is_missing(wo
 
 
 def test_weighted_by_variance_a_few_loud_fabric_dimensions_outweigh_many_quiet_day_ones():
-    """Day_shift against camera_frames in small: 90 quiet dimensions that only the day moves (a
-    session's reference rounding) and 10 loud ones that the fabric moves (the contact)."""
+    """Day_shift against camera_frames in small: 90 quiet dimensions that only the day moves (what is
+    fixed per session) and 10 loud ones that the fabric moves (the contact)."""
     rng = np.random.default_rng(2)
     fabric, day = _design()
     quiet = 0.01 * rng.standard_normal((3, 90))[day - 1] + 0.001 * rng.standard_normal((len(day), 90))
@@ -151,38 +150,5 @@ def test_the_page_shares_the_camera_frames_sentence_with_the_image_rows_weighted
     text = "\n".join(day_shift.image_weighting(doc))
     assert day_shift.camera_variation.RECONCILE in text
     assert "Minsight image − session reference gives the fabric 60.0 % of its variation and the day 10.0 %" in text
-    assert "in 75.0 % of its 4 dimensions" in text and "| Minsound |" not in text and "unrounded" not in text
-    doc["rows"][1]["unrounded_reference"] = {
-        "shares": {"fabric": 0.2, "day": 0.5},
-        "shares_weighted": {"fabric": 0.7, "day": 0.05},
-    }
-    text = "\n".join(day_shift.image_weighting(doc))
-    assert "take 20.0 % and 50.0 % with each dimension alike, 70.0 % and 5.0 % weighted by variance." in text
+    assert "in 75.0 % of its 4 dimensions" in text and "| Minsound |" not in text
     assert day_shift.image_weighting({"rows": doc["rows"][:1]}) == []
-
-
-def test_the_reference_rounding_is_what_rint_adds_per_session(monkeypatch, tmp_path):
-    """Two sessions of 2x2-pixel frames (downsampled to 1x1): the rounding is rint(mean) - mean of
-    each session's reference, read once per session, the same for each of its trials."""
-    refs = {"s1": np.full((3, 2, 2, 3), 100, np.uint8), "s2": np.full((3, 2, 2, 3), 50, np.uint8)}
-    refs["s1"][0] = 101  # mean 100.33: rounded down by 0.33
-    refs["s2"][:2] = 51  # mean 50.67: rounded up by 0.33
-    session = {"a.npz": "s1", "b.npz": "s2", "c.npz": "s1"}
-    reads = []
-
-    def meta(path):
-        return {"reference": {"session": session[path.name]}}, 10
-
-    def read(path, images=True):
-        reads.append(path.name)
-        return types.SimpleNamespace(reference=refs[session[path.name]])
-
-    monkeypatch.setattr(day_shift.archive, "read_meta", meta)
-    monkeypatch.setattr(day_shift.archive, "read_archive", read)
-    r = day_shift.reference_rounding(tmp_path, ["a.npz", "b.npz", "c.npz"], (1, 1))
-    assert r.shape == (3, 3)
-    assert r[0] == pytest.approx([-1 / 3] * 3, abs=1e-5) and r[1] == pytest.approx([1 / 3] * 3, abs=1e-5)
-    assert np.array_equal(r[2], r[0]) and sorted(reads) == ["a.npz", "b.npz"]
-    session["b.npz"] = None  # a trial without a reference: nothing to take out
-    monkeypatch.setattr(day_shift.archive, "read_meta", lambda path: ({"reference": None}, 10))
-    assert day_shift.reference_rounding(tmp_path, ["a.npz"], (1, 1)) is None

@@ -92,12 +92,24 @@ def test_subtracting_the_reference_is_exact_without_wrap_around():
     reference = np.full((1, 4, 6, 3), 255, np.uint8)
     reference[0, :, :, 1] = 0
     d = images.session_difference(frames, reference, (2, 3))
+    step = images.DIFFERENCE_SCALE  # the difference's units per grey level
     assert d.dtype == np.int16 and d.shape == (3, 2, 3, 3)
-    np.testing.assert_array_equal(d[0, ..., 0], -255)
-    np.testing.assert_array_equal(d[1, ..., 1], 255)
-    np.testing.assert_array_equal(d[2], np.int16(7) - images.downsample(reference, (2, 3))[0].astype(np.int16))
-    two = np.concatenate([reference, np.zeros_like(reference)])  # several frames: their mean, rounded
-    np.testing.assert_array_equal(images.session_difference(frames[:1], two, (2, 3))[0, ..., 0], -128)
+    np.testing.assert_array_equal(d[0, ..., 0], -255 * step)
+    np.testing.assert_array_equal(d[1, ..., 1], 255 * step)
+    np.testing.assert_array_equal(d[2], step * (7 - images.downsample(reference, (2, 3))[0].astype(np.int16)))
+    two = np.concatenate([reference, np.zeros_like(reference)])  # several frames: their mean, not rounded
+    np.testing.assert_array_equal(images.session_difference(frames[:1], two, (2, 3))[0, ..., 0], -127.5 * step)
+
+
+def test_a_difference_below_one_grey_level_survives_the_downsampling():
+    """Area-downsampling averages many camera pixels: a contact that brightens one pixel in four by
+    one grey level is a quarter of a grey level in the downsampled frame, which whole grey levels
+    would round to nothing."""
+    reference = np.full((1, 4, 4, 3), 100, np.uint8)
+    frames = reference.copy()
+    frames[0, 0, 0] = 101
+    d = images.session_difference(frames, reference, (2, 2))
+    assert d[0, 0, 0, 0] == images.DIFFERENCE_SCALE // 4 and (d[0, 1:] == 0).all()
 
 
 def test_the_simulator_writes_each_session_s_reference():

@@ -9,6 +9,7 @@ import numpy as np
 
 from fabricjax import catalog
 from fabricjax.config import Config
+from fabricjax.features import images
 from fabricjax.store import archive
 
 
@@ -94,8 +95,9 @@ def planted_cue(
                   colour a ramp of 40 -> 200 across the frame in its own direction, the same for
                   every sequence, as the shell's LEDs light a Minsight frame): the disc's
                   brightening is invariant to rotation about the centre, the field is not;
-                  with `config.image_reference` "session", the frames minus that field (int16), as
-                  the data reads frames minus their session's no-contact reference
+                  with `config.image_reference` "session", the frames minus that field (int16, in
+                  `images.DIFFERENCE_SCALE` steps per grey level), as the data reads frames minus
+                  their session's no-contact reference
         flow      a uniform flow of 0 -> 1 px/frame along x over the frame's centre third, on
                   noise of SD 0.5 px/frame
         internal / external   log-PSD bins 4-11 rise by 0 -> 1 (decades) over noise of SD 0.5
@@ -119,7 +121,8 @@ def planted_cue(
             x = x + rng.normal(0, 24, (n, steps, h, w, 3))
             inputs[m] = np.clip(x, 0, 255).astype(np.uint8)
             if config.image_reference == "session":
-                inputs[m] = inputs[m].astype(np.int16) - np.rint(field).astype(np.int16)
+                difference = (inputs[m] - field) * images.DIFFERENCE_SCALE
+                inputs[m] = np.rint(difference).astype(np.int16)
         elif m == "flow":
             h, w = flow_hw
             x = rng.normal(0, 0.5, (n, steps, 2, h, w)).astype(np.float32)

@@ -20,7 +20,8 @@ applied when sequences are built and is not part of the key. Arrays, per trial o
     image_<h>x<w>               uint8   (T, h, w, 3)     area-downsampled frames (images.py; the
                                                          paper's 60x80 unless config.image_size)
     image_session_<h>x<w>       int16   (T, h, w, 3)     the same frames minus their session's
-                                                         no-contact reference, downsampled alike
+                                                         no-contact reference, downsampled alike,
+                                                         in 1/DIFFERENCE_SCALE grey levels
                                                          (images.session_difference)
     image_full                  uint8   (T, H, W, 3)     the archive's frames (not cached)
     image_session_full          int16   (T, H, W, 3)     those minus their session's reference (not cached)

@@ -29,8 +29,17 @@ MAX_DEGREES = 90.0
 HOST_BLOCK = 64  # sequences per block of `to_rows` on the host (11 MB of the default preset's frames)
 
 
+# A frame's difference to its session's reference is held in 1/DIFFERENCE_SCALE grey levels: an
+# area-downsampled pixel averages about a hundred camera pixels (308x410 -> 30x40), and the contact's
+# difference there is below one grey level (results/camera_frames.md), so whole grey levels would
+# round it away and give every session's reference its own rounding, a per-pixel offset shared by
+# all of that day's trials (results/day_shift.md). |255 x 64| fits int16.
+DIFFERENCE_SCALE = 64
+
+
 def downsample(frames: np.ndarray, size: tuple[int, int] = DOWN_SIZE) -> np.ndarray:
-    """(T, H, W, 3) uint8 -> (T, *size, 3) uint8 by area interpolation."""
+    """(T, H, W, 3) frames -> (T, *size, 3) by area interpolation, in their own dtype (uint8
+    frames are rounded to whole grey levels)."""
     h, w = size
     return np.stack([cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA) for f in frames])
 
@@ -38,13 +47,12 @@ def downsample(frames: np.ndarray, size: tuple[int, int] = DOWN_SIZE) -> np.ndar
 def session_difference(
     frames: np.ndarray, reference: np.ndarray, size: tuple[int, int] | None = DOWN_SIZE
 ) -> np.ndarray:
-    """(T, H, W, 3) uint8 frames minus their session's (R, H, W, 3) no-contact reference, both
-    area-downsampled to `size` first (None: at the frames' own size): (T, h, w, 3) int16, exact (no
-    wrap-around; 0 is "as without contact"). Several reference frames are averaged and rounded to
-    the nearest grey level."""
+    """(T, H, W, 3) uint8 frames minus the mean of their session's (R, H, W, 3) no-contact
+    reference frames, both area-downsampled to `size` in float32 first (None: at the frames' own
+    size): (T, h, w, 3) int16 in 1/`DIFFERENCE_SCALE` grey levels (0 is "as without contact")."""
     shrink = (lambda x: x) if size is None else (lambda x: downsample(x, size))
-    ref = shrink(reference).astype(np.float32).mean(0) if len(reference) > 1 else shrink(reference)[0]
-    return shrink(frames).astype(np.int16) - np.rint(ref).astype(np.int16)
+    ref = shrink(reference.astype(np.float32)).mean(0)
+    return np.rint((shrink(frames.astype(np.float32)) - ref) * DIFFERENCE_SCALE).astype(np.int16)
 
 
 def to_rows(frames, length: int | None = None):

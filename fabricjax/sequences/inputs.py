@@ -130,7 +130,7 @@ def _sums(part: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, int]:
     is an integer below 2**53, so
     float64 summation is exact too and the two agree bit for bit, at a fraction of the float64
     copy's time and memory."""
-    if part.dtype in (np.uint8, np.int16):  # frames, and frames minus their session's reference (|x| <= 255)
+    if part.dtype in (np.uint8, np.int16):  # frames, and frames minus their session's reference (|x| < 2**14)
         flat = part.reshape(-1, *part.shape[2:])
         wide = flat.astype(np.uint16 if part.dtype == np.uint8 else np.int32)
         sums = (

@@ -35,12 +35,10 @@ from __future__ import annotations
 
 import json
 import time
-from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax.features import images
 from fabricjax.reporting import results_files
 from fabricjax.sequences import data
 from fabricjax.store import archive
@@ -121,27 +119,6 @@ def day_led_dims(x: np.ndarray, fabric: np.ndarray, day: np.ndarray) -> float:
     return float(np.mean(ss_day > ss_fabric))
 
 
-def reference_rounding(folder, trial_keys: Sequence[str], size: tuple[int, int]) -> np.ndarray | None:
-    """(trials, h w 3) float64: per trial (archive name in `folder`), what reading its frames against
-    its session's reference rounded to whole grey levels (`images.session_difference`) adds to
-    every frame's difference, pixel by pixel at `size`: the rounded reference minus the unrounded
-    one (the mean of its frames, each area-downsampled). One archive per session is read (the
-    session as its meta names it). None where a trial has no reference."""
-    folder = Path(folder)
-    session_of, rounding = {}, {}
-    for key in dict.fromkeys(trial_keys):
-        meta, _ = archive.read_meta(folder / key)
-        session = (meta.get("reference") or {}).get("session")
-        if session is None:
-            return None
-        session_of[key] = session
-        if session not in rounding:
-            frames = archive.read_archive(folder / key, images=False).reference
-            mean = images.downsample(frames, size).astype(np.float32).mean(axis=0)  # as session_difference
-            rounding[session] = (np.rint(mean) - mean).astype(np.float64).ravel()
-    return np.stack([rounding[session_of[k]] for k in trial_keys])
-
-
 def probe_accuracy(results, folder: str) -> tuple[dict[str, dict[str, float | None]], str | None]:
     """Each input's single-input probe accuracy on val and test from results/probe.json, and why
     there is none (None when the probe ran on the same data folder)."""
@@ -198,17 +175,6 @@ def run(
             for k in ("fabric_id", "day")
         }
         shares = variance_shares(x, labels["fabric_id"], labels["day"])
-        unrounded = None
-        if r.settings.get("image_reference") == "session":
-            keys = np.concatenate([d.sets[s].info["trial_key"][first] for s, (_, first) in zip(present, per_split)])
-            rounding = reference_rounding(d.folder, list(keys), d.sets[present[0]].inputs[m].shape[2:4])
-            if rounding is not None:  # each trial's mean difference with the rounding taken back out
-                x_exact = x.copy()
-                x_exact[:, : rounding.shape[1]] += rounding
-                unrounded = {
-                    "shares": variance_shares(x_exact, labels["fabric_id"], labels["day"]),
-                    "shares_weighted": variance_shares(x_exact, labels["fabric_id"], labels["day"], weighted=True),
-                }
         out_rows.append(
             {
                 "name": r.name,
@@ -217,7 +183,6 @@ def run(
                 "shares": shares,
                 "shares_weighted": variance_shares(x, labels["fabric_id"], labels["day"], weighted=True),
                 "day_led_dims": day_led_dims(x, labels["fabric_id"], labels["day"]),
-                "unrounded_reference": unrounded,
                 "probe": accuracy.get(r.name),
                 "wall_s": time.perf_counter() - t1,
             }
@@ -298,16 +263,6 @@ def image_weighting(doc: Mapping[str, Any]) -> list[str]:
         "Day, weighted by variance [%]",
         "Dimensions where the day explains more than the fabric [%]",
     ]
-    exact = session.get("unrounded_reference")
-    unrounded = (
-        f" Against an unrounded reference (the rounding to whole grey levels that `images.session_difference` "
-        f"adds to every frame's difference taken back out), the fabric and the day take "
-        f"{_pct(exact['shares']['fabric'])} % and {_pct(exact['shares']['day'])} % with each dimension alike, "
-        f"{_pct(exact['shares_weighted']['fabric'])} % and {_pct(exact['shares_weighted']['day'])} % weighted "
-        "by variance."
-        if exact
-        else ""
-    )
     return [
         "## The image, weighted by variance",
         "",
@@ -316,7 +271,7 @@ def image_weighting(doc: Mapping[str, Any]) -> list[str]:
         f"dimensions, as an RMS in DN pools pixels), {session['display_name']} gives the fabric "
         f"{_pct(session['shares_weighted']['fabric'])} % of its variation and the day "
         f"{_pct(session['shares_weighted']['day'])} %; the day explains more than the fabric in "
-        f"{_pct(session['day_led_dims'])} % of its {session['summary_dims']} dimensions." + unrounded,
+        f"{_pct(session['day_led_dims'])} % of its {session['summary_dims']} dimensions.",
         "",
         results_files.markdown_table(header, body),
     ]
