@@ -44,8 +44,10 @@ PAPER_WINDOW_S = archive.WINDOW / archive.AUDIO_RATE  # the paper's step window:
 # (keeps each feature's steady level, which the rescale discards).
 FUSION_NORMS = ("sequence_minmax", "step_layernorm")
 # How the image and flow CNNs (`model.ConvEncoder`) turn their last layer's grid of cells into one
-# step's features: the mean over the cells (translation-invariant; the paper does not say), or every
-# cell's features side by side, which keeps where on the imaged wall a response sits.
+# step's features: the mean over the cells (translation-invariant), or every cell's features side by
+# side, which keeps where on the imaged wall a response sits. The paper does not say; each CNN's
+# default is the one its rows learn best with on validation (docs/usage.md, "What the camera rows
+# learn"): the grid for the Minsight image, the mean for optical flow.
 CNN_POOLS = ("mean", "grid")
 LR_SCHEDULES = ("constant", "cosine")
 # The two readings of the paper's flow filter, "filter for the top 0.1 percentile according to
@@ -91,7 +93,8 @@ ROLES = (SEQUENCES, FEATURES, RESULT, NEUTRAL)
 _CHOICES = {
     "backbone": BACKBONES,
     "fusion_norm": FUSION_NORMS,
-    "cnn_pool": CNN_POOLS,
+    "image_pool": CNN_POOLS,
+    "flow_pool": CNN_POOLS,
     "lr_schedule": LR_SCHEDULES,
     "flow_sparsify": FLOW_SPARSIFY,
     "flow_method": FLOW_METHODS,
@@ -167,7 +170,8 @@ class Config:
     audio_hidden: tuple[int, int] = _field((128, 64), RESULT)
     proprio_hidden: tuple[int, int] = _field((64, 64), RESULT)
     cnn_features: tuple[int, ...] = _field((16, 32, 64), RESULT)  # image / flow CNN channels per strided conv
-    cnn_pool: str = _field("mean", RESULT)  # CNN_POOLS
+    image_pool: str = _field("grid", RESULT)  # CNN_POOLS
+    flow_pool: str = _field("mean", RESULT)  # CNN_POOLS
     dropout: float = _field(0.1, RESULT, rate_neutral=True)
     fusion_norm: str = _field("sequence_minmax", RESULT, rate_neutral=True)  # FUSION_NORMS; the paper's is the default
     fabric_head: bool = _field(True, RESULT)

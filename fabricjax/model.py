@@ -15,8 +15,9 @@ Inputs are a dict keyed by modality, every array with leading (batch, steps):
     image_rows           uint8 (B, H*W, 3, N)  the same frames as pixel rows, instead of "image":
                                               how training holds its set (`inputs.training_layout`)
     flow                 float (B, N, 2, h, w)
-The CNNs end in a global mean pool, so any image/flow resolution works with the same weights
-(`config.cnn_pool` "grid" keeps each cell instead, and fixes the resolution).
+Each CNN ends in a pool over its last layer's cells (`config.image_pool`, `config.flow_pool`): the
+mean, with which any resolution works with the same weights, or "grid", every cell kept, which
+fixes the resolution.
 Only the encoders named in `config.modalities` are built.
 """
 
@@ -369,10 +370,13 @@ class FabricNet(nnx.Module):
                 setattr(self, f"{m}_shift", nnx.Param(jnp.zeros(shift_shape(config, m, shapes[m]), jnp.float32)))
                 setattr(self, f"{m}_scale", nnx.Param(jnp.ones(scale_shape(config, m, shapes[m]), jnp.float32)))
         self.rotate_images = "image" in self.modalities and config.augment_rotation
-        pool = config.cnn_pool
-        self.image = ConvEncoder(3, cnn, dtype=dtype, rngs=rngs, pool=pool) if "image" in self.modalities else None
+        self.image = (
+            ConvEncoder(3, cnn, dtype=dtype, rngs=rngs, pool=config.image_pool) if "image" in self.modalities else None
+        )
         self.image_hw = tuple(shapes["image"][:2]) if "image" in self.modalities else None  # (H, W) of its frames
-        self.flow = ConvEncoder(2, cnn, dtype=dtype, rngs=rngs, pool=pool) if "flow" in self.modalities else None
+        self.flow = (
+            ConvEncoder(2, cnn, dtype=dtype, rngs=rngs, pool=config.flow_pool) if "flow" in self.modalities else None
+        )
         out = {"proprio": config.proprio_hidden[-1]}
         if self.image is not None:
             out["image"] = self.image.out_features(*self.image_hw)

@@ -80,7 +80,7 @@ def test_grid_pool_keeps_where_in_the_frame_a_response_sits():
     np.testing.assert_allclose(mean[0], mean[1], atol=1e-6)
     assert grid.shape == (2, 8 * 3 * 4) == (2, encoders["grid"].out_features(30, 40))
     assert not np.allclose(grid[0], grid[1], atol=1e-3)
-    cfg = Config(modalities=("image", "flow"), cnn_pool="grid", **TINY)
+    cfg = Config(modalities=("image", "flow"), image_pool="grid", flow_pool="grid", **TINY)
     inputs = synthetic.data_set(cfg, 2, flow_hw=(20, 27), image_hw=(30, 40))["inputs"]
     model = build(cfg, inputs)
     assert model.flow.out_features(20, 27) == 8 * 2 * 2  # 20 x 27 -> 4 x 5 cells -> 2 x 2

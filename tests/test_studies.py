@@ -324,6 +324,7 @@ def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
             "name": "internal",
             "backbone": "attention",
             "modalities": ["internal"],
+            "display_name": "Minsound",
             "paper_mean": 95.06,
             "paper_sd": 1.85,
             "seeds": [0, 1, 2],
@@ -335,6 +336,7 @@ def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
             "name": "tcn",
             "backbone": "tcn",
             "modalities": ["internal", "external", "proprio"],
+            "display_name": "TCN: Minsound + palm mic + proprioception",
             "paper_mean": 75.41,
             "paper_sd": 11.2,
             "seeds": [0, 1, 2],
@@ -521,9 +523,9 @@ STUDIES_WITH_ROWS = {
     [(s, f) for s, (rows, _) in STUDIES_WITH_ROWS.items() for f in sorted({f for r in rows for f in r.settings})],
 )
 def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp_path):
-    """--set of a field any of the study's rows sets would be silently replaced, or would silently
-    change what a row is (--set=backbone=attention made the ablation's TCN row a transformer): it
-    fails in one line naming the field and the rows, before any data is read."""
+    """--set of a field any of the study's chosen rows sets would be silently replaced, or would
+    silently change what a row is (--set=backbone=attention made the ablation's TCN row a
+    transformer): it fails in one line naming the field and the rows, before any data is read."""
     settings, run = STUDIES_WITH_ROWS[study]
     with pytest.raises(
         UserError,
@@ -532,11 +534,22 @@ def test_an_override_a_study_would_replace_per_row_is_an_error(study, field, tmp
     ) as e:
         run(
             preset="smoke",
+            rows=["all"],
             overrides={field: Config.__dataclass_fields__[field].default},
             where=Location(workdir=tmp_path / "nothing", results=tmp_path),
         )
     assert "\n" not in str(e.value)
     assert not (tmp_path / "nothing").exists()
+
+
+def test_an_override_is_refused_only_where_a_chosen_row_sets_the_field():
+    """Our variant's image rows read frames unrotated; the paper's image row alone takes a --set of
+    the rotation, a variant run of it."""
+    paper_image, ours = ablation.STUDY.select(["image", "step_layernorm:image"])
+    assert ours.settings["augment_rotation"] is False and "augment_rotation" not in paper_image.settings
+    assert check_overrides("ablation", {"augment_rotation": False}, [paper_image], "") == {"augment_rotation": False}
+    with pytest.raises(UserError, match="sets augment_rotation per row itself"):
+        check_overrides("ablation", {"augment_rotation": False}, [paper_image, ours], "")
 
 
 def test_the_override_error_names_the_rows_that_set_the_field():

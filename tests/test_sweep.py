@@ -109,7 +109,7 @@ def test_a_malformed_grid_is_a_one_line_error_naming_the_flag(texts, problem):
         (
             {"modalities": (("internal",), ("proprio",))},
             {},
-            f"the sweep study sets modalities per row itself (every one of its {len(ablation.ROWS)} rows); "
+            f"the sweep study sets modalities per row itself (every one of its {len(ROWS)} rows); "
             f"choose the ablation's rows with --rows",
         ),
         ({"fusion_norm": ("sequence_minmax", "step_layernorm")}, {}, "sets fusion_norm per row itself"),

@@ -166,8 +166,8 @@ def load_chosen_rows(
     agree on `SEQUENCE_FIELDS` share one load: the same object), and the splits that hold
     any. Rows that read frames against their session's reference are left out, with a warning,
     when the data has none and the rows were not asked for by name."""
-    overrides = check_overrides(study, overrides, all_rows, "choose them with --rows")
     chosen = select_rows(all_rows, names)
+    overrides = check_overrides(study, overrides, chosen, "choose them with --rows")
     if where.data_dir and not names:  # recorded data: the rows it can feed, the others left out in one line
         chosen = feedable_rows(study, chosen, where)
     configs = [r.config(preset, overrides) for r in chosen]

@@ -96,7 +96,7 @@ def select_rows(
 
 def check_overrides(study: str, overrides: Mapping | None, rows: Sequence[RowSpec], instead: str) -> dict:
     """`overrides` as a dict, after checking that none of them is a `Config` field that one of the
-    study's `rows` sets itself: the row would silently replace the override, or the override
+    study's chosen `rows` sets itself: the row would silently replace the override, or the override
     would silently turn the row into another one. Such an override is a one-line error naming the
     field, the rows that set it and, `instead`, how to choose that dimension."""
     overrides = dict(overrides or {})

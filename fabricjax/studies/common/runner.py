@@ -102,10 +102,16 @@ def fusion_twin(name: str, fusion_norm: str) -> str:
 
 def _with_fusion_twins(study: Study, rows: list[tuple[str, Config]]) -> list[tuple[str, Config]]:
     """`rows` and, for each, its twin under every `study.recorded_fusions` it is not already
-    under, unless that twin is among `rows` itself."""
+    under, unless that twin is among `rows` itself; a twin the study declares as a row of its own
+    trains with that row's settings (our variant's image rows read frames unrotated)."""
     names = {n for n, _ in rows}
+    declared = {r.name: r.settings for r in study.rows}
+
+    def twin(name: str, config: Config, fusion: str) -> Config:
+        return dataclasses.replace(config, **declared.get(fusion_twin(name, fusion), {"fusion_norm": fusion}))
+
     twins = [
-        (fusion_twin(n, f), dataclasses.replace(c, fusion_norm=f))
+        (fusion_twin(n, f), twin(n, c, f))
         for n, c in rows
         for f in study.recorded_fusions
         if c.fusion_norm != f and fusion_twin(n, f) not in names
@@ -127,10 +133,10 @@ def run_study(
     by default), check the paper's claims and write results/<study>.md and .json; returns the JSON.
     The plan (`plan.stages`) is printed first; `plan_only` stops there, writing it as results/plan.md."""
 
-    overrides = check_overrides(study.name, overrides, study.rows, study.choose_rows)
+    chosen = study.select(rows)
+    overrides = check_overrides(study.name, overrides, chosen, study.choose_rows)
     if where.data_dir:  # the preset's recipe for recorded data, beneath the command line's
         overrides = {**presets.get(preset).recorded_training, **overrides}
-    chosen = study.select(rows)
     if where.data_dir and not rows:  # recorded data: the rows it can feed, the others left out in one line
         chosen = feedable_rows(study.name, chosen, where)
     seeds = seed_list(study.n_seeds if n_seeds is None else n_seeds)

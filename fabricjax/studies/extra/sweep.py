@@ -89,13 +89,15 @@ def grid_points(grid: Mapping[str, Sequence[Any]]) -> list[dict[str, Any]]:
     return [dict(zip(grid, values)) for values in itertools.product(*grid.values())]
 
 
-def check_grid(grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any]) -> dict[str, tuple]:
-    """The grid, after the checks that need no data: not empty, no field the rows or the preset
-    decide, no field both swept and fixed by --set."""
+def check_grid(
+    grid: Mapping[str, Sequence[Any]], overrides: Mapping[str, Any], rows: Sequence[RowSpec]
+) -> dict[str, tuple]:
+    """The grid, after the checks that need no data: not empty, no field the chosen `rows` or the
+    preset decide, no field both swept and fixed by --set."""
     if not grid or not all(grid.values()):
         raise UserError(f"--grid: give at least one field with at least one value: {GRID_HELP}")
     grid = check_overrides(
-        "sweep", {f: tuple(v) for f, v in grid.items()}, ablation.ROWS, "choose the ablation's rows with --rows"
+        "sweep", {f: tuple(v) for f, v in grid.items()}, rows, "choose the ablation's rows with --rows"
     )
     if "preset" in grid:
         raise UserError(
@@ -155,9 +157,13 @@ def entry(
         "point": point_name(fields),
         "fields": dict(fields),
         "row": row.name,
-        "display_name": ablation.label(row.modalities, trained.config.backbone, trained.config.fusion_norm, test.names)
-        if recorded
-        else row.label,
+        "display_name": ablation.label(
+            row.modalities,
+            trained.config.backbone,
+            trained.config.fusion_norm,
+            test.names if recorded else None,
+            trained.config.augment_rotation,
+        ),
         "val_mean": val_mean,
         "val_sd": val_sd,
         "test_mean": test_mean,
@@ -203,9 +209,9 @@ def run(
 ) -> dict[str, Any]:
     """Train every grid point on every chosen row of the ablation (all by default); write
     results/sweep.{md,json}; return the JSON."""
-    overrides = check_overrides("sweep", overrides, ablation.ROWS, "choose the ablation's rows with --rows")
-    grid = check_grid(grid, overrides)
     chosen = ablation.STUDY.select(rows)
+    overrides = check_overrides("sweep", overrides, chosen, "choose the ablation's rows with --rows")
+    grid = check_grid(grid, overrides, chosen)
     seeds = runner.seed_list(n_seeds)
     units = plan(preset, grid, overrides, chosen)
 
