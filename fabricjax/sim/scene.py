@@ -136,7 +136,7 @@ class Scene:
             **{k: list(v) if isinstance(v, tuple) else v for k, v in d.items()},
             # the code that simulates it (`source.simulator`): an archive that other code made is
             # simulated again (`dataset.is_done`)
-            "simulator": source.simulator()[:16],
+            "simulator": source.simulator()[:16],  # as results name fingerprints [numerics]
             "magnitudes": MAGNITUDES,
         }
 
