@@ -92,6 +92,7 @@ def test_pareto_front_keeps_only_undominated_points():
     assert cost.pareto_front(pts, "touch_s") == ["a", "c"]
 
 
+@pytest.mark.slow
 def test_cost_run_writes_table_json_and_pareto_png(smoke_workdir, tmp_path):
     doc = cost.run(
         n_seeds=2,

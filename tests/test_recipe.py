@@ -150,6 +150,7 @@ class _Set:
         return len(next(iter(self.labels.values())))
 
 
+@pytest.mark.slow
 def test_a_corrupted_test_split_changes_no_choice(monkeypatch):
     """Every choice (the grid point, each seed's best and stopping epoch, the validation scores)
     is the same whether the test split is the real one or noise with shuffled labels."""
