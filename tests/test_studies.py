@@ -88,6 +88,7 @@ def test_the_smoke_preset_learns_and_says_it_checks_the_install(workdir, tmp_pat
     assert "evaluated claims reproduced" not in md
 
 
+@pytest.mark.slow
 def test_ablation_rerun_gives_identical_per_seed_accuracies(workdir, tmp_path):
     """The main command twice on one machine, training afresh (its checkpoints removed): the same
     per-seed accuracies, to the last bit."""
