@@ -243,7 +243,7 @@ def plot_time_to_accuracy(path, curves: Sequence[tuple[str, np.ndarray, np.ndarr
         ax.set(xlabel="training time [s] (the first epoch includes compiling)", ylabel="validation accuracy [%]")
         ax.set(ylim=(0, 100), xlim=(0, None))
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="lower right")
+        ax.legend(fontsize=7, loc="best")
     fig.suptitle(title + " (lines: mean over seeds; dots: each seed's best epoch, the model kept)", fontsize=10)
     return _save(fig, path)
 
