@@ -35,6 +35,9 @@ HOST_BLOCK = 64  # sequences per block of `to_rows` on the host (11 MB of the de
 # round it away and give every session's reference its own rounding, a per-pixel offset shared by
 # all of that day's trials (results/day_shift.md). |255 x 64| fits int16.
 DIFFERENCE_SCALE = 64
+# Frames taken to float32 at a time by `session_difference`: a 308x410 trial's frames whole would
+# take four times their bytes, twice over.
+DIFFERENCE_CHUNK = 64
 
 
 def downsample(frames: np.ndarray, size: tuple[int, int] = DOWN_SIZE) -> np.ndarray:
@@ -52,7 +55,11 @@ def session_difference(
     size): (T, h, w, 3) int16 in 1/`DIFFERENCE_SCALE` grey levels (0 is "as without contact")."""
     shrink = (lambda x: x) if size is None else (lambda x: downsample(x, size))
     ref = shrink(reference.astype(np.float32)).mean(0)
-    return np.rint((shrink(frames.astype(np.float32)) - ref) * DIFFERENCE_SCALE).astype(np.int16)
+    out = np.empty((len(frames), *ref.shape), np.int16)
+    for start in range(0, len(frames), DIFFERENCE_CHUNK):
+        chunk = shrink(frames[start : start + DIFFERENCE_CHUNK].astype(np.float32))
+        out[start : start + len(chunk)] = np.rint((chunk - ref) * DIFFERENCE_SCALE)
+    return out
 
 
 def to_rows(frames, length: int | None = None):

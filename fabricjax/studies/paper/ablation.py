@@ -69,9 +69,9 @@ def label(
     data's name for its stream) the data's names."""
     text = data.inputs_name(modalities, names)
     text = f"TCN: {text}" if backbone == "tcn" else text
-    ours = ["our step-LayerNorm fusion"] if fusion_norm == STEP_LAYERNORM else []
-    ours += ["frames unrotated"] if "image" in modalities and not rotated else []
-    return f"{text} ({', '.join(ours)})" if ours else text
+    notes = ["our step-LayerNorm fusion"] if fusion_norm == STEP_LAYERNORM else []
+    notes += ["frames unrotated"] if "image" in modalities and not rotated else []
+    return f"{text} ({', '.join(notes)})" if notes else text
 
 
 def _row(
