@@ -22,3 +22,12 @@ def default_workspace_outside_the_repository(tmp_path_factory):
     """What a test writes without naming a workdir (indexes of external folders, default results)
     goes to a temporary workspace, never into the repository's ./workspace."""
     os.environ[workspace.ENV_VAR] = str(tmp_path_factory.mktemp("default_workspace"))
+
+
+SLOW_TIMEOUT_S = 1800  # an end-to-end test behind -m slow trains studies for minutes
+
+
+def pytest_collection_modifyitems(items):
+    for item in items:
+        if item.get_closest_marker("slow") and not item.get_closest_marker("timeout"):
+            item.add_marker(pytest.mark.timeout(SLOW_TIMEOUT_S))

@@ -296,3 +296,58 @@ def test_sequences_that_do_not_fit_the_disk_are_refused_having_written_nothing(d
     with pytest.raises(UserError, match=r"need \d+ kB of memory-mapped files, only 0 kB free") as e:
         data.load_sequences(_config(input_source="disk"), dataset, workdir=tmp_path / "ws", progress=False)
     assert "\n" not in str(e.value) and not list((tmp_path / "ws" / "sequences").iterdir())
+
+
+def test_a_load_stopped_by_an_error_leaves_no_reader_behind_and_cannot_deadlock(dataset, tmp_path, monkeypatch):
+    """The hang this guards against: a load whose consumer raised left its feature readers
+    working; the garbage collector later finalised it inside code holding the cache's lock, and
+    its shutdown waited for readers that waited for that lock. Here every npy header parse runs
+    the collector (and is slow, so the first load's readers still have work) while the failed
+    load's state sits in a reference cycle that only the collector frees. The failed load must
+    leave no thread behind, and the next load must finish."""
+    import ast
+    import gc
+    import threading
+    import time
+
+    cfg = _config()
+    workdir = tmp_path / "ws"
+    data.load_sequences(cfg, dataset, workdir=workdir, progress=False, workers=1)  # every feature cached
+    before = set(threading.enumerate())
+    parse = ast.literal_eval
+
+    def collecting_parse(text):
+        time.sleep(0.01)
+        gc.collect()
+        return parse(text)
+
+    real_sequences = data._sequences
+    calls = []
+
+    def failing_sequences(*args):
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError("the consumer stops")
+        return real_sequences(*args)
+
+    outcome = {}
+
+    def scenario():
+        monkeypatch.setattr(ast, "literal_eval", collecting_parse)
+        monkeypatch.setattr(data, "_sequences", failing_sequences)
+        try:
+            data.load_sequences(cfg, dataset, workdir=workdir, progress=False, workers=1)
+        except RuntimeError as err:
+            cycle = [err]
+            cycle.append(cycle)  # the error's frames (and the load's state) now wait for the collector
+            outcome["left"] = [t.name for t in set(threading.enumerate()) - before - {threading.current_thread()}]
+        del cycle
+        monkeypatch.setattr(data, "_sequences", real_sequences)
+        outcome["sets"] = data.load_sequences(cfg, dataset, workdir=workdir, progress=False, workers=1)
+
+    runner = threading.Thread(target=scenario, daemon=True)
+    runner.start()
+    runner.join(timeout=30)
+    assert not runner.is_alive(), "the load after a failed load deadlocked"
+    assert outcome["left"] == [], f"threads left running by the failed load: {outcome['left']}"
+    assert set(outcome["sets"]) == set(data.SPLITS)

@@ -17,16 +17,19 @@ not to contention), each trial read once, without its images unless a missing fe
 them; workers write the cache files themselves, so no array crosses a process boundary. Every
 feature is a function of its archive alone, so the pool returns exactly what the serial path
 (`workers=1`, in this process) does (tested). The arrays are then read back from the cache in
-order, in threads.
+order, read ahead by threads that only read and inflate the files; the consuming thread
+parses them, so no lock is shared.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import io
 import json
+import math
 import os
 import sys
-import threading
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -67,20 +70,51 @@ def _atomic_write(path: Path, write) -> None:
 _UNREADABLE = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
 
 
-# numpy parses each .npy member's header with `ast.literal_eval`, and CPython 3.11's AST constructor
-# keeps one recursion counter for every thread (python/cpython#106905): threads parsing at once fail
-# now and then with "SystemError: AST constructor recursion depth mismatch". The threads that load a
-# study's cached features (`trial_features`) therefore read one cache file at a time.
-_READING = threading.Lock()
+def _members(path: Path) -> dict[str, bytes]:
+    """A cache file's npy members as bytes, inflated: the file work, which threads may share.
+
+    numpy parses each member's header with `ast.literal_eval`, and CPython 3.11's AST constructor
+    keeps one recursion counter for every thread (python/cpython#106905): threads parsing at once
+    fail now and then. Reader threads therefore only read and inflate (zlib releases the GIL);
+    headers are parsed by the thread that consumes the arrays (`_array`), so no lock is needed."""
+    with zipfile.ZipFile(path) as z:
+        return {name: z.read(f"{name}.npy") for name in ("data", "fingerprint")}
+
+
+def _array(member: bytes) -> np.ndarray:
+    """The array an npy member holds, without a copy (read-only)."""
+    stream = io.BytesIO(member)
+    version = np.lib.format.read_magic(stream)
+    header = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}.get(version)
+    if header is None:
+        raise ValueError(f"npy format version {version}, not one the cache writes")
+    shape, fortran_order, dtype = header(stream)
+    if dtype.hasobject:
+        raise ValueError("object arrays are never cached")
+    a = np.frombuffer(member, dtype, count=math.prod(shape), offset=stream.tell())
+    return a.reshape(shape, order="F" if fortran_order else "C")
+
+
+def _checked(members: dict[str, bytes] | None, fingerprint: str) -> np.ndarray | None:
+    """The cached array, or None when unreadable or made from another archive version."""
+    if members is None:
+        return None
+    try:
+        return _array(members["data"]) if str(_array(members["fingerprint"])[()]) == fingerprint else None
+    except _UNREADABLE:
+        return None
+
+
+def _read(path: Path) -> dict[str, bytes] | None:
+    try:
+        return _members(path)
+    except _UNREADABLE:
+        return None
 
 
 def load(path: Path, fingerprint: str) -> np.ndarray | None:
     """The cached array, or None when absent, unreadable or made from another archive version."""
-    try:
-        with _READING, np.load(path, allow_pickle=False) as z:
-            return z["data"] if str(z["fingerprint"]) == fingerprint else None
-    except _UNREADABLE:
-        return None
+    return _checked(_read(path), fingerprint)
 
 
 def save(path: Path, fingerprint: str, data: np.ndarray) -> None:
@@ -98,8 +132,8 @@ def save(path: Path, fingerprint: str, data: np.ndarray) -> None:
 def is_cached(path: Path, fingerprint: str) -> bool:
     """The cache file exists and was made from this archive version (reads only the fingerprint)."""
     try:
-        with _READING, np.load(path, allow_pickle=False) as z:
-            return str(z["fingerprint"]) == fingerprint
+        with zipfile.ZipFile(path) as z:
+            return str(_array(z.read("fingerprint.npy"))[()]) == fingerprint
     except _UNREADABLE:
         return False
 
@@ -150,6 +184,12 @@ def _one_thread_per_worker() -> None:
     cv2.setNumThreads(1)
 
 
+# how many trials the reader threads read ahead of the consumer: enough to keep them busy, few
+# enough that a dataset is never held twice in memory on its way into the training arrays
+READ_AHEAD = 8
+
+
+@contextlib.contextmanager
 def trial_features(
     index: dataset_index.DatasetIndex,
     entries: list[dataset_index.IndexEntry],
@@ -158,9 +198,14 @@ def trial_features(
     *,
     workers: int | None = None,
     progress: bool = True,
-) -> Iterator[dict[str, np.ndarray]]:
-    """For each entry in order, {feature name: array}, from the cache where valid, else computed
-    and cached first. A generator, so the caller can keep only what it needs of each trial."""
+) -> Iterator[Iterator[dict[str, np.ndarray]]]:
+    """A context whose value gives, for each entry in order, {feature name: array}: from the cache
+    where valid, else computed and cached first.
+
+    A context, not a generator, so that its reader threads end on every path: when the caller
+    stops early or raises, leaving the `with` cancels the reads not yet started and joins the
+    threads, in the caller's thread. A generator left unfinished would leave that to the garbage
+    collector, which may run it inside any thread, one of the readers included."""
     folders = {f.name: folder(features_root, index.root, f) for f in features if f.cached}
     files = lambda e: {name: str(d / f"{Path(e.file).stem}.npz") for name, d in folders.items()}  # noqa: E731
     cached = [f for f in features if f.cached]
@@ -180,19 +225,26 @@ def trial_features(
         with bar:
             parallel.run_jobs(_compute_and_drop, jobs, workers, bar.update, initializer=_one_thread_per_worker)
 
-    def one(entry: dataset_index.IndexEntry) -> dict[str, np.ndarray]:
-        out = {f.name: load(Path(files(entry)[f.name]), entry.fingerprint) for f in cached}
+    def read(entry: dataset_index.IndexEntry) -> dict[str, dict[str, bytes] | None]:
+        return {f.name: _read(Path(files(entry)[f.name])) for f in cached}
+
+    def one(entry: dataset_index.IndexEntry, members: dict[str, dict[str, bytes] | None]) -> dict[str, np.ndarray]:
+        out = {name: _checked(m, entry.fingerprint) for name, m in members.items()}
         redo = [f for f in features if out.get(f.name) is None]  # uncached features, or a file damaged since
         if redo:
             out.update(_compute((str(index.path(entry)), entry.fingerprint, [f.name for f in redo], files(entry))))
         return out
 
-    with ThreadPoolExecutor(min(4, os.cpu_count() or 1)) as pool:
-        yield from tqdm(
-            pool.map(one, entries),
-            total=len(entries),
-            desc="sequences",
-            unit="trial",
-            disable=not progress,
-            leave=False,
-        )
+    pool = ThreadPoolExecutor(min(4, os.cpu_count() or 1), thread_name_prefix="feature-cache-reader")
+    bar = tqdm(total=len(entries), desc="sequences", unit="trial", disable=not progress, leave=False)
+    try:
+
+        def trials() -> Iterator[dict[str, np.ndarray]]:
+            for entry, members in zip(entries, parallel.ordered_ahead(pool, read, entries, READ_AHEAD)):
+                yield one(entry, members)
+                bar.update()
+
+        yield trials()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+        bar.close()

@@ -260,7 +260,7 @@ def _fill(
     without a copy (`host_arrays`), or in `store`'s files where they would take more than
     `MEMORY_FRACTION` of memory (or `config.input_source` says "disk"). Read-only."""
     n, wanted = config.seq_len, tuple(members)
-    feats = cache.trial_features(
+    loader = cache.trial_features(
         index,
         [e for e, _ in chosen],
         list(features.values()),
@@ -268,52 +268,57 @@ def _fill(
         workers=workers,
         progress=progress,
     )
-    inputs: dict[str, dict[str, np.ndarray]] = {}
-    filled = dict.fromkeys(wanted, 0)
-    for (e, s), f in zip(chosen, feats, strict=True):  # strict: runs the generator to its end (the bar closes)
-        n_seq = n_sequences(e, n)
-        trial = {
-            m: _sequences(f[feat.name], m, first_step(e.meta), n_seq, n, config, rates) for m, feat in features.items()
-        }
-        if not inputs:
-            shapes = {
-                t: {m: ((sum(n_sequences(x, n) for x in members[t]), *a.shape[1:]), a.dtype) for m, a in trial.items()}
-                for t in wanted
+    with loader as feats:
+        inputs: dict[str, dict[str, np.ndarray]] = {}
+        filled = dict.fromkeys(wanted, 0)
+        for (e, s), f in zip(chosen, feats, strict=True):  # strict: reads to the end (the bar closes)
+            n_seq = n_sequences(e, n)
+            trial = {
+                m: _sequences(f[feat.name], m, first_step(e.meta), n_seq, n, config, rates)
+                for m, feat in features.items()
             }
-            total = sum(
-                math.prod(shape) * np.dtype(dtype).itemsize for t in shapes.values() for shape, dtype in t.values()
-            )
-            on_disk = config.input_source == "disk" or (
-                config.input_source == "auto" and total > memo.memory_budget(MEMORY_FRACTION)
-            )
-            if on_disk:
-                logging.info(
-                    "the sequences take %.1f GB: training reads them from %s (input_source=%s)",
-                    total / 1e9,
-                    workspace.shown(store.folder),
-                    config.input_source,
-                )
-            inputs = (
-                store.create(shapes)
-                if on_disk
-                else {t: {m: host_arrays.empty(*v) for m, v in d.items()} for t, d in shapes.items()}
-            )
-        for m, a in trial.items():
-            if a.shape[1:] != inputs[s][m].shape[1:]:
-                raise archive.ArchiveError(
-                    index.path(e),
-                    _SOURCE_FIELD.get(m, "audio"),
-                    f"{m} sequences of shape {a.shape[1:]}, but the dataset's first trial gives "
-                    f"{inputs[s][m].shape[1:]}",
-                )
-            inputs[s][m][filled[s] : filled[s] + n_seq] = a
-        filled[s] += n_seq
+            if not inputs:
+                inputs = _allocate(trial, members, n, config, store)
+            for m, a in trial.items():
+                if a.shape[1:] != inputs[s][m].shape[1:]:
+                    raise archive.ArchiveError(
+                        index.path(e),
+                        _SOURCE_FIELD.get(m, "audio"),
+                        f"{m} sequences of shape {a.shape[1:]}, but the dataset's first trial gives "
+                        f"{inputs[s][m].shape[1:]}",
+                    )
+                inputs[s][m][filled[s] : filled[s] + n_seq] = a
+            filled[s] += n_seq
     if any(isinstance(a, np.memmap) for d in inputs.values() for a in d.values()):
         return store.finish(inputs)
     for arrays in inputs.values():  # read-only from here: training keeps what it derives (`fabricjax.memo`)
         for a in arrays.values():
             a.flags.writeable = False
     return inputs
+
+
+def _allocate(
+    first: dict[str, np.ndarray], members, n: int, config: Config, store: SequenceStore
+) -> dict[str, dict[str, np.ndarray]]:
+    """{split: {modality: empty (S, N, ...)}} shaped from the first trial's sequences and the
+    index's step counts: in memory, or in `store`'s files past `MEMORY_FRACTION` of memory."""
+    shapes = {
+        t: {m: ((sum(n_sequences(x, n) for x in members[t]), *a.shape[1:]), a.dtype) for m, a in first.items()}
+        for t in members
+    }
+    total = sum(math.prod(shape) * np.dtype(dtype).itemsize for t in shapes.values() for shape, dtype in t.values())
+    on_disk = config.input_source == "disk" or (
+        config.input_source == "auto" and total > memo.memory_budget(MEMORY_FRACTION)
+    )
+    if on_disk:
+        logging.info(
+            "the sequences take %.1f GB: training reads them from %s (input_source=%s)",
+            total / 1e9,
+            workspace.shown(store.folder),
+            config.input_source,
+        )
+        return store.create(shapes)
+    return {t: {m: host_arrays.empty(*v) for m, v in d.items()} for t, d in shapes.items()}
 
 
 def stream_names(lay: archive.Layout) -> dict[str, str]:
