@@ -25,9 +25,10 @@ def main(argv):
         periods = simulated_devices.paced_periods(
             simulated_signals.trial_signals(FLAGS.fabric, n_cycles=FLAGS.cycles).audio
         )
+        sent = wire.serve(periods, FLAGS.host, FLAGS.port)
     else:
-        periods = wire.arecord_periods(FLAGS.device)
-    sent = wire.serve(periods, FLAGS.host, FLAGS.port)
+        with wire.arecord_periods(FLAGS.device) as periods:
+            sent = wire.serve(periods, FLAGS.host, FLAGS.port)
     print(
         f"pi_sender: {sent['ended']}; sent {sent['sent']} packets, dropped {sent['dropped']}, {sent['frames']} frames"
     )

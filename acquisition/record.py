@@ -173,44 +173,46 @@ def main(argv):
     for trial in range(FLAGS.first_trial, FLAGS.first_trial + FLAGS.trials):
         watching = watch(trial) if watch is not None else None
         on_step = watching.on_step if watching is not None else None
-        if FLAGS.simulate:
-            from acquisition import simulated_devices, simulated_signals
+        try:
+            if FLAGS.simulate:
+                from acquisition import simulated_devices, simulated_signals
 
-            signals = simulated_signals.trial_signals(
-                FLAGS.fabric, FLAGS.day, trial, n_cycles=FLAGS.cycles, condition=FLAGS.condition
-            )
-            with simulated_devices.simulated_rig(signals) as rig:
-                rec = recorder.record_trial(
-                    rig,
-                    simulated_signals.procedure(FLAGS.cycles),
-                    fabric_id=FLAGS.fabric,
-                    day=FLAGS.day,
-                    trial=trial,
-                    out_dir=out,
-                    condition=FLAGS.condition,
-                    on_step=on_step,
+                signals = simulated_signals.trial_signals(
+                    FLAGS.fabric, FLAGS.day, trial, n_cycles=FLAGS.cycles, condition=FLAGS.condition
                 )
-        else:
-            from acquisition.procedure import ExploratoryProcedure
+                with simulated_devices.simulated_rig(signals) as rig:
+                    rec = recorder.record_trial(
+                        rig,
+                        simulated_signals.procedure(FLAGS.cycles),
+                        fabric_id=FLAGS.fabric,
+                        day=FLAGS.day,
+                        trial=trial,
+                        out_dir=out,
+                        condition=FLAGS.condition,
+                        on_step=on_step,
+                    )
+            else:
+                from acquisition.procedure import ExploratoryProcedure
 
-            rig = hardware_rig(f"day{FLAGS.day}_{FLAGS.condition}_trial{trial}")
-            try:
-                rec = recorder.record_trial(
-                    rig,
-                    ExploratoryProcedure(n_cycles=FLAGS.cycles),
-                    fabric_id=FLAGS.fabric,
-                    day=FLAGS.day,
-                    trial=trial,
-                    out_dir=out,
-                    condition=FLAGS.condition,
-                    on_step=on_step,
-                )
-            finally:
-                rig.close()
-        if watching is not None:
-            watching.close()
-            if watching.dropped:
-                print(f"view: {watching.dropped} steps dropped (the viewer fell {Watcher.BACKLOG} steps behind)")
+                rig = hardware_rig(f"day{FLAGS.day}_{FLAGS.condition}_trial{trial}")
+                try:
+                    rec = recorder.record_trial(
+                        rig,
+                        ExploratoryProcedure(n_cycles=FLAGS.cycles),
+                        fabric_id=FLAGS.fabric,
+                        day=FLAGS.day,
+                        trial=trial,
+                        out_dir=out,
+                        condition=FLAGS.condition,
+                        on_step=on_step,
+                    )
+                finally:
+                    rig.close()
+        finally:  # on an error too: the viewer's thread ends and the recording is flushed
+            if watching is not None:
+                watching.close()
+        if watching is not None and watching.dropped:
+            print(f"view: {watching.dropped} steps dropped (the viewer fell {Watcher.BACKLOG} steps behind)")
         st = rec.archive.meta["step_time"]
         print(
             f"{rec.path}: {rec.archive.n_steps} steps, step p50 {st['p50_ms']} ms p99 {st['p99_ms']} ms, "

@@ -13,11 +13,12 @@ Stdlib only, so it runs on a bare Pi (`python -m acquisition.pi_sender`).
 
 from __future__ import annotations
 
+import contextlib
 import select
 import socket
 import struct
 import subprocess
-from typing import Callable, Iterable
+from typing import Callable, Iterable, Iterator
 
 RATE = 48000  # fabricjax.store.archive.AUDIO_RATE, repeated because this module is stdlib-only (tested equal)
 CHANNELS = 2
@@ -25,10 +26,15 @@ PERIOD = 512
 HEADER = struct.Struct("<4sIQI")  # magic, sequence, first frame, frames
 MAGIC = b"SPH0"
 FRAME_BYTES = 4 * CHANNELS
+ARECORD_EXIT_S = 2.0  # how long arecord gets to exit once terminated before it is killed
 
 
-def arecord_periods(device: str, period: int = PERIOD) -> Iterable[bytes]:
-    """Raw S32_LE stereo periods read from ALSA; paced by the sound card itself."""
+@contextlib.contextmanager
+def arecord_periods(device: str, period: int = PERIOD) -> Iterator[Iterator[bytes]]:
+    """A context giving raw S32_LE stereo periods read from ALSA, paced by the sound card itself.
+
+    A context, not a generator, so that arecord ends when the caller stops reading (the receiver
+    went away, an error), on every path, rather than whenever the garbage collector gets to it."""
     cmd = [
         "arecord",
         "-D",
@@ -45,7 +51,8 @@ def arecord_periods(device: str, period: int = PERIOD) -> Iterable[bytes]:
         "-q",
     ]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE)
-    try:
+
+    def periods() -> Iterator[bytes]:
         size = period * FRAME_BYTES
         while True:
             block = proc.stdout.read(size)
@@ -54,8 +61,17 @@ def arecord_periods(device: str, period: int = PERIOD) -> Iterable[bytes]:
                     f"arecord ended (exit code {proc.poll()}); check the I2S overlay and device {device}"
                 )
             yield block
+
+    try:
+        yield periods()
     finally:
         proc.terminate()
+        try:
+            proc.wait(timeout=ARECORD_EXIT_S)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
 
 
 def send_all(conn: socket.socket, packet: bytes) -> None:
