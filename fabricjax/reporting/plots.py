@@ -499,3 +499,21 @@ def plot_difference_panels(
         fig.colorbar(shown, ax=axes, shrink=0.8, label=label, extend="both", aspect=30)
     fig.suptitle(title, fontsize=9)
     return _save(fig, path)
+
+
+def plot_soak(path, series: Sequence[tuple[str, Sequence[float]]], from_run: int, flat: float) -> Path:
+    """Resident memory [MB] per run, one line per way of running (`series`: label, MB per run),
+    with the band in which it must stay from run `from_run` on (within `flat` of that run's)."""
+    fig, ax = plt.subplots(figsize=(7.2, 4.2), layout="constrained")
+    for i, (label, mb) in enumerate(series):
+        runs = np.arange(1, len(mb) + 1)
+        colour = plt.get_cmap("tab10")(i)
+        ax.plot(runs, mb, "o-", color=colour, ms=3, lw=1.2, label=label)
+        if len(mb) >= from_run:
+            ref = mb[from_run - 1]
+            ax.fill_between([from_run, len(mb)], ref * (1 - flat), ref * (1 + flat), color=colour, alpha=0.12, lw=0)
+    ax.set(xlabel="run", ylabel="resident memory [MB]", ylim=(0, None))
+    ax.set_title(f"Resident memory per run (bands: within {100 * flat:.0f} % of run {from_run})", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    return _save(fig, path)
