@@ -351,3 +351,18 @@ def test_a_load_stopped_by_an_error_leaves_no_reader_behind_and_cannot_deadlock(
     assert not runner.is_alive(), "the load after a failed load deadlocked"
     assert outcome["left"] == [], f"threads left running by the failed load: {outcome['left']}"
     assert set(outcome["sets"]) == set(data.SPLITS)
+
+
+def test_memory_mapped_sequences_of_another_code_version_are_never_read(dataset, tmp_path, monkeypatch):
+    """The stored sequences are keyed by the code that makes them, as the feature cache is: files
+    written by another version of `sequences.data` or of the features are made anew, not read."""
+    from fabricjax import source
+
+    cfg = _config(input_source="disk")
+    first = data.load_sequences(cfg, dataset, workdir=tmp_path / "ws", progress=False, workers=1)
+    real = source.fingerprint
+    monkeypatch.setattr(source, "fingerprint", lambda roots, *a: "another version " + real(roots, *a))
+    second = data.load_sequences(cfg, dataset, workdir=tmp_path / "ws", progress=False, workers=1)
+    folders = [p.name for p in (tmp_path / "ws" / "sequences").iterdir()]
+    assert len(folders) == 2, folders
+    assert first["train"].inputs["internal"].filename != second["train"].inputs["internal"].filename

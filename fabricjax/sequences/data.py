@@ -84,7 +84,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from absl import logging
 
-from fabricjax import catalog, host_arrays, memo, presets
+from fabricjax import catalog, host_arrays, memo, presets, source
 from fabricjax.config import MODALITY_NAMES, PAPER_WINDOW_S, Config
 from fabricjax.errors import UserError
 from fabricjax.features import cache, welch
@@ -97,6 +97,9 @@ SPLITS = archive.SPLITS
 # memory-mapped files instead (`sequence_store`), and training reads them from the host
 # (`fabricjax.training.feed`): the rest is left to the model, the features being computed, the page cache.
 MEMORY_FRACTION = 0.5
+# the code that turns features into sequences: memory-mapped sequences are keyed by it, so that
+# files written by another version of it are never read
+SEQUENCE_CODE = (__name__,)
 _SOURCE_FIELD = {"image": "images", "flow": "images", "proprio": "joints"}  # archive field behind a modality
 
 
@@ -545,6 +548,7 @@ def load_sequences(
             "rates": rates,
             "dataset": str(index.root.resolve()),
             "trials": {s: [[e.file, e.fingerprint] for e in members[s]] for s in wanted},
+            "code": source.fingerprint(SEQUENCE_CODE)[:16],
         },
     )
     inputs = store.load() if config.input_source != "memory" else None
