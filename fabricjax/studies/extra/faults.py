@@ -201,7 +201,8 @@ def truncate(folder: Path, workdir: Path, during: str, clean: str) -> Case:
         with open(p, "r+b") as f:
             f.truncate(size // 2)
         damaged[p] = size
-    case = _case("truncated", during, f"{len(damaged)} files cut to half", True, folder, workdir, clean)
+    what = f"{len(damaged)} file{'s' if len(damaged) != 1 else ''} cut to half"
+    case = _case("truncated", during, what, True, folder, workdir, clean)
     restored = all(p.exists() and p.stat().st_size == size for p, size in damaged.items())
     note = "" if restored else "; a damaged file was not written again"
     return dataclasses.replace(case, next_run=case.next_run + note, holds=case.holds and restored)
