@@ -11,24 +11,28 @@ the rows' checkpoints are removed, so that every run trains both rows as a first
 
 It records no time: a soak measures what stays, and its runs' times are in their logs. Per run it
 records the resident memory (a process's peak, from `wait4`; in this process, the resident set after
-the run), what is left running after it (processes in a run's session; in this process, its Python
-threads, its native threads and its child processes) and both rows' per-seed test accuracies. It
-holds when, from the `FROM_RUN`th run to the last, the memory stays within `FLAT` of the
-`FROM_RUN`th's, nothing is left running and every run's accuracies are identical.
+the run, once garbage is collected and freed pages returned), what is left running after it
+(processes in a run's session; in this process, its Python threads, its native threads and its child
+processes) and both rows' per-seed test accuracies. It holds when, from the `FROM_RUN`th run to the
+last, the memory stays within `FLAT` of the `FROM_RUN`th's, nothing is left running and every run's
+accuracies are identical.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import dataclasses
+import gc
 import json
 import os
 import shutil
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from absl import logging
 from tqdm import tqdm
@@ -45,6 +49,9 @@ PRESET, ROWS, SEEDS = "smoke", ("internal", "proprio"), 2
 INSTALL_CHECK = ["-m", "experiments.ablation", f"--preset={PRESET}", f"--rows={','.join(ROWS)}", f"--seeds={SEEDS}"]
 FROM_RUN = 5  # the runs before it warm caches up (data, features, compiled programs, allocator pools)
 FLAT = 0.10  # largest relative change of resident memory from run FROM_RUN to the last
+# how long a run's processes get to end after it: multiprocessing's resource tracker ends when its
+# parent's pipe closes, just after the parent, and a pool worker within `parallel.PARENT_POLL_S`
+LEFT_GRACE_S = 2.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -72,7 +79,8 @@ class Soak:
 
     @property
     def left(self) -> list[str]:
-        return sorted({x for r in self.runs for x in r.left})
+        """What each run left running, as "run k: what"."""
+        return [f"run {k}: {x}" for k, r in enumerate(self.runs, 1) for x in r.left]
 
     @property
     def native_threads_grew(self) -> bool:
@@ -126,6 +134,25 @@ def _children() -> list[str]:
     return out
 
 
+def _still_running(alive: Callable[[], list[str]]) -> list[str]:
+    """What `alive()` names once `LEFT_GRACE_S` has passed (or as soon as it names nothing)."""
+    deadline = time.monotonic() + LEFT_GRACE_S
+    while (left := alive()) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    return left
+
+
+def _retained_mb() -> float:
+    """This process's resident memory [MB] once garbage is collected and the allocator has handed
+    its free pages back: what a run keeps, not when Python's collector or glibc last ran."""
+    gc.collect()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc: the resident set as it is
+        pass
+    return _status("VmRSS") / 1024
+
+
 def _status(field: str) -> int:
     """A field of /proc/self/status (kB for memory fields)."""
     for line in Path("/proc/self/status").read_text().splitlines():
@@ -152,7 +179,7 @@ def as_processes(runs: int, root: Path, progress: bool = True) -> Soak:
         if proc.returncode != 0:
             raise RuntimeError(f"run {i + 1} of the install check failed: see {workspace.shown(log.name)}")
         doc = json.loads((results / f"{ablation.STUDY.name}.json").read_text())
-        out.append(Run(usage.ru_maxrss / 1024, _session_processes(proc.pid), _accuracies(doc)))
+        out.append(Run(usage.ru_maxrss / 1024, _still_running(lambda: _session_processes(proc.pid)), _accuracies(doc)))
     return Soak("processes", out)
 
 
@@ -171,10 +198,13 @@ def in_one_process(runs: int, root: Path, progress: bool = True) -> Soak:
                     doc = ablation.STUDY.run(n_seeds=SEEDS, preset=PRESET, rows=list(ROWS), where=where)
             finally:
                 logging.set_verbosity(verbosity)
-        left = [f"thread {t.name}" for t in set(threading.enumerate()) - threads] + [
-            f"process {p}" for p in _children()
-        ]
-        out.append(Run(_status("VmRSS") / 1024, left, _accuracies(doc), _status("Threads")))
+        left = _still_running(
+            lambda: (
+                [f"thread {t.name}" for t in set(threading.enumerate()) - threads if t.is_alive()]
+                + [f"process {p}" for p in _children()]
+            )
+        )
+        out.append(Run(_retained_mb(), left, _accuracies(doc), _status("Threads")))
     return Soak("one process", out)
 
 
@@ -229,7 +259,7 @@ def markdown(doc: dict[str, Any]) -> str:
                 f"{rss[-1]:.0f}",
                 f"{100 * s['memory_change']:+.1f} %",
                 ", ".join(s["left"]) or "nothing",
-                f"{threads[1]}-{max(threads[1:])}" if len(threads) > 1 else "-",
+                f"{min(threads[1:])}-{max(threads[1:])}" if len(threads) > 1 else "-",
                 "yes" if s["identical"] else "no",
                 "yes" if s["holds"] else "**no**",
             ]
@@ -244,7 +274,8 @@ def markdown(doc: dict[str, Any]) -> str:
         f"The install check (`{doc['install_check']}`) ran {doc['runs']} times as processes of their own, then "
         f"{doc['runs']} times inside one process through the library function (`ablation.STUDY.run`), in a "
         "workspace of its own; every run trained both rows (their checkpoints removed before it). Memory: a "
-        "process's peak resident set; in one process, its resident set after the run. Left running: processes "
+        "process's peak resident set; in one process, its resident set after the run, once garbage is collected "
+        "and freed pages returned. Left running (after a grace of a few seconds): processes "
         "in a run's session; in one process, Python threads started by a run and child processes alive after it. "
         f"It holds when memory from run {first} to the last changes by at most {100 * flat:.0f} %, nothing is "
         "left running, native threads do not grow after the first run, and every run's accuracies are identical.",
