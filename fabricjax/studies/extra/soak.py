@@ -52,6 +52,7 @@ FLAT = 0.10  # largest relative change of resident memory from run FROM_RUN to t
 # how long a run's processes get to end after it: multiprocessing's resource tracker ends when its
 # parent's pipe closes, just after the parent, and a pool worker within `parallel.PARENT_POLL_S`
 LEFT_GRACE_S = 2.0
+MEASURED = {"processes": "each run's peak", "one process": "kept after each run"}  # what memory means per way
 
 
 @dataclasses.dataclass(frozen=True)
@@ -215,7 +216,10 @@ def run(*, runs: int = RUNS, where: Location = Location(), progress: bool = True
     soaks = [as_processes(runs, root, progress), in_one_process(runs, root, progress)]
     folder = where.results_dir()
     figure = plots.plot_soak(
-        folder / f"{STUDY}.png", [(s.way, [r.rss_mb for r in s.runs]) for s in soaks], FROM_RUN, FLAT
+        folder / f"{STUDY}.png",
+        [(f"{s.way}: {MEASURED[s.way]}", [r.rss_mb for r in s.runs]) for s in soaks],
+        FROM_RUN,
+        FLAT,
     )
     doc = {
         **documents.header(
