@@ -53,6 +53,7 @@ BOUNDARIES = {
     "fabricjax.studies.tools.variant.read": "reads a results file",
     "fabricjax.studies.tools.staleness.check": "checks a results folder's fingerprints",
     "fabricjax.bench.suite._torch_twin": "builds the PyTorch twin of the benchmarks",
+    "fabricjax.studies.extra.soak.as_processes": "runs the install check again and again",
 }
 BENCHMARK_PREFIX = "bench_"  # and every benchmark function (fabricjax.bench, .timing, acquisition): "runs a benchmark"
 TIMEOUT_S = 120  # per example: one that reaches no boundary by then is reported
