@@ -22,7 +22,7 @@ trial order: the first fraction of its trials train, then val, then test),
 every trial's index must be in one) or `day` (by day, as the preset's days: the hand's protocol).
 
 A row's problems are collected, one line each, so that an import lists them all before it writes
-anything (`acquisition.batch_import`).
+anything (`fabricjax.importers.batch`).
 """
 
 from __future__ import annotations

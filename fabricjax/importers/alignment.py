@@ -38,10 +38,10 @@ from typing import Any
 
 import numpy as np
 
-from acquisition.camera import ForceProxy
-from acquisition.readers import REFERENCE_SUFFIXES, read_reference
-from acquisition.recording import RecordingImportError, Stream
 from fabricjax import catalog
+from fabricjax.force_proxy import ForceProxy
+from fabricjax.importers.streams import RecordingImportError, Stream
+from fabricjax.importers.trial_files import REFERENCE_SUFFIXES, read_reference
 from fabricjax.store import archive, integrity
 
 HOLE_STEPS = 3  # a stream silent for more than this many step periods has a hole (declared in meta.import)

@@ -32,7 +32,7 @@ A camera whose table names no reference is an error (`alignment.parse_reference`
 never takes one on its own. meta.reference.session is the manifest's `session` column, else the
 trial's day and condition, else (no days) the trial's own name.
 
-Alignment is the recorder's rule (`acquisition.alignment`): at each step, each microphone's
+Alignment is the recorder's rule (`fabricjax.importers.alignment`): at each step, each microphone's
 window ends after the last sample at or before it, the joints are the latest reading at or before
 it; steps before every microphone holds a full window at its own rate (2048 samples, or the rig
 file's mic_window_s where that is longer), before the
@@ -55,7 +55,8 @@ from typing import Any
 
 import numpy as np
 
-from acquisition.alignment import (
+from fabricjax.features import welch
+from fabricjax.importers.alignment import (
     ImportedReference,
     ReferenceSource,
     check_seconds,
@@ -66,10 +67,9 @@ from acquisition.alignment import (
     session_of,
     stream_gaps,
 )
-from acquisition.mapping_file import read_toml
-from acquisition.readers import read_camera, read_wav
-from acquisition.recording import RecordingImportError, Stream
-from fabricjax.features import welch
+from fabricjax.importers.mapping_file import read_toml
+from fabricjax.importers.streams import RecordingImportError, Stream
+from fabricjax.importers.trial_files import read_camera, read_wav
 from fabricjax.store import archive
 
 
