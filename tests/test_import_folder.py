@@ -223,6 +223,21 @@ def test_joint_timestamps_in_milliseconds_header_only_and_holes(tmp_path):
     )
 
 
+def test_a_wav_shorter_than_one_window_is_named(tmp_path):
+    """internal.wav cut to 1,000 samples gives no frame a full window: the error names the WAV, in
+    one line, not the camera whose frames it leaves without audio."""
+    write_folder(tmp_path / "t")
+    wav = tmp_path / "t" / "internal.wav"
+    rate, samples = wavfile.read(wav)
+    wavfile.write(wav, rate, samples[:1000])
+    with pytest.raises(RecordingImportError) as e:
+        hand_folder.import_folder(tmp_path / "t", TRIAL, reference=REFERENCE)
+    assert str(e.value) == (
+        f"{wav}: samples: 1000 samples (0.021 s at 48000 Hz), shorter than one step's window (2048 samples at "
+        "48000 Hz, 0.043 s): the recording is cut short"
+    )
+
+
 def test_bag_import_without_rosbags_says_how_to_install(tmp_path, monkeypatch):
     for name in {"rosbags", *(m for m in sys.modules if m.startswith("rosbags."))}:
         monkeypatch.setitem(sys.modules, name, None)  # as if the optional package were absent

@@ -826,6 +826,50 @@ def test_timestamps_in_milliseconds_holes_and_cut_off_wavs(tmp_path):
     assert "note: 1 trials are incomplete" in said and "note: 1 trials have holes in the joints" in said
 
 
+def test_a_wav_cut_short_is_named_not_the_joints_it_fails_to_cover(tmp_path):
+    """A vibration.wav cut to 1,000 samples is the file at fault: a 7 s trial's joints span far more
+    than its 0.45 s (readings 10 ms apart are seconds), a 2 s trial's steps find no full window in it;
+    both errors name the WAV, in one line."""
+    from scipy.io import wavfile
+
+    for seconds in (7.0, 2.0):
+        root = tmp_path / f"rig{seconds:g}"
+        manifest = _small(root, labels=LABELS[:1], trials=1, seconds=(seconds, seconds))
+        wav = root / "recordings" / "00_000" / "vibration.wav"
+        rate, samples = wavfile.read(wav)
+        wavfile.write(wav, rate, samples[:1000])
+        with pytest.raises(UserError) as e:
+            _run(manifest, root / "out")
+        assert re.fullmatch(
+            rf"{re.escape(str(wav))}: samples: 1000 samples.*: the (file|recording) is cut short", str(e.value)
+        )
+        assert not list((root / "out").glob("*.npz"))
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered in cast:RuntimeWarning")  # the 1e39 joints
+def test_a_manifests_bad_trial_is_named_by_its_line_not_by_a_staged_archive(tmp_path):
+    """A negative trial index is the manifest's line; an archive its recording cannot make (joints
+    beyond float32) is named by the line and the recording, never by the hidden staging folder."""
+    manifest = _small(tmp_path / "rig", labels=LABELS[:1], trials=2)
+    _edit_manifest(manifest, manifest, lambda rows: [rows[0], rows[1], [*rows[2][:2], "-1", *rows[2][3:]]])
+    with pytest.raises(UserError) as e:
+        _run(manifest, tmp_path / "out")
+    assert str(e.value) == f"{manifest}: line 3: trial: must be an integer from 0 to {archive.MAX_INT}, got '-1'"
+    _edit_manifest(manifest, manifest, lambda rows: [rows[0], rows[1], [*rows[2][:2], "1", *rows[2][3:]]])
+    joints = tmp_path / "rig" / "recordings" / "00_001" / "joints.csv"
+    header, *rows = joints.read_text().splitlines()
+    rows = [",".join([time, "1e39", *rest]) for time, _, *rest in (r.split(",") for r in rows)]
+    joints.write_text("\n".join([header, *rows]) + "\n")  # every arm_0_angle beyond float32
+    with pytest.raises(UserError) as e:
+        _run(manifest, tmp_path / "out")
+    assert re.fullmatch(
+        rf"{re.escape(str(manifest))}: line 3: joints: \d+ non-finite values \(NaN or Inf\), in the archive made "
+        rf"from {re.escape(str(joints.parent))}",
+        str(e.value),
+    )
+    assert not list((tmp_path / "out").glob("*.npz"))
+
+
 def test_latin1_manifest_read_only_out_and_unread_columns_are_one_line(tmp_path):
     manifest = _small(tmp_path / "rig", labels=["felt"], trials=1)
     latin = tmp_path / "rig" / "latin1.csv"

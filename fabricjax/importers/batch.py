@@ -80,13 +80,16 @@ class Job:
     split: str | None
     rig: rig_folder.Rig | None
     mapping: dict[str, Any] | None
+    manifest: str  # the manifest that lists the trial, for errors
     reference: ReferenceSource | None = None  # the camera's session reference; None: no camera
 
 
 def _import_one(job: Job) -> None:
     """One trial, by the importer for its kind, written atomically to its staging path (a worker's
     job); a trial that cannot be imported leaves its one-line error beside it (`<target>.error`),
-    so every trial is tried and every error reported, with one worker or many."""
+    so every trial is tried and every error reported, with one worker or many. An archive the
+    writer refuses is named by the manifest's line and the recording, never by the staging path,
+    which the user neither chose nor can find once the import has stopped."""
     try:
         if job.kind == "rig":
             result = rig_folder.import_rig_folder(job.row.path, job.rig, job.meta_fields, session=job.row.session)
@@ -99,7 +102,12 @@ def _import_one(job: Job) -> None:
             )
             if job.split is not None:
                 result.meta["split"] = job.split
-        archive.write_archive(job.target, result)
+        try:
+            archive.write_archive(job.target, result)
+        except archive.ArchiveError as e:
+            raise ManifestError(
+                job.manifest, job.row.line, e.field, f"{e.problem}, in the archive made from {job.row.path}"
+            ) from None
     except UserError as e:
         with atomic_open(job.target + ".error", "w") as f:
             f.write(str(e))
@@ -189,7 +197,7 @@ def plan(
             )
             continue
         names[name] = r.line
-        jobs.append(Job(kind, r, str(out / name), fields, split, rig, mapping, reference))
+        jobs.append(Job(kind, r, str(out / name), fields, split, rig, mapping, str(manifest), reference))
     return jobs
 
 

@@ -65,6 +65,7 @@ from fabricjax.importers.alignment import (
     pre_contact,
     reference_meta,
     session_of,
+    short_of_a_window,
     stream_gaps,
 )
 from fabricjax.importers.mapping_file import read_toml
@@ -260,16 +261,19 @@ def align_rig(
     n = len(times)
     usable = np.ones(n, bool)
     ends = []
-    for mic in mics:
+    windows = [max(archive.WINDOW, welch.window_samples(rig.mic_window_s or 0, int(mic.rate))) for mic in mics]
+    for mic, window in zip(mics, windows):
         k = np.searchsorted(mic.times, times, side="right") - 1
         end = np.where(k >= 0, mic.counts[np.maximum(k, 0)], 0)
-        usable &= end >= max(archive.WINDOW, welch.window_samples(rig.mic_window_s or 0, int(mic.rate)))
+        usable &= end >= window
         usable &= times <= mic.times[-1]  # after its last sample a window would be stale
         ends.append(end)
     if joint_times is not None:
         jk = np.searchsorted(joint_times, times, side="right") - 1
         usable &= (jk >= 0) & (times <= joint_times[-1])
     if not usable.any():
+        if short := short_of_a_window(mics, [len(m.samples) for m in mics], windows, [int(m.rate) for m in mics]):
+            raise short
         raise RecordingImportError(
             where,
             "steps",
