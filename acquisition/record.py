@@ -68,9 +68,10 @@ flags.DEFINE_string(
 def hardware_rig(session: str) -> recorder.Rig:
     """The hand's devices, opened; the fingers must be open: the camera's no-contact reference of
     `session` is taken now (`camera.take_reference`), and the force proxy reads against it."""
-    from acquisition.camera import Camera, ForceProxy, take_reference
+    from acquisition.camera import Camera, take_reference
     from acquisition.mics import MicReceiver
     from acquisition.servos import ServoBus
+    from fabricjax.force_proxy import ForceProxy
 
     bus = ServoBus(FLAGS.servo_port)
     bus.ping_all()

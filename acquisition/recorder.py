@@ -18,11 +18,12 @@ from typing import Any, Callable
 import numpy as np
 
 from acquisition import camera as camera_mod
-from acquisition.camera import Camera, CameraError, ForceProxy, Reference
+from acquisition.camera import Camera, CameraError, Reference
 from acquisition.mics import MicError, MicReceiver
 from acquisition.procedure import ExploratoryProcedure, ProcedureError
 from acquisition.servos import ServoBus, ServoError
 from fabricjax import catalog
+from fabricjax.force_proxy import ForceProxy
 from fabricjax.reporting import stats
 from fabricjax.store import archive
 

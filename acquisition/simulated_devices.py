@@ -35,9 +35,10 @@ import scservo_sdk as scs
 
 from acquisition import camera as camera_mod
 from acquisition import servos, wire
-from acquisition.camera import Camera, ForceProxy, Reference
+from acquisition.camera import Camera, Reference
 from acquisition.mics import MicReceiver
 from acquisition.recorder import Rig
+from fabricjax.force_proxy import ForceProxy
 from fabricjax.store import archive
 
 

@@ -17,7 +17,6 @@ import dataclasses
 from absl import app
 from absl import flags as absl_flags
 
-from acquisition.other_rig import bench_import
 from acquisition.simulated_signals import bench_acquisition
 from experiments import flags
 from fabricjax.bench import suite as bench
@@ -48,7 +47,6 @@ def main(argv):
         quick=FLAGS.quick,
         workload=workload,
         acquisition=bench_acquisition,
-        importer=bench_import,
         where=flags.location(),
     )
 

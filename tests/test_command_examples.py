@@ -13,8 +13,9 @@ directory, with `--workdir` and `--results` (and `experiments.estimates`' `--doc
 temporary paths, and stops where its work would begin (`BOUNDARIES`: loading or simulating data,
 simulating a scene (a training study's plan, printed before it trains, times one), reading an
 archive or a results file, checking a results folder's fingerprints, restoring a checkpoint,
-verifying a folder, a benchmark): a full run takes minutes to hours, and what it reads (DIR,
-ARCHIVE, a checkpoint) is a placeholder. Joining a run over several processes (`--distributed`)
+verifying a folder, reading a recording to import (its manifest, mapping, rig file or trial
+folder), a benchmark): a full run takes minutes to hours, and what it reads (DIR, ARCHIVE, a
+checkpoint, MANIFEST.csv) is a placeholder. Joining a run over several processes (`--distributed`)
 is skipped, so such an example is checked as one process. An example that needs a screen (`--view`) is checked as
 on a machine with one. Example commands that finish before any boundary (`--plan`,
 `estimates --check`) run to the end. What it does not prove: that the data, checkpoints or files an
@@ -37,7 +38,9 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 PREFIX = "python -m experiments."
-COMMANDS = sorted(p.stem for p in (REPO / "experiments").glob("*.py") if p.stem not in ("__init__", "flags"))
+COMMANDS = sorted(
+    p.stem for p in (REPO / "experiments").glob("*.py") if p.stem not in ("__init__", "flags", "import_flags")
+)
 DOCUMENTS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 # Where a command's work begins, and what that work is: an example stops there (module docstring).
 BOUNDARIES = {
@@ -50,12 +53,16 @@ BOUNDARIES = {
     "fabricjax.store.archive.read_archive": "reads a trial archive",
     "fabricjax.training.train.restore": "restores a checkpoint",
     "fabricjax.store.integrity.verify": "verifies a folder of archives",
+    "fabricjax.importers.manifest_file.read_manifest": "reads a manifest",
+    "fabricjax.importers.mapping_file.read_toml": "reads a mapping or rig file",
+    "fabricjax.importers.hand_folder.import_folder": "reads a trial folder",
     "fabricjax.studies.tools.variant.read": "reads a results file",
     "fabricjax.studies.tools.staleness.check": "checks a results folder's fingerprints",
     "fabricjax.bench.suite._torch_twin": "builds the PyTorch twin of the benchmarks",
     "fabricjax.studies.extra.soak.as_processes": "runs the install check again and again",
 }
-BENCHMARK_PREFIX = "bench_"  # and every benchmark function (fabricjax.bench, .timing, acquisition): "runs a benchmark"
+# every benchmark function (of fabricjax.bench, .timing, .importers and acquisition): "runs a benchmark"
+BENCHMARK_PREFIX = "bench_"
 TIMEOUT_S = 120  # per example: one that reaches no boundary by then is reported
 REFUSED = f"{PREFIX}ablation --set=backbone=tcn"  # the negative control: the ablation's rows set the backbone
 
@@ -242,7 +249,7 @@ def _patch_boundaries() -> None:
         targets[id(getattr(importlib.import_module(module), name))] = (dotted, work)
     for mod in list(sys.modules.values()):
         name = getattr(mod, "__name__", "")
-        if name.startswith(("fabricjax.bench", "fabricjax.timing", "acquisition")):
+        if name.startswith(("fabricjax.bench", "fabricjax.timing", "fabricjax.importers", "acquisition")):
             for attr, value in list(vars(mod).items()):
                 if attr.startswith(BENCHMARK_PREFIX) and callable(value) and getattr(value, "__module__", None) == name:
                     targets[id(value)] = (f"{name}.{attr}", "runs a benchmark")

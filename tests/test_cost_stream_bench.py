@@ -9,7 +9,6 @@ import jax
 import numpy as np
 import pytest
 
-from acquisition.other_rig import bench_import
 from acquisition.simulated_signals import bench_acquisition
 from fabricjax import catalog, sim
 from fabricjax.bench import program_timing
@@ -17,6 +16,7 @@ from fabricjax.bench import suite as bench
 from fabricjax.config import Config
 from fabricjax.features import welch
 from fabricjax.features.extract import log_psd, mic_windows
+from fabricjax.importers import example_rig
 from fabricjax.inference import live
 from fabricjax.store import archive
 from fabricjax.store.workspace import Location
@@ -216,18 +216,19 @@ def test_stream_run_trains_a_quick_model_then_restores_it(smoke_workdir, tmp_pat
 
 
 @pytest.mark.slow  # ~30-55 s on 2 cores: run with -m slow
-def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path):
+def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path, monkeypatch):
     workload = bench.Workload(
         Config(preset="smoke", modalities=("internal", "external", "proprio"), seq_len=12, **TINY), batch=8, bins=24
     )
     lines = []
+    full = example_rig.bench_import
+    monkeypatch.setattr(example_rig, "bench_import", lambda trials: full(trials=20, seconds=(2.0, 3.0)))
     doc = bench.run(
         quick=True,
         workload=workload,
         where=Location(workdir=smoke_workdir, results=tmp_path, command="test"),
         out=lines.append,
         acquisition=bench_acquisition,
-        importer=lambda trials: bench_import(trials=20, seconds=(2.0, 3.0)),
     )
     saved = json.loads((tmp_path / "bench.json").read_text())
     assert set(saved["benchmarks"]) == set(bench.BENCHMARKS) and saved["machine"]["cores"] > 0

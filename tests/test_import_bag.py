@@ -9,14 +9,14 @@ import cv2
 import numpy as np
 import pytest
 
-from acquisition.recording import RecordingImportError
+from fabricjax.importers.streams import RecordingImportError
 from fabricjax.store import archive
 
 pytest.importorskip("rosbags")
 
 from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
 
-from acquisition import ros_bag, ros_messages  # noqa: E402
+from fabricjax.importers import ros_bag, ros_messages  # noqa: E402
 
 TS = ros_messages.typestore_for([])  # ROS 2 Humble's types and audio_common's
 T0 = 100.0  # s, the first frame's stamp
@@ -302,7 +302,7 @@ def test_command_writes_archive_and_reports_errors_in_one_line(tmp_path):
     cmd = [
         sys.executable,
         "-m",
-        "acquisition.import_bag",
+        "experiments.import_bag",
         str(bag),
         f"--map={tmp_path / 'map.toml'}",
         f"--out={tmp_path / 'out'}",

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from scipy.io import wavfile
 
-from acquisition import hand_folder, ros_bag
-from acquisition.alignment import ReferenceSource
-from acquisition.recording import RecordingImportError
 from fabricjax.errors import UserError
+from fabricjax.importers import hand_folder, ros_bag
+from fabricjax.importers.alignment import ReferenceSource
+from fabricjax.importers.streams import RecordingImportError
 from fabricjax.store import archive
 
 N, H, W, FPS = 15, 8, 10, 50
@@ -118,7 +118,7 @@ def test_a_reference_file_npy_or_pre_contact_frames_and_none_is_a_one_line_error
     cmd = [
         sys.executable,
         "-m",
-        "acquisition.import_folder",
+        "experiments.import_folder",
         str(tmp_path / "t"),
         f"--out={tmp_path / 'o'}",
         "--fabric=4",
@@ -156,7 +156,7 @@ def test_folder_errors_name_file_field_and_problem(tmp_path):
         [
             sys.executable,
             "-m",
-            "acquisition.import_folder",
+            "experiments.import_folder",
             str(tmp_path / "rate"),
             f"--out={tmp_path / 'o'}",
             "--fabric=4",
@@ -173,9 +173,9 @@ def test_folder_errors_name_file_field_and_problem(tmp_path):
 
 
 def test_another_rigs_folder_names_every_missing_file_and_the_rig_import(tmp_path):
-    from acquisition import other_rig
+    from fabricjax.importers import example_rig
 
-    other_rig.write_recordings(tmp_path / "rig", ["felt"], 1, seconds=(2.0, 2.0))
+    example_rig.write_recordings(tmp_path / "rig", ["felt"], 1, seconds=(2.0, 2.0))
     folder = tmp_path / "rig" / "recordings" / "00_000"
     with pytest.raises(RecordingImportError) as e:
         hand_folder.import_folder(folder, TRIAL, reference=REFERENCE)
@@ -183,7 +183,7 @@ def test_another_rigs_folder_names_every_missing_file_and_the_rig_import(tmp_pat
         f"{folder}: <folder>: not a trial folder of the hand's layout: missing internal.wav, external.wav, camera{{"
     )
     assert "joints.csv" not in str(e.value).split(";")[0]  # the folder has one
-    assert "python -m acquisition.import_manifest MANIFEST.csv --out=DIR --rig=rig.toml" in str(e.value)
+    assert "python -m experiments.import_manifest MANIFEST.csv --out=DIR --rig=rig.toml" in str(e.value)
 
 
 def test_a_cut_off_wav_imports_as_incomplete(tmp_path):
@@ -220,6 +220,21 @@ def test_joint_timestamps_in_milliseconds_header_only_and_holes(tmp_path):
         and gaps[0]["from_s"] == pytest.approx(0.15)
         and gaps[0]["seconds"] == pytest.approx(0.15, abs=0.011)
         and gaps[0]["steps"] == 7
+    )
+
+
+def test_a_wav_shorter_than_one_window_is_named(tmp_path):
+    """internal.wav cut to 1,000 samples gives no frame a full window: the error names the WAV, in
+    one line, not the camera whose frames it leaves without audio."""
+    write_folder(tmp_path / "t")
+    wav = tmp_path / "t" / "internal.wav"
+    rate, samples = wavfile.read(wav)
+    wavfile.write(wav, rate, samples[:1000])
+    with pytest.raises(RecordingImportError) as e:
+        hand_folder.import_folder(tmp_path / "t", TRIAL, reference=REFERENCE)
+    assert str(e.value) == (
+        f"{wav}: samples: 1000 samples (0.021 s at 48000 Hz), shorter than one step's window (2048 samples at "
+        "48000 Hz, 0.043 s): the recording is cut short"
     )
 
 

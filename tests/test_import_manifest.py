@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acquisition import batch_import, manifest_file, other_rig
 from fabricjax.errors import UserError
+from fabricjax.importers import batch, example_rig, manifest_file
 from fabricjax.store import archive
 from fabricjax.store.workspace import Location
 
@@ -25,7 +25,7 @@ SPLITS = {0: "train", 1: "train", 2: "val", 3: "test"}
 
 @pytest.fixture(scope="module")
 def recordings(tmp_path_factory):
-    return other_rig.write_recordings(tmp_path_factory.mktemp("rig"), LABELS, 4, splits=SPLITS)
+    return example_rig.write_recordings(tmp_path_factory.mktemp("rig"), LABELS, 4, splits=SPLITS)
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +38,7 @@ def archives(recordings, tmp_path_factory):
 
 def _run(manifest, out, **kw):
     said = []
-    summary = batch_import.run(
+    summary = batch.run(
         manifest, out, rig=manifest.parent / "rig.toml", workers=1, progress=False, say=said.append, **kw
     )
     return summary, "\n".join(said)
@@ -50,7 +50,7 @@ def test_one_command_imports_the_rig_as_it_is(recordings, tmp_path):
         [
             sys.executable,
             "-m",
-            "acquisition.import_manifest",
+            "experiments.import_manifest",
             str(recordings),
             f"--out={out}",
             f"--rig={recordings.parent / 'rig.toml'}",
@@ -144,7 +144,7 @@ def test_rerun_resumes_and_a_foreign_archive_needs_overwrite(recordings, tmp_pat
 
 
 def test_fraction_rule_splits_each_class_in_trial_order(tmp_path):
-    manifest = other_rig.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
+    manifest = example_rig.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
     summary, _ = _run(manifest, tmp_path / "out", split="fraction:0.5,0.25,0.25")
     assert summary["splits"] == {"train": 4, "val": 2, "test": 2}
     assert archive.read_meta(tmp_path / "out" / "felt_trial003.npz")[0]["split"] == "test"
@@ -152,7 +152,7 @@ def test_fraction_rule_splits_each_class_in_trial_order(tmp_path):
 
 
 def test_trial_rule_splits_every_class_by_trial_index(tmp_path):
-    manifest = other_rig.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
+    manifest = example_rig.write_recordings(tmp_path / "rig", LABELS[:2], 4, seconds=(2.0, 2.5))
     summary, _ = _run(manifest, tmp_path / "out", split="trial:train=0-1,val=2,test=3")
     assert summary["splits"] == {"train": 4, "val": 2, "test": 2}
     assert [archive.read_meta(tmp_path / "out" / f"felt_trial00{k}.npz")[0]["split"] for k in range(4)] == [
@@ -214,22 +214,22 @@ def test_silent_cases_are_messages(recordings, tmp_path):
 
 
 def test_rig_file_mistakes_are_named(tmp_path):
-    from acquisition import rig
+    from fabricjax.importers import rig_folder
 
     bad = tmp_path / "rig.toml"
     bad.write_text('[[mics]]\nname = "v"\nfile = "v.wav"\nrole = "palm"\n[steps]\nrate = 50\n')
     with pytest.raises(UserError, match=r"rig\.toml: mics\[0\]\.role: must be one of"):
-        rig.load_rig(bad)
+        rig_folder.load_rig(bad)
     bad.write_text('[[mics]]\nname = "v"\nfile = "v.wav"\n')
     with pytest.raises(UserError, match=r"steps\.rate: missing: without a camera or joints"):
-        rig.load_rig(bad)
+        rig_folder.load_rig(bad)
     for value in ("0", "-1.5", '"0.5"', "true", "nan", "inf"):
         bad.write_text(f'[[mics]]\nname = "v"\nfile = "v.wav"\n[steps]\nrate = 50\nmic_window_s = {value}\n')
         with pytest.raises(UserError, match=r"rig\.toml: steps\.mic_window_s: must be a duration in seconds > 0, got"):
-            rig.load_rig(bad)
+            rig_folder.load_rig(bad)
     bad.write_text('[[mics]]\nname = "v"\nfile = "v.wav"\n[steps]\nrate = 50\nwindow = 0.5\n')
     with pytest.raises(UserError, match=r"rig\.toml: steps\.window: unknown key \(known: rate, mic_window_s\)"):
-        rig.load_rig(bad)
+        rig_folder.load_rig(bad)
     for camera, words in [
         ('reference_topic = "/ref"', r"camera\.reference_topic: unknown key \(known: reference, reference_frames\)"),
         ('reference = "ref.txt"', r"camera\.reference: 'ref\.txt': a reference file is an image, a video or a \.npy"),
@@ -240,12 +240,12 @@ def test_rig_file_mistakes_are_named(tmp_path):
     ]:
         bad.write_text(f'[[mics]]\nname = "v"\nfile = "v.wav"\n[camera]\n{camera}\n')
         with pytest.raises(UserError, match=rf"rig\.toml: {words}"):
-            rig.load_rig(bad)
+            rig_folder.load_rig(bad)
     with pytest.raises(
         UserError,
         match=r"--reference names the session reference of the hand's trial folders; a rig file names its camera's own",
     ):
-        batch_import.run(tmp_path / "manifest.csv", tmp_path / "out", rig=bad, reference="pre_contact")
+        batch.run(tmp_path / "manifest.csv", tmp_path / "out", rig=bad, reference="pre_contact")
 
 
 def test_the_rig_files_step_window_is_recorded_and_loads_by_default(tmp_path):
@@ -255,9 +255,9 @@ def test_the_rig_files_step_window_is_recorded_and_loads_by_default(tmp_path):
     from fabricjax.features import welch
     from fabricjax.sequences import data
 
-    window_s = archive.WINDOW * 1.5 / other_rig.VIBRATION_RATE
-    toml = other_rig.RIG_TOML.replace(
-        f"rate = {other_rig.STEP_RATE}\n", f"rate = {other_rig.STEP_RATE}\nmic_window_s = {window_s!r}\n"
+    window_s = archive.WINDOW * 1.5 / example_rig.VIBRATION_RATE
+    toml = example_rig.RIG_TOML.replace(
+        f"rate = {example_rig.STEP_RATE}\n", f"rate = {example_rig.STEP_RATE}\nmic_window_s = {window_s!r}\n"
     )
     _run(_rig_manifest(tmp_path / "rig", toml), tmp_path / "out")
     a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000.npz")
@@ -348,25 +348,21 @@ def test_the_bandwidth_plot_names_the_rigs_microphone(archives, tmp_path):
     assert bandwidth.microphone(loading.Dataset({}, archives, "simulated", 0.0, 0.0)) == "Minsound"
 
 
-def test_import_benchmark_entry_and_row(tmp_path):
+def test_import_benchmark_entry_and_row(tmp_path, monkeypatch):
+    """The suite times the library's own batch import (here at a test's size)."""
     from fabricjax.bench import suite as bench
 
-    doc = bench.run(
-        only=["import"],
-        where=Location(results=tmp_path, command="test"),
-        out=lambda s: None,
-        importer=lambda trials: other_rig.bench_import(trials=20, seconds=(2.0, 3.0), workers=1),
-    )
+    full = example_rig.bench_import
+    monkeypatch.setattr(example_rig, "bench_import", lambda trials: full(trials=20, seconds=(2.0, 3.0), workers=1))
+    doc = bench.run(only=["import"], where=Location(results=tmp_path, command="test"), out=lambda s: None)
     entry = doc["benchmarks"]["import"]
     assert entry["trials"] == 20 and entry["steps"] > 0 and entry["wall_s"] > 0
     assert "batch import, 20 trials of 2-3 s" in (tmp_path / "bench.md").read_text()
-    with pytest.raises(ValueError, match="the import benchmark needs its function"):
-        bench.run(only=["import"], where=Location(results=tmp_path, command="test"), out=lambda s: None)
 
 
 def _rig_manifest(root, rig_toml, labels=LABELS[:1], trials=1, seconds=(2.0, 2.0), splits=None):
-    """A rig's recordings (`other_rig`) under another rig file: its step clock or microphones."""
-    manifest = other_rig.write_recordings(
+    """A rig's recordings (`example_rig`) under another rig file: its step clock or microphones."""
+    manifest = example_rig.write_recordings(
         root, labels, trials, seconds, splits=splits or {k: "train" for k in range(trials)}
     )
     (root / "rig.toml").write_text(rig_toml)
@@ -375,24 +371,24 @@ def _rig_manifest(root, rig_toml, labels=LABELS[:1], trials=1, seconds=(2.0, 2.0
 
 def test_without_a_camera_or_a_rate_the_joints_timestamps_are_the_steps(tmp_path):
     manifest = _rig_manifest(
-        tmp_path / "rig", other_rig.RIG_TOML.replace(f"[steps]\nrate = {other_rig.STEP_RATE}\n", "")
+        tmp_path / "rig", example_rig.RIG_TOML.replace(f"[steps]\nrate = {example_rig.STEP_RATE}\n", "")
     )
     _run(manifest, tmp_path / "out")
     a = archive.read_archive(tmp_path / "out" / "cotton_canvas_trial000.npz")
     lay = archive.layout(a.meta)
-    assert lay.step_clock == "joints" and lay.step_rate == other_rig.JOINT_RATE
-    np.testing.assert_allclose(np.diff(a.timestamps), 1 / other_rig.JOINT_RATE, atol=1e-9)
+    assert lay.step_clock == "joints" and lay.step_rate == example_rig.JOINT_RATE
+    np.testing.assert_allclose(np.diff(a.timestamps), 1 / example_rig.JOINT_RATE, atol=1e-9)
     # every step is one joint reading, as read (no interpolation): the rows from the first usable one
     table = np.loadtxt(tmp_path / "rig" / "recordings" / "00_000" / "joints.csv", delimiter=",", skiprows=1)
     first = a.meta["import"]["steps_dropped_before_start"]
     assert first == int(
-        np.ceil(archive.WINDOW / other_rig.VIBRATION_RATE * other_rig.JOINT_RATE)
+        np.ceil(archive.WINDOW / example_rig.VIBRATION_RATE * example_rig.JOINT_RATE)
     )  # a full 2048-sample window
-    rows = table[first : first + a.n_steps, 1:-1].reshape(a.n_steps, other_rig.N_JOINTS, 3)
+    rows = table[first : first + a.n_steps, 1:-1].reshape(a.n_steps, example_rig.N_JOINTS, 3)
     np.testing.assert_allclose(a.joints, rows.astype(np.float32))
     step_t = table[first : first + a.n_steps, 0]
     np.testing.assert_array_equal(
-        a.window_end[:, 0], np.floor(step_t * other_rig.VIBRATION_RATE + 1e-9).astype(np.int64) + 1
+        a.window_end[:, 0], np.floor(step_t * example_rig.VIBRATION_RATE + 1e-9).astype(np.int64) + 1
     )
 
 
@@ -400,7 +396,7 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     import cv2
 
     manifest = _rig_manifest(
-        tmp_path / "rig", other_rig.RIG_TOML + '\n[camera]\nreference = "pre_contact"\nreference_frames = 2\n'
+        tmp_path / "rig", example_rig.RIG_TOML + '\n[camera]\nreference = "pre_contact"\nreference_frames = 2\n'
     )
     folder = tmp_path / "rig" / "recordings" / "00_000"
     frames = np.random.default_rng(1).integers(0, 255, size=(12, 6, 8, 3), dtype=np.uint8)
@@ -415,7 +411,9 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     assert lay.step_clock == "camera" and lay.step_rate == pytest.approx(30.0, abs=1e-3) and lay.image_size == (6, 8)
     np.testing.assert_allclose(a.timestamps, frame_t - frame_t[0], atol=1e-6)
     np.testing.assert_array_equal(a.images, frames)
-    np.testing.assert_array_equal(a.window_end[:, 0], np.floor(frame_t * other_rig.VIBRATION_RATE).astype(np.int64) + 1)
+    np.testing.assert_array_equal(
+        a.window_end[:, 0], np.floor(frame_t * example_rig.VIBRATION_RATE).astype(np.int64) + 1
+    )
     assert "image" in lay.modalities() and "flow" in lay.modalities()
     np.testing.assert_array_equal(a.reference, frames[:2])  # the rig file asks for the trial's first frames
     assert a.meta["reference"] == {
@@ -425,7 +423,7 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
     }  # no days: the trial's own name
     # a reference file the rig file names, and the manifest's session column; the rig file must name one
     np.save(folder / "reference.npy", frames[-1])
-    (tmp_path / "rig" / "rig.toml").write_text(other_rig.RIG_TOML + '\n[camera]\nreference = "reference.npy"\n')
+    (tmp_path / "rig" / "rig.toml").write_text(example_rig.RIG_TOML + '\n[camera]\nreference = "reference.npy"\n')
     _edit_manifest(
         manifest, manifest, lambda rows: [r + ["session" if i == 0 else "bench 2"] for i, r in enumerate(rows)]
     )
@@ -437,14 +435,14 @@ def test_a_cameras_timestamps_are_the_steps_at_its_own_frame_rate(tmp_path):
         "session": "bench 2",
         "times_s": None,
     }
-    (tmp_path / "rig" / "rig.toml").write_text(other_rig.RIG_TOML + '\n[camera]\nreference = "pre_contact"\n')
+    (tmp_path / "rig" / "rig.toml").write_text(example_rig.RIG_TOML + '\n[camera]\nreference = "pre_contact"\n')
     with pytest.raises(
         UserError,
         match=r"exists, but its camera reference was read from reference\.npy, not from pre_contact: the first 5 "
         r"frames",
     ):
         _run(manifest, tmp_path / "out2")  # a rerun notices the rig file's new reference
-    (tmp_path / "rig" / "rig.toml").write_text(other_rig.RIG_TOML + "\n[camera]\n")
+    (tmp_path / "rig" / "rig.toml").write_text(example_rig.RIG_TOML + "\n[camera]\n")
     with pytest.raises(UserError) as e:
         _run(manifest, tmp_path / "out3")
     assert str(e.value) == (
@@ -463,7 +461,7 @@ def test_two_microphones_at_their_own_rates_each_give_their_own_psd(tmp_path):
     from fabricjax.features import welch
     from fabricjax.sequences import data
 
-    room = other_rig.RIG_TOML.replace(
+    room = example_rig.RIG_TOML.replace(
         "[joints]", '[[mics]]\nname = "room"\nfile = "room.wav"\nrole = "external"\n\n[joints]'
     )
     manifest = _rig_manifest(tmp_path / "rig", room, labels=LABELS[:2], trials=2, splits={0: "train", 1: "test"})
@@ -515,7 +513,7 @@ def test_property_columns_give_levels_only_where_given(tmp_path):
     from fabricjax.config import Config
     from fabricjax.sequences import data
 
-    manifest = other_rig.write_recordings(
+    manifest = example_rig.write_recordings(
         tmp_path / "rig", LABELS[:2], 2, seconds=(2.0, 2.0), splits={0: "train", 1: "test"}
     )
     levels = {"cotton canvas": ("1", "3", ""), "felt": ("0", "", "")}  # stretchiness, roughness, thickness
@@ -621,9 +619,9 @@ def test_bags_import_through_a_manifest_with_a_map(tmp_path):
 
 
 def _run_hand(manifest, out, **kw):
-    """`batch_import.run` without a rig file: the hand's folders, or bags with `mapping`."""
+    """`batch.run` without a rig file: the hand's folders, or bags with `mapping`."""
     said = []
-    return batch_import.run(manifest, out, workers=1, progress=False, say=said.append, **kw), "\n".join(said)
+    return batch.run(manifest, out, workers=1, progress=False, say=said.append, **kw), "\n".join(said)
 
 
 @pytest.mark.slow  # ~1-2 min on 2 shared cores: one smoke-size point
@@ -642,8 +640,8 @@ def test_the_cost_study_reads_the_imported_rig_without_the_paper_point(archives,
         where=Location(workdir=tmp_path / "ws", data_dir=archives, results=tmp_path / "results", command="test"),
     )
     assert doc["paper_point"] is None and "paper" not in {p["group"] for p in doc["points"]}
-    assert doc["dataset"]["step_rate"] == other_rig.STEP_RATE and all(
-        p["touch_s"] == p["seq_len"] / other_rig.STEP_RATE for p in doc["points"]
+    assert doc["dataset"]["step_rate"] == example_rig.STEP_RATE and all(
+        p["touch_s"] == p["seq_len"] / example_rig.STEP_RATE for p in doc["points"]
     )
     md = (tmp_path / "results" / "cost.md").read_text()
     assert md.startswith("# What accuracy costs in time on recorded data") and "paper" not in md.lower()
@@ -654,7 +652,7 @@ def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs
     from fabricjax.studies.paper import latents, properties
 
     labels = [*LABELS, "silk"]
-    manifest = other_rig.write_recordings(tmp_path / "rig", labels, 4, seconds=(3.0, 3.5), splits=SPLITS)
+    manifest = example_rig.write_recordings(tmp_path / "rig", labels, 4, seconds=(3.0, 3.5), splits=SPLITS)
     roughness = {"cotton canvas": "1", "felt": "0", "oak": "1", "silk": "0"}
     _edit_manifest(
         manifest,
@@ -675,7 +673,7 @@ def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs
     )
     # class 1 (felt) trains, as the data says: the catalog's holdout ids (1, 10, 21-23) are not a rig's classes
     assert doc["dataset"]["trials"]["train"] == 6 and doc["fabrics"] == {"test": [0, 1, 2], "holdout": [3]}
-    arm = f"joints arm_0–arm_{other_rig.N_JOINTS - 1} (angle, velocity, torque)"
+    arm = f"joints arm_0–arm_{example_rig.N_JOINTS - 1} (angle, velocity, torque)"
     assert doc["dataset"]["names"] == {"internal": "vibration", "proprio": arm}  # the rig file's names, in the results
     pmd = (tmp_path / "results" / "properties.md").read_text()
     assert (
@@ -700,7 +698,7 @@ def test_properties_and_latents_hold_out_the_rigs_holdout_split_not_the_catalogs
 
 
 def _small(root, labels=LABELS[:2], trials=2, seconds=(2.0, 2.0)):
-    return other_rig.write_recordings(root, labels, trials, seconds, splits={0: "train", 1: "test", 2: "val"})
+    return example_rig.write_recordings(root, labels, trials, seconds, splits={0: "train", 1: "test", 2: "val"})
 
 
 def test_every_problem_of_a_manifest_is_listed_and_nothing_written(tmp_path):
@@ -708,7 +706,7 @@ def test_every_problem_of_a_manifest_is_listed_and_nothing_written(tmp_path):
     (tmp_path / "rig" / "recordings" / "00_001" / "vibration.wav").unlink()
     (tmp_path / "rig" / "recordings" / "01_000" / "joints.csv").unlink()
     _edit_manifest(manifest, manifest, lambda rows: rows + [rows[1]] + [[rows[2][0], rows[2][1], "x", rows[2][3]]])
-    with pytest.raises(batch_import.ImportProblems) as e:
+    with pytest.raises(batch.ImportProblems) as e:
         _run(manifest, tmp_path / "out")
     lines = str(e.value).splitlines()
     assert lines[0] == f"{manifest}: line 7: trial: 'x' is not an integer"
@@ -732,8 +730,8 @@ def test_a_trial_failing_in_a_worker_is_the_same_one_line_error_and_nothing_is_w
     manifest = _small(tmp_path / "rig")
     joints = tmp_path / "rig" / "recordings" / "01_001" / "joints.csv"
     joints.write_text(joints.read_text().splitlines()[0] + "\n")  # a header only
-    with pytest.raises(batch_import.ImportProblems) as e:
-        batch_import.run(
+    with pytest.raises(batch.ImportProblems) as e:
+        batch.run(
             manifest,
             tmp_path / "out",
             rig=tmp_path / "rig" / "rig.toml",
@@ -828,6 +826,50 @@ def test_timestamps_in_milliseconds_holes_and_cut_off_wavs(tmp_path):
     assert "note: 1 trials are incomplete" in said and "note: 1 trials have holes in the joints" in said
 
 
+def test_a_wav_cut_short_is_named_not_the_joints_it_fails_to_cover(tmp_path):
+    """A vibration.wav cut to 1,000 samples is the file at fault: a 7 s trial's joints span far more
+    than its 0.45 s (readings 10 ms apart are seconds), a 2 s trial's steps find no full window in it;
+    both errors name the WAV, in one line."""
+    from scipy.io import wavfile
+
+    for seconds in (7.0, 2.0):
+        root = tmp_path / f"rig{seconds:g}"
+        manifest = _small(root, labels=LABELS[:1], trials=1, seconds=(seconds, seconds))
+        wav = root / "recordings" / "00_000" / "vibration.wav"
+        rate, samples = wavfile.read(wav)
+        wavfile.write(wav, rate, samples[:1000])
+        with pytest.raises(UserError) as e:
+            _run(manifest, root / "out")
+        assert re.fullmatch(
+            rf"{re.escape(str(wav))}: samples: 1000 samples.*: the (file|recording) is cut short", str(e.value)
+        )
+        assert not list((root / "out").glob("*.npz"))
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered in cast:RuntimeWarning")  # the 1e39 joints
+def test_a_manifests_bad_trial_is_named_by_its_line_not_by_a_staged_archive(tmp_path):
+    """A negative trial index is the manifest's line; an archive its recording cannot make (joints
+    beyond float32) is named by the line and the recording, never by the hidden staging folder."""
+    manifest = _small(tmp_path / "rig", labels=LABELS[:1], trials=2)
+    _edit_manifest(manifest, manifest, lambda rows: [rows[0], rows[1], [*rows[2][:2], "-1", *rows[2][3:]]])
+    with pytest.raises(UserError) as e:
+        _run(manifest, tmp_path / "out")
+    assert str(e.value) == f"{manifest}: line 3: trial: must be an integer from 0 to {archive.MAX_INT}, got '-1'"
+    _edit_manifest(manifest, manifest, lambda rows: [rows[0], rows[1], [*rows[2][:2], "1", *rows[2][3:]]])
+    joints = tmp_path / "rig" / "recordings" / "00_001" / "joints.csv"
+    header, *rows = joints.read_text().splitlines()
+    rows = [",".join([time, "1e39", *rest]) for time, _, *rest in (r.split(",") for r in rows)]
+    joints.write_text("\n".join([header, *rows]) + "\n")  # every arm_0_angle beyond float32
+    with pytest.raises(UserError) as e:
+        _run(manifest, tmp_path / "out")
+    assert re.fullmatch(
+        rf"{re.escape(str(manifest))}: line 3: joints: \d+ non-finite values \(NaN or Inf\), in the archive made "
+        rf"from {re.escape(str(joints.parent))}",
+        str(e.value),
+    )
+    assert not list((tmp_path / "out").glob("*.npz"))
+
+
 def test_latin1_manifest_read_only_out_and_unread_columns_are_one_line(tmp_path):
     manifest = _small(tmp_path / "rig", labels=["felt"], trials=1)
     latin = tmp_path / "rig" / "latin1.csv"
@@ -862,8 +904,8 @@ def test_latin1_manifest_read_only_out_and_unread_columns_are_one_line(tmp_path)
 _KILL_IMPORT = """
 import sys
 sys.path.insert(0, {root!r})
-from acquisition import batch_import
-batch_import.run({manifest!r}, {out!r}, rig={rig!r}, workers=2, progress=False)
+from fabricjax.importers import batch
+batch.run({manifest!r}, {out!r}, rig={rig!r}, workers=2, progress=False)
 """
 
 
@@ -894,7 +936,7 @@ def _alive(pid):
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads processes from /proc (Linux)")
 def test_killing_the_import_ends_its_workers_and_a_rerun_removes_what_it_left(tmp_path):
-    manifest = other_rig.write_recordings(
+    manifest = example_rig.write_recordings(
         tmp_path / "rig", LABELS, 6, seconds=(6.0, 8.0), splits={k: "train" for k in range(6)}
     )
     out = tmp_path / "out"
@@ -995,9 +1037,9 @@ def test_without_rows_a_study_on_recorded_data_runs_the_rows_it_can_feed(archive
 
 HOLD_IMPORT = """
 import sys, time
-from acquisition import batch_import
+from fabricjax.importers import batch
 from fabricjax.store import lock
-out_lock = __import__("pathlib").Path(sys.argv[1]) / batch_import.IMPORT_LOCK
+out_lock = __import__("pathlib").Path(sys.argv[1]) / batch.IMPORT_LOCK
 with lock.hold(out_lock, "the import", "importing for a test", transient=True):
     print("held", flush=True)
     time.sleep(120)

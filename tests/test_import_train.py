@@ -4,8 +4,8 @@ for every trial the preset names."""
 import numpy as np
 import pytest
 
-from acquisition import ros_bag
 from fabricjax import presets
+from fabricjax.importers import ros_bag
 from fabricjax.store import archive
 from fabricjax.store.workspace import Location
 from fabricjax.studies.paper import ablation

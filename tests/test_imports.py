@@ -84,11 +84,12 @@ LOWER = {
     "store": set(),
     "sim": {"store"},
     "features": {"store"},
+    "importers": {"store", "features"},
     "sequences": {"store", "features"},
     "training": {"store", "features", "sequences"},
     "reporting": {"store", "sim"},
     "inference": {"store", "features", "sequences", "training", "reporting"},
-    "bench": {"store", "sim", "features", "sequences", "training", "reporting", "inference"},
+    "bench": {"store", "sim", "features", "importers", "sequences", "training", "reporting", "inference"},
     "studies": {"store", "sim", "features", "sequences", "training", "reporting", "inference"},
 }
 # The package's top-level modules (the core: config, presets, the model, the process) read only the

@@ -1,5 +1,5 @@
 """A rig unlike the hand learns what it carries (issue 38): on the placeholder low-rate vibration
-(`acquisition.other_rig`), imported through a manifest, the ablation's vibration row reaches its
+(`fabricjax.importers.example_rig`), imported through a manifest, the ablation's vibration row reaches its
 linear probe under the fusion the study reports, and the results name the rig's streams.
 
 A positive control: with the paper's fixed 2048-sample window (0.93 s at 2.2 kHz, nearly the same
@@ -9,7 +9,7 @@ dataset of the issue's size gives in two."""
 
 import pytest
 
-from acquisition import batch_import, other_rig
+from fabricjax.importers import batch, example_rig
 from fabricjax.store.workspace import Location
 from fabricjax.studies.paper import ablation
 
@@ -18,10 +18,8 @@ LABELS = ["cotton canvas", "felt", "oak"]
 
 def _archives(root, trials, seconds):
     splits = {k: "train" for k in range(trials - 2)} | {trials - 2: "val", trials - 1: "test"}
-    manifest = other_rig.write_recordings(root / "rig", LABELS, trials, seconds=seconds, splits=splits)
-    batch_import.run(
-        manifest, root / "archives", rig=root / "rig" / "rig.toml", workers=1, progress=False, say=lambda s: None
-    )
+    manifest = example_rig.write_recordings(root / "rig", LABELS, trials, seconds=seconds, splits=splits)
+    batch.run(manifest, root / "archives", rig=root / "rig" / "rig.toml", workers=1, progress=False, say=lambda s: None)
     return root / "archives"
 
 

@@ -204,12 +204,12 @@ LMT108 = Path(__file__).resolve().parents[2] / "shared" / "data" / "lmt108_sound
 def test_real_contact_sound_trains_to_its_linear_probe(tmp_path):
     """Real recordings (LMT-108, 22 materials): imported as they are and trained with the fitted
     recipe and no other setting, the row lands within 3 pp of the linear probe of its inputs."""
-    from acquisition import batch_import
+    from fabricjax.importers import batch
     from fabricjax.store.workspace import Location
     from fabricjax.studies.paper import ablation
 
     out = tmp_path / "lmt108"
-    batch_import.run(LMT108 / "manifest.csv", out, rig=LMT108 / "rig.toml", progress=False, say=lambda s: None)
+    batch.run(LMT108 / "manifest.csv", out, rig=LMT108 / "rig.toml", progress=False, say=lambda s: None)
     doc = ablation.run(
         n_seeds=1,
         rows=["internal"],

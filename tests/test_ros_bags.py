@@ -9,13 +9,13 @@ import sys
 import numpy as np
 import pytest
 
-from acquisition import mapping_file
-from acquisition.recording import RecordingImportError
+from fabricjax.importers import mapping_file
+from fabricjax.importers.streams import RecordingImportError
 from fabricjax.store import archive, integrity
 
 pytest.importorskip("rosbags")
 
-from acquisition import ros_bag  # noqa: E402
+from fabricjax.importers import ros_bag  # noqa: E402
 from tests.test_import_bag import (  # noqa: E402
     MAPPING,
     MAPPING_TOML,
@@ -159,7 +159,7 @@ def test_raw_audio_without_a_format_is_a_clear_error(tmp_path):
 def test_an_existing_archive_is_not_overwritten_without_the_flag(tmp_path):
     (tmp_path / "map.toml").write_text(MAPPING_TOML)
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "acquisition.import_bag", "BAG", f"--map={tmp_path / 'map.toml'}", f"--out={out}"]
+    cmd = [sys.executable, "-m", "experiments.import_bag", "BAG", f"--map={tmp_path / 'map.toml'}", f"--out={out}"]
     first = write_bag(tmp_path / "bag1", recording(seed=1))
     second = write_bag(tmp_path / "bag2", recording(seed=2))
     done = subprocess.run([*cmd[:3], str(first), *cmd[4:]], capture_output=True, text=True, timeout=120)
@@ -418,7 +418,7 @@ def test_each_issue_case_is_one_line_on_the_command_line(tmp_path):
     cmd = [
         sys.executable,
         "-m",
-        "acquisition.import_bag",
+        "experiments.import_bag",
         str(bag),
         f"--map={tmp_path / 'map.toml'}",
         f"--out={tmp_path / 'out'}",

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from acquisition import batch_import, other_rig
+from fabricjax.importers import batch, example_rig
 from fabricjax.store import archive, dataset_index, integrity, workspace
 from tests.helpers import npz_fields, tiny_archive, tiny_dataset
 
@@ -75,11 +75,11 @@ def test_verify_command_exits_1_and_prints_each_problem(tmp_path):
 
 
 def test_a_fresh_import_is_hashed_against_the_index_the_import_wrote(tmp_path):
-    manifest = other_rig.write_recordings(
+    manifest = example_rig.write_recordings(
         tmp_path / "rig", ["felt", "oak"], 2, seconds=(2.0, 2.5), splits={0: "train", 1: "test"}
     )
     out, ws = tmp_path / "archives", tmp_path / "ws"
-    summary = batch_import.run(
+    summary = batch.run(
         manifest, out, rig=manifest.parent / "rig.toml", workers=1, progress=False, say=lambda s: None, workdir=ws
     )
     assert Path(summary["index"]) == workspace.index_file(out, ws) and Path(summary["index"]).parent == ws / "indexes"

@@ -7,7 +7,8 @@
     sim_throughput   simulated seconds per wall second
     synthetic        random data of the model's input shapes (timing inputs, the tests' data)
 
-The acquisition package's benchmarks (`acquisition.simulated_signals.bench_acquisition`,
-`acquisition.other_rig.bench_import`) live beside what they time and are passed in to `suite.run`,
-since the library does not import the acquisition package.
+The acquisition package's benchmark of its recording loop (`acquisition.simulated_signals.bench_acquisition`)
+lives beside what it times and is passed in to `suite.run`, since the library does not import the
+acquisition package; the batch import's (`fabricjax.importers.example_rig.bench_import`) lives beside
+the importers.
 """

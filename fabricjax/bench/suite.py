@@ -26,9 +26,9 @@ Benchmarks (names for --only):
                  on a simulated trial replayed as fast as possible
     acquisition  the 50 Hz recording loop against the simulated devices: step times, deadline misses
                  (the acquisition package's benchmark, passed in by the command: `run(acquisition=...)`)
-    import       batch import (`acquisition.import_manifest`) of 1000 recorded trials of 6-8 s from a rig
+    import       batch import (`experiments.import_manifest`) of 1000 recorded trials of 6-8 s from a rig
                  unlike the hand (one 2.2 kHz vibration channel, 7 joints, no camera); target <= 3 min on
-                 2 cores (passed in by the command like acquisition: `run(importer=...)`)
+                 2 cores (`fabricjax.importers.example_rig.bench_import`)
 
 Ours and the twin are timed in alternating rounds in this process (`program_timing.compare_with_torch`),
 so machine load hits both alike; ratios are ours / theirs for times (below 1: we are faster, the
@@ -59,6 +59,7 @@ from fabricjax import presets, sim, timing
 from fabricjax.bench import feature_timing, input_timing, program_timing, sim_throughput, torch_twin
 from fabricjax.config import Config
 from fabricjax.features import welch
+from fabricjax.importers import example_rig
 from fabricjax.inference import live
 from fabricjax.reporting import results_files
 from fabricjax.sim import calibration as sim_calibration
@@ -79,7 +80,7 @@ BENCHMARKS = (
     "acquisition",
     "import",
 )
-PASSED_IN = ("acquisition", "import")  # benchmarks of the acquisition package, which this library does not import
+PASSED_IN = ("acquisition",)  # benchmarks of the acquisition package, which this library does not import
 
 
 @dataclasses.dataclass(frozen=True)
@@ -346,25 +347,21 @@ def run(
     workload: Workload = Workload(),
     out: Callable[[str], None] = print,
     acquisition: Callable[..., dict] | None = None,
-    importer: Callable[..., dict] | None = None,
     where: Location = Location(),
 ) -> dict[str, Any]:
     """Run the chosen benchmarks (all by default) in order; write results/bench.json and bench.md.
 
-    `acquisition` and `importer` are the acquisition package's benchmarks of its recording loop
-    (`bench_acquisition(seconds=...)`) and of the batch import (`other_rig.bench_import(trials=...)`),
-    which this library does not import: without one its entry is left out of the default set, and
-    asking for it is an error."""
-    given = {"acquisition": acquisition, "import": importer}
+    `acquisition` is the acquisition package's benchmark of its recording loop
+    (`bench_acquisition(seconds=...)`), which this library does not import: without it its entry is
+    left out of the default set, and asking for it is an error."""
+    given = {"acquisition": acquisition}
     chosen = list(only) if only else [b for b in BENCHMARKS if b not in PASSED_IN or given[b] is not None]
     unknown = [b for b in chosen if b not in BENCHMARKS]
     if unknown:
         raise ValueError(f"unknown benchmarks {unknown}; choose from {BENCHMARKS}")
     for b in PASSED_IN:
         if b in chosen and given[b] is None:
-            raise ValueError(
-                f"the {b} benchmark needs its function: run(..., acquisition=bench_acquisition, importer=bench_import)"
-            )
+            raise ValueError(f"the {b} benchmark needs its function: run(..., acquisition=bench_acquisition)")
     twin, note = (None, None)
     if {"training", "inference"} & set(chosen):
         twin, note = _torch_twin()
@@ -398,7 +395,7 @@ def run(
         "inference": lambda: bench_inference(quick, workload, comparison(), matmul_peak()),
         "streaming": lambda: bench_streaming(quick, workload),
         "acquisition": lambda: acquisition(seconds=3.0 if quick else 10.0),
-        "import": lambda: importer(trials=100 if quick else 1000),
+        "import": lambda: example_rig.bench_import(trials=100 if quick else 1000),
     }
     doc = results_files.header(
         "bench", module=__name__, command=where.command, quick=quick, torch=_torch_version(twin), benchmarks={}

@@ -8,7 +8,7 @@ whole trials (the last `val_trials_per_day` of each fabric and day), so no trial
 
 Roles are derived from an archive's meta alone (`role_of`), so real recordings drop in: a trial
 whose meta names its split (`split`, set by the user at import: a manifest column or a rule, see
-`acquisition.import_manifest`) has that role; otherwise put the training days' trials under days
+`experiments.import_manifest`) has that role; otherwise put the training days' trials under days
 1-2, test under day 3 and cafe-noise trials with condition "cafe".
 
 What each preset simulates (`DatasetSpec`) is part of its definition in `presets.py`.

@@ -22,7 +22,7 @@ trial order: the first fraction of its trials train, then val, then test),
 every trial's index must be in one) or `day` (by day, as the preset's days: the hand's protocol).
 
 A row's problems are collected, one line each, so that an import lists them all before it writes
-anything (`acquisition.batch_import`).
+anything (`fabricjax.importers.batch`).
 """
 
 from __future__ import annotations
@@ -58,13 +58,18 @@ class ManifestError(UserError):
 
 
 def integer(text: str, manifest, line: int, field: str) -> int | None:
-    """A manifest cell as an integer; an empty cell is None."""
+    """A manifest cell as a count (a day, trial, fabric id, class or property level: an integer the
+    archive holds, from 0 to `archive.MAX_INT`), checked here so that a bad cell is named by its line
+    rather than by the archive it would have made; an empty cell is None."""
     if text.strip() == "":
         return None
     try:
-        return int(text)
+        value = int(text)
     except ValueError:
         raise ManifestError(manifest, line, field, f"{text!r} is not an integer") from None
+    if not 0 <= value <= archive.MAX_INT:
+        raise ManifestError(manifest, line, field, f"must be an integer from 0 to {archive.MAX_INT}, got {text!r}")
+    return value
 
 
 def _utf8_lines(path: Path, what: str):
@@ -145,7 +150,7 @@ def read_label_map(path: str | Path) -> dict[str, int]:
     out = {}
     for line, r in enumerate(reader, start=2):
         cls = integer(r["class"] or "", path, line, "class")
-        if cls is None or cls < 0:
+        if cls is None:
             raise ManifestError(path, line, "class", f"must be a class >= 0, got {r['class']!r}")
         out[(r["name"] or "").strip()] = cls
     if not out or set(out.values()) != set(range(max(out.values()) + 1)):

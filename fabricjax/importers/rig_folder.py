@@ -32,7 +32,7 @@ A camera whose table names no reference is an error (`alignment.parse_reference`
 never takes one on its own. meta.reference.session is the manifest's `session` column, else the
 trial's day and condition, else (no days) the trial's own name.
 
-Alignment is the recorder's rule (`acquisition.alignment`): at each step, each microphone's
+Alignment is the recorder's rule (`fabricjax.importers.alignment`): at each step, each microphone's
 window ends after the last sample at or before it, the joints are the latest reading at or before
 it; steps before every microphone holds a full window at its own rate (2048 samples, or the rig
 file's mic_window_s where that is longer), before the
@@ -55,7 +55,8 @@ from typing import Any
 
 import numpy as np
 
-from acquisition.alignment import (
+from fabricjax.features import welch
+from fabricjax.importers.alignment import (
     ImportedReference,
     ReferenceSource,
     check_seconds,
@@ -64,12 +65,12 @@ from acquisition.alignment import (
     pre_contact,
     reference_meta,
     session_of,
+    short_of_a_window,
     stream_gaps,
 )
-from acquisition.mapping_file import read_toml
-from acquisition.readers import read_camera, read_wav
-from acquisition.recording import RecordingImportError, Stream
-from fabricjax.features import welch
+from fabricjax.importers.mapping_file import read_toml
+from fabricjax.importers.streams import RecordingImportError, Stream
+from fabricjax.importers.trial_files import read_camera, read_wav
 from fabricjax.store import archive
 
 
@@ -260,16 +261,19 @@ def align_rig(
     n = len(times)
     usable = np.ones(n, bool)
     ends = []
-    for mic in mics:
+    windows = [max(archive.WINDOW, welch.window_samples(rig.mic_window_s or 0, int(mic.rate))) for mic in mics]
+    for mic, window in zip(mics, windows):
         k = np.searchsorted(mic.times, times, side="right") - 1
         end = np.where(k >= 0, mic.counts[np.maximum(k, 0)], 0)
-        usable &= end >= max(archive.WINDOW, welch.window_samples(rig.mic_window_s or 0, int(mic.rate)))
+        usable &= end >= window
         usable &= times <= mic.times[-1]  # after its last sample a window would be stale
         ends.append(end)
     if joint_times is not None:
         jk = np.searchsorted(joint_times, times, side="right") - 1
         usable &= (jk >= 0) & (times <= joint_times[-1])
     if not usable.any():
+        if short := short_of_a_window(mics, [len(m.samples) for m in mics], windows, [int(m.rate) for m in mics]):
+            raise short
         raise RecordingImportError(
             where,
             "steps",

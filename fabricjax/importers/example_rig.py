@@ -124,15 +124,15 @@ def write_recordings(
 
 
 def bench_import(trials: int = 1000, seconds: tuple[float, float] = (6.0, 8.0), workers: int | None = None) -> dict:
-    """Wall time of `batch_import.run` for `trials` recordings of 6-8 s (20 labels), in a
+    """Wall time of `batch.run` for `trials` recordings of 6-8 s (20 labels), in a
     temporary folder; writing the recordings is not timed."""
-    from acquisition import batch_import
+    from fabricjax.importers import batch
 
     labels = [f"material {k}" for k in range(20)]
     with tempfile.TemporaryDirectory() as tmp:
         manifest = write_recordings(Path(tmp) / "rig", labels, max(1, trials // len(labels)), seconds)
         t0 = time.perf_counter()
-        summary = batch_import.run(
+        summary = batch.run(
             manifest,
             Path(tmp) / "archives",
             rig=Path(tmp) / "rig" / "rig.toml",

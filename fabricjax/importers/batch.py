@@ -1,4 +1,4 @@
-"""Import every trial a manifest lists (`acquisition.manifest_file`) into one folder of trial
+"""Import every trial a manifest lists (`fabricjax.importers.manifest_file`) into one folder of trial
 archives, in one process pool with one progress bar, as one transaction.
 
 Every problem that can be found before importing (a row's fields, a recording listed twice, two
@@ -29,10 +29,10 @@ them. A rig's trials without a split or a day would never be used, so that is an
 
 A camera's session reference is never made up: the rig file's or mapping's [camera] table names
 it, and for the hand's folders `reference` does (a file relative to each trial folder, or
-`pre_contact` with `reference_frames` for each trial's first frames: `acquisition.hand_folder`);
+`pre_contact` with `reference_frames` for each trial's first frames: `fabricjax.importers.hand_folder`);
 a camera without one is an error before anything is read or written.
 
-Per trial the existing importers do the work (`acquisition.rig.import_rig_folder`,
+Per trial the existing importers do the work (`rig_folder.import_rig_folder`,
 `hand_folder.import_folder`, `ros_bag.import_bag`); manifest columns no importer of the run reads
 (the property columns of the hand's folders and bags, whose levels come from the fabric catalog)
 and joint columns that are not used are reported, never dropped silently.
@@ -51,12 +51,11 @@ from typing import Any, Callable
 
 from tqdm import tqdm
 
-from acquisition import hand_folder, manifest_file, mapping_file, ros_bag
-from acquisition import rig as rig_mod
-from acquisition.alignment import ReferenceSource, parse_reference, session_of
-from acquisition.manifest_file import COLUMNS, HAND_COLUMNS, ManifestError, Row
 from fabricjax import parallel
 from fabricjax.errors import UserError
+from fabricjax.importers import hand_folder, manifest_file, mapping_file, rig_folder, ros_bag
+from fabricjax.importers.alignment import ReferenceSource, parse_reference, session_of
+from fabricjax.importers.manifest_file import COLUMNS, HAND_COLUMNS, ManifestError, Row
 from fabricjax.store import archive, dataset_index, lock, provenance, workspace
 from fabricjax.store.atomic import atomic_open
 
@@ -79,18 +78,21 @@ class Job:
     target: str  # archive path
     meta_fields: dict[str, Any]  # rig: make_meta's trial fields; folder / bag: the importers' trial dict
     split: str | None
-    rig: rig_mod.Rig | None
+    rig: rig_folder.Rig | None
     mapping: dict[str, Any] | None
+    manifest: str  # the manifest that lists the trial, for errors
     reference: ReferenceSource | None = None  # the camera's session reference; None: no camera
 
 
 def _import_one(job: Job) -> None:
     """One trial, by the importer for its kind, written atomically to its staging path (a worker's
     job); a trial that cannot be imported leaves its one-line error beside it (`<target>.error`),
-    so every trial is tried and every error reported, with one worker or many."""
+    so every trial is tried and every error reported, with one worker or many. An archive the
+    writer refuses is named by the manifest's line and the recording, never by the staging path,
+    which the user neither chose nor can find once the import has stopped."""
     try:
         if job.kind == "rig":
-            result = rig_mod.import_rig_folder(job.row.path, job.rig, job.meta_fields, session=job.row.session)
+            result = rig_folder.import_rig_folder(job.row.path, job.rig, job.meta_fields, session=job.row.session)
         else:
             trial = {**job.meta_fields, **({"session": job.row.session} if job.row.session else {})}
             result = (
@@ -100,7 +102,12 @@ def _import_one(job: Job) -> None:
             )
             if job.split is not None:
                 result.meta["split"] = job.split
-        archive.write_archive(job.target, result)
+        try:
+            archive.write_archive(job.target, result)
+        except archive.ArchiveError as e:
+            raise ManifestError(
+                job.manifest, job.row.line, e.field, f"{e.problem}, in the archive made from {job.row.path}"
+            ) from None
     except UserError as e:
         with atomic_open(job.target + ".error", "w") as f:
             f.write(str(e))
@@ -110,7 +117,7 @@ def plan(
     rows: list[Row],
     out: Path,
     *,
-    rig: rig_mod.Rig | None,
+    rig: rig_folder.Rig | None,
     mapping: dict[str, Any] | None,
     label_map: dict[str, int] | None,
     splits: list[str | None],
@@ -162,7 +169,7 @@ def plan(
                     condition=r.condition,
                     **({"split": split} if split else {}),
                 )
-                rig_mod.check_layout(r.path, rig)
+                rig_folder.check_layout(r.path, rig)
             else:
                 fid = manifest_file.integer(r.label, manifest, r.line, "label")
                 if r.day is None:
@@ -190,7 +197,7 @@ def plan(
             )
             continue
         names[name] = r.line
-        jobs.append(Job(kind, r, str(out / name), fields, split, rig, mapping, reference))
+        jobs.append(Job(kind, r, str(out / name), fields, split, rig, mapping, str(manifest), reference))
     return jobs
 
 
@@ -318,7 +325,7 @@ def run(
         )
     rows, header, problems = manifest_file.read_manifest(manifest)
     splits = manifest_file.splits(rows, split, manifest, problems)
-    loaded_rig = rig_mod.load_rig(rig) if rig is not None else None
+    loaded_rig = rig_folder.load_rig(rig) if rig is not None else None
     used = (
         (COLUMNS if loaded_rig.camera else tuple(c for c in COLUMNS if c != "session"))
         if loaded_rig is not None

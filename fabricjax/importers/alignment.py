@@ -38,14 +38,17 @@ from typing import Any
 
 import numpy as np
 
-from acquisition.camera import ForceProxy
-from acquisition.readers import REFERENCE_SUFFIXES, read_reference
-from acquisition.recording import RecordingImportError, Stream
 from fabricjax import catalog
+from fabricjax.force_proxy import ForceProxy
+from fabricjax.importers.streams import RecordingImportError, Stream
+from fabricjax.importers.trial_files import REFERENCE_SUFFIXES, read_reference
 from fabricjax.store import archive, integrity
 
 HOLE_STEPS = 3  # a stream silent for more than this many step periods has a hole (declared in meta.import)
 SPAN_FACTOR = 10  # timestamps spanning this many times the audio's duration are not seconds
+# readings closer than this (s) are seconds whatever they span: every stream the importers align
+# reads faster than 2 Hz, so such timestamps are right and the audio is what falls short
+SECONDS_SPACING = 0.5
 PRE_CONTACT = "pre_contact"  # a reference source: the trial's own first frames, only when asked
 DEFAULT_REFERENCE_FRAMES = 5  # pre-contact frames taken when reference_frames is not given
 
@@ -187,18 +190,48 @@ def reference_meta(reference: ImportedReference, session: str, t0: float) -> dic
 
 def check_seconds(times: np.ndarray, where, field: str, mics: list[Stream]) -> None:
     """Timestamps must be seconds on the microphones' clock: times spanning far more than the audio
-    (milliseconds or microseconds put every step on the first reading) are an error."""
+    (milliseconds or microseconds put every step on the first reading) are an error. Which file it
+    names follows their spacing: readings closer than `SECONDS_SPACING` are seconds, so the audio is
+    cut short and the error names the microphone's file; spaced wider, the timestamps are named."""
     if not mics or len(times) < 2:
         return
-    audio_s = max(len(m.samples) / m.rate for m in mics)
+    longest = max(mics, key=lambda m: len(m.samples) / m.rate)
+    audio_s = len(longest.samples) / longest.rate
     span = float(times[-1] - times[0])
-    if span > SPAN_FACTOR * audio_s + 1.0:
+    if span <= SPAN_FACTOR * audio_s + 1.0:
+        return
+    spacing = float(np.median(np.diff(np.sort(times))))
+    if spacing < SECONDS_SPACING:
         raise RecordingImportError(
-            where,
-            field,
-            f"timestamps span {span:g}, but the microphones hold {audio_s:.2f} s of audio: "
-            "timestamps must be seconds (these look like milliseconds or another clock)",
+            longest.name,
+            "samples",
+            f"{len(longest.samples)} samples, {audio_s:.2f} s at {longest.rate} Hz, far less than the {span:.2f} s "
+            f"that {Path(str(where)).name}'s {field} column spans (readings {spacing:g} s apart): the file is cut short"
+            + ("" if len(mics) == 1 else " (no other microphone's file is longer)"),
         )
+    raise RecordingImportError(
+        where,
+        field,
+        f"timestamps span {span:g}, but the microphones hold {audio_s:.2f} s of audio: "
+        "timestamps must be seconds (these look like milliseconds or another clock)",
+    )
+
+
+def short_of_a_window(
+    mics: list[Stream], held: list[int], windows: list[int], rates: list[int]
+) -> RecordingImportError | None:
+    """The error naming the first microphone that holds fewer samples (`held`, at `rates`) than one
+    step's window (`windows`, at the same rates), or None: such a recording gives no step at all,
+    so it, not the stream left without audio, is what to name."""
+    for mic, n, window, rate in zip(mics, held, windows, rates):
+        if n < window:
+            return RecordingImportError(
+                mic.name,
+                "samples",
+                f"{len(mic.samples)} samples ({len(mic.samples) / mic.rate:.3f} s at {mic.rate} Hz), shorter than "
+                f"one step's window ({window} samples at {rate} Hz, {window / rate:.3f} s): the recording is cut short",
+            )
+    return None
 
 
 def stream_gaps(times: np.ndarray, steps: np.ndarray, period: float) -> list[dict[str, float]]:
@@ -307,16 +340,19 @@ def align(
     joint_times, joints = joint_times[jorder], joints[jorder]
 
     resampled: dict[str, Any] = {}
-    audio, ends = [], []
+    audio, ends, held = [], [], []
     for mic in mics:
         samples, times, counts = _at_archive_rate(mic, resample, resampled)
         k = np.searchsorted(times, frame_times, side="right") - 1
         ends.append(np.where(k >= 0, counts[np.maximum(k, 0)], 0))
         audio.append(samples)
+        held.append(int(counts[-1]))
     window_end = np.stack(ends, axis=1).astype(np.int64)
     jk = np.searchsorted(joint_times, frame_times, side="right") - 1
     usable = (window_end >= archive.WINDOW).all(axis=1) & (jk >= 0)
     if not usable.any():
+        if short := short_of_a_window(mics, held, [archive.WINDOW] * len(mics), [archive.AUDIO_RATE] * len(mics)):
+            raise short
         full = (window_end >= archive.WINDOW).all(axis=1)
         first_full = f"{frame_times[np.argmax(full)]:.3f} s" if full.any() else "none"
         raise RecordingImportError(

@@ -1,13 +1,15 @@
-"""Import one trial folder of WAV + CSV + video as a trial archive:
-`python -m acquisition.import_folder TRIAL_DIR --out=DIR --fabric=4 --day=1 --trial=0 --reference=reference.png
-[--condition=lab] [--session=..] [--resample]`.
+"""Import one trial folder of WAV + CSV + video as a trial archive.
+
+    python -m experiments.import_folder TRIAL_DIR --out=DIR --fabric=4 --day=1 --trial=0 --reference=reference.png
+    python -m experiments.import_folder TRIAL_DIR --out=DIR --fabric=4 --day=1 --trial=0 --reference=pre_contact \\
+        --reference_frames=5 --condition=cafe --session=monday --resample
 
 The folder holds `internal.wav` and `external.wav`, `joints.csv` and `camera.avi` (or `camera/*.png`
-with `frames.csv`), laid out as docs/data.md describes; alignment and
-errors are those of the bag importer (`acquisition.alignment`); another rig's folder is a one-line
-error naming every missing file and pointing to `acquisition.import_manifest --rig`. The camera's
+with `frames.csv`), laid out as docs/data.md describes; alignment and errors are those of the bag
+importer (`fabricjax.importers.alignment`); another rig's folder is a one-line error naming every
+missing file and pointing to `experiments.import_manifest --rig`. The camera's
 session reference is `--reference`: a file relative to TRIAL_DIR, or `pre_contact` (with
-`--reference_frames`) for the trial's first frames (`acquisition.hand_folder`); without it the
+`--reference_frames`) for the trial's first frames (`fabricjax.importers.hand_folder`); without it the
 import is a one-line error, before anything is read or written."""
 
 from __future__ import annotations
@@ -16,10 +18,11 @@ from pathlib import Path
 
 from absl import flags
 
-from acquisition import hand_folder, import_flags, mapping_file
-from acquisition.alignment import parse_reference
+from experiments import import_flags
 from fabricjax import cli
 from fabricjax.errors import UserError
+from fabricjax.importers import hand_folder, mapping_file
+from fabricjax.importers.alignment import parse_reference
 from fabricjax.store import archive
 
 FLAGS = flags.FLAGS
@@ -34,7 +37,7 @@ import_flags.define_resample("WAV files")
 
 def main(argv):
     if len(argv) != 2:
-        raise UserError("give exactly one trial folder: python -m acquisition.import_folder TRIAL_DIR --out=DIR")
+        raise UserError("give exactly one trial folder: python -m experiments.import_folder TRIAL_DIR --out=DIR")
     trial = mapping_file.trial_fields({}, import_flags.trial_overrides(FLAGS), "command line")
     reference = parse_reference(
         {"reference": FLAGS.reference, "reference_frames": FLAGS.reference_frames}, argv[1], flags=True

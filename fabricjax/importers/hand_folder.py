@@ -1,6 +1,6 @@
 """One trial folder of the hand's layout (docs/data.md) as a trial
 archive: `internal.wav` and `external.wav`, `joints.csv` and the camera, read by
-`acquisition.readers` and aligned by `acquisition.alignment.align`.
+`fabricjax.importers.trial_files` and aligned by `fabricjax.importers.alignment.align`.
 
 The layout names no session reference for the camera, so the command line must
 (`alignment.parse_reference`; `import_folder` and `import_manifest` take the same flags):
@@ -15,14 +15,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from acquisition.alignment import ReferenceSource, align, check_seconds, file_reference
-from acquisition.readers import IMAGE_SUFFIXES, VIDEO_SUFFIXES, read_camera, read_joints_csv, read_wav
-from acquisition.recording import RecordingImportError
+from fabricjax.importers.alignment import ReferenceSource, align, check_seconds, file_reference
+from fabricjax.importers.streams import RecordingImportError
+from fabricjax.importers.trial_files import IMAGE_SUFFIXES, VIDEO_SUFFIXES, read_camera, read_joints_csv, read_wav
 from fabricjax.store import archive
 
 JOINTS_FILE = "joints.csv"
 OTHER_RIG = (
-    "a folder of another rig imports with python -m acquisition.import_manifest MANIFEST.csv --out=DIR --rig=rig.toml "
+    "a folder of another rig imports with python -m experiments.import_manifest MANIFEST.csv --out=DIR --rig=rig.toml "
     '(docs/data.md, "Recordings from another rig")'
 )
 

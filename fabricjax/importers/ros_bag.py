@@ -1,5 +1,5 @@
 """A ROS 2 bag (sqlite3 or MCAP) read into timestamped streams (`read_bag`) and imported as a trial
-archive (`import_bag`, aligned by `acquisition.alignment.align`).
+archive (`import_bag`, aligned by `fabricjax.importers.alignment.align`).
 
 Every problem the bag has (a missing topic, a topic of the wrong type, fewer messages than its
 metadata counts, a message that cannot be decoded, clocks that disagree) is collected and reported
@@ -50,11 +50,11 @@ from typing import Any
 import numpy as np
 from absl import logging
 
-from acquisition import ros_messages as rm
-from acquisition.alignment import ImportedReference, ReferenceSource, align, parse_reference
-from acquisition.camera import ForceProxy
-from acquisition.recording import RecordingImportError, Stream, to_words
 from fabricjax.errors import UserError
+from fabricjax.force_proxy import ForceProxy
+from fabricjax.importers import ros_messages as rm
+from fabricjax.importers.alignment import ImportedReference, ReferenceSource, align, parse_reference
+from fabricjax.importers.streams import RecordingImportError, Stream, to_words
 from fabricjax.store import archive
 
 CLOCKS = ("receive", "header", "device")
@@ -531,7 +531,7 @@ def import_bag(
 ) -> archive.TrialArchive:
     """Read a ROS 2 bag (sqlite3 or MCAP folder, or one storage file) with `rosbags`, each stream
     placed on the bag's receive clock by the mapping's clock policy (module docstring), and
-    align it (`acquisition.alignment`)."""
+    align it (`fabricjax.importers.alignment`)."""
     rec = read_bag(bag, mapping)
     mics = [
         Stream.from_chunks(c.topic, c.rate, c.times, [to_words(x, c.topic, "data") for x in c.chunks]) for c in rec.mics

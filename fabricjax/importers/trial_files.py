@@ -1,7 +1,7 @@
 """The file readers of a trial folder: a microphone's WAV file (`read_wav`), a joints CSV
 (`read_joints_csv`), the camera, a video or an image sequence (`read_camera`), and the camera's
 session reference, a file the rig file or command line names (`read_reference`). The hand's
-folders (`acquisition.hand_folder`) and other rigs' (`acquisition.rig`) share them."""
+folders (`fabricjax.importers.hand_folder`) and other rigs' (`fabricjax.importers.rig_folder`) share them."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from acquisition.recording import RecordingImportError, Stream, recorded_as, to_words
+from fabricjax.importers.streams import RecordingImportError, Stream, recorded_as, to_words
 from fabricjax.store import archive
 
 VIDEO_SUFFIXES = (".avi", ".mp4", ".mkv", ".mov")

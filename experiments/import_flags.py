@@ -21,7 +21,7 @@ def define_out(what: str) -> None:
 
 
 def define_map(help: str, required: bool = False) -> None:
-    """--map: a mapping file (TOML) of ROS 2 bags (`acquisition.mapping_file`)."""
+    """--map: a mapping file (TOML) of ROS 2 bags (`fabricjax.importers.mapping_file`)."""
     flags.DEFINE_string("map", None, help, required=required)
 
 

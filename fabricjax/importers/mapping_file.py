@@ -1,6 +1,6 @@
 """The TOML files that say what a recording holds (`read_toml`), the bag mapping that names its
 topics and its camera's session reference (`load_mapping`; format in docs/data.md, "From ROS 2
-bags", the reference keys in `acquisition.ros_bag`), and a trial's fabric, day, trial,
+bags", the reference keys in `fabricjax.importers.ros_bag`), and a trial's fabric, day, trial,
 condition and optional session from a mapping's [trial] table and the command line
 (`trial_fields`)."""
 
@@ -10,8 +10,8 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from acquisition import ros_bag
-from acquisition.recording import RecordingImportError
+from fabricjax.importers import ros_bag
+from fabricjax.importers.streams import RecordingImportError
 from fabricjax.store import archive
 
 TRIAL_KEYS = ("fabric_id", "day", "trial", "condition")

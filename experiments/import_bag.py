@@ -1,10 +1,12 @@
-"""Import one ROS 2 bag (sqlite3 or MCAP) as a trial archive:
-`python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR [--fabric=.. --day=.. --trial=.. --condition=..
---session=..] [--resample] [--overwrite]`.
+"""Import one ROS 2 bag (sqlite3 or MCAP) as a trial archive.
+
+    python -m experiments.import_bag BAG --map=mapping.toml --out=DIR
+    python -m experiments.import_bag BAG --map=mapping.toml --out=DIR --fabric=4 --day=1 --trial=0 --condition=lab
+    python -m experiments.import_bag BAG --map=mapping.toml --out=DIR --session=monday --resample --overwrite
 
 The mapping file names the camera, microphone and joint topics (format in docs/data.md, "From ROS 2
 bags") and where the camera's session reference comes from (`reference_topic`, or
-`reference = "pre_contact"`: `acquisition.ros_bag`); the trial's fabric, day, trial, condition and
+`reference = "pre_contact"`: `fabricjax.importers.ros_bag`); the trial's fabric, day, trial, condition and
 optional session come from its [trial] table, and the flags override it. An archive already in DIR is not replaced
 without --overwrite. Needs the optional `rosbags` package: pip install -e ".[bags]".
 """
@@ -15,10 +17,11 @@ from pathlib import Path
 
 from absl import flags
 
-from acquisition import import_flags, mapping_file, ros_bag
-from acquisition.recording import RecordingImportError
+from experiments import import_flags
 from fabricjax import cli
 from fabricjax.errors import UserError
+from fabricjax.importers import mapping_file, ros_bag
+from fabricjax.importers.streams import RecordingImportError
 from fabricjax.store import archive
 
 FLAGS = flags.FLAGS
@@ -31,7 +34,7 @@ import_flags.define_overwrite("Replace an archive of the same fabric, day, trial
 
 def main(argv):
     if len(argv) != 2:
-        raise UserError("give exactly one bag: python -m acquisition.import_bag BAG --map=mapping.toml --out=DIR")
+        raise UserError("give exactly one bag: python -m experiments.import_bag BAG --map=mapping.toml --out=DIR")
     mapping = mapping_file.load_mapping(FLAGS.map)
     trial = mapping_file.trial_fields(mapping, import_flags.trial_overrides(FLAGS), FLAGS.map)
     result = ros_bag.import_bag(argv[1], mapping, trial, resample=FLAGS.resample)
