@@ -13,6 +13,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # In a fresh interpreter: import every module under fabricjax, then report what came along.
 CODE = """
 import importlib, json, pkgutil, sys
+from jax._src import monitoring
 import fabricjax
 names = sorted(m.name for m in pkgutil.walk_packages(fabricjax.__path__, "fabricjax."))
 for name in names:
@@ -22,6 +23,7 @@ print(json.dumps({
     "modules": names,
     "experiments": sorted(m for m in sys.modules if m == "experiments" or m.startswith("experiments.")),
     "threefry_configured": runtime._threefry_unrolled is not None,
+    "jax_listeners": len(monitoring._event_duration_secs_listeners),
 }))
 """
 
@@ -44,6 +46,7 @@ def test_no_library_module_imports_the_commands():
     } <= set(doc["modules"])
     assert doc["experiments"] == [], doc["experiments"]
     assert not doc["threefry_configured"]  # importing the library leaves JAX as it is
+    assert doc["jax_listeners"] == 0  # a run listens to JAX's compile events while it runs (`train.TimeAccount`)
 
 
 def test_no_library_module_imports_the_commands_even_lazily():

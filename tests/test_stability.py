@@ -1,7 +1,7 @@
 """Hard cases stay numerically stable, through the real code paths (issue 9).
 
 Signals (welch.welch_psd, extract.mic_windows / log_psd, data.load_sequences), the model and one
-optimiser step (train.Trainer), statistics, faults (a training process killed mid-epoch), and the
+optimiser step (trainer.Trainer), statistics, faults (a training process killed mid-epoch), and the
 study commands under `jax_debug_nans`. Bad input (archives, index, checkpoints) is in
 tests/test_bad_input.py. Cases already covered elsewhere are not repeated here:
 
@@ -45,6 +45,7 @@ from fabricjax.sequences import data
 from fabricjax.store import archive
 from fabricjax.studies.paper import latents
 from fabricjax.training import placement, train
+from fabricjax.training.trainer import make_trainer, masked_accuracy, masked_cross_entropy
 from tests.helpers import tiny_archive
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -191,7 +192,7 @@ TINY = Config(
 @functools.lru_cache(maxsize=None)
 def _stepper(config: Config, shapes: tuple):
     """Jitted (loss, grads, params after one optimiser step) through the real `Trainer` pieces."""
-    trainer = train.make_trainer(config, dict(shapes))
+    trainer = make_trainer(config, dict(shapes))
 
     def step(params, opt_state, batch, key):  # the body of `Trainer.train_epoch`'s scan
         (loss, _), grads = jax.value_and_grad(trainer.loss, has_aux=True)(params, batch, key)
@@ -284,7 +285,7 @@ def _max_logit(config, params, inputs):
     """Largest |q.k| / sqrt(D) of the first attention block (recomputed outside the model)."""
     from flax import nnx
 
-    trainer = train.make_trainer(config, {k: v.shape[2:] for k, v in inputs.items()})
+    trainer = make_trainer(config, {k: v.shape[2:] for k, v in inputs.items()})
     model = nnx.merge(trainer.graphdef, params)
     x = model.embed(model.features(inputs)) + model.position[: inputs["proprio"].shape[1]]
     b, t, w = x.shape
@@ -357,15 +358,15 @@ def test_a_batch_of_one_class_without_properties():
     for p in catalog.PROPERTY_LEVELS:
         assert not np.asarray(out["grads"]["heads"][p]["kernel"]).any()
         np.testing.assert_array_equal(out["new"]["heads"][p]["bias"], out["params"]["heads"][p]["bias"])
-    assert float(train.masked_accuracy(jnp.zeros(6, jnp.int32), labels["roughness"])) == 0.0
+    assert float(masked_accuracy(jnp.zeros(6, jnp.int32), labels["roughness"])) == 0.0
 
 
 def test_a_batch_of_one_known_class():
     logits = jnp.asarray(np.random.default_rng(0).normal(size=(5, 21)) * 30, jnp.float32)
     labels = jnp.full(5, 7, jnp.int32)
-    ce = train.masked_cross_entropy(logits, labels)
+    ce = masked_cross_entropy(logits, labels)
     assert float(ce) == pytest.approx(float(-jax.nn.log_softmax(logits)[:, 7].mean()), rel=1e-5)
-    assert finite(jax.grad(train.masked_cross_entropy)(logits, labels))
+    assert finite(jax.grad(masked_cross_entropy)(logits, labels))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -434,15 +435,15 @@ sys.path.insert(0, {root!r})
 from fabricjax import runtime
 runtime.configure_jax()
 from tests.test_stability import RESUME, resume_sets
-from fabricjax.training import train
+from fabricjax.training import train, trainer
 
-loss = train.Trainer.loss
+loss = trainer.Trainer.loss
 
 def slow_loss(self, params, batch, key):  # the same loss, but every minibatch takes 0.3 s: a kill lands inside an epoch
     jax.debug.callback(lambda: time.sleep(0.3))
     return loss(self, params, batch, key)
 
-train.Trainer.loss = slow_loss
+trainer.Trainer.loss = slow_loss
 train.train_and_evaluate(RESUME, resume_sets(), [0, 1], workdir={workdir!r}, save_every=1,
                    on_save=lambda e: print("saved", e, flush=True))
 """

@@ -16,7 +16,8 @@ from fabricjax.config import Config
 from fabricjax.model import FabricNet, make_predict
 from fabricjax.sequences.inputs import input_statistics, training_layout
 from fabricjax.training import placement, sharding, train
-from fabricjax.training.train import make_trainer, masked_accuracy, masked_cross_entropy, train_and_evaluate
+from fabricjax.training.train import train_and_evaluate
+from fabricjax.training.trainer import make_trainer, masked_accuracy, masked_cross_entropy
 from tests import helpers
 
 TINY = Config(

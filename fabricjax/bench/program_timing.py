@@ -38,7 +38,8 @@ from fabricjax.sequences.inputs import feature_shapes, training_layout
 from fabricjax.timing import predict_one_timer
 from fabricjax.training import sharding
 from fabricjax.training.placement import select
-from fabricjax.training.train import DeviceFeed, make_trainer, seed_keys
+from fabricjax.training.feed import DeviceFeed
+from fabricjax.training.trainer import make_trainer, seed_keys
 
 STEPS_PER_EPOCH = 16
 MATMUL_N = 2048  # the practical peak's matmul: (N x N) @ (N x N), large enough to run at the BLAS's best
@@ -135,7 +136,7 @@ def _epoch_program(
     states = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)(
         jax.device_put(seed_keys(range(n_seeds)), per_seed)
     )
-    on_devices = DeviceFeed(trainer)
+    on_devices = DeviceFeed()
     epoch = jax.jit(
         sharding.vmap_seeds(lambda s, d: trainer.train_epoch(s, d, on_devices), in_axes=(0, None)), donate_argnums=0
     )

@@ -1,7 +1,7 @@
 """Training curves: per-seed, per-epoch scalars, written as TensorBoard event files.
 
 The jitted epoch scan emits, per seed and epoch, the training loss, the training and validation
-accuracy per head and the learning rate (`train.Trainer.run`); the host adds each epoch's wall
+accuracy per head and the learning rate (`trainer.Trainer.run`); the host adds each epoch's wall
 time. Here they get their TensorBoard names (`tags`), are gathered over a run (`History`) and
 written with one `tensorboardX` writer per seed (`open_writer`), in `<log dir>/seed<k>`, so that
 TensorBoard overlays the seeds of a row:

@@ -111,8 +111,8 @@ def place_sets(config: Config, data_sets: Mapping[str, Any], to: NamedSharding |
     (`inputs.training_input`), evaluation sets padded to whole minibatches, large inputs kept for
     the next run on the same arrays (`place_input`). Every set is laid out, so that training and
     evaluation compile one image path (`FabricNet.image_features`), and once per run, not per
-    chunk of its epochs. A run fed from the host (`reads_from_host`) gets its sets as they are,
-    on the host."""
+    chunk of its epochs. A run fed from the host (`reads_from_host`) gets its inputs as they are,
+    on the host (`feed.HostFeed` pads them a block at a time), its labels padded alike."""
     to = to or sharding.replicated(sharding.training_mesh(config.batch_size))
     train_set = data_sets["train"]
     evals = {k: v for k, v in data_sets.items() if k not in ("train", "val")}
@@ -120,23 +120,21 @@ def place_sets(config: Config, data_sets: Mapping[str, Any], to: NamedSharding |
     sizes = {k: len(jax.tree.leaves(v["labels"])[0]) for k, v in sets.items() if k != "train"}
     shapes = tuple(sorted(feature_shapes(sets["train"]["inputs"]).items()))
     from_host = reads_from_host(config, train_set)
-    if not from_host:
-        multiple = lambda k: None if k == "train" else config.batch_size  # noqa: E731
-        sets = {
-            k: {
-                "inputs": dict(place_input(a, m, multiple(k), to) for m, a in v["inputs"].items()),
-                "labels": sharding.put(
-                    {
-                        h: a
-                        if multiple(k) is None
-                        else host_arrays.padded(a, host_arrays.whole_minibatches(len(a), multiple(k)), -1)
-                        for h, a in v["labels"].items()
-                    },
-                    to,
-                ),
-            }
-            for k, v in sets.items()
-        }
+    sets = {k: _as_read(v, None if k == "train" else config.batch_size, to, from_host) for k, v in sets.items()}
     return Placed(
         {"train": sets.pop("train"), "val": sets.pop("val"), "eval": sets}, sizes, shapes, from_host, train_set
     )
+
+
+def _as_read(ds, multiple: int | None, to: NamedSharding, from_host: bool) -> dict[str, dict[str, Any]]:
+    """A `select`ed set as a run reads it: its labels padded to whole minibatches of `multiple`
+    (None: as they are, the training set), its inputs on `to`'s devices (`place_input`) with its
+    labels, or where the run is fed from the host, both on the host."""
+    labels = {
+        h: a if multiple is None else host_arrays.padded(a, host_arrays.whole_minibatches(len(a), multiple), -1)
+        for h, a in ds["labels"].items()
+    }
+    if from_host:
+        return {"inputs": ds["inputs"], "labels": labels}
+    inputs = dict(place_input(a, m, multiple, to) for m, a in ds["inputs"].items())
+    return {"inputs": inputs, "labels": sharding.put(labels, to)}

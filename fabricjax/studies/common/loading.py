@@ -21,6 +21,7 @@ from fabricjax.sequences import data
 from fabricjax.store import archive, lock, workspace
 from fabricjax.store.workspace import Location
 from fabricjax.studies.common.rows import RowSpec, check_overrides, feedable_rows, select_rows
+from fabricjax.training.trainer import steps_per_epoch
 
 # The splits a study that evaluates on the lab test day needs (no cafe or holdout features computed).
 TRAIN_VAL_TEST = ("train", "val", "test")
@@ -85,8 +86,8 @@ class Dataset:
 
 def epochs_for(config: Config, steps: int, n_train: int) -> int:
     """The fewest epochs whose optimiser steps on `n_train` training sequences cover `steps`
-    (an epoch's steps as `train.total_steps` counts them)."""
-    per_epoch = max(n_train // min(config.batch_size, max(n_train, 1)), 1)
+    (an epoch's steps as training takes them, `trainer.steps_per_epoch`; one for no sequences)."""
+    per_epoch = steps_per_epoch(config.batch_size, max(n_train, 1))
     return max(1, -(-steps // per_epoch))
 
 
