@@ -62,7 +62,7 @@ PACKAGE = Path(__file__).resolve().parent
 VIEWS = (
     "fabricjax.reporting.plots",
     "fabricjax.reporting.results_files",
-    "fabricjax.studies.common.documents",
+    "fabricjax.studies.machinery.documents",
 )
 SIMULATOR = "fabricjax.sim"
 

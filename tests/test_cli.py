@@ -12,8 +12,8 @@ import pytest
 from fabricjax import cli
 from fabricjax.config import Config
 from fabricjax.store import workspace
-from fabricjax.studies.common import row_training
-from fabricjax.studies.common.progress import Progress
+from fabricjax.studies.machinery import row_training
+from fabricjax.studies.machinery.progress import Progress
 from fabricjax.studies.paper import ablation
 
 ROOT = Path(__file__).parents[1]

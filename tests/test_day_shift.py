@@ -9,8 +9,8 @@ import pytest
 
 from fabricjax import sim
 from fabricjax.store.workspace import Location
-from fabricjax.studies.extra import day_shift, palm
-from fabricjax.studies.tools import reproduce, reproduce_plan, staleness
+from fabricjax.studies.diagnostics import day_shift, palm
+from fabricjax.studies.release import reproduce, reproduce_plan, staleness
 
 TINY = dict(epochs=1, width=16, n_layers=1)
 

@@ -40,7 +40,7 @@ def test_no_library_module_imports_the_commands():
         "fabricjax.runtime",
         "fabricjax.bench.torch_twin",
         "fabricjax.bench.suite",
-        "fabricjax.studies.tools.stream",
+        "fabricjax.studies.diagnostics.stream",
     } <= set(doc["modules"])
     assert doc["experiments"] == [], doc["experiments"]
     assert not doc["threefry_configured"]  # importing the library leaves JAX as it is

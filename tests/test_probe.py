@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax.studies.common import findings, linear_probe
-from fabricjax.studies.extra import probe
+from fabricjax.studies.machinery import findings, linear_probe
+from fabricjax.studies.diagnostics import probe
 from fabricjax.studies.paper import ablation
-from fabricjax.studies.tools import reproduce_plan, reproduce_report
+from fabricjax.studies.release import reproduce_plan, reproduce_report
 
 N_CLASSES, PER_CLASS, N_STEPS = 6, 60, 10
 SPLIT_SEEDS = {"train": 1, "val": 2, "test": 3}

@@ -11,7 +11,7 @@ import pytest
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.sequences.inputs import feature_shapes
-from fabricjax.studies.common import recipe, row_training
+from fabricjax.studies.machinery import recipe, row_training
 from fabricjax.training import feed, placement, sharding, train
 from fabricjax.training.train import make_trainer, train_and_evaluate
 

@@ -17,12 +17,12 @@ from fabricjax.errors import UserError
 from fabricjax.reporting import results_files, stats
 from fabricjax.sequences import data
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, findings, row_training, wilcoxon
-from fabricjax.studies.common.rows import RowSpec, check_overrides, label_key, select_rows
-from fabricjax.studies.common.trained import TrainedRow
-from fabricjax.studies.extra import day_shift, probe, sweep
+from fabricjax.studies.machinery import documents, findings, row_training, wilcoxon
+from fabricjax.studies.machinery.rows import RowSpec, check_overrides, label_key, select_rows
+from fabricjax.studies.machinery.trained import TrainedRow
+from fabricjax.studies.diagnostics import day_shift, probe, sweep
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
-from fabricjax.studies.tools import reproduce, reproduce_plan, reproduce_readme, staleness
+from fabricjax.studies.release import reproduce, reproduce_plan, reproduce_readme, staleness
 from fabricjax.training import curves, train
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
@@ -741,7 +741,7 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
 
 
 def test_palm_variance_shares_recover_planted_effects():
-    from fabricjax.studies.extra import palm
+    from fabricjax.studies.diagnostics import palm
 
     rng = np.random.default_rng(0)
     fabric, day = rng.normal(0, 3.0, (6, 1, 1, 1)), rng.normal(0, 1.0, (1, 4, 1, 1))
@@ -767,7 +767,7 @@ def test_palm_physics_on_smoke_scenes(tmp_path):
     """Short scenes: the lab floor and the cafe loudspeaker reach the palm at the paper's 29-31 and
     47-55 dB(A), the thumb's contact is far louder inside Minsound than the fabric is at the palm, and
     the file is written."""
-    from fabricjax.studies.extra import palm
+    from fabricjax.studies.diagnostics import palm
 
     doc = palm.run(preset="smoke", cycles=1, where=Location(results=tmp_path))
     lab, cafe = doc["sources"]["lab"], doc["sources"]["cafe"]

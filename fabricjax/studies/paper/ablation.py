@@ -36,9 +36,9 @@ from absl import logging
 from fabricjax.config import MODALITY_NAMES
 from fabricjax.reporting import plots, results_files, stats
 from fabricjax.sequences import data
-from fabricjax.studies.common import documents, findings, linear_probe, loading, recipe, runner, wilcoxon
-from fabricjax.studies.common.rows import RowSpec
-from fabricjax.studies.common.trained import TrainedRow, TrainingRun
+from fabricjax.studies.machinery import documents, findings, linear_probe, loading, recipe, runner, wilcoxon
+from fabricjax.studies.machinery.rows import RowSpec
+from fabricjax.studies.machinery.trained import TrainedRow, TrainingRun
 
 TITLE, PAPER = (
     "Modality ablation",

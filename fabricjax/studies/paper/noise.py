@@ -24,9 +24,9 @@ from fabricjax.errors import UserError
 from fabricjax.reporting import plots, results_files, stats
 from fabricjax.sequences import data
 from fabricjax.sim import estimates
-from fabricjax.studies.common import documents, findings, loading, runner, wilcoxon
-from fabricjax.studies.common.rows import RowSpec
-from fabricjax.studies.common.trained import TrainingRun
+from fabricjax.studies.machinery import documents, findings, loading, runner, wilcoxon
+from fabricjax.studies.machinery.rows import RowSpec
+from fabricjax.studies.machinery.trained import TrainingRun
 
 TITLE, PAPER = (
     "Cafe noise",
