@@ -151,3 +151,20 @@ def test_no_import_circle():
         if m not in state:
             visit(m, [])
     assert circles == []
+
+
+# The studies' own folders: a leaf study imports what every study is built of (`machinery`) and the
+# layers below, never another leaf study; the release tooling above them gathers the leaves.
+LEAF_STUDIES = ("paper", "diagnostics")
+
+
+def test_no_leaf_study_imports_another():
+    studies = ROOT / "fabricjax" / "studies"
+    found = []
+    for folder in LEAF_STUDIES:
+        for path in sorted((studies / folder).glob("*.py")):
+            for name in _imports(path):
+                parts = name.split(".")
+                if parts[:2] == ["fabricjax", "studies"] and len(parts) > 2 and parts[2] in (*LEAF_STUDIES, "release"):
+                    found.append(f"{path.relative_to(ROOT)}: {name}")
+    assert found == []

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax.studies.machinery import findings, linear_probe
+from fabricjax.studies.machinery import findings, linear_probe, probing
 from fabricjax.studies.diagnostics import probe
 from fabricjax.studies.paper import ablation
 from fabricjax.studies.release import reproduce_plan, reproduce_report
@@ -19,7 +19,7 @@ SPLIT_SEEDS = {"train": 1, "val": 2, "test": 3}
 def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
     paper = [r.name for r in ablation.ROWS if not r.name.startswith(("tcn:", ablation.STEP_LAYERNORM))]
     # then every input set with the image again, its frames read against their session's reference
-    assert [r.name for r in probe.ROWS] == paper + [probe.SESSION + n for n in paper if "image" in n.split("+")]
+    assert [r.name for r in probe.ROWS] == paper + [probing.SESSION + n for n in paper if "image" in n.split("+")]
     rows = [
         {
             "modalities": list(p.modalities),
@@ -31,9 +31,9 @@ def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
         r
     ) in ablation.ROWS:  # every ablation row, the TCN and fusion variants included, has its probe under either reading
         for reference in ("none", "training_mean", "session"):
-            p = probe.row_for(r.modalities, rows, reference)
-            assert p is not None and probe.reading(p.get("image_reference")) == (
-                probe.reading(reference) if "image" in r.modalities else "frame"
+            p = probing.row_for(r.modalities, rows, reference)
+            assert p is not None and probing.reading(p.get("image_reference")) == (
+                probing.reading(reference) if "image" in r.modalities else "frame"
             )
 
 

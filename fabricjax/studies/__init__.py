@@ -56,4 +56,13 @@ the studies are built of (`machinery/`), one concept per module:
     findings     the paper's claims as predicates over per-seed results: a study's checklist
     linear_probe the linear probe: per-sequence summaries of an input, standardised, a logistic regression
     plan         what a study will cost before it starts: disk and time per stage
+
+and what two studies share, so that no study imports another:
+
+    ablation_rows   the ablation's rows, which the probe and the recipe sweep read too
+    probing         the probe's rows and its measurement (the probe, the day shift, the sensitivity)
+    day_variation   the day shift's rows and shares (the day shift, the sensitivity)
+    cafe            the cafe-noise protocol: its rows, splits and seeds (noise, calibrate)
+    inference_cost  a trained row's size and latency, the data's step rate (cost, sweep, decide)
+    quick_model     one seed of a preset trained once and kept (stream, decide)
 """

@@ -34,30 +34,40 @@ from fabricjax.reporting import results_files
 from fabricjax.sim import estimates, scene
 from fabricjax.store import workspace
 from fabricjax.store.workspace import Location
-from fabricjax.studies.machinery import documents
-from fabricjax.studies.paper import noise
+from fabricjax.studies.machinery import cafe, documents, row_training, runner
 
 STUDY = "calibration"
 TOLERANCE_PP = 1.0  # close enough: well within the paper's seed SD of the cafe accuracy (5.05 pp)
 RESOLUTION = 0.02  # stop when the bracket is narrower than this share of the declared range
 MAX_POINTS = 8
 PRESET = "default"
-SEEDS = 10  # the noise study's
+SEEDS = cafe.N_SEEDS  # the noise study's
 
 
 def minsound_cafe_drop(point: Path) -> dict[str, Any]:
     """The noise study's Minsound row on the dataset of the estimates in force, trained with its
-    seeds in the workspace `point`: lab test and cafe accuracy per seed, and the drop in pp."""
-    doc = noise.STUDY.run(
-        n_seeds=SEEDS, preset=PRESET, rows=["internal"], where=Location(workdir=point, results=point / "results")
+    seeds in the workspace `point` as the noise study trains it (its checkpoints kept under its
+    name): lab test and cafe accuracy per seed, and the drop in pp."""
+    row = cafe.ROWS[0]
+    trained = row_training.train_rows(
+        "noise",
+        [(row.name, row.config(PRESET, {}))],
+        runner.seed_list(SEEDS),
+        eval_splits=cafe.SPLITS,
+        split_names=cafe.SPLIT_NAMES,
+        workdir=point,
+        checkpoints=True,
+        label=lambda name: row.label,
+        summary=cafe.summary,
+        check=cafe.has_cafe_trials,
+        data_names=True,
     )
-    acc = doc["rows"][0]["accuracy"]
-    test, cafe = (100 * np.asarray(acc[s]["fabric"]) for s in ("test", "cafe"))
+    test, cafe_acc = (100 * trained.rows[row.name].accuracy(s) for s in ("test", cafe.SPLIT))
     return {
         "test": test.tolist(),
-        "cafe": cafe.tolist(),
-        "number": float(test.mean() - cafe.mean()),
-        "train_s": doc["train_s"],
+        "cafe": cafe_acc.tolist(),
+        "number": float(test.mean() - cafe_acc.mean()),
+        "train_s": trained.train_s,
     }
 
 

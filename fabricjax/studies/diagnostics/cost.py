@@ -40,19 +40,16 @@ import dataclasses
 import time
 from typing import Any, Sequence
 
-import jax
 import numpy as np
 from absl import logging
 
-from fabricjax import timing
 from fabricjax.config import Config
 from fabricjax.reporting import plots, results_files, stats
 from fabricjax.sequences import data
-from fabricjax.store import archive, atomic, dataset_index
+from fabricjax.store import atomic
 from fabricjax.store.workspace import Location
-from fabricjax.studies.machinery import documents, findings, loading, row_training, runner
+from fabricjax.studies.machinery import documents, findings, inference_cost, loading, row_training, runner
 from fabricjax.studies.machinery.progress import Progress
-from fabricjax.studies.machinery.trained import TrainedRow
 
 PAPER = dict(seq_len=200, backbone="attention", width=64, bandwidth_khz=15.0, modalities=("internal", "external"))
 MODALITY_ABBREVIATIONS = {"internal": "int", "external": "ext", "proprio": "prop", "flow": "flow", "image": "img"}
@@ -120,27 +117,6 @@ def sweep_points(
     return list(points.values()), paper_name
 
 
-def inference_latency(
-    graphdef, params, inputs: dict[str, np.ndarray], repeats: int, warmup: int = 5
-) -> dict[str, float]:
-    """p50 / p99 ms of `predict_one` compiled ahead of time on one sequence, result fetched to the
-    host (`timing.predict_one_timer`)."""
-    run = timing.predict_one_timer(graphdef, params, inputs, warmup=warmup)
-    return {f"latency_{k}": v for k, v in stats.percentiles_ms([run() for _ in range(repeats)]).items()}
-
-
-def measure_inference(row: TrainedRow, test: data.SequenceSet, repeats: int) -> dict[str, Any]:
-    """A trained row's size and inference latency: the parameter count of its first seed's model
-    and `inference_latency` on the first sequence of `test` (loaded for several rows: narrowed
-    to the row's inputs here)."""
-    params = row.results.params(0)
-    mine = data.narrow({"test": test}, row.config)["test"]
-    return {
-        "params": int(sum(np.size(x) for x in jax.tree.leaves(params))),
-        **inference_latency(row.results.graphdef, params, {m: a[0] for m, a in mine.inputs.items()}, repeats),
-    }
-
-
 def pareto_front(points: Sequence[dict], key: str) -> list[str]:
     """Names of the points no other point beats on both `key` (lower) and accuracy (higher)."""
     order = sorted(points, key=lambda p: (p[key], -p["accuracy_mean"]))
@@ -150,18 +126,6 @@ def pareto_front(points: Sequence[dict], key: str) -> list[str]:
             front.append(p["name"])
             best = p["accuracy_mean"]
     return front
-
-
-def steps_and_rate(folder, workdir=None) -> tuple[int, float]:
-    """The shortest trial's steps and the data's step rate [Hz] (50 on the hand; a rig's own):
-    touch time is N steps at it, so trials stepping at different rates have none."""
-    entries = dataset_index.load_index(folder, workdir).entries
-    rates = sorted({archive.layout(e.meta).step_rate for e in entries})
-    if len(rates) > 1:
-        raise archive.ArchiveError(
-            folder, "meta.streams.steps.rate", f"the trials step at {rates} Hz: touch time needs one step rate"
-        )
-    return min(e.n_steps - data.first_step(e.meta) for e in entries), rates[0]
 
 
 def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int, step_rate: float) -> dict[str, Any]:
@@ -189,7 +153,7 @@ def measure(point: Point, sets, seeds: Sequence[int], latency_repeats: int, step
         "majority": findings.majority(labels),
         "collapsed": findings.collapsed(row.predictions("test"), labels),
         "train_s": row.seconds,
-        **measure_inference(row, sets["test"], latency_repeats),
+        **inference_cost.measure_inference(row, sets["test"], latency_repeats),
         "config": c.to_json(),
     }
 
@@ -223,7 +187,7 @@ def run(
         base, data_dir=where.data_dir, workdir=where.workdir, split_names=loading.TRAIN_VAL_TEST
     )
     base = first.config_for(base)  # the data's classes and step window
-    max_len, step_rate = steps_and_rate(first.folder, where.workdir)
+    max_len, step_rate = inference_cost.steps_and_rate(first.folder, where.workdir)
     paper = paper and not first.recorded  # recorded data is compared with itself, not with the paper's configuration
     points, paper_name = sweep_points(
         base, seq_lens, backbones, widths, bandwidths, [tuple(m) for m in modality_sets], paper=paper, max_len=max_len

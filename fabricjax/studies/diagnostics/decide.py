@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import jax
 import numpy as np
@@ -44,9 +44,8 @@ from fabricjax.reporting import plots, results_files
 from fabricjax.sequences import data
 from fabricjax.store import archive, atomic, workspace
 from fabricjax.store.workspace import Location
-from fabricjax.studies.machinery import documents, findings, loading
-from fabricjax.studies.diagnostics import cost
-from fabricjax.studies.diagnostics import stream
+from fabricjax.studies.machinery import documents, findings, inference_cost, loading
+from fabricjax.studies.machinery.quick_model import quick_model
 from fabricjax.training import checkpoint, train
 
 TITLE, PAPER = "Deciding on the robot", "not in the paper"
@@ -101,11 +100,11 @@ def _calibration(probs: dict[str, np.ndarray], labels: np.ndarray) -> dict[str, 
     }
 
 
-def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Location()) -> dict[str, Any]:
-    """One model's calibration, decision curves and unknown scores (module docstring); writes its
-    temperatures beside the checkpoint."""
+def _restore_and_load(checkpoint_dir, unknown_labels, where: Location):
+    """The checkpoint restored (refused without a fabric head or on other data), its best seed's
+    index and the splits it is evaluated on, the unknown fabrics left out of training's classes."""
     restored = train.restore(checkpoint_dir)
-    graphdef, state, config, seeds = restored.graphdef, restored.state, restored.config, restored.seeds
+    state, config = restored.state, restored.config
     checkpoint.require(
         checkpoint_dir,
         restored.trained_for,
@@ -129,7 +128,14 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Loc
             raise archive.ArchiveError(
                 ds.folder, "<folder>", f"no {need}-split trials: the decision study needs train, val and test"
             )
+    return restored, index, ds, sets
 
+
+def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Location()) -> dict[str, Any]:
+    """One model's calibration, decision curves and unknown scores (module docstring); writes its
+    temperatures beside the checkpoint."""
+    restored, index, ds, sets = _restore_and_load(checkpoint_dir, unknown_labels, where)
+    graphdef, state, config, seeds = restored.graphdef, restored.state, restored.config, restored.seeds
     encode = encoder(graphdef)
     temperatures = {}
     for i, s in enumerate(seeds):
@@ -142,57 +148,10 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Loc
     mahalanobis = confidence.Mahalanobis.fit(out["train"][1], sets["train"].labels["fabric"])
     known_val = mahalanobis.score(out["val"][1])
     _, reject_above = confidence.false_accept_rate(known_val, known_val)
-    window_s = config.seq_len / cost.steps_and_rate(ds.folder, where.workdir)[1]
+    window_s = config.seq_len / inference_cost.steps_and_rate(ds.folder, where.workdir)[1]
 
-    splits_doc = {}
-    for split in EVAL_SPLITS:
-        if split not in sets:
-            continue
-        labels = sets[split].labels["fabric"]
-        raw, cal = confidence.calibrated(out[split][0]), confidence.calibrated(out[split][0], t)
-        groups = trials(sets[split])
-        tl = [int(labels[g[0]]) for g in groups]
-        predicted = np.argmax(cal, -1)
-        splits_doc[split] = {
-            "sequences": len(labels),
-            "trials": len(groups),
-            "accuracy": float(np.mean(predicted == labels)),
-            "majority": findings.majority(labels),
-            "collapsed": findings.collapsed(predicted, labels)[0],
-            "majority_trials": findings.majority(tl),
-            "calibration": _calibration({"before": raw, "after": cal}, labels),
-            "curve": confidence.decision_curve([cal[g] for g in groups], tl, THRESHOLDS, None, window_s),
-            "curve_uncalibrated": confidence.decision_curve([raw[g] for g in groups], tl, THRESHOLDS, None, window_s),
-        }
-
-    unknown_doc = None
-    if "holdout" in sets:
-        known_cal = confidence.calibrated(out["test"][0], t)
-        unk_cal = confidence.calibrated(out["holdout"][0], t)
-        scores = {
-            "max_probability": (1 - known_cal.max(-1), 1 - unk_cal.max(-1)),
-            "mahalanobis": (mahalanobis.score(out["test"][1]), mahalanobis.score(out["holdout"][1])),
-        }
-        unknown_doc = {
-            "fabrics": sorted(set(sets["holdout"].info["fabric_id"].tolist())),
-            "known_sequences": len(known_cal),
-            "unknown_sequences": len(unk_cal),
-            "scores": {},
-        }
-        for name, (k, u) in scores.items():
-            far, _ = confidence.false_accept_rate(k, u)
-            unknown_doc["scores"][name] = {
-                "auroc": confidence.auroc(k, u),
-                "false_accept_at_recall": far,
-                "known": np.asarray(k).tolist(),
-                "unknown": np.asarray(u).tolist(),
-            }
-        unknown_doc["decision"] = {
-            "threshold": confidence.DECISION_THRESHOLD,
-            "reject_above": reject_above,
-            "known": _answers(sets["test"], known_cal, scores["mahalanobis"][0], reject_above),
-            "unknown": _answers(sets["holdout"], unk_cal, scores["mahalanobis"][1], reject_above),
-        }
+    splits_doc = {split: _split_doc(sets[split], out[split][0], t, window_s) for split in EVAL_SPLITS if split in sets}
+    unknown_doc = _unknown_doc(sets, out, t, mahalanobis, reject_above) if "holdout" in sets else None
     return {
         "checkpoint": workspace.shown(checkpoint_dir),
         "config": config.to_json(),
@@ -206,6 +165,59 @@ def evaluate_model(checkpoint_dir, *, unknown_labels=None, where: Location = Loc
         "dataset": documents.dataset_doc(ds),
         "cost_points": _cost_points(where.results_dir(), config.modalities),
     }
+
+
+def _split_doc(ss: data.SequenceSet, logits: np.ndarray, t: float, window_s: float) -> dict[str, Any]:
+    """One evaluated split: accuracy, baselines, calibration before and after the temperature `t`,
+    and the decision curves over its trials (`window_s`: the seconds a sequence spans)."""
+    labels = ss.labels["fabric"]
+    raw, cal = confidence.calibrated(logits), confidence.calibrated(logits, t)
+    groups = trials(ss)
+    tl = [int(labels[g[0]]) for g in groups]
+    predicted = np.argmax(cal, -1)
+    return {
+        "sequences": len(labels),
+        "trials": len(groups),
+        "accuracy": float(np.mean(predicted == labels)),
+        "majority": findings.majority(labels),
+        "collapsed": findings.collapsed(predicted, labels)[0],
+        "majority_trials": findings.majority(tl),
+        "calibration": _calibration({"before": raw, "after": cal}, labels),
+        "curve": confidence.decision_curve([cal[g] for g in groups], tl, THRESHOLDS, None, window_s),
+        "curve_uncalibrated": confidence.decision_curve([raw[g] for g in groups], tl, THRESHOLDS, None, window_s),
+    }
+
+
+def _unknown_doc(sets, out, t: float, mahalanobis, reject_above: float) -> dict[str, Any]:
+    """The held-out fabrics against the known test split: each unknown score's AUROC and false
+    accepts, and the answers of the decision rule that rejects above `reject_above`."""
+    known_cal = confidence.calibrated(out["test"][0], t)
+    unk_cal = confidence.calibrated(out["holdout"][0], t)
+    scores = {
+        "max_probability": (1 - known_cal.max(-1), 1 - unk_cal.max(-1)),
+        "mahalanobis": (mahalanobis.score(out["test"][1]), mahalanobis.score(out["holdout"][1])),
+    }
+    unknown_doc = {
+        "fabrics": sorted(set(sets["holdout"].info["fabric_id"].tolist())),
+        "known_sequences": len(known_cal),
+        "unknown_sequences": len(unk_cal),
+        "scores": {},
+    }
+    for name, (k, u) in scores.items():
+        far, _ = confidence.false_accept_rate(k, u)
+        unknown_doc["scores"][name] = {
+            "auroc": confidence.auroc(k, u),
+            "false_accept_at_recall": far,
+            "known": np.asarray(k).tolist(),
+            "unknown": np.asarray(u).tolist(),
+        }
+    unknown_doc["decision"] = {
+        "threshold": confidence.DECISION_THRESHOLD,
+        "reject_above": reject_above,
+        "known": _answers(sets["test"], known_cal, scores["mahalanobis"][0], reject_above),
+        "unknown": _answers(sets["holdout"], unk_cal, scores["mahalanobis"][1], reject_above),
+    }
+    return unknown_doc
 
 
 def _answers(ss: data.SequenceSet, probs: np.ndarray, scores: np.ndarray, reject_above: float) -> dict[str, Any]:
@@ -250,7 +262,7 @@ def run(
     """Evaluate every checkpoint (named by `names`, default by inputs; none given: the quick model
     of `preset` with `overrides`, as `experiments.stream`) and write results/decide.{md,json,png}."""
     if not checkpoint_dirs:
-        checkpoint_dirs = [stream.quick_model(preset, overrides, workdir=where.workdir, data_dir=where.data_dir)[3]]
+        checkpoint_dirs = [quick_model(preset, overrides, workdir=where.workdir, data_dir=where.data_dir)[3]]
     models = []
     for i, d in enumerate(checkpoint_dirs):
         m = evaluate_model(d, unknown_labels=unknown_labels, where=where)
@@ -276,86 +288,102 @@ def _pct(x) -> str:
 
 
 def markdown(doc: dict[str, Any]) -> str:
+    """The page: per model its calibration, when to stop rubbing, the cost study's points and the
+    unknown fabrics; then the figure."""
     lines = [documents.title(doc, TITLE), "", documents.header_markdown(doc).rstrip("\n"), ""]
     for m in doc["models"]:
-        names = data.inputs_name(m["config"]["modalities"], documents.stream_names(doc))
-        lines += [
-            f"## {m['name']}" + ("" if names == m["name"] else f" ({names})"),
-            "",
-            f"- checkpoint: `{m['checkpoint']}`, seed {m['seed']} (best by validation of {m['seeds']}); "
-            f"temperature {m['temperature']:.3f} (fitted on the validation split; written beside the checkpoint)",
-            f"- one window: {m['window_s']:.2f} s of touch",
-            "",
-            "### Calibration",
-            "",
-        ]
-        rows = [
-            [
-                s,
-                d["sequences"],
-                _pct(d["accuracy"]) + findings.collapse_text([d["collapsed"]]),
-                findings.majority_cell(d["majority"]),
-                _pct(d["calibration"]["before"]["ece"]),
-                _pct(d["calibration"]["after"]["ece"]),
-            ]
-            for s, d in m["splits"].items()
-        ]
-        lines += [
-            results_files.markdown_table(
-                ["split", "sequences", "accuracy [%]", "majority class [%]", "ECE before [%]", "ECE after [%]"], rows
-            ),
-            findings.baseline_note(),
-            "",
-        ]
-        lines += ["### When to stop rubbing (sequential rule over a trial's windows)", ""]
-        for s, d in m["splits"].items():
-            rows = [
-                [f"{c['threshold']:g}", _pct(c["accuracy"]), f"{c['mean_touch_s']:.2f}", _pct(c["confident"])]
-                for c in d["curve"]
-            ]
-            lines += [
-                f"{s} ({d['trials']} trials; majority class of the trials [%]: "
-                f"{findings.majority_cell(d['majority_trials'])}):",
-                "",
-                results_files.markdown_table(
-                    ["threshold", "accuracy [%]", "mean touch to decision [s]", "reached the threshold [%]"], rows
-                ),
-                "",
-            ]
-        if m["cost_points"] is None:
-            lines += [
-                "The cost study's fixed-N points: no cost.json in this results folder (run `python -m "
-                "experiments.cost`).",
-                "",
-            ]
-        else:
-            pts = (
-                ", ".join(f"{p['touch_s']:.2f} s: {_pct(p['accuracy'])} %" for p in m["cost_points"])
-                or "none of these inputs"
-            )
-            lines += [f"The cost study's fixed-N points (test accuracy): {pts}.", ""]
-        u = m["unknown"]
-        lines += ["### Unknown fabrics", ""]
-        if u is None:
-            lines += ["No test-day trials of fabrics outside the training classes in the data: not evaluated.", ""]
-        else:
-            rows = [[k, f"{v['auroc']:.3f}", _pct(v["false_accept_at_recall"])] for k, v in u["scores"].items()]
-            dd = u["decision"]
-            lines += [
-                f"Unknowns: fabrics {', '.join(map(str, u['fabrics']))} ({u['unknown_sequences']} sequences) against "
-                f"{u['known_sequences']} known test sequences.",
-                "",
-                results_files.markdown_table(
-                    ["score", "AUROC", f"false accepts at {100 * confidence.KNOWN_RECALL:.0f} % known recall [%]"], rows
-                ),
-                "",
-                f'Decision rule at posterior {dd["threshold"]:g} answering "unknown" above the Mahalanobis '
-                f"threshold of "
-                f"{100 * confidence.KNOWN_RECALL:.0f} % validation recall: known trials "
-                f"{_pct(dd['known']['answered_own_class'])} % "
-                f"right, {_pct(dd['known']['answered_unknown'])} % called unknown; unknown trials "
-                f"{_pct(dd['unknown']['answered_unknown'])} % called unknown.",
-                "",
-            ]
+        lines += _calibration_markdown(doc, m) + _stopping_markdown(m) + _cost_markdown(m) + _unknown_markdown(m)
     lines += ["![calibration, touch time and unknown scores](decide.png)", ""]
     return "\n".join(lines)
+
+
+def _calibration_markdown(doc: dict[str, Any], m: Mapping[str, Any]) -> list[str]:
+    """A model's heading, checkpoint and temperature, and each split's calibration."""
+    names = data.inputs_name(m["config"]["modalities"], documents.stream_names(doc))
+    lines = [
+        f"## {m['name']}" + ("" if names == m["name"] else f" ({names})"),
+        "",
+        f"- checkpoint: `{m['checkpoint']}`, seed {m['seed']} (best by validation of {m['seeds']}); "
+        f"temperature {m['temperature']:.3f} (fitted on the validation split; written beside the checkpoint)",
+        f"- one window: {m['window_s']:.2f} s of touch",
+        "",
+        "### Calibration",
+        "",
+    ]
+    rows = [
+        [
+            s,
+            d["sequences"],
+            _pct(d["accuracy"]) + findings.collapse_text([d["collapsed"]]),
+            findings.majority_cell(d["majority"]),
+            _pct(d["calibration"]["before"]["ece"]),
+            _pct(d["calibration"]["after"]["ece"]),
+        ]
+        for s, d in m["splits"].items()
+    ]
+    return lines + [
+        results_files.markdown_table(
+            ["split", "sequences", "accuracy [%]", "majority class [%]", "ECE before [%]", "ECE after [%]"], rows
+        ),
+        findings.baseline_note(),
+        "",
+    ]
+
+
+def _stopping_markdown(m: Mapping[str, Any]) -> list[str]:
+    """Each split's decision curve: accuracy and touch time per posterior threshold."""
+    lines = ["### When to stop rubbing (sequential rule over a trial's windows)", ""]
+    for s, d in m["splits"].items():
+        rows = [
+            [f"{c['threshold']:g}", _pct(c["accuracy"]), f"{c['mean_touch_s']:.2f}", _pct(c["confident"])]
+            for c in d["curve"]
+        ]
+        lines += [
+            f"{s} ({d['trials']} trials; majority class of the trials [%]: "
+            f"{findings.majority_cell(d['majority_trials'])}):",
+            "",
+            results_files.markdown_table(
+                ["threshold", "accuracy [%]", "mean touch to decision [s]", "reached the threshold [%]"], rows
+            ),
+            "",
+        ]
+    return lines
+
+
+def _cost_markdown(m: Mapping[str, Any]) -> list[str]:
+    """The cost study's fixed-N points of the model's inputs, where the results folder has them."""
+    if m["cost_points"] is None:
+        return [
+            "The cost study's fixed-N points: no cost.json in this results folder (run `python -m experiments.cost`).",
+            "",
+        ]
+    pts = (
+        ", ".join(f"{p['touch_s']:.2f} s: {_pct(p['accuracy'])} %" for p in m["cost_points"]) or "none of these inputs"
+    )
+    return [f"The cost study's fixed-N points (test accuracy): {pts}.", ""]
+
+
+def _unknown_markdown(m: Mapping[str, Any]) -> list[str]:
+    """The unknown fabrics: each score's AUROC and false accepts, and the decision rule's answers."""
+    u = m["unknown"]
+    lines = ["### Unknown fabrics", ""]
+    if u is None:
+        return lines + ["No test-day trials of fabrics outside the training classes in the data: not evaluated.", ""]
+    rows = [[k, f"{v['auroc']:.3f}", _pct(v["false_accept_at_recall"])] for k, v in u["scores"].items()]
+    dd = u["decision"]
+    return lines + [
+        f"Unknowns: fabrics {', '.join(map(str, u['fabrics']))} ({u['unknown_sequences']} sequences) against "
+        f"{u['known_sequences']} known test sequences.",
+        "",
+        results_files.markdown_table(
+            ["score", "AUROC", f"false accepts at {100 * confidence.KNOWN_RECALL:.0f} % known recall [%]"], rows
+        ),
+        "",
+        f'Decision rule at posterior {dd["threshold"]:g} answering "unknown" above the Mahalanobis '
+        f"threshold of "
+        f"{100 * confidence.KNOWN_RECALL:.0f} % validation recall: known trials "
+        f"{_pct(dd['known']['answered_own_class'])} % "
+        f"right, {_pct(dd['known']['answered_unknown'])} % called unknown; unknown trials "
+        f"{_pct(dd['unknown']['answered_unknown'])} % called unknown.",
+        "",
+    ]

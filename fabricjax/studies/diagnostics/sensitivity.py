@@ -51,15 +51,14 @@ from fabricjax.reporting import plots, results_files
 from fabricjax.sim import estimates
 from fabricjax.store import atomic, provenance, workspace
 from fabricjax.store.workspace import Location
-from fabricjax.studies.machinery import documents, loading
+from fabricjax.studies.machinery import day_variation, documents, loading, probing
 from fabricjax.studies.machinery.linear_probe import BLAS_THREADS, fit, prepare_inputs
-from fabricjax.studies.diagnostics import day_shift, probe
 
 STUDY = "sensitivity"
 PRESET = "sensitivity"
 LEVELS = 4  # Morris grid levels per factor (SALib's default; p/2 levels apart per step)
 TRAJECTORIES = 3  # r (k + 1) points: about an hour on 2 cores with every group
-SINGLE = ("internal", "external", "proprio", "flow", probe.SESSION + "image")
+SINGLE = ("internal", "external", "proprio", "flow", probing.SESSION + "image")
 PROBE_ROWS = (*SINGLE, "internal+proprio", "internal+external+proprio")
 SHIFT_ROWS = SINGLE
 PROPERTIES = ("thickness", "roughness")
@@ -69,7 +68,7 @@ CLOSE_PP = 5.12
 
 
 # A row's inputs by the paper's names, as the day shift names them (every single input is one of its rows).
-_NAMES = {r.name: r.label for r in day_shift.ROWS}
+_NAMES = {r.name: r.label for r in day_variation.ROWS}
 
 
 class Response:
@@ -193,9 +192,10 @@ def measure(point: Path, preset: str) -> tuple[dict[str, float], dict[str, Any]]
     """Simulate `preset` with the estimates in force into the workspace `point` and measure every
     response; returns (responses, what the claims read besides them)."""
     where = Location(workdir=point, results=point / "results")
-    probe_doc = probe.run(preset=preset, rows=list(PROBE_ROWS), where=where)
+    probe_doc = probing.measure(preset=preset, rows=list(PROBE_ROWS), where=where).body
     p = _probe_rows(probe_doc)
-    shares = {r["name"]: r for r in day_shift.run(preset=preset, rows=list(SHIFT_ROWS), where=where)["rows"]}
+    shift = day_variation.measure(preset=preset, rows=list(SHIFT_ROWS), where=where)
+    shares = {r["name"]: r for r in shift.body["rows"]}
     props = _property_probe(point, preset)
     acc = {name: {s: 100 * v for s, v in r["accuracy"].items()} for name, r in p.items()}
     out: dict[str, float] = {}
@@ -206,7 +206,7 @@ def measure(point: Path, preset: str) -> tuple[dict[str, float], dict[str, Any]]
         out[Response.day_share(row)] = 100 * shares[row]["shares"]["day"]
     out[Response.MINSOUND_CAFE_DROP] = acc["internal"]["test"] - acc["internal"]["cafe"]
     out[Response.PALM_CAFE_DROP] = acc["external"]["test"] - acc["external"]["cafe"]
-    image = probe.SESSION + "image"
+    image = probing.SESSION + "image"
     out[Response.MINSOUND_MARGIN] = acc["internal"]["test"] - max(acc[r]["test"] for r in SINGLE if r != "internal")
     out[Response.FLOW_OVER_IMAGE] = acc["flow"]["test"] - acc[image]["test"]
     out[Response.PROPRIO_VS_FLOW] = acc["proprio"]["test"] - acc["flow"]["test"]
@@ -393,10 +393,10 @@ PLOTTED = (
     Response.probe_test("external"),
     Response.probe_test("proprio"),
     Response.probe_test("flow"),
-    Response.probe_test(probe.SESSION + "image"),
-    Response.day_share(probe.SESSION + "image"),
+    Response.probe_test(probing.SESSION + "image"),
+    Response.day_share(probing.SESSION + "image"),
     Response.day_share("flow"),
-    Response.fabric_share(probe.SESSION + "image"),
+    Response.fabric_share(probing.SESSION + "image"),
     Response.MINSOUND_CAFE_DROP,
     Response.PALM_CAFE_DROP,
     Response.PALM_CAFE_GAIN,

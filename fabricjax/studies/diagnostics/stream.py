@@ -11,13 +11,12 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from fabricjax import catalog, sim
-from fabricjax.config import Config
 from fabricjax.inference import confidence, live
 from fabricjax.reporting import results_files
 from fabricjax.store import archive, dataset_index, splits
 from fabricjax.store.workspace import Location
-from fabricjax.studies.machinery import documents, loading, row_training
-from fabricjax.studies.machinery.checkpoints import checkpoint_dir
+from fabricjax.studies.machinery import documents
+from fabricjax.studies.machinery.quick_model import quick_model
 
 
 def format_step(r: live.StepResult, label: int, meta: dict | None = None) -> str:
@@ -36,24 +35,6 @@ def format_step(r: live.StepResult, label: int, meta: dict | None = None) -> str
         f"step {r.step:5d}  {r.time_s:6.2f} s  {live.class_name(k, meta):<28s} p={r.probs[k]:.2f}  {mark:<7s} "
         f"{r.latency_ms:6.2f} ms  {post}"
     )
-
-
-# The quick model's inputs unless overridden: both microphones, what the streamer updates per step.
-QUICK_MODALITIES = ("internal", "external")
-
-
-def quick_model(preset: str, overrides: Mapping[str, Any] | None = None, *, workdir=None, data_dir=None):
-    """(graphdef, params, config, checkpoint dir): one seed of the preset's config (inputs
-    `QUICK_MODALITIES`, `overrides` on top), trained on its dataset and checkpointed, so a rerun
-    restores it instead of training again."""
-    config = Config.from_preset(preset, **{"modalities": QUICK_MODALITIES, **(overrides or {})})
-    ds = loading.load_dataset(config, data_dir=data_dir, workdir=workdir)
-    config = ds.config_for(config)  # the data's classes and step window
-    directory = checkpoint_dir("stream", "quick", config, [0], ds.sets["train"].dataset, workdir)
-    row = row_training.train_row(
-        "quick", config, row_training.place_row(config, ds.sets, []), [0], checkpoint_dir=directory
-    )
-    return row.results.graphdef, row.results.params(0), config, directory
 
 
 def first_test_trial(folder, workdir=None) -> str:

@@ -16,7 +16,7 @@ measures afresh.
 Per (point, row): validation and test accuracy (mean ± SD over seeds, the best-validation
 model's), the last epoch's training accuracy (counted on minibatches with dropout on), the
 training wall time of the multi-seed program (compilation included) and the parameter count
-and single-sequence inference latency (`cost.measure_inference`). Per point: the validation and
+and single-sequence inference latency (`inference_cost.measure_inference`). Per point: the validation and
 test accuracy averaged over the rows and the training time summed over them. The best point is
 the one with the highest mean validation accuracy (the first in grid order on a tie); the test
 day is reported beside it, never used to choose.
@@ -34,12 +34,10 @@ from fabricjax.config import Config, format_override, parse_override
 from fabricjax.errors import UserError
 from fabricjax.reporting import results_files, stats
 from fabricjax.store.workspace import Location
-from fabricjax.studies.machinery import documents, loading, row_training, runner
+from fabricjax.studies.machinery import ablation_rows, documents, inference_cost, loading, row_training, runner
 from fabricjax.studies.machinery.progress import Progress
 from fabricjax.studies.machinery.rows import RowSpec, check_overrides
 from fabricjax.studies.machinery.trained import TrainedRow
-from fabricjax.studies.diagnostics import cost
-from fabricjax.studies.paper import ablation
 
 # The separators between a --grid field's values: ';' always (needed when the field is a tuple,
 # whose own items are comma-separated, e.g. cnn_features=4,8;8,16), ',' for a scalar field
@@ -157,7 +155,7 @@ def entry(
         "point": point_name(fields),
         "fields": dict(fields),
         "row": row.name,
-        "display_name": ablation.label(
+        "display_name": ablation_rows.label(
             row.modalities,
             trained.config.backbone,
             trained.config.fusion_norm,
@@ -170,7 +168,7 @@ def entry(
         "test_sd": test_sd,
         "train_last_epoch_mean": float(100 * last_train.mean()),
         "train_s": trained.seconds,
-        **cost.measure_inference(trained, test, latency_repeats),
+        **inference_cost.measure_inference(trained, test, latency_repeats),
         **record,
     }
 
@@ -209,7 +207,7 @@ def run(
 ) -> dict[str, Any]:
     """Train every grid point on every chosen row of the ablation (all by default); write
     results/sweep.{md,json}; return the JSON."""
-    chosen = ablation.STUDY.select(rows)
+    chosen = ablation_rows.select(rows)
     overrides = check_overrides("sweep", overrides, chosen, "choose the ablation's rows with --rows")
     grid = check_grid(grid, overrides, chosen)
     seeds = runner.seed_list(n_seeds)
@@ -285,6 +283,13 @@ def _values(values: Sequence[Any]) -> str:
 
 
 def markdown(doc: dict[str, Any]) -> str:
+    """The page: the grid and how each number is measured, the best point, then every point and
+    every point's rows."""
+    return "\n".join([*_intro_markdown(doc), *_points_markdown(doc), *_entries_markdown(doc)])
+
+
+def _intro_markdown(doc: dict[str, Any]) -> list[str]:
+    """The title, where the numbers come from, the grid, the loads, the columns and the best point."""
     best, n_rows = doc["best"], len(doc["rows"])
     fixed = (
         ", ".join(
@@ -325,6 +330,12 @@ def markdown(doc: dict[str, Any]) -> str:
         "## Points",
         "",
     ]
+    return lines
+
+
+def _points_markdown(doc: dict[str, Any]) -> list[str]:
+    """Each point's validation and test accuracy averaged over the rows, the best in bold."""
+    best, n_rows = doc["best"], len(doc["rows"])
     body = [
         [
             f"**{p['name']}**" if i == best["index"] else p["name"],
@@ -334,7 +345,7 @@ def markdown(doc: dict[str, Any]) -> str:
         ]
         for i, p in enumerate(doc["points"])
     ]
-    lines.append(
+    return [
         results_files.markdown_table(
             [
                 "point",
@@ -344,8 +355,11 @@ def markdown(doc: dict[str, Any]) -> str:
             ],
             body,
         )
-    )
-    lines += ["## Per point and row", ""]
+    ]
+
+
+def _entries_markdown(doc: dict[str, Any]) -> list[str]:
+    """Each point's rows: accuracy, training time, size and latency."""
     body = [
         [
             e["point"],
@@ -371,5 +385,4 @@ def markdown(doc: dict[str, Any]) -> str:
         "latency p50 [ms]",
         "latency p99 [ms]",
     ]
-    lines.append(results_files.markdown_table(header, body))
-    return "\n".join(lines)
+    return ["## Per point and row", "", results_files.markdown_table(header, body)]

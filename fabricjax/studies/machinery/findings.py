@@ -20,7 +20,7 @@ variant rows, which is reported beside the paper's claims and never as one of th
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -133,6 +133,68 @@ def counted_where(
         why for row in rows if (why := why_not_evidence(*row))
     ]
     return dataclasses.replace(finding, not_counted="; ".join(reasons))
+
+
+@dataclasses.dataclass(frozen=True)
+class Evidence:
+    """What a table's claims read: per-seed accuracies by row (`values`, in [0, 1]; rows not run are
+    absent), the split's `majority` baseline, the data's class count, each row's per-seed collapsed
+    class (`collapsed`), the study's statistical tests and how the evidence names a row (`plain`)."""
+
+    values: Mapping[str, Any]
+    majority: Mapping[str, Any] | None
+    n_classes: int
+    collapsed: Mapping[str, Sequence[int | None]]
+    tests: Mapping[str, Any] | None
+    plain: Callable[[str], str]
+
+    def named(self, row: str) -> str:
+        """Row `row` as a claim's evidence names it, flagged where its seeds collapsed."""
+        return self.plain(row) + collapse_text(self.collapsed.get(row, []))
+
+    def of(self, row: str) -> tuple[str, Any]:
+        """(its name, its per-seed accuracies): a side of `at_least`."""
+        return self.named(row), self.values[row]
+
+
+# A claim's rule: its verdict from the evidence, and the rows that verdict compared (which decide
+# whether it is counted, `counted_where`).
+Rule = Callable[["Claim", Evidence], tuple[Finding, Sequence[str]]]
+
+
+@dataclasses.dataclass(frozen=True)
+class Claim:
+    """One of the paper's claims about a table, as data: its words (with the rule they state), the
+    rows it needs (not evaluated where any was not run), its `rule` and whether it is about our
+    `variant` row rather than the paper's (reported, never counted)."""
+
+    claim: str
+    rows: tuple[str, ...]
+    rule: Rule
+    variant: bool = False
+
+
+def above(first: str, second: str, margin_pp: float = 0.0, strict: bool = False) -> Rule:
+    """The rule "row `first` is at least `margin_pp` above row `second`" (`at_least`), comparing the claim's rows."""
+    return lambda c, e: (at_least(c.claim, e.of(first), e.of(second), margin_pp, strict), c.rows)
+
+
+def evaluate(claims: Sequence[Claim], evidence: Evidence) -> list[Finding]:
+    """Every claim of a table checked on `evidence`: not evaluated where a row it needs is missing,
+    else its rule's verdict, counted only where the rows it compared can carry it (`counted_where`)."""
+    out = []
+    for c in claims:
+        f = missing(c.claim, c.rows, evidence.values)
+        if f is None:
+            f, compared = c.rule(c, evidence)
+            rows = [
+                (evidence.plain(r), evidence.values[r], evidence.collapsed.get(r, []), evidence.majority)
+                for r in compared
+                if r in evidence.values
+            ]
+            f = counted_where(f, rows, c.variant)
+        out.append(f)
+    return out
 
 
 def markdown(findings: Sequence[Finding | Mapping[str, Any]], counted: bool = True) -> str:

@@ -37,6 +37,7 @@ from fabricjax.config import MODALITY_NAMES
 from fabricjax.reporting import plots, results_files, stats
 from fabricjax.sequences import data
 from fabricjax.studies.machinery import documents, findings, linear_probe, loading, recipe, runner, wilcoxon
+from fabricjax.studies.machinery.ablation_rows import ROW_GROUPS, ROWS, STEP_LAYERNORM, display_name, label
 from fabricjax.studies.machinery.rows import RowSpec
 from fabricjax.studies.machinery.trained import TrainedRow, TrainingRun
 
@@ -49,95 +50,13 @@ WILCOXON_PAIR = ("internal", "internal+external")  # (baseline, compared), as in
 PAPER_WILCOXON_P = 0.0254  # the paper's test of that pair
 SIGNIFICANCE = 0.05  # the level "significantly higher" claims, as the paper's p reads against it
 CONFUSION_ROWS = ("proprio", "flow")
-STEP_LAYERNORM = "step_layernorm"  # our fusion normalisation (config.FUSION_NORMS), beside the paper's sequence_minmax
 BELOW_PROBE_PP = 10.0  # on recorded data, a row this many points below its probe's test accuracy is said so
 # an input whose within-sequence variance is below this fraction of its total (median over its
 # dimensions, `linear_probe.steadiness`) is steady within a sequence: reported, since the paper's rescale erases it
 STEADY_BELOW = 0.2
 
 
-def label(
-    modalities: Sequence[str],
-    backbone: str,
-    fusion_norm: str = "sequence_minmax",
-    names: Mapping[str, str] | None = None,
-    rotated: bool = True,
-) -> str:
-    """How the table names a row: 'TCN: Minsound + palm mic', '... (our step-LayerNorm fusion)',
-    'Minsight image (our step-LayerNorm fusion, frames unrotated)' where a row reading frames trains
-    without the paper's rotation (`rotated` False); with `names` (recorded data: modality -> the
-    data's name for its stream) the data's names."""
-    text = data.inputs_name(modalities, names)
-    text = f"TCN: {text}" if backbone == "tcn" else text
-    notes = ["our step-LayerNorm fusion"] if fusion_norm == STEP_LAYERNORM else []
-    notes += ["frames unrotated"] if "image" in modalities and not rotated else []
-    return f"{text} ({', '.join(notes)})" if notes else text
-
-
-def _row(
-    modalities: Sequence[str], mean: float, sd: float, backbone: str = "attention", fusion_norm: str = "sequence_minmax"
-) -> RowSpec:
-    """A row and the paper's test accuracy [%] (mean, SD over its seeds) for the same inputs. Our
-    variant's rows read Minsight frames without the paper's rotation: under it the image rows fall
-    to a fraction of what they learn unrotated, on validation (docs/usage.md, "What the camera rows
-    learn")."""
-    name = ("tcn:" if backbone == "tcn" else "") + "+".join(modalities)
-    if fusion_norm != "sequence_minmax":
-        name = f"{fusion_norm}:{name}"
-    settings = {"backbone": backbone, "modalities": tuple(modalities), "fusion_norm": fusion_norm}
-    rotated = fusion_norm != STEP_LAYERNORM or "image" not in modalities
-    if not rotated:
-        settings["augment_rotation"] = False
-    return RowSpec(name, settings, label(modalities, backbone, fusion_norm, rotated=rotated), {"mean": mean, "sd": sd})
-
-
-# The paper's Table ablation_table: 12 transformer rows and the TCN row.
-PAPER_ROWS = (
-    _row(("image",), 41.15, 5.74),
-    _row(("flow",), 47.16, 5.12),
-    _row(("internal",), 95.06, 1.85),
-    _row(("external",), 59.22, 2.43),
-    _row(("proprio",), 47.10, 3.72),
-    _row(("image", "internal"), 73.94, 5.73),
-    _row(("image", "internal", "external", "proprio"), 85.59, 3.87),
-    _row(("flow", "internal"), 87.44, 5.88),
-    _row(("flow", "internal", "external", "proprio"), 91.34, 2.47),
-    _row(("internal", "proprio"), 94.63, 2.78),
-    _row(("internal", "external", "proprio"), 96.10, 1.26),
-    _row(("internal", "external"), 97.75, 1.27),
-    _row(("internal", "external", "proprio"), 75.41, 11.2, backbone="tcn"),
-)
-# Every camera row and the fusion rows without camera inputs, again under our step-LayerNorm fusion:
-# the paper's rescale over the sequence removes a stream's steady level, which is where a camera
-# frame's contact patch and a joint's load show, so a row at chance under it alone is no verdict.
-# Their paper numbers are the paper's row with the same inputs, for reference.
-STEP_LAYERNORM_ROWS = tuple(
-    _row(r.modalities, r.paper["mean"], r.paper["sd"], fusion_norm=STEP_LAYERNORM)
-    for r in PAPER_ROWS
-    if r.name
-    in (
-        "image",
-        "flow",
-        "image+internal",
-        "image+internal+external+proprio",
-        "flow+internal",
-        "flow+internal+external+proprio",
-        "internal+proprio",
-        "internal+external+proprio",
-        "internal+external",
-    )
-)
-ROWS = PAPER_ROWS + STEP_LAYERNORM_ROWS
-# What --rows takes as one word. Without --rows the study trains the paper's table alone: our fusion
-# variant would nearly double the main command's time, and its rows are asked for by name or as "ours".
-ROW_GROUPS = {"paper": tuple(r.name for r in PAPER_ROWS), "ours": tuple(r.name for r in STEP_LAYERNORM_ROWS)}
-# Minsound (no fusion) against our fused variant of Minsound + palm mic
 STEP_LAYERNORM_PAIRS = ((WILCOXON_PAIR[0], f"{STEP_LAYERNORM}:{WILCOXON_PAIR[1]}"),)
-
-
-def display_name(row_name: str) -> str:
-    """The label of row `row_name` of `ROWS`."""
-    return STUDY.row(row_name).label
 
 
 def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
@@ -343,6 +262,97 @@ SIMILAR_PP = 10.0  # "similar": within this many points of each other (the paper
 WELL_ABOVE_CHANCE_PP = 10.0  # "well above chance": at least this many points above the test split's majority class
 
 
+def _best_single(c: findings.Claim, e: findings.Evidence) -> tuple[findings.Finding, Sequence[str]]:
+    """Minsound above the best of the other single inputs (strictly), comparing the two."""
+    best_other = max(SINGLES, key=lambda r: findings.mean_pct(e.values[r]))
+    best = (f"best other, {e.named(best_other)}", e.values[best_other])
+    return findings.at_least(c.claim, e.of("internal"), best, strict=True), ["internal", best_other]
+
+
+def _similar_above_chance(c: findings.Claim, e: findings.Evidence) -> tuple[findings.Finding, Sequence[str]]:
+    """Proprioception and flow within `SIMILAR_PP` of each other, each `WELL_ABOVE_CHANCE_PP` above
+    the majority class (not evaluated without known test labels)."""
+    p, fl = findings.mean_pct(e.values["proprio"]), findings.mean_pct(e.values["flow"])
+    evidence = (
+        f"{findings.describe(e.named('proprio'), e.values['proprio'])}; "
+        f"{findings.describe(e.named('flow'), e.values['flow'])}; "
+        f"1 / classes {100 / e.n_classes:.1f} %"
+    )
+    if e.majority is None:
+        return findings.Finding(c.claim, None, f"{evidence}; no test label known, so no majority class"), c.rows
+    floor = e.majority["accuracy"] + WELL_ABOVE_CHANCE_PP
+    holds = abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor
+    said = f"{evidence}; majority class {e.majority['accuracy']:.1f} % (class {e.majority['label']}), so at least"
+    return findings.Finding(c.claim, holds, f"{said} {floor:.1f} %"), c.rows
+
+
+def _significantly_above(c: findings.Claim, e: findings.Evidence) -> tuple[findings.Finding, Sequence[str]]:
+    """Minsound + palm mic strictly above Minsound, and the per-sequence Wilcoxon test below
+    `SIGNIFICANCE` (not evaluated without the test)."""
+    base, compared = WILCOXON_PAIR
+    above = findings.at_least(c.claim, e.of(compared), e.of(base), strict=True)
+    tests = e.tests or {}
+    if "per_sample" not in tests:
+        return findings.Finding(c.claim, None, f"{above.evidence}; no Wilcoxon test in the results"), c.rows
+    p_sample, p_seed = tests["per_sample"]["p_value"], tests["per_seed"]["p_value"]
+    evidence = (
+        f"{above.evidence}; p = {p_sample:.3g} per test sequence, the pairing that can reach the "
+        f"paper's p at five seeds (per seed: p = {p_seed:.3g})"
+    )
+    return findings.Finding(c.claim, bool(above.holds and p_sample < SIGNIFICANCE), evidence), c.rows
+
+
+def _transformer_above_tcn(c: findings.Claim, e: findings.Evidence) -> tuple[findings.Finding, Sequence[str]]:
+    transformer, tcn = c.rows
+    return findings.at_least(
+        c.claim, ("Transformer", e.values[transformer]), ("TCN", e.values[tcn]), strict=True
+    ), c.rows
+
+
+SINGLES = ("image", "flow", "external", "proprio")  # the single inputs Minsound is compared with
+# The paper's claims about the table, and ours about our variant, each checked by `findings.evaluate`.
+CLAIMS = (
+    findings.Claim("Minsound (internal audio) is the best single modality", ("internal", *SINGLES), _best_single),
+    findings.Claim(
+        f"the palm mic alone is clearly worse than Minsound (>= {CLEARLY_WORSE_PP:.0f} pp below)",
+        ("internal", "external"),
+        findings.above("internal", "external", CLEARLY_WORSE_PP),
+    ),
+    findings.Claim(
+        f"proprioception and optical flow alone are similar (within {SIMILAR_PP:.0f} pp) and well above chance "
+        f"(rule: each >= {WELL_ABOVE_CHANCE_PP:.0f} pp above the test split's majority class; 1 / classes "
+        f"shown beside it)",
+        ("proprio", "flow"),
+        _similar_above_chance,
+    ),
+    findings.Claim(
+        "Minsight images alone are the weakest camera input (below optical flow)",
+        ("image", "flow"),
+        findings.above("flow", "image", strict=True),
+    ),
+    findings.Claim(
+        f"Minsound + palm mic is significantly above Minsound (Wilcoxon signed-rank per test sequence, "
+        f"p < {SIGNIFICANCE}; the paper: p = {PAPER_WILCOXON_P})",
+        WILCOXON_PAIR,
+        _significantly_above,
+    ),
+    *(
+        findings.Claim(
+            "Minsound + palm mic >= Minsound (our step-LayerNorm fusion)",
+            (base, compared),
+            findings.above(compared, base),
+            variant=True,
+        )
+        for base, compared in STEP_LAYERNORM_PAIRS
+    ),
+    findings.Claim(
+        "the TCN is below the transformer on the same inputs (Minsound + palm mic + proprioception)",
+        ("internal+external+proprio", "tcn:internal+external+proprio"),
+        _transformer_above_tcn,
+    ),
+)
+
+
 def checklist(
     test: dict[str, np.ndarray],
     majority: Mapping[str, Any] | None,
@@ -350,131 +360,18 @@ def checklist(
     collapsed: Mapping[str, Sequence[int | None]] | None = None,
     wilcoxon: Mapping[str, Any] | None = None,
 ) -> list[findings.Finding]:
-    """The paper's qualitative claims about the ablation, as predicates over per-seed test
-    accuracies (`test`: row name -> per-seed accuracies in [0, 1]; rows not run are skipped).
-    `majority`: the test split's `findings.majority` baseline, which "above chance" is counted
-    against; `n_classes`: the data's classes, whose 1 / classes is the paper's chance, shown beside
-    it; `collapsed`: row name -> the class each seed collapsed to (`findings.collapsed`);
-    `wilcoxon`: the results JSON's tests of `WILCOXON_PAIR`, which the paper's significance claim
-    reads. A verdict counts only where its rows can carry it (`findings.counted_where`)."""
-    collapsed = collapsed or {}
+    """`CLAIMS` checked on per-seed test accuracies (`test`: row name -> per-seed accuracies in
+    [0, 1]; rows not run are skipped). `majority`: the test split's `findings.majority` baseline,
+    which "above chance" is counted against; `n_classes`: the data's classes, whose 1 / classes is
+    the paper's chance, shown beside it; `collapsed`: row name -> the class each seed collapsed to
+    (`findings.collapsed`); `wilcoxon`: the results JSON's tests of `WILCOXON_PAIR`, which the
+    paper's significance claim reads."""
+    return findings.evaluate(CLAIMS, findings.Evidence(test, majority, n_classes, collapsed or {}, wilcoxon, _plain))
 
-    def plain(row: str) -> str:
-        return MODALITY_NAMES[row] if row in MODALITY_NAMES else display_name(row)
 
-    def named(row: str) -> str:
-        return plain(row) + findings.collapse_text(collapsed.get(row, []))
-
-    def gated(f: findings.Finding, rows: Sequence[str], variant: bool = False) -> findings.Finding:
-        return findings.counted_where(
-            f, [(plain(r), test[r], collapsed.get(r, []), majority) for r in rows if r in test], variant
-        )
-
-    out = []
-    singles = ["image", "flow", "external", "proprio"]
-    claim = "Minsound (internal audio) is the best single modality"
-    if not (f := findings.missing(claim, ["internal", *singles], test)):
-        best_other = max(singles, key=lambda r: findings.mean_pct(test[r]))
-        f = gated(
-            findings.at_least(
-                claim,
-                (named("internal"), test["internal"]),
-                (f"best other, {named(best_other)}", test[best_other]),
-                strict=True,
-            ),
-            ["internal", best_other],
-        )
-    out.append(f)
-    claim = f"the palm mic alone is clearly worse than Minsound (>= {CLEARLY_WORSE_PP:.0f} pp below)"
-    out.append(
-        findings.missing(claim, ["internal", "external"], test)
-        or gated(
-            findings.at_least(
-                claim, (named("internal"), test["internal"]), (named("external"), test["external"]), CLEARLY_WORSE_PP
-            ),
-            ["internal", "external"],
-        )
-    )
-    claim = (
-        f"proprioception and optical flow alone are similar (within {SIMILAR_PP:.0f} pp) and well above chance "
-        f"(rule: each >= {WELL_ABOVE_CHANCE_PP:.0f} pp above the test split's majority class; 1 / classes "
-        f"shown beside it)"
-    )
-    if not (f := findings.missing(claim, ["proprio", "flow"], test)):
-        p, fl = findings.mean_pct(test["proprio"]), findings.mean_pct(test["flow"])
-        evidence = (
-            f"{findings.describe(named('proprio'), test['proprio'])}; "
-            f"{findings.describe(named('flow'), test['flow'])}; "
-            f"1 / classes {100 / n_classes:.1f} %"
-        )
-        if majority is None:
-            f = findings.Finding(claim, None, f"{evidence}; no test label known, so no majority class")
-        else:
-            floor = majority["accuracy"] + WELL_ABOVE_CHANCE_PP
-            f = gated(
-                findings.Finding(
-                    claim,
-                    abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor,
-                    f"{evidence}; majority class {majority['accuracy']:.1f} % (class {majority['label']}), so at "
-                    f"least {floor:.1f} %",
-                ),
-                ["proprio", "flow"],
-            )
-    out.append(f)
-    claim = "Minsight images alone are the weakest camera input (below optical flow)"
-    out.append(
-        findings.missing(claim, ["image", "flow"], test)
-        or gated(
-            findings.at_least(claim, (named("flow"), test["flow"]), (named("image"), test["image"]), strict=True),
-            ["image", "flow"],
-        )
-    )
-    base, compared = WILCOXON_PAIR
-    claim = (
-        f"Minsound + palm mic is significantly above Minsound (Wilcoxon signed-rank per test sequence, "
-        f"p < {SIGNIFICANCE}; the paper: p = {PAPER_WILCOXON_P})"
-    )
-    if not (f := findings.missing(claim, [base, compared], test)):
-        above = findings.at_least(claim, (named(compared), test[compared]), (named(base), test[base]), strict=True)
-        tests = wilcoxon or {}
-        if "per_sample" not in tests:
-            f = findings.Finding(claim, None, f"{above.evidence}; no Wilcoxon test in the results")
-        else:
-            p_sample, p_seed = tests["per_sample"]["p_value"], tests["per_seed"]["p_value"]
-            f = gated(
-                findings.Finding(
-                    claim,
-                    bool(above.holds and p_sample < SIGNIFICANCE),
-                    f"{above.evidence}; p = {p_sample:.3g} per test sequence, the pairing that can reach the "
-                    f"paper's p at five seeds (per seed: p = {p_seed:.3g})",
-                ),
-                [base, compared],
-            )
-    out.append(f)
-    for base, compared in STEP_LAYERNORM_PAIRS:
-        claim = "Minsound + palm mic >= Minsound (our step-LayerNorm fusion)"
-        out.append(
-            findings.missing(claim, [base, compared], test)
-            or gated(
-                findings.at_least(claim, (named(compared), test[compared]), (named(base), test[base])),
-                [base, compared],
-                variant=True,
-            )
-        )
-    claim = "the TCN is below the transformer on the same inputs (Minsound + palm mic + proprioception)"
-    out.append(
-        findings.missing(claim, ["internal+external+proprio", "tcn:internal+external+proprio"], test)
-        or gated(
-            findings.at_least(
-                claim,
-                ("Transformer", test["internal+external+proprio"]),
-                ("TCN", test["tcn:internal+external+proprio"]),
-                strict=True,
-            ),
-            ["internal+external+proprio", "tcn:internal+external+proprio"],
-        )
-    )
-    return out
+def _plain(row: str) -> str:
+    """How a claim's evidence names a row: a single input by its sensor, else by its label."""
+    return MODALITY_NAMES[row] if row in MODALITY_NAMES else display_name(row)
 
 
 def table(

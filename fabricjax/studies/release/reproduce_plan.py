@@ -38,6 +38,7 @@ from fabricjax import presets
 from fabricjax.config import format_override
 from fabricjax.errors import UserError
 from fabricjax.store import archive, dataset_index, provenance, splits
+from fabricjax.studies.machinery import ablation_rows
 from fabricjax.studies.machinery.rows import split_by_inputs
 from fabricjax.studies.diagnostics import camera_frames, day_shift, decide, flow_budget, probe
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
@@ -62,7 +63,7 @@ SIMULATOR_ONLY = ("flow_budget", "camera_frames")  # studies of the simulator it
 # the paper's figure: its "Minsound + Minsight" model, which also reads proprioception
 LATENT_ROW = properties.ROWS[-1].name
 # the decision study's models: the ablation row the paper calls best (its highest mean) and Minsound alone
-DECIDE_ROWS = (max(ablation.PAPER_ROWS, key=lambda r: r.paper["mean"]).name, "internal")
+DECIDE_ROWS = (max(ablation_rows.PAPER_ROWS, key=lambda r: r.paper["mean"]).name, "internal")
 # studies of another study's checkpoints: run by --checkpoint, no seeds or rows flags
 CHECKPOINT_STUDIES = ("latents", "decide")
 MANIFEST = "reproduce.json"

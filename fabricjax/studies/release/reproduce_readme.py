@@ -9,8 +9,7 @@ from typing import Any, Mapping
 
 from fabricjax import presets
 from fabricjax.reporting import results_files, stats
-from fabricjax.studies.machinery import documents, findings
-from fabricjax.studies.diagnostics import probe
+from fabricjax.studies.machinery import documents, findings, probing
 from fabricjax.studies.release.reproduce_plan import REPORT, STUDIES, UNSEEDED, minutes, read_json, title
 from fabricjax.studies.release.staleness import other_stale, stale
 
@@ -40,7 +39,7 @@ def headline(
     for r in abl["rows"]:
         if not recorded and r.get("fusion_norm", "sequence_minmax") != "sequence_minmax":
             continue  # our fusion variants: in REPORT.md, not the headline
-        p = probe.row_for(r["modalities"], probe_rows, r.get("config", {}).get("image_reference"))
+        p = probing.row_for(r["modalities"], probe_rows, r.get("config", {}).get("image_reference"))
         probe_test = None if p is None or p["accuracy"].get("test") is None else 100 * p["accuracy"]["test"]
         rows.append(
             {
