@@ -168,3 +168,16 @@ def test_no_leaf_study_imports_another():
                 if parts[:2] == ["fabricjax", "studies"] and len(parts) > 2 and parts[2] in (*LEAF_STUDIES, "release"):
                     found.append(f"{path.relative_to(ROOT)}: {name}")
     assert found == []
+
+
+def test_no_study_function_is_over_80_lines():
+    """A study's function says one thing: a longer one is split by meaning (a page into its sections,
+    a run into what it measures and what it writes)."""
+    found = []
+    for path in sorted((ROOT / "fabricjax" / "studies").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno + 1 > 80:
+                found.append(
+                    f"{path.relative_to(ROOT)}:{node.lineno}: {node.name}, {node.end_lineno - node.lineno + 1}"
+                )
+    assert found == []

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -204,25 +205,11 @@ def _size(size: Sequence[int]) -> str:
     return f"{size[0]}x{size[1]}"
 
 
-def run(
-    *,
-    preset: str = "default",
-    rows: Sequence[str] | None = None,
-    overrides: Mapping[str, Any] | None = None,
-    sizes: Sequence[tuple[int, int]] = SIZES,
-    where: Location = Location(),
-) -> dict[str, Any]:
-    """Render every panel, compare them, draw results/camera_frames.png and write
-    results/camera_frames.{md,json}; returns the JSON. `rows` and `overrides` are what `reproduce`
-    passes every study: this one has no rows, and `Config` fields (training settings) do not change
-    the simulator's frames, so the overrides are only recorded."""
-    if rows:
-        raise UserError(f"{STUDY} has no rows to choose, got --rows={','.join(rows)}")
-    if where.data_dir:
-        raise UserError(f"{STUDY} draws the simulator's frames: --data_dir has no say in it")
-    presets.get(preset)
-    sizes = [tuple(int(v) for v in s) for s in sizes]
-    t0 = time.perf_counter()
+def measure(
+    preset: str, sizes: Sequence[tuple[int, int]]
+) -> tuple[dict, list[dict[str, Any]], dict[str, Any], dict[str, Any]]:
+    """Render every panel at every size and compare them: (the panels' images by (scene, size),
+    each panel's numbers, the fabrics against the days per size, the camera's noise per size)."""
     keys = [*((f, 1) for f in FABRICS), *((DAY_FABRIC, d) for d in DAYS if (DAY_FABRIC, d) != (DAY_FABRIC, 1))]
     rendered = {key: render(_scene(preset, *key), sizes) for key in keys}
     images = {(key, size): shown(rendered[key][1][size]) for key in keys for size in sizes}
@@ -251,12 +238,12 @@ def run(
             "fabric_half_px": concentration(fabric_images, np.asarray(reference).max(axis=-1) > 0),
         }
         noise[_size(size)] = noise_levels(reference, size)
-    # the colour scale: linear up to the noise a recorded panel of the figure's size would carry, so
-    # that what lies below the camera's noise is not stretched, logarithmic beyond up to the largest |difference|
-    figure = FIGURE_SIZE if FIGURE_SIZE in sizes else sizes[0]
-    detail = DETAIL_SIZE if DETAIL_SIZE in sizes and DETAIL_SIZE != figure else None
-    linear = noise[_size(figure)]["panel_median_dn"]
-    vmax = max(max(p["max_abs_dn"] for p in panels if tuple(p["size"]) in (figure, detail)), 10 * linear)
+    return images, panels, comparison, noise
+
+
+def draw(path: Path, images: Mapping, figure: tuple[int, int], detail, vmax: float, linear: float) -> Path:
+    """results/camera_frames.png: the fabrics as rendered and smoothed, denim's days smoothed, at the
+    `figure` size, and two fabrics at the `detail` size (None: not drawn), on one colour scale."""
     short = {f: _name(f).split(" ")[-1] for f in {*FABRICS, DAY_FABRIC}}  # "silk", "denim", "fleece", "corduroy"
     denim = short[DAY_FABRIC]
     rows = [
@@ -277,19 +264,47 @@ def run(
             ]
         )
         row_labels.append(_size(detail))
-    path = where.results_dir() / f"{STUDY}.png"
+    return plots.plot_difference_panels(
+        path,
+        rows,
+        row_labels,
+        vmax,
+        linear,
+        LABEL,
+        f"Minsight frame - session reference, noise-free, at the thumb's furthest reach in rubbing cycle {CYCLE}\n"
+        f"(mean of R, G, B; the speckle is the wall's grain moving under the contact; smoothed: "
+        f"Gaussian, SD {SMOOTH_PX:g} px at 60x80)",
+    )
+
+
+def run(
+    *,
+    preset: str = "default",
+    rows: Sequence[str] | None = None,
+    overrides: Mapping[str, Any] | None = None,
+    sizes: Sequence[tuple[int, int]] = SIZES,
+    where: Location = Location(),
+) -> dict[str, Any]:
+    """Render every panel, compare them, draw results/camera_frames.png and write
+    results/camera_frames.{md,json}; returns the JSON. `rows` and `overrides` are what `reproduce`
+    passes every study: this one has no rows, and `Config` fields (training settings) do not change
+    the simulator's frames, so the overrides are only recorded."""
+    if rows:
+        raise UserError(f"{STUDY} has no rows to choose, got --rows={','.join(rows)}")
+    if where.data_dir:
+        raise UserError(f"{STUDY} draws the simulator's frames: --data_dir has no say in it")
+    presets.get(preset)
+    sizes = [tuple(int(v) for v in s) for s in sizes]
+    t0 = time.perf_counter()
+    images, panels, comparison, noise = measure(preset, sizes)
+    figure = FIGURE_SIZE if FIGURE_SIZE in sizes else sizes[0]
+    detail = DETAIL_SIZE if DETAIL_SIZE in sizes and DETAIL_SIZE != figure else None
+    # the colour scale: linear up to the noise a recorded panel of the figure's size would carry, so
+    # that what lies below the camera's noise is not stretched, logarithmic beyond up to the largest |difference|
+    linear = noise[_size(figure)]["panel_median_dn"]
+    vmax = max(max(p["max_abs_dn"] for p in panels if tuple(p["size"]) in (figure, detail)), 10 * linear)
     with atomic.together():  # the figure, Markdown and JSON of this run, or none of them
-        png = plots.plot_difference_panels(
-            path,
-            rows,
-            row_labels,
-            vmax,
-            linear,
-            LABEL,
-            f"Minsight frame - session reference, noise-free, at the thumb's furthest reach in rubbing cycle {CYCLE}\n"
-            f"(mean of R, G, B; the speckle is the wall's grain moving under the contact; smoothed: "
-            f"Gaussian, SD {SMOOTH_PX:g} px at 60x80)",
-        )
+        png = draw(where.results_dir() / f"{STUDY}.png", images, figure, detail, vmax, linear)
         doc = {
             **documents.header(
                 STUDY,
@@ -330,13 +345,26 @@ def verdict(c: Mapping[str, Any]) -> str:
 
 
 def markdown(doc: dict[str, Any]) -> str:
+    """The page: the figure and how it is drawn, the fabrics against the days, each panel, the noise."""
+    figure = _size(doc["figure_size"])
+    smooth = f"a Gaussian of SD {doc['smooth_px']:g} pixels at 60x80, the same extent on the wall at every size"
+    model = _size(presets.get(doc["preset"]).training.get("image_size", doc["figure_size"]))
+    return "\n".join(
+        [
+            *_figure_markdown(doc, figure, smooth),
+            *_comparison_markdown(doc, smooth, model),
+            *_panels_markdown(doc),
+            *_noise_markdown(doc),
+        ]
+    )
+
+
+def _figure_markdown(doc: dict[str, Any], figure: str, smooth: str) -> list[str]:
+    """The title, where the numbers come from, the figure and what its panels show."""
     days = ", ".join(str(d) for d in doc["days"])
     fabrics = ", ".join(f"{f} {_name(f)}" for f in doc["fabrics"])
-    figure, detail = _size(doc["figure_size"]), doc["detail_size"] and _size(doc["detail_size"])
-    smooth = f"a Gaussian of SD {doc['smooth_px']:g} pixels at 60x80, the same extent on the wall at every size"
-    compared = doc["comparison"]
-    model = _size(presets.get(doc["preset"]).training.get("image_size", doc["figure_size"]))
-    lines = [
+    detail = doc["detail_size"] and _size(doc["detail_size"])
+    return [
         f"# {TITLE}",
         "",
         documents.header_markdown(doc, f"{doc['wall_s']:.0f} s"),
@@ -367,6 +395,13 @@ def markdown(doc: dict[str, Any]) -> str:
         "difference is visible; its level is in the last table. Every trial is the preset's own scene, each "
         "at its own frame time.",
         "",
+    ]
+
+
+def _comparison_markdown(doc: dict[str, Any], smooth: str, model: str) -> list[str]:
+    """The fabrics against denim's days, per size, and the sentence shared with the day shift's page."""
+    compared = doc["comparison"]
+    return [
         "## Fabric against day",
         "",
         "RMS over the pixels of the difference between two panels of one size, pooled (root mean square) "
@@ -410,6 +445,12 @@ def markdown(doc: dict[str, Any]) -> str:
             else ""
         ),
         "",
+    ]
+
+
+def _panels_markdown(doc: dict[str, Any]) -> list[str]:
+    """Each panel's scene and numbers."""
+    return [
         "## Each panel",
         "",
         results_files.markdown_table(
@@ -445,6 +486,12 @@ def markdown(doc: dict[str, Any]) -> str:
                 for p in doc["panels"]
             ],
         ),
+    ]
+
+
+def _noise_markdown(doc: dict[str, Any]) -> list[str]:
+    """The camera's shot noise the figure leaves out, and the pixels where the reference lies below 0 DN."""
+    return [
         "## The noise the figure leaves out",
         "",
         f"The camera's shot noise (`minsight._noise_sigma`) on {_name(doc['day_fabric'])}'s day-1 no-contact "
@@ -459,10 +506,13 @@ def markdown(doc: dict[str, Any]) -> str:
                 for size, n in doc["noise"].items()
             ],
         ),
-    ]
+    ] + _below_zero_markdown(doc)
+
+
+def _below_zero_markdown(doc: dict[str, Any]) -> list[str]:
     below = {size: n for size, n in doc["noise"].items() if n["reference_below_zero_px"]}
     if below:
-        lines += [
+        return [
             "Where the no-contact frame lies below 0 DN, which light cannot, every panel of that day differs "
             "from 0 without any contact, and those pixels show as isolated dots: "
             + "; ".join(
@@ -471,4 +521,4 @@ def markdown(doc: dict[str, Any]) -> str:
             )
             + f" ({_name(doc['day_fabric'])}'s day 1).",
         ]
-    return "\n".join(lines)
+    return []

@@ -153,8 +153,13 @@ def run(*, quick: bool = False, where: Location = Location()) -> dict[str, Any]:
 
 
 def markdown(doc: dict[str, Any]) -> str:
-    t = doc["timing"]
-    lines = [
+    """The page: the frames compared, the dense flow's errors, the model's input and the time per pair."""
+    return "\n".join([*_intro_markdown(doc), *_dense_markdown(doc), *_input_markdown(doc), *_time_markdown(doc)]) + "\n"
+
+
+def _intro_markdown(doc: dict[str, Any]) -> list[str]:
+    """The title, where the numbers come from and the frames compared."""
+    return [
         "# Farneback optical flow: the JAX reimplementation against OpenCV",
         "",
         documents.header_markdown(
@@ -168,6 +173,12 @@ def markdown(doc: dict[str, Any]) -> str:
         "are in pixels, between the two methods' dense flow over every frame pair; features are "
         "`flow.sparsify_and_pool` of each.",
         "",
+    ]
+
+
+def _dense_markdown(doc: dict[str, Any]) -> list[str]:
+    """The end-point errors between the two methods' dense flow, and each method's to the truth."""
+    return [
         "## Dense flow",
         "",
         results_files.markdown_table(
@@ -198,6 +209,12 @@ def markdown(doc: dict[str, Any]) -> str:
             ],
         ),
         "",
+    ]
+
+
+def _input_markdown(doc: dict[str, Any]) -> list[str]:
+    """How close the two methods' sparsified, pooled features are."""
+    return [
         "## The model's input (sparsified, 3x3-pooled)",
         "",
         results_files.markdown_table(
@@ -216,6 +233,13 @@ def markdown(doc: dict[str, Any]) -> str:
             ],
         ),
         "",
+    ]
+
+
+def _time_markdown(doc: dict[str, Any]) -> list[str]:
+    """Each method's time per frame pair."""
+    t = doc["timing"]
+    return [
         "## Time per frame pair",
         "",
         f"OpenCV on one thread (cv2.setNumThreads(1), one pair at a time) and on {t['opencv_threads']} "
@@ -241,4 +265,3 @@ def markdown(doc: dict[str, Any]) -> str:
             ],
         ),
     ]
-    return "\n".join(lines) + "\n"

@@ -495,10 +495,25 @@ def _share(e: Mapping[str, float]) -> str:
 
 
 def markdown(doc: dict[str, Any]) -> str:
-    s, size = doc["summary"], _size(doc["size"])
+    """The page: what was measured and how, the gap in one number, then each table."""
+    size = _size(doc["size"])
+    return "\n".join(
+        [
+            *_intro_markdown(doc, size),
+            *_flow_markdown(doc, size),
+            *_wall_markdown(doc, size),
+            *_fabric_markdown(doc, size),
+            *_published_markdown(doc),
+            *_paper_size_markdown(doc),
+        ]
+    )
+
+
+def _intro_markdown(doc: dict[str, Any], size: str) -> list[str]:
+    """The title, where the numbers come from, what each condition is, and the gap in one number."""
     n_trials = len(doc["trials"])
     trials = ", ".join(f"day {d} trial {k}" for d, k in doc["trials"])
-    lines = [
+    return [
         f"# {TITLE}",
         "",
         documents.header_markdown(doc, f"{doc['wall_s']:.0f} s"),
@@ -519,7 +534,12 @@ def markdown(doc: dict[str, Any]) -> str:
         "",
         gap_sentence(doc),
     ]
-    lines += [
+
+
+def _flow_markdown(doc: dict[str, Any], size: str) -> list[str]:
+    """Optical flow per condition: its statistics, their fabric shares and the signal over noise."""
+    s = doc["summary"]
+    return [
         "",
         f"## Optical flow per condition, {size}",
         "",
@@ -560,6 +580,13 @@ def markdown(doc: dict[str, Any]) -> str:
                 for name, f in s["flow"].items()
             ],
         ),
+    ]
+
+
+def _wall_markdown(doc: dict[str, Any], size: str) -> list[str]:
+    """The wall's own motion per effect, in mm and in pixels."""
+    s = doc["summary"]
+    return [
         "## The wall's own motion per effect",
         "",
         "Between consecutive rubbing frames, at the contact's centre: the inner wall's normal displacement "
@@ -589,6 +616,14 @@ def markdown(doc: dict[str, Any]) -> str:
                 for effect, w in s["wall"].items()
             ],
         ),
+    ]
+
+
+def _fabric_markdown(doc: dict[str, Any], size: str) -> list[str]:
+    """Per fabric: the stick, the load and wall swings, the texture and the kept flow; the camera's scale."""
+    n_trials = len(doc["trials"])
+    scale = next(iter(doc["trials_measured"].values()))[0]["scale"]
+    return [
         f"## Per fabric, {size}",
         "",
         f"Mean over the fabric's {n_trials} trials (± SD over them where it moves): the stick length "
@@ -613,15 +648,16 @@ def markdown(doc: dict[str, Any]) -> str:
             ],
             [_fabric_row(int(f), rs) for f, rs in doc["trials_measured"].items()],
         ),
-    ]
-    scale = next(iter(doc["trials_measured"].values()))[0]["scale"]
-    lines += [
         f"The camera's scale at the first trial's contact centre, {size}: "
         f"{scale['tangential_px_per_mm']:.2f} px per mm along the rubbing "
         f"({1 / scale['tangential_px_per_mm']:.2f} mm per pixel), {scale['normal_px_per_mm']:.2f} px per mm of "
         "the inner wall's normal displacement.",
     ]
-    lines += [
+
+
+def _published_markdown(doc: dict[str, Any]) -> list[str]:
+    """The simulated ranges against Minsight's published figures."""
+    return [
         "",
         "## Against Minsight's published figures",
         "",
@@ -636,39 +672,43 @@ def markdown(doc: dict[str, Any]) -> str:
         ),
         published_sentence(doc),
     ]
-    if doc["at_paper_size"] is not None:
-        lines += [
-            "",
-            f"## At the paper's flow resolution, {_size(doc['paper_size'])}",
-            "",
-            f"The first trial of each fabric, its first {doc['paper_frames']} rubbing frames; kept: the top "
-            f"0.1 % of each frame ({doc['kept_per_frame']['paper_size']} vectors).",
-            "",
-            results_files.markdown_table(
+
+
+def _paper_size_markdown(doc: dict[str, Any]) -> list[str]:
+    """Each fabric's first trial at the paper's flow resolution, where it was measured."""
+    if doc["at_paper_size"] is None:
+        return []
+    return [
+        "",
+        f"## At the paper's flow resolution, {_size(doc['paper_size'])}",
+        "",
+        f"The first trial of each fabric, its first {doc['paper_frames']} rubbing frames; kept: the top "
+        f"0.1 % of each frame ({doc['kept_per_frame']['paper_size']} vectors).",
+        "",
+        results_files.markdown_table(
+            [
+                "Fabric",
+                "all, noise-free: p95",
+                "kept",
+                "all, shot noise: p95",
+                "kept",
+                "still + noise: kept",
+                "Signal over noise",
+            ],
+            [
                 [
-                    "Fabric",
-                    "all, noise-free: p95",
-                    "kept",
-                    "all, shot noise: p95",
-                    "kept",
-                    "still + noise: kept",
-                    "Signal over noise",
-                ],
-                [
-                    [
-                        f"{f} {catalog.fabric(int(f)).name}",
-                        f"{r['flow']['all']['noise-free']['p95_px']:.4f}",
-                        f"{r['flow']['all']['noise-free']['kept_px']:.3f}",
-                        f"{r['flow']['all']['shot noise']['p95_px']:.4f}",
-                        f"{r['flow']['all']['shot noise']['kept_px']:.3f}",
-                        f"{r['flow']['still']['shot noise']['kept_px']:.3f}",
-                        f"{signal_over_noise(r):.2f}",
-                    ]
-                    for f, r in doc["at_paper_size"]["trials"].items()
-                ],
-            ),
-        ]
-    return "\n".join(lines)
+                    f"{f} {catalog.fabric(int(f)).name}",
+                    f"{r['flow']['all']['noise-free']['p95_px']:.4f}",
+                    f"{r['flow']['all']['noise-free']['kept_px']:.3f}",
+                    f"{r['flow']['all']['shot noise']['p95_px']:.4f}",
+                    f"{r['flow']['all']['shot noise']['kept_px']:.3f}",
+                    f"{r['flow']['still']['shot noise']['kept_px']:.3f}",
+                    f"{signal_over_noise(r):.2f}",
+                ]
+                for f, r in doc["at_paper_size"]["trials"].items()
+            ],
+        ),
+    ]
 
 
 def _fabric_row(fabric_id: int, rs: Sequence[Mapping[str, Any]]) -> list[str]:

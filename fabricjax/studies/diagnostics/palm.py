@@ -28,7 +28,7 @@ and does not need a 30 s trial.
 from __future__ import annotations
 
 import time
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from tqdm import tqdm
@@ -244,8 +244,27 @@ def summary(doc: dict[str, Any]) -> list[str]:
 
 
 def markdown(doc: dict[str, Any]) -> str:
-    bands = doc["bands"]
-    lines = [
+    """The page: each source at each microphone per condition, the lab's events, the fabric against
+    the rest at the palm, the variance shares and the paths."""
+    return "\n".join(
+        [
+            *_intro_markdown(doc),
+            *(
+                line
+                for condition, per_class in doc["sources"].items()
+                for line in _sources_markdown(doc, condition, per_class)
+            ),
+            *_events_markdown(doc),
+            *_margin_markdown(doc),
+            *_shares_markdown(doc),
+            *_paths_markdown(doc),
+        ]
+    )
+
+
+def _intro_markdown(doc: dict[str, Any]) -> list[str]:
+    """The title, where the numbers come from and the scenes, and the summary."""
+    return [
         "# Each sound at each microphone: the fabric against the room; fabric, day and condition",
         "",
         documents.header_markdown(doc).rstrip("\n"),
@@ -263,42 +282,51 @@ def markdown(doc: dict[str, Any]) -> str:
         *summary(doc),
         "",
     ]
-    for condition, per_class in doc["sources"].items():
-        names = list(next(iter(per_class.values())))
-        for extra in per_class.values():
-            names += [n for n in extra if n not in names]
-        rows = []
-        for name in names:
-            for mic in MICS:
-                per = np.array([v[name][mic] for v in per_class.values() if name in v and mic in v[name]])
-                if len(per) == 0:
-                    continue
-                stats = (("min", per.min(axis=0)), ("median", np.median(per, axis=0)), ("max", per.max(axis=0)))
-                for label, values in stats if name in RUBBING else stats[1:2]:
-                    rows.append(
-                        [
-                            f"{name} at {mic}: {label}"
-                            + ("" if name in RUBBING else f" over {len(per)} classes' scenes"),
-                            *_fmt(values),
-                        ]
-                    )
-        rub = np.array([rubbing_at_palm(v) for v in per_class.values()])
-        rows.append(
-            ["the fabric at the palm (power sum of the contacts and the cloth): median", *_fmt(np.median(rub, axis=0))]
-        )
-        rows.append(
-            [
-                "everything else at the palm: median",
-                *_fmt(np.median([room_at_palm(v) for v in per_class.values()], axis=0)),
-            ]
-        )
-        day = doc["lab_days"][0] if condition == "lab" else doc["cafe_days"][0]
-        lines += [
-            f"## Each source at each microphone: {condition}, day {day}",
-            "",
-            results_files.markdown_table(["source", *bands], rows),
+
+
+def _sources_markdown(doc: dict[str, Any], condition: str, per_class: Mapping[str, Any]) -> list[str]:
+    """Each source at each microphone in one condition: the least, median and largest over the
+    classes' scenes of the fabric's own sounds, the median of the others."""
+    bands = doc["bands"]
+    names = list(next(iter(per_class.values())))
+    for extra in per_class.values():
+        names += [n for n in extra if n not in names]
+    rows = []
+    for name in names:
+        for mic in MICS:
+            per = np.array([v[name][mic] for v in per_class.values() if name in v and mic in v[name]])
+            if len(per) == 0:
+                continue
+            stats = (("min", per.min(axis=0)), ("median", np.median(per, axis=0)), ("max", per.max(axis=0)))
+            for label, values in stats if name in RUBBING else stats[1:2]:
+                rows.append(
+                    [
+                        f"{name} at {mic}: {label}" + ("" if name in RUBBING else f" over {len(per)} classes' scenes"),
+                        *_fmt(values),
+                    ]
+                )
+    rub = np.array([rubbing_at_palm(v) for v in per_class.values()])
+    rows.append(
+        ["the fabric at the palm (power sum of the contacts and the cloth): median", *_fmt(np.median(rub, axis=0))]
+    )
+    rows.append(
+        [
+            "everything else at the palm: median",
+            *_fmt(np.median([room_at_palm(v) for v in per_class.values()], axis=0)),
         ]
-    lines += [
+    )
+    day = doc["lab_days"][0] if condition == "lab" else doc["cafe_days"][0]
+    return [
+        f"## Each source at each microphone: {condition}, day {day}",
+        "",
+        results_files.markdown_table(["source", *bands], rows),
+    ]
+
+
+def _events_markdown(doc: dict[str, Any]) -> list[str]:
+    """The lab's events per day, and the heading of the margin table that follows."""
+    bands = doc["bands"]
+    return [
         f"## Lab events per day (equivalent level at the hand over {doc['event_minutes']:g} min)",
         "",
         "The day's activity (`sim.ambient.events`: voices, footsteps, doors at their sourced rates and "
@@ -312,6 +340,11 @@ def markdown(doc: dict[str, Any]) -> str:
         "Positive: the fabric stands above the rest.",
         "",
     ]
+
+
+def _margin_markdown(doc: dict[str, Any]) -> list[str]:
+    """The fabric at the palm minus everything else it hears, per class and condition."""
+    bands = doc["bands"]
     per_cond = doc["sources"]
     rows = []
     for fid in doc["classes"]:
@@ -320,8 +353,13 @@ def markdown(doc: dict[str, Any]) -> str:
             v = per_cond[condition][fid]
             cells += _fmt(rubbing_at_palm(v) - room_at_palm(v))
         rows.append([f"{fid} {catalog.fabric(int(fid)).name}", *cells])
-    lines += [results_files.markdown_table(["class", *[f"{c} {b}" for c in per_cond for b in bands]], rows)]
-    lines += [
+    return [results_files.markdown_table(["class", *[f"{c} {b}" for c in per_cond for b in bands]], rows)]
+
+
+def _shares_markdown(doc: dict[str, Any]) -> list[str]:
+    """The fabric's, the day's and the condition's shares of the per-trial level variance."""
+    bands = doc["bands"]
+    lines = [
         "## Fabric, day and condition: shares of the per-trial level variance (complete signals)",
         "",
         "Analysis of variance of each trial's band level (dB, recorded words at nominal sensitivity) over "
@@ -336,9 +374,14 @@ def markdown(doc: dict[str, Any]) -> str:
             sh = doc[key][mic]
             rows = [[k, *[f"{v:.2f}" if "SD" in k else f"{100 * v:.1f} %" for v in sh[k]]] for k in sh]
             lines += [f"**{mic}, {label}**", "", results_files.markdown_table(["share", *bands], rows)]
+    return lines
+
+
+def _paths_markdown(doc: dict[str, Any]) -> list[str]:
+    """The palm's transfer per radiator and the shell's transmission loss, per band."""
     t = doc["transfer"]
     cols = [k for k in t if k != "band_centre_hz"]
-    lines += [
+    return [
         "## The paths",
         "",
         "Palm pressure per contact pressure (the contact's equivalent Minsound cavity pressure) for each radiator "
@@ -350,7 +393,6 @@ def markdown(doc: dict[str, Any]) -> str:
             [[f"{fc:.0f}", *[f"{t[c][i]:.1f}" for c in cols]] for i, fc in enumerate(t["band_centre_hz"])],
         ),
     ]
-    return "\n".join(lines)
 
 
 def run(preset: str = "default", cycles: int = CYCLES, where: Location = Location()) -> dict[str, Any]:

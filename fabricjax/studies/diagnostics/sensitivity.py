@@ -260,26 +260,9 @@ def prior_estimate(preset: str, n_points: int) -> str:
     )
 
 
-def run(
-    *,
-    preset: str = PRESET,
-    trajectories: int = TRAJECTORIES,
-    groups: Sequence[str] | None = None,
-    seed: int = 0,
-    where: Location = Location(),
-    progress: bool = True,
-) -> dict[str, Any]:
-    """Screen the chosen groups (all by default) over `trajectories` Morris trajectories on
-    `preset`; writes results/sensitivity.{md,json,png} and returns the JSON."""
-    known = screened_groups()
-    groups = tuple(groups or known)
-    unknown = [g for g in groups if g not in known]
-    if unknown:
-        raise UserError(f"unknown estimate groups {unknown}; those with an estimate to move: {list(known)}")
-    if len(groups) < 2:
-        raise UserError("a Morris screening needs at least two groups")
-    presets.get(preset)
-    x = design(groups, trajectories, seed)
+def _points_folder(where: Location, preset: str, groups: Sequence[str], trajectories: int, seed: int, x) -> Path:
+    """The folder that keeps the screening's points, emptied where it holds another registry's or
+    design's (its points measure something else), with the plan its points are of."""
     folder = workspace.root(where.workdir) / "sensitivity" / f"{preset}-r{trajectories}-seed{seed}"
     plan = {
         "preset": preset,
@@ -295,15 +278,13 @@ def run(
         shutil.rmtree(folder)  # another registry or design: its points measure something else
         folder.mkdir(parents=True)
     results_files.write_json(plan_path, plan)
-    n_trials = len(presets.get(preset).dataset.trials())
-    print(
-        f"Sensitivity: {len(groups)} groups x {trajectories} trajectories = {len(x)} points; each simulates "
-        f"the {preset} preset "
-        f"({n_trials} trials) and fits {len(PROBE_ROWS) + len(PROPERTIES)} probes. {prior_estimate(preset, len(x))}",
-        flush=True,
-    )
+    return folder
+
+
+def _measure_points(folder: Path, x: np.ndarray, groups: Sequence[str], preset: str, progress: bool) -> list[dict]:
+    """Every point of the design `x` measured (`measure`) under its estimates, each kept in `folder`
+    as it is done; a point kept there already is read, not measured again."""
     points, first = [], True
-    t_start = time.perf_counter()
     bar = tqdm(total=len(x), desc="sensitivity", unit="point", disable=not progress)
     with bar:
         for i, u in enumerate(x):
@@ -337,6 +318,39 @@ def run(
                     f"{result['wall_s'] * (len(x) - i - 1) / 60:.0f} min left"
                 )
                 first = False
+    return points
+
+
+def run(
+    *,
+    preset: str = PRESET,
+    trajectories: int = TRAJECTORIES,
+    groups: Sequence[str] | None = None,
+    seed: int = 0,
+    where: Location = Location(),
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Screen the chosen groups (all by default) over `trajectories` Morris trajectories on
+    `preset`; writes results/sensitivity.{md,json,png} and returns the JSON."""
+    known = screened_groups()
+    groups = tuple(groups or known)
+    unknown = [g for g in groups if g not in known]
+    if unknown:
+        raise UserError(f"unknown estimate groups {unknown}; those with an estimate to move: {list(known)}")
+    if len(groups) < 2:
+        raise UserError("a Morris screening needs at least two groups")
+    presets.get(preset)
+    x = design(groups, trajectories, seed)
+    folder = _points_folder(where, preset, groups, trajectories, seed, x)
+    n_trials = len(presets.get(preset).dataset.trials())
+    print(
+        f"Sensitivity: {len(groups)} groups x {trajectories} trajectories = {len(x)} points; each simulates "
+        f"the {preset} preset "
+        f"({n_trials} trials) and fits {len(PROBE_ROWS) + len(PROPERTIES)} probes. {prior_estimate(preset, len(x))}",
+        flush=True,
+    )
+    t_start = time.perf_counter()
+    points = _measure_points(folder, x, groups, preset, progress)
     doc = document(groups, x, points, seed)
     doc = {
         **documents.header(

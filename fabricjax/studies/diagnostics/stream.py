@@ -47,6 +47,44 @@ def first_test_trial(folder, workdir=None) -> str:
     raise archive.ArchiveError(index.root, "<folder>", "no test-day trial of a known class")
 
 
+def _model_and_trial(checkpoint_dir, archive_path, preset: str, overrides, where: Location):
+    """(graphdef, params, config, temperature, checkpoint folder, trial archive): `checkpoint_dir`'s
+    model, else a quick model of `preset`; `archive_path`, else its dataset's first test-day trial."""
+    if checkpoint_dir is not None:
+        graphdef, params, config, temperature = live.restore_model(checkpoint_dir)
+    else:
+        graphdef, params, config, checkpoint_dir = quick_model(
+            preset, overrides, workdir=where.workdir, data_dir=where.data_dir
+        )
+        temperature = confidence.load_temperature(checkpoint_dir, 0) or 1.0
+    if archive_path is None:
+        folder = where.data_dir or sim.ensure_dataset(
+            config.preset, where.workdir, streams=("audio", "proprio"), progress=False
+        )
+        archive_path = first_test_trial(folder, where.workdir)
+    return graphdef, params, config, temperature, checkpoint_dir, archive_path
+
+
+def _outcome(summary: Mapping[str, Any], realtime: bool) -> tuple[str, str]:
+    """The replay's outcome in two lines: the sequential decision, then the first correct one, the
+    accuracy over decided steps and the latencies."""
+    first, step, d = summary["time_to_first_correct_s"], summary["first_correct_step"], summary["decision"]
+    decision = f"sequential decision (posterior {confidence.DECISION_THRESHOLD:g}): " + (
+        "none before the trial ended"
+        if d is None
+        else f"{d['fabric']} ({'correct' if d['correct'] else 'wrong'}) at {d['time_s']:.2f} s (step "
+        f"{d['step']}, {d['windows']} windows, posterior {d['posterior']:.3f})"
+    )
+    first_correct = (
+        f"first correct decision: {'never' if first is None else f'{first:.2f} s (step {step})'}; "
+        f"accuracy over {summary['decided_steps']} decided steps "
+        f"{100 * (summary['accuracy_over_decided_steps'] or 0):.1f} %; "
+        f"per-step latency p50 {summary['latency_p50_ms']:.2f} ms, p99 {summary['latency_p99_ms']:.2f} ms"
+        + (f"; {summary['late_steps']} of {summary['steps']} results came after their 20 ms slot" if realtime else "")
+    )
+    return decision, first_correct
+
+
 def run(
     *,
     archive_path=None,
@@ -76,18 +114,9 @@ def run(
 
         if view_save is None:
             trial_view.require_display("--view_save")
-    if checkpoint_dir is not None:
-        graphdef, params, config, temperature = live.restore_model(checkpoint_dir)
-    else:
-        graphdef, params, config, checkpoint_dir = quick_model(
-            preset, overrides, workdir=where.workdir, data_dir=where.data_dir
-        )
-        temperature = confidence.load_temperature(checkpoint_dir, 0) or 1.0
-    if archive_path is None:
-        folder = where.data_dir or sim.ensure_dataset(
-            config.preset, where.workdir, streams=("audio", "proprio"), progress=False
-        )
-        archive_path = first_test_trial(folder, where.workdir)
+    graphdef, params, config, temperature, checkpoint_dir, archive_path = _model_and_trial(
+        checkpoint_dir, archive_path, preset, overrides, where
+    )
     trial = archive.read_archive(archive_path, images=watch)
     streamer = live.Streamer(graphdef, params, config, temperature, layout=archive.layout(trial.meta))
     label = int(trial.meta["label"])
@@ -111,23 +140,8 @@ def run(
     summary = live.replay(streamer, trial, realtime=realtime, on_step=show)
     if watch:
         rec.flush()
-    first, step, d = summary["time_to_first_correct_s"], summary["first_correct_step"], summary["decision"]
-    out(
-        f"sequential decision (posterior {confidence.DECISION_THRESHOLD:g}): "
-        + (
-            "none before the trial ended"
-            if d is None
-            else f"{d['fabric']} ({'correct' if d['correct'] else 'wrong'}) at {d['time_s']:.2f} s (step "
-            f"{d['step']}, {d['windows']} windows, posterior {d['posterior']:.3f})"
-        )
-    )
-    out(
-        f"first correct decision: {'never' if first is None else f'{first:.2f} s (step {step})'}; "
-        f"accuracy over {summary['decided_steps']} decided steps "
-        f"{100 * (summary['accuracy_over_decided_steps'] or 0):.1f} %; "
-        f"per-step latency p50 {summary['latency_p50_ms']:.2f} ms, p99 {summary['latency_p99_ms']:.2f} ms"
-        + (f"; {summary['late_steps']} of {summary['steps']} results came after their 20 ms slot" if realtime else "")
-    )
+    for line in _outcome(summary, realtime):
+        out(line)
     doc = {
         **documents.header(
             "stream",

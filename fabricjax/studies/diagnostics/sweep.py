@@ -195,41 +195,26 @@ def summarise(points: Sequence[dict[str, Any]], entries: Sequence[dict[str, Any]
     return out, best
 
 
-def run(
-    *,
-    grid: Mapping[str, Sequence[Any]],
-    n_seeds: int = N_SEEDS,
-    preset: str = "default",
-    rows: Sequence[str] | None = None,
-    overrides: dict[str, Any] | None = None,
-    latency_repeats: int = 100,
-    where: Location = Location(),
-) -> dict[str, Any]:
-    """Train every grid point on every chosen row of the ablation (all by default); write
-    results/sweep.{md,json}; return the JSON."""
-    chosen = ablation_rows.select(rows)
-    overrides = check_overrides("sweep", overrides, chosen, "choose the ablation's rows with --rows")
-    grid = check_grid(grid, overrides, chosen)
-    seeds = runner.seed_list(n_seeds)
-    units = plan(preset, grid, overrides, chosen)
-
-    # One load per distinct sequence key (one for a grid that leaves the sequences alone), the
-    # units of each load trained together; the progress log counts every unit of the sweep.
+def _by_load(units: Sequence[tuple]) -> list[list[tuple]]:
+    """The units grouped by the sequences they read, one load each (one for a grid that leaves the
+    sequences alone), each group in training order."""
     by_key: dict[tuple, list] = {}
     for unit in units:
         by_key.setdefault(loading.sequence_key(unit[1]), []).append(unit)
-    by_key = {key: row_training.in_training_order(group, lambda unit: unit[1]) for key, group in by_key.items()}
-    order = [u for group in by_key.values() for u in group]
-    progress = Progress(
-        "sweep", len(order), [row_training.row_kind(c) for _, c, _, _ in order], [c.epochs for _, c, _, _ in order]
-    )
-    labels = {name: f"{point_name(fields)} | {row.label}" for name, _, fields, row in order}
+    return [row_training.in_training_order(group, lambda unit: unit[1]) for group in by_key.values()]
+
+
+def _train_loads(
+    groups: Sequence[Sequence[tuple]], seeds, preset: str, latency_repeats: int, where: Location, progress, labels
+) -> tuple[dict[str, dict[str, Any]], list[dict[str, Any]], dict[str, Any]]:
+    """Train each load's units on its sequences, one load at a time: (each unit's entry by name,
+    what each load read, the results JSON's header from the first load)."""
     summary = lambda r: (  # noqa: E731
         f"val {stats.format_mean_sd(r.accuracy('val', HEAD))} %, test "
         f"{stats.format_mean_sd(r.accuracy('test', HEAD))} %"
     )
     entries, loads, head = {}, [], None
-    for group in by_key.values():
+    for group in groups:
         study = row_training.train_rows(
             "sweep",
             [(name, config) for name, config, _, _ in group],
@@ -260,6 +245,37 @@ def run(
                 study.rows[name], fields, row, study.dataset.sets["test"], latency_repeats, study.dataset.recorded
             )
         del study  # frees these sequences before the next load
+
+    return entries, loads, head
+
+
+def run(
+    *,
+    grid: Mapping[str, Sequence[Any]],
+    n_seeds: int = N_SEEDS,
+    preset: str = "default",
+    rows: Sequence[str] | None = None,
+    overrides: dict[str, Any] | None = None,
+    latency_repeats: int = 100,
+    where: Location = Location(),
+) -> dict[str, Any]:
+    """Train every grid point on every chosen row of the ablation (all by default); write
+    results/sweep.{md,json}; return the JSON."""
+    chosen = ablation_rows.select(rows)
+    overrides = check_overrides("sweep", overrides, chosen, "choose the ablation's rows with --rows")
+    grid = check_grid(grid, overrides, chosen)
+    seeds = runner.seed_list(n_seeds)
+    units = plan(preset, grid, overrides, chosen)
+
+    # one load per distinct sequence key, the units of each load trained together; the progress log
+    # counts every unit of the sweep
+    groups = _by_load(units)
+    order = [u for group in groups for u in group]
+    progress = Progress(
+        "sweep", len(order), [row_training.row_kind(c) for _, c, _, _ in order], [c.epochs for _, c, _, _ in order]
+    )
+    labels = {name: f"{point_name(fields)} | {row.label}" for name, _, fields, row in order}
+    entries, loads, head = _train_loads(groups, seeds, preset, latency_repeats, where, progress, labels)
 
     flat = [entries[name] for name, _, _, _ in units]  # grid order, then the table's row order
     points, best = summarise(grid_points(grid), flat)

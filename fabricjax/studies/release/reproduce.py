@@ -93,6 +93,37 @@ def run(
     ]
     redraw = [s for s in redrawn if s not in todo]
 
+    say("\n".join(_plan_lines(plan, todo, redraw, manifest, preset, out, where)))
+
+    t_all = time.perf_counter()
+    for step in redraw:  # only the code that presents numbers changed: nothing trained, simulated or read
+        runner.render(_drawn_again(step.study), out)
+        manifest[step.study]["rendering"] = rendering
+        results_files.write_json(manifest_path, manifest)
+        say(f"reproduce: {step.study} drawn again from {step.study}.json")
+    for step in todo:
+        say(f"reproduce: {step.study} ...")
+        manifest[step.study] = _run_step(
+            step, preset, overrides, out, where, keys[step.study], prints[step.study], rendering
+        )
+        results_files.write_json(manifest_path, manifest)
+        say(f"reproduce: {step.study} done in {minutes(manifest[step.study]['wall_s'])}")
+    write_report(out / REPORT, manifest, preset, data, where.command, time.perf_counter() - t_all, len(todo))
+    say(f"reproduce: wrote {out / REPORT}")
+    head = headline(out, manifest, preset, where.command, data)
+    if head is not None:
+        results_files.write_json(out / HEADLINE, head)
+        readme = out.parent / "README.md"
+        if write_readme_block(readme, readme_block(head, out.name)):
+            say(f"reproduce: wrote the results block of {readme}")
+    return {s.study: manifest[s.study] for s in plan}
+
+
+def _plan_lines(
+    plan: Sequence[Step], todo, redraw, manifest: Mapping[str, Any], preset: str, out: Path, where: Location
+) -> list[str]:
+    """What the run will do, study by study (run, draw or skip), and the time it expects."""
+    workdir, data_dir = where.workdir, where.data_dir
     lines = [f"reproduce: preset {preset}, results in {out}"]
     published = read_json(PUBLISHED_MANIFEST) or {}
     for step in plan:
@@ -125,66 +156,62 @@ def run(
             f"  estimated time: {minutes(known)}{data_note} (scaled from an earlier run's wall times; other "
             f"machines differ)"
         )
-    say("\n".join(lines))
+    return lines
 
-    t_all = time.perf_counter()
-    for step in redraw:  # only the code that presents numbers changed: nothing trained, simulated or read
-        runner.render(_drawn_again(step.study), out)
-        manifest[step.study]["rendering"] = rendering
-        results_files.write_json(manifest_path, manifest)
-        say(f"reproduce: {step.study} drawn again from {step.study}.json")
-    for step in todo:
-        say(f"reproduce: {step.study} ...")
-        t0 = time.perf_counter()
-        checkpoint = names = None
-        if step.study == "latents":
-            checkpoint = _latent_checkpoint(out)
-        elif step.study == "decide":
-            folders, names = _decide_checkpoints(out, step.rows)
-            checkpoint = ",".join(folders)
-        cmd = command(step, preset, overrides, out, checkpoint, data_dir, workdir)
-        kwargs = dict(where=dataclasses.replace(where, results=out, command=cmd))
-        doc = None
-        if step.study == "latents":
-            latents.run(checkpoint, **kwargs)
-        elif step.study == "decide":
-            decide.run(folders, names=names, **kwargs)
-        else:
-            seeds = {"n_seeds": step.seeds} if step.seeds else {}
-            doc = STUDIES[step.study].run(**seeds, preset=preset, rows=step.rows, overrides=overrides, **kwargs)
-        wall = time.perf_counter() - t0
-        manifest[step.study] = {
-            "key": keys[step.study],
-            "wall_s": wall,
-            "command": cmd,
-            "finished": results_files.utc_now(),
-            "commit": results_files.git_commit(),
-            # what the key was computed from: `stale` recomputes it under later fingerprints
-            "step": _as_json(dataclasses.asdict(step)),
-            "overrides": _as_json(overrides),
-            "fingerprints": prints[step.study],
-            "rendering": rendering,  # the code its pages were drawn with (`source.views`)
-            # what an estimate of a later run scales from: the study's, and each training row's (`plan.rates`)
-            "preset": preset,
-            "seeds": step.seeds,
-            "rows": len(step.rows) if step.rows else n_rows(step.study),
-            **(
-                {"rates": training_rates(doc), "machine": documents.machine_line(doc["machine"])}
-                if doc and step.seeds
-                else {}
-            ),
-        }
-        results_files.write_json(manifest_path, manifest)
-        say(f"reproduce: {step.study} done in {minutes(wall)}")
-    write_report(out / REPORT, manifest, preset, data, where.command, time.perf_counter() - t_all, len(todo))
-    say(f"reproduce: wrote {out / REPORT}")
-    head = headline(out, manifest, preset, where.command, data)
-    if head is not None:
-        results_files.write_json(out / HEADLINE, head)
-        readme = out.parent / "README.md"
-        if write_readme_block(readme, readme_block(head, out.name)):
-            say(f"reproduce: wrote the results block of {readme}")
-    return {s.study: manifest[s.study] for s in plan}
+
+def _run_step(
+    step: Step,
+    preset: str,
+    overrides: Mapping[str, Any],
+    out: Path,
+    where: Location,
+    key: str,
+    prints: Mapping[str, str | None],
+    rendering: str,
+) -> dict[str, Any]:
+    """Run one study of the plan as the command that reruns it alone would; returns its manifest
+    entry: its key and what the key was computed from (`prints`: its fingerprints), its time,
+    command and commit, and the code its pages were drawn with (`rendering`)."""
+    workdir, data_dir = where.workdir, where.data_dir
+    t0 = time.perf_counter()
+    checkpoint = names = None
+    if step.study == "latents":
+        checkpoint = _latent_checkpoint(out)
+    elif step.study == "decide":
+        folders, names = _decide_checkpoints(out, step.rows)
+        checkpoint = ",".join(folders)
+    cmd = command(step, preset, overrides, out, checkpoint, data_dir, workdir)
+    kwargs = dict(where=dataclasses.replace(where, results=out, command=cmd))
+    doc = None
+    if step.study == "latents":
+        latents.run(checkpoint, **kwargs)
+    elif step.study == "decide":
+        decide.run(folders, names=names, **kwargs)
+    else:
+        seeds = {"n_seeds": step.seeds} if step.seeds else {}
+        doc = STUDIES[step.study].run(**seeds, preset=preset, rows=step.rows, overrides=overrides, **kwargs)
+    wall = time.perf_counter() - t0
+    return {
+        "key": key,
+        "wall_s": wall,
+        "command": cmd,
+        "finished": results_files.utc_now(),
+        "commit": results_files.git_commit(),
+        # what the key was computed from: `stale` recomputes it under later fingerprints
+        "step": _as_json(dataclasses.asdict(step)),
+        "overrides": _as_json(overrides),
+        "fingerprints": prints,
+        "rendering": rendering,  # the code its pages were drawn with (`source.views`)
+        # what an estimate of a later run scales from: the study's, and each training row's (`plan.rates`)
+        "preset": preset,
+        "seeds": step.seeds,
+        "rows": len(step.rows) if step.rows else n_rows(step.study),
+        **(
+            {"rates": training_rates(doc), "machine": documents.machine_line(doc["machine"])}
+            if doc and step.seeds
+            else {}
+        ),
+    }
 
 
 def _drawn_again(study: str) -> runner.Study | None:

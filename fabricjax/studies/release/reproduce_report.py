@@ -52,6 +52,82 @@ def _demote(markdown: str) -> str:
     return "\n".join("#" + line if line.startswith("#") else line for line in lines).strip() + "\n"
 
 
+def _summary_row(
+    study: str, doc: Mapping[str, Any], entry: Mapping[str, Any], note: str | None, preset: str, recorded: bool
+) -> list:
+    """A study's line of the summary table: its title, seeds, claims reproduced (not on recorded
+    data), wall time and when it finished, with its stale `note` (None: up to date)."""
+    if study in UNSEEDED:  # not a table of the paper: no claims to check, no seeds
+        seeds, claims = "– (deterministic)", "– (not in the paper)"
+    elif study == "decide":  # not in the paper: the ablation's models, each its best seed
+        seeds, claims = "1 per model (best of the ablation's)", "– (not in the paper)"
+    else:
+        held, evaluated = findings.count([findings.Finding.from_json(f) for f in doc.get("findings", [])])
+        seeds = len(doc["seeds"]) if study != "latents" and doc.get("seeds") else "1 (best of the property study's)"
+        claims = f"{held} of {evaluated}" if not presets.install_check(preset) else "not counted (install check)"
+    finished = entry["finished"] + (f"; **{note}**" if note else "")
+    return [
+        f"[{title(study, recorded)}](#{_anchor(title(study, recorded))})",
+        seeds,
+        *([] if recorded else [claims]),
+        minutes(entry["wall_s"]),
+        finished,
+    ]
+
+
+def _heading(first: Mapping[str, Any] | None, preset: str, recorded: bool) -> tuple[str, str, str]:
+    """(the report's heading, what the first study's time includes, what its numbers are)."""
+    if recorded:
+        heading = documents.title(first, f"Report: every study on the {preset} preset")
+        data_note, numbers = "feature extraction, done once, is", documents.RECORDED_NOTE
+    else:
+        heading = f"# Reproduction report: every table and figure of the paper on the {preset} preset"
+        if presets.install_check(preset):
+            heading += f"\n\n> {presets.INSTALL_CHECK_NOTE}"
+        data_note = "data simulation and feature extraction, done once, are"
+        numbers = (
+            "The simulator is the same for every study and was never tuned to a table: differences from the paper "
+            "are findings."
+        )
+    return heading, data_note, numbers
+
+
+def _study_section(study: str, out: Path, manifest: Mapping[str, Any], docs, notes, recorded: bool) -> list[str]:
+    """A study's section: its time and command, whether it is stale, its page and any figure the
+    page does not show; the probe's also sets it beside the ablation's rows."""
+    e = manifest[study]
+    md = out / f"{study}.md"
+    lines = [
+        f"## {title(study, recorded)}",
+        "",
+        f"Wall time {minutes(e['wall_s'])}, finished {e['finished']}. Rerun alone: `{e['command']}`",
+        "",
+        *(
+            [
+                f"> **{notes[study][0].upper() + notes[study][1:]}**: these are not today's numbers; "
+                f"`python -m experiments.reproduce` reruns it.",
+                "",
+            ]
+            if study in notes
+            else []
+        ),
+        _demote(md.read_text()) if md.exists() else f"({md.name} is missing)\n",
+    ]
+    figures = (docs[study] or {}).get("figures", [])
+    lines += [
+        f"![{f}]({f})\n"
+        for f in figures
+        if (out / f).exists() and f"({f})" not in (md.read_text() if md.exists() else "")
+    ]
+    if study == "probe" and docs["probe"] and docs.get("ablation"):
+        lines += [
+            "### The probe beside the model, row by row",
+            "",
+            probe.beside_ablation(docs["probe"], docs["ablation"]),
+        ]
+    return lines
+
+
 def write_report(
     path: Path,
     manifest: Mapping[str, Any],
@@ -73,39 +149,10 @@ def write_report(
     # recorded data (`--data_dir`): its studies compare rows with each other, so no paper in titles or summary
     recorded = first is not None and documents.recorded(first)
     total = sum(e["wall_s"] for e in manifest.values())
-    summary = []
-    for study in studies:
-        doc = docs[study] or {}
-        if study in UNSEEDED:  # not a table of the paper: no claims to check, no seeds
-            seeds, claims = "– (deterministic)", "– (not in the paper)"
-        elif study == "decide":  # not in the paper: the ablation's models, each its best seed
-            seeds, claims = "1 per model (best of the ablation's)", "– (not in the paper)"
-        else:
-            held, evaluated = findings.count([findings.Finding.from_json(f) for f in doc.get("findings", [])])
-            seeds = len(doc["seeds"]) if study != "latents" and doc.get("seeds") else "1 (best of the property study's)"
-            claims = f"{held} of {evaluated}" if not presets.install_check(preset) else "not counted (install check)"
-        finished = manifest[study]["finished"] + (f"; **{notes[study]}**" if study in notes else "")
-        summary.append(
-            [
-                f"[{title(study, recorded)}](#{_anchor(title(study, recorded))})",
-                seeds,
-                *([] if recorded else [claims]),
-                minutes(manifest[study]["wall_s"]),
-                finished,
-            ]
-        )
-    if recorded:
-        heading = documents.title(first, f"Report: every study on the {preset} preset")
-        data_note, numbers = "feature extraction, done once, is", documents.RECORDED_NOTE
-    else:
-        heading = f"# Reproduction report: every table and figure of the paper on the {preset} preset"
-        if presets.install_check(preset):
-            heading += f"\n\n> {presets.INSTALL_CHECK_NOTE}"
-        data_note = "data simulation and feature extraction, done once, are"
-        numbers = (
-            "The simulator is the same for every study and was never tuned to a table: differences from the paper "
-            "are findings."
-        )
+    summary = [
+        _summary_row(study, docs[study] or {}, manifest[study], notes.get(study), preset, recorded) for study in studies
+    ]
+    heading, data_note, numbers = _heading(first, preset, recorded)
     lines = [
         heading,
         "",
@@ -133,36 +180,7 @@ def write_report(
     if not recorded:
         lines += ["## What the simulator's estimates decide", "", sensitivity.report_block(out), ""]
     for study in studies:
-        e = manifest[study]
-        md = out / f"{study}.md"
-        lines += [
-            f"## {title(study, recorded)}",
-            "",
-            f"Wall time {minutes(e['wall_s'])}, finished {e['finished']}. Rerun alone: `{e['command']}`",
-            "",
-            *(
-                [
-                    f"> **{notes[study][0].upper() + notes[study][1:]}**: these are not today's numbers; "
-                    f"`python -m experiments.reproduce` reruns it.",
-                    "",
-                ]
-                if study in notes
-                else []
-            ),
-            _demote(md.read_text()) if md.exists() else f"({md.name} is missing)\n",
-        ]
-        figures = (docs[study] or {}).get("figures", [])
-        lines += [
-            f"![{f}]({f})\n"
-            for f in figures
-            if (out / f).exists() and f"({f})" not in (md.read_text() if md.exists() else "")
-        ]
-        if study == "probe" and docs["probe"] and docs.get("ablation"):
-            lines += [
-                "### The probe beside the model, row by row",
-                "",
-                probe.beside_ablation(docs["probe"], docs["ablation"]),
-            ]
+        lines += _study_section(study, out, manifest, docs, notes, recorded)
     return results_files.write_text(path, "\n".join(lines))
 
 
