@@ -234,7 +234,7 @@ def _results_file(folder: Path, name: str, module: str, data: str | None) -> Non
     (folder / f"{name}.json").write_text(json.dumps(doc))
 
 
-@pytest.mark.parametrize("view", source.VIEWS)
+@pytest.mark.parametrize("view", source.view_modules())
 def test_a_rendering_only_change_leaves_every_study_fresh(view, monkeypatch, tmp_path):
     _results_file(tmp_path, "sweep", "fabricjax.studies.diagnostics.sweep", None)
     _results_file(tmp_path, "bench", "fabricjax.bench.suite", None)

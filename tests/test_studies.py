@@ -27,7 +27,9 @@ from fabricjax.studies.machinery import (
     wilcoxon,
 )
 from fabricjax.studies.machinery.rows import RowSpec, check_overrides, label_key, select_rows
+from fabricjax.studies.machinery.results import AblationRow
 from fabricjax.studies.machinery.trained import TrainedRow
+from fabricjax.studies.pages import ablation as ablation_page
 from fabricjax.studies.diagnostics import day_shift, probe, sweep
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
 from fabricjax.studies.release import reproduce, reproduce_plan, reproduce_readme, staleness
@@ -334,6 +336,7 @@ def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
             "backbone": "attention",
             "modalities": ["internal"],
             "display_name": "Minsound",
+            "fusion_norm": "sequence_minmax",
             "paper_mean": 95.06,
             "paper_sd": 1.85,
             "seeds": [0, 1, 2],
@@ -346,6 +349,7 @@ def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
             "backbone": "tcn",
             "modalities": ["internal", "external", "proprio"],
             "display_name": "TCN: Minsound + palm mic + proprioception",
+            "fusion_norm": "sequence_minmax",
             "paper_mean": 75.41,
             "paper_sd": 11.2,
             "seeds": [0, 1, 2],
@@ -354,7 +358,7 @@ def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
             "collapsed": {"test": findings.collapsed([[0, 1, 2, 3], [2] * 4, [2] * 4], labels)},
         },
     ]
-    lines = ablation.table(rows, findings.majority(labels)).splitlines()
+    lines = ablation_page.table([AblationRow.from_json(r) for r in rows], findings.majority(labels)).splitlines()
     assert lines[0].startswith(
         "| Backbone | Modalities | Test accuracy [%] (ours, 3 seeds) | Majority class, test [%] | Paper [%] "
         "| Ours − paper [pp]"

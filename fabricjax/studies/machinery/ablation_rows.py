@@ -12,6 +12,7 @@ from fabricjax.sequences import data
 from fabricjax.studies.machinery.rows import RowSpec, select_rows
 
 STEP_LAYERNORM = "step_layernorm"  # our fusion normalisation (config.FUSION_NORMS), beside the paper's sequence_minmax
+CONFUSION_ROWS = ("proprio", "flow")  # the rows whose confusion matrices the study counts and its page draws
 
 
 def label(

@@ -22,35 +22,38 @@ carry
 its cue in a level that is steady within a sequence, which the paper's rescale erases. Each input's
 steadiness (`linear_probe.steadiness`) is reported once, flagged below `STEADY_BELOW`, and the linear probe
 of each row's inputs on the same sequences (`linear_probe.fit_rows`) stands beside it; a row more than
-`BELOW_PROBE_PP` below its probe is said so.
+`page.BELOW_PROBE_PP` below its probe is said so. The page and figures are drawn from what the study
+measures (`measure`, an `Ablation`) by `pages.ablation`.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 from absl import logging
 
 from fabricjax.config import MODALITY_NAMES
-from fabricjax.reporting import plots, results_files, stats
-from fabricjax.sequences import data
-from fabricjax.studies.machinery import documents, findings, linear_probe, loading, recipe, runner, wilcoxon
-from fabricjax.studies.machinery.ablation_rows import ROW_GROUPS, ROWS, STEP_LAYERNORM, display_name, label
+from fabricjax.reporting import stats
+from fabricjax.studies.machinery import documents, findings, linear_probe, loading, runner, wilcoxon
+from fabricjax.studies.machinery.ablation_rows import (
+    CONFUSION_ROWS,
+    ROW_GROUPS,
+    ROWS,
+    STEP_LAYERNORM,
+    display_name,
+    label,
+)
+from fabricjax.studies.machinery.results import Ablation, AblationRow, Steadiness
+from fabricjax.studies.pages import ablation as page
 from fabricjax.studies.machinery.rows import RowSpec
 from fabricjax.studies.machinery.trained import TrainedRow, TrainingRun
 
-TITLE, PAPER = (
-    "Modality ablation",
-    "Table ablation_table",
-)  # how results name the study, and what of the paper it reproduces
+TITLE, PAPER = page.TITLE, page.PAPER  # how results name the study (reproduce's plan reads every study's)
 
 WILCOXON_PAIR = ("internal", "internal+external")  # (baseline, compared), as in the paper
 PAPER_WILCOXON_P = 0.0254  # the paper's test of that pair
 SIGNIFICANCE = 0.05  # the level "significantly higher" claims, as the paper's p reads against it
-CONFUSION_ROWS = ("proprio", "flow")
-BELOW_PROBE_PP = 10.0  # on recorded data, a row this many points below its probe's test accuracy is said so
 # an input whose within-sequence variance is below this fraction of its total (median over its
 # dimensions, `linear_probe.steadiness`) is steady within a sequence: reported, since the paper's rescale erases it
 STEADY_BELOW = 0.2
@@ -59,11 +62,11 @@ STEADY_BELOW = 0.2
 STEP_LAYERNORM_PAIRS = ((WILCOXON_PAIR[0], f"{STEP_LAYERNORM}:{WILCOXON_PAIR[1]}"),)
 
 
-def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
+def measure(trained: TrainingRun, chosen: Sequence[RowSpec]) -> Ablation:
     """The rows beside the paper's, each with the class each seed collapsed to (`findings.collapsed`),
     the test split's majority class (`findings.majority`), the Wilcoxon tests of `WILCOXON_PAIR`,
     the confusion counts of `CONFUSION_ROWS` and every trained row's time-to-accuracy curve (what
-    `figures` draws)."""
+    the page's figures draw); on recorded data each row as `_recorded_rows` measures it."""
     rows, seeds = trained.rows, next(iter(trained.rows.values())).results.seeds
     test = trained.dataset.sets["test"]
     labels = test.labels["fabric"]
@@ -73,46 +76,45 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
         wilcoxon.paired_tests(rows[base], rows[compared], "test", labels) if base in rows and compared in rows else {}
     )
     names = test.names if recorded else {}
-    drawn = {
-        "confusion": {
-            n: stats.confusion_matrix(
-                np.tile(labels, len(seeds)), rows[n].predictions("test").ravel(), trained.dataset.n_classes
-            ).tolist()
-            for n in CONFUSION_ROWS
-            if n in rows
-        },
-        # every row trained, so that on recorded data each input shows under both fusions, the one its
-        # table reports (chosen by validation) among them
-        "time_to_accuracy": [_time_to_accuracy(t, names) for t in rows.values()],
+    confusion = {
+        n: stats.confusion_matrix(
+            np.tile(labels, len(seeds)), rows[n].predictions("test").ravel(), trained.dataset.n_classes
+        ).tolist()
+        for n in CONFUSION_ROWS
+        if n in rows
     }
+    # every row trained, so that on recorded data each input shows under both fusions, the one its
+    # table reports (chosen by validation) among them
+    curves = tuple(_time_to_accuracy(t, names) for t in rows.values())
+    tested = {
+        "baseline": base,
+        "compared": compared,
+        **({} if recorded else {"paper_p": PAPER_WILCOXON_P}),
+        **{k: documents.wilcoxon_doc(v) for k, v in tests.items()},
+    }
+    measured = dict(majority=findings.majority(labels), wilcoxon=tested if tests else None, confusion=confusion)
     if recorded:
-        return {**_recorded_body(trained, chosen, tests), **drawn}
-    return {
-        "rows": [
-            {
-                "name": r.name,
-                "backbone": rows[r.name].config.backbone,
-                "modalities": list(r.modalities),
-                "display_name": r.label,
-                "fusion_norm": r.settings["fusion_norm"],
-                **({} if recorded else {"paper_mean": r.paper["mean"], "paper_sd": r.paper["sd"]}),
-                "collapsed": {"test": findings.collapsed(rows[r.name].predictions("test"), labels)},
-                **rows[r.name].doc(["test"]),
-            }
-            for r in chosen
-        ],
-        "fusion_choice": fusion_choices(rows),
-        "majority": {"test": findings.majority(labels)},
-        "wilcoxon": {
-            "baseline": base,
-            "compared": compared,
-            **({} if recorded else {"paper_p": PAPER_WILCOXON_P}),
-            **{k: documents.wilcoxon_doc(v) for k, v in tests.items()},
-        }
-        if tests
-        else None,
-        **drawn,
-    }
+        out_rows, steadiness = _recorded_rows(trained, chosen)
+        return Ablation(out_rows, **measured, time_to_accuracy=curves, steadiness=steadiness)
+    out_rows = tuple(
+        AblationRow(
+            r.name,
+            rows[r.name].config.backbone,
+            r.modalities,
+            r.label,
+            r.settings["fusion_norm"],
+            {"test": findings.collapsed(rows[r.name].predictions("test"), labels)},
+            rows[r.name].doc(["test"]),
+            (r.paper["mean"], r.paper["sd"]),
+        )
+        for r in chosen
+    )
+    return Ablation(out_rows, **measured, time_to_accuracy=curves, fusion_choice=tuple(fusion_choices(rows)))
+
+
+def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
+    """The study's own part of its results JSON: what `measure` gives."""
+    return measure(trained, chosen).to_json()
 
 
 def _time_to_accuracy(row: TrainedRow, names: Mapping[str, str]) -> dict[str, Any]:
@@ -126,28 +128,6 @@ def _time_to_accuracy(row: TrainedRow, names: Mapping[str, str]) -> dict[str, An
         "seconds": seconds.tolist(),
         "val_accuracy": [[None if np.isnan(x) else float(x) for x in s] for s in per_seed],
     }
-
-
-def figures(doc: dict[str, Any], results: Path) -> list[Path | None]:
-    """From the results JSON: the confusion matrices of `CONFUSION_ROWS`, pooled over seeds
-    (results/ablation_confusion.png, where any of them ran), and each row's validation accuracy
-    against its training seconds (results/ablation_time_to_accuracy.png)."""
-    names, seeds = documents.stream_names(doc), len(doc["seeds"])
-    panels = [(f"{data.inputs_name((n,), names)} only, {seeds} seeds pooled", c) for n, c in doc["confusion"].items()]
-    recorded = documents.recorded(doc)
-    confusion = (
-        plots.plot_confusions(
-            results / "ablation_confusion.png", panels, class_names=doc["dataset"]["classes"] if recorded else None
-        )
-        if panels
-        else None
-    )
-    curves = [
-        (c["label"], np.asarray(c["seconds"], np.float64), np.asarray(c["val_accuracy"], np.float64))
-        for c in doc["time_to_accuracy"]
-    ]
-    title = f"What accuracy costs in training time, {seeds} seeds a row in one program"
-    return [confusion, plots.plot_time_to_accuracy(results / "ablation_time_to_accuracy.png", curves, title)]
 
 
 def fusion_choices(rows: Mapping[str, TrainedRow]) -> list[dict[str, Any]]:
@@ -171,30 +151,7 @@ def fusion_choices(rows: Mapping[str, TrainedRow]) -> list[dict[str, Any]]:
     return out
 
 
-def fusion_choice_markdown(choices: Sequence[dict[str, Any]]) -> list[str]:
-    """The table's rows trained under both fusions, each with the fusion validation picks."""
-    if not choices:
-        return []
-    lines = [
-        "## The fusion chosen by validation (rows trained under both)",
-        "",
-        "| Inputs | Validation [%]: rescale / step-LayerNorm | Chosen | Test of the chosen [%] |",
-        "|---|---|---|---|",
-    ]
-    for c in choices:
-        lines.append(
-            f"| {display_name(c['name'])} | {c['val']['sequence_minmax']:.2f} / {c['val'][STEP_LAYERNORM]:.2f} | "
-            f"{FUSION_NAMES[c['chosen']]} | {c['test'][c['chosen']]:.2f} |"
-        )
-    return lines + [
-        "",
-        "The choice is made on the validation split alone, as on recorded data; the paper's rows above stay "
-        "under its rescale.",
-        "",
-    ]
-
-
-def _recorded_body(trained: TrainingRun, chosen: Sequence[RowSpec], tests) -> dict[str, Any]:
+def _recorded_rows(trained: TrainingRun, chosen: Sequence[RowSpec]) -> tuple[tuple[AblationRow, ...], Steadiness]:
     """The rows on recorded data: each under the fusion its validation accuracy picks, beside the
     other fusion and the probe of its inputs; every input's steadiness."""
     sets, rows = trained.dataset.sets, trained.rows
@@ -219,42 +176,27 @@ def _recorded_body(trained: TrainingRun, chosen: Sequence[RowSpec], tests) -> di
         best = max(trained_as, key=lambda t: (val[t.config.fusion_norm], t.config.fusion_norm == STEP_LAYERNORM))
         p = probes[frozenset(r.modalities)]
         out.append(
-            {
-                "name": r.name,
-                "backbone": best.config.backbone,
-                "modalities": list(r.modalities),
-                "display_name": label(
-                    r.modalities, best.config.backbone, names=names, rotated=best.config.augment_rotation
-                ),
-                "fusion_norm": best.config.fusion_norm,
-                "fusion_choice": {
+            AblationRow(
+                r.name,
+                best.config.backbone,
+                r.modalities,
+                label(r.modalities, best.config.backbone, names=names, rotated=best.config.augment_rotation),
+                best.config.fusion_norm,
+                {"test": findings.collapsed(best.predictions("test"), sets["test"].labels["fabric"])},
+                best.doc(["test"]),
+                fusion_choice={
                     "by": "validation accuracy, mean over seeds [%]",
                     "val": val,
                     "test": {t.config.fusion_norm: stats.mean_sd(100 * t.accuracy("test"))[0] for t in trained_as},
                 },
-                "probe": {
+                probe={
                     "C": p["C"],
                     "accuracy": p["accuracy"],
                     "collapsed": {"test": findings.collapsed(p["predictions"].get("test", []))},
                 },
-                "collapsed": {"test": findings.collapsed(best.predictions("test"), sets["test"].labels["fabric"])},
-                **best.doc(["test"]),
-            }
+            )
         )
-    return {
-        "rows": out,
-        "names": dict(names),
-        "steady_below": STEADY_BELOW,
-        "steadiness": steady,
-        "majority": {"test": findings.majority(sets["test"].labels["fabric"])},
-        "wilcoxon": {
-            "baseline": WILCOXON_PAIR[0],
-            "compared": WILCOXON_PAIR[1],
-            **{k: documents.wilcoxon_doc(v) for k, v in tests.items()},
-        }
-        if tests
-        else None,
-    }
+    return tuple(out), Steadiness(dict(names), STEADY_BELOW, steady)
 
 
 CLEARLY_WORSE_PP = 10.0  # "clearly worse": at least this many points below (the paper: 36)
@@ -369,205 +311,15 @@ def checklist(
     return findings.evaluate(CLAIMS, findings.Evidence(test, majority, n_classes, collapsed or {}, wilcoxon, _plain))
 
 
+def claims_of(result: Ablation, n_classes: int) -> list[findings.Finding]:
+    """`checklist` on what the ablation measured, on data of `n_classes` classes."""
+    collapsed = {r.name: r.collapsed["test"] for r in result.rows}
+    return checklist(result.test_accuracies(), result.majority, n_classes, collapsed, result.wilcoxon)
+
+
 def _plain(row: str) -> str:
     """How a claim's evidence names a row: a single input by its sensor, else by its label."""
     return MODALITY_NAMES[row] if row in MODALITY_NAMES else display_name(row)
-
-
-def table(
-    rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None, recorded: bool = False, paper: bool = True
-) -> str:
-    """Our accuracy, flagged where seeds collapsed (each row's "collapsed"), beside the test
-    split's `majority` class and the paper's, with the difference, one line per row; on recorded
-    data each row beside the best row instead; without the paper's columns where `paper` is False
-    (a preset whose results are not the paper's table)."""
-    means = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
-    gaps = documents.best_gaps([m for m, _ in means])
-    body = []
-    for r, (mean, sd), gap in zip(rows, means, gaps):
-        body.append(
-            [
-                "TCN" if r["backbone"] == "tcn" else "Transformer",
-                r["display_name"].removeprefix("TCN: "),
-                f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}",
-                findings.majority_cell(majority),
-                *(
-                    [gap]
-                    if recorded
-                    else [f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}", f"{mean - r['paper_mean']:+.2f}"]
-                    if paper
-                    else []
-                ),
-                f"{r['wall_s']:.1f}",
-            ]
-        )
-    accuracy = f"Test accuracy [%] ({'recorded data' if recorded else 'ours'}, {len(rows[0]['seeds'])} seeds)"
-    compared = [documents.BEST_GAP] if recorded else ["Paper [%]", "Ours − paper [pp]"] if paper else []
-    return results_files.markdown_table(
-        ["Backbone", "Modalities", accuracy, "Majority class, test [%]", *compared, "Train wall time [s]"], body
-    )
-
-
-def markdown(doc: dict[str, Any]) -> str:
-    if documents.recorded(doc):
-        return _recorded_markdown(doc)
-    paper = not documents.counts_no_claims(doc)  # the paper's columns only where the results are its table's
-    lines = [
-        documents.title(doc, TITLE, PAPER),
-        "",
-        documents.header_markdown(doc),
-        table(doc["rows"], doc["majority"]["test"], paper=paper),
-        findings.baseline_note(),
-        "",
-        *(
-            [
-                "Rows marked *our step-LayerNorm fusion* are not in the paper: the same inputs with each step's "
-                "concatenated features normalised by a LayerNorm instead of the paper's per-sequence [0, 1] rescale "
-                "(`Config.fusion_norm`)"
-                + ("; the paper column repeats the paper's row with the same inputs for reference." if paper else "."),
-                "",
-            ]
-            if any(r.get("fusion_norm") == STEP_LAYERNORM for r in doc["rows"])
-            else []
-        ),
-        *recipe.markdown(doc["rows"]),
-        *fusion_choice_markdown(doc.get("fusion_choice", [])),
-        "## Findings checklist (the paper's claims about this table)",
-        "",
-        findings.markdown(doc["findings"], counted=not documents.counts_no_claims(doc)),
-    ]
-    w = doc["wilcoxon"]
-    if w:
-        lines += [
-            f"## Wilcoxon signed-rank: {w['compared']} against {w['baseline']} (paper: p = {w['paper_p']})",
-            "",
-            f"- {w['per_seed']['describe']}",
-            f"- {w['per_sample']['describe']}",
-            "",
-            "The per-seed test is the one comparable to the paper's; its smallest attainable p is the floor above. "
-            "The per-sequence test treats sequences of one trial and of different seeds as independent, "
-            "which they are not: read it as descriptive.",
-            "",
-        ]
-    if "ablation_confusion.png" in doc["figures"]:
-        lines += ["Confusion matrices (proprioception only, optical flow only): `ablation_confusion.png`.", ""]
-    lines += _time_to_accuracy_line(doc)
-    lines += [
-        "The simulator is the same for every row (never tuned per row): differences from the paper are findings.",
-        "",
-    ]
-    return "\n".join(lines)
-
-
-def recorded_table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None) -> str:
-    """Recorded data: each row under its fusion (by validation), flagged where seeds collapsed
-    (each row's "collapsed"), beside the test split's `majority` class, the other fusion's test
-    accuracy, its probe's, model − probe and the gap to the best row."""
-    means = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
-    body = []
-    for r, (mean, sd), gap in zip(rows, means, documents.best_gaps([m for m, _ in means])):
-        choice, probe_test = r["fusion_choice"], 100 * r["probe"]["accuracy"]["test"]
-        other = [f"{FUSION_NAMES[f]} {choice['test'][f]:.2f}" for f in choice["test"] if f != r["fusion_norm"]]
-        val = ", ".join(f"{FUSION_NAMES[f]} {v:.2f}" for f, v in choice["val"].items())
-        body.append(
-            [
-                "TCN" if r["backbone"] == "tcn" else "Transformer",
-                r["display_name"],
-                f"{FUSION_NAMES[r['fusion_norm']]} (val {val})",
-                f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}",
-                findings.majority_cell(majority),
-                ", ".join(other) or "–",
-                f"{probe_test:.2f}{findings.collapse_text(r['probe']['collapsed']['test'])}",
-                f"{mean - probe_test:+.2f}",
-                gap,
-                f"{r['wall_s']:.1f}",
-            ]
-        )
-    header = [
-        "Backbone",
-        "Inputs",
-        "Fusion (by validation)",
-        f"Test accuracy [%] (recorded data, {len(rows[0]['seeds'])} seeds)",
-        "Majority class, test [%]",
-        "Other fusion, test [%]",
-        "Linear probe, test [%]",
-        "Model − probe [pp]",
-        documents.BEST_GAP,
-        "Train wall time [s]",
-    ]
-    return results_files.markdown_table(header, body)
-
-
-# how recorded-data tables name the fusions (config.FUSION_NORMS); the paper's is not named after it there
-FUSION_NAMES = {"sequence_minmax": "[0, 1] rescale over the sequence", STEP_LAYERNORM: "step-LayerNorm"}
-
-
-def recorded_notes(doc: dict[str, Any]) -> list[str]:
-    """A line per row more than `BELOW_PROBE_PP` below its probe, and per input steady within sequences."""
-    lines = []
-    for r in doc["rows"]:
-        mean, probe_test = 100 * float(np.mean(r["accuracy"]["test"]["fabric"])), 100 * r["probe"]["accuracy"]["test"]
-        if mean < probe_test - BELOW_PROBE_PP:
-            lines.append(
-                f"- **{r['display_name']}** is {probe_test - mean:.1f} pp below the linear probe of its inputs "
-                f"({mean:.1f} % against {probe_test:.1f} %): the model does not read what the inputs carry."
-            )
-    for m, ratio in doc["steadiness"].items():
-        if ratio < doc["steady_below"]:
-            lines.append(
-                f"- {doc['names'].get(m, m)} is steady within sequences: its within-sequence variance is "
-                f"{100 * ratio:.1f} % of "
-                "its total (median over its dimensions); the [0, 1] rescale over the sequence erases it, "
-                "step-LayerNorm keeps it."
-            )
-    return lines + [""] if lines else []
-
-
-def _recorded_markdown(doc: dict[str, Any]) -> str:
-    """The table of a `--data_dir` run: recorded data, rows compared with each other and with their probes."""
-    steadiness = ", ".join(f"{doc['names'].get(m, m)} {100 * v:.1f} %" for m, v in doc["steadiness"].items())
-    lines = [
-        documents.title(doc, TITLE, PAPER),
-        "",
-        documents.header_markdown(doc),
-        recorded_table(doc["rows"], doc["majority"]["test"]),
-        findings.baseline_note(),
-        "",
-        documents.RECORDED_NOTE
-        + " Each row is trained under both fusion normalisations and shown under the one with the better "
-        "validation accuracy (step-LayerNorm on a tie: it keeps the steady level the rescale erases). The "
-        "probe is a logistic regression on each sequence's per-dimension mean and SD "
-        f"(`experiments.probe`), on the same sequences. Within-sequence share of each input's variance: {steadiness}.",
-        "",
-        *recorded_notes(doc),
-        *recipe.markdown(doc["rows"]),
-    ]
-    w = doc["wilcoxon"]
-    if w:
-        lines += [
-            f"## Wilcoxon signed-rank: {w['compared']} against {w['baseline']}",
-            "",
-            f"- {w['per_seed']['describe']}",
-            f"- {w['per_sample']['describe']}",
-            "",
-        ]
-    if "ablation_confusion.png" in doc["figures"]:
-        shown = ", ".join(
-            f"{doc['names'].get(m, m)} only" for m in CONFUSION_ROWS if any(r["name"] == m for r in doc["rows"])
-        )
-        lines += [f"Confusion matrices ({shown}): `ablation_confusion.png`.", ""]
-    lines += _time_to_accuracy_line(doc)
-    return "\n".join(lines)
-
-
-def _time_to_accuracy_line(doc: Mapping[str, Any]) -> list[str]:
-    if "ablation_time_to_accuracy.png" not in doc["figures"]:
-        return []
-    return [
-        "What accuracy costs in training time, row by row (validation accuracy after each epoch against the "
-        "row's training seconds): `ablation_time_to_accuracy.png`.",
-        "",
-    ]
 
 
 STUDY = runner.Study(
@@ -577,16 +329,10 @@ STUDY = runner.Study(
     eval_splits=("test",),
     split_names=loading.TRAIN_VAL_TEST,
     document=document,
-    checklist=lambda doc: checklist(
-        {r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]},
-        doc["majority"]["test"],
-        len(doc["dataset"]["classes"]),
-        {r["name"]: r["collapsed"]["test"] for r in doc["rows"]},
-        doc.get("wilcoxon"),
-    ),
-    markdown=markdown,
+    checklist=lambda doc: claims_of(Ablation.from_json(doc), len(doc["dataset"]["classes"])),
+    markdown=page.markdown,
     module=__name__,
-    figures=figures,
+    figures=page.figures,
     recorded_fusions=(STEP_LAYERNORM,),
     checkpoints=True,
     groups=ROW_GROUPS,
