@@ -10,6 +10,7 @@ import pytest
 from fabricjax.studies.machinery import findings, linear_probe, probing
 from fabricjax.studies.diagnostics import probe
 from fabricjax.studies.paper import ablation
+from fabricjax.studies.pages import probe as probe_page
 from fabricjax.studies.release import reproduce_plan, reproduce_report
 
 N_CLASSES, PER_CLASS, N_STEPS = 6, 60, 10
@@ -126,7 +127,7 @@ ABLATION_DOC = {
 
 
 def test_the_probe_sits_beside_every_ablation_row_with_the_difference():
-    lines = probe.beside_ablation(PROBE_DOC, ABLATION_DOC).splitlines()
+    lines = probe_page.beside_ablation(PROBE_DOC, ABLATION_DOC).splitlines()
     assert lines[0] == "| Ablation row | Linear probe, test [%] | Model, test [%] (2 seeds) | Model − probe [pp] |"
     assert (
         lines[2] == "| Minsound | 65.00 (collapsed to class 1) | 85.00 ± 7.07 | +20.00 |"
@@ -144,8 +145,9 @@ def test_the_probe_sits_beside_every_ablation_row_with_the_difference():
     text = "\n".join(lines)
     assert "2 of 3 rows at or above their probe's test accuracy" in text and "Not the same data" not in text
     other = {**PROBE_DOC, "preset": "smoke", "dataset": {"folder": "/w/datasets/smoke"}}
-    assert "**Not the same data**: ablation on default `/w/datasets/default`, probe on smoke" in probe.beside_ablation(
-        other, ABLATION_DOC
+    assert (
+        "**Not the same data**: ablation on default `/w/datasets/default`, probe on smoke"
+        in probe_page.beside_ablation(other, ABLATION_DOC)
     )
 
 

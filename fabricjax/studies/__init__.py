@@ -56,7 +56,7 @@ the studies are built of (`machinery/`), one concept per module:
     findings     the paper's claims as predicates over per-seed results: a study's checklist
     linear_probe the linear probe: per-sequence summaries of an input, standardised, a logistic regression
     plan         what a study will cost before it starts: disk and time per stage
-    results      what a study measured, as a type its page reads back from its results JSON (the ablation's)
+    results      what a study measured, as a type its page reads back (the ablation's, the probe's)
 
 and what two studies share, so that no study imports another:
 
@@ -68,6 +68,6 @@ and what two studies share, so that no study imports another:
     quick_model     one seed of a preset trained once and kept (stream, decide)
 
 The pages (`pages/`): a study's Markdown and figures drawn from its result alone (the ablation's
-so far), a package the code fingerprint leaves out, so that a page's edit draws it again and
-reruns nothing.
+and the probe's so far), a package the code fingerprint leaves out, so that a page's edit stales
+no number.
 """

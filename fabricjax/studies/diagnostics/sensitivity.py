@@ -192,7 +192,7 @@ def measure(point: Path, preset: str) -> tuple[dict[str, float], dict[str, Any]]
     """Simulate `preset` with the estimates in force into the workspace `point` and measure every
     response; returns (responses, what the claims read besides them)."""
     where = Location(workdir=point, results=point / "results")
-    probe_doc = probing.measure(preset=preset, rows=list(PROBE_ROWS), where=where).body
+    probe_doc = probing.measure(preset=preset, rows=list(PROBE_ROWS), where=where).result.to_json()
     p = _probe_rows(probe_doc)
     shift = day_variation.measure(preset=preset, rows=list(SHIFT_ROWS), where=where)
     shares = {r["name"]: r for r in shift.body["rows"]}

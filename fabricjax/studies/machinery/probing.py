@@ -31,6 +31,7 @@ from fabricjax.studies.machinery.linear_probe import (
     prepare_inputs,
 )
 from fabricjax.studies.machinery.progress import Progress
+from fabricjax.studies.machinery.results import Probe
 from fabricjax.studies.machinery.rows import RowSpec
 
 SPLITS = (*loading.TRAIN_VAL_TEST, "cafe")  # the ablation's, and the cafe condition where the data has it
@@ -86,13 +87,12 @@ def row_for(
 
 @dataclasses.dataclass(frozen=True)
 class Probed:
-    """What probing the chosen rows measured: the data read, the seconds the probes took
-    (summaries and PCA included), the results JSON's own part (`body`: the method, splits,
-    classes, inputs and rows) and the per-sample records (`samples`)."""
+    """What probing the chosen rows gave: the data read, the seconds the probes took (summaries
+    and PCA included), what they measured (`result`) and the per-sample records (`samples`)."""
 
     dataset: loading.Dataset
     seconds: float
-    body: dict[str, Any]
+    result: Probe
     samples: dict[str, Any]
 
 
@@ -136,8 +136,8 @@ def measure(
         ]
 
     seconds = time.perf_counter() - t0
-    body = {
-        "method": {
+    result = Probe(
+        method={
             "summaries": ["mean", "sd"],
             "pca_above_step_dims": PCA_ABOVE,
             "pca_dims": PCA_DIMS,
@@ -145,16 +145,16 @@ def measure(
             "solver": "lbfgs",
             "max_iter": MAX_ITER,
         },
-        "splits": present,
-        "classes": sorted(np.unique(labels["train"]).tolist()),
-        "inputs": {name: i for key, (_, c) in loads.items() for name, i in _inputs_doc(inputs[key], c, names).items()},
-        "rows": [{k: v for k, v in r.items() if k != "predictions"} for r in out_rows],
-    }
+        splits=tuple(present),
+        classes=tuple(sorted(np.unique(labels["train"]).tolist())),
+        inputs={name: i for key, (_, c) in loads.items() for name, i in _inputs_doc(inputs[key], c, names).items()},
+        rows=tuple({k: v for k, v in r.items() if k != "predictions"} for r in out_rows),
+    )
     samples = {
         "rows": {r["name"]: r["predictions"] for r in out_rows},
         "sequences": {s: documents.samples_doc(ds.sets[s]) for s in present if s != "train"},
     }
-    return Probed(ds, seconds, body, samples)
+    return Probed(ds, seconds, result, samples)
 
 
 def _inputs_doc(inputs: Mapping[str, Input], config, names: Mapping[str, str]) -> dict[str, Any]:

@@ -150,3 +150,29 @@ class Ablation:
             fusion_choice,
             steadiness,
         )
+
+
+@dataclasses.dataclass(frozen=True)
+class Probe:
+    """What the linear probe measured: how it reads the inputs (`method`), the splits it fits and
+    scores on, the training split's classes, each input's reduction by name (`inputs`) and each
+    probe row (its inputs, chosen C, accuracy per split and collapsed classes)."""
+
+    method: Mapping[str, Any]
+    splits: tuple[str, ...]
+    classes: tuple[int, ...]
+    inputs: Mapping[str, Mapping[str, Any]]
+    rows: tuple[Mapping[str, Any], ...]
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "method": dict(self.method),
+            "splits": list(self.splits),
+            "classes": list(self.classes),
+            "inputs": dict(self.inputs),
+            "rows": list(self.rows),
+        }
+
+    @classmethod
+    def from_json(cls, doc: Mapping[str, Any]) -> Probe:
+        return cls(doc["method"], tuple(doc["splits"]), tuple(doc["classes"]), doc["inputs"], tuple(doc["rows"]))

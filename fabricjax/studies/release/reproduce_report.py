@@ -2,7 +2,7 @@
 
 The report embeds each study's own Markdown (its table beside the paper's, its findings
 checklist, its Wilcoxon tests), links its figures, sets the probe beside the ablation row by row
-(from both studies' JSON, `probe.beside_ablation`), and adds a summary of every checklist, the
+(from both studies' JSON, `pages.probe.beside_ablation`), and adds a summary of every checklist, the
 machine, the library versions, the code's fingerprint, each study's wall time and the exact
 command that reruns that study alone; a stale study (`staleness.stale`) says so. On recorded
 data (`data_dir`) the report, like its studies, names the data and compares rows with each
@@ -19,7 +19,8 @@ import fabricjax
 from fabricjax import presets
 from fabricjax.reporting import results_files
 from fabricjax.studies.machinery import documents, findings
-from fabricjax.studies.diagnostics import probe, sensitivity
+from fabricjax.studies.diagnostics import sensitivity
+from fabricjax.studies.pages import probe as probe_page
 from fabricjax.studies.release.reproduce_plan import STUDIES, UNSEEDED, minutes, read_json, title
 from fabricjax.studies.release.staleness import stale
 
@@ -123,7 +124,7 @@ def _study_section(study: str, out: Path, manifest: Mapping[str, Any], docs, not
         lines += [
             "### The probe beside the model, row by row",
             "",
-            probe.beside_ablation(docs["probe"], docs["ablation"]),
+            probe_page.beside_ablation(docs["probe"], docs["ablation"]),
         ]
     return lines
 
