@@ -1,4 +1,5 @@
-"""Fit each declared calibration's estimate to its measurement of the paper (see fabricjax/studies/extra/calibrate.py).
+"""Fit each declared calibration's estimate to its measurement of the paper
+(see fabricjax/studies/diagnostics/calibrate.py).
 
     python -m experiments.calibrate                     # into workspace/results/
     python -m experiments.calibrate --results=results   # regenerates results/calibration.md
@@ -8,7 +9,7 @@ on a 2-core laptop, at most eight points; resumable (the points measured are kep
 """
 
 from experiments import flags
-from fabricjax.studies.extra import calibrate
+from fabricjax.studies.diagnostics import calibrate
 
 
 def main(argv):

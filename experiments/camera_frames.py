@@ -1,5 +1,5 @@
 """What Minsight's camera sees of a stroke, on four fabrics and on three days of one (see
-fabricjax/studies/extra/camera_frames.py).
+fabricjax/studies/diagnostics/camera_frames.py).
 
     python -m experiments.camera_frames                     # default preset's scenes, into workspace/results/
     python -m experiments.camera_frames --results=results   # regenerates results/camera_frames.{md,png}
@@ -10,7 +10,7 @@ Ten frames rendered in this process (nothing is written to the dataset folder); 
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.extra import camera_frames
+from fabricjax.studies.diagnostics import camera_frames
 
 flags.define_preset()
 flags.define_overrides()

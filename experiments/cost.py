@@ -1,4 +1,4 @@
-"""What accuracy costs in touch time, training time and inference latency (see fabricjax/studies/extra/cost.py).
+"""What accuracy costs in touch time, training time and inference latency (see fabricjax/studies/diagnostics/cost.py).
 
 python -m experiments.cost --seeds=5     # default preset: 15 points, <= 20 min on 2 CPU cores
 python -m experiments.cost --set=seq_len=25 --set=epochs=4   # base point's N, any Config field
@@ -8,7 +8,7 @@ from absl import flags as absl_flags
 
 from experiments import flags
 from fabricjax.config import BACKBONES
-from fabricjax.studies.extra import cost
+from fabricjax.studies.diagnostics import cost
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_integer("seeds", 5, "seeds (0..n-1) trained together per point")

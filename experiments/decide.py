@@ -1,4 +1,4 @@
-"""Calibrated confidence, when to stop rubbing, unknown fabrics (see fabricjax/studies/extra/decide.py).
+"""Calibrated confidence, when to stop rubbing, unknown fabrics (see fabricjax/studies/diagnostics/decide.py).
 
     python -m experiments.decide --checkpoint=DIR[,DIR...]   # checkpoints of training studies (ablation, properties,
     ...)
@@ -13,7 +13,7 @@ from absl import flags as absl_flags
 
 from experiments import flags
 from fabricjax.errors import UserError
-from fabricjax.studies.extra import decide
+from fabricjax.studies.diagnostics import decide
 
 CHECKPOINT = absl_flags.DEFINE_list(
     "checkpoint", [], "checkpoint directories (default: a quick model of --preset, as experiments.stream)"

@@ -1,4 +1,4 @@
-"""Faults injected into the code-keyed caches (see fabricjax/studies/extra/faults.py).
+"""Faults injected into the code-keyed caches (see fabricjax/studies/diagnostics/faults.py).
 
 python -m experiments.faults --results=results   # regenerates results/faults.md
 """
@@ -6,7 +6,7 @@ python -m experiments.faults --results=results   # regenerates results/faults.md
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.extra import faults
+from fabricjax.studies.diagnostics import faults
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_string("load", None, "internal: one load of a case's sequences, folder,workdir,during[,other_code]")

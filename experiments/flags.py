@@ -26,7 +26,7 @@ from fabricjax.errors import UserError
 from fabricjax.store import provenance, workspace
 
 if TYPE_CHECKING:
-    from fabricjax.studies.common.runner import Study
+    from fabricjax.studies.machinery.runner import Study
 
 FLAGS = flags.FLAGS
 
@@ -124,7 +124,7 @@ def results_dir() -> Path:
 def define_rows(study: Study, n_seeds: int) -> None:
     """The flags of a command that trains rows of `study`: --seeds (default `n_seeds`), --preset,
     --rows (its rows and groups) and --set."""
-    from fabricjax.studies.common.rows import ALL_ROWS
+    from fabricjax.studies.machinery.rows import ALL_ROWS
 
     flags.DEFINE_integer(
         "seeds", n_seeds, "number of seeds (0..n-1) trained together (the study's count by default)", lower_bound=1

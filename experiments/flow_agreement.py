@@ -1,4 +1,5 @@
-"""How closely the JAX Farneback reproduces OpenCV's, and its speed (see fabricjax/studies/extra/flow_agreement.py).
+"""How closely the JAX Farneback reproduces OpenCV's, and its speed
+(see fabricjax/studies/diagnostics/flow_agreement.py).
 
     python -m experiments.flow_agreement                     # into workspace/results/
     python -m experiments.flow_agreement --results=results   # regenerates results/flow_agreement.md
@@ -11,7 +12,7 @@ machine.
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.extra import flow_agreement
+from fabricjax.studies.diagnostics import flow_agreement
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_bool("quick", False, "one trial and one natural texture per size, timings best of one")

@@ -1,5 +1,5 @@
 """What moves Minsight's imaged wall over a stroke, effect by effect, and what optical flow sees of it
-(see fabricjax/studies/extra/flow_budget.py).
+(see fabricjax/studies/diagnostics/flow_budget.py).
 
     python -m experiments.flow_budget                     # default preset's fabrics, into workspace/results/
     python -m experiments.flow_budget --results=results   # regenerates results/flow_budget.{md,json}
@@ -10,7 +10,7 @@ Frames rendered in this process (nothing is written to the dataset folder); minu
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.extra import flow_budget
+from fabricjax.studies.diagnostics import flow_budget
 
 flags.define_preset()
 flags.define_overrides()

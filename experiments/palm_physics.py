@@ -1,4 +1,4 @@
-"""Each sound at each microphone by physics; fabric, day and condition (see fabricjax/studies/extra/palm.py).
+"""Each sound at each microphone by physics; fabric, day and condition (see fabricjax/studies/diagnostics/palm.py).
 
     python -m experiments.palm_physics                     # default preset's classes and days, into workspace/results/
     python -m experiments.palm_physics --results=results   # regenerates results/palm_physics.md
@@ -9,7 +9,7 @@ Short scenes simulated in this process (nothing is written to the dataset folder
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.extra import palm
+from fabricjax.studies.diagnostics import palm
 
 flags.define_preset()
 CYCLES = absl_flags.DEFINE_integer("cycles", palm.CYCLES, "rubbing cycles per simulated scene")

@@ -1,5 +1,5 @@
 """Every study of the paper in order, skipping those up to date, and one report (see
-fabricjax/studies/tools/reproduce.py).
+fabricjax/studies/release/reproduce.py).
 
 python -m experiments.reproduce                      # default preset, into workspace/results/REPORT.md
 python -m experiments.reproduce --results=results    # regenerates the repository's results/REPORT.md
@@ -13,7 +13,7 @@ import sys
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.tools import reproduce, reproduce_plan, staleness
+from fabricjax.studies.release import reproduce, reproduce_plan, staleness
 
 flags.define_preset()
 flags.define_overrides("a field a study's rows set themselves is refused")

@@ -1,4 +1,4 @@
-"""Which of the simulator's estimates each finding depends on (see fabricjax/studies/extra/sensitivity.py).
+"""Which of the simulator's estimates each finding depends on (see fabricjax/studies/diagnostics/sensitivity.py).
 
     python -m experiments.sensitivity                       # every group of estimates, into workspace/results/
     python -m experiments.sensitivity --results=results     # regenerates results/sensitivity.{md,json,png}
@@ -11,7 +11,7 @@ r trajectories are r (k + 1) points. Resumable: rerun the same command after an 
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.extra import sensitivity
+from fabricjax.studies.diagnostics import sensitivity
 
 PRESET = absl_flags.DEFINE_string("preset", sensitivity.PRESET, "the preset simulated at every point")
 TRAJECTORIES = absl_flags.DEFINE_integer("trajectories", sensitivity.TRAJECTORIES, "Morris trajectories", lower_bound=1)

@@ -1,4 +1,5 @@
-"""Live classification of one trial at 50 Hz (fabricjax/studies/tools/stream.py; streaming: fabricjax/inference/live.py)
+"""Live classification of one trial at 50 Hz
+(fabricjax/studies/diagnostics/stream.py; streaming: fabricjax/inference/live.py)
 
     python -m experiments.stream                                  # quick default-preset model, first test trial
     python -m experiments.stream --archive=PATH --checkpoint=DIR  # any trial, any streamable checkpoint
@@ -15,7 +16,7 @@ default preset) and checkpointed under the workspace; later runs restore it.
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.tools import stream
+from fabricjax.studies.diagnostics import stream
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_string(

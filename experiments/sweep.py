@@ -1,4 +1,4 @@
-"""A recipe sweep: every grid point on the ablation's rows (see fabricjax/studies/extra/sweep.py).
+"""A recipe sweep: every grid point on the ablation's rows (see fabricjax/studies/diagnostics/sweep.py).
 
     python -m experiments.sweep --grid=width=32,64 --grid=epochs=2,4 --seeds=2          # the paper's rows
     python -m experiments.sweep --grid='cnn_features=4,8;8,16' --rows=image,flow --seeds=2
@@ -12,7 +12,7 @@ are comma-separated): --grid='cnn_features=4,8;8,16' is two points, (4, 8) and (
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.extra import sweep
+from fabricjax.studies.diagnostics import sweep
 from fabricjax.studies.paper import ablation
 
 FLAGS = absl_flags.FLAGS

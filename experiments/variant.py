@@ -1,4 +1,4 @@
-"""A variant of a training study against its baseline, row by row (see fabricjax/studies/tools/variant.py).
+"""A variant of a training study against its baseline, row by row (see fabricjax/studies/diagnostics/variant.py).
 
     python -m experiments.ablation --seeds=5 --set=compute_dtype=bfloat16 --results=results/bfloat16
     python -m experiments.variant --baseline=results/ablation.json --variant=results/bfloat16/ablation.json \\
@@ -8,7 +8,7 @@
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.tools import variant
+from fabricjax.studies.diagnostics import variant
 
 BASELINE = absl_flags.DEFINE_string(
     "baseline", None, "the baseline's results JSON (e.g. results/ablation.json)", required=True

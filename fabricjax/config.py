@@ -191,7 +191,7 @@ class Config:
     # updates as a large one instead of as many passes
     train_steps: int = _field(0, RESULT, rate_neutral=True)
     patience_steps: int = _field(0, RESULT, rate_neutral=True)
-    # the recipe chosen by validation accuracy (`studies.common.recipe`): each learning rate and width of
+    # the recipe chosen by validation accuracy (`studies.machinery.recipe`): each learning rate and width of
     # these grids is trained, and a row keeps the best; empty: `learning_rate` and `width` as they are
     lr_grid: tuple[float, ...] = _field((), RESULT, rate_neutral=True)
     width_grid: tuple[int, ...] = _field((), RESULT, rate_neutral=True)
@@ -289,7 +289,7 @@ SEQUENCE_FIELDS = tuple(
     f.name for f in sorted((f for f in _FIELDS if "load" in f.metadata), key=lambda f: f.metadata["load"])
 )
 # Fields a published row may differ in and still give a row's training seconds per sequence, epoch and
-# seed (`studies.common.plan.rate_key`).
+# seed (`studies.machinery.plan.rate_key`).
 RATE_NEUTRAL_FIELDS = tuple(f.name for f in _FIELDS if f.metadata.get("rate_neutral"))
 
 

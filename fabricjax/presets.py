@@ -99,7 +99,7 @@ _LAPTOP_MODEL = dict(
     lr_schedule="cosine",
     image_size=(30, 40),
 )
-# The fitted recipe (`studies.common.recipe`): a budget of optimiser steps per seed, early stopping
+# The fitted recipe (`studies.machinery.recipe`): a budget of optimiser steps per seed, early stopping
 # on the validation split, and on recorded data a grid of learning rates and widths chosen on it.
 # 4500 steps are 13 epochs of the default preset's 5927 training sequences; 1100 steps of patience
 # are 3 of its epochs (a new high in validation accuracy within 3 epochs continues the run).

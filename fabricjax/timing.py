@@ -1,5 +1,5 @@
 """Timing helpers shared by the speed benchmarks (`fabricjax.bench`) and the studies that report
-a cost (`studies.extra.cost`, `studies.extra.flow_agreement`): below both, so neither imports the other.
+a cost (`studies.diagnostics.cost`, `studies.diagnostics.flow_agreement`): below both, so neither imports the other.
 
     best_of            the shortest of some timed calls of a function
     predict_one_timer  one call of the compiled `predict_one` on one sequence, result on the host

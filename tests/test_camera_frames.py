@@ -9,8 +9,8 @@ import pytest
 from fabricjax.errors import UserError
 from fabricjax.sim import trial
 from fabricjax.store.workspace import Location
-from fabricjax.studies.extra import camera_frames as cf
-from fabricjax.studies.tools import reproduce_plan
+from fabricjax.studies.diagnostics import camera_frames as cf
+from fabricjax.studies.release import reproduce_plan
 
 
 def strokes(cycles=3, start=0.5, hz=1.0, amplitude=3.0):

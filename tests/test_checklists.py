@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from fabricjax import catalog
-from fabricjax.studies.common import findings
+from fabricjax.studies.machinery import findings
 from fabricjax.studies.paper import bandwidth, latents, noise, properties
 
 

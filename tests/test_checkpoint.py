@@ -131,7 +131,7 @@ def test_a_studys_checkpoint_folder_changes_with_the_code_and_the_data(monkeypat
     with the source's fingerprint and the data's contents, not only the config and seeds (a change
     in how training rounds, or a second dataset with the same classes, leaves both alike)."""
     from fabricjax import source
-    from fabricjax.studies.common.checkpoints import checkpoint_dir
+    from fabricjax.studies.machinery.checkpoints import checkpoint_dir
 
     cfg = Config.from_preset("smoke")
     data_a, data_b = {"folder": "a", "content": "1" * 16}, {"folder": "b", "content": "2" * 16}

@@ -12,8 +12,8 @@ import pytest
 from fabricjax import cli
 from fabricjax.config import Config
 from fabricjax.store import workspace
-from fabricjax.studies.common import row_training
-from fabricjax.studies.common.progress import Progress
+from fabricjax.studies.machinery import ablation_rows, row_training
+from fabricjax.studies.machinery.progress import Progress
 from fabricjax.studies.paper import ablation
 
 ROOT = Path(__file__).parents[1]
@@ -38,7 +38,7 @@ def test_help_lists_the_project_flags_and_exits_0():
     for flag in ("--seeds", "--rows", "--preset", "--set", "--data_dir", "--results", "--workdir", "--cpu_devices"):
         assert flag in out.stdout, flag
     assert "(default: '5')" in out.stdout  # the study's seed count
-    assert all(r.name in out.stdout for r in ablation.PAPER_ROWS)  # --rows names the rows
+    assert all(r.name in out.stdout for r in ablation_rows.PAPER_ROWS)  # --rows names the rows
     assert "--logtostderr" not in out.stdout and "--only_check_args" not in out.stdout and "--jax_" not in out.stdout
     assert "libtpu" not in out.stdout + out.stderr
 

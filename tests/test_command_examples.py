@@ -44,8 +44,8 @@ COMMANDS = sorted(
 DOCUMENTS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 # Where a command's work begins, and what that work is: an example stops there (module docstring).
 BOUNDARIES = {
-    "fabricjax.studies.common.loading.load_dataset": "loads a study's data",
-    "fabricjax.studies.common.loading.load_for_rows": "loads a study's data",
+    "fabricjax.studies.machinery.loading.load_dataset": "loads a study's data",
+    "fabricjax.studies.machinery.loading.load_for_rows": "loads a study's data",
     "fabricjax.store.dataset_index.load_index": "indexes a data folder",
     "fabricjax.sim.dataset.ensure_dataset": "simulates a preset's dataset",
     "fabricjax.sim.trial.simulate": "simulates a trial",
@@ -56,10 +56,10 @@ BOUNDARIES = {
     "fabricjax.importers.manifest_file.read_manifest": "reads a manifest",
     "fabricjax.importers.mapping_file.read_toml": "reads a mapping or rig file",
     "fabricjax.importers.hand_folder.import_folder": "reads a trial folder",
-    "fabricjax.studies.tools.variant.read": "reads a results file",
-    "fabricjax.studies.tools.staleness.check": "checks a results folder's fingerprints",
+    "fabricjax.studies.diagnostics.variant.read": "reads a results file",
+    "fabricjax.studies.release.staleness.check": "checks a results folder's fingerprints",
     "fabricjax.bench.suite._torch_twin": "builds the PyTorch twin of the benchmarks",
-    "fabricjax.studies.extra.soak.as_processes": "runs the install check again and again",
+    "fabricjax.studies.diagnostics.soak.as_processes": "runs the install check again and again",
 }
 # every benchmark function (of fabricjax.bench, .timing, .importers and acquisition): "runs a benchmark"
 BENCHMARK_PREFIX = "bench_"
@@ -350,13 +350,13 @@ def _drive() -> None:
     import fabricjax.inference.view  # noqa: F401
     import fabricjax.sim  # noqa: F401
     import fabricjax.store.integrity  # noqa: F401
-    import fabricjax.studies.extra.calibrate  # noqa: F401
-    import fabricjax.studies.extra.camera_frames  # noqa: F401
-    import fabricjax.studies.extra.flow_agreement  # noqa: F401
-    import fabricjax.studies.extra.palm  # noqa: F401
-    import fabricjax.studies.extra.sweep  # noqa: F401
-    import fabricjax.studies.tools.reproduce  # noqa: F401
-    import fabricjax.studies.tools.variant  # noqa: F401
+    import fabricjax.studies.diagnostics.calibrate  # noqa: F401
+    import fabricjax.studies.diagnostics.camera_frames  # noqa: F401
+    import fabricjax.studies.diagnostics.flow_agreement  # noqa: F401
+    import fabricjax.studies.diagnostics.palm  # noqa: F401
+    import fabricjax.studies.diagnostics.sweep  # noqa: F401
+    import fabricjax.studies.release.reproduce  # noqa: F401
+    import fabricjax.studies.diagnostics.variant  # noqa: F401
 
     _patch_boundaries()
     examples = [tuple(e) for e in jobs["examples"]]

@@ -20,8 +20,8 @@ from fabricjax.importers import example_rig
 from fabricjax.inference import live
 from fabricjax.store import archive
 from fabricjax.store.workspace import Location
-from fabricjax.studies.extra import cost
-from fabricjax.studies.tools import stream as stream_command
+from fabricjax.studies.diagnostics import cost
+from fabricjax.studies.diagnostics import stream as stream_command
 from fabricjax.training import train
 
 PNG = b"\x89PNG\r\n\x1a\n"

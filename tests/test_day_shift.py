@@ -9,8 +9,9 @@ import pytest
 
 from fabricjax import sim
 from fabricjax.store.workspace import Location
-from fabricjax.studies.extra import day_shift, palm
-from fabricjax.studies.tools import reproduce, reproduce_plan, staleness
+from fabricjax.studies.diagnostics import day_shift, palm
+from fabricjax.studies.machinery import camera_variation, day_variation
+from fabricjax.studies.release import reproduce, reproduce_plan, staleness
 
 TINY = dict(epochs=1, width=16, n_layers=1)
 
@@ -25,12 +26,12 @@ def test_the_shares_find_the_factor_that_moves_the_trials():
     rng = np.random.default_rng(0)
     fabric, day = _design()
     noise = 0.01 * rng.standard_normal((len(fabric), 3))
-    by_fabric = day_shift.variance_shares(rng.standard_normal((4, 3))[fabric] + noise, fabric, day)
-    by_day = day_shift.variance_shares(rng.standard_normal((4, 3))[day] + noise, fabric, day)
+    by_fabric = day_variation.variance_shares(rng.standard_normal((4, 3))[fabric] + noise, fabric, day)
+    by_day = day_variation.variance_shares(rng.standard_normal((4, 3))[day] + noise, fabric, day)
     assert by_fabric["fabric"] > 0.99 and by_day["day"] > 0.99 and by_day["fabric"] < 0.01
     for shares in (by_fabric, by_day):
         assert sum(shares.values()) == pytest.approx(1.0) and min(shares.values()) >= -1e-12
-    constant = day_shift.variance_shares(np.ones((len(fabric), 2)), fabric, day)
+    constant = day_variation.variance_shares(np.ones((len(fabric), 2)), fabric, day)
     assert all(np.isnan(v) for v in constant.values())
 
 
@@ -38,9 +39,9 @@ def test_on_balanced_trials_the_shares_are_the_two_way_analysis_of_variance():
     rng = np.random.default_rng(1)
     x = rng.standard_normal((3, 2, 4, 5)) + rng.standard_normal((3, 1, 1, 5)) + rng.standard_normal((1, 2, 1, 5))
     fabric, day, _ = (a.ravel() for a in np.meshgrid(np.arange(3), np.arange(2), np.arange(4), indexing="ij"))
-    ours = day_shift.variance_shares(x.reshape(-1, 5), fabric, day)
+    ours = day_variation.variance_shares(x.reshape(-1, 5), fabric, day)
     theirs = palm.variance_shares(x)
-    for k in day_shift.SHARES:
+    for k in day_variation.SHARES:
         assert ours[k] == pytest.approx(float(np.mean(theirs[k])))
 
 
@@ -114,21 +115,21 @@ def test_weighted_by_variance_a_few_loud_fabric_dimensions_outweigh_many_quiet_d
     quiet = 0.01 * rng.standard_normal((3, 90))[day - 1] + 0.001 * rng.standard_normal((len(day), 90))
     loud = 5.0 * rng.standard_normal((4, 10))[fabric] + 0.5 * rng.standard_normal((len(day), 10))
     x = np.concatenate([quiet, loud], axis=1)
-    alike = day_shift.variance_shares(x, fabric, day)
-    weighted = day_shift.variance_shares(x, fabric, day, weighted=True)
+    alike = day_variation.variance_shares(x, fabric, day)
+    weighted = day_variation.variance_shares(x, fabric, day, weighted=True)
     assert alike["day"] > 0.8 and alike["fabric"] < 0.2
     assert weighted["fabric"] > 0.95 and weighted["day"] < 0.01
     assert sum(weighted.values()) == pytest.approx(1.0)
-    assert 0.85 <= day_shift.day_led_dims(x, fabric, day) <= 0.9  # the quiet ones, bar a day drawn near 0
+    assert 0.85 <= day_variation.day_led_dims(x, fabric, day) <= 0.9  # the quiet ones, bar a day drawn near 0
     # one dimension, or dimensions on one scale alike: the two weighings agree
     same = np.tile(x[:, :1], (1, 3))
-    assert day_shift.variance_shares(same, fabric, day, weighted=True) == pytest.approx(
-        day_shift.variance_shares(same, fabric, day)
+    assert day_variation.variance_shares(same, fabric, day, weighted=True) == pytest.approx(
+        day_variation.variance_shares(same, fabric, day)
     )
 
 
 def test_the_page_shares_the_camera_frames_sentence_with_the_image_rows_weighted():
-    row = dict(summary_dims=4, probe=None, shares={k: 0.25 for k in day_shift.SHARES})
+    row = dict(summary_dims=4, probe=None, shares={k: 0.25 for k in day_variation.SHARES})
     doc = {
         "rows": [
             {
@@ -148,7 +149,7 @@ def test_the_page_shares_the_camera_frames_sentence_with_the_image_rows_weighted
         ]
     }
     text = "\n".join(day_shift.image_weighting(doc))
-    assert day_shift.camera_variation.RECONCILE in text
+    assert camera_variation.RECONCILE in text
     assert "Minsight image − session reference gives the fabric 60.0 % of its variation and the day 10.0 %" in text
     assert "in 75.0 % of its 4 dimensions" in text and "| Minsound |" not in text
     assert day_shift.image_weighting({"rows": doc["rows"][:1]}) == []

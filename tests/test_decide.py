@@ -85,8 +85,8 @@ def test_temperatures_round_trip_beside_a_checkpoint_and_bad_ones_are_one_line_e
 
 @pytest.mark.slow
 def test_decide_on_the_smoke_preset_writes_its_reports_and_the_stream_applies_the_temperature(tmp_path):
-    from fabricjax.studies.extra import decide
-    from fabricjax.studies.tools import stream
+    from fabricjax.studies.diagnostics import decide
+    from fabricjax.studies.diagnostics import stream
 
     results = tmp_path / "results"
     doc = decide.run(preset="smoke", where=Location(workdir=tmp_path / "ws", results=results))
@@ -117,7 +117,7 @@ def test_decide_on_the_smoke_preset_writes_its_reports_and_the_stream_applies_th
 
 @pytest.mark.slow
 def test_reproduce_runs_decide_on_the_ablations_checkpoint(tmp_path):
-    from fabricjax.studies.tools import reproduce, reproduce_plan
+    from fabricjax.studies.release import reproduce, reproduce_plan
 
     plan = (reproduce_plan.Step("ablation", 1, ("internal",)), reproduce_plan.Step("decide", rows=("internal",)))
     said = []
@@ -139,7 +139,7 @@ def test_reproduce_runs_decide_on_the_ablations_checkpoint(tmp_path):
 def test_decide_on_recorded_data_uses_its_label_map_splits_and_unknown_labels(tmp_path):
     """A rig's own classes (oak, pine, felt), its own split names in meta, felt never trained and
     named the unknown by --unknown_labels; no cafe split: reported without one."""
-    from fabricjax.studies.extra import decide
+    from fabricjax.studies.diagnostics import decide
     from tests.test_rig_data import _rig_dataset
 
     trials = [(0, "train"), (1, "train")] * 3 + [(0, "val"), (1, "val"), (0, "test"), (1, "test"), (2, "test")]

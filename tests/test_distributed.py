@@ -20,7 +20,7 @@ jax.config.update("jax_disable_most_optimizations", True)
 from fabricjax import runtime
 runtime.configure_jax(distributed=json.loads(sys.argv[1]))
 from fabricjax.reporting import results_files
-from fabricjax.studies.common import documents
+from fabricjax.studies.machinery import documents
 import numpy as np
 sys.path.insert(0, {tests!r})
 from test_train import TINY, data_sets

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from fabricjax.store import workspace
-from fabricjax.studies.common import findings
-from fabricjax.studies.tools import reproduce_plan, reproduce_readme
+from fabricjax.studies.machinery import findings
+from fabricjax.studies.release import reproduce_plan, reproduce_readme
 
 REPO = Path(__file__).parents[1]
 DOCUMENTS = [REPO / "README.md", REPO / "WORKSPACE.md", REPO / "CHANGELOG.md", *sorted((REPO / "docs").glob("*.md"))]

@@ -10,7 +10,7 @@ import pytest
 from fabricjax import config
 from fabricjax.config import Config
 from fabricjax.features import extract
-from fabricjax.studies.common import loading, plan, row_training
+from fabricjax.studies.machinery import loading, plan, row_training
 
 # The lists written out by hand, so that a change of a field's metadata that moves one fails here.
 RESULT_NEUTRAL = ("input_source",)

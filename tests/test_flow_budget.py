@@ -9,8 +9,8 @@ import pytest
 from fabricjax.errors import UserError
 from fabricjax.sim import minsight
 from fabricjax.store.workspace import Location
-from fabricjax.studies.extra import flow_budget as fb
-from fabricjax.studies.tools import reproduce_plan
+from fabricjax.studies.diagnostics import flow_budget as fb
+from fabricjax.studies.release import reproduce_plan
 
 
 def _loads(n=6):

@@ -319,7 +319,7 @@ def test_a_row_the_rig_cannot_feed_is_refused_before_training(archives, tmp_path
 
 
 def test_the_probe_reads_the_imported_rig(archives, tmp_path):
-    from fabricjax.studies.extra import probe
+    from fabricjax.studies.diagnostics import probe
 
     doc = probe.run(
         rows=["proprio", "internal"],
@@ -341,7 +341,7 @@ def test_the_probe_reads_the_imported_rig(archives, tmp_path):
 
 
 def test_the_bandwidth_plot_names_the_rigs_microphone(archives, tmp_path):
-    from fabricjax.studies.common import loading
+    from fabricjax.studies.machinery import loading
     from fabricjax.studies.paper import bandwidth
 
     assert bandwidth.microphone(loading.Dataset({}, archives, "recorded", 0.0, 0.0, tmp_path / "ws")) == "vibration"
@@ -626,7 +626,7 @@ def _run_hand(manifest, out, **kw):
 
 @pytest.mark.slow  # ~1-2 min on 2 shared cores: one smoke-size point
 def test_the_cost_study_reads_the_imported_rig_without_the_paper_point(archives, tmp_path):
-    from fabricjax.studies.extra import cost
+    from fabricjax.studies.diagnostics import cost
 
     doc = cost.run(
         n_seeds=1,
@@ -991,7 +991,7 @@ def test_the_readme_beside_the_manifest_gives_every_results_page_its_source_and_
     out = tmp_path / "archives"
     _run(root / recordings.name, out)
     from fabricjax.store import provenance
-    from fabricjax.studies.common import documents
+    from fabricjax.studies.machinery import documents
 
     source = provenance.read(out)
     assert source["title"] == "demo_rig: contact sound of three materials"
@@ -1021,7 +1021,7 @@ def test_without_rows_a_study_on_recorded_data_runs_the_rows_it_can_feed(archive
     feeds and says in one line which it left out, instead of stopping at the first it cannot."""
     import logging
 
-    from fabricjax.studies.extra import probe
+    from fabricjax.studies.diagnostics import probe
 
     with caplog.at_level(logging.WARNING):
         doc = probe.run(

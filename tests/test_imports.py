@@ -42,7 +42,7 @@ def test_no_library_module_imports_the_commands():
         "fabricjax.runtime",
         "fabricjax.bench.torch_twin",
         "fabricjax.bench.suite",
-        "fabricjax.studies.tools.stream",
+        "fabricjax.studies.diagnostics.stream",
     } <= set(doc["modules"])
     assert doc["experiments"] == [], doc["experiments"]
     assert not doc["threefry_configured"]  # importing the library leaves JAX as it is
@@ -155,3 +155,33 @@ def test_no_import_circle():
         if m not in state:
             visit(m, [])
     assert circles == []
+
+
+# The studies' own folders: a leaf study imports what every study is built of (`machinery`) and the
+# layers below, never another leaf study; the release tooling above them gathers the leaves.
+LEAF_STUDIES = ("paper", "diagnostics")
+
+
+def test_no_leaf_study_imports_another():
+    studies = ROOT / "fabricjax" / "studies"
+    found = []
+    for folder in LEAF_STUDIES:
+        for path in sorted((studies / folder).glob("*.py")):
+            for name in _imports(path):
+                parts = name.split(".")
+                if parts[:2] == ["fabricjax", "studies"] and len(parts) > 2 and parts[2] in (*LEAF_STUDIES, "release"):
+                    found.append(f"{path.relative_to(ROOT)}: {name}")
+    assert found == []
+
+
+def test_no_study_function_is_over_80_lines():
+    """A study's function says one thing: a longer one is split by meaning (a page into its sections,
+    a run into what it measures and what it writes)."""
+    found = []
+    for path in sorted((ROOT / "fabricjax" / "studies").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno + 1 > 80:
+                found.append(
+                    f"{path.relative_to(ROOT)}:{node.lineno}: {node.name}, {node.end_lineno - node.lineno + 1}"
+                )
+    assert found == []

@@ -1,4 +1,4 @@
-"""The plan a study prints before it starts (fabricjax/studies/common/plan.py)."""
+"""The plan a study prints before it starts (fabricjax/studies/machinery/plan.py)."""
 
 import dataclasses
 import json
@@ -8,7 +8,7 @@ import pytest
 from fabricjax import catalog, presets
 from fabricjax.config import Config
 from fabricjax.sim import dataset as sim_dataset
-from fabricjax.studies.common import plan
+from fabricjax.studies.machinery import plan
 
 
 def rows(preset, *modalities):

@@ -7,10 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from fabricjax.studies.common import findings, linear_probe
-from fabricjax.studies.extra import probe
+from fabricjax.studies.machinery import findings, linear_probe, probing
+from fabricjax.studies.diagnostics import probe
 from fabricjax.studies.paper import ablation
-from fabricjax.studies.tools import reproduce_plan, reproduce_report
+from fabricjax.studies.pages import probe as probe_page
+from fabricjax.studies.release import reproduce_plan, reproduce_report
 
 N_CLASSES, PER_CLASS, N_STEPS = 6, 60, 10
 SPLIT_SEEDS = {"train": 1, "val": 2, "test": 3}
@@ -19,7 +20,7 @@ SPLIT_SEEDS = {"train": 1, "val": 2, "test": 3}
 def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
     paper = [r.name for r in ablation.ROWS if not r.name.startswith(("tcn:", ablation.STEP_LAYERNORM))]
     # then every input set with the image again, its frames read against their session's reference
-    assert [r.name for r in probe.ROWS] == paper + [probe.SESSION + n for n in paper if "image" in n.split("+")]
+    assert [r.name for r in probe.ROWS] == paper + [probing.SESSION + n for n in paper if "image" in n.split("+")]
     rows = [
         {
             "modalities": list(p.modalities),
@@ -31,9 +32,9 @@ def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
         r
     ) in ablation.ROWS:  # every ablation row, the TCN and fusion variants included, has its probe under either reading
         for reference in ("none", "training_mean", "session"):
-            p = probe.row_for(r.modalities, rows, reference)
-            assert p is not None and probe.reading(p.get("image_reference")) == (
-                probe.reading(reference) if "image" in r.modalities else "frame"
+            p = probing.row_for(r.modalities, rows, reference)
+            assert p is not None and probing.reading(p.get("image_reference")) == (
+                probing.reading(reference) if "image" in r.modalities else "frame"
             )
 
 
@@ -126,7 +127,7 @@ ABLATION_DOC = {
 
 
 def test_the_probe_sits_beside_every_ablation_row_with_the_difference():
-    lines = probe.beside_ablation(PROBE_DOC, ABLATION_DOC).splitlines()
+    lines = probe_page.beside_ablation(PROBE_DOC, ABLATION_DOC).splitlines()
     assert lines[0] == "| Ablation row | Linear probe, test [%] | Model, test [%] (2 seeds) | Model − probe [pp] |"
     assert (
         lines[2] == "| Minsound | 65.00 (collapsed to class 1) | 85.00 ± 7.07 | +20.00 |"
@@ -144,8 +145,9 @@ def test_the_probe_sits_beside_every_ablation_row_with_the_difference():
     text = "\n".join(lines)
     assert "2 of 3 rows at or above their probe's test accuracy" in text and "Not the same data" not in text
     other = {**PROBE_DOC, "preset": "smoke", "dataset": {"folder": "/w/datasets/smoke"}}
-    assert "**Not the same data**: ablation on default `/w/datasets/default`, probe on smoke" in probe.beside_ablation(
-        other, ABLATION_DOC
+    assert (
+        "**Not the same data**: ablation on default `/w/datasets/default`, probe on smoke"
+        in probe_page.beside_ablation(other, ABLATION_DOC)
     )
 
 

@@ -11,7 +11,7 @@ import pytest
 from fabricjax.bench import synthetic
 from fabricjax.config import Config
 from fabricjax.sequences.inputs import feature_shapes
-from fabricjax.studies.common import recipe, row_training
+from fabricjax.studies.machinery import recipe, row_training
 from fabricjax.training import feed, placement, sharding
 from fabricjax.training.train import train_and_evaluate
 from fabricjax.training.trainer import make_trainer, seed_keys
@@ -204,12 +204,12 @@ LMT108 = Path(__file__).resolve().parents[2] / "shared" / "data" / "lmt108_sound
 def test_real_contact_sound_trains_to_its_linear_probe(tmp_path):
     """Real recordings (LMT-108, 22 materials): imported as they are and trained with the fitted
     recipe and no other setting, the row lands within 3 pp of the linear probe of its inputs."""
-    from fabricjax.importers import batch
+    from acquisition import batch_import
     from fabricjax.store.workspace import Location
     from fabricjax.studies.paper import ablation
 
     out = tmp_path / "lmt108"
-    batch.run(LMT108 / "manifest.csv", out, rig=LMT108 / "rig.toml", progress=False, say=lambda s: None)
+    batch_import.run(LMT108 / "manifest.csv", out, rig=LMT108 / "rig.toml", progress=False, say=lambda s: None)
     doc = ablation.run(
         n_seeds=1,
         rows=["internal"],

@@ -11,10 +11,10 @@ import pytest
 from fabricjax.errors import UserError
 from fabricjax.reporting import plots
 from fabricjax.sequences import data
-from fabricjax.studies.common import documents
-from fabricjax.studies.extra import cost
+from fabricjax.studies.machinery import documents
+from fabricjax.studies.diagnostics import cost
 from fabricjax.studies.paper import bandwidth, latents, noise, properties
-from fabricjax.studies.tools import reproduce_report
+from fabricjax.studies.release import reproduce_report
 
 MACHINE = {
     "cpu": "test cpu",

@@ -214,7 +214,7 @@ def test_reproduce_on_a_rig_runs_what_its_streams_and_splits_allow(tmp_path):
     """A camera-less rig without cafe or holdout trials: the ablation and probe keep the rows of its
     streams, the bandwidth study runs whole, the protocol's studies are skipped, one line each."""
     from fabricjax.studies.paper import ablation
-    from fabricjax.studies.tools import reproduce_plan
+    from fabricjax.studies.release import reproduce_plan
 
     ds = _rig_dataset(tmp_path / "ds", [(0, "train"), (1, "train"), (2, "val"), (0, "test")])
     said = []

@@ -11,8 +11,8 @@ import pytest
 from fabricjax.errors import UserError
 from fabricjax.sim import estimates
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents
-from fabricjax.studies.extra import calibrate, sensitivity
+from fabricjax.studies.machinery import documents
+from fabricjax.studies.diagnostics import calibrate, sensitivity
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
 TL = estimates.ESTIMATES["SHELL_TL_MAX_DB"]

@@ -29,7 +29,8 @@ def _fingerprints(package: Path) -> dict[str, str]:
         "import json; from fabricjax import source; print(json.dumps({"
         "'ablation': source.without_simulator(['fabricjax.studies.paper.ablation']), "
         "'simulator': source.simulator(), "
-        "'features': source.fingerprint(['fabricjax.features.extract'])}))"
+        "'features': source.fingerprint(['fabricjax.features.extract']), "
+        "'views': source.views()}))"
     )
     out = subprocess.run([sys.executable, "-c", code], cwd=package, capture_output=True, text=True, check=True)
     return eval(out.stdout)  # noqa: S307 (our own JSON of strings)
@@ -45,7 +46,8 @@ def copy_of_the_package(tmp_path_factory) -> Path:
 @pytest.mark.parametrize(
     "module, before, after, moves",
     [
-        ("reporting/plots.py", "def ", "def _unused_helper():\n    return 1\n\n\ndef ", set()),
+        ("reporting/plots.py", "def ", "def _unused_helper():\n    return 1\n\n\ndef ", {"views"}),
+        ("studies/pages/ablation.py", "def ", "def _unused_helper():\n    return 1\n\n\ndef ", {"views"}),
         ("model.py", "\nRESCALE_EPS = ", "\nRESCALE_EPS = 2 * ", {"ablation"}),
         ("sim/texture.py", "\nimport ", "\nUNUSED_CONSTANT = 1\nimport ", {"simulator"}),
         ("features/welch.py", "\ndef ", "\nUNUSED_CONSTANT = 1\n\n\ndef ", {"ablation", "features"}),

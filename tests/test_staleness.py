@@ -17,9 +17,9 @@ from fabricjax.errors import UserError
 from fabricjax.reporting import results_files
 from fabricjax.sim import estimates
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents
-from fabricjax.studies.extra import probe
-from fabricjax.studies.tools import reproduce, reproduce_plan, reproduce_readme, reproduce_report, staleness
+from fabricjax.studies.machinery import documents
+from fabricjax.studies.diagnostics import probe
+from fabricjax.studies.release import reproduce, reproduce_plan, reproduce_readme, reproduce_report, staleness
 
 REPO = Path(__file__).resolve().parents[1]
 PLAN = (reproduce_plan.Step("probe", rows=("proprio",)), reproduce_plan.Step("day_shift", rows=("proprio",)))
@@ -60,7 +60,7 @@ def test_the_code_fingerprint_ignores_comments_docstrings_and_blank_lines():
 
 def test_every_results_file_records_the_fingerprints(published):
     doc = json.loads((published.results / "probe.json").read_text())
-    assert doc["module"] == probe.__name__ == "fabricjax.studies.extra.probe"
+    assert doc["module"] == probe.__name__ == "fabricjax.studies.diagnostics.probe"
     # simulated data: decided by the probe's code, the simulator with its estimates and the preset
     assert doc["fingerprints"] == results_files.fingerprints(probe.__name__, None) == staleness.today("probe", None)
     assert documents.fingerprints_markdown(doc["fingerprints"]) in (published.results / "probe.md").read_text()
@@ -234,9 +234,9 @@ def _results_file(folder: Path, name: str, module: str, data: str | None) -> Non
     (folder / f"{name}.json").write_text(json.dumps(doc))
 
 
-@pytest.mark.parametrize("view", source.VIEWS)
+@pytest.mark.parametrize("view", source.view_modules())
 def test_a_rendering_only_change_leaves_every_study_fresh(view, monkeypatch, tmp_path):
-    _results_file(tmp_path, "sweep", "fabricjax.studies.extra.sweep", None)
+    _results_file(tmp_path, "sweep", "fabricjax.studies.diagnostics.sweep", None)
     _results_file(tmp_path, "bench", "fabricjax.bench.suite", None)
     manifest = _plan_manifest(None)
     _edit(monkeypatch, view)
@@ -244,9 +244,9 @@ def test_a_rendering_only_change_leaves_every_study_fresh(view, monkeypatch, tmp
 
 
 def test_a_model_constant_stales_exactly_the_studies_whose_code_reads_it(monkeypatch, tmp_path):
-    _results_file(tmp_path, "sweep", "fabricjax.studies.extra.sweep", None)
+    _results_file(tmp_path, "sweep", "fabricjax.studies.diagnostics.sweep", None)
     _results_file(tmp_path, "bench", "fabricjax.bench.suite", None)
-    _results_file(tmp_path, "camera_frames_alone", "fabricjax.studies.extra.camera_frames", None)
+    _results_file(tmp_path, "camera_frames_alone", "fabricjax.studies.diagnostics.camera_frames", None)
     manifest = _plan_manifest(None)
     _edit(monkeypatch, "fabricjax.model")  # model.RESCALE_EPS, say
     notes = staleness.stale(manifest, None)
@@ -258,8 +258,8 @@ def test_a_model_constant_stales_exactly_the_studies_whose_code_reads_it(monkeyp
 
 def test_a_simulator_estimate_stales_only_the_studies_on_simulated_data(tmp_path):
     simulated, recorded = _plan_manifest(None), _plan_manifest("d" * 16)
-    _results_file(tmp_path, "sweep", "fabricjax.studies.extra.sweep", None)
-    _results_file(tmp_path, "sweep_recorded", "fabricjax.studies.extra.sweep", "d" * 16)
+    _results_file(tmp_path, "sweep", "fabricjax.studies.diagnostics.sweep", None)
+    _results_file(tmp_path, "sweep_recorded", "fabricjax.studies.diagnostics.sweep", "d" * 16)
     estimates.override({"SERVO_TONE_PA": estimates.ESTIMATES["SERVO_TONE_PA"].value * 2})
     try:
         on_simulated, on_recorded = staleness.stale(simulated, None), staleness.stale(recorded, "d" * 16)
@@ -286,8 +286,8 @@ def test_the_decision_study_is_given_the_ablation_rows_labels(tmp_path):
 
 def test_the_published_files_are_found_under_one_repository_root():
     from fabricjax.store import provenance
-    from fabricjax.studies.common import plan
-    from fabricjax.studies.extra import sensitivity
+    from fabricjax.studies.machinery import plan
+    from fabricjax.studies.diagnostics import sensitivity
 
     root = provenance.repository_root()
     assert (root / "fabricjax" / "__init__.py").is_file()

@@ -17,12 +17,22 @@ from fabricjax.errors import UserError
 from fabricjax.reporting import results_files, stats
 from fabricjax.sequences import data
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, findings, row_training, wilcoxon
-from fabricjax.studies.common.rows import RowSpec, check_overrides, label_key, select_rows
-from fabricjax.studies.common.trained import TrainedRow
-from fabricjax.studies.extra import day_shift, probe, sweep
+from fabricjax.studies.machinery import (
+    ablation_rows,
+    documents,
+    findings,
+    linear_probe,
+    probing,
+    row_training,
+    wilcoxon,
+)
+from fabricjax.studies.machinery.rows import RowSpec, check_overrides, label_key, select_rows
+from fabricjax.studies.machinery.results import AblationRow
+from fabricjax.studies.machinery.trained import TrainedRow
+from fabricjax.studies.pages import ablation as ablation_page
+from fabricjax.studies.diagnostics import day_shift, probe, sweep
 from fabricjax.studies.paper import ablation, bandwidth, latents, noise, properties
-from fabricjax.studies.tools import reproduce, reproduce_plan, reproduce_readme, staleness
+from fabricjax.studies.release import reproduce, reproduce_plan, reproduce_readme, staleness
 from fabricjax.training import curves, train
 
 # Tiny on top of the smoke preset's own training settings: one epoch, one layer, width 16.
@@ -208,7 +218,7 @@ def test_probe_writes_its_table_for_the_ablation_rows_inputs(workdir, tmp_path):
     assert [r["name"] for r in doc["rows"]] == rows and doc["splits"] == ["train", "val", "test", "cafe"]
     assert doc["dataset"]["source"] == "simulated" and doc["dataset"]["sequences"]["cafe"] > 0
     for r in doc["rows"]:
-        assert set(r["accuracy"]) == {"train", "val", "test", "cafe"} and r["C"] in probe.C_GRID
+        assert set(r["accuracy"]) == {"train", "val", "test", "cafe"} and r["C"] in linear_probe.C_GRID
         assert all(0 <= a <= 1 for a in r["accuracy"].values())
     samples = json.loads((tmp_path / f"probe{results_files.SAMPLES}").read_text())
     for r in doc["rows"]:
@@ -217,7 +227,7 @@ def test_probe_writes_its_table_for_the_ablation_rows_inputs(workdir, tmp_path):
     image = doc["inputs"]["image"]  # the smoke preset's 60x80 frames: 14400 dims per step, reduced
     assert (
         image["step_dims"] == 60 * 80 * 3
-        and image["probe_dims"] <= probe.PCA_DIMS
+        and image["probe_dims"] <= linear_probe.PCA_DIMS
         and 0 < image["explained_variance"] <= 1 + 1e-6
     )
     assert doc["inputs"]["proprio"]["probe_dims"] == 36 and doc["rows"][2]["probe_dims"] == 2 * 640
@@ -326,6 +336,7 @@ def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
             "backbone": "attention",
             "modalities": ["internal"],
             "display_name": "Minsound",
+            "fusion_norm": "sequence_minmax",
             "paper_mean": 95.06,
             "paper_sd": 1.85,
             "seeds": [0, 1, 2],
@@ -338,6 +349,7 @@ def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
             "backbone": "tcn",
             "modalities": ["internal", "external", "proprio"],
             "display_name": "TCN: Minsound + palm mic + proprioception",
+            "fusion_norm": "sequence_minmax",
             "paper_mean": 75.41,
             "paper_sd": 11.2,
             "seeds": [0, 1, 2],
@@ -346,7 +358,7 @@ def test_ablation_table_puts_the_paper_and_the_difference_beside_ours():
             "collapsed": {"test": findings.collapsed([[0, 1, 2, 3], [2] * 4, [2] * 4], labels)},
         },
     ]
-    lines = ablation.table(rows, findings.majority(labels)).splitlines()
+    lines = ablation_page.table([AblationRow.from_json(r) for r in rows], findings.majority(labels)).splitlines()
     assert lines[0].startswith(
         "| Backbone | Modalities | Test accuracy [%] (ours, 3 seeds) | Majority class, test [%] | Paper [%] "
         "| Ours − paper [pp]"
@@ -444,9 +456,9 @@ def test_ten_seed_floor_and_row_selection():
     b = fake_row("b", np.linspace(0.5, 0.6, 10) + np.arange(1, 11) / 100, np.zeros((10, 4), int), range(10))
     res = wilcoxon.paired_tests(a, b, "test", np.zeros(4, int))["per_seed"]
     assert res.p_value == pytest.approx(2 / 2**10) and res.min_attainable_p == pytest.approx(0.001953125)
-    assert [r.name for r in select_rows(ablation.PAPER_ROWS, None)] == [r.name for r in ablation.PAPER_ROWS]
+    assert [r.name for r in select_rows(ablation_rows.PAPER_ROWS, None)] == [r.name for r in ablation_rows.PAPER_ROWS]
     with pytest.raises(ValueError, match="unknown rows"):
-        select_rows(ablation.PAPER_ROWS, ["audio"])
+        select_rows(ablation_rows.PAPER_ROWS, ["audio"])
 
 
 def test_rows_are_chosen_by_name_or_by_the_label_the_tables_print():
@@ -482,7 +494,7 @@ def test_a_label_matches_in_any_spacing_around_plus_and_any_order_of_its_inputs(
         f"{ablation.STEP_LAYERNORM}:internal+external"
     ]
     assert names(probe.ROWS, "Minsound + Minsight image, frames − session reference") == [
-        probe.SESSION + "image+internal"
+        probing.SESSION + "image+internal"
     ]
     for bad in ("Minsound palm mic", "Minsound + palm", "TCN: Minsound + palm mic"):
         with pytest.raises(UserError, match="unknown rows"):
@@ -495,10 +507,10 @@ def test_the_ablation_trains_the_papers_rows_unless_asked_for_a_group():
     """Without --rows the ablation trains the paper's table; "all", "ours" and "paper" name groups in
     any case, beside names and labels; an empty --rows is refused, not read as every row."""
     names = lambda chosen: [r.name for r in chosen]  # noqa: E731
-    assert names(ablation.STUDY.select(None)) == names(ablation.PAPER_ROWS)
+    assert names(ablation.STUDY.select(None)) == names(ablation_rows.PAPER_ROWS)
     assert names(ablation.STUDY.select(["ALL"])) == names(ablation.ROWS)
-    assert names(ablation.STUDY.select(["ours"])) == names(ablation.STEP_LAYERNORM_ROWS)
-    assert names(ablation.STUDY.select(["ours", "Minsound"])) == ["internal", *names(ablation.STEP_LAYERNORM_ROWS)]
+    assert names(ablation.STUDY.select(["ours"])) == names(ablation_rows.STEP_LAYERNORM_ROWS)
+    assert names(ablation.STUDY.select(["ours", "Minsound"])) == ["internal", *names(ablation_rows.STEP_LAYERNORM_ROWS)]
     assert names(select_rows(noise.ROWS, None)) == names(noise.ROWS)
     with pytest.raises(UserError, match="no rows given"):
         ablation.STUDY.select([])
@@ -574,8 +586,8 @@ def test_the_override_error_names_the_rows_that_set_the_field():
 
 
 def test_the_ablation_row_counts_the_docs_state_are_the_code_s():
-    paper, variants = len(ablation.PAPER_ROWS), len(ablation.STEP_LAYERNORM_ROWS)
-    tcn = sum(r.settings["backbone"] == "tcn" for r in ablation.PAPER_ROWS)
+    paper, variants = len(ablation_rows.PAPER_ROWS), len(ablation_rows.STEP_LAYERNORM_ROWS)
+    tcn = sum(r.settings["backbone"] == "tcn" for r in ablation_rows.PAPER_ROWS)
     assert tcn == 1 and len(ablation.ROWS) == paper + variants
     repo = Path(__file__).parents[1]
     said = {
@@ -741,7 +753,7 @@ def test_reproduce_keys_follow_what_decides_the_numbers():
 
 
 def test_palm_variance_shares_recover_planted_effects():
-    from fabricjax.studies.extra import palm
+    from fabricjax.studies.diagnostics import palm
 
     rng = np.random.default_rng(0)
     fabric, day = rng.normal(0, 3.0, (6, 1, 1, 1)), rng.normal(0, 1.0, (1, 4, 1, 1))
@@ -767,7 +779,7 @@ def test_palm_physics_on_smoke_scenes(tmp_path):
     """Short scenes: the lab floor and the cafe loudspeaker reach the palm at the paper's 29-31 and
     47-55 dB(A), the thumb's contact is far louder inside Minsound than the fabric is at the palm, and
     the file is written."""
-    from fabricjax.studies.extra import palm
+    from fabricjax.studies.diagnostics import palm
 
     doc = palm.run(preset="smoke", cycles=1, where=Location(results=tmp_path))
     lab, cafe = doc["sources"]["lab"], doc["sources"]["cafe"]

@@ -16,8 +16,8 @@ from fabricjax import sim
 from fabricjax.config import Config
 from fabricjax.errors import UserError
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import loading
-from fabricjax.studies.extra import sweep
+from fabricjax.studies.machinery import loading
+from fabricjax.studies.diagnostics import sweep
 from fabricjax.studies.paper import ablation
 
 REPO = Path(__file__).parents[1]

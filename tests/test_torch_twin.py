@@ -15,7 +15,7 @@ from fabricjax.config import Config  # noqa: E402
 from fabricjax.model import make_predict  # noqa: E402
 from fabricjax.sequences.inputs import feature_shapes  # noqa: E402
 from fabricjax.training.placement import select  # noqa: E402
-from fabricjax.training.train import make_trainer  # noqa: E402
+from fabricjax.training.trainer import make_trainer  # noqa: E402
 
 SMALL = dict(
     preset="smoke", width=32, n_heads=4, n_layers=2, ffn=48, audio_hidden=(40, 24), proprio_hidden=(24, 16), seq_len=30

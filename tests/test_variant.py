@@ -8,7 +8,7 @@ import pytest
 
 from fabricjax.errors import UserError
 from fabricjax.store.workspace import Location
-from fabricjax.studies.tools import variant
+from fabricjax.studies.diagnostics import variant
 
 
 def _row(name, test, val, dtype="float32", wall_s=10.0):

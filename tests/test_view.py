@@ -17,7 +17,7 @@ from fabricjax.sim.dataset import scene_for
 from fabricjax.sim.trial import simulate
 from fabricjax.store import archive
 from fabricjax.store.workspace import Location
-from fabricjax.studies.tools import stream as stream_command
+from fabricjax.studies.diagnostics import stream as stream_command
 from fabricjax.training.train import train_and_evaluate
 from tests.helpers import read_rrd
 from tests.test_train import TINY

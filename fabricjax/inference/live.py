@@ -4,7 +4,7 @@
     report = replay(streamer, trial, realtime=True)   # a TrialArchive, step by step at 50 Hz
 
 The command (`python -m experiments.stream`: a quick model or a checkpoint, a trial, the live
-printout and results/stream.json) is `fabricjax.studies.tools.stream`.
+printout and results/stream.json) is `fabricjax.studies.diagnostics.stream`.
 
 Every step brings one window per microphone, the config's step window at that microphone's rate
 (`data.window_of`: 2048 samples for the hand), and the joint values (the hand's `archive.N_PROPRIO`,

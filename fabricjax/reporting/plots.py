@@ -342,7 +342,7 @@ def plot_psds(path, freqs_hz: np.ndarray, psds: dict[str, np.ndarray], noise: np
 
 
 def plot_decide(path, models: Sequence[Mapping]) -> Path:
-    """Per model of the decision study (`fabricjax.studies.extra.decide`), one row of three panels: the
+    """Per model of the decision study (`fabricjax.studies.diagnostics.decide`), one row of three panels: the
     reliability diagram of its test split before and after temperature scaling (and of its cafe
     split after), accuracy against mean touch time to decision of the sequential rule (one point
     per posterior threshold, test and cafe, the cost study's fixed-N points beside them), and the

@@ -1,5 +1,5 @@
 """Results files: what every command that writes one records and how it writes it, below the
-studies and the benchmarks alike (`studies.common.documents` builds a study's header on this one;
+studies and the benchmarks alike (`studies.machinery.documents` builds a study's header on this one;
 `bench.suite` writes its results with it).
 
 `header` is the first fields of every results JSON: what ran, from which code (`git_commit`) and

@@ -22,129 +22,51 @@ carry
 its cue in a level that is steady within a sequence, which the paper's rescale erases. Each input's
 steadiness (`linear_probe.steadiness`) is reported once, flagged below `STEADY_BELOW`, and the linear probe
 of each row's inputs on the same sequences (`linear_probe.fit_rows`) stands beside it; a row more than
-`BELOW_PROBE_PP` below its probe is said so.
+`page.BELOW_PROBE_PP` below its probe is said so. The page and figures are drawn from what the study
+measures (`measure`, an `Ablation`) by `pages.ablation`.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 from absl import logging
 
 from fabricjax.config import MODALITY_NAMES
-from fabricjax.reporting import plots, results_files, stats
-from fabricjax.sequences import data
-from fabricjax.studies.common import documents, findings, linear_probe, loading, recipe, runner, wilcoxon
-from fabricjax.studies.common.rows import RowSpec
-from fabricjax.studies.common.trained import TrainedRow, TrainingRun
+from fabricjax.reporting import stats
+from fabricjax.studies.machinery import documents, findings, linear_probe, loading, runner, wilcoxon
+from fabricjax.studies.machinery.ablation_rows import (
+    CONFUSION_ROWS,
+    ROW_GROUPS,
+    ROWS,
+    STEP_LAYERNORM,
+    display_name,
+    label,
+)
+from fabricjax.studies.machinery.results import Ablation, AblationRow, Steadiness
+from fabricjax.studies.pages import ablation as page
+from fabricjax.studies.machinery.rows import RowSpec
+from fabricjax.studies.machinery.trained import TrainedRow, TrainingRun
 
-TITLE, PAPER = (
-    "Modality ablation",
-    "Table ablation_table",
-)  # how results name the study, and what of the paper it reproduces
+TITLE, PAPER = page.TITLE, page.PAPER  # how results name the study (reproduce's plan reads every study's)
 
 WILCOXON_PAIR = ("internal", "internal+external")  # (baseline, compared), as in the paper
 PAPER_WILCOXON_P = 0.0254  # the paper's test of that pair
 SIGNIFICANCE = 0.05  # the level "significantly higher" claims, as the paper's p reads against it
-CONFUSION_ROWS = ("proprio", "flow")
-STEP_LAYERNORM = "step_layernorm"  # our fusion normalisation (config.FUSION_NORMS), beside the paper's sequence_minmax
-BELOW_PROBE_PP = 10.0  # on recorded data, a row this many points below its probe's test accuracy is said so
 # an input whose within-sequence variance is below this fraction of its total (median over its
 # dimensions, `linear_probe.steadiness`) is steady within a sequence: reported, since the paper's rescale erases it
 STEADY_BELOW = 0.2
 
 
-def label(
-    modalities: Sequence[str],
-    backbone: str,
-    fusion_norm: str = "sequence_minmax",
-    names: Mapping[str, str] | None = None,
-    rotated: bool = True,
-) -> str:
-    """How the table names a row: 'TCN: Minsound + palm mic', '... (our step-LayerNorm fusion)',
-    'Minsight image (our step-LayerNorm fusion, frames unrotated)' where a row reading frames trains
-    without the paper's rotation (`rotated` False); with `names` (recorded data: modality -> the
-    data's name for its stream) the data's names."""
-    text = data.inputs_name(modalities, names)
-    text = f"TCN: {text}" if backbone == "tcn" else text
-    notes = ["our step-LayerNorm fusion"] if fusion_norm == STEP_LAYERNORM else []
-    notes += ["frames unrotated"] if "image" in modalities and not rotated else []
-    return f"{text} ({', '.join(notes)})" if notes else text
-
-
-def _row(
-    modalities: Sequence[str], mean: float, sd: float, backbone: str = "attention", fusion_norm: str = "sequence_minmax"
-) -> RowSpec:
-    """A row and the paper's test accuracy [%] (mean, SD over its seeds) for the same inputs. Our
-    variant's rows read Minsight frames without the paper's rotation: under it the image rows fall
-    to a fraction of what they learn unrotated, on validation (docs/usage.md, "What the camera rows
-    learn")."""
-    name = ("tcn:" if backbone == "tcn" else "") + "+".join(modalities)
-    if fusion_norm != "sequence_minmax":
-        name = f"{fusion_norm}:{name}"
-    settings = {"backbone": backbone, "modalities": tuple(modalities), "fusion_norm": fusion_norm}
-    rotated = fusion_norm != STEP_LAYERNORM or "image" not in modalities
-    if not rotated:
-        settings["augment_rotation"] = False
-    return RowSpec(name, settings, label(modalities, backbone, fusion_norm, rotated=rotated), {"mean": mean, "sd": sd})
-
-
-# The paper's Table ablation_table: 12 transformer rows and the TCN row.
-PAPER_ROWS = (
-    _row(("image",), 41.15, 5.74),
-    _row(("flow",), 47.16, 5.12),
-    _row(("internal",), 95.06, 1.85),
-    _row(("external",), 59.22, 2.43),
-    _row(("proprio",), 47.10, 3.72),
-    _row(("image", "internal"), 73.94, 5.73),
-    _row(("image", "internal", "external", "proprio"), 85.59, 3.87),
-    _row(("flow", "internal"), 87.44, 5.88),
-    _row(("flow", "internal", "external", "proprio"), 91.34, 2.47),
-    _row(("internal", "proprio"), 94.63, 2.78),
-    _row(("internal", "external", "proprio"), 96.10, 1.26),
-    _row(("internal", "external"), 97.75, 1.27),
-    _row(("internal", "external", "proprio"), 75.41, 11.2, backbone="tcn"),
-)
-# Every camera row and the fusion rows without camera inputs, again under our step-LayerNorm fusion:
-# the paper's rescale over the sequence removes a stream's steady level, which is where a camera
-# frame's contact patch and a joint's load show, so a row at chance under it alone is no verdict.
-# Their paper numbers are the paper's row with the same inputs, for reference.
-STEP_LAYERNORM_ROWS = tuple(
-    _row(r.modalities, r.paper["mean"], r.paper["sd"], fusion_norm=STEP_LAYERNORM)
-    for r in PAPER_ROWS
-    if r.name
-    in (
-        "image",
-        "flow",
-        "image+internal",
-        "image+internal+external+proprio",
-        "flow+internal",
-        "flow+internal+external+proprio",
-        "internal+proprio",
-        "internal+external+proprio",
-        "internal+external",
-    )
-)
-ROWS = PAPER_ROWS + STEP_LAYERNORM_ROWS
-# What --rows takes as one word. Without --rows the study trains the paper's table alone: our fusion
-# variant would nearly double the main command's time, and its rows are asked for by name or as "ours".
-ROW_GROUPS = {"paper": tuple(r.name for r in PAPER_ROWS), "ours": tuple(r.name for r in STEP_LAYERNORM_ROWS)}
-# Minsound (no fusion) against our fused variant of Minsound + palm mic
 STEP_LAYERNORM_PAIRS = ((WILCOXON_PAIR[0], f"{STEP_LAYERNORM}:{WILCOXON_PAIR[1]}"),)
 
 
-def display_name(row_name: str) -> str:
-    """The label of row `row_name` of `ROWS`."""
-    return STUDY.row(row_name).label
-
-
-def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
+def measure(trained: TrainingRun, chosen: Sequence[RowSpec]) -> Ablation:
     """The rows beside the paper's, each with the class each seed collapsed to (`findings.collapsed`),
     the test split's majority class (`findings.majority`), the Wilcoxon tests of `WILCOXON_PAIR`,
     the confusion counts of `CONFUSION_ROWS` and every trained row's time-to-accuracy curve (what
-    `figures` draws)."""
+    the page's figures draw); on recorded data each row as `_recorded_rows` measures it."""
     rows, seeds = trained.rows, next(iter(trained.rows.values())).results.seeds
     test = trained.dataset.sets["test"]
     labels = test.labels["fabric"]
@@ -154,46 +76,45 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
         wilcoxon.paired_tests(rows[base], rows[compared], "test", labels) if base in rows and compared in rows else {}
     )
     names = test.names if recorded else {}
-    drawn = {
-        "confusion": {
-            n: stats.confusion_matrix(
-                np.tile(labels, len(seeds)), rows[n].predictions("test").ravel(), trained.dataset.n_classes
-            ).tolist()
-            for n in CONFUSION_ROWS
-            if n in rows
-        },
-        # every row trained, so that on recorded data each input shows under both fusions, the one its
-        # table reports (chosen by validation) among them
-        "time_to_accuracy": [_time_to_accuracy(t, names) for t in rows.values()],
+    confusion = {
+        n: stats.confusion_matrix(
+            np.tile(labels, len(seeds)), rows[n].predictions("test").ravel(), trained.dataset.n_classes
+        ).tolist()
+        for n in CONFUSION_ROWS
+        if n in rows
     }
+    # every row trained, so that on recorded data each input shows under both fusions, the one its
+    # table reports (chosen by validation) among them
+    curves = tuple(_time_to_accuracy(t, names) for t in rows.values())
+    tested = {
+        "baseline": base,
+        "compared": compared,
+        **({} if recorded else {"paper_p": PAPER_WILCOXON_P}),
+        **{k: documents.wilcoxon_doc(v) for k, v in tests.items()},
+    }
+    measured = dict(majority=findings.majority(labels), wilcoxon=tested if tests else None, confusion=confusion)
     if recorded:
-        return {**_recorded_body(trained, chosen, tests), **drawn}
-    return {
-        "rows": [
-            {
-                "name": r.name,
-                "backbone": rows[r.name].config.backbone,
-                "modalities": list(r.modalities),
-                "display_name": r.label,
-                "fusion_norm": r.settings["fusion_norm"],
-                **({} if recorded else {"paper_mean": r.paper["mean"], "paper_sd": r.paper["sd"]}),
-                "collapsed": {"test": findings.collapsed(rows[r.name].predictions("test"), labels)},
-                **rows[r.name].doc(["test"]),
-            }
-            for r in chosen
-        ],
-        "fusion_choice": fusion_choices(rows),
-        "majority": {"test": findings.majority(labels)},
-        "wilcoxon": {
-            "baseline": base,
-            "compared": compared,
-            **({} if recorded else {"paper_p": PAPER_WILCOXON_P}),
-            **{k: documents.wilcoxon_doc(v) for k, v in tests.items()},
-        }
-        if tests
-        else None,
-        **drawn,
-    }
+        out_rows, steadiness = _recorded_rows(trained, chosen)
+        return Ablation(out_rows, **measured, time_to_accuracy=curves, steadiness=steadiness)
+    out_rows = tuple(
+        AblationRow(
+            r.name,
+            rows[r.name].config.backbone,
+            r.modalities,
+            r.label,
+            r.settings["fusion_norm"],
+            {"test": findings.collapsed(rows[r.name].predictions("test"), labels)},
+            rows[r.name].doc(["test"]),
+            (r.paper["mean"], r.paper["sd"]),
+        )
+        for r in chosen
+    )
+    return Ablation(out_rows, **measured, time_to_accuracy=curves, fusion_choice=tuple(fusion_choices(rows)))
+
+
+def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
+    """The study's own part of its results JSON: what `measure` gives."""
+    return measure(trained, chosen).to_json()
 
 
 def _time_to_accuracy(row: TrainedRow, names: Mapping[str, str]) -> dict[str, Any]:
@@ -207,28 +128,6 @@ def _time_to_accuracy(row: TrainedRow, names: Mapping[str, str]) -> dict[str, An
         "seconds": seconds.tolist(),
         "val_accuracy": [[None if np.isnan(x) else float(x) for x in s] for s in per_seed],
     }
-
-
-def figures(doc: dict[str, Any], results: Path) -> list[Path | None]:
-    """From the results JSON: the confusion matrices of `CONFUSION_ROWS`, pooled over seeds
-    (results/ablation_confusion.png, where any of them ran), and each row's validation accuracy
-    against its training seconds (results/ablation_time_to_accuracy.png)."""
-    names, seeds = documents.stream_names(doc), len(doc["seeds"])
-    panels = [(f"{data.inputs_name((n,), names)} only, {seeds} seeds pooled", c) for n, c in doc["confusion"].items()]
-    recorded = documents.recorded(doc)
-    confusion = (
-        plots.plot_confusions(
-            results / "ablation_confusion.png", panels, class_names=doc["dataset"]["classes"] if recorded else None
-        )
-        if panels
-        else None
-    )
-    curves = [
-        (c["label"], np.asarray(c["seconds"], np.float64), np.asarray(c["val_accuracy"], np.float64))
-        for c in doc["time_to_accuracy"]
-    ]
-    title = f"What accuracy costs in training time, {seeds} seeds a row in one program"
-    return [confusion, plots.plot_time_to_accuracy(results / "ablation_time_to_accuracy.png", curves, title)]
 
 
 def fusion_choices(rows: Mapping[str, TrainedRow]) -> list[dict[str, Any]]:
@@ -252,30 +151,7 @@ def fusion_choices(rows: Mapping[str, TrainedRow]) -> list[dict[str, Any]]:
     return out
 
 
-def fusion_choice_markdown(choices: Sequence[dict[str, Any]]) -> list[str]:
-    """The table's rows trained under both fusions, each with the fusion validation picks."""
-    if not choices:
-        return []
-    lines = [
-        "## The fusion chosen by validation (rows trained under both)",
-        "",
-        "| Inputs | Validation [%]: rescale / step-LayerNorm | Chosen | Test of the chosen [%] |",
-        "|---|---|---|---|",
-    ]
-    for c in choices:
-        lines.append(
-            f"| {display_name(c['name'])} | {c['val']['sequence_minmax']:.2f} / {c['val'][STEP_LAYERNORM]:.2f} | "
-            f"{FUSION_NAMES[c['chosen']]} | {c['test'][c['chosen']]:.2f} |"
-        )
-    return lines + [
-        "",
-        "The choice is made on the validation split alone, as on recorded data; the paper's rows above stay "
-        "under its rescale.",
-        "",
-    ]
-
-
-def _recorded_body(trained: TrainingRun, chosen: Sequence[RowSpec], tests) -> dict[str, Any]:
+def _recorded_rows(trained: TrainingRun, chosen: Sequence[RowSpec]) -> tuple[tuple[AblationRow, ...], Steadiness]:
     """The rows on recorded data: each under the fusion its validation accuracy picks, beside the
     other fusion and the probe of its inputs; every input's steadiness."""
     sets, rows = trained.dataset.sets, trained.rows
@@ -300,47 +176,123 @@ def _recorded_body(trained: TrainingRun, chosen: Sequence[RowSpec], tests) -> di
         best = max(trained_as, key=lambda t: (val[t.config.fusion_norm], t.config.fusion_norm == STEP_LAYERNORM))
         p = probes[frozenset(r.modalities)]
         out.append(
-            {
-                "name": r.name,
-                "backbone": best.config.backbone,
-                "modalities": list(r.modalities),
-                "display_name": label(
-                    r.modalities, best.config.backbone, names=names, rotated=best.config.augment_rotation
-                ),
-                "fusion_norm": best.config.fusion_norm,
-                "fusion_choice": {
+            AblationRow(
+                r.name,
+                best.config.backbone,
+                r.modalities,
+                label(r.modalities, best.config.backbone, names=names, rotated=best.config.augment_rotation),
+                best.config.fusion_norm,
+                {"test": findings.collapsed(best.predictions("test"), sets["test"].labels["fabric"])},
+                best.doc(["test"]),
+                fusion_choice={
                     "by": "validation accuracy, mean over seeds [%]",
                     "val": val,
                     "test": {t.config.fusion_norm: stats.mean_sd(100 * t.accuracy("test"))[0] for t in trained_as},
                 },
-                "probe": {
+                probe={
                     "C": p["C"],
                     "accuracy": p["accuracy"],
                     "collapsed": {"test": findings.collapsed(p["predictions"].get("test", []))},
                 },
-                "collapsed": {"test": findings.collapsed(best.predictions("test"), sets["test"].labels["fabric"])},
-                **best.doc(["test"]),
-            }
+            )
         )
-    return {
-        "rows": out,
-        "names": dict(names),
-        "steady_below": STEADY_BELOW,
-        "steadiness": steady,
-        "majority": {"test": findings.majority(sets["test"].labels["fabric"])},
-        "wilcoxon": {
-            "baseline": WILCOXON_PAIR[0],
-            "compared": WILCOXON_PAIR[1],
-            **{k: documents.wilcoxon_doc(v) for k, v in tests.items()},
-        }
-        if tests
-        else None,
-    }
+    return tuple(out), Steadiness(dict(names), STEADY_BELOW, steady)
 
 
 CLEARLY_WORSE_PP = 10.0  # "clearly worse": at least this many points below (the paper: 36)
 SIMILAR_PP = 10.0  # "similar": within this many points of each other (the paper: 0.06)
 WELL_ABOVE_CHANCE_PP = 10.0  # "well above chance": at least this many points above the test split's majority class
+
+
+def _best_single(c: findings.Claim, e: findings.Evidence) -> tuple[findings.Finding, Sequence[str]]:
+    """Minsound above the best of the other single inputs (strictly), comparing the two."""
+    best_other = max(SINGLES, key=lambda r: findings.mean_pct(e.values[r]))
+    best = (f"best other, {e.named(best_other)}", e.values[best_other])
+    return findings.at_least(c.claim, e.of("internal"), best, strict=True), ["internal", best_other]
+
+
+def _similar_above_chance(c: findings.Claim, e: findings.Evidence) -> tuple[findings.Finding, Sequence[str]]:
+    """Proprioception and flow within `SIMILAR_PP` of each other, each `WELL_ABOVE_CHANCE_PP` above
+    the majority class (not evaluated without known test labels)."""
+    p, fl = findings.mean_pct(e.values["proprio"]), findings.mean_pct(e.values["flow"])
+    evidence = (
+        f"{findings.describe(e.named('proprio'), e.values['proprio'])}; "
+        f"{findings.describe(e.named('flow'), e.values['flow'])}; "
+        f"1 / classes {100 / e.n_classes:.1f} %"
+    )
+    if e.majority is None:
+        return findings.Finding(c.claim, None, f"{evidence}; no test label known, so no majority class"), c.rows
+    floor = e.majority["accuracy"] + WELL_ABOVE_CHANCE_PP
+    holds = abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor
+    said = f"{evidence}; majority class {e.majority['accuracy']:.1f} % (class {e.majority['label']}), so at least"
+    return findings.Finding(c.claim, holds, f"{said} {floor:.1f} %"), c.rows
+
+
+def _significantly_above(c: findings.Claim, e: findings.Evidence) -> tuple[findings.Finding, Sequence[str]]:
+    """Minsound + palm mic strictly above Minsound, and the per-sequence Wilcoxon test below
+    `SIGNIFICANCE` (not evaluated without the test)."""
+    base, compared = WILCOXON_PAIR
+    above = findings.at_least(c.claim, e.of(compared), e.of(base), strict=True)
+    tests = e.tests or {}
+    if "per_sample" not in tests:
+        return findings.Finding(c.claim, None, f"{above.evidence}; no Wilcoxon test in the results"), c.rows
+    p_sample, p_seed = tests["per_sample"]["p_value"], tests["per_seed"]["p_value"]
+    evidence = (
+        f"{above.evidence}; p = {p_sample:.3g} per test sequence, the pairing that can reach the "
+        f"paper's p at five seeds (per seed: p = {p_seed:.3g})"
+    )
+    return findings.Finding(c.claim, bool(above.holds and p_sample < SIGNIFICANCE), evidence), c.rows
+
+
+def _transformer_above_tcn(c: findings.Claim, e: findings.Evidence) -> tuple[findings.Finding, Sequence[str]]:
+    transformer, tcn = c.rows
+    return findings.at_least(
+        c.claim, ("Transformer", e.values[transformer]), ("TCN", e.values[tcn]), strict=True
+    ), c.rows
+
+
+SINGLES = ("image", "flow", "external", "proprio")  # the single inputs Minsound is compared with
+# The paper's claims about the table, and ours about our variant, each checked by `findings.evaluate`.
+CLAIMS = (
+    findings.Claim("Minsound (internal audio) is the best single modality", ("internal", *SINGLES), _best_single),
+    findings.Claim(
+        f"the palm mic alone is clearly worse than Minsound (>= {CLEARLY_WORSE_PP:.0f} pp below)",
+        ("internal", "external"),
+        findings.above("internal", "external", CLEARLY_WORSE_PP),
+    ),
+    findings.Claim(
+        f"proprioception and optical flow alone are similar (within {SIMILAR_PP:.0f} pp) and well above chance "
+        f"(rule: each >= {WELL_ABOVE_CHANCE_PP:.0f} pp above the test split's majority class; 1 / classes "
+        f"shown beside it)",
+        ("proprio", "flow"),
+        _similar_above_chance,
+    ),
+    findings.Claim(
+        "Minsight images alone are the weakest camera input (below optical flow)",
+        ("image", "flow"),
+        findings.above("flow", "image", strict=True),
+    ),
+    findings.Claim(
+        f"Minsound + palm mic is significantly above Minsound (Wilcoxon signed-rank per test sequence, "
+        f"p < {SIGNIFICANCE}; the paper: p = {PAPER_WILCOXON_P})",
+        WILCOXON_PAIR,
+        _significantly_above,
+    ),
+    *(
+        findings.Claim(
+            "Minsound + palm mic >= Minsound (our step-LayerNorm fusion)",
+            (base, compared),
+            findings.above(compared, base),
+            variant=True,
+        )
+        for base, compared in STEP_LAYERNORM_PAIRS
+    ),
+    findings.Claim(
+        "the TCN is below the transformer on the same inputs (Minsound + palm mic + proprioception)",
+        ("internal+external+proprio", "tcn:internal+external+proprio"),
+        _transformer_above_tcn,
+    ),
+)
 
 
 def checklist(
@@ -350,327 +302,24 @@ def checklist(
     collapsed: Mapping[str, Sequence[int | None]] | None = None,
     wilcoxon: Mapping[str, Any] | None = None,
 ) -> list[findings.Finding]:
-    """The paper's qualitative claims about the ablation, as predicates over per-seed test
-    accuracies (`test`: row name -> per-seed accuracies in [0, 1]; rows not run are skipped).
-    `majority`: the test split's `findings.majority` baseline, which "above chance" is counted
-    against; `n_classes`: the data's classes, whose 1 / classes is the paper's chance, shown beside
-    it; `collapsed`: row name -> the class each seed collapsed to (`findings.collapsed`);
-    `wilcoxon`: the results JSON's tests of `WILCOXON_PAIR`, which the paper's significance claim
-    reads. A verdict counts only where its rows can carry it (`findings.counted_where`)."""
-    collapsed = collapsed or {}
-
-    def plain(row: str) -> str:
-        return MODALITY_NAMES[row] if row in MODALITY_NAMES else display_name(row)
-
-    def named(row: str) -> str:
-        return plain(row) + findings.collapse_text(collapsed.get(row, []))
-
-    def gated(f: findings.Finding, rows: Sequence[str], variant: bool = False) -> findings.Finding:
-        return findings.counted_where(
-            f, [(plain(r), test[r], collapsed.get(r, []), majority) for r in rows if r in test], variant
-        )
-
-    out = []
-    singles = ["image", "flow", "external", "proprio"]
-    claim = "Minsound (internal audio) is the best single modality"
-    if not (f := findings.missing(claim, ["internal", *singles], test)):
-        best_other = max(singles, key=lambda r: findings.mean_pct(test[r]))
-        f = gated(
-            findings.at_least(
-                claim,
-                (named("internal"), test["internal"]),
-                (f"best other, {named(best_other)}", test[best_other]),
-                strict=True,
-            ),
-            ["internal", best_other],
-        )
-    out.append(f)
-    claim = f"the palm mic alone is clearly worse than Minsound (>= {CLEARLY_WORSE_PP:.0f} pp below)"
-    out.append(
-        findings.missing(claim, ["internal", "external"], test)
-        or gated(
-            findings.at_least(
-                claim, (named("internal"), test["internal"]), (named("external"), test["external"]), CLEARLY_WORSE_PP
-            ),
-            ["internal", "external"],
-        )
-    )
-    claim = (
-        f"proprioception and optical flow alone are similar (within {SIMILAR_PP:.0f} pp) and well above chance "
-        f"(rule: each >= {WELL_ABOVE_CHANCE_PP:.0f} pp above the test split's majority class; 1 / classes "
-        f"shown beside it)"
-    )
-    if not (f := findings.missing(claim, ["proprio", "flow"], test)):
-        p, fl = findings.mean_pct(test["proprio"]), findings.mean_pct(test["flow"])
-        evidence = (
-            f"{findings.describe(named('proprio'), test['proprio'])}; "
-            f"{findings.describe(named('flow'), test['flow'])}; "
-            f"1 / classes {100 / n_classes:.1f} %"
-        )
-        if majority is None:
-            f = findings.Finding(claim, None, f"{evidence}; no test label known, so no majority class")
-        else:
-            floor = majority["accuracy"] + WELL_ABOVE_CHANCE_PP
-            f = gated(
-                findings.Finding(
-                    claim,
-                    abs(p - fl) <= SIMILAR_PP and min(p, fl) >= floor,
-                    f"{evidence}; majority class {majority['accuracy']:.1f} % (class {majority['label']}), so at "
-                    f"least {floor:.1f} %",
-                ),
-                ["proprio", "flow"],
-            )
-    out.append(f)
-    claim = "Minsight images alone are the weakest camera input (below optical flow)"
-    out.append(
-        findings.missing(claim, ["image", "flow"], test)
-        or gated(
-            findings.at_least(claim, (named("flow"), test["flow"]), (named("image"), test["image"]), strict=True),
-            ["image", "flow"],
-        )
-    )
-    base, compared = WILCOXON_PAIR
-    claim = (
-        f"Minsound + palm mic is significantly above Minsound (Wilcoxon signed-rank per test sequence, "
-        f"p < {SIGNIFICANCE}; the paper: p = {PAPER_WILCOXON_P})"
-    )
-    if not (f := findings.missing(claim, [base, compared], test)):
-        above = findings.at_least(claim, (named(compared), test[compared]), (named(base), test[base]), strict=True)
-        tests = wilcoxon or {}
-        if "per_sample" not in tests:
-            f = findings.Finding(claim, None, f"{above.evidence}; no Wilcoxon test in the results")
-        else:
-            p_sample, p_seed = tests["per_sample"]["p_value"], tests["per_seed"]["p_value"]
-            f = gated(
-                findings.Finding(
-                    claim,
-                    bool(above.holds and p_sample < SIGNIFICANCE),
-                    f"{above.evidence}; p = {p_sample:.3g} per test sequence, the pairing that can reach the "
-                    f"paper's p at five seeds (per seed: p = {p_seed:.3g})",
-                ),
-                [base, compared],
-            )
-    out.append(f)
-    for base, compared in STEP_LAYERNORM_PAIRS:
-        claim = "Minsound + palm mic >= Minsound (our step-LayerNorm fusion)"
-        out.append(
-            findings.missing(claim, [base, compared], test)
-            or gated(
-                findings.at_least(claim, (named(compared), test[compared]), (named(base), test[base])),
-                [base, compared],
-                variant=True,
-            )
-        )
-    claim = "the TCN is below the transformer on the same inputs (Minsound + palm mic + proprioception)"
-    out.append(
-        findings.missing(claim, ["internal+external+proprio", "tcn:internal+external+proprio"], test)
-        or gated(
-            findings.at_least(
-                claim,
-                ("Transformer", test["internal+external+proprio"]),
-                ("TCN", test["tcn:internal+external+proprio"]),
-                strict=True,
-            ),
-            ["internal+external+proprio", "tcn:internal+external+proprio"],
-        )
-    )
-    return out
+    """`CLAIMS` checked on per-seed test accuracies (`test`: row name -> per-seed accuracies in
+    [0, 1]; rows not run are skipped). `majority`: the test split's `findings.majority` baseline,
+    which "above chance" is counted against; `n_classes`: the data's classes, whose 1 / classes is
+    the paper's chance, shown beside it; `collapsed`: row name -> the class each seed collapsed to
+    (`findings.collapsed`); `wilcoxon`: the results JSON's tests of `WILCOXON_PAIR`, which the
+    paper's significance claim reads."""
+    return findings.evaluate(CLAIMS, findings.Evidence(test, majority, n_classes, collapsed or {}, wilcoxon, _plain))
 
 
-def table(
-    rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None, recorded: bool = False, paper: bool = True
-) -> str:
-    """Our accuracy, flagged where seeds collapsed (each row's "collapsed"), beside the test
-    split's `majority` class and the paper's, with the difference, one line per row; on recorded
-    data each row beside the best row instead; without the paper's columns where `paper` is False
-    (a preset whose results are not the paper's table)."""
-    means = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
-    gaps = documents.best_gaps([m for m, _ in means])
-    body = []
-    for r, (mean, sd), gap in zip(rows, means, gaps):
-        body.append(
-            [
-                "TCN" if r["backbone"] == "tcn" else "Transformer",
-                r["display_name"].removeprefix("TCN: "),
-                f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}",
-                findings.majority_cell(majority),
-                *(
-                    [gap]
-                    if recorded
-                    else [f"{r['paper_mean']:.2f} ± {r['paper_sd']:.2f}", f"{mean - r['paper_mean']:+.2f}"]
-                    if paper
-                    else []
-                ),
-                f"{r['wall_s']:.1f}",
-            ]
-        )
-    accuracy = f"Test accuracy [%] ({'recorded data' if recorded else 'ours'}, {len(rows[0]['seeds'])} seeds)"
-    compared = [documents.BEST_GAP] if recorded else ["Paper [%]", "Ours − paper [pp]"] if paper else []
-    return results_files.markdown_table(
-        ["Backbone", "Modalities", accuracy, "Majority class, test [%]", *compared, "Train wall time [s]"], body
-    )
+def claims_of(result: Ablation, n_classes: int) -> list[findings.Finding]:
+    """`checklist` on what the ablation measured, on data of `n_classes` classes."""
+    collapsed = {r.name: r.collapsed["test"] for r in result.rows}
+    return checklist(result.test_accuracies(), result.majority, n_classes, collapsed, result.wilcoxon)
 
 
-def markdown(doc: dict[str, Any]) -> str:
-    if documents.recorded(doc):
-        return _recorded_markdown(doc)
-    paper = not documents.counts_no_claims(doc)  # the paper's columns only where the results are its table's
-    lines = [
-        documents.title(doc, TITLE, PAPER),
-        "",
-        documents.header_markdown(doc),
-        table(doc["rows"], doc["majority"]["test"], paper=paper),
-        findings.baseline_note(),
-        "",
-        *(
-            [
-                "Rows marked *our step-LayerNorm fusion* are not in the paper: the same inputs with each step's "
-                "concatenated features normalised by a LayerNorm instead of the paper's per-sequence [0, 1] rescale "
-                "(`Config.fusion_norm`)"
-                + ("; the paper column repeats the paper's row with the same inputs for reference." if paper else "."),
-                "",
-            ]
-            if any(r.get("fusion_norm") == STEP_LAYERNORM for r in doc["rows"])
-            else []
-        ),
-        *recipe.markdown(doc["rows"]),
-        *fusion_choice_markdown(doc.get("fusion_choice", [])),
-        "## Findings checklist (the paper's claims about this table)",
-        "",
-        findings.markdown(doc["findings"], counted=not documents.counts_no_claims(doc)),
-    ]
-    w = doc["wilcoxon"]
-    if w:
-        lines += [
-            f"## Wilcoxon signed-rank: {w['compared']} against {w['baseline']} (paper: p = {w['paper_p']})",
-            "",
-            f"- {w['per_seed']['describe']}",
-            f"- {w['per_sample']['describe']}",
-            "",
-            "The per-seed test is the one comparable to the paper's; its smallest attainable p is the floor above. "
-            "The per-sequence test treats sequences of one trial and of different seeds as independent, "
-            "which they are not: read it as descriptive.",
-            "",
-        ]
-    if "ablation_confusion.png" in doc["figures"]:
-        lines += ["Confusion matrices (proprioception only, optical flow only): `ablation_confusion.png`.", ""]
-    lines += _time_to_accuracy_line(doc)
-    lines += [
-        "The simulator is the same for every row (never tuned per row): differences from the paper are findings.",
-        "",
-    ]
-    return "\n".join(lines)
-
-
-def recorded_table(rows: Sequence[dict[str, Any]], majority: Mapping[str, Any] | None) -> str:
-    """Recorded data: each row under its fusion (by validation), flagged where seeds collapsed
-    (each row's "collapsed"), beside the test split's `majority` class, the other fusion's test
-    accuracy, its probe's, model − probe and the gap to the best row."""
-    means = [stats.mean_sd(100 * np.asarray(r["accuracy"]["test"]["fabric"])) for r in rows]
-    body = []
-    for r, (mean, sd), gap in zip(rows, means, documents.best_gaps([m for m, _ in means])):
-        choice, probe_test = r["fusion_choice"], 100 * r["probe"]["accuracy"]["test"]
-        other = [f"{FUSION_NAMES[f]} {choice['test'][f]:.2f}" for f in choice["test"] if f != r["fusion_norm"]]
-        val = ", ".join(f"{FUSION_NAMES[f]} {v:.2f}" for f, v in choice["val"].items())
-        body.append(
-            [
-                "TCN" if r["backbone"] == "tcn" else "Transformer",
-                r["display_name"],
-                f"{FUSION_NAMES[r['fusion_norm']]} (val {val})",
-                f"{mean:.2f} ± {sd:.2f}{findings.collapse_text(r['collapsed']['test'])}",
-                findings.majority_cell(majority),
-                ", ".join(other) or "–",
-                f"{probe_test:.2f}{findings.collapse_text(r['probe']['collapsed']['test'])}",
-                f"{mean - probe_test:+.2f}",
-                gap,
-                f"{r['wall_s']:.1f}",
-            ]
-        )
-    header = [
-        "Backbone",
-        "Inputs",
-        "Fusion (by validation)",
-        f"Test accuracy [%] (recorded data, {len(rows[0]['seeds'])} seeds)",
-        "Majority class, test [%]",
-        "Other fusion, test [%]",
-        "Linear probe, test [%]",
-        "Model − probe [pp]",
-        documents.BEST_GAP,
-        "Train wall time [s]",
-    ]
-    return results_files.markdown_table(header, body)
-
-
-# how recorded-data tables name the fusions (config.FUSION_NORMS); the paper's is not named after it there
-FUSION_NAMES = {"sequence_minmax": "[0, 1] rescale over the sequence", STEP_LAYERNORM: "step-LayerNorm"}
-
-
-def recorded_notes(doc: dict[str, Any]) -> list[str]:
-    """A line per row more than `BELOW_PROBE_PP` below its probe, and per input steady within sequences."""
-    lines = []
-    for r in doc["rows"]:
-        mean, probe_test = 100 * float(np.mean(r["accuracy"]["test"]["fabric"])), 100 * r["probe"]["accuracy"]["test"]
-        if mean < probe_test - BELOW_PROBE_PP:
-            lines.append(
-                f"- **{r['display_name']}** is {probe_test - mean:.1f} pp below the linear probe of its inputs "
-                f"({mean:.1f} % against {probe_test:.1f} %): the model does not read what the inputs carry."
-            )
-    for m, ratio in doc["steadiness"].items():
-        if ratio < doc["steady_below"]:
-            lines.append(
-                f"- {doc['names'].get(m, m)} is steady within sequences: its within-sequence variance is "
-                f"{100 * ratio:.1f} % of "
-                "its total (median over its dimensions); the [0, 1] rescale over the sequence erases it, "
-                "step-LayerNorm keeps it."
-            )
-    return lines + [""] if lines else []
-
-
-def _recorded_markdown(doc: dict[str, Any]) -> str:
-    """The table of a `--data_dir` run: recorded data, rows compared with each other and with their probes."""
-    steadiness = ", ".join(f"{doc['names'].get(m, m)} {100 * v:.1f} %" for m, v in doc["steadiness"].items())
-    lines = [
-        documents.title(doc, TITLE, PAPER),
-        "",
-        documents.header_markdown(doc),
-        recorded_table(doc["rows"], doc["majority"]["test"]),
-        findings.baseline_note(),
-        "",
-        documents.RECORDED_NOTE
-        + " Each row is trained under both fusion normalisations and shown under the one with the better "
-        "validation accuracy (step-LayerNorm on a tie: it keeps the steady level the rescale erases). The "
-        "probe is a logistic regression on each sequence's per-dimension mean and SD "
-        f"(`experiments.probe`), on the same sequences. Within-sequence share of each input's variance: {steadiness}.",
-        "",
-        *recorded_notes(doc),
-        *recipe.markdown(doc["rows"]),
-    ]
-    w = doc["wilcoxon"]
-    if w:
-        lines += [
-            f"## Wilcoxon signed-rank: {w['compared']} against {w['baseline']}",
-            "",
-            f"- {w['per_seed']['describe']}",
-            f"- {w['per_sample']['describe']}",
-            "",
-        ]
-    if "ablation_confusion.png" in doc["figures"]:
-        shown = ", ".join(
-            f"{doc['names'].get(m, m)} only" for m in CONFUSION_ROWS if any(r["name"] == m for r in doc["rows"])
-        )
-        lines += [f"Confusion matrices ({shown}): `ablation_confusion.png`.", ""]
-    lines += _time_to_accuracy_line(doc)
-    return "\n".join(lines)
-
-
-def _time_to_accuracy_line(doc: Mapping[str, Any]) -> list[str]:
-    if "ablation_time_to_accuracy.png" not in doc["figures"]:
-        return []
-    return [
-        "What accuracy costs in training time, row by row (validation accuracy after each epoch against the "
-        "row's training seconds): `ablation_time_to_accuracy.png`.",
-        "",
-    ]
+def _plain(row: str) -> str:
+    """How a claim's evidence names a row: a single input by its sensor, else by its label."""
+    return MODALITY_NAMES[row] if row in MODALITY_NAMES else display_name(row)
 
 
 STUDY = runner.Study(
@@ -680,16 +329,10 @@ STUDY = runner.Study(
     eval_splits=("test",),
     split_names=loading.TRAIN_VAL_TEST,
     document=document,
-    checklist=lambda doc: checklist(
-        {r["name"]: np.asarray(r["accuracy"]["test"]["fabric"]) for r in doc["rows"]},
-        doc["majority"]["test"],
-        len(doc["dataset"]["classes"]),
-        {r["name"]: r["collapsed"]["test"] for r in doc["rows"]},
-        doc.get("wilcoxon"),
-    ),
-    markdown=markdown,
+    checklist=lambda doc: claims_of(Ablation.from_json(doc), len(doc["dataset"]["classes"])),
+    markdown=page.markdown,
     module=__name__,
-    figures=figures,
+    figures=page.figures,
     recorded_fusions=(STEP_LAYERNORM,),
     checkpoints=True,
     groups=ROW_GROUPS,

@@ -24,9 +24,9 @@ from fabricjax.config import MODALITY_NAMES
 from fabricjax.features import welch
 from fabricjax.reporting import plots, results_files, stats
 from fabricjax.store import archive, dataset_index
-from fabricjax.studies.common import documents, findings, loading, runner
-from fabricjax.studies.common.rows import RowSpec
-from fabricjax.studies.common.trained import TrainingRun
+from fabricjax.studies.machinery import documents, findings, loading, runner
+from fabricjax.studies.machinery.rows import RowSpec
+from fabricjax.studies.machinery.trained import TrainingRun
 
 TITLE, PAPER = (
     "PSD bandwidth",

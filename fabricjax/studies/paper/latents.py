@@ -38,7 +38,7 @@ from fabricjax.reporting import plots, results_files
 from fabricjax.sequences import data
 from fabricjax.store import atomic, workspace
 from fabricjax.store.workspace import Location
-from fabricjax.studies.common import documents, findings, loading
+from fabricjax.studies.machinery import documents, findings, loading
 from fabricjax.training import checkpoint, train
 
 TITLE, PAPER = "Latent space", "Fig. latent_features"

@@ -20,41 +20,19 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from fabricjax.errors import UserError
 from fabricjax.reporting import plots, results_files, stats
-from fabricjax.sequences import data
 from fabricjax.sim import estimates
-from fabricjax.studies.common import documents, findings, loading, runner, wilcoxon
-from fabricjax.studies.common.rows import RowSpec
-from fabricjax.studies.common.trained import TrainingRun
+from fabricjax.studies.machinery import cafe, documents, findings, runner, wilcoxon
+from fabricjax.studies.machinery.cafe import ROWS, SPLIT, SPLITS, display_name
+from fabricjax.studies.machinery.rows import RowSpec
+from fabricjax.studies.machinery.trained import TrainingRun
 
 TITLE, PAPER = (
     "Cafe noise",
     "Table new_noise_results",
 )  # how results name the study, and what of the paper it reproduces
 
-SPLIT = "cafe"
-SPLITS = (SPLIT, "test")  # the splits every row is evaluated on: the cafe and, for reference, the lab test day
 SIGNIFICANCE = 0.05  # the level at which the checklist calls a per-seed Wilcoxon test significant
-
-
-def display_name(row_name: str, names: Mapping[str, str] | None = None) -> str:
-    """A row's inputs by name: the data's (`names`, recorded data) else the paper's sensors."""
-    return data.inputs_name(row_name.split("+"), names)
-
-
-def _row(modalities: tuple[str, ...], mean: float, sd: float, p: str | None) -> RowSpec:
-    """A row and the paper's cafe accuracy [%] (10 seeds) with its p against the preceding row."""
-    name = "+".join(modalities)
-    return RowSpec(name, {"modalities": modalities}, display_name(name), {"mean": mean, "sd": sd, "p": p})
-
-
-# The paper's Table new_noise_results.
-ROWS = (
-    _row(("internal",), 67.51, 5.05, None),
-    _row(("internal", "proprio"), 87.51, 2.66, "< 0.0001"),
-    _row(("internal", "proprio", "external"), 90.30, 2.18, "0.0098"),
-)
 
 
 def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
@@ -92,11 +70,6 @@ def document(trained: TrainingRun, chosen: Sequence[RowSpec]) -> dict[str, Any]:
 def figures(doc: dict[str, Any], results: Path) -> list[Path]:
     """results/noise.png (`plot`), drawn from the results JSON."""
     return [plot(results / "noise.png", doc["rows"], documents.stream_names(doc) if documents.recorded(doc) else None)]
-
-
-def _has_cafe_trials(ds: loading.Dataset) -> None:
-    if len(ds.sets[SPLIT]) == 0:
-        raise UserError(f"the dataset in {ds.folder} has no cafe-condition trials to test on")
 
 
 def checklist(acc: dict[str, dict[str, np.ndarray]]) -> list[findings.Finding]:
@@ -244,9 +217,9 @@ def markdown(doc: dict[str, Any]) -> str:
 STUDY = runner.Study(
     "noise",
     ROWS,
-    n_seeds=10,
+    n_seeds=cafe.N_SEEDS,
     eval_splits=SPLITS,
-    split_names=(*loading.TRAIN_VAL_TEST, SPLIT),
+    split_names=cafe.SPLIT_NAMES,
     document=document,
     checklist=lambda doc: checklist(
         {r["name"]: {s: np.asarray(r["accuracy"][s]["fabric"]) for s in SPLITS} for r in doc["rows"]}
@@ -254,7 +227,7 @@ STUDY = runner.Study(
     markdown=markdown,
     module=__name__,
     figures=figures,
-    summary=lambda row: f"{SPLIT} {stats.format_mean_sd(row.accuracy(SPLIT))} %",
-    check=_has_cafe_trials,
+    summary=cafe.summary,
+    check=cafe.has_cafe_trials,
 )
 run = STUDY.run  # every study module has `run`: the training studies through `runner.run_study`

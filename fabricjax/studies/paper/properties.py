@@ -34,9 +34,9 @@ import numpy as np
 from fabricjax import catalog
 from fabricjax.reporting import results_files, stats
 from fabricjax.sequences import data
-from fabricjax.studies.common import documents, findings, runner
-from fabricjax.studies.common.rows import RowSpec
-from fabricjax.studies.common.trained import TrainingRun
+from fabricjax.studies.machinery import documents, findings, runner
+from fabricjax.studies.machinery.rows import RowSpec
+from fabricjax.studies.machinery.trained import TrainingRun
 
 TITLE, PAPER = (
     "Property perception",

@@ -1,0 +1,2 @@
+"""The release tooling: reproduce (every study of the plan in order, one report), what of a results
+folder is stale, REPORT.md and README's results block."""

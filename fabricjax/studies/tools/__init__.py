@@ -1,1 +1,0 @@
-"""Tools over the studies: reproduce (every study in order, one report) and stream (live classification)."""
