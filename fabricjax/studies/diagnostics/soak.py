@@ -34,6 +34,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy as np
 from absl import logging
 from tqdm import tqdm
 
@@ -52,6 +53,7 @@ FLAT = 0.10  # largest relative change of resident memory from run FROM_RUN to t
 # how long a run's processes get to end after it: multiprocessing's resource tracker ends when its
 # parent's pipe closes, just after the parent, and a pool worker within `parallel.PARENT_POLL_S`
 LEFT_GRACE_S = 2.0
+THREADS_SPARE = 1  # native threads a run may end with beyond run FROM_RUN's: XLA's and BLAS's pools start one lazily
 MEASURED = {"processes": "each run's peak", "one process": "kept after each run"}  # what memory means per way
 
 
@@ -84,10 +86,17 @@ class Soak:
         return [f"run {k}: {x}" for k, r in enumerate(self.runs, 1) for x in r.left]
 
     @property
+    def memory_trend(self) -> float:
+        """Least-squares slope of resident memory [MB per run] from run `FROM_RUN` to the last."""
+        mb = [r.rss_mb for r in self.runs[FROM_RUN - 1 :]]
+        return float(np.polyfit(np.arange(len(mb)), mb, 1)[0]) if len(mb) > 1 else 0.0
+
+    @property
     def native_threads_grew(self) -> bool:
-        """Native threads grew after the first run (the first starts XLA's and the readers' pools)."""
-        counts = [r.native_threads for r in self.runs[1:] if r.native_threads is not None]
-        return bool(counts) and max(counts) > counts[0]
+        """The last run ends with more than `THREADS_SPARE` native threads beyond run `FROM_RUN`'s:
+        what a thread left per run would show, where a pool that starts one more thread once would not."""
+        counts = [r.native_threads for r in self.runs[FROM_RUN - 1 :] if r.native_threads is not None]
+        return bool(counts) and counts[-1] > counts[0] + THREADS_SPARE
 
     @property
     def identical(self) -> bool:
@@ -237,6 +246,7 @@ def run(*, runs: int = RUNS, where: Location = Location(), progress: bool = True
                 "way": s.way,
                 "runs": [dataclasses.asdict(r) for r in s.runs],
                 "memory_change": s.memory_change,
+                "memory_trend_mb_per_run": s.memory_trend,
                 "left": s.left,
                 "native_threads_grew": s.native_threads_grew,
                 "identical": s.identical,
@@ -262,6 +272,7 @@ def markdown(doc: dict[str, Any]) -> str:
                 f"{rss[min(first, len(rss)) - 1]:.0f}",
                 f"{rss[-1]:.0f}",
                 f"{100 * s['memory_change']:+.1f} %",
+                f"{s['memory_trend_mb_per_run']:+.2f}",
                 ", ".join(s["left"]) or "nothing",
                 f"{min(threads[1:])}-{max(threads[1:])}" if len(threads) > 1 else "-",
                 "yes" if s["identical"] else "no",
@@ -282,7 +293,8 @@ def markdown(doc: dict[str, Any]) -> str:
         "and freed pages returned. Left running (after a grace of a few seconds): processes "
         "in a run's session; in one process, Python threads started by a run and child processes alive after it. "
         f"It holds when memory from run {first} to the last changes by at most {100 * flat:.0f} %, nothing is "
-        "left running, native threads do not grow after the first run, and every run's accuracies are identical.",
+        f"left running, native threads end at most one above run {first}'s (pools start a thread lazily), and "
+        f"every run's accuracies are identical. The trend is the least-squares slope of memory from run {first} on.",
         "",
         results_files.markdown_table(
             [
@@ -292,6 +304,7 @@ def markdown(doc: dict[str, Any]) -> str:
                 f"run {first} [MB]",
                 "last [MB]",
                 f"change from run {first}",
+                "trend [MB per run]",
                 "left running",
                 "native threads after runs 2..n",
                 "identical accuracies",
