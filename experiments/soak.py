@@ -1,4 +1,4 @@
-"""The install check run back to back (see fabricjax/studies/diagnostics/soak.py).
+"""The install check run back to back (see fabricjax/studies/release/soak.py).
 
 python -m experiments.soak --results=results   # regenerates results/soak.md: 50 runs each way
 python -m experiments.soak --runs=6            # a short soak, into workspace/results/
@@ -7,7 +7,7 @@ python -m experiments.soak --runs=6            # a short soak, into workspace/re
 from absl import flags as absl_flags
 
 from experiments import flags
-from fabricjax.studies.diagnostics import soak
+from fabricjax.studies.release import soak
 
 FLAGS = absl_flags.FLAGS
 absl_flags.DEFINE_integer("runs", soak.RUNS, "runs of the install check each way (as processes, in one process)")

@@ -59,7 +59,7 @@ BOUNDARIES = {
     "fabricjax.studies.diagnostics.variant.read": "reads a results file",
     "fabricjax.studies.release.staleness.check": "checks a results folder's fingerprints",
     "fabricjax.bench.suite._torch_twin": "builds the PyTorch twin of the benchmarks",
-    "fabricjax.studies.diagnostics.soak.as_processes": "runs the install check again and again",
+    "fabricjax.studies.release.soak.as_processes": "runs the install check again and again",
 }
 # every benchmark function (of fabricjax.bench, .timing, .importers and acquisition): "runs a benchmark"
 BENCHMARK_PREFIX = "bench_"

@@ -310,15 +310,20 @@ def test_a_load_stopped_by_an_error_leaves_no_reader_behind_and_cannot_deadlock(
     import threading
     import time
 
+    COLLECTIONS = 4  # a full collection in a big test process takes a while: a few make the case
     cfg = _config()
     workdir = tmp_path / "ws"
     data.load_sequences(cfg, dataset, workdir=workdir, progress=False, workers=1)  # every feature cached
     before = set(threading.enumerate())
     parse = ast.literal_eval
 
-    def collecting_parse(text):
+    collections = []
+
+    def collecting_parse(text):  # slow, so the failed load's readers still have work; collecting, at first
         time.sleep(0.01)
-        gc.collect()
+        if len(collections) < COLLECTIONS:
+            collections.append(1)
+            gc.collect()
         return parse(text)
 
     real_sequences = data._sequences
@@ -342,12 +347,13 @@ def test_a_load_stopped_by_an_error_leaves_no_reader_behind_and_cannot_deadlock(
             cycle.append(cycle)  # the error's frames (and the load's state) now wait for the collector
             outcome["left"] = [t.name for t in set(threading.enumerate()) - before - {threading.current_thread()}]
         del cycle
+        collections.clear()  # the next load's first parses run the collector, while those readers may still read
         monkeypatch.setattr(data, "_sequences", real_sequences)
         outcome["sets"] = data.load_sequences(cfg, dataset, workdir=workdir, progress=False, workers=1)
 
     runner = threading.Thread(target=scenario, daemon=True)
     runner.start()
-    runner.join(timeout=30)
+    runner.join(timeout=90)
     assert not runner.is_alive(), "the load after a failed load deadlocked"
     assert outcome["left"] == [], f"threads left running by the failed load: {outcome['left']}"
     assert set(outcome["sets"]) == set(data.SPLITS)

@@ -43,7 +43,7 @@ def test_a_failing_job_drops_the_jobs_not_started(tmp_path):
 def test_the_soak_sees_a_process_left_in_a_runs_session():
     import subprocess
 
-    from fabricjax.studies.diagnostics import soak
+    from fabricjax.studies.release import soak
 
     leader = subprocess.Popen(["sh", "-c", "sleep 30 & exit 0"], start_new_session=True)
     leader.wait()
@@ -56,7 +56,7 @@ def test_the_soak_sees_a_process_left_in_a_runs_session():
 
 
 def test_the_soak_holds_only_when_memory_is_flat_nothing_is_left_and_runs_agree():
-    from fabricjax.studies.diagnostics.soak import FROM_RUN, Run, Soak
+    from fabricjax.studies.release.soak import FROM_RUN, Run, Soak
 
     def soak(rss, left=(), accuracies=None, threads=None):
         acc = accuracies or [{"internal": [0.5, 0.6]}] * len(rss)
