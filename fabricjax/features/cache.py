@@ -207,6 +207,9 @@ def trial_features(
     threads, in the caller's thread. A generator left unfinished would leave that to the garbage
     collector, which may run it inside any thread, one of the readers included."""
     folders = {f.name: folder(features_root, index.root, f) for f in features if f.cached}
+    for d in folders.values():  # what a killed writer left; the caller holds the cache's lock, so no writer is live
+        for partial in d.glob(".*.partial"):
+            partial.unlink(missing_ok=True)
     files = lambda e: {name: str(d / f"{Path(e.file).stem}.npz") for name, d in folders.items()}  # noqa: E731
     cached = [f for f in features if f.cached]
     jobs = []
