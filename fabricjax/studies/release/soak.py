@@ -116,32 +116,30 @@ def _accuracies(doc: dict[str, Any]) -> dict[str, list[float]]:
     return {r["name"]: r["accuracy"]["test"]["fabric"] for r in doc["rows"]}
 
 
-def _session_processes(session: int) -> list[str]:
-    """Processes still alive in `session` (a run started as its own session's leader), as 'pid command'."""
+def _processes(where) -> list[str]:
+    """Live processes whose /proc stat fields (after "pid (command)": state, ppid, pgrp, session, ...)
+    satisfy `where`, as 'pid command'."""
     out = []
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
             text = stat.read_text()
         except OSError:
             continue
-        fields = text[text.rindex(")") + 2 :].split()  # after "pid (command)": state, ppid, pgrp, session, ...
-        if int(fields[3]) == session and fields[0] != "Z":
+        fields = text[text.rindex(")") + 2 :].split()
+        if fields[0] != "Z" and where(fields):
             out.append(f"{stat.parent.name} {text[text.index('(') + 1 : text.rindex(')')]}")
     return out
+
+
+def _session_processes(session: int) -> list[str]:
+    """Processes still alive in `session` (a run started as its own session's leader)."""
+    return _processes(lambda fields: int(fields[3]) == session)
 
 
 def _children() -> list[str]:
-    """This process's live child processes, as 'pid command'."""
-    me, out = os.getpid(), []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            text = stat.read_text()
-        except OSError:
-            continue
-        fields = text[text.rindex(")") + 2 :].split()
-        if int(fields[1]) == me and fields[0] != "Z":
-            out.append(f"{stat.parent.name} {text[text.index('(') + 1 : text.rindex(')')]}")
-    return out
+    """This process's live child processes."""
+    me = os.getpid()
+    return _processes(lambda fields: int(fields[1]) == me)
 
 
 def _still_running(alive: Callable[[], list[str]]) -> list[str]:
