@@ -31,3 +31,17 @@ def pytest_collection_modifyitems(items):
     for item in items:
         if item.get_closest_marker("slow") and not item.get_closest_marker("timeout"):
             item.add_marker(pytest.mark.timeout(SLOW_TIMEOUT_S))
+
+
+@pytest.fixture(autouse=True)
+def plans_time_rows_at_a_fixed_cost(monkeypatch):
+    """A study's plan times each row's compiled step on this host (`program_timing.row_cost`), which
+    compiles every row twice more: in tests, whose studies train tiny rows, a fixed cost stands in.
+    tests/test_plan.py times the real programs of a row."""
+    from fabricjax.bench import program_timing
+
+    cost = program_timing.RowCost(
+        s_per_step=0.01, s_per_eval_batch=0.003, flops_per_step=1e8, flops_per_eval_batch=3e7, compile_s=1.0
+    )
+    monkeypatch.setattr(program_timing, "row_cost", lambda config, n_seeds, arrays, **kw: cost)
+    monkeypatch.setattr(program_timing, "matmul_peak", lambda **kw: {"gflop_per_s": 100.0})

@@ -81,8 +81,8 @@ def _imports(path: Path) -> list[str]:
 
 
 # Subpackages by layer, in the order of the data path: a module imports only its own subpackage, the
-# package's top-level modules and the subpackages of lower layers. The studies and the benchmarks
-# are the top, side by side.
+# package's top-level modules and the subpackages of lower layers. The benchmarks time the real
+# programs on synthetic data, and the studies are the top: a study's plan times its rows with them.
 LOWER = {
     "store": set(),
     "sim": {"store"},
@@ -93,7 +93,7 @@ LOWER = {
     "reporting": {"store", "sim"},
     "inference": {"store", "features", "sequences", "training", "reporting"},
     "bench": {"store", "sim", "features", "importers", "sequences", "training", "reporting", "inference"},
-    "studies": {"store", "sim", "features", "sequences", "training", "reporting", "inference"},
+    "studies": {"store", "sim", "features", "sequences", "training", "reporting", "inference", "bench"},
 }
 # The package's top-level modules (the core: config, presets, the model, the process) read only the
 # storage, features and sequences below them.

@@ -3,9 +3,12 @@
 import dataclasses
 import json
 
+import numpy as np
 import pytest
 
 from fabricjax import catalog, presets
+from fabricjax.bench import program_timing
+from fabricjax.bench.program_timing import row_cost  # the real one: conftest stands a fixed cost in
 from fabricjax.config import Config
 from fabricjax.sim import dataset as sim_dataset
 from fabricjax.studies.machinery import plan
@@ -15,7 +18,7 @@ def rows(preset, *modalities):
     return [("+".join(m), Config.from_preset(preset, modalities=m)) for m in modalities]
 
 
-def test_missing_trials_are_timed_on_this_host_and_their_disk_counted(tmp_path):
+def test_missing_trials_are_timed_on_this_host_and_their_disk_counted(tmp_path, timed):
     spec = presets.get("smoke").dataset
     stages = plan.stages("smoke", rows("smoke", ("internal",), ("flow", "internal")), 2, tmp_path)
     sim, features, sequences, *training = stages
@@ -25,77 +28,75 @@ def test_missing_trials_are_timed_on_this_host_and_their_disk_counted(tmp_path):
     assert features.seconds > 0 and features.disk_bytes > 0 and "flow " in features.basis
     assert "does not fit" in plan.markdown("smoke", stages, 2, 2, free_bytes=1)
     assert sequences.disk_bytes == 0 and "held in memory" in sequences.basis
-    assert len(training) == 2 and all(
-        t.seconds is None for t in training
-    )  # one stage per row; no published run of this model
+    assert len(training) == 2 and all(t.seconds > 0 for t in training)  # one stage per row, each timed
+    assert [sorted(arrays) for _, _, arrays in timed] == [["internal"], ["flow", "internal"]]
     assert "peak host memory" in sequences.basis
     text = plan.markdown("smoke", stages, 2, 2, free_bytes=1e15)
-    assert (
-        text.startswith("Plan: 2 rows x 2 seeds on preset 'smoke'")
-        and "stages unknown before the run (below), the others about" in text
-    )
+    assert text.startswith("Plan: 2 rows x 2 seeds on preset 'smoke': about ")
 
 
-def test_training_is_extrapolated_from_the_published_sample_per_row(tmp_path, monkeypatch):
-    """Seconds per sequence, epoch and seed of a published row of the same inputs and model, times
-    this run's counts and grid points, plus their compilation; another model is not extrapolated."""
-    sample = Config.from_preset("paper_sample", modalities=("internal",))
-    doc = {
-        "machine": {"cpu": "AMD EPYC", "cores": 2},
-        "date": "2026-11-27",
-        "dataset": {"sequences": {"train": 70}},
-        "rows": [
-            {
-                "name": "internal",
-                "config": dataclasses.replace(sample, n_classes=5).to_json(),
-                "seeds": [0, 1],
-                "wall_s": 10.0 + 70 * sample.epochs * 2 * 0.01,
-                "time": {"compile_s": 10.0},
-            }
-        ],
-    }
-    path = tmp_path / "ablation.json"
-    path.write_text(json.dumps(doc))
-    monkeypatch.setattr(plan, "SAMPLE_RESULTS", path)
-    monkeypatch.setattr(plan, "REPRODUCE_MANIFEST", tmp_path / "absent.json")
-    (training,) = plan.training(rows("paper", ("internal",)), 5, 1000)
-    assert abs(training.seconds - (10.0 + 1000 * sample.epochs * 5 * 0.01)) < 1e-6 and "AMD EPYC" in training.source
-    assert plan.training(rows("default", ("internal",)), 5, 1000)[0].seconds is None  # another model: not extrapolated
-    grid = dataclasses.replace(
-        Config.from_preset("paper", modalities=("internal",)), lr_grid=(1e-3, 3e-3), width_grid=(32, 64)
-    )
-    (fitted,) = plan.training([("internal", grid)], 5, 1000)
-    assert abs(fitted.seconds - 4 * training.seconds) < 1e-6 and "4 grid points" in fitted.basis
+COST = program_timing.RowCost(
+    s_per_step=0.02, s_per_eval_batch=0.005, flops_per_step=2e9, flops_per_eval_batch=5e8, compile_s=3.0
+)
 
 
-def test_the_published_manifest_gives_each_rows_rate_and_a_step_budget_its_epochs(tmp_path, monkeypatch):
-    """A row of the default preset's fitted recipe: at most the epochs that cover its step budget
-    on this run's sequences, at the rate the published reproduce manifest recorded for its inputs."""
-    config = Config.from_preset("default", modalities=("proprio",))
-    doc = {
-        "dataset": {"sequences": {"train": 1600}},
-        "rows": [
-            {
-                "config": config.to_json(),
-                "seeds": [0, 1],
-                "wall_s": 5.0 + 1600 * 3 * 2 * 1e-4,
-                "time": {"compile_s": 5.0},
-                "recipe": {"grid": [{"epochs_trained": [2, 3]}]},
-            }
-        ],
-    }
-    manifest = {
-        "ablation": {"rates": plan.rates(doc), "machine": "AMD EPYC, 2 cores", "finished": "2026-11-27 12:00 UTC"}
-    }
-    (tmp_path / "reproduce.json").write_text(json.dumps(manifest))
-    monkeypatch.setattr(plan, "REPRODUCE_MANIFEST", tmp_path / "reproduce.json")
-    monkeypatch.setattr(plan, "SAMPLE_RESULTS", tmp_path / "absent.json")
-    (stage,) = plan.training([("proprio", config)], 5, 1600)
+@pytest.fixture
+def timed(monkeypatch):
+    """Every row's step timed at `COST`, against a matmul peak of 200 GFLOP/s; records what was timed."""
+    calls = []
+    monkeypatch.setattr(program_timing, "matmul_peak", lambda **kw: {"gflop_per_s": 200.0})
+
+    def time_row(config, n_seeds, arrays):
+        calls.append((config, n_seeds, arrays))
+        return COST
+
+    monkeypatch.setattr(program_timing, "row_cost", time_row)
+    return calls
+
+
+ARRAYS = {"internal": ((320,), np.float32), "proprio": ((18,), np.float32), "image": ((30, 40, 3), np.int16)}
+
+
+def test_every_training_row_is_timed_on_this_host_and_scaled_by_its_epochs_and_splits(timed):
+    """A row's seconds: its compilation + its epochs x (optimiser steps + a validation pass) + the
+    last evaluation of every split but training's, at the rates timed on this host; each distinct
+    row is timed once, on the data's per-step arrays of its own inputs."""
+    config = Config.from_preset("default", modalities=("internal",))
+    sizes = {"train": 1600, "val": 300, "test": 200, "cafe": 100}
+    (stage, again) = plan.training([("internal", config), ("internal again", config)], 5, sizes, ARRAYS)
     epochs = -(-config.train_steps // (1600 // config.batch_size))
-    assert abs(stage.seconds - (5.0 + 1e-4 * 1600 * epochs * 5)) < 1e-6
-    assert f"at most {epochs} epochs" in stage.basis and "AMD EPYC" in stage.source
-    said = plan.markdown("default", [stage, stage], 2, 5, free_bytes=1e15)
-    assert said.count("AMD EPYC") == 1 and said.endswith(f"Training rates as measured by {stage.source}.")
+    val, end = -(-300 // config.batch_size), sum(-(-n // config.batch_size) for n in (300, 200, 100))
+    per_epoch = (1600 // config.batch_size) * COST.s_per_step + val * COST.s_per_eval_batch
+    assert stage.seconds == pytest.approx(COST.compile_s + epochs * per_epoch + end * COST.s_per_eval_batch)
+    assert again.seconds == stage.seconds and len(timed) == 1
+    assert timed[0][1] == 5 and timed[0][2] == {"internal": ARRAYS["internal"]}
+    assert f"at most {epochs} epochs (early stopping may end sooner)" in stage.basis
+    assert "50 % of the float32 matmul peak" in stage.basis  # 2 GFLOP in 20 ms against 200 GFLOP/s
+    gflop = ((1600 // config.batch_size) * COST.flops_per_step + val * COST.flops_per_eval_batch) / 1e9
+    assert f"{gflop:.0f} GFLOP per epoch" in stage.basis
+    said = plan.markdown("default", [stage, again], 2, 5, free_bytes=1e15)
+    assert said.endswith("Training rates as measured by each row's step, timed on this host just now.")
+
+
+def test_a_grid_multiplies_a_row_and_early_stopping_is_said_only_when_on(timed):
+    config = Config.from_preset("paper", modalities=("internal",))
+    sizes = {"train": 100, "val": 20}
+    (off,) = plan.training([("internal", dataclasses.replace(config, patience=0, patience_steps=0))], 2, sizes, ARRAYS)
+    (on,) = plan.training([("internal", dataclasses.replace(config, patience=3))], 2, sizes, ARRAYS)
+    assert "early stopping" not in off.basis and "(early stopping may end sooner)" in on.basis
+    grid = dataclasses.replace(config, lr_grid=(1e-3, 3e-3), width_grid=(32, 64))
+    (fitted,) = plan.training([("internal", grid)], 2, sizes, ARRAYS)
+    assert fitted.seconds == pytest.approx(4 * off.seconds) and "4 grid points" in fitted.basis
+
+
+def test_a_rows_step_is_timed_on_inputs_of_the_datas_shapes_and_dtypes():
+    """The real programs of a tiny row on int16 frames and a PSD: positive times and FLOPs, and a
+    step costs more than a validation minibatch (it also runs the backward pass)."""
+    config = Config.from_preset("smoke", modalities=("image", "internal"), n_classes=5)
+    arrays = {"image": ((12, 16, 3), np.int16), "internal": ((24,), np.float32)}
+    cost = row_cost(config, 2, arrays, steps=2, repeats=1)
+    assert cost.s_per_step > 0 and cost.s_per_eval_batch > 0 and cost.compile_s > 0
+    assert cost.flops_per_step > cost.flops_per_eval_batch > 0
 
 
 def test_each_feature_says_its_bytes_per_step():
@@ -132,8 +133,8 @@ def test_the_training_sequences_are_those_the_splits_train_on(tmp_path, monkeypa
     spec = presets.get("smoke").dataset
     counted = {}
 
-    def training(configs, n_seeds, train_sequences):
-        counted[configs[0][1].exclude_fabrics] = train_sequences
+    def training(configs, n_seeds, sizes, arrays):
+        counted[configs[0][1].exclude_fabrics] = sizes["train"]
         return []
 
     monkeypatch.setattr(plan, "probe", lambda dataset, config: {"simulate": 0.0})
@@ -158,41 +159,7 @@ def test_the_training_sequences_are_those_the_splits_train_on(tmp_path, monkeypa
     assert roles and set(roles) == {"train"}
 
 
-def test_the_paper_presets_rows_say_early_stopping_only_when_it_is_on(tmp_path, monkeypatch):
-    monkeypatch.setattr(
-        plan,
-        "_published_rates",
-        lambda: [
-            (
-                "a run",
-                {
-                    plan.rate_key(c.to_json()): {"per_unit_s": 1e-3, "compile_s": 1.0}
-                    for _, c in rows("paper", ("internal",))
-                },
-            )
-        ],
-    )
-    config = rows("paper", ("internal",))[0][1]
-    (off,) = plan.training([("internal", dataclasses.replace(config, patience=0, patience_steps=0))], 2, 100)
-    (on,) = plan.training([("internal", dataclasses.replace(config, patience=3))], 2, 100)
-    assert "early stopping" not in off.basis and "(early stopping ends sooner)" in on.basis
-
-
-def test_a_row_with_early_stopping_is_planned_at_the_epochs_its_published_run_went_through(monkeypatch):
-    """The cap of a row's epochs overstates a run that stops early: where its published rate says
-    how many epochs the row went through under the same cap, the plan counts those, and says so;
-    under another cap (other data, another budget), the cap."""
-    config = dataclasses.replace(rows("paper", ("internal",))[0][1], epochs=13, patience=3)
-    rate = {"per_unit_s": 1e-3, "compile_s": 1.0, "epochs_run": 9.0, "epochs_cap": 13}
-    monkeypatch.setattr(plan, "_published_rates", lambda: [("a run", {plan.rate_key(config.to_json()): rate})])
-    (stage,) = plan.training([("internal", config)], 2, 100)
-    assert stage.seconds == pytest.approx(1.0 + 1e-3 * 100 * 9 * 2)
-    assert "9 epochs as it ran when published (at most 13)" in stage.basis
-    (capped,) = plan.training([("internal", dataclasses.replace(config, epochs=5))], 2, 100)
-    assert capped.seconds == pytest.approx(1.0 + 1e-3 * 100 * 5 * 2) and "at most 5 epochs" in capped.basis
-
-
-def test_the_peak_memory_counts_minsight_frames_again_as_trainings_rows(tmp_path):
+def test_the_peak_memory_counts_minsight_frames_again_as_trainings_rows(tmp_path, timed):
     """Training holds an image row's frames twice (as loaded and as pixel rows): the plan's peak says
     so and counts both; without image rows the peak is the loaded sequences."""
     with_image = plan.stages("smoke", rows("smoke", ("image", "internal")), 1, tmp_path)[2]

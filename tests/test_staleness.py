@@ -286,10 +286,9 @@ def test_the_decision_study_is_given_the_ablation_rows_labels(tmp_path):
 
 def test_the_published_files_are_found_under_one_repository_root():
     from fabricjax.store import provenance
-    from fabricjax.studies.machinery import plan
     from fabricjax.studies.diagnostics import sensitivity
 
     root = provenance.repository_root()
     assert (root / "fabricjax" / "__init__.py").is_file()
-    assert reproduce_plan.PUBLISHED_MANIFEST.parent == plan.REPRODUCE_MANIFEST.parent == sensitivity.PUBLISHED.parent
+    assert reproduce_plan.PUBLISHED_MANIFEST.parent == sensitivity.PUBLISHED.parent
     assert reproduce_plan.PUBLISHED_MANIFEST.parent == root / "results"

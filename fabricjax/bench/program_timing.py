@@ -124,13 +124,20 @@ def _epoch_program(
     image_hw: tuple[int, int] | None = None,
 ):
     """The jitted, vmapped `Trainer.train_epoch` and its arguments (the seeds' states, the
-    training set), placed as training places them (`sharding.training_mesh`)."""
+    training set) on synthetic data of `psd_bins` and `image_hw` frames (`_epoch_program_on`)."""
     cfg = dataclasses.replace(config, seq_len=seq_len, batch_size=batch)
-    mesh = sharding.training_mesh(batch)
     frames = {} if image_hw is None else {"image_hw": tuple(image_hw)}  # None: synthetic's own frame size
-    data = synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins, **frames)
-    chosen = select(cfg, data)
-    trainer = make_trainer(cfg, feature_shapes(chosen["inputs"]), mesh=mesh, n_train=batch * steps)
+    return _epoch_program_on(cfg, n_seeds, synthetic.data_set(cfg, batch * steps, psd_bins=psd_bins, **frames))
+
+
+def _epoch_program_on(config: Config, n_seeds: int, data: dict[str, Any]):
+    """The jitted, vmapped `Trainer.train_epoch` of `config` over the whole of `data` (one epoch of
+    its minibatches), the seeds' states and the training set, placed as training places them
+    (`sharding.training_mesh`)."""
+    mesh = sharding.training_mesh(config.batch_size)
+    chosen = select(config, data)
+    n_train = len(next(iter(chosen["inputs"].values())))
+    trainer = make_trainer(config, feature_shapes(chosen["inputs"]), mesh=mesh, n_train=n_train)
     train = jax.device_put({**chosen, "inputs": training_layout(chosen["inputs"])}, sharding.replicated(mesh))
     per_seed = sharding.replicated(mesh)
     states = jax.jit(sharding.vmap_seeds(trainer.init), out_shardings=per_seed)(
@@ -140,7 +147,60 @@ def _epoch_program(
     epoch = jax.jit(
         sharding.vmap_seeds(lambda s, d: trainer.train_epoch(s, d, on_devices), in_axes=(0, None)), donate_argnums=0
     )
-    return epoch, states, train
+    return epoch, states, train, trainer
+
+
+@dataclasses.dataclass(frozen=True)
+class RowCost:
+    """What one row's programs cost on this host, vmapped over its seeds: a training step (one
+    minibatch per seed), a validation minibatch, their FLOPs (XLA's cost analysis) and the seconds
+    to compile both."""
+
+    s_per_step: float
+    s_per_eval_batch: float
+    flops_per_step: float
+    flops_per_eval_batch: float
+    compile_s: float
+
+
+def row_cost(
+    config: Config,
+    n_seeds: int,
+    arrays: dict[str, tuple[tuple[int, ...], Any]],
+    steps: int = 8,
+    repeats: int = 2,
+) -> RowCost:
+    """`config`'s training step and validation minibatch timed on this host on inputs of per-step
+    `arrays` ({modality: (shape, dtype)}, `Feature.step_array`), `steps` of each per call, best of
+    `repeats` calls after a first that warms up. The real programs (`Trainer.train_epoch`,
+    `Trainer.predict`), compiled once each; XLA counts a loop's body once, so the compiled epoch's
+    and prediction's FLOPs are one step's and one minibatch's."""
+    n = config.batch_size * steps
+    data = synthetic.shaped(
+        {m: arrays[m] for m in config.modalities}, n, config.seq_len, n_classes=config.n_classes
+    )
+    t0 = time.perf_counter()
+    epoch, states, train, trainer = _epoch_program_on(config, n_seeds, data)
+    compiled = epoch.lower(states, train).compile()
+    predict = jax.jit(sharding.vmap_seeds(trainer.predict, in_axes=(0, None)))
+    params = states.params
+    predict_compiled = predict.lower(params, train["inputs"]).compile()
+    compile_s = time.perf_counter() - t0
+
+    def timed(call) -> float:
+        t = time.perf_counter()
+        jax.block_until_ready(call())
+        return time.perf_counter() - t
+
+    state = [states]
+
+    def one_epoch():
+        state[0], summary = compiled(state[0], train)
+        return summary
+
+    step_s = min(timed(one_epoch) for _ in range(repeats + 1)) / steps
+    eval_s = min(timed(lambda: predict_compiled(state[0].params, train["inputs"])) for _ in range(repeats + 1)) / steps
+    return RowCost(step_s, eval_s, compiled_flops(compiled), compiled_flops(predict_compiled), compile_s)
 
 
 def train_step_runner(
@@ -159,7 +219,7 @@ def train_step_runner(
     one CPU device per core (`runtime.use_cpu_cores`), seeds or each minibatch's samples run on
     separate cores. `image_hw` is the size of the synthetic camera frames (image rows only; None:
     `synthetic.data_set`'s)."""
-    epoch, first, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps, image_hw)
+    epoch, first, train, _ = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps, image_hw)
     state = [first]
     del first
 
@@ -193,7 +253,7 @@ def bench_train_step(
 def train_step_flops(config: Config, n_seeds: int, batch: int = 32, seq_len: int = 200, psd_bins: int = 320) -> float:
     """FLOPs of one training step of `n_seeds` vmapped seeds over all their devices (`xla_flops`),
     counted on an epoch of one step: XLA counts the epoch's scan body once, whatever its length."""
-    epoch, state, train = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps=1)
+    epoch, state, train, _ = _epoch_program(config, n_seeds, batch, seq_len, psd_bins, steps=1)
     return xla_flops(epoch, state, train)
 
 

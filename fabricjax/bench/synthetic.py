@@ -5,6 +5,8 @@ Every modality carries a small class-dependent offset so that a model can learn 
 
 from __future__ import annotations
 
+from typing import Any, Mapping
+
 import numpy as np
 
 from fabricjax import catalog
@@ -43,6 +45,28 @@ def data_set(
     labels = {"fabric": fabric.astype(np.int32)}
     for prop, levels in catalog.PROPERTY_LEVELS.items():
         labels[prop] = (fabric % levels).astype(np.int32)
+    return {"inputs": inputs, "labels": labels}
+
+
+def shaped(
+    arrays: Mapping[str, tuple[tuple[int, ...], Any]], n: int, seq_len: int, *, n_classes: int, seed: int = 0
+) -> dict[str, dict[str, np.ndarray]]:
+    """A data set of `n` sequences of `seq_len` steps whose inputs have exactly the per-step
+    (shape, dtype) of `arrays` ({modality: ...}, as `Feature.step_array` gives them) and fabric labels
+    in 0..n_classes-1: what a row's step is timed on before its data exists. Its values are noise
+    (timing does not depend on them); integer frames spread over their type's range."""
+    rng = np.random.default_rng(seed)
+    inputs = {}
+    for m, (shape, dtype) in arrays.items():
+        x = rng.normal(size=(n, seq_len, *shape))
+        dtype = np.dtype(dtype)
+        if dtype.kind in "iu":
+            info = np.iinfo(dtype)
+            x = np.clip(x * 40 + (info.min + info.max) / 2, info.min, info.max)
+        inputs[m] = x.astype(dtype)
+    fabric = rng.integers(0, n_classes, n)
+    labels = {"fabric": fabric.astype(np.int32)}
+    labels.update({prop: (fabric % levels).astype(np.int32) for prop, levels in catalog.PROPERTY_LEVELS.items()})
     return {"inputs": inputs, "labels": labels}
 
 

@@ -55,20 +55,28 @@ class Feature:
     def step_bytes(
         self, frame_size: tuple[int, int], bandwidth_khz: float | None = None, rate: int = archive.AUDIO_RATE
     ) -> int:
-        """Bytes one step of this feature's array takes, by its dtype and shape (the module
-        docstring's table), for an archive of `frame_size` (H, W) frames; a PSD's bins are those a
-        study keeps of a microphone at `rate` Hz (`welch.n_bins` of `bandwidth_khz`; None: all),
-        so a plan can size the cache and the loaded sequences without restating the dtypes."""
+        """Bytes one step of this feature's array takes (`step_array`), so that a plan can size the
+        cache and the loaded sequences without restating the dtypes."""
+        shape, dtype = self.step_array(frame_size, bandwidth_khz, rate)
+        return math.prod(shape) * np.dtype(dtype).itemsize
+
+    def step_array(
+        self, frame_size: tuple[int, int], bandwidth_khz: float | None = None, rate: int = archive.AUDIO_RATE
+    ) -> tuple[tuple[int, ...], np.dtype]:
+        """(shape, dtype) of one step of this feature's array, by the module docstring's table, for
+        an archive of `frame_size` (H, W) frames; a PSD's bins are those a study keeps of a
+        microphone at `rate` Hz (`welch.n_bins` of `bandwidth_khz`; None: all). What a plan times a
+        row's training step on, before any data exists."""
         if self.name.startswith("psd_"):
             window = int(m[1]) if (m := re.search(r"_w(\d+)$", self.name)) else archive.WINDOW  # `_psd`'s names
             bins = welch.full_bins(window) if bandwidth_khz is None else welch.n_bins(bandwidth_khz, rate, window)
-            return 4 * bins  # float32
+            return (bins,), np.dtype(np.float32)
         if self.name == "proprio":
-            return 4 * archive.N_PROPRIO  # float32
+            return (archive.N_PROPRIO,), np.dtype(np.float32)
         if self.name.startswith("flow"):
-            return 2 * math.prod(flow.pooled_shape(*frame_size)) * 2  # float16, (2, h, w)
+            return (2, *flow.pooled_shape(*frame_size)), np.dtype(np.float16)
         size = self.params.get("size", frame_size)
-        return math.prod(size) * 3 * (2 if self.needs_reference else 1)  # uint8, int16 against a reference
+        return (*size, 3), np.dtype(np.int16 if self.needs_reference else np.uint8)  # int16 against a reference
 
 
 def mic_index(trial: archive.TrialArchive, role: str) -> int:

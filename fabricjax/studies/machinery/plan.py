@@ -7,15 +7,13 @@
                  bytes per step (the audio and joint features are small)
     sequences    what the rows' loaded sequences take, and whether they go to memory-mapped files
                  (`data.MEMORY_FRACTION`)
-    training     per row, seconds per training sequence, epoch and seed measured by the published
-                 run of `SAMPLE_RESULTS` (the paper preset on a sample of its data), times this
-                 run's sequences, epochs and seeds, plus that row's compilation; the host it was
-                 measured on is named, and rows it did not run are "unknown" until the run's own
-                 progress log gives their ETA
+    training     per row, its training step and validation minibatch compiled and timed on this
+                 host just now, on noise of the data's per-step shapes and dtypes, times its
+                 epochs, splits and grid points, plus its compilation; with its FLOPs per epoch
+                 and the share of this host's matmul peak its step reaches
 
 A paper-scale run takes hours on a laptop CPU: it says so before it starts, and how much disk
-it will use. The simulation and flow lines are measured on this host at the start; only training
-is measured elsewhere.
+it will use. Every line is measured on this host at the start, in a minute or two.
 """
 
 from __future__ import annotations
@@ -28,28 +26,25 @@ import tempfile
 import time
 import types
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import cv2
+from tqdm import tqdm
 
-from fabricjax import memo, presets
+from fabricjax import catalog, memo, presets
+from fabricjax.bench import program_timing
 from fabricjax.config import CAMERA_MODALITIES, RATE_NEUTRAL_FIELDS, Config
 from fabricjax.reporting import results_files
 from fabricjax.sequences import data
 from fabricjax.sim import dataset as sim_dataset
 from fabricjax.sim.trial import simulate
-from fabricjax.store import archive, provenance, splits, workspace
+from fabricjax.store import archive, splits, workspace
 from fabricjax.store.disk import size
 from fabricjax.store.splits import DatasetSpec
 from fabricjax.studies.machinery import documents, loading, recipe
 from fabricjax.training import feed
+from fabricjax.training.trainer import steps_per_epoch
 
-# The published run the training line is extrapolated from (`python -m experiments.ablation
-# --preset=paper_sample --seeds=5 --results=results/paper_sample`).
-SAMPLE_RESULTS = provenance.repository_root() / "results" / "paper_sample" / "ablation.json"
-# The manifest of the published `python -m experiments.reproduce --results=results`: each training
-# study's rate per row (`rates`), measured on the default preset.
-REPRODUCE_MANIFEST = provenance.repository_root() / "results" / "reproduce.json"
 PROBE_FRAMES = 16  # frames each camera feature is timed on (two of flow's chunks)
 PROBE_CYCLES = 2  # rubbing cycles of the probe's trial: its closing's share of the time stays small
 # Config fields a published row may differ in and still give this run's seconds per sequence, epoch
@@ -108,82 +103,55 @@ def _bytes_per_step(config: Config, image_size: tuple[int, int]) -> float:
     return float(sum(f.step_bytes(image_size, config.bandwidth_khz) for f in data.features_for(config).values()))
 
 
-def _published_rates() -> list[tuple[str, dict[str, dict[str, float]]]]:
-    """(where from, {rate key: rate}) of every published training run: each study of the
-    repository's `REPRODUCE_MANIFEST`, then the paper_sample run (`SAMPLE_RESULTS`)."""
+def training(
+    configs: Sequence[tuple[str, Config]],
+    n_seeds: int,
+    sizes: Mapping[str, int],
+    arrays: Mapping[str, tuple[tuple[int, ...], Any]],
+    time_row: Callable[..., program_timing.RowCost] | None = None,
+) -> list[Stage]:
+    """One stage per row, timed on this host now: the row's training step and validation
+    minibatch, compiled and run a few times on inputs of the data's per-step `arrays` ({modality:
+    (shape, dtype)}, `time_row`), times its epochs on `sizes` ({split: sequences}): its grid points
+    (`recipe.points`) x (its compilation + the cap of its epochs (`loading.epochs_for`) x (its
+    optimiser steps + a validation pass) + the last evaluation of every split but training's). With
+    early stopping a seed may end sooner: the cap is what the plan counts, and says. Each stage
+    also says its FLOPs per epoch (XLA's count) and the share of this host's matmul peak its step
+    reaches (`program_timing.matmul_peak`). Rows of the same config are timed once."""
+    time_row = time_row or program_timing.row_cost
+    n_train = sizes.get("train", 0)
+    costs: dict[str, program_timing.RowCost] = {}
+    keys = [json.dumps(c.to_json(), sort_keys=True) for _, c in configs]
+    distinct = {k: c for k, (_, c) in zip(keys, configs)}
+    with tqdm(total=len(distinct), desc="timing each row's training step on this host", unit="row", leave=False) as bar:
+        for key, config in distinct.items():
+            costs[key] = time_row(config, n_seeds, {m: arrays[m] for m in config.modalities})
+            bar.update(1)
+    peak = program_timing.matmul_peak(repeats=2)["gflop_per_s"] * 1e9 if configs else 0.0
     out = []
-    try:
-        manifest = json.loads(REPRODUCE_MANIFEST.read_text())
-        for study, entry in manifest.items():
-            # keys re-read under today's `RATE_NEUTRAL` (a key is the JSON of the fields it kept)
-            if entry.get("rates"):
-                keyed = {rate_key(json.loads(k)): v for k, v in entry["rates"].items()}
-                out.append(
-                    (
-                        f"{study} in {workspace.shown(REPRODUCE_MANIFEST)} "
-                        f"({entry.get('machine', 'host not recorded')}, {entry['finished']})",
-                        keyed,
-                    )
-                )
-    except (OSError, ValueError):
-        pass
-    try:
-        sample = json.loads(SAMPLE_RESULTS.read_text())
-        out.append(
-            (
-                f"{workspace.shown(SAMPLE_RESULTS)} ({sample['machine'].get('cpu')}, "
-                f"{sample['machine'].get('cores')} cores, {sample['date']})",
-                rates(sample),
-            )
-        )
-    except (OSError, ValueError, KeyError):
-        pass
-    return out
-
-
-def training(configs: Sequence[tuple[str, Config]], n_seeds: int, train_sequences: int) -> list[Stage]:
-    """One stage per row: its grid points (`recipe.points`) times its compilation and its epochs on
-    `train_sequences` times the published rate of a row with the same inputs and model (`rates`):
-    the cap of its epochs (`loading.epochs_for`), or with a patience the epochs the published run
-    of the row went through under the same cap (early stopping ends each run on its own data). A row no
-    published run matches is unknown until the run's own progress log gives its ETA."""
-    published = _published_rates()
-    out = []
-    for name, config in configs:
-        key = rate_key(config.to_json())
-        source, rate = next(((src, r[key]) for src, r in published if key in r), (None, None))
+    for key, (name, config) in zip(keys, configs):
+        cost = costs[key]
         points = recipe.points(config)
-        epochs = (
-            loading.epochs_for(config, config.train_steps, train_sequences) if config.train_steps else config.epochs
-        )
+        epochs = loading.epochs_for(config, config.train_steps, n_train) if config.train_steps else config.epochs
+        steps = steps_per_epoch(config.batch_size, max(n_train, 1))
+        batches = lambda n: -(-n // config.batch_size)  # noqa: E731 - evaluation runs whole minibatches
+        val = batches(sizes.get("val", 0))
+        at_end = sum(batches(n) for split, n in sizes.items() if split != "train")
+        per_epoch = steps * cost.s_per_step + val * cost.s_per_eval_batch
+        seconds = len(points) * (cost.compile_s + epochs * per_epoch + at_end * cost.s_per_eval_batch)
+        flops = steps * cost.flops_per_step + val * cost.flops_per_eval_batch
         grid = f"{len(points)} grid points x " if len(points) > 1 else ""
-        early = bool(config.patience or config.patience_steps)  # early stopping on: it may end sooner
-        if rate is None:
-            out.append(
-                Stage(
-                    f"training {name}",
-                    0,
-                    None,
-                    f"unknown before the run: no published run of these inputs and this model; {grid}at most "
-                    f"{epochs} epochs",
-                )
-            )
-            continue
-        # with early stopping, the epochs the published run of this row went through, where it ran to the same cap
-        same_cap = early and rate.get("epochs_run") and rate.get("epochs_cap") == epochs
-        expected = min(epochs, rate["epochs_run"]) if same_cap else epochs
-        seconds = len(points) * (rate["compile_s"] + rate["per_unit_s"] * train_sequences * expected * n_seeds)
-        ran = f"{expected:.3g} epochs as it ran when published (at most {epochs}) " if expected != epochs else ""
+        early = " (early stopping may end sooner)" if config.patience or config.patience_steps else ""
         out.append(
             Stage(
                 f"training {name}",
                 0,
                 seconds,
-                f"{grid}{ran or f'at most {epochs} epochs '}"
-                f"{'(early stopping ends sooner) ' if early and not ran else ''}"
-                f"of {train_sequences} sequences x "
-                f"{n_seeds} seeds at {1e6 * rate['per_unit_s']:.0f} us per sequence, epoch and seed",
-                source,
+                f"{grid}at most {epochs} epochs{early} of {n_train} sequences x {n_seeds} seeds: a step "
+                f"{1e3 * cost.s_per_step:.0f} ms, compiling {cost.compile_s:.0f} s; {flops / 1e9:.0f} GFLOP "
+                f"per epoch, the step at {100 * cost.flops_per_step / cost.s_per_step / peak:.0f} % of the "
+                "float32 matmul peak",
+                "each row's step, timed on this host just now",
             )
         )
     return out
@@ -257,11 +225,12 @@ def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, wor
     n = configs[0][1].seq_len
     per_trial = steps // n
     exclude = configs[0][1].exclude_fabrics
-    train_sequences = sum(  # the trials the data will place in the training split (`splits`, `data.split_of`)
-        per_trial
-        for meta, role in splits.dataset_roles(spec)
-        if role == "train" and data.split_of(meta, role, exclude) == "train"
-    )
+    sizes: dict[str, int] = {}  # the sequences each split will hold (`splits`, `data.split_of`)
+    classes = 1 + max(f for f in spec.fabrics if f not in catalog.NEW_FABRICS)  # `data.classes_of`'s on these trials
+    for meta, role in splits.dataset_roles(spec):
+        split = data.split_of({**meta, "label": archive.fabric_or_class(meta)}, role, exclude, classes)
+        if split is not None:
+            sizes[split] = sizes.get(split, 0) + per_trial
     per_sequence = n * _bytes_per_step(union, spec.image_size)
     loaded = len(scenes) * per_trial * per_sequence
     to_disk = loaded > memo.memory_budget(data.MEMORY_FRACTION)
@@ -284,7 +253,9 @@ def stages(preset: str, configs: Sequence[tuple[str, Config]], n_seeds: int, wor
             + (" (Minsight frames a second time, as training's rows)" if rows and not to_disk else ""),
         )
     )
-    return out + training(configs, n_seeds, train_sequences)
+    features = data.features_for(union)
+    arrays = {m: features[m].step_array(spec.image_size, union.bandwidth_khz) for m in union.modalities}
+    return out + training(configs, n_seeds, sizes, arrays)
 
 
 def markdown(preset: str, stages_: Sequence[Stage], n_rows: int, n_seeds: int, free_bytes: float) -> str:

@@ -147,7 +147,9 @@ def train_rows(
             check(ds)
         rows = [(name, ds.config_for(config)) for name, config in rows]  # the data's classes, step window and epochs
         if ds.recorded:  # what training will take, now that the data's size is known
-            stages = plan.training(rows, len(seeds), len(ds.sets["train"]))
+            train = ds.sets["train"].inputs
+            arrays = {m: (a.shape[2:], a.dtype) for m, a in train.items()}
+            stages = plan.training(rows, len(seeds), {k: len(v) for k, v in ds.sets.items()}, arrays)
             print(
                 plan.markdown(
                     f"{rows[0][1].preset} on recorded data", stages, len(rows), len(seeds), plan.free_disk(workdir)
