@@ -39,9 +39,10 @@ def plans_time_rows_at_a_fixed_cost(monkeypatch):
     compiles every row twice more: in tests, whose studies train tiny rows, a fixed cost stands in.
     tests/test_plan.py times the real programs of a row."""
     from fabricjax.bench import program_timing
+    from fabricjax.studies.machinery import plan
 
     cost = program_timing.RowCost(
         s_per_step=0.01, s_per_eval_batch=0.003, flops_per_step=1e8, flops_per_eval_batch=3e7, compile_s=1.0
     )
     monkeypatch.setattr(program_timing, "row_cost", lambda config, n_seeds, arrays, **kw: cost)
-    monkeypatch.setattr(program_timing, "matmul_peak", lambda **kw: {"gflop_per_s": 100.0})
+    monkeypatch.setattr(plan, "host_peak_flops", lambda: 100e9)

@@ -90,7 +90,8 @@ def test_resume_after_a_kill_reaches_the_uninterrupted_result(uninterrupted, tmp
     assert saved == [2, 4]  # continued from epoch 2, did not start over
     # seed 0's best epoch came before the resume, so `finish` evaluates its validation set again
     # (`train.BestEpochValidation`); seed 7's is among the resumed epochs
-    assert full.metrics["best_epoch"].tolist() == [0, 3]
+    first, second = full.metrics["best_epoch"].tolist()
+    assert first < 2 <= second  # epochs 0-1 ran before the kill, 2-3 after the resume
     # the per-epoch curves: the killed process's epochs from its checkpoint, every epoch's value
     # the uninterrupted run's (wall times are each process's own)
     outcome = lambda m: {k: v for k, v in m.items() if k not in ("epochs", "time")}  # noqa: E731

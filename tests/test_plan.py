@@ -1,7 +1,6 @@
 """The plan a study prints before it starts (fabricjax/studies/machinery/plan.py)."""
 
 import dataclasses
-import json
 
 import numpy as np
 import pytest
@@ -44,7 +43,7 @@ COST = program_timing.RowCost(
 def timed(monkeypatch):
     """Every row's step timed at `COST`, against a matmul peak of 200 GFLOP/s; records what was timed."""
     calls = []
-    monkeypatch.setattr(program_timing, "matmul_peak", lambda **kw: {"gflop_per_s": 200.0})
+    monkeypatch.setattr(plan, "host_peak_flops", lambda: 200e9)
 
     def time_row(config, n_seeds, arrays):
         calls.append((config, n_seeds, arrays))

@@ -176,9 +176,7 @@ def row_cost(
     `Trainer.predict`), compiled once each; XLA counts a loop's body once, so the compiled epoch's
     and prediction's FLOPs are one step's and one minibatch's."""
     n = config.batch_size * steps
-    data = synthetic.shaped(
-        {m: arrays[m] for m in config.modalities}, n, config.seq_len, n_classes=config.n_classes
-    )
+    data = synthetic.shaped({m: arrays[m] for m in config.modalities}, n, config.seq_len, n_classes=config.n_classes)
     t0 = time.perf_counter()
     epoch, states, train, trainer = _epoch_program_on(config, n_seeds, data)
     compiled = epoch.lower(states, train).compile()

@@ -19,6 +19,7 @@ it will use. Every line is measured on this host at the start, in a minute or tw
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import os
 import shutil
@@ -127,7 +128,7 @@ def training(
         for key, config in distinct.items():
             costs[key] = time_row(config, n_seeds, {m: arrays[m] for m in config.modalities})
             bar.update(1)
-    peak = program_timing.matmul_peak(repeats=2)["gflop_per_s"] * 1e9 if configs else 0.0
+    peak = host_peak_flops() if configs else 0.0
     out = []
     for key, (name, config) in zip(keys, configs):
         cost = costs[key]
@@ -155,6 +156,13 @@ def training(
             )
         )
     return out
+
+
+@functools.cache
+def host_peak_flops() -> float:
+    """This host's practical float32 matmul peak [FLOP/s] over its devices (`program_timing.matmul_peak`),
+    measured once per process."""
+    return program_timing.matmul_peak(repeats=2)["gflop_per_s"] * 1e9
 
 
 def rate_key(config: dict[str, Any]) -> str:
