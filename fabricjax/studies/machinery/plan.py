@@ -13,7 +13,7 @@
                  and the share of this host's matmul peak its step reaches
 
 A paper-scale run takes hours on a laptop CPU: it says so before it starts, and how much disk
-it will use. Every line is measured on this host at the start, in a minute or two.
+it will use. Every line is measured on this host at the start.
 """
 
 from __future__ import annotations
@@ -27,12 +27,12 @@ import tempfile
 import time
 import types
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import cv2
 from tqdm import tqdm
 
-from fabricjax import catalog, memo, presets
+from fabricjax import catalog, host_arrays, memo, presets
 from fabricjax.bench import program_timing
 from fabricjax.config import CAMERA_MODALITIES, RATE_NEUTRAL_FIELDS, Config
 from fabricjax.reporting import results_files
@@ -109,24 +109,22 @@ def training(
     n_seeds: int,
     sizes: Mapping[str, int],
     arrays: Mapping[str, tuple[tuple[int, ...], Any]],
-    time_row: Callable[..., program_timing.RowCost] | None = None,
 ) -> list[Stage]:
     """One stage per row, timed on this host now: the row's training step and validation
     minibatch, compiled and run a few times on inputs of the data's per-step `arrays` ({modality:
-    (shape, dtype)}, `time_row`), times its epochs on `sizes` ({split: sequences}): its grid points
+    (shape, dtype)}, `program_timing.row_cost`), times its epochs on `sizes` ({split: sequences}): its grid points
     (`recipe.points`) x (its compilation + the cap of its epochs (`loading.epochs_for`) x (its
     optimiser steps + a validation pass) + the last evaluation of every split but training's). With
     early stopping a seed may end sooner: the cap is what the plan counts, and says. Each stage
     also says its FLOPs per epoch (XLA's count) and the share of this host's matmul peak its step
     reaches (`program_timing.matmul_peak`). Rows of the same config are timed once."""
-    time_row = time_row or program_timing.row_cost
     n_train = sizes.get("train", 0)
     costs: dict[str, program_timing.RowCost] = {}
     keys = [json.dumps(c.to_json(), sort_keys=True) for _, c in configs]
     distinct = {k: c for k, (_, c) in zip(keys, configs)}
     with tqdm(total=len(distinct), desc="timing each row's training step on this host", unit="row", leave=False) as bar:
         for key, config in distinct.items():
-            costs[key] = time_row(config, n_seeds, {m: arrays[m] for m in config.modalities})
+            costs[key] = program_timing.row_cost(config, n_seeds, {m: arrays[m] for m in config.modalities})
             bar.update(1)
     peak = host_peak_flops() if configs else 0.0
     out = []
@@ -135,7 +133,7 @@ def training(
         points = recipe.points(config)
         epochs = loading.epochs_for(config, config.train_steps, n_train) if config.train_steps else config.epochs
         steps = steps_per_epoch(config.batch_size, max(n_train, 1))
-        batches = lambda n: -(-n // config.batch_size)  # noqa: E731 - evaluation runs whole minibatches
+        batches = lambda n: host_arrays.whole_minibatches(n, config.batch_size) // config.batch_size  # noqa: E731
         val = batches(sizes.get("val", 0))
         at_end = sum(batches(n) for split, n in sizes.items() if split != "train")
         per_epoch = steps * cost.s_per_step + val * cost.s_per_eval_batch
