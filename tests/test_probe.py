@@ -19,8 +19,11 @@ SPLIT_SEEDS = {"train": 1, "val": 2, "test": 3}
 
 def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
     paper = [r.name for r in ablation.ROWS if not r.name.startswith(("tcn:", ablation.STEP_LAYERNORM))]
-    # then every input set with the image again, its frames read against their session's reference
-    assert [r.name for r in probe.ROWS] == paper + [probing.SESSION + n for n in paper if "image" in n.split("+")]
+    # then every input set with the image again, its frames read against their session's reference,
+    # and the image alone once more, its training frames rotated as the paper's training rotates them
+    assert [r.name for r in probe.ROWS] == paper + [probing.SESSION + n for n in paper if "image" in n.split("+")] + [
+        probing.ROTATED + "image"
+    ]
     rows = [
         {
             "modalities": list(p.modalities),
@@ -36,6 +39,42 @@ def test_rows_are_the_ablations_distinct_input_sets_in_its_order():
             assert p is not None and probing.reading(p.get("image_reference")) == (
                 probing.reading(reference) if "image" in r.modalities else "frame"
             )
+
+
+def test_a_row_trained_rotated_is_set_beside_the_rotated_probe_where_there_is_one():
+    rows = [
+        {"modalities": ["image"], "image_reference": "session"},
+        {"modalities": ["image"], "image_reference": "session", "rotated": True},
+        {"modalities": ["image", "internal"], "image_reference": "session"},
+    ]
+    assert probing.row_for(["image"], rows, "session") is rows[0]
+    assert probing.row_for(["image"], rows, "session", rotated=True) is rows[1]
+    assert probing.row_for(["internal", "image"], rows, "session", rotated=True) is rows[2]  # no rotated probe
+
+
+def test_rotated_summaries_turn_each_sequence_by_one_angle_for_all_its_frames(monkeypatch):
+    monkeypatch.setattr(linear_probe, "SUMMARY_CHUNK", 3)  # several chunks and a partial last one
+    rng = np.random.default_rng(0)
+    h, w = 12, 16
+    yy, xx = np.mgrid[:h, :w]
+    disc = ((yy - (h - 1) / 2) ** 2 + (xx - (w - 1) / 2) ** 2 <= 4**2).astype(np.int16)
+    # a centred disc whose brightness changes from frame to frame, plus a bar off the centre
+    frames = np.zeros((7, 5, h, w, 3), np.int16)
+    frames += (disc[None, None, :, :, None] * rng.integers(50, 100, (7, 5, 1, 1, 1))).astype(np.int16)
+    frames[:, :, 1:3, 1:5] = 80
+    got = linear_probe.summarise_rotated(frames, draws=2)
+    plain = linear_probe.summarise(frames)
+    assert got.shape == (14, plain.shape[1]) and got.dtype == np.float32
+    d = h * w * 3
+    core = ((yy - (h - 1) / 2) ** 2 + (xx - (w - 1) / 2) ** 2 <= 2.5**2).reshape(-1, 1) * np.ones(3)
+    core = np.tile(core.reshape(-1).astype(bool), 2)
+    for draw in range(2):  # the disc's core is where it was, whatever the angle; the bar has moved
+        np.testing.assert_allclose(got[draw * 7 : (draw + 1) * 7][:, core], plain[:, core], rtol=1e-4, atol=1e-3)
+    bar = np.zeros((h, w, 3), bool)
+    bar[1:3, 1:5] = True
+    moved = np.abs(got[:, :d][:, bar.reshape(-1)] - np.tile(plain[:, :d][:, bar.reshape(-1)], (2, 1))).max(axis=1)
+    assert (moved > 1).mean() > 0.8  # almost every draw moves the bar
+    assert not np.allclose(got[:7], got[7:])  # the two draws' angles differ
 
 
 def test_summaries_are_the_mean_and_sd_over_steps_of_every_dimension(monkeypatch):

@@ -138,6 +138,15 @@ def bilinear_taps(degrees: jax.Array, h: int, w: int, pixels: np.ndarray) -> tup
     return jnp.stack(sources), jnp.stack(weights)
 
 
+def rotate_frames(frames: jax.Array, degrees: jax.Array) -> jax.Array:
+    """(N, H, W, C) frames of one sequence, all turned by `degrees` as the training augmentation
+    turns them (`rotate_rows` on every pixel): (N, H, W, C) float32. What the linear probe reads
+    of rotated frames goes through the model's own rotation path."""
+    n, h, w, c = frames.shape
+    rows = rotate_rows(to_rows(frames), degrees, h, w, np.arange(h * w, dtype=np.int32))
+    return jnp.moveaxis(rows, -1, 0).reshape(n, h, w, c)
+
+
 def rotate_rows(rows: jax.Array, degrees: jax.Array, h: int, w: int, pixels: np.ndarray) -> jax.Array:
     """`pixels` of a sequence turned by `degrees`, from its rows (`to_rows`: (H*W, ...) float):
     (len(pixels), ...) float32, the four corners' rows summed with their bilinear weights

@@ -16,6 +16,8 @@ import time
 import warnings
 from typing import Any, Mapping, Sequence
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 from absl import logging
 from sklearn.decomposition import PCA
@@ -24,6 +26,7 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.preprocessing import StandardScaler
 from threadpoolctl import threadpool_limits
 
+from fabricjax.features import images
 from fabricjax.studies.machinery import loading
 
 C_GRID = (0.001, 0.01, 0.1, 1.0, 10.0)  # inverse L2 strength, chosen by validation accuracy
@@ -34,6 +37,11 @@ MAX_ITER = 1000  # lbfgs iterations per C (warm-started from the previous C); re
 # the cores with the rest of the process.
 BLAS_THREADS = 1
 SUMMARY_CHUNK = 256  # sequences converted to float32 at a time (a default-preset image chunk: 184 MB)
+# Angles drawn per training sequence where the probe reads frames rotated as training rotates them
+# (`summarise_rotated`): the model sees a new angle every epoch; a few draws stand for that spread
+# at a few times the summaries' memory.
+ROTATION_DRAWS = 4
+ROTATION_SEED = 0  # the rotated probe's angles: fixed, so that the probe stays deterministic
 
 
 def summarise(x: np.ndarray) -> np.ndarray:
@@ -47,6 +55,24 @@ def summarise(x: np.ndarray) -> np.ndarray:
         part = flat[i : i + SUMMARY_CHUNK].astype(np.float32)
         out[i : i + SUMMARY_CHUNK, :d] = part.mean(axis=1)
         out[i : i + SUMMARY_CHUNK, d:] = part.std(axis=1)
+    return out
+
+
+def summarise_rotated(frames: np.ndarray, draws: int = ROTATION_DRAWS, seed: int = ROTATION_SEED) -> np.ndarray:
+    """(S, N, H, W, C) frames -> (draws * S, 2 D) float32 summaries (`summarise`) of every
+    sequence turned by `draws` angles, draw-major: one angle per sequence and draw, uniform in
+    +-`images.MAX_DEGREES` and the same for all its frames, applied by the model's rotation path
+    (`images.rotate_frames`, 0 filling what the turn brings in). Rotated a chunk at a time, so the
+    float32 frames are never held whole."""
+    s, d = len(frames), int(np.prod(frames.shape[2:]))
+    turn = jax.jit(jax.vmap(images.rotate_frames))
+    out = np.empty((draws * s, 2 * d), np.float32)
+    for draw in range(draws):
+        key = jax.random.fold_in(jax.random.key(seed), draw)
+        degrees = np.asarray(images.random_angles(key, s))
+        for i in range(0, s, SUMMARY_CHUNK):
+            part = np.asarray(turn(jnp.asarray(frames[i : i + SUMMARY_CHUNK]), degrees[i : i + SUMMARY_CHUNK]))
+            out[draw * s + i : draw * s + i + len(part)] = summarise(part)
     return out
 
 
@@ -88,12 +114,14 @@ class Input:
         }
 
 
-def prepare(sequences: Mapping[str, np.ndarray]) -> Input:
-    """An input's sequences per split (`sequences["train"]` fits the scaling and the PCA) -> `Input`."""
+def prepare(sequences: Mapping[str, np.ndarray], rotated: bool = False) -> Input:
+    """An input's sequences per split (`sequences["train"]` fits the scaling and the PCA) -> `Input`.
+    `rotated` (frames only): the training split is read as `summarise_rotated` turns it,
+    `ROTATION_DRAWS` rows per sequence, the other splits unrotated, as the model is trained and scored."""
     t0 = time.perf_counter()
     train = sequences["train"]
     step_dims = int(np.prod(train.shape[2:]))
-    summaries = {s: summarise(x) for s, x in sequences.items()}
+    summaries = {s: summarise_rotated(x) if rotated and s == "train" else summarise(x) for s, x in sequences.items()}
     scaler = StandardScaler().fit(summaries["train"])
     features = {s: scaler.transform(v).astype(np.float32) for s, v in summaries.items()}
     explained = None

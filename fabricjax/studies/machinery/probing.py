@@ -14,6 +14,7 @@ import time
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+from absl import logging
 from threadpoolctl import threadpool_limits
 
 from fabricjax.sequences import data
@@ -26,8 +27,10 @@ from fabricjax.studies.machinery.linear_probe import (
     MAX_ITER,
     PCA_ABOVE,
     PCA_DIMS,
+    ROTATION_DRAWS,
     Input,
     fit,
+    prepare,
     prepare_inputs,
 )
 from fabricjax.studies.machinery.progress import Progress
@@ -38,6 +41,9 @@ SPLITS = (*loading.TRAIN_VAL_TEST, "cafe")  # the ablation's, and the cafe condi
 
 
 SESSION = "session:"  # the name prefix of a probe that reads frames minus their session's reference
+# ... and of the probe that also reads the training frames rotated as the paper's training rotates
+# them (`linear_probe.summarise_rotated`): what the augmentation leaves of the fabric
+ROTATED = "rotated:"
 
 
 def _rows() -> tuple[RowSpec, ...]:
@@ -62,7 +68,13 @@ def _rows() -> tuple[RowSpec, ...]:
                 f"{label}, frames − session reference",
             )
         )
-    return (*seen.values(), *session)
+    image = ablation_rows.label(("image",), "attention")
+    rotated = RowSpec(
+        ROTATED + "image",
+        {"modalities": ("image",), "image_reference": "session"},
+        f"{image}, frames − session reference, rotated as in training",
+    )
+    return (*seen.values(), *session, rotated)
 
 
 ROWS = _rows()
@@ -75,14 +87,19 @@ def reading(image_reference: str | None) -> str:
 
 
 def row_for(
-    modalities: Sequence[str], rows: Sequence[Mapping[str, Any]], image_reference: str | None = None
+    modalities: Sequence[str],
+    rows: Sequence[Mapping[str, Any]],
+    image_reference: str | None = None,
+    rotated: bool = False,
 ) -> Mapping[str, Any] | None:
     """The probe row (as JSON) that reads exactly `modalities`, in any order, with the image (if
-    any) read as `image_reference` reads it (`reading`); None if not probed."""
+    any) read as `image_reference` reads it (`reading`); None if not probed. `rotated` (a row
+    trained under the rotation augmentation): the probe of rotated frames where one was probed
+    for these inputs, else the unrotated one."""
     want = reading(image_reference) if "image" in modalities else "frame"
-    return next(
-        (r for r in rows if set(r["modalities"]) == set(modalities) and reading(r.get("image_reference")) == want), None
-    )
+    same = [r for r in rows if set(r["modalities"]) == set(modalities) and reading(r.get("image_reference")) == want]
+    turned = [r for r in same if r.get("rotated")] if rotated and "image" in modalities else []
+    return next(iter(turned or [r for r in same if not r.get("rotated")]), None)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,6 +144,13 @@ def measure(
         key: prepare_inputs(d.sets, loading.union_modalities([c for c, e in zip(configs, datasets) if e is d]), present)
         for key, (d, _) in loads.items()
     }
+    for r, d in zip(chosen, datasets):
+        if r.name.startswith(ROTATED):
+            with threadpool_limits(BLAS_THREADS):
+                inputs[id(d)][ROTATED + "image"] = prepare(
+                    {s: d.sets[s].inputs["image"] for s in present}, rotated=True
+                )
+            logging.info("probe: rotated %s", inputs[id(d)][ROTATED + "image"].describe("image"))
     with threadpool_limits(BLAS_THREADS):
         progress = Progress("probe", len(chosen))
         names = ds.sets["train"].names if ds.recorded else {}  # recorded data: its own names for its streams
@@ -144,6 +168,7 @@ def measure(
             "c_grid": list(C_GRID),
             "solver": "lbfgs",
             "max_iter": MAX_ITER,
+            **({"rotation_draws": ROTATION_DRAWS} if any(r.name.startswith(ROTATED) for r in chosen) else {}),
         },
         splits=tuple(present),
         classes=tuple(sorted(np.unique(labels["train"]).tolist())),
@@ -162,10 +187,13 @@ def _inputs_doc(inputs: Mapping[str, Input], config, names: Mapping[str, str]) -
     its session's reference as "session:image"."""
     out = {}
     for m, i in inputs.items():
-        session = m == "image" and config.image_reference == "session"
+        rotated, base = m.startswith(ROTATED), m.removeprefix(ROTATED)
+        session = base == "image" and config.image_reference == "session" and not rotated
         out[SESSION + m if session else m] = {
             **i.to_json(),
-            "display_name": data.inputs_name((m,), names) + (" − session reference" if session else ""),
+            "display_name": data.inputs_name((base,), names)
+            + (" − session reference" if session or rotated else "")
+            + (f", training frames rotated ({ROTATION_DRAWS} angles each)" if rotated else ""),
         }
     return out
 
@@ -182,9 +210,15 @@ def _probe_row(
     """Row `r`'s probe on its inputs' features, concatenated, as the JSON row; `names`: the data's
     names for its streams (recorded data), else the paper's."""
     name = ablation_rows.label(r.modalities, "attention", names=names) if names else r.label
+    rotated = r.name.startswith(ROTATED)
     progress.start(name)
     t0 = time.perf_counter()
-    features = {s: np.concatenate([inputs[m].features[s] for m in r.modalities], axis=1) for s in splits}
+    features = {
+        s: np.concatenate([inputs[ROTATED + m if rotated else m].features[s] for m in r.modalities], axis=1)
+        for s in splits
+    }
+    if rotated:  # every training sequence once per angle drawn
+        labels = {**labels, "train": np.tile(labels["train"], ROTATION_DRAWS)}
     result = fit(features, labels)
     seconds = time.perf_counter() - t0
     progress.finish(name, seconds, f"C={result['C']:g}, test {100 * result['accuracy'].get('test', np.nan):.1f} %")
@@ -193,6 +227,7 @@ def _probe_row(
         "modalities": list(r.modalities),
         "display_name": name,
         **({"image_reference": config.image_reference} if "image" in r.modalities else {}),
+        **({"rotated": True, "rotation_draws": ROTATION_DRAWS} if rotated else {}),
         "probe_dims": int(features["train"].shape[1]),
         "wall_s": seconds,
         **result,

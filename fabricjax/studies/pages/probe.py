@@ -88,7 +88,15 @@ def markdown(doc: Mapping[str, Any]) -> str:
             f"validation accuracy. "
             f"Chance: {100 / len(result.classes):.2f} % ({len(result.classes)} classes in the training split). "
             "One probe per distinct set of inputs of the modality ablation; REPORT.md sets it beside the "
-            "ablation's rows.",
+            "ablation's rows."
+            + (
+                f" The rotated probe is fitted on {m['rotation_draws']} rotations of every training sequence "
+                "(one angle per sequence and draw, uniform in ±90°, the same for all its frames, through the "
+                "model's rotation path, 0 filling what the turn brings in); it chooses C and is scored on the "
+                "other splits' frames unrotated, as the image row trained under the rotation is."
+                if "rotation_draws" in m
+                else ""
+            ),
             "",
             table(result),
             inputs_table(result),
@@ -102,7 +110,12 @@ def beside_ablation(probe_doc: Mapping[str, Any], ablation_doc: Mapping[str, Any
     their probe, and a warning when the two ran on different data."""
     body, reached = [], 0
     for r in ablation_doc["rows"]:
-        p = row_for(r["modalities"], probe_doc["rows"], r.get("config", {}).get("image_reference"))
+        p = row_for(
+            r["modalities"],
+            probe_doc["rows"],
+            r.get("config", {}).get("image_reference"),
+            rotated=r.get("config", {}).get("augment_rotation", False),
+        )
         test = 100 * np.asarray(r["accuracy"]["test"]["fabric"], np.float64)
         mean, sd = stats.mean_sd(test)
         probe_test = None if p is None or p["accuracy"].get("test") is None else 100 * p["accuracy"]["test"]

@@ -39,7 +39,12 @@ def headline(
     for r in abl["rows"]:
         if not recorded and r.get("fusion_norm", "sequence_minmax") != "sequence_minmax":
             continue  # our fusion variants: in REPORT.md, not the headline
-        p = probing.row_for(r["modalities"], probe_rows, r.get("config", {}).get("image_reference"))
+        p = probing.row_for(
+            r["modalities"],
+            probe_rows,
+            r.get("config", {}).get("image_reference"),
+            rotated=r.get("config", {}).get("augment_rotation", False),
+        )
         probe_test = None if p is None or p["accuracy"].get("test") is None else 100 * p["accuracy"]["test"]
         rows.append(
             {
