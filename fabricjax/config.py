@@ -71,6 +71,15 @@ IMAGE_REFERENCES = ("none", "training_mean", "session")
 # as the linear probe standardises each of its dimensions: the contact patch's few pixels then weigh
 # no more than the quiet rest of the wall.
 IMAGE_STANDARDISATIONS = ("channel", "pixel")
+# How the paper's rotation (features/images.py) samples a turned frame, which the paper does not say:
+# bilinear interpolation between the four nearest source pixels, or the nearest source pixel alone
+# (which keeps each pixel's value whole instead of blending a contact's few pixels with their
+# neighbours).
+ROTATION_INTERPOLATIONS = ("bilinear", "nearest")
+# What the rotation brings in where a turned frame's source lies outside the frame, also unsaid by the
+# paper: the training split's mean input (the standardised input's 0), or the input's own 0 before
+# standardisation, which under `image_reference="session"` is the session's no-contact frame.
+ROTATION_FILLS = ("mean", "no_contact")
 # The dtype of the model's matrix-product and convolution inputs (`model.dense`): products
 # accumulate in float32, and parameters, optimiser state, LayerNorms, softmax, the [0, 1] rescale,
 # the loss and every statistic stay float32 whatever it is. bfloat16 runs on the bfloat16 dot
@@ -100,6 +109,8 @@ _CHOICES = {
     "flow_method": FLOW_METHODS,
     "image_reference": IMAGE_REFERENCES,
     "image_standardisation": IMAGE_STANDARDISATIONS,
+    "rotation_interpolation": ROTATION_INTERPOLATIONS,
+    "rotation_fill": ROTATION_FILLS,
     "input_source": INPUT_SOURCES,
     "compute_dtype": COMPUTE_DTYPES,
     "image_resolution": IMAGE_RESOLUTIONS,
@@ -203,6 +214,8 @@ class Config:
     weight_decay: float = _field(1e-4, RESULT, rate_neutral=True)
     # the paper's image augmentation (features/images.py), applied to the model's input
     augment_rotation: bool = _field(True, RESULT)
+    rotation_interpolation: str = _field("bilinear", RESULT)  # ROTATION_INTERPOLATIONS
+    rotation_fill: str = _field("mean", RESULT)  # ROTATION_FILLS
     # IMAGE_REFERENCES; chosen by measurement (docs/usage.md, "Can the model read each input?"). It decides the
     # features ("session" is its own) and the model (the others subtract in `model.FabricNet.standardise`).
     image_reference: str = _field("session", FEATURES, load=8)

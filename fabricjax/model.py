@@ -390,6 +390,7 @@ class FabricNet(nnx.Module):
                 setattr(self, f"{m}_shift", nnx.Param(jnp.zeros(shift_shape(config, m, shapes[m]), jnp.float32)))
                 setattr(self, f"{m}_scale", nnx.Param(jnp.ones(scale_shape(config, m, shapes[m]), jnp.float32)))
         self.rotate_images = "image" in self.modalities and config.augment_rotation
+        self.rotation_interpolation, self.rotation_fill = config.rotation_interpolation, config.rotation_fill
         self.image = (
             ConvEncoder(3, cnn, dtype=dtype, rngs=rngs, pool=config.image_pool) if "image" in self.modalities else None
         )
@@ -472,7 +473,11 @@ class FabricNet(nnx.Module):
         rows = (rows.astype(jnp.float32) - reference) * scale
         if self.rotate_images and rngs is not None:
             degrees = images.random_angles(rngs.augment(), b)
-            rows = jax.vmap(lambda r, d: images.rotate_rows(r, d, h, w, pixels))(rows, degrees)
+            # the standardised value of the input's 0 (`config.rotation_fill`), at each output pixel
+            fill = (-reference * scale)[pixels] if self.rotation_fill == "no_contact" else 0.0
+            rows = jax.vmap(lambda r, d: images.rotate_rows(r, d, h, w, pixels, self.rotation_interpolation, fill))(
+                rows, degrees
+            )
         else:
             rows = rows[:, pixels]
         grid = (h // p, w // p)

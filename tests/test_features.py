@@ -164,17 +164,36 @@ def test_trial_flow_sees_motion_and_chunks_agree():
     assert np.abs(a[1:, 1]).sum() < 0.2 * np.abs(a[1:, 0]).sum()
 
 
-def _rotate_frames(frames, degrees):
+def _rotate_frames(frames, degrees, interpolation="bilinear", fill=0.0):
     """(N, H, W, C) frames turned by the library's rows rotation, back as frames."""
     n, h, w, c = frames.shape
-    rows = images.rotate_rows(images.to_rows(jnp.asarray(frames)), degrees, h, w, np.arange(h * w))
+    rows = images.rotate_rows(images.to_rows(jnp.asarray(frames)), degrees, h, w, np.arange(h * w), interpolation, fill)
     return np.asarray(jnp.moveaxis(rows, -1, 0).reshape(n, h, w, c))
 
 
-def test_rotation_geometry():
+@pytest.mark.parametrize("interpolation", ["bilinear", "nearest"])
+def test_rotation_geometry(interpolation):
     f = np.random.default_rng(0).integers(0, 255, (1, 9, 9, 1)).astype(np.float32)
-    np.testing.assert_allclose(_rotate_frames(f, 0.0), f)
-    np.testing.assert_allclose(_rotate_frames(f, 90.0), np.rot90(f, -1, axes=(1, 2)), atol=1e-3)
+    np.testing.assert_allclose(_rotate_frames(f, 0.0, interpolation), f)
+    np.testing.assert_allclose(_rotate_frames(f, 90.0, interpolation), np.rot90(f, -1, axes=(1, 2)), atol=1e-3)
+
+
+def test_nearest_rotation_keeps_every_value_whole():
+    f = np.random.default_rng(2).integers(0, 255, (2, 12, 16, 3)).astype(np.float32)
+    turned = _rotate_frames(f, 33.0, "nearest")
+    assert np.isin(turned, np.append(f, 0.0)).all()
+    assert not np.isin(_rotate_frames(f, 33.0), np.append(f, 0.0)).all()  # bilinear blends
+
+
+@pytest.mark.parametrize("interpolation", ["bilinear", "nearest"])
+def test_the_fill_is_what_the_turn_brings_in(interpolation):
+    """A frame of the fill value turns into itself at every angle, edges and corners included;
+    with the default fill (0) its corners go dark."""
+    c = np.array([1.5, -2.0, 0.25], np.float32)
+    f = np.broadcast_to(c, (2, 12, 16, 3)).astype(np.float32)
+    for degrees in (-90.0, -41.0, 17.0, 90.0):
+        np.testing.assert_allclose(_rotate_frames(f, degrees, interpolation, c[:, None]), f, atol=1e-5)
+    assert (_rotate_frames(f, 45.0, interpolation)[:, 0, 0] == 0).all()
 
 
 @pytest.mark.parametrize("hw", [(12, 16), (30, 40), (7, 5)])

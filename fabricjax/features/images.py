@@ -5,11 +5,13 @@ standard choice for shrinking, and what Minsight's own pipeline uses to resize),
 before caching. "full" rows use the archive's frames unchanged.
 
 The augmentation rotates every frame of a sequence by one angle drawn uniformly from
-[-90, 90] degrees, about the image centre, with bilinear interpolation; it is a pure function of
-a PRNG key, so it runs inside the training step. The model applies it to its own input, the frame
-minus the reference (`model.FabricNet.standardise`), where 0 means "no deformation": that is what
-a rotated frame shows where its source lies outside the frame. It works on a sequence's pixel
-rows (`to_rows`), the layout in which one angle per sequence is cheap to apply.
+[-90, 90] degrees, about the image centre, by bilinear or nearest-pixel interpolation
+(`Config.rotation_interpolation`); it is a pure function of a PRNG key, so it runs inside the
+training step. The model applies it to its own standardised input, the frame minus the reference
+(`model.FabricNet.image_features`); what the turn brings in from outside the frame is the training
+split's mean input or the input's 0, the no-contact frame under the session reference
+(`Config.rotation_fill`). It works on a sequence's pixel rows (`to_rows`), the layout in which one
+angle per sequence is cheap to apply.
 """
 
 from __future__ import annotations
@@ -114,11 +116,14 @@ def random_angles(key: jax.Array, n: int, max_degrees: float = MAX_DEGREES) -> j
     return jax.vmap(lambda k: jax.random.uniform(k, (), minval=-max_degrees, maxval=max_degrees))(keys)
 
 
-def bilinear_taps(degrees: jax.Array, h: int, w: int, pixels: np.ndarray) -> tuple[jax.Array, jax.Array]:
+def taps(
+    degrees: jax.Array, h: int, w: int, pixels: np.ndarray, interpolation: str = "bilinear"
+) -> tuple[jax.Array, jax.Array]:
     """The source pixels and weights of `pixels` (flat indices) of an (h, w) frame turned by
-    `degrees` about its centre: (4, P) int32 flat source indices and (4, P) float32 bilinear
-    weights, one per corner of the source cell. Positive degrees turn the picture clockwise as
-    displayed; a corner outside the frame has weight 0 (its index is clipped to the frame)."""
+    `degrees` about its centre: (K, P) int32 flat source indices and (K, P) float32 weights, K = 4
+    bilinear corners of the source cell, or K = 1, its nearest pixel (`interpolation`). Positive
+    degrees turn the picture clockwise as displayed; a source outside the frame has weight 0 (its
+    index is clipped to the frame)."""
     theta = jnp.deg2rad(degrees)
     cy, cx = (h - 1) / 2.0, (w - 1) / 2.0
     yy, xx = jnp.meshgrid(jnp.arange(h, dtype=jnp.float32) - cy, jnp.arange(w, dtype=jnp.float32) - cx, indexing="ij")
@@ -127,32 +132,49 @@ def bilinear_taps(degrees: jax.Array, h: int, w: int, pixels: np.ndarray) -> tup
     # inverse map: each output pixel samples the source at its position rotated by -theta
     sy = cos * yy - sin * xx + cy
     sx = sin * yy + cos * xx + cx
-    y0, x0 = jnp.floor(sy), jnp.floor(sx)
-    fy, fx = sy - y0, sx - x0
+    if interpolation == "nearest":
+        corners = ((jnp.round(sy), jnp.round(sx), jnp.ones_like(sy)),)
+    else:
+        y0, x0 = jnp.floor(sy), jnp.floor(sx)
+        fy, fx = sy - y0, sx - x0
+        corners = tuple(
+            (y0 + dy, x0 + dx, weight)
+            for dy, dx, weight in (
+                (0, 0, (1 - fy) * (1 - fx)),
+                (0, 1, (1 - fy) * fx),
+                (1, 0, fy * (1 - fx)),
+                (1, 1, fy * fx),
+            )
+        )
     sources, weights = [], []
-    for dy, dx, weight in ((0, 0, (1 - fy) * (1 - fx)), (0, 1, (1 - fy) * fx), (1, 0, fy * (1 - fx)), (1, 1, fy * fx)):
-        yi, xi = (y0 + dy).astype(jnp.int32), (x0 + dx).astype(jnp.int32)
+    for y, x, weight in corners:
+        yi, xi = y.astype(jnp.int32), x.astype(jnp.int32)
         inside = (yi >= 0) & (yi < h) & (xi >= 0) & (xi < w)
         sources.append(jnp.clip(yi, 0, h - 1) * w + jnp.clip(xi, 0, w - 1))
         weights.append(jnp.where(inside, weight, 0.0))
     return jnp.stack(sources), jnp.stack(weights)
 
 
-def rotate_frames(frames: jax.Array, degrees: jax.Array) -> jax.Array:
+def rotate_frames(frames: jax.Array, degrees: jax.Array, interpolation: str = "bilinear", fill=0.0) -> jax.Array:
     """(N, H, W, C) frames of one sequence, all turned by `degrees` as the training augmentation
     turns them (`rotate_rows` on every pixel): (N, H, W, C) float32. What the linear probe reads
     of rotated frames goes through the model's own rotation path."""
     n, h, w, c = frames.shape
-    rows = rotate_rows(to_rows(frames), degrees, h, w, np.arange(h * w, dtype=np.int32))
+    rows = rotate_rows(to_rows(frames), degrees, h, w, np.arange(h * w, dtype=np.int32), interpolation, fill)
     return jnp.moveaxis(rows, -1, 0).reshape(n, h, w, c)
 
 
-def rotate_rows(rows: jax.Array, degrees: jax.Array, h: int, w: int, pixels: np.ndarray) -> jax.Array:
+def rotate_rows(
+    rows: jax.Array, degrees: jax.Array, h: int, w: int, pixels: np.ndarray, interpolation: str = "bilinear", fill=0.0
+) -> jax.Array:
     """`pixels` of a sequence turned by `degrees`, from its rows (`to_rows`: (H*W, ...) float):
-    (len(pixels), ...) float32, the four corners' rows summed with their bilinear weights
-    (`bilinear_taps`); pixels whose source lies outside the frame are 0, blended bilinearly at its edge."""
-    sources, weights = bilinear_taps(degrees, h, w, pixels)
+    (len(pixels), ...) float32, the sources' rows summed with their weights (`taps`). What the turn
+    brings in from outside the frame is `fill` (a scalar, or one value per output pixel and colour
+    broadcast against the rows: (len(pixels), C, 1)), blended by the same weights at the frame's edge."""
+    sources, weights = taps(degrees, h, w, pixels, interpolation)
     out = jnp.zeros((len(pixels), *rows.shape[1:]), jnp.float32)
     for source, weight in zip(sources, weights):
         out = out + weight.reshape(-1, *[1] * (rows.ndim - 1)) * rows[source].astype(jnp.float32)
-    return out
+    if isinstance(fill, (int, float)) and fill == 0:
+        return out
+    return out + (1.0 - weights.sum(0)).reshape(-1, *[1] * (rows.ndim - 1)) * fill
