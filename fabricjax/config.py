@@ -50,6 +50,11 @@ FUSION_NORMS = ("sequence_minmax", "step_layernorm")
 # learn"): the grid for the Minsight image, the mean for optical flow.
 CNN_POOLS = ("mean", "grid")
 LR_SCHEDULES = ("constant", "cosine")
+# The nonlinearity between the classification head's two linear layers, which the paper does not name:
+# ReLU, or GELU, whose negative side keeps a gradient. The head reads each sequence's mean latent, which
+# under the paper's [0, 1] rescale varies little between sequences, so a ReLU unit is often off for
+# every sequence at once, and once all of them are the head answers the class prior for good.
+HEAD_ACTIVATIONS = ("relu", "gelu")
 # The two readings of the paper's flow filter, "filter for the top 0.1 percentile according to
 # magnitude" (fabricjax/features/flow.py): keep the strongest 0.1 % of vectors, or drop them.
 FLOW_SPARSIFY = ("keep_top", "drop_top")
@@ -105,6 +110,7 @@ _CHOICES = {
     "image_pool": CNN_POOLS,
     "flow_pool": CNN_POOLS,
     "lr_schedule": LR_SCHEDULES,
+    "head_activation": HEAD_ACTIVATIONS,
     "flow_sparsify": FLOW_SPARSIFY,
     "flow_method": FLOW_METHODS,
     "image_reference": IMAGE_REFERENCES,
@@ -185,6 +191,7 @@ class Config:
     flow_pool: str = _field("mean", RESULT)  # CNN_POOLS
     dropout: float = _field(0.1, RESULT, rate_neutral=True)
     fusion_norm: str = _field("sequence_minmax", RESULT, rate_neutral=True)  # FUSION_NORMS; the paper's is the default
+    head_activation: str = _field("relu", RESULT)  # HEAD_ACTIVATIONS
     fabric_head: bool = _field(True, RESULT)
     # the fabric head's classes: the dataset's label map (studies set it from the data)
     n_classes: int = _field(catalog.N_CLASSES, RESULT, rate_neutral=True)

@@ -420,6 +420,7 @@ class FabricNet(nnx.Module):
         self.blocks = nnx.List(blocks)
         self.norm = nnx.LayerNorm(width, rngs=rngs)
         self.hidden = dense(width, width, dtype=dtype, rngs=rngs)
+        self.head_activation = {"relu": jax.nn.relu, "gelu": jax.nn.gelu}[config.head_activation]
         self.heads = nnx.Dict({k: nnx.Linear(width, n, rngs=rngs) for k, n in head_sizes(config).items()})
         self.dropout = Dropout(config.dropout)
 
@@ -508,7 +509,7 @@ class FabricNet(nnx.Module):
     def __call__(self, inputs: Mapping[str, jax.Array], rngs: nnx.Rngs | None = None) -> dict[str, jax.Array]:
         """Logits per head (float32). Dropout and the image rotation are on exactly when `rngs` (streams
         "dropout" and "augment") is given: training."""
-        h = jax.nn.relu(self.hidden(self.latents(inputs, rngs).mean(axis=1)))
+        h = self.head_activation(self.hidden(self.latents(inputs, rngs).mean(axis=1)))
         h = self.dropout(h, deterministic=rngs is None, rngs=rngs)
         return {k: head(h).astype(jnp.float32) for k, head in self.heads.items()}
 

@@ -237,6 +237,9 @@ def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path, mon
     assert b["training"]["ours_5_seed"]["bfloat16"]["n_seeds"] == 5 and b["welch"]["speedup_vs_scipy"] > 0
     assert b["streaming"]["decided_steps"] > 0 and b["extraction"]["peak_rss_mb"] > 0
     assert b["import"]["trials"] == 20 and b["import"]["wall_s"] > 0
+    camera = b["camera"]["rows"]
+    rotation = camera["camera"]["s_per_step"] / camera["camera_unrotated"]["s_per_step"]
+    assert b["camera"]["rotation_ratio"] == pytest.approx(rotation) and "with the paper's rotation" in lines[-1]
     assert "missed_deadlines" in b["acquisition"] and b["simulator"]["realtime_factor"] > 0
     assert all(saved["matmul_peak"][d]["gflop_per_s"] > 0 for d in program_timing.DTYPES)
     for d in program_timing.DTYPES:

@@ -224,3 +224,19 @@ def test_bfloat16_compute_multiplies_in_bfloat16_and_accumulates_in_float32(back
     assert len(low) >= 0.75 * len(dots), dots
     logits = nnx.merge(graphdef, params)(inputs)
     assert all(v.dtype == jnp.float32 and np.isfinite(v).all() for v in logits.values())
+
+
+@pytest.mark.parametrize("activation", ["relu", "gelu"])
+def test_a_head_whose_units_are_all_off_passes_a_gradient_only_under_gelu(activation):
+    """The collapse of the paper's image row: every unit of the head's hidden layer off for every
+    sequence. Under ReLU nothing below the head learns again; GELU's negative side keeps a gradient."""
+    cfg = Config(modalities=("internal",), head_activation=activation, **TINY)
+    inputs = {"internal": jnp.asarray(np.random.default_rng(0).normal(size=(3, 10, 24)), jnp.float32)}
+    model = build(cfg, inputs)
+    model.hidden.bias[...] = jnp.full_like(model.hidden.bias[...], -3.0)
+    graphdef, params = nnx.split(model)
+    labels = jnp.array([0, 1, 2])
+    loss = lambda p: -jax.nn.log_softmax(nnx.merge(graphdef, p)(inputs)["fabric"])[jnp.arange(3), labels].mean()  # noqa: E731
+    grads = jax.grad(loss)(params)
+    below = np.abs(np.asarray(grads["embed"]["kernel"])).max()
+    assert (below > 1e-6) == (activation == "gelu"), below
