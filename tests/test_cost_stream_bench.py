@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from acquisition.simulated_signals import bench_acquisition
-from fabricjax import catalog, sim
-from fabricjax.bench import program_timing
+from fabricjax import catalog, presets, sim
+from fabricjax.bench import program_timing, sim_throughput
 from fabricjax.bench import suite as bench
 from fabricjax.config import Config
 from fabricjax.features import welch
@@ -240,6 +240,7 @@ def test_bench_runs_every_benchmark_and_writes_json(smoke_workdir, tmp_path, mon
     camera = b["camera"]["rows"]
     rotation = camera["camera"]["s_per_step"] / camera["camera_unrotated"]["s_per_step"]
     assert b["camera"]["rotation_ratio"] == pytest.approx(rotation) and "with the paper's rotation" in lines[-1]
+    assert set(b["frame_scale"]["sizes"]) == {"60x80", "77x103"} and "camera data at 77x103" in lines[-1]
     assert "missed_deadlines" in b["acquisition"] and b["simulator"]["realtime_factor"] > 0
     assert all(saved["matmul_peak"][d]["gflop_per_s"] > 0 for d in program_timing.DTYPES)
     for d in program_timing.DTYPES:
@@ -403,3 +404,14 @@ def test_bench_and_studies_do_not_import_each_other():
                 else:
                     continue
                 assert not any(n == other or n.startswith(other + ".") for n in names), (path, names)
+
+
+def test_the_frame_scale_bench_scales_one_trial_to_the_preset():
+    """Frames at twice the side hold four times the bytes; the preset's time is its trials' on its cores."""
+    out = sim_throughput.bench_frame_scale("smoke", sizes=((16, 20), (32, 40)), cycles=1, cores=2)
+    small, big = out["sizes"]["16x20"], out["sizes"]["32x40"]
+    assert big["frame_mb_per_trial"] == pytest.approx(4 * small["frame_mb_per_trial"])
+    assert out["trials"] == len(presets.get("smoke").dataset.trials()) and out["frames_per_trial"] > 0
+    for v in (small, big):
+        per_trial = v["render_s_per_trial"] + v["flow_s_per_trial"]
+        assert v["flow_s_per_trial"] > 0 and v["preset_s"] == pytest.approx(per_trial * out["trials"] / 2)

@@ -72,6 +72,7 @@ BENCHMARKS = (
     "welch",
     "extraction",
     "flow",
+    "frame_scale",
     "input",
     "training",
     "camera",
@@ -141,6 +142,14 @@ def _torch_twin():
 
 def bench_simulator(quick: bool) -> dict:
     return sim_throughput.bench_throughput(seconds=5.0 if quick else 30.0)
+
+
+def bench_frame_scale(quick: bool) -> dict:
+    """The default preset's camera data, rendered and turned into flow, at its 60x80 frames and at the
+    paper's 308x410 (--quick: the smoke preset's 77x103 in its place)."""
+    spec = presets.get("default").dataset
+    big = presets.get("smoke").dataset.image_size if quick else archive.MINSIGHT_SIZE
+    return sim_throughput.bench_frame_scale("default", sizes=(spec.image_size, big), cycles=1 if quick else 5)
 
 
 def bench_welch(quick: bool) -> dict:
@@ -394,6 +403,7 @@ def run(
         "welch": lambda: bench_welch(quick),
         "extraction": lambda: bench_extraction(quick, where.workdir),
         "flow": lambda: timing.bench_flow(batch=4 if quick else 8, repeats=1 if quick else 3),
+        "frame_scale": lambda: bench_frame_scale(quick),
         "input": lambda: input_timing.bench_input(n_sequences=24 if quick else 96, steps=1 if quick else 3),
         "training": lambda: bench_training(quick, workload, comparison(), matmul_peak()),
         "camera": lambda: bench_camera(quick),
@@ -546,6 +556,19 @@ def markdown(doc: dict[str, Any]) -> str:
                     _ratio(v["jax_s"] / min(v["opencv_1_thread_s"], v["opencv_all_cores_s"])),
                 ]
             )
+    if "frame_scale" in b:
+        f = b["frame_scale"]
+        (small, s), (big, g) = f["sizes"].items()
+        rows.append(
+            [
+                f"the {f['preset']} preset's camera data at {big} against {small}: {f['trials']} trials of "
+                f"{f['frames_per_trial']} frames rendered and turned into optical flow, one trial per core on "
+                f"{f['cores']} cores",
+                _camera_data(g),
+                f"{small} {_camera_data(s)}",
+                _ratio(g["preset_s"] / s["preset_s"]),
+            ]
+        )
     if "input" in b:
         i = b["input"]
         src = i["sources"]
@@ -632,6 +655,12 @@ def _machine(xla: dict | None) -> list[str]:
         return ["", ""]
     shares = " / ".join(f"{100 * f:.0f} %" for f in xla["fraction_of_peak"].values())
     return [f"{xla['flops_per_step'] / 1e9:.3g}", f"{xla['gflop_per_s']:.3g} ({shares})"]
+
+
+def _camera_data(size: dict) -> str:
+    """A preset's camera data at one frame size: hours on its cores, and seconds per trial."""
+    per_trial = size["render_s_per_trial"] + size["flow_s_per_trial"]
+    return f"{size['preset_s'] / 3600:.2f} h ({per_trial:.0f} s per trial)"
 
 
 def _built(variant: dict) -> str:
